@@ -1,0 +1,21 @@
+"""User-facing errors.
+
+Every problem caused by the user's input (bad configuration, malformed recording,
+signal unusable for an estimate) raises :class:`StiffnetError` with a one-line
+message that names the problem. The CLI turns it into ``error: ...`` and exit
+code 2; the HTTP predictor into a 4xx JSON body. Anything else is a bug.
+"""
+
+from __future__ import annotations
+
+
+class StiffnetError(ValueError):
+    """Invalid input, with a one-line message meant for the user."""
+
+
+class ConfigError(StiffnetError):
+    """A configuration value is missing, unknown or out of range."""
+
+
+class SignalError(StiffnetError):
+    """A signal cannot be analysed (NaN/inf, constant, too short, no impacts...)."""
