@@ -1,0 +1,196 @@
+"""Benchmark stiffnet.nlts delay/dimension estimation against neurokit2 on Lorenz x.
+
+Lorenz-63 x component, RK4 with dt = 0.01 (tests/_lorenz.py), 20,000 samples.
+Both libraries run in this process, one after the other:
+
+* delay: auto-mutual information first minimum. Ours: 16 equal boxes as TISEAN
+  ``mutual``; neurokit2 ``complexity_delay(method="fraser1986")`` (its own
+  binning, see the notes printed at the end). Its 16-box estimator
+  (``mutual_information(method="nolitsa", bins=16)``) is also evaluated, untimed,
+  to compare the lag itself.
+* dimension 1..max_dim with the same delay (ours) for both: Cao's E1/E2
+  (neurokit2 ``method="afnn"``, a port of nolitsa's ``afn``) and false nearest
+  neighbours (``method="fnn"``, rtol 10, atol 2); Theiler window 10 as
+  neurokit2's default.
+
+Times are the best of ``--repeats`` wall-clock runs. The last line is
+``speedup_vs_peer: X`` with X = peer (delay + Cao + FNN) / ours.
+
+Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_embedding.py [--quick]``
+(neurokit2 is a benchmark-only dependency: ``pip install neurokit2``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from _lorenz import lorenz_x  # noqa: E402
+
+from stiffnet.nlts import (  # noqa: E402
+    cao_curves,
+    cao_dimension,
+    false_nearest_neighbours,
+    first_minimum,
+    first_prominent_minimum,
+    fnn_dimension,
+    mutual_information,
+)
+
+THEILER = 10  # neurokit2's default window
+RTOL, ATOL = 10.0, 2.0  # neurokit2's FNN defaults (R, A)
+
+
+def best_time(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
+    """Best wall-clock time of `repeats` calls and the last result."""
+    best, out = np.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def run_ours(x: np.ndarray, max_lag: int, max_dim: int, repeats: int) -> dict[str, Any]:
+    def delay():
+        ami = mutual_information(x, max_lag, bins=16)
+        return first_minimum(ami), ami
+
+    t_delay, (tau, ami) = best_time(delay, repeats)
+
+    def cao():
+        e1, e2 = cao_curves(x, tau, max_dim, theiler=THEILER)
+        return cao_dimension(e1), e1, e2
+
+    def fnn():
+        f = false_nearest_neighbours(x, tau, max_dim, rtol=RTOL, atol=ATOL, theiler=THEILER)
+        return fnn_dimension(f), f
+
+    t_cao, (m_cao, e1, e2) = best_time(cao, repeats)
+    t_fnn, (m_fnn, f) = best_time(fnn, repeats)
+    return {
+        "times": (t_delay, t_cao, t_fnn),
+        "tau": tau,
+        "tau_robust": first_prominent_minimum(ami),
+        "m_cao": m_cao,
+        "m_fnn": m_fnn,
+        "e1": e1,
+        "e2": e2,
+        "fnn": f,
+    }
+
+
+def run_peer(nk: Any, x: np.ndarray, tau: int, max_lag: int, max_dim: int, repeats: int):
+    t_delay, (tau_peer, _) = best_time(
+        lambda: nk.complexity_delay(x, delay_max=max_lag, method="fraser1986"), repeats
+    )
+    t_cao, (m_cao, info_cao) = best_time(
+        lambda: nk.complexity_dimension(
+            x, delay=tau, dimension_max=max_dim, method="afnn", window=THEILER
+        ),
+        repeats,
+    )
+    t_fnn, (m_fnn, info_fnn) = best_time(
+        lambda: nk.complexity_dimension(
+            x, delay=tau, dimension_max=max_dim, method="fnn", window=THEILER, R=RTOL, A=ATOL
+        ),
+        repeats,
+    )
+    # Same 16-box histogram estimator as ours, through neurokit2's API (not timed).
+    mi16 = [
+        nk.mutual_information(x[:-k], x[k:], method="nolitsa", bins=16)
+        for k in range(1, max_lag + 1)
+    ]
+    tau16 = first_minimum(np.r_[max(mi16) + 1.0, mi16])  # pad lag 0 so index = lag
+    return {
+        "times": (t_delay, t_cao, t_fnn),
+        "tau": int(tau_peer),
+        "tau16": tau16,
+        "m_cao": int(m_cao),
+        "m_fnn": int(m_fnn),
+        "e1": np.asarray(info_cao["E1"]),
+        "e2": np.asarray(info_cao["E2"]),
+        "fnn": np.asarray(info_fnn["f3"]),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="5,000 samples, one repeat")
+    parser.add_argument("--n", type=int, default=None, help="samples (default 20,000)")
+    parser.add_argument("--repeats", type=int, default=None, help="timing repeats (default 3)")
+    parser.add_argument("--max-dim", type=int, default=10)
+    parser.add_argument("--max-lag", type=int, default=100)
+    args = parser.parse_args(argv)
+    n = args.n or (5000 if args.quick else 20000)
+    repeats = args.repeats or (1 if args.quick else 3)
+
+    x = lorenz_x(n)
+    print(f"Lorenz x, dt=0.01, N={n}, dims 1..{args.max_dim}, Theiler {THEILER}, best of {repeats}")
+    ours = run_ours(x, args.max_lag, args.max_dim, repeats)
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import neurokit2 as nk
+    except ImportError:
+        nk = None
+        print("peer missing: neurokit2 is not installed (pip install neurokit2); ours only")
+    if nk is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # NeuroKitWarning chatter
+            peer = run_peer(nk, x, ours["tau"], args.max_lag, args.max_dim, repeats)
+        print(f"peer: neurokit2 {nk.__version__}")
+
+    rows = [
+        ("delay (AMI 1st min)", 0, f"tau={ours['tau']}", lambda p: f"tau={p['tau']}"),
+        ("dimension Cao", 1, f"m={ours['m_cao']}", lambda p: f"m={p['m_cao']}"),
+        ("dimension FNN", 2, f"m={ours['m_fnn']}", lambda p: f"m={p['m_fnn']}"),
+    ]
+    print()
+    print(f"{'step':<21}{'ours [s]':>10}{'peer [s]':>10}{'speedup':>9}   {'ours':<8}{'peer':<8}")
+    for name, i, ov, pv in rows:
+        to = ours["times"][i]
+        if nk is None:
+            print(f"{name:<21}{to:>10.4f}{'-':>10}{'-':>9}   {ov:<8}")
+            continue
+        tp = peer["times"][i]
+        print(f"{name:<21}{to:>10.4f}{tp:>10.4f}{tp / to:>8.1f}x   {ov:<8}{pv(peer):<8}")
+    total_o = sum(ours["times"])
+    if nk is None:
+        print(f"{'total':<21}{total_o:>10.4f}")
+        print("speedup_vs_peer: n/a (neurokit2 not installed)")
+        return 0
+    total_p = sum(peer["times"])
+    print(f"{'total':<21}{total_o:>10.4f}{total_p:>10.4f}{total_p / total_o:>8.1f}x")
+
+    np.set_printoptions(precision=4, linewidth=120)
+    print()
+    print(f"AMI first minimum, 16 boxes: ours {ours['tau']} (robust rule {ours['tau_robust']}),")
+    print(f"  neurokit2 16-box nolitsa estimator {peer['tau16']}, TISEAN mutual (reference) 17;")
+    print(f"  neurokit2 fraser1986 default {peer['tau']} (its bins, Gaussian-smoothed histogram)")
+    print(f"E1 ours  {ours['e1']}")
+    print(f"E1 peer  {peer['e1']}")
+    print(f"  max |dE1| = {np.nanmax(np.abs(ours['e1'] - peer['e1'])):.2e}")
+    print(f"E2 max |dE2| = {np.nanmax(np.abs(ours['e2'] - peer['e2'])):.2e}")
+    print(f"FNN ours {ours['fnn']}")
+    print(f"FNN peer {peer['fnn']}")
+    print(f"  max |dFNN| = {np.nanmax(np.abs(ours['fnn'] - peer['fnn'])):.2e}")
+    print(
+        f"Dimension: Cao ours {ours['m_cao']} / peer {peer['m_cao']}; FNN ours {ours['m_fnn']}"
+        f" / peer {peer['m_fnn']} (neurokit2's fnn returns an index: dimension - 1)"
+    )
+    print(f"speedup_vs_peer: {total_p / total_o:.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Library of physical effects the base impact oscillator lacks (see ``base``)."""

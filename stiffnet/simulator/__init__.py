@@ -1,0 +1,1 @@
+"""Impact-oscillator simulator (paper eqs 11-12) with pluggable physical effects."""

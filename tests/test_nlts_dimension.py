@@ -1,0 +1,107 @@
+"""Embedding dimension: false nearest neighbours and Cao's method (eq. 3)."""
+
+import numpy as np
+import pytest
+from _lorenz import lorenz_x
+from scipy.spatial.distance import cdist
+
+from stiffnet.errors import SignalError
+from stiffnet.nlts import (
+    cao_curves,
+    cao_dimension,
+    estimate_dimension,
+    false_nearest_neighbours,
+    fnn_dimension,
+)
+from stiffnet.nlts._neighbours import nearest_outside_window
+
+
+@pytest.fixture(scope="module")
+def lorenz():
+    return lorenz_x(5000)
+
+
+def test_cao_on_a_line_saturates_at_one_immediately():
+    # A ramp embeds on a straight line: neighbour distances never change with d.
+    e1, e2 = cao_curves(np.arange(2000.0), tau=1, max_dim=6)
+    np.testing.assert_allclose(e1, 1.0, atol=1e-9)
+    np.testing.assert_allclose(e2, 1.0, atol=1e-9)
+    assert cao_dimension(e1) == 1
+
+
+def test_cao_on_sine_gives_two():
+    t = np.arange(5000)
+    x = np.sin(2 * np.pi * t / (20 * np.pi))  # irrational period: no exact repeats
+    e1, _ = cao_curves(x, tau=16, max_dim=6)
+    assert e1[0] < 0.1  # 1-D: neighbours on the up and down swing are false
+    np.testing.assert_allclose(e1[1:], 1.0, atol=0.01)
+    assert cao_dimension(e1) == 2
+
+
+def test_cao_exactly_periodic_sine_ignores_rounding_error_duplicates():
+    # period 100.3 samples repeats exactly every 1003 samples, up to rounding error
+    x = np.sin(2 * np.pi * np.arange(5000) / 100.3)
+    e1, _ = cao_curves(x, tau=25, max_dim=5)
+    assert cao_dimension(e1) == 2
+
+
+def test_cao_on_lorenz_gives_three(lorenz):
+    e1, e2 = cao_curves(lorenz, tau=17, max_dim=6)
+    assert e1.shape == e2.shape == (6,)
+    assert e1[1] < 0.5 < 0.9 < e1[2]
+    assert cao_dimension(e1) == 3
+    # deterministic data: E2 is not constant 1
+    assert np.max(np.abs(e2 - 1)) > 0.3
+
+
+def test_cao_e2_of_noise_is_near_one():
+    x = np.random.default_rng(0).standard_normal(3000)
+    _, e2 = cao_curves(x, tau=1, max_dim=5)
+    np.testing.assert_allclose(e2, 1.0, atol=0.1)
+
+
+def test_fnn_on_lorenz_drops_to_zero_by_three(lorenz):
+    f = false_nearest_neighbours(lorenz, tau=17, max_dim=5)
+    assert f[0] > 0.9
+    assert f[2] < 0.01
+    assert fnn_dimension(f) == 3
+
+
+def test_fnn_size_test_keeps_noise_false():
+    # Test I alone lets noise look embedded at m ~ 5 (neighbour gaps stop growing);
+    # Kennel's test II (R_{m+1} / R_A > 2) keeps flagging its distant neighbours.
+    x = np.random.default_rng(0).standard_normal(3000)
+    with_size_test = false_nearest_neighbours(x, tau=1, max_dim=6)
+    distance_only = false_nearest_neighbours(x, tau=1, max_dim=6, atol=np.inf)
+    assert distance_only[-1] < 0.01
+    assert np.all(with_size_test[3:] > 0.1)
+
+
+def test_fnn_rule_raises_when_never_below_threshold():
+    with pytest.raises(SignalError, match="never falls"):
+        fnn_dimension([0.9, 0.5, 0.2, 0.1], threshold=0.01)
+
+
+def test_estimate_dimension_methods_agree_on_lorenz(lorenz):
+    assert estimate_dimension(lorenz, 17, max_dim=6) == (3, "cao_dimension")
+    assert estimate_dimension(lorenz, 17, max_dim=6, method="fnn") == (3, "fnn_dimension")
+
+
+def test_too_short_signal_raises():
+    with pytest.raises(SignalError, match="too short"):
+        cao_curves(np.random.default_rng(0).standard_normal(100), tau=10, max_dim=10)
+
+
+@pytest.mark.parametrize("p", [2.0, np.inf])
+def test_staged_kdtree_search_matches_brute_force(p):
+    rng = np.random.default_rng(3)
+    # a smooth trajectory: temporal neighbours are the closest points
+    t = np.arange(600)
+    y = np.c_[np.sin(t / 7), np.cos(t / 11)] + 0.01 * rng.standard_normal((600, 2))
+    w, k = 5, 3
+    dist, idx = nearest_outside_window(y, w, p=p, k=k)
+    d = cdist(y, y, "euclidean" if p == 2 else "chebyshev")
+    d[np.abs(t[:, None] - t[None, :]) <= w] = np.inf
+    order = np.argsort(d, axis=1)[:, :k]
+    np.testing.assert_allclose(dist, np.take_along_axis(d, order, axis=1))
+    assert np.all(np.abs(idx - t[:, None]) > w)
