@@ -52,6 +52,7 @@ class ADC(MeasurementEffect):
     """
 
     name = "adc"
+    order = 90
 
     class Params(EffectParams):
         bits: ParamValue = param(

@@ -269,6 +269,10 @@ class MeasurementEffect(Effect):
     """An effect on the recorded acceleration (sensor chain, noise, ADC)."""
 
     kind = "measurement"
+    order: ClassVar[int] = 50
+    """Place in the measurement chain, applied in increasing order whatever the YAML
+    order: the sensor (10), then the baseline white noise (20, built in), other
+    noise (30), user effects (50 by default) and last the converter (90)."""
 
     def apply(
         self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator

@@ -109,6 +109,7 @@ class ColoredNoise(MeasurementEffect):
     """
 
     name = "colored_noise"
+    order = 30
 
     class Params(EffectParams):
         pink_level: ParamValue = param(

@@ -103,6 +103,7 @@ class SensorDynamics(MeasurementEffect):
     """
 
     name = "sensor_dynamics"
+    order = 10
 
     class Params(EffectParams):
         resonance_hz: ParamValue = param(

@@ -1,0 +1,227 @@
+"""The simulator: the base model of eqs (11)-(12) composed with physical effects."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stiffnet.effects.base import (
+    DynamicsEffect,
+    Effect,
+    MeasurementEffect,
+    ParamArrays,
+    Sinusoids,
+)
+from stiffnet.errors import ConfigError
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.closed_form import LinearModel, simulate_linear
+
+#: Internal steps never exceed this fraction of the contact's natural period / pi,
+#: so the switching function has at most one extremum per step.
+_CONTACT_STEP_FACTOR = 1.5
+_WHITE_NOISE_ORDER = 20
+
+
+@dataclass
+class SimulationResult:
+    """Sampled trajectories of a batch, shape ``(B, N)`` each.
+
+    ``accel`` is what the accelerometer records (measurement chain and noise
+    applied); ``clean_accel`` the absolute acceleration of the mass itself.
+    Model time: sample ``n`` of row ``b`` is at ``t0[b] + n * 2 pi / fs_ratio[b]``;
+    physical seconds divide model time by ``2 pi f_n``.
+    """
+
+    batch: OscillatorBatch
+    fs_ratio: np.ndarray
+    accel: np.ndarray
+    clean_accel: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    contact_force: np.ndarray
+    impacts: np.ndarray
+    t0: np.ndarray
+    noise: np.ndarray
+    engine: str
+    effect_params: dict[str, ParamArrays] = field(default_factory=dict)
+
+    @property
+    def fs_hz(self) -> np.ndarray:
+        return self.fs_ratio * self.batch.natural_frequency_hz
+
+    @property
+    def in_contact(self) -> np.ndarray:
+        """True where the mass touches the restraint at the sample."""
+        return self.contact_force > 0
+
+
+class Simulator:
+    """Impact oscillator with a list of effects (the parts it is given).
+
+    Parameters
+    ----------
+    effects : dynamics and measurement effects, in any order.
+    settle_tolerance : the transient lasts until free oscillations have decayed
+        to this fraction, ``t = -ln(tol) / xi``, and at least ``min_transient_periods``
+        forcing periods.
+    min_transient_periods : lower bound of the transient, in forcing periods.
+    substeps : RK4 steps per sample of the numerical integrator (used only when
+        an effect is not piecewise linear).
+    """
+
+    def __init__(
+        self,
+        effects: Sequence[Effect] = (),
+        settle_tolerance: float = 1e-3,
+        min_transient_periods: float = 20.0,
+        substeps: int = 8,
+    ) -> None:
+        if not 0 < settle_tolerance < 1:
+            raise ConfigError("settle_tolerance must be in (0, 1)")
+        self.effects = list(effects)
+        names = [e.name for e in self.effects]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ConfigError(f"effect listed twice: {', '.join(sorted(dup))}")
+        self.dynamics = [e for e in self.effects if isinstance(e, DynamicsEffect)]
+        self.measurement = sorted(
+            (e for e in self.effects if isinstance(e, MeasurementEffect)), key=lambda e: e.order
+        )
+        self.settle_tolerance = settle_tolerance
+        self.min_transient_periods = min_transient_periods
+        self.substeps = substeps
+
+    @property
+    def engine(self) -> str:
+        """``closed_form`` when every effect keeps the model piecewise linear."""
+        return "closed_form" if all(e.closed_form for e in self.dynamics) else "numerical"
+
+    def transient_time(self, batch: OscillatorBatch) -> np.ndarray:
+        settle = -np.log(self.settle_tolerance) / batch.damping
+        return np.maximum(settle, self.min_transient_periods * 2 * np.pi / batch.omega)
+
+    def simulate(
+        self,
+        batch: OscillatorBatch,
+        fs_ratio: np.ndarray | float,
+        n_samples: int,
+        noise: np.ndarray | float = 0.0,
+        rng: np.random.Generator | int | None = None,
+        x0: np.ndarray | None = None,
+        v0: np.ndarray | None = None,
+        effect_params: dict[str, ParamArrays] | None = None,
+    ) -> SimulationResult:
+        """Simulate ``n_samples`` of each parameter set after its transient.
+
+        Parameters
+        ----------
+        fs_ratio : sampling rate over natural frequency, ``fs / f_n`` (per row).
+        noise : white-noise standard deviation as a fraction of ``a w^2`` (per row).
+        rng : generator or seed for initial conditions, ranged effect parameters,
+            noise and measurement effects.
+        x0, v0 : initial state; default uniform in ``[-a, a]`` and ``[-a w, a w]``.
+        effect_params : per-trajectory parameters by effect name, to override draws.
+        """
+        b = len(batch)
+        if n_samples < 1:
+            raise ConfigError("n_samples must be >= 1")
+        fs_ratio = np.broadcast_to(np.asarray(fs_ratio, float), (b,)).copy()
+        noise = np.broadcast_to(np.asarray(noise, float), (b,)).copy()
+        if np.any(fs_ratio < 4):
+            raise ConfigError("fs_ratio (fs / f_n) must be >= 4")
+        if np.any(noise < 0):
+            raise ConfigError("noise must be >= 0")
+        rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        if x0 is None:
+            x0 = rng.uniform(-1, 1, b) * batch.amplitude
+        if v0 is None:
+            v0 = rng.uniform(-1, 1, b) * batch.amplitude * batch.omega
+        params = {e.name: e.batch_params(b, rng) for e in self.effects}
+        for name, given in (effect_params or {}).items():
+            if name not in params:
+                raise ConfigError(f"parameters given for effect {name!r} that is not enabled")
+            params[name].update({k: np.asarray(v, float) for k, v in given.items()})
+
+        h = 2 * np.pi / fs_ratio
+        h_cap = np.minimum(2 * np.pi / 40, _CONTACT_STEP_FACTOR / np.sqrt(1 + batch.beta))
+        t_tr = self.transient_time(batch)
+        n_tr = int(np.ceil(np.max(t_tr / h_cap)))
+        h_tr = t_tr / n_tr
+
+        if self.engine == "closed_form":
+            out = simulate_linear(
+                self.linear_model(batch, params),
+                x0,
+                v0,
+                h_tr,
+                n_tr,
+                h,
+                n_samples,
+                substeps=max(1, int(np.ceil(np.max(h / h_cap)))),
+            )
+        else:
+            from stiffnet.simulator.numerical import simulate_numerical
+
+            out = simulate_numerical(
+                batch,
+                self.dynamics,
+                [params[e.name] for e in self.dynamics],
+                x0,
+                v0,
+                h_tr,
+                n_tr,
+                h,
+                n_samples,
+                substeps=self.substeps,
+            )
+        measured = self._measure(out["accel"], batch, fs_ratio, noise, params, rng)
+        return SimulationResult(
+            batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out["accel"],
+            x=out["x"], v=out["v"], contact_force=out["contact_force"], impacts=out["impacts"],
+            t0=out["t0"], noise=noise, engine=self.engine, effect_params=params,
+        )  # fmt: skip
+
+    def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
+        """The piecewise-linear model (closed-form hooks of every dynamics effect)."""
+        b = len(batch)
+        forcing = Sinusoids(
+            (batch.amplitude * batch.omega**2)[:, None], batch.omega[:, None], np.zeros((b, 1))
+        )
+        gap = Sinusoids.empty(b)
+        damping = np.zeros(b)
+        for eff in self.dynamics:
+            p = params[eff.name]
+            if (f := eff.forcing_terms(p, batch)) is not None:
+                forcing = forcing + f
+            if (g := eff.gap_terms(p, batch)) is not None:
+                gap = gap + g
+            if (c := eff.contact_damping(p, batch)) is not None:
+                damping = damping + c
+        return LinearModel(batch, forcing, gap, damping)
+
+    def _measure(self, accel, batch, fs_ratio, noise, params, rng) -> np.ndarray:
+        """The measurement chain, in physical order, with the baseline white noise."""
+        fs_hz = fs_ratio * batch.natural_frequency_hz
+        context = {
+            "_forcing_scale": batch.forcing_scale,
+            "_natural_frequency_hz": batch.natural_frequency_hz,
+        }
+        signal = accel
+        white_done = False
+        for eff in self.measurement:
+            if not white_done and eff.order > _WHITE_NOISE_ORDER:
+                signal = self._white(signal, batch, noise, rng)
+                white_done = True
+            signal = eff.apply(signal, fs_hz, {**params[eff.name], **context}, rng)
+        if not white_done:
+            signal = self._white(signal, batch, noise, rng)
+        return signal
+
+    @staticmethod
+    def _white(signal, batch, noise, rng) -> np.ndarray:
+        if not np.any(noise):
+            return signal
+        std = noise * batch.forcing_scale
+        return signal + rng.standard_normal(signal.shape) * std[:, None]
