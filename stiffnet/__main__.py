@@ -1,0 +1,3 @@
+from stiffnet.cli import main
+
+main()

@@ -1,0 +1,168 @@
+"""The ``stiffnet`` command line (also ``python -m stiffnet``)."""
+
+from __future__ import annotations
+
+import functools
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from stiffnet.errors import StiffnetError
+
+app = typer.Typer(
+    name="stiffnet",
+    help="Identify the stiffness of an impacted material from one accelerometer.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+console = Console(stderr=True)
+out = Console()
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+JsonOption = Annotated[
+    Path | None, typer.Option("--json", help="Also write the result as JSON to this path.")
+]
+
+
+def user_errors(fn: F) -> F:
+    """Report :class:`StiffnetError` as one line on stderr and exit with code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except StiffnetError as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            raise typer.Exit(2) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def write_json(path: Path | None, result: Any) -> None:
+    if path is not None:
+        from stiffnet.io_utils import write_json_atomic
+
+        write_json_atomic(path, result)
+
+
+def progress_bar(description: str) -> Progress:
+    return Progress(
+        TextColumn(description),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=not console.is_terminal,
+    )
+
+
+@app.command()
+@user_errors
+def simulate(
+    config: Annotated[Path, typer.Option(help="Simulation config (YAML).")] = Path(
+        "configs/sim/default.yaml"
+    ),
+    out_dir: Annotated[Path, typer.Option("--out", help="Output dataset folder.")] = Path(
+        "data/default"
+    ),
+    seed: Annotated[int | None, typer.Option(help="Override the config's seed.")] = None,
+    n_trajectories: Annotated[
+        int | None, typer.Option(help="Override the number of trajectories.")
+    ] = None,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing dataset.")] = False,
+    json_path: JsonOption = None,
+) -> None:
+    """Simulate a labelled dataset of acceleration windows (atomic Parquet shards)."""
+    from stiffnet.config import load_yaml, validate_config
+    from stiffnet.config.sim import SimulationConfig
+    from stiffnet.dataset.generate import generate_dataset, shard_sizes
+
+    data = load_yaml(config)
+    if seed is not None:
+        data["seed"] = seed
+    if n_trajectories is not None:
+        data["n_trajectories"] = n_trajectories
+    cfg = validate_config(SimulationConfig, data, str(config))
+    with progress_bar("simulating shards") as bar:
+        task = bar.add_task("shards", total=len(shard_sizes(cfg)))
+        card = generate_dataset(
+            cfg,
+            out_dir,
+            overwrite=overwrite,
+            progress=lambda done, _: bar.update(task, completed=done),
+        )
+    summary = {k: v for k, v in card.items() if k not in ("config", "shards")}
+    summary["out"] = str(out_dir)
+    table = Table(title=f"dataset {out_dir}")
+    table.add_column("class")
+    table.add_column("windows", justify="right")
+    for name, count in card["class_balance"].items():
+        table.add_row(name, str(count))
+    out.print(table)
+    out.print(f"{card['n_windows']} windows from {card['n_trajectories']} trajectories "
+              f"in {card['seconds']:.1f} s (engine: {card['engine']})")  # fmt: skip
+    write_json(json_path, summary)
+
+
+@app.command("simulate-campaign")
+@user_errors
+def simulate_campaign_cmd(
+    manifest: Annotated[Path, typer.Argument(help="Manifest CSV of the campaign to simulate.")],
+    out_dir: Annotated[Path, typer.Option("--out", help="Output campaign folder.")],
+    effect: Annotated[
+        list[str] | None,
+        typer.Option(help="Effect to add, NAME[:key=value,...] (repeatable; lo..hi is a range)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    overwrite: Annotated[bool, typer.Option(help="Replace an existing campaign folder.")] = False,
+    json_path: JsonOption = None,
+) -> None:
+    """Write a synthetic campaign (recordings + manifest) for a manifest, with chosen effects."""
+    from stiffnet.effects.registry import build_effect, parse_effect_option
+
+    effects = [build_effect(*parse_effect_option(text)) for text in effect or []]
+    from stiffnet.campaign import simulate_campaign
+    path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite)
+    result = {"out": str(path), "effects": [repr(e) for e in effects], "seed": seed}
+    out.print(f"campaign written to {path} with effects: {', '.join(result['effects']) or 'none'}")
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def effects(json_path: JsonOption = None) -> None:
+    """List the physical effects with their parameters, defaults and ranges."""
+    from stiffnet.effects.registry import available_effects
+
+    result = []
+    for cls in available_effects():
+        table = Table(title=f"{cls.name} ({cls.kind})", title_justify="left")
+        for col in ("parameter", "default", "range", "unit", "description"):
+            table.add_column(col)
+        rows = cls.parameter_table()
+        for row in rows:
+            lo, hi = row["range"]
+            table.add_row(row["name"], f"{row['default']:g}", f"[{lo:g}, {hi:g}]", row["unit"],
+                          row["description"])  # fmt: skip
+        out.print(table)
+        doc = (cls.__doc__ or "").strip().splitlines()
+        result.append({"name": cls.name, "kind": cls.kind, "summary": doc[0] if doc else "",
+                       "parameters": rows})  # fmt: skip
+    write_json(json_path, result)
+
+
+def main() -> None:
+    """Entry point of the console script."""
+    app(prog_name="stiffnet")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,133 @@
+"""Configuration of dataset simulation (``configs/sim/*.yaml``)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
+
+from stiffnet.effects.registry import build_effect
+from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
+
+
+def _bounds(lo: float, hi: float, *, open_lo: bool = False):
+    """A ``[low, high]`` pair inside the allowed domain [lo, hi]."""
+
+    def check(v: tuple[float, float]) -> tuple[float, float]:
+        a, b = v
+        if a > b:
+            raise ValueError(f"range must be [low, high], got [{a}, {b}]")
+        if (a <= lo if open_lo else a < lo) or b > hi:
+            left = "(" if open_lo else "["
+            raise ValueError(f"[{a}, {b}] is outside the allowed range {left}{lo}, {hi}]")
+        return v
+
+    return Annotated[tuple[float, float], AfterValidator(check)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class SweepConfig(_Strict):
+    """Parameter domain sampled for each trajectory (model units, paper eq. 12)."""
+
+    beta: _bounds(0.0, 1000.0, open_lo=True) = (5.0, 100.0)
+    beta_sampling: Literal["stratified", "uniform", "log_uniform"] = Field(
+        "stratified", description="stratified: equal trajectories per class, uniform inside"
+    )
+    gap: _bounds(-2.0, 10.0) = (0.0, 3.0)
+    amplitude: _bounds(0.0, 10.0, open_lo=True) = (0.2, 2.0)
+    omega: _bounds(0.05, 5.0) = (0.8, 1.2)
+    damping: _bounds(0.0, 0.5, open_lo=True) = (0.01, 0.05)
+    noise: _bounds(0.0, 1.0) = Field(
+        (0.0, 0.10), description="white noise std / (a w^2), drawn uniformly"
+    )
+    noise_levels: list[Annotated[float, Field(ge=0.0, le=1.0)]] | None = Field(
+        None, description="discrete noise levels drawn with equal probability (overrides noise)"
+    )
+    fs_ratio: _bounds(8.0, 5000.0) = Field((50.0, 500.0), description="fs / f_n, log-uniform")
+    natural_frequency_hz: float = Field(PAPER_NATURAL_FREQUENCY_HZ, gt=0.0, le=1e5)
+
+
+class WindowConfig(_Strict):
+    duration_periods: float = Field(
+        16.0, ge=2.0, le=500.0, description="window length in natural periods (2 pi model time)"
+    )
+    per_trajectory: int = Field(4, ge=1, le=256, description="consecutive windows per trajectory")
+
+
+class ClassSpec(_Strict):
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_\-]+$")
+    beta: tuple[float, float]
+
+
+def default_classes() -> list[ClassSpec]:
+    return [
+        ClassSpec(name="soft", beta=(5.0, 15.0)),
+        ClassSpec(name="medium", beta=(15.0, 35.0)),
+        ClassSpec(name="hard", beta=(35.0, 60.0)),
+        ClassSpec(name="very_hard", beta=(60.0, 100.0)),
+    ]
+
+
+class EffectSpec(_Strict):
+    name: str
+    params: dict[str, float | list[float]] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _valid_effect(self) -> EffectSpec:
+        build_effect(self.name, self.params)  # raises ConfigError naming the problem
+        return self
+
+    def build(self) -> Any:
+        return build_effect(self.name, self.params)
+
+
+class SolverConfig(_Strict):
+    settle_tolerance: float = Field(1e-3, gt=0.0, lt=1.0)
+    min_transient_periods: float = Field(20.0, ge=0.0, le=1e4)
+    substeps: int = Field(8, ge=1, le=256, description="RK4 steps per sample (numerical engine)")
+    batch_size: int = Field(256, ge=1, le=65536, description="trajectories simulated together")
+
+
+class SimulationConfig(_Strict):
+    """Everything ``stiffnet simulate`` needs; defaults are the shipped domain."""
+
+    seed: int = Field(0, ge=0)
+    n_trajectories: int = Field(2000, ge=1, le=10_000_000)
+    shard_size: int = Field(512, ge=1, le=1_000_000, description="trajectories per shard")
+    sweep: SweepConfig = Field(default_factory=SweepConfig)
+    windows: WindowConfig = Field(default_factory=WindowConfig)
+    classes: list[ClassSpec] = Field(default_factory=default_classes, min_length=1)
+    no_contact_class: str = "no_contact"
+    effects: list[EffectSpec] = Field(default_factory=list)
+    solver: SolverConfig = Field(default_factory=SolverConfig)
+
+    @model_validator(mode="after")
+    def _classes_tile_beta(self) -> SimulationConfig:
+        names = [c.name for c in self.classes] + [self.no_contact_class]
+        if len(set(names)) != len(names):
+            raise ValueError("class names must be unique (no_contact_class included)")
+        for prev, cur in zip(self.classes, self.classes[1:], strict=False):
+            if cur.beta[0] != prev.beta[1]:
+                raise ValueError(
+                    f"classes must tile beta without gaps or overlaps: {prev.name} ends at "
+                    f"{prev.beta[1]} but {cur.name} starts at {cur.beta[0]}"
+                )
+        for c in self.classes:
+            if c.beta[0] >= c.beta[1]:
+                raise ValueError(f"class {c.name}: beta range must be [low, high] with low < high")
+        lo, hi = self.classes[0].beta[0], self.classes[-1].beta[1]
+        if self.sweep.beta[0] < lo or self.sweep.beta[1] > hi:
+            raise ValueError(
+                f"sweep.beta {list(self.sweep.beta)} is not covered by the classes [{lo}, {hi}]"
+            )
+        names = [e.name for e in self.effects]
+        if len(set(names)) != len(names):
+            raise ValueError("an effect is listed twice")
+        return self
+
+    def class_names(self) -> list[str]:
+        """All labels, no-contact first (its index is 0)."""
+        return [self.no_contact_class] + [c.name for c in self.classes]

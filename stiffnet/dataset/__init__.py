@@ -1,0 +1,1 @@
+"""Labelled datasets of simulated acceleration windows."""

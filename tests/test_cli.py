@@ -1,0 +1,66 @@
+"""The command line: subcommands, --json, exit code 2 with one line on bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from typer.testing import CliRunner
+
+from stiffnet.cli import app
+
+ROOT = Path(__file__).resolve().parents[1]
+runner = CliRunner()
+
+
+def test_help_lists_commands():
+    res = runner.invoke(app, ["--help"])
+    assert res.exit_code == 0
+    for cmd in ("simulate", "simulate-campaign", "effects"):
+        assert cmd in res.output
+
+
+def test_simulate_writes_dataset_and_json(tmp_path):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(
+        "n_trajectories: 4\nshard_size: 4\nwindows: {duration_periods: 4, per_trajectory: 1}\n"
+        "sweep: {fs_ratio: [50, 60]}\nsolver: {settle_tolerance: 0.2}\n"
+    )
+    res = runner.invoke(
+        app, ["simulate", "--config", str(cfg), "--out", str(tmp_path / "ds"), "--json",
+              str(tmp_path / "r.json")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    result = json.loads((tmp_path / "r.json").read_text())
+    assert result["n_windows"] == 4 and (tmp_path / "ds" / "card.json").is_file()
+
+
+def test_effects_json_lists_all_canonical(tmp_path):
+    res = runner.invoke(app, ["effects", "--json", str(tmp_path / "e.json")])
+    assert res.exit_code == 0, res.output
+    names = {e["name"] for e in json.loads((tmp_path / "e.json").read_text())}
+    assert {"contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics", "adc"} <= names
+
+
+def run_cli(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "stiffnet", *args], capture_output=True, text=True, cwd=ROOT,
+        timeout=120,
+    )  # fmt: skip
+
+
+def test_bad_config_is_one_line_exit_2(tmp_path):
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("sweep: {beta: [0, 500]}\n")
+    res = run_cli("simulate", "--config", str(cfg), "--out", str(tmp_path / "o"))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "sweep.beta" in lines[0] and "Traceback" not in res.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_effect_option_is_one_line_exit_2(tmp_path):
+    res = run_cli("simulate-campaign", str(tmp_path / "m.csv"), "--out", str(tmp_path / "o"),
+                  "--effect", "adc:bits=abc")  # fmt: skip
+    assert res.returncode == 2
+    assert "bits='abc' is not a number" in res.stderr and "Traceback" not in res.stderr

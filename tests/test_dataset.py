@@ -1,0 +1,116 @@
+"""Labelled datasets: labels, class balance, reproducibility, atomic writing."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stiffnet.config import validate_config
+from stiffnet.config.sim import SimulationConfig
+from stiffnet.dataset.generate import generate_dataset, simulate_shard
+from stiffnet.dataset.labels import beta_class_index, window_labels
+from stiffnet.dataset.store import load_dataset
+from stiffnet.errors import StiffnetError
+
+SMALL = {
+    "n_trajectories": 12,
+    "shard_size": 6,
+    "windows": {"duration_periods": 6, "per_trajectory": 2},
+    "sweep": {"fs_ratio": [50, 80]},
+    "solver": {"settle_tolerance": 0.1, "batch_size": 6},
+}
+
+
+def small_config(**over):
+    return validate_config(SimulationConfig, {**SMALL, **over})
+
+
+def test_class_index_edges():
+    edges = [5, 15, 35, 60, 100]
+    beta = np.array([5, 14.99, 15, 34.9, 35, 59, 60, 99, 100])
+    np.testing.assert_array_equal(beta_class_index(beta, edges), [1, 1, 2, 2, 3, 3, 4, 4, 4])
+    labels = window_labels(beta[:3], np.array([True, False, True]), edges)
+    np.testing.assert_array_equal(labels, [1, 0, 2])
+
+
+def test_dataset_round_trip_labels_and_card(tmp_path):
+    cfg = small_config()
+    card = generate_dataset(cfg, tmp_path / "ds")
+    ds = load_dataset(tmp_path / "ds", verify=True)
+    assert len(ds) == card["n_windows"] == 12 * 2
+    assert sum(card["class_balance"].values()) == len(ds)
+    # windows: 6 natural periods at the row's fs, a whole number of samples
+    lengths = np.array([w.size for w in ds.windows()])
+    np.testing.assert_array_equal(lengths, np.round(6 * ds.column("fs_ratio")).astype(int))
+    # labels agree with beta and with impacts seen in the window
+    beta, label = ds.column("beta"), ds.column("label")
+    contact = (ds.column("n_impacts") > 0) | (ds.column("contact_fraction") > 0)
+    np.testing.assert_array_equal(label == 0, ~contact)
+    np.testing.assert_array_equal(
+        label[contact], beta_class_index(beta[contact], [5, 15, 35, 60, 100])
+    )
+    assert set(ds.column("class")) <= set(card["class_names"])
+    # stratified beta: every beta class has trajectories
+    traj_beta = beta[ds.column("window") == 0]
+    assert len(set(beta_class_index(traj_beta, [5, 15, 35, 60, 100]))) == 4
+    saved = json.loads((tmp_path / "ds" / "card.json").read_text())
+    assert saved["seed"] == 0 and saved["config"]["n_trajectories"] == 12
+    assert saved["engine"] == "closed_form" and len(saved["shards"]) == 2
+
+
+def test_shards_depend_only_on_seed_and_index():
+    cfg = small_config()
+    a = simulate_shard(cfg, 1, 6)
+    b = simulate_shard(cfg, 1, 6)
+    assert a.equals(b)
+    other = simulate_shard(small_config(seed=1), 1, 6)
+    assert not np.allclose(a.column("beta").to_numpy(), other.column("beta").to_numpy())
+
+
+def test_gain_free_noise_level_recorded(tmp_path):
+    cfg = small_config(sweep={"fs_ratio": [50, 80], "noise_levels": [0.0, 0.05]})
+    generate_dataset(cfg, tmp_path / "ds")
+    ds = load_dataset(tmp_path / "ds")
+    assert set(np.round(ds.column("noise"), 6)) <= {0.0, 0.05}
+
+
+def test_effect_parameters_are_columns(tmp_path):
+    cfg = small_config(
+        effects=[{"name": "contact_damping", "params": {"damping_ratio": [0.05, 0.2]}}]
+    )
+    generate_dataset(cfg, tmp_path / "ds")
+    ds = load_dataset(tmp_path / "ds")
+    zeta = ds.column("effect.contact_damping.damping_ratio")
+    assert zeta.min() >= 0.05 and zeta.max() <= 0.2 and np.ptp(zeta) > 0
+
+
+def test_interrupted_run_leaves_nothing_complete(tmp_path, monkeypatch):
+    import stiffnet.dataset.generate as gen
+
+    calls = {"n": 0}
+    real = gen.simulate_shard
+
+    def failing(cfg, shard, n):
+        calls["n"] += 1
+        if shard == 1:
+            raise KeyboardInterrupt
+        return real(cfg, shard, n)
+
+    monkeypatch.setattr(gen, "simulate_shard", failing)
+    with pytest.raises(KeyboardInterrupt):
+        generate_dataset(small_config(), tmp_path / "ds")
+    assert not (tmp_path / "ds").exists()
+    assert not list(tmp_path.iterdir())  # the partial folder is gone too
+    with pytest.raises(StiffnetError, match="not a finished stiffnet dataset"):
+        load_dataset(tmp_path / "ds")
+
+
+def test_existing_output_refused_before_work(tmp_path, monkeypatch):
+    import stiffnet.dataset.generate as gen
+
+    (tmp_path / "ds").mkdir()
+    (tmp_path / "ds" / "keep.txt").write_text("x")
+    monkeypatch.setattr(gen, "simulate_shard", lambda *a: pytest.fail("simulated before refusing"))
+    with pytest.raises(StiffnetError, match="exists and is not empty"):
+        generate_dataset(small_config(), tmp_path / "ds")
+    assert (tmp_path / "ds" / "keep.txt").read_text() == "x"
