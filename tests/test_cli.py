@@ -64,3 +64,20 @@ def test_bad_effect_option_is_one_line_exit_2(tmp_path):
                   "--effect", "adc:bits=abc")  # fmt: skip
     assert res.returncode == 2
     assert "bits='abc' is not a number" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_simulate_campaign_cli_round_trip(tmp_path):
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(
+        "recording,fs_hz,frequency_ratio,amplitude,gap,damping_ratio,beta,duration_s\n"
+        "r1.csv,500,1.05,1.9,2.8,0.02,20,2\n"
+    )
+    res = runner.invoke(
+        app, ["simulate-campaign", str(manifest), "--out", str(tmp_path / "c"), "--effect",
+              "contact_damping:damping_ratio=0.1", "--json", str(tmp_path / "r.json")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    card = json.loads((tmp_path / "c" / "campaign_card.json").read_text())
+    assert "contact_damping" in json.dumps(card)
+    lines = (tmp_path / "c" / "r1.csv").read_text().splitlines()
+    assert lines[0] == "t,accel" and len(lines) == 1 + 2 * 500

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from stiffnet.errors import ConfigError
 from scipy import signal as sps
 
 from stiffnet.effects.adc import ADC, lsb
 from stiffnet.effects.base import MeasurementEffect
 from stiffnet.effects.colored_noise import ColoredNoise
 from stiffnet.effects.sensor_dynamics import SensorDynamics
+from stiffnet.errors import ConfigError
 
 FN = 9.48  # natural frequency, Hz (paper section 5.2)
 FS = 500 * FN  # sampling rate, Hz

@@ -1,0 +1,351 @@
+"""Campaigns: manifest validation, loading, and simulated campaigns (round trip, atomicity)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stiffnet.campaign import (
+    CARD_NAME,
+    MANIFEST_NAME,
+    Campaign,
+    ManifestRow,
+    load_campaign,
+    read_manifest,
+    sensor_gain,
+    simulate_campaign,
+    write_manifest,
+)
+from stiffnet.effects.gap_drift import GapDrift
+from stiffnet.errors import StiffnetError
+from stiffnet.recordings import write_recording_csv
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "campaign_manifest.csv"
+
+HEADER = "recording,fs_hz,frequency_ratio,amplitude,gap,damping_ratio,beta,duration_s"
+SMALL = f"""{HEADER}
+a.csv,500,1.05,1.9,2.8,0.02,12,0.4
+sub/b.csv,800,0.95,1.0,0.5,0.02,40,0.3
+c.npy,600,1.0,1.2,1.2,0.02,90,0.2
+"""
+
+
+def write(path: Path, text: str) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def manifest_error(tmp_path: Path, text: str, match: str) -> str:
+    path = write(tmp_path / MANIFEST_NAME, text)
+    with pytest.raises(StiffnetError, match=match) as info:
+        read_manifest(path)
+    msg = str(info.value)
+    assert "\n" not in msg and MANIFEST_NAME in msg
+    return msg
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("sim")
+    manifest = write(root / "in" / "plan.csv", SMALL)
+    effect = GapDrift(amplitude=[0.1, 0.3])
+    out = simulate_campaign(manifest, root / "out", [effect], seed=7)
+    return manifest, out
+
+
+# ----------------------------------------------------------------- simulated campaigns
+
+
+def test_round_trip(simulated):
+    manifest, out = simulated
+    assert sorted(os.listdir(out)) == sorted([CARD_NAME, "a.csv", "c.npy", MANIFEST_NAME, "sub"])
+    camp = load_campaign(out)
+    assert isinstance(camp, Campaign) and len(camp) == 3 and camp.is_calibration
+    np.testing.assert_array_equal(camp.betas, [12, 40, 90])
+    for row, rec in camp.recordings():
+        assert rec.fs_hz == pytest.approx(row.fs_hz)
+        assert len(rec) == round(row.duration_s * row.fs_hz)
+        assert np.all(np.isfinite(rec.accel))
+    # the output manifest carries the input's columns and values
+    assert (out / MANIFEST_NAME).read_text().splitlines()[0] == HEADER
+    assert read_manifest(out / MANIFEST_NAME) == read_manifest(manifest)
+
+
+def test_card_lists_the_hidden_effect(simulated):
+    _, out = simulated
+    card = json.loads((out / CARD_NAME).read_text())
+    assert card["seed"] == 7 and card["stiffnet_version"]
+    (eff,) = card["effects"]
+    assert eff["name"] == "gap_drift" and eff["params"]["amplitude"] == [0.1, 0.3]
+    assert eff["class"] == "stiffnet.effects.gap_drift:GapDrift"
+    drawn = [r["effects"]["gap_drift"]["amplitude"] for r in card["recordings"]]
+    assert all(0.1 <= d <= 0.3 for d in drawn) and len(set(drawn)) == 3
+    assert [r["recording"] for r in card["recordings"]] == ["a.csv", "sub/b.csv", "c.npy"]
+    assert all(r["n_impacts"] > 0 for r in card["recordings"])
+
+
+def test_card_reproduces_the_recording(simulated):
+    """The card holds all it takes to re-simulate a recording (gain included)."""
+    _, out = simulated
+    card = json.loads((out / CARD_NAME).read_text())
+    entry = card["recordings"][0]
+    row = load_campaign(out).row("a.csv")
+    batch = OscillatorBatch.single(
+        row.beta, row.gap, row.amplitude, row.frequency_ratio, row.damping_ratio
+    )
+    res = Simulator([GapDrift(amplitude=[0.1, 0.3])]).simulate(
+        batch,
+        entry["fs_ratio"],
+        entry["n_samples"],
+        noise=entry["noise"],
+        rng=np.random.default_rng(entry["seed_entropy"]),
+    )
+    rec = load_campaign(out).recording("a.csv")
+    assert entry["sensor_gain"] == pytest.approx(sensor_gain(9.48))
+    np.testing.assert_allclose(rec.accel, res.accel[0] * entry["sensor_gain"], rtol=1e-12)
+
+
+def test_same_seed_same_files_whatever_the_row_order(simulated, tmp_path):
+    manifest, out = simulated
+    lines = SMALL.strip().splitlines()
+    reordered = write(tmp_path / "rev.csv", "\n".join([lines[0], *lines[:0:-1]]) + "\n")
+    again = simulate_campaign(reordered, tmp_path / "again", [GapDrift(amplitude=[0.1, 0.3])], 7)
+    a, b = snapshot(out), snapshot(again)
+    for name in ("a.csv", "sub/b.csv", "c.npy"):
+        assert a[name] == b[name]
+    other = simulate_campaign(manifest, tmp_path / "other", ["gap_drift:amplitude=0.1..0.3"], 8)
+    assert snapshot(other)["a.csv"] != a["a.csv"]
+
+
+def test_identical_output_for_identical_input(simulated, tmp_path):
+    manifest, out = simulated
+    again = simulate_campaign(manifest, tmp_path / "again", [GapDrift(amplitude=[0.1, 0.3])], 7)
+    assert snapshot(again) == snapshot(out)
+
+
+def test_existing_folder_is_left_untouched(simulated, tmp_path):
+    manifest, _ = simulated
+    out = tmp_path / "taken"
+    write(out / "keep.txt", "precious")
+    before = snapshot(out)
+    with pytest.raises(StiffnetError, match="exists and is not empty"):
+        simulate_campaign(manifest, out, [])
+    assert snapshot(out) == before
+    assert sorted(os.listdir(tmp_path)) == ["taken"]  # no temporary sibling left
+
+
+def test_overwrite_replaces_the_folder(tmp_path):
+    manifest = write(tmp_path / "m.csv", "\n".join(SMALL.splitlines()[:2]) + "\n")
+    out = tmp_path / "out"
+    write(out / "stale.txt", "old")
+    simulate_campaign(manifest, out, [], overwrite=True)
+    assert sorted(os.listdir(out)) == sorted([CARD_NAME, "a.csv", MANIFEST_NAME])
+    assert sorted(os.listdir(tmp_path)) == ["m.csv", "out"]
+
+
+def test_refuses_to_overwrite_the_input_folder(tmp_path):
+    manifest = write(tmp_path / "camp" / MANIFEST_NAME, SMALL)
+    with pytest.raises(StiffnetError, match="folder holding the input manifest"):
+        simulate_campaign(manifest, tmp_path / "camp", [], overwrite=True)
+    assert manifest.read_text() == SMALL
+
+
+def test_failed_run_leaves_nothing(tmp_path):
+    # the second row's rate is below 4 f_n: the simulator refuses it after row one
+    text = f"{HEADER}\na.csv,500,1.05,1.9,2.8,0.02,12,0.2\nb.csv,20,1.05,1.9,2.8,0.02,12,0.2\n"
+    manifest = write(tmp_path / "m.csv", text)
+    with pytest.raises(StiffnetError, match=r"line 3 \(b\.csv\): fs_ratio"):
+        simulate_campaign(manifest, tmp_path / "out", [])
+    assert sorted(os.listdir(tmp_path)) == ["m.csv"]
+
+
+def test_simulation_needs_model_columns(tmp_path):
+    text = "recording,fs_hz,beta,gap,amplitude\nx.csv,500,10,1,1.5\n"
+    manifest = write(tmp_path / "m.csv", text)
+    with pytest.raises(
+        StiffnetError, match=r"line 2 \(x\.csv\): column frequency_ratio, damping_ratio is required"
+    ):
+        simulate_campaign(manifest, tmp_path / "out", [])
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulation_refuses_other_formats(tmp_path):
+    text = SMALL.replace("c.npy", "c.wav")
+    with pytest.raises(StiffnetError, match=r"\(c\.wav\): simulated recordings are .csv or .npy"):
+        simulate_campaign(write(tmp_path / "m.csv", text), tmp_path / "out", [])
+
+
+def test_example_manifest_is_a_simulation_input():
+    rows = read_manifest(EXAMPLE)
+    assert len(rows) == 8 and all(r.beta is not None for r in rows)
+    for r in rows:
+        assert None not in (r.gap, r.amplitude, r.frequency_ratio, r.damping_ratio)
+        assert r.natural_frequency_hz == 9.48 and 1000 <= r.fs_hz <= 2000
+
+
+# ----------------------------------------------------------------------- manifests
+
+
+def test_manifest_round_trip(tmp_path):
+    rows = read_manifest(write(tmp_path / "a" / MANIFEST_NAME, SMALL))
+    path = write_manifest(tmp_path / "b" / MANIFEST_NAME, rows)
+    assert read_manifest(path) == rows
+    assert path.read_text().splitlines()[1] == "a.csv,500,1.05,1.9,2.8,0.02,12,0.4"
+    assert os.listdir(path.parent) == [MANIFEST_NAME]  # no temp file left
+
+
+def test_manifest_optional_cells_and_windows_paths(tmp_path):
+    text = "recording,fs_hz,beta,channel\nday1\\run1.tdms,1000,,mass\nrun2.csv,2000,31,\n\n"
+    rows = read_manifest(write(tmp_path / MANIFEST_NAME, text))
+    assert rows[0].recording == "day1/run1.tdms" and rows[0].beta is None
+    assert rows[0].channel == "mass" and rows[1].beta == 31 and rows[1].channel is None
+
+
+def test_manifest_not_found(tmp_path):
+    with pytest.raises(StiffnetError, match="manifest not found"):
+        read_manifest(tmp_path / MANIFEST_NAME)
+
+
+def test_manifest_empty(tmp_path):
+    manifest_error(tmp_path, "", "manifest is empty")
+
+
+def test_manifest_header_only(tmp_path):
+    manifest_error(tmp_path, "recording,fs_hz\n", "lists no recordings")
+
+
+def test_manifest_unknown_column(tmp_path):
+    manifest_error(tmp_path, "recording,fs_hz,stiffness\na.csv,1,2\n", "unknown column 'stiffness'")
+
+
+def test_manifest_missing_required_column(tmp_path):
+    manifest_error(tmp_path, "recording,beta\na.csv,3\n", "missing required column fs_hz")
+
+
+def test_manifest_duplicate_column(tmp_path):
+    manifest_error(tmp_path, "recording,fs_hz,fs_hz\na.csv,1,2\n", "'fs_hz' appears twice")
+
+
+def test_manifest_wrong_number_of_cells(tmp_path):
+    manifest_error(tmp_path, "recording,fs_hz\na.csv,1\nb.csv\n", "line 3 has 1 cells, expected 2")
+
+
+def test_manifest_missing_value(tmp_path):
+    manifest_error(
+        tmp_path, "recording,fs_hz\na.csv,\n", "line 2, column fs_hz: a value is required"
+    )
+
+
+def test_manifest_not_a_number(tmp_path):
+    manifest_error(
+        tmp_path, "recording,fs_hz\na.csv,1000\nb.csv,fast\n", "line 3, column fs_hz: not a number"
+    )
+
+
+@pytest.mark.parametrize(
+    ("column", "value", "match"),
+    [
+        ("fs_hz", "0", "must be > 0"),
+        ("fs_hz", "-100", "must be > 0"),
+        ("beta", "-1", "must be >= 0"),
+        ("damping_ratio", "1", "must be < 1"),
+        ("damping_ratio", "0", "must be > 0"),
+        ("frequency_ratio", "0", "must be > 0"),
+        ("amplitude", "-0.5", "must be > 0"),
+        ("natural_frequency_hz", "0", "must be > 0"),
+        ("duration_s", "0", "must be > 0"),
+        ("noise", "-0.1", "must be >= 0"),
+        ("gap", "nan", "must be a finite number"),
+        ("beta", "inf", "must be a finite number"),
+    ],
+)
+def test_manifest_out_of_range(tmp_path, column, value, match):
+    text = f"recording,fs_hz,{column}\na.csv,1000,{value}\n"
+    if column == "fs_hz":
+        text = f"recording,fs_hz\na.csv,{value}\n"
+    msg = manifest_error(tmp_path, text, f"line 2, column {column}: {match}")
+    assert repr(value) in msg
+
+
+def test_manifest_duplicate_recording(tmp_path):
+    text = "recording,fs_hz\na.csv,1\nb.csv,1\n./a.csv,2\n"
+    manifest_error(tmp_path, text, r"line 4: recording 'a.csv' is listed twice \(also on line 2\)")
+
+
+@pytest.mark.parametrize("path", ["../x.csv", "a/../../x.csv", "/etc/x.csv", "C:/data/x.csv"])
+def test_manifest_refuses_paths_outside(tmp_path, path):
+    manifest_error(tmp_path, f"recording,fs_hz\n{path},1\n", "line 2, column recording")
+
+
+def test_manifest_row_in_code():
+    row = ManifestRow(recording="r.csv", fs_hz=100)
+    assert row.beta is None and row.where() == "manifest.csv: (r.csv)"
+    with pytest.raises(ValueError, match="Extra inputs"):
+        ManifestRow(recording="r.csv", fs_hz=100, bogus=1)
+
+
+def test_write_manifest_keeps_values(tmp_path):
+    rows = [ManifestRow(recording="r.csv", fs_hz=100, beta=12.5)]
+    with pytest.raises(StiffnetError, match="column 'beta' has a value"):
+        write_manifest(tmp_path / MANIFEST_NAME, rows, columns=["recording", "fs_hz"])
+
+
+# ------------------------------------------------------------------------ loading
+
+
+def test_load_campaign_reads_lazily_with_manifest_fs(tmp_path):
+    x = np.sin(np.arange(300) / 7.0)
+    write_recording_csv(tmp_path / "r1.csv", x, 1000)
+    np.save(tmp_path / "r2.npy", 2 * x)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nr1.csv,1000\nr2.npy,500\n")
+    camp = load_campaign(tmp_path)
+    assert not camp.is_calibration and np.isnan(camp.betas).all()
+    rec = camp.recording("r2.npy")
+    assert rec.fs_hz == 500 and np.array_equal(rec.accel, 2 * x)
+    assert camp.path(0) == (tmp_path / "r1.csv").resolve()
+    # the manifest file itself works too
+    assert len(load_campaign(tmp_path / MANIFEST_NAME)) == 2
+
+
+def test_load_campaign_fs_mismatch_is_reported_on_read(tmp_path):
+    write_recording_csv(tmp_path / "r1.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nr1.csv,2000\n")
+    camp = load_campaign(tmp_path)
+    with pytest.raises(StiffnetError, match="r1.csv: column t gives fs = 1000 Hz"):
+        camp.recording(0)
+
+
+def test_load_campaign_missing_recording(tmp_path):
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nmissing.csv,1000\n")
+    with pytest.raises(StiffnetError, match=r"line 2 \(missing.csv\): recording file not found"):
+        load_campaign(tmp_path)
+
+
+def test_load_campaign_without_manifest(tmp_path):
+    with pytest.raises(StiffnetError, match="not a campaign folder"):
+        load_campaign(tmp_path)
+    with pytest.raises(StiffnetError, match="campaign folder not found"):
+        load_campaign(tmp_path / "nope")
+
+
+def test_load_campaign_refuses_symlinks_out(tmp_path):
+    outside = write_recording_csv(tmp_path / "secret.csv", np.zeros(10), 1000)
+    camp = tmp_path / "camp"
+    camp.mkdir()
+    (camp / "link.csv").symlink_to(outside)
+    write(camp / MANIFEST_NAME, "recording,fs_hz\nlink.csv,1000\n")
+    with pytest.raises(StiffnetError, match="recording path leaves the campaign folder"):
+        load_campaign(camp)

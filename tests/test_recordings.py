@@ -1,0 +1,294 @@
+"""Reading and writing recordings: CSV, NPY, WAV, TDMS, and every user error."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.io import wavfile
+
+from stiffnet.errors import StiffnetError
+from stiffnet.recordings import Recording, read_recording, write_recording_csv
+
+FS = 1000.0
+
+
+def signal(n: int = 200, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.sin(2 * np.pi * 10 * np.arange(n) / FS) + 0.1 * rng.standard_normal(n)
+
+
+def write_text(path: Path, text: str) -> Path:
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def assert_error(match: str, path: Path, **kwargs) -> None:
+    with pytest.raises(StiffnetError, match=match) as info:
+        read_recording(path, **kwargs)
+    msg = str(info.value)
+    assert "\n" not in msg
+    assert path.name in msg  # every message names the file
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+def test_csv_round_trip_is_exact_and_infers_fs(tmp_path):
+    x = signal()
+    path = write_recording_csv(tmp_path / "sub" / "rec.csv", x, FS)
+    assert path.read_text().startswith("t,accel\n0,")
+    rec = read_recording(path)
+    assert isinstance(rec, Recording)
+    assert rec.fs_hz == pytest.approx(FS, rel=1e-12)
+    assert rec.accel.dtype == np.float64
+    np.testing.assert_array_equal(rec.accel, x)  # shortest round-trip floats
+    assert rec.source == str(path)
+    assert len(rec) == x.size and rec.duration_s == pytest.approx(x.size / FS)
+    assert [p.name for p in path.parent.iterdir()] == ["rec.csv"]  # no temp file left
+
+
+def test_csv_gain_does_not_matter_to_the_format(tmp_path):
+    x = signal()
+    a = read_recording(write_recording_csv(tmp_path / "a.csv", x, FS))
+    b = read_recording(write_recording_csv(tmp_path / "b.csv", 1000 * x, FS))
+    np.testing.assert_array_equal(b.accel, 1000 * a.accel)
+    assert a.fs_hz == b.fs_hz
+
+
+def test_csv_write_replaces_an_existing_file(tmp_path):
+    path = write_recording_csv(tmp_path / "r.csv", signal(50), FS)
+    write_recording_csv(path, signal(80), 2 * FS)
+    rec = read_recording(path)
+    assert len(rec) == 80 and rec.fs_hz == pytest.approx(2 * FS)
+
+
+def test_csv_tolerates_rounded_times_crlf_bom_and_spaces(tmp_path):
+    lines = [f"{n / 3000:.5f} , {np.sin(n / 10):.6f}" for n in range(300)]
+    path = tmp_path / "lab.csv"
+    path.write_bytes(("\ufeffT, Accel\r\n" + "\r\n".join(lines) + "\r\n").encode("utf-8"))
+    rec = read_recording(path, fs_hz=3000)
+    assert len(rec) == 300 and rec.fs_hz == 3000
+
+
+def test_csv_given_fs_must_agree_with_t(tmp_path):
+    path = write_recording_csv(tmp_path / "r.csv", signal(), FS)
+    assert read_recording(path, fs_hz=FS).fs_hz == FS
+    assert_error(r"column t gives fs = 1000 Hz but fs_hz = 2000 Hz", path, fs_hz=2000)
+
+
+def test_csv_missing_header(tmp_path):
+    assert_error("missing header", write_text(tmp_path / "e.csv", ""))
+
+
+def test_csv_wrong_header(tmp_path):
+    assert_error("wrong header 'time,acc'", write_text(tmp_path / "h.csv", "time,acc\n0,1\n"))
+    assert_error("wrong header '0,1'", write_text(tmp_path / "n.csv", "0,1\n0.001,2\n"))
+
+
+def test_csv_semicolon_separated(tmp_path):
+    path = write_text(tmp_path / "s.csv", "t;accel\n0;1\n")
+    assert_error("comma-separated", path)
+
+
+def test_csv_non_numeric_cell_names_the_line(tmp_path):
+    path = write_text(tmp_path / "x.csv", "t,accel\n0,1\n0.001,abc\n0.002,3\n")
+    assert_error(r"line 3, column accel: 'abc' is not a number", path)
+
+
+def test_csv_empty_cell_names_the_line(tmp_path):
+    path = write_text(tmp_path / "x.csv", "t,accel\n0,1\n0.001,2\n,3\n")
+    assert_error(r"line 4, column t: '' is not a number", path)
+
+
+def test_csv_wrong_number_of_cells(tmp_path):
+    path = write_text(tmp_path / "x.csv", "t,accel\n0,1\n0.001,2,7\n")
+    assert_error(r"line 3 has 3 cells, expected 2", path)
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "-inf", "NaN"])
+def test_csv_nan_or_inf(tmp_path, bad):
+    path = write_text(tmp_path / "x.csv", f"t,accel\n0,1\n0.001,2\n0.002,{bad}\n")
+    assert_error(rf"line 4, column accel: {bad} is not a finite number", path)
+
+
+def test_csv_empty_recording(tmp_path):
+    assert_error("recording is empty", write_text(tmp_path / "x.csv", "t,accel\n"))
+
+
+def test_csv_one_sample(tmp_path):
+    assert_error("only one sample", write_text(tmp_path / "x.csv", "t,accel\n0,1\n"))
+
+
+def test_csv_t_not_increasing(tmp_path):
+    path = write_text(tmp_path / "x.csv", "t,accel\n0,1\n0.001,2\n0.001,3\n0.003,4\n")
+    assert_error(r"not strictly increasing \(line 4", path)
+
+
+def test_csv_t_not_uniform(tmp_path):
+    t = np.delete(np.arange(100) / FS, 50)  # one dropped sample
+    text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
+    assert_error("not uniformly sampled", write_text(tmp_path / "x.csv", text))
+
+
+def test_csv_large_file_reads(tmp_path):
+    x = signal(200_000)
+    path = write_recording_csv(tmp_path / "big.csv", x, 20_000.0)
+    rec = read_recording(path)
+    assert rec.fs_hz == pytest.approx(20_000.0)
+    np.testing.assert_array_equal(rec.accel, x)
+
+
+# ------------------------------------------------------------- generic errors
+
+
+def test_missing_file(tmp_path):
+    assert_error("recording file not found", tmp_path / "nope.csv")
+
+
+def test_unknown_extension(tmp_path):
+    assert_error(r"unknown recording extension '\.txt'", write_text(tmp_path / "r.txt", "1\n"))
+
+
+@pytest.mark.parametrize("fs", [0, -5.0, float("nan")])
+def test_fs_must_be_positive(tmp_path, fs):
+    path = tmp_path / "r.npy"
+    np.save(path, signal())
+    assert_error("sampling rate must be > 0", path, fs_hz=fs)
+
+
+def test_csv_has_no_channels(tmp_path):
+    path = write_recording_csv(tmp_path / "r.csv", signal(), FS)
+    assert_error("has one channel", path, channel=1)
+
+
+# --------------------------------------------------------------------------- NPY
+
+
+def test_npy_reads_with_given_fs(tmp_path):
+    path = tmp_path / "r.npy"
+    np.save(path, (1000 * signal()).astype(np.float32))
+    rec = read_recording(path, fs_hz=FS)
+    assert rec.accel.dtype == np.float64 and rec.fs_hz == FS and len(rec) == 200
+
+
+def test_npy_int_array_is_converted(tmp_path):
+    path = tmp_path / "r.npy"
+    np.save(path, np.arange(10, dtype=np.int16))
+    np.testing.assert_array_equal(read_recording(path, fs_hz=FS).accel, np.arange(10.0))
+
+
+def test_npy_needs_fs(tmp_path):
+    path = tmp_path / "r.npy"
+    np.save(path, signal())
+    assert_error("sampling rate missing", path)
+
+
+def test_npy_must_be_1d(tmp_path):
+    path = tmp_path / "r.npy"
+    np.save(path, np.zeros((10, 2)))
+    assert_error(r"expected a 1-D array, got shape \(10, 2\)", path, fs_hz=FS)
+
+
+def test_npy_nan(tmp_path):
+    path = tmp_path / "r.npy"
+    x = signal()
+    x[17] = np.nan
+    np.save(path, x)
+    assert_error("1 NaN/inf samples \\(first at sample 17\\)", path, fs_hz=FS)
+
+
+def test_npy_empty_and_one_sample(tmp_path):
+    np.save(tmp_path / "e.npy", np.zeros(0))
+    np.save(tmp_path / "o.npy", np.zeros(1))
+    assert_error("recording is empty", tmp_path / "e.npy", fs_hz=FS)
+    assert_error("only one sample", tmp_path / "o.npy", fs_hz=FS)
+
+
+def test_npy_garbage(tmp_path):
+    assert_error("not a readable .npy", write_text(tmp_path / "g.npy", "hello"), fs_hz=FS)
+
+
+# --------------------------------------------------------------------------- WAV
+
+
+def test_wav_int16_is_scaled(tmp_path):
+    data = np.array([0, 16384, -32768, 32767, -16384], dtype=np.int16)
+    wavfile.write(tmp_path / "r.wav", 8000, data)
+    rec = read_recording(tmp_path / "r.wav")
+    assert rec.fs_hz == 8000
+    np.testing.assert_array_equal(rec.accel, data / 32768.0)
+
+
+def test_wav_float_and_channel(tmp_path):
+    data = np.stack([signal(), 5 * signal(seed=1)], axis=1).astype(np.float32)
+    path = tmp_path / "r.wav"
+    wavfile.write(path, 1000, data)
+    np.testing.assert_array_equal(read_recording(path).accel, data[:, 0])
+    rec = read_recording(path, channel=1)
+    np.testing.assert_array_equal(rec.accel, data[:, 1])
+    assert "channel 1" in rec.source
+    assert_error("channel 2 requested but the file has 2 channels", path, channel=2)
+
+
+def test_wav_fs_must_agree(tmp_path):
+    wavfile.write(tmp_path / "r.wav", 1000, signal().astype(np.float32))
+    assert_error("the file says fs = 1000 Hz but fs_hz = 500 Hz", tmp_path / "r.wav", fs_hz=500)
+
+
+def test_wav_garbage(tmp_path):
+    assert_error("not a readable WAV", write_text(tmp_path / "g.wav", "RIFFnope"))
+
+
+# -------------------------------------------------------------------------- TDMS
+
+
+def write_tdms(path: Path, increment: float | None = 1 / FS) -> None:
+    from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+    props = {} if increment is None else {"wf_increment": increment}
+    with TdmsWriter(path) as writer:
+        writer.write_segment(
+            [
+                RootObject(),
+                GroupObject("rig"),
+                ChannelObject("rig", "empty", np.zeros(0)),
+                ChannelObject("rig", "mass", signal(), properties=props),
+                ChannelObject("rig", "base", 3 * signal(seed=2), properties=props),
+            ]
+        )
+
+
+def test_tdms_first_channel_with_data_and_fs(tmp_path):
+    path = tmp_path / "r.tdms"
+    write_tdms(path)
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.accel, signal())
+    assert rec.fs_hz == pytest.approx(FS)
+    assert "rig/mass" in rec.source
+
+
+def test_tdms_named_channel(tmp_path):
+    path = tmp_path / "r.tdms"
+    write_tdms(path)
+    for name in ("base", "rig/base"):
+        np.testing.assert_array_equal(read_recording(path, channel=name).accel, 3 * signal(seed=2))
+    assert_error(r"no TDMS channel 'bogus' \(channels: rig/empty, rig/mass", path, channel="bogus")
+
+
+def test_tdms_without_increment_needs_fs(tmp_path):
+    path = tmp_path / "r.tdms"
+    write_tdms(path, increment=None)
+    assert_error("sampling rate missing", path)
+    assert read_recording(path, fs_hz=250.0).fs_hz == 250.0
+
+
+def test_tdms_fs_must_agree(tmp_path):
+    path = tmp_path / "r.tdms"
+    write_tdms(path)
+    assert_error("wf_increment gives fs = 1000 Hz but fs_hz = 999 Hz", path, fs_hz=999)
+
+
+def test_tdms_garbage(tmp_path):
+    assert_error("not a readable TDMS", write_text(tmp_path / "g.tdms", "not tdms"))
