@@ -130,9 +130,41 @@ def simulate_campaign_cmd(
 
     effects = [build_effect(*parse_effect_option(text)) for text in effect or []]
     from stiffnet.campaign import simulate_campaign
+
     path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite)
     result = {"out": str(path), "effects": [repr(e) for e in effects], "seed": seed}
     out.print(f"campaign written to {path} with effects: {', '.join(result['effects']) or 'none'}")
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def analyze(
+    recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
+    fs: Annotated[
+        float | None, typer.Option("--fs", help="Sampling rate in Hz (needed for .npy).")
+    ] = None,
+    plots: Annotated[
+        Path | None, typer.Option(help="Write figures (PNG) into this folder.")
+    ] = None,
+    json_path: JsonOption = None,
+) -> None:
+    """Nonlinear time-series analysis and the geometric stiffness estimate of a recording."""
+    from stiffnet.analyze import analyze_signal
+    from stiffnet.recordings import read_recording
+
+    rec = read_recording(recording, fs_hz=fs)
+    analysis = analyze_signal(rec.accel, rec.fs_hz)
+    result = {"recording": str(recording), **analysis.summary()}
+    table = Table(title=f"analysis of {recording}", show_header=False)
+    for key, value in result.items():
+        table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    out.print(table)
+    if plots is not None:
+        from stiffnet.plots import analysis_plots
+
+        result["plots"] = [str(p) for p in analysis_plots(analysis, rec.accel, plots)]
+        out.print(f"figures written to {plots}")
     write_json(json_path, result)
 
 

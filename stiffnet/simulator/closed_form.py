@@ -186,6 +186,11 @@ def _locate_root(seg, lo, hi, glo, ghi, tol, fun=None):
     """
     fun = fun or (lambda sg, x: sg.switching(x))
     s = np.clip(lo - glo * (hi - lo) / np.where(ghi != glo, ghi - glo, 1.0), lo, hi)
+    # Starting on the boundary (right after an event, G(lo) ~ 0) the secant guess is
+    # lo itself, where G may be exactly 0: bisect first so that point is not taken
+    # for the root and the region does not flip back and forth.
+    on_boundary = np.abs(glo) <= 1e-12 * np.maximum(np.abs(ghi), 1e-300)
+    s = np.where(on_boundary, 0.5 * (lo + hi), s)
     out = s.copy()
     rows = np.arange(s.size)
     for _ in range(_NEWTON_ITERS):
@@ -347,6 +352,11 @@ class _Stepper:
             entries[ev_rows] += region[ev_rows] == 0
             region[ev_rows] = 1 - region[ev_rows]
             active = ev_rows[left[ev_rows] > 0]
+        if active.size:
+            # Event budget spent (chatter): finish the step in the current region
+            # rather than freeze the state while time advances.
+            seg = _Segment(reg, idx[active], region[active], t[active], x[active], v[active])
+            x[active], v[active], _ = seg.state(left[active])
         return x, v, region, entries
 
 

@@ -1,0 +1,139 @@
+"""Benchmark the closed-form Simulator against scipy's event-located ``solve_ivp``.
+
+Both engines produce the same samples in this one process: the same random
+parameter sets (default domain: beta 5-100, gap 0-3, a 0.2-2, w 0.8-1.2,
+xi 0.01-0.05, fs / f_n = 100), the same initial conditions, the same transient
+(:meth:`Simulator.transient_time`, settle tolerance 1e-3, i.e. up to ~110
+natural periods) and the same sample times.
+
+* ``Simulator`` (closed-form engine) runs the whole batch at once;
+* the reference, :func:`stiffnet.simulator.reference.reference_trajectory`
+  (DOP853, rtol 1e-10, atol 1e-12, terminal events, dense output, scalar
+  right-hand sides with ``math.sin``: an efficient scipy user's code), runs a
+  handful of them, one after the other (it manages a few thousand samples/s).
+
+On the reference trajectories the samples of both are compared (max |accel
+difference| / peak |accel|). ``solve_ivp`` detects events only at its step
+ends, so it can step over a shallow contact; where the difference exceeds 1e-6
+the reference is rerun, untimed, with ``max_step=0.05`` to tell whose error it is.
+
+Timings are wall-clock, one run each (the batch is large enough to be stable);
+process CPU time is printed too, a check where other jobs share the cores. The
+last line is ``speedup_vs_solve_ivp: X`` with X = simulator samples/s over
+reference samples/s (wall-clock).
+
+Run: ``OMP_NUM_THREADS=1 python benchmarks/bench_simulator.py [--quick]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import pstats
+import time
+
+import numpy as np
+
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.reference import reference_trajectory
+from stiffnet.simulator.simulator import Simulator
+
+DOMAIN = {  # the default sampling domain of the parameter sets
+    "beta": (5.0, 100.0),
+    "gap": (0.0, 3.0),
+    "amplitude": (0.2, 2.0),
+    "omega": (0.8, 1.2),
+    "damping": (0.01, 0.05),
+}
+MAX_ELEMENTS = 4e7  # B * N: each output array is B x N float64 (320 MB at the limit)
+RECHECK_MAX_STEP = 0.05
+
+
+def draw(n: int, rng: np.random.Generator) -> tuple[OscillatorBatch, np.ndarray, np.ndarray]:
+    """``n`` parameter sets uniform over DOMAIN and initial states as the Simulator draws them."""
+    batch = OscillatorBatch(**{k: rng.uniform(lo, hi, n) for k, (lo, hi) in DOMAIN.items()})
+    x0 = rng.uniform(-1, 1, n) * batch.amplitude
+    v0 = rng.uniform(-1, 1, n) * batch.amplitude * batch.omega
+    return batch, x0, v0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="small batch, under a minute")
+    ap.add_argument("--batch", type=int, help="parameter sets for the simulator (16384)")
+    ap.add_argument("--samples", type=int, help="samples per trajectory (2000)")
+    ap.add_argument("--reference", type=int, help="trajectories for solve_ivp (8)")
+    ap.add_argument("--fs-ratio", type=float, default=100.0, help="fs / f_n (100)")
+    ap.add_argument("--ref-max-step", type=float, default=np.inf,
+                    help="max_step of the timed reference (default: none, as scipy's)")  # fmt: skip
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--profile", action="store_true", help="cProfile the simulator run")
+    args = ap.parse_args()
+    b = args.batch or (2048 if args.quick else 16384)
+    n = args.samples or (1000 if args.quick else 2000)
+    k = min(args.reference or (4 if args.quick else 8), b)
+    if b * n > MAX_ELEMENTS:
+        ap.error(f"--batch x --samples = {b * n:.2g} > {MAX_ELEMENTS:.0e}: too much memory")
+
+    batch, x0, v0 = draw(b, np.random.default_rng(args.seed))
+    sim = Simulator()  # default transient, closed-form engine (no effects)
+    h = 2 * np.pi / args.fs_ratio
+    print(f"domain: {DOMAIN}, fs/f_n {args.fs_ratio:g}")
+    print(f"transient: {sim.transient_time(batch).min():.0f}-{sim.transient_time(batch).max():.0f}"
+          f" model time units; samples: {n} x h={h:.4f}")  # fmt: skip
+
+    profiler = cProfile.Profile() if args.profile else None
+    t_start, c_start = time.perf_counter(), time.process_time()
+    if profiler:
+        profiler.enable()
+    res = sim.simulate(batch, args.fs_ratio, n, x0=x0, v0=v0)
+    if profiler:
+        profiler.disable()
+    t_sim, c_sim = time.perf_counter() - t_start, time.process_time() - c_start
+
+    model = sim.linear_model(batch, res.effect_params)
+    t_ref, c_ref, errors, rechecked = 0.0, 0.0, [], {}
+    for i in range(k):
+        t_samples = res.t0[i] + np.arange(n) * h
+        t_start, c_start = time.perf_counter(), time.process_time()
+        ref = reference_trajectory(model, i, x0[i], v0[i], t_samples, max_step=args.ref_max_step)
+        t_ref += time.perf_counter() - t_start
+        c_ref += time.process_time() - c_start
+        peak = np.abs(ref["accel"]).max()
+        errors.append(np.abs(ref["accel"] - res.clean_accel[i]).max() / peak)
+        if errors[-1] > 1e-6:  # untimed: is the reference the one that is off?
+            fine = reference_trajectory(model, i, x0[i], v0[i], t_samples,
+                                        max_step=RECHECK_MAX_STEP)  # fmt: skip
+            rechecked[i] = np.abs(fine["accel"] - res.clean_accel[i]).max() / peak
+
+    rate_sim, rate_ref = b * n / t_sim, k * n / t_ref
+    rows = [
+        ("Simulator (closed form)", b, b * n, t_sim, c_sim, rate_sim, float("nan")),
+        ("solve_ivp DOP853 + events", k, k * n, t_ref, c_ref, rate_ref, max(errors)),
+    ]
+    # cpu s: process time, a check on wall-clock seconds on a shared machine
+    print(f"\n{'engine':<27}{'traj':>7}{'samples':>12}{'seconds':>10}{'cpu s':>9}"
+          f"{'samples/s':>12}{'max rel err':>13}")  # fmt: skip
+    for name, traj, samples, sec, cpu, rate, err in rows:
+        err_text = "-" if np.isnan(err) else f"{err:.1e}"
+        print(f"{name:<27}{traj:>7}{samples:>12}{sec:>10.2f}{cpu:>9.2f}{rate:>12.4g}"
+              f"{err_text:>13}")  # fmt: skip
+    print(f"\nimpacts per trajectory (simulator batch): {res.impacts.sum(axis=1).mean():.1f}; "
+          f"trajectories that impact: {np.mean(res.impacts.sum(axis=1) > 0):.0%}")  # fmt: skip
+    print("accel error / peak on the reference trajectories: "
+          + ", ".join(f"{e:.1e}" for e in errors))  # fmt: skip
+    for i, err in rechecked.items():
+        print(f"  trajectory {i}: {errors[i]:.1e} against the timed reference, {err:.1e} "
+              f"against solve_ivp with max_step={RECHECK_MAX_STEP} (it stepped over a contact)"
+              if err <= 1e-6 else
+              f"  trajectory {i}: {errors[i]:.1e}, still {err:.1e} with max_step="
+              f"{RECHECK_MAX_STEP}")  # fmt: skip
+    if profiler:
+        print()
+        pstats.Stats(profiler).sort_stats("tottime").print_stats(15)
+    print(f"speedup in cpu time: {(b * n / c_sim) / (k * n / c_ref):.1f}")
+    print(f"speedup_vs_solve_ivp: {rate_sim / rate_ref:.1f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""Figures of an analysis, the ones a person checks before trusting the numbers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from stiffnet.analyze import Analysis
+from stiffnet.io_utils import write_bytes_atomic
+from stiffnet.nlts import delay_embed, savgol_smooth
+
+
+def _figure():
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, never a window
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+    write_bytes_atomic(path, buf.getvalue())
+    return path
+
+
+def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Path]:
+    """Write the analysis figures as PNG files into ``out_dir``; returns their paths."""
+    plt = _figure()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    g = a.geometric
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.plot(np.arange(a.ami.size), a.ami, lw=1.2)
+    ax.axvline(a.delay, color="C3", ls="--", label=f"delay {a.delay} ({a.delay_rule})")
+    ax.set(xlabel="lag [samples]", ylabel="mutual information [nats]", title="AMI (eq. 2)")
+    ax.legend()
+    paths.append(_save(fig, out / "ami.png"))
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    d = np.arange(1, a.cao_e1.size + 1)
+    ax.plot(d, a.cao_e1, "o-", label="Cao E1")
+    ax.plot(d, a.cao_e2, "s--", label="Cao E2")
+    ax.plot(np.arange(1, a.fnn.size + 1), a.fnn, "^-", label="FNN fraction")
+    ax.axvline(a.dimension, color="C3", ls=":", label=f"dimension {a.dimension}")
+    ax.set(xlabel="embedding dimension", title="Embedding dimension (eq. 3)")
+    ax.legend()
+    paths.append(_save(fig, out / "dimension.png"))
+    plt.close(fig)
+
+    # The attractor as the geometric method saw it, x-z projection (Fig. 10).
+    x = (raw - raw.mean()) / raw.std()
+    s = savgol_smooth(x, g.smoothing_window)
+    y = delay_embed(s, 3, g.delay)
+    mask = g.separation.mask
+    n = min(len(mask), len(y))
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ax.plot(y[:n, 0], y[:n, 2], ",", color="0.6", label="free flight")
+    ax.plot(y[:n, 0][mask[:n]], y[:n, 2][mask[:n]], ".", ms=2, color="C3", label="contact")
+    ax.set(xlabel="x(t)", ylabel=f"x(t + {2 * g.delay}) [z]", title="Attractor, x-z projection")
+    ax.legend(markerscale=4)
+    paths.append(_save(fig, out / "attractor_xz.png"))
+    plt.close(fig)
+
+    sep = g.separation
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    edges = 10.0**sep.edges  # the histogram is of log10 magnitudes
+    ax.bar(edges[:-1], sep.counts, width=np.diff(edges), align="edge", color="C0")
+    if np.isfinite(sep.threshold):
+        ax.axvline(sep.threshold, color="C3", ls="--", label=f"threshold {sep.threshold:.3g}")
+        ax.legend()
+    ax.set(xscale="log", yscale="log", xlabel="tangent-vector magnitude", ylabel="count",
+           title="Contact separation (Fig. 8)")  # fmt: skip
+    ax.xaxis.set_minor_formatter(plt.NullFormatter())  # minor log labels collide
+    paths.append(_save(fig, out / "tangent_histogram.png"))
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(5, 4))
+    if g.orbit_before_deg.size:
+        ax.plot(g.orbit_before_deg, g.orbit_after_deg, ".", alpha=0.6, label="orbits")
+        ax.plot([g.inclination_before_deg], [g.inclination_after_deg], "r*", ms=14, label="mean")
+        ax.legend()
+    title = f"geometric: {g.geometric_class}"
+    if g.geometric_beta is not None:
+        title += f", beta ~ {g.geometric_beta:.1f}"
+    ax.set(xlabel="inclination before impact [deg]", ylabel="inclination after impact [deg]",
+           title=title)  # fmt: skip
+    paths.append(_save(fig, out / "inclinations.png"))
+    plt.close(fig)
+    return paths

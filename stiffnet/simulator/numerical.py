@@ -1,0 +1,632 @@
+"""Batched fixed-step RK4 integrator with event location, for any dynamics effect.
+
+The closed-form engine (:mod:`stiffnet.simulator.closed_form`) is exact but
+needs a piecewise-linear model. Effects that override the numerical hooks of
+:class:`~stiffnet.effects.base.DynamicsEffect` (a Hertz contact law, a
+restraint with its own mass, dry friction, user effects) are integrated here.
+
+The right-hand side composes every hook (see :mod:`stiffnet.effects.base`)::
+
+    x' = v
+    v' = F(t) - 2 xi v - x - F_c + sum(extra forces)
+    F(t)  = a w^2 sin(w t) + sum(forcing_terms)
+    delta = x - e(t) - y_r,   e(t) = e + sum(gap_terms),  y_r = sum(restraint_position)
+    F_c   = elastic(delta) + c_c delta'   in contact, 0 in free flight
+    s'    = state_derivative(t, s, F_c)   (extra states, e.g. a restraint's DOF)
+
+with ``elastic`` the (single) effect's ``elastic_contact`` or ``beta delta`` and
+``c_c`` the sum of ``contact_damping``.
+
+Integration is classical RK4 with ``substeps`` fixed substeps per sample, the
+whole batch marching together, each row with its own step. Inside a substep
+the region (free / contact) and the effects' discrete modes are frozen, so the
+right-hand side is smooth there. Switching functions are checked at the end of
+every substep:
+
+* contact: ``G = min(delta, F_c)`` (as in the closed form): the mass is in
+  contact exactly when ``G > 0``; with contact damping the restraint lets go
+  when its force would turn into a pull;
+* each effect's ``event_function``: **the current mode holds while it is
+  positive**; the event fires when it reaches ``<= 0`` and ``next_mode`` gives
+  the new mode.
+
+A sign change inside a substep is located by a safeguarded secant (Illinois)
+iteration on RK4 partial steps of length ``s`` from the substep's start (a
+smooth function of ``s``), for the rows that need it only; the region or mode
+is switched there and the substep is finished from the event with a fresh RK4
+step. A contact that begins and ends inside one substep (grazing) is found from
+the interior extremum of the penetration; a double sign change of an effect's
+event function inside one substep is not looked for (substeps are short).
+Without contact damping the root is located on ``delta`` itself, which has
+G's sign but no kink at the root (the secant would crawl on ``min``). Across
+the nonsmooth points this
+keeps the global error at RK4's fourth order, as long as the force law itself
+is smooth on either side (see :class:`~stiffnet.effects.hertz_contact.HertzContact`
+for one that is not).
+
+Conventions the hooks rely on:
+
+* ``elastic_contact`` receives ``max(delta, 0)``; the default ``beta delta`` is
+  used unclipped, its smooth extension past the release point;
+* ``other``, passed to ``extra_force`` of effect *i*, is the sum of the base
+  forces (forcing, spring, damper, contact) and the extra forces of the effects
+  listed before it; to ``event_function`` and ``next_mode`` it is the total
+  minus the effect's own force. Put an effect that balances ``other`` (sticking
+  friction) last;
+* the rate of the restraint position is taken as
+  ``restraint_position(s + s'_0) - restraint_position(s)`` with ``s'_0`` the
+  state derivative under zero contact force: exact when the position is affine
+  in the states and its rate does not depend on the force (a mechanical DOF);
+* discrete modes start at 0; rows whose event function is ``<= 0`` at ``t = 0``
+  get ``next_mode`` first.
+
+Stability: ``substeps`` is a minimum. RK4 is stable for ``|lambda| h < 2.8``;
+the engine takes more substeps where the fastest rate of the linearised system
+times the substep would exceed ``_MAX_RATE_STEP`` (the contact mode
+``sqrt(1 + beta)`` with its damping, and an effect's optional
+``fastest_rate(p, batch)``: an upper bound of its rates, (B,) in rad per model
+time, e.g. a light restraint's ringing). A run that still diverges raises
+:class:`~stiffnet.errors.ConfigError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from stiffnet.effects.base import DynamicsEffect, ParamArrays, Sinusoids
+from stiffnet.errors import ConfigError
+from stiffnet.simulator.batch import OscillatorBatch
+
+_MAX_EVENTS_PER_SUBSTEP = 8
+_ROOT_ITERS = 80
+_ROOT_TOL = 1e-13  # event-time tolerance, relative to the substep
+_EXTREMUM_TOL = 1e-9  # tolerance of the grazing extremum's time, relative to the substep
+_TINY = 1e-300
+_MAX_RATE_STEP = 1.0  # fastest rate x substep: RK4 stable (< 2.8) and the mode resolved
+_CHECK_EVERY = 64  # steps between divergence checks
+
+
+def _overrides(effect: DynamicsEffect, hook: str) -> bool:
+    return getattr(type(effect), hook) is not getattr(DynamicsEffect, hook)
+
+
+class _Model:
+    """The composed right-hand side for a set of rows (the batch, or a subset)."""
+
+    def __init__(
+        self, batch: OscillatorBatch, effects: list[DynamicsEffect], params: list[ParamArrays]
+    ) -> None:
+        if len(params) != len(effects):
+            raise ConfigError(f"{len(effects)} effects but {len(params)} parameter dicts")
+        n = len(batch)
+        forcing = Sinusoids(batch.forcing_scale[:, None], batch.omega[:, None], np.zeros((n, 1)))
+        gap = Sinusoids.empty(n)
+        cc = np.zeros(n)
+        for eff, p in zip(effects, params, strict=True):
+            f = eff.forcing_terms(p, batch)
+            forcing = forcing if f is None else forcing + f
+            g = eff.gap_terms(p, batch)
+            gap = gap if g is None else gap + g
+            c = eff.contact_damping(p, batch)
+            cc = cc if c is None else cc + np.asarray(c, float)
+        self._setup(batch, effects, params, forcing, gap, cc)
+
+    def _setup(
+        self,
+        batch: OscillatorBatch,
+        effects: list[DynamicsEffect],
+        params: list[ParamArrays],
+        forcing: Sinusoids,
+        gap: Sinusoids,
+        cc: np.ndarray,
+    ) -> None:
+        self.batch, self.effects, self.params = batch, effects, params
+        self.forcing, self.gap, self.cc = forcing, gap, cc
+        self.n = len(batch)
+        self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
+        self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
+        self.has_cc = bool(np.any(cc != 0))
+        elastic = [k for k, e in enumerate(effects) if _overrides(e, "elastic_contact")]
+        if len(elastic) > 1:
+            names = ", ".join(effects[k].name for k in elastic)
+            raise ConfigError(f"only one effect may set the elastic contact law, got {names}")
+        self.elastic = elastic[0] if elastic else None
+        self.force_fx = [k for k, e in enumerate(effects) if _overrides(e, "extra_force")]
+        self.event_fx = [k for k, e in enumerate(effects) if _overrides(e, "event_function")]
+        self.slices: list[tuple[int, slice]] = []
+        i = 2
+        for k, e in enumerate(effects):
+            if e.n_states:
+                self.slices.append((k, slice(i, i + e.n_states)))
+                i += e.n_states
+        self.n_y = i
+        self.restraints = [
+            (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
+        ]
+        self.zero = np.zeros(self.n)
+
+    def subset(self, idx: np.ndarray) -> _Model:
+        """The same model restricted to rows ``idx`` (hooks are not called again)."""
+        new = object.__new__(_Model)
+        new._setup(
+            self.batch.subset(idx),
+            self.effects,
+            [{k: v[idx] for k, v in p.items()} for p in self.params],
+            self.forcing.subset(idx),
+            self.gap.subset(idx),
+            self.cc[idx],
+        )
+        return new
+
+    def initial_state(self, x0: np.ndarray, v0: np.ndarray) -> np.ndarray:
+        y = np.zeros((self.n, self.n_y))
+        y[:, 0], y[:, 1] = x0, v0
+        for k, sl in self.slices:
+            y[:, sl] = self.effects[k].initial_states(self.params[k], self.batch)
+        return y
+
+    def rate_bound(self) -> np.ndarray:
+        """Upper bound of the linearised system's fastest rate per row, (B,)."""
+        c = self.xi2 + self.cc
+        k = 1.0 + self.beta
+        rate = 0.5 * c + np.sqrt(0.25 * c * c + k)
+        for eff, p in zip(self.effects, self.params, strict=True):
+            fastest = getattr(eff, "fastest_rate", None)
+            if fastest is not None:
+                rate = np.maximum(rate, fastest(p, self.batch))
+        return rate
+
+    def forcing_at(self, t: np.ndarray) -> np.ndarray:
+        return self.forcing.value(t)
+
+    def rhs(
+        self,
+        t: np.ndarray,
+        y: np.ndarray,
+        contact: np.ndarray,
+        modes: np.ndarray,
+        full: bool = False,
+        forcing: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, dict[str, np.ndarray] | None]:
+        """dy/dt, and with ``full`` the switching data (``aux``) at the state.
+
+        ``aux`` holds, per row: ``G`` (contact switching function), ``Gr`` (a
+        smooth function with G's sign near its root, for the root finder), ``dd``
+        (penetration rate), ``delta``, ``fc`` (contact force, 0 in free flight),
+        ``extra`` (sum of extra forces), ``other`` (B, n_effects) and ``g``
+        (B, n_event_effects), the effects' event functions.
+        """
+        effects, params = self.effects, self.params
+        x, v = y[:, 0], y[:, 1]
+        f_t = self.forcing_at(t) if forcing is None else forcing
+        if self.has_gap:
+            e, de = self.e0 + self.gap.value(t), self.gap.rate(t)
+        else:
+            e, de = self.e0, 0.0
+        yr: Any = 0.0
+        dyr: Any = 0.0
+        for k, sl in self.restraints:
+            eff, p, s = effects[k], params[k], y[:, sl]
+            r = eff.restraint_position(s, p)
+            if r is not None:
+                ds0 = eff.state_derivative(t, s, self.zero, p)
+                yr = yr + r
+                dyr = dyr + (eff.restraint_position(s + ds0, p) - r)
+        delta = x - e - yr
+        dd = v - de - dyr
+        if self.elastic is None:
+            elastic = self.beta * delta
+        else:
+            k = self.elastic
+            elastic = effects[k].elastic_contact(np.maximum(delta, 0.0), params[k], self.batch)
+        fpot = elastic + self.cc * dd if self.has_cc else elastic
+        fc = np.where(contact, fpot, 0.0)
+        base = f_t - self.xi2 * v - x - fc
+        total = base
+        own: dict[int, np.ndarray] = {}
+        for k in self.force_fx:
+            fk = effects[k].extra_force(t, x, v, total, modes[k], params[k])
+            if fk is not None:
+                own[k] = fk
+                total = total + fk
+        dy = np.empty_like(y)
+        dy[:, 0] = v
+        dy[:, 1] = total
+        for k, sl in self.slices:
+            dy[:, sl] = effects[k].state_derivative(t, y[:, sl], fc, params[k])
+        if not full:
+            return dy, None
+        other = np.empty((self.n, len(effects)))
+        for k in range(len(effects)):
+            other[:, k] = total - own[k] if k in own else total
+        g = np.empty((self.n, len(self.event_fx)))
+        for j, k in enumerate(self.event_fx):
+            gk = effects[k].event_function(t, x, v, other[:, k], modes[k], params[k])
+            g[:, j] = np.inf if gk is None else gk
+        g_contact = np.minimum(delta, fpot)
+        # G has a kink at its root when F_c is a function of delta alone (no
+        # contact damping): the secant then crawls. There delta has G's sign and
+        # is smooth, so the root is located on delta instead.
+        g_root = np.where(self.cc != 0, g_contact, delta) if self.has_cc else delta
+        aux = {
+            "G": g_contact,
+            "Gr": g_root,
+            "dd": dd,
+            "delta": delta,
+            "fc": np.where(contact, np.maximum(fpot, 0.0), 0.0),
+            "extra": total - base,
+            "other": other,
+            "g": g,
+        }
+        return dy, aux
+
+
+def _rk4(
+    model: _Model,
+    t: np.ndarray,
+    y: np.ndarray,
+    k1: np.ndarray,
+    s: np.ndarray,
+    contact: np.ndarray,
+    modes: np.ndarray,
+) -> np.ndarray:
+    """One classical RK4 step of length ``s`` (per row) from ``(t, y)``; ``k1 = f(t, y)``."""
+    half = 0.5 * s
+    tm = t + half
+    fm = model.forcing_at(tm)  # k2 and k3 share the midpoint time
+    k2, _ = model.rhs(tm, y + half[:, None] * k1, contact, modes, forcing=fm)
+    k3, _ = model.rhs(tm, y + half[:, None] * k2, contact, modes, forcing=fm)
+    k4, _ = model.rhs(t + s, y + s[:, None] * k3, contact, modes)
+    return y + (s / 6.0)[:, None] * (k1 + 2.0 * (k2 + k3) + k4)
+
+
+def _partial_step(
+    model: _Model,
+    t: np.ndarray,
+    y: np.ndarray,
+    f: np.ndarray,
+    contact: np.ndarray,
+    modes: np.ndarray,
+) -> Callable[[np.ndarray], dict[str, np.ndarray]]:
+    """``s -> aux`` at the end of an RK4 partial step of length ``s`` from ``(t, y)``."""
+
+    def aux_at(s: np.ndarray) -> dict[str, np.ndarray]:
+        ys = _rk4(model, t, y, f, s, contact, modes)
+        return model.rhs(t + s, ys, contact, modes, full=True)[1]
+
+    return aux_at
+
+
+def _illinois(
+    fun: Callable[[np.ndarray], np.ndarray],
+    hi: np.ndarray,
+    glo: np.ndarray,
+    ghi: np.ndarray,
+    tol: np.ndarray,
+) -> np.ndarray:
+    """A root of ``fun`` on ``[0, hi]``; ``glo = fun(0)`` and ``ghi = fun(hi)`` differ in sign.
+
+    Safeguarded secant (Illinois variant: the retained end's value is halved
+    when it is retained twice, so both ends converge), bisection when the
+    secant leaves the bracket. Returns the end of the final bracket on the far
+    side of the root (where ``fun`` has left the sign of ``glo``).
+    """
+    lo = np.zeros_like(hi)
+    last = np.zeros(hi.shape, dtype=np.int8)  # -1: lo moved last, +1: hi moved last
+    sgn = np.sign(glo)
+    for _ in range(_ROOT_ITERS):
+        live = (hi - lo > tol) & (ghi != 0)
+        if not np.any(live):
+            break
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = lo - glo * (hi - lo) / (ghi - glo)
+        # glo == _TINY: the interval starts on the boundary (just after an event);
+        # a secant would land on s ~ 1e-300, where the state has not moved
+        bad = ~np.isfinite(s) | (s <= lo) | (s >= hi) | (np.abs(glo) <= _TINY)
+        s = np.where(bad, 0.5 * (lo + hi), s)
+        s = np.where(live, s, hi)
+        g = fun(s)
+        inside = live & (g * sgn > 0)
+        outside = live & ~inside
+        glo = np.where(outside & (last == 1), 0.5 * glo, glo)
+        ghi = np.where(inside & (last == -1), 0.5 * ghi, ghi)
+        lo, glo = np.where(inside, s, lo), np.where(inside, g, glo)
+        hi, ghi = np.where(outside, s, hi), np.where(outside, g, ghi)
+        last = np.where(inside, -1, np.where(outside, 1, last)).astype(np.int8)
+    return hi
+
+
+class _Stepper:
+    """Marches the batch substep by substep, resolving events for the rows that need them."""
+
+    def __init__(self, model: _Model, x0: np.ndarray, v0: np.ndarray) -> None:
+        self.m = model
+        n = model.n
+        self.t = np.zeros(n)
+        self.y = model.initial_state(np.asarray(x0, float), np.asarray(v0, float))
+        self.modes = np.zeros((len(model.effects), n))
+        self.contact = np.zeros(n, dtype=bool)
+        _, aux = model.rhs(self.t, self.y, self.contact, self.modes, full=True)
+        self.contact = aux["G"] > 0
+        for _ in range(3):  # modes inconsistent with the initial state switch first
+            _, aux = model.rhs(self.t, self.y, self.contact, self.modes, full=True)
+            for j, k in enumerate(model.event_fx):
+                bad = aux["g"][:, j] <= 0
+                if np.any(bad):
+                    new = model.effects[k].next_mode(
+                        self.y[:, 0],
+                        self.y[:, 1],
+                        aux["other"][:, k],
+                        self.modes[k],
+                        model.params[k],
+                    )
+                    self.modes[k] = np.where(bad, new, self.modes[k])
+        self.f, self.aux = model.rhs(self.t, self.y, self.contact, self.modes, full=True)
+
+    def check_bounded(self) -> None:
+        """Raise if a row has blown up (RK4 unstable for a mode faster than the step)."""
+        m = self.m
+        scale = 1.0 + np.abs(m.e0) + np.sum(np.abs(m.forcing.amp), axis=1) / m.xi2
+        bad = ~np.all(np.isfinite(self.y), axis=1) | (np.abs(self.y[:, 0]) > 1e6 * scale)
+        if np.any(bad):
+            raise ConfigError(
+                f"numerical integration diverged for {int(bad.sum())} of {m.n} trajectories "
+                "(an effect faster than the step resolves): increase substeps"
+            )
+
+    def march(self, h: np.ndarray, n_steps: int, substeps: int, out: dict | None) -> None:
+        """``n_steps`` steps of ``h`` (each ``substeps`` RK4 substeps); record into ``out``.
+
+        ``out`` holds ``(n_steps, B)`` arrays, one row per recorded step.
+        """
+        m = self.m
+        hs = h / substeps
+        t_start = self.t.copy()
+        for i in range(n_steps):
+            entries = np.zeros(m.n, dtype=np.int64)
+            for j in range(substeps):
+                # times from the step count, not by accumulation, so rows stay on their grid
+                t1 = t_start + (i * substeps + j + 1) * hs
+                y1 = _rk4(m, self.t, self.y, self.f, hs, self.contact, self.modes)
+                f1, aux1 = m.rhs(t1, y1, self.contact, self.modes, full=True)
+                sus = self._suspects(aux1, hs)
+                if sus.size:
+                    trial = (y1[sus], f1[sus], {k: v[sus] for k, v in aux1.items()})
+                    res = self._resolve(sus, hs[sus], trial)
+                    y1[sus], f1[sus] = res["y"], res["f"]
+                    for key, val in res["aux"].items():
+                        aux1[key][sus] = val
+                    self.contact[sus] = res["contact"]
+                    self.modes[:, sus] = res["modes"]
+                    entries[sus] += res["entries"]
+                self.t, self.y, self.f, self.aux = t1, y1, f1, aux1
+            if i % _CHECK_EVERY == _CHECK_EVERY - 1 or i == n_steps - 1:
+                self.check_bounded()
+            if out is not None:
+                x, v, aux = self.y[:, 0], self.y[:, 1], self.aux
+                out["x"][i], out["v"][i] = x, v
+                out["contact_force"][i] = aux["fc"]
+                # absolute acceleration: the real forces on the mass (no base forcing)
+                out["accel"][i] = aux["extra"] - (m.xi2 * v + x + aux["fc"])
+                out["impacts"][i] = np.minimum(entries, 127)
+
+    def _suspects(self, aux1: dict, hs: np.ndarray) -> np.ndarray:
+        """Rows whose contact function or an event function may change sign in the substep."""
+        a0 = self.aux
+        crossed = (aux1["G"] > 0) != self.contact
+        if aux1["g"].shape[1]:
+            crossed |= np.any(aux1["g"] <= 0, axis=1)
+        # A hidden double crossing of the restraint needs an extremum of the
+        # penetration inside the substep, close enough to the restraint.
+        d0, d1, dd0, dd1 = a0["delta"], aux1["delta"], a0["dd"], aux1["dd"]
+        span = (np.abs(dd0) + np.abs(dd1)) * hs
+        turn_free = ~self.contact & (dd0 > 0) & (dd1 <= 0) & (np.maximum(d0, d1) + span > 0)
+        turn_con = self.contact & (dd0 < 0) & (dd1 >= 0) & (np.minimum(d0, d1) - span < 0)
+        return np.flatnonzero(crossed | turn_free | turn_con)
+
+    def _resolve(self, idx: np.ndarray, hs: np.ndarray, trial: tuple) -> dict[str, Any]:
+        """March rows ``idx`` through their substep, locating and switching at events.
+
+        ``trial``: the full-substep RK4 result ``(y, f, aux)`` of these rows.
+        """
+        model = self.m.subset(idx)
+        t, y, f = self.t[idx].copy(), self.y[idx].copy(), self.f[idx].copy()
+        aux = {k: v[idx].copy() for k, v in self.aux.items()}
+        contact, modes = self.contact[idx].copy(), self.modes[:, idx].copy()
+        left = hs.copy()
+        entries = np.zeros(idx.size, dtype=np.int64)
+        n_ev = len(model.event_fx)
+        active = np.arange(idx.size)
+        for it in range(_MAX_EVENTS_PER_SUBSTEP + 1):
+            if active.size == 0:
+                break
+            a = active
+            ma = model if a.size == idx.size else model.subset(a)
+            ta, ya, fa, la, ca, mo = t[a], y[a], f[a], left[a], contact[a], modes[:, a]
+            if it == 0:  # nothing has moved yet: the main loop's trial step is this one
+                y1, f1, aux1 = trial
+            else:
+                y1 = _rk4(ma, ta, ya, fa, la, ca, mo)
+                f1, aux1 = ma.rhs(ta + la, y1, ca, mo, full=True)
+            if it == _MAX_EVENTS_PER_SUBSTEP:  # chattering: finish without further events
+                t[a], y[a], f[a], left[a] = ta + la, y1, f1, 0.0
+                for key in aux:
+                    aux[key][a] = aux1[key]
+                break
+
+            def partial(sel: np.ndarray, ma=ma, a=a):
+                rows = a[sel]
+                ms = ma if sel.size == a.size else ma.subset(sel)
+                return _partial_step(ms, t[rows], y[rows], f[rows], contact[rows], modes[:, rows])
+
+            # brackets [0, s_hi] per switching function: 0 = contact, 1.. = event effects
+            s_hi = np.full((a.size, 1 + n_ev), np.nan)
+            g_hi = np.full((a.size, 1 + n_ev), np.nan)
+            sign_in = np.where(ca, 1.0, -1.0)
+            out_c = aux1["G"] * sign_in <= 0
+            s_hi[out_c, 0], g_hi[out_c, 0] = la[out_c], aux1["Gr"][out_c]
+            a0 = {k: v[a] for k, v in aux.items()}
+            dd0, dd1 = a0["dd"], aux1["dd"]
+            turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
+            if np.any(turning):
+                sel = np.flatnonzero(turning)
+                at = partial(sel)
+                s_ext = _illinois(
+                    lambda s, _at=at: _at(s)["dd"], la[sel], dd0[sel], dd1[sel],
+                    _EXTREMUM_TOL * hs[a[sel]],
+                )  # fmt: skip
+                a_ext = at(s_ext)
+                hit = a_ext["G"] * sign_in[sel] <= 0
+                s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
+            for j in range(n_ev):
+                out_j = aux1["g"][:, j] <= 0
+                s_hi[out_j, 1 + j], g_hi[out_j, 1 + j] = la[out_j], aux1["g"][out_j, j]
+            has = np.isfinite(s_hi)
+            any_ev = np.any(has, axis=1)
+            quiet = ~any_ev
+            if np.any(quiet):
+                q = a[quiet]
+                t[q], y[q], f[q], left[q] = ta[quiet] + la[quiet], y1[quiet], f1[quiet], 0.0
+                for key in aux:
+                    aux[key][q] = aux1[key][quiet]
+            if not np.any(any_ev):
+                break
+            # locate each function's first crossing; the earliest one wins
+            s_root = np.full(s_hi.shape, np.inf)
+            for col in range(1 + n_ev):
+                sel = np.flatnonzero(has[:, col])
+                if sel.size == 0:
+                    continue
+                at = partial(sel)
+                if col == 0:
+                    # right after an event G(0) is ~0 with either sign: use the region's
+                    glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
+
+                    def fun(s, _at=at):
+                        return _at(s)["Gr"]
+                else:
+                    glo = np.maximum(np.abs(a0["g"][sel, col - 1]), _TINY)
+
+                    def fun(s, _at=at, _j=col - 1):
+                        return _at(s)["g"][:, _j]
+
+                s_root[sel, col] = _illinois(
+                    fun, s_hi[sel, col], glo, g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
+                )
+            ev = np.flatnonzero(any_ev)
+            s_star = np.min(s_root[ev], axis=1)
+            fired = s_root[ev] <= s_star[:, None] * (1 + 1e-12) + _TINY
+            e_rows = a[ev]
+            me = ma if ev.size == a.size else ma.subset(ev)
+            te, ce, moe = ta[ev] + s_star, ca[ev].copy(), mo[:, ev].copy()
+            ye = _rk4(me, ta[ev], ya[ev], fa[ev], s_star, ca[ev], mo[:, ev])
+            _, aux_e = me.rhs(te, ye, ce, moe, full=True)
+            # switch: the restraint region, then the effects' modes at the event state
+            flip = fired[:, 0]
+            entries[e_rows[flip & ~ce]] += 1
+            ce = np.where(flip, ~ce, ce)
+            for j, k in enumerate(model.event_fx):
+                fj = fired[:, 1 + j]
+                if np.any(fj):
+                    new = model.effects[k].next_mode(
+                        ye[:, 0], ye[:, 1], aux_e["other"][:, k], moe[k], me.params[k]
+                    )
+                    moe[k] = np.where(fj, new, moe[k])
+            fe, aux_e = me.rhs(te, ye, ce, moe, full=True)
+            t[e_rows], y[e_rows], f[e_rows] = te, ye, fe
+            contact[e_rows], modes[:, e_rows] = ce, moe
+            left[e_rows] = np.maximum(left[e_rows] - s_star, 0.0)
+            for key in aux:
+                aux[key][e_rows] = aux_e[key]
+            active = e_rows[left[e_rows] > 0]
+        return {
+            "y": y,
+            "f": f,
+            "aux": aux,
+            "contact": contact,
+            "modes": modes,
+            "entries": entries,
+        }
+
+
+def simulate_numerical(
+    batch: OscillatorBatch,
+    effects: list[DynamicsEffect],
+    params: list[ParamArrays],
+    x0: np.ndarray,
+    v0: np.ndarray,
+    h_transient: np.ndarray,
+    n_transient: int,
+    h: np.ndarray,
+    n_samples: int,
+    substeps: int = 8,
+) -> dict[str, np.ndarray]:
+    """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
+
+    Same output contract as :func:`~stiffnet.simulator.closed_form.simulate_linear`.
+
+    Parameters
+    ----------
+    batch : OscillatorBatch
+        The B parameter sets of eqs (11)-(12).
+    effects : list of DynamicsEffect
+        The dynamics effects, composed as described in the module docstring.
+    params : list of dict
+        ``params[i]``: per-row parameter arrays (B,) of ``effects[i]``
+        (from ``effects[i].batch_params``).
+    x0, v0 : numpy.ndarray
+        Initial relative displacement and velocity, (B,) (extra states start at
+        the effects' ``initial_states``).
+    h_transient, h : numpy.ndarray
+        Per-row step of the transient and of the recorded samples, (B,).
+    n_transient, n_samples : int
+        Number of transient (not recorded) and recorded steps.
+    substeps : int
+        RK4 substeps per step (at least; more where a fast mode needs them, see
+        the module docstring); the global error falls as ``substeps**-4``.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        ``x``, ``v``, ``accel`` (absolute acceleration of the mass: the spring,
+        damper, contact and extra forces), ``contact_force`` (all (B, n_samples)),
+        ``impacts`` (int8, contact entries during the step that ends at each
+        sample) and ``t0`` (B,), the time of the first sample.
+
+    Raises
+    ------
+    ConfigError
+        Two effects set the contact law, ``substeps < 1``, non-positive steps, or
+        the integration diverged.
+    """
+    if substeps < 1:
+        raise ConfigError(f"substeps must be >= 1, got {substeps}")
+    model = _Model(batch, list(effects), list(params))
+    n = model.n
+    h = np.broadcast_to(np.asarray(h, float), (n,)).copy()
+    h_transient = np.broadcast_to(np.asarray(h_transient, float), (n,)).copy()
+    if np.any(h <= 0) or (n_transient > 0 and np.any(h_transient <= 0)):
+        raise ConfigError("steps h and h_transient must be positive")
+    x0 = np.broadcast_to(np.asarray(x0, float), (n,))
+    v0 = np.broadcast_to(np.asarray(v0, float), (n,))
+    rate = model.rate_bound()
+
+    def n_sub(step: np.ndarray) -> int:
+        return max(substeps, int(np.ceil(np.max(step * rate) / _MAX_RATE_STEP)))
+
+    st = _Stepper(model, x0, v0)
+    if n_transient > 0:
+        st.march(h_transient, n_transient, n_sub(h_transient), None)
+    # (N, B) while recording: each sample writes one contiguous row
+    out: dict[str, np.ndarray] = {
+        k: np.empty((n_samples, n)) for k in ("x", "v", "accel", "contact_force")
+    }
+    out["impacts"] = np.zeros((n_samples, n), dtype=np.int8)
+    t0 = st.t + h
+    st.march(h, n_samples, n_sub(h), out)
+    out = {k: v.T for k, v in out.items()}  # (B, N) views
+    out["t0"] = t0
+    return out

@@ -1,0 +1,95 @@
+"""`stiffnet analyze`: the paper's pipeline on one recording, JSON keys, plots, bad input."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from stiffnet.analyze import analyze_signal
+from stiffnet.cli import app
+from stiffnet.recordings import write_recording_csv
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+ROOT = Path(__file__).resolve().parents[1]
+FN = 9.48
+runner = CliRunner()
+
+REQUIRED = (
+    "embedding_delay", "embedding_dimension", "determinism_factor", "inclination_before_deg",
+    "inclination_after_deg", "geometric_beta", "geometric_class",
+)  # fmt: skip
+
+
+def simulated(beta: float, gap: float = 2.8, n: int = 12000, noise: float = 0.01) -> np.ndarray:
+    batch = OscillatorBatch.single(beta, gap, 1.9, 1.05, 0.02)
+    res = Simulator(settle_tolerance=0.01).simulate(batch, 100.0, n, noise=noise, rng=3)
+    return res.accel[0]
+
+
+@pytest.fixture(scope="module")
+def impact_csv(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("rec") / "beta31.csv"
+    write_recording_csv(path, simulated(31.0) * 123.0, 100 * FN)  # arbitrary sensor gain
+    return path
+
+
+def test_analyze_json_keys_and_plots(impact_csv, tmp_path):
+    res = runner.invoke(
+        app, ["analyze", str(impact_csv), "--json", str(tmp_path / "a.json"), "--plots",
+              str(tmp_path / "figs")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    result = json.loads((tmp_path / "a.json").read_text())
+    for key in REQUIRED:
+        assert key in result
+    assert result["contact_detected"] is True and result["impacts_found"] > 20
+    assert result["geometric_class"] in {"medium", "hard"}  # beta = 31, class edge at 35
+    assert result["determinism_factor"] > 0.8  # Fig. 6: ~0.91 for an impacting case
+    assert result["inclination_after_deg"] > result["inclination_before_deg"]
+    names = {Path(p).name for p in result["plots"]}
+    assert names == {"ami.png", "dimension.png", "attractor_xz.png", "tangent_histogram.png",
+                     "inclinations.png"}  # fmt: skip
+    for p in result["plots"]:
+        assert Path(p).stat().st_size > 5000
+
+
+def test_no_impact_gives_no_contact_not_a_number():
+    a = analyze_signal(simulated(31.0, gap=50.0), 100 * FN).summary()
+    assert a["contact_detected"] is False and a["impacts_found"] == 0
+    assert a["geometric_class"] == "no_contact" and a["geometric_beta"] is None
+
+
+def run_cli(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "stiffnet", *args], capture_output=True, text=True, cwd=ROOT,
+        timeout=120,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("signal", "needle"),
+    [
+        (np.ones(5000), "constant"),
+        (np.r_[np.sin(np.arange(5000) / 10.0), np.nan], "NaN"),
+        (np.sin(np.arange(20) / 3.0), "short"),
+    ],
+)
+def test_bad_signals_one_line_exit_2(tmp_path, signal, needle):
+    path = tmp_path / "x.npy"
+    np.save(path, signal)
+    res = run_cli("analyze", str(path), "--fs", "1000")
+    assert res.returncode == 2, res.stderr
+    assert needle.lower() in res.stderr.lower() and "Traceback" not in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_npy_needs_fs(tmp_path):
+    path = tmp_path / "x.npy"
+    np.save(path, np.sin(np.arange(5000) / 10.0))
+    res = run_cli("analyze", str(path))
+    assert res.returncode == 2 and "fs" in res.stderr.lower()

@@ -1,0 +1,55 @@
+"""User-written effects, loaded by ``"user_effects:ClassName"`` in the effect tests.
+
+They show the two kinds of user extension: a dynamics effect through a
+closed-form hook (the model stays piecewise linear, so the exact engine runs)
+and a measurement effect.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from stiffnet.effects.base import (
+    DynamicsEffect,
+    EffectParams,
+    MeasurementEffect,
+    ParamArrays,
+    ParamValue,
+    Sinusoids,
+    param,
+)
+
+
+class ConstantPreload(DynamicsEffect):
+    """A constant force on the mass towards the restraint (e.g. its weight on a vertical rig).
+
+    It enters the forcing as a sinusoid of zero frequency and phase pi/2. The
+    free mass sags by ``force`` (unit primary stiffness) and the accelerometer,
+    which reads specific force, shows the offset ``-force``.
+    """
+
+    name = "constant_preload"
+
+    class Params(EffectParams):
+        force: ParamValue = param(0.2, -5.0, 5.0, "constant force / primary stiffness", "model")
+
+    def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:
+        n = len(batch)
+        return Sinusoids(p["force"][:, None], np.zeros((n, 1)), np.full((n, 1), np.pi / 2))
+
+
+class Gain(MeasurementEffect):
+    """A miscalibrated sensitivity: the recorded signal times ``gain``."""
+
+    name = "gain"
+    order = 15  # after the sensor, before the baseline noise
+
+    class Params(EffectParams):
+        gain: ParamValue = param(1.0, 0.1, 10.0, "sensitivity error factor")
+
+    def apply(
+        self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator
+    ) -> np.ndarray:
+        return signal * p["gain"][:, None]
