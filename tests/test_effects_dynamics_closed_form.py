@@ -68,7 +68,7 @@ def single_impact(damping_ratio: float, n: int = 500) -> dict[str, float]:
     sim = Simulator([ContactDamping(damping_ratio=damping_ratio)])
     params = {"contact_damping": {"damping_ratio": np.array([damping_ratio])}}
     h = np.array([2 * np.pi / 2000])
-    out = simulate_linear(sim.linear_model(batch, params), np.zeros(1), np.array([v0]), h, 0, h, n)
+    out = simulate_linear(sim.linear_model(batch, params), np.zeros(1), np.array([v0]), h, h, n)
     x, v, force = out["x"][0], out["v"][0], out["contact_force"][0]
     assert force.min() >= 0 and out["impacts"].sum() == 1
     contact = np.flatnonzero(force > 0)

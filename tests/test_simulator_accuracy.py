@@ -124,7 +124,7 @@ def run_unforced(
         batch, {"contact_damping": {"damping_ratio": np.array([damping_ratio])}}
     )
     hh = np.array([h])
-    return simulate_linear(model, np.zeros(1), np.array([v0]), hh, 0, hh, n)
+    return simulate_linear(model, np.zeros(1), np.array([v0]), hh, hh, n)
 
 
 # ------------------------------------------------------------ steady-state orbits
