@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffnet.effects.base import EffectParams, MeasurementEffect, ParamArrays, ParamValue, param
+from stiffnet.effects.base import (
+    EffectParams,
+    MeasurementEffect,
+    ParamArrays,
+    ParamValue,
+    batch_signal,
+    param,
+    per_row,
+)
 
 
 def lsb(full_scale: np.ndarray, bits: np.ndarray) -> np.ndarray:
@@ -89,13 +97,11 @@ class ADC(MeasurementEffect):
         numpy.ndarray
             Quantised signal, a new ``(B, N)`` float64 array.
         """
-        x = np.asarray(signal, dtype=np.float64)
-        if x.ndim != 2:
-            raise ValueError(f"signal must have shape (B, N), got {x.shape}")
+        x = batch_signal(signal)
         b = x.shape[0]
 
         def row(key: str) -> np.ndarray:
-            return np.broadcast_to(np.asarray(p[key], dtype=np.float64), (b,))
+            return per_row(p, key, b)
 
         bits = np.rint(row("bits"))
         top = (2.0 ** (bits - 1.0) - 1.0)[:, None]  # largest code, as a float

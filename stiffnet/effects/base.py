@@ -265,6 +265,19 @@ class DynamicsEffect(Effect):
         )
 
 
+def batch_signal(signal: np.ndarray) -> np.ndarray:
+    """A measurement effect's input as a float64 ``(B, N)`` array (checked)."""
+    x = np.asarray(signal, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"signal must have shape (B, N), got {x.shape}")
+    return x
+
+
+def per_row(p: ParamArrays, key: str, n: int) -> np.ndarray:
+    """Parameter ``key`` as a float64 array of one value per row."""
+    return np.broadcast_to(np.asarray(p[key], dtype=np.float64), (n,))
+
+
 class MeasurementEffect(Effect):
     """An effect on the recorded acceleration (sensor chain, noise, ADC)."""
 

@@ -11,7 +11,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffnet.effects.base import EffectParams, MeasurementEffect, ParamArrays, ParamValue, param
+from stiffnet.effects.base import (
+    EffectParams,
+    MeasurementEffect,
+    ParamArrays,
+    ParamValue,
+    batch_signal,
+    param,
+    per_row,
+)
 
 
 def _normalise_rows(noise: np.ndarray, std: np.ndarray) -> np.ndarray:
@@ -150,15 +158,13 @@ class ColoredNoise(MeasurementEffect):
         numpy.ndarray
             Noisy signal, a new ``(B, N)`` float64 array.
         """
-        x = np.asarray(signal, dtype=np.float64)
-        if x.ndim != 2:
-            raise ValueError(f"signal must have shape (B, N), got {x.shape}")
+        x = batch_signal(signal)
         b, n = x.shape
         if b == 0 or n == 0:
             return x.copy()
 
         def row(key: str) -> np.ndarray:
-            return np.broadcast_to(np.asarray(p[key], dtype=np.float64), (b,))
+            return per_row(p, key, b)
 
         fs = np.broadcast_to(np.asarray(fs_hz, dtype=np.float64), (b,))
         scale = np.abs(row("_forcing_scale"))

@@ -11,7 +11,15 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal as sps
 
-from stiffnet.effects.base import EffectParams, MeasurementEffect, ParamArrays, ParamValue, param
+from stiffnet.effects.base import (
+    EffectParams,
+    MeasurementEffect,
+    ParamArrays,
+    ParamValue,
+    batch_signal,
+    param,
+    per_row,
+)
 
 _MAX_CORNER_FRACTION = 0.45
 """Corners at or above this fraction of the sampling rate are skipped (see SensorDynamics)."""
@@ -148,9 +156,7 @@ class SensorDynamics(MeasurementEffect):
         numpy.ndarray
             Filtered signal, a new ``(B, N)`` float64 array.
         """
-        x = np.asarray(signal, dtype=np.float64)
-        if x.ndim != 2:
-            raise ValueError(f"signal must have shape (B, N), got {x.shape}")
+        x = batch_signal(signal)
         b, n = x.shape
         out = x.copy()
         if b == 0 or n == 0:
@@ -158,7 +164,7 @@ class SensorDynamics(MeasurementEffect):
         keys = ("resonance_hz", "resonance_damping", "highpass_hz", "lowpass_hz", "lowpass_order")
         table = np.column_stack(
             [np.broadcast_to(np.asarray(fs_hz, dtype=np.float64), (b,))]
-            + [np.broadcast_to(np.asarray(p[k], dtype=np.float64), (b,)) for k in keys]
+            + [per_row(p, k, b) for k in keys]
         )
         table[:, -1] = np.rint(table[:, -1])
         # rows sharing a design (the common case: fixed parameters, one fs) filter together
