@@ -347,3 +347,20 @@ def test_seed_reproducibility() -> None:
     e = fixed.simulate(batch, 50.0, 300, x0=x0, v0=v0, noise=0.05, rng=2)
     assert np.array_equal(d.clean_accel, e.clean_accel)
     assert not np.array_equal(d.accel, e.accel)
+
+
+def test_contact_under_way_at_first_sample_is_not_an_impact():
+    """An impact counts once, at the first sample after its onset, not again when a
+    record happens to start during the contact."""
+    batch = OscillatorBatch.single(20.0, 0.0, 0.5, 1.0, 0.02)
+    sim = Simulator()
+    model = sim.linear_model(batch, {})
+    h = np.array([2 * np.pi / 200])
+    full = simulate_linear(model, np.array([0.1]), np.array([0.0]), h, h, 800)
+    contact = full["contact_force"][0] > 0
+    # first sample k inside a contact that began before it
+    k = int(np.flatnonzero(contact[1:] & contact[:-1])[0]) + 1
+    late = simulate_linear(model, np.array([0.1]), np.array([0.0]), h * (k + 1), h, 800 - k)
+    np.testing.assert_allclose(late["accel"][0], full["accel"][0, k:], atol=1e-9)
+    assert late["impacts"][0, 0] == 0
+    np.testing.assert_array_equal(late["impacts"][0, 1:], full["impacts"][0, k + 1 :])

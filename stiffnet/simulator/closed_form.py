@@ -480,11 +480,12 @@ def _fill_samples(reg: _Regions, snap, events, t_first, h, n_samples) -> dict[st
     for j in range(1, 5):
         cat.append(np.concatenate([snap[j - 1]] + [e[j] for e in events]))
     rows, ts, xs, vs, rs = cat
+    is_event = np.arange(rows.size) >= b  # the first b segments are the snapshots
     # events logged before a row's snapshot belong to its transient: drop them
     keep = ts >= snap[0][rows]
-    rows, ts, xs, vs, rs = (a[keep] for a in (rows, ts, xs, vs, rs))
+    rows, ts, xs, vs, rs, is_event = (a[keep] for a in (rows, ts, xs, vs, rs, is_event))
     order = np.lexsort((ts, rows))
-    rows, ts, xs, vs, rs = (a[order] for a in (rows, ts, xs, vs, rs))
+    rows, ts, xs, vs, rs, is_event = (a[order] for a in (rows, ts, xs, vs, rs, is_event))
     rs = rs.astype(np.intp)
     f = reg.freq[rows]
     P, Q, X = reg.P[rs, rows], reg.Q[rs, rows], reg.X[rs, rows]
@@ -534,7 +535,7 @@ def _fill_samples(reg: _Regions, snap, events, t_first, h, n_samples) -> dict[st
         out["contact_force"][cr] = force.reshape(shape)
     # An entry at time te counts for the first sample at or after it.
     out["impacts"] = np.zeros((b, n_samples), dtype=np.int8)
-    entry = rs == 1
+    entry = is_event & (rs == 1)  # a contact already under way at the snapshot is no entry
     n_at = np.ceil((ts[entry] - t_first[rows[entry]]) / h[rows[entry]] - 1e-12).astype(np.int64)
     ok = (n_at >= 0) & (n_at < n_samples)
     np.add.at(out["impacts"], (rows[entry][ok], n_at[ok]), 1)
