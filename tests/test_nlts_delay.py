@@ -126,3 +126,17 @@ def test_estimate_delay_reports_rule_and_falls_back_to_acf():
     lag, rule = estimate_delay(x, max_lag=15)
     assert "fallback" in rule
     assert lag == np.ceil(np.arccos(1 / np.e / RHO) / (2 * np.pi) * PERIOD)
+
+
+def test_ami_all_lags_at_once_equals_lag_by_lag_to_the_last_bit():
+    rng = np.random.default_rng(3)
+    for x, bins in [(lorenz_x(4000), 16), (sine(3000), 7), (np.floor(rng.normal(size=999)), 32)]:
+        ami = mutual_information(x, 50, bins)
+        b = np.minimum(((x - x.min()) * (bins / np.ptp(x))).astype(np.intp), bins - 1)
+        n = x.size
+        for lag in range(51):
+            joint = np.bincount(b[: n - lag] * bins + b[lag:], minlength=bins * bins)
+            p = joint.reshape(bins, bins) / (n - lag)
+            nz = p > 0
+            outer = np.outer(p.sum(axis=1), p.sum(axis=0))
+            assert ami[lag] == np.sum(p[nz] * np.log(p[nz] / outer[nz]))

@@ -105,3 +105,58 @@ def test_staged_kdtree_search_matches_brute_force(p):
     order = np.argsort(d, axis=1)[:, :k]
     np.testing.assert_allclose(dist, np.take_along_axis(d, order, axis=1))
     assert np.all(np.abs(idx - t[:, None]) > w)
+
+
+def per_dimension_reference(x, tau, top, theiler, p):
+    """E-curves' raw material the plain way: one staged tree search per dimension."""
+    tiny = 1e-10 * float(np.ptp(x))
+    for m in range(1, top + 1):
+        n = x.size - m * tau
+        y = np.lib.stride_tricks.sliding_window_view(x[: n + (m - 1) * tau], (m - 1) * tau + 1)
+        dist, idx = nearest_outside_window(y[:, ::tau].copy(), theiler, p=p, min_dist=tiny)
+        nxt = x[m * tau :]
+        yield dist[:, 0], np.abs(nxt - nxt[idx[:, 0]])
+
+
+def reference_cao(x, tau, max_dim, theiler, p):
+    e, es = [], []
+    for dist, extra in per_dimension_reference(x, tau, max_dim + 1, theiler, p):
+        grown = np.maximum(dist, extra) if p == np.inf else np.hypot(dist, extra)
+        e.append(np.mean(grown / dist))
+        es.append(np.mean(extra))
+    e, es = np.array(e), np.array(es)
+    return e[1:] / e[:-1], es[1:] / es[:-1]
+
+
+def reference_fnn(x, tau, max_dim, theiler, rtol=15.0, atol=2.0):
+    return np.array(
+        [
+            np.mean((extra > rtol * dist) | (np.hypot(dist, extra) > atol * x.std()))
+            for dist, extra in per_dimension_reference(x, tau, max_dim, theiler, 2.0)
+        ]
+    )
+
+
+@pytest.mark.parametrize(
+    "signal",
+    ["lorenz", "quantised lorenz", "noise", "periodic sine", "ramp"],
+)
+def test_carried_neighbours_give_the_per_dimension_search_bit_for_bit(signal, lorenz):
+    # Cao (maximum norm) carries certified neighbours from one dimension to the
+    # next and searches 1-D by sorting; the curves must not change in the last bit.
+    x = {
+        "lorenz": lorenz,
+        "quantised lorenz": np.round(lorenz[:3000] * 4) / 4,  # ties everywhere
+        "noise": np.random.default_rng(4).standard_normal(2000),
+        "periodic sine": np.sin(2 * np.pi * np.arange(3000) / 100.3),
+        "ramp": np.arange(1500.0),
+    }[signal]
+    for tau, theiler in [(17, 10), (3, None)]:
+        w = tau if theiler is None else theiler
+        for metric, p in [("chebyshev", np.inf), ("euclidean", 2.0)]:
+            e1, e2 = cao_curves(x, tau, 8, theiler=theiler, metric=metric)
+            r1, r2 = reference_cao(x, tau, 8, w, p)
+            np.testing.assert_array_equal(e1, r1)
+            np.testing.assert_array_equal(e2, r2)
+        f = false_nearest_neighbours(x, tau, 8, theiler=theiler)
+        np.testing.assert_array_equal(f, reference_fnn(x, tau, 8, w))

@@ -1,18 +1,24 @@
 """Embedding dimension: false nearest neighbours and Cao's method (paper section 4.1.2, eq. 3).
 
 Both methods compare each delay vector's nearest neighbour in dimension m with
-the same pair in dimension m + 1. Neighbours are searched with one batched
-:class:`scipy.spatial.cKDTree` query per dimension, excluding the point itself,
-its temporal neighbours (Theiler window) and duplicates (rounding-error distance).
+the same pair in dimension m + 1. Neighbours exclude the point itself, its
+temporal neighbours (Theiler window) and duplicates (rounding-error distance).
+They are found by sorting in dimension 1 and by batched
+:class:`scipy.spatial.cKDTree` queries above; for Cao's maximum norm a neighbour
+certified unique in dimension m is carried into m + 1 without a search where
+it provably stays the nearest (see :func:`_pairs`). The results are those of
+one plain tree search per dimension, bit for bit.
 """
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from stiffnet.errors import SignalError
-from stiffnet.nlts._neighbours import nearest_outside_window
+from stiffnet.nlts._neighbours import nearest_outside_window, nearest_valid
 from stiffnet.nlts._validate import as_signal, check_choice, check_curve, check_int
 from stiffnet.nlts.delay import Estimate
 from stiffnet.nlts.embedding import embed_unchecked
@@ -39,19 +45,54 @@ def _prepare(
 
 
 def _pairs(
-    a: np.ndarray, m: int, tau: int, theiler: int, p: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Nearest neighbour distance in dimension m and the (m+1)-th coordinate gap.
+    a: np.ndarray, top: int, tau: int, theiler: int, p: float
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Nearest neighbour distance in dimension m and the (m+1)-th coordinate gap, m = 1..top.
 
     Uses the N - m*tau vectors whose (m+1)-th coordinate exists, as nolitsa does.
+
+    For the maximum norm a neighbour found in dimension m is often still the
+    nearest in m + 1, and provably so without a search: its distance there is
+    ``max(R_m, gap)`` (known), and every other valid point is at least as far as
+    in dimension m, where :func:`nearest_valid` certified them all beyond a bound.
+    If the new distance is below that bound, the neighbour carries over (with its
+    bound); only the other points are searched. The result is the search's, bit
+    for bit: the maximum of the same numbers, and a unique nearest neighbour.
+
+    Dimension 1 is searched by sorting. The Euclidean norm carries nothing over
+    (the tree's distances are not recomputed bit for bit here), so from
+    dimension 2 on it uses the plain staged search, which asks for 2 neighbours,
+    not 3. So does the maximum norm once more than a quarter of a dimension's
+    searched rows needed the plain search anyway (distance ties and duplicates:
+    quantised signals), not to search them twice.
     """
-    n = a.size - m * tau
-    y = embed_unchecked(a[: n + (m - 1) * tau], m, tau)
     # Pairs closer than rounding error are duplicates (exactly periodic signals).
     tiny = 1e-10 * float(np.ptp(a))
-    dist, idx = nearest_outside_window(y, theiler, p=p, min_dist=tiny)
-    nxt = a[m * tau :]  # nxt[i] = x_{i + m tau}, the coordinate added in dimension m + 1
-    return dist[:, 0], np.abs(nxt - nxt[idx[:, 0]])
+    carried = None  # (distance in dimension m, neighbour, bound) for the next m
+    for m in range(1, top + 1):
+        n = a.size - m * tau
+        y = embed_unchecked(a[: n + (m - 1) * tau], m, tau)
+        fast = False
+        if carried is not None:
+            # Carried neighbours must exist in dimension m (index < n).
+            dist, idx, bound = (v[:n] for v in carried)
+            rows = np.flatnonzero((dist >= bound) | (idx >= n))
+            fast = True
+            if rows.size:
+                dist[rows], idx[rows], bound[rows], plain = nearest_valid(y, theiler, p, tiny, rows)
+                fast = plain.mean() <= 0.25
+        elif m == 1:
+            # Duplicates in one dimension (a quantised signal) are common and
+            # say little about dimension 2: that one decides.
+            dist, idx, bound, _ = nearest_valid(y, theiler, p, tiny)
+            fast = True
+        else:
+            d, i = nearest_outside_window(y, theiler, p=p, min_dist=tiny)
+            dist, idx = d[:, 0], i[:, 0]
+        nxt = a[m * tau :]  # nxt[i] = x_{i + m tau}, the coordinate added in dimension m + 1
+        extra = np.abs(nxt - nxt[idx])
+        yield dist, extra
+        carried = (np.maximum(dist, extra), idx, bound) if fast and p == np.inf else None
 
 
 def false_nearest_neighbours(
@@ -93,8 +134,7 @@ def false_nearest_neighbours(
     a, tau, max_dim, theiler = _prepare(x, tau, max_dim, theiler, max_dim + 1)
     r_a = a.std()
     out = np.empty(max_dim)
-    for m in range(1, max_dim + 1):
-        dist, extra = _pairs(a, m, tau, theiler, 2.0)
+    for m, (dist, extra) in enumerate(_pairs(a, max_dim, tau, theiler, 2.0), start=1):
         false = (extra > rtol * dist) | (np.hypot(dist, extra) > atol * r_a)
         out[m - 1] = false.mean()
     return out
@@ -142,8 +182,7 @@ def cao_curves(
     a, tau, max_dim, theiler = _prepare(x, tau, max_dim, theiler, max_dim + 2)
     e = np.empty(max_dim + 1)
     es = np.empty(max_dim + 1)
-    for d in range(1, max_dim + 2):
-        dist, extra = _pairs(a, d, tau, theiler, p)
+    for d, (dist, extra) in enumerate(_pairs(a, max_dim + 1, tau, theiler, p), start=1):
         grown = np.maximum(dist, extra) if p == np.inf else np.hypot(dist, extra)
         e[d - 1] = np.mean(grown / dist)
         es[d - 1] = np.mean(extra)
