@@ -269,7 +269,7 @@ def impact_crosscheck(nk: Any, n: int, max_lag: int, max_dim: int) -> None:
         de1 = np.nanmax(np.abs(e1 - np.asarray(info["E1"]))) if e1 is not None else np.nan
         print(f"{beta:>6.0f}  {f'{tau}/{tau16}':>16}  {f'{m_cao}/{int(m_cao_p)}':>16}  "
               f"{de1:>9.1e}  {fnn_text(t_o, m_fnn_p):>18}")  # fmt: skip
-    print("  E1 agrees on impact data too (max |dE1|: tie-breaks between equidistant neighbours);")
+    print("  E1 agrees on impact data to the max |dE1| shown (cause of non-zero not examined);")
     print("  Cao dimensions differ by the rule's tolerance (ours: first d with E1 >= 0.90 max E1,")
     print("  neurokit2: 0.85). FNN 'none': the")
     print("  fraction never falls to 1 % with noise (rule threshold); neurokit2's fnn returns")
