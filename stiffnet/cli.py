@@ -139,6 +139,53 @@ def simulate_campaign_cmd(
 
 @app.command()
 @user_errors
+def train(
+    data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
+    model: Annotated[
+        str, typer.Option(help="Model family: gbm (the CNN is not built yet).")
+    ] = "gbm",
+    config: Annotated[
+        Path | None, typer.Option(help="Training config (YAML); default configs/train/MODEL.yaml.")
+    ] = None,
+    out_dir: Annotated[
+        Path, typer.Option("--out", help="Folder for the ONNX model and card.")
+    ] = Path("models"),
+    tracking_uri: Annotated[
+        str | None, typer.Option(help="MLflow tracking URI (default: the config's, sqlite).")
+    ] = None,
+    json_path: JsonOption = None,
+) -> None:
+    """Train a stiffness model on a dataset, export it to ONNX and track it in MLflow."""
+    from stiffnet.config import load_config, validate_config
+    from stiffnet.config.train import TrainConfig
+    from stiffnet.errors import ConfigError
+
+    if model != "gbm":
+        raise ConfigError(f"model {model!r} is not available: use gbm")
+    default = Path("configs/train") / f"{model}.yaml"
+    if config is not None:
+        cfg = load_config(TrainConfig, config)
+    elif default.is_file():
+        cfg = load_config(TrainConfig, default)
+    else:
+        cfg = validate_config(TrainConfig, {})
+    from training.train import train as run_training
+
+    result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    metrics = result.get("metrics", {})
+    table = Table(title=f"{model} on {data} (test windows)")
+    for col in ("method", "accuracy", "macro-F1", "beta MAPE"):
+        table.add_column(col)
+    for method in ("gbm", "geometric"):
+        values = (metrics.get(f"{method}/{k}", float("nan")) for k in ("accuracy", "macro_f1",
+                                                                       "beta_mape"))  # fmt: skip
+        table.add_row(method, *(f"{v:.3f}" for v in values))
+    out.print(table)
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
 def analyze(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
     fs: Annotated[

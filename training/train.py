@@ -1,0 +1,310 @@
+"""Train the gradient-boosting stiffness models end to end (issue 4).
+
+:func:`train` loads a dataset, extracts inclination features, splits by
+trajectory, fits the classifier and the log-beta regressor, calibrates a
+split-conformal beta interval, evaluates the models and the geometric method
+(:func:`stiffnet.geometry.geometric_estimate` with the shipped calibration and
+its default options) on the same test windows, exports ONNX plus a model card
+and logs the run to MLflow.
+
+Run: ``OMP_NUM_THREADS=1 python -m training.train DATA_DIR OUT_DIR [--config FILE.yaml]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sklearn
+
+from stiffnet.config import load_config
+from stiffnet.config.train import TrainConfig
+from stiffnet.dataset.store import CARD, load_dataset
+from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION
+from stiffnet.geometry import geometric_estimate
+from stiffnet.io_utils import sha256_file, write_json_atomic
+from training.export_onnx import export_onnx, parity
+from training.gbm import (
+    conformal_quantile,
+    confusion,
+    evaluate,
+    fit_gbm,
+    trajectory_split,
+)
+from training.transformers import InclinationFeatures, window_records
+
+MODEL_FILE = "gbm.onnx"
+
+
+def _stderr(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _geometric_chunk(args: tuple[list[np.ndarray], list[float]]) -> list[tuple[str, float]]:
+    out = []
+    for w, fs in zip(*args, strict=True):
+        try:
+            r = geometric_estimate(w, fs)
+            out.append(
+                (str(r.geometric_class), np.nan if r.geometric_beta is None else r.geometric_beta)
+            )
+        except SignalError:
+            out.append(("no_contact", np.nan))
+    return out
+
+
+def geometric_predictions(
+    windows: list[np.ndarray], fs_hz: np.ndarray, n_jobs: int = 1
+) -> tuple[list[str], np.ndarray]:
+    """Class names and betas of the geometric method (shipped calibration, default options).
+
+    A window the method cannot analyse counts as ``no_contact`` with no beta (NaN).
+    """
+    fs = [float(f) for f in fs_hz]
+    n_jobs = (os.cpu_count() or 1) if n_jobs < 0 else n_jobs
+    if n_jobs <= 1 or len(windows) < 2:
+        rows = _geometric_chunk((windows, fs))
+    else:
+        b = np.linspace(0, len(windows), 4 * n_jobs + 1).astype(int)
+        jobs = [
+            (windows[lo:hi], fs[lo:hi]) for lo, hi in zip(b[:-1], b[1:], strict=True) if hi > lo
+        ]
+        with ProcessPoolExecutor(n_jobs) as pool:
+            rows = [r for chunk in pool.map(_geometric_chunk, jobs) for r in chunk]
+    return [r[0] for r in rows], np.array([r[1] for r in rows], dtype=np.float64)
+
+
+def train(
+    data_dir: str | Path,
+    config: TrainConfig,
+    out_dir: str | Path,
+    tracking_uri: str | None = None,
+    progress: Callable[[str], None] | None = _stderr,
+) -> dict[str, Any]:
+    """Train, evaluate, export and track the GBM models on one dataset.
+
+    Parameters
+    ----------
+    data_dir : str or Path
+        A finished dataset folder (``stiffnet simulate``).
+    config : TrainConfig
+        Training configuration.
+    out_dir : str or Path
+        Folder for ``gbm.onnx``, ``gbm.card.json`` and ``summary.json`` (created).
+    tracking_uri : str or None, optional
+        MLflow URI overriding ``config.tracking_uri``; ignored when
+        ``config.tracking`` is False.
+    progress : callable or None, optional
+        Receives one-line progress messages (stderr by default).
+
+    Returns
+    -------
+    dict
+        ``metrics`` (flat ``gbm/...`` and ``geometric/...``), ``paths``,
+        ``run_id`` (None without tracking), ``conformal_quantile``,
+        ``parity``, ``timing`` (seconds) and the split sizes.
+
+    Raises
+    ------
+    StiffnetError
+        If the dataset is missing or too small to split.
+    """
+    say = progress or (lambda _msg: None)
+    t0 = time.perf_counter()
+    data_dir, out_dir = Path(data_dir), Path(out_dir)
+    ds = load_dataset(data_dir)
+    names = ds.class_names
+    card_sha = sha256_file(data_dir / CARD)
+    say(f"dataset {data_dir}: {len(ds)} windows, {ds.card.get('n_trajectories')} trajectories")
+
+    t = time.perf_counter()
+    recs = window_records(ds)
+    feats = InclinationFeatures(config.use_natural_frequency, n_jobs=config.n_jobs)
+    X = feats.fit_transform(recs)
+    t_feat = time.perf_counter() - t
+    say(f"features: {X.shape[1]} per window, {1e3 * t_feat / max(1, len(ds)):.1f} ms/window")
+
+    label, beta, noise = ds.column("label"), ds.column("beta"), ds.column("noise")
+    traj = ds.column("trajectory")
+    sp = trajectory_split(
+        traj,
+        config.test_fraction,
+        config.calibration_fraction,
+        config.gbm.validation_fraction,
+        config.seed,
+    )
+    if not (sp.train.any() and sp.test.any() and sp.cal.any()):
+        raise StiffnetError(f"dataset {data_dir} has too few trajectories to split")
+    say(
+        f"split by trajectory: train {sp.train.sum()}, val {sp.val.sum()}, "
+        f"calibration {sp.cal.sum()}, test {sp.test.sum()} windows"
+    )
+
+    t = time.perf_counter()
+    clf, reg = fit_gbm(X, label, beta, sp, config.gbm, config.seed)
+    t_fit = time.perf_counter() - t
+    say(f"fitted: classifier {clf.n_iter_} iterations, regressor {reg.n_iter_} ({t_fit:.1f} s)")
+
+    contact = label != 0
+    cal = sp.cal & contact
+    q = conformal_quantile(np.log(beta[cal]) - reg.predict(X[cal]), config.coverage)
+    say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
+
+    te = sp.test
+    Xt = X[te]
+    pred = clf.predict(Xt)
+    log_b = reg.predict(Xt)
+    metrics: dict[str, float] = {}
+    m_gbm = evaluate(
+        label[te],
+        pred,
+        beta[te],
+        np.exp(log_b),
+        noise[te],
+        names,
+        config.noise_bins,
+        lo=np.exp(log_b - q),
+        hi=np.exp(log_b + q),
+    )
+    metrics.update({f"gbm/{k}": v for k, v in m_gbm.items()})
+
+    t = time.perf_counter()
+    test_idx = np.flatnonzero(te)
+    g_cls, g_beta = geometric_predictions(
+        [np.asarray(recs[i]["accel"]) for i in test_idx], ds.column("fs_hz")[te], config.n_jobs
+    )
+    g_pred = np.array([names.index(c) if c in names else 0 for c in g_cls])
+    m_geo = evaluate(label[te], g_pred, beta[te], g_beta, noise[te], names, config.noise_bins)
+    metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
+    t_geo = time.perf_counter() - t
+    say(
+        f"test accuracy: gbm {m_gbm['accuracy']:.3f}, geometric {m_geo['accuracy']:.3f}; "
+        f"beta MAPE: gbm {m_gbm.get('beta_mape', np.nan):.3f}, "
+        f"geometric {m_geo.get('beta_mape', np.nan):.3f}"
+    )
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    onnx_path = out_dir / MODEL_FILE
+    data_summary = {
+        "path": str(data_dir),
+        "card_sha256": card_sha,
+        "n_windows": len(ds),
+        **{k: ds.card.get(k) for k in ("n_trajectories", "seed", "class_balance", "code_version")},
+    }
+    splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
+    card = export_onnx(
+        clf,
+        reg,
+        FEATURE_NAMES,
+        names,
+        onnx_path,
+        metadata={
+            "training_data_sha256": card_sha,
+            "conformal_quantile": q,
+            "conformal_coverage": config.coverage,
+            "feature_version": FEATURE_VERSION,
+            "requires_natural_frequency": config.use_natural_frequency,
+        },
+        card={
+            "kind": "stiffnet-model-card",
+            "model": "gbm",
+            "sklearn_version": sklearn.__version__,
+            "config": config.model_dump(mode="json"),
+            "data": data_summary,
+            "split_windows": splits,
+            "metrics": metrics,
+            "n_iter": {"classifier": int(clf.n_iter_), "regressor": int(reg.n_iter_)},
+        },
+    )
+    par = parity(onnx_path, clf, reg, Xt if len(Xt) else X)
+    say(f"exported {onnx_path} (sha256 {card['sha256'][:12]}); parity {par}")
+
+    run_id = None
+    if config.tracking:
+        from training.tracking import log_run
+
+        uri = tracking_uri or config.tracking_uri
+        params = {
+            "model": config.model,
+            "seed": config.seed,
+            "test_fraction": config.test_fraction,
+            "calibration_fraction": config.calibration_fraction,
+            "coverage": config.coverage,
+            "use_natural_frequency": config.use_natural_frequency,
+            "data_card_sha256": card_sha,
+            "n_windows": len(ds),
+            **{f"gbm.{k}": v for k, v in config.gbm.model_dump().items()},
+        }
+        run_id = log_run(
+            tracking_uri=uri,
+            experiment=config.experiment,
+            params=params,
+            metrics={
+                **metrics,
+                "conformal_quantile": q,
+                **{f"parity/{k}": v for k, v in par.items()},
+            },
+            data_card_path=data_dir / CARD,
+            artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
+            confusions={
+                "gbm": confusion(label[te], pred, len(names)),
+                "geometric": confusion(label[te], g_pred, len(names)),
+            },
+            class_names=names,
+            tags={"stiffnet.model": "gbm", "stiffnet.data_sha256": card_sha},
+        )
+        say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
+
+    summary = {
+        "metrics": metrics,
+        "conformal_quantile": q,
+        "parity": par,
+        "split_windows": splits,
+        "run_id": run_id,
+        "paths": {
+            "onnx": str(onnx_path),
+            "card": str(onnx_path.with_suffix(".card.json")),
+            "summary": str(out_dir / "summary.json"),
+        },
+        "timing": {
+            "features_s": round(t_feat, 3),
+            "fit_s": round(t_fit, 3),
+            "geometric_s": round(t_geo, 3),
+            "total_s": round(time.perf_counter() - t0, 3),
+        },
+    }
+    write_json_atomic(out_dir / "summary.json", summary)
+    say(f"done in {summary['timing']['total_s']:.1f} s")
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry point (until the ``stiffnet train`` command is wired)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("data_dir")
+    ap.add_argument("out_dir")
+    ap.add_argument("--config", default=None, help="YAML TrainConfig (defaults if omitted)")
+    ap.add_argument("--tracking-uri", default=None)
+    ap.add_argument("--no-tracking", action="store_true")
+    args = ap.parse_args(argv)
+    try:
+        cfg = load_config(TrainConfig, args.config) if args.config else TrainConfig()
+        if args.no_tracking:
+            cfg = cfg.model_copy(update={"tracking": False})
+        train(args.data_dir, cfg, args.out_dir, tracking_uri=args.tracking_uri)
+    except StiffnetError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
