@@ -34,6 +34,7 @@ import time
 
 import numpy as np
 
+from stiffnet.simulator import compiled
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.reference import reference_trajectory
 from stiffnet.simulator.simulator import Simulator
@@ -55,6 +56,21 @@ def draw(n: int, rng: np.random.Generator) -> tuple[OscillatorBatch, np.ndarray,
     x0 = rng.uniform(-1, 1, n) * batch.amplitude
     v0 = rng.uniform(-1, 1, n) * batch.amplitude * batch.omega
     return batch, x0, v0
+
+
+def warm_up(sim: Simulator) -> float | None:
+    """Compile numba's kernels outside the timing; returns the seconds it took."""
+    if not compiled.available():
+        return None
+    t = time.perf_counter()
+    sim.simulate(OscillatorBatch.single(20.0, 1.0, 1.0, 1.0, 0.05), 50.0, 10, rng=0)
+    return time.perf_counter() - t
+
+
+def timed(sim: Simulator, batch, fs_ratio, n, x0, v0) -> tuple[float, float]:
+    t, c = time.perf_counter(), time.process_time()
+    sim.simulate(batch, fs_ratio, n, x0=x0, v0=v0)
+    return time.perf_counter() - t, time.process_time() - c
 
 
 def main() -> None:
@@ -82,6 +98,8 @@ def main() -> None:
     print(f"transient: {sim.transient_time(batch).min():.0f}-{sim.transient_time(batch).max():.0f}"
           f" model time units; samples: {n} x h={h:.4f}")  # fmt: skip
 
+    compile_s = warm_up(sim)
+    threads = compiled.threads() if compiled.available() else 1
     profiler = cProfile.Profile() if args.profile else None
     t_start, c_start = time.perf_counter(), time.process_time()
     if profiler:
@@ -90,6 +108,14 @@ def main() -> None:
     if profiler:
         profiler.disable()
     t_sim, c_sim = time.perf_counter() - t_start, time.process_time() - c_start
+    # The same batch on one thread (per-core figure) and with the numpy engine.
+    variants = []
+    if compiled.available() and threads > 1:
+        with compiled.limited_threads(1):
+            variants.append(("  same, 1 thread", timed(sim, batch, args.fs_ratio, n, x0, v0)))
+    if compiled.available():
+        numpy_sim = Simulator(compiled=False)
+        variants.append(("  numpy engine", timed(numpy_sim, batch, args.fs_ratio, n, x0, v0)))
 
     model = sim.linear_model(batch, res.effect_params)
     t_ref, c_ref, errors, rechecked = 0.0, 0.0, [], {}
@@ -107,16 +133,16 @@ def main() -> None:
             rechecked[i] = np.abs(fine["accel"] - res.clean_accel[i]).max() / peak
 
     rate_sim, rate_ref = b * n / t_sim, k * n / t_ref
-    rows = [
-        ("Simulator (closed form)", b, b * n, t_sim, c_sim, rate_sim, float("nan")),
-        ("solve_ivp DOP853 + events", k, k * n, t_ref, c_ref, rate_ref, max(errors)),
-    ]
+    engine = f"compiled, {threads} threads" if compiled.available() else "numpy"
+    rows = [(f"Simulator ({engine})", b, b * n, t_sim, c_sim, rate_sim, float("nan"))]
+    rows += [(name, b, b * n, t, c, b * n / t, float("nan")) for name, (t, c) in variants]
+    rows.append(("solve_ivp DOP853 + events", k, k * n, t_ref, c_ref, rate_ref, max(errors)))
     # cpu s: process time, a check on wall-clock seconds on a shared machine
-    print(f"\n{'engine':<27}{'traj':>7}{'samples':>12}{'seconds':>10}{'cpu s':>9}"
+    print(f"\n{'engine':<33}{'traj':>7}{'samples':>12}{'seconds':>10}{'cpu s':>9}"
           f"{'samples/s':>12}{'max rel err':>13}")  # fmt: skip
     for name, traj, samples, sec, cpu, rate, err in rows:
         err_text = "-" if np.isnan(err) else f"{err:.1e}"
-        print(f"{name:<27}{traj:>7}{samples:>12}{sec:>10.2f}{cpu:>9.2f}{rate:>12.4g}"
+        print(f"{name:<33}{traj:>7}{samples:>12}{sec:>10.2f}{cpu:>9.2f}{rate:>12.4g}"
               f"{err_text:>13}")  # fmt: skip
     print(f"\nimpacts per trajectory (simulator batch): {res.impacts.sum(axis=1).mean():.1f}; "
           f"trajectories that impact: {np.mean(res.impacts.sum(axis=1) > 0):.0%}")  # fmt: skip
@@ -131,6 +157,10 @@ def main() -> None:
     if profiler:
         print()
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)
+    if compile_s is not None:
+        print(f"numba compile (first call, cached afterwards): {compile_s:.1f} s, not timed above")
+    for name, (t, _) in variants:
+        print(f"speedup, {name.strip()}: {(b * n / t) / rate_ref:.1f}")
     print(f"speedup in cpu time: {(b * n / c_sim) / (k * n / c_ref):.1f}")
     print(f"speedup_vs_solve_ivp: {rate_sim / rate_ref:.1f}")
 

@@ -1,0 +1,546 @@
+"""Compiled (numba) twin of :func:`stiffnet.simulator.closed_form.simulate_linear`.
+
+Same model, same step rule (:func:`coarse_steps`), same event location (safeguarded
+Newton on the closed form from a cubic Hermite start, hidden double crossings found
+from the interior extremum of the switching function, the same boundary rules) and
+the same output contract; only the execution differs: one compiled loop per row
+instead of numpy calls over the batch, and the samples are written while marching.
+
+Within a piece of trajectory that stays in one region (a coarse step, or the part
+of it between events) the first sample is the closed form evaluated at the sample
+time from the piece's start state; the following samples of the piece are carried
+from it by the exact one-sample transition matrix and the rotation of the forcing
+phases (at most a handful of products, round-off only).
+
+numba is optional: without it this module still imports and :func:`available`
+returns False.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator
+
+import numpy as np
+
+from stiffnet.simulator.closed_form import (
+    _MAX_EVENTS_PER_STEP,
+    _NEWTON_ITERS,
+    _REANCHOR_EVERY,
+    LinearModel,
+    _Regions,
+    coarse_steps,
+)
+from stiffnet.simulator.linear import transition_matrix
+
+try:  # optional dependency
+    import numba as _numba
+except ImportError:  # pragma: no cover - depends on the environment
+    _numba = None
+
+_TINY = 1e-12
+
+
+def available() -> bool:
+    """True when numba is installed and the compiled kernel can run."""
+    return _numba is not None
+
+
+def threads() -> int:
+    """Threads the parallel kernel uses (numba's, ``NUMBA_NUM_THREADS``)."""
+    return int(_numba.get_num_threads()) if _numba is not None else 1
+
+
+@contextlib.contextmanager
+def limited_threads(n: int) -> Iterator[None]:
+    """Run the parallel kernel on at most ``n`` threads inside the block."""
+    if _numba is None:
+        yield
+        return
+    before = _numba.get_num_threads()
+    _numba.set_num_threads(max(1, min(n, before)))
+    try:
+        yield
+    finally:
+        _numba.set_num_threads(before)
+
+
+def _jit(func):
+    if _numba is None:  # plain Python; never called (available() is False)
+        return func
+    return _numba.njit(cache=True, error_model="numpy")(func)
+
+
+if _numba is not None:
+    _prange = _numba.prange
+else:  # pragma: no cover
+    _prange = range
+
+
+# ----------------------------------------------------------------- scalar helpers
+
+
+@_jit
+def _sgn(a):
+    if a > 0.0:
+        return 1.0
+    if a < 0.0:
+        return -1.0
+    if a == 0.0:
+        return 0.0
+    return math.nan
+
+
+@_jit
+def _hom(k, sig, root, disc, s):
+    """cos-like, sin/omega-like functions and the decay of the homogeneous part."""
+    if disc > _TINY:
+        rs = root * s
+        cf, sf = math.cos(rs), math.sin(rs) / root
+    elif disc < -_TINY:
+        rs = root * s
+        cf, sf = math.cosh(rs), math.sinh(rs) / root
+    else:
+        cf, sf = 1.0, s
+    return cf, sf, math.exp(-sig * s)
+
+
+@_jit
+def _particular(xc, pv, qv, fv, t):
+    """x_p, v_p, a_p at time t (direct trig)."""
+    xp, vp, ap = 0.0, 0.0, 0.0
+    for j in range(fv.size):
+        ph = fv[j] * t
+        sn, cs = math.sin(ph), math.cos(ph)
+        ps = pv[j] * sn + qv[j] * cs
+        xp += ps
+        vp += fv[j] * (pv[j] * cs - qv[j] * sn)
+        ap -= fv[j] * fv[j] * ps
+    return xc + xp, vp, ap
+
+
+@_jit
+def _gap(e0, ga, gf, gp, has_gap, t):
+    """e(t), e'(t), e''(t) (direct trig)."""
+    if not has_gap:
+        return e0, 0.0, 0.0
+    e, de, dde = e0, 0.0, 0.0
+    for j in range(ga.size):
+        ph = gf[j] * t + gp[j]
+        sn, cs = math.sin(ph), math.cos(ph)
+        e += ga[j] * sn
+        de += ga[j] * gf[j] * cs
+        dde -= ga[j] * gf[j] * gf[j] * sn
+    return e, de, dde
+
+
+@_jit
+def _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv):
+    """x, v and the region's acceleration at t0 + s from the segment's start."""
+    cf, sf, decay = _hom(k, sig, root, disc, s)
+    xh = decay * ((cf + sig * sf) * z0 + sf * z1)
+    vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
+    xp, vp, ap = _particular(xc, pv, qv, fv, t0 + s)
+    return xh + xp, vh + vp, ap - k * xh - c * vh
+
+
+@_jit
+def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
+    """G = min(x - e, F_c) and its rate at t0 + s."""
+    x, v, a = _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+    e, de, dde = _gap(e0, ga, gf, gp, has_gap, t0 + s)
+    d, dd = x - e, v - de
+    force = beta * d + cc * dd
+    if d <= force:
+        rate = dd
+    else:
+        rate = beta * dd + cc * (a - dde)
+    return min(d, force), rate
+
+
+@_jit
+def _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+         beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
+    """mode 0: (G, G'); mode 1: (G', G'') with G'' by a forward difference."""
+    g, r = _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                   beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    if mode == 0:
+        return g, r
+    ds = 1e-7 * max(s, 1e-3)
+    g2, r2 = _switch(s + ds, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    return r, (r2 - r) / ds
+
+
+@_jit
+def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
+            t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
+    """Safeguarded Newton, as :func:`closed_form._locate_root` for one row."""
+    den = ghi - glo if ghi != glo else 1.0
+    s = min(max(lo - glo * (hi - lo) / den, lo), hi)
+    if has_start:
+        s = min(max(start, lo), hi)
+    if abs(glo) <= 1e-12 * max(abs(ghi), 1e-300):
+        s = 0.5 * (lo + hi)
+    out = s
+    for _ in range(_NEWTON_ITERS):
+        g, dg = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+        if _sgn(g) == _sgn(glo):
+            lo, glo = s, g
+        else:
+            hi, ghi = s, g
+        step = g / dg
+        sn = s - step
+        bad = (not math.isfinite(sn)) or sn <= lo or sn >= hi
+        fine = g == 0.0 or abs(step) <= tol
+        if fine:
+            s_new = s
+        elif bad:
+            s_new = 0.5 * (lo + hi)
+        else:
+            s_new = sn
+        out = s_new
+        if fine or abs(s_new - s) <= tol or hi - lo <= tol:
+            break
+        s = s_new
+    return out, hi
+
+
+@_jit
+def _hermite_root(g0, r0, g1, r1, length):
+    lo, hi = 0.0, 1.0
+    a0, b0, a1, b1 = g0, r0 * length, g1, r1 * length
+    den = g0 - g1 if g0 != g1 else 1.0
+    u = min(max(g0 / den, 0.0), 1.0)
+    for _ in range(4):
+        u2, u3 = u * u, u * u * u
+        p = (2 * u3 - 3 * u2 + 1) * a0 + (u3 - 2 * u2 + u) * b0 + (-2 * u3 + 3 * u2) * a1
+        p = p + (u3 - u2) * b1
+        dp = (6 * u2 - 6 * u) * (a0 - a1) + (3 * u2 - 4 * u + 1) * b0 + (3 * u2 - 2 * u) * b1
+        if _sgn(p) == _sgn(g0):
+            lo = u
+        else:
+            hi = u
+        un = u - p / dp
+        if math.isfinite(un) and un > lo and un < hi:
+            u = un
+        else:
+            u = 0.5 * (lo + hi)
+    return u * length
+
+
+@_jit
+def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
+                 k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
+                 beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                 out_x, out_v, out_f, out_a, sn, cs):  # fmt: skip
+    """Samples ns, ns+1, ... with times before t_end, from the homogeneous state
+    (z0, z1) at tp of a segment in ``region``; returns the next sample index."""
+    if ns >= n_samples:
+        return ns
+    tn = t_first + ns * h
+    if tn >= t_end:
+        return ns
+    nj = fv.size
+    s = tn - tp
+    cf, sf, decay = _hom(k, sig, root, disc, s)
+    xh = decay * ((cf + sig * sf) * z0 + sf * z1)
+    vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
+    for j in range(nj):
+        ph = fv[j] * tn
+        sn[j], cs[j] = math.sin(ph), math.cos(ph)
+    m00, m01, m10, m11 = phih[0, 0], phih[0, 1], phih[1, 0], phih[1, 1]
+    while True:
+        xp, vp = 0.0, 0.0
+        for j in range(nj):
+            xp += pv[j] * sn[j] + qv[j] * cs[j]
+            vp += fv[j] * (pv[j] * cs[j] - qv[j] * sn[j])
+        x, v = xh + (xc + xp), vh + vp
+        force = 0.0
+        if region == 1:
+            e, de = e0, 0.0
+            if has_gap:
+                for j in range(ga.size):
+                    sj, cj = sn[jf + j], cs[jf + j]
+                    e += ga[j] * (sj * gcp[j] + cj * gsp[j])
+                    de += ga[j] * fv[jf + j] * (cj * gcp[j] - sj * gsp[j])
+            force = max(beta * (x - e) + cc * (v - de), 0.0)
+        out_x[row, ns] = x
+        out_v[row, ns] = v
+        out_f[row, ns] = force
+        out_a[row, ns] = -(2 * xi * v + x + force)
+        ns += 1
+        if ns >= n_samples:
+            return ns
+        tn = t_first + ns * h
+        if tn >= t_end:
+            return ns
+        xh, vh = m00 * xh + m01 * vh, m10 * xh + m11 * vh
+        for j in range(nj):
+            sn[j], cs[j] = sn[j] * hc[j] + cs[j] * hs[j], cs[j] * hc[j] - sn[j] * hs[j]
+
+
+@_jit
+def _count_entry(row, te, t_first, h, n_samples, impacts):
+    n_at = math.ceil((te - t_first) / h - 1e-12)
+    if n_at >= 0 and n_at < n_samples:
+        impacts[row, n_at] += 1
+
+
+# ----------------------------------------------------------------- one trajectory
+
+
+@_jit
+def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
+         beta_a, cc_a, e0_a, xi_a, ga_a, gf_a, gp_a, gcp_a, gsp_a, has_gap, jf,
+         x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts):  # fmt: skip
+    fv = freq[row]
+    nj = fv.size
+    beta, cc, e0, xi = beta_a[row], cc_a[row], e0_a[row], xi_a[row]
+    ga, gf, gp, gcp, gsp = ga_a[row], gf_a[row], gp_a[row], gcp_a[row], gsp_a[row]
+    hc, hs = hcos[row], hsin[row]
+    tf, hh = t_first[row], h[row]
+    t_last = tf + (n_samples - 1) * hh
+    ks = (K[0, row], K[1, row])
+    cs_ = (C[0, row], C[1, row])
+    sigs = (0.5 * cs_[0], 0.5 * cs_[1])
+    discs = (ks[0] - sigs[0] * sigs[0], ks[1] - sigs[1] * sigs[1])
+    roots = (math.sqrt(abs(discs[0])), math.sqrt(abs(discs[1])))
+
+    t, x, v = 0.0, x0[row], v0[row]
+    e, de, _ = _gap(e0, ga, gf, gp, has_gap, t)
+    d = x - e
+    region = 1 if min(d, beta * d + cc * (v - de)) > 0 else 0
+    sn = np.zeros(nj)
+    cs = np.ones(nj)
+    sn1 = np.empty(nj)
+    cs1 = np.empty(nj)
+    wsn = np.empty(nj)
+    wcs = np.empty(nj)
+    ns = 0
+    i = 0
+    snapped = False
+    while True:
+        i += 1
+        r = region
+        H = hreg[r, row]
+        pv, qv, xc = P[r, row], Q[r, row], X[r, row]
+        k, c, sig, disc, root = ks[r], cs_[r], sigs[r], discs[r], roots[r]
+        xp0, vp0, xp1, vp1 = 0.0, 0.0, 0.0, 0.0
+        rc, rs = rotc[r, row], rots[r, row]
+        for j in range(nj):
+            sn1[j] = sn[j] * rc[j] + cs[j] * rs[j]
+            cs1[j] = cs[j] * rc[j] - sn[j] * rs[j]
+        for j in range(nj):
+            ps = pv[j] * sn[j] + qv[j] * cs[j]
+            xp0 += ps
+            vp0 += fv[j] * (pv[j] * cs[j] - qv[j] * sn[j])
+        for j in range(nj):
+            ps = pv[j] * sn1[j] + qv[j] * cs1[j]
+            xp1 += ps
+            vp1 += fv[j] * (pv[j] * cs1[j] - qv[j] * sn1[j])
+        xp0 += xc
+        xp1 += xc
+        z0, z1 = x - xp0, v - vp0
+        x1 = phi[r, row, 0, 0] * z0 + phi[r, row, 0, 1] * z1 + xp1
+        v1 = phi[r, row, 1, 0] * z0 + phi[r, row, 1, 1] * z1 + vp1
+        t1 = t + H
+        if not snapped and t1 >= tf:
+            snapped = True  # entries before this step belong to the transient
+        # suspects: as closed_form._Stepper._suspects
+        e1, de1, _ = _gap(e0, ga, gf, gp, has_gap, t1)
+        d1 = x1 - e1
+        g1 = min(d1, beta * d1 + cc * (v1 - de1))
+        suspect = (g1 > 0) != (r == 1)
+        if not suspect:
+            e0t, de0, _ = _gap(e0, ga, gf, gp, has_gap, t)
+            d0, dd0, dd1 = x - e0t, v - de0, v1 - de1
+            if r == 0:
+                if dd0 > 0 and dd1 <= 0:
+                    gain = 1.5 * H / (dd0 - dd1)
+                    reach = max(d0 + dd0 * dd0 * gain, d1 + dd1 * dd1 * gain)
+                    suspect = reach > -1e-12
+            else:
+                suspect = (dd0 < 0 and dd1 >= 0) or cc > 0
+        if not suspect:
+            ns = _write_piece(row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
+                              k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
+                              beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                              out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+            x, v = x1, v1
+        else:
+            # exact march through the step with events: as _Stepper._resolve
+            tt, xx, vv, rr = t, x, v, r
+            left = H
+            finished = False
+            for _ev in range(_MAX_EVENTS_PER_STEP):
+                pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
+                k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
+                xp, vp, _ = _particular(xc, pv, qv, fv, tt)
+                z0, z1 = xx - xp, vv - vp
+                sign_in = 1.0 if rr == 1 else -1.0
+                g0, r0 = _switch(0.0, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                gl, rl = _switch(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                s_hi, g_hi, r_hi = math.nan, math.nan, 0.0
+                if gl * sign_in <= 0:
+                    s_hi, g_hi, r_hi = left, gl, rl
+                elif r0 * sign_in < 0 and rl * sign_in > 0:
+                    s_ext, _h = _locate(1, 0.0, left, r0, rl, 1e-9, False, 0.0,
+                                    tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                                    beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    g_ext, _ = _switch(s_ext, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv,
+                                       fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    if g_ext * sign_in <= 0:
+                        s_hi, g_hi = s_ext, g_ext
+                if not math.isfinite(s_hi):
+                    ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                                      k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                                      beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                                      out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+                    xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                    finished = True
+                    break
+                if abs(g0) <= 1e-12 * max(abs(g_hi), 1e-300) and r0 * sign_in < 0:
+                    s_go = 0.0
+                else:
+                    glo = sign_in * max(abs(g0), 1e-300)
+                    tol = 1e-15 * (1.0 + abs(tt))
+                    guess = _hermite_root(g0, r0, g_hi, r_hi, s_hi)
+                    s_go, s_out = _locate(0, 0.0, s_hi, glo, g_hi, tol, True, guess,
+                                          tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                                          beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    # Switch on the far side of the root: were the state left a
+                    # round-off inside, the next region would find this root again
+                    # (a spurious contact of zero length).
+                    g_go, _ = _switch(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    step_out = tol
+                    for _try in range(8):
+                        if not g_go * sign_in > 0:
+                            break
+                        s_try = min(s_go + step_out, s_out)
+                        g_try, _ = _switch(s_try, tt, z0, z1, k, c, sig, root, disc, xc, pv,
+                                           qv, fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                        if g_try * sign_in <= 0:
+                            s_go = s_try
+                            break
+                        step_out *= 2.0
+                ns = _write_piece(row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
+                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+                xx, vv, _ = _state(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                tt += s_go
+                left = max(left - s_go, 0.0)
+                rr = 1 - rr
+                if rr == 1 and snapped:
+                    _count_entry(row, tt, tf, hh, n_samples, impacts)
+                if not left > 0:
+                    finished = True
+                    break
+            if not finished:
+                # event budget spent (chatter): finish the step in the current region
+                pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
+                k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
+                xp, vp, _ = _particular(xc, pv, qv, fv, tt)
+                z0, z1 = xx - xp, vv - vp
+                ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+                xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+            x, v, region = xx, vv, rr
+        t = t1
+        for j in range(nj):
+            sn[j], cs[j] = sn1[j], cs1[j]
+        if i % _REANCHOR_EVERY == 0:
+            for j in range(nj):
+                sn[j], cs[j] = math.sin(fv[j] * t), math.cos(fv[j] * t)
+        if t > t_last and ns >= n_samples:
+            break
+
+
+def _kernel_serial(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
+                   beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
+                   x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts):  # fmt: skip
+    for row in range(x0.size):
+        _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
+             beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
+             x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
+
+
+def _kernel_parallel(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
+                     beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
+                     x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a,
+                     impacts):  # fmt: skip
+    for row in _prange(x0.size):
+        _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
+             beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
+             x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
+
+
+if _numba is not None:
+    _kernel_serial = _numba.njit(cache=True, error_model="numpy")(_kernel_serial)
+    _kernel_parallel = _numba.njit(cache=True, error_model="numpy", parallel=True)(_kernel_parallel)
+
+
+def _c(a) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def simulate_linear_compiled(
+    model: LinearModel,
+    x0: np.ndarray,
+    v0: np.ndarray,
+    t_first: np.ndarray,
+    h: np.ndarray,
+    n_samples: int,
+    parallel: bool = True,
+) -> dict[str, np.ndarray]:
+    """As :func:`stiffnet.simulator.closed_form.simulate_linear`, compiled.
+
+    ``parallel`` spreads the rows over numba's threads (``NUMBA_NUM_THREADS``).
+    Raises ImportError when numba is not installed (see :func:`available`).
+    """
+    if _numba is None:
+        raise ImportError("simulate_linear_compiled needs numba (pip install numba)")
+    reg = _Regions(model)
+    b = len(model.batch)
+    x0 = np.broadcast_to(np.asarray(x0, float), (b,))
+    v0 = np.broadcast_to(np.asarray(v0, float), (b,))
+    t_first = np.broadcast_to(np.asarray(t_first, float), (b,))
+    h = np.broadcast_to(np.asarray(h, float), (b,))
+    h_free, h_contact = coarse_steps(model)
+    hreg = np.stack([h_free, h_contact])
+    phi = np.stack([transition_matrix(reg.k[r], reg.c[r], hreg[r]) for r in (0, 1)])
+    phih = np.stack([transition_matrix(reg.k[r], reg.c[r], h) for r in (0, 1)])
+    freq = reg.freq
+    rotc = np.cos(freq[None] * hreg[:, :, None])
+    rots = np.sin(freq[None] * hreg[:, :, None])
+    hcos, hsin = np.cos(freq * h[:, None]), np.sin(freq * h[:, None])
+    gv = model.gap_variation
+    jf = model.forcing.freq.shape[1]
+    out_x, out_v, out_f, out_a = (np.empty((b, n_samples)) for _ in range(4))
+    impacts = np.zeros((b, n_samples), dtype=np.int8)
+    kernel = _kernel_parallel if parallel else _kernel_serial
+    kernel(
+        _c(freq), _c(reg.P), _c(reg.Q), _c(reg.X), _c(reg.k), _c(reg.c), _c(phi), _c(rotc),
+        _c(rots), _c(hreg), _c(phih), _c(hcos), _c(hsin), _c(reg.beta), _c(reg.cc),
+        _c(reg.e0), _c(reg.xi), _c(gv.amp), _c(gv.freq), _c(gv.phase), _c(np.cos(gv.phase)),
+        _c(np.sin(gv.phase)), bool(reg.has_gap_var), int(jf), _c(x0), _c(v0), _c(t_first),
+        _c(h), int(n_samples), out_x, out_v, out_f, out_a, impacts,
+    )  # fmt: skip
+    return {
+        "x": out_x,
+        "v": out_v,
+        "accel": out_a,
+        "contact_force": out_f,
+        "impacts": impacts,
+        "t0": np.array(t_first, dtype=float),
+    }
