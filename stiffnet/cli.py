@@ -141,9 +141,7 @@ def simulate_campaign_cmd(
 @user_errors
 def train(
     data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
-    model: Annotated[
-        str, typer.Option(help="Model family: gbm (the CNN is not built yet).")
-    ] = "gbm",
+    model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
     config: Annotated[
         Path | None, typer.Option(help="Training config (YAML); default configs/train/MODEL.yaml.")
     ] = None,
@@ -160,15 +158,17 @@ def train(
     from stiffnet.config.train import TrainConfig
     from stiffnet.errors import ConfigError
 
-    if model != "gbm":
-        raise ConfigError(f"model {model!r} is not available: use gbm")
+    if model not in ("gbm", "cnn"):
+        raise ConfigError(f"model {model!r} is not available: use gbm or cnn")
     default = Path("configs/train") / f"{model}.yaml"
     if config is not None:
         cfg = load_config(TrainConfig, config)
     elif default.is_file():
         cfg = load_config(TrainConfig, default)
     else:
-        cfg = validate_config(TrainConfig, {})
+        cfg = validate_config(TrainConfig, {"model": model})
+    if cfg.model != model:
+        raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
     from training.train import train as run_training
 
     result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
@@ -176,7 +176,7 @@ def train(
     table = Table(title=f"{model} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):
         table.add_column(col)
-    for method in ("gbm", "geometric"):
+    for method in (model, "geometric"):
         values = (metrics.get(f"{method}/{k}", float("nan")) for k in ("accuracy", "macro_f1",
                                                                        "beta_mape"))  # fmt: skip
         table.add_row(method, *(f"{v:.3f}" for v in values))

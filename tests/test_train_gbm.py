@@ -170,5 +170,9 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
     assert (tmp_path / "m" / "gbm.onnx").is_file()
     bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "not a finished stiffnet dataset" in bad.output
-    bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--model", "cnn"])
+    bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--model", "svm"])
     assert bad.exit_code == 2 and "not available" in bad.output
+    bad = runner.invoke(
+        app, ["train", "--data", str(tiny_dir), "--model", "cnn", "--config", str(cfg)]
+    )
+    assert bad.exit_code == 2 and "trains 'gbm', not 'cnn'" in bad.output

@@ -1,4 +1,5 @@
-"""Train the gradient-boosting stiffness models end to end (issue 4).
+"""Train the gradient-boosting (or, with ``model: cnn``, the CNN) stiffness models end to end
+(issue 4).
 
 :func:`train` loads a dataset, extracts inclination features, splits by
 trajectory, fits the classifier and the log-beta regressor, calibrates a
@@ -42,6 +43,7 @@ from training.gbm import (
 from training.transformers import InclinationFeatures, window_records
 
 MODEL_FILE = "gbm.onnx"
+CNN_MODEL_FILE = "cnn.onnx"
 
 
 def _stderr(msg: str) -> None:
@@ -117,6 +119,8 @@ def train(
     StiffnetError
         If the dataset is missing or too small to split.
     """
+    if config.model == "cnn":
+        return train_cnn(data_dir, config, out_dir, tracking_uri, progress)
     say = progress or (lambda _msg: None)
     t0 = time.perf_counter()
     data_dir, out_dir = Path(data_dir), Path(out_dir)
@@ -276,6 +280,215 @@ def train(
         },
         "timing": {
             "features_s": round(t_feat, 3),
+            "fit_s": round(t_fit, 3),
+            "geometric_s": round(t_geo, 3),
+            "total_s": round(time.perf_counter() - t0, 3),
+        },
+    }
+    write_json_atomic(out_dir / "summary.json", summary)
+    say(f"done in {summary['timing']['total_s']:.1f} s")
+    return summary
+
+
+def train_cnn(
+    data_dir: str | Path,
+    config: TrainConfig,
+    out_dir: str | Path,
+    tracking_uri: str | None = None,
+    progress: Callable[[str], None] | None = _stderr,
+) -> dict[str, Any]:
+    """Train, evaluate, export (``cnn.onnx``) and track the 1-D CNN on one dataset.
+
+    Same contract as :func:`train` (which dispatches here for ``model: cnn``):
+    canonical windows (:mod:`stiffnet.features.windows`), trajectory-wise split
+    with ``config.cnn.validation_fraction``, :func:`training.cnn.fit_cnn`,
+    split-conformal log-beta half-width on the calibration trajectories,
+    ``cnn/...`` and ``geometric/...`` metrics on the same test windows, ONNX
+    export with model card and parity, MLflow run.
+    """
+    import torch
+
+    from stiffnet.features.windows import WINDOW_VERSION, window_tensor
+    from training.cnn import fit_cnn, predict_cnn
+    from training.export_onnx_cnn import TARGET_OPSET, export_cnn_onnx, parity_cnn
+
+    torch.set_num_threads(1)
+    say = progress or (lambda _msg: None)
+    cc = config.cnn
+    t0 = time.perf_counter()
+    data_dir, out_dir = Path(data_dir), Path(out_dir)
+    ds = load_dataset(data_dir)
+    names = ds.class_names
+    card_sha = sha256_file(data_dir / CARD)
+    say(f"dataset {data_dir}: {len(ds)} windows, {ds.card.get('n_trajectories')} trajectories")
+    if "natural_frequency_hz" not in ds.table.column_names:
+        raise StiffnetError(f"dataset {data_dir} has no natural_frequency_hz: the CNN needs it")
+
+    t = time.perf_counter()
+    windows = ds.windows()
+    fs_hz = ds.column("fs_hz")
+    d = max(1, int(round(cc.delay_fraction * cc.rate)))
+    delays = [k * d for k in range(cc.n_channels)]
+    X = window_tensor(
+        windows, fs_hz, ds.column("natural_frequency_hz"), cc.rate, cc.periods, delays
+    )
+    t_feat = time.perf_counter() - t
+    say(f"canonical windows {X.shape[1:]}, {1e3 * t_feat / max(1, len(ds)):.2f} ms/window")
+
+    label, beta, noise = ds.column("label"), ds.column("beta"), ds.column("noise")
+    sp = trajectory_split(
+        ds.column("trajectory"),
+        config.test_fraction,
+        config.calibration_fraction,
+        cc.validation_fraction,
+        config.seed,
+    )
+    if not (sp.train.any() and sp.test.any() and sp.cal.any()):
+        raise StiffnetError(f"dataset {data_dir} has too few trajectories to split")
+    say(
+        f"split by trajectory: train {sp.train.sum()}, val {sp.val.sum()}, "
+        f"calibration {sp.cal.sum()}, test {sp.test.sum()} windows"
+    )
+
+    t = time.perf_counter()
+    fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed)
+    t_fit = time.perf_counter() - t
+    say(f"fitted: best epoch {fit.best_epoch} of {fit.epochs} ({t_fit:.1f} s)")
+    net = fit.model
+
+    contact = label != 0
+    cal = sp.cal & contact
+    _, lb_cal = predict_cnn(net, X[cal])
+    q = conformal_quantile(np.log(beta[cal]) - lb_cal, config.coverage)
+    say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
+
+    te = sp.test
+    Xt = X[te]
+    proba, log_b = predict_cnn(net, Xt)
+    pred = proba.argmax(axis=1) if len(Xt) else np.empty(0, np.int64)
+    metrics: dict[str, float] = {}
+    m_cnn = evaluate(
+        label[te],
+        pred,
+        beta[te],
+        np.exp(log_b.astype(np.float64)),
+        noise[te],
+        names,
+        config.noise_bins,
+        lo=np.exp(log_b - q),
+        hi=np.exp(log_b + q),
+    )
+    metrics.update({f"cnn/{k}": v for k, v in m_cnn.items()})
+
+    t = time.perf_counter()
+    test_idx = np.flatnonzero(te)
+    g_cls, g_beta = geometric_predictions(
+        [np.asarray(windows[i], dtype=np.float64) for i in test_idx], fs_hz[te], config.n_jobs
+    )
+    g_pred = np.array([names.index(c) if c in names else 0 for c in g_cls])
+    m_geo = evaluate(label[te], g_pred, beta[te], g_beta, noise[te], names, config.noise_bins)
+    metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
+    t_geo = time.perf_counter() - t
+    say(
+        f"test accuracy: cnn {m_cnn['accuracy']:.3f}, geometric {m_geo['accuracy']:.3f}; "
+        f"beta MAPE: cnn {m_cnn.get('beta_mape', np.nan):.3f}, "
+        f"geometric {m_geo.get('beta_mape', np.nan):.3f}"
+    )
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    onnx_path = out_dir / CNN_MODEL_FILE
+    data_summary = {
+        "path": str(data_dir),
+        "card_sha256": card_sha,
+        "n_windows": len(ds),
+        **{k: ds.card.get(k) for k in ("n_trajectories", "seed", "class_balance", "code_version")},
+    }
+    splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
+    card = export_cnn_onnx(
+        net,
+        names,
+        onnx_path,
+        rate=cc.rate,
+        periods=cc.periods,
+        delays=delays,
+        delay_fraction=cc.delay_fraction,
+        metadata={
+            "training_data_sha256": card_sha,
+            "conformal_quantile": q,
+            "conformal_coverage": config.coverage,
+        },
+        card={
+            "kind": "stiffnet-model-card",
+            "model": "cnn",
+            "torch_version": torch.__version__,
+            "config": config.model_dump(mode="json"),
+            "data": data_summary,
+            "split_windows": splits,
+            "metrics": metrics,
+            "training": {
+                "best_epoch": fit.best_epoch,
+                "epochs": fit.epochs,
+                "seconds": round(fit.seconds, 3),
+                "history": fit.history,
+            },
+        },
+    )
+    par = parity_cnn(onnx_path, net, Xt if len(Xt) else X)
+    say(f"exported {onnx_path} (sha256 {card['sha256'][:12]}); parity {par}")
+
+    run_id = None
+    if config.tracking:
+        from training.tracking import log_run
+
+        uri = tracking_uri or config.tracking_uri
+        params = {
+            "model": config.model,
+            "seed": config.seed,
+            "test_fraction": config.test_fraction,
+            "calibration_fraction": config.calibration_fraction,
+            "coverage": config.coverage,
+            "data_card_sha256": card_sha,
+            "n_windows": len(ds),
+            "window_version": WINDOW_VERSION,
+            "opset": TARGET_OPSET,
+            **{f"cnn.{k}": v for k, v in cc.model_dump().items()},
+        }
+        run_id = log_run(
+            tracking_uri=uri,
+            experiment=config.experiment,
+            params=params,
+            metrics={
+                **metrics,
+                "conformal_quantile": q,
+                "best_epoch": float(fit.best_epoch),
+                **{f"parity/{k}": v for k, v in par.items()},
+            },
+            data_card_path=data_dir / CARD,
+            artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
+            confusions={
+                "cnn": confusion(label[te], pred, len(names)),
+                "geometric": confusion(label[te], g_pred, len(names)),
+            },
+            class_names=names,
+            tags={"stiffnet.model": "cnn", "stiffnet.data_sha256": card_sha},
+        )
+        say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
+
+    summary = {
+        "metrics": metrics,
+        "conformal_quantile": q,
+        "parity": par,
+        "split_windows": splits,
+        "run_id": run_id,
+        "best_epoch": fit.best_epoch,
+        "epochs": fit.epochs,
+        "paths": {
+            "onnx": str(onnx_path),
+            "card": str(onnx_path.with_suffix(".card.json")),
+            "summary": str(out_dir / "summary.json"),
+        },
+        "timing": {
+            "windows_s": round(t_feat, 3),
             "fit_s": round(t_fit, 3),
             "geometric_s": round(t_geo, 3),
             "total_s": round(time.perf_counter() - t0, 3),

@@ -33,10 +33,48 @@ class GBMConfig(_Strict):
     )
 
 
+class CNNConfig(_Strict):
+    """The 1-D CNN on canonical windows (``training/cnn.py``, ``stiffnet.features.windows``)."""
+
+    rate: int = Field(32, ge=8, le=256, description="canonical samples per natural period")
+    periods: int = Field(16, ge=2, le=128, description="natural periods per canonical window")
+    n_channels: int = Field(
+        3, ge=1, le=8, description="delay-embedded input channels (delays 0, d, 2d, ...)"
+    )
+    delay_fraction: float = Field(
+        0.18, gt=0.0, le=1.0, description="embedding delay d in natural periods"
+    )
+    width: int = Field(48, ge=4, le=256, description="convolution channels")
+    n_blocks: int = Field(
+        4, ge=1, le=8, description="Conv1d-BN-ReLU blocks (all but the first halve L)"
+    )
+    kernel_size: int = Field(7, ge=3, le=31)
+    dropout: float = Field(0.1, ge=0.0, lt=1.0)
+    learning_rate: float = Field(2e-3, gt=0.0, le=1.0)
+    weight_decay: float = Field(1e-4, ge=0.0, le=1.0)
+    batch_size: int = Field(64, ge=1, le=4096)
+    max_epochs: int = Field(80, ge=1, le=10_000)
+    patience: int = Field(15, ge=1, le=1000, description="epochs without improvement")
+    beta_loss_weight: float = Field(
+        1.0, ge=0.0, le=100.0, description="weight of the standardised log-beta MSE"
+    )
+    validation_fraction: float = Field(
+        0.15, gt=0.0, lt=0.5, description="training trajectories held out for early stopping"
+    )
+    class_weight: Literal["balanced"] | None = Field(
+        "balanced", description="cross-entropy class weights"
+    )
+    max_train_seconds: float | None = Field(
+        None,
+        gt=0.0,
+        description="optional wall-clock limit (best epoch kept); results then depend on speed",
+    )
+
+
 class TrainConfig(_Strict):
     """What ``training/train.py`` trains and how it splits and tracks."""
 
-    model: Literal["gbm"] = "gbm"
+    model: Literal["gbm", "cnn"] = "gbm"
     seed: int = Field(0, ge=0)
     test_fraction: float = Field(0.2, gt=0.0, lt=0.9, description="trajectories held out for test")
     calibration_fraction: float = Field(
@@ -53,6 +91,7 @@ class TrainConfig(_Strict):
     )
     n_jobs: int = Field(1, ge=-1, le=256, description="feature-extraction processes (-1: all)")
     gbm: GBMConfig = Field(default_factory=GBMConfig)
+    cnn: CNNConfig = Field(default_factory=CNNConfig)
     tracking: bool = Field(True, description="log the run to MLflow")
     tracking_uri: str = Field("sqlite:///mlflow.db", min_length=1)
     experiment: str = Field("stiffnet-gbm", min_length=1)

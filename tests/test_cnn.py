@@ -1,0 +1,208 @@
+"""CNN on canonical windows: invariances, end-to-end training, ONNX export and parity."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import onnx
+import pytest
+
+from stiffnet.config import load_config, validate_config
+from stiffnet.config.sim import SimulationConfig
+from stiffnet.config.train import CNNConfig, TrainConfig
+from stiffnet.dataset.generate import generate_dataset
+from stiffnet.dataset.store import load_dataset
+from stiffnet.errors import ConfigError, SignalError
+from stiffnet.features.windows import (
+    canonical_window,
+    default_delays,
+    embedded_channels,
+    window_tensor,
+)
+from stiffnet.io_utils import sha256_file
+
+torch = pytest.importorskip("torch")
+
+TINY = {
+    "seed": 11,
+    "n_trajectories": 40,
+    "shard_size": 20,
+    "windows": {"duration_periods": 8, "per_trajectory": 2},
+    "sweep": {"fs_ratio": [50, 150], "noise_levels": [0.0, 0.03, 0.12]},
+    "solver": {"settle_tolerance": 0.1, "batch_size": 20},
+}
+SMALL_CNN = {
+    "periods": 8,
+    "width": 8,
+    "n_blocks": 2,
+    "max_epochs": 3,
+    "patience": 2,
+    "batch_size": 32,
+}
+
+
+@pytest.fixture(scope="module")
+def tiny_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cnn") / "ds"
+    generate_dataset(validate_config(SimulationConfig, TINY), out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def trained(tiny_dir, tmp_path_factory):
+    from training.train import train
+
+    torch.set_num_threads(1)
+    work = tmp_path_factory.mktemp("cnnrun")
+    uri = f"sqlite:///{work / 'mlflow.db'}"
+    cfg = TrainConfig(model="cnn", experiment="test-cnn", cnn=SMALL_CNN)
+    summary = train(tiny_dir, cfg, work / "out", tracking_uri=uri, progress=None)
+    return summary, uri, work
+
+
+def _spiky(fs_ratio=97.3, periods=10, fn=9.48, seed=0):
+    """Forced response plus one sharp upward spike per period, with noise."""
+    fs = fs_ratio * fn
+    t = np.arange(int(periods * fs_ratio)) / fs
+    x = np.sin(2 * np.pi * fn * 0.9 * t)
+    phase = (t * fn * 0.9) % 1.0
+    x += 4.0 * np.exp(-(((phase - 0.3) / 0.02) ** 2))
+    x += 0.05 * np.random.default_rng(seed).standard_normal(t.size)
+    return x, fs, fn
+
+
+def test_canonical_window_shape_and_invariances():
+    x, fs, fn = _spiky()
+    w = canonical_window(x, fs, fn, rate=32, periods=16)
+    assert w.dtype == np.float32 and w.shape == (512,)
+    n_valid = int((x.size - 1) / (97.3 / 32)) + 1  # canonical samples covered by the data
+    valid = w[:n_valid]
+    assert abs(valid.mean()) < 1e-5 and abs(valid.std() - 1.0) < 1e-4
+    assert (w[n_valid:] == 0).all()  # zero-padded past the data
+    assert valid.max() > -valid.min()  # spikes point up
+    for gain in (1000.0, -1.0, -1000.0, 1e-3):
+        np.testing.assert_allclose(canonical_window(gain * x, fs, fn), w, atol=1e-5)
+    # a longer window is cropped to the requested number of periods
+    assert canonical_window(x, fs, fn, rate=16, periods=4).shape == (64,)
+    # the rate is the same whatever the input sampling rate
+    x2, fs2, _ = _spiky(fs_ratio=311.0)
+    w2 = canonical_window(x2, fs2, fn)
+    assert np.corrcoef(w[:300], w2[:300])[0, 1] > 0.95
+
+
+def test_canonical_window_errors():
+    x, fs, fn = _spiky()
+    with pytest.raises(ConfigError):
+        canonical_window(x, fs, 0.0)
+    with pytest.raises(ConfigError):
+        canonical_window(x, -1.0, fn)
+    with pytest.raises(SignalError):
+        canonical_window(np.ones(100), fs, fn)
+
+
+def test_embedded_channels():
+    assert default_delays(32) == (0, 6, 12)
+    w = np.arange(10, dtype=np.float32)
+    e = embedded_channels(w, (0, 2, 4))
+    assert e.shape == (3, 10) and e.dtype == np.float32
+    np.testing.assert_array_equal(e[1, :8], w[2:])
+    assert (e[2, 6:] == 0).all()
+    assert embedded_channels(np.zeros(512)).shape == (3, 512)
+    x, fs, fn = _spiky()
+    X = window_tensor([x, -3 * x], fs, fn)
+    assert X.shape == (2, 3, 512)
+    np.testing.assert_allclose(X[0], X[1], atol=1e-5)
+
+
+def test_windows_module_imports_no_heavy_libraries():
+    code = (
+        "import sys, stiffnet.features.windows\n"
+        "bad = [m for m in ('torch', 'sklearn', 'mlflow') if m in sys.modules]\n"
+        "assert not bad, bad\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_cnn_yaml_restates_defaults():
+    cfg = load_config(TrainConfig, "configs/train/cnn.yaml")
+    assert cfg.model == "cnn" and cfg.cnn == CNNConfig()
+    assert cfg.model_copy(update={"model": "gbm", "experiment": "stiffnet-gbm"}) == TrainConfig()
+    with pytest.raises(ConfigError, match="width"):
+        validate_config(TrainConfig, {"model": "cnn", "cnn": {"width": 0}})
+
+
+def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
+    summary, _, _ = trained
+    path = summary["paths"]["onnx"]
+    assert path.endswith("cnn.onnx")
+    card = json.loads(open(summary["paths"]["card"]).read())
+    assert card["sha256"] == sha256_file(path)
+    assert card["model"] == "cnn"
+    assert card["data"]["card_sha256"] == sha256_file(tiny_dir / "card.json")
+    m = onnx.load(path)
+    assert not any(t.data_location == onnx.TensorProto.EXTERNAL for t in m.graph.initializer)
+    meta = {p.key: p.value for p in m.metadata_props}
+    assert meta["model_kind"] == "stiffnet.cnn"
+    ds = load_dataset(tiny_dir)
+    assert json.loads(meta["class_names"]) == ds.class_names
+    assert json.loads(meta["canonical_rate"]) == 32
+    assert json.loads(meta["window_length"]) == 32 * 8
+    assert json.loads(meta["delays"]) == [0, 6, 12]
+    assert meta["training_data_sha256"] == sha256_file(tiny_dir / "card.json")
+    assert float(meta["conformal_quantile"]) == pytest.approx(summary["conformal_quantile"])
+    assert [i.name for i in m.graph.input] == ["windows"]
+    assert [o.name for o in m.graph.output] == ["probabilities", "log_beta"]
+    metrics = summary["metrics"]
+    for prefix in ("cnn", "geometric"):
+        assert 0.0 <= metrics[f"{prefix}/accuracy"] <= 1.0
+        assert f"{prefix}/macro_f1" in metrics
+    assert "cnn/beta_mape" in metrics and "cnn/beta_coverage" in metrics
+
+
+def test_onnx_parity_and_dynamic_batch(trained, tiny_dir):
+    from training.cnn import StiffnessCNN, predict_cnn
+    from training.export_onnx_cnn import export_cnn_onnx, onnx_predict_cnn, parity_cnn
+
+    summary, _, _ = trained
+    assert summary["parity"]["max_abs_proba_diff"] < 1e-4
+    assert summary["parity"]["label_agreement"] == 1.0
+    ds = load_dataset(tiny_dir)
+    X = window_tensor(
+        ds.windows()[:5], ds.column("fs_hz")[:5], ds.column("natural_frequency_hz")[:5], 32, 8
+    )
+    for n in (1, 5):
+        out = onnx_predict_cnn(summary["paths"]["onnx"], X[:n])
+        assert out["probabilities"].shape == (n, len(ds.class_names))
+        np.testing.assert_allclose(out["probabilities"].sum(axis=1), 1.0, atol=1e-5)
+    # parity of a directly exported network on real canonical windows
+    torch.manual_seed(0)
+    net = StiffnessCNN(3, len(ds.class_names), 8, 2, 7, 0.1, 3.0, 0.7).eval()
+    path = Path(summary["paths"]["onnx"]).parent / "direct.onnx"
+    export_cnn_onnx(
+        net,
+        ds.class_names,
+        path,
+        rate=32,
+        periods=8,
+        delays=[0, 6, 12],
+        delay_fraction=0.18,
+        metadata={"conformal_quantile": 0.1},
+        card={},
+    )
+    out = onnx_predict_cnn(path, X)
+    p, lb = predict_cnn(net, X)
+    assert np.max(np.abs(out["probabilities"] - p)) < 1e-4
+    assert np.max(np.abs(out["log_beta"] - lb)) < 1e-4
+    assert parity_cnn(path, net, X)["max_abs_proba_diff"] < 1e-4
+
+
+def test_mlflow_run_has_cnn_metrics(trained):
+    import mlflow
+
+    summary, uri, _ = trained
+    run = mlflow.MlflowClient(uri).get_run(summary["run_id"])
+    assert "cnn/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
+    assert run.data.params["model"] == "cnn"
+    assert run.data.tags["stiffnet.model"] == "cnn"

@@ -1,0 +1,198 @@
+"""Export the 1-D CNN as one self-contained ONNX file plus a model card.
+
+The file has one input ``windows`` (float32, ``[N, C, L]``, dynamic batch ``N``:
+the output of :func:`stiffnet.features.windows.window_tensor`) and two
+outputs: ``probabilities`` (float32, ``[N, n_classes]``, softmax, columns in
+the order of metadata ``class_names``) and ``log_beta`` (float32, ``[N, 1]``).
+It is written by ``torch.onnx.export`` (the dynamo exporter, ``dynamic_shapes``
+for the batch axis; the legacy TorchScript exporter with ``dynamic_axes`` if
+that fails) with ``external_data=False``: the weights are inside the file.
+
+``metadata_props`` (all strings, JSON-encoded unless strings): ``model_kind``
+(``"stiffnet.cnn"``), ``class_names``, ``class_indices``, ``input_name``,
+``canonical_rate`` (samples per natural period), ``window_periods``,
+``window_length``, ``delays`` (canonical samples), ``delay_fraction``,
+``normalisation``, ``window_version``, ``beta_transform`` (``"log"``),
+``requires_natural_frequency`` (always true), ``opset`` and what the caller
+adds (``training_data_sha256``, ``conformal_quantile``, ...). Writes are atomic.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import onnx
+import torch
+from onnx import helper
+
+from stiffnet.features.windows import NORMALISATION, WINDOW_VERSION
+from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from training.cnn import ProbabilityModel, StiffnessCNN
+
+#: ai.onnx opset of the exported graph.
+TARGET_OPSET = 18
+INPUT_NAME = "windows"
+OUTPUT_NAMES = ["probabilities", "log_beta"]
+
+
+def _export_proto(net: StiffnessCNN, n_channels: int, length: int) -> onnx.ModelProto:
+    wrapper = ProbabilityModel(net).eval()
+    example = torch.zeros(2, n_channels, length)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.onnx"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                torch.onnx.export(
+                    wrapper,
+                    (example,),
+                    str(path),
+                    input_names=[INPUT_NAME],
+                    output_names=OUTPUT_NAMES,
+                    opset_version=TARGET_OPSET,
+                    dynamo=True,
+                    dynamic_shapes={"windows": {0: torch.export.Dim("N")}},
+                    external_data=False,
+                    verbose=False,
+                )
+            except Exception:  # noqa: BLE001 - fall back to the TorchScript exporter
+                torch.onnx.export(
+                    wrapper,
+                    (example,),
+                    str(path),
+                    input_names=[INPUT_NAME],
+                    output_names=OUTPUT_NAMES,
+                    opset_version=TARGET_OPSET,
+                    dynamo=False,
+                    dynamic_axes={INPUT_NAME: {0: "N"}, **{o: {0: "N"} for o in OUTPUT_NAMES}},
+                )
+        model = onnx.load(str(path), load_external_data=True)
+    for vi in [*model.graph.input, *model.graph.output]:  # name the dynamic batch axis
+        dims = vi.type.tensor_type.shape.dim
+        if dims:
+            dims[0].ClearField("dim_value")
+            dims[0].dim_param = "N"
+    onnx.checker.check_model(model)
+    return model
+
+
+def export_cnn_onnx(
+    net: StiffnessCNN,
+    class_names: list[str],
+    path: str | Path,
+    *,
+    rate: int,
+    periods: int,
+    delays: list[int],
+    delay_fraction: float,
+    metadata: dict[str, Any],
+    card: dict[str, Any],
+) -> dict[str, Any]:
+    """Write the ONNX model and its card (``<stem>.card.json``) atomically.
+
+    Parameters
+    ----------
+    net : StiffnessCNN
+        Fitted network (put in eval mode).
+    class_names : list of str
+        Name of each class index (the probability columns, in order).
+    path : str or Path
+        Destination ``.onnx`` file.
+    rate, periods : int
+        Canonical samples per natural period and natural periods per window.
+    delays : list of int
+        Channel delays in canonical samples.
+    delay_fraction : float
+        The delay rule in natural periods.
+    metadata : dict
+        Extra ``metadata_props``; should include ``training_data_sha256`` and
+        ``conformal_quantile``.
+    card : dict
+        Model card content; the file's SHA-256, the metadata, the opset and
+        the input/output shapes are added.
+
+    Returns
+    -------
+    dict
+        The model card as written.
+    """
+    path = Path(path)
+    net.eval()
+    length = rate * periods
+    model = _export_proto(net, len(delays), length)
+    props = {
+        "model_kind": "stiffnet.cnn",
+        "class_names": list(class_names),
+        "class_indices": list(range(len(class_names))),
+        "input_name": INPUT_NAME,
+        "canonical_rate": rate,
+        "window_periods": periods,
+        "window_length": length,
+        "delays": list(delays),
+        "delay_fraction": delay_fraction,
+        "normalisation": NORMALISATION,
+        "window_version": WINDOW_VERSION,
+        "beta_transform": "log",
+        "requires_natural_frequency": True,
+        "opset": TARGET_OPSET,
+        **metadata,
+    }
+    meta = {k: v if isinstance(v, str) else json.dumps(v) for k, v in props.items()}
+    helper.set_model_props(model, meta)
+    model.producer_name = "stiffnet"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(path, model.SerializeToString())
+    full = {
+        "model_file": path.name,
+        "sha256": sha256_file(path),
+        "opset": {o.domain or "ai.onnx": o.version for o in model.opset_import},
+        "inputs": {INPUT_NAME: ["N", len(delays), length]},
+        "outputs": {"probabilities": ["N", len(class_names)], "log_beta": ["N", 1]},
+        "metadata": props,
+        **card,
+    }
+    write_json_atomic(path.with_suffix(".card.json"), full)
+    return full
+
+
+def onnx_session(path: str | Path) -> Any:
+    """onnxruntime session with one intra-op thread (deterministic, no oversubscription)."""
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = 1
+    so.inter_op_num_threads = 1
+    return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
+
+
+def onnx_predict_cnn(path: str | Path, X: np.ndarray) -> dict[str, np.ndarray]:
+    """Run the exported model: ``probabilities``, ``log_beta`` (N,) and ``beta``."""
+    sess = onnx_session(path)
+    proba, log_beta = sess.run(OUTPUT_NAMES, {INPUT_NAME: np.asarray(X, dtype=np.float32)})
+    return {"probabilities": proba, "log_beta": log_beta[:, 0], "beta": np.exp(log_beta[:, 0])}
+
+
+def parity_cnn(path: str | Path, net: StiffnessCNN, X: np.ndarray) -> dict[str, float]:
+    """Largest ONNX-vs-torch differences on `X`.
+
+    Returns
+    -------
+    dict
+        ``max_abs_proba_diff``, ``max_abs_log_beta_diff`` and ``label_agreement``.
+    """
+    from training.cnn import predict_cnn
+
+    if len(X) == 0:
+        return {"max_abs_proba_diff": 0.0, "max_abs_log_beta_diff": 0.0, "label_agreement": 1.0}
+    out = onnx_predict_cnn(path, X)
+    p, lb = predict_cnn(net, np.asarray(X, dtype=np.float32))
+    return {
+        "max_abs_proba_diff": float(np.max(np.abs(out["probabilities"] - p))),
+        "max_abs_log_beta_diff": float(np.max(np.abs(out["log_beta"] - lb))),
+        "label_agreement": float(np.mean(out["probabilities"].argmax(axis=1) == p.argmax(axis=1))),
+    }
