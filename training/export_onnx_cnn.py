@@ -33,6 +33,7 @@ from onnx import helper
 from stiffnet.features.windows import NORMALISATION, WINDOW_VERSION
 from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
 from training.cnn import ProbabilityModel, StiffnessCNN
+from training.export_onnx import onnx_session
 
 #: ai.onnx opset of the exported graph.
 TARGET_OPSET = 18
@@ -158,16 +159,6 @@ def export_cnn_onnx(
     }
     write_json_atomic(path.with_suffix(".card.json"), full)
     return full
-
-
-def onnx_session(path: str | Path) -> Any:
-    """onnxruntime session with one intra-op thread (deterministic, no oversubscription)."""
-    import onnxruntime as ort
-
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.inter_op_num_threads = 1
-    return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
 
 
 def onnx_predict_cnn(path: str | Path, X: np.ndarray) -> dict[str, np.ndarray]:

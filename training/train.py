@@ -84,6 +84,67 @@ def geometric_predictions(
     return [r[0] for r in rows], np.array([r[1] for r in rows], dtype=np.float64)
 
 
+def _geometric_baseline(accel, fs_hz, label, beta, noise, names, config, metrics, model, say):
+    """The geometric method on the same test windows: metrics added under ``geometric/``.
+
+    Returns its class predictions (for the confusion matrix) and the seconds it took.
+    """
+    t = time.perf_counter()
+    g_cls, g_beta = geometric_predictions(accel, fs_hz, config.n_jobs)
+    g_pred = np.array([names.index(c) if c in names else 0 for c in g_cls])
+    m_geo = evaluate(label, g_pred, beta, g_beta, noise, names, config.noise_bins)
+    metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
+    say(
+        f"test accuracy: {model} {metrics[f'{model}/accuracy']:.3f}, geometric "
+        f"{m_geo['accuracy']:.3f}; beta MAPE: {model} "
+        f"{metrics.get(f'{model}/beta_mape', np.nan):.3f}, geometric "
+        f"{m_geo.get('beta_mape', np.nan):.3f}"
+    )
+    return g_pred, time.perf_counter() - t
+
+
+def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
+    keys = ("n_trajectories", "seed", "class_balance", "code_version")
+    return {
+        "path": str(data_dir),
+        "card_sha256": card_sha,
+        "n_windows": len(ds),
+        **{k: ds.card.get(k) for k in keys},
+    }
+
+
+def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, *, params,
+           metrics, confusions) -> str | None:  # fmt: skip
+    """Log the run to MLflow (when tracking is on); returns the run id."""
+    if not config.tracking:
+        return None
+    from training.tracking import log_run
+
+    uri = tracking_uri or config.tracking_uri
+    common = {
+        "model": config.model,
+        "seed": config.seed,
+        "test_fraction": config.test_fraction,
+        "calibration_fraction": config.calibration_fraction,
+        "coverage": config.coverage,
+        "data_card_sha256": card_sha,
+        "n_windows": len(ds),
+    }
+    run_id = log_run(
+        tracking_uri=uri,
+        experiment=config.experiment,
+        params={**common, **params},
+        metrics=metrics,
+        data_card_path=data_dir / CARD,
+        artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
+        confusions=confusions,
+        class_names=names,
+        tags={"stiffnet.model": config.model, "stiffnet.data_sha256": card_sha},
+    )
+    say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
+    return run_id
+
+
 def train(
     data_dir: str | Path,
     config: TrainConfig,
@@ -180,29 +241,14 @@ def train(
     )
     metrics.update({f"gbm/{k}": v for k, v in m_gbm.items()})
 
-    t = time.perf_counter()
-    test_idx = np.flatnonzero(te)
-    g_cls, g_beta = geometric_predictions(
-        [np.asarray(recs[i]["accel"]) for i in test_idx], ds.column("fs_hz")[te], config.n_jobs
-    )
-    g_pred = np.array([names.index(c) if c in names else 0 for c in g_cls])
-    m_geo = evaluate(label[te], g_pred, beta[te], g_beta, noise[te], names, config.noise_bins)
-    metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
-    t_geo = time.perf_counter() - t
-    say(
-        f"test accuracy: gbm {m_gbm['accuracy']:.3f}, geometric {m_geo['accuracy']:.3f}; "
-        f"beta MAPE: gbm {m_gbm.get('beta_mape', np.nan):.3f}, "
-        f"geometric {m_geo.get('beta_mape', np.nan):.3f}"
-    )
+    g_pred, t_geo = _geometric_baseline(
+        [np.asarray(recs[i]["accel"]) for i in np.flatnonzero(te)], ds.column("fs_hz")[te],
+        label[te], beta[te], noise[te], names, config, metrics, "gbm", say,
+    )  # fmt: skip
 
     out_dir.mkdir(parents=True, exist_ok=True)
     onnx_path = out_dir / MODEL_FILE
-    data_summary = {
-        "path": str(data_dir),
-        "card_sha256": card_sha,
-        "n_windows": len(ds),
-        **{k: ds.card.get(k) for k in ("n_trajectories", "seed", "class_balance", "code_version")},
-    }
+    data_summary = _data_summary(data_dir, card_sha, ds)
     splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
     card = export_onnx(
         clf,
@@ -231,41 +277,19 @@ def train(
     par = parity(onnx_path, clf, reg, Xt if len(Xt) else X)
     say(f"exported {onnx_path} (sha256 {card['sha256'][:12]}); parity {par}")
 
-    run_id = None
-    if config.tracking:
-        from training.tracking import log_run
-
-        uri = tracking_uri or config.tracking_uri
-        params = {
-            "model": config.model,
-            "seed": config.seed,
-            "test_fraction": config.test_fraction,
-            "calibration_fraction": config.calibration_fraction,
-            "coverage": config.coverage,
+    run_id = _track(
+        config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say,
+        params={
             "use_natural_frequency": config.use_natural_frequency,
-            "data_card_sha256": card_sha,
-            "n_windows": len(ds),
             **{f"gbm.{k}": v for k, v in config.gbm.model_dump().items()},
-        }
-        run_id = log_run(
-            tracking_uri=uri,
-            experiment=config.experiment,
-            params=params,
-            metrics={
-                **metrics,
-                "conformal_quantile": q,
-                **{f"parity/{k}": v for k, v in par.items()},
-            },
-            data_card_path=data_dir / CARD,
-            artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
-            confusions={
-                "gbm": confusion(label[te], pred, len(names)),
-                "geometric": confusion(label[te], g_pred, len(names)),
-            },
-            class_names=names,
-            tags={"stiffnet.model": "gbm", "stiffnet.data_sha256": card_sha},
-        )
-        say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
+        },
+        metrics={**metrics, "conformal_quantile": q,
+                 **{f"parity/{k}": v for k, v in par.items()}},
+        confusions={
+            "gbm": confusion(label[te], pred, len(names)),
+            "geometric": confusion(label[te], g_pred, len(names)),
+        },
+    )  # fmt: skip
 
     summary = {
         "metrics": metrics,
@@ -380,29 +404,14 @@ def train_cnn(
     )
     metrics.update({f"cnn/{k}": v for k, v in m_cnn.items()})
 
-    t = time.perf_counter()
-    test_idx = np.flatnonzero(te)
-    g_cls, g_beta = geometric_predictions(
-        [np.asarray(windows[i], dtype=np.float64) for i in test_idx], fs_hz[te], config.n_jobs
-    )
-    g_pred = np.array([names.index(c) if c in names else 0 for c in g_cls])
-    m_geo = evaluate(label[te], g_pred, beta[te], g_beta, noise[te], names, config.noise_bins)
-    metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
-    t_geo = time.perf_counter() - t
-    say(
-        f"test accuracy: cnn {m_cnn['accuracy']:.3f}, geometric {m_geo['accuracy']:.3f}; "
-        f"beta MAPE: cnn {m_cnn.get('beta_mape', np.nan):.3f}, "
-        f"geometric {m_geo.get('beta_mape', np.nan):.3f}"
-    )
+    g_pred, t_geo = _geometric_baseline(
+        [np.asarray(windows[i], dtype=np.float64) for i in np.flatnonzero(te)], fs_hz[te],
+        label[te], beta[te], noise[te], names, config, metrics, "cnn", say,
+    )  # fmt: skip
 
     out_dir.mkdir(parents=True, exist_ok=True)
     onnx_path = out_dir / CNN_MODEL_FILE
-    data_summary = {
-        "path": str(data_dir),
-        "card_sha256": card_sha,
-        "n_windows": len(ds),
-        **{k: ds.card.get(k) for k in ("n_trajectories", "seed", "class_balance", "code_version")},
-    }
+    data_summary = _data_summary(data_dir, card_sha, ds)
     splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
     card = export_cnn_onnx(
         net,
@@ -436,43 +445,20 @@ def train_cnn(
     par = parity_cnn(onnx_path, net, Xt if len(Xt) else X)
     say(f"exported {onnx_path} (sha256 {card['sha256'][:12]}); parity {par}")
 
-    run_id = None
-    if config.tracking:
-        from training.tracking import log_run
-
-        uri = tracking_uri or config.tracking_uri
-        params = {
-            "model": config.model,
-            "seed": config.seed,
-            "test_fraction": config.test_fraction,
-            "calibration_fraction": config.calibration_fraction,
-            "coverage": config.coverage,
-            "data_card_sha256": card_sha,
-            "n_windows": len(ds),
+    run_id = _track(
+        config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say,
+        params={
             "window_version": WINDOW_VERSION,
             "opset": TARGET_OPSET,
             **{f"cnn.{k}": v for k, v in cc.model_dump().items()},
-        }
-        run_id = log_run(
-            tracking_uri=uri,
-            experiment=config.experiment,
-            params=params,
-            metrics={
-                **metrics,
-                "conformal_quantile": q,
-                "best_epoch": float(fit.best_epoch),
-                **{f"parity/{k}": v for k, v in par.items()},
-            },
-            data_card_path=data_dir / CARD,
-            artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
-            confusions={
-                "cnn": confusion(label[te], pred, len(names)),
-                "geometric": confusion(label[te], g_pred, len(names)),
-            },
-            class_names=names,
-            tags={"stiffnet.model": "cnn", "stiffnet.data_sha256": card_sha},
-        )
-        say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
+        },
+        metrics={**metrics, "conformal_quantile": q, "best_epoch": float(fit.best_epoch),
+                 **{f"parity/{k}": v for k, v in par.items()}},
+        confusions={
+            "cnn": confusion(label[te], pred, len(names)),
+            "geometric": confusion(label[te], g_pred, len(names)),
+        },
+    )  # fmt: skip
 
     summary = {
         "metrics": metrics,
