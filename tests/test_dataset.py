@@ -115,3 +115,19 @@ def test_existing_output_refused_before_work(tmp_path, monkeypatch):
     with pytest.raises(StiffnetError, match="exists and is not empty"):
         generate_dataset(small_config(), tmp_path / "ds")
     assert (tmp_path / "ds" / "keep.txt").read_text() == "x"
+
+
+def test_atomic_writes_honour_the_umask(tmp_path):
+    import os
+
+    from stiffnet.io_utils import atomic_directory, write_bytes_atomic
+
+    old = os.umask(0o022)
+    try:
+        write_bytes_atomic(tmp_path / "f.bin", b"x")
+        with atomic_directory(tmp_path / "d") as d:
+            (d / "a").write_text("a")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "f.bin").stat().st_mode & 0o777 == 0o644
+    assert (tmp_path / "d").stat().st_mode & 0o777 == 0o755
