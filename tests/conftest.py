@@ -5,3 +5,28 @@ import os
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+import pytest  # noqa: E402
+
+#: A tiny labelled dataset shared by the training tests (GBM and CNN): 40
+#: trajectories, 2 windows each, three noise levels.
+TINY_DATASET = {
+    "seed": 7,
+    "n_trajectories": 40,
+    "shard_size": 20,
+    "windows": {"duration_periods": 8, "per_trajectory": 2},
+    "sweep": {"fs_ratio": [50, 150], "noise_levels": [0.0, 0.03, 0.12]},
+    "solver": {"settle_tolerance": 0.1, "batch_size": 20},
+}
+
+
+@pytest.fixture(scope="session")
+def tiny_dir(tmp_path_factory):
+    from stiffnet.config import validate_config
+    from stiffnet.config.sim import SimulationConfig
+    from stiffnet.dataset.generate import generate_dataset
+
+    out = tmp_path_factory.mktemp("tiny") / "ds"
+    generate_dataset(validate_config(SimulationConfig, TINY_DATASET), out)
+    return out

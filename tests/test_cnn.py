@@ -10,9 +10,7 @@ import onnx
 import pytest
 
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.sim import SimulationConfig
 from stiffnet.config.train import CNNConfig, TrainConfig
-from stiffnet.dataset.generate import generate_dataset
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.features.windows import (
@@ -25,14 +23,6 @@ from stiffnet.io_utils import sha256_file
 
 torch = pytest.importorskip("torch")
 
-TINY = {
-    "seed": 11,
-    "n_trajectories": 40,
-    "shard_size": 20,
-    "windows": {"duration_periods": 8, "per_trajectory": 2},
-    "sweep": {"fs_ratio": [50, 150], "noise_levels": [0.0, 0.03, 0.12]},
-    "solver": {"settle_tolerance": 0.1, "batch_size": 20},
-}
 SMALL_CNN = {
     "periods": 8,
     "width": 8,
@@ -41,13 +31,6 @@ SMALL_CNN = {
     "patience": 2,
     "batch_size": 32,
 }
-
-
-@pytest.fixture(scope="module")
-def tiny_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("cnn") / "ds"
-    generate_dataset(validate_config(SimulationConfig, TINY), out)
-    return out
 
 
 @pytest.fixture(scope="module")

@@ -7,31 +7,13 @@ import onnx
 import pytest
 
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.sim import SimulationConfig
 from stiffnet.config.train import TrainConfig
-from stiffnet.dataset.generate import generate_dataset
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError
 from stiffnet.features import FEATURE_NAMES, feature_matrix
 from stiffnet.io_utils import sha256_file
 from training.export_onnx import export_onnx, onnx_predict
 from training.gbm import conformal_quantile, fit_gbm, noise_bins, trajectory_split
-
-TINY = {
-    "seed": 7,
-    "n_trajectories": 40,
-    "shard_size": 20,
-    "windows": {"duration_periods": 8, "per_trajectory": 2},
-    "sweep": {"fs_ratio": [50, 80], "noise_levels": [0.0, 0.03, 0.12]},
-    "solver": {"settle_tolerance": 0.1, "batch_size": 20},
-}
-
-
-@pytest.fixture(scope="session")
-def tiny_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("gbm") / "ds"
-    generate_dataset(validate_config(SimulationConfig, TINY), out)
-    return out
 
 
 @pytest.fixture(scope="session")

@@ -84,6 +84,32 @@ def geometric_predictions(
     return [r[0] for r in rows], np.array([r[1] for r in rows], dtype=np.float64)
 
 
+def _load(data_dir: Path, say: Callable[[str], None]) -> tuple[Any, list[str], str]:
+    """The dataset, its class names and the SHA-256 of its card (the data's identity)."""
+    ds = load_dataset(data_dir)
+    say(f"dataset {data_dir}: {len(ds)} windows, {ds.card.get('n_trajectories')} trajectories")
+    return ds, ds.class_names, sha256_file(data_dir / CARD)
+
+
+def _split(ds: Any, data_dir: Path, config: TrainConfig, validation_fraction: float,
+           say: Callable[[str], None]) -> Any:  # fmt: skip
+    """Train / early-stopping / calibration / test windows, split by trajectory."""
+    sp = trajectory_split(
+        ds.column("trajectory"),
+        config.test_fraction,
+        config.calibration_fraction,
+        validation_fraction,
+        config.seed,
+    )
+    if not (sp.train.any() and sp.test.any() and sp.cal.any()):
+        raise StiffnetError(f"dataset {data_dir} has too few trajectories to split")
+    say(
+        f"split by trajectory: train {sp.train.sum()}, val {sp.val.sum()}, "
+        f"calibration {sp.cal.sum()}, test {sp.test.sum()} windows"
+    )
+    return sp
+
+
 def _geometric_baseline(accel, fs_hz, label, beta, noise, names, config, metrics, model, say):
     """The geometric method on the same test windows: metrics added under ``geometric/``.
 
@@ -185,10 +211,7 @@ def train(
     say = progress or (lambda _msg: None)
     t0 = time.perf_counter()
     data_dir, out_dir = Path(data_dir), Path(out_dir)
-    ds = load_dataset(data_dir)
-    names = ds.class_names
-    card_sha = sha256_file(data_dir / CARD)
-    say(f"dataset {data_dir}: {len(ds)} windows, {ds.card.get('n_trajectories')} trajectories")
+    ds, names, card_sha = _load(data_dir, say)
 
     t = time.perf_counter()
     recs = window_records(ds)
@@ -198,20 +221,7 @@ def train(
     say(f"features: {X.shape[1]} per window, {1e3 * t_feat / max(1, len(ds)):.1f} ms/window")
 
     label, beta, noise = ds.column("label"), ds.column("beta"), ds.column("noise")
-    traj = ds.column("trajectory")
-    sp = trajectory_split(
-        traj,
-        config.test_fraction,
-        config.calibration_fraction,
-        config.gbm.validation_fraction,
-        config.seed,
-    )
-    if not (sp.train.any() and sp.test.any() and sp.cal.any()):
-        raise StiffnetError(f"dataset {data_dir} has too few trajectories to split")
-    say(
-        f"split by trajectory: train {sp.train.sum()}, val {sp.val.sum()}, "
-        f"calibration {sp.cal.sum()}, test {sp.test.sum()} windows"
-    )
+    sp = _split(ds, data_dir, config, config.gbm.validation_fraction, say)
 
     t = time.perf_counter()
     clf, reg = fit_gbm(X, label, beta, sp, config.gbm, config.seed)
@@ -341,10 +351,7 @@ def train_cnn(
     cc = config.cnn
     t0 = time.perf_counter()
     data_dir, out_dir = Path(data_dir), Path(out_dir)
-    ds = load_dataset(data_dir)
-    names = ds.class_names
-    card_sha = sha256_file(data_dir / CARD)
-    say(f"dataset {data_dir}: {len(ds)} windows, {ds.card.get('n_trajectories')} trajectories")
+    ds, names, card_sha = _load(data_dir, say)
     if "natural_frequency_hz" not in ds.table.column_names:
         raise StiffnetError(f"dataset {data_dir} has no natural_frequency_hz: the CNN needs it")
 
@@ -360,19 +367,7 @@ def train_cnn(
     say(f"canonical windows {X.shape[1:]}, {1e3 * t_feat / max(1, len(ds)):.2f} ms/window")
 
     label, beta, noise = ds.column("label"), ds.column("beta"), ds.column("noise")
-    sp = trajectory_split(
-        ds.column("trajectory"),
-        config.test_fraction,
-        config.calibration_fraction,
-        cc.validation_fraction,
-        config.seed,
-    )
-    if not (sp.train.any() and sp.test.any() and sp.cal.any()):
-        raise StiffnetError(f"dataset {data_dir} has too few trajectories to split")
-    say(
-        f"split by trajectory: train {sp.train.sum()}, val {sp.val.sum()}, "
-        f"calibration {sp.cal.sum()}, test {sp.test.sum()} windows"
-    )
+    sp = _split(ds, data_dir, config, cc.validation_fraction, say)
 
     t = time.perf_counter()
     fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed)
