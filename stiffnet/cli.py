@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import importlib
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -13,6 +14,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from stiffnet.cli_options import FsOption, JsonOption
 from stiffnet.errors import StiffnetError
 
 app = typer.Typer(
@@ -26,10 +28,6 @@ console = Console(stderr=True)
 out = Console()
 
 F = TypeVar("F", bound=Callable[..., Any])
-
-JsonOption = Annotated[
-    Path | None, typer.Option("--json", help="Also write the result as JSON to this path.")
-]
 
 
 def user_errors(fn: F) -> F:
@@ -188,9 +186,7 @@ def train(
 @user_errors
 def analyze(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
-    fs: Annotated[
-        float | None, typer.Option("--fs", help="Sampling rate in Hz (needed for .npy).")
-    ] = None,
+    fs: FsOption = None,
     plots: Annotated[
         Path | None, typer.Option(help="Write figures (PNG) into this folder.")
     ] = None,
@@ -236,6 +232,16 @@ def effects(json_path: JsonOption = None) -> None:
         result.append({"name": cls.name, "kind": cls.kind, "summary": doc[0] if doc else "",
                        "parameters": rows})  # fmt: skip
     write_json(json_path, result)
+
+
+#: Modules that add commands to `app` through ``register(app)``. They keep their heavy
+#: imports inside the command functions: ``stiffnet predict`` must not import torch,
+#: scikit-learn or mlflow, and ``stiffnet --help`` must stay fast.
+COMMAND_MODULES = (
+    "serving.commands",  # predict, serve
+)
+for _module in COMMAND_MODULES:
+    importlib.import_module(_module).register(app)
 
 
 def main() -> None:

@@ -30,9 +30,12 @@ parser fails, to tell the user which line is wrong.
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import os
 import tempfile
+import threading
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,6 +54,8 @@ CSV_COLUMNS = ("t", "accel")
 TIME_JITTER_TOLERANCE = 0.2
 #: Relative tolerance between a given rate and the one a file carries.
 FS_TOLERANCE = 1e-3
+
+_TDMS_LOCK = threading.Lock()
 
 
 @dataclass
@@ -195,6 +200,12 @@ def write_recording_csv(path: str | os.PathLike[str], accel: np.ndarray, fs_hz: 
     return p
 
 
+def _brief(exc: BaseException) -> str:
+    """First line of an exception's message (or its type), for one-line errors."""
+    text = str(exc).strip().splitlines()
+    return text[0][:200] if text else type(exc).__name__
+
+
 # ---------------------------------------------------------------------------- CSV
 
 
@@ -202,8 +213,11 @@ def _read_csv(
     p: Path, fs_hz: float | None, channel: str | int | None
 ) -> tuple[np.ndarray, float, str]:
     name = str(p)
-    with open(p, encoding="utf-8-sig", newline="") as fh:  # -sig: Excel's BOM
-        first = fh.readline()
+    try:
+        with open(p, encoding="utf-8-sig", newline="") as fh:  # -sig: Excel's BOM
+            first = fh.readline()
+    except UnicodeDecodeError:
+        raise StiffnetError(f"{name}: not a UTF-8 text file (expected a CSV 't,accel')") from None
     if not first.strip():
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
     header = [c.strip().lower() for c in first.strip().split(",")]
@@ -294,8 +308,8 @@ def _read_npy(
         raise StiffnetError(f"{name}: sampling rate missing (a .npy file needs fs_hz)")
     try:
         arr = np.load(p, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
-        raise StiffnetError(f"{name}: not a readable .npy array ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - a corrupt header raises assorted types
+        raise StiffnetError(f"{name}: not a readable .npy array ({_brief(exc)})") from None
     if not isinstance(arr, np.ndarray):
         raise StiffnetError(f"{name}: expected one array, not an archive")
     if arr.ndim != 1:
@@ -315,9 +329,11 @@ def _read_wav(
 
     name = str(p)
     try:
-        rate, data = wavfile.read(p)
-    except (ValueError, OSError, EOFError) as exc:
-        raise StiffnetError(f"{name}: not a readable WAV file ({exc})") from None
+        with warnings.catch_warnings():  # e.g. "chunk not understood": keep errors one line
+            warnings.simplefilter("ignore", wavfile.WavFileWarning)
+            rate, data = wavfile.read(p)
+    except Exception as exc:  # noqa: BLE001 - a corrupt header raises assorted types
+        raise StiffnetError(f"{name}: not a readable WAV file ({_brief(exc)})") from None
     if data.ndim == 2:
         idx = _channel_index(channel, data.shape[1], name)
         data = data[:, idx]
@@ -365,10 +381,19 @@ def _read_tdms(
     with open(p, "rb") as fh:  # npTDMS reads any bytes as an empty file
         if fh.read(4) != b"TDSm":
             raise StiffnetError(f"{name}: not a readable TDMS file (no 'TDSm' lead-in)")
-    try:
-        tdms = TdmsFile.read(p)
-    except Exception as exc:  # npTDMS raises assorted types on corrupt files
-        raise StiffnetError(f"{name}: not a readable TDMS file ({exc})") from None
+    from nptdms.log import log_manager
+
+    # npTDMS logs warnings on stderr for corrupt files, which would break the
+    # one-line errors: silence them while reading (under a lock: it is global state).
+    with _TDMS_LOCK:
+        level = log_manager.log_level
+        log_manager.set_level(logging.ERROR)
+        try:
+            tdms = TdmsFile.read(p)
+        except Exception as exc:  # npTDMS raises assorted types on corrupt files
+            raise StiffnetError(f"{name}: not a readable TDMS file ({_brief(exc)})") from None
+        finally:
+            log_manager.set_level(level)
     channels = [(g.name, c) for g in tdms.groups() for c in g.channels()]
     if channel is None:
         found = [(g, c) for g, c in channels if len(c) > 0]

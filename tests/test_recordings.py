@@ -87,6 +87,14 @@ def test_csv_wrong_header(tmp_path):
     assert_error("wrong header '0,1'", write_text(tmp_path / "n.csv", "0,1\n0.001,2\n"))
 
 
+def test_csv_binary_content(tmp_path):
+    path = tmp_path / "b.csv"
+    path.write_bytes(b"\x80\x81 not text")
+    assert_error("not a UTF-8 text file", path)
+    path.write_bytes(b"t,accel\n0,1\n0.001,\xff\n")
+    assert_error("not a UTF-8 text file", path)
+
+
 def test_csv_semicolon_separated(tmp_path):
     path = write_text(tmp_path / "s.csv", "t;accel\n0;1\n")
     assert_error("comma-separated", path)
@@ -210,6 +218,15 @@ def test_npy_garbage(tmp_path):
     assert_error("not a readable .npy", write_text(tmp_path / "g.npy", "hello"), fs_hz=FS)
 
 
+def test_npy_corrupt_header(tmp_path):
+    path = tmp_path / "c.npy"
+    np.save(path, np.arange(3.0))
+    raw = bytearray(path.read_bytes())
+    raw[raw.index(b"{") + 1 : raw.index(b"}")] = b"(" * (raw.index(b"}") - raw.index(b"{") - 1)
+    path.write_bytes(bytes(raw))  # an unterminated Python literal: tokenize.TokenError
+    assert_error("not a readable .npy", path, fs_hz=FS)
+
+
 # --------------------------------------------------------------------------- WAV
 
 
@@ -239,6 +256,19 @@ def test_wav_fs_must_agree(tmp_path):
 
 def test_wav_garbage(tmp_path):
     assert_error("not a readable WAV", write_text(tmp_path / "g.wav", "RIFFnope"))
+
+
+@pytest.mark.parametrize(("fmt", "channels", "bits"), [(1, 0, 16), (3, 1, 8), (1, 0, 8)])
+def test_wav_corrupt_header(tmp_path, fmt, channels, bits):
+    """Headers scipy chokes on with ZeroDivisionError / TypeError give one-line errors."""
+    import struct
+
+    data = bytes(range(40))
+    fmt_chunk = struct.pack("<IHHIIHH", 16, fmt, channels, 1000, 2000, 2, bits)
+    body = b"WAVEfmt " + fmt_chunk + b"data" + struct.pack("<I", len(data)) + data
+    path = tmp_path / "c.wav"
+    path.write_bytes(b"RIFF" + struct.pack("<I", len(body)) + body)
+    assert_error("not a readable WAV", path)
 
 
 # -------------------------------------------------------------------------- TDMS
@@ -292,3 +322,12 @@ def test_tdms_fs_must_agree(tmp_path):
 
 def test_tdms_garbage(tmp_path):
     assert_error("not a readable TDMS", write_text(tmp_path / "g.tdms", "not tdms"))
+
+
+def test_tdms_corrupt_after_lead_in_is_quiet(tmp_path, capfd):
+    path = tmp_path / "c.tdms"
+    path.write_bytes(b"TDSm" + bytes(range(7, 90)))
+    with pytest.raises(StiffnetError) as exc:
+        read_recording(path, fs_hz=FS)
+    assert "\n" not in str(exc.value)
+    assert capfd.readouterr().err == ""  # npTDMS's warnings are silenced

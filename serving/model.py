@@ -1,0 +1,172 @@
+"""Loading a shipped ONNX model: integrity check against its card, metadata, session.
+
+A model is a file ``NAME.onnx`` and its card ``NAME.card.json`` (written by
+``training/export_onnx.py`` / ``training/export_onnx_cnn.py``). Loading
+
+1. reads the card (plain JSON) and refuses the model when the file's SHA-256
+   differs from the card's ``sha256`` - a model is never run unverified;
+2. opens an ONNX Runtime session (CPU, ``intra_op_num_threads`` = `threads`,
+   ``inter_op_num_threads`` = 1), refusing a file ONNX Runtime cannot parse;
+3. reads the metadata from the file's ``metadata_props`` (JSON-decoded; the
+   card's copy fills anything missing) and checks it describes a stiffnet
+   CNN (input ``windows``) or GBM (input ``features``).
+
+Nothing is unpickled: the card and the reference files are JSON and the model is
+an ONNX protobuf run by ONNX Runtime.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from stiffnet.errors import StiffnetError
+from stiffnet.io_utils import sha256_file
+
+#: Model kinds this predictor serves: ``model_kind`` metadata -> (kind, input name).
+KINDS = {"stiffnet.cnn": ("cnn", "windows"), "stiffnet.gbm": ("gbm", "features")}
+#: Repository ``models/`` folder (editable install / source checkout).
+PACKAGE_MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
+DEFAULT_MODEL_FILE = "cnn.onnx"
+
+
+def default_model_path() -> Path:
+    """``models/cnn.onnx`` of the repository, else of the current folder."""
+    for folder in (PACKAGE_MODELS_DIR, Path.cwd() / "models"):
+        if (folder / DEFAULT_MODEL_FILE).is_file():
+            return folder / DEFAULT_MODEL_FILE
+    return PACKAGE_MODELS_DIR / DEFAULT_MODEL_FILE
+
+
+def card_path(model_path: Path) -> Path:
+    """``NAME.card.json`` beside ``NAME.onnx``."""
+    return model_path.with_suffix(".card.json")
+
+
+def _decode(value: str) -> Any:
+    try:
+        return json.loads(value)
+    except ValueError:
+        return value  # plain string values are stored unencoded
+
+
+@dataclass
+class LoadedModel:
+    """A verified ONNX model ready to run.
+
+    Attributes
+    ----------
+    path : Path
+        The ``.onnx`` file.
+    name : str
+        File stem (``cnn``, ``gbm``).
+    kind : str
+        ``"cnn"`` or ``"gbm"``.
+    sha256 : str
+        SHA-256 of the file (equal to the card's).
+    metadata : dict
+        Decoded ``metadata_props`` (class names, window geometry, conformal quantile...).
+    card : dict
+        The model card.
+    session : onnxruntime.InferenceSession
+        The session (thread-safe for concurrent ``run`` calls).
+    input_name : str
+        Name of the model's input.
+    """
+
+    path: Path
+    name: str
+    kind: str
+    sha256: str
+    metadata: dict[str, Any]
+    card: dict[str, Any]
+    session: Any = field(repr=False)
+    input_name: str = ""
+
+    @property
+    def class_names(self) -> list[str]:
+        return [str(c) for c in self.metadata["class_names"]]
+
+    @property
+    def conformal_quantile(self) -> float | None:
+        q = self.metadata.get("conformal_quantile")
+        return float(q) if q is not None else None
+
+
+def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
+    """Verify and open a model (see the module notes).
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        The ``.onnx`` file; default :func:`default_model_path`.
+    threads : int, optional
+        ONNX Runtime intra-op threads (>= 1).
+
+    Returns
+    -------
+    LoadedModel
+
+    Raises
+    ------
+    StiffnetError
+        Missing file or card, SHA-256 mismatch, a file ONNX Runtime cannot
+        load, or metadata that is not a stiffnet CNN or GBM.
+    """
+    import onnxruntime as ort
+
+    p = Path(path) if path is not None else default_model_path()
+    if int(threads) < 1:
+        raise StiffnetError(f"threads must be >= 1, got {threads}")
+    if not p.is_file():
+        raise StiffnetError(f"{p}: model file not found")
+    cp = card_path(p)
+    try:
+        card = json.loads(cp.read_text())
+    except FileNotFoundError:
+        raise StiffnetError(
+            f"{p}: model card {cp.name} not found (needed to verify the model)"
+        ) from None
+    except (OSError, ValueError) as exc:
+        raise StiffnetError(f"{cp}: unreadable model card ({exc})") from None
+    if not isinstance(card, dict) or not isinstance(card.get("sha256"), str):
+        raise StiffnetError(f"{cp}: model card has no sha256")
+    digest = sha256_file(p)
+    if digest != card["sha256"].lower():
+        raise StiffnetError(
+            f"{p}: SHA-256 {digest[:12]}... does not match its card ({card['sha256'][:12]}...); "
+            "refusing to load a modified model"
+        )
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = int(threads)
+    so.inter_op_num_threads = 1
+    so.log_severity_level = 3  # errors only: warnings would clutter the CLI
+    try:
+        sess = ort.InferenceSession(str(p), so, providers=["CPUExecutionProvider"])
+    except Exception as exc:  # noqa: BLE001 - ORT raises assorted types on bad files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise StiffnetError(f"{p}: not a loadable ONNX model ({first[:200]})") from None
+    meta = dict(card.get("metadata") or {})
+    meta.update({k: _decode(v) for k, v in sess.get_modelmeta().custom_metadata_map.items()})
+    kind_input = KINDS.get(str(meta.get("model_kind")))
+    if kind_input is None:
+        raise StiffnetError(
+            f"{p}: model_kind {meta.get('model_kind')!r} is not a stiffnet cnn or gbm model"
+        )
+    kind, input_name = kind_input
+    inputs = [i.name for i in sess.get_inputs()]
+    outputs = {o.name for o in sess.get_outputs()}
+    if inputs != [input_name] or not {"probabilities", "log_beta"} <= outputs:
+        raise StiffnetError(
+            f"{p}: expected input {input_name!r} and outputs probabilities, log_beta; "
+            f"got inputs {inputs} and outputs {sorted(outputs)}"
+        )
+    if not isinstance(meta.get("class_names"), list) or not meta["class_names"]:
+        raise StiffnetError(f"{p}: metadata has no class_names")
+    if kind == "cnn":
+        for key in ("canonical_rate", "window_periods", "delays"):
+            if key not in meta:
+                raise StiffnetError(f"{p}: CNN metadata lacks {key!r}")
+    return LoadedModel(p, p.stem, kind, digest, meta, card, sess, input_name)

@@ -1,0 +1,42 @@
+"""Command-line options shared by several ``stiffnet`` commands.
+
+A light module (typer and pathlib only): the command modules registered by
+:mod:`stiffnet.cli` import it at module level without importing the CLI itself.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+#: Environment variable that ``--scheduler`` reads (see docs/distributed.md).
+SCHEDULER_ENVVAR = "STIFFNET_SCHEDULER"
+
+JsonOption = Annotated[
+    Path | None, typer.Option("--json", help="Also write the result as JSON to this path.")
+]
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(
+        envvar=SCHEDULER_ENVVAR,
+        help="Dask scheduler address (tcp://host:8786): run the tasks on that cluster.",
+    ),
+]
+WorkersOption = Annotated[
+    int | None,
+    typer.Option(help="Run the tasks on a local Dask cluster of N worker processes."),
+]
+FsOption = Annotated[
+    float | None, typer.Option("--fs", help="Sampling rate in Hz (needed for .npy).")
+]
+NaturalFrequencyOption = Annotated[
+    float | None,
+    typer.Option(
+        "--fn",
+        help="Natural frequency of the rig in Hz (default: the recording's sidecar "
+        "<recording>.json, else the model's training data).",
+    ),
+]
+ModelOption = Annotated[Path | None, typer.Option(help="ONNX model (default models/cnn.onnx).")]

@@ -1,0 +1,263 @@
+"""The HTTP predictor: endpoints, JSON errors, limits (413, 429, 504), fuzzing, a live server."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from serving.app import Limits, create_app
+from serving.predictor import Predictor
+from stiffnet.recordings import read_recording
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    from fastapi.testclient import TestClient
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "recordings" / "impact_beta45.csv"
+
+
+@pytest.fixture(scope="module")
+def predictor():
+    return Predictor.load()
+
+
+@pytest.fixture(scope="module")
+def client(predictor):
+    with TestClient(create_app(predictor, Limits(max_upload_mb=2.0))) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def samples():
+    return read_recording(EXAMPLE).accel.tolist()
+
+
+def _is_error(r: httpx.Response, status: int, text: str = "") -> None:
+    assert r.status_code == status, (r.status_code, r.text)
+    body = r.json()
+    assert set(body) == {"error"} and "\n" not in body["error"]
+    assert text in body["error"], body
+
+
+def test_health_model_and_openapi(client, predictor):
+    assert client.get("/health").json()["sha256"] == predictor.sha256
+    m = client.get("/model").json()
+    assert m["name"] == "cnn" and m["limits"]["max_upload_mb"] == 2.0
+    schema = client.get("/openapi.json").json()
+    body = schema["paths"]["/predict"]["post"]["requestBody"]["content"]
+    assert {"application/json", "multipart/form-data"} <= set(body)
+    assert "PredictionResult" in schema["components"]["schemas"]
+
+
+def test_predict_json_and_upload_agree(client, samples):
+    r = client.post("/predict", json={"samples": samples, "fs_hz": 1000.0})
+    assert r.status_code == 200, r.text
+    a = r.json()
+    assert a["class"] == "hard" and a["natural_frequency_source"] == "training_data"
+    with open(EXAMPLE, "rb") as fh:
+        r = client.post(
+            "/predict", files={"file": ("run.csv", fh)}, data={"natural_frequency_hz": "9.48"}
+        )
+    assert r.status_code == 200, r.text
+    b = r.json()
+    assert b["natural_frequency_source"] == "request" and b["source"] == "run.csv"
+    assert b["probabilities"] == pytest.approx(a["probabilities"], abs=1e-9)
+
+
+def test_errors_are_json_4xx(client, samples):
+    _is_error(client.get("/nope"), 404)
+    _is_error(client.get("/predict"), 405)
+    _is_error(client.post("/predict", content=b"x", headers={"content-type": "text/plain"}), 415)
+    _is_error(
+        client.post("/predict", content=b"{bad", headers={"content-type": "application/json"}),
+        422,
+        "invalid JSON",
+    )
+    _is_error(client.post("/predict", json={"samples": samples}), 422, "fs_hz")
+    _is_error(client.post("/predict", json={"samples": samples, "fs_hz": 0}), 422, "fs_hz")
+    _is_error(client.post("/predict", json={"samples": [], "fs_hz": 1000}), 422, "empty")
+    _is_error(client.post("/predict", json={"samples": [1.0], "fs_hz": 1000}), 422, "one sample")
+    _is_error(
+        client.post("/predict", json={"samples": samples[:500], "fs_hz": 1000}), 422, "too short"
+    )
+    _is_error(
+        client.post("/predict", json={"samples": [2.0] * 3000, "fs_hz": 1000}), 422, "constant"
+    )
+    _is_error(client.post("/predict", json={"samples": ["a"], "fs_hz": 1000}), 422, "samples")
+    nan = '{"samples": [1.0, NaN, 2.0], "fs_hz": 1000}'
+    _is_error(
+        client.post("/predict", content=nan, headers={"content-type": "application/json"}),
+        422,
+        "NaN",
+    )
+    _is_error(
+        client.post("/predict", files={"file": ("r.csv", b"time,acc\n0,1\n")}), 422, "wrong header"
+    )
+    _is_error(client.post("/predict", files={"file": ("r.xyz", b"1")}), 422, "extension")
+    _is_error(client.post("/predict", files={"file": ("r.npy", b"1")}), 422, "sampling rate")
+    _is_error(
+        client.post("/predict", files={"file": ("r.csv", b"t,accel\n")}, data={"fs_hz": "abc"}),
+        422,
+        "fs_hz",
+    )
+    _is_error(
+        client.post("/predict", data={"fs_hz": "1"}, files={"other": ("r.csv", b"")}), 400, "file"
+    )
+
+
+def test_body_limit_on_header_and_on_stream(client):
+    big = b"x" * (3 * 1024 * 1024)
+    _is_error(
+        client.post("/predict", content=big, headers={"content-type": "application/json"}),
+        413,
+        "2 MB",
+    )
+
+    def chunks():  # no Content-Length: chunked transfer, counted while streaming
+        for _ in range(300):
+            yield b"y" * 10_000
+
+    _is_error(
+        client.post("/predict", content=chunks(), headers={"content-type": "application/json"}), 413
+    )
+    with_file = client.post("/predict", files={"file": ("r.csv", big)})
+    _is_error(with_file, 413)
+
+
+class _Slow:
+    """Stand-in predictor whose predictions take `seconds`."""
+
+    name, sha256, kind = "slow", "0" * 64, "cnn"
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+
+    def predict(self, *args, **kwargs):
+        time.sleep(self.seconds)
+        return {"class": "soft"}
+
+    def info(self):
+        return {"name": self.name}
+
+
+async def _concurrent(app, n: int) -> list[httpx.Response]:
+    transport = httpx.ASGITransport(app=app)
+    async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+        body = {"samples": [0.0, 1.0], "fs_hz": 1000.0}
+        return await asyncio.gather(*(c.post("/predict", json=body) for _ in range(n)))
+
+
+def test_saturation_gives_429_and_timeout_504():
+    app = create_app(_Slow(0.5), Limits(max_concurrency=1, max_queue=1, timeout_s=5))
+    codes = sorted(r.status_code for r in asyncio.run(_concurrent(app, 4)))
+    assert codes == [200, 200, 429, 429]
+    app = create_app(_Slow(1.0), Limits(max_concurrency=1, timeout_s=0.2))
+    (r,) = asyncio.run(_concurrent(app, 1))
+    _is_error(r, 504, "0.2 s")
+
+
+_floats = st.floats(allow_nan=False, allow_infinity=False, width=32)
+_json_bodies = st.one_of(
+    st.fixed_dictionaries(
+        {
+            "samples": st.lists(_floats, max_size=40),
+            "fs_hz": st.one_of(st.floats(), st.integers(-5, 10**6), st.text(max_size=3)),
+        },
+        optional={
+            "natural_frequency_hz": st.one_of(st.none(), st.floats()),
+            "extra": st.integers(),
+        },
+    ),
+    st.builds(
+        lambda n, s, fs: {
+            "samples": (np.random.default_rng(s).standard_normal(n)).tolist(),
+            "fs_hz": fs,
+        },
+        st.integers(1000, 5000),
+        st.integers(0, 99),
+        st.sampled_from([500.0, 1000.0, 3000.0]),
+    ),
+    st.recursive(
+        st.none() | st.booleans() | st.integers() | st.text(max_size=5),
+        lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=5), c, max_size=3),
+        max_leaves=8,
+    ),
+)
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    body=_json_bodies,
+    raw=st.binary(max_size=300),
+    name=st.sampled_from(["r.csv", "r.npy", "r.wav", "r.tdms", "r", "../r.csv", "r.CSV"]),
+    use_file=st.booleans(),
+)
+def test_http_never_500(client, body, raw, name, use_file):
+    if use_file:
+        r = client.post("/predict", files={"file": (name, raw)}, data={"fs_hz": "1000"})
+    else:
+        r = client.post(
+            "/predict", content=json.dumps(body), headers={"content-type": "application/json"}
+        )
+    assert r.status_code < 500, r.text
+    if r.status_code != 200:
+        assert set(r.json()) == {"error"}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_live_server(samples):
+    """`stiffnet serve` as a process: health, a prediction, a 413, then a clean stop."""
+    port = _free_port()
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "stiffnet", "serve", "--port", str(port), "--max-upload-mb", "1"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        env=env,
+    )
+    base = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(300):
+            try:
+                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                time.sleep(0.1)
+            assert proc.poll() is None, proc.stderr.read().decode()
+        r = httpx.post(f"{base}/predict", json={"samples": samples, "fs_hz": 1000.0}, timeout=30)
+        assert r.status_code == 200 and r.json()["class"] == "hard"
+        r = httpx.post(
+            f"{base}/predict",
+            content=b"z" * 2_000_000,
+            headers={"content-type": "application/json"},
+            timeout=30,
+        )
+        assert r.status_code == 413 and "error" in r.json()
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()

@@ -1,0 +1,343 @@
+"""The ONNX predictor: parity with training, invariances, f_n resolution, OOD, integrity."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from serving.predictor import Predictor, predict_recording
+from serving.windows import canonical_tensor, window_length
+from stiffnet.errors import StiffnetError
+from stiffnet.recordings import read_recording, write_recording_csv
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "recordings"
+EXAMPLE_FILES = sorted(EXAMPLES.glob("impact_*.csv"))
+EXAMPLE = EXAMPLES / "impact_beta45.csv"
+DATA = ROOT / "data" / "default"
+
+
+@pytest.fixture(scope="module")
+def cnn():
+    return Predictor.load()
+
+
+@pytest.fixture(scope="module")
+def gbm():
+    return Predictor.load(ROOT / "models" / "gbm.onnx")
+
+
+@pytest.fixture(scope="module")
+def example():
+    return read_recording(EXAMPLE)
+
+
+@pytest.fixture(scope="module")
+def dataset_windows():
+    """Eight windows of the training dataset (first shard), two per stiffness class if possible."""
+    pq = pytest.importorskip("pyarrow.parquet")
+    shards = sorted((DATA / "shards").glob("*.parquet"))
+    if not shards:
+        pytest.skip("data/default is not generated")
+    t = pq.read_table(shards[0]).slice(0, 8)
+    return (
+        [np.asarray(a, dtype=np.float64) for a in t.column("accel").to_pylist()],
+        t.column("fs_hz").to_numpy(),
+        t.column("natural_frequency_hz").to_numpy(),
+    )
+
+
+def test_examples_are_predicted_right_and_use_their_sidecar(cnn):
+    assert EXAMPLE_FILES, "examples/recordings must ship recordings"
+    for path in EXAMPLE_FILES:
+        side = json.loads(Path(str(path) + ".json").read_text())
+        r = predict_recording(path, predictor=cnn)
+        assert r["class"] == side["provenance"]["true_class"], path
+        lo, hi = r["beta_interval"]
+        assert lo < r["beta"] < hi
+        assert r["natural_frequency_source"].startswith("sidecar:")
+        assert r["natural_frequency_hz"] == side["natural_frequency_hz"]
+        assert path.stat().st_size < 600_000
+        json.dumps(r)  # JSON-serialisable as is
+
+
+def test_output_fields(cnn, example):
+    r = cnn.predict(example.accel, example.fs_hz, source="x")
+    for key in (
+        "class",
+        "probabilities",
+        "beta",
+        "beta_interval",
+        "geometric",
+        "agreement",
+        "contact_detected",
+        "ood_score",
+        "ood_flag",
+        "n_windows",
+        "segments",
+        "model",
+        "natural_frequency_hz",
+        "natural_frequency_source",
+        "warnings",
+    ):
+        assert key in r
+    assert set(r["geometric"]) >= {
+        "class",
+        "beta",
+        "inclination_before_deg",
+        "inclination_after_deg",
+    }
+    assert r["model"] == {"name": "cnn", "sha256": cnn.sha256, "kind": "cnn"}
+    assert abs(sum(r["probabilities"].values()) - 1) < 1e-5
+    assert r["n_windows"] == int(example.duration_s // r["window_s"])
+    assert r["natural_frequency_source"] == "training_data"
+    assert r["natural_frequency_hz"] == pytest.approx(9.48)
+    assert r["agreement"] == (r["geometric"]["class"] == r["class"])
+    assert r["contact_detected"] and not r["ood_flag"]
+
+
+@pytest.mark.parametrize("gain", [1e3, 1e-3, -1.0, -1e3, 1e300, -1e-300])
+def test_gain_and_polarity_invariance(cnn, example, gain):
+    ref = cnn.predict(example.accel, example.fs_hz)
+    r = cnn.predict(gain * example.accel, example.fs_hz)
+    assert r["class"] == ref["class"]
+    for k, p in ref["probabilities"].items():
+        assert abs(r["probabilities"][k] - p) < 1e-5
+    assert r["beta"] == pytest.approx(ref["beta"], rel=1e-5)
+    assert r["geometric"]["class"] == ref["geometric"]["class"]
+    assert r["ood_score"] == pytest.approx(ref["ood_score"], rel=1e-4)
+
+
+def test_batched_canonical_tensor_equals_training_path(dataset_windows, example):
+    from stiffnet.features.windows import window_tensor
+
+    wins, fs, fn = dataset_windows
+    for w, f, n in zip(wins, fs, fn, strict=True):
+        ours = canonical_tensor(w[None, :], f, n, 32, 16, (0, 6, 12))
+        assert np.array_equal(ours, window_tensor([w], f, n, 32, 16, (0, 6, 12)))
+    n = window_length(example.fs_hz, 9.48, 16)
+    W = example.accel[: 4 * n].reshape(4, n)
+    assert np.array_equal(
+        canonical_tensor(W, example.fs_hz, 9.48, 32, 16),
+        window_tensor(list(W), example.fs_hz, 9.48),
+    )
+
+
+def test_parity_with_the_training_onnx_path(cnn, gbm, dataset_windows):
+    """One dataset window through the predictor == the training code's ONNX call."""
+    from stiffnet.features import feature_matrix
+    from stiffnet.features.windows import window_tensor
+    from training.export_onnx import onnx_predict
+    from training.export_onnx_cnn import onnx_predict_cnn
+
+    wins, fs, fn = dataset_windows
+    X = window_tensor(wins, fs, fn, 32, 16, (0, 6, 12))
+    ref = onnx_predict_cnn(cnn.model.path, X)
+    ref_gbm = onnx_predict(gbm.model.path, feature_matrix(wins, fs, fn))
+    for i, (w, f, n) in enumerate(zip(wins, fs, fn, strict=True)):
+        assert window_length(f, n, 16) == w.size  # the dataset's windowing rule
+        r = cnn.predict(w, f, natural_frequency_hz=n)
+        assert r["n_windows"] == 1
+        np.testing.assert_allclose(
+            list(r["probabilities"].values()), ref["probabilities"][i], atol=1e-6
+        )
+        if r["beta"] is not None:
+            assert r["beta"] == pytest.approx(ref["beta"][i], rel=1e-5)
+        rg = gbm.predict(w, f, natural_frequency_hz=n)
+        np.testing.assert_allclose(
+            list(rg["probabilities"].values()), ref_gbm["probabilities"][i], atol=1e-6
+        )
+
+
+def test_natural_frequency_resolution(cnn, example, tmp_path):
+    rec = tmp_path / "r.csv"
+    shutil.copy(EXAMPLE, rec)
+    r = predict_recording(rec, predictor=cnn)
+    assert (r["natural_frequency_source"], r["natural_frequency_hz"]) == ("training_data", 9.48)
+    Path(str(rec) + ".json").write_text(json.dumps({"natural_frequency_hz": 9.5}))
+    r = predict_recording(rec, predictor=cnn)
+    assert r["natural_frequency_source"] == f"sidecar:{rec}.json"
+    assert r["natural_frequency_hz"] == 9.5
+    r = predict_recording(rec, predictor=cnn, natural_frequency_hz=9.4)
+    assert (r["natural_frequency_source"], r["natural_frequency_hz"]) == ("argument", 9.4)
+    Path(str(rec) + ".json").write_text("{oops")
+    with pytest.raises(StiffnetError, match="sidecar"):
+        predict_recording(rec, predictor=cnn)
+
+
+def test_long_recording_segments_show_a_change_of_formation(cnn):
+    a = [read_recording(p) for p in EXAMPLE_FILES]  # soft (beta 12), then hard (beta 45)
+    x = np.concatenate([r.accel for r in a])
+    r = cnn.predict(x, a[0].fs_hz)
+    classes = [s["class"] for s in r["segments"]]
+    assert classes[0] == "soft" and classes[-1] == "hard"
+    assert any("class changes over time" in w for w in r["warnings"])
+    assert r["segments"][-1]["end_s"] <= r["duration_s"]
+
+
+def _ood(p: Predictor, x: np.ndarray, fs: float = 1000.0) -> float:
+    return p.predict(x, fs)["ood_score"]
+
+
+def test_ood_score_rises_off_distribution(cnn, example):
+    rng = np.random.default_rng(0)
+    t = np.arange(example.accel.size) / example.fs_hz
+    base = _ood(cnn, example.accel)
+    noise = cnn.predict(rng.standard_normal(t.size), 1000.0)
+    assert noise["ood_score"] > 3 * base and noise["ood_flag"]
+    sine = _ood(cnn, np.sin(2 * np.pi * 31.0 * t))  # no impacts, 3.3 x f_n
+    assert sine > 3 * base
+    distorted = np.tanh(50 * example.accel / np.abs(example.accel).max())  # saturated amplifier
+    assert _ood(cnn, distorted) > base
+    assert not cnn.predict(example.accel, 1000.0)["ood_flag"]
+
+
+def test_bad_signals(cnn, example):
+    fs = example.fs_hz
+    with pytest.raises(StiffnetError, match="too short.*needs 1.69 s"):
+        cnn.predict(example.accel[:1000], fs)
+    with pytest.raises(StiffnetError, match="constant"):
+        cnn.predict(np.full(5000, 3.0), fs)
+    with pytest.raises(StiffnetError, match="below the minimum 474 Hz"):
+        cnn.predict(example.accel[::3], fs / 3)
+    for fs_bad in (0.0, -1.0, float("nan"), float("inf")):
+        with pytest.raises(StiffnetError, match="fs_hz"):
+            cnn.predict(example.accel, fs_bad)
+    with pytest.raises(StiffnetError, match="natural_frequency_hz"):
+        cnn.predict(example.accel, fs, natural_frequency_hz=-2)
+    bad = example.accel.copy()
+    bad[7] = np.nan
+    with pytest.raises(StiffnetError, match="NaN/inf"):
+        cnn.predict(bad, fs)
+    for x in ([], [1.0]):
+        with pytest.raises(StiffnetError, match="empty|one sample"):
+            cnn.predict(np.array(x), fs)
+    with pytest.raises(StiffnetError, match="1-D"):
+        cnn.predict(np.ones((3, 3)), fs)
+    for fs_x, fn_x in ((1e308, 1e-308), (1e3, 1e-300), (1e300, 1.0)):  # overflowing windows
+        with pytest.raises(StiffnetError, match="too short"):
+            cnn.predict(example.accel, fs_x, natural_frequency_hz=fn_x)
+    with pytest.raises(StiffnetError, match=r"\(1688 samples at 1000 Hz\)"):
+        cnn.predict(example.accel[:1000], fs)
+
+
+def test_clipped_signal_warns(cnn, example):
+    lim = 0.3 * np.abs(example.accel).max()
+    r = cnn.predict(np.clip(example.accel, -lim, lim), example.fs_hz)
+    assert any("clipped" in w for w in r["warnings"])
+
+
+def test_model_integrity(tmp_path):
+    src = ROOT / "models"
+    shutil.copy(src / "cnn.onnx", tmp_path / "cnn.onnx")
+    card = json.loads((src / "cnn.card.json").read_text())
+    card["sha256"] = "0" * 64
+    (tmp_path / "cnn.card.json").write_text(json.dumps(card))
+    with pytest.raises(StiffnetError, match="does not match its card") as exc:
+        Predictor.load(tmp_path / "cnn.onnx")
+    assert "\n" not in str(exc.value)
+    # corrupt file whose card was updated to match: ONNX Runtime refuses it cleanly
+    from stiffnet.io_utils import sha256_file
+
+    (tmp_path / "cnn.onnx").write_bytes(b"\x08\x07garbage" * 100)
+    card["sha256"] = sha256_file(tmp_path / "cnn.onnx")
+    (tmp_path / "cnn.card.json").write_text(json.dumps(card))
+    with pytest.raises(StiffnetError, match="not a loadable ONNX model") as exc:
+        Predictor.load(tmp_path / "cnn.onnx")
+    assert "\n" not in str(exc.value)
+    (tmp_path / "cnn.card.json").unlink()
+    with pytest.raises(StiffnetError, match="model card"):
+        Predictor.load(tmp_path / "cnn.onnx")
+    with pytest.raises(StiffnetError, match="not found"):
+        Predictor.load(tmp_path / "nope.onnx")
+
+
+def test_sessions_use_explicit_threads(cnn):
+    opts = cnn.model.session.get_session_options()
+    assert (opts.intra_op_num_threads, opts.inter_op_num_threads) == (1, 1)
+
+
+def test_gbm_predicts_the_example(gbm):
+    r = predict_recording(EXAMPLE, predictor=gbm)
+    assert r["class"] == "hard" and r["model"]["kind"] == "gbm"
+    assert r["geometric"]["n_windows"] == r["n_windows"]  # all windows have features
+
+
+def test_no_heavy_imports(tmp_path):
+    """The CLI's predict path and the HTTP app never import torch, scikit-learn or mlflow."""
+    npy = tmp_path / "r.npy"
+    np.save(npy, read_recording(EXAMPLE).accel)
+    code = f"""
+import sys
+from typer.testing import CliRunner
+from stiffnet.cli import app
+res = CliRunner().invoke(app, ["predict", {str(EXAMPLE)!r}])
+assert res.exit_code == 0, res.output
+res = CliRunner().invoke(app, ["predict", {str(npy)!r}, "--fs", "1000", "--fn", "9.48"])
+assert res.exit_code == 0, res.output
+import serving.app, serving.predictor
+from fastapi.testclient import TestClient
+client = TestClient(serving.app.create_app(serving.predictor.Predictor.load()))
+assert client.get("/health").status_code == 200
+heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("torch", "sklearn", "mlflow"))
+assert not heavy, heavy
+print("ok")
+"""
+    out = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("ok")
+
+
+def test_csv_written_recording_round_trip(cnn, example, tmp_path):
+    p = write_recording_csv(tmp_path / "copy.csv", example.accel, example.fs_hz)
+    r = predict_recording(p, predictor=cnn, natural_frequency_hz=9.48)
+    assert r["class"] == "hard"
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    fs=st.one_of(st.floats(), st.sampled_from([500.0, 1000.0, 3000.0])),
+    fn=st.one_of(st.none(), st.floats(), st.sampled_from([9.48, 5.0, 20.0])),
+    n=st.integers(0, 4000),
+    seed=st.integers(0, 99),
+    scale=st.sampled_from([0.0, 1e-300, 1.0, 1e300]),
+)
+def test_predict_only_raises_stiffnet_errors(cnn, fs, fn, n, seed, scale):
+    """Random rates, natural frequencies, lengths and scales: a result or a one-line error."""
+    x = scale * np.random.default_rng(seed).standard_normal(n)
+    try:
+        r = cnn.predict(x, fs, natural_frequency_hz=fn)
+    except StiffnetError as exc:
+        assert "\n" not in str(exc)
+    else:
+        json.dumps(r, allow_nan=False)
+
+
+def test_parity_on_example_windows(cnn, example):
+    """The same check on the shipped example (runs on a fresh clone without data/default)."""
+    from stiffnet.features.windows import window_tensor
+    from training.export_onnx_cnn import onnx_predict_cnn
+
+    n = window_length(example.fs_hz, 9.48, 16)
+    wins = [example.accel[i * n : (i + 1) * n] for i in range(3)]
+    ref = onnx_predict_cnn(cnn.model.path, window_tensor(wins, example.fs_hz, 9.48))
+    for i, w in enumerate(wins):
+        r = cnn.predict(w, example.fs_hz, natural_frequency_hz=9.48)
+        np.testing.assert_allclose(
+            list(r["probabilities"].values()), ref["probabilities"][i], atol=1e-6
+        )
+        assert r["beta"] == pytest.approx(ref["beta"][i], rel=1e-5)
