@@ -414,6 +414,9 @@ def simulate_campaign(
     seed: int = 0,
     default_duration_s: float = 10.0,
     overwrite: bool = False,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
 ) -> Path:
     """Simulate one recording per manifest row: a synthetic campaign.
 
@@ -448,6 +451,11 @@ def simulate_campaign(
         Duration of rows without ``duration_s``.
     overwrite : bool
         Replace ``out_dir`` if it exists and is not empty.
+    scheduler, workers : str or None, int or None
+        Simulate the rows as Dask tasks on this scheduler, or on a LocalCluster of
+        this many worker processes (see :mod:`stiffnet.distributed`); by default
+        in-process. The files are the same either way: a row depends only on
+        ``(seed, recording)``, and the recordings are written here, not on workers.
 
     Returns
     -------
@@ -455,9 +463,9 @@ def simulate_campaign(
         ``out_dir``.
     """
     from stiffnet import __version__
+    from stiffnet.distributed.cluster import check_target
+    from stiffnet.distributed.tasks import run_tasks
     from stiffnet.effects.registry import build_effect, parse_effect_option
-    from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
-    from stiffnet.simulator.simulator import Simulator
 
     manifest = Path(manifest_path)
     out = Path(out_dir).resolve()  # a real name and parent, even for "." or "a/.."
@@ -465,10 +473,10 @@ def simulate_campaign(
         raise StiffnetError(f"seed must be a non-negative integer, got {seed!r}")
     if not (math.isfinite(default_duration_s) and default_duration_s > 0):
         raise StiffnetError(f"default_duration_s must be > 0, got {default_duration_s}")
+    check_target(scheduler, workers)
     columns, rows = _read_manifest(manifest)
     _check_out_dir(out, manifest, overwrite)
     eff = [build_effect(*parse_effect_option(e)) if isinstance(e, str) else e for e in effects]
-    simulator = Simulator(eff)
 
     # Check every row before simulating anything.
     for row in rows:
@@ -487,55 +495,27 @@ def simulate_campaign(
         if round(duration * row.fs_hz) < 2:
             raise StiffnetError(f"{row.where(manifest)}: duration_s * fs_hz is under 2 samples")
 
+    # Simulate first (rows as tasks, results back here), then write: workers need no
+    # access to the output folder, and a failed row leaves nothing behind.
+    jobs = [_RowJob(row, eff, int(seed), default_duration_s, row.where(manifest)) for row in rows]
+    report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
+                       names=[row.recording for row in rows])  # fmt: skip
+    if report.failed:
+        name, msg = next(iter(report.failed.items()))
+        raise StiffnetError(msg) from report.errors.get(name)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.{secrets.token_hex(4)}.partial"
     tmp.mkdir()
     try:
         card_rows = []
-        for row in rows:
-            f_n = row.natural_frequency_hz or PAPER_NATURAL_FREQUENCY_HZ
-            duration = row.duration_s or default_duration_s
-            noise = DEFAULT_NOISE if row.noise is None else row.noise
-            entropy = [int(seed), zlib.crc32(row.recording.encode())]
-            try:
-                batch = OscillatorBatch.single(
-                    row.beta, row.gap, row.amplitude, row.frequency_ratio, row.damping_ratio, f_n
-                )
-                res = simulator.simulate(
-                    batch,
-                    fs_ratio=row.fs_hz / f_n,
-                    n_samples=int(round(duration * row.fs_hz)),
-                    noise=noise,
-                    rng=np.random.default_rng(entropy),
-                )
-            except StiffnetError as exc:
-                raise StiffnetError(f"{row.where(manifest)}: {exc}") from None
-            gain = sensor_gain(f_n)
-            accel = res.accel[0] * gain
+        for row, (accel, card_row) in zip(rows, report.results, strict=True):
             target = tmp / row.recording
             if target.suffix.lower() == ".npy":
                 target.parent.mkdir(parents=True, exist_ok=True)
                 np.save(target, accel)
             else:
                 write_recording_csv(target, accel, row.fs_hz)
-            card_rows.append(
-                {
-                    "recording": row.recording,
-                    "seed_entropy": entropy,
-                    "n_samples": int(accel.size),
-                    "fs_hz": row.fs_hz,
-                    "natural_frequency_hz": f_n,
-                    "fs_ratio": row.fs_hz / f_n,
-                    "noise": noise,
-                    "sensor_gain": gain,
-                    "engine": res.engine,
-                    "n_impacts": int(res.impacts.sum()),
-                    "effects": {
-                        name: {k: float(v[0]) for k, v in params.items()}
-                        for name, params in res.effect_params.items()
-                    },
-                }
-            )
+            card_rows.append(card_row)
         write_manifest(tmp / MANIFEST_NAME, rows, columns)
         card = {
             "stiffnet_version": __version__,
@@ -561,6 +541,61 @@ def simulate_campaign(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return Path(out_dir)
+
+
+@dataclass(frozen=True)
+class _RowJob:
+    """One campaign row to simulate (a task: picklable, independent of the others)."""
+
+    row: ManifestRow
+    effects: list[Effect]
+    seed: int
+    default_duration_s: float
+    where: str
+
+
+def simulate_row(job: _RowJob) -> tuple[np.ndarray, dict[str, Any]]:
+    """Simulate one campaign row: the recording in g and its entry of the campaign card."""
+    from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
+    from stiffnet.simulator.simulator import Simulator
+
+    row = job.row
+    f_n = row.natural_frequency_hz or PAPER_NATURAL_FREQUENCY_HZ
+    duration = row.duration_s or job.default_duration_s
+    noise = DEFAULT_NOISE if row.noise is None else row.noise
+    entropy = [job.seed, zlib.crc32(row.recording.encode())]
+    try:
+        batch = OscillatorBatch.single(
+            row.beta, row.gap, row.amplitude, row.frequency_ratio, row.damping_ratio, f_n
+        )
+        res = Simulator(job.effects).simulate(
+            batch,
+            fs_ratio=row.fs_hz / f_n,
+            n_samples=int(round(duration * row.fs_hz)),
+            noise=noise,
+            rng=np.random.default_rng(entropy),
+        )
+    except StiffnetError as exc:
+        raise StiffnetError(f"{job.where}: {exc}") from None
+    gain = sensor_gain(f_n)
+    accel = res.accel[0] * gain
+    entry = {
+        "recording": row.recording,
+        "seed_entropy": entropy,
+        "n_samples": int(accel.size),
+        "fs_hz": row.fs_hz,
+        "natural_frequency_hz": f_n,
+        "fs_ratio": row.fs_hz / f_n,
+        "noise": noise,
+        "sensor_gain": gain,
+        "engine": res.engine,
+        "n_impacts": int(res.impacts.sum()),
+        "effects": {
+            name: {k: float(v[0]) for k, v in params.items()}
+            for name, params in res.effect_params.items()
+        },
+    }
+    return accel, entry
 
 
 def _check_out_dir(out: Path, manifest: Path, overwrite: bool) -> None:

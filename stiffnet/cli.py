@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from stiffnet.cli_options import FsOption, JsonOption
+from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
 from stiffnet.errors import StiffnetError
 
 app = typer.Typer(
@@ -76,9 +76,18 @@ def simulate(
         int | None, typer.Option(help="Override the number of trajectories.")
     ] = None,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing dataset.")] = False,
+    resume: Annotated[
+        bool, typer.Option(help="Keep the finished shards of an interrupted run.")
+    ] = True,
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     json_path: JsonOption = None,
 ) -> None:
-    """Simulate a labelled dataset of acceleration windows (atomic Parquet shards)."""
+    """Simulate a labelled dataset of acceleration windows (atomic Parquet shards).
+
+    Shards run in-process, on a local Dask cluster (--workers) or on a Dask cluster
+    (--scheduler); the dataset is the same either way. An interrupted run resumes.
+    """
     from stiffnet.config import load_yaml, validate_config
     from stiffnet.config.sim import SimulationConfig
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
@@ -96,6 +105,9 @@ def simulate(
             out_dir,
             overwrite=overwrite,
             progress=lambda done, _: bar.update(task, completed=done),
+            scheduler=scheduler,
+            workers=workers,
+            resume=resume,
         )
     summary = {k: v for k, v in card.items() if k not in ("config", "shards")}
     summary["out"] = str(out_dir)
@@ -107,6 +119,12 @@ def simulate(
     out.print(table)
     out.print(f"{card['n_windows']} windows from {card['n_trajectories']} trajectories "
               f"in {card['seconds']:.1f} s (engine: {card['engine']})")  # fmt: skip
+    run = card["run"]
+    if run["shards_kept"]:
+        out.print(f"resumed: {run['shards_kept']} finished shard(s) kept from an earlier run")
+    if run["rerun"]:
+        out.print(f"run again by the cluster (lost worker or retried error): "
+                  f"{', '.join(run['rerun'])}")  # fmt: skip
     write_json(json_path, summary)
 
 
@@ -121,6 +139,8 @@ def simulate_campaign_cmd(
     ] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     overwrite: Annotated[bool, typer.Option(help="Replace an existing campaign folder.")] = False,
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
     json_path: JsonOption = None,
 ) -> None:
     """Write a synthetic campaign (recordings + manifest) for a manifest, with chosen effects."""
@@ -129,7 +149,8 @@ def simulate_campaign_cmd(
     effects = [build_effect(*parse_effect_option(text)) for text in effect or []]
     from stiffnet.campaign import simulate_campaign
 
-    path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite)
+    path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite,
+                             scheduler=scheduler, workers=workers)  # fmt: skip
     result = {"out": str(path), "effects": [repr(e) for e in effects], "seed": seed}
     out.print(f"campaign written to {path} with effects: {', '.join(result['effects']) or 'none'}")
     write_json(json_path, result)
@@ -239,6 +260,7 @@ def effects(json_path: JsonOption = None) -> None:
 #: scikit-learn or mlflow, and ``stiffnet --help`` must stay fast.
 COMMAND_MODULES = (
     "serving.commands",  # predict, serve
+    "stiffnet.distributed.commands",  # predict-batch
 )
 for _module in COMMAND_MODULES:
     importlib.import_module(_module).register(app)

@@ -85,25 +85,86 @@ def test_effect_parameters_are_columns(tmp_path):
     assert zeta.min() >= 0.05 and zeta.max() <= 0.2 and np.ptp(zeta) > 0
 
 
-def test_interrupted_run_leaves_nothing_complete(tmp_path, monkeypatch):
+def test_interrupted_run_is_refused_then_resumed(tmp_path, monkeypatch):
     import stiffnet.dataset.generate as gen
 
-    calls = {"n": 0}
+    calls = []
     real = gen.simulate_shard
 
     def failing(cfg, shard, n):
-        calls["n"] += 1
-        if shard == 1:
+        calls.append(shard)
+        if shard == 1 and calls.count(1) == 1:
             raise KeyboardInterrupt
         return real(cfg, shard, n)
 
     monkeypatch.setattr(gen, "simulate_shard", failing)
+    cfg = small_config()
     with pytest.raises(KeyboardInterrupt):
-        generate_dataset(small_config(), tmp_path / "ds")
-    assert not (tmp_path / "ds").exists()
-    assert not list(tmp_path.iterdir())  # the partial folder is gone too
-    with pytest.raises(StiffnetError, match="not a finished stiffnet dataset"):
+        generate_dataset(cfg, tmp_path / "ds")
+    # an unfinished folder: shard 0 is in place, but nothing declares a dataset
+    assert (tmp_path / "ds" / "shards" / "shard-00000.parquet").is_file()
+    assert not (tmp_path / "ds" / "card.json").exists()
+    with pytest.raises(StiffnetError, match="not a finished stiffnet dataset.*resume"):
         load_dataset(tmp_path / "ds")
+    first = (tmp_path / "ds" / "shards" / "shard-00000.parquet").stat().st_mtime_ns
+    seen = []
+    card = generate_dataset(cfg, tmp_path / "ds", progress=lambda d, t: seen.append((d, t)))
+    assert calls == [0, 1, 1]  # shard 0 was not simulated again
+    assert (tmp_path / "ds" / "shards" / "shard-00000.parquet").stat().st_mtime_ns == first
+    assert card["run"]["shards_kept"] == 1 and seen == [(1, 2), (2, 2)]
+    fresh = generate_dataset(cfg, tmp_path / "fresh")
+    assert card["shards"] == fresh["shards"] and card["class_balance"] == fresh["class_balance"]
+    assert len(load_dataset(tmp_path / "ds", verify=True)) == 24
+
+
+def test_resume_recomputes_a_corrupt_shard_and_refuses_another_config(tmp_path, monkeypatch):
+    import stiffnet.dataset.generate as gen
+
+    cfg = small_config()
+    card = generate_dataset(cfg, tmp_path / "ds")
+    (tmp_path / "ds" / "card.json").unlink()  # as if interrupted before the card
+    (tmp_path / "ds" / "shards" / "shard-00001.parquet").write_bytes(b"garbage")
+    calls = []
+    real = gen.simulate_shard
+    monkeypatch.setattr(gen, "simulate_shard", lambda c, s, n: calls.append(s) or real(c, s, n))
+    again = generate_dataset(cfg, tmp_path / "ds")
+    assert calls == [1] and again["shards"] == card["shards"]
+    (tmp_path / "ds" / "card.json").unlink()
+    with pytest.raises(StiffnetError, match="unfinished run of another config"):
+        generate_dataset(small_config(seed=3), tmp_path / "ds")
+    calls.clear()
+    generate_dataset(small_config(seed=3), tmp_path / "ds", resume=False)  # starts over
+    assert calls == [0, 1]
+    with pytest.raises(StiffnetError, match="exists and is not empty"):
+        generate_dataset(small_config(seed=3), tmp_path / "ds", resume=False)  # finished
+    calls.clear()
+    generate_dataset(small_config(seed=3), tmp_path / "ds", overwrite=True)
+    assert calls == [0, 1]
+    assert load_dataset(tmp_path / "ds").card["seed"] == 3
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # old folder gone
+
+
+def test_finished_dataset_needs_overwrite(tmp_path):
+    cfg = small_config()
+    generate_dataset(cfg, tmp_path / "ds")
+    with pytest.raises(StiffnetError, match="exists and is not empty"):
+        generate_dataset(cfg, tmp_path / "ds")
+    card = generate_dataset(cfg, tmp_path / "ds", overwrite=True)
+    assert card["run"]["shards_run"] == 2
+
+
+def test_shards_folder_reads_as_one_parquet_dataset(tmp_path):
+    """Other tools read the shards directly: pyarrow, and Dask when installed."""
+    import pyarrow.dataset as pds
+
+    card = generate_dataset(small_config(), tmp_path / "ds")
+    table = pds.dataset(tmp_path / "ds" / "shards", format="parquet").to_table()
+    assert table.num_rows == card["n_windows"]
+    assert str(table.schema.field("accel").type) == "list<element: float>"
+    dd = pytest.importorskip("dask.dataframe")
+    frame = dd.read_parquet(str(tmp_path / "ds" / "shards")).compute(scheduler="sync")
+    assert len(frame) == card["n_windows"]
+    assert frame["accel"].iloc[0].dtype == np.float32 or len(frame["accel"].iloc[0]) > 0
 
 
 def test_existing_output_refused_before_work(tmp_path, monkeypatch):

@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -14,8 +20,19 @@ from stiffnet import __version__
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.dataset.labels import window_labels
 from stiffnet.dataset.sampling import TrajectoryPlan, sample_plan
-from stiffnet.dataset.store import write_card, write_shard
-from stiffnet.io_utils import atomic_directory
+from stiffnet.dataset.store import (
+    CARD,
+    JOB,
+    RECORDS,
+    SHARDS,
+    finished_shard,
+    shard_name,
+    write_card,
+    write_shard,
+    write_shard_record,
+)
+from stiffnet.errors import StiffnetError
+from stiffnet.io_utils import write_json_atomic
 from stiffnet.simulator.simulator import Simulator
 
 
@@ -100,48 +117,221 @@ _COLUMNS = (
 )  # fmt: skip
 
 
+@dataclass(frozen=True)
+class ShardJob:
+    """One shard task: simulate shard ``shard`` (``n`` trajectories) into ``out``."""
+
+    cfg: SimulationConfig
+    out: str
+    shard: int
+    n: int
+    fingerprint: str
+    #: testing hook, called with the shard index as the task starts (fault injection)
+    before: Callable[[int], None] | None = None
+
+
+def run_shard_job(job: ShardJob) -> dict[str, Any]:
+    """Simulate one shard, write its Parquet file and then its record; return the record.
+
+    A task of its own on Dask: it depends only on ``job``, and what it writes is
+    atomic, so running it twice (a retry, a lost worker) is harmless.
+    """
+    if job.before is not None:
+        job.before(job.shard)
+    t0 = time.perf_counter()
+    table = simulate_shard(job.cfg, job.shard, job.n)
+    entry = write_shard(Path(job.out), job.shard, table)
+    names, counts = np.unique(table["class"].to_numpy(zero_copy_only=False), return_counts=True)
+    record = {
+        **entry,
+        "shard": job.shard,
+        "trajectories": job.n,
+        "class_counts": {str(k): int(c) for k, c in zip(names, counts, strict=True)},
+        "compiled": _compiled_used(job.cfg),
+        "seconds": round(time.perf_counter() - t0, 3),
+        "fingerprint": job.fingerprint,
+    }
+    write_shard_record(Path(job.out), job.shard, record)
+    return record
+
+
+def config_fingerprint(cfg: SimulationConfig) -> str:
+    """What makes two runs the same job: the config and the stiffnet version."""
+    text = json.dumps({"config": cfg.model_dump(mode="json"), "version": __version__},
+                      sort_keys=True)  # fmt: skip
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def generate_dataset(
     cfg: SimulationConfig,
     out: str | Path,
     overwrite: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    resume: bool = True,
+    retries: int = 2,
+    before_shard: Callable[[int], None] | None = None,
 ) -> dict[str, Any]:
-    """Simulate the whole dataset into ``out`` (atomically) and return its data card."""
+    """Simulate the dataset into ``out``, shard by shard, and return its data card.
+
+    Each shard is one task (in-process, on a LocalCluster of ``workers`` processes, or
+    on the Dask ``scheduler``) writing its own Parquet file atomically; the card is
+    written last and declares the dataset complete. The dataset is the same whatever
+    runs the shards: a shard depends only on ``(seed, shard index)``.
+
+    Parameters
+    ----------
+    cfg
+        The simulation config.
+    out
+        The dataset folder. Work happens in place: an interrupted run leaves a folder
+        without ``card.json`` (which loaders refuse) that the next run resumes.
+    overwrite
+        Replace an existing dataset, or an unfinished one of another config (the
+        old folder is moved aside before any work, then deleted).
+    progress
+        ``progress(done, total)`` in shards; shards kept from an earlier run count.
+    scheduler, workers
+        Where shards run, see :func:`stiffnet.distributed.cluster.dask_client`.
+    resume
+        Keep the finished shards of an interrupted run of the same config (checked by
+        SHA-256 against their records). ``False`` discards an unfinished run (of any
+        config) and starts over; a finished dataset still needs ``overwrite``.
+    retries
+        Extra attempts of a shard task that raised (Dask only).
+    before_shard
+        Testing hook called in the task with the shard index (fault injection).
+
+    Raises
+    ------
+    StiffnetError
+        ``out`` holds something else (without ``overwrite``), or a shard failed after
+        its retries (the message names it; finished shards are kept for a resume).
+    """
+    from stiffnet.distributed.cluster import check_target, dask_client
+    from stiffnet.distributed.tasks import run_tasks
+
+    check_target(scheduler, workers)
+    out = Path(out)
+    fingerprint = config_fingerprint(cfg)
+    keep = _check_folder(out, fingerprint, overwrite=overwrite, resume=resume)
     sizes = shard_sizes(cfg)
     t_start = time.perf_counter()
-    shards = []
-    counts: dict[str, int] = dict.fromkeys(cfg.class_names(), 0)
-    n_windows = 0
-    with atomic_directory(out, overwrite=overwrite) as tmp:
-        for shard, n in enumerate(sizes):
-            table = simulate_shard(cfg, shard, n)
-            shards.append(write_shard(tmp, shard, table))
-            for name, k in zip(*np.unique(table["class"].to_numpy(zero_copy_only=False),
-                                          return_counts=True), strict=True):  # fmt: skip
-                counts[str(name)] += int(k)
-            n_windows += table.num_rows
-            if progress:
-                progress(shard + 1, len(sizes))
-        card = {
-            "kind": "stiffnet-dataset",
-            "format": "parquet shards, one row per window, accel as list<float32>",
-            "stiffnet_version": __version__,
-            "code_version": _code_version(),
-            "seed": cfg.seed,
-            "n_trajectories": cfg.n_trajectories,
-            "n_windows": n_windows,
-            "class_names": cfg.class_names(),
-            "class_balance": counts,
-            "engine": build_simulator(cfg).engine,
-            # the numpy and compiled closed-form engines agree to ~1e-8 but part on
-            # chaotic orbits: a dataset is reproduced exactly by the same one
-            "compiled": _compiled_used(cfg),
-            "seconds": round(time.perf_counter() - t_start, 3),
-            "shards": shards,
-            "config": cfg.model_dump(mode="json"),
-        }
-        write_card(tmp, card)
+    # connect (or start the local cluster) before touching the folder: a wrong address
+    # leaves nothing behind
+    with dask_client(scheduler, workers) as client:
+        _prepare_folder(out, fingerprint, keep)
+        records: list[dict[str, Any] | None] = [
+            finished_shard(out, i, fingerprint) if keep else None for i in range(len(sizes))
+        ]
+        todo = [i for i, r in enumerate(records) if r is None]
+        kept = len(sizes) - len(todo)
+        if progress and kept:
+            progress(kept, len(sizes))
+        # absolute: a worker elsewhere (shared file system) has another working directory
+        where = str(out.resolve())
+        jobs = [ShardJob(cfg, where, i, sizes[i], fingerprint, before_shard) for i in todo]
+        report = run_tasks(
+            run_shard_job,
+            jobs,
+            client=client,
+            retries=retries,
+            names=[shard_name(i) for i in todo],
+            progress=(lambda done, _: progress(kept + done, len(sizes))) if progress else None,
+        )
+    report.raise_failures()
+    for i, record in zip(todo, report.results, strict=True):
+        records[i] = record
+    card = _card(cfg, records, time.perf_counter() - t_start)
+    card["run"] = {"backend": report.backend, "shards_kept": kept, "shards_run": len(todo),
+                   "rerun": report.rerun}  # fmt: skip
+    write_card(out, card)
     return card
+
+
+def _check_folder(out: Path, fingerprint: str, overwrite: bool, resume: bool) -> bool:
+    """Whether ``out`` is an unfinished run of this job to resume; raise if it is refused.
+
+    Only reads: nothing is changed before the cluster is reached.
+    """
+    if out.exists() and not out.is_dir():
+        raise StiffnetError(f"output path exists and is not a folder: {out}")
+    if not (out.is_dir() and any(out.iterdir())):
+        return False
+    job_path = out / JOB
+    unfinished = job_path.is_file() and not (out / CARD).exists()
+    same = unfinished and _read_fingerprint(job_path) == fingerprint
+    if same and resume and not overwrite:
+        return True
+    if unfinished and resume and not overwrite:
+        raise StiffnetError(f"output folder {out} is an unfinished run of another config "
+                            "(use --overwrite or --no-resume to restart it)")  # fmt: skip
+    if not unfinished and not overwrite:
+        raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+    return False  # --overwrite, or --no-resume on an unfinished run: start over
+
+
+def _prepare_folder(out: Path, fingerprint: str, keep: bool) -> None:
+    """Resume in ``out`` (``keep``), or start over: an empty folder with its ``job.json``."""
+    if keep:
+        _remove_stale_temporaries(out)
+        return
+    if out.is_dir() and any(out.iterdir()):
+        _move_aside_and_delete(out)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / JOB, {"kind": "stiffnet-dataset-job", "fingerprint": fingerprint,
+                                  "stiffnet_version": __version__})  # fmt: skip
+
+
+def _read_fingerprint(path: Path) -> str | None:
+    try:
+        return json.loads(path.read_text()).get("fingerprint")
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def _remove_stale_temporaries(out: Path) -> None:
+    """Temporary files of tasks killed mid-write (they start with a dot)."""
+    for folder in (out / SHARDS, out / RECORDS):
+        for tmp in folder.glob(".*.tmp") if folder.is_dir() else ():
+            tmp.unlink(missing_ok=True)
+
+
+def _move_aside_and_delete(out: Path) -> None:
+    """Remove ``out`` so that it never looks like a half-deleted finished dataset."""
+    trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+    os.replace(out, trash / "old")
+    shutil.rmtree(trash, ignore_errors=True)
+
+
+def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: float) -> dict:
+    counts: dict[str, int] = dict.fromkeys(cfg.class_names(), 0)
+    for record in records:
+        assert record is not None
+        for name, k in record["class_counts"].items():
+            counts[name] = counts.get(name, 0) + int(k)
+    compiled = {r["compiled"] for r in records if r is not None}
+    return {
+        "kind": "stiffnet-dataset",
+        "format": "parquet shards, one row per window, accel as list<float32>",
+        "stiffnet_version": __version__,
+        "code_version": _code_version(),
+        "seed": cfg.seed,
+        "n_trajectories": cfg.n_trajectories,
+        "n_windows": sum(r["rows"] for r in records if r is not None),
+        "class_names": cfg.class_names(),
+        "class_balance": counts,
+        "engine": build_simulator(cfg).engine,
+        # the numpy and compiled closed-form engines agree to ~1e-8 but part on
+        # chaotic orbits: a dataset is reproduced exactly by the same one ("mixed":
+        # the workers differed, some had numba and some not)
+        "compiled": compiled.pop() if len(compiled) == 1 else "mixed",
+        "seconds": round(seconds, 3),
+        "shards": [{k: r[k] for k in ("file", "rows", "sha256")} for r in records if r],
+        "config": cfg.model_dump(mode="json"),
+    }
 
 
 def _compiled_used(cfg: SimulationConfig) -> bool:

@@ -1,0 +1,112 @@
+"""Where work runs: an existing Dask cluster, a LocalCluster for one job, or in-process."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+from stiffnet.errors import StiffnetError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from distributed import Client
+
+#: Environment variable holding a scheduler address (read by the CLI's ``--scheduler``).
+SCHEDULER_ENV = "STIFFNET_SCHEDULER"
+
+#: Environment of LocalCluster workers: one process = one core. Numerical libraries
+#: would otherwise each start a thread per core in every worker and oversubscribe.
+WORKER_ENV = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+}
+
+
+def import_distributed() -> Any:
+    """Import ``distributed`` or fail with a one-line hint about the ``dask`` extra."""
+    try:
+        import distributed
+    except ImportError:
+        raise StiffnetError(
+            "--scheduler/--workers need Dask: pip install 'stiffnet[dask]'"
+        ) from None
+    return distributed
+
+
+def check_target(scheduler: str | None, workers: int | None) -> None:
+    """Validate a ``scheduler``/``workers`` pair (both set, or a bad count, is an error)."""
+    if scheduler is not None and workers is not None:
+        raise StiffnetError(f"use either --scheduler (or {SCHEDULER_ENV}) or --workers, not both")
+    if workers is not None and workers < 1:
+        raise StiffnetError(f"--workers must be at least 1, got {workers}")
+    if scheduler is not None and not scheduler.strip():
+        raise StiffnetError("--scheduler is empty: give a Dask scheduler address")
+
+
+def scheduler_from_env() -> str | None:
+    """The scheduler address in ``STIFFNET_SCHEDULER``, if set and not empty."""
+    value = os.environ.get(SCHEDULER_ENV, "").strip()
+    return value or None
+
+
+@contextlib.contextmanager
+def dask_client(
+    scheduler: str | None = None, workers: int | None = None
+) -> Iterator[Client | None]:
+    """A Dask client for the job, or ``None`` for in-process work.
+
+    Parameters
+    ----------
+    scheduler
+        Address of a running Dask scheduler (``tcp://host:8786``); the client connects
+        to it and the cluster is left running afterwards.
+    workers
+        Start a LocalCluster of this many single-threaded worker processes on
+        127.0.0.1 for the job and close it afterwards.
+
+    With both ``None`` the job runs in-process and Dask is not imported. The
+    ``STIFFNET_SCHEDULER`` variable is read by the CLI (``--scheduler``), not here, so
+    library calls never change where they run behind the caller's back.
+    """
+    check_target(scheduler, workers)
+    if scheduler is None and workers is None:
+        yield None
+        return
+    distributed = import_distributed()
+    if scheduler is not None:
+        try:
+            client = distributed.Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise StiffnetError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+        with client:
+            yield client
+        return
+    cluster = local_cluster(workers)
+    with cluster, distributed.Client(cluster) as client:
+        yield client
+
+
+def local_cluster(workers: int) -> Any:
+    """A LocalCluster of ``workers`` single-threaded processes on 127.0.0.1, no dashboard.
+
+    The caller closes it (it is a context manager). Workers get one thread for
+    OpenMP/BLAS/numba (:data:`WORKER_ENV`): with one task per process, more threads
+    would only fight over the same cores.
+    """
+    distributed = import_distributed()
+    return distributed.LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        host="127.0.0.1",
+        env=WORKER_ENV,
+        silence_logs=logging.ERROR,
+        # no dashboard; the scheduler's small HTTP server (health checks) on a free
+        # local port, not on 8787 where another user's cluster may be
+        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+    )

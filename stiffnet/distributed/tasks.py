@@ -1,0 +1,235 @@
+"""Run independent tasks in-process or on Dask, in order, with retries and a report."""
+
+from __future__ import annotations
+
+import functools
+import uuid
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from stiffnet.distributed.cluster import dask_client
+from stiffnet.errors import StiffnetError
+
+
+@dataclass
+class TaskReport:
+    """What a :func:`run_tasks` call did.
+
+    Attributes
+    ----------
+    results
+        One result per item, in the items' order (``None`` where the task failed).
+    names
+        The task names, in the items' order.
+    failed
+        Name → one-line error, for tasks that failed after their retries.
+    rerun
+        Name → number of extra runs, for tasks the cluster ran more than once (an
+        exception retried, or a worker lost while running it).
+    backend
+        ``"in-process"`` or the scheduler address.
+    errors
+        Name → the exception of each failed task (for tracebacks).
+    """
+
+    results: list[Any]
+    names: list[str]
+    failed: dict[str, str] = field(default_factory=dict)
+    rerun: dict[str, int] = field(default_factory=dict)
+    backend: str = "in-process"
+    errors: dict[str, BaseException] = field(default_factory=dict, repr=False)
+
+    def raise_failures(self) -> None:
+        """Raise one :class:`StiffnetError` naming the failed tasks, if any."""
+        if not self.failed:
+            return
+        first, msg = next(iter(self.failed.items()))
+        more = len(self.failed) - 1
+        others = f" (and {more} more: {', '.join(list(self.failed)[1:6])})" if more else ""
+        raise StiffnetError(f"task {first} failed: {msg}{others}") from self.errors.get(first)
+
+
+def _label(fn: Any) -> str:
+    while isinstance(fn, functools.partial):
+        fn = fn.func
+    return getattr(fn, "__name__", "task")
+
+
+def _describe(exc: BaseException) -> str:
+    """One line: a user error's own message, else the exception type and first line."""
+    text = str(exc).strip().splitlines()
+    first = text[0] if text else ""
+    if isinstance(exc, StiffnetError):
+        return first
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+
+
+@dataclass
+class _UserError:
+    """A task's :class:`StiffnetError`, returned rather than raised: bad input fails the
+    same way every time, so Dask must not retry it."""
+
+    error: StiffnetError
+
+
+def _run_on_worker(fn: Callable[[Any], Any], item: Any) -> Any:
+    """Run ``fn(item)`` on a worker, numba on one thread (a worker is one core)."""
+    from stiffnet.simulator.compiled import limited_threads
+
+    try:
+        with limited_threads(1):  # thread-local in numba: other tasks are unaffected
+            return fn(item)
+    except StiffnetError as exc:
+        return _UserError(exc)
+
+
+def run_tasks(
+    fn: Callable[[Any], Any],
+    items: Iterable[Any],
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    retries: int = 2,
+    progress: Callable[[int, int], None] | None = None,
+    names: Sequence[str] | None = None,
+    client: Any = None,
+) -> TaskReport:
+    """Run ``fn`` on every item and report results, failures and re-runs.
+
+    Unlike :func:`map_tasks` this never raises for a failed task; see
+    :meth:`TaskReport.raise_failures`. In-process, tasks run in order and the first
+    failure stops the run (the remaining items are not tried). On Dask, every task
+    runs to completion or failure, so an interrupted job loses as little as possible.
+
+    Parameters
+    ----------
+    fn
+        A picklable function of one item (module-level, so workers can import it).
+    items
+        The tasks' arguments.
+    scheduler, workers
+        Where to run, as in :func:`stiffnet.distributed.cluster.dask_client`.
+    retries
+        Extra attempts of a task that raised (Dask ``retries=``), except for a
+        :class:`StiffnetError` (bad input fails again: reported at once). A worker lost
+        while running a task is handled by the scheduler (the task is rescheduled).
+    progress
+        Called as ``progress(done, total)`` as tasks finish.
+    names
+        Task names for reports (default ``fn-name[i]``).
+    client
+        An existing ``distributed.Client`` to use instead of ``scheduler``/``workers``.
+    """
+    items = list(items)
+    label = _label(fn)
+    names = list(names) if names is not None else [f"{label}[{i}]" for i in range(len(items))]
+    if len(names) != len(items):
+        raise ValueError("names and items differ in length")
+    if client is not None:
+        return _run_dask(client, fn, items, names, retries, progress)
+    with dask_client(scheduler, workers) as c:
+        if c is None:
+            return _run_local(fn, items, names, progress)
+        return _run_dask(c, fn, items, names, retries, progress)
+
+
+def map_tasks(
+    fn: Callable[[Any], Any],
+    items: Iterable[Any],
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    retries: int = 2,
+    progress: Callable[[int, int], None] | None = None,
+    names: Sequence[str] | None = None,
+) -> list[Any]:
+    """``[fn(x) for x in items]``, in-process or on Dask, in the items' order.
+
+    Runs in-process when ``scheduler`` and ``workers`` are both ``None``; on the Dask
+    scheduler at ``scheduler``; or on a LocalCluster of ``workers`` single-threaded
+    processes started for the call. A task that raises is retried ``retries`` times
+    (not for a :class:`StiffnetError`: bad input); one that still fails raises a
+    one-line :class:`StiffnetError` naming it (after the other tasks finished, on Dask).
+
+    Examples
+    --------
+    >>> map_tasks(abs, [-1, 2, -3])
+    [1, 2, 3]
+    """
+    report = run_tasks(fn, items, scheduler=scheduler, workers=workers, retries=retries,
+                       progress=progress, names=names)  # fmt: skip
+    report.raise_failures()
+    return report.results
+
+
+def _run_local(fn, items, names, progress) -> TaskReport:
+    report = TaskReport(results=[None] * len(items), names=names)
+    for i, item in enumerate(items):
+        try:
+            report.results[i] = fn(item)
+        except Exception as exc:  # noqa: BLE001 - reported with the task's name
+            report.failed[names[i]] = _describe(exc)
+            report.errors[names[i]] = exc
+            return report
+        if progress:
+            progress(i + 1, len(items))
+    return report
+
+
+def _run_dask(client, fn, items, names, retries, progress) -> TaskReport:
+    from distributed import as_completed
+
+    run_id = uuid.uuid4().hex[:8]
+    label = _label(fn)  # Dask groups tasks by this prefix (dashboard, logs)
+    keys = [f"{label}-{run_id}-{i}" for i in range(len(items))]
+    futures = client.map(_run_on_worker, [fn] * len(items), items, key=keys,
+                         retries=retries, pure=False)  # fmt: skip
+    report = TaskReport(results=[None] * len(items), names=names,
+                        backend=str(client.scheduler.address))  # fmt: skip
+    index = {f.key: i for i, f in enumerate(futures)}
+    done = 0
+    for future in as_completed(futures):
+        i = index[future.key]
+        if future.status == "finished":
+            result = future.result()
+            if isinstance(result, _UserError):
+                report.failed[names[i]] = _describe(result.error)
+                report.errors[names[i]] = result.error
+            else:
+                report.results[i] = result
+        elif future.status == "error":
+            exc = future.exception()
+            report.failed[names[i]] = _describe(exc)
+            report.errors[names[i]] = exc
+        else:  # cancelled: the scheduler or this client went away
+            report.failed[names[i]] = f"task {future.status} (the Dask scheduler was lost?)"
+        done += 1
+        if progress:
+            progress(done, len(items))
+    extra = {names[index[k]]: n for k, n in _extra_runs(client, keys).items()}
+    report.rerun = {n: extra[n] for n in names if n in extra}  # in the items' order
+    report.failed = {n: report.failed[n] for n in names if n in report.failed}
+    for name, exc in report.errors.items():  # say how hard the cluster tried
+        if not isinstance(exc, StiffnetError):
+            report.failed[name] += f" (after {1 + report.rerun.get(name, 0)} runs)"
+    client.cancel(futures)  # release results held on the workers
+    return report
+
+
+def _extra_runs(client, keys: list[str]) -> dict[str, int]:
+    """Keys the scheduler sent to a worker more than once, from its transition log."""
+    try:
+        story = client.run_on_scheduler(_processing_counts, keys=keys)
+    except Exception:  # noqa: BLE001 - the report is best effort, the results are not
+        return {}
+    return {k: n - 1 for k, n in story.items() if n > 1}
+
+
+def _processing_counts(keys: list[str], dask_scheduler: Any = None) -> dict[str, int]:
+    counts = dict.fromkeys(keys, 0)
+    for entry in dask_scheduler.story(*keys):
+        key, finish = entry[0], entry[2]
+        if key in counts and finish == "processing":
+            counts[key] += 1
+    return counts

@@ -1,0 +1,176 @@
+"""Batch prediction (``predict-batch``) in-process and on a real LocalCluster (2 processes).
+
+A bad recording becomes a row with its error; a worker killed mid-part loses nothing;
+an interrupted run resumes without predicting its finished parts again.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import functools
+import os
+import signal
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+pytest.importorskip("distributed")
+pytest.importorskip("onnxruntime")
+
+from stiffnet.campaign import simulate_campaign  # noqa: E402
+from stiffnet.distributed.batch import find_recordings, predict_batch  # noqa: E402
+from stiffnet.distributed.cluster import local_cluster  # noqa: E402
+from stiffnet.errors import StiffnetError  # noqa: E402
+
+MODEL = Path(__file__).resolve().parents[1] / "models" / "cnn.onnx"
+if not MODEL.is_file():  # pragma: no cover
+    pytest.skip("no shipped model", allow_module_level=True)
+
+HEADER = "recording,fs_hz,frequency_ratio,amplitude,gap,damping_ratio,beta,duration_s"
+ROWS = [
+    "r0.csv,800,1.05,1.9,2.8,0.02,8,2.2",
+    "r1.csv,800,0.95,1.0,0.5,0.02,30,2.2",
+    "sub/r2.csv,1000,1.0,1.2,1.2,0.02,90,2.2",
+    "sub/r3.csv,800,1.0,1.2,1.2,0.02,50,2.2",
+    "sub/deeper/r4.csv,800,1.05,1.9,2.8,0.02,12,2.2",
+]
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with local_cluster(2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory) -> Path:
+    """Five simulated recordings, a file that is not a recording, one too short."""
+    root = tmp_path_factory.mktemp("batch")
+    manifest = root / "plan.csv"
+    manifest.write_text("\n".join([HEADER, *ROWS]) + "\n")
+    camp = simulate_campaign(manifest, root / "camp", [], seed=3)
+    (camp / "sub" / "broken.csv").write_text("not,a\nrecording,at all\n")
+    (camp / "short.csv").write_text("t,accel\n0,0.1\n0.001,0.2\n0.002,0.1\n")
+    (camp / "notes.txt").write_text("ignored: not a recording extension")
+    return camp
+
+
+@pytest.fixture(scope="module")
+def reference(recordings, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("ref") / "res.parquet"
+    predict_batch(recordings, out, model_path=MODEL, part_size=2)
+    return out
+
+
+def _announce_and_wait(flag: str, victim: int, part: int) -> None:
+    """First attempt of part ``victim``: write this worker's pid, then wait to be killed."""
+    if part != victim or os.path.exists(flag):
+        return
+    Path(flag).write_text(str(os.getpid()))
+    time.sleep(60)
+    raise RuntimeError("the test did not kill this worker")
+
+
+def _crash_on(victim: int, part: int) -> None:
+    if part == victim:
+        raise KeyboardInterrupt  # as if the run were interrupted here
+
+
+def test_every_recording_gets_a_row_and_bad_ones_an_error(recordings, reference):
+    found = [p.relative_to(recordings).as_posix() for p in find_recordings(recordings)]
+    assert found == ["r0.csv", "r1.csv", "short.csv", "sub/broken.csv", "sub/deeper/r4.csv",
+                     "sub/r2.csv", "sub/r3.csv"]  # fmt: skip
+    table = pq.read_table(reference).to_pandas().set_index("path")
+    assert len(table) == 7
+    bad = table[table["error"].notna()]
+    assert sorted(Path(p).name for p in bad.index) == ["broken.csv", "short.csv"]
+    good = table[table["error"].isna()]
+    assert good["class"].notna().all() and (good["n_windows"] >= 1).all()
+    probs = good[[c for c in good.columns if c.startswith("p_")]]
+    assert ((probs.sum(axis=1) - 1).abs() < 1e-5).all()
+    contact = good[good["class"] != "no_contact"]
+    assert (contact["beta_low"] <= contact["beta"]).all()
+    assert (contact["beta"] <= contact["beta_high"]).all()
+    for col in ("geometric_class", "agreement", "ood_score"):
+        assert col in good.columns
+    meta = pq.read_schema(reference).metadata
+    assert meta[b"stiffnet.model"] == b"cnn"
+    assert not reference.with_name("res.parquet.parts").exists()  # parts cleaned up
+
+
+def test_glob_and_no_match(recordings, tmp_path):
+    assert len(find_recordings(f"{recordings}/**/r*.csv")) == 5
+    with pytest.raises(StiffnetError, match="no recordings found"):
+        predict_batch(tmp_path / "nothing", tmp_path / "x.parquet", model_path=MODEL)
+
+
+def test_cluster_gives_the_same_table(cluster, recordings, reference, tmp_path):
+    out = tmp_path / "res.parquet"
+    summary = predict_batch(recordings, out, model_path=MODEL, part_size=2,
+                            scheduler=cluster.scheduler_address)  # fmt: skip
+    assert summary["backend"].startswith("tcp://") and summary["errors"] == 2
+    assert pq.read_table(out).equals(pq.read_table(reference))
+    assert out.read_bytes() == reference.read_bytes()
+
+
+def test_killed_worker_loses_nothing(cluster, recordings, reference, tmp_path):
+    out = tmp_path / "res.parquet"
+    flag = tmp_path / "victim.pid"
+    hook = functools.partial(_announce_and_wait, str(flag), 2)
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        job = pool.submit(predict_batch, recordings, out, model_path=MODEL, part_size=2,
+                          scheduler=cluster.scheduler_address, before_part=hook)  # fmt: skip
+        deadline = time.monotonic() + 30
+        while not flag.exists() or not flag.read_text():
+            assert time.monotonic() < deadline and not job.done(), "part 2 never started"
+            time.sleep(0.05)
+        os.kill(int(flag.read_text()), signal.SIGKILL)
+        summary = job.result(timeout=60)
+    assert "part-00002" in summary["rerun"]
+    assert pq.read_table(out).equals(pq.read_table(reference))
+    cluster.wait_for_workers(2, timeout=30)
+
+
+def test_interrupted_run_resumes_without_redoing_parts(recordings, reference, tmp_path):
+    out = tmp_path / "res.parquet"
+    with pytest.raises(KeyboardInterrupt):
+        predict_batch(recordings, out, model_path=MODEL, part_size=2,
+                      before_part=functools.partial(_crash_on, 2))  # fmt: skip
+    parts = tmp_path / "res.parquet.parts"
+    done = {p.name: p.stat().st_mtime_ns for p in parts.glob("*.parquet")}
+    assert sorted(done) == ["part-00000.parquet", "part-00001.parquet"] and not out.exists()
+    seen = []
+    summary = predict_batch(recordings, out, model_path=MODEL, part_size=2,
+                            progress=lambda d, t: seen.append((d, t)),
+                            before_part=functools.partial(_check_not_in, (0, 1)))  # fmt: skip
+    assert summary["parts_kept"] == 2 and seen[0] == (2, 4) and seen[-1] == (4, 4)
+    assert out.read_bytes() == reference.read_bytes()
+    with pytest.raises(StiffnetError, match="exists .use --overwrite"):
+        predict_batch(recordings, out, model_path=MODEL)
+
+
+def _check_not_in(finished: tuple[int, ...], part: int) -> None:
+    assert part not in finished, f"part {part} was predicted again"
+
+
+def test_cli_predict_batch(recordings, reference, tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    out = tmp_path / "res.parquet"
+    args = ["predict-batch", str(recordings), "--out", str(out), "--model", str(MODEL),
+            "--part-size", "2", "--json", str(tmp_path / "s.json")]  # fmt: skip
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["recordings"] == 7 and summary["errors"] == 2
+    assert out.read_bytes() == reference.read_bytes()
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2 and "use --overwrite" in res.output
+    res = CliRunner().invoke(app, ["predict-batch", str(tmp_path / "none"), "--out", "x.parquet"])
+    assert res.exit_code == 2 and "no recordings found" in res.output
