@@ -260,6 +260,7 @@ def effects(json_path: JsonOption = None) -> None:
 #: scikit-learn or mlflow, and ``stiffnet --help`` must stay fast.
 COMMAND_MODULES = (
     "serving.commands",  # predict, serve
+    "stiffnet.measurement.commands",  # evaluate, compare, diagnose, loop, report
     "stiffnet.distributed.commands",  # predict-batch
 )
 for _module in COMMAND_MODULES:

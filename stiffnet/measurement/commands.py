@@ -1,0 +1,339 @@
+"""CLI commands of the measurement loop: ``evaluate``, ``compare``, ``diagnose``, ``loop``,
+``report`` (registered by :mod:`stiffnet.cli`).
+
+Heavy imports (matplotlib, mlflow, scikit-learn, torch) and ``stiffnet.cli`` itself
+(which imports this module at startup) are imported inside the command functions.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+
+DEFAULT_SIM_CONFIG = Path("configs/sim/default.yaml")
+
+CampaignArg = Annotated[Path, typer.Argument(help="Campaign folder (or its manifest.csv).")]
+ConfigOpt = Annotated[
+    Path | None,
+    typer.Option("--config", help="Simulator config (YAML); default configs/sim/default.yaml."),
+]
+SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the simulations.")]
+
+
+def _io() -> tuple[Any, Any, Any]:
+    from stiffnet.cli import console, out, write_json
+
+    return out, console, write_json
+
+
+def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
+    from stiffnet.campaign import load_campaign
+    from stiffnet.config import load_config
+    from stiffnet.config.sim import SimulationConfig
+
+    camp = load_campaign(campaign)
+    if config is not None:
+        cfg = load_config(SimulationConfig, config)
+    elif DEFAULT_SIM_CONFIG.is_file():
+        cfg = load_config(SimulationConfig, DEFAULT_SIM_CONFIG)
+    else:
+        cfg = SimulationConfig()
+    return camp, cfg
+
+
+def _read_json(path: Path | None, what: str) -> Any:
+    from stiffnet.errors import StiffnetError
+
+    if path is None:
+        return None
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise StiffnetError(f"{path}: cannot read the {what} JSON ({exc})") from None
+
+
+def _metrics_table(title: str, metrics: dict[str, Any]) -> Any:
+    from rich.table import Table
+
+    table = Table(title=title)
+    for col in ("method", "n", "accuracy", "macro-F1", "beta MAPE"):
+        table.add_column(col)
+    for method, m in metrics.items():
+        vals = [m.get(k) for k in ("n", "accuracy", "macro_f1", "beta_mape")]
+        table.add_row(method, *("–" if v is None else f"{v:.3g}" for v in vals))
+    return table
+
+
+def evaluate(
+    campaign: CampaignArg,
+    model: Annotated[
+        Path | None, typer.Option(help="ONNX model (default: the predictor's, models/cnn.onnx).")
+    ] = None,
+    config: ConfigOpt = None,
+    json_path: JsonOption = None,
+) -> None:
+    """Learned model and geometric method against the campaign's known betas."""
+    from stiffnet.measurement.compare import config_effects
+    from stiffnet.measurement.evaluate import evaluate_campaign
+
+    out, _, write_json = _io()
+    camp, cfg = _load(campaign, config)
+    res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
+    out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
+    worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
+    out.print(f"worst recordings: {worst}")
+    write_json(json_path, res)
+
+
+def compare(
+    campaign: CampaignArg,
+    config: ConfigOpt = None,
+    plots: Annotated[
+        Path | None, typer.Option(help="Write the figures (PNG) into this folder.")
+    ] = None,
+    seed: SeedOpt = 20_241,
+    json_path: JsonOption = None,
+) -> None:
+    """Simulator versus measurement by phase-independent statistics: where the model fails."""
+    from rich.table import Table
+
+    from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
+
+    out, _, write_json = _io()
+    camp, cfg = _load(campaign, config)
+    cmp = compare_campaign(camp, config_effects(cfg), config_settings(cfg), seed)
+    res = cmp.result
+    table = Table(title=f"simulator vs {campaign}: discrepancy {res['discrepancy']:.3g}")
+    for col in (
+        "recording",
+        "beta",
+        "discrepancy",
+        "worst statistic",
+        "contact",
+        "free flight",
+        "global",
+    ):
+        table.add_column(col)
+    for r in res["recordings"]:
+        g = r.get("groups") or {}
+        table.add_row(
+            r["recording"],
+            f"{r['beta']}",
+            f"{r['discrepancy'] or float('nan'):.3g}",
+            str(r.get("worst_component")),
+            *(f"{g.get(k, 0):.3g}" for k in ("contact", "free_flight", "global")),
+        )
+    out.print(table)
+    f = res["failure"]
+    out.print(
+        f"fails mostly in {f['group']} (statistic {f['component']}, beta class "
+        f"{f['beta_class']}, recording {f['recording']})"
+    )
+    if plots is not None:
+        from stiffnet.measurement import plots as figs
+
+        plots.mkdir(parents=True, exist_ok=True)
+        names = [r["recording"] for r in res["recordings"]]
+        res["plots"] = [
+            str(
+                figs.waveform_figure(
+                    names, cmp.measured, cmp.simulated, plots / "compare_waveform.png"
+                )
+            ),
+            str(
+                figs.spectrum_figure(
+                    names, cmp.measured, cmp.simulated, plots / "compare_spectrum.png"
+                )
+            ),
+            str(figs.components_figure(res, plots / "compare_components.png")),
+        ]
+        out.print(f"figures written to {plots}")
+    write_json(json_path, res)
+
+
+def diagnose(
+    campaign: CampaignArg,
+    config: ConfigOpt = None,
+    effect: Annotated[
+        list[str] | None,
+        typer.Option(help="Also try this user effect, module.path:ClassName (repeatable)."),
+    ] = None,
+    only: Annotated[
+        list[str] | None,
+        typer.Option(help="Try only these effects (repeatable; default: the whole library)."),
+    ] = None,
+    budget: Annotated[
+        int | None, typer.Option(help="Objective evaluations per closed-form effect (24).")
+    ] = None,
+    budget_numerical: Annotated[
+        int | None, typer.Option(help="Evaluations per numerical-engine effect (6).")
+    ] = None,
+    inclination: Annotated[
+        bool, typer.Option(help="Include the geometric inclination statistics.")
+    ] = True,
+    scheduler: SchedulerOption = None,
+    workers: WorkersOption = None,
+    seed: SeedOpt = 20_241,
+    json_path: JsonOption = None,
+) -> None:
+    """Fit every effect to the campaign and rank them: which physical effect is missing."""
+    from rich.table import Table
+
+    from stiffnet.measurement.compare import config_effects
+    from stiffnet.measurement.diagnose import diagnose_campaign
+
+    out, _, write_json = _io()
+    camp, cfg = _load(campaign, config)
+    res = diagnose_campaign(
+        camp,
+        config_effects(cfg),
+        effects=only,
+        user_effects=effect or [],
+        budget=budget,
+        budget_numerical=budget_numerical,
+        seed=seed,
+        inclination=inclination,
+        scheduler=scheduler,
+        workers=workers,
+    )
+    table = Table(
+        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}"
+    )
+    for col in ("effect", "reduction", "relative", "params", "improved", "significant"):
+        table.add_column(col)
+    for r in res["ranking"]:
+        p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
+        table.add_row(
+            r["effect"],
+            f"{r['discrepancy_reduction']:.3g}",
+            f"{r['relative_reduction']:.0%}",
+            p,
+            f"{r['improved_fraction']:.0%}",
+            "yes" if r["significant"] else "no",
+        )
+    out.print(table)
+    missing = res["missing_effect"]
+    out.print(
+        f"missing effect: {missing}"
+        if missing
+        else "nothing significant is missing: the model explains the data"
+    )
+    write_json(json_path, res)
+
+
+def loop(
+    campaign: CampaignArg,
+    add_effect: Annotated[str, typer.Option("--add-effect", help="Effect to add (name).")],
+    diagnosis: Annotated[
+        Path | None, typer.Option(help="A `diagnose --json` result with the effect's fit.")
+    ] = None,
+    config: ConfigOpt = None,
+    n_trajectories: Annotated[
+        int | None,
+        typer.Option(help="Trajectories per generated dataset (default: the config's, 2000)."),
+    ] = None,
+    spread: Annotated[
+        float, typer.Option(help="Relative spread of the added effect's parameters.")
+    ] = 0.25,
+    model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
+    out_dir: Annotated[Path, typer.Option("--out", help="Folder for data, models, chart.")] = Path(
+        "runs/loop"
+    ),
+    tracking_uri: Annotated[str, typer.Option(help="MLflow tracking URI.")] = "sqlite:///mlflow.db",
+    tracking: Annotated[bool, typer.Option(help="Log before/after runs to MLflow.")] = True,
+    json_path: JsonOption = None,
+) -> None:
+    """Add an effect to the simulator, regenerate data, retrain, re-evaluate: before vs after."""
+    from rich.table import Table
+
+    from stiffnet.measurement.loop import run_loop
+
+    out, console, write_json = _io()
+    camp, cfg = _load(campaign, config)
+    n = n_trajectories or cfg.n_trajectories
+    console.print(f"loop on {campaign}: +{add_effect}, {n} trajectories per dataset, {model}")
+    res = run_loop(
+        camp,
+        cfg,
+        add_effect,
+        out_dir,
+        diagnosis=_read_json(diagnosis, "diagnosis"),
+        n_trajectories=n_trajectories,
+        spread=spread,
+        model=model,
+        tracking_uri=tracking_uri if tracking else None,
+    )
+    table = Table(title=f"loop +{add_effect} on {campaign} ({res['seconds']:.0f} s)")
+    for col in ("", "accuracy", "beta MAPE", "geometric acc.", "discrepancy", "run id"):
+        table.add_column(col)
+    for key in ("before", "after"):
+        r = res[key]
+        vals = [r.get(k) for k in ("accuracy", "beta_mape", "geometric_accuracy", "discrepancy")]
+        table.add_row(key, *("–" if v is None else f"{v:.3g}" for v in vals), str(r["run_id"]))
+    out.print(table)
+    out.print(f"chart written to {res['chart']}")
+    write_json(json_path, res)
+
+
+def report(
+    campaign: CampaignArg,
+    out_path: Annotated[Path, typer.Option("--out", help="HTML file to write.")] = Path(
+        "report.html"
+    ),
+    model: Annotated[Path | None, typer.Option(help="ONNX model for evaluate.")] = None,
+    config: ConfigOpt = None,
+    diagnosis: Annotated[
+        Path | None, typer.Option(help="Use this `diagnose --json` result instead of running it.")
+    ] = None,
+    loop_json: Annotated[
+        Path | None, typer.Option("--loop", help="Include a `loop --json` result.")
+    ] = None,
+    run_diagnose: Annotated[
+        bool, typer.Option("--diagnose/--no-diagnose", help="Run diagnose when not given.")
+    ] = True,
+    json_path: JsonOption = None,
+) -> None:
+    """One self-contained HTML page with the evaluate, compare and diagnose tables and plots."""
+    from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
+    from stiffnet.measurement.diagnose import diagnose_campaign
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.report import render_report, write_report
+
+    out, _, write_json = _io()
+    camp, cfg = _load(campaign, config)
+    effects = config_effects(cfg)
+    ev = evaluate_campaign(camp, str(model) if model else None, effects)
+    cmp = compare_campaign(camp, effects, config_settings(cfg))
+    diag = _read_json(diagnosis, "diagnosis")
+    if diag is None and run_diagnose:
+        diag = diagnose_campaign(camp, effects)
+    page = render_report(
+        f"stiffnet: model versus measurement, {camp.folder.name}",
+        ev,
+        cmp,
+        diag,
+        _read_json(loop_json, "loop"),
+    )
+    write_report(out_path, page)
+    out.print(f"report written to {out_path}")
+    write_json(
+        json_path,
+        {
+            "report": str(out_path),
+            "discrepancy": cmp.result["discrepancy"],
+            "missing_effect": diag["missing_effect"] if diag else None,
+        },
+    )
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``evaluate``, ``compare``, ``diagnose``, ``loop`` and ``report`` to the app."""
+    from stiffnet.cli import user_errors
+
+    for fn in (evaluate, compare, diagnose, loop, report):
+        app.command(fn.__name__)(user_errors(fn))

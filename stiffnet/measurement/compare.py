@@ -1,0 +1,179 @@
+"""Simulator versus measurement on a campaign: where the model fails, and by how much.
+
+Each recording is simulated with its manifest's parameters and the current
+simulator config (:mod:`stiffnet.measurement.simulate`; the config's effects
+and solver settings), at the recording's own length, and compared by the
+phase-independent statistics of :mod:`stiffnet.measurement.statistics`
+through :mod:`stiffnet.measurement.discrepancy`. The result says where the
+disagreement sits: per component (which statistic), per group (contact, free
+flight, global), per beta class, per recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from stiffnet.campaign import Campaign
+from stiffnet.config.sim import SimulationConfig
+from stiffnet.effects.base import Effect
+from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.geometry.calibration import DEFAULT_CLASSES
+from stiffnet.measurement.discrepancy import (
+    COMPONENTS,
+    GROUPS,
+    campaign_discrepancy,
+    group_discrepancies,
+    normalised_differences,
+    recording_discrepancy,
+)
+from stiffnet.measurement.simulate import (
+    DEFAULT_SEED,
+    SolverSettings,
+    check_rows,
+    natural_frequency,
+    simulate_rows,
+)
+from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
+
+
+@dataclass
+class Comparison:
+    """Measured and simulated statistics of every recording, and the JSON-ready summary."""
+
+    measured: list[SignalStatistics]
+    simulated: list[SignalStatistics | None]
+    result: dict[str, Any]
+
+
+def config_effects(cfg: SimulationConfig) -> list[Effect]:
+    """The effects of a simulation config."""
+    return [e.build() for e in cfg.effects]
+
+
+def config_settings(cfg: SimulationConfig, periods: float | None = None) -> SolverSettings:
+    s = cfg.solver
+    return SolverSettings(periods, s.settle_tolerance, s.min_transient_periods, s.substeps)
+
+
+def beta_class_name(beta: float | None) -> str:
+    if beta is None:
+        return "unknown"
+    for name, lo, hi in DEFAULT_CLASSES:
+        if lo <= beta < hi:
+            return name
+    return DEFAULT_CLASSES[0][0] if beta < DEFAULT_CLASSES[0][1] else DEFAULT_CLASSES[-1][0]
+
+
+def compare_campaign(
+    campaign: Campaign,
+    effects: Sequence[Effect] = (),
+    settings: SolverSettings = SolverSettings(),
+    seed: int = DEFAULT_SEED,
+) -> Comparison:
+    """Compare every recording with its simulation (see the module notes).
+
+    Returns
+    -------
+    Comparison
+        ``result`` holds ``discrepancy`` (campaign), ``recordings`` (each
+        ``recording``, ``beta``, ``discrepancy``, ``components`` (normalised),
+        ``groups``, ``worst_component``, ``measured`` / ``simulated`` scalars),
+        ``by_component`` (mean squared normalised difference), ``by_group``
+        (share of the squared differences), ``by_beta_class`` and ``failure``
+        (one line: where it fails).
+    """
+    check_rows(campaign.rows, str(campaign.manifest_path))
+    measured: list[SignalStatistics] = []
+    lengths = []
+    for row, rec in campaign.recordings():
+        try:
+            measured.append(
+                signal_statistics(rec.accel, rec.fs_hz, natural_frequency(row), row.frequency_ratio)
+            )
+        except SignalError as exc:
+            raise StiffnetError(f"{row.recording}: {exc}") from None
+        lengths.append(len(rec.accel))
+    sims = simulate_rows(campaign.rows, effects, lengths, seed, settings)
+    simulated: list[SignalStatistics | None] = []
+    for row, a in zip(campaign.rows, sims, strict=True):
+        try:
+            simulated.append(
+                signal_statistics(a, row.fs_hz, natural_frequency(row), row.frequency_ratio)
+            )
+        except SignalError:
+            simulated.append(None)
+
+    recs = []
+    sq = {c: [] for c in COMPONENTS}
+    for row, m, s in zip(campaign.rows, measured, simulated, strict=True):
+        if s is None:
+            recs.append(
+                {
+                    "recording": row.recording,
+                    "beta": row.beta,
+                    "discrepancy": None,
+                    "error": "simulation could not be analysed",
+                }
+            )
+            continue
+        nd = normalised_differences(m, s)
+        for c, v in nd.items():
+            if np.isfinite(v):
+                sq[c].append(v * v)
+        present = {c: v for c, v in nd.items() if np.isfinite(v)}
+        recs.append(
+            {
+                "recording": row.recording,
+                "beta": row.beta,
+                "beta_class": beta_class_name(row.beta),
+                "discrepancy": recording_discrepancy(nd),
+                "components": {c: (v if np.isfinite(v) else None) for c, v in nd.items()},
+                "groups": group_discrepancies(nd),
+                "worst_component": max(present, key=lambda c: abs(present[c])) if present else None,
+                "measured": m.scalars(),
+                "simulated": s.scalars(),
+                "measured_impacts": int(m.impacts.size),
+                "simulated_impacts": int(s.impacts.size),
+            }
+        )
+    per = [r["discrepancy"] for r in recs if r.get("discrepancy") is not None]
+    by_component = {c: (float(np.mean(v)) if v else None) for c, v in sq.items()}
+    totals = {g: float(sum(r["groups"][g] for r in recs if "groups" in r)) for g in GROUPS}
+    total = sum(totals.values())
+    by_group = {g: (v / total if total > 0 else 0.0) for g, v in totals.items()}
+    by_class: dict[str, list[float]] = {}
+    for r in recs:
+        if r.get("discrepancy") is not None:
+            by_class.setdefault(r["beta_class"], []).append(r["discrepancy"])
+    worst_comp = max(
+        (c for c in by_component if by_component[c] is not None),
+        key=lambda c: by_component[c],
+        default=None,
+    )
+    worst_group = max(by_group, key=by_group.get) if total > 0 else None
+    worst_class = max(by_class, key=lambda k: np.mean(by_class[k])) if by_class else None
+    result = {
+        "campaign": str(campaign.folder),
+        "effects": [repr(e) for e in effects],
+        "seed": seed,
+        "discrepancy": campaign_discrepancy(per),
+        "recordings": recs,
+        "by_component": by_component,
+        "by_group": by_group,
+        "by_beta_class": {k: float(np.mean(v)) for k, v in sorted(by_class.items())},
+        "failure": {
+            "group": worst_group,
+            "component": worst_comp,
+            "beta_class": worst_class,
+            "recording": max(
+                (r for r in recs if r.get("discrepancy") is not None),
+                key=lambda r: r["discrepancy"],
+                default={},
+            ).get("recording"),
+        },
+    }
+    return Comparison(measured, simulated, result)

@@ -1,0 +1,198 @@
+"""Evaluate the learned model and the geometric method on a campaign against its known betas.
+
+Every recording goes through the ONNX predictor (:class:`serving.predictor.Predictor`,
+with the manifest's ``natural_frequency_hz``); its result holds the learned class
+and beta and the geometric method's class and beta. Metrics per method:
+accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
+known beta and an estimate), sliced by beta class, gap, frequency ratio,
+amplitude and impact regime, with the worst recordings listed.
+
+Impact regime. From a simulation of the row with the manifest's parameters
+and the current model's dynamics (:func:`stiffnet.measurement.simulate.simulated_contact`):
+``no_contact`` when the mass never reaches the restraint, ``grazing`` when the
+deepest penetration is under 5 % of the amplitude of the motion, else
+``impacting``. Rows without the simulation columns fall back to the recording:
+``impacting`` when the geometric method detected contact, else ``no_contact``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
+from stiffnet.effects.base import Effect
+from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
+from stiffnet.measurement.simulate import impact_regime, natural_frequency, simulated_contact
+
+#: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
+SLICE_EDGES: dict[str, list[float]] = {
+    "gap": [-np.inf, 0.5, 1.5, 2.5, np.inf],
+    "frequency_ratio": [0.0, 0.95, 1.05, np.inf],
+    "amplitude": [0.0, 1.0, 1.5, np.inf],
+}
+N_WORST = 5
+
+
+def true_class(beta: float | None, contact: bool) -> str | None:
+    """The label a recording should get: its beta class, or no_contact."""
+    if beta is None:
+        return None
+    if not contact:
+        return NO_CONTACT
+    for name, lo, hi in DEFAULT_CLASSES:
+        if lo <= beta < hi:
+            return name
+    return DEFAULT_CLASSES[0][0] if beta < DEFAULT_CLASSES[0][1] else DEFAULT_CLASSES[-1][0]
+
+
+def macro_f1(truth: Sequence[str], pred: Sequence[str]) -> float:
+    """Macro-averaged F1 over the classes present in either list."""
+    labels = sorted(set(truth) | set(pred))
+    if not labels:
+        return float("nan")
+    f1 = []
+    for c in labels:
+        tp = sum(t == c and p == c for t, p in zip(truth, pred, strict=True))
+        fp = sum(t != c and p == c for t, p in zip(truth, pred, strict=True))
+        fn = sum(t == c and p != c for t, p in zip(truth, pred, strict=True))
+        f1.append(2 * tp / (2 * tp + fp + fn) if tp + fp + fn else 0.0)
+    return float(np.mean(f1))
+
+
+def method_metrics(rows: Sequence[dict[str, Any]], cls_key: str, beta_key: str) -> dict[str, Any]:
+    """Accuracy, macro-F1 and beta MAPE of one method over recordings with a known class."""
+    known = [r for r in rows if r["true_class"] is not None]
+    truth = [r["true_class"] for r in known]
+    pred = [str(r[cls_key]) for r in known]
+    ape = [
+        abs(r[beta_key] - r["beta"]) / r["beta"]
+        for r in known
+        if r[beta_key] is not None and r["beta"] and r["true_class"] != NO_CONTACT
+    ]
+    return {
+        "n": len(known),
+        "accuracy": float(np.mean([t == p for t, p in zip(truth, pred, strict=True)]))
+        if known
+        else None,
+        "macro_f1": macro_f1(truth, pred) if known else None,
+        "beta_mape": float(np.mean(ape)) if ape else None,
+    }
+
+
+def _bin_label(value: float | None, edges: list[float]) -> str:
+    if value is None:
+        return "unknown"
+    k = int(np.searchsorted(edges, value, side="right")) - 1
+    k = min(max(k, 0), len(edges) - 2)
+    return f"[{edges[k]:g}, {edges[k + 1]:g})"
+
+
+def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Both methods' metrics by beta class, gap, frequency ratio, amplitude and impact regime."""
+    keys: dict[str, Any] = {
+        "beta_class": lambda r: r["true_class"] or "unknown",
+        "impact_regime": lambda r: r["impact_regime"],
+    }
+    for col, edges in SLICE_EDGES.items():
+        keys[col] = lambda r, col=col, edges=edges: _bin_label(r.get(col), edges)
+    out: dict[str, dict[str, Any]] = {}
+    for name, key in keys.items():
+        groups: dict[str, list[dict[str, Any]]] = {}
+        for r in rows:
+            groups.setdefault(key(r), []).append(r)
+        out[name] = {
+            g: {
+                "learned": method_metrics(rs, "class", "beta_estimate"),
+                "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
+            }
+            for g, rs in sorted(groups.items())
+        }
+    return out
+
+
+def evaluate_campaign(
+    campaign: Campaign,
+    model_path: str | None = None,
+    dynamics: Sequence[Effect] = (),
+) -> dict[str, Any]:
+    """Predictions and metrics of the learned model and the geometric method on a campaign.
+
+    Parameters
+    ----------
+    campaign : Campaign
+    model_path : str, optional
+        ONNX model (default: the predictor's, ``models/cnn.onnx``).
+    dynamics : sequence of Effect
+        The current model's effects, for the impact regime by simulation.
+
+    Returns
+    -------
+    dict
+        ``model`` (name, sha256, kind), ``recordings`` (each ``recording``,
+        ``beta``, ``class``, ``beta_estimate``, ``geometric_class``,
+        ``geometric_beta``, ``true_class``, ``impact_regime``, ...),
+        ``metrics`` (``learned`` and ``geometric``: ``accuracy``, ``macro_f1``,
+        ``beta_mape``), ``slices``, ``worst``.
+    """
+    from serving.predictor import Predictor
+
+    predictor = Predictor.load(model_path)
+    simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
+    contact = simulated_contact(campaign.rows, dynamics) if simulable else None
+    rows: list[dict[str, Any]] = []
+    for i, (row, rec) in enumerate(campaign.recordings()):
+        res = predictor.predict(
+            rec.accel,
+            rec.fs_hz,
+            natural_frequency_hz=natural_frequency(row),
+            source=row.recording,
+        )
+        geo = res.get("geometric") or {}
+        if contact is not None:
+            regime = impact_regime(contact[i])
+        else:
+            regime = "impacting" if geo.get("contact_detected") else NO_CONTACT
+        has_contact = regime != NO_CONTACT
+        rows.append(
+            {
+                "recording": row.recording,
+                "beta": row.beta,
+                "class": res.get("class"),
+                "beta_estimate": res.get("beta"),
+                "beta_interval": res.get("beta_interval"),
+                "geometric_class": geo.get("class"),
+                "geometric_beta": geo.get("beta"),
+                "agreement": res.get("agreement"),
+                "ood_score": res.get("ood_score"),
+                "true_class": true_class(row.beta, has_contact),
+                "impact_regime": regime,
+                "gap": row.gap,
+                "frequency_ratio": row.frequency_ratio,
+                "amplitude": row.amplitude,
+            }
+        )
+    for r in rows:  # error of a recording: wrong class counts 1, plus the beta error
+        err = 0.0
+        if r["true_class"] is not None and r["class"] != r["true_class"]:
+            err += 1.0
+        if r["beta"] and r["beta_estimate"] is not None:
+            err += abs(r["beta_estimate"] - r["beta"]) / r["beta"]
+        r["error"] = err
+    worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
+    return {
+        "campaign": str(campaign.folder),
+        "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
+        "recordings": rows,
+        "metrics": {
+            "learned": method_metrics(rows, "class", "beta_estimate"),
+            "geometric": method_metrics(rows, "geometric_class", "geometric_beta"),
+        },
+        "slices": sliced_metrics(rows),
+        "worst": [
+            {k: r[k] for k in ("recording", "beta", "class", "beta_estimate", "error")}
+            for r in worst
+        ],
+    }

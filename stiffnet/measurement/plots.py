@@ -1,0 +1,174 @@
+"""Figures of the measurement loop (matplotlib, Agg; imported only by the commands)."""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stiffnet.io_utils import write_bytes_atomic
+from stiffnet.measurement.statistics import SignalStatistics
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: str | Path) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=80)
+    _plt().close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+    return Path(path)
+
+
+def waveform_figure(
+    names: Sequence[str],
+    measured: Sequence[SignalStatistics],
+    simulated: Sequence[SignalStatistics | None],
+    path: str | Path,
+    max_panels: int = 8,
+) -> Path:
+    """Measured vs simulated impact-aligned mean waveform per recording, with the residual."""
+    plt = _plt()
+    n = min(len(names), max_panels)
+    cols = min(4, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    for k in range(rows * cols):
+        ax = axes.flat[k]
+        if k >= n:
+            ax.axis("off")
+            continue
+        m, s = measured[k], simulated[k]
+        if m.waveform.size:
+            ax.plot(m.waveform_t, m.waveform, color="k", lw=1.2, label="measured")
+        if s is not None and s.waveform.size:
+            ax.plot(s.waveform_t, s.waveform, color="tab:orange", lw=1, label="simulated")
+            if m.waveform.size:
+                ax.plot(
+                    m.waveform_t,
+                    s.waveform - m.waveform,
+                    color="tab:red",
+                    lw=0.8,
+                    ls=":",
+                    label="residual",
+                )
+        ax.set_title(names[k], fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k == 0:
+            ax.legend(fontsize=6)
+    fig.supxlabel("time from spike extremum (natural periods)", fontsize=8)
+    fig.supylabel("accel (robust units, spikes up)", fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def spectrum_figure(
+    names: Sequence[str],
+    measured: Sequence[SignalStatistics],
+    simulated: Sequence[SignalStatistics | None],
+    path: str | Path,
+    max_panels: int = 8,
+) -> Path:
+    """Measured vs simulated band-averaged log PSD per recording, with the residual."""
+    plt = _plt()
+    n = min(len(names), max_panels)
+    cols = min(4, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    for k in range(rows * cols):
+        ax = axes.flat[k]
+        if k >= n:
+            ax.axis("off")
+            continue
+        m, s = measured[k], simulated[k]
+        ax.semilogx(m.psd_f, m.log_psd, color="k", lw=1.2, label="measured")
+        if s is not None:
+            ax.semilogx(s.psd_f, s.log_psd, color="tab:orange", lw=1, label="simulated")
+            ax.semilogx(
+                m.psd_f,
+                s.log_psd - m.log_psd + m.log_psd.min() - 1,
+                color="tab:red",
+                lw=0.8,
+                ls=":",
+                label="residual (offset)",
+            )
+        ax.set_title(names[k], fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k == 0:
+            ax.legend(fontsize=6)
+    fig.supxlabel("f / f_n", fontsize=8)
+    fig.supylabel("log10 PSD", fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def components_figure(result: dict[str, Any], path: str | Path) -> Path:
+    """Normalised differences per recording and component (a heat map): where it fails."""
+    plt = _plt()
+    recs = [r for r in result["recordings"] if r.get("components")]
+    comps = list(recs[0]["components"]) if recs else []
+    mat = np.array(
+        [
+            [np.nan if r["components"][c] is None else r["components"][c] for c in comps]
+            for r in recs
+        ]
+    )
+    fig, ax = plt.subplots(figsize=(1 + 0.6 * len(comps), 1 + 0.35 * len(recs)))
+    if recs:
+        lim = max(1.0, float(np.nanmax(np.abs(mat))) if np.isfinite(mat).any() else 1.0)
+        im = ax.imshow(mat, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
+        ax.set_xticks(range(len(comps)), comps, rotation=60, ha="right", fontsize=7)
+        ax.set_yticks(range(len(recs)), [r["recording"] for r in recs], fontsize=7)
+        fig.colorbar(im, ax=ax, label="(sim - meas) / tolerance")
+    ax.set_title(f"discrepancy {result['discrepancy']:.3g}", fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
+    """Discrepancy removed by each fitted effect (significant ones filled)."""
+    plt = _plt()
+    rk = diagnosis["ranking"]
+    fig, ax = plt.subplots(figsize=(6, 0.4 * len(rk) + 1.2))
+    y = np.arange(len(rk))[::-1]
+    red = [max(r["relative_reduction"], -0.2) for r in rk]
+    colors = ["tab:green" if r["significant"] else "lightgray" for r in rk]
+    ax.barh(y, red, color=colors, edgecolor="k")
+    ax.set_yticks(y, [r["effect"] for r in rk], fontsize=8)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("relative discrepancy reduction (green: significant)")
+    ax.set_title(f"baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}", fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def loop_figure(iterations: Sequence[dict[str, Any]], path: str | Path) -> Path:
+    """Error and discrepancy against loop iteration (before = 0, after = 1, ...)."""
+    plt = _plt()
+    x = np.arange(len(iterations))
+    fig, ax = plt.subplots(1, 2, figsize=(8, 3))
+    for key, label in (
+        ("accuracy", "learned accuracy"),
+        ("geometric_accuracy", "geometric accuracy"),
+    ):
+        v = [it.get(key) for it in iterations]
+        ax[0].plot(x, [1 - a if a is not None else np.nan for a in v], "o-", label=f"1 - {label}")
+    ax[0].plot(x, [it.get("beta_mape") or np.nan for it in iterations], "s-", label="beta MAPE")
+    ax[0].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
+    ax[0].set_ylabel("error")
+    ax[0].legend(fontsize=7)
+    ax[1].semilogy(x, [it.get("discrepancy") or np.nan for it in iterations], "o-", color="k")
+    ax[1].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
+    ax[1].set_ylabel("simulator-measurement discrepancy")
+    fig.tight_layout()
+    return _save(fig, path)

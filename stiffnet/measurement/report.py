@@ -1,0 +1,216 @@
+"""One self-contained HTML page: evaluate, compare and diagnose tables with their figures.
+
+Figures are inline base64 PNGs and the CSS is inline, so the page can be mailed
+or archived alone. It is written atomically.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from stiffnet.io_utils import write_bytes_atomic
+
+_CSS = """
+body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#222}
+h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;margin-top:2em}
+table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
+td,th{border:1px solid #ddd;padding:3px 7px;text-align:right}
+th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
+.sig{background:#d9f2d9}.bad{background:#fde2e2}img{max-width:100%}
+.note{color:#666;font-size:.85em}
+"""
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, dict):
+        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items())
+    return html.escape(str(v))
+
+
+def _table(rows: list[dict[str, Any]], cols: list[str], row_class: Any = None) -> str:
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    body = []
+    for r in rows:
+        cls = f' class="{row_class(r)}"' if row_class and row_class(r) else ""
+        body.append(f"<tr{cls}>" + "".join(f"<td>{_fmt(r.get(c))}</td>" for c in cols) + "</tr>")
+    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f'<p><img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}"></p>'
+
+
+def render_report(
+    title: str,
+    evaluation: dict[str, Any] | None,
+    comparison: Any | None,
+    diagnosis: dict[str, Any] | None,
+    loop: dict[str, Any] | None = None,
+) -> str:
+    """The HTML page (``comparison`` is a :class:`~stiffnet.measurement.compare.Comparison`)."""
+    from stiffnet.measurement import plots
+
+    parts = [
+        f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
+        f"</title><style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"
+    ]
+    with tempfile.TemporaryDirectory() as tmp:
+        t = Path(tmp)
+        if evaluation is not None:
+            m = evaluation["metrics"]
+            parts.append("<h2>Evaluate: learned model and geometric method</h2>")
+            parts.append(f"<p class='note'>model {_fmt(evaluation['model'])}</p>")
+            parts.append(
+                _table(
+                    [{"method": k, **v} for k, v in m.items()],
+                    ["method", "n", "accuracy", "macro_f1", "beta_mape"],
+                )
+            )
+            parts.append(
+                _table(
+                    evaluation["recordings"],
+                    [
+                        "recording",
+                        "beta",
+                        "true_class",
+                        "class",
+                        "beta_estimate",
+                        "geometric_class",
+                        "geometric_beta",
+                        "impact_regime",
+                        "error",
+                    ],
+                    lambda r: "bad" if r.get("class") != r.get("true_class") else "",
+                )
+            )
+            for name, groups in evaluation["slices"].items():
+                rows = [
+                    {
+                        "slice": f"{name} {g}",
+                        "n": v["learned"]["n"],
+                        "learned accuracy": v["learned"]["accuracy"],
+                        "learned beta MAPE": v["learned"]["beta_mape"],
+                        "geometric accuracy": v["geometric"]["accuracy"],
+                        "geometric beta MAPE": v["geometric"]["beta_mape"],
+                    }
+                    for g, v in groups.items()
+                ]
+                parts.append(_table(rows, list(rows[0]) if rows else ["slice"]))
+        if comparison is not None:
+            res = comparison.result
+            names = [r["recording"] for r in res["recordings"]]
+            parts.append("<h2>Compare: simulator versus measurement</h2>")
+            f = res["failure"]
+            parts.append(
+                f"<p>Campaign discrepancy <b>{res['discrepancy']:.3g}</b>. It fails mostly in "
+                f"<b>{_fmt(f['group'])}</b> (shares: {_fmt(res['by_group'])}), statistic "
+                f"<b>{_fmt(f['component'])}</b>, beta class <b>{_fmt(f['beta_class'])}</b>, "
+                f"recording <b>{_fmt(f['recording'])}</b>.</p>"
+            )
+            parts.append(
+                _table(
+                    [
+                        {
+                            "recording": r["recording"],
+                            "beta": r["beta"],
+                            "discrepancy": r["discrepancy"],
+                            "worst": r.get("worst_component"),
+                            **(r.get("groups") or {}),
+                        }
+                        for r in res["recordings"]
+                    ],
+                    [
+                        "recording",
+                        "beta",
+                        "discrepancy",
+                        "worst",
+                        "contact",
+                        "free_flight",
+                        "global",
+                    ],
+                )
+            )
+            parts.append(
+                _img(
+                    plots.waveform_figure(
+                        names, comparison.measured, comparison.simulated, t / "w.png"
+                    )
+                )
+            )
+            parts.append(
+                _img(
+                    plots.spectrum_figure(
+                        names, comparison.measured, comparison.simulated, t / "s.png"
+                    )
+                )
+            )
+            parts.append(_img(plots.components_figure(res, t / "c.png")))
+        if diagnosis is not None:
+            parts.append("<h2>Diagnose: which effect is missing</h2>")
+            missing = diagnosis["missing_effect"]
+            parts.append(
+                f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}. "
+                + (
+                    f"Missing effect: <b>{html.escape(missing)}</b>.</p>"
+                    if missing
+                    else "Nothing significant is missing: the model explains the data.</p>"
+                )
+            )
+            parts.append(
+                _table(
+                    diagnosis["ranking"],
+                    [
+                        "effect",
+                        "discrepancy_reduction",
+                        "relative_reduction",
+                        "params",
+                        "improved_fraction",
+                        "sign_test_p",
+                        "bootstrap_positive",
+                        "leave_one_out_relative_reduction",
+                        "bic_delta",
+                        "significant",
+                    ],
+                    lambda r: "sig" if r["significant"] else "",
+                )
+            )
+            parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
+        if loop is not None:
+            parts.append("<h2>Loop</h2>")
+            parts.append(
+                _table(
+                    [
+                        {
+                            "": k,
+                            **{
+                                c: loop[k].get(c)
+                                for c in ("accuracy", "beta_mape", "discrepancy", "run_id")
+                            },
+                        }
+                        for k in ("before", "after")
+                    ],
+                    ["", "accuracy", "beta_mape", "discrepancy", "run_id"],
+                )
+            )
+            chart = Path(loop.get("chart", ""))
+            if chart.is_file():
+                parts.append(_img(chart))
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def write_report(path: str | Path, page: str) -> Path:
+    """Write the page atomically."""
+    write_bytes_atomic(path, page.encode("utf-8"))
+    return Path(path)

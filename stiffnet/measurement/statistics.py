@@ -1,0 +1,467 @@
+"""Phase-independent statistics of one acceleration record.
+
+A simulation started from other initial conditions, with another noise
+realisation, never matches a measurement sample by sample; what it must match
+are the statistics that do not depend on the phase of the record:
+
+==========================  ===============================================================
+impact-aligned waveform     mean of the record around every impact spike, aligned on the
+                            spike's extremum, time in natural periods (contact + rebound)
+spike height / width        median height above the local baseline and full width at half
+                            height (natural periods) of the spikes
+post-impact ringing         high-passed (> 10 f_n) RMS after the spike over the RMS before
+                            it (log10) and the frequency of that ringing (sensor resonance,
+                            restraint modes)
+free-flight harmonics       amplitudes of the 2nd and 3rd forcing harmonics over the
+                            fundamental, least squares on the free-flight samples of a
+                            copy low-passed at 8 f_n (a ringing sensor would leak in)
+spectrum                    Welch PSD averaged in 1/5-octave bands of f / f_n (log10)
+impact rate                 impacts per forcing period (spikes found on the low-passed
+                            copy by a level rule, see :func:`spike_peaks`)
+inclination statistics      the geometric method's mean angles before / after impact
+                            (:func:`stiffnet.features.inclination.features_and_estimate`)
+==========================  ===============================================================
+
+Conventions. Every statistic is gain-free: the record is centred on its median
+and divided by a robust scale (1.4826 MAD, dominated by free flight, which an
+effect on the contact barely moves). Polarity is made canonical (spikes up,
+``y = polarity * z``) from the sign of the skewness, so a sensor mounted the
+other way compares as well. Times are in natural periods ``1 / f_n``.
+
+Low-level functions return whole curves or per-impact vectors; the rules that
+reduce them to one number (medians, means) live in :func:`signal_statistics`.
+numpy/scipy only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.signal as sps
+from numpy.typing import ArrayLike
+
+from stiffnet.errors import SignalError
+
+#: 1.4826 MAD is the standard deviation of a normal distribution.
+_MAD_TO_SIGMA = 1.4826
+#: Spikes rise this many robust units above the record's upper quartile.
+SPIKE_RISE = 1.5
+#: Spikes are detected, and harmonics fitted, below this multiple of f_n (sensor ringing
+#: is above it; the forcing's third harmonic below).
+DETECTION_LOWPASS = 8.0
+#: Aligned window around each spike, natural periods before and after the extremum.
+WAVEFORM_BEFORE = 0.25
+WAVEFORM_AFTER = 0.5
+#: Samples per natural period of the aligned-waveform grid.
+WAVEFORM_RATE = 128
+#: Ringing is what is left above this multiple of f_n (contact-free motion is far below).
+RINGING_HIGHPASS = 10.0
+#: Spectrum grid: log-spaced f / f_n from SPECTRUM_LOW to min(SPECTRUM_HIGH, 0.45 fs / f_n).
+SPECTRUM_LOW = 0.25
+SPECTRUM_HIGH = 60.0
+SPECTRUM_POINTS = 96
+#: Spectrum bands span grid / BAND_HALF_WIDTH .. grid * BAND_HALF_WIDTH (1/5 octave).
+BAND_HALF_WIDTH = 2**0.1
+#: Welch segments of this many natural periods.
+WELCH_PERIODS = 4.0
+#: Harmonics of the forcing fitted in free flight (1 = fundamental).
+N_HARMONICS = 3
+#: Amplitude ratios below this are floored (a missing harmonic stays a finite number).
+HARMONIC_FLOOR = 1e-3
+
+
+@dataclass
+class SignalStatistics:
+    """Phase-independent statistics of one record (see the module notes).
+
+    Attributes
+    ----------
+    fs_hz, natural_frequency_hz, frequency_ratio : float
+        Sampling rate, ``f_n`` and the forcing frequency over ``f_n`` used.
+    scale : float
+        Robust scale the record was divided by (its unit).
+    polarity : int
+        +1 if spikes point up in the record, -1 if down.
+    impacts : numpy.ndarray
+        Sample indices of the spike extrema.
+    waveform_t, waveform : numpy.ndarray
+        Impact-aligned mean waveform (canonical polarity, robust units) against
+        time from the extremum in natural periods; empty without impacts.
+    spike_height, spike_width : float
+        Median spike height (robust units) and full width at half height
+        (natural periods); NaN without impacts.
+    ringing, ringing_frequency : float
+        log10 of post-impact over pre-impact high-passed RMS, and the ringing's
+        peak frequency over ``f_n``; NaN without impacts.
+    harmonics : numpy.ndarray
+        Amplitudes of forcing harmonics 1..N over the fundamental (first is 1).
+    psd_f, log_psd : numpy.ndarray
+        Welch log10 PSD of the normalised record on the grid ``psd_f`` (f / f_n).
+    impacts_per_period : float
+        Impacts per forcing period.
+    inclination_before_deg, inclination_after_deg : float
+        Geometric method's mean inclinations (NaN without contact or when not computed).
+    """
+
+    fs_hz: float
+    natural_frequency_hz: float
+    frequency_ratio: float
+    scale: float
+    polarity: int
+    impacts: np.ndarray
+    waveform_t: np.ndarray
+    waveform: np.ndarray
+    spike_height: float
+    spike_width: float
+    ringing: float
+    ringing_frequency: float
+    harmonics: np.ndarray
+    psd_f: np.ndarray
+    log_psd: np.ndarray
+    impacts_per_period: float
+    inclination_before_deg: float = float("nan")
+    inclination_after_deg: float = float("nan")
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def has_impacts(self) -> bool:
+        return self.impacts.size > 0
+
+    def scalars(self) -> dict[str, float]:
+        """The scalar statistics, JSON-ready (NaN -> None)."""
+        values = {
+            "spike_height": self.spike_height,
+            "spike_width": self.spike_width,
+            "ringing": self.ringing,
+            "ringing_frequency": self.ringing_frequency,
+            "harmonic_2": float(self.harmonics[1]),
+            "harmonic_3": float(self.harmonics[2]),
+            "impacts_per_period": self.impacts_per_period,
+            "inclination_before_deg": self.inclination_before_deg,
+            "inclination_after_deg": self.inclination_after_deg,
+        }
+        return {k: (float(v) if np.isfinite(v) else None) for k, v in values.items()}
+
+
+# ------------------------------------------------------------------------ low level
+
+
+def robust_standardise(accel: ArrayLike) -> tuple[np.ndarray, float]:
+    """Record centred on its median and divided by 1.4826 MAD; returns it and the scale.
+
+    Raises
+    ------
+    SignalError
+        If the record is not finite or has no spread.
+    """
+    a = np.asarray(accel, dtype=np.float64)
+    if a.ndim != 1 or a.size < 32 or not np.all(np.isfinite(a)):
+        raise SignalError("a record must be a finite 1-D signal of at least 32 samples")
+    med = float(np.median(a))
+    scale = _MAD_TO_SIGMA * float(np.median(np.abs(a - med)))
+    if not scale > 0:
+        scale = float(np.std(a))
+    if not scale > 0:
+        raise SignalError("the record is constant")
+    return (a - med) / scale, scale
+
+
+def skew_polarity(z: np.ndarray) -> int:
+    """+1 when the spikes point up (positive skewness), -1 when down."""
+    return 1 if float(np.mean(z**3)) >= 0 else -1
+
+
+def lowpass(y: np.ndarray, cycles_per_sample: float) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth low-pass (unchanged when the corner is near Nyquist)."""
+    if not cycles_per_sample < 0.45:
+        return y
+    sos = sps.butter(4, 2 * cycles_per_sample, "lowpass", output="sos")
+    return sps.sosfiltfilt(sos, y)
+
+
+def spike_peaks(
+    y: np.ndarray, smooth: np.ndarray, period_samples: float, rise: float = SPIKE_RISE
+) -> np.ndarray:
+    """Extrema of the upward spikes of a canonical-polarity, robust-standardised record.
+
+    Detection runs on ``smooth``, the record low-passed at
+    :data:`DETECTION_LOWPASS` f_n (:func:`lowpass`): a spike is a peak of it
+    standing ``rise`` robust units above its upper quartile (free flight of a
+    sinusoid stays within about 0.3 of it), at least a quarter period from a
+    higher one; each is then moved to the maximum of the raw record ``y``
+    within +-5 % of a period. A level rule on a low-passed copy rather than
+    the derivative indicator of :func:`stiffnet.nlts.detect_impacts`: a
+    ringing sensor raises the derivative's threshold until real spikes fall
+    under it, and adds peaks of its own.
+    """
+    level = float(np.quantile(smooth, 0.75)) + rise
+    found, _ = sps.find_peaks(smooth, height=level, distance=max(1, int(0.25 * period_samples)))
+    if found.size == 0:
+        return found.astype(np.int64)
+    half = max(1, int(round(0.05 * period_samples)))
+    idx = np.clip(found[:, None] + np.arange(-half, half + 1)[None, :], 0, y.size - 1)
+    peaks = idx[np.arange(idx.shape[0]), np.argmax(y[idx], axis=1)]
+    return np.unique(peaks).astype(np.int64)
+
+
+def aligned_segments(
+    y: np.ndarray,
+    peaks: np.ndarray,
+    samples_per_natural_period: float,
+    before: float = WAVEFORM_BEFORE,
+    after: float = WAVEFORM_AFTER,
+    rate: int = WAVEFORM_RATE,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Segments of ``y`` around every peak, resampled onto a grid in natural periods.
+
+    Returns
+    -------
+    t : numpy.ndarray
+        Grid, natural periods from the extremum (``-before .. after``).
+    segments : numpy.ndarray
+        Shape ``(K, len(t))``; peaks too close to an end are left out.
+    """
+    t = np.arange(-int(before * rate), int(after * rate) + 1) / rate
+    n = y.size
+    pos = np.arange(n, dtype=np.float64)
+    segs = []
+    for p in peaks:
+        ts = p + t * samples_per_natural_period
+        if ts[0] < 0 or ts[-1] > n - 1:
+            continue
+        segs.append(np.interp(ts, pos, y))
+    return t, (np.array(segs) if segs else np.empty((0, t.size)))
+
+
+def spike_heights_widths(t: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Height above the pre-impact baseline and full width at half height of each spike.
+
+    The baseline is the median of the segment from 0.25 to 0.1 natural periods
+    before the extremum (free flight); widths are in natural periods.
+    """
+    if segments.shape[0] == 0:
+        return np.empty(0), np.empty(0)
+    pre = (t >= -0.25) & (t <= -0.1)
+    base = np.median(segments[:, pre], axis=1)
+    i0 = int(np.argmin(np.abs(t)))
+    height = segments[:, i0] - base
+    level = base + 0.5 * height
+    dt = t[1] - t[0]
+    widths = np.full(segments.shape[0], np.nan)
+    for k, seg in enumerate(segments):
+        if height[k] <= 0:
+            continue
+        below_l = np.flatnonzero(seg[:i0] <= level[k])
+        below_r = np.flatnonzero(seg[i0:] <= level[k])
+        left = i0 - below_l[-1] if below_l.size else i0
+        right = below_r[0] if below_r.size else seg.size - i0
+        widths[k] = (left + right) * dt
+    return height, widths
+
+
+def highpass(y: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
+    """Zero-phase 4th-order Butterworth high-pass (unchanged when the cutoff is near Nyquist)."""
+    if cutoff_hz >= 0.45 * fs_hz:
+        return np.zeros_like(y)
+    sos = sps.butter(4, cutoff_hz, "highpass", fs=fs_hz, output="sos")
+    return sps.sosfiltfilt(sos, y)
+
+
+def ringing_curves(
+    r: np.ndarray, peaks: np.ndarray, samples_per_natural_period: float, start: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-impact high-passed RMS after and before the spike.
+
+    After: from ``start`` to ``start + 0.25`` natural periods past the
+    extremum; before: the mirror window ``-start - 0.25 .. -start``.
+    """
+    p_n = samples_per_natural_period
+    a0, a1 = int(round(start * p_n)), int(round((start + 0.25) * p_n)) + 1
+    post, pre = [], []
+    for p in peaks:
+        if p - a1 < 0 or p + a1 > r.size:
+            continue
+        post.append(np.sqrt(np.mean(r[p + a0 : p + a1] ** 2)))
+        pre.append(np.sqrt(np.mean(r[p - a1 : p - a0] ** 2)))
+    return np.array(post), np.array(pre)
+
+
+def ringing_spectrum(
+    r: np.ndarray, peaks: np.ndarray, samples_per_natural_period: float, start: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean periodogram of the post-impact high-passed windows (frequency in cycles/sample)."""
+    p_n = samples_per_natural_period
+    a0, a1 = int(round(start * p_n)), int(round((start + 0.25) * p_n)) + 1
+    segs = [r[p + a0 : p + a1] for p in peaks if p + a1 <= r.size]
+    if not segs or a1 - a0 < 8:
+        return np.empty(0), np.empty(0)
+    nfft = 4 * (a1 - a0)
+    w = np.hanning(a1 - a0)
+    spec = np.mean([np.abs(np.fft.rfft(s * w, nfft)) ** 2 for s in segs], axis=0)
+    return np.fft.rfftfreq(nfft), spec
+
+
+def free_flight_mask(n: int, peaks: np.ndarray, half_width: int) -> np.ndarray:
+    """True away from the spikes (``+-half_width`` samples around every extremum)."""
+    mask = np.ones(n, dtype=bool)
+    for p in peaks:
+        mask[max(0, p - half_width) : p + half_width + 1] = False
+    return mask
+
+
+def harmonic_amplitudes(
+    y: np.ndarray, frequency_cycles_per_sample: float, mask: np.ndarray, n_harmonics: int
+) -> np.ndarray:
+    """Least-squares amplitudes of harmonics 1..N of a known frequency on the masked samples."""
+    t = np.flatnonzero(mask).astype(np.float64)
+    cols = [np.ones_like(t)]
+    for k in range(1, n_harmonics + 1):
+        ph = 2 * np.pi * k * frequency_cycles_per_sample * t
+        cols += [np.cos(ph), np.sin(ph)]
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), y[mask], rcond=None)
+    return np.hypot(coef[1::2], coef[2::2])
+
+
+def welch_log_psd(
+    y: np.ndarray, fs_hz: float, natural_frequency_hz: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Welch PSD averaged over bands of +-:data:`BAND_HALF_WIDTH` around a log grid of f / f_n.
+
+    Segments of :data:`WELCH_PERIODS` natural periods (Hann, half overlap); the
+    grid ends at ``min(SPECTRUM_HIGH, 0.45 fs / f_n)``. Band averages of the
+    power (not of its log) keep the harmonic lines and the floor between them
+    in proportion: a log PSD sampled between lines would measure only the
+    leakage of the window and the last traces of the transient.
+
+    Returns
+    -------
+    grid : numpy.ndarray
+        Band centres, f / f_n.
+    log_psd : numpy.ndarray
+        log10 of the band-mean PSD.
+    """
+    nper = int(min(y.size, max(16, round(WELCH_PERIODS * fs_hz / natural_frequency_hz))))
+    f, p = sps.welch(y, fs=fs_hz, nperseg=nper)
+    hi = min(SPECTRUM_HIGH, 0.45 * fs_hz / natural_frequency_hz)
+    grid = np.geomspace(SPECTRUM_LOW, hi, SPECTRUM_POINTS)
+    fr = f / natural_frequency_hz
+    lo_i = np.searchsorted(fr, grid / BAND_HALF_WIDTH, side="left")
+    hi_i = np.searchsorted(fr, grid * BAND_HALF_WIDTH, side="right")
+    csum = np.concatenate([[0.0], np.cumsum(p)])
+    count = hi_i - lo_i
+    mean = np.where(
+        count > 0, (csum[hi_i] - csum[lo_i]) / np.maximum(count, 1), np.interp(grid, fr, p)
+    )
+    return grid, np.log10(np.maximum(mean, 1e-30))
+
+
+# ---------------------------------------------------------------------------- rules
+
+
+def signal_statistics(
+    accel: ArrayLike,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    frequency_ratio: float | None = None,
+    inclination: bool = True,
+) -> SignalStatistics:
+    """All phase-independent statistics of one record (see the module notes).
+
+    Parameters
+    ----------
+    accel : array_like
+        The record (any gain and polarity), at least a few forcing periods long.
+    fs_hz : float
+        Sampling rate, Hz.
+    natural_frequency_hz : float
+        ``f_n`` of the oscillator (the time unit of every statistic).
+    frequency_ratio : float, optional
+        Forcing frequency over ``f_n``; default: from the dominant period.
+    inclination : bool, optional
+        Also run the geometric method for the inclination statistics (about
+        20 ms per 6,000 samples).
+
+    Returns
+    -------
+    SignalStatistics
+
+    Raises
+    ------
+    SignalError
+        If the record is too short or constant.
+    """
+    z, scale = robust_standardise(accel)
+    pol = skew_polarity(z)
+    y = pol * z
+    p_n = fs_hz / natural_frequency_hz
+    if frequency_ratio is None:
+        from stiffnet.geometry.estimate import dominant_period
+
+        frequency_ratio = p_n / dominant_period(y)
+    p_f = p_n / frequency_ratio
+    if y.size < 3 * p_f:
+        raise SignalError(f"record too short: {y.size} samples, under three forcing periods")
+
+    smooth = lowpass(y, DETECTION_LOWPASS / p_n)
+    peaks = spike_peaks(y, smooth, p_f)
+    t, segs = aligned_segments(y, peaks, p_n)
+    nan = float("nan")
+    heights, widths = spike_heights_widths(t, segs)
+    if segs.shape[0]:
+        waveform = segs.mean(axis=0)
+        height = float(np.median(heights))
+        width = float(np.nanmedian(widths)) if np.isfinite(widths).any() else nan
+    else:
+        waveform, t = np.empty(0), np.empty(0)
+        height = width = nan
+
+    ring = ring_f = nan
+    if peaks.size and np.isfinite(width):
+        r = highpass(y, fs_hz, RINGING_HIGHPASS * natural_frequency_hz)
+        start = max(0.05, 1.5 * width)
+        post, pre = ringing_curves(r, peaks, p_n, start)
+        if post.size and np.median(pre) > 0:
+            ring = float(np.log10(np.median(post) / np.median(pre)))
+        fr, spec = ringing_spectrum(r, peaks, p_n, start)
+        if spec.size:
+            ring_f = float(fr[int(np.argmax(spec))] * p_n)
+
+    half = int(round(max(0.05, 2 * width if np.isfinite(width) else 0.05) * p_n))
+    mask = free_flight_mask(y.size, peaks, half)
+    if mask.sum() < 2 * N_HARMONICS + 8:
+        mask[:] = True
+    # on the low-passed copy: a sensor's ringing leaks into a least-squares fit on raw samples
+    amps = harmonic_amplitudes(smooth, 1.0 / p_f, mask, N_HARMONICS)
+    harmonics = np.maximum(amps / max(amps[0], 1e-12), HARMONIC_FLOOR)
+    harmonics[0] = 1.0
+
+    psd_f, log_psd = welch_log_psd(z, fs_hz, natural_frequency_hz)
+    stats = SignalStatistics(
+        fs_hz=float(fs_hz),
+        natural_frequency_hz=float(natural_frequency_hz),
+        frequency_ratio=float(frequency_ratio),
+        scale=scale,
+        polarity=pol,
+        impacts=peaks,
+        waveform_t=t,
+        waveform=waveform,
+        spike_height=height,
+        spike_width=width,
+        ringing=ring,
+        ringing_frequency=ring_f,
+        harmonics=harmonics,
+        psd_f=psd_f,
+        log_psd=log_psd,
+        impacts_per_period=float(peaks.size / (y.size / p_f)),
+    )
+    if inclination and peaks.size:
+        from stiffnet.features.inclination import features_and_estimate
+
+        _, est = features_and_estimate(accel, fs_hz, natural_frequency_hz)
+        if est is not None and est.contact_detected:
+            stats.inclination_before_deg = float(est.inclination_before_deg)
+            stats.inclination_after_deg = float(est.inclination_after_deg)
+            stats.extra["geometric_beta"] = est.geometric_beta
+    return stats
