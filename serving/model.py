@@ -45,11 +45,27 @@ def card_path(model_path: Path) -> Path:
     return model_path.with_suffix(".card.json")
 
 
-def _decode(value: str) -> Any:
+#: Metadata values the exporters store as plain strings. Decoding them as JSON would turn
+#: a hash made only of digits into a number, so they are never decoded.
+STRING_KEYS = frozenset(
+    {"model_kind", "input_name", "normalisation", "beta_transform", "training_data_sha256"}
+)
+
+
+def onnx_metadata(sess: Any) -> dict[str, Any]:
+    """An ONNX Runtime session's custom metadata, JSON values decoded (see :data:`STRING_KEYS`)."""
+    items = sess.get_modelmeta().custom_metadata_map.items()
+    return {k: decode_metadata_value(k, v) for k, v in items}
+
+
+def decode_metadata_value(key: str, value: str) -> Any:
+    """One metadata value: JSON-decoded, except the plain strings of :data:`STRING_KEYS`."""
+    if key in STRING_KEYS:
+        return value
     try:
         return json.loads(value)
     except ValueError:
-        return value  # plain string values are stored unencoded
+        return value  # other plain string values are stored unencoded too
 
 
 @dataclass
@@ -149,7 +165,7 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise StiffnetError(f"{p}: not a loadable ONNX model ({first[:200]})") from None
     meta = dict(card.get("metadata") or {})
-    meta.update({k: _decode(v) for k, v in sess.get_modelmeta().custom_metadata_map.items()})
+    meta.update(onnx_metadata(sess))
     kind_input = KINDS.get(str(meta.get("model_kind")))
     if kind_input is None:
         raise StiffnetError(

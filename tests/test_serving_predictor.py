@@ -341,3 +341,12 @@ def test_parity_on_example_windows(cnn, example):
             list(r["probabilities"].values()), ref["probabilities"][i], atol=1e-6
         )
         assert r["beta"] == pytest.approx(ref["beta"][i], rel=1e-5)
+
+
+def test_metadata_hash_of_digits_stays_a_string():
+    # a training-data hash made only of digits must not decode to a number
+    from serving.model import decode_metadata_value
+
+    assert decode_metadata_value("training_data_sha256", "1234") == "1234"
+    assert decode_metadata_value("window_length", "512") == 512
+    assert decode_metadata_value("class_names", '["a", "b"]') == ["a", "b"]
