@@ -111,7 +111,11 @@ def test_windows_module_imports_no_heavy_libraries():
 def test_cnn_yaml_restates_defaults():
     cfg = load_config(TrainConfig, "configs/train/cnn.yaml")
     assert cfg.model == "cnn" and cfg.cnn == CNNConfig()
-    assert cfg.model_copy(update={"model": "gbm", "experiment": "stiffnet-gbm"}) == TrainConfig()
+    # the held-out fractions are the one deliberate change (models/README.md: 4,000 trajectories)
+    assert (cfg.test_fraction, cfg.calibration_fraction) == (0.1, 0.1)
+    restated = {"model": "gbm", "experiment": "stiffnet-gbm", "test_fraction": 0.2,
+                "calibration_fraction": 0.2}  # fmt: skip
+    assert cfg.model_copy(update=restated) == TrainConfig()
     with pytest.raises(ConfigError, match="width"):
         validate_config(TrainConfig, {"model": "cnn", "cnn": {"width": 0}})
 

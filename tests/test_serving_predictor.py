@@ -22,7 +22,6 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "recordings"
 EXAMPLE_FILES = sorted(EXAMPLES.glob("impact_*.csv"))
 EXAMPLE = EXAMPLES / "impact_beta45.csv"
-DATA = ROOT / "data" / "default"
 
 
 @pytest.fixture(scope="module")
@@ -41,13 +40,20 @@ def example():
 
 
 @pytest.fixture(scope="module")
-def dataset_windows():
-    """Eight windows of the training dataset (first shard), two per stiffness class if possible."""
-    pq = pytest.importorskip("pyarrow.parquet")
-    shards = sorted((DATA / "shards").glob("*.parquet"))
-    if not shards:
-        pytest.skip("data/default is not generated")
-    t = pq.read_table(shards[0]).slice(0, 8)
+def dataset_windows(tmp_path_factory):
+    """Eight windows simulated by the training data's generator on the default domain."""
+    import pyarrow.parquet as pq
+
+    from stiffnet.config import load_yaml, validate_config
+    from stiffnet.config.sim import SimulationConfig
+    from stiffnet.dataset.generate import generate_dataset
+
+    data = load_yaml(ROOT / "configs" / "sim" / "default.yaml")
+    data.update(seed=11, n_trajectories=4, shard_size=4)
+    data["windows"]["per_trajectory"] = 2
+    out = tmp_path_factory.mktemp("serving") / "ds"
+    generate_dataset(validate_config(SimulationConfig, data), out)
+    t = pq.read_table(sorted((out / "shards").glob("*.parquet"))[0])
     return (
         [np.asarray(a, dtype=np.float64) for a in t.column("accel").to_pylist()],
         t.column("fs_hz").to_numpy(),
