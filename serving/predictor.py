@@ -223,10 +223,13 @@ class Predictor:
         return cls(model, ood)
 
     def _training_fn(self) -> tuple[float | None, str]:
-        """Natural frequency of the training data: metadata, OOD reference, or data card."""
+        """Training data f_n: from the metadata, model card, OOD reference or data card."""
         v = self.metadata.get("natural_frequency_hz")
         if isinstance(v, int | float) and v > 0:
             return float(v), "model metadata"
+        v = (self.model.card.get("data") or {}).get("natural_frequency_hz")
+        if isinstance(v, int | float) and not isinstance(v, bool) and v > 0:
+            return float(v), "model card (training data)"
         sha = self.metadata.get("training_data_sha256")
         if self.ood is not None and self.ood.info.get("natural_frequency_hz"):
             if not sha or self.ood.info.get("training_data_sha256") == sha:

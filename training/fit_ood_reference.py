@@ -12,7 +12,7 @@ the fallback natural frequency and for range warnings.
 
 Run (about a minute on one core for the 8,000 default windows)::
 
-    OMP_NUM_THREADS=1 python training/fit_ood_reference.py data/default models/ood_reference.json
+    OMP_NUM_THREADS=1 python training/fit_ood_reference.py data/train4k models/ood_reference.json
 """
 
 from __future__ import annotations

@@ -131,11 +131,15 @@ def _geometric_baseline(accel, fs_hz, label, beta, noise, names, config, metrics
 
 def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
     keys = ("n_trajectories", "seed", "class_balance", "code_version")
+    sweep = (ds.card.get("config") or {}).get("sweep") or {}
     return {
         "path": str(data_dir),
         "card_sha256": card_sha,
         "n_windows": len(ds),
         **{k: ds.card.get(k) for k in keys},
+        # the rig's f_n in the training data: the predictor's default when a recording
+        # comes without one (a number, or the [lo, hi] range it was drawn from)
+        "natural_frequency_hz": sweep.get("natural_frequency_hz"),
     }
 
 
