@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import io
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,56 @@ def _save(fig: Any, path: str | Path) -> Path:
     return Path(path)
 
 
+def _recording_panels(
+    names: Sequence[str],
+    measured: Sequence[SignalStatistics],
+    simulated: Sequence[SignalStatistics | None],
+    draw: Callable[[Any, SignalStatistics, SignalStatistics | None], None],
+    xlabel: str,
+    ylabel: str,
+    path: str | Path,
+    max_panels: int,
+) -> Path:
+    """One panel per recording (at most ``max_panels``, 4 per row) drawn by ``draw``."""
+    plt = _plt()
+    n = min(len(names), max_panels)
+    cols = min(4, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
+    for k, ax in enumerate(axes.flat):
+        if k >= n:
+            ax.axis("off")
+            continue
+        draw(ax, measured[k], simulated[k])
+        ax.set_title(names[k], fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k == 0:
+            ax.legend(fontsize=6)
+    fig.supxlabel(xlabel, fontsize=8)
+    fig.supylabel(ylabel, fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def _draw_waveform(ax: Any, m: SignalStatistics, s: SignalStatistics | None) -> None:
+    if m.waveform.size:
+        ax.plot(m.waveform_t, m.waveform, color="k", lw=1.2, label="measured")
+    if s is not None and s.waveform.size:
+        ax.plot(s.waveform_t, s.waveform, color="tab:orange", lw=1, label="simulated")
+        if m.waveform.size:
+            ax.plot(m.waveform_t, s.waveform - m.waveform, color="tab:red", lw=0.8, ls=":",
+                    label="residual")  # fmt: skip
+
+
+def _draw_spectrum(ax: Any, m: SignalStatistics, s: SignalStatistics | None) -> None:
+    ax.semilogx(m.psd_f, m.log_psd, color="k", lw=1.2, label="measured")
+    if s is not None:
+        ax.semilogx(s.psd_f, s.log_psd, color="tab:orange", lw=1, label="simulated")
+        # the residual, offset below the curves so it does not cross them
+        ax.semilogx(m.psd_f, s.log_psd - m.log_psd + m.log_psd.min() - 1, color="tab:red",
+                    lw=0.8, ls=":", label="residual (offset)")  # fmt: skip
+
+
 def waveform_figure(
     names: Sequence[str],
     measured: Sequence[SignalStatistics],
@@ -38,38 +88,9 @@ def waveform_figure(
     max_panels: int = 8,
 ) -> Path:
     """Measured vs simulated impact-aligned mean waveform per recording, with the residual."""
-    plt = _plt()
-    n = min(len(names), max_panels)
-    cols = min(4, n)
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
-    for k in range(rows * cols):
-        ax = axes.flat[k]
-        if k >= n:
-            ax.axis("off")
-            continue
-        m, s = measured[k], simulated[k]
-        if m.waveform.size:
-            ax.plot(m.waveform_t, m.waveform, color="k", lw=1.2, label="measured")
-        if s is not None and s.waveform.size:
-            ax.plot(s.waveform_t, s.waveform, color="tab:orange", lw=1, label="simulated")
-            if m.waveform.size:
-                ax.plot(
-                    m.waveform_t,
-                    s.waveform - m.waveform,
-                    color="tab:red",
-                    lw=0.8,
-                    ls=":",
-                    label="residual",
-                )
-        ax.set_title(names[k], fontsize=8)
-        ax.tick_params(labelsize=7)
-        if k == 0:
-            ax.legend(fontsize=6)
-    fig.supxlabel("time from spike extremum (natural periods)", fontsize=8)
-    fig.supylabel("accel (robust units, spikes up)", fontsize=8)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _recording_panels(names, measured, simulated, _draw_waveform,
+                             "time from spike extremum (natural periods)",
+                             "accel (robust units, spikes up)", path, max_panels)  # fmt: skip
 
 
 def spectrum_figure(
@@ -80,36 +101,8 @@ def spectrum_figure(
     max_panels: int = 8,
 ) -> Path:
     """Measured vs simulated band-averaged log PSD per recording, with the residual."""
-    plt = _plt()
-    n = min(len(names), max_panels)
-    cols = min(4, n)
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
-    for k in range(rows * cols):
-        ax = axes.flat[k]
-        if k >= n:
-            ax.axis("off")
-            continue
-        m, s = measured[k], simulated[k]
-        ax.semilogx(m.psd_f, m.log_psd, color="k", lw=1.2, label="measured")
-        if s is not None:
-            ax.semilogx(s.psd_f, s.log_psd, color="tab:orange", lw=1, label="simulated")
-            ax.semilogx(
-                m.psd_f,
-                s.log_psd - m.log_psd + m.log_psd.min() - 1,
-                color="tab:red",
-                lw=0.8,
-                ls=":",
-                label="residual (offset)",
-            )
-        ax.set_title(names[k], fontsize=8)
-        ax.tick_params(labelsize=7)
-        if k == 0:
-            ax.legend(fontsize=6)
-    fig.supxlabel("f / f_n", fontsize=8)
-    fig.supylabel("log10 PSD", fontsize=8)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _recording_panels(names, measured, simulated, _draw_spectrum, "f / f_n",
+                             "log10 PSD", path, max_panels)  # fmt: skip
 
 
 def components_figure(result: dict[str, Any], path: str | Path) -> Path:
