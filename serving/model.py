@@ -24,20 +24,16 @@ from typing import Any
 
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import sha256_file
+from stiffnet.shipped import shipped_file
 
 #: Model kinds this predictor serves: ``model_kind`` metadata -> (kind, input name).
 KINDS = {"stiffnet.cnn": ("cnn", "windows"), "stiffnet.gbm": ("gbm", "features")}
-#: Repository ``models/`` folder (editable install / source checkout).
-PACKAGE_MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 DEFAULT_MODEL_FILE = "cnn.onnx"
 
 
 def default_model_path() -> Path:
     """``models/cnn.onnx`` of the repository, else of the current folder."""
-    for folder in (PACKAGE_MODELS_DIR, Path.cwd() / "models"):
-        if (folder / DEFAULT_MODEL_FILE).is_file():
-            return folder / DEFAULT_MODEL_FILE
-    return PACKAGE_MODELS_DIR / DEFAULT_MODEL_FILE
+    return shipped_file(DEFAULT_MODEL_FILE)
 
 
 def card_path(model_path: Path) -> Path:

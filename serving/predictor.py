@@ -49,11 +49,12 @@ from typing import Any
 
 import numpy as np
 
-from serving.model import PACKAGE_MODELS_DIR, LoadedModel, load_model
+from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
 from serving.schemas import PredictionResult
 from serving.windows import canonical_tensor, window_length, window_starts
 from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 
 #: Minimum sampling rate in samples per natural period: the training data's lowest rate.
 MIN_SAMPLES_PER_PERIOD = 50.0
@@ -159,13 +160,13 @@ class Predictor:
         segment_windows: int = SEGMENT_WINDOWS,
         geometric_windows: int = GEOMETRIC_WINDOWS,
     ) -> None:
-        from stiffnet.geometry.calibration import DEFAULT_CALIBRATION_PATH, load_calibration
+        from stiffnet.geometry.calibration import load_calibration
 
         self.model = model
         self.ood = ood
         self.segment_windows = max(1, int(segment_windows))
         self.geometric_windows = max(1, int(geometric_windows))
-        self.calibration = load_calibration(DEFAULT_CALIBRATION_PATH)
+        self.calibration = load_calibration()
         self.name, self.sha256, self.kind = model.name, model.sha256, model.kind
         self.metadata = model.metadata
         self.class_names = model.class_names
@@ -216,9 +217,9 @@ class Predictor:
             ood = load_reference(ood_reference)
         else:
             ood = None
-            for folder in (model.path.parent, PACKAGE_MODELS_DIR):
-                if (folder / OOD_REFERENCE_FILE).is_file():
-                    ood = load_reference(folder / OOD_REFERENCE_FILE)
+            for path in (model.path.parent / OOD_REFERENCE_FILE, shipped_file(OOD_REFERENCE_FILE)):
+                if path.is_file():
+                    ood = load_reference(path)
                     break
         return cls(model, ood)
 
@@ -236,7 +237,7 @@ class Predictor:
                 return float(self.ood.info["natural_frequency_hz"]), "OOD reference"
         rel = (self.model.card.get("data") or {}).get("path")
         if rel:
-            for base in (PACKAGE_MODELS_DIR.parent, Path.cwd()):
+            for base in (REPO_MODELS_DIR.parent, Path.cwd()):
                 card = base / rel / "card.json"
                 if card.is_file():
                     try:

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike
 
 from stiffnet.errors import ConfigError
 from stiffnet.geometry.inclination import check_method
+from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 
 #: Stiffness classes (name, lowest beta, highest beta); the last is closed on the right.
 DEFAULT_CLASSES: tuple[tuple[str, float, float], ...] = (
@@ -49,10 +50,10 @@ DEFAULT_CLASSES: tuple[tuple[str, float, float], ...] = (
 NO_CONTACT = "no_contact"
 FORMAT = "stiffnet.geometric_calibration"
 VERSION = 1
-#: The shipped calibration (repository ``models/``).
-DEFAULT_CALIBRATION_PATH = (
-    Path(__file__).resolve().parents[2] / "models" / "geometric_calibration.json"
-)
+#: File name of the shipped calibration in ``models/``.
+CALIBRATION_FILE = "geometric_calibration.json"
+#: The shipped calibration of the source checkout (where the fitting script writes it).
+DEFAULT_CALIBRATION_PATH = REPO_MODELS_DIR / CALIBRATION_FILE
 
 # Angles are clipped into (0, 90) before tan(): 1e-3 deg from either end.
 _ANGLE_EPS = 1e-3
@@ -322,15 +323,16 @@ def save_calibration(cal: GeometricCalibration, path: str | Path) -> Path:
     return path
 
 
-def load_calibration(path: str | Path = DEFAULT_CALIBRATION_PATH) -> GeometricCalibration:
-    """Read a calibration written by :func:`save_calibration`.
+def load_calibration(path: str | Path | None = None) -> GeometricCalibration:
+    """Read a calibration written by :func:`save_calibration` (default: the shipped one,
+    :func:`stiffnet.shipped.shipped_file`).
 
     Raises
     ------
     ConfigError
         If the file is missing, not a stiffnet calibration, or of a newer version.
     """
-    path = Path(path)
+    path = shipped_file(CALIBRATION_FILE) if path is None else Path(path)
     try:
         d = json.loads(path.read_text())
     except FileNotFoundError:

@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import (
-    DEFAULT_CALIBRATION_PATH,
+    CALIBRATION_FILE,
     NO_CONTACT,
     GeometricCalibration,
     load_calibration,
@@ -69,6 +69,7 @@ from stiffnet.nlts import (
 )
 from stiffnet.nlts._validate import as_signal
 from stiffnet.nlts.embedding import embed_unchecked
+from stiffnet.shipped import shipped_file
 
 #: Delay as a fraction of the dominant period (see the module notes).
 DELAY_FRACTION = 0.18
@@ -258,7 +259,7 @@ def _resolve_calibration(
 ) -> GeometricCalibration | None:
     if calibration is None or isinstance(calibration, GeometricCalibration):
         return calibration
-    path = DEFAULT_CALIBRATION_PATH if calibration == "default" else Path(calibration)
+    path = shipped_file(CALIBRATION_FILE) if calibration == "default" else Path(calibration)
     path = path.resolve()
     if path not in _CALIBRATION_CACHE:
         _CALIBRATION_CACHE[path] = load_calibration(path)
