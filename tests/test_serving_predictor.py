@@ -48,7 +48,7 @@ def dataset_windows(tmp_path_factory):
     from stiffnet.config.sim import SimulationConfig
     from stiffnet.dataset.generate import generate_dataset
 
-    data = load_yaml(ROOT / "configs" / "sim" / "default.yaml")
+    data = load_yaml(ROOT / "configs" / "sim" / "ideal.yaml")
     data.update(seed=11, n_trajectories=4, shard_size=4)
     data["windows"]["per_trajectory"] = 2
     out = tmp_path_factory.mktemp("serving") / "ds"

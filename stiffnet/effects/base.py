@@ -92,6 +92,11 @@ class Effect:
     name: ClassVar[str] = ""
     kind: ClassVar[str] = ""
     Params: ClassVar[type[EffectParams]] = EffectParams
+    #: The effect's prior in the randomised training world (``configs/sim/default.yaml``,
+    #: docs/priors.md): ``probability`` that a rig has it, ``params`` ranges and
+    #: ``relative`` frequency draws (see :class:`stiffnet.config.sim.EffectSpec`);
+    #: None when training rigs never have it.
+    prior: ClassVar[dict[str, Any] | None] = None
 
     def __init__(self, **params: Any) -> None:
         try:
@@ -181,6 +186,13 @@ class DynamicsEffect(Effect):
     """
 
     kind = "dynamics"
+
+    neutral: ClassVar[dict[str, float] | None] = None
+    """Parameter values at which the effect does nothing (e.g. zero contact damping).
+
+    Declared by effects that can be switched off row by row inside one batch (a
+    randomised dataset where only some rigs have the effect); an effect without
+    them is simulated separately for the rows that lack it."""
 
     # ---- closed-form hooks (also used by the numerical integrator) ----
     def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids | None:

@@ -9,6 +9,8 @@ the Americas) sits in a narrow band. This effect adds both, scaled the same way.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from stiffnet.effects.base import (
@@ -117,6 +119,17 @@ class ColoredNoise(MeasurementEffect):
     """
 
     name = "colored_noise"
+    #: Training-world prior (docs/priors.md): 1/f noise and mains pick-up.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.4,
+        "params": {
+            "pink_level": [0.0, 0.03],
+            "pink_exponent": [0.5, 1.5],
+            "narrowband_level": [0.0, 0.02],
+            "narrowband_hz": [45.0, 65.0],
+            "narrowband_width_hz": [0.2, 2.0],
+        },
+    }
     order = 30
 
     class Params(EffectParams):

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -29,6 +29,9 @@ class ContactDamping(DynamicsEffect):
     """
 
     name = "contact_damping"
+    neutral = {"damping_ratio": 0.0}
+    #: Training-world prior (docs/priors.md): restitution from 1 down to ~0.2.
+    prior: ClassVar[dict | None] = {"probability": 0.85, "params": {"damping_ratio": [0.0, 0.5]}}
 
     class Params(EffectParams):
         damping_ratio: ParamValue = param(

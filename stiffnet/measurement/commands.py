@@ -15,12 +15,14 @@ import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
 
-DEFAULT_SIM_CONFIG = Path("configs/sim/default.yaml")
+DEFAULT_SIM_CONFIG = Path("configs/sim/ideal.yaml")
 
 CampaignArg = Annotated[Path, typer.Argument(help="Campaign folder (or its manifest.csv).")]
 ConfigOpt = Annotated[
     Path | None,
-    typer.Option("--config", help="Simulator config (YAML); default configs/sim/default.yaml."),
+    typer.Option(
+        "--config", help="Simulator config (YAML); default configs/sim/ideal.yaml (the base model)."
+    ),
 ]
 SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the simulations.")]
 

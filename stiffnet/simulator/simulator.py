@@ -118,6 +118,7 @@ class Simulator:
         x0: np.ndarray | None = None,
         v0: np.ndarray | None = None,
         effect_params: dict[str, ParamArrays] | None = None,
+        active: dict[str, np.ndarray] | None = None,
     ) -> SimulationResult:
         """Simulate ``n_samples`` of each parameter set after its transient.
 
@@ -129,6 +130,9 @@ class Simulator:
             noise and measurement effects.
         x0, v0 : initial state; default uniform in ``[-a, a]`` and ``[-a w, a w]``.
         effect_params : per-trajectory parameters by effect name, to override draws.
+        active : per-trajectory booleans by effect name: rows where the effect is off are
+            simulated without it (a dynamics effect through its ``neutral`` parameters, a
+            measurement effect by skipping those rows). Default: on everywhere.
         """
         b = len(batch)
         if n_samples < 1:
@@ -149,6 +153,7 @@ class Simulator:
             if name not in params:
                 raise ConfigError(f"parameters given for effect {name!r} that is not enabled")
             params[name].update({k: np.asarray(v, float) for k, v in given.items()})
+        masks = self._activity(active, params, b)
 
         h = 2 * np.pi / fs_ratio
         t_tr = self.transient_time(batch)
@@ -170,7 +175,7 @@ class Simulator:
                 batch, self.dynamics, [params[e.name] for e in self.dynamics],
                 x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
             )  # fmt: skip
-        measured = self._measure(out["accel"], batch, fs_ratio, noise, params, rng)
+        measured = self._measure(out["accel"], batch, fs_ratio, noise, params, rng, masks)
         return SimulationResult(
             batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out["accel"],
             x=out["x"], v=out["v"], contact_force=out["contact_force"], impacts=out["impacts"],
@@ -195,7 +200,31 @@ class Simulator:
                 damping = damping + c
         return LinearModel(batch, forcing, gap, damping)
 
-    def _measure(self, accel, batch, fs_ratio, noise, params, rng) -> np.ndarray:
+    def _activity(
+        self, active: dict[str, np.ndarray] | None, params: dict[str, ParamArrays], b: int
+    ) -> dict[str, np.ndarray]:
+        """Check the per-row masks; switch dynamics effects off through their neutral values."""
+        masks: dict[str, np.ndarray] = {}
+        for name, mask in (active or {}).items():
+            eff = next((e for e in self.effects if e.name == name), None)
+            if eff is None:
+                raise ConfigError(f"activity given for effect {name!r} that is not enabled")
+            mask = np.broadcast_to(np.asarray(mask, dtype=bool), (b,))
+            if mask.all():
+                continue
+            if isinstance(eff, DynamicsEffect):
+                if eff.neutral is None:
+                    raise ConfigError(
+                        f"effect {name} declares no neutral parameters, so it cannot be off "
+                        "for some rows of a batch: simulate those rows without it"
+                    )
+                p = params[name]
+                for key, value in eff.neutral.items():
+                    p[key] = np.where(mask, np.broadcast_to(p[key], (b,)), value)
+            masks[name] = mask
+        return masks
+
+    def _measure(self, accel, batch, fs_ratio, noise, params, rng, masks=None) -> np.ndarray:
         """The measurement chain, in physical order, with the baseline white noise."""
         fs_hz = fs_ratio * batch.natural_frequency_hz
         context = {
@@ -208,7 +237,15 @@ class Simulator:
             if not white_done and eff.order > _WHITE_NOISE_ORDER:
                 signal = self._white(signal, batch, noise, rng)
                 white_done = True
-            signal = eff.apply(signal, fs_hz, {**params[eff.name], **context}, rng)
+            p = {**params[eff.name], **context}
+            mask = (masks or {}).get(eff.name)
+            if mask is None:
+                signal = eff.apply(signal, fs_hz, p, rng)
+            elif mask.any():  # the effect acts on its rows only
+                rows = np.flatnonzero(mask)
+                sub = {k: np.broadcast_to(v, (len(mask),))[rows] for k, v in p.items()}
+                signal = np.array(signal, dtype=np.float64, copy=True)
+                signal[rows] = eff.apply(signal[rows], fs_hz[rows], sub, rng)
         if not white_done:
             signal = self._white(signal, batch, noise, rng)
         return signal
