@@ -140,7 +140,12 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert meta["training_data_sha256"] == sha256_file(tiny_dir / "card.json")
     assert float(meta["conformal_quantile"]) == pytest.approx(summary["conformal_quantile"])
     assert [i.name for i in m.graph.input] == ["windows"]
-    assert [o.name for o in m.graph.output] == ["probabilities", "log_beta"]
+    assert [o.name for o in m.graph.output] == [
+        "probabilities",
+        "log_beta",
+        "log_beta_scale",
+        "embedding",
+    ]
     metrics = summary["metrics"]
     for prefix in ("cnn", "geometric"):
         assert 0.0 <= metrics[f"{prefix}/accuracy"] <= 1.0

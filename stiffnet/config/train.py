@@ -81,6 +81,12 @@ class TrainConfig(_Strict):
         0.2, gt=0.0, lt=0.9, description="trajectories held out for conformal calibration"
     )
     coverage: float = Field(0.9, gt=0.0, lt=1.0, description="target beta interval coverage")
+    alarm_false_alarm: float = Field(
+        0.04,
+        gt=0.0,
+        lt=0.5,
+        description="fraction of in-distribution (calibration) recordings the alarm may flag",
+    )
     use_natural_frequency: bool = Field(
         True, description="feature period_natural needs f_n at prediction time"
     )
