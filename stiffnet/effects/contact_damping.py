@@ -30,7 +30,7 @@ class ContactDamping(DynamicsEffect):
 
     name = "contact_damping"
     neutral = {"damping_ratio": 0.0}
-    #: Training-world prior (docs/priors.md): restitution from 1 down to ~0.2.
+    #: Training-world prior (docs/priors.md): restitution from 1 down to ~0.3.
     prior: ClassVar[dict | None] = {"probability": 0.85, "params": {"damping_ratio": [0.0, 0.5]}}
 
     class Params(EffectParams):

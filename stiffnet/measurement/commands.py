@@ -63,10 +63,11 @@ def _metrics_table(title: str, metrics: dict[str, Any]) -> Any:
     from rich.table import Table
 
     table = Table(title=title)
-    for col in ("method", "n", "accuracy", "macro-F1", "beta MAPE"):
+    keys = ("n", "accuracy", "macro_f1", "beta_mape", "interval_coverage", "alarm_rate")
+    for col in ("method", "n", "accuracy", "macro-F1", "beta MAPE", "interval coverage", "alarms"):
         table.add_column(col)
     for method, m in metrics.items():
-        vals = [m.get(k) for k in ("n", "accuracy", "macro_f1", "beta_mape")]
+        vals = [m.get(k) for k in keys]
         table.add_row(method, *("–" if v is None else f"{v:.3g}" for v in vals))
     return table
 
@@ -89,6 +90,15 @@ def evaluate(
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
     out.print(f"worst recordings: {worst}")
+    flagged = [r for r in res["recordings"] if r["ood"]]
+    if flagged:
+        out.print(
+            f"alarm: {len(flagged)} of {len(res['recordings'])} recordings are unreliable "
+            "(" + ", ".join(f"{r['recording']}: {'+'.join(r['ood_checks'])}" for r in flagged[:5])
+            + (", ..." if len(flagged) > 5 else "") + ")"
+        )  # fmt: skip
+    else:
+        out.print("alarm: no recording flagged as unreliable")
     write_json(json_path, res)
 
 
