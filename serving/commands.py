@@ -84,8 +84,17 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
-    ood = f"{_num(result['ood_score'])} (threshold {_num(result['ood_threshold'])})"
-    t.add_row("OOD score", ood + ("  [red]FLAGGED[/]" if result["ood_flag"] else ""), "")
+    alarm = result.get("alarm")
+    if alarm is not None:
+        verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (
+            "[green]none[/]")  # fmt: skip
+        t.add_row("alarm", verdict, "")
+        scores = ", ".join(
+            f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
+            for k, v in alarm["scores"].items()
+            if k in alarm["thresholds"]
+        )
+        t.add_row("alarm checks (score/threshold)", scores, "")
     t.add_row("windows", f"{result['n_windows']} x {result['window_s']:.3g} s", "")
     t.add_row(
         "natural frequency",

@@ -144,6 +144,7 @@ ALARM_WORDS = {
     "ambiguity": "the model cannot decide between classes",
     "beta_uncertainty": "the beta estimate is uncertain (the windows disagree or the model "
     "expects a large error)",
+    "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
     "features": "the recording's inclination features are unlike the training data",
 }
 
@@ -496,7 +497,8 @@ class Predictor:
         feat = None
         if self.ood is not None and len(feats) and "features" in self.alarm.thresholds:
             feat = float(np.median(self.ood.scores(feats)))
-        result = self.alarm.evaluate(recording_checks(est, emb, feat))
+        edges = self.alarm.info.get("class_edges")
+        result = self.alarm.evaluate(recording_checks(est, emb, feat, edges))
         result["scores"] = {k: v for k, v in result["scores"].items() if v is not None}
         result["message"] = alarm_message(result["fired"])
         return result

@@ -79,7 +79,8 @@ def trajectory_table(
         rows["pred"].append(est.label)
         rows["lb"].append(np.nan if est.log_beta is None else est.log_beta)
         rows["scale"].append(np.nan if est.scale is None else est.scale)
-        c = recording_checks(est, None if emb_scores is None else emb_scores[w])
+        edges = (alarm.info.get("class_edges") if alarm is not None else None) or None
+        c = recording_checks(est, None if emb_scores is None else emb_scores[w], None, edges)
         for k, v in c.items():
             checks.setdefault(k, []).append(np.nan if v is None else float(v))
     return TrajectoryTable(

@@ -133,6 +133,13 @@ def _geometric_baseline(accel, fs_hz, label, beta, noise, names, config, metrics
     return g_pred, time.perf_counter() - t
 
 
+def _alarm_info(ds: Any, card_sha: str) -> dict[str, Any]:
+    """Provenance of the alarm, and the class edges its class-edge check needs."""
+    classes = (ds.card.get("config") or {}).get("classes") or []
+    edges = [c["beta"][0] for c in classes] + ([classes[-1]["beta"][1]] if classes else [])
+    return {"training_data_sha256": card_sha, "class_edges": edges}
+
+
 def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
     keys = ("n_trajectories", "seed", "class_balance", "code_version")
     sweep = (ds.card.get("config") or {}).get("sweep") or {}
@@ -256,7 +263,7 @@ def train(
     outputs = {"probabilities": clf.predict_proba(X), "log_beta": reg.predict(X)}
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
-        config.alarm_false_alarm, config.seed, {"training_data_sha256": card_sha},
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
     )  # fmt: skip
     say(f"per-trajectory conformal quantile {q_rec:.3f}; test trajectories: "
         + ", ".join(f"{k} {v:.3f}" for k, v in m_rec.items()))  # fmt: skip
@@ -419,7 +426,7 @@ def train_cnn(
     say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
-        config.alarm_false_alarm, config.seed, {"training_data_sha256": card_sha},
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
     )  # fmt: skip
     say(
         f"per-trajectory conformal quantile {q_rec:.3f} (normalised); alarm thresholds "

@@ -15,6 +15,10 @@ not look at those features. The checks here look at the model itself:
 ``beta_uncertainty``
     the scale of the recording's log-beta error (:mod:`~stiffnet.uncertainty.aggregate`):
     the model's own error estimate plus the disagreement between windows.
+``class_edge``
+    how close the beta estimate sits to a class edge, in units of its own error
+    scale (``scale / |log beta - log edge|`` for the nearest interior edge): the
+    class is a coin toss there, which is where an in-distribution model errs.
 
 Each check has a threshold; a recording is flagged when any check exceeds
 its threshold, and the result says which fired. The thresholds come from
@@ -45,7 +49,7 @@ K_NEIGHBOURS = 10
 #: Default fraction of in-distribution recordings the alarm may flag.
 TARGET_FALSE_ALARM = 0.04
 #: Order in which the checks are reported.
-CHECKS = ("embedding", "ambiguity", "beta_uncertainty", "features")
+CHECKS = ("embedding", "ambiguity", "beta_uncertainty", "class_edge", "features")
 
 
 @dataclass
@@ -108,6 +112,7 @@ def recording_checks(
     estimate: Any,
     embedding_scores: np.ndarray | None = None,
     feature_score: float | None = None,
+    class_edges: list[float] | None = None,
 ) -> dict[str, float | None]:
     """The check scores of one recording.
 
@@ -119,11 +124,19 @@ def recording_checks(
         Per-window embedding distances (:meth:`AlarmReference.embedding_scores`).
     feature_score : float, optional
         The inclination-feature OOD score (models without an embedding).
+    class_edges : list of float, optional
+        Beta edges of the classes, ``[lo, e1, ..., hi]``; the interior ones are used.
     """
+    edge = None
+    interior = list(class_edges or [])[1:-1]
+    if interior and estimate.log_beta is not None and estimate.scale is not None:
+        dist = float(np.min(np.abs(estimate.log_beta - np.log(interior))))
+        edge = estimate.scale / max(dist, 1e-9)
     return {
         "embedding": None if embedding_scores is None else float(np.median(embedding_scores)),
         "ambiguity": float(1.0 - np.max(estimate.probabilities)),
         "beta_uncertainty": estimate.scale,
+        "class_edge": edge,
         "features": feature_score,
     }
 
