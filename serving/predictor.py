@@ -225,8 +225,9 @@ class Predictor:
         threads : int, optional
             ONNX Runtime intra-op threads.
         ood_reference : str or Path, optional
-            OOD reference JSON; default ``ood_reference.json`` beside the model,
-            else in the repository's ``models/`` (no OOD score without one).
+            Inclination-feature OOD reference JSON, for models without their own
+            alarm reference; default ``ood_reference.json`` beside the model, else in
+            the repository's ``models/`` (no alarm without one).
 
         Raises
         ------
@@ -237,6 +238,8 @@ class Predictor:
         alarm = _load_model_alarm(model)
         if ood_reference is not None:
             ood = load_reference(ood_reference)
+        elif alarm is not None:
+            ood = None  # the model's own alarm replaces the feature OOD score
         else:
             ood = None
             for path in (model.path.parent / OOD_REFERENCE_FILE, shipped_file(OOD_REFERENCE_FILE)):
