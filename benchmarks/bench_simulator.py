@@ -58,10 +58,8 @@ def draw(n: int, rng: np.random.Generator) -> tuple[OscillatorBatch, np.ndarray,
     return batch, x0, v0
 
 
-def warm_up(sim: Simulator) -> float | None:
+def warm_up(sim: Simulator) -> float:
     """Compile numba's kernels outside the timing; returns the seconds it took."""
-    if not compiled.available():
-        return None
     t = time.perf_counter()
     sim.simulate(OscillatorBatch.single(20.0, 1.0, 1.0, 1.0, 0.05), 50.0, 10, rng=0)
     return time.perf_counter() - t
@@ -99,7 +97,7 @@ def main() -> None:
           f" model time units; samples: {n} x h={h:.4f}")  # fmt: skip
 
     compile_s = warm_up(sim)
-    threads = compiled.threads() if compiled.available() else 1
+    threads = compiled.threads()
     profiler = cProfile.Profile() if args.profile else None
     t_start, c_start = time.perf_counter(), time.process_time()
     if profiler:
@@ -108,14 +106,11 @@ def main() -> None:
     if profiler:
         profiler.disable()
     t_sim, c_sim = time.perf_counter() - t_start, time.process_time() - c_start
-    # The same batch on one thread (per-core figure) and with the numpy engine.
+    # The same batch on one thread (per-core figure).
     variants = []
-    if compiled.available() and threads > 1:
+    if threads > 1:
         with compiled.limited_threads(1):
             variants.append(("  same, 1 thread", timed(sim, batch, args.fs_ratio, n, x0, v0)))
-    if compiled.available():
-        numpy_sim = Simulator(compiled=False)
-        variants.append(("  numpy engine", timed(numpy_sim, batch, args.fs_ratio, n, x0, v0)))
 
     model = sim.linear_model(batch, res.effect_params)
     t_ref, c_ref, errors, rechecked = 0.0, 0.0, [], {}
@@ -133,7 +128,7 @@ def main() -> None:
             rechecked[i] = np.abs(fine["accel"] - res.clean_accel[i]).max() / peak
 
     rate_sim, rate_ref = b * n / t_sim, k * n / t_ref
-    engine = f"compiled, {threads} threads" if compiled.available() else "numpy"
+    engine = f"compiled, {threads} threads"
     rows = [(f"Simulator ({engine})", b, b * n, t_sim, c_sim, rate_sim, float("nan"))]
     rows += [(name, b, b * n, t, c, b * n / t, float("nan")) for name, (t, c) in variants]
     rows.append(("solve_ivp DOP853 + events", k, k * n, t_ref, c_ref, rate_ref, max(errors)))
@@ -157,8 +152,7 @@ def main() -> None:
     if profiler:
         print()
         pstats.Stats(profiler).sort_stats("tottime").print_stats(15)
-    if compile_s is not None:
-        print(f"numba compile (first call, cached afterwards): {compile_s:.1f} s, not timed above")
+    print(f"numba compile (first call, cached afterwards): {compile_s:.1f} s, not timed above")
     for name, (t, _) in variants:
         print(f"speedup, {name.strip()}: {(b * n / t) / rate_ref:.1f}")
     print(f"speedup in cpu time: {(b * n / c_sim) / (k * n / c_ref):.1f}")

@@ -1,19 +1,29 @@
-"""Compiled (numba) twin of :func:`stiffnet.simulator.closed_form.simulate_linear`.
+"""The closed-form engine: exact, event-located, compiled with numba.
 
-Same model, same step rule (:func:`coarse_steps`), same event location (safeguarded
-Newton on the closed form from a cubic Hermite start, hidden double crossings found
-from the interior extremum of the switching function, the same boundary rules) and
-the same output contract; only the execution differs: one compiled loop per row
-instead of numpy calls over the batch, and the samples are written while marching.
+Within a region (free flight or contact) eq. (12) of the paper is linear with
+sinusoidal forcing, so its solution is exact for any step: subtract the particular
+solution, multiply by the transition matrix, add the particular solution back
+(:mod:`stiffnet.simulator.linear`). Each row marches in coarse steps (long in free
+flight, short in contact: :func:`~stiffnet.simulator.linear.coarse_steps`). Contact
+onset and release are located by safeguarded Newton iteration on the closed form
+from a cubic Hermite start (not snapped to the sampling grid), including contacts
+that begin and end inside one step (grazing), found from the interior extremum of
+the switching function.
+
+The switching function is ``G = min(x - e(t), F_c)`` with the contact force
+``F_c = beta (x - e) + c_c (v - e')``: the mass is in contact exactly when
+``G > 0``; with contact damping the restraint releases when the force would turn
+to a pull, before the penetration is zero ("the restraint never pulls").
 
 Within a piece of trajectory that stays in one region (a coarse step, or the part
 of it between events) the first sample is the closed form evaluated at the sample
 time from the piece's start state; the following samples of the piece are carried
 from it by the exact one-sample transition matrix and the rotation of the forcing
-phases (at most a handful of products, round-off only).
+phases (at most a handful of products, round-off only). One compiled loop per row,
+the rows spread over numba's threads.
 
-numba is optional: without it this module still imports and :func:`available`
-returns False.
+The numpy solver :mod:`stiffnet.simulator.reference_closed_form` is this engine's
+test oracle.
 """
 
 from __future__ import annotations
@@ -22,60 +32,44 @@ import contextlib
 import math
 from collections.abc import Iterator
 
+import numba
 import numpy as np
 
-from stiffnet.simulator.closed_form import (
-    _MAX_EVENTS_PER_STEP,
-    _NEWTON_ITERS,
-    _REANCHOR_EVERY,
+from stiffnet.simulator.linear import (
+    DISC_TINY,
+    MAX_EVENTS_PER_STEP,
+    NEWTON_ITERATIONS,
+    REANCHOR_EVERY,
     LinearModel,
-    _Regions,
+    RegionCoefficients,
     coarse_steps,
+    hermite_root,
+    transition_matrix,
 )
-from stiffnet.simulator.linear import transition_matrix
-
-try:  # optional dependency
-    import numba as _numba
-except ImportError:  # pragma: no cover - depends on the environment
-    _numba = None
-
-_TINY = 1e-12
-
-
-def available() -> bool:
-    """True when numba is installed and the compiled kernel can run."""
-    return _numba is not None
+from stiffnet.simulator.result import EngineResult
 
 
 def threads() -> int:
     """Threads the parallel kernel uses (numba's, ``NUMBA_NUM_THREADS``)."""
-    return int(_numba.get_num_threads()) if _numba is not None else 1
+    return int(numba.get_num_threads())
 
 
 @contextlib.contextmanager
 def limited_threads(n: int) -> Iterator[None]:
     """Run the parallel kernel on at most ``n`` threads inside the block."""
-    if _numba is None:
-        yield
-        return
-    before = _numba.get_num_threads()
-    _numba.set_num_threads(max(1, min(n, before)))
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(n, before)))
     try:
         yield
     finally:
-        _numba.set_num_threads(before)
+        numba.set_num_threads(before)
 
 
 def _jit(func):
-    if _numba is None:  # plain Python; never called (available() is False)
-        return func
-    return _numba.njit(cache=True, error_model="numpy")(func)
+    return numba.njit(cache=True, error_model="numpy")(func)
 
 
-if _numba is not None:
-    _prange = _numba.prange
-else:  # pragma: no cover
-    _prange = range
+_hermite_root = _jit(hermite_root)
 
 
 # ----------------------------------------------------------------- scalar helpers
@@ -95,10 +89,10 @@ def _sgn(a):
 @_jit
 def _hom(k, sig, root, disc, s):
     """cos-like, sin/omega-like functions and the decay of the homogeneous part."""
-    if disc > _TINY:
+    if disc > DISC_TINY:
         rs = root * s
         cf, sf = math.cos(rs), math.sin(rs) / root
-    elif disc < -_TINY:
+    elif disc < -DISC_TINY:
         rs = root * s
         cf, sf = math.cosh(rs), math.sinh(rs) / root
     else:
@@ -178,7 +172,8 @@ def _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
 def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
             beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """Safeguarded Newton, as :func:`closed_form._locate_root` for one row."""
+    """Safeguarded Newton on ``[lo, hi]`` (``glo``, ``ghi`` of opposite signs); returns
+    the root and the bracket's upper end. mode 0: a root of G; mode 1: of G'."""
     den = ghi - glo if ghi != glo else 1.0
     s = min(max(lo - glo * (hi - lo) / den, lo), hi)
     if has_start:
@@ -186,7 +181,7 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
     if abs(glo) <= 1e-12 * max(abs(ghi), 1e-300):
         s = 0.5 * (lo + hi)
     out = s
-    for _ in range(_NEWTON_ITERS):
+    for _ in range(NEWTON_ITERATIONS):
         g, dg = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
         if _sgn(g) == _sgn(glo):
@@ -208,29 +203,6 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             break
         s = s_new
     return out, hi
-
-
-@_jit
-def _hermite_root(g0, r0, g1, r1, length):
-    lo, hi = 0.0, 1.0
-    a0, b0, a1, b1 = g0, r0 * length, g1, r1 * length
-    den = g0 - g1 if g0 != g1 else 1.0
-    u = min(max(g0 / den, 0.0), 1.0)
-    for _ in range(4):
-        u2, u3 = u * u, u * u * u
-        p = (2 * u3 - 3 * u2 + 1) * a0 + (u3 - 2 * u2 + u) * b0 + (-2 * u3 + 3 * u2) * a1
-        p = p + (u3 - u2) * b1
-        dp = (6 * u2 - 6 * u) * (a0 - a1) + (3 * u2 - 4 * u + 1) * b0 + (3 * u2 - 2 * u) * b1
-        if _sgn(p) == _sgn(g0):
-            lo = u
-        else:
-            hi = u
-        un = u - p / dp
-        if math.isfinite(un) and un > lo and un < hi:
-            u = un
-        else:
-            u = 0.5 * (lo + hi)
-    return u * length
 
 
 @_jit
@@ -351,7 +323,8 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
         t1 = t + H
         if not snapped and t1 >= tf:
             snapped = True  # entries before this step belong to the transient
-        # suspects: as closed_form._Stepper._suspects
+        # Suspects: the switching function changed sign over the step, or may have
+        # crossed twice inside it (an extremum of G close enough to the boundary).
         e1, de1, _ = _gap(e0, ga, gf, gp, has_gap, t1)
         d1 = x1 - e1
         g1 = min(d1, beta * d1 + cc * (v1 - de1))
@@ -373,11 +346,11 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                               out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
             x, v = x1, v1
         else:
-            # exact march through the step with events: as _Stepper._resolve
+            # exact march through the step, locating each event
             tt, xx, vv, rr = t, x, v, r
             left = H
             finished = False
-            for _ev in range(_MAX_EVENTS_PER_STEP):
+            for _ev in range(MAX_EVENTS_PER_STEP):
                 pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
                 k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
                 xp, vp, _ = _particular(xc, pv, qv, fv, tt)
@@ -459,7 +432,7 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
         t = t1
         for j in range(nj):
             sn[j], cs[j] = sn1[j], cs1[j]
-        if i % _REANCHOR_EVERY == 0:
+        if i % REANCHOR_EVERY == 0:
             for j in range(nj):
                 sn[j], cs[j] = math.sin(fv[j] * t), math.cos(fv[j] * t)
         if t > t_last and ns >= n_samples:
@@ -479,22 +452,21 @@ def _kernel_parallel(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsi
                      beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
                      x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a,
                      impacts):  # fmt: skip
-    for row in _prange(x0.size):
+    for row in numba.prange(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
              x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
 
 
-if _numba is not None:
-    _kernel_serial = _numba.njit(cache=True, error_model="numpy")(_kernel_serial)
-    _kernel_parallel = _numba.njit(cache=True, error_model="numpy", parallel=True)(_kernel_parallel)
+_kernel_serial = numba.njit(cache=True, error_model="numpy")(_kernel_serial)
+_kernel_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)(_kernel_parallel)
 
 
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def simulate_linear_compiled(
+def simulate_closed_form(
     model: LinearModel,
     x0: np.ndarray,
     v0: np.ndarray,
@@ -502,15 +474,14 @@ def simulate_linear_compiled(
     h: np.ndarray,
     n_samples: int,
     parallel: bool = True,
-) -> dict[str, np.ndarray]:
-    """As :func:`stiffnet.simulator.closed_form.simulate_linear`, compiled.
+) -> EngineResult:
+    """Start at t=0 from (x0, v0) and sample ``n_samples`` at ``t_first + n h``.
 
-    ``parallel`` spreads the rows over numba's threads (``NUMBA_NUM_THREADS``).
-    Raises ImportError when numba is not installed (see :func:`available`).
+    ``x0``, ``v0``, ``t_first`` and ``h`` are per row (or broadcast). The rows run
+    in parallel over numba's threads (``NUMBA_NUM_THREADS``, see
+    :func:`limited_threads`) unless ``parallel`` is False.
     """
-    if _numba is None:
-        raise ImportError("simulate_linear_compiled needs numba (pip install numba)")
-    reg = _Regions(model)
+    reg = RegionCoefficients(model)
     b = len(model.batch)
     x0 = np.broadcast_to(np.asarray(x0, float), (b,))
     v0 = np.broadcast_to(np.asarray(v0, float), (b,))
@@ -536,11 +507,7 @@ def simulate_linear_compiled(
         _c(np.sin(gv.phase)), bool(reg.has_gap_var), int(jf), _c(x0), _c(v0), _c(t_first),
         _c(h), int(n_samples), out_x, out_v, out_f, out_a, impacts,
     )  # fmt: skip
-    return {
-        "x": out_x,
-        "v": out_v,
-        "accel": out_a,
-        "contact_force": out_f,
-        "impacts": impacts,
-        "t0": np.array(t_first, dtype=float),
-    }
+    return EngineResult(
+        x=out_x, v=out_v, accel=out_a, contact_force=out_f, impacts=impacts,
+        t0=np.array(t_first, dtype=float),
+    )  # fmt: skip
