@@ -140,11 +140,9 @@ def _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv):
 
 
 @_jit
-def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """G = min(x - e, F_c) and its rate at t0 + s."""
-    x, v, a = _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
-    e, de, dde = _gap(e0, ga, gf, gp, has_gap, t0 + s)
+def _g_rate(x, v, a, t, beta, cc, e0, ga, gf, gp, has_gap):
+    """G = min(x - e, F_c) and its rate from the state, and acceleration ``a``, at t."""
+    e, de, dde = _gap(e0, ga, gf, gp, has_gap, t)
     d, dd = x - e, v - de
     force = beta * d + cc * dd
     if d <= force:
@@ -155,25 +153,38 @@ def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
 
 
 @_jit
+def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
+    """G = min(x - e, F_c), its rate, x and v at t0 + s."""
+    x, v, a = _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+    g, rate = _g_rate(x, v, a, t0 + s, beta, cc, e0, ga, gf, gp, has_gap)
+    return g, rate, x, v
+
+
+@_jit
 def _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
          beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """mode 0: (G, G'); mode 1: (G', G'') with G'' by a forward difference."""
-    g, r = _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                   beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    """mode 0: (G, G'); mode 1: (G', G'') with G'' by a forward difference; then
+    G, x and v at s (so that the caller need not evaluate the root again)."""
+    g, r, x, v = _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                         beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
     if mode == 0:
-        return g, r
+        return g, r, g, x, v
     ds = 1e-7 * max(s, 1e-3)
-    g2, r2 = _switch(s + ds, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-    return r, (r2 - r) / ds
+    g2, r2, _, _ = _switch(s + ds, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                           beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    return r, (r2 - r) / ds, g, x, v
 
 
 @_jit
 def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
             beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """Safeguarded Newton on ``[lo, hi]`` (``glo``, ``ghi`` of opposite signs); returns
-    the root and the bracket's upper end. mode 0: a root of G; mode 1: of G'."""
+    """Safeguarded Newton on ``[lo, hi]`` (``glo``, ``ghi`` of opposite signs).
+
+    mode 0: a root of G; mode 1: of G'. Returns the root, the bracket's upper end,
+    and whether the root is the last point evaluated, with G, x and v there.
+    """
     den = ghi - glo if ghi != glo else 1.0
     s = min(max(lo - glo * (hi - lo) / den, lo), hi)
     if has_start:
@@ -181,8 +192,9 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
     if abs(glo) <= 1e-12 * max(abs(ghi), 1e-300):
         s = 0.5 * (lo + hi)
     out = s
+    known, g_s, x_s, v_s = False, 0.0, 0.0, 0.0
     for _ in range(NEWTON_ITERATIONS):
-        g, dg = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+        g, dg, g_s, x_s, v_s = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
         if _sgn(g) == _sgn(glo):
             lo, glo = s, g
@@ -200,31 +212,40 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             s_new = sn
         out = s_new
         if fine or abs(s_new - s) <= tol or hi - lo <= tol:
+            known = fine
             break
         s = s_new
-    return out, hi
+    return out, hi, known, g_s, x_s, v_s
 
 
 @_jit
 def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                 out_x, out_v, out_f, out_a, sn, cs):  # fmt: skip
-    """Samples ns, ns+1, ... with times before t_end, from the homogeneous state
-    (z0, z1) at tp of a segment in ``region``; returns the next sample index."""
+                 out_x, out_v, out_f, out_a, sn, cs, carry, xh, vh):  # fmt: skip
+    """Samples ns, ns+1, ... with times before t_end of a segment in ``region``.
+
+    The segment's homogeneous state is (z0, z1) at tp. With ``carry`` the
+    homogeneous state (xh, vh) and the phases (sn, cs) at sample ns's time are
+    known already (the previous piece was of the same segment) and no closed form
+    is evaluated. Returns the next sample index, the homogeneous state at its
+    time and whether that state (with sn, cs) is valid, so that the next piece of
+    the same segment carries on by the one-sample recurrence alone.
+    """
     if ns >= n_samples:
-        return ns
+        return ns, xh, vh, False
     tn = t_first + ns * h
     if tn >= t_end:
-        return ns
+        return ns, xh, vh, carry
     nj = fv.size
-    s = tn - tp
-    cf, sf, decay = _hom(k, sig, root, disc, s)
-    xh = decay * ((cf + sig * sf) * z0 + sf * z1)
-    vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
-    for j in range(nj):
-        ph = fv[j] * tn
-        sn[j], cs[j] = math.sin(ph), math.cos(ph)
+    if not carry:
+        s = tn - tp
+        cf, sf, decay = _hom(k, sig, root, disc, s)
+        xh = decay * ((cf + sig * sf) * z0 + sf * z1)
+        vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
+        for j in range(nj):
+            ph = fv[j] * tn
+            sn[j], cs[j] = math.sin(ph), math.cos(ph)
     m00, m01, m10, m11 = phih[0, 0], phih[0, 1], phih[1, 0], phih[1, 1]
     while True:
         xp, vp = 0.0, 0.0
@@ -247,13 +268,12 @@ def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
         out_a[row, ns] = -(2 * xi * v + x + force)
         ns += 1
         if ns >= n_samples:
-            return ns
-        tn = t_first + ns * h
-        if tn >= t_end:
-            return ns
+            return ns, xh, vh, False
         xh, vh = m00 * xh + m01 * vh, m10 * xh + m11 * vh
         for j in range(nj):
             sn[j], cs[j] = sn[j] * hc[j] + cs[j] * hs[j], cs[j] * hc[j] - sn[j] * hs[j]
+        if t_first + ns * h >= t_end:
+            return ns, xh, vh, True
 
 
 @_jit
@@ -296,6 +316,20 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
     ns = 0
     i = 0
     snapped = False
+    # the samples' writer: homogeneous state at sample ns's time, carried from one
+    # step to the next while the row stays in one region without events
+    carry, wxh, wvh, ns_anchor = False, 0.0, 0.0, 0
+    # No-contact test (underdamped free flight only): the particular solution's
+    # largest reach and the lowest the gap gets, less a round-off margin.
+    free_bound = abs(X[0, row])
+    for j in range(nj):
+        free_bound += math.sqrt(P[0, row, j] ** 2 + Q[0, row, j] ** 2)
+    e_low = e0
+    for j in range(ga.size):
+        e_low -= abs(ga[j])
+    e_low -= 1e-9 * (1.0 + abs(e_low) + free_bound)
+    if not discs[0] > DISC_TINY:
+        e_low = -math.inf
     while True:
         i += 1
         r = region
@@ -340,75 +374,125 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
             else:
                 suspect = (dd0 < 0 and dd1 >= 0) or cc > 0
         if not suspect:
-            ns = _write_piece(row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
-                              k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
-                              beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                              out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+            if tf + ns * hh < t1:  # the step holds samples
+                if carry and ns - ns_anchor >= REANCHOR_EVERY:
+                    carry = False  # re-anchor the samples' recurrence
+                if not carry:
+                    ns_anchor = ns
+                ns, wxh, wvh, carry = _write_piece(
+                    row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
+                    k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
+                    beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                    out_x, out_v, out_f, out_a, wsn, wcs, carry, wxh, wvh,
+                )  # fmt: skip
             x, v = x1, v1
+            if r == 0 and free_bound < e_low:
+                # In free flight x = x_h + x_p with |x_p| <= free_bound's particular
+                # part and |x_h| bounded by its decaying amplitude: if even their sum
+                # stays below the lowest gap, the row never touches again. Its
+                # remaining samples are the closed form of this one segment.
+                zh0, zh1 = x1 - xp1, v1 - vp1
+                wz = (zh1 + sig * zh0) / root
+                if free_bound + math.sqrt(zh0 * zh0 + wz * wz) < e_low:
+                    while ns < n_samples:  # re-anchored every REANCHOR_EVERY samples
+                        t_end = tf + min(ns + REANCHOR_EVERY, n_samples) * hh
+                        ns, _, _, _ = _write_piece(
+                            row, 0, t1, zh0, zh1, t_end, ns, n_samples, tf, hh,
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[0, row],
+                            beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        )  # fmt: skip
+                    break
         else:
-            # exact march through the step, locating each event
+            # Exact march through the step, locating each event. G at the step's
+            # ends comes from the states the step already has (no closed form).
+            carry = False
+            ap0, ap1 = 0.0, 0.0
+            for j in range(nj):
+                ap0 -= fv[j] * fv[j] * (pv[j] * sn[j] + qv[j] * cs[j])
+                ap1 -= fv[j] * fv[j] * (pv[j] * sn1[j] + qv[j] * cs1[j])
+            g0, r0 = _g_rate(x, v, ap0 - k * z0 - c * z1, t, beta, cc, e0, ga, gf, gp, has_gap)
+            zh0, zh1 = x1 - xp1, v1 - vp1
+            gl, rl = _g_rate(x1, v1, ap1 - k * zh0 - c * zh1, t1, beta, cc, e0, ga, gf, gp,
+                             has_gap)  # fmt: skip
             tt, xx, vv, rr = t, x, v, r
+            xl, vl = x1, v1  # the state at the step's end, in the current region
             left = H
             finished = False
-            for _ev in range(MAX_EVENTS_PER_STEP):
-                pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
-                k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
-                xp, vp, _ = _particular(xc, pv, qv, fv, tt)
-                z0, z1 = xx - xp, vv - vp
+            for ev in range(MAX_EVENTS_PER_STEP):
+                if ev > 0:  # after an event: the new region's segment from (xx, vv)
+                    pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
+                    k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
+                    xp, vp, ap = _particular(xc, pv, qv, fv, tt)
+                    z0, z1 = xx - xp, vv - vp
+                    g0, r0 = _g_rate(xx, vv, ap - k * z0 - c * z1, tt, beta, cc, e0, ga, gf, gp,
+                                     has_gap)  # fmt: skip
+                    gl, rl, xl, vl = _switch(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv,
+                                           fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                 sign_in = 1.0 if rr == 1 else -1.0
-                g0, r0 = _switch(0.0, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-                gl, rl = _switch(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                 s_hi, g_hi, r_hi = math.nan, math.nan, 0.0
                 if gl * sign_in <= 0:
                     s_hi, g_hi, r_hi = left, gl, rl
                 elif r0 * sign_in < 0 and rl * sign_in > 0:
-                    s_ext, _h = _locate(1, 0.0, left, r0, rl, 1e-9, False, 0.0,
+                    s_ext, _, _, _, _, _ = _locate(1, 0.0, left, r0, rl, 1e-9, False, 0.0,
                                     tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
                                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-                    g_ext, _ = _switch(s_ext, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv,
-                                       fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    g_ext, _, _, _ = _switch(s_ext, tt, z0, z1, k, c, sig, root, disc, xc, pv,
+                                             qv, fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                     if g_ext * sign_in <= 0:
                         s_hi, g_hi = s_ext, g_ext
-                if not math.isfinite(s_hi):
-                    ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                                      k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                      beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                      out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
-                    xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                if not math.isfinite(s_hi):  # no event: the rest of the step
+                    if tf + ns * hh < t1:  # the piece holds samples
+                        ns, _, _, _ = _write_piece(
+                            row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                            beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        )  # fmt: skip
+                    xx, vv = xl, vl
                     finished = True
                     break
+                x_go, v_go = xx, vv
                 if abs(g0) <= 1e-12 * max(abs(g_hi), 1e-300) and r0 * sign_in < 0:
                     s_go = 0.0
                 else:
                     glo = sign_in * max(abs(g0), 1e-300)
                     tol = 1e-15 * (1.0 + abs(tt))
                     guess = _hermite_root(g0, r0, g_hi, r_hi, s_hi)
-                    s_go, s_out = _locate(0, 0.0, s_hi, glo, g_hi, tol, True, guess,
-                                          tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                          beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    s_go, s_out, known, g_go, x_go, v_go = _locate(
+                        0, 0.0, s_hi, glo, g_hi, tol, True, guess,
+                        tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                        beta, cc, e0, ga, gf, gp, has_gap,
+                    )  # fmt: skip
                     # Switch on the far side of the root: were the state left a
                     # round-off inside, the next region would find this root again
                     # (a spurious contact of zero length).
-                    g_go, _ = _switch(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    if not known:
+                        g_go, _, x_go, v_go = _switch(
+                            s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                            beta, cc, e0, ga, gf, gp, has_gap,
+                        )  # fmt: skip
                     step_out = tol
                     for _try in range(8):
                         if not g_go * sign_in > 0:
                             break
                         s_try = min(s_go + step_out, s_out)
-                        g_try, _ = _switch(s_try, tt, z0, z1, k, c, sig, root, disc, xc, pv,
-                                           qv, fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                        g_try, _, x_try, v_try = _switch(
+                            s_try, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                            beta, cc, e0, ga, gf, gp, has_gap,
+                        )  # fmt: skip
                         if g_try * sign_in <= 0:
-                            s_go = s_try
+                            s_go, x_go, v_go = s_try, x_try, v_try
                             break
                         step_out *= 2.0
-                ns = _write_piece(row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
-                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
-                xx, vv, _ = _state(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                if tf + ns * hh < tt + s_go:  # the piece holds samples
+                    ns, _, _, _ = _write_piece(
+                        row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                    )  # fmt: skip
+                xx, vv = x_go, v_go
                 tt += s_go
                 left = max(left - s_go, 0.0)
                 rr = 1 - rr
@@ -423,10 +507,13 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                 k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
                 xp, vp, _ = _particular(xc, pv, qv, fv, tt)
                 z0, z1 = xx - xp, vv - vp
-                ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+                if tf + ns * hh < t1:  # the piece holds samples
+                    ns, _, _, _ = _write_piece(
+                        row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                    )  # fmt: skip
                 xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
             x, v, region = xx, vv, rr
         t = t1
