@@ -1,8 +1,8 @@
 """CLI commands of the measurement loop: ``evaluate``, ``compare``, ``diagnose``, ``loop``,
 ``report`` (registered by :mod:`stiffnet.cli`).
 
-Heavy imports (matplotlib, mlflow, scikit-learn, torch) and ``stiffnet.cli`` itself
-(which imports this module at startup) are imported inside the command functions.
+Heavy imports (matplotlib, mlflow, scikit-learn, torch) are imported inside the
+command functions; the shared console helpers come from :mod:`stiffnet.console`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the sim
 
 
 def _io() -> tuple[Any, Any, Any]:
-    from stiffnet.cli import console, out, write_json
+    from stiffnet.console import console, out, write_json
 
     return out, console, write_json
 
@@ -333,7 +333,7 @@ def report(
 
 def register(app: typer.Typer) -> None:
     """Add ``evaluate``, ``compare``, ``diagnose``, ``loop`` and ``report`` to the app."""
-    from stiffnet.cli import user_errors
+    from stiffnet.console import user_errors
 
     for fn in (evaluate, compare, diagnose, loop, report):
         app.command(fn.__name__)(user_errors(fn))
