@@ -35,9 +35,12 @@ app = typer.Typer(
 @app.command()
 @user_errors
 def simulate(
-    config: Annotated[Path, typer.Option(help="Simulation config (YAML).")] = Path(
-        "configs/sim/default.yaml"
-    ),
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            help="Simulation config (YAML); default: stiffnet's configs/sim/default.yaml."
+        ),
+    ] = None,
     out_dir: Annotated[Path, typer.Option("--out", help="Output dataset folder.")] = Path(
         "data/default"
     ),
@@ -61,7 +64,9 @@ def simulate(
     from stiffnet.config import load_yaml, validate_config
     from stiffnet.config.sim import SimulationConfig
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
+    from stiffnet.shipped import default_config
 
+    config = config or default_config("sim/default.yaml")
     data = load_yaml(config)
     if seed is not None:
         data["seed"] = seed
@@ -132,7 +137,8 @@ def train(
     data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
     model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
     config: Annotated[
-        Path | None, typer.Option(help="Training config (YAML); default configs/train/MODEL.yaml.")
+        Path | None,
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/MODEL.yaml."),
     ] = None,
     out_dir: Annotated[
         Path, typer.Option("--out", help="Folder for the ONNX model and card.")
@@ -149,7 +155,9 @@ def train(
 
     if model not in ("gbm", "cnn"):
         raise ConfigError(f"model {model!r} is not available: use gbm or cnn")
-    default = Path("configs/train") / f"{model}.yaml"
+    from stiffnet.shipped import default_config
+
+    default = default_config(f"train/{model}.yaml")
     if config is not None:
         cfg = load_config(TrainConfig, config)
     elif default.is_file():

@@ -14,13 +14,16 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.shipped import default_config
 
-DEFAULT_SIM_CONFIG = Path("configs/sim/default.yaml")
+DEFAULT_SIM_CONFIG = default_config("sim/default.yaml")
 
 CampaignArg = Annotated[Path, typer.Argument(help="Campaign folder (or its manifest.csv).")]
 ConfigOpt = Annotated[
     Path | None,
-    typer.Option("--config", help="Simulator config (YAML); default configs/sim/default.yaml."),
+    typer.Option(
+        "--config", help="Simulator config (YAML); default: stiffnet's configs/sim/default.yaml."
+    ),
 ]
 SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the simulations.")]
 
