@@ -196,7 +196,6 @@ def run_shard_job(job: ShardJob) -> dict[str, Any]:
         "shard": job.shard,
         "trajectories": job.n,
         "class_counts": {str(k): int(c) for k, c in zip(names, counts, strict=True)},
-        "compiled": _compiled_used(job.cfg),
         "seconds": round(time.perf_counter() - t0, 3),
         "fingerprint": job.fingerprint,
     }
@@ -361,7 +360,6 @@ def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: 
         assert record is not None
         for name, k in record["class_counts"].items():
             counts[name] = counts.get(name, 0) + int(k)
-    compiled = {r["compiled"] for r in records if r is not None}
     return {
         "kind": "stiffnet-dataset",
         "format": "parquet shards, one row per window, accel as list<float32>",
@@ -373,21 +371,10 @@ def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: 
         "class_names": cfg.class_names(),
         "class_balance": counts,
         "engine": build_simulator(cfg).engine,
-        # the numpy and compiled closed-form engines agree to ~1e-8 but part on
-        # chaotic orbits: a dataset is reproduced exactly by the same one ("mixed":
-        # the workers differed, some had numba and some not)
-        "compiled": compiled.pop() if len(compiled) == 1 else "mixed",
         "seconds": round(seconds, 3),
         "shards": [{k: r[k] for k in ("file", "rows", "sha256")} for r in records if r],
         "config": cfg.model_dump(mode="json"),
     }
-
-
-def _compiled_used(cfg: SimulationConfig) -> bool:
-    from stiffnet.simulator import compiled
-
-    sim = build_simulator(cfg)
-    return bool(sim.engine == "closed_form" and sim.compiled and compiled.available())
 
 
 def _code_version() -> str:

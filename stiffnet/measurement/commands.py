@@ -1,8 +1,8 @@
 """CLI commands of the measurement loop: ``evaluate``, ``compare``, ``diagnose``, ``loop``,
 ``report`` (registered by :mod:`stiffnet.cli`).
 
-Heavy imports (matplotlib, mlflow, scikit-learn, torch) and ``stiffnet.cli`` itself
-(which imports this module at startup) are imported inside the command functions.
+Heavy imports (matplotlib, mlflow, scikit-learn, torch) are imported inside the
+command functions; the shared console helpers come from :mod:`stiffnet.console`.
 """
 
 from __future__ import annotations
@@ -14,21 +14,23 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.shipped import default_config
 
-DEFAULT_SIM_CONFIG = Path("configs/sim/ideal.yaml")
+DEFAULT_SIM_CONFIG = default_config("sim/ideal.yaml")
 
 CampaignArg = Annotated[Path, typer.Argument(help="Campaign folder (or its manifest.csv).")]
 ConfigOpt = Annotated[
     Path | None,
     typer.Option(
-        "--config", help="Simulator config (YAML); default configs/sim/ideal.yaml (the base model)."
+        "--config",
+        help="Simulator config (YAML); default: stiffnet's configs/sim/ideal.yaml (base model).",
     ),
 ]
 SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the simulations.")]
 
 
 def _io() -> tuple[Any, Any, Any]:
-    from stiffnet.cli import console, out, write_json
+    from stiffnet.console import console, out, write_json
 
     return out, console, write_json
 
@@ -345,7 +347,7 @@ def report(
 
 def register(app: typer.Typer) -> None:
     """Add ``evaluate``, ``compare``, ``diagnose``, ``loop`` and ``report`` to the app."""
-    from stiffnet.cli import user_errors
+    from stiffnet.console import user_errors
 
     for fn in (evaluate, compare, diagnose, loop, report):
         app.command(fn.__name__)(user_errors(fn))
