@@ -53,8 +53,8 @@ class CNNConfig(_Strict):
     learning_rate: float = Field(2e-3, gt=0.0, le=1.0)
     weight_decay: float = Field(1e-4, ge=0.0, le=1.0)
     batch_size: int = Field(64, ge=1, le=4096)
-    max_epochs: int = Field(80, ge=1, le=10_000)
-    patience: int = Field(15, ge=1, le=1000, description="epochs without improvement")
+    max_epochs: int = Field(40, ge=1, le=10_000)
+    patience: int = Field(10, ge=1, le=1000, description="epochs without improvement")
     beta_loss_weight: float = Field(
         1.0, ge=0.0, le=100.0, description="weight of the standardised log-beta MSE"
     )
