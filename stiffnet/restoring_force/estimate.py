@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import ndimage
+from scipy import integrate, ndimage, optimize
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
@@ -56,6 +56,8 @@ MIN_IMPACTS = 3
 MIN_CONTACT_R2 = 0.5
 #: Refuse when the free-flight law explains less of the free restoring force than this.
 MIN_FREE_R2 = 0.5
+#: Below this contact R2 the "auto" high-pass correction is searched.
+HIGHPASS_SEARCH_R2 = 0.97
 #: Bootstrap replicates over impacts.
 N_BOOTSTRAP = 200
 
@@ -88,6 +90,8 @@ class RestoringForceResult:
     forcing_frequency_hz : float
     stiffness_rule : str
         ``"given f_n"`` or ``"fitted"``.
+    highpass_hz : float
+        Corner of the sensor chain's high-pass undone before integrating (0: none).
     n_impacts : int
     samples_per_contact : float
         Median samples in contact per impact (below ~4 the spike is barely resolved).
@@ -114,6 +118,7 @@ class RestoringForceResult:
     fitted_natural_frequency_hz: float | None
     forcing_frequency_hz: float
     stiffness_rule: str
+    highpass_hz: float
     n_impacts: int
     samples_per_contact: float
     free_r2: float
@@ -146,6 +151,7 @@ class RestoringForceResult:
             "fitted_natural_frequency_hz": num(self.fitted_natural_frequency_hz),
             "forcing_frequency_hz": num(self.forcing_frequency_hz),
             "stiffness_rule": self.stiffness_rule,
+            "highpass_hz": num(self.highpass_hz),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -224,6 +230,7 @@ def _refuse(reason: str, **kw: Any) -> RestoringForceResult:
         fitted_natural_frequency_hz=None,
         forcing_frequency_hz=float("nan"),
         stiffness_rule="",
+        highpass_hz=0.0,
         n_impacts=0,
         samples_per_contact=0.0,
         free_r2=float("nan"),
@@ -234,6 +241,132 @@ def _refuse(reason: str, **kw: Any) -> RestoringForceResult:
     )
     base.update(kw)
     return RestoringForceResult(**base)
+
+
+@dataclass
+class _Map:
+    """One pass of the force-state map at a given high-pass correction."""
+
+    fit: Any
+    info: dict[str, Any]
+    corner: float
+    refusal: str = ""
+    law: ContactLaw | None = None
+    labels: np.ndarray | None = None
+    n_impacts: int = 0
+    spc: float = 0.0
+    exponent: float | None = None
+
+
+def undo_highpass(y: np.ndarray, dtau: float, corner: float) -> np.ndarray:
+    """Invert a first-order high-pass at ``corner`` (forcing frequencies): ``y + w_h int_0^t y``.
+
+    A charge amplifier's high-pass (``s / (s + w_h)``) commutes with the linear
+    free-flight law but not with the contact's: it adds ``w_h int x`` to the
+    displacement (``+0.1 v`` at an impact for a 1 Hz corner under a 10 Hz
+    forcing, read as a negative contact damping of ``0.1 K``), and a record that
+    starts with the filter out of equilibrium carries its decaying transient.
+    The inverse runs in the time domain from the first sample so that it
+    removes that transient too; its constant of integration is the mean, which
+    the integration drops anyway.
+    """
+    if corner <= 0:
+        return y
+    return y + corner * integrate.cumulative_trapezoid(y, dx=dtau, initial=0.0)
+
+
+def _fit_map(
+    y: np.ndarray,
+    dtau: float,
+    tau: np.ndarray,
+    use: np.ndarray,
+    period: float,
+    k_given: float | None,
+    corner: float,
+    exponent: float | None,
+) -> _Map:
+    """Integrate, fit the free flight and the contact law (see the module notes)."""
+    y = undo_highpass(y, dtau, corner)
+    vel_i, disp_i = integrate_spectral(y, dtau)
+    fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given)
+    root_k = float(np.sqrt(max(fit.stiffness, 0.0)))
+    info: dict[str, Any] = dict(
+        free_r2=fit.r2,
+        free_damping_ratio=fit.damping / (2 * root_k) if root_k > 0 else np.nan,
+        natural_frequency_ratio=root_k,
+        displacement=fit.displacement[use],
+        velocity=fit.velocity[use],
+        force=fit.force[use],
+        free_stiffness=fit.stiffness,
+    )
+    if fit.stiffness <= 0:
+        why = "the free-flight law has no positive stiffness: not an oscillator"
+        return _Map(fit, info, corner, refusal=why)
+    if fit.r2 < MIN_FREE_R2:
+        why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
+        return _Map(fit, info, corner, refusal=why)
+    core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+    labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
+    labels[~use] = 0
+    info["n_impacts"] = n_imp
+    peak = float(fit.force[use].max()) / max(fit.sigma, 1e-300)
+    if n_imp < MIN_IMPACTS:
+        info["physical_class"] = NO_CONTACT
+        why = (
+            f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
+            f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
+        )
+        return _Map(fit, info, corner, refusal=why)
+    near = labels > 0
+    spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
+    info["samples_per_contact"] = spc
+    kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
+    if not np.isfinite(kc0) or int(core.sum()) < 4:
+        why = "the contact force does not grow with the displacement"
+        return _Map(fit, info, corner, refusal=why)
+    peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
+    dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
+    state = (fit.force, fit.displacement, fit.velocity, near)
+    law = fit_contact_law(*state, (kc0, e0, cc0), dr, 1.0 if exponent is None else exponent)
+    fitted_exponent = law.exponent
+    if exponent is None:  # the exponent is reported; it sets beta only where it is significant
+        free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
+        fitted_exponent = free_law.exponent
+        if exponent_matters(law, free_law):
+            law = free_law
+    info.update(law=law, contact_r2=law.r2)
+    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent)
+    if law.r2 < MIN_CONTACT_R2:
+        out.refusal = (
+            f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
+            "no meaningful fit"
+        )
+    return out
+
+
+def _fit_highpass(args: tuple, ff: float, plain: _Map) -> float:
+    """Rule: the high-pass corner (forcing frequencies) whose correction fits the contact best.
+
+    Searched only when the plain map fits the contact poorly (the corner is not
+    identifiable from the free flight, whose law the filter leaves intact):
+    a grid up to 0.4 of the forcing frequency, then a bounded scalar search
+    around the best point. Returns 0 when no corner helps.
+    """
+
+    def misfit(corner: float) -> float:
+        m = _fit_map(*args, corner, 1.0)
+        return 1.0 - m.law.r2 if m.law is not None and not m.refusal else 2.0
+
+    best, best_cost = 0.0, 1.0 - plain.law.r2 if plain.law is not None else 2.0
+    grid = np.array([0.0, 0.025, 0.05, 0.1, 0.2, 0.4])
+    costs = [best_cost] + [misfit(c) for c in grid[1:]]
+    i = int(np.argmin(costs))
+    if costs[i] >= best_cost - 0.01:
+        return best
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = optimize.minimize_scalar(misfit, bounds=(lo, hi), method="bounded",
+                                   options={"xatol": 0.002, "maxiter": 8})  # fmt: skip
+    return float(res.x) if res.fun < costs[i] else float(grid[i])
 
 
 def restoring_force_estimate(
@@ -247,6 +380,7 @@ def restoring_force_estimate(
     coverage: float = 0.9,
     seed: int = 0,
     max_periods: float | None = None,
+    highpass_hz: float | str = "auto",
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -272,6 +406,10 @@ def restoring_force_estimate(
         Seed of the bootstrap.
     max_periods : float, optional
         Analyse at most this many forcing periods (the middle of the record).
+    highpass_hz : float or "auto"
+        Corner of a first-order high-pass in the sensor chain (charge amplifier),
+        undone before integrating; ``"auto"`` fits it when the plain map fits the
+        contact poorly, 0 assumes none.
 
     Returns
     -------
@@ -313,67 +451,38 @@ def restoring_force_estimate(
     y = y[:length]
     dtau = 2 * np.pi * ff / fs_hz
     tau = np.arange(length) * dtau
-    vel_i, disp_i = integrate_spectral(y, dtau)
     # the wrap-around of a non-periodic record spoils the integrals at the ends
     use = np.ones(length, dtype=bool)
     edge = max(1, int(0.25 * period))
     use[:edge] = use[-edge:] = False
     k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
-    fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given)
-    root_k = float(np.sqrt(max(fit.stiffness, 0.0)))
-    info = dict(
+    args = (y, dtau, tau, use, period, k_given)
+    if highpass_hz == "auto":
+        m = _fit_map(*args, 0.0, 1.0)
+        if m.law is not None and m.law.r2 < HIGHPASS_SEARCH_R2:
+            corner = _fit_highpass(args, ff, m)
+            if corner > 0:
+                m = _fit_map(*args, corner, 1.0)
+        corner = m.corner
+    else:
+        if not (
+            isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
+        ):
+            raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
+        corner = float(highpass_hz) / ff
+    m = _fit_map(*args, corner, exponent)
+    fit, info = m.fit, m.info
+    info.update(
         forcing_frequency_hz=ff,
         polarity=polarity,
-        free_r2=fit.r2,
-        free_damping_ratio=fit.damping / (2 * root_k) if root_k > 0 else np.nan,
-        natural_frequency_hz=ff * root_k if root_k > 0 else np.nan,
-        stiffness_rule="given f_n" if k_given is not None else "fitted",
         coverage=coverage,
-        displacement=fit.displacement[use],
-        velocity=fit.velocity[use],
-        force=fit.force[use],
-        free_stiffness=fit.stiffness,
+        stiffness_rule="given f_n" if k_given is not None else "fitted",
+        highpass_hz=corner * ff,
+        natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
-    if fit.stiffness <= 0:
-        return _refuse("the free-flight law has no positive stiffness: not an oscillator", **info)
-    if fit.r2 < MIN_FREE_R2:
-        return _refuse(f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)", **info)
-    core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
-    labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
-    labels[~use] = 0
-    info["n_impacts"] = n_imp
-    peak = float(fit.force[use].max()) / max(fit.sigma, 1e-300)
-    if n_imp < MIN_IMPACTS:
-        return _refuse(
-            f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
-            f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)",
-            physical_class=NO_CONTACT,
-            **info,
-        )
-    near = labels > 0
-    spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
-    info["samples_per_contact"] = spc
-    kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
-    if not np.isfinite(kc0) or int(core.sum()) < 4:
-        return _refuse("the contact force does not grow with the displacement", **info)
-    peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
-    dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
-    start = (kc0, e0, cc0)
-    state = (fit.force, fit.displacement, fit.velocity, near)
-    law = fit_contact_law(*state, start, dr, 1.0 if exponent is None else exponent)
-    fitted_exponent = law.exponent
-    if exponent is None:  # the exponent is reported; it sets beta only where it is significant
-        free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
-        fitted_exponent = free_law.exponent
-        if exponent_matters(law, free_law):
-            law = free_law
-    info.update(law=law, contact_r2=law.r2)
-    if law.r2 < MIN_CONTACT_R2:
-        return _refuse(
-            f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
-            "no meaningful fit",
-            **info,
-        )
+    if m.refusal:
+        return _refuse(m.refusal, **info)
+    law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
     k = fit.stiffness
     beta = law.stiffness / k
     rng = np.random.default_rng(seed)
