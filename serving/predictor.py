@@ -34,6 +34,10 @@ Pipeline of :meth:`Predictor.predict`:
    their inclinations through the calibration gives beta and class.
    ``agreement`` is ``model class == geometric class``. Bounding the number of
    windows keeps a 60 s recording under ~60 ms on one core.
+   A second, physical cross-check (:mod:`serving.physical`): the restoring-force
+   estimate on 32 forcing periods from the middle of the recording:
+   ``physical_class``, ``physical_beta`` and its bootstrap interval,
+   ``physical_agreement`` (null when that method refused, with its reason).
 6. **OOD score** (:mod:`serving.ood`) on the same windows' features: the median
    of their distances to the training data, flagged above the reference's
    threshold.
@@ -51,6 +55,7 @@ import numpy as np
 
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
+from serving.physical import physical_check
 from serving.schemas import PredictionResult
 from serving.windows import canonical_tensor, window_length, window_starts
 from stiffnet.errors import SignalError, StiffnetError
@@ -387,6 +392,7 @@ class Predictor:
             warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
 
         geometric = self._geometric(geo)
+        physical = physical_check(a, fs, fn)
         ood_score = ood_threshold = None
         ood_flag = False
         if self.ood is not None and len(feats):
@@ -407,6 +413,11 @@ class Predictor:
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
+            "physical": physical,
+            "physical_class": physical["class"],
+            "physical_beta": physical["beta"],
+            "physical_beta_interval": physical["beta_interval"],
+            "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
             "contact_detected": cls != "no_contact",
             "ood_score": ood_score,
             "ood_threshold": ood_threshold,
