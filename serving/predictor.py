@@ -37,6 +37,10 @@ Pipeline of :meth:`Predictor.predict`:
    their inclinations through the calibration gives beta and class.
    ``agreement`` is ``model class == geometric class``. Bounding the number of
    windows keeps a 60 s recording under ~60 ms on one core.
+   A second, physical cross-check (:mod:`serving.physical`): the restoring-force
+   estimate on 32 forcing periods from the middle of the recording:
+   ``physical_class``, ``physical_beta`` and its bootstrap interval,
+   ``physical_agreement`` (null when that method refused, with its reason).
 6. **Alarm** (:mod:`stiffnet.uncertainty.alarm`): checks on what the model
    looks at - the distance of the windows to the training data in the model's
    own embedding, the class ambiguity, the beta uncertainty - each against a
@@ -58,6 +62,7 @@ import numpy as np
 
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
+from serving.physical import physical_check
 from serving.schemas import PredictionResult
 from serving.windows import canonical_tensor, window_length, window_starts
 from stiffnet.errors import SignalError, StiffnetError
@@ -414,6 +419,7 @@ class Predictor:
 
         geometric = self._geometric(geo)
         alarm = self._alarm(est, out, feats)
+        physical = physical_check(a, fs, fn)
         ood_score = ood_threshold = None
         if alarm is not None:
             ratios = [
@@ -433,6 +439,11 @@ class Predictor:
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
+            "physical": physical,
+            "physical_class": physical["class"],
+            "physical_beta": physical["beta"],
+            "physical_beta_interval": physical["beta_interval"],
+            "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
             "contact_detected": cls != "no_contact",
             "ood_score": ood_score,
             "ood_threshold": ood_threshold,

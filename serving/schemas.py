@@ -32,6 +32,29 @@ class GeometricCheck(BaseModel):
     polarity: int = Field(description="-1: impact spikes point down, +1: up, 0: no contact.")
 
 
+class PhysicalCheck(BaseModel):
+    """The restoring-force (force-state mapping) estimate on the same recording."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    class_: str | None = Field(
+        alias="class", description="Class of the restoring-force beta; no_contact; null if refused."
+    )
+    beta: float | None = Field(description="Contact over free-flight stiffness of the fitted map.")
+    beta_interval: list[float] | None = Field(description="Bootstrap interval over impacts.")
+    beta_interval_coverage: float | None = None
+    contact_damping_ratio: float | None = Field(
+        default=None, description="Kelvin-Voigt damping ratio of the contact."
+    )
+    exponent: float | None = Field(default=None, description="Contact exponent (1 linear).")
+    n_impacts: int | None = None
+    contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
+    highpass_hz: float | None = Field(
+        default=None, description="Sensor high-pass corner undone (0: none)."
+    )
+    reason: str = Field(description="What was estimated, or why not.")
+
+
 class Segment(BaseModel):
     """Aggregate over consecutive windows: a change of formation shows as a change here."""
 
@@ -80,6 +103,13 @@ class PredictionResult(BaseModel):
     )
     geometric: GeometricCheck
     agreement: bool = Field(description="Model class == geometric class.")
+    physical: PhysicalCheck
+    physical_class: str | None = Field(description="physical.class, at the top level.")
+    physical_beta: float | None = Field(description="physical.beta, at the top level.")
+    physical_beta_interval: list[float] | None
+    physical_agreement: bool | None = Field(
+        description="Model class == restoring-force class; null when that method refused."
+    )
     contact_detected: bool = Field(description="The model's class is not no_contact.")
     ood_score: float | None = Field(
         description="The alarm's largest check score relative to its threshold "
