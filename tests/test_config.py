@@ -17,7 +17,9 @@ def test_shipped_configs_validate_and_default_matches_model():
     default = load_config(SimulationConfig, ROOT / "configs/sim/default.yaml")
     # the randomised world: the same domain plus every effect's own prior, restated
     assert default.effects == randomised_effects()
-    assert default.model_copy(update={"effects": [], "solver": ideal.solver}) == ideal
+    assert default.ideal_fraction == 0.2
+    same = {"effects": [], "solver": ideal.solver, "ideal_fraction": 0.0}
+    assert default.model_copy(update=same) == ideal
     assert {e.name for e in default.effects} >= {
         "contact_damping", "hertz_contact", "forcing_harmonics", "gap_drift",
         "sensor_dynamics", "colored_noise", "adc",

@@ -154,6 +154,12 @@ class SimulationConfig(_Strict):
     classes: list[ClassSpec] = Field(default_factory=default_classes, min_length=1)
     no_contact_class: str = "no_contact"
     effects: list[EffectSpec] = Field(default_factory=list)
+    ideal_fraction: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="fraction of trajectories simulated without any effect (ideal rigs)",
+    )
     solver: SolverConfig = Field(default_factory=SolverConfig)
 
     @model_validator(mode="after")

@@ -50,7 +50,7 @@ class CNNConfig(_Strict):
     )
     kernel_size: int = Field(7, ge=3, le=31)
     dropout: float = Field(0.1, ge=0.0, lt=1.0)
-    learning_rate: float = Field(2e-3, gt=0.0, le=1.0)
+    learning_rate: float = Field(1e-3, gt=0.0, le=1.0)
     weight_decay: float = Field(1e-4, ge=0.0, le=1.0)
     batch_size: int = Field(64, ge=1, le=4096)
     max_epochs: int = Field(40, ge=1, le=10_000)

@@ -86,8 +86,11 @@ def _effect_draws(
     n = len(batch)
     params: dict[str, dict[str, np.ndarray]] = {}
     active: dict[str, np.ndarray] = {}
+    # ideal rigs keep the paper's world in the mix however many effects are configured
+    ideal = rng.random(n) < cfg.ideal_fraction if cfg.effects else np.zeros(n, bool)
     for spec in cfg.effects:
-        p = spec.build().batch_params(n, rng)
+        effect = spec.build()  # keyed by the effect's own name, as the simulator keys it
+        p = effect.batch_params(n, rng)
         for key, rel in spec.relative.items():
             lo, hi = rel.range
             if rel.scale == "log":
@@ -98,6 +101,6 @@ def _effect_draws(
             if rel.per == "sampling_rate":
                 unit = unit * fs_ratio
             p[key] = r * unit
-        params[spec.name] = p
-        active[spec.name] = rng.random(n) < spec.probability
+        params[effect.name] = p
+        active[effect.name] = (rng.random(n) < spec.probability) & ~ideal
     return params, active
