@@ -88,3 +88,14 @@ def test_randomised_dataset_records_which_rigs_had_what(tmp_path):
     generate_dataset(cfg, tmp_path / "ds2")
     again = load_dataset(tmp_path / "ds2")
     np.testing.assert_array_equal(np.concatenate(again.windows()), np.concatenate(ds.windows()))
+
+
+def test_ideal_fraction_keeps_rigs_without_any_effect():
+    cfg = validate_config(SimulationConfig, {**SMALL, "ideal_fraction": 0.5, "effects": [
+        {"name": "contact_damping", "params": {"damping_ratio": [0.1, 0.2]}},
+        {"name": "adc"},
+    ]})  # fmt: skip
+    plan = sample_plan(cfg, 2000, np.random.default_rng(3))
+    damped, adc = plan.active["contact_damping"], plan.active["adc"]
+    assert np.array_equal(damped, adc)  # probability 1: only the ideal rigs lack them
+    assert 0.45 < 1 - damped.mean() < 0.55
