@@ -110,10 +110,13 @@ def fit_alarm(
     target: float,
     seed: int,
     info: dict[str, Any],
+    checks: list[str] | None = None,
 ) -> tuple[AlarmReference, float]:
     """Reference embeddings from training windows, thresholds from calibration trajectories.
 
-    Returns the reference and the fraction of calibration trajectories it flags.
+    ``checks`` limits the alarm to those checks (default: every check the model's
+    outputs allow). Returns the reference and the fraction of calibration
+    trajectories it flags.
     """
     ref = AlarmReference(thresholds={}, info=dict(info))
     if train_embeddings is not None and len(train_embeddings):
@@ -122,7 +125,8 @@ def fit_alarm(
         )
         ref.embeddings, ref.center, ref.scale = emb, center, scale
     table = trajectory_table(cal_traj, cal_label, cal_beta, cal_outputs, ref)
-    ref.thresholds, rate = calibrate_thresholds(table.checks, target)
+    scores = {k: v for k, v in table.checks.items() if checks is None or k in checks}
+    ref.thresholds, rate = calibrate_thresholds(scores, target)
     ref.info.update({"target_false_alarm": target, "calibration_false_alarm": rate,
                      "calibration_trajectories": int(len(table.trajectory))})  # fmt: skip
     return ref, rate
@@ -167,6 +171,7 @@ def calibrate_recording_level(
     target: float,
     seed: int,
     info: dict[str, Any],
+    checks: list[str] | None = None,
 ) -> tuple[AlarmReference, float, dict[str, float]]:
     """The alarm, the recording-level conformal quantile and the test trajectories' metrics.
 
@@ -185,7 +190,7 @@ def calibrate_recording_level(
         return {k: v[mask] for k, v in outputs.items()}
 
     alarm, _ = fit_alarm(train_emb, traj[cal], label[cal], beta[cal], part(cal), target, seed,
-                         info)  # fmt: skip
+                         info, checks)  # fmt: skip
     q = recording_quantile(trajectory_table(traj[cal], label[cal], beta[cal], part(cal), alarm),
                            coverage)  # fmt: skip
     te = split.test

@@ -83,6 +83,7 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), ds.column("label"), ds.column("beta"), sp, outputs,
         config.coverage, config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
+        config.alarm_checks,
     )  # fmt: skip
     alarm_path = path.with_suffix(ALARM_SUFFIX)
     save_alarm(alarm_path, alarm)

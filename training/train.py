@@ -263,7 +263,7 @@ def train(
     outputs = {"probabilities": clf.predict_proba(X), "log_beta": reg.predict(X)}
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
-        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha), config.alarm_checks,
     )  # fmt: skip
     say(f"per-trajectory conformal quantile {q_rec:.3f}; test trajectories: "
         + ", ".join(f"{k} {v:.3f}" for k, v in m_rec.items()))  # fmt: skip
@@ -426,7 +426,7 @@ def train_cnn(
     say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
-        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha), config.alarm_checks,
     )  # fmt: skip
     say(
         f"per-trajectory conformal quantile {q_rec:.3f} (normalised); alarm thresholds "

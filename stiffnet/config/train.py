@@ -81,6 +81,12 @@ class TrainConfig(_Strict):
         0.2, gt=0.0, lt=0.9, description="trajectories held out for conformal calibration"
     )
     coverage: float = Field(0.9, gt=0.0, lt=1.0, description="target beta interval coverage")
+    alarm_checks: list[Literal["embedding", "ambiguity", "beta_uncertainty", "class_edge"]] = Field(
+        ["embedding", "ambiguity", "beta_uncertainty", "class_edge"],
+        min_length=1,
+        description="the alarm's checks (stiffnet.uncertainty.alarm); those the model "
+        "cannot compute (embedding for the GBM) are left out",
+    )
     alarm_false_alarm: float = Field(
         0.04,
         gt=0.0,
