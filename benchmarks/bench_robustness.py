@@ -32,7 +32,6 @@ Run::
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 import time
 from collections import Counter
@@ -43,6 +42,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # the user effects load as benchmarks.contact_laws:...
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from bench_models import _merge, say  # noqa: E402  (the test-set config merge, progress)
 
 from serving.predictor import Predictor  # noqa: E402
 from stiffnet.config import load_yaml, validate_config  # noqa: E402
@@ -54,17 +56,6 @@ from stiffnet.io_utils import write_json_atomic  # noqa: E402
 DEFAULT_SETS = ROOT / "benchmarks" / "configs" / "robustness_sets.yaml"
 #: The issue's target for sets inside the priors: the 90 % interval covers >= 88 %.
 COVERAGE_TARGET = 0.88
-
-
-def say(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
-def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
-    out = copy.deepcopy(base)
-    for k, v in over.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
-    return out
 
 
 def set_configs(path: Path, quick: bool = False) -> dict[str, tuple[SimulationConfig, bool]]:
