@@ -137,6 +137,8 @@ def markdown(result: dict[str, Any]) -> str:
         return f"{100 * v:.0f} %" if pct else f"{v:.3f}"
 
     lines = [
+        f"(!): coverage under the {COVERAGE_TARGET:.0%} target on a set inside the priors",
+        "",
         "| set | inside priors | model | accuracy | beta MAPE | coverage (90 %) | "
         "alarm rate | alarm on wrong (n wrong) |",
         "|---|---|---|---|---|---|---|---|",
@@ -145,7 +147,8 @@ def markdown(result: dict[str, Any]) -> str:
         for model, m in s["models"].items():
             lines.append(
                 f"| {name} | {'yes' if s['inside_priors'] else 'no'} | {model} | "
-                f"{f(m['accuracy'])} | {f(m['beta_mape'])} | {f(m['coverage'])} | "
+                f"{f(m['accuracy'])} | {f(m['beta_mape'])} | {f(m['coverage'])}"
+                f"{' (!)' if s['inside_priors'] and (m['coverage'] or 0) < COVERAGE_TARGET else ''} | "
                 f"{f(m['alarm_rate'], True)} | {f(m['alarm_rate_wrong'], True)} ({m['n_wrong']}) |"
             )
     return "\n".join(lines)
