@@ -145,10 +145,11 @@ def markdown(result: dict[str, Any]) -> str:
     ]
     for name, s in result["sets"].items():
         for model, m in s["models"].items():
+            short = s["inside_priors"] and (m["coverage"] or 0) < COVERAGE_TARGET
             lines.append(
                 f"| {name} | {'yes' if s['inside_priors'] else 'no'} | {model} | "
                 f"{f(m['accuracy'])} | {f(m['beta_mape'])} | {f(m['coverage'])}"
-                f"{' (!)' if s['inside_priors'] and (m['coverage'] or 0) < COVERAGE_TARGET else ''} | "
+                f"{' (!)' if short else ''} | "
                 f"{f(m['alarm_rate'], True)} | {f(m['alarm_rate_wrong'], True)} ({m['n_wrong']}) |"
             )
     return "\n".join(lines)
