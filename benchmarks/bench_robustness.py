@@ -32,6 +32,7 @@ Run::
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from collections import Counter
@@ -76,7 +77,9 @@ def set_configs(path: Path, quick: bool = False) -> dict[str, tuple[SimulationCo
 
 def recordings(cfg: SimulationConfig, folder: Path) -> list[dict[str, Any]]:
     """Simulate (or reuse) the set and join each trajectory's windows into one recording."""
-    if not (folder / CARD).is_file():
+    card = folder / CARD
+    cached = json.loads(card.read_text()).get("config") if card.is_file() else None
+    if cached != cfg.model_dump(mode="json"):  # missing, or simulated from another config
         generate_dataset(cfg, folder, overwrite=True)
     ds = load_dataset(folder)
     traj = ds.column("trajectory")
