@@ -401,7 +401,7 @@ class Predictor:
         segments = []
         for k, lo in enumerate(range(0, len(W), self.segment_windows)):
             hi = min(len(W), lo + self.segment_windows)
-            seg = self._aggregate({k: v[lo:hi] for k, v in out.items()})
+            seg = self._aggregate({name: v[lo:hi] for name, v in out.items()})
             segments.append(
                 {
                     "index": k,
@@ -420,16 +420,14 @@ class Predictor:
         geometric = self._geometric(geo)
         alarm = self._alarm(est, out, feats)
         physical = physical_check(a, fs, fn)
-        ood_score = ood_threshold = None
-        if alarm is not None:
-            ratios = [
-                v / alarm["thresholds"][k]
-                for k, v in alarm["scores"].items()
-                if v is not None and alarm["thresholds"].get(k)
-            ]
-            ood_score, ood_threshold = (max(ratios), 1.0) if ratios else (None, None)
-            if alarm["flag"]:
-                warnings.append(alarm["message"])
+        if alarm is not None and alarm["flag"]:
+            warnings.append(alarm["message"])
+        # the alarm as one number: its largest score over its threshold (fires above 1)
+        ratios = [
+            v / alarm["thresholds"][k]
+            for k, v in (alarm or {}).get("scores", {}).items()
+            if alarm["thresholds"].get(k)
+        ]
         result = {
             "source": source,
             "class": cls,
@@ -445,8 +443,8 @@ class Predictor:
             "physical_beta_interval": physical["beta_interval"],
             "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
             "contact_detected": cls != "no_contact",
-            "ood_score": ood_score,
-            "ood_threshold": ood_threshold,
+            "ood_score": max(ratios) if ratios else None,
+            "ood_threshold": 1.0 if ratios else None,
             "ood_flag": bool(alarm is not None and alarm["flag"]),
             "alarm": alarm,
             "n_windows": int(len(W)),
