@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 
@@ -28,6 +30,11 @@ def physical_check(accel: Any, fs_hz: float, natural_frequency_hz: float) -> dic
         )
     except StiffnetError as exc:
         return {"class": None, "beta": None, "beta_interval": None, "reason": str(exc)}
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a fit that breaks numerically (non-finite Jacobian, singular system) is a
+        # refusal of the cross-check, never a failure of the prediction
+        reason = f"the restoring-force fit failed numerically ({type(exc).__name__})"
+        return {"class": None, "beta": None, "beta_interval": None, "reason": reason}
     d = r.to_dict()
     return {
         "class": d["physical_class"],
