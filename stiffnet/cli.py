@@ -11,13 +11,43 @@ from typing import Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+from typer.core import TyperGroup
 
 from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
 from stiffnet.errors import StiffnetError
 
+
+class OneLineErrors(TyperGroup):
+    """Usage errors (``--fs abc``, a missing argument) as one ``error:`` line, exit 2.
+
+    Typer would draw a multi-line box; the contract is one line naming the problem.
+    """
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            rv = super().main(*args, standalone_mode=False, **kwargs)
+        except typer.TyperException as exc:  # typer's (vendored click's) usage errors
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                exc.show()  # `stiffnet` alone: the help, as before
+                sys.exit(exc.exit_code)
+            ctx = getattr(exc, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+            report_error(f"{message}{hint}")
+            sys.exit(2)
+        except typer.Abort:
+            report_error("aborted")
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
+    cls=OneLineErrors,
     name="stiffnet",
     help="Identify the stiffness of an impacted material from one accelerometer.",
     no_args_is_help=True,
@@ -30,15 +60,52 @@ out = Console()
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def report_error(message: object) -> None:
+    """``error: message`` on one line of stderr (control characters and markup escaped)."""
+    from stiffnet.inputs import one_line
+
+    console.print(f"[bold red]error:[/] {escape(one_line(message))}", highlight=False,
+                  soft_wrap=True)  # fmt: skip
+
+
+#: Parameters every command names the same way: checked before the command runs.
+_OUTPUT_FILES = ("json_path", "out_path")
+_OUTPUT_FOLDERS = ("plots", "out_dir")
+
+
+def check_arguments(kwargs: dict[str, Any]) -> None:
+    """Validate the shared options (rates, knobs, output paths) before any work.
+
+    See :mod:`stiffnet.inputs`: ``--fs``/``--fn`` in physical ranges, ``--threads``
+    and ``--workers`` at most the available cores, output paths usable.
+    """
+    from stiffnet import inputs
+
+    if kwargs.get("fs") is not None:
+        inputs.sampling_rate(kwargs["fs"], "--fs")
+    if kwargs.get("fn") is not None:
+        inputs.natural_frequency(kwargs["fn"], "--fn")
+    if kwargs.get("fs") is not None and kwargs.get("fn") is not None:
+        inputs.rate_ratio(kwargs["fs"], kwargs["fn"], "--fs/--fn")
+    inputs.threads(kwargs.get("threads"))
+    inputs.bounded_count(kwargs.get("workers"), "--workers", 1, inputs.available_cores())
+    flags = {"json_path": "--json", "out_path": "--out", "plots": "--plots", "out_dir": "--out"}
+    for name in _OUTPUT_FILES:
+        inputs.output_file(kwargs.get(name), flags[name])
+    for name in _OUTPUT_FOLDERS:
+        inputs.output_folder(kwargs.get(name), flags[name])
+
+
 def user_errors(fn: F) -> F:
-    """Report :class:`StiffnetError` as one line on stderr and exit with code 2."""
+    """Check shared options first; report :class:`StiffnetError` as one line, exit code 2."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
+            check_arguments(kwargs)
             return fn(*args, **kwargs)
         except StiffnetError as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            report_error(exc)
             raise typer.Exit(2) from None
 
     return wrapper  # type: ignore[return-value]

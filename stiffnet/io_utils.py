@@ -5,8 +5,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,9 +24,17 @@ def _umask() -> int:
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it into place."""
+    """Write ``data`` to a temporary file beside ``path``, then rename it into place.
+
+    The rename only ever replaces a regular file: a symbolic link, FIFO, device or
+    folder at ``path`` is refused (it is not ours to replace).
+    """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    _check_replaceable_file(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise StiffnetError(f"{path}: cannot write here ({exc.strerror})") from None
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; a normal file honours the umask
         with os.fdopen(fd, "wb") as fh:
@@ -38,8 +48,40 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         raise
 
 
+def _check_replaceable_file(path: Path) -> None:
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(mode):
+        kind = "a symbolic link" if stat.S_ISLNK(mode) else (
+            "a folder" if stat.S_ISDIR(mode) else "not a regular file")  # fmt: skip
+        raise StiffnetError(f"{path} is {kind}: refusing to replace it")
+
+
 def write_json_atomic(path: str | Path, obj: Any) -> None:
-    write_bytes_atomic(path, (json.dumps(obj, indent=2, default=_json_default) + "\n").encode())
+    """Write ``obj`` as JSON atomically; NaN and infinities become ``null`` (JSON has none)."""
+    text = json.dumps(_finite(obj), indent=2, default=_json_default, allow_nan=False)
+    write_bytes_atomic(path, (text + "\n").encode())
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with non-finite floats (numpy's included) replaced by None."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        return obj
+    if isinstance(obj, np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.ndarray) and obj.dtype.kind == "f":
+        return [_finite(v) for v in obj.tolist()]
+    return obj
 
 
 def _json_default(obj: Any) -> Any:
@@ -75,8 +117,10 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise StiffnetError(f"output path exists and is not a folder: {out}")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+        check_replaceable_folder(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     tmp.chmod(0o777 & ~_umask())  # mkdtemp makes 0700; a normal folder honours the umask
@@ -92,3 +136,55 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+#: Files whose presence marks a folder as written by stiffnet (dataset, campaign, run).
+OWN_MARKERS = ("card.json", "job.json", "campaign_card.json", "stiffnet-run.json")
+
+
+def check_replaceable_folder(out: str | Path, markers: tuple[str, ...] = OWN_MARKERS) -> None:
+    """Refuse to delete ``out`` unless stiffnet wrote it (``--overwrite``).
+
+    ``out`` must carry one of stiffnet's ``markers`` and must not be the working
+    directory or one of its ancestors.
+    """
+    p = Path(out)
+    real = p.resolve()
+    if Path.cwd().resolve().is_relative_to(real):
+        raise StiffnetError(f"{p}: refusing to overwrite the working directory or a parent of it")
+    if not any((p / m).is_file() for m in markers):
+        raise StiffnetError(
+            f"{p}: refusing to overwrite a folder stiffnet did not write (none of "
+            f"{', '.join(markers)} in it); choose another output folder"
+        )
+
+
+def lock_path(folder: str | Path) -> Path:
+    """The lock file of an output folder: hidden, beside it (its content is replaced)."""
+    p = Path(folder).resolve()
+    return p.parent / f".{p.name}.stiffnet.lock"
+
+
+@contextlib.contextmanager
+def output_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the output folder's lock (``filelock``) or refuse: another run is writing it.
+
+    An OS-level lock (``flock``): it is released when the holder exits, even by
+    ``kill -9``, so a crashed run never blocks the next one.
+    """
+    from filelock import FileLock, Timeout
+
+    path = lock_path(folder)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(path), timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise StiffnetError(
+            f"{folder}: another stiffnet run is writing this folder (lock {path.name}); "
+            "wait for it or choose another output folder"
+        ) from None
+    try:
+        yield
+    finally:
+        lock.release()

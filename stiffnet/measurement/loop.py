@@ -147,6 +147,19 @@ def _flat(ev: dict[str, Any], discrepancy: float) -> dict[str, float | None]:
     }
 
 
+#: Fewest trajectories per generated dataset: every class in training and in test.
+MIN_TRAJECTORIES = 50
+
+
+def check_n_trajectories(n: int | None) -> None:
+    """Refuse a dataset size too small to split into training and test trajectories."""
+    if n is not None and not MIN_TRAJECTORIES <= n <= 10_000_000:
+        raise StiffnetError(
+            f"--n-trajectories must be {MIN_TRAJECTORIES}..10000000 (each dataset is split into "
+            f"training and test trajectories of every class), got {n}"
+        )
+
+
 def run_loop(
     campaign: Campaign,
     cfg: SimulationConfig,
@@ -199,6 +212,7 @@ def run_loop(
 
     if model not in ("gbm", "cnn"):
         raise StiffnetError(f"model {model!r} is not available: use gbm or cnn")
+    check_n_trajectories(n_trajectories)
     t0 = time.perf_counter()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

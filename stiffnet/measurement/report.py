@@ -182,7 +182,7 @@ def render_report(
                         "bic_delta",
                         "significant",
                     ],
-                    lambda r: "sig" if r["significant"] else "",
+                    lambda r: "sig" if r.get("significant") is True else "",
                 )
             )
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
