@@ -88,7 +88,7 @@ def check_arguments(kwargs: dict[str, Any]) -> None:
     if kwargs.get("fs") is not None and kwargs.get("fn") is not None:
         inputs.rate_ratio(kwargs["fs"], kwargs["fn"], "--fs/--fn")
     inputs.threads(kwargs.get("threads"))
-    inputs.bounded_count(kwargs.get("workers"), "--workers", 1, inputs.available_cores())
+    inputs.bounded_count(kwargs.get("workers"), "--workers", 1, inputs.max_local_workers())
     flags = {"json_path": "--json", "out_path": "--out", "plots": "--plots", "out_dir": "--out"}
     for name in _OUTPUT_FILES:
         inputs.output_file(kwargs.get(name), flags[name])
@@ -232,8 +232,13 @@ def train(
         Path | None, typer.Option(help="Training config (YAML); default configs/train/MODEL.yaml.")
     ] = None,
     out_dir: Annotated[
-        Path, typer.Option("--out", help="Folder for the ONNX model and card.")
-    ] = Path("models"),
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Folder for the ONNX model and card (default: a fresh runs/train-MODEL-TIME; "
+            "the shipped models/ is only replaced when named).",
+        ),
+    ] = None,
     tracking_uri: Annotated[
         str | None, typer.Option(help="MLflow tracking URI (default: the config's, sqlite).")
     ] = None,
@@ -255,9 +260,13 @@ def train(
         cfg = validate_config(TrainConfig, {"model": model})
     if cfg.model != model:
         raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
+    from stiffnet.io_utils import fresh_run_folder, output_lock
     from training.train import train as run_training
 
-    result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    out_dir = out_dir or fresh_run_folder(f"train-{model}")
+    with output_lock(out_dir):  # a concurrent train into the same folder is refused
+        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
     table = Table(title=f"{model} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):

@@ -25,6 +25,7 @@ import json
 import math
 import numbers
 import os
+import re
 import stat
 import tempfile
 from pathlib import Path
@@ -52,6 +53,23 @@ def one_line(text: object, limit: int = 1000) -> str:
         ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode() for ch in s
     )
     return out if len(out) <= limit else out[: limit - 3] + "..."
+
+
+#: What a message may quote from a file: a short word or number (a column name, a cell).
+_QUOTABLE = re.compile(r"^[A-Za-z0-9_ .+\-]{0,32}$")
+
+
+def quote_content(text: str, cells: int = 1) -> str | None:
+    """``repr(text)`` if it is safe to quote in a message, else None.
+
+    Errors never echo file contents: a file that is not what it should be (a link to
+    a secret, a binary) shows up only as its shape. Short words and numbers, comma-
+    separated into at most ``cells`` cells, are quoted, since they name the problem.
+    """
+    parts = text.split(",")
+    if len(parts) <= cells and all(_QUOTABLE.match(c) for c in parts):
+        return repr(text)
+    return None
 
 
 # ------------------------------------------------------------------------------ numbers
@@ -108,6 +126,11 @@ def available_cores() -> int:
         return len(os.sched_getaffinity(0)) or 1
     except AttributeError:  # pragma: no cover - not on Linux
         return os.cpu_count() or 1
+
+
+def max_local_workers() -> int:
+    """Most local Dask worker processes: 4 per core (each holds a simulator's memory)."""
+    return 4 * available_cores()
 
 
 def bounded_count(value: int | None, what: str, lo: int = 1, hi: int | None = None) -> int | None:

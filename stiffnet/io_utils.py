@@ -159,10 +159,23 @@ def check_replaceable_folder(out: str | Path, markers: tuple[str, ...] = OWN_MAR
         )
 
 
+#: Environment variable naming the folder of the output locks (default: per user, in /tmp).
+LOCK_DIR_ENV = "STIFFNET_LOCK_DIR"
+
+
 def lock_path(folder: str | Path) -> Path:
-    """The lock file of an output folder: hidden, beside it (its content is replaced)."""
-    p = Path(folder).resolve()
-    return p.parent / f".{p.name}.stiffnet.lock"
+    """The lock file of an output folder.
+
+    Kept out of the user's folders (nothing is left beside an output): one file per
+    resolved output path in a per-user lock folder, so two names of one folder
+    (``data/x`` and ``./data/../data/x``) share a lock.
+    """
+    real = str(Path(folder).resolve())
+    root = Path(
+        os.environ.get(LOCK_DIR_ENV)
+        or Path(tempfile.gettempdir()) / f"stiffnet-locks-{os.getuid()}"
+    )
+    return root / (hashlib.sha256(real.encode()).hexdigest()[:32] + ".lock")
 
 
 @contextlib.contextmanager
@@ -175,16 +188,74 @@ def output_lock(folder: str | Path) -> Iterator[None]:
     from filelock import FileLock, Timeout
 
     path = lock_path(folder)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     lock = FileLock(str(path), timeout=0)
     try:
         lock.acquire()
     except Timeout:
         raise StiffnetError(
-            f"{folder}: another stiffnet run is writing this folder (lock {path.name}); "
+            f"{folder}: another stiffnet run is writing this folder (lock {path}); "
             "wait for it or choose another output folder"
         ) from None
     try:
         yield
     finally:
         lock.release()
+
+
+def fresh_run_folder(prefix: str, root: str | Path = "runs") -> Path:
+    """A new, not yet existing ``runs/PREFIX-YYYYmmdd-HHMMSS[-N]`` folder name."""
+    import time
+
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    base = Path(root) / f"{prefix}-{stamp}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    return path
+
+
+#: The marker file of a run folder (loop, train): what wrote it and whether it finished.
+RUN_MARKER = "stiffnet-run.json"
+
+
+def start_run_folder(out: str | Path, kind: str) -> None:
+    """Make ``out`` a fresh run folder of ``kind``; call it holding :func:`output_lock`.
+
+    An empty or absent folder is used as it is; an earlier run of the same kind
+    (its marker says so) is removed first, so a killed run's files never mix with
+    the new ones; any other non-empty folder is refused.
+    """
+    out = Path(out)
+    if out.is_dir() and any(out.iterdir()):
+        marker = out / RUN_MARKER
+        try:
+            same = json.loads(marker.read_text()).get("kind") == kind
+        except (OSError, ValueError, AttributeError):
+            same = False
+        if not same:
+            raise StiffnetError(
+                f"{out}: folder exists and is not an earlier {kind} run (no {RUN_MARKER} of "
+                "that kind): choose another output folder"
+            )
+        check_replaceable_folder(out, (RUN_MARKER,))
+        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+        os.replace(out, trash / "old")
+        shutil.rmtree(trash, ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / RUN_MARKER, {"kind": kind, "status": "running"})
+
+
+def finish_run_folder(out: str | Path, kind: str) -> None:
+    """Mark the run folder complete."""
+    write_json_atomic(Path(out) / RUN_MARKER, {"kind": kind, "status": "complete"})
+
+
+def is_run_folder(folder: str | Path, kind: str) -> bool:
+    """Whether ``folder`` carries the marker of a finished run of ``kind``."""
+    try:
+        d = json.loads((Path(folder) / RUN_MARKER).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(d, dict) and d.get("kind") == kind and d.get("status") == "complete"

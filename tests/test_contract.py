@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -279,3 +281,201 @@ def test_http_json_bodies_never_500(client, body):
                     headers={"content-type": "application/json"})  # fmt: skip
     assert 400 <= r.status_code < 500, r.text
     assert set(r.json()) == {"error"}
+
+
+# ------------------------------------------------------------------ users' files are safe
+
+TINY_SIM = (
+    "n_trajectories: 4\nshard_size: 2\nwindows: {duration_periods: 4, per_trajectory: 1}\n"
+    "sweep: {fs_ratio: [50, 60]}\nsolver: {settle_tolerance: 0.2}\n"
+)
+
+
+@pytest.fixture
+def tiny_config(tmp_path):
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(TINY_SIM)
+    return cfg
+
+
+def _user_folder(folder: Path) -> dict[str, str]:
+    (folder / "sub").mkdir(parents=True)
+    (folder / "thesis.tex").write_text("years of work")
+    (folder / "sub" / "notes.txt").write_text("notes")
+    return {str(p.relative_to(folder)): p.read_text() for p in folder.rglob("*") if p.is_file()}
+
+
+def _snapshot(folder: Path) -> dict[str, str]:
+    return {str(p.relative_to(folder)): p.read_text() for p in folder.rglob("*") if p.is_file()}
+
+
+def test_overwrite_never_deletes_the_working_directory(tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    before = _user_folder(work)
+    (work / "campaign_card.json").write_text("{}")  # even with a marker: it is the cwd
+    shutil.copy(ROOT / "examples" / "campaign_manifest.csv", tmp_path / "m.csv")
+    monkeypatch.chdir(work)
+    one_line_error(["simulate-campaign", tmp_path / "m.csv", "--out", ".", "--overwrite"],
+                   "working directory")  # fmt: skip
+    assert _snapshot(work) == {**before, "campaign_card.json": "{}"}
+
+
+def test_overwrite_only_deletes_stiffnet_folders(tmp_path, tiny_config):
+    other = tmp_path / "other"
+    before = _user_folder(other)
+    shutil.copy(ROOT / "examples" / "campaign_manifest.csv", tmp_path / "m.csv")
+    one_line_error(["simulate-campaign", tmp_path / "m.csv", "--out", other, "--overwrite"],
+                   "did not write")  # fmt: skip
+    one_line_error(["simulate", "--config", tiny_config, "--out", other, "--overwrite"],
+                   "did not write")  # fmt: skip
+    assert _snapshot(other) == before
+
+
+def test_json_never_replaces_links_fifos_or_devices(tmp_path, recording):
+    target = tmp_path / "target.json"
+    target.write_text("keep")
+    link = tmp_path / "link.json"
+    link.symlink_to(target)
+    one_line_error(["analyze", recording, "--json", link], "symbolic link")
+    assert link.is_symlink() and target.read_text() == "keep"
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    one_line_error(["analyze", recording, "--json", fifo], "not a regular file")
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    from stiffnet.io_utils import write_json_atomic
+
+    with pytest.raises(StiffnetError, match="refusing to replace"):
+        write_json_atomic(link, {"a": 1})  # the library refuses too, not only the CLI
+    assert link.is_symlink()
+
+
+def test_concurrent_writers_are_refused_not_mixed(tmp_path, tiny_config):
+    from stiffnet.io_utils import output_lock
+
+    out = tmp_path / "ds"
+    with output_lock(out):  # another run holds the folder
+        one_line_error(["simulate", "--config", tiny_config, "--out", out, "--seed", "1"],
+                       "another stiffnet run")  # fmt: skip
+        one_line_error(["simulate", "--config", tiny_config, "--out", out, "--overwrite"],
+                       "another stiffnet run")  # fmt: skip
+        shutil.copy(ROOT / "examples" / "campaign_manifest.csv", tmp_path / "m.csv")
+        one_line_error(["simulate-campaign", tmp_path / "m.csv", "--out", out],
+                       "another stiffnet run")  # fmt: skip
+    assert not out.exists()
+    res = runner.invoke(app, ["simulate", "--config", str(tiny_config), "--out", str(out)])
+    assert res.exit_code == 0, res.output  # released: the next run goes ahead
+
+
+def test_load_dataset_refuses_a_mixed_folder(tmp_path):
+    import yaml
+
+    from stiffnet.config import validate_config
+    from stiffnet.config.sim import SimulationConfig
+    from stiffnet.dataset.generate import generate_dataset
+    from stiffnet.dataset.store import load_dataset
+
+    data = yaml.safe_load(TINY_SIM)
+    a, b = tmp_path / "a", tmp_path / "b"
+    generate_dataset(validate_config(SimulationConfig, {**data, "seed": 0}), a)
+    generate_dataset(validate_config(SimulationConfig, {**data, "seed": 1}), b)
+    assert len(load_dataset(a)) == 4
+    shutil.copy(b / "shards" / "shard-00000.parquet", a / "shards" / "shard-00000.parquet")
+    with pytest.raises(StiffnetError, match="does not match its SHA-256"):
+        load_dataset(a)
+
+
+def test_run_folders_replace_only_their_own_kind(tmp_path):
+    from stiffnet.io_utils import RUN_MARKER, start_run_folder
+
+    mine = tmp_path / "loop"
+    start_run_folder(mine, "stiffnet-loop")
+    (mine / "stale.png").write_text("from a killed run")
+    start_run_folder(mine, "stiffnet-loop")  # the earlier run's files are gone, not mixed
+    assert sorted(os.listdir(mine)) == [RUN_MARKER]
+    user = tmp_path / "user"
+    before = _user_folder(user)
+    with pytest.raises(StiffnetError, match="not an earlier stiffnet-loop run"):
+        start_run_folder(user, "stiffnet-loop")
+    assert _snapshot(user) == before
+
+
+def test_train_defaults_to_a_fresh_run_folder():
+    """`train` without --out never writes into the shipped models/ (checked on the option)."""
+    import inspect
+
+    from stiffnet.cli import train
+    from stiffnet.io_utils import fresh_run_folder
+
+    assert inspect.signature(train).parameters["out_dir"].default is None
+    first = fresh_run_folder("train-gbm", ROOT / "runs-never-created")
+    assert first.parent.name == "runs-never-created" and first.name.startswith("train-gbm-")
+    assert not first.exists()
+
+
+# --------------------------------------------------------------------- report and plug-ins
+
+
+def test_report_embeds_no_foreign_file_and_escapes_keys(tmp_path):
+    from stiffnet.measurement.report import render_report
+
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"\x89PNG\r\n\x1a\nSECRET-BYTES")  # even a PNG outside the run folder
+    diagnosis = {
+        "baseline_discrepancy": 1.0,
+        "missing_effect": "<script>alert(1)</script>",
+        "ranking": [
+            {
+                "effect": "<b>x</b>",
+                "params": {"<script>k</script>": 1.0},
+                "fitted": [],
+                "significant": True,
+                "relative_reduction": 0.5,
+                "discrepancy_reduction": 0.5,
+            }
+        ],
+    }
+    loop = {"before": {}, "after": {}, "effect": "x", "chart": str(secret), "out": str(tmp_path)}
+    page = render_report("t", None, None, diagnosis, loop)
+    assert "<script>" not in page and "&lt;script&gt;" in page
+    import base64
+
+    assert base64.b64encode(secret.read_bytes()).decode()[:20] not in page
+    assert "loop chart not embedded" in page
+    loop["chart"] = "/etc/passwd"
+    assert "cm9vd" not in render_report("t", None, None, None, loop)  # base64 of "root"
+
+
+def test_errors_never_echo_file_contents(tmp_path):
+    from stiffnet.campaign import load_campaign
+    from stiffnet.recordings import read_recording
+
+    secret = tmp_path / "shadow"
+    secret.write_text("admin:$6$SALTED$S3CRETHASH:19000:0:99999:7:::\nx\n")
+    link = tmp_path / "r.csv"
+    link.symlink_to(secret)
+    with pytest.raises(StiffnetError) as exc:
+        read_recording(link)
+    assert "wrong header" in str(exc.value) and "S3CRET" not in str(exc.value)
+    camp = tmp_path / "camp"
+    camp.mkdir()
+    (camp / "manifest.csv").symlink_to(secret)
+    with pytest.raises(StiffnetError) as exc:
+        load_campaign(camp)
+    assert "admin" not in str(exc.value) and "S3CRET" not in str(exc.value)
+
+
+def test_user_effect_is_imported_only_after_everything_else(tmp_path, monkeypatch):
+    from stiffnet.config import validate_config
+    from stiffnet.config.sim import SimulationConfig
+    from stiffnet.errors import ConfigError
+
+    ran = tmp_path / "ran"
+    (tmp_path / "evil_effect_mod.py").write_text(f"open({str(ran)!r}, 'w').write('ran')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    bad = {"seed": -1, "effects": [{"name": "evil_effect_mod:Evil"}]}
+    with pytest.raises(ConfigError, match="seed"):
+        validate_config(SimulationConfig, bad)
+    assert not ran.exists()  # the module never ran: the config was wrong elsewhere
+    with pytest.raises(ConfigError, match="Evil"):
+        validate_config(SimulationConfig, {"effects": [{"name": "evil_effect_mod:Evil"}]})
+    assert ran.exists()  # configs are code: a valid config does import it (documented)

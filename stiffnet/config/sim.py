@@ -6,7 +6,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
-from stiffnet.effects.registry import build_effect
+from stiffnet.effects.registry import CANONICAL, build_effect
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 
@@ -77,8 +77,16 @@ class EffectSpec(_Strict):
 
     @model_validator(mode="after")
     def _valid_effect(self) -> EffectSpec:
-        build_effect(self.name, self.params)  # raises ConfigError naming the problem
+        # A shipped effect is checked here; a user ``module:Class`` imports (runs) code,
+        # so SimulationConfig checks it only after every other field has passed.
+        if not self.is_user_code:
+            build_effect(self.name, self.params)  # raises ConfigError naming the problem
         return self
+
+    @property
+    def is_user_code(self) -> bool:
+        """A ``module:Class`` effect: validating it imports that module (configs are code)."""
+        return self.name not in CANONICAL
 
     def build(self) -> Any:
         return build_effect(self.name, self.params)
@@ -126,6 +134,9 @@ class SimulationConfig(_Strict):
         names = [e.name for e in self.effects]
         if len(set(names)) != len(names):
             raise ValueError("an effect is listed twice")
+        for e in self.effects:  # last: everything else is valid, now import user code
+            if e.is_user_code:
+                build_effect(e.name, e.params)
         return self
 
     def class_names(self) -> list[str]:

@@ -49,9 +49,9 @@ def check_target(scheduler: str | None, workers: int | None) -> None:
     """Validate a ``scheduler``/``workers`` pair (both set, or a bad count, is an error)."""
     if scheduler is not None and workers is not None:
         raise StiffnetError(f"use either --scheduler (or {SCHEDULER_ENV}) or --workers, not both")
-    from stiffnet.inputs import available_cores, bounded_count, one_line
+    from stiffnet.inputs import bounded_count, max_local_workers, one_line
 
-    bounded_count(workers, "--workers", 1, available_cores())
+    bounded_count(workers, "--workers", 1, max_local_workers())
     if scheduler is not None and not scheduler.strip():
         raise StiffnetError("--scheduler is empty: give a Dask scheduler address")
     if scheduler is not None and not SCHEDULER_ADDRESS.match(scheduler.strip()):

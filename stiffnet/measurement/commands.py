@@ -73,9 +73,10 @@ def _read_json(path: Path | None, what: str) -> Any:
         for i, r in enumerate(data["ranking"]):
             ok = isinstance(r, dict) and isinstance(r.get("effect"), str)
             ok = ok and isinstance(r.get("params"), dict) and isinstance(r.get("fitted", []), list)
-            ok = ok and all(
-                isinstance(v, int | float) and not isinstance(v, bool) for v in r["params"].values()
-            )
+            ok = ok and isinstance(r.get("significant"), bool)
+            numbers = [*r.get("params", {}).values(), r.get("relative_reduction"),
+                       r.get("discrepancy_reduction")] if ok else []  # fmt: skip
+            ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) for v in numbers)
             if not ok:
                 raise StiffnetError(f"{path}: ranking[{i}] is not a diagnosed effect")
     return data
