@@ -11,7 +11,10 @@ import json
 import math
 import os
 import shutil
+import socket
 import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -479,3 +482,147 @@ def test_user_effect_is_imported_only_after_everything_else(tmp_path, monkeypatc
     with pytest.raises(ConfigError, match="Evil"):
         validate_config(SimulationConfig, {"effects": [{"name": "evil_effect_mod:Evil"}]})
     assert ran.exists()  # configs are code: a valid config does import it (documented)
+
+
+# ------------------------------------------------------------------ the server under abuse
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_serve_on_a_busy_port_is_one_line():
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        one_line_error(["serve", "--port", str(port)], "cannot listen on 127.0.0.1", "in use")
+
+
+def test_bad_server_options_are_one_line():
+    one_line_error(["serve", "--token", "short"], "--token must be at least 16")
+    one_line_error(["serve", "--max-concurrency", "100000"], "--max-concurrency")
+    one_line_error(["serve", "--max-samples", "0"], "--max-samples")
+
+
+def test_large_requests_get_their_own_lane():
+    """Over max_samples: 413; a big body beyond the large lane: 429 before it is read."""
+    from fastapi.testclient import TestClient
+
+    from serving.app import Limits, create_app
+    from serving.predictor import Predictor
+
+    limits = Limits(max_samples=5_000, small_upload_mb=0.01, max_large=1, max_large_queue=0)
+    app = create_app(Predictor.load(ROOT / "models" / "gbm.onnx"), limits)
+    with TestClient(app) as c:
+        r = c.post("/predict", json={"samples": [0.0, 1.0] * 3000, "fs_hz": 1000})
+        assert r.status_code == 413 and "at most 5000" in r.json()["error"]
+        # occupy the only large slot, as a running upload would
+        state = app.state.load
+        state["large"] = 1
+        r = c.post("/predict", json={"samples": [0.0, 1.0] * 3000, "fs_hz": 1000})
+        assert r.status_code == 429 and "large" in r.json()["error"]
+        small = {"samples": [0.0, 1.0] * 200, "fs_hz": 1000}
+        assert c.post("/predict", json=small).status_code == 422  # the small lane still runs
+        assert c.get("/health").json()["large_in_flight"] == 1
+
+
+def test_token_host_and_cors_policy():
+    from fastapi.testclient import TestClient
+
+    from serving.app import create_app
+    from serving.predictor import Predictor
+
+    token = "s3cret-token-0123456789"
+    policy = {"allowed_hosts": ["testserver"], "cors_origins": ["https://lab.example"]}
+    app = create_app(Predictor.load(ROOT / "models" / "gbm.onnx"), token=token, **policy)
+    with TestClient(app) as c:
+        assert c.get("/health").status_code == 200  # liveness stays open
+        r = c.get("/model")
+        assert r.status_code == 401 and r.headers["www-authenticate"] == "Bearer"
+        assert c.get("/model", headers={"Authorization": "Bearer nope"}).status_code == 401
+        assert c.get("/model", headers={"Authorization": f"Bearer {token}"}).status_code == 200
+        r = c.get("/health", headers={"Host": "evil.example"})  # DNS rebinding
+        assert r.status_code == 400 and "host" in r.json()["error"]
+        pre = {"Origin": "https://lab.example", "Access-Control-Request-Method": "POST"}
+        r = c.options("/predict", headers=pre)
+        assert r.headers.get("access-control-allow-origin") == "https://lab.example"
+        r = c.options("/predict", headers={**pre, "Origin": "https://evil.example"})
+        assert r.headers.get("access-control-allow-origin") is None
+        html = c.get("/docs").text + c.get("/redoc").text
+        assert "cdn" not in html.lower() and "/static-offline-docs/swagger-ui-bundle.js" in html
+        assert c.get("/static-offline-docs/swagger-ui-bundle.js").status_code == 200
+
+
+@pytest.fixture(scope="module")
+def live_server(tmp_path_factory):
+    port = _free_port()
+    log = tmp_path_factory.mktemp("serve") / "stderr.txt"
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    with open(log, "wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stiffnet", "serve", "--port", str(port), "--model",
+             str(ROOT / "models" / "gbm.onnx"), "--body-timeout-s", "1"],
+            stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=ROOT,
+        )  # fmt: skip
+    import httpx
+
+    base = f"http://127.0.0.1:{port}"
+    try:
+        for _ in range(300):
+            try:
+                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
+                    break
+            except httpx.HTTPError:
+                import time
+
+                time.sleep(0.1)
+            assert proc.poll() is None, log.read_text()
+        yield port, log
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _raw(port: int, head: bytes, body: bytes = b"", close: bool = False, wait: float = 5.0):
+    s = socket.create_connection(("127.0.0.1", port), timeout=wait)
+    s.sendall(head + body)
+    if close:
+        s.close()
+        return b""
+    chunks = []
+    try:
+        while chunk := s.recv(65536):  # the server closes after its answer
+            chunks.append(chunk)
+    finally:
+        s.close()
+    return b"".join(chunks)
+
+
+def test_slow_bodies_time_out_and_disconnects_log_one_line(live_server):
+    import time
+
+    port, log = live_server
+    head = (b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            b"Content-Length: 100000\r\n\r\n")  # fmt: skip
+    t = time.monotonic()
+    reply = _raw(port, head, b'{"samples": [1')  # and then nothing more
+    assert reply.startswith(b"HTTP/1.1 408") and b'"error"' in reply
+    assert time.monotonic() - t < 4  # --body-timeout-s 1
+    for _ in range(5):
+        _raw(port, head, b'{"samples": [1, 2', close=True)  # gone mid-body
+    time.sleep(1.0)
+    text = log.read_text()
+    assert "Traceback" not in text
+    assert text.count("disconnected before its request body was complete") == 5
+    import httpx
+
+    assert httpx.get(f"http://127.0.0.1:{port}/health").status_code == 200
+    r = httpx.get(f"http://127.0.0.1:{port}/health", headers={"Host": "rebind.example"})
+    assert r.status_code == 400  # serve allows only loopback names by default
