@@ -72,6 +72,10 @@ from stiffnet.errors import StiffnetError
 log = logging.getLogger("uvicorn.error")
 
 
+#: Small bodies (each <= small_upload_mb) being received at once; more get 429 unread.
+MAX_SMALL_READERS = 256
+
+
 class BodyTooLarge(Exception):
     """The request body exceeded the configured limit while streaming."""
 
@@ -350,7 +354,7 @@ def create_app(
     limits = limits or Limits()
     small = ThreadPoolExecutor(max_workers=limits.max_concurrency, thread_name_prefix="predict")
     large = ThreadPoolExecutor(max_workers=limits.max_large, thread_name_prefix="predict-large")
-    state = {"in_flight": 0, "large": 0, "served": 0}
+    state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
@@ -442,21 +446,33 @@ def create_app(
             )
         length = request.headers.get("content-length")
         is_large = length is None or not length.isdigit() or int(length) > limits.small_bytes
+        # Large: admitted (reading, waiting or running) up to its cap, refused unread beyond.
+        # Small: bodies being read are bounded apart (a stalled sender must not take a
+        # worker's queue place); the worker queue counts read bodies only.
         key, cap = ("large", limits.max_large + limits.max_large_queue) if is_large else (
-            "in_flight", limits.max_concurrency + limits.max_queue)  # fmt: skip
+            "reading", MAX_SMALL_READERS)  # fmt: skip
         if state[key] >= cap:  # refused before its body is read: memory stays bounded
-            what = "large requests" if is_large else "requests"
-            return _error(429, f"too many {what} in flight; retry later", {"Retry-After": "1"})
+            what = "large requests" if is_large else "uploads being received"
+            return _error(429, f"too many {what}; retry later", {"Retry-After": "1"})
         state[key] += 1
         done = release(key)
         try:
             job = await body_job(request, ctype)
-            if isinstance(job, JSONResponse):
-                done()
-                return job
         except BaseException:
             done()
             raise
+        if not is_large:
+            done()  # the small body is read: its reading slot is free
+        if isinstance(job, JSONResponse):
+            if is_large:
+                done()
+            return job
+        if not is_large:
+            if state["in_flight"] >= limits.max_concurrency + limits.max_queue:
+                return _error(429, "too many requests in flight; retry later",
+                              {"Retry-After": "1"})  # fmt: skip
+            state["in_flight"] += 1
+            done = release("in_flight")
         pool = large if is_large else small
         loop = asyncio.get_running_loop()
         fut = loop.run_in_executor(pool, job)
