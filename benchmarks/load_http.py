@@ -64,6 +64,16 @@ def rss_mb(pid: int) -> float:
     return float("nan")
 
 
+def stop(proc: subprocess.Popen) -> None:
+    """Terminate the server (kill it after 15 s)."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
 def wait_healthy(base: str, proc: subprocess.Popen, timeout: float = 60.0) -> None:
     t_end = time.monotonic() + timeout
     while time.monotonic() < t_end:
@@ -239,12 +249,7 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
         health = httpx.get(f"{base}/health", timeout=5).status_code
         peak = peak_rss_mb(proc.pid)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop(proc)
         log.close()
     text = Path(log.name).read_text(errors="replace")
     Path(log.name).unlink()
@@ -333,12 +338,7 @@ def main() -> int:
         res = asyncio.run(run_load(base, body, args.requests, args.clients, proc.pid))
         rss_end = rss_mb(proc.pid)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop(proc)
 
     lat = np.array(res["latencies"]) * 1e3
     codes = res["codes"]

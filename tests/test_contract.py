@@ -199,17 +199,29 @@ def client():
         yield c
 
 
+@pytest.fixture(scope="module")
+def example_samples():
+    from stiffnet.recordings import read_recording
+
+    return read_recording(EXAMPLE).accel.tolist()
+
+
 @pytest.mark.parametrize(
-    "body",
+    "change",
     [
-        {"samples": [True, False] * 600, "fs_hz": 1000},
-        {"samples": [0.0, 1.0] * 600, "fs_hz": "1000"},
-        {"samples": [0.0, 1.0] * 600, "fs_hz": True},
-        {"samples": [0.0, 1.0] * 600, "fs_hz": 1e-306, "natural_frequency_hz": 1e-308},  # was 500
-        {"samples": [0.0, 1.0] * 600, "fs_hz": 1000, "natural_frequency_hz": True},
+        {"samples": "bools"},  # [true, false, ...] was read as 1.0, 0.0
+        {"fs_hz": "1000"},  # a string was read as a number
+        {"fs_hz": True},
+        {"fs_hz": 1e-306, "natural_frequency_hz": 1e-308},  # was the one 500
+        {"natural_frequency_hz": True},  # was f_n = 1 Hz
     ],
 )
-def test_http_numbers_are_numbers(client, body):
+def test_http_numbers_are_numbers(client, example_samples, change):
+    body = {"samples": example_samples, "fs_hz": 1000, "natural_frequency_hz": 9.48}
+    assert client.post("/predict", json=body).status_code == 200  # the valid request works
+    body.update(change)
+    if body["samples"] == "bools":
+        body["samples"] = [bool(v > 0) for v in example_samples]
     r = client.post("/predict", json=body)
     assert r.status_code == 422, r.text
     assert list(r.json()) == ["error"] and "\n" not in r.json()["error"]
