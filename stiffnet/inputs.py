@@ -320,7 +320,7 @@ def output_file(path: str | os.PathLike[str] | None, what: str = "--json") -> Pa
         raise StiffnetError(f"{what} {p}: is {kind}; give a regular file path")
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
-        raise StiffnetError(f"{what} {p}: folder {parent} does not exist")
+        raise StiffnetError(f"{what} {p}: folder {parent} does not exist (create it first)")
     try:  # the atomic write creates a temporary file there: try it now, not after the work
         fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
         os.close(fd)
