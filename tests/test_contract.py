@@ -414,17 +414,36 @@ def test_run_folders_replace_only_their_own_kind(tmp_path):
     assert _snapshot(user) == before
 
 
-def test_train_defaults_to_a_fresh_run_folder():
-    """`train` without --out never writes into the shipped models/ (checked on the option)."""
-    import inspect
+def test_train_defaults_to_a_fresh_run_folder(tiny_dir, tmp_path, monkeypatch):
+    """`train` without --out writes runs/train-gbm-TIME, never ./models (the shipped one)."""
+    shipped = tmp_path / "models"
+    shipped.mkdir()
+    (shipped / "gbm.onnx").write_bytes(b"shipped")
+    cfg = tmp_path / "gbm.yaml"
+    cfg.write_text("gbm: {max_iter: 10, min_samples_leaf: 5}\ntracking: false\n")
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["train", "--data", str(tiny_dir), "--config", str(cfg)])
+    assert res.exit_code == 0, res.output
+    (run,) = (tmp_path / "runs").iterdir()
+    assert run.name.startswith("train-gbm-") and (run / "gbm.onnx").is_file()
+    assert (shipped / "gbm.onnx").read_bytes() == b"shipped"
 
-    from stiffnet.cli import train
-    from stiffnet.io_utils import fresh_run_folder
 
-    assert inspect.signature(train).parameters["out_dir"].default is None
-    first = fresh_run_folder("train-gbm", ROOT / "runs-never-created")
-    assert first.parent.name == "runs-never-created" and first.name.startswith("train-gbm-")
-    assert not first.exists()
+def test_serve_beyond_loopback_warns(monkeypatch):
+    """The warning line, without binding anything (tests bind 127.0.0.1 only)."""
+    import uvicorn
+
+    import serving.commands as sc
+
+    monkeypatch.setattr(sc, "listen_socket", lambda host, port: None)
+    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets=None: None)
+    model = str(ROOT / "models" / "gbm.onnx")
+    res = runner.invoke(app, ["serve", "--host", "0.0.0.0", "--model", model])
+    assert res.exit_code == 0, res.output
+    assert "warning: listening on 0.0.0.0, beyond loopback" in res.stderr
+    assert "no --token set" in res.stderr
+    assert sc.is_loopback("127.0.0.1") and sc.is_loopback("::1") and sc.is_loopback("localhost")
+    assert not sc.is_loopback("0.0.0.0") and not sc.is_loopback("192.168.1.5")
 
 
 # --------------------------------------------------------------------- report and plug-ins
