@@ -606,7 +606,12 @@ def diagnose_campaign(
         ``recordings``, ``settings``, ``seconds``.
     """
     from stiffnet.distributed import map_tasks
+    from stiffnet.distributed.cluster import check_target
+    from stiffnet.inputs import bounded_count
 
+    bounded_count(budget, "--budget", 1, 100_000)  # checked before any simulation
+    bounded_count(budget_numerical, "--budget-numerical", 1, 100_000)
+    check_target(scheduler, workers)
     t0 = time.perf_counter()
     measured, lengths = measured_statistics(campaign, inclination)
     target = CampaignTarget(
