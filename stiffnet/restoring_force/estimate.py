@@ -345,19 +345,24 @@ def _fit_map(
 
 
 def _fit_highpass(args: tuple, ff: float, plain: _Map) -> float:
-    """Rule: the high-pass corner (forcing frequencies) whose correction fits the contact best.
+    """Rule: the high-pass corner (forcing frequencies) whose correction fits the map best.
 
-    Searched only when the plain map fits the contact poorly (the corner is not
-    identifiable from the free flight, whose law the filter leaves intact):
+    The cost is the misfit of the free-flight law (which the filter leaves
+    intact in steady state, but not its start-up transient) plus that of the
+    contact law (1 without one). Searched only when the plain map fits the
+    contact poorly or finds none:
     a grid up to 0.4 of the forcing frequency, then a bounded scalar search
     around the best point. Returns 0 when no corner helps.
     """
 
-    def misfit(corner: float) -> float:
-        m = _fit_map(*args, corner, 1.0)
-        return 1.0 - m.law.r2 if m.law is not None and not m.refusal else 2.0
+    def cost(m: _Map) -> float:
+        contact = 1.0 - m.law.r2 if m.law is not None else 1.0
+        return (1.0 - m.fit.r2) + min(max(contact, 0.0), 1.0)
 
-    best, best_cost = 0.0, 1.0 - plain.law.r2 if plain.law is not None else 2.0
+    def misfit(corner: float) -> float:
+        return cost(_fit_map(*args, corner, 1.0))
+
+    best, best_cost = 0.0, cost(plain)
     grid = np.array([0.0, 0.025, 0.05, 0.1, 0.2, 0.4])
     costs = [best_cost] + [misfit(c) for c in grid[1:]]
     i = int(np.argmin(costs))
@@ -459,7 +464,7 @@ def restoring_force_estimate(
     args = (y, dtau, tau, use, period, k_given)
     if highpass_hz == "auto":
         m = _fit_map(*args, 0.0, 1.0)
-        if m.law is not None and m.law.r2 < HIGHPASS_SEARCH_R2:
+        if m.law is None or m.law.r2 < HIGHPASS_SEARCH_R2:
             corner = _fit_highpass(args, ff, m)
             if corner > 0:
                 m = _fit_map(*args, corner, 1.0)
