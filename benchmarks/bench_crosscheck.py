@@ -24,7 +24,7 @@ refusal counts as wrong), answered fraction, accuracy on the answered ones,
 beta MAPE and interval coverage on the answered ones, and the median cost per
 recording. Prints a Markdown table (docs/crosscheck.md) and JSON with ``--json``::
 
-    python benchmarks/bench_crosscheck.py [--n 40] [--no-model] [--json out.json]
+    python benchmarks/bench_crosscheck.py [--n 24] [--no-model] [--json out.json]
 """
 
 from __future__ import annotations
@@ -217,7 +217,7 @@ def markdown(table: dict[str, dict[str, dict]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=40, help="recordings per set")
+    ap.add_argument("--n", type=int, default=24, help="recordings per set")
     ap.add_argument("--seed", type=int, default=20261123)
     ap.add_argument("--sets", nargs="*", default=list(SETS), help="subset of the sets")
     ap.add_argument("--no-model", action="store_true", help="skip the shipped learned model")

@@ -1,8 +1,9 @@
-"""Evaluate the learned model and the geometric method on a campaign against its known betas.
+"""Evaluate the learned model and both cross-checks on a campaign against its known betas.
 
 Every recording goes through the ONNX predictor (:class:`serving.predictor.Predictor`,
 with the manifest's ``natural_frequency_hz``); its result holds the learned class
-and beta and the geometric method's class and beta. Metrics per method:
+and beta, the geometric method's class and beta and the restoring-force
+estimate's (``physical_*``; a refusal counts as a wrong class). Metrics per method:
 accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
 known beta and an estimate), sliced by beta class, gap, frequency ratio,
 amplitude and impact regime, with the worst recordings listed.
@@ -82,6 +83,22 @@ def method_metrics(rows: Sequence[dict[str, Any]], cls_key: str, beta_key: str) 
     }
 
 
+def interval_coverage(rows: Sequence[dict[str, Any]], key: str) -> float | None:
+    """Fraction of the recordings with a known beta and an interval whose interval holds it."""
+    hits = [
+        r[key][0] <= r["beta"] <= r[key][1]
+        for r in rows
+        if r.get(key) and r["beta"] and r["true_class"] not in (None, NO_CONTACT)
+    ]
+    return float(np.mean(hits)) if hits else None
+
+
+def _share(flags) -> float | None:
+    """Fraction of True among the flags that are not None."""
+    known = [bool(f) for f in flags if f is not None]
+    return float(np.mean(known)) if known else None
+
+
 def _bin_label(value: float | None, edges: list[float]) -> str:
     if value is None:
         return "unknown"
@@ -107,6 +124,7 @@ def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             g: {
                 "learned": method_metrics(rs, "class", "beta_estimate"),
                 "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
+                "restoring_force": method_metrics(rs, "physical_class", "physical_beta"),
             }
             for g, rs in sorted(groups.items())
         }
@@ -134,8 +152,9 @@ def evaluate_campaign(
         ``model`` (name, sha256, kind), ``recordings`` (each ``recording``,
         ``beta``, ``class``, ``beta_estimate``, ``geometric_class``,
         ``geometric_beta``, ``true_class``, ``impact_regime``, ...),
-        ``metrics`` (``learned`` and ``geometric``: ``accuracy``, ``macro_f1``,
-        ``beta_mape``), ``slices``, ``worst``.
+        ``metrics`` (``learned``, ``geometric`` and ``restoring_force``:
+        ``accuracy``, ``macro_f1``, ``beta_mape``; the last also
+        ``interval_coverage`` and ``agreement_with_learned``), ``slices``, ``worst``.
     """
     from serving.predictor import Predictor
 
@@ -166,6 +185,11 @@ def evaluate_campaign(
                 "geometric_class": geo.get("class"),
                 "geometric_beta": geo.get("beta"),
                 "agreement": res.get("agreement"),
+                "physical_class": res.get("physical_class"),
+                "physical_beta": res.get("physical_beta"),
+                "physical_beta_interval": res.get("physical_beta_interval"),
+                "physical_agreement": res.get("physical_agreement"),
+                "physical_reason": (res.get("physical") or {}).get("reason"),
                 "ood_score": res.get("ood_score"),
                 "true_class": true_class(row.beta, has_contact),
                 "impact_regime": regime,
@@ -189,6 +213,11 @@ def evaluate_campaign(
         "metrics": {
             "learned": method_metrics(rows, "class", "beta_estimate"),
             "geometric": method_metrics(rows, "geometric_class", "geometric_beta"),
+            "restoring_force": {
+                **method_metrics(rows, "physical_class", "physical_beta"),
+                "interval_coverage": interval_coverage(rows, "physical_beta_interval"),
+                "agreement_with_learned": _share(r["physical_agreement"] for r in rows),
+            },
         },
         "slices": sliced_metrics(rows),
         "worst": [
