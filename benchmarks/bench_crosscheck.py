@@ -101,8 +101,8 @@ def simulate_set(name: str, n: int, seed: int):
     fs_ratio = np.exp(rng.uniform(np.log(50), np.log(500), n))
     sim = Simulator([build_effect(e, p) for e, p in effects])
     # one batch (the numerical engine is vectorised over rows); each row keeps its 16 periods
-    res = sim.simulate(batch, fs_ratio, int(PERIODS * fs_ratio.max()), noise=noise, rng=rng)
-    lengths = (PERIODS * fs_ratio).astype(int)
+    lengths = np.ceil(PERIODS * fs_ratio).astype(int) + 1  # a whole window for the predictor
+    res = sim.simulate(batch, fs_ratio, int(lengths.max()), noise=noise, rng=rng)
     rows = [res.accel[i, : lengths[i]] for i in range(n)]
     fs = list(fs_ratio * FN_HZ)
     contact = [bool(np.any(res.contact_force[i, : lengths[i]] > 0)) for i in range(n)]
@@ -160,11 +160,13 @@ def run_methods(
         out["geometric"].append(gd)
         if predictor is not None:
             t = time.process_time()
-            p = predictor.predict(a, f, natural_frequency_hz=FN_HZ)
-            out["learned"].append(
-                dict(cls=p["class"], beta=p["beta"], interval=p["beta_interval"],
-                     cost=time.process_time() - t, ok=p["class"] != "no_contact")
-            )  # fmt: skip
+            try:
+                p = predictor.predict(a, f, natural_frequency_hz=FN_HZ)
+                pd = dict(cls=p["class"], beta=p["beta"], interval=p["beta_interval"],
+                          ok=p["class"] != "no_contact")  # fmt: skip
+            except StiffnetError:
+                pd = dict(cls="refused", beta=None, interval=None, ok=False)
+            out["learned"].append({**pd, "cost": time.process_time() - t})
     return out
 
 
