@@ -461,6 +461,14 @@ def restoring_force_estimate(
     a = as_signal(accel, 32, "acceleration")
     if float(np.std(a)) == 0.0:
         raise SignalError("acceleration is constant")
+    if max_periods is not None:  # crop first: the spectrum of a long record costs most
+        from stiffnet.geometry.estimate import dominant_period
+
+        mid = a[max(0, a.size // 2 - 32768) : a.size // 2 + 32768]
+        coarse = fs_hz / forcing_frequency_hz if forcing_frequency_hz else dominant_period(mid)
+        keep = int(1.1 * max_periods * coarse)
+        if a.size > keep:
+            a = a[(a.size - keep) // 2 :][:keep]
     ff = float(forcing_frequency_hz) if forcing_frequency_hz else forcing_frequency(a, fs_hz)
     if not ff < 0.5 * fs_hz:
         raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
