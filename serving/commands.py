@@ -84,6 +84,14 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
+    ph = result["physical"]
+    if ph["beta"] is not None:
+        lo, hi = ph["beta_interval"]
+        rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
+        rf += "  agrees" if result["physical_agreement"] else "  [red]disagrees[/]"
+    else:
+        rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
+    t.add_row("restoring force", rf, "")
     ood = f"{_num(result['ood_score'])} (threshold {_num(result['ood_threshold'])})"
     t.add_row("OOD score", ood + ("  [red]FLAGGED[/]" if result["ood_flag"] else ""), "")
     t.add_row("windows", f"{result['n_windows']} x {result['window_s']:.3g} s", "")
