@@ -82,6 +82,14 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
+    ph = result["physical"]
+    if ph["beta"] is not None:
+        lo, hi = ph["beta_interval"]
+        rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
+        rf += "  agrees" if result["physical_agreement"] else "  [red]disagrees[/]"
+    else:
+        rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
+    t.add_row("restoring force", rf, "")
     alarm = result.get("alarm")
     if alarm is not None:
         verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (

@@ -38,7 +38,7 @@ Pipeline of :meth:`Predictor.predict`:
    ``agreement`` is ``model class == geometric class``. Bounding the number of
    windows keeps a 60 s recording under ~60 ms on one core.
    A second, physical cross-check (:mod:`serving.physical`): the restoring-force
-   estimate on 32 forcing periods from the middle of the recording:
+   estimate on 24 forcing periods from the middle of the recording:
    ``physical_class``, ``physical_beta`` and its bootstrap interval,
    ``physical_agreement`` (null when that method refused, with its reason).
 6. **Alarm** (:mod:`stiffnet.uncertainty.alarm`): checks on what the model

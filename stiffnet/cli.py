@@ -228,16 +228,24 @@ def analyze(
         Path | None, typer.Option(help="Write figures (PNG) into this folder.")
     ] = None,
     json_path: JsonOption = None,
+    fn: Annotated[
+        float | None,
+        typer.Option(
+            "--fn", help="Natural frequency of the rig in Hz (default 9.48, the paper's)."
+        ),
+    ] = None,
 ) -> None:
-    """Nonlinear time-series analysis and the geometric stiffness estimate of a recording."""
+    """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
     from stiffnet.recordings import read_recording
 
     rec = read_recording(recording, fs_hz=fs)
-    analysis = analyze_signal(rec.accel, rec.fs_hz)
+    analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
     result = {"recording": str(recording), **analysis.summary()}
     table = Table(title=f"analysis of {recording}", show_header=False)
     for key, value in result.items():
+        if isinstance(value, dict):  # the restoring-force details: in the JSON only
+            continue
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out.print(table)
     if plots is not None:

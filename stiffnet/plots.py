@@ -95,4 +95,50 @@ def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Pa
            title=title)  # fmt: skip
     paths.append(_save(fig, out / "inclinations.png"))
     plt.close(fig)
+    if a.restoring_force is not None:
+        paths.append(force_displacement_plot(a.restoring_force, out / "force_displacement.png"))
     return paths
+
+
+def force_displacement_plot(r, path: Path) -> Path:
+    """The force-displacement map with the fitted contact law (the restoring-force estimate).
+
+    Points: the residual (contact) force against the reconstructed relative
+    displacement, in the record's units; line: the law's elastic part
+    ``K d_r (d / d_r)**p``; crosses: the whole law (with its damping) at the
+    samples in contact. A damped contact shows as a loop whose lower branch
+    (release) reaches zero force before the onset.
+    """
+    from stiffnet.restoring_force import contact_force
+
+    plt = _figure()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    x, f = r.displacement, r.force
+    ax.plot(x, f, ".", ms=2, color="0.5", label="measured (residual force)")
+    law = r.law
+    if law is not None:
+        model = contact_force(x, r.velocity, law.stiffness, law.onset, law.damping,
+                              law.exponent, law.reference_penetration)  # fmt: skip
+        on = model > 0
+        ax.plot(x[on], model[on], "x", ms=3, color="C3", label="fitted law at the samples")
+        d = np.linspace(0.0, max(float(x.max() - law.onset), 1e-12), 100)
+        elastic = (
+            law.stiffness
+            * law.reference_penetration
+            * (d / law.reference_penetration) ** law.exponent
+        )
+        ax.plot(law.onset + d, elastic, "-", color="C1", label="elastic part")
+        ax.axvline(law.onset, color="C2", ls=":", label="contact onset")
+    if r.ok:
+        lo, hi = r.beta_interval
+        title = (f"restoring force: beta {r.beta:.1f} [{lo:.1f}, {hi:.1f}], "
+                 f"zeta_c {r.contact_damping_ratio:.2f}, p {r.exponent:.2f}")  # fmt: skip
+    else:
+        title = "restoring force: no estimate"
+    ax.set(xlabel="relative displacement [record units x rad^2]", ylabel="contact force",
+           title=title)  # fmt: skip
+    ax.title.set_fontsize(9)
+    ax.legend(fontsize=8, markerscale=3)
+    _save(fig, path)
+    plt.close(fig)
+    return path

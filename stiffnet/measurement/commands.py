@@ -107,7 +107,7 @@ def evaluate(
     config: ConfigOpt = None,
     json_path: JsonOption = None,
 ) -> None:
-    """Learned model and geometric method against the campaign's known betas."""
+    """Learned model, geometric and restoring-force cross-checks against the known betas."""
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
 

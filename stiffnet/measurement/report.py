@@ -104,7 +104,7 @@ def render_report(
         t = Path(tmp)
         if evaluation is not None:
             m = evaluation["metrics"]
-            parts.append("<h2>Evaluate: learned model and geometric method</h2>")
+            parts.append("<h2>Evaluate: learned model and the two cross-checks</h2>")
             parts.append(f"<p class='note'>model {_fmt(evaluation['model'])}</p>")
             parts.append(
                 _table(
@@ -132,6 +132,8 @@ def render_report(
                         "beta_estimate",
                         "geometric_class",
                         "geometric_beta",
+                        "physical_class",
+                        "physical_beta",
                         "impact_regime",
                         "ood",
                         "ood_checks",
@@ -149,6 +151,8 @@ def render_report(
                         "learned beta MAPE": v["learned"]["beta_mape"],
                         "geometric accuracy": v["geometric"]["accuracy"],
                         "geometric beta MAPE": v["geometric"]["beta_mape"],
+                        "restoring-force accuracy": v.get("restoring_force", {}).get("accuracy"),
+                        "restoring-force beta MAPE": v.get("restoring_force", {}).get("beta_mape"),
                     }
                     for g, v in groups.items()
                 ]
