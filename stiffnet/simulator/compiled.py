@@ -388,10 +388,10 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                 )  # fmt: skip
             x, v = x1, v1
             if r == 0 and free_bound < e_low:
-                # In free flight x = x_h + x_p with |x_p| <= free_bound's particular
-                # part and |x_h| bounded by its decaying amplitude: if even their sum
-                # stays below the lowest gap, the row never touches again. Its
-                # remaining samples are the closed form of this one segment.
+                # In free flight x = x_h + x_p with |x_p| <= free_bound and |x_h| at
+                # most its present amplitude (it only decays): if even their sum stays
+                # below the lowest gap, the row never touches again, and its remaining
+                # samples are the closed form of this one segment.
                 zh0, zh1 = x1 - xp1, v1 - vp1
                 wz = (zh1 + sig * zh0) / root
                 if free_bound + math.sqrt(zh0 * zh0 + wz * wz) < e_low:
