@@ -155,10 +155,30 @@ def _number_field(value: Any, name: str) -> float | None:
         raise StiffnetError(f"form field {name}: {value[:40]!r} is not a number") from None
 
 
-def _predict_file(predictor: Predictor, data: bytes, filename: str, fs: Any, fn: Any) -> dict:
+def _text_field(value: Any, name: str) -> str | None:
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return None
+    if not isinstance(value, str):
+        raise StiffnetError(f"form field {name} must be text, not a file")
+    return value.strip()[:200]
+
+
+def _predict_file(
+    predictor: Predictor,
+    data: bytes,
+    filename: str,
+    fs: Any,
+    fn: Any,
+    columns: Any = None,
+    time_unit: Any = None,
+) -> dict:
     from stiffnet.recordings import read_recording
 
     fs_hz = _number_field(fs, "fs_hz")
+    layout = {
+        "columns": _text_field(columns, "columns"),
+        "time_unit": _text_field(time_unit, "time_unit"),
+    }
     fn_hz = _number_field(fn, "natural_frequency_hz")
     suffix = Path(filename).suffix
     if not _SUFFIX.match(suffix):
@@ -168,7 +188,7 @@ def _predict_file(predictor: Predictor, data: bytes, filename: str, fs: Any, fn:
         path = Path(tmp) / f"upload{suffix}"
         path.write_bytes(data)
         try:
-            rec = read_recording(path, fs_hz=fs_hz)
+            rec = read_recording(path, fs_hz=fs_hz, **layout)
         except StiffnetError as exc:
             raise StiffnetError(str(exc).replace(str(path), shown)) from None
     return predictor.predict(
@@ -197,6 +217,17 @@ _PREDICT_BODY = {
                         },
                         "fs_hz": {"type": "number", "description": "Sampling rate (.npy)"},
                         "natural_frequency_hz": {"type": "number"},
+                        "columns": {
+                            "type": "string",
+                            "description": "CSV columns TIME,ACCEL (header names or 0-based "
+                            "indices) when the header is not t,accel",
+                            "examples": ["time_s,acc_g"],
+                        },
+                        "time_unit": {
+                            "type": "string",
+                            "enum": ["s", "ms", "us"],
+                            "description": "Unit of the CSV time column (default s)",
+                        },
                     },
                 }
             },
@@ -295,6 +326,8 @@ def create_app(predictor: Predictor, limits: Limits | None = None) -> FastAPI:
                     upload.filename or "upload",
                     form.get("fs_hz"),
                     form.get("natural_frequency_hz"),
+                    form.get("columns"),
+                    form.get("time_unit"),
                 )
             return await run_limited(job)
         return _error(415, "send application/json {samples, fs_hz} or multipart/form-data (file)")

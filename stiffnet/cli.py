@@ -14,7 +14,14 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
+from stiffnet.cli_options import (
+    ColumnsOption,
+    FsOption,
+    JsonOption,
+    SchedulerOption,
+    TimeUnitOption,
+    WorkersOption,
+)
 from stiffnet.errors import StiffnetError
 
 app = typer.Typer(
@@ -208,6 +215,8 @@ def train(
 def analyze(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
     fs: FsOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     plots: Annotated[
         Path | None, typer.Option(help="Write figures (PNG) into this folder.")
     ] = None,
@@ -217,7 +226,7 @@ def analyze(
     from stiffnet.analyze import analyze_signal
     from stiffnet.recordings import read_recording
 
-    rec = read_recording(recording, fs_hz=fs)
+    rec = read_recording(recording, fs_hz=fs, columns=columns, time_unit=time_unit)
     analysis = analyze_signal(rec.accel, rec.fs_hz)
     result = {"recording": str(recording), **analysis.summary()}
     table = Table(title=f"analysis of {recording}", show_header=False)

@@ -261,3 +261,26 @@ def test_live_server(samples):
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+def test_upload_with_columns_and_time_unit_fields(client):
+    """A lab export (time in ms, other column names) predicts like the t,accel file."""
+    rec = read_recording(EXAMPLE)
+    lines = [f"{1000 * k / rec.fs_hz:.6g};{float(a)!r},0" for k, a in enumerate(rec.accel)]
+    lab = ("Time (ms),Acc (g),T\n" + "\n".join(lines).replace(";", ",")).encode()
+    with open(EXAMPLE, "rb") as fh:
+        ref = client.post("/predict", files={"file": ("run.csv", fh)},
+                          data={"natural_frequency_hz": "9.48"}).json()  # fmt: skip
+    fields = {"natural_frequency_hz": "9.48", "columns": "time (ms),acc (g)", "time_unit": "ms"}
+    r = client.post("/predict", files={"file": ("lab.csv", lab)}, data=fields)
+    assert r.status_code == 200, r.text
+    assert r.json()["beta"] == pytest.approx(ref["beta"], rel=1e-9)
+    assert r.json()["fs_hz"] == pytest.approx(rec.fs_hz)
+    # without the fields the header is refused with the mapping to use
+    _is_error(client.post("/predict", files={"file": ("lab.csv", lab)}), 422,
+              "--columns Time (ms),Acc (g) --time-unit ms")  # fmt: skip
+    _is_error(client.post("/predict", files={"file": ("lab.csv", lab)},
+                          data={**fields, "time_unit": "h"}), 422, "unknown time unit")  # fmt: skip
+    spec = client.get("/openapi.json").json()["paths"]["/predict"]["post"]["requestBody"]
+    props = spec["content"]["multipart/form-data"]["schema"]["properties"]
+    assert props["time_unit"]["enum"] == ["s", "ms", "us"] and "columns" in props

@@ -13,10 +13,12 @@ from typing import Annotated
 import typer
 
 from stiffnet.cli_options import (
+    ColumnsOption,
     FsOption,
     ModelOption,
     NaturalFrequencyOption,
     SchedulerOption,
+    TimeUnitOption,
     WorkersOption,
 )
 
@@ -35,6 +37,8 @@ def predict_batch_cmd(
     model: ModelOption = None,
     fn: NaturalFrequencyOption = None,
     fs: FsOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     part_size: Annotated[int, typer.Option(help="Recordings per task.")] = 16,
     scheduler: SchedulerOption = None,
     workers: WorkersOption = None,
@@ -64,6 +68,8 @@ def predict_batch_cmd(
             model_path=model,
             fs_hz=fs,
             natural_frequency_hz=fn,
+            columns=columns,
+            time_unit=time_unit,
             part_size=part_size,
             scheduler=scheduler,
             workers=workers,
