@@ -32,6 +32,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError,
 
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
+from stiffnet.progress import task as progress_task
 from stiffnet.recordings import Recording, read_recording, write_recording_csv
 
 MANIFEST_NAME = "manifest.csv"
@@ -513,8 +514,10 @@ def simulate_campaign(
     # Simulate first (rows as tasks, results back here), then write: workers need no
     # access to the output folder, and a failed row leaves nothing behind.
     jobs = [_RowJob(row, eff, int(seed), default_duration_s, row.where(manifest)) for row in rows]
-    report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
-                       names=[row.recording for row in rows])  # fmt: skip
+    with progress_task("simulating recordings", len(jobs)) as bar:
+        report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
+                           names=[row.recording for row in rows],
+                           progress=lambda done, _: bar.update(done))  # fmt: skip
     if report.failed:
         name, msg = next(iter(report.failed.items()))
         raise StiffnetError(msg) from report.errors.get(name)

@@ -5,15 +5,16 @@ from __future__ import annotations
 import functools
 import importlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from stiffnet import progress
 from stiffnet.cli_options import (
     ColumnsOption,
     FsOption,
@@ -58,15 +59,40 @@ def write_json(path: Path | None, result: Any) -> None:
         write_json_atomic(path, result)
 
 
-def progress_bar(description: str) -> Progress:
-    return Progress(
-        TextColumn(description),
-        BarColumn(),
+@contextmanager
+def show_progress() -> Iterator[None]:
+    """Draw the :mod:`stiffnet.progress` tasks of the block as rich bars with an ETA.
+
+    Only when stderr is a terminal: piped, redirected or scripted (``--json``) runs
+    stay silent, as do library calls (no display is installed outside this block).
+    """
+    if not console.is_terminal:
+        yield
+        return
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    bar = Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(bar_width=24),
         MofNCompleteColumn(),
         TimeElapsedColumn(),
+        TextColumn("eta"),
+        TimeRemainingColumn(),
+        TextColumn("{task.fields[note]}"),
         console=console,
-        disable=not console.is_terminal,
+        transient=True,
     )
+    with bar, progress.reporting(bar):
+        yield
 
 
 @app.command()
@@ -105,13 +131,12 @@ def simulate(
     if n_trajectories is not None:
         data["n_trajectories"] = n_trajectories
     cfg = validate_config(SimulationConfig, data, str(config))
-    with progress_bar("simulating shards") as bar:
-        task = bar.add_task("shards", total=len(shard_sizes(cfg)))
+    with show_progress(), progress.task("simulating shards", len(shard_sizes(cfg))) as bar:
         card = generate_dataset(
             cfg,
             out_dir,
             overwrite=overwrite,
-            progress=lambda done, _: bar.update(task, completed=done),
+            progress=lambda done, _: bar.update(completed=done),
             scheduler=scheduler,
             workers=workers,
             resume=resume,
@@ -156,8 +181,9 @@ def simulate_campaign_cmd(
     effects = [build_effect(*parse_effect_option(text)) for text in effect or []]
     from stiffnet.campaign import simulate_campaign
 
-    path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite,
-                             scheduler=scheduler, workers=workers)  # fmt: skip
+    with show_progress():
+        path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite,
+                                 scheduler=scheduler, workers=workers)  # fmt: skip
     result = {"out": str(path), "effects": [repr(e) for e in effects], "seed": seed}
     out.print(f"campaign written to {path} with effects: {', '.join(result['effects']) or 'none'}")
     write_json(json_path, result)
@@ -197,7 +223,8 @@ def train(
         raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
     from training.train import train as run_training
 
-    result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    with show_progress(), progress.task(f"training {model}"):
+        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
     metrics = result.get("metrics", {})
     table = Table(title=f"{model} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):

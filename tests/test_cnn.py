@@ -1,6 +1,7 @@
 """CNN on canonical windows: invariances, end-to-end training, ONNX export and parity."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -8,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import onnx
 import pytest
+from test_progress import Recorder
 
+from stiffnet import progress
 from stiffnet.config import load_config, validate_config
 from stiffnet.config.train import CNNConfig, TrainConfig
 from stiffnet.dataset.store import load_dataset
@@ -41,8 +44,34 @@ def trained(tiny_dir, tmp_path_factory):
     work = tmp_path_factory.mktemp("cnnrun")
     uri = f"sqlite:///{work / 'mlflow.db'}"
     cfg = TrainConfig(model="cnn", experiment="test-cnn", cnn=SMALL_CNN)
-    summary = train(tiny_dir, cfg, work / "out", tracking_uri=uri, progress=None)
+    display = Recorder()
+    with progress.reporting(display):
+        summary = train(tiny_dir, cfg, work / "out", tracking_uri=uri, progress=None)
+    summary["_progress"] = display
     return summary, uri, work
+
+
+def test_onnx_export_prints_no_torchvision_warnings():
+    """torch.onnx logs four "torchvision is not installed" lines on its first export."""
+    code = (
+        "from training.cnn import StiffnessCNN\n"
+        "from training.export_onnx_cnn import _export_proto\n"
+        "_export_proto(StiffnessCNN(3, 5, 8, 2), 3, 64)\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, env={**os.environ, "PYTHONPATH": str(root)})  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "torchvision" not in proc.stderr + proc.stdout
+
+
+def test_training_reports_each_epoch_with_losses(trained):
+    summary = trained[0]
+    updates = [e for e in summary["_progress"].events if e[:2] == ("update", "training epochs")]
+    assert [e[2] for e in updates] == list(range(1, len(updates) + 1))
+    assert 1 <= len(updates) <= SMALL_CNN["max_epochs"]
+    assert all("train loss" in e[3] and "val loss" in e[3] for e in updates)
+    assert ("add", "training epochs", SMALL_CNN["max_epochs"]) in summary["_progress"].events
 
 
 def _spiky(fs_ratio=97.3, periods=10, fn=9.48, seed=0):

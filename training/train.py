@@ -32,6 +32,7 @@ from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION
 from stiffnet.geometry import geometric_estimate
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from stiffnet.progress import task as progress_task
 from training.export_onnx import export_onnx, parity
 from training.gbm import (
     conformal_quantile,
@@ -44,6 +45,10 @@ from training.transformers import InclinationFeatures, window_records
 
 MODEL_FILE = "gbm.onnx"
 CNN_MODEL_FILE = "cnn.onnx"
+
+
+def _losses(h: dict[str, float]) -> str:
+    return f"epoch {h['epoch']:.0f}: train loss {h['train_loss']:.4f}, val loss {h['val_loss']:.4f}"
 
 
 def _stderr(msg: str) -> None:
@@ -374,7 +379,9 @@ def train_cnn(
     sp = _split(ds, data_dir, config, cc.validation_fraction, say)
 
     t = time.perf_counter()
-    fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed)
+    with progress_task("training epochs", cc.max_epochs) as bar:
+        fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed,
+                      on_epoch=lambda h: bar.advance(note=_losses(h)))  # fmt: skip
     t_fit = time.perf_counter() - t
     say(f"fitted: best epoch {fit.best_epoch} of {fit.epochs} ({t_fit:.1f} s)")
     net = fit.model

@@ -57,11 +57,11 @@ def predict_batch_cmd(
     """
     from rich.table import Table
 
-    from stiffnet.cli import out, progress_bar, write_json
+    from stiffnet import progress
+    from stiffnet.cli import out, show_progress, write_json
     from stiffnet.distributed.batch import predict_batch
 
-    with progress_bar("predicting parts") as bar:
-        task = bar.add_task("parts", total=None)
+    with show_progress(), progress.task("predicting parts") as bar:
         summary = predict_batch(
             recordings,
             out_path,
@@ -75,7 +75,7 @@ def predict_batch_cmd(
             workers=workers,
             overwrite=overwrite,
             resume=resume,
-            progress=lambda done, total: bar.update(task, completed=done, total=total),
+            progress=lambda done, total: bar.update(completed=done, total=total),
         )
     table = Table(title=f"{summary['recordings']} recordings -> {out_path}")
     table.add_column("class")
