@@ -13,6 +13,7 @@ from typing import Annotated, Any, TypeVar
 import typer
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from stiffnet import progress
 from stiffnet.cli_options import (
@@ -32,8 +33,59 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+#: Width of ``--wide`` output: tables at their natural width (for files, wide terminals).
+WIDE_COLUMNS = 400
+
+
+def fit_table(table: Table) -> Table:
+    """Let a table fit the terminal without cutting anything a user needs.
+
+    Cells fold at the column width instead of ending in an ellipsis (rich's
+    default cuts a long word such as a recording path); numeric columns are
+    right-aligned. ``--wide`` prints at the natural width instead.
+    """
+    for col in table.columns:
+        cells = [Text.from_markup(c).plain if isinstance(c, str) else str(c) for c in col.cells]
+        col.overflow = "fold"
+        if cells and all(_looks_numeric(c) for c in cells):
+            col.justify = "right"
+    return table
+
+
+def _looks_numeric(text: str) -> bool:
+    t = text.strip().rstrip("%").replace("–", "").replace("-", "").replace("[", "")
+    t = t.split(" ")[0].replace(",", "").replace("]", "")
+    try:
+        float(t or "0")
+    except ValueError:
+        return False
+    return True
+
+
+class _Out(Console):
+    """stdout console whose tables fit its width (:func:`fit_table`)."""
+
+    def print(self, *objects: Any, **kwargs: Any) -> None:  # noqa: D102
+        super().print(*(fit_table(o) if isinstance(o, Table) else o for o in objects), **kwargs)
+
+
 console = Console(stderr=True)
-out = Console()
+out = _Out()
+
+
+@app.callback()
+def _options(
+    wide: Annotated[
+        bool,
+        typer.Option(
+            "--wide",
+            help="Print tables at full width, without wrapping (for wide terminals or files).",
+        ),
+    ] = False,
+) -> None:
+    """Identify the stiffness of an impacted material from one accelerometer."""
+    out.width = WIDE_COLUMNS if wide else None  # type: ignore[assignment]  # None: auto
+
 
 F = TypeVar("F", bound=Callable[..., Any])
 

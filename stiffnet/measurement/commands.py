@@ -95,7 +95,7 @@ def evaluate(
         res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
-    out.print(f"worst recordings: {worst}")
+    out.print(f"worst recordings by error (1 for a wrong class + relative beta error): {worst}")
     write_json(json_path, res)
 
 
@@ -124,9 +124,9 @@ def compare(
         "beta",
         "discrepancy",
         "worst statistic",
-        "contact",
-        "free flight",
-        "global",
+        "contact Σd²",
+        "free-flight Σd²",
+        "global Σd²",
     ):
         table.add_column(col)
     for r in res["recordings"]:
@@ -215,7 +215,14 @@ def diagnose(
     table = Table(
         title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}"
     )
-    for col in ("effect", "reduction", "relative", "params", "improved", "significant"):
+    for col in (
+        "effect",
+        "reduction (abs.)",
+        "reduction (rel.)",
+        "fitted params",
+        "recordings improved",
+        "significant",
+    ):
         table.add_column(col)
     for r in res["ranking"]:
         p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
