@@ -41,7 +41,13 @@ from pydantic import ValidationError
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from serving.predictor import Predictor
-from serving.schemas import ErrorBody, PredictionResult, PredictRequest
+from serving.schemas import (
+    ErrorBody,
+    HealthResponse,
+    ModelResponse,
+    PredictionResult,
+    PredictRequest,
+)
 from stiffnet.errors import StiffnetError
 
 
@@ -238,12 +244,20 @@ _ERRORS = {
     code: {"model": ErrorBody, "description": text}
     for code, text in {
         400: "malformed request",
+        405: "method not allowed",
         413: "body too large",
         415: "unsupported content type",
         422: "unusable recording",
         429: "too many requests waiting",
         504: "timed out",
     }.items()
+}
+
+
+#: Errors any route can answer (the body limit and method checks run before routing).
+_GET_ERRORS = {
+    code: {"model": ErrorBody, "description": text}
+    for code, text in {405: "method not allowed", 413: "body too large"}.items()
 }
 
 
@@ -332,7 +346,12 @@ def create_app(predictor: Predictor, limits: Limits | None = None) -> FastAPI:
             return await run_limited(job)
         return _error(415, "send application/json {samples, fs_hz} or multipart/form-data (file)")
 
-    @app.get("/health", summary="Liveness and load")
+    @app.get(
+        "/health",
+        response_model=HealthResponse,
+        responses=_GET_ERRORS,
+        summary="Liveness and load",
+    )
     async def health() -> dict[str, Any]:
         return {
             "status": "ok",
@@ -342,7 +361,12 @@ def create_app(predictor: Predictor, limits: Limits | None = None) -> FastAPI:
             "served": state["served"],
         }
 
-    @app.get("/model", summary="The served model and the server limits")
+    @app.get(
+        "/model",
+        response_model=ModelResponse,
+        responses=_GET_ERRORS,
+        summary="The served model and the server limits",
+    )
     async def model() -> dict[str, Any]:
         return {
             **predictor.info(),
