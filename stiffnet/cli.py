@@ -37,18 +37,51 @@ app = typer.Typer(
 WIDE_COLUMNS = 400
 
 
-def fit_table(table: Table) -> Table:
-    """Let a table fit the terminal without cutting anything a user needs.
+def fit_table(table: Table, width: int) -> Table:
+    """Let a table fit `width` columns without cutting anything a user needs.
 
-    Cells fold at the column width instead of ending in an ellipsis (rich's
-    default cuts a long word such as a recording path); numeric columns are
-    right-aligned. ``--wide`` prints at the natural width instead.
+    Numbers keep their whole width (a number cut in two misreads) and headers
+    wrap only at spaces; the text columns (recording paths, effect parameters)
+    share the rest in proportion to their length and fold at any character, so a
+    long name goes onto a second line instead of ending in an ellipsis. A table
+    that fits already is left alone; ``--wide`` prints at the natural width.
     """
-    for col in table.columns:
-        cells = [Text.from_markup(c).plain if isinstance(c, str) else str(c) for c in col.cells]
+    cols = table.columns
+    cells = [[Text.from_markup(c).plain if isinstance(c, str) else str(c) for c in col.cells]
+             for col in cols]  # fmt: skip
+    heads = [str(col.header) for col in cols]
+    word = [max((len(w) for w in h.split()), default=0) for h in heads]
+    natural = [max([len(h), *map(len, cs)]) for h, cs in zip(heads, cells, strict=True)]
+    numeric = [bool(cs) and all(_looks_numeric(c) for c in cs) for cs in cells]
+    for col, num in zip(cols, numeric, strict=True):
         col.overflow = "fold"
-        if cells and all(_looks_numeric(c) for c in cells):
+        if num:
             col.justify = "right"
+    room = width - (1 + 3 * len(cols))  # borders and one space of padding each side
+    if sum(natural) <= room:
+        return table
+    need = [max([w, *map(len, cs)]) if num else 0
+            for w, cs, num in zip(word, cells, numeric, strict=True)]  # fmt: skip
+    text = [i for i, num in enumerate(numeric) if not num]
+    left = room - sum(need)
+    if not text or left < 6 * len(text):
+        return table  # too narrow for a plan: rich's own wrapping
+    for i in text:  # floor: the longest header word or cell token (up to 16)
+        token = max((len(t) for c in cells[i] for t in c.split()), default=0)
+        need[i] = min(natural[i], max(6, word[i], min(token, 16)))
+    floors = sum(need[i] for i in text)
+    if floors > left:  # not room for every floor: shrink them alike
+        for i in text:
+            need[i] = max(6, need[i] * left // floors)
+    spare = room - sum(need)
+    if spare < 0:
+        return table
+    extra = {i: natural[i] - need[i] for i in text}
+    total = sum(extra.values()) or 1
+    for i in text:  # the rest in proportion to what each still lacks
+        need[i] += extra[i] * spare // total
+    for col, w in zip(cols, need, strict=True):
+        col.width = w
     return table
 
 
@@ -66,7 +99,8 @@ class _Out(Console):
     """stdout console whose tables fit its width (:func:`fit_table`)."""
 
     def print(self, *objects: Any, **kwargs: Any) -> None:  # noqa: D102
-        super().print(*(fit_table(o) if isinstance(o, Table) else o for o in objects), **kwargs)
+        objects = tuple(fit_table(o, self.width) if isinstance(o, Table) else o for o in objects)
+        super().print(*objects, **kwargs)
 
 
 console = Console(stderr=True)

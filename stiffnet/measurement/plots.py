@@ -161,8 +161,9 @@ def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
     ax.set_yticks(y, [r["effect"] for r in rk], fontsize=8)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlim(left=min(100 * RANKING_FLOOR * 1.05, ax.get_xlim()[0]))
-    ax.set_xlabel("discrepancy removed [% of baseline] (green: significant; hatched: clipped)")
-    ax.set_title(f"baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}", fontsize=9)
+    ax.set_xlabel("discrepancy removed [% of baseline]")
+    ax.set_title(f"baseline discrepancy {diagnosis['baseline_discrepancy']:.3g} (mean d²); "
+                 "green: significant, hatched: clipped", fontsize=8)  # fmt: skip
     fig.tight_layout()
     return _save(fig, path)
 

@@ -19,7 +19,7 @@ body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1240px;padding
 h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;margin-top:2em}
 .wrap{max-width:100%;overflow-x:auto}
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0;width:100%;table-layout:auto}
-td,th{border:1px solid #ddd;padding:3px 6px;text-align:right;overflow-wrap:anywhere}
+td,th{border:1px solid #ddd;padding:3px 6px;text-align:right;overflow-wrap:break-word}
 th{background:#f3f3f3;font-weight:600;vertical-align:bottom}
 td:first-child,th:first-child{text-align:left}
 .sig{background:#d9f2d9}.bad{background:#fde2e2}img{max-width:100%;height:auto}
@@ -35,8 +35,8 @@ _HEADERS = {
     "error": "error (1 if wrong class + relative beta error)",
     "discrepancy": "discrepancy (mean d²)",
     "discrepancy_reduction": "discrepancy reduction (abs.)",
-    "relative_reduction": "relative reduction",
-    "improved_fraction": "recordings improved",
+    "relative_reduction": "relative reduction (fraction)",
+    "improved_fraction": "recordings improved (fraction)",
     "sign_test_p": "sign test p",
     "bootstrap_positive": "bootstrap P(reduction > 0)",
     "leave_one_out_relative_reduction": "leave-one-out relative reduction",
