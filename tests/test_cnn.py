@@ -222,3 +222,40 @@ def test_mlflow_run_has_cnn_metrics(trained):
     assert "cnn/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
     assert run.data.params["model"] == "cnn"
     assert run.data.tags["stiffnet.model"] == "cnn"
+
+
+def test_mlflow_logs_epoch_losses_and_the_model(trained):
+    import mlflow
+    import onnxruntime as ort
+
+    summary, uri, _ = trained
+    client = mlflow.MlflowClient(uri)
+    run_id = summary["run_id"]
+    path = Path(summary["paths"]["onnx"])
+    card = json.loads(path.with_suffix(".card.json").read_text())
+    history = card["training"]["history"]
+    for key in ("train_loss", "val_loss"):
+        points = client.get_metric_history(run_id, key)
+        assert [p.step for p in sorted(points, key=lambda p: p.step)] == [
+            h["epoch"] for h in history
+        ]
+        assert [p.value for p in sorted(points, key=lambda p: p.step)] == pytest.approx(
+            [h[key] for h in history]
+        )
+    run = client.get_run(run_id)
+    models = client.search_logged_models(experiment_ids=[run.info.experiment_id])
+    mine = [m for m in models if m.source_run_id == run_id]
+    assert len(mine) == 1 and mine[0].name == "model"
+    model = mine[0]
+    assert model.metrics and {m.key for m in model.metrics} >= {"cnn/accuracy"}
+    onnx_model = mlflow.onnx.load_model(f"models:/{model.model_id}")
+    info = mlflow.models.get_model_info(f"models:/{model.model_id}")
+    sig = info.signature.inputs.to_dict()[0]
+    sess = ort.InferenceSession(str(path))
+    logged = ort.InferenceSession(onnx_model.SerializeToString())
+    inp = sess.get_inputs()[0]
+    x = np.random.default_rng(0).standard_normal((3, *inp.shape[1:])).astype(np.float32)
+    for a, b in zip(sess.run(None, {inp.name: x}), logged.run(None, {inp.name: x}), strict=True):
+        np.testing.assert_array_equal(a, b)  # the logged model is the exported one
+    assert list(sig["tensor-spec"]["shape"][1:]) == list(sess.get_inputs()[0].shape[1:])
+    assert info.metadata["stiffnet_card"]["sha256"] == card["sha256"]

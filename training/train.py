@@ -149,7 +149,7 @@ def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
 
 
 def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, *, params,
-           metrics, confusions) -> str | None:  # fmt: skip
+           metrics, confusions, history=None) -> str | None:  # fmt: skip
     """Log the run to MLflow (when tracking is on); returns the run id."""
     if not config.tracking:
         return None
@@ -175,6 +175,8 @@ def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, 
         confusions=confusions,
         class_names=names,
         tags={"stiffnet.model": config.model, "stiffnet.data_sha256": card_sha},
+        history=history,
+        onnx_model=onnx_path,
     )
     say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
     return run_id
@@ -464,6 +466,7 @@ def train_cnn(
             "cnn": confusion(label[te], pred, len(names)),
             "geometric": confusion(label[te], g_pred, len(names)),
         },
+        history=fit.history,
     )  # fmt: skip
 
     summary = {
