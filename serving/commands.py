@@ -13,10 +13,12 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import (
+    ColumnsOption,
     FsOption,
     JsonOption,
     ModelOption,
     NaturalFrequencyOption,
+    TimeUnitOption,
 )
 
 
@@ -24,6 +26,8 @@ def predict(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
     fs: FsOption = None,
     fn: NaturalFrequencyOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
@@ -37,7 +41,14 @@ def predict(
 
         raise StiffnetError(f"{recording}: sampling rate missing (a .npy recording needs --fs HZ)")
     predictor = Predictor.load(model, threads=threads)
-    result = predict_recording(recording, fs_hz=fs, natural_frequency_hz=fn, predictor=predictor)
+    result = predict_recording(
+        recording,
+        fs_hz=fs,
+        natural_frequency_hz=fn,
+        predictor=predictor,
+        columns=columns,
+        time_unit=time_unit,
+    )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):

@@ -60,6 +60,7 @@ class Analysis:
             "n_samples": self.n_samples,
             "embedding_delay": self.delay,
             "embedding_delay_s": self.delay / self.fs_hz,
+            "geometric_delay": int(g.delay),  # the attractor figure's and the inclinations' delay
             "delay_rule": self.delay_rule,
             "embedding_dimension": self.dimension,
             "dimension_rule": self.dimension_rule,

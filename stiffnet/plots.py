@@ -40,7 +40,8 @@ def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Pa
     fig, ax = plt.subplots(figsize=(6, 3.5))
     ax.plot(np.arange(a.ami.size), a.ami, lw=1.2)
     ax.axvline(a.delay, color="C3", ls="--", label=f"delay {a.delay} ({a.delay_rule})")
-    ax.set(xlabel="lag [samples]", ylabel="mutual information [nats]", title="AMI (eq. 2)")
+    ax.set(xlabel="lag [samples]", ylabel="mutual information [nats]",
+           title=f"AMI (eq. 2): embedding delay {a.delay} samples")  # fmt: skip
     ax.legend()
     paths.append(_save(fig, out / "ami.png"))
     plt.close(fig)
@@ -51,7 +52,8 @@ def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Pa
     ax.plot(d, a.cao_e2, "s--", label="Cao E2")
     ax.plot(np.arange(1, a.fnn.size + 1), a.fnn, "^-", label="FNN fraction")
     ax.axvline(a.dimension, color="C3", ls=":", label=f"dimension {a.dimension}")
-    ax.set(xlabel="embedding dimension", title="Embedding dimension (eq. 3)")
+    ax.set(xlabel="embedding dimension m", ylabel="E1, E2, FNN fraction [dimensionless]",
+           title="Embedding dimension (eq. 3)")  # fmt: skip
     ax.legend()
     paths.append(_save(fig, out / "dimension.png"))
     plt.close(fig)
@@ -65,7 +67,11 @@ def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Pa
     fig, ax = plt.subplots(figsize=(5, 5))
     ax.plot(y[:n, 0], y[:n, 2], ",", color="0.6", label="free flight")
     ax.plot(y[:n, 0][mask[:n]], y[:n, 2][mask[:n]], ".", ms=2, color="C3", label="contact")
-    ax.set(xlabel="x(t)", ylabel=f"x(t + {2 * g.delay}) [z]", title="Attractor, x-z projection")
+    # the geometric method's delay (0.18 T by default), not the AMI embedding delay:
+    # the axis and the title say which, so they match the numbers analyze reports
+    ax.set(xlabel="x(t) [standardised]", ylabel=f"x(t + 2 tau) = x(t + {2 * g.delay} samples)",
+           title=f"Attractor, x-z projection (geometric delay tau = {g.delay} samples; "
+           f"AMI embedding delay {a.delay})")  # fmt: skip
     ax.legend(markerscale=4)
     paths.append(_save(fig, out / "attractor_xz.png"))
     plt.close(fig)
@@ -77,8 +83,8 @@ def analysis_plots(a: Analysis, raw: np.ndarray, out_dir: str | Path) -> list[Pa
     if np.isfinite(sep.threshold):
         ax.axvline(sep.threshold, color="C3", ls="--", label=f"threshold {sep.threshold:.3g}")
         ax.legend()
-    ax.set(xscale="log", yscale="log", xlabel="tangent-vector magnitude", ylabel="count",
-           title="Contact separation (Fig. 8)")  # fmt: skip
+    ax.set(xscale="log", yscale="log", xlabel="tangent-vector magnitude [standardised units]",
+           ylabel="count [vectors]", title="Contact separation (Fig. 8)")  # fmt: skip
     ax.xaxis.set_minor_formatter(plt.NullFormatter())  # minor log labels collide
     paths.append(_save(fig, out / "tangent_histogram.png"))
     plt.close(fig)

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.progress import task as progress_task
 from stiffnet.shipped import default_config
 
 DEFAULT_SIM_CONFIG = default_config("sim/ideal.yaml")
@@ -32,6 +33,13 @@ def _io() -> tuple[Any, Any, Any]:
     from stiffnet.console import console, out, write_json
 
     return out, console, write_json
+
+
+def _progress() -> Any:
+    """Bars with ETA on a terminal (see :func:`stiffnet.console.show_progress`)."""
+    from stiffnet.console import show_progress
+
+    return show_progress()
 
 
 def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
@@ -113,10 +121,11 @@ def evaluate(
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
-    res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
+    with _progress(), progress_task("predicting recordings"):
+        res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
-    out.print(f"worst recordings: {worst}")
+    out.print(f"worst recordings by error (1 for a wrong class + relative beta error): {worst}")
     flagged = [r for r in res["recordings"] if r["ood"]]
     if flagged:
         out.print(
@@ -145,7 +154,8 @@ def compare(
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
-    cmp = compare_campaign(camp, config_effects(cfg), config_settings(cfg), seed)
+    with _progress(), progress_task("simulating and comparing"):
+        cmp = compare_campaign(camp, config_effects(cfg), config_settings(cfg), seed)
     res = cmp.result
     table = Table(title=f"simulator vs {campaign}: discrepancy {res['discrepancy']:.3g}")
     for col in (
@@ -153,9 +163,9 @@ def compare(
         "beta",
         "discrepancy",
         "worst statistic",
-        "contact",
-        "free flight",
-        "global",
+        "contact Σd²",
+        "free-flight Σd²",
+        "global Σd²",
     ):
         table.add_column(col)
     for r in res["recordings"]:
@@ -228,22 +238,30 @@ def diagnose(
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
-    res = diagnose_campaign(
-        camp,
-        config_effects(cfg),
-        effects=only,
-        user_effects=effect or [],
-        budget=budget,
-        budget_numerical=budget_numerical,
-        seed=seed,
-        inclination=inclination,
-        scheduler=scheduler,
-        workers=workers,
-    )
+    with _progress():
+        res = diagnose_campaign(
+            camp,
+            config_effects(cfg),
+            effects=only,
+            user_effects=effect or [],
+            budget=budget,
+            budget_numerical=budget_numerical,
+            seed=seed,
+            inclination=inclination,
+            scheduler=scheduler,
+            workers=workers,
+        )
     table = Table(
         title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}"
     )
-    for col in ("effect", "reduction", "relative", "params", "improved", "significant"):
+    for col in (
+        "effect",
+        "reduction (abs.)",
+        "reduction (rel.)",
+        "fitted params",
+        "recordings improved",
+        "significant",
+    ):
         table.add_column(col)
     for r in res["ranking"]:
         p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
@@ -297,17 +315,18 @@ def loop(
     camp, cfg = _load(campaign, config)
     n = n_trajectories or cfg.n_trajectories
     console.print(f"loop on {campaign}: +{add_effect}, {n} trajectories per dataset, {model}")
-    res = run_loop(
-        camp,
-        cfg,
-        add_effect,
-        out_dir,
-        diagnosis=_read_json(diagnosis, "diagnosis"),
-        n_trajectories=n_trajectories,
-        spread=spread,
-        model=model,
-        tracking_uri=tracking_uri if tracking else None,
-    )
+    with _progress():
+        res = run_loop(
+            camp,
+            cfg,
+            add_effect,
+            out_dir,
+            diagnosis=_read_json(diagnosis, "diagnosis"),
+            n_trajectories=n_trajectories,
+            spread=spread,
+            model=model,
+            tracking_uri=tracking_uri if tracking else None,
+        )
     table = Table(title=f"loop +{add_effect} on {campaign} ({res['seconds']:.0f} s)")
     for col in ("", "accuracy", "beta MAPE", "geometric acc.", "discrepancy", "run id"):
         table.add_column(col)
@@ -349,10 +368,17 @@ def report(
     loop_result = _read_json(loop_json, "loop")
     camp, cfg = _load(campaign, config)
     effects = config_effects(cfg)
-    ev = evaluate_campaign(camp, str(model) if model else None, effects)
-    cmp = compare_campaign(camp, effects, config_settings(cfg))
-    if diag is None and run_diagnose:
-        diag = diagnose_campaign(camp, effects)
+    diag = _read_json(diagnosis, "diagnosis")
+    stages = 2 + int(diag is None and run_diagnose)
+    with _progress(), progress_task("report stages", stages) as bar:
+        bar.update(note="evaluate")
+        ev = evaluate_campaign(camp, str(model) if model else None, effects)
+        bar.advance(note="compare")
+        cmp = compare_campaign(camp, effects, config_settings(cfg))
+        if diag is None and run_diagnose:
+            bar.advance(note="diagnose")
+            diag = diagnose_campaign(camp, effects)
+        bar.advance()
     page = render_report(
         f"stiffnet: model versus measurement, {camp.folder.name}",
         ev,

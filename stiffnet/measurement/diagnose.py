@@ -86,6 +86,7 @@ from stiffnet.measurement.simulate import (
     simulate_rows,
 )
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
+from stiffnet.progress import task as progress_task
 
 DEFAULT_BUDGET = 24
 DEFAULT_BUDGET_NUMERICAL = 6
@@ -341,8 +342,15 @@ def coarse_grid(free: Sequence[FitParam]) -> np.ndarray:
     return pts
 
 
-def fit_effect(target: CampaignTarget, name: str, budget: int | None = None) -> dict[str, Any]:
+def fit_effect(
+    target: CampaignTarget,
+    name: str,
+    budget: int | None = None,
+    on_evaluation: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]:
     """Fit one effect's parameters to the campaign (see the module notes).
+
+    ``on_evaluation(done, budget)`` is called after each objective evaluation.
 
     Returns
     -------
@@ -384,6 +392,8 @@ def fit_effect(target: CampaignTarget, name: str, budget: int | None = None) -> 
                 return float("inf")
             effect = cls(**params_of(np.array(key)))
             cache[key] = target.per_recording([*base, effect], settings)
+            if on_evaluation:
+                on_evaluation(len(cache), budget)
         return objective_value(cache[key])
 
     k = len(space.free)
@@ -444,7 +454,8 @@ def fit_effect(target: CampaignTarget, name: str, budget: int | None = None) -> 
 
 def _fit_task(item: tuple[CampaignTarget, str, int | None]) -> dict[str, Any]:
     target, name, budget = item
-    return fit_effect(target, name, budget)
+    with progress_task(f"fitting {name}", budget) as bar:  # silent on Dask workers
+        return fit_effect(target, name, budget, lambda done, total: bar.update(done, total))
 
 
 # ------------------------------------------------------------------------ significance
@@ -622,9 +633,16 @@ def diagnose_campaign(
     for n in names:
         b = budget_numerical if needs_numerical(n) else budget
         items.append((target, n, b))
-    fits = map_tasks(
-        _fit_task, items, scheduler=scheduler, workers=workers, progress=progress, names=names
-    )
+    with progress_task("effects fitted", len(items)) as bar:
+
+        def report(done: int, total: int) -> None:
+            bar.update(done, total, note=names[done - 1] if 0 < done <= len(names) else None)
+            if progress:
+                progress(done, total)
+
+        fits = map_tasks(
+            _fit_task, items, scheduler=scheduler, workers=workers, progress=report, names=names
+        )
     baseline = target.per_recording(list(base_effects), FIT_SETTINGS)
     ranking = []
     for fit in fits:
