@@ -25,12 +25,12 @@ def test_evaluate_reports_the_restoring_force_cross_check(damped):
     res = evaluate_campaign(damped)
     rf = res["metrics"]["restoring_force"]
     assert rf["n"] == 8
-    # the physical estimate models the contact's dissipation, where a model trained on
-    # elastic contacts over-estimates beta (restitution ~0.4 at zeta = 0.3): measured
-    # MAPE 0.15 against the CNN's 0.33 (the hardest contacts, 8 samples each, are
-    # under-estimated: see docs/crosscheck.md)
+    # the physical estimate models the contact's dissipation (restitution ~0.4 at
+    # zeta = 0.3): measured MAPE 0.11-0.15 (the hardest contacts, 8 samples each, are
+    # under-estimated: see docs/crosscheck.md); a model trained on elastic contacts
+    # alone gave 0.33 here, the shipped CNN trained on the randomised world 0.06
     assert rf["beta_mape"] < 0.25
-    assert rf["beta_mape"] < res["metrics"]["learned"]["beta_mape"] - 0.05
+    assert res["metrics"]["learned"]["beta_mape"] < 0.25
     assert rf["interval_coverage"] is not None and rf["agreement_with_learned"] is not None
     for r in res["recordings"]:
         assert {"physical_class", "physical_beta", "physical_reason"} <= set(r)
