@@ -30,6 +30,10 @@ fields carry the physical default and the allowed range; a YAML value is either
 a number or a ``[low, high]`` range sampled uniformly per trajectory. Hooks
 receive ``p``, a dict of per-trajectory arrays of shape ``(B,)``.
 
+Each effect also declares its *fit space* (:attr:`Effect.fit_space`, see
+:mod:`stiffnet.effects.fit_space`): the parameters the measurement loop fits to a
+campaign, their search ranges and the values that switch the effect off.
+
 A user effect is any subclass found at ``"package.module:ClassName"``.
 """
 
@@ -41,6 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from stiffnet.effects.fit_space import FitSpace, default_fit_space
 from stiffnet.errors import ConfigError
 
 ParamArrays = dict[str, np.ndarray]
@@ -92,6 +97,8 @@ class Effect:
     name: ClassVar[str] = ""
     kind: ClassVar[str] = ""
     Params: ClassVar[type[EffectParams]] = EffectParams
+    #: Parameters fitted to a campaign (None: every parameter with a declared range).
+    fit_space: ClassVar[FitSpace | None] = None
 
     def __init__(self, **params: Any) -> None:
         try:
@@ -121,6 +128,24 @@ class Effect:
             else:
                 out[name] = np.full(n, float(value))
         return out
+
+    @classmethod
+    def campaign_fit_space(cls, fs_hz_min: float) -> FitSpace:
+        """The fit space for a campaign whose lowest sampling rate is ``fs_hz_min``.
+
+        Override when a range depends on the sampling rate (a sensor resonance
+        must stay below Nyquist).
+        """
+        return (
+            cls.fit_space if cls.fit_space is not None else default_fit_space(cls.parameter_table())
+        )
+
+    @classmethod
+    def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
+        """Data-driven starting points of a fit (effect parameters), from what the
+        measurement shows (``observed``: e.g. ``ringing_hz``, the median post-impact ringing
+        frequency in Hz). Default: none."""
+        return []
 
     @classmethod
     def parameter_table(cls) -> list[dict[str, Any]]:

@@ -46,6 +46,29 @@ def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
     return camp, cfg
 
 
+def _eta_bar(console: Any, description: str) -> Any:
+    """A progress bar with the time left (on stderr's console; hidden when not a terminal)."""
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    return Progress(
+        TextColumn(description),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+        console=console,
+        disable=not console.is_terminal,
+    )
+
+
 def _read_json(path: Path | None, what: str) -> Any:
     from stiffnet.errors import StiffnetError
 
@@ -187,41 +210,43 @@ def diagnose(
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.diagnose import diagnose_campaign
 
-    out, _, write_json = _io()
+    out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    res = diagnose_campaign(
-        camp,
-        config_effects(cfg),
-        effects=only,
-        user_effects=effect or [],
-        budget=budget,
-        budget_numerical=budget_numerical,
-        seed=seed,
-        inclination=inclination,
-        scheduler=scheduler,
-        workers=workers,
-    )
+    with _eta_bar(console, "diagnosing (fits)") as bar:
+        task = bar.add_task("fits", total=None)
+        res = diagnose_campaign(
+            camp,
+            config_effects(cfg),
+            effects=only,
+            user_effects=effect or [],
+            budget=budget,
+            budget_numerical=budget_numerical,
+            seed=seed,
+            inclination=inclination,
+            scheduler=scheduler,
+            workers=workers,
+            progress=lambda done, total: bar.update(task, completed=done, total=total),
+        )
     table = Table(
-        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}"
+        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}, "
+        f"noise floor {res['noise_floor']:.3g}"
     )
-    for col in ("effect", "reduction", "relative", "params", "improved", "significant"):
+    for col in ("effect", "reduction", "of excess", "params", "selected", "why not"):
         table.add_column(col)
     for r in res["ranking"]:
         p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
         table.add_row(
             r["effect"],
             f"{r['discrepancy_reduction']:.3g}",
-            f"{r['relative_reduction']:.0%}",
+            f"{r['excess_reduction']:.0%}",
             p,
-            f"{r['improved_fraction']:.0%}",
-            "yes" if r["significant"] else "no",
+            "yes" if r["selected"] else "no",
+            "; ".join(r["reasons"]),
         )
     out.print(table)
-    missing = res["missing_effect"]
     out.print(
-        f"missing effect: {missing}"
-        if missing
-        else "nothing significant is missing: the model explains the data"
+        f"verdict: {res['verdict']} (residual {res['residual_discrepancy']:.3g}, explained "
+        f"{res['explained_fraction']:.0%}): {res['summary']}"
     )
     write_json(json_path, res)
 

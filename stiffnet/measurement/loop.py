@@ -31,8 +31,9 @@ from stiffnet.config.sim import EffectSpec, SimulationConfig
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
-from stiffnet.measurement.diagnose import CampaignTarget, fit_effect, measured_statistics
+from stiffnet.measurement.fitting import fit_effect
 from stiffnet.measurement.simulate import DEFAULT_SEED
+from stiffnet.measurement.target import CampaignTarget, measured_statistics
 
 DEFAULT_SPREAD = 0.25
 
@@ -209,7 +210,7 @@ def run_loop(
     if diagnosis is not None:
         fit = next((r for r in diagnosis.get("ranking", []) if r["effect"] == effect), None)
     if fit is None:
-        measured, lengths = measured_statistics(campaign)
+        measured, lengths, _ = measured_statistics(campaign)
         target = CampaignTarget(
             list(campaign.rows), measured, lengths, config_effects(base_cfg), seed
         )
