@@ -151,5 +151,7 @@ def test_harmonics_with_phases(tmp):
     assert d["missing_effect"] == "forcing_harmonics"
     p = d["fitted_params"]["forcing_harmonics"]
     assert p["second"] == pytest.approx(0.25, rel=0.2)
+    assert p["third"] == pytest.approx(0.12, rel=0.25)
+    assert p["phase_second"] == pytest.approx(1.1, abs=0.3)
     assert p["phase_second"] != 0.0 and p["phase_third"] != 0.0
     assert d["verdict"] == "explained"

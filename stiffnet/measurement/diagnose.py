@@ -44,7 +44,7 @@ from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
 from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
-from stiffnet.measurement.significance import significance
+from stiffnet.measurement.significance import AT_FLOOR_FACTOR, significance
 from stiffnet.measurement.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.measurement.target import (
     CampaignTarget,
@@ -180,6 +180,13 @@ def diagnose_campaign(
 
     # ---- step 0: every candidate alone against the base model
     entries: dict[str, dict[str, Any]] = {}
+    if at_floor(campaign_discrepancy(baseline), floors[FIT_SETTINGS]):
+        # nothing to explain, so no effect could pass the tests: no fits (a clean campaign
+        # is diagnosed in seconds), every candidate says why
+        candidates = []
+        bar.plan(0)
+        for n in candidate_effects(base_effects, user_effects, effects):
+            entries[n] = _unfitted(n, baseline, floors[FIT_SETTINGS])
     for fit in run_fits(candidates, []):
         settings = settings_for([fit["effect"]])
         sig = significance(
@@ -245,6 +252,7 @@ def diagnose_campaign(
                 [*kept_params, c["params"]],
                 settings,
                 start=np.array(c["per_recording"]),
+                rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             )
             after, params_new = joint["per_recording"], joint["params"]
             bar.tick()
@@ -292,7 +300,14 @@ def diagnose_campaign(
         )
         for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
             entries[name_k]["params"] = p
+        before_profile = (list(target.rows), list(target.starts or []))
         nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, nuisance_info)
+        if (list(target.rows), list(target.starts or [])) != before_profile:
+            # the nuisances moved (another orbit, another gap): refit the effects on them
+            joint = fit_joint(target, kept, kept_params, settings)
+            kept_params = [dict(p) for p in joint["params"]]
+            for name_k, p in zip(kept, kept_params, strict=True):
+                entries[name_k]["params"] = p
         current = {
             settings: target.per_recording(
                 [*target.base_effects, *_effects(kept, kept_params)], settings
@@ -353,6 +368,32 @@ def diagnose_campaign(
             "rank_score": "N ln(D_effect / D_before) + k ln N",
         },
         "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+def _unfitted(name: str, baseline: np.ndarray, floor: float) -> dict[str, Any]:
+    """The ranking entry of a candidate not fitted because the base model is at the floor."""
+    d = campaign_discrepancy(baseline)
+    return {
+        "effect": name,
+        "selected": False,
+        "significant": False,
+        "reasons": [
+            f"nothing to explain: the base model ({d:.3g}) is within {AT_FLOOR_FACTOR:g}x "
+            f"the campaign's noise floor ({floor:.3g}), so it was not fitted"
+        ],
+        "params": {},
+        "fitted": [],
+        "discrepancy_reduction": 0.0,
+        "discrepancy": d,
+        "baseline_discrepancy": d,
+        "relative_reduction": 0.0,
+        "excess_reduction": 0.0,
+        "bic_delta": 0.0,
+        "improves": False,
+        "evaluations": 0,
+        "seconds": 0.0,
+        "engine": "numerical" if needs_numerical(name) else "closed_form",
     }
 
 

@@ -50,8 +50,6 @@ DEFAULT_BUDGET_NUMERICAL = 6
 #: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
 JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
-#: Rounds of block coordinate descent in a joint refit (closed-form models).
-BLOCK_ROUNDS = 2
 #: Nelder-Mead's first step in the unit cube for a joint refit (a local search).
 JOINT_STEP = 0.08
 
@@ -262,10 +260,12 @@ def fit_joint(
     settings: SolverSettings,
     budget: int | None = None,
     start: np.ndarray | None = None,
+    rounds: int = 2,
 ) -> dict[str, Any]:
     """Refit every effect of a model jointly, from ``params`` (a local Nelder-Mead).
 
-    ``start`` is the per-recording discrepancy at ``params`` if known. The
+    ``start`` is the per-recording discrepancy at ``params`` if known;
+    ``rounds`` of block coordinate descent come first (0 for a polish only). The
     result never ends worse than the start.
 
     Returns
@@ -287,13 +287,16 @@ def fit_joint(
     # block coordinate descent: each effect refitted from its own design with the others
     # held, so one effect cannot keep a share that belongs to another (a local search alone
     # stays in the valley where the first effect was fitted)
-    for _ in range(0 if numerical else BLOCK_ROUNDS):
+    for _ in range(0 if numerical else rounds):
+        round_start = objective_value(start)
         for i, n in enumerate(names):
             others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
             fit = fit_effect(target, n, others, settings, seeds=[params[i]])
             evaluations += fit["evaluations"]
             if objective_value(np.asarray(fit["per_recording"])) < objective_value(start):
                 params[i], start = dict(fit["params"]), np.asarray(fit["per_recording"], float)
+        if objective_value(start) >= round_start:  # a round that moved nothing ends the descent
+            break
     if budget is None:
         per = JOINT_PER_COORDINATE_NUMERICAL if numerical else JOINT_PER_COORDINATE
         budget = max(1, per * k) + 1

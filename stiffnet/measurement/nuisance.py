@@ -47,7 +47,7 @@ from stiffnet.errors import StiffnetError
 from stiffnet.measurement.simulate import SolverSettings, natural_frequency
 from stiffnet.measurement.target import CampaignTarget
 
-N_STARTS = 3
+N_STARTS = 8
 GRID = 7
 DEFAULT_AMPLITUDE = 1.0
 DEFAULT_DAMPING, DEFAULT_DAMPING_TOL = 0.02, 0.015
