@@ -12,15 +12,14 @@ seconds per evaluation, their fit is exercised in ``test_measurement_units.py``.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import pytest
+from campaign_helpers import short_manifest
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.measurement.diagnose import diagnose_campaign
 
-MANIFEST = Path(__file__).resolve().parents[1] / "examples" / "hidden_effect_manifest.csv"
 #: The library's effects that keep the closed-form engine, plus the measurement chain.
 FAST_EFFECTS = [
     "contact_damping",
@@ -41,22 +40,10 @@ HIDDEN = {
 USER_EFFECT = "user_effects:ConstantPreload"
 
 
-def _short_manifest(tmp: Path) -> Path:
-    with open(MANIFEST, encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    out = tmp / "manifest.csv"
-    with open(out, "w", encoding="utf-8", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({**r, "duration_s": "3"})
-    return out
-
-
 @pytest.fixture(scope="module")
 def campaigns(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("measurement")
-    manifest = _short_manifest(tmp)
+    manifest = short_manifest(tmp)
     out = {"clean": simulate_campaign(manifest, tmp / "clean", [], seed=0)}
     for key, eff in HIDDEN.items():
         out[key] = simulate_campaign(manifest, tmp / key, [eff], seed=0)

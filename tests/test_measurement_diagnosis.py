@@ -16,26 +16,14 @@ import shutil
 from pathlib import Path
 
 import pytest
+from campaign_helpers import short_manifest
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.measurement.diagnose import diagnose_campaign
 
-MANIFEST = Path(__file__).resolve().parents[1] / "examples" / "hidden_effect_manifest.csv"
 FAST_EFFECTS = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics",
                 "colored_noise", "adc"]  # fmt: skip
 DAMPED = "contact_damping:damping_ratio=0.25"
-
-
-def _manifest(tmp: Path, n: int) -> Path:
-    with open(MANIFEST, encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))[:n]
-    out = tmp / f"manifest{n}.csv"
-    with open(out, "w", encoding="utf-8", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({**r, "duration_s": "3"})
-    return out
 
 
 def _diagnose(folder: Path, **kw):
@@ -49,11 +37,11 @@ def tmp(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def damped5(tmp):
-    return simulate_campaign(_manifest(tmp, 5), tmp / "damped5", [DAMPED], seed=0)
+    return simulate_campaign(short_manifest(tmp, 5), tmp / "damped5", [DAMPED], seed=0)
 
 
 def test_clean_control_nothing_missing(tmp):
-    camp = simulate_campaign(_manifest(tmp, 5), tmp / "clean", [], seed=0)
+    camp = simulate_campaign(short_manifest(tmp, 5), tmp / "clean", [], seed=0)
     d = _diagnose(camp)
     assert d["verdict"] == "nothing_missing", d["summary"]
     assert d["missing_effects"] == [] and d["missing_effect"] is None
@@ -115,10 +103,8 @@ def test_field_campaign_without_beta(damped5, tmp):
 
 
 def test_contact_law_outside_the_library_is_partially_explained(tmp):
-    camp = simulate_campaign(
-        _manifest(tmp, 5), tmp / "stiffening", ["user_effects:StiffeningContact:knee=0.02,ratio=6"],
-        seed=0,
-    )  # fmt: skip
+    law = "user_effects:StiffeningContact:knee=0.02,ratio=6"
+    camp = simulate_campaign(short_manifest(tmp, 5), tmp / "stiffening", [law], seed=0)
     d = _diagnose(camp)
     assert d["verdict"] == "partially_explained", d["summary"]
     assert d["residual_discrepancy"] > 2 * d["noise_floor"]
@@ -130,7 +116,7 @@ def test_contact_law_outside_the_library_is_partially_explained(tmp):
 @pytest.mark.slow
 def test_two_effects_at_once_both_found_unbiased(tmp):
     camp = simulate_campaign(
-        _manifest(tmp, 8),
+        short_manifest(tmp, 8),
         tmp / "two",
         [DAMPED, "sensor_dynamics:resonance_hz=237,resonance_damping=0.03,lowpass_hz=0"],
         seed=0,
@@ -146,7 +132,7 @@ def test_two_effects_at_once_both_found_unbiased(tmp):
 @pytest.mark.slow
 def test_harmonics_with_phases(tmp):
     eff = "forcing_harmonics:second=0.25,third=0.12,phase_second=1.1,phase_third=-2.0"
-    camp = simulate_campaign(_manifest(tmp, 8), tmp / "harmonics", [eff], seed=0)
+    camp = simulate_campaign(short_manifest(tmp, 8), tmp / "harmonics", [eff], seed=0)
     d = _diagnose(camp)
     assert d["missing_effect"] == "forcing_harmonics"
     p = d["fitted_params"]["forcing_harmonics"]

@@ -154,3 +154,31 @@ def test_numerical_effect_fit_runs_within_budget():
     assert fit["engine"] == "numerical" and fit["evaluations"] == 2
     assert set(fit["params"]) == {"reference_penetration"}
     assert len(fit["per_recording"]) == 2
+
+
+def test_forcing_frequency_from_the_spectrum(signal):
+    from stiffnet.measurement.nuisance import forcing_frequency_ratio
+
+    t = np.arange(4000) / 1250.0
+    tone = np.sin(2 * np.pi * 1.037 * 9.48 * t) + 0.1 * np.random.default_rng(0).normal(size=t.size)
+    assert forcing_frequency_ratio(tone, 1250.0, 9.48) == pytest.approx(1.037, rel=2e-3)
+    # an impacting record: the forcing line, not an impact harmonic (ROW's ratio is 1.0)
+    assert forcing_frequency_ratio(signal, 1250.0, 9.48) == pytest.approx(1.0, rel=5e-3)
+
+
+def test_physical_units_become_model_units_and_bad_ones_are_refused():
+    from stiffnet.campaign import ManifestRow
+
+    f_f = 1.05 * 9.48
+    acc_g = 1.9e-3 * (2 * np.pi * f_f) ** 2 / 9.80665  # 1.9 mm of table motion
+    r = ManifestRow(recording="a.csv", fs_hz=1000, forcing_frequency_hz=f_f,
+                    base_acceleration_g=acc_g, base_acceleration_g_tol=0.1 * acc_g,
+                    gap_mm=2.8, gap_mm_tol=0.2)  # fmt: skip
+    assert r.frequency_ratio == pytest.approx(1.05)
+    assert r.amplitude == pytest.approx(1.9) and r.amplitude_tol == pytest.approx(0.19)
+    assert r.gap == pytest.approx(2.8) and r.gap_tol == pytest.approx(0.2)
+    assert ManifestRow(recording="a.csv", fs_hz=1000, base_displacement_mm=1.2).amplitude == 1.2
+    with pytest.raises(ValueError, match="forcing_frequency_hz"):
+        ManifestRow(recording="a.csv", fs_hz=1000, base_acceleration_ms2=3.0)
+    with pytest.raises(ValueError, match="disagrees"):
+        ManifestRow(recording="a.csv", fs_hz=1000, gap=1.0, gap_mm=2.0)

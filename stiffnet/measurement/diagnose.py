@@ -174,9 +174,15 @@ def diagnose_campaign(
         items = [
             (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in cands
         ]
-        out = map_tasks(_fit_task, items, scheduler=scheduler, workers=workers, names=cands)
-        bar.tick(len(cands))
-        return out
+        start = bar.done
+        return map_tasks(
+            _fit_task,
+            items,
+            scheduler=scheduler,
+            workers=workers,
+            names=cands,
+            progress=lambda done, _: bar.tick(start + done - bar.done),
+        )
 
     # ---- step 0: every candidate alone against the base model
     entries: dict[str, dict[str, Any]] = {}
