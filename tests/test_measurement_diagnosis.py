@@ -102,6 +102,7 @@ def test_field_campaign_without_beta(damped5, tmp):
     assert d["nuisances"]["estimated"]["beta"] and len(d["nuisances"]["beta"]) == 5
 
 
+@pytest.mark.slow  # the campaign needs the numerical engine (about a minute on a quiet machine)
 def test_contact_law_outside_the_library_is_partially_explained(tmp):
     law = "user_effects:StiffeningContact:knee=0.02,ratio=6"
     camp = simulate_campaign(short_manifest(tmp, 5), tmp / "stiffening", [law], seed=0)
