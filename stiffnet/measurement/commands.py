@@ -191,7 +191,10 @@ def diagnose(
         typer.Option(help="Try only these effects (repeatable; default: the whole library)."),
     ] = None,
     budget: Annotated[
-        int | None, typer.Option(help="Objective evaluations per closed-form effect (24).")
+        int | None,
+        typer.Option(
+            help="Evaluations of one closed-form fit (default: its design + 8-24 refinement steps)."
+        ),
     ] = None,
     budget_numerical: Annotated[
         int | None, typer.Option(help="Evaluations per numerical-engine effect (6).")
