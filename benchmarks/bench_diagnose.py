@@ -12,7 +12,9 @@ significance, nuisances). The diagnosis itself is checked (both effects found).
 Target (issue 13): <= 2 minutes wall on 2 cores. ``--workers 2`` runs each step's
 fits on a 2-process LocalCluster (the profile then covers only this process).
 
-Run: ``OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py [--workers 2] [--fast-only]``
+Run (from the repository root, so this checkout's package is imported)::
+
+    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py [--workers 2] [--fast-only]
 """
 
 from __future__ import annotations

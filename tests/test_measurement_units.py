@@ -10,6 +10,7 @@ import pytest
 from stiffnet.campaign import ManifestRow
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.errors import SignalError
+from stiffnet.measurement import fitting
 from stiffnet.measurement.discrepancy import (
     COMPONENTS,
     TOLERANCES,
@@ -143,7 +144,7 @@ def test_fit_spaces_are_declared_by_the_effects_inside_their_ranges():
     assert initial_design(user).shape == (9, 1)
 
 
-def test_numerical_effect_fit_runs_within_budget():
+def test_numerical_effect_fit_runs_within_budget(monkeypatch):
     """A Hertz-contact fit: the numerical engine, one batch per evaluation, tiny budget."""
     rows = [ROW, ROW.model_copy(update={"recording": "b.csv", "beta": 60.0, "fs_hz": 1500})]
     sims = simulate_rows(rows, [], [3000, 3000], seed=3, settings=FIT_SETTINGS)
@@ -151,6 +152,13 @@ def test_numerical_effect_fit_runs_within_budget():
     target = CampaignTarget(rows, measured, [3000, 3000], [], seed=11, inclination=False)
     fit = fit_effect(target, "hertz_contact", budget=2)
     assert min(fit["per_recording"]) >= 0 and fit["improves"] in (True, False)
+    # on a larger campaign the search runs on a subset, the best point is scored on all
+    monkeypatch.setattr(fitting, "SUBSET_NUMERICAL", 1)
+    sub = fit_effect(target, "hertz_contact", budget=2)
+    assert len(sub["searched_on"]) == 1 and len(sub["per_recording"]) == 2
+    assert sub["evaluations"] == 3
+    off = np.asarray(sub["off_per_recording"])
+    assert objective_value(np.asarray(sub["per_recording"])) <= objective_value(off)
     assert fit["engine"] == "numerical" and fit["evaluations"] == 2
     assert set(fit["params"]) == {"reference_penetration"}
     assert len(fit["per_recording"]) == 2

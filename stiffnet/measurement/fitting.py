@@ -18,7 +18,8 @@ Search, in the unit cube of the effect's fit space
   Brent search between the best design point's neighbours (one coordinate) or a
   bounded Nelder-Mead from it, within ``budget`` evaluations.
   Numerical-engine effects (seconds per evaluation) get only a design spread
-  over the budget.
+  over the budget, searched on :data:`SUBSET_NUMERICAL` recordings and the best point
+  evaluated on all of them.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
   keep a share of the discrepancy that belongs to one found later.
@@ -47,6 +48,10 @@ REFINE_EVALUATIONS = {1: 8, 2: 12}
 REFINE_EVALUATIONS_MANY = 24
 #: Evaluations of a numerical-engine effect's fit (design only).
 DEFAULT_BUDGET_NUMERICAL = 6
+#: A numerical-engine effect is searched on at most this many recordings (evenly spread
+#: over the campaign), then its best point is evaluated on all of them: its simulations
+#: cost seconds, and the search needs only the shape of the objective.
+SUBSET_NUMERICAL = 8
 #: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
 JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
@@ -191,6 +196,26 @@ def fit_effect(
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
     if off is None:
         off = target.per_recording([*target.base_effects, *fixed], settings)
+    n = len(target.rows)
+    if numerical and n > SUBSET_NUMERICAL:
+        idx = np.unique(np.round(np.linspace(0, n - 1, SUBSET_NUMERICAL)).astype(int))
+        sub = fit_effect(target.subset(idx), name, fixed, settings, budget, off[idx], seeds)
+        per = target.per_recording(
+            [*target.base_effects, *fixed, effect_class(name)(**sub["params"])], settings
+        )
+        improves = bool(sub["improves"] and objective_value(per) < objective_value(off))
+        if not improves:
+            per = off
+        return {
+            **sub,
+            "params": sub["params"] if improves or space.off is None else dict(space.off),
+            "per_recording": per.tolist(),
+            "off_per_recording": off.tolist(),
+            "improves": improves,
+            "evaluations": sub["evaluations"] + 1,
+            "seconds": round(time.perf_counter() - t0, 3),
+            "searched_on": [target.rows[i].recording for i in idx],
+        }
     design = initial_design(space)
     n_seeds = len(seeds)
     seeds = [*seeds, *effect_class(name).fit_seeds(target.observed(), space)]

@@ -102,6 +102,19 @@ class CampaignTarget:
                 out[i] = d if np.isfinite(d) else FAILED_DISCREPANCY
         return out
 
+    def subset(self, idx: Sequence[int]) -> CampaignTarget:
+        """The target restricted to the recordings ``idx`` (same model, seed and nuisances)."""
+        idx = [int(i) for i in idx]
+        return CampaignTarget(
+            [self.rows[i] for i in idx],
+            [self.measured[i] for i in idx],
+            [self.lengths[i] for i in idx],
+            list(self.base_effects),
+            self.seed,
+            self.inclination,
+            None if self.starts is None else [self.starts[i] for i in idx],
+        )
+
     def observed(self) -> dict[str, float]:
         """What the measurement shows that seeds a fit: ``ringing_hz``, the median post-impact
         ringing frequency (Hz) of the recordings that ring (ringing above 0.2 decades)."""
