@@ -41,7 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def config(n_trajectories: int, shard_size: int, seed: int = 0) -> SimulationConfig:
-    data = load_yaml(ROOT / "configs" / "sim" / "default.yaml")
+    data = load_yaml(ROOT / "configs" / "sim" / "ideal.yaml")
     data.update(seed=seed, n_trajectories=n_trajectories, shard_size=shard_size)
     return validate_config(SimulationConfig, data)
 

@@ -2,9 +2,7 @@
 
 Heavy imports (onnxruntime, FastAPI, uvicorn) stay inside the command functions,
 so ``stiffnet --help`` stays fast and ``stiffnet predict`` never loads torch,
-scikit-learn or mlflow. :mod:`stiffnet.cli` imports this module while it is
-itself being imported, so its helpers are imported inside :func:`register` and
-the commands, never at module level.
+scikit-learn or mlflow. The shared console helpers come from :mod:`stiffnet.console`.
 """
 
 from __future__ import annotations
@@ -32,7 +30,7 @@ def predict(
 ) -> None:
     """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
     from serving.predictor import Predictor, predict_recording
-    from stiffnet.cli import out, write_json
+    from stiffnet.console import out, write_json
 
     if fs is None and recording.suffix.lower() == ".npy":
         from stiffnet.errors import StiffnetError
@@ -84,8 +82,17 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
-    ood = f"{_num(result['ood_score'])} (threshold {_num(result['ood_threshold'])})"
-    t.add_row("OOD score", ood + ("  [red]FLAGGED[/]" if result["ood_flag"] else ""), "")
+    alarm = result.get("alarm")
+    if alarm is not None:
+        verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (
+            "[green]none[/]")  # fmt: skip
+        t.add_row("alarm", verdict, "")
+        scores = ", ".join(
+            f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
+            for k, v in alarm["scores"].items()
+            if k in alarm["thresholds"]
+        )
+        t.add_row("alarm checks (score/threshold)", scores, "")
     t.add_row("windows", f"{result['n_windows']} x {result['window_s']:.3g} s", "")
     t.add_row(
         "natural frequency",
@@ -135,7 +142,7 @@ def serve(
 
     from serving.app import Limits, create_app
     from serving.predictor import Predictor
-    from stiffnet.cli import console
+    from stiffnet.console import console
 
     limits = Limits.checked(max_upload_mb, timeout_s, max_concurrency, max_queue)
     predictor = Predictor.load(model, threads=threads)
@@ -152,7 +159,7 @@ def serve(
 
 def register(app: typer.Typer) -> None:
     """Add ``predict`` and ``serve`` to the ``stiffnet`` app."""
-    from stiffnet.cli import user_errors
+    from stiffnet.console import user_errors
 
     app.command("predict")(user_errors(predict))
     app.command("serve")(user_errors(serve))

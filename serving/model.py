@@ -44,7 +44,16 @@ def card_path(model_path: Path) -> Path:
 #: Metadata values the exporters store as plain strings. Decoding them as JSON would turn
 #: a hash made only of digits into a number, so they are never decoded.
 STRING_KEYS = frozenset(
-    {"model_kind", "input_name", "normalisation", "beta_transform", "training_data_sha256"}
+    {
+        "model_kind",
+        "input_name",
+        "normalisation",
+        "beta_transform",
+        "training_data_sha256",
+        "alarm_reference",
+        "alarm_sha256",
+        "interval",
+    }
 )
 
 
@@ -100,6 +109,10 @@ class LoadedModel:
     @property
     def class_names(self) -> list[str]:
         return [str(c) for c in self.metadata["class_names"]]
+
+    @property
+    def output_names(self) -> list[str]:
+        return [o.name for o in self.session.get_outputs()]
 
     @property
     def conformal_quantile(self) -> float | None:

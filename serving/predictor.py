@@ -19,14 +19,17 @@ Pipeline of :meth:`Predictor.predict`:
    period, spikes up, unit std, delay channels) exactly as at training time;
    GBM: the inclination features of each window. Per-window probabilities and
    log beta.
-4. **Aggregation.** Class probabilities: the mean of the windows'
-   probabilities (robust to one odd window, unlike a product of probabilities);
-   class: its arg-max. Beta: ``exp`` of the mean log beta over the windows whose
-   own class has contact; its interval ``exp(mean +- q)`` with the card's
-   split-conformal quantile ``q`` (calibrated per window: for the mean of
-   several windows it is conservative when their errors are independent and
-   nominal when they are fully correlated). **Segments** aggregate
-   ``segment_windows`` consecutive windows the same way.
+4. **Aggregation** (:func:`stiffnet.uncertainty.aggregate_windows`, the same
+   function that calibrated the model on whole training trajectories). Class
+   probabilities: the mean of the windows' probabilities (robust to one odd
+   window, unlike a product of probabilities); class: its arg-max. Beta: ``exp``
+   of the mean log beta over the windows whose own class has contact. Its
+   interval: ``exp(mean +- q s)``, ``s`` the recording's error scale (the
+   model's own scale output plus the disagreement of the windows) and ``q`` the
+   model's normalised split-conformal quantile calibrated with one score per
+   trajectory (metadata ``conformal_quantile_recording``); models without it
+   fall back to the per-window quantile ``exp(mean +- q)``. **Segments**
+   aggregate ``segment_windows`` consecutive windows the same way.
 5. **Cross-check** by the geometric method (:func:`stiffnet.features.features_and_estimate`
    with the shipped calibration) on ``geometric_windows`` windows spread evenly
    over the recording (all windows for the GBM, which computes their features
@@ -34,9 +37,17 @@ Pipeline of :meth:`Predictor.predict`:
    their inclinations through the calibration gives beta and class.
    ``agreement`` is ``model class == geometric class``. Bounding the number of
    windows keeps a 60 s recording under ~60 ms on one core.
-6. **OOD score** (:mod:`serving.ood`) on the same windows' features: the median
-   of their distances to the training data, flagged above the reference's
-   threshold.
+   A second, physical cross-check (:mod:`serving.physical`): the restoring-force
+   estimate on 32 forcing periods from the middle of the recording:
+   ``physical_class``, ``physical_beta`` and its bootstrap interval,
+   ``physical_agreement`` (null when that method refused, with its reason).
+6. **Alarm** (:mod:`stiffnet.uncertainty.alarm`): checks on what the model
+   looks at - the distance of the windows to the training data in the model's
+   own embedding, the class ambiguity, the beta uncertainty - each against a
+   threshold calibrated on in-distribution trajectories (the model's
+   ``NAME.alarm.npz``, verified by its SHA-256). A model without one falls
+   back to the inclination-feature OOD score (:mod:`serving.ood`). ``ood_flag``
+   is the alarm; ``ood_score`` its largest score relative to its threshold.
 """
 
 from __future__ import annotations
@@ -51,10 +62,14 @@ import numpy as np
 
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
+from serving.physical import physical_check
 from serving.schemas import PredictionResult
 from serving.windows import canonical_tensor, window_length, window_starts
 from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
+from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
+from stiffnet.uncertainty.alarm import AlarmReference, load_alarm, recording_checks
 
 #: Minimum sampling rate in samples per natural period: the training data's lowest rate.
 MIN_SAMPLES_PER_PERIOD = 50.0
@@ -128,15 +143,22 @@ def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
     return _finite_positive(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
-def _aggregate(proba: np.ndarray, log_beta: np.ndarray, names: list[str], nc: int | None):
-    """Mean probabilities, class, and mean log beta over windows whose own class has contact."""
-    p = proba.mean(axis=0)
-    k = int(np.argmax(p))
-    lb = None
-    if k != nc:
-        contact = proba.argmax(axis=1) != nc if nc is not None else np.ones(len(proba), bool)
-        lb = float(np.mean(log_beta[contact])) if contact.any() else float(np.mean(log_beta))
-    return {n: float(v) for n, v in zip(names, p, strict=True)}, names[k], lb
+#: What each alarm check means, for the warning a user reads.
+ALARM_WORDS = {
+    "embedding": "the recording does not look like the training data to the model",
+    "ambiguity": "the model cannot decide between classes",
+    "beta_uncertainty": "the beta estimate is uncertain (the windows disagree or the model "
+    "expects a large error)",
+    "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
+    "features": "the recording's inclination features are unlike the training data",
+}
+
+
+def alarm_message(fired: list[str]) -> str:
+    """The alarm's verdict in words."""
+    if not fired:
+        return "no alarm: the recording looks like the data the model was calibrated on"
+    return "UNRELIABLE: " + "; ".join(ALARM_WORDS.get(f, f) for f in fired)
 
 
 class Predictor:
@@ -157,6 +179,7 @@ class Predictor:
         model: LoadedModel,
         ood: OODReference | None,
         *,
+        alarm: AlarmReference | None = None,
         segment_windows: int = SEGMENT_WINDOWS,
         geometric_windows: int = GEOMETRIC_WINDOWS,
     ) -> None:
@@ -164,6 +187,9 @@ class Predictor:
 
         self.model = model
         self.ood = ood
+        if alarm is None and ood is not None:  # older models: the feature OOD score alone
+            alarm = AlarmReference(thresholds={"features": ood.threshold})
+        self.alarm = alarm
         self.segment_windows = max(1, int(segment_windows))
         self.geometric_windows = max(1, int(geometric_windows))
         self.calibration = load_calibration()
@@ -204,8 +230,9 @@ class Predictor:
         threads : int, optional
             ONNX Runtime intra-op threads.
         ood_reference : str or Path, optional
-            OOD reference JSON; default ``ood_reference.json`` beside the model,
-            else in the repository's ``models/`` (no OOD score without one).
+            Inclination-feature OOD reference JSON, for models without their own
+            alarm reference; default ``ood_reference.json`` beside the model, else in
+            the repository's ``models/`` (no alarm without one).
 
         Raises
         ------
@@ -213,15 +240,18 @@ class Predictor:
             Model missing, modified (SHA-256), corrupt, or not a stiffnet model.
         """
         model = load_model(model_path, threads)
+        alarm = _load_model_alarm(model)
         if ood_reference is not None:
             ood = load_reference(ood_reference)
+        elif alarm is not None:
+            ood = None  # the model's own alarm replaces the feature OOD score
         else:
             ood = None
             for path in (model.path.parent / OOD_REFERENCE_FILE, shipped_file(OOD_REFERENCE_FILE)):
                 if path.is_file():
                     ood = load_reference(path)
                     break
-        return cls(model, ood)
+        return cls(model, ood, alarm=alarm)
 
     def _training_fn(self) -> tuple[float | None, str]:
         """Training data f_n: from the metadata, model card, OOD reference or data card."""
@@ -262,6 +292,7 @@ class Predictor:
             "geometric_windows": self.geometric_windows,
             "ood_reference": self.ood is not None,
             "ood_threshold": self.ood.threshold if self.ood is not None else None,
+            "alarm_thresholds": self.alarm.thresholds if self.alarm is not None else None,
             "metadata": self.metadata,
         }
 
@@ -358,28 +389,28 @@ class Predictor:
                 raise StiffnetError(f"{what}: every window is constant")
 
         try:
-            proba, log_beta, feats, geo = self._run_model(W, fs, fn)
+            out, feats, geo = self._run_model(W, fs, fn)
         except SignalError as exc:
             raise StiffnetError(f"{what}: {exc}") from None
         names = self.class_names
-        probs, cls, lb = _aggregate(proba, log_beta, names, self._nc)
-        q = self.model.conformal_quantile
-        beta = math.exp(lb) if lb is not None else None
-        interval = [math.exp(lb - q), math.exp(lb + q)] if lb is not None and q else None
+        est = self._aggregate(out)
+        cls = names[est.label]
+        beta = math.exp(est.log_beta) if est.log_beta is not None else None
+        interval = self._interval(est)
 
         segments = []
         for k, lo in enumerate(range(0, len(W), self.segment_windows)):
             hi = min(len(W), lo + self.segment_windows)
-            sp, sc, slb = _aggregate(proba[lo:hi], log_beta[lo:hi], names, self._nc)
+            seg = self._aggregate({name: v[lo:hi] for name, v in out.items()})
             segments.append(
                 {
                     "index": k,
                     "start_s": float(starts[lo] / fs),
                     "end_s": float((starts[hi - 1] + n_win) / fs),
                     "n_windows": hi - lo,
-                    "class": sc,
-                    "probabilities": sp,
-                    "beta": math.exp(slb) if slb is not None else None,
+                    "class": names[seg.label],
+                    "probabilities": self._named(seg.probabilities),
+                    "beta": math.exp(seg.log_beta) if seg.log_beta is not None else None,
                 }
             )
         seg_classes = [s["class"] for s in segments]
@@ -387,30 +418,35 @@ class Predictor:
             warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
 
         geometric = self._geometric(geo)
-        ood_score = ood_threshold = None
-        ood_flag = False
-        if self.ood is not None and len(feats):
-            ood_score = float(np.median(self.ood.scores(feats)))
-            ood_threshold = self.ood.threshold
-            ood_flag = ood_score > ood_threshold
-            if ood_flag:
-                warnings.append(
-                    f"recording does not look like the training data (OOD score {ood_score:.3g} "
-                    f"> {ood_threshold:.3g}): treat the prediction with caution"
-                )
+        alarm = self._alarm(est, out, feats)
+        physical = physical_check(a, fs, fn)
+        if alarm is not None and alarm["flag"]:
+            warnings.append(alarm["message"])
+        # the alarm as one number: its largest score over its threshold (fires above 1)
+        ratios = [
+            v / alarm["thresholds"][k]
+            for k, v in (alarm or {}).get("scores", {}).items()
+            if alarm["thresholds"].get(k)
+        ]
         result = {
             "source": source,
             "class": cls,
-            "probabilities": probs,
+            "probabilities": self._named(est.probabilities),
             "beta": beta,
             "beta_interval": interval,
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
+            "physical": physical,
+            "physical_class": physical["class"],
+            "physical_beta": physical["beta"],
+            "physical_beta_interval": physical["beta_interval"],
+            "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
             "contact_detected": cls != "no_contact",
-            "ood_score": ood_score,
-            "ood_threshold": ood_threshold,
-            "ood_flag": bool(ood_flag),
+            "ood_score": max(ratios) if ratios else None,
+            "ood_threshold": 1.0 if ratios else None,
+            "ood_flag": bool(alarm is not None and alarm["flag"]),
+            "alarm": alarm,
             "n_windows": int(len(W)),
             "window_s": n_win / fs,
             "hop_s": n_win / fs,
@@ -443,8 +479,44 @@ class Predictor:
             )
         return a
 
+    def _named(self, p: np.ndarray) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.class_names, p, strict=True)}
+
+    def _aggregate(self, out: dict[str, np.ndarray]) -> RecordingEstimate:
+        return aggregate_windows(
+            out["probabilities"], out["log_beta"], out.get("log_beta_scale"), self._nc
+        )
+
+    def _interval(self, est: RecordingEstimate) -> list[float] | None:
+        """Per-recording normalised interval, else the card's per-window one."""
+        if est.log_beta is None:
+            return None
+        q_rec = self.metadata.get("conformal_quantile_recording")
+        if isinstance(q_rec, int | float) and math.isfinite(q_rec) and est.scale is not None:
+            half = float(q_rec) * est.scale
+        elif self.model.conformal_quantile:
+            half = self.model.conformal_quantile
+        else:
+            return None
+        return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]
+
+    def _alarm(self, est: RecordingEstimate, out: dict[str, np.ndarray], feats: np.ndarray):
+        if self.alarm is None:
+            return None
+        emb = None
+        if "embedding" in out and "embedding" in self.alarm.thresholds:
+            emb = self.alarm.embedding_scores(out["embedding"])
+        feat = None
+        if self.ood is not None and len(feats) and "features" in self.alarm.thresholds:
+            feat = float(np.median(self.ood.scores(feats)))
+        edges = self.alarm.info.get("class_edges")
+        result = self.alarm.evaluate(recording_checks(est, emb, feat, edges))
+        result["scores"] = {k: v for k, v in result["scores"].items() if v is not None}
+        result["message"] = alarm_message(result["fired"])
+        return result
+
     def _run_model(self, W: np.ndarray, fs: float, fn: float):
-        """Per-window probabilities, log beta, OOD features and geometric results."""
+        """Per-window model outputs (by ONNX output name), OOD features, geometric results."""
         from stiffnet.features import features_and_estimate
 
         def feature_rows(idx):
@@ -474,14 +546,16 @@ class Predictor:
             k = min(self.geometric_windows, len(W))
             idx = np.unique(np.round(np.linspace(0, len(W) - 1, k)).astype(int))
             feats, geo = feature_rows(idx)
-        probas, lbs = [], []
+        wanted = [o for o in MODEL_OUTPUTS if o in self.model.output_names]
+        parts: dict[str, list[np.ndarray]] = {o: [] for o in wanted}
         for lo in range(0, len(X), BATCH):
-            p, lb = sess.run(["probabilities", "log_beta"], {name: X[lo : lo + BATCH]})
-            probas.append(p)
-            lbs.append(lb)
-        proba = np.concatenate(probas).astype(np.float64)
-        log_beta = np.concatenate(lbs).astype(np.float64).reshape(-1)
-        return proba, log_beta, feats, geo
+            for o, v in zip(wanted, sess.run(wanted, {name: X[lo : lo + BATCH]}), strict=True):
+                parts[o].append(v)
+        out = {o: np.concatenate(v).astype(np.float64) for o, v in parts.items()}
+        for o in ("log_beta", "log_beta_scale"):
+            if o in out:
+                out[o] = out[o].reshape(-1)
+        return out, feats, geo
 
     def _geometric(self, results: list) -> dict[str, Any]:
         """Aggregate the per-window geometric results (contact in >= half the windows)."""
@@ -514,6 +588,24 @@ class Predictor:
             }
         )
         return out
+
+
+#: Outputs the predictor reads, when the model has them (older models: the first two).
+MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
+
+
+def _load_model_alarm(model: LoadedModel) -> AlarmReference | None:
+    """The model's alarm reference (metadata ``alarm_reference``), verified by SHA-256."""
+    name = model.metadata.get("alarm_reference")
+    if not name:
+        return None
+    path = model.path.parent / Path(str(name)).name  # beside the model, never elsewhere
+    if not path.is_file():
+        raise StiffnetError(f"{model.path.name}: its alarm reference {path} is missing")
+    want = model.metadata.get("alarm_sha256")
+    if want and sha256_file(path) != want:
+        raise StiffnetError(f"{path}: SHA-256 does not match the model's metadata (modified?)")
+    return load_alarm(path)
 
 
 _LOADED: dict[tuple, Predictor] = {}

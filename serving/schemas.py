@@ -32,6 +32,29 @@ class GeometricCheck(BaseModel):
     polarity: int = Field(description="-1: impact spikes point down, +1: up, 0: no contact.")
 
 
+class PhysicalCheck(BaseModel):
+    """The restoring-force (force-state mapping) estimate on the same recording."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    class_: str | None = Field(
+        alias="class", description="Class of the restoring-force beta; no_contact; null if refused."
+    )
+    beta: float | None = Field(description="Contact over free-flight stiffness of the fitted map.")
+    beta_interval: list[float] | None = Field(description="Bootstrap interval over impacts.")
+    beta_interval_coverage: float | None = None
+    contact_damping_ratio: float | None = Field(
+        default=None, description="Kelvin-Voigt damping ratio of the contact."
+    )
+    exponent: float | None = Field(default=None, description="Contact exponent (1 linear).")
+    n_impacts: int | None = None
+    contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
+    highpass_hz: float | None = Field(
+        default=None, description="Sensor high-pass corner undone (0: none)."
+    )
+    reason: str = Field(description="What was estimated, or why not.")
+
+
 class Segment(BaseModel):
     """Aggregate over consecutive windows: a change of formation shows as a change here."""
 
@@ -46,6 +69,22 @@ class Segment(BaseModel):
     beta: float | None
 
 
+class AlarmResult(BaseModel):
+    """The unreliability alarm: checks on what the model looks at (``stiffnet.uncertainty``)."""
+
+    flag: bool = Field(description="Some check exceeded its threshold: do not trust the result.")
+    fired: list[str] = Field(description="The checks that exceeded their thresholds.")
+    scores: dict[str, float | None] = Field(
+        description="Each check's score: embedding (distance of the windows to the training "
+        "data in the model's embedding), ambiguity (1 - top class probability), "
+        "beta_uncertainty (scale of the log-beta error), features (inclination-feature OOD)."
+    )
+    thresholds: dict[str, float] = Field(
+        description="Thresholds calibrated on in-distribution trajectories."
+    )
+    message: str = Field(description="The verdict in words.")
+
+
 class PredictionResult(BaseModel):
     """Prediction for one recording (``stiffnet predict``, ``POST /predict``)."""
 
@@ -56,20 +95,29 @@ class PredictionResult(BaseModel):
     probabilities: dict[str, float] = Field(description="Mean of the per-window probabilities.")
     beta: float | None = Field(description="exp(mean per-window log beta); null for no_contact.")
     beta_interval: list[float] | None = Field(
-        description="[lo, hi]: split-conformal interval of the model card around beta."
+        description="[lo, hi]: split-conformal interval around beta, calibrated per "
+        "recording (one normalised score per trajectory) for models that carry it."
     )
     beta_interval_coverage: float | None = Field(
-        description="Nominal per-window coverage of beta_interval."
+        description="Nominal coverage of beta_interval over recordings like the training data."
     )
     geometric: GeometricCheck
     agreement: bool = Field(description="Model class == geometric class.")
+    physical: PhysicalCheck
+    physical_class: str | None = Field(description="physical.class, at the top level.")
+    physical_beta: float | None = Field(description="physical.beta, at the top level.")
+    physical_beta_interval: list[float] | None
+    physical_agreement: bool | None = Field(
+        description="Model class == restoring-force class; null when that method refused."
+    )
     contact_detected: bool = Field(description="The model's class is not no_contact.")
     ood_score: float | None = Field(
-        description="Median over the scored windows of the smallest class-conditional "
-        "Mahalanobis distance of the inclination features to the training data."
+        description="The alarm's largest check score relative to its threshold "
+        "(max over checks of score / threshold); above ood_threshold the alarm fires."
     )
     ood_threshold: float | None
-    ood_flag: bool = Field(description="ood_score > ood_threshold: unlike the training data.")
+    ood_flag: bool = Field(description="The alarm fired: the prediction is unreliable.")
+    alarm: AlarmResult | None = Field(description="The alarm's checks; null without a reference.")
     n_windows: int = Field(description="Windows the model predicted (and aggregated).")
     window_s: float
     hop_s: float

@@ -1,21 +1,27 @@
-"""The ``stiffnet`` command line (also ``python -m stiffnet``)."""
+"""The ``stiffnet`` command line (also ``python -m stiffnet``).
+
+The top of the package: it assembles the app from its own commands and the
+command modules of the packages below, which share :mod:`stiffnet.console`;
+nothing imports this module.
+"""
 
 from __future__ import annotations
 
-import functools
-import importlib
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import Annotated
 
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+# Command modules keep their heavy imports inside the command functions:
+# ``stiffnet predict`` must not import torch, scikit-learn or mlflow, and
+# ``stiffnet --help`` must stay fast.
+from serving import commands as serving_commands  # predict, serve
 from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
-from stiffnet.errors import StiffnetError
+from stiffnet.console import out, progress_bar, user_errors, write_json
+from stiffnet.distributed import commands as distributed_commands  # predict-batch
+from stiffnet.measurement import commands as measurement_commands  # evaluate ... report
 
 app = typer.Typer(
     name="stiffnet",
@@ -24,50 +30,17 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-console = Console(stderr=True)
-out = Console()
-
-F = TypeVar("F", bound=Callable[..., Any])
-
-
-def user_errors(fn: F) -> F:
-    """Report :class:`StiffnetError` as one line on stderr and exit with code 2."""
-
-    @functools.wraps(fn)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return fn(*args, **kwargs)
-        except StiffnetError as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-            raise typer.Exit(2) from None
-
-    return wrapper  # type: ignore[return-value]
-
-
-def write_json(path: Path | None, result: Any) -> None:
-    if path is not None:
-        from stiffnet.io_utils import write_json_atomic
-
-        write_json_atomic(path, result)
-
-
-def progress_bar(description: str) -> Progress:
-    return Progress(
-        TextColumn(description),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=not console.is_terminal,
-    )
 
 
 @app.command()
 @user_errors
 def simulate(
-    config: Annotated[Path, typer.Option(help="Simulation config (YAML).")] = Path(
-        "configs/sim/default.yaml"
-    ),
+    config: Annotated[
+        Path | None,
+        typer.Option(
+            help="Simulation config (YAML); default: stiffnet's configs/sim/default.yaml."
+        ),
+    ] = None,
     out_dir: Annotated[Path, typer.Option("--out", help="Output dataset folder.")] = Path(
         "data/default"
     ),
@@ -91,7 +64,9 @@ def simulate(
     from stiffnet.config import load_yaml, validate_config
     from stiffnet.config.sim import SimulationConfig
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
+    from stiffnet.shipped import default_config
 
+    config = config or default_config("sim/default.yaml")
     data = load_yaml(config)
     if seed is not None:
         data["seed"] = seed
@@ -162,7 +137,8 @@ def train(
     data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
     model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
     config: Annotated[
-        Path | None, typer.Option(help="Training config (YAML); default configs/train/MODEL.yaml.")
+        Path | None,
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/MODEL.yaml."),
     ] = None,
     out_dir: Annotated[
         Path, typer.Option("--out", help="Folder for the ONNX model and card.")
@@ -179,7 +155,9 @@ def train(
 
     if model not in ("gbm", "cnn"):
         raise ConfigError(f"model {model!r} is not available: use gbm or cnn")
-    default = Path("configs/train") / f"{model}.yaml"
+    from stiffnet.shipped import default_config
+
+    default = default_config(f"train/{model}.yaml")
     if config is not None:
         cfg = load_config(TrainConfig, config)
     elif default.is_file():
@@ -255,16 +233,8 @@ def effects(json_path: JsonOption = None) -> None:
     write_json(json_path, result)
 
 
-#: Modules that add commands to `app` through ``register(app)``. They keep their heavy
-#: imports inside the command functions: ``stiffnet predict`` must not import torch,
-#: scikit-learn or mlflow, and ``stiffnet --help`` must stay fast.
-COMMAND_MODULES = (
-    "serving.commands",  # predict, serve
-    "stiffnet.measurement.commands",  # evaluate, compare, diagnose, loop, report
-    "stiffnet.distributed.commands",  # predict-batch
-)
-for _module in COMMAND_MODULES:
-    importlib.import_module(_module).register(app)
+for _commands in (serving_commands, measurement_commands, distributed_commands):
+    _commands.register(app)
 
 
 def main() -> None:

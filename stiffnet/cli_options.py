@@ -1,7 +1,7 @@
 """Command-line options shared by several ``stiffnet`` commands.
 
-A light module (typer and pathlib only): the command modules registered by
-:mod:`stiffnet.cli` import it at module level without importing the CLI itself.
+A light module (typer and pathlib only): the command modules that
+:mod:`stiffnet.cli` assembles import it at module level.
 """
 
 from __future__ import annotations

@@ -20,6 +20,7 @@ from stiffnet.features.windows import (
     window_tensor,
 )
 from stiffnet.io_utils import sha256_file
+from stiffnet.uncertainty.alarm import load_alarm
 
 torch = pytest.importorskip("torch")
 
@@ -140,7 +141,21 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert meta["training_data_sha256"] == sha256_file(tiny_dir / "card.json")
     assert float(meta["conformal_quantile"]) == pytest.approx(summary["conformal_quantile"])
     assert [i.name for i in m.graph.input] == ["windows"]
-    assert [o.name for o in m.graph.output] == ["probabilities", "log_beta"]
+    assert [o.name for o in m.graph.output] == [
+        "probabilities",
+        "log_beta",
+        "log_beta_scale",
+        "embedding",
+    ]
+    # the recording-level interval and the alarm travel with the model, verified by hash
+    q_rec = float(meta["conformal_quantile_recording"])
+    # (infinite on the tiny set: too few calibration trajectories for 90 %)
+    assert q_rec > 0 and q_rec == pytest.approx(summary["conformal_quantile_recording"])
+    alarm = Path(path).with_name(meta["alarm_reference"])
+    assert alarm.name == "cnn.alarm.npz" and meta["alarm_sha256"] == sha256_file(alarm)
+    assert card["data"]["priors"]["sweep"]["beta"] == list(ds.card["config"]["sweep"]["beta"])
+    assert set(load_alarm(alarm).thresholds) <= {
+        "embedding", "ambiguity", "beta_uncertainty", "class_edge"}  # fmt: skip
     metrics = summary["metrics"]
     for prefix in ("cnn", "geometric"):
         assert 0.0 <= metrics[f"{prefix}/accuracy"] <= 1.0

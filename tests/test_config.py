@@ -5,18 +5,79 @@ from pathlib import Path
 import pytest
 
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.sim import SimulationConfig
+from stiffnet.config.sim import SimulationConfig, randomised_effects
 from stiffnet.errors import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_shipped_configs_validate_and_default_matches_model():
+    ideal = load_config(SimulationConfig, ROOT / "configs/sim/ideal.yaml")
+    assert ideal == SimulationConfig()  # the YAML restates the model's defaults
     default = load_config(SimulationConfig, ROOT / "configs/sim/default.yaml")
-    assert default == SimulationConfig()  # the YAML restates the model's defaults
+    # the randomised world: the same domain plus every effect's own prior, restated
+    assert default.effects == randomised_effects()
+    assert default.ideal_fraction == 0.2
+    same = {"effects": [], "solver": ideal.solver, "ideal_fraction": 0.0}
+    assert default.model_copy(update=same) == ideal
+    assert {e.name for e in default.effects} >= {
+        "contact_damping", "hertz_contact", "forcing_harmonics", "gap_drift",
+        "sensor_dynamics", "colored_noise", "adc",
+    }  # fmt: skip
     assert default.class_names() == ["no_contact", "soft", "medium", "hard", "very_hard"]
     quick = load_config(SimulationConfig, ROOT / "configs/sim/quick.yaml")
     assert quick.n_trajectories < default.n_trajectories
+
+
+def test_priors_cover_the_issue_ranges():
+    """Contact dissipation at least 0-0.5 (restitution down to ~0.4), harmonics with any
+    phase, the sensor resonance relative to f_n and the anti-alias corner relative to fs."""
+    priors = {e.name: e for e in randomised_effects()}
+    assert priors["contact_damping"].params["damping_ratio"] == [0.0, 0.5]
+    fh = priors["forcing_harmonics"].params
+    assert fh["phase_second"][0] < -3.14 and fh["phase_second"][1] > 3.14
+    rel = priors["sensor_dynamics"].relative
+    assert rel["resonance_hz"].per == "natural_frequency"
+    assert rel["lowpass_hz"].per == "sampling_rate"
+    assert all(0.0 < e.probability < 1.0 for e in priors.values())
+
+
+@pytest.mark.parametrize(
+    ("effect", "needle"),
+    [
+        ({"name": "contact_damping", "probability": 1.5}, "probability"),
+        (
+            {"name": "contact_damping", "relative": {"damping_ratio": {"per": "sampling_rate",
+                                                                       "range": [0.1, 0.2]}}},
+            "'damping_ratio' is not a frequency in Hz",
+        ),
+        (
+            {"name": "sensor_dynamics", "relative": {"nope_hz": {"per": "sampling_rate",
+                                                                 "range": [0.1, 0.2]}}},
+            "'nope_hz' is not one of its parameters",
+        ),
+        (
+            {"name": "sensor_dynamics", "relative": {"resonance_hz": {
+                "per": "natural_frequency", "range": [1, 10000]}}},
+            "resonance_hz relative to the natural frequency [1.0, 10000.0] gives",
+        ),
+        (
+            {"name": "sensor_dynamics", "relative": {"lowpass_hz": {"per": "sampling_rate",
+                                                                    "range": [0.3, 0.1]}}},
+            "range must be [low, high]",
+        ),
+        (
+            {"name": "sensor_dynamics", "params": {"lowpass_hz": 100.0},
+             "relative": {"lowpass_hz": {"per": "sampling_rate", "range": [0.1, 0.2]}}},
+            "given both in params and relative",
+        ),
+    ],
+)  # fmt: skip
+def test_bad_priors_give_one_line_errors(effect, needle):
+    with pytest.raises(ConfigError) as info:
+        validate_config(SimulationConfig, {"effects": [effect]}, "priors.yaml")
+    msg = str(info.value)
+    assert needle in msg and msg.startswith("priors.yaml: ") and "\n" not in msg
 
 
 @pytest.mark.parametrize(

@@ -41,7 +41,7 @@ def simulate(
     out = simulate_numerical(
         batch, effects, params, np.array([x0]), np.array([v0]), hh, n_transient, hh, n, substeps
     )
-    return {k: v[0] for k, v in out.items()}
+    return {k: v[0] for k, v in vars(out).items()}
 
 
 def first_pulse(out: dict[str, np.ndarray]) -> slice:

@@ -48,7 +48,7 @@ def dataset_windows(tmp_path_factory):
     from stiffnet.config.sim import SimulationConfig
     from stiffnet.dataset.generate import generate_dataset
 
-    data = load_yaml(ROOT / "configs" / "sim" / "default.yaml")
+    data = load_yaml(ROOT / "configs" / "sim" / "ideal.yaml")
     data.update(seed=11, n_trajectories=4, shard_size=4)
     data["windows"]["per_trajectory"] = 2
     out = tmp_path_factory.mktemp("serving") / "ds"
@@ -108,6 +108,25 @@ def test_output_fields(cnn, example):
     assert r["natural_frequency_hz"] == pytest.approx(9.48)
     assert r["agreement"] == (r["geometric"]["class"] == r["class"])
     assert r["contact_detected"] and not r["ood_flag"]
+
+
+def test_physical_cross_check_fields(cnn):
+    """The restoring-force estimate beside the model: beta of the examples, agreement, refusal."""
+    for path in EXAMPLE_FILES:
+        side = json.loads(Path(str(path) + ".json").read_text())
+        r = predict_recording(path, predictor=cnn)
+        true_beta = side["provenance"]["true_beta"]
+        assert r["physical_class"] == side["provenance"]["true_class"] == r["physical"]["class"]
+        assert r["physical_beta"] == pytest.approx(true_beta, rel=0.1)
+        lo, hi = r["physical_beta_interval"]
+        assert lo <= r["physical_beta"] <= hi
+        assert r["physical_agreement"] == (r["physical_class"] == r["class"])
+    # a recording without contact: the cross-check refuses with its reason, no error
+    t = np.arange(20000) / 2000.0
+    free = np.sin(2 * np.pi * 9.9 * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    r = cnn.predict(free, 2000.0)
+    assert r["physical_beta"] is None and r["physical"]["reason"]
+    assert r["physical_agreement"] in (None, r["physical_class"] == r["class"])
 
 
 @pytest.mark.parametrize("gain", [1e3, 1e-3, -1.0, -1e3, 1e300, -1e-300])

@@ -1,5 +1,9 @@
 """Accuracy of the closed-form engine against independent solutions.
 
+The engine is :func:`simulate_closed_form` (compiled); its numpy oracle
+:func:`closed_form_reference` runs the single-impact cases too, and the two are
+compared on random batches in ``test_simulator_oracle.py``.
+
 * steady-state orbits through :class:`Simulator` against scipy's DOP853 with
   event location (:func:`reference_trajectory`), same initial state, same times;
 * contact onset, grazing and release of single impacts against the analytic
@@ -25,8 +29,10 @@ from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.gap_drift import GapDrift
 from stiffnet.simulator.batch import OscillatorBatch
-from stiffnet.simulator.closed_form import simulate_linear
+from stiffnet.simulator.compiled import simulate_closed_form
 from stiffnet.simulator.reference import reference_trajectory
+from stiffnet.simulator.reference_closed_form import closed_form_reference
+from stiffnet.simulator.result import EngineResult
 from stiffnet.simulator.simulator import Simulator
 
 PAPER = {"amplitude": 1.9, "omega": 1.05, "damping": 0.02, "gap": 2.8}  # section 5.2.1
@@ -114,17 +120,29 @@ class SingleImpact:
         return self.free(self.x_out, self.v_out, t - self.t_out)
 
 
+SOLVERS = pytest.mark.parametrize(
+    "solver", [simulate_closed_form, closed_form_reference], ids=["engine", "oracle"]
+)
+
+
 def run_unforced(
-    beta: float, xi: float, gap: float, v0: float, h: float, n: int, damping_ratio: float = 0.0
-) -> dict[str, np.ndarray]:
-    """The engine from x=0, v=v0 at t=0, no forcing, samples at t = h, 2h, ..."""
+    beta: float,
+    xi: float,
+    gap: float,
+    v0: float,
+    h: float,
+    n: int,
+    damping_ratio: float = 0.0,
+    solver: Callable[..., EngineResult] = simulate_closed_form,
+) -> EngineResult:
+    """``solver`` from x=0, v=v0 at t=0, no forcing, samples at t = h, 2h, ..."""
     batch = OscillatorBatch.single(beta, gap, 0.0, 1.0, xi)
     sim = Simulator([ContactDamping(damping_ratio=damping_ratio)])
     model = sim.linear_model(
         batch, {"contact_damping": {"damping_ratio": np.array([damping_ratio])}}
     )
     hh = np.array([h])
-    return simulate_linear(model, np.zeros(1), np.array([v0]), hh, hh, n)
+    return solver(model, np.zeros(1), np.array([v0]), hh, hh, n)
 
 
 # ------------------------------------------------------------ steady-state orbits
@@ -184,19 +202,20 @@ def test_orbit_with_closed_form_effects_matches_reference() -> None:
 # ------------------------------------------------------------------ event location
 
 
-def test_contact_onset_is_located_between_samples() -> None:
+@SOLVERS
+def test_contact_onset_is_located_between_samples(solver) -> None:
     beta, xi, gap, v0 = 50.0, 0.02, 0.6, 1.0
     h = 2 * np.pi / FS_RATIO
     exact = SingleImpact(beta, xi, 0.0, gap, v0)
     # the onset falls well inside a sampling interval, not on the grid
     frac = exact.t_in / h % 1.0
     assert 0.1 < frac < 0.9
-    out = run_unforced(beta, xi, gap, v0, h, 40)
-    t = out["t0"][0] + np.arange(40) * h
-    first = int(np.flatnonzero(out["contact_force"][0] > 0)[0])
+    out = run_unforced(beta, xi, gap, v0, h, 40, solver=solver)
+    t = out.t0[0] + np.arange(40) * h
+    first = int(np.flatnonzero(out.contact_force[0] > 0)[0])
     assert t[first - 1] < exact.t_in < t[first]
-    assert out["impacts"][0].sum() == 1 and out["impacts"][0, first] == 1
-    xm, vm = out["x"][0, first], out["v"][0, first]
+    assert out.impacts[0].sum() == 1 and out.impacts[0, first] == 1
+    xm, vm = out.x[0, first], out.v[0, first]
 
     # The engine's own onset: follow its contact state back to x = e. (Both the
     # free and the contact solution pass through the onset state, so this recovers
@@ -210,8 +229,8 @@ def test_contact_onset_is_located_between_samples() -> None:
     # the state just after onset is the exact contact solution ...
     for n in range(first, first + 3):
         x_ex, v_ex = exact.state(t[n])
-        assert abs(out["x"][0, n] - x_ex) < 1e-12
-        assert abs(out["v"][0, n] - v_ex) < 1e-12
+        assert abs(out.x[0, n] - x_ex) < 1e-12
+        assert abs(out.v[0, n] - v_ex) < 1e-12
     # ... which switching on the grid (at either sample) would miss by far more
     x_late = exact.free(0.0, v0, t[first])[0]
     x_prev, v_prev = exact.free(0.0, v0, t[first - 1])
@@ -221,12 +240,13 @@ def test_contact_onset_is_located_between_samples() -> None:
     # the DOP853 reference agrees on the samples around the onset
     model = Simulator().linear_model(OscillatorBatch.single(beta, gap, 0.0, 1.0, xi), {})
     ref = reference_trajectory(model, 0, 0.0, v0, t, max_step=REF_MAX_STEP)
-    np.testing.assert_allclose(ref["x"][first - 2 : first + 3], out["x"][0, first - 2 : first + 3],
+    np.testing.assert_allclose(ref["x"][first - 2 : first + 3], out.x[0, first - 2 : first + 3],
                                atol=1e-9)  # fmt: skip
 
 
+@SOLVERS
 @pytest.mark.parametrize("depth", [1e-6, -1e-6])
-def test_grazing_contact_inside_one_interval_is_detected(depth: float) -> None:
+def test_grazing_contact_inside_one_interval_is_detected(depth: float, solver) -> None:
     beta, xi, v0 = 50.0, 0.02, 1.0
     h = 2 * np.pi / FS_RATIO
     wd = math.sqrt(1 - xi * xi)
@@ -234,35 +254,36 @@ def test_grazing_contact_inside_one_interval_is_detected(depth: float) -> None:
     x_peak = math.exp(-xi * t_peak) * v0 / wd * math.sin(wd * t_peak)
     gap = x_peak - depth  # penetration of `depth` (none when negative)
     n = 40
-    out = run_unforced(beta, xi, gap, v0, h, n)
-    t = out["t0"][0] + np.arange(n) * h
-    assert not np.any(out["contact_force"] > 0)  # no sample is in contact
+    out = run_unforced(beta, xi, gap, v0, h, n, solver=solver)
+    t = out.t0[0] + np.arange(n) * h
+    assert not np.any(out.contact_force > 0)  # no sample is in contact
     if depth < 0:
-        assert out["impacts"].sum() == 0
+        assert out.impacts.sum() == 0
         return
     exact = SingleImpact(beta, xi, 0.0, gap, v0)
     # contact lasts ~2 sqrt(2 depth / x_peak) ~ 3e-3, far inside one interval of 0.063
     assert 0 < exact.t_out - exact.t_in < 0.1 * h
     k = int(np.searchsorted(t, exact.t_in))
     assert t[k - 1] < exact.t_in and exact.t_out < t[k]
-    counts = out["impacts"][0]
+    counts = out.impacts[0]
     assert counts.sum() == 1 and counts[k] == 1, f"one graze, counted {counts.tolist()}"
     # the graze changed the velocity by ~1e-7; the engine carries it exactly
     x_ex, v_ex = exact.state(t[-1])
     x_miss, v_miss = exact.free(0.0, v0, t[-1])  # had the graze gone unnoticed
     assert abs(v_ex - v_miss) > 1e-8
-    assert abs(out["x"][0, -1] - x_ex) < 1e-13
-    assert abs(out["v"][0, -1] - v_ex) < 1e-13
+    assert abs(out.x[0, -1] - x_ex) < 1e-13
+    assert abs(out.v[0, -1] - v_ex) < 1e-13
 
 
-def test_damped_contact_never_pulls_and_releases_before_gap() -> None:
+@SOLVERS
+def test_damped_contact_never_pulls_and_releases_before_gap(solver) -> None:
     beta, xi, gap, v0, zeta = 50.0, 0.02, 0.6, 1.0, 0.3
     cc = 2 * zeta * math.sqrt(beta)
     h = 2 * np.pi / 400  # fine sampling: ~28 samples per contact
     n = 200
-    out = run_unforced(beta, xi, gap, v0, h, n, damping_ratio=zeta)
-    t = out["t0"][0] + np.arange(n) * h
-    x, v, force = out["x"][0], out["v"][0], out["contact_force"][0]
+    out = run_unforced(beta, xi, gap, v0, h, n, damping_ratio=zeta, solver=solver)
+    t = out.t0[0] + np.arange(n) * h
+    x, v, force = out.x[0], out.v[0], out.contact_force[0]
     exact = SingleImpact(beta, xi, cc, gap, v0)
     # release where the force reaches zero, the penetration still positive
     assert exact.x_out - gap > 1e-3
@@ -283,7 +304,7 @@ def test_damped_contact_never_pulls_and_releases_before_gap() -> None:
     assert after.sum() >= 2
     assert np.all(beta * (x - gap)[after] + cc * v[after] < 0)
     assert np.all(force[after] == 0)
-    assert out["impacts"][0].sum() == 1
+    assert out.impacts[0].sum() == 1
 
 
 # ------------------------------------------------------------------ physical sanity
@@ -358,10 +379,10 @@ def test_contact_under_way_at_first_sample_is_not_an_impact():
     model = Simulator().linear_model(batch, {})
     x0, v0 = np.array([0.1]), np.array([0.0])
     fine = np.array([2 * np.pi / 400])
-    full = simulate_linear(model, x0, v0, fine, fine, 400)
-    on = int(np.flatnonzero(full["contact_force"][0] > 0)[0])
+    full = simulate_closed_form(model, x0, v0, fine, fine, 400)
+    on = int(np.flatnonzero(full.contact_force[0] > 0)[0])
     t_on = fine[0] * (on + 1)
     sparse = np.array([2 * np.pi / 16])  # longer than the contact step 1/sqrt(21)
-    late = simulate_linear(model, x0, v0, np.array([t_on + 0.3]), sparse, 4)
-    assert late["contact_force"][0, 0] > 0  # the record starts inside the contact
-    assert late["impacts"][0, 0] == 0
+    late = simulate_closed_form(model, x0, v0, np.array([t_on + 0.3]), sparse, 4)
+    assert late.contact_force[0, 0] > 0  # the record starts inside the contact
+    assert late.impacts[0, 0] == 0

@@ -28,7 +28,8 @@ from stiffnet.effects.hertz_contact import HertzContact
 from stiffnet.effects.restraint_mass import RestraintMass
 from stiffnet.errors import ConfigError
 from stiffnet.simulator.batch import OscillatorBatch
-from stiffnet.simulator.closed_form import LinearModel, simulate_linear
+from stiffnet.simulator.compiled import simulate_closed_form
+from stiffnet.simulator.linear import LinearModel
 from stiffnet.simulator.numerical import simulate_numerical
 
 A, W, XI, E = 1.9, 1.05, 0.02, 2.8  # the paper's numerical parameter set (section 5.2)
@@ -76,17 +77,17 @@ def test_matches_closed_form_at_fourth_order(effects: list[DynamicsEffect]) -> N
     # each row on its own grid: 100, 120 and 110 samples per forcing period
     h = 2 * np.pi / (W * np.array([100.0, 120.0, 110.0]))
     x0, v0 = np.zeros(3), np.array([0.0, 1.0, -0.5])
-    ref = simulate_linear(closed_form(batch, effects), x0, v0, 101 * h, h, 400)
-    peak = np.abs(ref["accel"]).max()
-    assert ref["impacts"].sum(axis=1).min() >= 3  # every row impacts repeatedly
+    ref = simulate_closed_form(closed_form(batch, effects), x0, v0, 101 * h, h, 400)
+    peak = np.abs(ref.accel).max()
+    assert ref.impacts.sum(axis=1).min() >= 3  # every row impacts repeatedly
     err = {}
     for sub in (4, 8, 16):
         out = simulate_numerical(batch, effects, [{}] * len(effects), x0, v0, h, 100, h, 400, sub)
-        np.testing.assert_array_equal(out["impacts"], ref["impacts"])
-        np.testing.assert_allclose(out["t0"], ref["t0"], rtol=1e-12)
-        err[sub] = np.abs(out["accel"] - ref["accel"]).max() / peak
-        x_err = np.abs(out["x"] - ref["x"]).max()
-        f_err = np.abs(out["contact_force"] - ref["contact_force"]).max() / peak
+        np.testing.assert_array_equal(out.impacts, ref.impacts)
+        np.testing.assert_allclose(out.t0, ref.t0, rtol=1e-12)
+        err[sub] = np.abs(out.accel - ref.accel).max() / peak
+        x_err = np.abs(out.x - ref.x).max()
+        f_err = np.abs(out.contact_force - ref.contact_force).max() / peak
         assert x_err < 20 * err[sub] and f_err < 2 * err[sub]
     assert err[8] < 1e-6
     assert err[16] < 5e-8
@@ -99,14 +100,14 @@ def test_output_contract_and_transient() -> None:
     h = np.full(3, 0.05)
     out = simulate_numerical(batch, [], [], np.zeros(3), np.zeros(3), 0.1, 30, h, 50, substeps=2)
     for key in ("x", "v", "accel", "contact_force"):
-        assert out[key].shape == (3, 50) and out[key].dtype == np.float64
-    assert out["impacts"].dtype == np.int8 and out["impacts"].shape == (3, 50)
-    np.testing.assert_allclose(out["t0"], 30 * 0.1 + 0.05)
-    assert np.all(out["contact_force"] >= 0)
+        assert getattr(out, key).shape == (3, 50) and getattr(out, key).dtype == np.float64
+    assert out.impacts.dtype == np.int8 and out.impacts.shape == (3, 50)
+    np.testing.assert_allclose(out.t0, 30 * 0.1 + 0.05)
+    assert np.all(out.contact_force >= 0)
     # the transient is not recorded: the same run without it starts elsewhere
     fresh = simulate_numerical(batch, [], [], np.zeros(3), np.zeros(3), 0.1, 0, h, 50, 2)
-    np.testing.assert_allclose(fresh["t0"], 0.05)
-    assert np.abs(fresh["x"] - out["x"]).max() > 0.1
+    np.testing.assert_allclose(fresh.t0, 0.05)
+    assert np.abs(fresh.x - out.x).max() > 0.1
 
 
 def test_grazing_contact_inside_one_substep_is_found() -> None:
@@ -121,16 +122,16 @@ def test_grazing_contact_inside_one_substep_is_found() -> None:
     # a = 1e-9 rather than 0: with a = 0 the closed-form reference lands exactly on
     # x = e and chatters there (zero-length events), so it is no reference
     batch = OscillatorBatch.single(beta, gap, 1e-9, W, XI)
-    ref = simulate_linear(closed_form(batch, []), np.zeros(1), v0, h, h, 200)
+    ref = simulate_closed_form(closed_form(batch, []), np.zeros(1), v0, h, h, 200)
     out = simulate_numerical(batch, [], [], np.zeros(1), v0, h, 0, h, 200, substeps=1)
-    assert ref["impacts"].sum() == 1 and out["impacts"].sum() == 1
+    assert ref.impacts.sum() == 1 and out.impacts.sum() == 1
     # the contact's effect (~3e-5 in velocity) is resolved: it matches the exact one
     # (same-engine differences cancel the plain RK4 error of a 0.05 step)
     far = OscillatorBatch.single(beta, gap + 1e-3, 1e-9, W, XI)
-    ref_free = simulate_linear(closed_form(far, []), np.zeros(1), v0, h, h, 200)
+    ref_free = simulate_closed_form(closed_form(far, []), np.zeros(1), v0, h, h, 200)
     out_free = simulate_numerical(far, [], [], np.zeros(1), v0, h, 0, h, 200, substeps=1)
-    effect_ref = ref["v"] - ref_free["v"]
-    effect_num = out["v"] - out_free["v"]
+    effect_ref = ref.v - ref_free.v
+    effect_num = out.v - out_free.v
     assert np.abs(effect_ref).max() > 1e-5
     assert np.abs(effect_num - effect_ref).max() < 0.01 * np.abs(effect_ref).max()
 
@@ -144,7 +145,7 @@ def step_halving(effect, params: dict | None, subs, betas=BETAS, gap=E, n=300, x
     h = np.full(rows, 2 * np.pi / (W * 100))
     x0 = np.zeros(rows) if x0 is None else x0
     acc = {
-        s: simulate_numerical(batch, [effect], [p], x0, np.zeros(rows), h, 100, h, n, s)["accel"]
+        s: simulate_numerical(batch, [effect], [p], x0, np.zeros(rows), h, 100, h, n, s).accel
         for s in subs
     }
     return acc, np.abs(acc[subs[-1]]).max()
@@ -171,7 +172,7 @@ def test_step_halving_dry_friction_is_fourth_order(impacting: bool) -> None:
         v = simulate_numerical(
             paper_batch(**kw), [eff], [eff.batch_params(1, np.random.default_rng(0))],
             np.zeros(1), np.zeros(1), 0.06, 100, np.full(1, 0.06), 300,
-        )["v"]  # fmt: skip
+        ).v  # fmt: skip
         assert np.mean(np.abs(v) < 1e-9) > 0.05  # it does stick
     acc, peak = step_halving(eff, None, (4, 8, 16, 32), **kw)
     d = differences(acc, peak)
@@ -222,7 +223,7 @@ def test_fast_modes_get_more_substeps_and_divergence_is_reported() -> None:
     p = eff.batch_params(1, np.random.default_rng(0))
     assert eff.fastest_rate(p, batch).min() > 3000
     out = simulate_numerical(batch, [eff], [p], np.zeros(1), np.full(1, 5.0), h, 0, h, 30)
-    assert np.all(np.isfinite(out["accel"])) and out["impacts"].sum() == 1
+    assert np.all(np.isfinite(out.accel)) and out.impacts.sum() == 1
     # an effect that declares nothing blows RK4 up: reported, not returned as garbage
     with pytest.raises(ConfigError, match="diverged"):
         simulate_numerical(batch, [StiffSpring()], [{}], np.ones(1), np.zeros(1), h, 0, h, 20)

@@ -34,6 +34,9 @@ from torch import nn
 from stiffnet.config.train import CNNConfig
 from training.gbm import NO_CONTACT_LABEL, Split
 
+#: Weight of the scale head's likelihood term in the loss.
+SCALE_LOSS_WEIGHT = 0.2
+
 
 class StiffnessCNN(nn.Module):
     """Conv1d-BN-ReLU blocks, global average pooling, class and log-beta heads.
@@ -78,13 +81,29 @@ class StiffnessCNN(nn.Module):
         self.dropout = nn.Dropout(dropout)
         self.cls = nn.Linear(width, n_classes)
         self.reg = nn.Linear(width, 1)
+        self.scale = nn.Linear(width, 1)
         self.register_buffer("beta_mean", torch.tensor(float(log_beta_mean)))
         self.register_buffer("beta_std", torch.tensor(float(log_beta_std)))
 
+    def heads(
+        self, x: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Logits, log(beta), log of its expected error ``(N, 1)`` and the embedding.
+
+        The embedding is the pooled feature vector ``(N, width)`` the heads read:
+        what the alarm compares with the training data. The scale head estimates
+        the size of the log-beta error of this window (heteroscedastic), which
+        normalises the conformal interval.
+        """
+        e = self.features(x).mean(dim=2)
+        h = self.dropout(e)
+        log_beta = self.reg(h) * self.beta_std + self.beta_mean
+        return self.cls(h), log_beta, self.scale(h) + torch.log(self.beta_std), e
+
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Class logits ``(N, n_classes)`` and log(beta) ``(N, 1)``."""
-        h = self.dropout(self.features(x).mean(dim=2))
-        return self.cls(h), self.reg(h) * self.beta_std + self.beta_mean
+        logits, log_beta, _, _ = self.heads(x)
+        return logits, log_beta
 
 
 class ProbabilityModel(nn.Module):
@@ -94,9 +113,9 @@ class ProbabilityModel(nn.Module):
         super().__init__()
         self.net = net
 
-    def forward(self, windows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        logits, log_beta = self.net(windows)
-        return torch.softmax(logits, dim=1), log_beta
+    def forward(self, windows: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        logits, log_beta, log_scale, embedding = self.net.heads(windows)
+        return torch.softmax(logits, dim=1), log_beta, log_scale, embedding
 
 
 @dataclass
@@ -126,12 +145,17 @@ def _loss(
     ce: nn.Module,
     beta_weight: float,
 ) -> torch.Tensor:
-    logits, log_beta = model(x)
+    logits, log_beta, log_scale, _ = model.heads(x)
     loss = ce(logits, y)
     contact = y != NO_CONTACT_LABEL
     if beta_weight > 0 and bool(contact.any()):
-        z = (log_beta[:, 0][contact] - lb[contact]) / model.beta_std
-        loss = loss + beta_weight * torch.mean(z**2)
+        r = log_beta[:, 0][contact] - lb[contact]
+        loss = loss + beta_weight * torch.mean((r / model.beta_std) ** 2)
+        # Gaussian likelihood of the (detached) error under the predicted scale: the
+        # scale head learns how wrong this kind of window tends to be without pulling
+        # on the beta estimate itself.
+        s = log_scale[:, 0][contact]
+        loss = loss + SCALE_LOSS_WEIGHT * torch.mean(0.5 * (r.detach() * torch.exp(-s)) ** 2 + s)
     return loss
 
 
@@ -237,17 +261,34 @@ def fit_cnn(
     return FitResult(model, best_epoch, epoch, time.perf_counter() - t0, history)
 
 
+def predict_cnn_outputs(
+    model: StiffnessCNN, X: np.ndarray, batch_size: int = 256
+) -> dict[str, np.ndarray]:
+    """Every output of the exported graph (float32, eval mode), by its ONNX name.
+
+    ``probabilities`` ``(n, n_classes)``, ``log_beta`` and ``log_beta_scale``
+    ``(n,)``, ``embedding`` ``(n, width)``.
+    """
+    model.eval()
+    wrapper = ProbabilityModel(model).eval()
+    names = ("probabilities", "log_beta", "log_beta_scale", "embedding")
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in names}
+    with torch.no_grad():
+        for i in range(0, len(X), batch_size):
+            outs = wrapper(torch.from_numpy(np.ascontiguousarray(X[i : i + batch_size])))
+            for k, v in zip(names, outs, strict=True):
+                parts[k].append(v.numpy()[:, 0] if v.shape[1] == 1 and k != "probabilities"
+                                else v.numpy())  # fmt: skip
+    if not parts["probabilities"]:
+        return {k: np.empty((0,), np.float32) for k in names}
+    return {k: np.concatenate(v) for k, v in parts.items()}
+
+
 def predict_cnn(
     model: nn.Module, X: np.ndarray, batch_size: int = 256
 ) -> tuple[np.ndarray, np.ndarray]:
     """Softmax probabilities ``(n, n_classes)`` and log(beta) ``(n,)`` (float32, eval mode)."""
-    model.eval()
-    probs, lbs = [], []
-    with torch.no_grad():
-        for i in range(0, len(X), batch_size):
-            logits, lb = model(torch.from_numpy(np.ascontiguousarray(X[i : i + batch_size])))
-            probs.append(torch.softmax(logits, dim=1).numpy())
-            lbs.append(lb[:, 0].numpy())
-    if not probs:
+    if len(X) == 0:
         return np.empty((0, 0), np.float32), np.empty(0, np.float32)
-    return np.concatenate(probs), np.concatenate(lbs)
+    out = predict_cnn_outputs(model, X, batch_size)
+    return out["probabilities"], out["log_beta"]

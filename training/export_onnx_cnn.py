@@ -1,9 +1,12 @@
 """Export the 1-D CNN as one self-contained ONNX file plus a model card.
 
 The file has one input ``windows`` (float32, ``[N, C, L]``, dynamic batch ``N``:
-the output of :func:`stiffnet.features.windows.window_tensor`) and two
+the output of :func:`stiffnet.features.windows.window_tensor`) and four
 outputs: ``probabilities`` (float32, ``[N, n_classes]``, softmax, columns in
-the order of metadata ``class_names``) and ``log_beta`` (float32, ``[N, 1]``).
+the order of metadata ``class_names``), ``log_beta`` (float32, ``[N, 1]``),
+``log_beta_scale`` (``[N, 1]``, log of the expected size of the log-beta error
+of the window) and ``embedding`` (``[N, width]``, the pooled features the heads
+read; the alarm compares them with the training data's).
 It is written by ``torch.onnx.export`` (the dynamo exporter, ``dynamic_shapes``
 for the batch axis; the legacy TorchScript exporter with ``dynamic_axes`` if
 that fails) with ``external_data=False``: the weights are inside the file.
@@ -30,7 +33,7 @@ import onnx
 import torch
 from onnx import helper
 
-from stiffnet.features.windows import NORMALISATION, WINDOW_VERSION
+from stiffnet.features.windows import NORMALISATION, WINDOW_VERSION, preprocessing_contract
 from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
 from training.cnn import ProbabilityModel, StiffnessCNN
 from training.export_onnx import onnx_session
@@ -38,7 +41,7 @@ from training.export_onnx import onnx_session
 #: ai.onnx opset of the exported graph.
 TARGET_OPSET = 18
 INPUT_NAME = "windows"
-OUTPUT_NAMES = ["probabilities", "log_beta"]
+OUTPUT_NAMES = ["probabilities", "log_beta", "log_beta_scale", "embedding"]
 
 
 def _export_proto(net: StiffnessCNN, n_channels: int, length: int) -> onnx.ModelProto:
@@ -138,6 +141,8 @@ def export_cnn_onnx(
         "delay_fraction": delay_fraction,
         "normalisation": NORMALISATION,
         "window_version": WINDOW_VERSION,
+        "hop_periods": periods,
+        "preprocessing": preprocessing_contract(rate, periods, delays),
         "beta_transform": "log",
         "requires_natural_frequency": True,
         "opset": TARGET_OPSET,
@@ -153,7 +158,12 @@ def export_cnn_onnx(
         "sha256": sha256_file(path),
         "opset": {o.domain or "ai.onnx": o.version for o in model.opset_import},
         "inputs": {INPUT_NAME: ["N", len(delays), length]},
-        "outputs": {"probabilities": ["N", len(class_names)], "log_beta": ["N", 1]},
+        "outputs": {
+            "probabilities": ["N", len(class_names)],
+            "log_beta": ["N", 1],
+            "log_beta_scale": ["N", 1],
+            "embedding": ["N", int(net.cls.in_features)],
+        },
         "metadata": props,
         **card,
     }
@@ -164,8 +174,11 @@ def export_cnn_onnx(
 def onnx_predict_cnn(path: str | Path, X: np.ndarray) -> dict[str, np.ndarray]:
     """Run the exported model: ``probabilities``, ``log_beta`` (N,) and ``beta``."""
     sess = onnx_session(path)
-    proba, log_beta = sess.run(OUTPUT_NAMES, {INPUT_NAME: np.asarray(X, dtype=np.float32)})
-    return {"probabilities": proba, "log_beta": log_beta[:, 0], "beta": np.exp(log_beta[:, 0])}
+    outs = sess.run(None, {INPUT_NAME: np.asarray(X, dtype=np.float32)})
+    got = dict(zip([o.name for o in sess.get_outputs()], outs, strict=True))
+    out = {k: v[:, 0] if k in ("log_beta", "log_beta_scale") else v for k, v in got.items()}
+    out["beta"] = np.exp(out["log_beta"])
+    return out
 
 
 def parity_cnn(path: str | Path, net: StiffnessCNN, X: np.ndarray) -> dict[str, float]:

@@ -14,7 +14,7 @@ Families:
   attractors that coexist from beta = 35 on appear), fs_ratio log-uniform in
   50-500.
 * ``domain``: every parameter drawn over the default simulation domain
-  (``configs/sim/default.yaml``: beta 5-100 log-uniform, gap 0-3, a 0.2-2,
+  (``configs/sim/ideal.yaml``: beta 5-100 log-uniform, gap 0-3, a 0.2-2,
   w 0.8-1.2, xi 0.01-0.05, fs_ratio 50-500 log-uniform).
 
 Noise: each trajectory gets one of ``--noise-levels`` (fractions of ``a w^2``,

@@ -32,6 +32,8 @@ from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION
 from stiffnet.geometry import geometric_estimate
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from stiffnet.uncertainty.alarm import save_alarm
+from training.calibration import calibrate_recording_level
 from training.export_onnx import export_onnx, parity
 from training.gbm import (
     conformal_quantile,
@@ -44,6 +46,8 @@ from training.transformers import InclinationFeatures, window_records
 
 MODEL_FILE = "gbm.onnx"
 CNN_MODEL_FILE = "cnn.onnx"
+#: The alarm reference sits beside its model: ``cnn.onnx`` -> ``cnn.alarm.npz``.
+ALARM_SUFFIX = ".alarm.npz"
 
 
 def _stderr(msg: str) -> None:
@@ -129,6 +133,13 @@ def _geometric_baseline(accel, fs_hz, label, beta, noise, names, config, metrics
     return g_pred, time.perf_counter() - t
 
 
+def _alarm_info(ds: Any, card_sha: str) -> dict[str, Any]:
+    """Provenance of the alarm, and the class edges its class-edge check needs."""
+    classes = (ds.card.get("config") or {}).get("classes") or []
+    edges = [c["beta"][0] for c in classes] + ([classes[-1]["beta"][1]] if classes else [])
+    return {"training_data_sha256": card_sha, "class_edges": edges}
+
+
 def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
     keys = ("n_trajectories", "seed", "class_balance", "code_version")
     sweep = (ds.card.get("config") or {}).get("sweep") or {}
@@ -140,6 +151,11 @@ def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
         # the rig's f_n in the training data: the predictor's default when a recording
         # comes without one (a number, or the [lo, hi] range it was drawn from)
         "natural_frequency_hz": sweep.get("natural_frequency_hz"),
+        # the world the model was trained in: the sweep and each effect's priors
+        "priors": {
+            "sweep": sweep,
+            "effects": (ds.card.get("config") or {}).get("effects") or [],
+        },
     }
 
 
@@ -166,7 +182,15 @@ def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, 
         params={**common, **params},
         metrics=metrics,
         data_card_path=data_dir / CARD,
-        artifacts=[onnx_path, onnx_path.with_suffix(".card.json")],
+        artifacts=[
+            p
+            for p in (
+                onnx_path,
+                onnx_path.with_suffix(".card.json"),
+                onnx_path.with_suffix(ALARM_SUFFIX),
+            )
+            if p.is_file()
+        ],
         confusions=confusions,
         class_names=names,
         tags={"stiffnet.model": config.model, "stiffnet.data_sha256": card_sha},
@@ -236,6 +260,13 @@ def train(
     cal = sp.cal & contact
     q = conformal_quantile(np.log(beta[cal]) - reg.predict(X[cal]), config.coverage)
     say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
+    outputs = {"probabilities": clf.predict_proba(X), "log_beta": reg.predict(X)}
+    alarm, q_rec, m_rec = calibrate_recording_level(
+        ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha), config.alarm_checks,
+    )  # fmt: skip
+    say(f"per-trajectory conformal quantile {q_rec:.3f}; test trajectories: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in m_rec.items()))  # fmt: skip
 
     te = sp.test
     Xt = X[te]
@@ -254,6 +285,7 @@ def train(
         hi=np.exp(log_b + q),
     )
     metrics.update({f"gbm/{k}": v for k, v in m_gbm.items()})
+    metrics.update({f"gbm/recording/{k}": v for k, v in m_rec.items()})
 
     g_pred, t_geo = _geometric_baseline(
         [np.asarray(recs[i]["accel"]) for i in np.flatnonzero(te)], ds.column("fs_hz")[te],
@@ -262,6 +294,8 @@ def train(
 
     out_dir.mkdir(parents=True, exist_ok=True)
     onnx_path = out_dir / MODEL_FILE
+    alarm_path = onnx_path.with_suffix(ALARM_SUFFIX)
+    save_alarm(alarm_path, alarm)
     data_summary = _data_summary(data_dir, card_sha, ds)
     splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
     card = export_onnx(
@@ -276,6 +310,10 @@ def train(
             "conformal_coverage": config.coverage,
             "feature_version": FEATURE_VERSION,
             "requires_natural_frequency": config.use_natural_frequency,
+            "interval": "normalised split-conformal, one score per trajectory",
+            "conformal_quantile_recording": q_rec,
+            "alarm_reference": alarm_path.name,
+            "alarm_sha256": sha256_file(alarm_path),
         },
         card={
             "kind": "stiffnet-model-card",
@@ -314,8 +352,10 @@ def train(
         "paths": {
             "onnx": str(onnx_path),
             "card": str(onnx_path.with_suffix(".card.json")),
+            "alarm": str(alarm_path),
             "summary": str(out_dir / "summary.json"),
         },
+        "conformal_quantile_recording": q_rec,
         "timing": {
             "features_s": round(t_feat, 3),
             "fit_s": round(t_fit, 3),
@@ -347,7 +387,7 @@ def train_cnn(
     import torch
 
     from stiffnet.features.windows import WINDOW_VERSION, window_tensor
-    from training.cnn import fit_cnn, predict_cnn
+    from training.cnn import fit_cnn, predict_cnn_outputs
     from training.export_onnx_cnn import TARGET_OPSET, export_cnn_onnx, parity_cnn
 
     torch.set_num_threads(1)
@@ -379,15 +419,24 @@ def train_cnn(
     say(f"fitted: best epoch {fit.best_epoch} of {fit.epochs} ({t_fit:.1f} s)")
     net = fit.model
 
+    outputs = predict_cnn_outputs(net, X)
     contact = label != 0
     cal = sp.cal & contact
-    _, lb_cal = predict_cnn(net, X[cal])
-    q = conformal_quantile(np.log(beta[cal]) - lb_cal, config.coverage)
+    q = conformal_quantile(np.log(beta[cal]) - outputs["log_beta"][cal], config.coverage)
     say(f"conformal half-width (log beta, {config.coverage:.0%}): {q:.3f} from {cal.sum()} windows")
+    alarm, q_rec, m_rec = calibrate_recording_level(
+        ds.column("trajectory"), label, beta, sp, outputs, config.coverage,
+        config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha), config.alarm_checks,
+    )  # fmt: skip
+    say(
+        f"per-trajectory conformal quantile {q_rec:.3f} (normalised); alarm thresholds "
+        f"{ {k: round(v, 4) for k, v in alarm.thresholds.items()} }; test trajectories: "
+        + ", ".join(f"{k} {v:.3f}" for k, v in m_rec.items())
+    )
 
     te = sp.test
     Xt = X[te]
-    proba, log_b = predict_cnn(net, Xt)
+    proba, log_b = outputs["probabilities"][te], outputs["log_beta"][te]
     pred = proba.argmax(axis=1) if len(Xt) else np.empty(0, np.int64)
     metrics: dict[str, float] = {}
     m_cnn = evaluate(
@@ -402,6 +451,7 @@ def train_cnn(
         hi=np.exp(log_b + q),
     )
     metrics.update({f"cnn/{k}": v for k, v in m_cnn.items()})
+    metrics.update({f"cnn/recording/{k}": v for k, v in m_rec.items()})
 
     g_pred, t_geo = _geometric_baseline(
         [np.asarray(windows[i], dtype=np.float64) for i in np.flatnonzero(te)], fs_hz[te],
@@ -410,6 +460,8 @@ def train_cnn(
 
     out_dir.mkdir(parents=True, exist_ok=True)
     onnx_path = out_dir / CNN_MODEL_FILE
+    alarm_path = onnx_path.with_suffix(ALARM_SUFFIX)
+    save_alarm(alarm_path, alarm)
     data_summary = _data_summary(data_dir, card_sha, ds)
     splits = {k: int(getattr(sp, k).sum()) for k in ("train", "val", "cal", "test")}
     card = export_cnn_onnx(
@@ -424,6 +476,10 @@ def train_cnn(
             "training_data_sha256": card_sha,
             "conformal_quantile": q,
             "conformal_coverage": config.coverage,
+            "interval": "normalised split-conformal, one score per trajectory",
+            "conformal_quantile_recording": q_rec,
+            "alarm_reference": alarm_path.name,
+            "alarm_sha256": sha256_file(alarm_path),
         },
         card={
             "kind": "stiffnet-model-card",
@@ -470,8 +526,10 @@ def train_cnn(
         "paths": {
             "onnx": str(onnx_path),
             "card": str(onnx_path.with_suffix(".card.json")),
+            "alarm": str(alarm_path),
             "summary": str(out_dir / "summary.json"),
         },
+        "conformal_quantile_recording": q_rec,
         "timing": {
             "windows_s": round(t_feat, 3),
             "fit_s": round(t_fit, 3),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
 from stiffnet.effects.registry import build_effect
@@ -71,17 +72,68 @@ def default_classes() -> list[ClassSpec]:
     ]
 
 
+class RelativeParam(_Strict):
+    """A frequency parameter drawn per trajectory in units of that trajectory's f_n or fs.
+
+    A rig's sensor and filters sit at frequencies that only mean something relative
+    to the rig (``natural_frequency``: the mounted resonance well above f_n) or to
+    the acquisition (``sampling_rate``: an anti-alias corner at a fraction of fs).
+    """
+
+    per: Literal["natural_frequency", "sampling_rate"]
+    range: _bounds(0.0, 1e6, open_lo=True)
+    scale: Literal["linear", "log"] = Field("log", description="uniform in the value or its log")
+
+
 class EffectSpec(_Strict):
+    """One physical effect of the simulated rigs, with its per-trajectory priors.
+
+    ``params`` are numbers or ``[low, high]`` ranges drawn uniformly per trajectory;
+    ``relative`` draws frequency parameters (unit Hz) relative to f_n or fs;
+    ``probability`` is the fraction of trajectories that have the effect at all
+    (the others are simulated without it), which is how a randomised training
+    world keeps ideal rigs in its mix.
+    """
+
     name: str
+    probability: float = Field(1.0, ge=0.0, le=1.0, description="fraction of trajectories")
     params: dict[str, float | list[float]] = Field(default_factory=dict)
+    relative: dict[str, RelativeParam] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _valid_effect(self) -> EffectSpec:
-        build_effect(self.name, self.params)  # raises ConfigError naming the problem
+        effect = build_effect(self.name, self.params)  # raises ConfigError naming the problem
+        fields = type(effect).Params.model_fields
+        for key in self.relative:
+            if key not in fields:
+                raise ValueError(f"effect {self.name}: relative parameter {key!r} is not one of "
+                                 f"its parameters ({', '.join(fields)})")  # fmt: skip
+            if (fields[key].json_schema_extra or {}).get("unit") != "Hz":
+                raise ValueError(
+                    f"effect {self.name}: relative parameter {key!r} is not a frequency in Hz"
+                )
+            if key in self.params:
+                raise ValueError(f"effect {self.name}: {key!r} is given both in params and "
+                                 "relative")  # fmt: skip
         return self
 
     def build(self) -> Any:
         return build_effect(self.name, self.params)
+
+
+def randomised_effects() -> list[EffectSpec]:
+    """The training world's nuisance effects: every library effect's own ``prior``.
+
+    ``configs/sim/default.yaml`` restates this list (a test checks it); the
+    model's default ``effects`` stay empty, the ideal base model of eqs 11-12.
+    """
+    from stiffnet.effects.registry import CANONICAL, effect_class
+
+    return [
+        EffectSpec(name=name, **effect_class(name).prior)
+        for name in CANONICAL
+        if effect_class(name).prior is not None
+    ]
 
 
 class SolverConfig(_Strict):
@@ -102,6 +154,12 @@ class SimulationConfig(_Strict):
     classes: list[ClassSpec] = Field(default_factory=default_classes, min_length=1)
     no_contact_class: str = "no_contact"
     effects: list[EffectSpec] = Field(default_factory=list)
+    ideal_fraction: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="fraction of trajectories simulated without any effect (ideal rigs)",
+    )
     solver: SolverConfig = Field(default_factory=SolverConfig)
 
     @model_validator(mode="after")
@@ -126,7 +184,29 @@ class SimulationConfig(_Strict):
         names = [e.name for e in self.effects]
         if len(set(names)) != len(names):
             raise ValueError("an effect is listed twice")
+        for e in self.effects:
+            self._check_relative(e)
         return self
+
+    def _check_relative(self, spec: EffectSpec) -> None:
+        """Relative frequency draws must land inside the effect's allowed range."""
+        fields = spec.build().Params.model_fields
+        fn = self.sweep.natural_frequency_hz
+        for key, rel in spec.relative.items():
+            extra = fields[key].json_schema_extra or {}
+            if rel.per == "natural_frequency":
+                lo, hi = rel.range[0] * fn, rel.range[1] * fn
+            else:
+                lo, hi = (
+                    rel.range[0] * fn * self.sweep.fs_ratio[0],
+                    rel.range[1] * fn * (self.sweep.fs_ratio[1]),
+                )
+            if lo < extra.get("ge", -np.inf) or hi > extra.get("le", np.inf):
+                raise ValueError(
+                    f"effect {spec.name}: {key} relative to the {rel.per.replace('_', ' ')} "
+                    f"{list(rel.range)} gives {lo:.4g}-{hi:.4g} Hz, outside the allowed range "
+                    f"[{extra.get('ge')}, {extra.get('le')}] Hz"
+                )
 
     def class_names(self) -> list[str]:
         """All labels, no-contact first (its index is 0)."""

@@ -50,11 +50,11 @@ class CNNConfig(_Strict):
     )
     kernel_size: int = Field(7, ge=3, le=31)
     dropout: float = Field(0.1, ge=0.0, lt=1.0)
-    learning_rate: float = Field(2e-3, gt=0.0, le=1.0)
+    learning_rate: float = Field(1e-3, gt=0.0, le=1.0)
     weight_decay: float = Field(1e-4, ge=0.0, le=1.0)
     batch_size: int = Field(64, ge=1, le=4096)
-    max_epochs: int = Field(80, ge=1, le=10_000)
-    patience: int = Field(15, ge=1, le=1000, description="epochs without improvement")
+    max_epochs: int = Field(40, ge=1, le=10_000)
+    patience: int = Field(10, ge=1, le=1000, description="epochs without improvement")
     beta_loss_weight: float = Field(
         1.0, ge=0.0, le=100.0, description="weight of the standardised log-beta MSE"
     )
@@ -81,6 +81,18 @@ class TrainConfig(_Strict):
         0.2, gt=0.0, lt=0.9, description="trajectories held out for conformal calibration"
     )
     coverage: float = Field(0.9, gt=0.0, lt=1.0, description="target beta interval coverage")
+    alarm_checks: list[Literal["embedding", "ambiguity", "beta_uncertainty", "class_edge"]] = Field(
+        ["embedding", "ambiguity", "beta_uncertainty", "class_edge"],
+        min_length=1,
+        description="the alarm's checks (stiffnet.uncertainty.alarm); those the model "
+        "cannot compute (embedding for the GBM) are left out",
+    )
+    alarm_false_alarm: float = Field(
+        0.04,
+        gt=0.0,
+        lt=0.5,
+        description="fraction of in-distribution (calibration) recordings the alarm may flag",
+    )
     use_natural_frequency: bool = Field(
         True, description="feature period_natural needs f_n at prediction time"
     )

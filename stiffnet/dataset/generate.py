@@ -47,10 +47,12 @@ def shard_sizes(cfg: SimulationConfig) -> list[int]:
     return [min(k, n - i) for i in range(0, n, k)]
 
 
-def build_simulator(cfg: SimulationConfig) -> Simulator:
+def build_simulator(cfg: SimulationConfig, without: frozenset[str] = frozenset()) -> Simulator:
+    """The simulator of ``cfg``'s effects, less those named in ``without``."""
     s = cfg.solver
+    effects = [e.build() for e in cfg.effects]
     return Simulator(
-        [e.build() for e in cfg.effects],
+        [e for e in effects if e.name not in without],
         settle_tolerance=s.settle_tolerance,
         min_transient_periods=s.min_transient_periods,
         substeps=s.substeps,
@@ -72,10 +74,59 @@ def simulate_shard(cfg: SimulationConfig, shard: int, n: int) -> pa.Table:
     return table.sort_by([("trajectory", "ascending"), ("window", "ascending")])
 
 
+def _switchable(sim: Simulator) -> set[str]:
+    """Effects that can be off row by row inside one batch (see ``Simulator.simulate``)."""
+    return {e.name for e in sim.effects if e.kind == "measurement" or e.neutral is not None}
+
+
+def _simulate_plan(cfg, sim, plan: TrajectoryPlan, n_samples: int, rng):
+    """Simulate a plan whose rigs differ in which effects they have.
+
+    Rows lacking an effect that cannot be switched off inside a batch (a
+    non-piecewise-linear contact law, say) run on a simulator without it, so
+    the rest keep the fast closed-form engine. Returns accel, impacts and
+    contact force ``(B, N)``.
+    """
+    fixed = [name for name in plan.active if name not in _switchable(sim)]
+    key = np.array([[plan.active[name][i] for name in fixed] for i in range(len(plan))], bool)
+    key = key.reshape(len(plan), len(fixed))
+    groups = np.unique(key, axis=0)
+    out = {k: np.zeros((len(plan), n_samples)) for k in ("accel", "contact_force")}
+    out["impacts"] = np.zeros((len(plan), n_samples), dtype=bool)
+    for g in groups:
+        rows = np.flatnonzero((key == g).all(axis=1))
+        off = frozenset(name for name, on in zip(fixed, g, strict=True) if not on)
+        gsim = sim if not off else build_simulator(cfg, off)
+        sub = plan.subset(rows)
+        res = gsim.simulate(
+            sub.batch, sub.fs_ratio, n_samples, noise=sub.noise, rng=rng,
+            effect_params={k: v for k, v in sub.effect_params.items() if k not in off},
+            active={k: v for k, v in sub.active.items() if k not in off},
+        )  # fmt: skip
+        for k in out:
+            out[k][rows] = getattr(res, k)
+    return out
+
+
+def _effect_columns(sim: Simulator, plan: TrajectoryPlan) -> dict[str, np.ndarray]:
+    """``effect.<name>.<param>`` (the value the rig had) and ``effect.<name>.active``."""
+    cols: dict[str, np.ndarray] = {}
+    neutral = {e.name: e.neutral or {} for e in sim.effects if e.kind == "dynamics"}
+    for name, params in plan.effect_params.items():
+        on = plan.active[name]
+        for p, values in params.items():
+            off_value = neutral.get(name, {}).get(p)
+            v = np.broadcast_to(values, on.shape)
+            cols[f"effect.{name}.{p}"] = v if off_value is None else np.where(on, v, off_value)
+        cols[f"effect.{name}.active"] = on.astype(np.float64)
+    return cols
+
+
 def _simulate_rows(cfg, sim, plan: TrajectoryPlan, rows, shard, rng) -> pa.Table:
     per = cfg.windows.per_trajectory
     n_samples = int(per * plan.window_samples.max())
-    res = sim.simulate(plan.batch, plan.fs_ratio, n_samples, noise=plan.noise, rng=rng)
+    res = _simulate_plan(cfg, sim, plan, n_samples, rng)
+    per_row_effects = _effect_columns(sim, plan)
     edges = [c.beta[0] for c in cfg.classes] + [cfg.classes[-1].beta[1]]
     cols: dict[str, list[Any]] = {k: [] for k in _COLUMNS}
     effect_cols: dict[str, list[float]] = {}
@@ -84,9 +135,9 @@ def _simulate_rows(cfg, sim, plan: TrajectoryPlan, rows, shard, rng) -> pa.Table
         w = int(plan.window_samples[i])
         for j in range(per):
             sl = slice(j * w, (j + 1) * w)
-            impacts = int(res.impacts[i, sl].sum())
-            contact = float(np.mean(res.contact_force[i, sl] > 0))
-            cols["accel"].append(res.accel[i, sl].astype(np.float32))
+            impacts = int(res["impacts"][i, sl].sum())
+            contact = float(np.mean(res["contact_force"][i, sl] > 0))
+            cols["accel"].append(res["accel"][i, sl].astype(np.float32))
             cols["trajectory"].append(shard * cfg.shard_size + int(rows[i]))
             cols["window"].append(j)
             cols["shard"].append(shard)
@@ -97,9 +148,8 @@ def _simulate_rows(cfg, sim, plan: TrajectoryPlan, rows, shard, rng) -> pa.Table
             cols["fs_ratio"].append(float(plan.fs_ratio[i]))
             cols["fs_hz"].append(float(plan.fs_ratio[i] * b.natural_frequency_hz[i]))
             cols["noise"].append(float(plan.noise[i]))
-            for eff, params in res.effect_params.items():
-                for p, values in params.items():
-                    effect_cols.setdefault(f"effect.{eff}.{p}", []).append(float(values[i]))
+            for col, values in per_row_effects.items():
+                effect_cols.setdefault(col, []).append(float(values[i]))
     has_contact = (np.array(cols["n_impacts"]) > 0) | (np.array(cols["contact_fraction"]) > 0)
     labels = window_labels(np.array(cols["beta"]), has_contact, edges)
     names = cfg.class_names()
@@ -147,7 +197,6 @@ def run_shard_job(job: ShardJob) -> dict[str, Any]:
         "shard": job.shard,
         "trajectories": job.n,
         "class_counts": {str(k): int(c) for k, c in zip(names, counts, strict=True)},
-        "compiled": _compiled_used(job.cfg),
         "seconds": round(time.perf_counter() - t0, 3),
         "fingerprint": job.fingerprint,
     }
@@ -312,7 +361,6 @@ def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: 
         assert record is not None
         for name, k in record["class_counts"].items():
             counts[name] = counts.get(name, 0) + int(k)
-    compiled = {r["compiled"] for r in records if r is not None}
     return {
         "kind": "stiffnet-dataset",
         "format": "parquet shards, one row per window, accel as list<float32>",
@@ -324,21 +372,10 @@ def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: 
         "class_names": cfg.class_names(),
         "class_balance": counts,
         "engine": build_simulator(cfg).engine,
-        # the numpy and compiled closed-form engines agree to ~1e-8 but part on
-        # chaotic orbits: a dataset is reproduced exactly by the same one ("mixed":
-        # the workers differed, some had numba and some not)
-        "compiled": compiled.pop() if len(compiled) == 1 else "mixed",
         "seconds": round(seconds, 3),
         "shards": [{k: r[k] for k in ("file", "rows", "sha256")} for r in records if r],
         "config": cfg.model_dump(mode="json"),
     }
-
-
-def _compiled_used(cfg: SimulationConfig) -> bool:
-    from stiffnet.simulator import compiled
-
-    sim = build_simulator(cfg)
-    return bool(sim.engine == "closed_form" and sim.compiled and compiled.available())
 
 
 def _code_version() -> str:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -12,19 +12,30 @@ from stiffnet.simulator.batch import OscillatorBatch
 
 @dataclass
 class TrajectoryPlan:
-    """Parameters of the trajectories of one shard."""
+    """Parameters of the trajectories of one shard.
+
+    ``effect_params`` holds every configured effect's per-trajectory parameters and
+    ``active`` whether the trajectory has the effect at all (its ``probability``).
+    """
 
     batch: OscillatorBatch
     fs_ratio: np.ndarray
     noise: np.ndarray
     window_samples: np.ndarray  # samples per window, per trajectory
+    effect_params: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    active: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.batch)
 
     def subset(self, idx: np.ndarray) -> TrajectoryPlan:
         return TrajectoryPlan(
-            self.batch.subset(idx), self.fs_ratio[idx], self.noise[idx], self.window_samples[idx]
+            self.batch.subset(idx),
+            self.fs_ratio[idx],
+            self.noise[idx],
+            self.window_samples[idx],
+            {e: {k: v[idx] for k, v in p.items()} for e, p in self.effect_params.items()},
+            {e: m[idx] for e, m in self.active.items()},
         )
 
 
@@ -64,4 +75,32 @@ def sample_plan(cfg: SimulationConfig, n: int, rng: np.random.Generator) -> Traj
         beta, gap, amplitude, omega, damping, np.full(n, sw.natural_frequency_hz)
     )
     window = np.maximum(8, np.round(cfg.windows.duration_periods * fs_ratio)).astype(int)
-    return TrajectoryPlan(batch, fs_ratio, noise, window)
+    params, active = _effect_draws(cfg, batch, fs_ratio, rng)
+    return TrajectoryPlan(batch, fs_ratio, noise, window, params, active)
+
+
+def _effect_draws(
+    cfg: SimulationConfig, batch: OscillatorBatch, fs_ratio: np.ndarray, rng: np.random.Generator
+) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, np.ndarray]]:
+    """Each effect's per-trajectory parameters (its priors) and whether the rig has it."""
+    n = len(batch)
+    params: dict[str, dict[str, np.ndarray]] = {}
+    active: dict[str, np.ndarray] = {}
+    # ideal rigs keep the paper's world in the mix however many effects are configured
+    ideal = rng.random(n) < cfg.ideal_fraction if cfg.effects else np.zeros(n, bool)
+    for spec in cfg.effects:
+        effect = spec.build()  # keyed by the effect's own name, as the simulator keys it
+        p = effect.batch_params(n, rng)
+        for key, rel in spec.relative.items():
+            lo, hi = rel.range
+            if rel.scale == "log":
+                r = np.exp(rng.uniform(np.log(lo), np.log(hi), n))
+            else:
+                r = rng.uniform(lo, hi, n)
+            unit = batch.natural_frequency_hz
+            if rel.per == "sampling_rate":
+                unit = unit * fs_ratio
+            p[key] = r * unit
+        params[effect.name] = p
+        active[effect.name] = (rng.random(n) < spec.probability) & ~ideal
+    return params, active

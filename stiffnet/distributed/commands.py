@@ -1,8 +1,7 @@
 """``stiffnet predict-batch`` (registered by :mod:`stiffnet.cli`).
 
-:mod:`stiffnet.cli` imports this module while it is itself being imported, so its
-helpers (``user_errors``, ``out``...) and everything heavy (Dask, onnxruntime) are
-imported inside the functions.
+Everything heavy (Dask, onnxruntime) is imported inside the functions; the shared
+console helpers (``user_errors``, ``out``...) come from :mod:`stiffnet.console`.
 """
 
 from __future__ import annotations
@@ -53,7 +52,7 @@ def predict_batch_cmd(
     """
     from rich.table import Table
 
-    from stiffnet.cli import out, progress_bar, write_json
+    from stiffnet.console import out, progress_bar, write_json
     from stiffnet.distributed.batch import predict_batch
 
     with progress_bar("predicting parts") as bar:
@@ -89,6 +88,6 @@ def predict_batch_cmd(
 
 def register(app: typer.Typer) -> None:
     """Add ``predict-batch`` to the ``stiffnet`` app."""
-    from stiffnet.cli import user_errors
+    from stiffnet.console import user_errors
 
     app.command("predict-batch")(user_errors(predict_batch_cmd))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from stiffnet.effects.base import (
@@ -61,6 +63,11 @@ class ADC(MeasurementEffect):
     """
 
     name = "adc"
+    #: Training-world prior (docs/priors.md): converter resolution and input range.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.4,
+        "params": {"bits": [10.0, 16.0], "full_scale": [30.0, 300.0]},
+    }
     order = 90
 
     class Params(EffectParams):

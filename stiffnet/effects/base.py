@@ -97,8 +97,20 @@ class Effect:
     name: ClassVar[str] = ""
     kind: ClassVar[str] = ""
     Params: ClassVar[type[EffectParams]] = EffectParams
+    #: The effect's prior in the randomised training world (``configs/sim/default.yaml``,
+    #: docs/priors.md): ``probability`` that a rig has it, ``params`` ranges and
+    #: ``relative`` frequency draws (see :class:`stiffnet.config.sim.EffectSpec`);
+    #: None when training rigs never have it.
+    prior: ClassVar[dict[str, Any] | None] = None
     #: Parameters fitted to a campaign (None: every parameter with a declared range).
     fit_space: ClassVar[FitSpace | None] = None
+    neutral: ClassVar[dict[str, float] | None] = None
+    """Parameter values at which the effect does nothing (e.g. zero contact damping).
+
+    Declared by dynamics effects that can be switched off row by row inside one
+    batch (a randomised dataset where only some rigs have the effect; an effect
+    without them is simulated separately for the rows that lack it), and used by
+    the measurement loop as "effect off" (any effect)."""
 
     def __init__(self, **params: Any) -> None:
         try:

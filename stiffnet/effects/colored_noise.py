@@ -9,6 +9,8 @@ the Americas) sits in a narrow band. This effect adds both, scaled the same way.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 
 from stiffnet.effects.base import (
@@ -118,6 +120,17 @@ class ColoredNoise(MeasurementEffect):
     """
 
     name = "colored_noise"
+    #: Training-world prior (docs/priors.md): 1/f noise and mains pick-up.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.4,
+        "params": {
+            "pink_level": [0.0, 0.03],
+            "pink_exponent": [0.5, 1.5],
+            "narrowband_level": [0.0, 0.02],
+            "narrowband_hz": [45.0, 65.0],
+            "narrowband_width_hz": [0.2, 2.0],
+        },
+    }
     order = 30
 
     class Params(EffectParams):
@@ -137,11 +150,11 @@ class ColoredNoise(MeasurementEffect):
             1.0, 0.01, 1000.0, "-3 dB bandwidth of the narrow-band noise", "Hz"
         )
 
+    neutral = {"pink_level": 0.0, "narrowband_level": 0.0}
     #: The two noise levels; spectral shape and the mains line held at their defaults.
     fit_space = FitSpace(
         (FitParam("pink_level", 0.0, 0.3), FitParam("narrowband_level", 0.0, 0.3)),
         fixed={"pink_exponent": 1.0, "narrowband_hz": 50.0, "narrowband_width_hz": 1.0},
-        off={"pink_level": 0.0, "narrowband_level": 0.0},
     )
 
     def apply(

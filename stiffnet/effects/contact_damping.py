@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -30,6 +30,9 @@ class ContactDamping(DynamicsEffect):
     """
 
     name = "contact_damping"
+    neutral = {"damping_ratio": 0.0}
+    #: Training-world prior (docs/priors.md): restitution from 1 down to ~0.3.
+    prior: ClassVar[dict | None] = {"probability": 0.85, "params": {"damping_ratio": [0.0, 0.5]}}
 
     class Params(EffectParams):
         damping_ratio: ParamValue = param(
@@ -37,7 +40,7 @@ class ContactDamping(DynamicsEffect):
         )
 
     #: The contact's damping ratio; 0.6 is a restitution coefficient of about 0.1.
-    fit_space = FitSpace((FitParam("damping_ratio", 0.0, 0.6),), off={"damping_ratio": 0.0})
+    fit_space = FitSpace((FitParam("damping_ratio", 0.0, 0.6),))
 
     def contact_damping(self, p: ParamArrays, batch: Any) -> np.ndarray:
         return 2.0 * p["damping_ratio"] * np.sqrt(batch.beta)

@@ -2,11 +2,11 @@
 
 Every effect declares, next to its parameters, the space in which the
 measurement loop (:mod:`stiffnet.measurement.fitting`) fits it to a campaign:
-the *free* parameters with their search interval and scale, the *fixed* ones
-(held where they leave the effect's core alone) and the values that switch the
-effect *off* (the base model). A pair of parameters that is an amplitude and
-a phase (a harmonic) is fitted in Cartesian coordinates ``(A cos phi, A sin phi)``:
-the objective is smooth there, with no wrap-around at +-pi and no degenerate
+the *free* parameters with their search interval and scale and the *fixed* ones
+(held where they leave the effect's core alone). "Effect off" is the effect's
+``neutral`` parameters (:class:`stiffnet.effects.base.Effect`). A pair of
+parameters that is an amplitude and a phase (a harmonic) is fitted in Cartesian
+coordinates ``(A cos phi, A sin phi)``: the objective is smooth there, with no wrap-around at +-pi and no degenerate
 phase at zero amplitude.
 
 The search works in the unit cube: :meth:`FitSpace.params` maps a point of it
@@ -70,7 +70,7 @@ class Polar:
 
 @dataclass(frozen=True)
 class FitSpace:
-    """Free, fixed and "off" parameters of an effect (see the module notes).
+    """Free and fixed parameters of an effect (see the module notes).
 
     Attributes
     ----------
@@ -78,15 +78,12 @@ class FitSpace:
         Fitted coordinates (effect parameters, or the Cartesian pair of a :class:`Polar`).
     fixed : mapping
         Parameters held at these values while fitting.
-    off : mapping, optional
-        Parameter values at which the effect does nothing (None: no such value).
     polar : tuple of Polar
         Amplitude/phase pairs fitted in Cartesian coordinates.
     """
 
     free: tuple[FitParam, ...]
     fixed: Mapping[str, float] = field(default_factory=dict)
-    off: Mapping[str, float] | None = None
     polar: tuple[Polar, ...] = ()
 
     @property

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -35,6 +35,17 @@ class ForcingHarmonics(DynamicsEffect):
     """
 
     name = "forcing_harmonics"
+    neutral = {"second": 0.0, "third": 0.0}
+    #: Training-world prior (docs/priors.md): shaker distortion with any phase.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.5,
+        "params": {
+            "second": [0.0, 0.3],
+            "third": [0.0, 0.15],
+            "phase_second": [-3.14159, 3.14159],
+            "phase_third": [-3.14159, 3.14159],
+        },
+    }
 
     class Params(EffectParams):
         second: ParamValue = param(0.05, 0.0, 0.5, "2nd-harmonic amplitude / fundamental")
@@ -50,7 +61,6 @@ class ForcingHarmonics(DynamicsEffect):
             FitParam("third_cos", -0.5, 0.5),
             FitParam("third_sin", -0.5, 0.5),
         ),
-        off={"second": 0.0, "third": 0.0, "phase_second": 0.0, "phase_third": 0.0},
         polar=(Polar("second", "phase_second", 0.5), Polar("third", "phase_third", 0.5)),
     )
 

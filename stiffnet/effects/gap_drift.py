@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -32,6 +32,12 @@ class GapDrift(DynamicsEffect):
     """
 
     name = "gap_drift"
+    neutral = {"amplitude": 0.0}
+    #: Training-world prior (docs/priors.md): slow drift of the gap.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.3,
+        "params": {"amplitude": [0.0, 0.3], "period": [50.0, 1000.0], "phase": [-3.14159, 3.14159]},
+    }
 
     class Params(EffectParams):
         amplitude: ParamValue = param(
@@ -50,7 +56,6 @@ class GapDrift(DynamicsEffect):
             FitParam("period", 10.0, 1000.0, log=True),
             FitParam("phase", -np.pi, np.pi),
         ),
-        off={"amplitude": 0.0},
     )
 
     def gap_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -42,6 +42,11 @@ class HertzContact(DynamicsEffect):
     """
 
     name = "hertz_contact"
+    #: Training-world prior (docs/priors.md): rounded contacts on some rigs.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.12,
+        "params": {"reference_penetration": [0.1, 2.0]},
+    }
 
     class Params(EffectParams):
         reference_penetration: ParamValue = param(

@@ -9,6 +9,7 @@ this effect adds its linear dynamics to the sampled acceleration.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import ClassVar
 
 import numpy as np
 from scipy import signal as sps
@@ -114,6 +115,17 @@ class SensorDynamics(MeasurementEffect):
     """
 
     name = "sensor_dynamics"
+    #: Training-world prior (docs/priors.md): resonance relative to f_n, anti-alias
+    #: corner relative to fs.
+    prior: ClassVar[dict | None] = {
+        "probability": 0.7,
+        "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 2.0],
+                   "lowpass_order": [1.0, 4.0]},
+        "relative": {
+            "resonance_hz": {"per": "natural_frequency", "range": [15.0, 300.0]},
+            "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]},
+        },
+    }  # fmt: skip
     order = 10
 
     class Params(EffectParams):

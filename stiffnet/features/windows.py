@@ -67,6 +67,52 @@ CUTOFF_FRACTION = 0.45
 NORMALISATION = "mean removed, divided by std of the valid samples; spikes up; zero-padded"
 
 
+def preprocessing_contract(rate: int, periods: int, delays: Sequence[int]) -> dict:
+    """The whole input contract of a CNN trained on these windows, for its ONNX metadata.
+
+    Everything a user needs to feed the model from plain onnxruntime: how a
+    recording is cut, filtered, resampled, flipped, normalised and embedded
+    (the steps of :func:`canonical_window` and :func:`embedded_channels`, in
+    order), and how the outputs aggregate per recording.
+    """
+    return {
+        "window_version": WINDOW_VERSION,
+        "cut": {
+            "window_samples": "max(8, round(window_periods * fs / f_n)) at the recording's rate",
+            "hop_samples": "window_samples (non-overlapping, from sample 0)",
+            "window_periods": periods,
+        },
+        "steps": [
+            "a = (w - mean(w)) / std(w)  (population std, ddof=0)",
+            "polarity: p = fs / f_n samples per natural period; smooth a by Savitzky-Golay "
+            "(order 2, window max(5, 2*round(0.04*p)+1) samples); impacts = samples where "
+            "|d/dt smooth| exceeds median + 8*1.4826*MAD, at most one per 0.25*p samples; "
+            "sign = +1 if the median over impacts of the extreme deviation (within +-2 "
+            "samples) from the median signal is > 0, else -1; without impacts the sign of "
+            "mean(a**3); a = sign * a",
+            f"anti-alias: if p / rate > 1.1, scipy.signal.butter(8, {CUTOFF_FRACTION} * 2 / "
+            "(p / rate), output='sos') applied with sosfiltfilt (zero phase)",
+            "resample: numpy.interp at input positions k * p / rate, "
+            "k = 0 .. floor((len - 1) / (p / rate))",
+            "crop the centre rate*window_periods samples (or zero-pad at the end), then "
+            "subtract the mean and divide by the std of the valid samples",
+            "channels: x[c, t] = c_window[t + delays[c]], zero past the end",
+        ],
+        "canonical_rate": rate,
+        "delays": list(int(d) for d in delays),
+        "input": "float32 [N, len(delays), rate * window_periods]",
+        "outputs": {
+            "probabilities": "softmax over class_names",
+            "log_beta": "natural log of beta",
+            "log_beta_scale": "log of the expected log-beta error of the window",
+            "embedding": "pooled features (the alarm's input)",
+        },
+        "aggregate": "recording: mean probabilities -> class; mean log_beta over windows whose "
+        "own class has contact; scale = sqrt(mean(exp(2*log_beta_scale)) + var(log_beta)); "
+        "interval exp(mean +- conformal_quantile_recording * scale)",
+    }
+
+
 def default_delays(rate: int = DEFAULT_RATE, n_channels: int = 3) -> tuple[int, ...]:
     """Delays ``(0, d, 2 d, ...)`` with ``d = max(1, round(DELAY_FRACTION * rate))``."""
     d = max(1, int(round(DELAY_FRACTION * rate)))

@@ -1,8 +1,8 @@
 """CLI commands of the measurement loop: ``evaluate``, ``compare``, ``diagnose``, ``loop``,
 ``report`` (registered by :mod:`stiffnet.cli`).
 
-Heavy imports (matplotlib, mlflow, scikit-learn, torch) and ``stiffnet.cli`` itself
-(which imports this module at startup) are imported inside the command functions.
+Heavy imports (matplotlib, mlflow, scikit-learn, torch) are imported inside the
+command functions; the shared console helpers come from :mod:`stiffnet.console`.
 """
 
 from __future__ import annotations
@@ -14,19 +14,23 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.shipped import default_config
 
-DEFAULT_SIM_CONFIG = Path("configs/sim/default.yaml")
+DEFAULT_SIM_CONFIG = default_config("sim/ideal.yaml")
 
 CampaignArg = Annotated[Path, typer.Argument(help="Campaign folder (or its manifest.csv).")]
 ConfigOpt = Annotated[
     Path | None,
-    typer.Option("--config", help="Simulator config (YAML); default configs/sim/default.yaml."),
+    typer.Option(
+        "--config",
+        help="Simulator config (YAML); default: stiffnet's configs/sim/ideal.yaml (base model).",
+    ),
 ]
 SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the simulations.")]
 
 
 def _io() -> tuple[Any, Any, Any]:
-    from stiffnet.cli import console, out, write_json
+    from stiffnet.console import console, out, write_json
 
     return out, console, write_json
 
@@ -84,10 +88,11 @@ def _metrics_table(title: str, metrics: dict[str, Any]) -> Any:
     from rich.table import Table
 
     table = Table(title=title)
-    for col in ("method", "n", "accuracy", "macro-F1", "beta MAPE"):
+    keys = ("n", "accuracy", "macro_f1", "beta_mape", "interval_coverage", "alarm_rate")
+    for col in ("method", "n", "accuracy", "macro-F1", "beta MAPE", "interval coverage", "alarms"):
         table.add_column(col)
     for method, m in metrics.items():
-        vals = [m.get(k) for k in ("n", "accuracy", "macro_f1", "beta_mape")]
+        vals = [m.get(k) for k in keys]
         table.add_row(method, *("–" if v is None else f"{v:.3g}" for v in vals))
     return table
 
@@ -110,6 +115,15 @@ def evaluate(
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
     out.print(f"worst recordings: {worst}")
+    flagged = [r for r in res["recordings"] if r["ood"]]
+    if flagged:
+        out.print(
+            f"alarm: {len(flagged)} of {len(res['recordings'])} recordings are unreliable "
+            "(" + ", ".join(f"{r['recording']}: {'+'.join(r['ood_checks'])}" for r in flagged[:5])
+            + (", ..." if len(flagged) > 5 else "") + ")"
+        )  # fmt: skip
+    else:
+        out.print("alarm: no recording flagged as unreliable")
     write_json(json_path, res)
 
 
@@ -361,7 +375,7 @@ def report(
 
 def register(app: typer.Typer) -> None:
     """Add ``evaluate``, ``compare``, ``diagnose``, ``loop`` and ``report`` to the app."""
-    from stiffnet.cli import user_errors
+    from stiffnet.console import user_errors
 
     for fn in (evaluate, compare, diagnose, loop, report):
         app.command(fn.__name__)(user_errors(fn))

@@ -82,6 +82,24 @@ def method_metrics(rows: Sequence[dict[str, Any]], cls_key: str, beta_key: str) 
     }
 
 
+def alarm_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """How often the alarm fired, on the wrongly classified recordings too, and how often
+    the beta interval held the manifest's beta (recordings with contact and a known beta)."""
+    flags = [bool(r.get("ood")) for r in rows]
+    known = [r for r in rows if r["true_class"] is not None]
+    wrong = [bool(r.get("ood")) for r in known if r["class"] != r["true_class"]]
+    held = [
+        r["beta_interval"][0] <= r["beta"] <= r["beta_interval"][1]
+        for r in known
+        if r["true_class"] != NO_CONTACT and r["beta"] and r.get("beta_interval")
+    ]
+    return {
+        "alarm_rate": float(np.mean(flags)) if flags else None,
+        "alarm_rate_wrong": float(np.mean(wrong)) if wrong else None,
+        "interval_coverage": float(np.mean(held)) if held else None,
+    }
+
+
 def _bin_label(value: float | None, edges: list[float]) -> str:
     if value is None:
         return "unknown"
@@ -166,7 +184,12 @@ def evaluate_campaign(
                 "geometric_class": geo.get("class"),
                 "geometric_beta": geo.get("beta"),
                 "agreement": res.get("agreement"),
+                # the alarm (issue 11): did it fire, how far past its threshold, which checks
+                "ood": bool(res.get("ood_flag")),
                 "ood_score": res.get("ood_score"),
+                "ood_threshold": res.get("ood_threshold"),
+                "ood_checks": list((res.get("alarm") or {}).get("fired") or []),
+                "alarm": res.get("alarm"),
                 "true_class": true_class(row.beta, has_contact),
                 "impact_regime": regime,
                 "gap": row.gap,
@@ -187,7 +210,7 @@ def evaluate_campaign(
         "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
         "recordings": rows,
         "metrics": {
-            "learned": method_metrics(rows, "class", "beta_estimate"),
+            "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},
             "geometric": method_metrics(rows, "geometric_class", "geometric_beta"),
         },
         "slices": sliced_metrics(rows),

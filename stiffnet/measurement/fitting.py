@@ -208,7 +208,9 @@ def fit_effect(
             per = off
         return {
             **sub,
-            "params": sub["params"] if improves or space.off is None else dict(space.off),
+            "params": sub["params"]
+            if improves or effect_class(name).neutral is None
+            else {**space.fixed, **effect_class(name).neutral},
             "per_recording": per.tolist(),
             "off_per_recording": off.tolist(),
             "improves": improves,
@@ -246,7 +248,8 @@ def fit_effect(
         )
     elif len(ev.cache) < budget and k > 1:
         _nelder_mead(ev, best, 0.5 / 3, budget - len(ev.cache))
-    res = _result(ev, off, t0, [dict(space.off)] if space.off is not None else None)
+    neutral = effect_class(name).neutral
+    res = _result(ev, off, t0, None if neutral is None else [{**space.fixed, **neutral}])
     return {
         "effect": name,
         "params": res["params"][0],

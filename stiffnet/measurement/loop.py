@@ -82,8 +82,10 @@ def _train_and_evaluate(
     data = work / f"data-{label}"
     generate_dataset(cfg, data, overwrite=True)
     t_data = time.perf_counter() - t0
-    default = Path("configs/train") / f"{model}.yaml"
     from stiffnet.config import load_yaml
+    from stiffnet.shipped import default_config
+
+    default = default_config(f"train/{model}.yaml")
 
     raw = load_yaml(default) if default.is_file() else {"model": model}
     raw.update(train_overrides or {})

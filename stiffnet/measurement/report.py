@@ -74,7 +74,16 @@ def render_report(
             parts.append(
                 _table(
                     [{"method": k, **v} for k, v in m.items()],
-                    ["method", "n", "accuracy", "macro_f1", "beta_mape"],
+                    [
+                        "method",
+                        "n",
+                        "accuracy",
+                        "macro_f1",
+                        "beta_mape",
+                        "interval_coverage",
+                        "alarm_rate",
+                        "alarm_rate_wrong",
+                    ],  # fmt: skip
                 )
             )
             parts.append(
@@ -89,6 +98,8 @@ def render_report(
                         "geometric_class",
                         "geometric_beta",
                         "impact_regime",
+                        "ood",
+                        "ood_checks",
                         "error",
                     ],
                     lambda r: "bad" if r.get("class") != r.get("true_class") else "",

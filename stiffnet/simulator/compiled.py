@@ -1,19 +1,29 @@
-"""Compiled (numba) twin of :func:`stiffnet.simulator.closed_form.simulate_linear`.
+"""The closed-form engine: exact, event-located, compiled with numba.
 
-Same model, same step rule (:func:`coarse_steps`), same event location (safeguarded
-Newton on the closed form from a cubic Hermite start, hidden double crossings found
-from the interior extremum of the switching function, the same boundary rules) and
-the same output contract; only the execution differs: one compiled loop per row
-instead of numpy calls over the batch, and the samples are written while marching.
+Within a region (free flight or contact) eq. (12) of the paper is linear with
+sinusoidal forcing, so its solution is exact for any step: subtract the particular
+solution, multiply by the transition matrix, add the particular solution back
+(:mod:`stiffnet.simulator.linear`). Each row marches in coarse steps (long in free
+flight, short in contact: :func:`~stiffnet.simulator.linear.coarse_steps`). Contact
+onset and release are located by safeguarded Newton iteration on the closed form
+from a cubic Hermite start (not snapped to the sampling grid), including contacts
+that begin and end inside one step (grazing), found from the interior extremum of
+the switching function.
+
+The switching function is ``G = min(x - e(t), F_c)`` with the contact force
+``F_c = beta (x - e) + c_c (v - e')``: the mass is in contact exactly when
+``G > 0``; with contact damping the restraint releases when the force would turn
+to a pull, before the penetration is zero ("the restraint never pulls").
 
 Within a piece of trajectory that stays in one region (a coarse step, or the part
 of it between events) the first sample is the closed form evaluated at the sample
 time from the piece's start state; the following samples of the piece are carried
 from it by the exact one-sample transition matrix and the rotation of the forcing
-phases (at most a handful of products, round-off only).
+phases (at most a handful of products, round-off only). One compiled loop per row,
+the rows spread over numba's threads.
 
-numba is optional: without it this module still imports and :func:`available`
-returns False.
+The numpy solver :mod:`stiffnet.simulator.reference_closed_form` is this engine's
+test oracle.
 """
 
 from __future__ import annotations
@@ -22,60 +32,44 @@ import contextlib
 import math
 from collections.abc import Iterator
 
+import numba
 import numpy as np
 
-from stiffnet.simulator.closed_form import (
-    _MAX_EVENTS_PER_STEP,
-    _NEWTON_ITERS,
-    _REANCHOR_EVERY,
+from stiffnet.simulator.linear import (
+    DISC_TINY,
+    MAX_EVENTS_PER_STEP,
+    NEWTON_ITERATIONS,
+    REANCHOR_EVERY,
     LinearModel,
-    _Regions,
+    RegionCoefficients,
     coarse_steps,
+    hermite_root,
+    transition_matrix,
 )
-from stiffnet.simulator.linear import transition_matrix
-
-try:  # optional dependency
-    import numba as _numba
-except ImportError:  # pragma: no cover - depends on the environment
-    _numba = None
-
-_TINY = 1e-12
-
-
-def available() -> bool:
-    """True when numba is installed and the compiled kernel can run."""
-    return _numba is not None
+from stiffnet.simulator.result import EngineResult
 
 
 def threads() -> int:
     """Threads the parallel kernel uses (numba's, ``NUMBA_NUM_THREADS``)."""
-    return int(_numba.get_num_threads()) if _numba is not None else 1
+    return int(numba.get_num_threads())
 
 
 @contextlib.contextmanager
 def limited_threads(n: int) -> Iterator[None]:
     """Run the parallel kernel on at most ``n`` threads inside the block."""
-    if _numba is None:
-        yield
-        return
-    before = _numba.get_num_threads()
-    _numba.set_num_threads(max(1, min(n, before)))
+    before = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(n, before)))
     try:
         yield
     finally:
-        _numba.set_num_threads(before)
+        numba.set_num_threads(before)
 
 
 def _jit(func):
-    if _numba is None:  # plain Python; never called (available() is False)
-        return func
-    return _numba.njit(cache=True, error_model="numpy")(func)
+    return numba.njit(cache=True, error_model="numpy")(func)
 
 
-if _numba is not None:
-    _prange = _numba.prange
-else:  # pragma: no cover
-    _prange = range
+_hermite_root = _jit(hermite_root)
 
 
 # ----------------------------------------------------------------- scalar helpers
@@ -95,10 +89,10 @@ def _sgn(a):
 @_jit
 def _hom(k, sig, root, disc, s):
     """cos-like, sin/omega-like functions and the decay of the homogeneous part."""
-    if disc > _TINY:
+    if disc > DISC_TINY:
         rs = root * s
         cf, sf = math.cos(rs), math.sin(rs) / root
-    elif disc < -_TINY:
+    elif disc < -DISC_TINY:
         rs = root * s
         cf, sf = math.cosh(rs), math.sinh(rs) / root
     else:
@@ -146,11 +140,9 @@ def _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv):
 
 
 @_jit
-def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """G = min(x - e, F_c) and its rate at t0 + s."""
-    x, v, a = _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
-    e, de, dde = _gap(e0, ga, gf, gp, has_gap, t0 + s)
+def _g_rate(x, v, a, t, beta, cc, e0, ga, gf, gp, has_gap):
+    """G = min(x - e, F_c) and its rate from the state, and acceleration ``a``, at t."""
+    e, de, dde = _gap(e0, ga, gf, gp, has_gap, t)
     d, dd = x - e, v - de
     force = beta * d + cc * dd
     if d <= force:
@@ -161,24 +153,38 @@ def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
 
 
 @_jit
+def _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+            beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
+    """G = min(x - e, F_c), its rate, x and v at t0 + s."""
+    x, v, a = _state(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+    g, rate = _g_rate(x, v, a, t0 + s, beta, cc, e0, ga, gf, gp, has_gap)
+    return g, rate, x, v
+
+
+@_jit
 def _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
          beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """mode 0: (G, G'); mode 1: (G', G'') with G'' by a forward difference."""
-    g, r = _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                   beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    """mode 0: (G, G'); mode 1: (G', G'') with G'' by a forward difference; then
+    G, x and v at s (so that the caller need not evaluate the root again)."""
+    g, r, x, v = _switch(s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                         beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
     if mode == 0:
-        return g, r
+        return g, r, g, x, v
     ds = 1e-7 * max(s, 1e-3)
-    g2, r2 = _switch(s + ds, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-    return r, (r2 - r) / ds
+    g2, r2, _, _ = _switch(s + ds, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                           beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+    return r, (r2 - r) / ds, g, x, v
 
 
 @_jit
 def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
             beta, cc, e0, ga, gf, gp, has_gap):  # fmt: skip
-    """Safeguarded Newton, as :func:`closed_form._locate_root` for one row."""
+    """Safeguarded Newton on ``[lo, hi]`` (``glo``, ``ghi`` of opposite signs).
+
+    mode 0: a root of G; mode 1: of G'. Returns the root, the bracket's upper end,
+    and whether the root is the last point evaluated, with G, x and v there.
+    """
     den = ghi - glo if ghi != glo else 1.0
     s = min(max(lo - glo * (hi - lo) / den, lo), hi)
     if has_start:
@@ -186,8 +192,9 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
     if abs(glo) <= 1e-12 * max(abs(ghi), 1e-300):
         s = 0.5 * (lo + hi)
     out = s
-    for _ in range(_NEWTON_ITERS):
-        g, dg = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+    known, g_s, x_s, v_s = False, 0.0, 0.0, 0.0
+    for _ in range(NEWTON_ITERATIONS):
+        g, dg, g_s, x_s, v_s = _fun(mode, s, t0, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
         if _sgn(g) == _sgn(glo):
             lo, glo = s, g
@@ -205,54 +212,40 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
             s_new = sn
         out = s_new
         if fine or abs(s_new - s) <= tol or hi - lo <= tol:
+            known = fine
             break
         s = s_new
-    return out, hi
-
-
-@_jit
-def _hermite_root(g0, r0, g1, r1, length):
-    lo, hi = 0.0, 1.0
-    a0, b0, a1, b1 = g0, r0 * length, g1, r1 * length
-    den = g0 - g1 if g0 != g1 else 1.0
-    u = min(max(g0 / den, 0.0), 1.0)
-    for _ in range(4):
-        u2, u3 = u * u, u * u * u
-        p = (2 * u3 - 3 * u2 + 1) * a0 + (u3 - 2 * u2 + u) * b0 + (-2 * u3 + 3 * u2) * a1
-        p = p + (u3 - u2) * b1
-        dp = (6 * u2 - 6 * u) * (a0 - a1) + (3 * u2 - 4 * u + 1) * b0 + (3 * u2 - 2 * u) * b1
-        if _sgn(p) == _sgn(g0):
-            lo = u
-        else:
-            hi = u
-        un = u - p / dp
-        if math.isfinite(un) and un > lo and un < hi:
-            u = un
-        else:
-            u = 0.5 * (lo + hi)
-    return u * length
+    return out, hi, known, g_s, x_s, v_s
 
 
 @_jit
 def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                 out_x, out_v, out_f, out_a, sn, cs):  # fmt: skip
-    """Samples ns, ns+1, ... with times before t_end, from the homogeneous state
-    (z0, z1) at tp of a segment in ``region``; returns the next sample index."""
+                 out_x, out_v, out_f, out_a, sn, cs, carry, xh, vh):  # fmt: skip
+    """Samples ns, ns+1, ... with times before t_end of a segment in ``region``.
+
+    The segment's homogeneous state is (z0, z1) at tp. With ``carry`` the
+    homogeneous state (xh, vh) and the phases (sn, cs) at sample ns's time are
+    known already (the previous piece was of the same segment) and no closed form
+    is evaluated. Returns the next sample index, the homogeneous state at its
+    time and whether that state (with sn, cs) is valid, so that the next piece of
+    the same segment carries on by the one-sample recurrence alone.
+    """
     if ns >= n_samples:
-        return ns
+        return ns, xh, vh, False
     tn = t_first + ns * h
     if tn >= t_end:
-        return ns
+        return ns, xh, vh, carry
     nj = fv.size
-    s = tn - tp
-    cf, sf, decay = _hom(k, sig, root, disc, s)
-    xh = decay * ((cf + sig * sf) * z0 + sf * z1)
-    vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
-    for j in range(nj):
-        ph = fv[j] * tn
-        sn[j], cs[j] = math.sin(ph), math.cos(ph)
+    if not carry:
+        s = tn - tp
+        cf, sf, decay = _hom(k, sig, root, disc, s)
+        xh = decay * ((cf + sig * sf) * z0 + sf * z1)
+        vh = decay * (-k * sf * z0 + (cf - sig * sf) * z1)
+        for j in range(nj):
+            ph = fv[j] * tn
+            sn[j], cs[j] = math.sin(ph), math.cos(ph)
     m00, m01, m10, m11 = phih[0, 0], phih[0, 1], phih[1, 0], phih[1, 1]
     while True:
         xp, vp = 0.0, 0.0
@@ -275,13 +268,12 @@ def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
         out_a[row, ns] = -(2 * xi * v + x + force)
         ns += 1
         if ns >= n_samples:
-            return ns
-        tn = t_first + ns * h
-        if tn >= t_end:
-            return ns
+            return ns, xh, vh, False
         xh, vh = m00 * xh + m01 * vh, m10 * xh + m11 * vh
         for j in range(nj):
             sn[j], cs[j] = sn[j] * hc[j] + cs[j] * hs[j], cs[j] * hc[j] - sn[j] * hs[j]
+        if t_first + ns * h >= t_end:
+            return ns, xh, vh, True
 
 
 @_jit
@@ -324,6 +316,20 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
     ns = 0
     i = 0
     snapped = False
+    # the samples' writer: homogeneous state at sample ns's time, carried from one
+    # step to the next while the row stays in one region without events
+    carry, wxh, wvh, ns_anchor = False, 0.0, 0.0, 0
+    # No-contact test (underdamped free flight only): the particular solution's
+    # largest reach and the lowest the gap gets, less a round-off margin.
+    free_bound = abs(X[0, row])
+    for j in range(nj):
+        free_bound += math.sqrt(P[0, row, j] ** 2 + Q[0, row, j] ** 2)
+    e_low = e0
+    for j in range(ga.size):
+        e_low -= abs(ga[j])
+    e_low -= 1e-9 * (1.0 + abs(e_low) + free_bound)
+    if not discs[0] > DISC_TINY:
+        e_low = -math.inf
     while True:
         i += 1
         r = region
@@ -351,7 +357,8 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
         t1 = t + H
         if not snapped and t1 >= tf:
             snapped = True  # entries before this step belong to the transient
-        # suspects: as closed_form._Stepper._suspects
+        # Suspects: the switching function changed sign over the step, or may have
+        # crossed twice inside it (an extremum of G close enough to the boundary).
         e1, de1, _ = _gap(e0, ga, gf, gp, has_gap, t1)
         d1 = x1 - e1
         g1 = min(d1, beta * d1 + cc * (v1 - de1))
@@ -367,75 +374,125 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
             else:
                 suspect = (dd0 < 0 and dd1 >= 0) or cc > 0
         if not suspect:
-            ns = _write_piece(row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
-                              k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
-                              beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                              out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+            if tf + ns * hh < t1:  # the step holds samples
+                if carry and ns - ns_anchor >= REANCHOR_EVERY:
+                    carry = False  # re-anchor the samples' recurrence
+                if not carry:
+                    ns_anchor = ns
+                ns, wxh, wvh, carry = _write_piece(
+                    row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
+                    k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
+                    beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                    out_x, out_v, out_f, out_a, wsn, wcs, carry, wxh, wvh,
+                )  # fmt: skip
             x, v = x1, v1
+            if r == 0 and free_bound < e_low:
+                # In free flight x = x_h + x_p with |x_p| <= free_bound's particular
+                # part and |x_h| bounded by its decaying amplitude: if even their sum
+                # stays below the lowest gap, the row never touches again. Its
+                # remaining samples are the closed form of this one segment.
+                zh0, zh1 = x1 - xp1, v1 - vp1
+                wz = (zh1 + sig * zh0) / root
+                if free_bound + math.sqrt(zh0 * zh0 + wz * wz) < e_low:
+                    while ns < n_samples:  # re-anchored every REANCHOR_EVERY samples
+                        t_end = tf + min(ns + REANCHOR_EVERY, n_samples) * hh
+                        ns, _, _, _ = _write_piece(
+                            row, 0, t1, zh0, zh1, t_end, ns, n_samples, tf, hh,
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[0, row],
+                            beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        )  # fmt: skip
+                    break
         else:
-            # exact march through the step with events: as _Stepper._resolve
+            # Exact march through the step, locating each event. G at the step's
+            # ends comes from the states the step already has (no closed form).
+            carry = False
+            ap0, ap1 = 0.0, 0.0
+            for j in range(nj):
+                ap0 -= fv[j] * fv[j] * (pv[j] * sn[j] + qv[j] * cs[j])
+                ap1 -= fv[j] * fv[j] * (pv[j] * sn1[j] + qv[j] * cs1[j])
+            g0, r0 = _g_rate(x, v, ap0 - k * z0 - c * z1, t, beta, cc, e0, ga, gf, gp, has_gap)
+            zh0, zh1 = x1 - xp1, v1 - vp1
+            gl, rl = _g_rate(x1, v1, ap1 - k * zh0 - c * zh1, t1, beta, cc, e0, ga, gf, gp,
+                             has_gap)  # fmt: skip
             tt, xx, vv, rr = t, x, v, r
+            xl, vl = x1, v1  # the state at the step's end, in the current region
             left = H
             finished = False
-            for _ev in range(_MAX_EVENTS_PER_STEP):
-                pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
-                k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
-                xp, vp, _ = _particular(xc, pv, qv, fv, tt)
-                z0, z1 = xx - xp, vv - vp
+            for ev in range(MAX_EVENTS_PER_STEP):
+                if ev > 0:  # after an event: the new region's segment from (xx, vv)
+                    pv, qv, xc = P[rr, row], Q[rr, row], X[rr, row]
+                    k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
+                    xp, vp, ap = _particular(xc, pv, qv, fv, tt)
+                    z0, z1 = xx - xp, vv - vp
+                    g0, r0 = _g_rate(xx, vv, ap - k * z0 - c * z1, tt, beta, cc, e0, ga, gf, gp,
+                                     has_gap)  # fmt: skip
+                    gl, rl, xl, vl = _switch(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv,
+                                           fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                 sign_in = 1.0 if rr == 1 else -1.0
-                g0, r0 = _switch(0.0, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-                gl, rl = _switch(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                 beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                 s_hi, g_hi, r_hi = math.nan, math.nan, 0.0
                 if gl * sign_in <= 0:
                     s_hi, g_hi, r_hi = left, gl, rl
                 elif r0 * sign_in < 0 and rl * sign_in > 0:
-                    s_ext, _h = _locate(1, 0.0, left, r0, rl, 1e-9, False, 0.0,
+                    s_ext, _, _, _, _, _ = _locate(1, 0.0, left, r0, rl, 1e-9, False, 0.0,
                                     tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
                                     beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
-                    g_ext, _ = _switch(s_ext, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv,
-                                       fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    g_ext, _, _, _ = _switch(s_ext, tt, z0, z1, k, c, sig, root, disc, xc, pv,
+                                             qv, fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
                     if g_ext * sign_in <= 0:
                         s_hi, g_hi = s_ext, g_ext
-                if not math.isfinite(s_hi):
-                    ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                                      k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                      beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                      out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
-                    xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                if not math.isfinite(s_hi):  # no event: the rest of the step
+                    if tf + ns * hh < t1:  # the piece holds samples
+                        ns, _, _, _ = _write_piece(
+                            row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                            beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        )  # fmt: skip
+                    xx, vv = xl, vl
                     finished = True
                     break
+                x_go, v_go = xx, vv
                 if abs(g0) <= 1e-12 * max(abs(g_hi), 1e-300) and r0 * sign_in < 0:
                     s_go = 0.0
                 else:
                     glo = sign_in * max(abs(g0), 1e-300)
                     tol = 1e-15 * (1.0 + abs(tt))
                     guess = _hermite_root(g0, r0, g_hi, r_hi, s_hi)
-                    s_go, s_out = _locate(0, 0.0, s_hi, glo, g_hi, tol, True, guess,
-                                          tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                          beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    s_go, s_out, known, g_go, x_go, v_go = _locate(
+                        0, 0.0, s_hi, glo, g_hi, tol, True, guess,
+                        tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                        beta, cc, e0, ga, gf, gp, has_gap,
+                    )  # fmt: skip
                     # Switch on the far side of the root: were the state left a
                     # round-off inside, the next region would find this root again
                     # (a spurious contact of zero length).
-                    g_go, _ = _switch(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
-                                      beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                    if not known:
+                        g_go, _, x_go, v_go = _switch(
+                            s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                            beta, cc, e0, ga, gf, gp, has_gap,
+                        )  # fmt: skip
                     step_out = tol
                     for _try in range(8):
                         if not g_go * sign_in > 0:
                             break
                         s_try = min(s_go + step_out, s_out)
-                        g_try, _ = _switch(s_try, tt, z0, z1, k, c, sig, root, disc, xc, pv,
-                                           qv, fv, beta, cc, e0, ga, gf, gp, has_gap)  # fmt: skip
+                        g_try, _, x_try, v_try = _switch(
+                            s_try, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv,
+                            beta, cc, e0, ga, gf, gp, has_gap,
+                        )  # fmt: skip
                         if g_try * sign_in <= 0:
-                            s_go = s_try
+                            s_go, x_go, v_go = s_try, x_try, v_try
                             break
                         step_out *= 2.0
-                ns = _write_piece(row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
-                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
-                xx, vv, _ = _state(s_go, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
+                if tf + ns * hh < tt + s_go:  # the piece holds samples
+                    ns, _, _, _ = _write_piece(
+                        row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                    )  # fmt: skip
+                xx, vv = x_go, v_go
                 tt += s_go
                 left = max(left - s_go, 0.0)
                 rr = 1 - rr
@@ -450,16 +507,19 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                 k, c, sig, disc, root = ks[rr], cs_[rr], sigs[rr], discs[rr], roots[rr]
                 xp, vp, _ = _particular(xc, pv, qv, fv, tt)
                 z0, z1 = xx - xp, vv - vp
-                ns = _write_piece(row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
-                                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                                  out_x, out_v, out_f, out_a, wsn, wcs)  # fmt: skip
+                if tf + ns * hh < t1:  # the piece holds samples
+                    ns, _, _, _ = _write_piece(
+                        row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
+                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                    )  # fmt: skip
                 xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
             x, v, region = xx, vv, rr
         t = t1
         for j in range(nj):
             sn[j], cs[j] = sn1[j], cs1[j]
-        if i % _REANCHOR_EVERY == 0:
+        if i % REANCHOR_EVERY == 0:
             for j in range(nj):
                 sn[j], cs[j] = math.sin(fv[j] * t), math.cos(fv[j] * t)
         if t > t_last and ns >= n_samples:
@@ -479,22 +539,21 @@ def _kernel_parallel(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsi
                      beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
                      x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a,
                      impacts):  # fmt: skip
-    for row in _prange(x0.size):
+    for row in numba.prange(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
              x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
 
 
-if _numba is not None:
-    _kernel_serial = _numba.njit(cache=True, error_model="numpy")(_kernel_serial)
-    _kernel_parallel = _numba.njit(cache=True, error_model="numpy", parallel=True)(_kernel_parallel)
+_kernel_serial = numba.njit(cache=True, error_model="numpy")(_kernel_serial)
+_kernel_parallel = numba.njit(cache=True, error_model="numpy", parallel=True)(_kernel_parallel)
 
 
 def _c(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=np.float64)
 
 
-def simulate_linear_compiled(
+def simulate_closed_form(
     model: LinearModel,
     x0: np.ndarray,
     v0: np.ndarray,
@@ -502,15 +561,14 @@ def simulate_linear_compiled(
     h: np.ndarray,
     n_samples: int,
     parallel: bool = True,
-) -> dict[str, np.ndarray]:
-    """As :func:`stiffnet.simulator.closed_form.simulate_linear`, compiled.
+) -> EngineResult:
+    """Start at t=0 from (x0, v0) and sample ``n_samples`` at ``t_first + n h``.
 
-    ``parallel`` spreads the rows over numba's threads (``NUMBA_NUM_THREADS``).
-    Raises ImportError when numba is not installed (see :func:`available`).
+    ``x0``, ``v0``, ``t_first`` and ``h`` are per row (or broadcast). The rows run
+    in parallel over numba's threads (``NUMBA_NUM_THREADS``, see
+    :func:`limited_threads`) unless ``parallel`` is False.
     """
-    if _numba is None:
-        raise ImportError("simulate_linear_compiled needs numba (pip install numba)")
-    reg = _Regions(model)
+    reg = RegionCoefficients(model)
     b = len(model.batch)
     x0 = np.broadcast_to(np.asarray(x0, float), (b,))
     v0 = np.broadcast_to(np.asarray(v0, float), (b,))
@@ -536,11 +594,7 @@ def simulate_linear_compiled(
         _c(np.sin(gv.phase)), bool(reg.has_gap_var), int(jf), _c(x0), _c(v0), _c(t_first),
         _c(h), int(n_samples), out_x, out_v, out_f, out_a, impacts,
     )  # fmt: skip
-    return {
-        "x": out_x,
-        "v": out_v,
-        "accel": out_a,
-        "contact_force": out_f,
-        "impacts": impacts,
-        "t0": np.array(t_first, dtype=float),
-    }
+    return EngineResult(
+        x=out_x, v=out_v, accel=out_a, contact_force=out_f, impacts=impacts,
+        t0=np.array(t_first, dtype=float),
+    )  # fmt: skip

@@ -1,6 +1,6 @@
 """Batched fixed-step RK4 integrator with event location, for any dynamics effect.
 
-The closed-form engine (:mod:`stiffnet.simulator.closed_form`) is exact but
+The closed-form engine (:mod:`stiffnet.simulator.compiled`) is exact but
 needs a piecewise-linear model. Effects that override the numerical hooks of
 :class:`~stiffnet.effects.base.DynamicsEffect` (a Hertz contact law, a
 restraint with its own mass, dry friction, user effects) are integrated here.
@@ -79,6 +79,7 @@ import numpy as np
 from stiffnet.effects.base import DynamicsEffect, ParamArrays, Sinusoids
 from stiffnet.errors import ConfigError
 from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.result import EngineResult
 
 _MAX_EVENTS_PER_SUBSTEP = 8
 _ROOT_ITERS = 80
@@ -563,10 +564,11 @@ def simulate_numerical(
     h: np.ndarray,
     n_samples: int,
     substeps: int = 8,
-) -> dict[str, np.ndarray]:
+) -> EngineResult:
     """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
 
-    Same output contract as :func:`~stiffnet.simulator.closed_form.simulate_linear`.
+    Returns the same :class:`~stiffnet.simulator.result.EngineResult` as the
+    closed-form engine.
 
     Parameters
     ----------
@@ -590,7 +592,7 @@ def simulate_numerical(
 
     Returns
     -------
-    dict of numpy.ndarray
+    EngineResult
         ``x``, ``v``, ``accel`` (absolute acceleration of the mass: the spring,
         damper, contact and extra forces), ``contact_force`` (all (B, n_samples)),
         ``impacts`` (int8, contact entries during the step that ends at each
@@ -627,6 +629,4 @@ def simulate_numerical(
     out["impacts"] = np.zeros((n_samples, n), dtype=np.int8)
     t0 = st.t + h
     st.march(h, n_samples, n_sub(h), out)
-    out = {k: v.T for k, v in out.items()}  # (B, N) views
-    out["t0"] = t0
-    return out
+    return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})  # (B, N) views

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from stiffnet.simulator.closed_form import LinearModel
+from stiffnet.simulator.linear import LinearModel
 
 
 def reference_trajectory(

@@ -16,7 +16,8 @@ from stiffnet.effects.base import (
 )
 from stiffnet.errors import ConfigError
 from stiffnet.simulator.batch import OscillatorBatch
-from stiffnet.simulator.closed_form import LinearModel, simulate_linear
+from stiffnet.simulator.linear import LinearModel
+from stiffnet.simulator.numerical import simulate_numerical
 
 #: Internal steps never exceed this fraction of the contact's natural period / pi,
 #: so the switching function has at most one extremum per step.
@@ -69,10 +70,9 @@ class Simulator:
     min_transient_periods : lower bound of the transient, in forcing periods.
     substeps : RK4 steps per sample of the numerical integrator (used only when
         an effect is not piecewise linear).
-    compiled : run the closed-form engine as a compiled (numba) loop over rows,
-        on numba's threads, when numba is installed; the numpy engine otherwise.
-        Both are exact; on chaotic orbits they part after long transients, as
-        any two correct integrators do.
+
+    The closed-form engine (:mod:`stiffnet.simulator.compiled`) runs the rows on
+    numba's threads; :func:`~stiffnet.simulator.compiled.limited_threads` bounds them.
     """
 
     def __init__(
@@ -81,7 +81,6 @@ class Simulator:
         settle_tolerance: float = 1e-3,
         min_transient_periods: float = 20.0,
         substeps: int = 8,
-        compiled: bool = True,
     ) -> None:
         if not 0 < settle_tolerance < 1:
             raise ConfigError("settle_tolerance must be in (0, 1)")
@@ -97,7 +96,6 @@ class Simulator:
         self.settle_tolerance = settle_tolerance
         self.min_transient_periods = min_transient_periods
         self.substeps = substeps
-        self.compiled = compiled
 
     @property
     def engine(self) -> str:
@@ -118,6 +116,7 @@ class Simulator:
         x0: np.ndarray | None = None,
         v0: np.ndarray | None = None,
         effect_params: dict[str, ParamArrays] | None = None,
+        active: dict[str, np.ndarray] | None = None,
     ) -> SimulationResult:
         """Simulate ``n_samples`` of each parameter set after its transient.
 
@@ -129,6 +128,9 @@ class Simulator:
             noise and measurement effects.
         x0, v0 : initial state; default uniform in ``[-a, a]`` and ``[-a w, a w]``.
         effect_params : per-trajectory parameters by effect name, to override draws.
+        active : per-trajectory booleans by effect name: rows where the effect is off are
+            simulated without it (a dynamics effect through its ``neutral`` parameters, a
+            measurement effect by skipping those rows). Default: on everywhere.
         """
         b = len(batch)
         if n_samples < 1:
@@ -149,20 +151,17 @@ class Simulator:
             if name not in params:
                 raise ConfigError(f"parameters given for effect {name!r} that is not enabled")
             params[name].update({k: np.asarray(v, float) for k, v in given.items()})
+        masks = self._activity(active, params, b)
 
         h = 2 * np.pi / fs_ratio
         t_tr = self.transient_time(batch)
         if self.engine == "closed_form":
-            from stiffnet.simulator import compiled
+            # imported here: numba's import (~0.25 s) is paid by simulating, not by
+            # every module that builds a Simulator or reads its results
+            from stiffnet.simulator.compiled import simulate_closed_form
 
-            model = self.linear_model(batch, params)
-            if self.compiled and compiled.available():
-                out = compiled.simulate_linear_compiled(model, x0, v0, t_tr, h, n_samples)
-            else:
-                out = simulate_linear(model, x0, v0, t_tr, h, n_samples)
+            out = simulate_closed_form(self.linear_model(batch, params), x0, v0, t_tr, h, n_samples)
         else:
-            from stiffnet.simulator.numerical import simulate_numerical
-
             # RK4 marches on a uniform grid: transient steps as short as the contact's.
             h_cap = np.minimum(2 * np.pi / 40, _CONTACT_STEP_FACTOR / np.sqrt(1 + batch.beta))
             n_tr = int(np.ceil(np.max(t_tr / h_cap)))
@@ -170,11 +169,11 @@ class Simulator:
                 batch, self.dynamics, [params[e.name] for e in self.dynamics],
                 x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
             )  # fmt: skip
-        measured = self._measure(out["accel"], batch, fs_ratio, noise, params, rng)
+        measured = self._measure(out.accel, batch, fs_ratio, noise, params, rng, masks)
         return SimulationResult(
-            batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out["accel"],
-            x=out["x"], v=out["v"], contact_force=out["contact_force"], impacts=out["impacts"],
-            t0=out["t0"], noise=noise, engine=self.engine, effect_params=params,
+            batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out.accel,
+            x=out.x, v=out.v, contact_force=out.contact_force, impacts=out.impacts,
+            t0=out.t0, noise=noise, engine=self.engine, effect_params=params,
         )  # fmt: skip
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
@@ -195,7 +194,31 @@ class Simulator:
                 damping = damping + c
         return LinearModel(batch, forcing, gap, damping)
 
-    def _measure(self, accel, batch, fs_ratio, noise, params, rng) -> np.ndarray:
+    def _activity(
+        self, active: dict[str, np.ndarray] | None, params: dict[str, ParamArrays], b: int
+    ) -> dict[str, np.ndarray]:
+        """Check the per-row masks; switch dynamics effects off through their neutral values."""
+        masks: dict[str, np.ndarray] = {}
+        for name, mask in (active or {}).items():
+            eff = next((e for e in self.effects if e.name == name), None)
+            if eff is None:
+                raise ConfigError(f"activity given for effect {name!r} that is not enabled")
+            mask = np.broadcast_to(np.asarray(mask, dtype=bool), (b,))
+            if mask.all():
+                continue
+            if isinstance(eff, DynamicsEffect):
+                if eff.neutral is None:
+                    raise ConfigError(
+                        f"effect {name} declares no neutral parameters, so it cannot be off "
+                        "for some rows of a batch: simulate those rows without it"
+                    )
+                p = params[name]
+                for key, value in eff.neutral.items():
+                    p[key] = np.where(mask, np.broadcast_to(p[key], (b,)), value)
+            masks[name] = mask
+        return masks
+
+    def _measure(self, accel, batch, fs_ratio, noise, params, rng, masks=None) -> np.ndarray:
         """The measurement chain, in physical order, with the baseline white noise."""
         fs_hz = fs_ratio * batch.natural_frequency_hz
         context = {
@@ -208,7 +231,15 @@ class Simulator:
             if not white_done and eff.order > _WHITE_NOISE_ORDER:
                 signal = self._white(signal, batch, noise, rng)
                 white_done = True
-            signal = eff.apply(signal, fs_hz, {**params[eff.name], **context}, rng)
+            p = {**params[eff.name], **context}
+            mask = (masks or {}).get(eff.name)
+            if mask is None:
+                signal = eff.apply(signal, fs_hz, p, rng)
+            elif mask.any():  # the effect acts on its rows only
+                rows = np.flatnonzero(mask)
+                sub = {k: np.broadcast_to(v, (len(mask),))[rows] for k, v in p.items()}
+                signal = np.array(signal, dtype=np.float64, copy=True)
+                signal[rows] = eff.apply(signal[rows], fs_hz[rows], sub, rng)
         if not white_done:
             signal = self._white(signal, batch, noise, rng)
         return signal

@@ -1,4 +1,12 @@
-"""Exact, event-located, batched solver of the piecewise-linear impact oscillator.
+"""Test oracle: the closed-form solver of the piecewise-linear oscillator in numpy.
+
+Not used by :class:`~stiffnet.simulator.simulator.Simulator` (its engine is
+:mod:`stiffnet.simulator.compiled`); the accuracy tests run the compiled engine
+against this and against scipy's ``solve_ivp`` (:mod:`stiffnet.simulator.reference`).
+It shares the model and the coarse-step rule (:mod:`stiffnet.simulator.linear`)
+but not the execution: numpy calls over the whole batch, events logged while
+marching and every sample evaluated afterwards from its segment's closed form,
+and its own safeguarded Newton over the batch.
 
 Within a region (free flight or contact) eq. (12) is linear with sinusoidal
 forcing, so one sampling step is exact: subtract the particular solution,
@@ -16,88 +24,20 @@ turn to a pull, before the penetration is zero ("the restraint never pulls").
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from stiffnet.effects.base import Sinusoids
-from stiffnet.simulator.batch import OscillatorBatch
-from stiffnet.simulator.linear import particular_coefficients, transition_matrix
-
-_MAX_EVENTS_PER_STEP = 12
-_NEWTON_ITERS = 60
-_REANCHOR_EVERY = 512  # exact trig every so many steps bounds the rotation round-off
-
-
-@dataclass
-class LinearModel:
-    """The piecewise-linear model of a batch: forcing, gap and contact terms."""
-
-    batch: OscillatorBatch
-    forcing: Sinusoids  # F(t), includes a w^2 sin(w t)
-    gap_variation: Sinusoids  # e(t) - e
-    contact_damping: np.ndarray  # c_c, (B,)
-
-
-class _Regions:
-    """Per-region constants: particular-solution coefficients and step matrices."""
-
-    def __init__(self, model: LinearModel) -> None:
-        b = model.batch
-        beta, xi, cc = b.beta, b.damping, model.contact_damping
-        self.beta, self.cc, self.e0, self.xi = beta, cc, b.gap, xi
-        f_amp, f_frq, f_ph = model.forcing.amp, model.forcing.freq, model.forcing.phase
-        g_amp, g_frq, g_ph = (
-            model.gap_variation.amp,
-            model.gap_variation.freq,
-            model.gap_variation.phase,
-        )
-        self.gap_var = model.gap_variation
-        self.has_gap_var = g_amp.shape[1] > 0 and np.any(g_amp != 0)
-        # One frequency set for both regions: forcing ones then gap ones.
-        self.freq = np.concatenate([f_frq, g_frq], axis=1)
-        jf = f_frq.shape[1]
-        sin_free = np.zeros_like(self.freq)
-        cos_free = np.zeros_like(self.freq)
-        sin_free[:, :jf] = f_amp * np.cos(f_ph)
-        cos_free[:, :jf] = f_amp * np.sin(f_ph)
-        # In contact the restraint adds beta*e(t) + c_c*e'(t) on the right-hand side.
-        sin_con, cos_con = sin_free.copy(), cos_free.copy()
-        gb = beta[:, None] * g_amp
-        gc = cc[:, None] * g_amp * g_frq
-        sin_con[:, jf:] = gb * np.cos(g_ph) - gc * np.sin(g_ph)
-        cos_con[:, jf:] = gb * np.sin(g_ph) + gc * np.cos(g_ph)
-        self.k = np.stack([np.ones_like(beta), 1.0 + beta])  # (2, B)
-        self.c = np.stack([2 * xi, 2 * xi + cc])
-        p0, q0 = particular_coefficients(1.0, 2 * xi[:, None], self.freq, sin_free, cos_free)
-        p1, q1 = particular_coefficients(
-            (1.0 + beta)[:, None], (2 * xi + cc)[:, None], self.freq, sin_con, cos_con
-        )
-        self.P = np.stack([p0, p1])  # (2, B, J)
-        self.Q = np.stack([q0, q1])
-        const_con = np.divide(beta * b.gap, 1.0 + beta)
-        self.X = np.stack([np.zeros_like(beta), const_con])  # (2, B)
-
-    def gap(self, idx: np.ndarray, t: np.ndarray):
-        """e(t) and e'(t) for trajectories idx."""
-        if not self.has_gap_var:
-            return self.e0[idx], np.zeros(idx.size)
-        sub = self.gap_var.subset(idx)
-        return self.e0[idx] + sub.value(t), sub.rate(t)
-
-    def gap_accel(self, idx: np.ndarray, t: np.ndarray) -> np.ndarray:
-        if not self.has_gap_var:
-            return np.zeros(idx.size)
-        sub = self.gap_var.subset(idx)
-        ph = sub.freq * t[:, None] + sub.phase
-        return -np.sum(sub.amp * sub.freq**2 * np.sin(ph), axis=1)
-
-    def switching_value(self, idx, t, x, v):
-        """G = min(x - e, F_c) and the contact force F_c."""
-        e, de = self.gap(idx, t)
-        d = x - e
-        force = self.beta[idx] * d + self.cc[idx] * (v - de)
-        return np.minimum(d, force), force
+from stiffnet.simulator.linear import (
+    DISC_TINY,
+    MAX_EVENTS_PER_STEP,
+    NEWTON_ITERATIONS,
+    REANCHOR_EVERY,
+    LinearModel,
+    RegionCoefficients,
+    coarse_steps,
+    hermite_root,
+    transition_matrix,
+)
+from stiffnet.simulator.result import EngineResult
 
 
 class _Segment:
@@ -107,7 +47,7 @@ class _Segment:
     Newton iterations of event location cost one trig evaluation each.
     """
 
-    def __init__(self, reg: _Regions, idx, region, t0, x0, v0) -> None:
+    def __init__(self, reg: RegionCoefficients, idx, region, t0, x0, v0) -> None:
         self.reg, self.idx, self.region, self.t0 = reg, idx, region, t0
         self.f, self.P, self.Q, self.X = (
             reg.freq[idx],
@@ -121,7 +61,7 @@ class _Segment:
         self.sig = 0.5 * self.c
         disc = self.k - self.sig**2
         self.root = np.sqrt(np.abs(disc))
-        self.all_under = bool(np.all(disc > 1e-12))
+        self.all_under = bool(np.all(disc > DISC_TINY))
         self.disc = disc
 
     def subset(self, rows: np.ndarray) -> _Segment:
@@ -178,23 +118,7 @@ def _particular_sum(X, P, Q, f, sn, cs):
     return xp, vp, ap
 
 
-def _hermite_root(g0, r0, g1, r1, length):
-    """Root in (0, length) of the cubic Hermite interpolant of G (values and rates at
-    both ends, G changing sign): a starting point a few Newton steps from the root."""
-    lo, hi = np.zeros_like(g0), np.ones_like(g0)
-    a0, b0, a1, b1 = g0, r0 * length, g1, r1 * length
-    u = np.clip(g0 / np.where(g0 != g1, g0 - g1, 1.0), 0.0, 1.0)  # secant start
-    for _ in range(4):  # the cubic's own error dominates after a few steps
-        u2, u3 = u * u, u * u * u
-        p = (2 * u3 - 3 * u2 + 1) * a0 + (u3 - 2 * u2 + u) * b0 + (-2 * u3 + 3 * u2) * a1
-        p = p + (u3 - u2) * b1
-        dp = (6 * u2 - 6 * u) * (a0 - a1) + (3 * u2 - 4 * u + 1) * b0 + (3 * u2 - 2 * u) * b1
-        left = np.sign(p) == np.sign(g0)
-        lo, hi = np.where(left, u, lo), np.where(left, hi, u)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            un = u - p / dp
-        u = np.where(np.isfinite(un) & (un > lo) & (un < hi), un, 0.5 * (lo + hi))
-    return u * length
+_hermite_starts = np.vectorize(hermite_root, otypes=[float])
 
 
 def _locate_root(seg, lo, hi, glo, ghi, tol, fun=None, start=None):
@@ -215,7 +139,7 @@ def _locate_root(seg, lo, hi, glo, ghi, tol, fun=None, start=None):
     s = np.where(on_boundary, 0.5 * (lo + hi), s)
     out = s.copy()
     rows = np.arange(s.size)
-    for _ in range(_NEWTON_ITERS):
+    for _ in range(NEWTON_ITERATIONS):
         g, dg = fun(seg, s)
         left = np.sign(g) == np.sign(glo)
         lo, glo = np.where(left, s, lo), np.where(left, g, glo)
@@ -253,7 +177,7 @@ class _Stepper:
     """
 
     def __init__(self, model: LinearModel, x0: np.ndarray, v0: np.ndarray) -> None:
-        self.reg = _Regions(model)
+        self.reg = RegionCoefficients(model)
         n = len(model.batch)
         self.all = np.arange(n)
         self.x, self.v = x0.astype(float).copy(), v0.astype(float).copy()
@@ -343,7 +267,7 @@ class _Stepper:
         region = self.region[idx].copy()
         left = self.h[idx].copy()  # time remaining in the step
         active = np.arange(idx.size)
-        for _ in range(_MAX_EVENTS_PER_STEP):
+        for _ in range(MAX_EVENTS_PER_STEP):
             if active.size == 0:
                 break
             seg = _Segment(reg, idx[active], region[active], t[active], x[active], v[active])
@@ -381,7 +305,7 @@ class _Stepper:
                 # Right after an event G(0) is ~0 with either sign: use the region's.
                 glo = sign_in[ev] * np.maximum(np.abs(g0[ev]), 1e-300)
                 tol = 1e-15 * (1.0 + np.abs(t[active[ev]]))
-                guess = _hermite_root(g0[ev], r0[ev], g_hi[ev], r_hi[ev], s_hi[ev])
+                guess = _hermite_starts(g0[ev], r0[ev], g_hi[ev], r_hi[ev], s_hi[ev])
                 s_go[ev] = _locate_root(
                     sub, np.zeros(ev.size), s_hi[ev], glo, g_hi[ev], tol, start=guess
                 )
@@ -418,28 +342,14 @@ def _interior_extremum(seg: _Segment, la, r0, r1):
     return s, val
 
 
-def coarse_steps(model: LinearModel) -> tuple[np.ndarray, np.ndarray]:
-    """Free-flight and contact steps per row.
-
-    Short enough that the switching function has at most one extremum per step:
-    a fraction of the half period of the fastest free motion (the forcing and its
-    harmonics, or the natural frequency) and of the contact's own period.
-    """
-    b = model.batch
-    fastest = np.maximum(1.0, np.max(np.abs(model.forcing.freq), axis=1))
-    h_free = np.minimum(0.6, 0.7 / fastest)
-    h_contact = np.minimum(h_free, 1.0 / np.sqrt(1.0 + b.beta))
-    return h_free, h_contact
-
-
-def simulate_linear(
+def closed_form_reference(
     model: LinearModel,
     x0: np.ndarray,
     v0: np.ndarray,
     t_first: np.ndarray,
     h: np.ndarray,
     n_samples: int,
-) -> dict[str, np.ndarray]:
+) -> EngineResult:
     """Start at t=0 from (x0, v0) and sample ``n_samples`` at ``t_first + n h``.
 
     Returns arrays of shape ``(B, n_samples)``: ``x``, ``v`` (relative displacement
@@ -465,7 +375,7 @@ def simulate_linear(
         if not np.any(snapped):
             first_log = len(st.log)  # nothing before any snapshot is needed
         st.step()
-        if i % _REANCHOR_EVERY == 0:
+        if i % REANCHOR_EVERY == 0:
             st._anchor()
         if np.all(st.t > t_last):
             break
@@ -473,7 +383,7 @@ def simulate_linear(
     return _fill_samples(st.reg, snap, events, t_first, h, n_samples)
 
 
-def _fill_samples(reg: _Regions, snap, events, t_first, h, n_samples) -> dict[str, np.ndarray]:
+def _fill_samples(reg: RegionCoefficients, snap, events, t_first, h, n_samples) -> EngineResult:
     """Evaluate the closed form of each segment at the sample times it covers."""
     b = t_first.size
     cat = [np.concatenate([np.arange(b)] + [e[0] for e in events])]
@@ -494,7 +404,7 @@ def _fill_samples(reg: _Regions, snap, events, t_first, h, n_samples) -> dict[st
     k, c = reg.k[rs, rows], reg.c[rs, rows]
     sig = 0.5 * c
     disc = k - sig * sig
-    all_under = bool(np.all(disc > 1e-12))
+    all_under = bool(np.all(disc > DISC_TINY))
     root = np.sqrt(np.abs(disc))
     starts = np.searchsorted(rows, np.arange(b))
     ends = np.searchsorted(rows, np.arange(b), side="right")
@@ -542,5 +452,4 @@ def _fill_samples(reg: _Regions, snap, events, t_first, h, n_samples) -> dict[st
     # Absolute acceleration of the mass: the forces of the springs, dampers and
     # restraint; the base excitation cancels (x is relative to the table).
     out["accel"] = -(2 * reg.xi[:, None] * out["v"] + out["x"] + out["contact_force"])
-    out["t0"] = t_first.copy()
-    return out
+    return EngineResult(t0=t_first.copy(), **out)

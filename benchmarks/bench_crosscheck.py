@@ -1,0 +1,231 @@
+"""Accuracy and cost of the two explainable cross-checks (and the shipped model) (issue 14).
+
+For each test set it simulates recordings of 16 natural periods with parameters
+drawn from the default priors (configs/sim/default.yaml: beta 5-100 stratified
+by class, gap 0-3, a 0.2-2, w 0.8-1.2, xi 0.01-0.05, fs/f_n 50-500 log-uniform)
+and runs on each
+
+* the **restoring-force** estimate (:func:`stiffnet.restoring_force.restoring_force_estimate`,
+  natural frequency given, as in the predictor);
+* the paper's **geometric** method (:func:`stiffnet.geometry.geometric_estimate`,
+  shipped calibration);
+* the shipped **learned model** through :class:`serving.predictor.Predictor`
+  (``--no-model`` skips it).
+
+Sets: ``ideal`` at noise 0, 2, 5, 9 % (the paper's noise scale) and the realistic
+ones at 2 % noise: ``damped`` (contact_damping 0-0.3), ``sensor``
+(sensor_dynamics: 1.5 kHz mount resonance, 1 Hz high-pass, 1 kHz low-pass),
+``harmonics`` (forcing_harmonics 2nd 0-15 %, 3rd 0-8 %, random phases),
+``two_effects`` (damped contact + sensor), ``power_law`` (a user
+``module:Class`` contact, F ~ d**1.3, see ``crosscheck_effects.py``).
+
+Per method and set: class accuracy over the recordings with contact (a
+refusal counts as wrong), answered fraction, accuracy on the answered ones,
+beta MAPE and interval coverage on the answered ones, and the median cost per
+recording. Prints a Markdown table (docs/crosscheck.md) and JSON with ``--json``::
+
+    python benchmarks/bench_crosscheck.py [--n 40] [--no-model] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+FN_HZ = 9.48
+PERIODS = 16
+CLASSES = (("soft", 5.0, 15.0), ("medium", 15.0, 35.0), ("hard", 35.0, 60.0),
+           ("very_hard", 60.0, 100.0))  # fmt: skip
+SETS: dict[str, tuple[float, list[tuple[str, dict[str, Any]]]]] = {
+    "ideal 0%": (0.0, []),
+    "ideal 2%": (0.02, []),
+    "ideal 5%": (0.05, []),
+    "ideal 9%": (0.09, []),
+    "damped": (0.02, [("contact_damping", {"damping_ratio": [0.0, 0.3]})]),
+    "sensor": (0.02, [("sensor_dynamics", {})]),
+    "harmonics": (
+        0.02,
+        [
+            (
+                "forcing_harmonics",
+                {
+                    "second": [0.0, 0.15],
+                    "third": [0.0, 0.08],
+                    "phase_second": [-3.14, 3.14],
+                    "phase_third": [-3.14, 3.14],
+                },
+            )
+        ],
+    ),  # fmt: skip
+    "two_effects": (
+        0.02,
+        [("contact_damping", {"damping_ratio": [0.0, 0.3]}), ("sensor_dynamics", {})],
+    ),
+    "power_law": (0.02, [("crosscheck_effects:PowerLawContact", {})]),
+}
+
+
+def simulate_set(name: str, n: int, seed: int):
+    """``n`` recordings of set `name`: (accel rows, fs_hz, beta, has contact)."""
+    from stiffnet.effects.registry import build_effect
+    from stiffnet.simulator.batch import OscillatorBatch
+    from stiffnet.simulator.simulator import Simulator
+
+    noise, effects = SETS[name]
+    rng = np.random.default_rng(seed)
+    # stratified beta: equal numbers per class
+    edges = [(lo, hi) for _, lo, hi in CLASSES]
+    beta = np.array([rng.uniform(*edges[i % len(edges)]) for i in range(n)])
+    batch = OscillatorBatch(
+        beta=beta,
+        gap=rng.uniform(0.0, 3.0, n),
+        amplitude=rng.uniform(0.2, 2.0, n),
+        omega=rng.uniform(0.8, 1.2, n),
+        damping=rng.uniform(0.01, 0.05, n),
+        natural_frequency_hz=np.full(n, FN_HZ),
+    )
+    fs_ratio = np.exp(rng.uniform(np.log(50), np.log(500), n))
+    sim = Simulator([build_effect(e, p) for e, p in effects])
+    # one batch (the numerical engine is vectorised over rows); each row keeps its 16 periods
+    res = sim.simulate(batch, fs_ratio, int(PERIODS * fs_ratio.max()), noise=noise, rng=rng)
+    lengths = (PERIODS * fs_ratio).astype(int)
+    rows = [res.accel[i, : lengths[i]] for i in range(n)]
+    fs = list(fs_ratio * FN_HZ)
+    contact = [bool(np.any(res.contact_force[i, : lengths[i]] > 0)) for i in range(n)]
+    return rows, np.array(fs), beta, np.array(contact)
+
+
+def class_of(beta: float | None) -> str:
+    if beta is None or not np.isfinite(beta):
+        return "no_contact"
+    for name, _lo, hi in CLASSES:
+        if beta < hi:
+            return name
+    return CLASSES[-1][0]
+
+
+def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
+    from stiffnet.errors import StiffnetError
+    from stiffnet.geometry import geometric_estimate
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    predictor = None
+    if use_model:
+        from serving.predictor import Predictor
+
+        predictor = Predictor.load()
+    out: dict[str, list[dict[str, Any]]] = {"restoring_force": [], "geometric": []}
+    if predictor is not None:
+        out["learned"] = []
+    for a, f in zip(rows, fs, strict=True):
+        t = time.process_time()
+        r = restoring_force_estimate(a, f, natural_frequency_hz=FN_HZ)
+        cost = time.process_time() - t
+        out["restoring_force"].append(
+            dict(cls=r.physical_class if r.ok else "refused", beta=r.beta,
+                 interval=r.beta_interval, cost=cost, ok=r.ok)
+        )  # fmt: skip
+        t = time.process_time()
+        try:
+            g = geometric_estimate(a, f)
+            gd = dict(cls=g.geometric_class, beta=g.geometric_beta, ok=g.contact_detected)
+        except StiffnetError:
+            gd = dict(cls="refused", beta=None, ok=False)
+        gd.update(interval=None, cost=time.process_time() - t)
+        out["geometric"].append(gd)
+        if predictor is not None:
+            t = time.process_time()
+            p = predictor.predict(a, f, natural_frequency_hz=FN_HZ)
+            out["learned"].append(
+                dict(cls=p["class"], beta=p["beta"], interval=p["beta_interval"],
+                     cost=time.process_time() - t, ok=p["class"] != "no_contact")
+            )  # fmt: skip
+    return out
+
+
+def score(results: list[dict[str, Any]], beta: np.ndarray, contact: np.ndarray) -> dict:
+    """Class accuracy, answered fraction, MAPE and coverage over the contact recordings."""
+    idx = np.flatnonzero(contact)
+    truth = [class_of(float(beta[i])) for i in idx]
+    got = [results[i] for i in idx]
+    correct = np.array([g["cls"] == t for g, t in zip(got, truth, strict=True)])
+    answered = np.array([g["beta"] is not None and g["ok"] for g in got])
+    ape = np.array([abs(g["beta"] / beta[i] - 1) for g, i in zip(got, idx, strict=True)
+                    if g["beta"] is not None and g["ok"]])  # fmt: skip
+    cov = [g["interval"][0] <= beta[i] <= g["interval"][1]
+           for g, i in zip(got, idx, strict=True) if g["ok"] and g["interval"]]  # fmt: skip
+    no_contact = np.flatnonzero(~contact)
+    refused_nc = [results[i]["cls"] in ("no_contact", "refused") for i in no_contact]
+    return {
+        "n_contact": int(idx.size),
+        "accuracy": float(correct.mean()) if idx.size else float("nan"),
+        "answered": float(answered.mean()) if idx.size else float("nan"),
+        "accuracy_answered": float(correct[answered].mean()) if answered.any() else float("nan"),
+        "mape": float(ape.mean()) if ape.size else float("nan"),
+        "median_ape": float(np.median(ape)) if ape.size else float("nan"),
+        "coverage": float(np.mean(cov)) if cov else float("nan"),
+        "n_no_contact": int(no_contact.size),
+        "no_contact_said": float(np.mean(refused_nc)) if refused_nc else float("nan"),
+        "cost_ms": 1e3 * float(np.median([r["cost"] for r in results])),
+    }
+
+
+def markdown(table: dict[str, dict[str, dict]]) -> str:
+    def pct(v: float) -> str:
+        return "-" if not np.isfinite(v) else f"{100 * v:.0f}"
+
+    lines = [
+        "| set | method | n contact | accuracy % | answered % | acc. answered % "
+        "| beta MAPE % | median APE % | coverage % | no-contact said % | ms/recording |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for set_name, methods in table.items():
+        for m, s in methods.items():
+            lines.append(
+                f"| {set_name} | {m} | {s['n_contact']} | {pct(s['accuracy'])} | "
+                f"{pct(s['answered'])} | {pct(s['accuracy_answered'])} | {pct(s['mape'])} | "
+                f"{pct(s['median_ape'])} | {pct(s['coverage'])} | "
+                f"{pct(s['no_contact_said'])} ({s['n_no_contact']}) | {s['cost_ms']:.0f} |"
+            )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=40, help="recordings per set")
+    ap.add_argument("--seed", type=int, default=20261123)
+    ap.add_argument("--sets", nargs="*", default=list(SETS), help="subset of the sets")
+    ap.add_argument("--no-model", action="store_true", help="skip the shipped learned model")
+    ap.add_argument("--json", type=Path, help="also write the numbers here")
+    args = ap.parse_args(argv)
+    table: dict[str, dict[str, dict]] = {}
+    t0 = time.perf_counter()
+    for k, name in enumerate(args.sets):
+        if name not in SETS:
+            ap.error(f"unknown set {name!r}; choose from {', '.join(SETS)}")
+        rows, fs, beta, contact = simulate_set(name, args.n, args.seed + k)
+        res = run_methods(rows, fs, not args.no_model)
+        table[name] = {m: score(r, beta, contact) for m, r in res.items()}
+        print(f"{name}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+    print(markdown(table))
+    print(f"\nwall time: {time.perf_counter() - t0:.0f} s")
+    if args.json:
+        from stiffnet.io_utils import write_json_atomic
+
+        write_json_atomic(args.json, table)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

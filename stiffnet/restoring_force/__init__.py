@@ -1,0 +1,60 @@
+"""The restoring-force (force-state mapping) estimate of beta, numpy/scipy only.
+
+Masri & Caughey's restoring-force method (Worden & Tomlinson, *Nonlinearity in
+Structural Dynamics*): the accelerometer on the mass reads the total restoring
+force per unit mass, so with the relative displacement and velocity
+reconstructed, the force-displacement map shows the contact law directly and
+beta is the ratio of its contact slope to its free-flight slope. An explainable
+cross-check beside the paper's geometric method (:mod:`stiffnet.geometry`).
+
+=================  ==============================================================
+``reconstruct``    forcing frequency, whole-period segment, frequency-domain
+                   integration to relative velocity and displacement
+``free_flight``    free-flight law ``-y = c v + k x`` with the table's motion at the
+                   forcing harmonics; contact split; per-flight impulse corrections
+``contact_law``    Kelvin-Voigt power law with release at zero force:
+                   onset, stiffness, damping, exponent
+``estimate``       :func:`restoring_force_estimate`: the chain, bootstrap interval
+                   over impacts, goodness of fit, refusal reasons
+=================  ==============================================================
+
+Never import torch, sklearn, mlflow here, nor matplotlib: the predictor imports it.
+"""
+
+from stiffnet.restoring_force.contact_law import (
+    ContactLaw,
+    contact_force,
+    exponent_matters,
+    fit_contact_law,
+    linear_contact_start,
+)
+from stiffnet.restoring_force.estimate import (
+    RestoringForceResult,
+    bootstrap_beta,
+    impact_regions,
+    restoring_force_estimate,
+)
+from stiffnet.restoring_force.free_flight import FreeFlightFit, fit_free_flight, table_motion
+from stiffnet.restoring_force.reconstruct import (
+    forcing_frequency,
+    integrate_spectral,
+    periodic_length,
+)
+
+__all__ = [
+    "ContactLaw",
+    "FreeFlightFit",
+    "RestoringForceResult",
+    "bootstrap_beta",
+    "contact_force",
+    "exponent_matters",
+    "fit_contact_law",
+    "fit_free_flight",
+    "forcing_frequency",
+    "impact_regions",
+    "integrate_spectral",
+    "linear_contact_start",
+    "periodic_length",
+    "restoring_force_estimate",
+    "table_motion",
+]

@@ -1,0 +1,507 @@
+"""The restoring-force (force-state mapping) estimate of beta, end to end.
+
+Masri & Caughey's restoring-force surface (Worden & Tomlinson, *Nonlinearity in
+Structural Dynamics*, ch. 7) for the impact oscillator: the accelerometer on the
+mass reads the total restoring force per unit mass (docs/simulator.md; eqs 11-12),
+so once displacement and velocity are known the force-displacement map *is* the
+contact law. :func:`restoring_force_estimate` chains
+
+1. the forcing frequency (:func:`~.reconstruct.forcing_frequency`, or given)
+   and a segment of whole forcing periods that wraps around best;
+2. frequency-domain integration to ``x_i``, ``v_i`` (:mod:`.reconstruct`);
+3. the free-flight law ``-y = c v + k x`` with the table's motion at the forcing
+   harmonics, and the contact split (:mod:`.free_flight`); ``k = (f_n / f_f)**2``
+   when the natural frequency is given (near resonance the free decay and the
+   forcing share a frequency and ``k`` is poorly determined by one record);
+4. the contact law with dissipation and exponent on the samples around the
+   impacts (:mod:`.contact_law`): ``beta = K / k``;
+5. an interval by bootstrap over impacts, goodness of fit, and a refusal with a
+   reason when there is no contact or the fit means nothing.
+
+Polarity and gain: the record's polarity is chosen so that contact forces are
+compressive (the spikes' side); every slope is a ratio within the same map, so
+a gain cancels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy import integrate, ndimage, optimize
+
+from stiffnet.errors import ConfigError, SignalError
+from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
+from stiffnet.restoring_force.contact_law import (
+    ContactLaw,
+    exponent_matters,
+    fit_contact_law,
+    linear_contact_start,
+)
+from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS, fit_free_flight
+from stiffnet.restoring_force.reconstruct import (
+    check_record,
+    forcing_frequency,
+    integrate_spectral,
+    periodic_length,
+)
+
+#: Shortest record, forcing periods.
+MIN_PERIODS = 4.0
+#: Impacts needed for an estimate (and for the bootstrap).
+MIN_IMPACTS = 3
+#: Refuse when the contact law explains less of the contact force than this.
+MIN_CONTACT_R2 = 0.5
+#: Refuse when the free-flight law explains less of the free restoring force than this.
+MIN_FREE_R2 = 0.5
+#: Below this contact R2 the "auto" high-pass correction is searched.
+HIGHPASS_SEARCH_R2 = 0.97
+#: Bootstrap replicates over impacts.
+N_BOOTSTRAP = 200
+
+
+@dataclass(frozen=True)
+class RestoringForceResult:
+    """Result of :func:`restoring_force_estimate`.
+
+    Attributes
+    ----------
+    ok : bool
+        Whether beta was estimated; when False, `reason` says why.
+    beta : float or None
+        ``K / k``, the contact stiffness over the free-flight stiffness.
+    beta_interval : tuple of float or None
+        Bootstrap interval over impacts at `coverage`.
+    physical_class : str
+        Class of `beta` by the configured edges, ``"no_contact"`` without contact,
+        None when refused for another reason.
+    contact_damping_ratio : float or None
+        ``c_c / (2 sqrt(K))``: the contact's own damping ratio (``contact_damping``).
+    exponent : float or None
+        Contact exponent ``p`` (1 linear, 1.5 Hertz).
+    free_damping_ratio : float
+        ``xi = c / (2 sqrt(k))``.
+    natural_frequency_hz : float
+        ``f_f sqrt(k)`` (the given one when `stiffness_rule` is ``"given f_n"``).
+    fitted_natural_frequency_hz : float or None
+        ``f_n`` the free flight alone gives (a check on a given one).
+    forcing_frequency_hz : float
+    stiffness_rule : str
+        ``"given f_n"`` or ``"fitted"``.
+    highpass_hz : float
+        Corner of the sensor chain's high-pass undone before integrating (0: none).
+    n_impacts : int
+    samples_per_contact : float
+        Median samples in contact per impact (below ~4 the spike is barely resolved).
+    free_r2, contact_r2 : float
+        Goodness of fit of the free-flight and contact laws.
+    polarity : int
+        -1 if contact forces show as negative accelerations (stiffnet's sensor), +1 if positive.
+    reason : str
+        One line: what was estimated, or why not.
+    displacement, force : numpy.ndarray
+        The force-displacement map (gain units) for the figure.
+    law : ContactLaw or None
+        The fitted contact law (gain units).
+    """
+
+    ok: bool
+    beta: float | None
+    beta_interval: tuple[float, float] | None
+    physical_class: str | None
+    contact_damping_ratio: float | None
+    exponent: float | None
+    free_damping_ratio: float
+    natural_frequency_hz: float
+    fitted_natural_frequency_hz: float | None
+    forcing_frequency_hz: float
+    stiffness_rule: str
+    highpass_hz: float
+    n_impacts: int
+    samples_per_contact: float
+    free_r2: float
+    contact_r2: float
+    polarity: int
+    coverage: float
+    reason: str
+    displacement: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
+    velocity: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
+    force: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
+    free_stiffness: float = float("nan")
+    law: ContactLaw | None = field(repr=False, default=None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready summary (no arrays)."""
+
+        def num(v: float | None) -> float | None:
+            return float(v) if v is not None and np.isfinite(v) else None
+
+        return {
+            "ok": self.ok,
+            "beta": num(self.beta),
+            "beta_interval": list(self.beta_interval) if self.beta_interval else None,
+            "coverage": self.coverage,
+            "physical_class": self.physical_class,
+            "contact_damping_ratio": num(self.contact_damping_ratio),
+            "exponent": num(self.exponent),
+            "free_damping_ratio": num(self.free_damping_ratio),
+            "natural_frequency_hz": num(self.natural_frequency_hz),
+            "fitted_natural_frequency_hz": num(self.fitted_natural_frequency_hz),
+            "forcing_frequency_hz": num(self.forcing_frequency_hz),
+            "stiffness_rule": self.stiffness_rule,
+            "highpass_hz": num(self.highpass_hz),
+            "n_impacts": self.n_impacts,
+            "samples_per_contact": num(self.samples_per_contact),
+            "free_r2": num(self.free_r2),
+            "contact_r2": num(self.contact_r2),
+            "polarity": self.polarity,
+            "reason": self.reason,
+        }
+
+
+def _polarity(a: np.ndarray) -> int:
+    """-1 if the record's extreme excursions (the contact spikes) point down, else +1."""
+    med = float(np.median(a))
+    lo, hi = np.percentile(a, [0.5, 99.5])
+    return -1 if med - lo >= hi - med else 1
+
+
+def impact_regions(contact: np.ndarray, margin: int) -> tuple[np.ndarray, int]:
+    """Label each impact (a run of contact samples) with `margin` samples around it."""
+    near = ndimage.binary_dilation(contact, iterations=margin) if margin > 0 else contact
+    labels, n = ndimage.label(near)
+    return labels, int(n)
+
+
+def bootstrap_beta(
+    law: ContactLaw,
+    force: np.ndarray,
+    disp: np.ndarray,
+    vel: np.ndarray,
+    labels: np.ndarray,
+    n_impacts: int,
+    stiffness: float,
+    coverage: float,
+    rng: np.random.Generator,
+    n_boot: int = N_BOOTSTRAP,
+) -> tuple[float, float]:
+    """Interval of beta by resampling impacts: each impact's own secant stiffness, averaged.
+
+    With the onset, damping and exponent of the global fit, each impact's
+    stiffness is the least-squares ``K_j`` of ``F - c_c v = K_j g(d)`` on its
+    samples in contact (``g(d) = d_r (d / d_r)**p``). Impacts are drawn with
+    replacement and the mean of their ``K_j / k`` recomputed; the interval is
+    the percentile interval, widened to contain the global estimate.
+    """
+    d = np.maximum(disp - law.onset, 0.0)
+    g = law.reference_penetration * (d / law.reference_penetration) ** law.exponent
+    rhs = force - law.damping * vel
+    inside = (d > 0) & (labels > 0) & (force > 0)
+    idx = np.arange(1, n_impacts + 1)
+    num = ndimage.sum(np.where(inside, g * rhs, 0.0), labels, idx)
+    den = ndimage.sum(np.where(inside, g * g, 0.0), labels, idx)
+    good = den > 0
+    kj = num[good] / den[good] / stiffness
+    beta = law.stiffness / stiffness
+    if kj.size < 2:
+        return beta, beta
+    draws = rng.integers(0, kj.size, (n_boot, kj.size))
+    # a weighted mean (by den) keeps the bootstrap centred on the global least-squares fit
+    w = den[good]
+    means = (kj[draws] * w[draws]).sum(axis=1) / w[draws].sum(axis=1)
+    shift = beta - float(np.sum(kj * w) / np.sum(w))  # bias of the per-impact fits
+    alpha = 0.5 * (1.0 - coverage)
+    lo, hi = np.quantile(means + shift, [alpha, 1.0 - alpha])
+    return float(min(lo, beta)), float(max(hi, beta))
+
+
+def _refuse(reason: str, **kw: Any) -> RestoringForceResult:
+    base: dict[str, Any] = dict(
+        ok=False,
+        beta=None,
+        beta_interval=None,
+        physical_class=None,
+        contact_damping_ratio=None,
+        exponent=None,
+        free_damping_ratio=float("nan"),
+        natural_frequency_hz=float("nan"),
+        fitted_natural_frequency_hz=None,
+        forcing_frequency_hz=float("nan"),
+        stiffness_rule="",
+        highpass_hz=0.0,
+        n_impacts=0,
+        samples_per_contact=0.0,
+        free_r2=float("nan"),
+        contact_r2=float("nan"),
+        polarity=0,
+        coverage=0.9,
+        reason=reason,
+    )
+    base.update(kw)
+    return RestoringForceResult(**base)
+
+
+@dataclass
+class _Map:
+    """One pass of the force-state map at a given high-pass correction."""
+
+    fit: Any
+    info: dict[str, Any]
+    corner: float
+    refusal: str = ""
+    law: ContactLaw | None = None
+    labels: np.ndarray | None = None
+    n_impacts: int = 0
+    spc: float = 0.0
+    exponent: float | None = None
+
+
+def undo_highpass(y: np.ndarray, dtau: float, corner: float) -> np.ndarray:
+    """Invert a first-order high-pass at ``corner`` (forcing frequencies): ``y + w_h int_0^t y``.
+
+    A charge amplifier's high-pass (``s / (s + w_h)``) commutes with the linear
+    free-flight law but not with the contact's: it adds ``w_h int x`` to the
+    displacement (``+0.1 v`` at an impact for a 1 Hz corner under a 10 Hz
+    forcing, read as a negative contact damping of ``0.1 K``), and a record that
+    starts with the filter out of equilibrium carries its decaying transient.
+    The inverse runs in the time domain from the first sample so that it
+    removes that transient too; its constant of integration is the mean, which
+    the integration drops anyway.
+    """
+    if corner <= 0:
+        return y
+    return y + corner * integrate.cumulative_trapezoid(y, dx=dtau, initial=0.0)
+
+
+def _fit_map(
+    y: np.ndarray,
+    dtau: float,
+    tau: np.ndarray,
+    use: np.ndarray,
+    period: float,
+    k_given: float | None,
+    corner: float,
+    exponent: float | None,
+) -> _Map:
+    """Integrate, fit the free flight and the contact law (see the module notes)."""
+    y = undo_highpass(y, dtau, corner)
+    vel_i, disp_i = integrate_spectral(y, dtau)
+    fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given)
+    root_k = float(np.sqrt(max(fit.stiffness, 0.0)))
+    info: dict[str, Any] = dict(
+        free_r2=fit.r2,
+        free_damping_ratio=fit.damping / (2 * root_k) if root_k > 0 else np.nan,
+        natural_frequency_ratio=root_k,
+        displacement=fit.displacement[use],
+        velocity=fit.velocity[use],
+        force=fit.force[use],
+        free_stiffness=fit.stiffness,
+    )
+    if fit.stiffness <= 0:
+        why = "the free-flight law has no positive stiffness: not an oscillator"
+        return _Map(fit, info, corner, refusal=why)
+    if fit.r2 < MIN_FREE_R2:
+        why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
+        return _Map(fit, info, corner, refusal=why)
+    core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+    labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
+    labels[~use] = 0
+    info["n_impacts"] = n_imp
+    peak = float(fit.force[use].max()) / max(fit.sigma, 1e-300)
+    if n_imp < MIN_IMPACTS:
+        info["physical_class"] = NO_CONTACT
+        why = (
+            f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
+            f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
+        )
+        return _Map(fit, info, corner, refusal=why)
+    near = labels > 0
+    spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
+    info["samples_per_contact"] = spc
+    kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
+    if not np.isfinite(kc0) or int(core.sum()) < 4:
+        why = "the contact force does not grow with the displacement"
+        return _Map(fit, info, corner, refusal=why)
+    peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
+    dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
+    state = (fit.force, fit.displacement, fit.velocity, near)
+    law = fit_contact_law(*state, (kc0, e0, cc0), dr, 1.0 if exponent is None else exponent)
+    fitted_exponent = law.exponent
+    if exponent is None:  # the exponent is reported; it sets beta only where it is significant
+        free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
+        fitted_exponent = free_law.exponent
+        if exponent_matters(law, free_law):
+            law = free_law
+    info.update(law=law, contact_r2=law.r2)
+    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent)
+    if law.r2 < MIN_CONTACT_R2:
+        out.refusal = (
+            f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
+            "no meaningful fit"
+        )
+    return out
+
+
+def _fit_highpass(args: tuple, ff: float, plain: _Map) -> float:
+    """Rule: the high-pass corner (forcing frequencies) whose correction fits the contact best.
+
+    Searched only when the plain map fits the contact poorly (the corner is not
+    identifiable from the free flight, whose law the filter leaves intact):
+    a grid up to 0.4 of the forcing frequency, then a bounded scalar search
+    around the best point. Returns 0 when no corner helps.
+    """
+
+    def misfit(corner: float) -> float:
+        m = _fit_map(*args, corner, 1.0)
+        return 1.0 - m.law.r2 if m.law is not None and not m.refusal else 2.0
+
+    best, best_cost = 0.0, 1.0 - plain.law.r2 if plain.law is not None else 2.0
+    grid = np.array([0.0, 0.025, 0.05, 0.1, 0.2, 0.4])
+    costs = [best_cost] + [misfit(c) for c in grid[1:]]
+    i = int(np.argmin(costs))
+    if costs[i] >= best_cost - 0.01:
+        return best
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    res = optimize.minimize_scalar(misfit, bounds=(lo, hi), method="bounded",
+                                   options={"xatol": 0.002, "maxiter": 8})  # fmt: skip
+    return float(res.x) if res.fun < costs[i] else float(grid[i])
+
+
+def restoring_force_estimate(
+    accel: ArrayLike,
+    fs_hz: float,
+    *,
+    natural_frequency_hz: float | None = None,
+    forcing_frequency_hz: float | None = None,
+    exponent: float | None = None,
+    classes=DEFAULT_CLASSES,
+    coverage: float = 0.9,
+    seed: int = 0,
+    max_periods: float | None = None,
+    highpass_hz: float | str = "auto",
+) -> RestoringForceResult:
+    """Estimate beta from one acceleration record by the restoring-force method.
+
+    Parameters
+    ----------
+    accel : array_like
+        Acceleration of the mass (any gain, either polarity), at least four
+        forcing periods; 16 or more give a usable interval.
+    fs_hz : float
+        Sampling rate, Hz.
+    natural_frequency_hz : float, optional
+        Natural frequency of the free mass; fixes ``k = (f_n / f_f)**2``.
+        None fits ``k`` from the free flight (poorly determined near resonance).
+    forcing_frequency_hz : float, optional
+        Forcing frequency (the manifest's); estimated from the spectrum when None.
+    exponent : float, optional
+        Fix the contact exponent (1 for a linear restraint); fitted when None.
+    classes : sequence of (name, low, high)
+        Class edges in beta (configs/sim/default.yaml).
+    coverage : float
+        Nominal coverage of the bootstrap interval.
+    seed : int
+        Seed of the bootstrap.
+    max_periods : float, optional
+        Analyse at most this many forcing periods (the middle of the record).
+    highpass_hz : float or "auto"
+        Corner of a first-order high-pass in the sensor chain (charge amplifier),
+        undone before integrating; ``"auto"`` fits it when the plain map fits the
+        contact poorly, 0 assumes none.
+
+    Returns
+    -------
+    RestoringForceResult
+        ``ok`` False with a ``reason`` when there is no contact or no meaningful fit.
+
+    Raises
+    ------
+    ConfigError
+        For invalid options.
+    SignalError
+        If the record is not a finite 1-D signal with an oscillation, or too short.
+    """
+    from stiffnet.nlts._validate import as_signal
+
+    for name, value in (("fs_hz", fs_hz), ("natural_frequency_hz", natural_frequency_hz),
+                        ("forcing_frequency_hz", forcing_frequency_hz)):  # fmt: skip
+        if value is None and name != "fs_hz":
+            continue
+        if not (isinstance(value, int | float | np.number) and np.isfinite(value) and value > 0):
+            raise ConfigError(f"{name} must be a positive number, got {value!r}")
+    if not 0 < coverage < 1:
+        raise ConfigError(f"coverage must be in (0, 1), got {coverage!r}")
+    a = as_signal(accel, 32, "acceleration")
+    if float(np.std(a)) == 0.0:
+        raise SignalError("acceleration is constant")
+    ff = float(forcing_frequency_hz) if forcing_frequency_hz else forcing_frequency(a, fs_hz)
+    if not ff < 0.5 * fs_hz:
+        raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
+    period = fs_hz / ff
+    a = check_record(a, period, MIN_PERIODS)
+    if max_periods is not None and a.size > max_periods * period:
+        keep = int(max_periods * period)
+        start = (a.size - keep) // 2
+        a = a[start : start + keep]
+    polarity = _polarity(a)
+    y = a * -polarity  # contact forces push -y up
+    length = periodic_length(y, period)
+    y = y[:length]
+    dtau = 2 * np.pi * ff / fs_hz
+    tau = np.arange(length) * dtau
+    # the wrap-around of a non-periodic record spoils the integrals at the ends
+    use = np.ones(length, dtype=bool)
+    edge = max(1, int(0.25 * period))
+    use[:edge] = use[-edge:] = False
+    k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
+    args = (y, dtau, tau, use, period, k_given)
+    if highpass_hz == "auto":
+        m = _fit_map(*args, 0.0, 1.0)
+        if m.law is not None and m.law.r2 < HIGHPASS_SEARCH_R2:
+            corner = _fit_highpass(args, ff, m)
+            if corner > 0:
+                m = _fit_map(*args, corner, 1.0)
+        corner = m.corner
+    else:
+        if not (
+            isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
+        ):
+            raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
+        corner = float(highpass_hz) / ff
+    m = _fit_map(*args, corner, exponent)
+    fit, info = m.fit, m.info
+    info.update(
+        forcing_frequency_hz=ff,
+        polarity=polarity,
+        coverage=coverage,
+        stiffness_rule="given f_n" if k_given is not None else "fitted",
+        highpass_hz=corner * ff,
+        natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
+    )
+    if m.refusal:
+        return _refuse(m.refusal, **info)
+    law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
+    k = fit.stiffness
+    beta = law.stiffness / k
+    rng = np.random.default_rng(seed)
+    lo, hi = bootstrap_beta(
+        law, fit.force, fit.displacement, fit.velocity, labels, n_imp, k, coverage, rng
+    )
+    fitted_fn = None if k_given is not None else ff * float(np.sqrt(k))
+    cls = str(beta_class(np.array([beta]), classes)[0])
+    return RestoringForceResult(
+        ok=True,
+        beta=float(beta),
+        beta_interval=(lo, hi),
+        physical_class=cls,
+        contact_damping_ratio=float(law.damping / (2 * np.sqrt(law.stiffness))),
+        exponent=fitted_exponent,
+        fitted_natural_frequency_hz=fitted_fn,
+        reason=(
+            f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
+            "of the contact force"
+        ),
+        **info,
+    )

@@ -1,0 +1,56 @@
+"""The shipped CNN's alarm: quiet on ideal rigs, firing on recordings outside its priors."""
+
+import numpy as np
+import pytest
+
+from serving.predictor import Predictor
+from stiffnet.effects.registry import build_effect
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+FN, RATIO = 9.48, 105.0  # a 9.48 Hz rig recorded at ~1 kHz
+FS = FN * RATIO
+
+
+@pytest.fixture(scope="module")
+def predictor():
+    return Predictor.load()
+
+
+def _record(beta=45.0, effects=()):
+    one = [np.array([v]) for v in (beta, 1.26, 0.7, 1.05, 0.03, FN)]
+    res = Simulator(list(effects)).simulate(
+        OscillatorBatch(*one), RATIO, int(15 * FS), noise=0.02, rng=1
+    )
+    return res.accel[0]
+
+
+@pytest.mark.parametrize("beta", [10.0, 45.0, 80.0])
+def test_no_alarm_on_an_ideal_rig(predictor, beta):
+    res = predictor.predict(_record(beta), FS, natural_frequency_hz=FN)
+    assert not res["ood_flag"] and res["alarm"]["fired"] == []
+    lo, hi = res["beta_interval"]
+    assert lo <= beta <= hi
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        "white noise",
+        "accelerometer resonance at 6 f_n (prior: 15-300 f_n)",
+        "anti-alias low-pass at 2 f_n (prior: 0.15-0.45 fs)",
+    ],
+)
+def test_alarm_fires_outside_the_priors(predictor, case):
+    if case == "white noise":
+        accel = np.random.default_rng(0).normal(size=int(15 * FS))
+    elif case.startswith("accelerometer"):
+        accel = _record(effects=[build_effect("sensor_dynamics", {
+            "resonance_hz": 6 * FN, "resonance_damping": 0.02, "lowpass_hz": 0.0})])  # fmt: skip
+    else:
+        accel = _record(effects=[build_effect("sensor_dynamics", {
+            "resonance_hz": 40000.0, "lowpass_hz": 2 * FN, "lowpass_order": 4})])  # fmt: skip
+    res = predictor.predict(accel, FS, natural_frequency_hz=FN)
+    assert res["ood_flag"] and res["alarm"]["fired"]
+    assert res["ood_score"] > res["ood_threshold"] == 1.0
+    assert any(w.startswith("UNRELIABLE") for w in res["warnings"])

@@ -1,0 +1,184 @@
+"""The layer rule of docs/architecture.md, read from the source (AST, no imports run).
+
+Imports run one way: the core (science, configuration, data I/O and the task
+runner) at the bottom, then training and serving, then the measurement loop, the
+command line on top. A module may import its own layer and the layers below it,
+never one above; nothing imports ``stiffnet.cli``; the predictor (``serving``
+and everything it imports, function-level imports included) never reaches
+torch, scikit-learn or mlflow, nor the training code.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("stiffnet", "serving", "training")
+
+#: Layers from the bottom; a module belongs to the longest prefix listed.
+LAYERS: dict[str, tuple[str, ...]] = {
+    "base": ("stiffnet", "stiffnet.errors", "stiffnet.io_utils", "stiffnet.shipped"),
+    "core": (
+        "stiffnet.config",
+        "stiffnet.effects",
+        "stiffnet.simulator",
+        "stiffnet.nlts",
+        "stiffnet.geometry",
+        "stiffnet.features",
+        "stiffnet.recordings",
+        "stiffnet.campaign",
+        "stiffnet.dataset",
+        "stiffnet.analyze",
+        "stiffnet.plots",
+        "stiffnet.distributed",
+    ),  # fmt: skip
+    "models": ("training", "serving", "stiffnet.distributed.batch"),
+    "measurement": ("stiffnet.measurement",),
+    "cli": (
+        "stiffnet.cli",
+        "stiffnet.__main__",
+        "stiffnet.console",
+        "stiffnet.cli_options",
+        "serving.commands",
+        "stiffnet.measurement.commands",
+        "stiffnet.distributed.commands",
+    ),  # fmt: skip
+}
+ORDER = list(LAYERS)
+FORBIDDEN_IN_PREDICTOR = ("torch", "sklearn", "mlflow", "training")
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def all_modules(root: Path = ROOT) -> dict[str, Path]:
+    return {
+        module_name(p, root): p
+        for pkg in PACKAGES
+        for p in sorted((root / pkg).rglob("*.py"))
+        if "__pycache__" not in p.parts
+    }
+
+
+def imports_of(name: str, source: str, is_package: bool, known: Iterable[str]) -> set[str]:
+    """Every module ``source`` imports, at module level or inside functions.
+
+    ``from a import b`` counts as ``a.b`` when that is a module, else as ``a``.
+    """
+    known = set(known)
+    package = name if is_package else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            for alias in node.names:
+                sub = f"{target}.{alias.name}"
+                found.add(sub if sub in known else target)
+    return found
+
+
+def layer_of(module: str) -> str | None:
+    best, best_len = None, -1
+    for layer, prefixes in LAYERS.items():
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best_len:
+                best, best_len = layer, len(prefix)
+    return best
+
+
+def violations(graph: dict[str, set[str]]) -> list[str]:
+    """Imports against the layer rule, and imports of ``stiffnet.cli``."""
+    found = []
+    for module, targets in sorted(graph.items()):
+        here = layer_of(module)
+        for target in sorted(targets):
+            if target.split(".")[0] not in PACKAGES:
+                continue
+            there = layer_of(target)
+            if there is not None and here is not None and ORDER.index(there) > ORDER.index(here):
+                found.append(f"{module} ({here}) imports {target} ({there})")
+            if target == "stiffnet.cli" and module != "stiffnet.__main__":
+                found.append(f"{module} imports stiffnet.cli")
+    return found
+
+
+def reachable(graph: dict[str, set[str]], start: Iterable[str]) -> dict[str, str]:
+    """Every module reachable from ``start``, each with the module that imports it."""
+    seen: dict[str, str] = {}
+    todo = list(start)
+    while todo:
+        module = todo.pop()
+        for target in graph.get(module, ()):
+            if target not in seen:
+                seen[target] = module
+                todo.append(target)
+    return seen
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    modules = all_modules()
+    return {
+        name: imports_of(name, path.read_text(), path.name == "__init__.py", modules)
+        for name, path in modules.items()
+    }
+
+
+def test_every_module_has_a_layer(graph: dict[str, set[str]]) -> None:
+    assert len(graph) > 50  # the walk found the packages
+    unplaced = [m for m in graph if layer_of(m) is None]
+    assert not unplaced, f"add these modules to a layer in LAYERS (and the docs): {unplaced}"
+
+
+def test_imports_run_one_way(graph: dict[str, set[str]]) -> None:
+    bad = violations(graph)
+    assert not bad, "imports against the layer rule:\n" + "\n".join(bad)
+
+
+def test_predictor_never_reaches_training_libraries(graph: dict[str, set[str]]) -> None:
+    serving = [m for m in graph if m == "serving" or m.startswith("serving.")]
+    assert "serving.predictor" in serving
+    seen = reachable(graph, serving)
+    bad = [
+        f"{target} (imported by {by})"
+        for target, by in sorted(seen.items())
+        if target.split(".")[0] in FORBIDDEN_IN_PREDICTOR
+    ]
+    assert not bad, "the predictor reaches " + ", ".join(bad)
+
+
+def test_rule_checker_catches_upward_imports() -> None:
+    # the checker itself: an upward import, an import of the CLI and a reach into torch
+    known = {"stiffnet.cli", "stiffnet.nlts.delay", "serving.predictor", "training.cnn"}
+    graph = {
+        "stiffnet.nlts.delay": imports_of(
+            "stiffnet.nlts.delay", "def f():\n    from stiffnet.cli import app\n", False, known
+        ),
+        "serving.predictor": imports_of(
+            "serving.predictor", "from training import cnn\n", False, known
+        ),
+        "training.cnn": imports_of("training.cnn", "import torch.nn\n", False, known),
+    }
+    assert graph["serving.predictor"] == {"training.cnn"}
+    bad = violations(graph)
+    assert "stiffnet.nlts.delay (core) imports stiffnet.cli (cli)" in bad
+    assert "stiffnet.nlts.delay imports stiffnet.cli" in bad
+    assert reachable(graph, ["serving.predictor"]) == {
+        "training.cnn": "serving.predictor",
+        "torch.nn": "training.cnn",
+    }
+    # relative imports resolve against the package
+    rel = imports_of("serving.app", "from .predictor import Predictor\n", False, known)
+    assert rel == {"serving.predictor"}

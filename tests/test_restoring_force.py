@@ -1,0 +1,155 @@
+"""The restoring-force estimate of beta: analytic pieces, simulated contacts, refusals."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stiffnet.effects.registry import build_effect
+from stiffnet.errors import ConfigError, SignalError
+from stiffnet.restoring_force import (
+    contact_force,
+    integrate_spectral,
+    restoring_force_estimate,
+    table_motion,
+)
+from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ as FN
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def simulate(beta, effects=(), fs_ratio=400.0, periods=16, noise=0.0, omega=1.1, gap=0.5, amp=1.0):
+    batch = OscillatorBatch.single(beta=beta, gap=gap, amplitude=amp, omega=omega, damping=0.02)
+    sim = Simulator([build_effect(n, p) for n, p in effects])
+    res = sim.simulate(batch, fs_ratio, int(periods * fs_ratio), noise=noise, rng=1)
+    return res.accel[0], fs_ratio * FN
+
+
+# --- analytic pieces -------------------------------------------------------------------
+
+
+def test_spectral_integration_of_a_sinusoid_is_exact():
+    n, dtau = 1000, 2 * np.pi * 5 / 1000  # five whole periods of w = 1
+    tau = np.arange(n) * dtau
+    vel, disp = integrate_spectral(np.sin(3 * tau) + 0.5 * np.cos(tau), dtau)
+    np.testing.assert_allclose(vel, -np.cos(3 * tau) / 3 + 0.5 * np.sin(tau), atol=1e-12)
+    np.testing.assert_allclose(disp, -np.sin(3 * tau) / 9 - 0.5 * np.cos(tau), atol=1e-12)
+
+
+def test_table_motion_solves_the_free_flight_equation():
+    k, c = 0.8, 0.05
+    tau = np.linspace(0, 10, 500)
+    ca, sa = 0.3, -0.7  # table displacement at harmonic 2
+    s = ca * np.cos(2 * tau) + sa * np.sin(2 * tau)
+    ds = 2 * (sa * np.cos(2 * tau) - ca * np.sin(2 * tau))
+    q = k * s + c * ds  # what the regression sees: p cos + q sin
+    coef = np.linalg.lstsq(np.column_stack([np.cos(2 * tau), np.sin(2 * tau)]), q, rcond=None)[0]
+    np.testing.assert_allclose(table_motion(np.r_[0, 0, coef], k, c, (1, 2))[1], [ca, sa])
+
+
+def test_damped_contact_releases_before_the_gap_closes():
+    # penetration 0.1, receding at v = -1: K d + c v = 10 * 0.1 - 2 * 1 < 0 -> no force
+    f = contact_force(np.array([0.1, 0.1, -0.1]), np.array([-1.0, 0.0, 0.0]), 10.0, 0.0, 2.0)
+    np.testing.assert_allclose(f, [0.0, 1.0, 0.0])
+
+
+# --- simulated contacts ----------------------------------------------------------------
+
+
+def test_noise_free_linear_hinge_gives_beta_to_1e_3():
+    accel, fs = simulate(30.0)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(30.0, rel=1e-3)
+    assert r.exponent == pytest.approx(1.0, abs=0.01)
+    assert r.contact_damping_ratio < 0.01
+    assert r.physical_class == "medium"
+    assert r.beta_interval[0] <= 30.0 <= r.beta_interval[1]
+    assert r.polarity == -1 and r.n_impacts >= 12
+    assert r.free_damping_ratio == pytest.approx(0.02, rel=0.05)
+    assert r.contact_r2 > 0.99 and r.free_r2 > 0.99
+
+
+@pytest.mark.parametrize("zeta", [0.1, 0.25])
+def test_kelvin_voigt_contact_gives_its_damping(zeta):
+    accel, fs = simulate(40.0, [("contact_damping", {"damping_ratio": zeta})])
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, exponent=1.0)
+    assert r.ok, r.reason
+    assert r.contact_damping_ratio == pytest.approx(zeta, abs=0.02)
+    # the early release is modelled: no 2x over-estimate of beta
+    assert r.beta == pytest.approx(40.0, rel=0.02)
+
+
+def test_gain_and_polarity_do_not_change_beta():
+    accel, fs = simulate(20.0, noise=0.02)
+    base = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    flipped = restoring_force_estimate(-3.7 * accel, fs, natural_frequency_hz=FN)
+    assert base.ok and flipped.ok
+    assert flipped.beta == pytest.approx(base.beta, rel=1e-6)
+    assert flipped.contact_damping_ratio == pytest.approx(base.contact_damping_ratio, abs=1e-6)
+    assert (base.polarity, flipped.polarity) == (-1, 1)
+
+
+def test_no_contact_is_refused_with_a_reason():
+    accel, fs = simulate(30.0, gap=30.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert not r.ok and r.beta is None and r.physical_class == "no_contact"
+    assert r.reason.startswith("no contact")
+
+
+def test_noise_alone_is_refused():
+    noise = np.random.default_rng(0).standard_normal(6000)
+    with pytest.raises(SignalError, match="forcing periods"):  # no forcing line
+        restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48)
+    r = restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48, forcing_frequency_hz=10)
+    assert not r.ok and r.beta is None and r.reason
+
+
+def test_bad_input_raises_one_line_errors():
+    accel, fs = simulate(30.0, fs_ratio=100.0)
+    with pytest.raises(ConfigError, match="fs_hz"):
+        restoring_force_estimate(accel, -1.0)
+    with pytest.raises(ConfigError, match="natural_frequency_hz"):
+        restoring_force_estimate(accel, fs, natural_frequency_hz=float("nan"))
+    with pytest.raises(SignalError, match="too short"):
+        restoring_force_estimate(accel[:250], fs, natural_frequency_hz=FN)
+    with pytest.raises(SignalError):
+        restoring_force_estimate(np.ones(2000), fs)
+
+
+# --- data not written with the library's defaults -------------------------------------
+
+
+def test_damped_contact_seen_through_sensor_dynamics():
+    effects = [("contact_damping", {"damping_ratio": 0.25}), ("sensor_dynamics", {})]
+    accel, fs = simulate(45.0, effects, fs_ratio=300.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(45.0, rel=0.1)
+    assert r.physical_class == "hard"
+    assert r.contact_damping_ratio == pytest.approx(0.25, abs=0.08)
+
+
+def test_forcing_harmonics_with_phases():
+    params = {"second": 0.12, "third": 0.06, "phase_second": 1.9, "phase_third": -2.4}
+    accel, fs = simulate(12.0, [("forcing_harmonics", params)], fs_ratio=200.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(12.0, rel=0.05)
+    assert r.physical_class == "soft"
+
+
+def test_user_power_law_contact(monkeypatch):
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    law = {"exponent": 1.3, "reference_penetration": 0.3}
+    omega = 1.1
+    accel, fs = simulate(50.0, [("crosscheck_effects:PowerLawContact", law)], omega=omega)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.exponent == pytest.approx(1.3, abs=0.1)
+    # beta is the secant stiffness at the median peak penetration d_r (in the record's
+    # units: x integrated in forcing radians is w**2 x): beta (d_r / w**2 / 0.3)**0.3
+    d_r = r.law.reference_penetration / omega**2
+    assert r.beta == pytest.approx(50.0 * (d_r / 0.3) ** 0.3, rel=0.03)

@@ -1,0 +1,110 @@
+"""Recording-level aggregation, per-trajectory conformal intervals and the alarm."""
+
+import numpy as np
+import pytest
+
+from stiffnet.errors import StiffnetError
+from stiffnet.uncertainty import aggregate_windows, conformal_quantile, normalized_scores
+from stiffnet.uncertainty.alarm import (
+    AlarmReference,
+    calibrate_thresholds,
+    fit_embedding_reference,
+    load_alarm,
+    recording_checks,
+    save_alarm,
+)
+
+
+def test_aggregate_windows_scale_is_model_plus_disagreement():
+    proba = np.array([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0], [0.9, 0.1]])
+    lb = np.array([1.0, 2.0, 3.0, 50.0])  # the last window says no contact: left out
+    est = aggregate_windows(proba, lb, np.full(4, np.log(0.5)), no_contact=0)
+    assert est.label == 1 and est.log_beta == pytest.approx(2.0)
+    assert est.scale == pytest.approx(np.sqrt(0.25 + 2.0 / 3.0))
+    assert est.probabilities == pytest.approx([0.225, 0.775])
+    nc = aggregate_windows(np.array([[0.8, 0.2], [0.7, 0.3]]), np.zeros(2), None, 0)
+    assert nc.label == 0 and nc.log_beta is None and nc.scale is None
+    # without a scale output the model's own part is 1
+    assert aggregate_windows(proba[:2], lb[:2], None, 0).scale == pytest.approx(np.sqrt(1.25))
+
+
+def _synthetic_model(n_traj, rng, windows=4):
+    """Trajectories whose windows share an error (correlated), of a known per-trajectory size."""
+    y = rng.uniform(np.log(5), np.log(100), n_traj)
+    s = rng.uniform(0.02, 0.3, n_traj)  # how hard each trajectory is; the model knows it
+    bias = rng.normal(0, 1, n_traj) * s
+    win = y[:, None] + bias[:, None] + rng.normal(0, 0.3, (n_traj, windows)) * s[:, None]
+    return y, s, win
+
+
+def test_per_trajectory_normalised_conformal_covers_new_recordings():
+    rng = np.random.default_rng(0)
+    y, s, win = _synthetic_model(600, rng)
+    proba = np.tile([0.0, 1.0], (4, 1))
+    est = [
+        aggregate_windows(proba, w, np.log(si) * np.ones(4), 0)
+        for w, si in zip(win, s, strict=True)
+    ]
+    q = conformal_quantile(
+        normalized_scores([e.log_beta for e in est], [e.scale for e in est], y), 0.9
+    )
+    y2, s2, win2 = _synthetic_model(6000, rng, windows=8)  # longer recordings than training
+    est2 = [aggregate_windows(np.tile([0.0, 1.0], (8, 1)), w, np.log(si) * np.ones(8), 0)
+            for w, si in zip(win2, s2, strict=True)]  # fmt: skip
+    covered = [abs(e.log_beta - t) <= q * e.scale for e, t in zip(est2, y2, strict=True)]
+    assert 0.88 <= np.mean(covered) <= 0.94
+    # wide where the model is unsure, narrow where it is sure
+    half = np.array([q * e.scale for e in est2])
+    assert np.median(half[s2 > 0.25]) > 3 * np.median(half[s2 < 0.05])
+    # and it holds on the hard recordings too, where one width for all under-covers
+    hard = s2 > 0.25
+    assert np.mean(np.array(covered)[hard]) >= 0.85
+    q_win = conformal_quantile((win - y[:, None]).ravel(), 0.9)
+    fixed = np.array([abs(e.log_beta - t) <= q_win for e, t in zip(est2, y2, strict=True)])
+    assert fixed[hard].mean() < 0.8
+
+
+def test_conformal_quantile_rank_and_guards():
+    assert conformal_quantile(np.arange(1, 10), 0.9) == 9.0  # ceil(10 * 0.9) = 9th of 9
+    assert conformal_quantile(np.arange(1, 5), 0.9) == np.inf
+    with pytest.raises(ValueError):
+        conformal_quantile([1.0], 1.5)
+    with pytest.raises(ValueError):
+        normalized_scores([0.0], [0.0], [1.0])
+
+
+def test_thresholds_flag_at_most_the_target_in_distribution():
+    rng = np.random.default_rng(1)
+    cal = {"a": rng.normal(size=2000), "b": rng.exponential(size=2000)}
+    cal["b"][:100] = np.nan  # a check that does not apply to some units
+    th, rate = calibrate_thresholds(cal, 0.05)
+    assert 0.04 <= rate <= 0.05
+    fresh_a, fresh_b = rng.normal(size=20000), rng.exponential(size=20000)
+    fresh = np.mean((fresh_a > th["a"]) | (fresh_b > th["b"]))
+    assert fresh == pytest.approx(0.05, abs=0.01)
+
+
+def test_embedding_alarm_flags_far_recordings_and_round_trips(tmp_path):
+    rng = np.random.default_rng(2)
+    train = rng.normal(size=(3000, 6)) * [1, 2, 3, 1, 1, 5] + 10
+    emb, center, scale = fit_embedding_reference(train, 1000, rng)
+    ref = AlarmReference(thresholds={}, embeddings=emb, center=center, scale=scale, k=10)
+    inside = rng.normal(size=(400, 6)) * [1, 2, 3, 1, 1, 5] + 10
+    est = aggregate_windows(np.tile([0.0, 1.0], (1, 1)), np.zeros(1), None, 0)
+    cal = {"embedding": ref.embedding_scores(inside)}
+    ref.thresholds, _ = calibrate_thresholds(cal, 0.04)
+    far = inside[:4] + [0, 0, 0, 8, 0, 0]  # 8 standard deviations off in one direction
+    hit = ref.evaluate(recording_checks(est, ref.embedding_scores(far)))
+    assert hit["flag"] and hit["fired"] == ["embedding"]
+    ok = ref.evaluate(recording_checks(est, ref.embedding_scores(inside[:4])))
+    assert not ok["flag"]
+
+    path = tmp_path / "m.alarm.npz"
+    save_alarm(path, ref)
+    back = load_alarm(path)
+    assert back.thresholds == ref.thresholds
+    np.testing.assert_allclose(back.embedding_scores(far), ref.embedding_scores(far))
+    (tmp_path / "x.npz").write_bytes(b"not a zip")
+    with pytest.raises(StiffnetError, match="not a readable alarm reference") as info:
+        load_alarm(tmp_path / "x.npz")
+    assert "\n" not in str(info.value)
