@@ -32,7 +32,7 @@ receive ``p``, a dict of per-trajectory arrays of shape ``(B,)``.
 
 Each effect also declares its *fit space* (:attr:`Effect.fit_space`, see
 :mod:`stiffnet.effects.fit_space`): the parameters the measurement loop fits to a
-campaign, their search ranges and the values that switch the effect off.
+campaign and their search ranges; its ``neutral`` values are "effect off".
 
 A user effect is any subclass found at ``"package.module:ClassName"``.
 """

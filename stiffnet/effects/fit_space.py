@@ -6,8 +6,8 @@ the *free* parameters with their search interval and scale and the *fixed* ones
 (held where they leave the effect's core alone). "Effect off" is the effect's
 ``neutral`` parameters (:class:`stiffnet.effects.base.Effect`). A pair of
 parameters that is an amplitude and a phase (a harmonic) is fitted in Cartesian
-coordinates ``(A cos phi, A sin phi)``: the objective is smooth there, with no wrap-around at +-pi and no degenerate
-phase at zero amplitude.
+coordinates ``(A cos phi, A sin phi)``: the objective is smooth there, with no
+wrap-around at +-pi and no degenerate phase at zero amplitude.
 
 The search works in the unit cube: :meth:`FitSpace.params` maps a point of it
 to the effect's parameters, :meth:`FitSpace.unit` back.
