@@ -10,6 +10,18 @@ and at the end; then stops the server. Exit code 1 if any 5xx or transport error
 
     python benchmarks/load_http.py            # 50 clients, 5,000 requests
     python benchmarks/load_http.py --quick    # 20 clients, 300 requests
+    python benchmarks/load_http.py --abuse    # small requests alone, then under abuse
+
+``--abuse`` measures the same small requests twice: alone, then while the server
+is abused by big uploads (``--uploaders`` clients each sending ``--uploads``
+multipart ``.npy`` files of 2,000,000 float64 samples (16 MB, at the
+``--max-samples`` limit) or 5,000,000 float32 samples (20 MB, over it) at
+fs = 50 kHz), stalled bodies (``--stalled`` connections that send half a body and
+then nothing) and disconnects (``--disconnects`` connections that send half a
+body and close). Everything is bounded in count and time (``--deadline``) and
+sent to 127.0.0.1 only. Reports the status codes of each kind (5xx must be 0),
+p50/p99 of the small requests alone and under abuse, the server's peak RSS
+(``VmHWM``), and its log: one line per disconnect, no traceback.
 """
 
 from __future__ import annotations
@@ -50,6 +62,16 @@ def rss_mb(pid: int) -> float:
             if line.startswith("VmRSS:"):
                 return int(line.split()[1]) / 1024
     return float("nan")
+
+
+def stop(proc: subprocess.Popen) -> None:
+    """Terminate the server (kill it after 15 s)."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 def wait_healthy(base: str, proc: subprocess.Popen, timeout: float = 60.0) -> None:
@@ -95,6 +117,165 @@ async def run_load(base: str, body: bytes, n_requests: int, n_clients: int, pid:
     return {"latencies": latencies, "codes": codes, "wall_s": wall, "rss": rss}
 
 
+def peak_rss_mb(pid: int) -> float:
+    """Peak resident set size of a process (VmHWM) in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[list, Counter]:
+    """``n`` small JSON predictions from ``clients`` concurrent clients: latencies, codes."""
+    latencies: list[float] = []
+    codes: Counter = Counter()
+    left = n
+
+    async def one(c: httpx.AsyncClient) -> None:
+        nonlocal left
+        while left > 0:
+            left -= 1
+            t = time.perf_counter()
+            try:
+                r = await c.post("/predict", content=body,
+                                 headers={"content-type": "application/json"})  # fmt: skip
+                codes[r.status_code] += 1
+            except httpx.HTTPError as exc:
+                codes[f"transport error {type(exc).__name__}"] += 1
+            latencies.append(time.perf_counter() - t)
+
+    async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
+        await asyncio.gather(*(one(c) for _ in range(clients)))
+    return latencies, codes
+
+
+async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter:
+    """Each file's client uploads it ``per_client`` times (waiting Retry-After on 429)."""
+    codes: Counter = Counter()
+
+    async def one(data: bytes) -> None:
+        async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
+            for _ in range(per_client):
+                try:
+                    r = await c.post("/predict", files={"file": ("big.npy", data)},
+                                     data={"fs_hz": "50000"})  # fmt: skip
+                    codes[r.status_code] += 1
+                    if r.status_code == 429:
+                        await asyncio.sleep(float(r.headers.get("retry-after", "1")))
+                except httpx.HTTPError as exc:
+                    codes[f"transport error {type(exc).__name__}"] += 1
+
+    await asyncio.gather(*(one(f) for f in files))
+    return codes
+
+
+async def half_bodies(port: int, n: int, close: bool, wait_s: float) -> Counter:
+    """``n`` connections sending headers and half a JSON body; then close, or wait."""
+    head = (b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+            b"Content-Type: application/json\r\nContent-Length: 200000\r\n\r\n")  # fmt: skip
+    codes: Counter = Counter()
+
+    async def one(i: int) -> None:
+        await asyncio.sleep(0.02 * i)  # spread over the abuse phase
+        try:
+            reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        except OSError as exc:
+            codes[f"connect error {type(exc).__name__}"] += 1
+            return
+        writer.write(head + b'{"samples": [0.5, 1.5, ' * 200)
+        await writer.drain()
+        if close:
+            writer.close()
+            codes["closed mid-body"] += 1
+            return
+        try:
+            line = await asyncio.wait_for(reader.readline(), wait_s)
+            codes[int(line.split()[1]) if line else "closed without answer"] += 1
+        except TimeoutError:
+            codes["no answer in time"] += 1
+        finally:
+            writer.close()
+
+    await asyncio.gather(*(one(i) for i in range(n)))
+    return codes
+
+
+def percentiles(lat: list[float]) -> str:
+    a = np.array(lat) * 1e3
+    return (f"p50 {np.percentile(a, 50):.0f} ms, p99 {np.percentile(a, 99):.0f} ms, "
+            f"max {a.max():.0f} ms (n={a.size})")  # fmt: skip
+
+
+def run_abuse(args: argparse.Namespace, body: bytes) -> int:
+    """Small requests alone, then under big uploads, stalled bodies and disconnects."""
+    import tempfile
+
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "stiffnet", "serve", "--port", str(port)]
+    if not args.legacy_server:
+        cmd += ["--body-timeout-s", str(args.body_timeout_s)]
+    rng = np.random.default_rng(0)
+    npy = []
+    for i in range(args.uploaders):  # half at the samples limit, half over it
+        arr = (rng.standard_normal(2_000_000) if i % 2 == 0
+               else rng.standard_normal(5_000_000).astype(np.float32))  # fmt: skip
+        buf = __import__("io").BytesIO()
+        np.save(buf, arr)
+        npy.append(buf.getvalue())
+    log = tempfile.NamedTemporaryFile(prefix="stiffnet-serve-", suffix=".log", delete=False)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
+    try:
+        wait_healthy(base, proc)
+        for _ in range(3):  # warm-up
+            httpx.post(f"{base}/predict", content=body, timeout=60,
+                       headers={"content-type": "application/json"})  # fmt: skip
+        rss_start = rss_mb(proc.pid)
+        alone, codes_alone = asyncio.run(small_requests(base, body, args.small, args.small_clients))
+
+        async def abuse() -> tuple:
+            return await asyncio.wait_for(asyncio.gather(
+                small_requests(base, body, args.small, args.small_clients),
+                big_uploads(base, npy, args.uploads),
+                half_bodies(port, args.stalled, close=False, wait_s=args.body_timeout_s + 30),
+                half_bodies(port, args.disconnects, close=True, wait_s=0),
+            ), args.deadline)  # fmt: skip
+
+        t0 = time.perf_counter()
+        (under, codes_small), codes_big, codes_stall, codes_gone = asyncio.run(abuse())
+        wall = time.perf_counter() - t0
+        time.sleep(1.0)
+        health = httpx.get(f"{base}/health", timeout=5).status_code
+        peak = peak_rss_mb(proc.pid)
+    finally:
+        stop(proc)
+        log.close()
+    text = Path(log.name).read_text(errors="replace")
+    Path(log.name).unlink()
+    all_codes = [codes_alone, codes_small, codes_big, codes_stall]
+    n5xx = sum(v for c in all_codes for k, v in c.items() if isinstance(k, int) and k >= 500)
+    opts = (
+        "defaults" if args.legacy_server else f"defaults, --body-timeout-s {args.body_timeout_s:g}"
+    )
+    print(f"server: stiffnet serve ({opts}); small request = {len(body) / 1e3:.0f} kB JSON, "
+          f"{args.small_clients} clients")  # fmt: skip
+    print(f"small requests alone:       {percentiles(alone)}; codes {dict(codes_alone)}")
+    print(f"small requests under abuse: {percentiles(under)}; codes {dict(codes_small)}")
+    print(f"big uploads ({args.uploaders} clients x {args.uploads}, 16-20 MB .npy): "
+          f"codes {dict(sorted(codes_big.items(), key=str))}")  # fmt: skip
+    print(f"stalled bodies ({args.stalled}): {dict(codes_stall)}")
+    print(f"disconnects ({args.disconnects}): {dict(codes_gone)}")
+    lines = text.splitlines()
+    n_gone = sum("disconnected before its request body" in ln for ln in lines)
+    print(f"abuse phase wall {wall:.1f} s; /health after: {health}")
+    print(f"server RSS MB: start {rss_start:.0f}, peak (VmHWM) {peak:.0f}")
+    print(f"server log: {len(lines)} lines, {n_gone} disconnect lines, "
+          f"{text.count('Traceback')} tracebacks")  # fmt: skip
+    print(f"5xx: {n5xx}")
+    return 1 if n5xx or "Traceback" in text or health != 200 else 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="20 clients, 300 requests")
@@ -102,6 +283,19 @@ def main() -> int:
     ap.add_argument("--clients", type=int, default=50)
     ap.add_argument("--seconds", type=float, default=5.0, help="recording length per request")
     ap.add_argument("--max-concurrency", type=int, default=2, help="server worker threads")
+    ab = ap.add_argument_group("--abuse")
+    ab.add_argument("--abuse", action="store_true", help="small requests under abuse")
+    ab.add_argument("--small", type=int, default=200, help="small requests per phase")
+    ab.add_argument("--small-clients", type=int, default=4)
+    ab.add_argument("--uploaders", type=int, default=4)
+    ab.add_argument("--uploads", type=int, default=3, help="uploads per uploader")
+    ab.add_argument("--stalled", type=int, default=100)
+    ab.add_argument("--disconnects", type=int, default=200)
+    ab.add_argument("--body-timeout-s", type=float, default=5.0)
+    ab.add_argument("--deadline", type=float, default=300.0, help="abuse phase limit, s")
+    ab.add_argument("--legacy-server", action="store_true",
+                    help="the server has no --body-timeout-s (code before issue 15; run this "
+                    "script from such a checkout to compare)")  # fmt: skip
     args = ap.parse_args()
     if args.quick:
         args.requests, args.clients = 300, 20
@@ -111,6 +305,8 @@ def main() -> int:
     rec = read_recording(EXAMPLE)
     samples = rec.accel[: int(args.seconds * rec.fs_hz)]
     body = json.dumps({"samples": np.round(samples, 6).tolist(), "fs_hz": rec.fs_hz}).encode()
+    if args.abuse:
+        return run_abuse(args, body)
 
     port = free_port()
     base = f"http://127.0.0.1:{port}"
@@ -142,12 +338,7 @@ def main() -> int:
         res = asyncio.run(run_load(base, body, args.requests, args.clients, proc.pid))
         rss_end = rss_mb(proc.pid)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        stop(proc)
 
     lat = np.array(res["latencies"]) * 1e3
     codes = res["codes"]

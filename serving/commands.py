@@ -123,6 +123,11 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
     return parts
 
 
+#: Environment variable holding the bearer token of ``stiffnet serve`` (``--token``).
+TOKEN_ENVVAR = "STIFFNET_TOKEN"
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+
+
 def serve(
     host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port.")] = 8000,
@@ -130,11 +135,42 @@ def serve(
     max_upload_mb: Annotated[float, typer.Option(help="Largest request body in MB (413).")] = 20.0,
     timeout_s: Annotated[float, typer.Option(help="Per-request time limit (504).")] = 30.0,
     max_concurrency: Annotated[
-        int, typer.Option(help="Predictions running at once (worker threads).")
+        int, typer.Option(help="Small predictions running at once (worker threads).")
     ] = 2,
     max_queue: Annotated[
         int, typer.Option(help="Requests waiting for a worker beyond which 429 is returned.")
     ] = 64,
+    max_samples: Annotated[
+        int, typer.Option(help="Most samples in one recording (413): bounds compute and memory.")
+    ] = 2_000_000,
+    small_upload_mb: Annotated[
+        float, typer.Option(help="Bodies above this are large: their own lane (1 at a time).")
+    ] = 1.0,
+    max_large_queue: Annotated[
+        int, typer.Option(help="Large requests admitted to wait; more get 429 unread.")
+    ] = 2,
+    body_timeout_s: Annotated[
+        float, typer.Option(help="Whole request body within this time, else 408.")
+    ] = 20.0,
+    token: Annotated[
+        str | None,
+        typer.Option(
+            envvar=TOKEN_ENVVAR,
+            show_default=False,
+            help=f"Require 'Authorization: Bearer TOKEN' (prefer ${TOKEN_ENVVAR}).",
+        ),
+    ] = None,  # fmt: skip
+    allowed_host: Annotated[
+        list[str] | None,
+        typer.Option(
+            help="Accepted Host header (repeatable; default the loopback names and "
+            "--host; '*' accepts any)."
+        ),
+    ] = None,  # fmt: skip
+    cors_origin: Annotated[
+        list[str] | None,
+        typer.Option(help="Browser origin allowed to call the API (repeatable; default none)."),
+    ] = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads per prediction.")] = 1,
 ) -> None:
     """Serve the predictor over HTTP (FastAPI): POST /predict, GET /health, GET /model."""
@@ -143,18 +179,71 @@ def serve(
     from serving.app import Limits, create_app
     from serving.predictor import Predictor
     from stiffnet.console import console
+    from stiffnet.errors import StiffnetError
 
-    limits = Limits.checked(max_upload_mb, timeout_s, max_concurrency, max_queue)
-    predictor = Predictor.load(model, threads=threads)
+    limits = Limits.checked(
+        max_upload_mb, timeout_s, max_concurrency, max_queue, max_samples=max_samples,
+        small_upload_mb=small_upload_mb, max_large_queue=max_large_queue,
+        body_timeout_s=body_timeout_s,
+    )  # fmt: skip
     if not 0 <= port <= 65535:
-        from stiffnet.errors import StiffnetError
-
         raise StiffnetError(f"port must be in 0..65535, got {port}")
+    if token is not None and len(token) < 16:
+        raise StiffnetError("--token must be at least 16 characters (a random secret)")
+    sock = listen_socket(host, port)  # before loading anything: a busy port is one line
+    predictor = Predictor.load(model, threads=threads)
+    hosts = allowed_host or [*LOOPBACK_NAMES, "[::1]", host]
+    if not is_loopback(host):
+        console.print(
+            f"[yellow]warning:[/] listening on {host}, beyond loopback: other machines can reach "
+            f"this server ({'token required' if token else 'no --token set'}; "
+            f"Host headers allowed: {', '.join(hosts)})",
+            highlight=False,
+            soft_wrap=True,
+        )
     console.print(
         f"serving {predictor.name} ({predictor.sha256[:12]}) on http://{host}:{port} "
         f"(docs at /docs)"
     )
-    uvicorn.run(create_app(predictor, limits), host=host, port=port, log_level="warning")
+    app = create_app(predictor, limits, token=token, allowed_hosts=hosts, cors_origins=cors_origin)
+    config = uvicorn.Config(app, log_level="warning", timeout_keep_alive=5)
+    uvicorn.Server(config).run(sockets=[sock])
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is a loopback name or address."""
+    import ipaddress
+
+    if host in LOOPBACK_NAMES:
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def listen_socket(host: str, port: int) -> Any:
+    """A listening TCP socket on ``host:port``, or one error line (busy port, bad host)."""
+    import socket
+
+    from stiffnet.errors import StiffnetError
+
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(
+            host.strip("[]"), port, type=socket.SOCK_STREAM
+        )[0]
+    except (socket.gaierror, UnicodeError) as exc:
+        raise StiffnetError(f"--host {host!r}: cannot resolve it ({exc})") from None
+    sock = socket.socket(family, kind, proto)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind(addr)
+        sock.listen(2048)
+    except OSError as exc:
+        sock.close()
+        raise StiffnetError(f"cannot listen on {host}:{port}: {exc.strerror}") from None
+    sock.set_inheritable(True)
+    return sock
 
 
 def register(app: typer.Typer) -> None:

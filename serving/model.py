@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import read_json
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import shipped_file
 
@@ -148,14 +149,9 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
     if not p.is_file():
         raise StiffnetError(f"{p}: model file not found")
     cp = card_path(p)
-    try:
-        card = json.loads(cp.read_text())
-    except FileNotFoundError:
-        raise StiffnetError(
-            f"{p}: model card {cp.name} not found (needed to verify the model)"
-        ) from None
-    except (OSError, ValueError) as exc:
-        raise StiffnetError(f"{cp}: unreadable model card ({exc})") from None
+    if not cp.exists():
+        raise StiffnetError(f"{p}: model card {cp.name} not found (needed to verify the model)")
+    card = read_json(cp, "model card")  # bounded, finite, depth-checked (stiffnet.inputs)
     if not isinstance(card, dict) or not isinstance(card.get("sha256"), str):
         raise StiffnetError(f"{cp}: model card has no sha256")
     digest = sha256_file(p)

@@ -29,7 +29,6 @@ plain JSON file, never a pickle.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import read_json
 
 FORMAT = "stiffnet.ood_reference"
 VERSION = 1
@@ -210,12 +210,9 @@ def load_reference(path: str | Path) -> OODReference:
         If the file is missing, unreadable or not a stiffnet OOD reference.
     """
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise StiffnetError(f"{path}: OOD reference not found") from None
-    except (OSError, ValueError) as exc:
-        raise StiffnetError(f"{path}: unreadable OOD reference ({exc})") from None
+    if not path.exists():
+        raise StiffnetError(f"{path}: OOD reference not found")
+    d = read_json(path, "OOD reference")  # bounded, finite, depth-checked (stiffnet.inputs)
     if not isinstance(d, dict) or d.get("format") != FORMAT or d.get("version") != VERSION:
         raise StiffnetError(f"{path}: not a stiffnet OOD reference (format {FORMAT} v{VERSION})")
     try:

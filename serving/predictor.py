@@ -66,6 +66,7 @@ from serving.physical import physical_check
 from serving.schemas import PredictionResult
 from serving.windows import canonical_tensor, window_length, window_starts
 from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.inputs import natural_frequency, rate_ratio, read_json, real_number, sampling_rate
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
@@ -92,11 +93,8 @@ SIDECAR_SUFFIX = ".json"
 
 
 def _finite_positive(value: Any, what: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise StiffnetError(f"{what} must be a number, got {value!r}") from None
-    if not (math.isfinite(v) and v > 0):
+    v = real_number(value, what)  # a bool or a string is not a number
+    if not v > 0:
         raise StiffnetError(f"{what} must be a finite number > 0, got {value!r}")
     return v
 
@@ -134,13 +132,10 @@ def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
     p = Path(str(recording) + SIDECAR_SUFFIX)
     if not p.is_file():
         return None, p
-    try:
-        d = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise StiffnetError(f"{p}: unreadable sidecar JSON ({exc})") from None
+    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
     if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
         return None, p
-    return _finite_positive(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
+    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
 #: What each alarm check means, for the warning a user reads.
@@ -334,9 +329,9 @@ class Predictor:
             Unusable input, with a one-line message.
         """
         warnings: list[str] = []
-        fs = _finite_positive(fs_hz, "sampling rate fs_hz")
+        fs = sampling_rate(fs_hz)  # physical ranges (stiffnet.inputs)
         if natural_frequency_hz is not None:
-            fn = _finite_positive(natural_frequency_hz, "natural_frequency_hz")
+            fn = natural_frequency(natural_frequency_hz)
             fn_source = natural_frequency_source or "argument"
         elif self.training_natural_frequency is not None:
             fn, fn_source = self.training_natural_frequency, "training_data"
@@ -346,7 +341,7 @@ class Predictor:
             )
         a = self._check_samples(accel, source)
         what = source or "recording"
-        ratio = fs / fn
+        ratio = rate_ratio(fs, fn, what)
         if ratio < MIN_SAMPLES_PER_PERIOD:
             raise StiffnetError(
                 f"{what}: sampling rate {fs:.6g} Hz is below the minimum "

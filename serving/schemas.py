@@ -133,9 +133,12 @@ class PredictionResult(BaseModel):
 
 
 class PredictRequest(BaseModel):
-    """JSON body of ``POST /predict``."""
+    """JSON body of ``POST /predict``.
 
-    model_config = ConfigDict(extra="forbid")
+    Strict: numbers are JSON numbers (``true`` is not 1, ``"1000"`` is not 1000) and finite.
+    """
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
     samples: list[float] = Field(description="Acceleration samples (any unit, either sign).")
     fs_hz: float = Field(description="Sampling rate in Hz.")

@@ -86,11 +86,27 @@ def _num(value: float | None) -> float | None:
     return float(value)
 
 
+#: Signals whose peak lies outside this range are rescaled before the analysis.
+SAFE_PEAK = (1e-100, 1e100)
+
+
+def _unit_scale(x: np.ndarray) -> np.ndarray:
+    """``x`` scaled by a power of two to a peak in [0.5, 1) when its peak is extreme.
+
+    The analysis is scale-free, and the power of two is exact; without it sums and
+    variances of values near 1e307 overflow (reported as NaN the file does not have).
+    """
+    peak = float(np.max(np.abs(x)))
+    if SAFE_PEAK[0] <= peak <= SAFE_PEAK[1]:
+        return x
+    return np.ldexp(x, -int(np.frexp(peak)[1]))
+
+
 def analyze_signal(accel: np.ndarray, fs_hz: float) -> Analysis:
     """Run the whole analysis on one acceleration record sampled at ``fs_hz``."""
     if not np.isfinite(fs_hz) or fs_hz <= 0:
         raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
-    x = nlts.as_signal(accel, 64)
+    x = _unit_scale(nlts.as_signal(accel, 64))
     geo = geometric_estimate(x, fs_hz)
     # Analyse the smoothed signal, as the paper does before embedding (section 5.1).
     s = nlts.savgol_smooth(x, smoothing_window(geo.period_samples))

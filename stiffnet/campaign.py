@@ -40,6 +40,8 @@ from pydantic import (
 
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import quote_content
+from stiffnet.io_utils import check_replaceable_folder, output_lock
 from stiffnet.recordings import Recording, read_recording, write_recording_csv
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -272,8 +274,9 @@ def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
             raise StiffnetError(f"{p}: line {line}: column {i + 1} of the header has no name")
         if col not in COLUMNS:
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
+            shown = quote_content(col) or f"{i + 1} (name not shown)"  # never echo a secret
             raise StiffnetError(
-                f"{p}: unknown column {col!r} (allowed: {', '.join(COLUMNS)}){hint}"
+                f"{p}: unknown column {shown} (allowed: {', '.join(COLUMNS)}){hint}"
             )
     dup = sorted({c for c in columns if columns.count(c) > 1})
     if dup:
@@ -309,7 +312,9 @@ def _validate_row(data: dict[str, Any], where: str) -> ManifestRow:
             msg = _MESSAGES.get(kind, err["msg"].removeprefix("Value error, "))
         if not col:  # a rule across columns
             raise StiffnetError(f"{where}: {msg}") from None
-        raise StiffnetError(f"{where}, column {col}: {msg} (got {err['input']!r})") from None
+        got = quote_content(str(err["input"])) if isinstance(err["input"], str) else None
+        got = f" (got {got})" if got else ""
+        raise StiffnetError(f"{where}, column {col}: {msg}{got}") from None
 
 
 def write_manifest(
@@ -543,10 +548,7 @@ def simulate_campaign(
     pathlib.Path
         ``out_dir``.
     """
-    from stiffnet import __version__
     from stiffnet.distributed.cluster import check_target
-    from stiffnet.distributed.tasks import run_tasks
-    from stiffnet.effects.registry import build_effect, parse_effect_option
 
     manifest = Path(manifest_path)
     out = Path(out_dir).resolve()  # a real name and parent, even for "." or "a/.."
@@ -556,7 +558,28 @@ def simulate_campaign(
         raise StiffnetError(f"default_duration_s must be > 0, got {default_duration_s}")
     check_target(scheduler, workers)
     columns, rows = _read_manifest(manifest)
-    _check_out_dir(out, manifest, overwrite)
+    with output_lock(out):  # one writer per folder: a concurrent run is refused
+        _check_out_dir(out, manifest, overwrite)
+        _simulate_into(manifest, out, columns, rows, effects, seed, default_duration_s,
+                       scheduler, workers)  # fmt: skip
+    return Path(out_dir)
+
+
+def _simulate_into(
+    manifest: Path,
+    out: Path,
+    columns: list[str],
+    rows: list[ManifestRow],
+    effects: Sequence[Effect | str],
+    seed: int,
+    default_duration_s: float,
+    scheduler: str | None,
+    workers: int | None,
+) -> None:
+    from stiffnet import __version__
+    from stiffnet.distributed.tasks import run_tasks
+    from stiffnet.effects.registry import build_effect, parse_effect_option
+
     eff = [build_effect(*parse_effect_option(e)) if isinstance(e, str) else e for e in effects]
 
     # Check every row before simulating anything.
@@ -621,7 +644,6 @@ def simulate_campaign(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return Path(out_dir)
 
 
 @dataclass(frozen=True)
@@ -690,6 +712,7 @@ def _check_out_dir(out: Path, manifest: Path, overwrite: bool) -> None:
         raise StiffnetError(f"{out}: folder exists and is not empty (use overwrite to replace it)")
     if manifest.resolve().is_relative_to(out.resolve()):
         raise StiffnetError(f"{out}: refusing to overwrite the folder holding the input manifest")
+    check_replaceable_folder(out, (CARD_NAME,))  # only a campaign stiffnet wrote is replaced
 
 
 def _swap_in(tmp: Path, out: Path) -> None:

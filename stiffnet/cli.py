@@ -9,21 +9,50 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.table import Table
+from typer.core import TyperGroup
 
 # Command modules keep their heavy imports inside the command functions:
 # ``stiffnet predict`` must not import torch, scikit-learn or mlflow, and
 # ``stiffnet --help`` must stay fast.
 from serving import commands as serving_commands  # predict, serve
 from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
-from stiffnet.console import out, progress_bar, user_errors, write_json
+from stiffnet.console import out, progress_bar, report_error, user_errors, write_json
 from stiffnet.distributed import commands as distributed_commands  # predict-batch
 from stiffnet.measurement import commands as measurement_commands  # evaluate ... report
 
+
+class OneLineErrors(TyperGroup):
+    """Usage errors (``--fs abc``, a missing argument) as one ``error:`` line, exit 2.
+
+    Typer would draw a multi-line box; the contract is one line naming the problem.
+    """
+
+    def main(self, *args: Any, standalone_mode: bool = True, **kwargs: Any) -> Any:
+        if not standalone_mode:
+            return super().main(*args, standalone_mode=False, **kwargs)
+        try:
+            rv = super().main(*args, standalone_mode=False, **kwargs)
+        except typer.TyperException as exc:  # typer's (vendored click's) usage errors
+            if type(exc).__name__ == "NoArgsIsHelpError":
+                exc.show()  # `stiffnet` alone: the help, as before
+                sys.exit(exc.exit_code)
+            ctx = getattr(exc, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+            report_error(f"{message}{hint}")
+            sys.exit(2)
+        except typer.Abort:
+            report_error("aborted")
+            sys.exit(1)
+        sys.exit(rv if isinstance(rv, int) else 0)
+
+
 app = typer.Typer(
+    cls=OneLineErrors,
     name="stiffnet",
     help="Identify the stiffness of an impacted material from one accelerometer.",
     no_args_is_help=True,
@@ -141,8 +170,13 @@ def train(
         typer.Option(help="Training config (YAML); default: stiffnet's configs/train/MODEL.yaml."),
     ] = None,
     out_dir: Annotated[
-        Path, typer.Option("--out", help="Folder for the ONNX model and card.")
-    ] = Path("models"),
+        Path | None,
+        typer.Option(
+            "--out",
+            help="Folder for the ONNX model and card (default: a fresh runs/train-MODEL-TIME; "
+            "the shipped models/ is only replaced when named).",
+        ),
+    ] = None,
     tracking_uri: Annotated[
         str | None, typer.Option(help="MLflow tracking URI (default: the config's, sqlite).")
     ] = None,
@@ -166,9 +200,13 @@ def train(
         cfg = validate_config(TrainConfig, {"model": model})
     if cfg.model != model:
         raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
+    from stiffnet.io_utils import fresh_run_folder, output_lock
     from training.train import train as run_training
 
-    result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    out_dir = out_dir or fresh_run_folder(f"train-{model}")
+    with output_lock(out_dir):  # a concurrent train into the same folder is refused
+        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
     table = Table(title=f"{model} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):

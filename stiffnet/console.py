@@ -16,6 +16,7 @@ from typing import Any, TypeVar
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from stiffnet.errors import StiffnetError
@@ -28,15 +29,52 @@ out = Console()
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def report_error(message: object) -> None:
+    """``error: message`` on one line of stderr (control characters and markup escaped)."""
+    from stiffnet.inputs import one_line
+
+    console.print(f"[bold red]error:[/] {escape(one_line(message))}", highlight=False,
+                  soft_wrap=True)  # fmt: skip
+
+
+#: Parameters every command names the same way: checked before the command runs.
+_OUTPUT_FILES = ("json_path", "out_path")
+_OUTPUT_FOLDERS = ("plots", "out_dir")
+
+
+def check_arguments(kwargs: dict[str, Any]) -> None:
+    """Validate the shared options (rates, knobs, output paths) before any work.
+
+    See :mod:`stiffnet.inputs`: ``--fs``/``--fn`` in physical ranges, ``--threads``
+    and ``--workers`` at most the available cores, output paths usable.
+    """
+    from stiffnet import inputs
+
+    if kwargs.get("fs") is not None:
+        inputs.sampling_rate(kwargs["fs"], "--fs")
+    if kwargs.get("fn") is not None:
+        inputs.natural_frequency(kwargs["fn"], "--fn")
+    if kwargs.get("fs") is not None and kwargs.get("fn") is not None:
+        inputs.rate_ratio(kwargs["fs"], kwargs["fn"], "--fs/--fn")
+    inputs.threads(kwargs.get("threads"))
+    inputs.bounded_count(kwargs.get("workers"), "--workers", 1, inputs.max_local_workers())
+    flags = {"json_path": "--json", "out_path": "--out", "plots": "--plots", "out_dir": "--out"}
+    for name in _OUTPUT_FILES:
+        inputs.output_file(kwargs.get(name), flags[name])
+    for name in _OUTPUT_FOLDERS:
+        inputs.output_folder(kwargs.get(name), flags[name])
+
+
 def user_errors(fn: F) -> F:
-    """Report :class:`StiffnetError` as one line on stderr and exit with code 2."""
+    """Check shared options first; report :class:`StiffnetError` as one line, exit code 2."""
 
     @functools.wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
+            check_arguments(kwargs)
             return fn(*args, **kwargs)
         except StiffnetError as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+            report_error(exc)
             raise typer.Exit(2) from None
 
     return wrapper  # type: ignore[return-value]

@@ -5,8 +5,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -22,9 +24,17 @@ def _umask() -> int:
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to a temporary file beside ``path``, then rename it into place."""
+    """Write ``data`` to a temporary file beside ``path``, then rename it into place.
+
+    The rename only ever replaces a regular file: a symbolic link, FIFO, device or
+    folder at ``path`` is refused (it is not ours to replace).
+    """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    _check_replaceable_file(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise StiffnetError(f"{path}: cannot write here ({exc.strerror})") from None
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; a normal file honours the umask
         with os.fdopen(fd, "wb") as fh:
@@ -38,8 +48,40 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         raise
 
 
+def _check_replaceable_file(path: Path) -> None:
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(mode):
+        kind = "a symbolic link" if stat.S_ISLNK(mode) else (
+            "a folder" if stat.S_ISDIR(mode) else "not a regular file")  # fmt: skip
+        raise StiffnetError(f"{path} is {kind}: refusing to replace it")
+
+
 def write_json_atomic(path: str | Path, obj: Any) -> None:
-    write_bytes_atomic(path, (json.dumps(obj, indent=2, default=_json_default) + "\n").encode())
+    """Write ``obj`` as JSON atomically; NaN and infinities become ``null`` (JSON has none)."""
+    text = json.dumps(_finite(obj), indent=2, default=_json_default, allow_nan=False)
+    write_bytes_atomic(path, (text + "\n").encode())
+
+
+def _finite(obj: Any) -> Any:
+    """``obj`` with non-finite floats (numpy's included) replaced by None."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    try:
+        import numpy as np
+    except ImportError:  # pragma: no cover
+        return obj
+    if isinstance(obj, np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.ndarray) and obj.dtype.kind == "f":
+        return [_finite(v) for v in obj.tolist()]
+    return obj
 
 
 def _json_default(obj: Any) -> Any:
@@ -75,8 +117,10 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise StiffnetError(f"output path exists and is not a folder: {out}")
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+        check_replaceable_folder(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
     tmp.chmod(0o777 & ~_umask())  # mkdtemp makes 0700; a normal folder honours the umask
@@ -92,3 +136,126 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+#: Files whose presence marks a folder as written by stiffnet (dataset, campaign, run).
+OWN_MARKERS = ("card.json", "job.json", "campaign_card.json", "stiffnet-run.json")
+
+
+def check_replaceable_folder(out: str | Path, markers: tuple[str, ...] = OWN_MARKERS) -> None:
+    """Refuse to delete ``out`` unless stiffnet wrote it (``--overwrite``).
+
+    ``out`` must carry one of stiffnet's ``markers`` and must not be the working
+    directory or one of its ancestors.
+    """
+    p = Path(out)
+    real = p.resolve()
+    if Path.cwd().resolve().is_relative_to(real):
+        raise StiffnetError(f"{p}: refusing to overwrite the working directory or a parent of it")
+    if not any((p / m).is_file() for m in markers):
+        raise StiffnetError(
+            f"{p}: refusing to overwrite a folder stiffnet did not write (none of "
+            f"{', '.join(markers)} in it); choose another output folder"
+        )
+
+
+#: Environment variable naming the folder of the output locks (default: per user, in /tmp).
+LOCK_DIR_ENV = "STIFFNET_LOCK_DIR"
+
+
+def lock_path(folder: str | Path) -> Path:
+    """The lock file of an output folder.
+
+    Kept out of the user's folders (nothing is left beside an output): one file per
+    resolved output path in a per-user lock folder, so two names of one folder
+    (``data/x`` and ``./data/../data/x``) share a lock.
+    """
+    real = str(Path(folder).resolve())
+    root = Path(
+        os.environ.get(LOCK_DIR_ENV)
+        or Path(tempfile.gettempdir()) / f"stiffnet-locks-{os.getuid()}"
+    )
+    return root / (hashlib.sha256(real.encode()).hexdigest()[:32] + ".lock")
+
+
+@contextlib.contextmanager
+def output_lock(folder: str | Path) -> Iterator[None]:
+    """Hold the output folder's lock (``filelock``) or refuse: another run is writing it.
+
+    An OS-level lock (``flock``): it is released when the holder exits, even by
+    ``kill -9``, so a crashed run never blocks the next one.
+    """
+    from filelock import FileLock, Timeout
+
+    path = lock_path(folder)
+    path.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+    lock = FileLock(str(path), timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise StiffnetError(
+            f"{folder}: another stiffnet run is writing this folder (lock {path}); "
+            "wait for it or choose another output folder"
+        ) from None
+    try:
+        yield
+    finally:
+        lock.release()
+
+
+def fresh_run_folder(prefix: str, root: str | Path = "runs") -> Path:
+    """A new, not yet existing ``runs/PREFIX-YYYYmmdd-HHMMSS[-N]`` folder name."""
+    import time
+
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    base = Path(root) / f"{prefix}-{stamp}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    return path
+
+
+#: The marker file of a run folder (loop, train): what wrote it and whether it finished.
+RUN_MARKER = "stiffnet-run.json"
+
+
+def start_run_folder(out: str | Path, kind: str) -> None:
+    """Make ``out`` a fresh run folder of ``kind``; call it holding :func:`output_lock`.
+
+    An empty or absent folder is used as it is; an earlier run of the same kind
+    (its marker says so) is removed first, so a killed run's files never mix with
+    the new ones; any other non-empty folder is refused.
+    """
+    out = Path(out)
+    if out.is_dir() and any(out.iterdir()):
+        marker = out / RUN_MARKER
+        try:
+            same = json.loads(marker.read_text()).get("kind") == kind
+        except (OSError, ValueError, AttributeError):
+            same = False
+        if not same:
+            raise StiffnetError(
+                f"{out}: folder exists and is not an earlier {kind} run (no {RUN_MARKER} of "
+                "that kind): choose another output folder"
+            )
+        check_replaceable_folder(out, (RUN_MARKER,))
+        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+        os.replace(out, trash / "old")
+        shutil.rmtree(trash, ignore_errors=True)
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / RUN_MARKER, {"kind": kind, "status": "running"})
+
+
+def finish_run_folder(out: str | Path, kind: str) -> None:
+    """Mark the run folder complete."""
+    write_json_atomic(Path(out) / RUN_MARKER, {"kind": kind, "status": "complete"})
+
+
+def is_run_folder(folder: str | Path, kind: str) -> bool:
+    """Whether ``folder`` carries the marker of a finished run of ``kind``."""
+    try:
+        d = json.loads((Path(folder) / RUN_MARKER).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(d, dict) and d.get("kind") == kind and d.get("status") == "complete"

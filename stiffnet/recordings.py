@@ -44,6 +44,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import quote_content
 
 #: Extensions :func:`read_recording` understands.
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
@@ -223,9 +224,9 @@ def _read_csv(
     header = [c.strip().lower() for c in first.strip().split(",")]
     if tuple(header) != CSV_COLUMNS:
         hint = " (the file must be comma-separated)" if len(header) == 1 else ""
-        raise StiffnetError(
-            f"{name}: wrong header {first.strip()!r}, expected 't,accel' on line 1{hint}"
-        )
+        # never echo what is not a column list (a link to a secret shows only its shape)
+        shown = quote_content(first.strip(), cells=4) or f"({len(header)} cell(s), not shown)"
+        raise StiffnetError(f"{name}: wrong header {shown}, expected 't,accel' on line 1{hint}")
     try:
         table = pacsv.read_csv(
             p,
@@ -289,7 +290,8 @@ def _locate_csv_problem(p: Path) -> str:
                     try:
                         value = float(cell)
                     except ValueError:
-                        return f"line {line}, column {col}: {cell.strip()!r} is not a number"
+                        shown = quote_content(cell.strip()) or "the cell"
+                        return f"line {line}, column {col}: {shown} is not a number"
                     if not math.isfinite(value):
                         return f"line {line}, column {col}: {cell.strip()} is not a finite number"
     except UnicodeDecodeError:

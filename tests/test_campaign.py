@@ -151,6 +151,7 @@ def test_overwrite_replaces_the_folder(tmp_path):
     manifest = write(tmp_path / "m.csv", "\n".join(SMALL.splitlines()[:2]) + "\n")
     out = tmp_path / "out"
     write(out / "stale.txt", "old")
+    write(out / CARD_NAME, "{}")  # an earlier campaign: only such a folder is replaced
     simulate_campaign(manifest, out, [], overwrite=True)
     assert sorted(os.listdir(out)) == sorted([CARD_NAME, "a.csv", MANIFEST_NAME])
     assert sorted(os.listdir(tmp_path)) == ["m.csv", "out"]

@@ -35,6 +35,8 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.analyze",
         "stiffnet.plots",
         "stiffnet.distributed",
+        "stiffnet.restoring_force",
+        "stiffnet.uncertainty",
     ),  # fmt: skip
     "models": ("training", "serving", "stiffnet.distributed.batch"),
     "measurement": ("stiffnet.measurement",),

@@ -102,7 +102,7 @@ def test_errors_are_json_4xx(client, samples):
     _is_error(
         client.post("/predict", content=nan, headers={"content-type": "application/json"}),
         422,
-        "NaN",
+        "samples.1: Input should be a finite number",
     )
     _is_error(
         client.post("/predict", files={"file": ("r.csv", b"time,acc\n0,1\n")}), 422, "wrong header"

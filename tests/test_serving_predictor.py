@@ -248,8 +248,10 @@ def test_bad_signals(cnn, example):
     with pytest.raises(StiffnetError, match="1-D"):
         cnn.predict(np.ones((3, 3)), fs)
     for fs_x, fn_x in ((1e308, 1e-308), (1e3, 1e-300), (1e300, 1.0)):  # overflowing windows
-        with pytest.raises(StiffnetError, match="too short"):
+        with pytest.raises(StiffnetError, match=r"must be in \["):  # physical ranges first
             cnn.predict(example.accel, fs_x, natural_frequency_hz=fn_x)
+    with pytest.raises(StiffnetError, match=r"1e\+06 x the natural frequency"):
+        cnn.predict(example.accel, 1e6, natural_frequency_hz=1.0)  # fs/f_n over 1e5
     with pytest.raises(StiffnetError, match=r"\(1688 samples at 1000 Hz\)"):
         cnn.predict(example.accel[:1000], fs)
 

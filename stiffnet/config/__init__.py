@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, TypeVar
 
-import yaml
 from pydantic import BaseModel, ValidationError
 
 from stiffnet.errors import ConfigError
@@ -31,17 +30,17 @@ def validate_config(model: type[M], data: Any, source: str = "") -> M:
         raise ConfigError(validation_message(exc, source)) from None
 
 
-def load_yaml(path: str | Path) -> Any:
-    """Read a YAML file with a clear error for a missing or malformed file."""
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"config file not found: {path}")
+def load_yaml(path: str | Path) -> dict[str, Any]:
+    """Read a YAML config: a UTF-8 mapping, size- and depth-bounded (:mod:`stiffnet.inputs`)."""
+    from stiffnet.errors import StiffnetError
+    from stiffnet.inputs import read_yaml_mapping
+
     try:
-        return yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" at line {mark.line + 1}" if mark else ""
-        raise ConfigError(f"{path}: invalid YAML{line}") from None
+        return read_yaml_mapping(path, "config")
+    except ConfigError:
+        raise
+    except StiffnetError as exc:
+        raise ConfigError(str(exc)) from None
 
 
 def load_config(model: type[M], path: str | Path) -> M:

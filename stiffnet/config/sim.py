@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
-from stiffnet.effects.registry import build_effect
+from stiffnet.effects.registry import CANONICAL, build_effect
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 
@@ -102,6 +102,14 @@ class EffectSpec(_Strict):
 
     @model_validator(mode="after")
     def _valid_effect(self) -> EffectSpec:
+        # A shipped effect is checked here; a user ``module:Class`` imports (runs) code,
+        # so SimulationConfig checks it only after every other field has passed.
+        if not self.is_user_code:
+            self.check()
+        return self
+
+    def check(self) -> None:
+        """Build the effect (its parameters) and check the relative draws name frequencies."""
         effect = build_effect(self.name, self.params)  # raises ConfigError naming the problem
         fields = type(effect).Params.model_fields
         for key in self.relative:
@@ -115,7 +123,11 @@ class EffectSpec(_Strict):
             if key in self.params:
                 raise ValueError(f"effect {self.name}: {key!r} is given both in params and "
                                  "relative")  # fmt: skip
-        return self
+
+    @property
+    def is_user_code(self) -> bool:
+        """A ``module:Class`` effect: validating it imports that module (configs are code)."""
+        return self.name not in CANONICAL
 
     def build(self) -> Any:
         return build_effect(self.name, self.params)
@@ -184,7 +196,9 @@ class SimulationConfig(_Strict):
         names = [e.name for e in self.effects]
         if len(set(names)) != len(names):
             raise ValueError("an effect is listed twice")
-        for e in self.effects:
+        for e in self.effects:  # last: everything else is valid, now import user code
+            if e.is_user_code:
+                e.check()
             self._check_relative(e)
         return self
 

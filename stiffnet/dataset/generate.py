@@ -32,7 +32,7 @@ from stiffnet.dataset.store import (
     write_shard_record,
 )
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import write_json_atomic
+from stiffnet.io_utils import check_replaceable_folder, output_lock, write_json_atomic
 from stiffnet.simulator.simulator import Simulator
 
 
@@ -259,11 +259,30 @@ def generate_dataset(
         ``out`` holds something else (without ``overwrite``), or a shard failed after
         its retries (the message names it; finished shards are kept for a resume).
     """
-    from stiffnet.distributed.cluster import check_target, dask_client
-    from stiffnet.distributed.tasks import run_tasks
+    from stiffnet.distributed.cluster import check_target
 
     check_target(scheduler, workers)
     out = Path(out)
+    # one writer per folder: a second run (another seed, an --overwrite) is refused, not mixed
+    with output_lock(out):
+        return _generate_locked(cfg, out, overwrite, progress, scheduler, workers, resume,
+                                retries, before_shard)  # fmt: skip
+
+
+def _generate_locked(
+    cfg: SimulationConfig,
+    out: Path,
+    overwrite: bool,
+    progress: Callable[[int, int], None] | None,
+    scheduler: str | None,
+    workers: int | None,
+    resume: bool,
+    retries: int,
+    before_shard: Callable[[int], None] | None,
+) -> dict[str, Any]:
+    from stiffnet.distributed.cluster import dask_client
+    from stiffnet.distributed.tasks import run_tasks
+
     fingerprint = config_fingerprint(cfg)
     keep = _check_folder(out, fingerprint, overwrite=overwrite, resume=resume)
     sizes = shard_sizes(cfg)
@@ -319,6 +338,7 @@ def _check_folder(out: Path, fingerprint: str, overwrite: bool, resume: bool) ->
                             "(use --overwrite or --no-resume to restart it)")  # fmt: skip
     if not unfinished and not overwrite:
         raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
+    check_replaceable_folder(out, (CARD, JOB))  # only a dataset folder is ever deleted
     return False  # --overwrite, or --no-resume on an unfinished run: start over
 
 

@@ -15,6 +15,7 @@ Dask, pyarrow, pandas, DuckDB or Spark read ``shards/`` directly as one dataset.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import read_json
 from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
 
 CARD = "card.json"
@@ -108,21 +110,39 @@ class Dataset:
         return self.table.column(name).to_numpy()
 
 
-def load_dataset(folder: str | Path, verify: bool = False) -> Dataset:
-    """Load a finished dataset; ``verify`` checks each shard's SHA-256 against the card."""
+def load_dataset(folder: str | Path, verify: bool = True) -> Dataset:
+    """Load a finished dataset, checking each shard's SHA-256 against the card.
+
+    ``verify=False`` skips the hashes (a caller that has just checked them).
+    """
     folder = Path(folder)
     card_path = folder / CARD
     if not card_path.is_file():
         hint = " - an interrupted run; rerun `stiffnet simulate` to resume it" if (
             folder / JOB).is_file() else ""  # fmt: skip
         raise StiffnetError(f"{folder} is not a finished stiffnet dataset (no {CARD}){hint}")
-    card = json.loads(card_path.read_text())
+    card = read_json(card_path, "data card")
+    shards = card.get("shards") if isinstance(card, dict) else None
+    if not isinstance(shards, list) or not all(
+        isinstance(e, dict) and isinstance(e.get("file"), str) and isinstance(e.get("sha256"), str)
+        for e in shards
+    ):
+        raise StiffnetError(f"{card_path}: not a stiffnet data card (no list of shards)")
+    root = folder.resolve()
     tables = []
-    for entry in card["shards"]:
+    for entry in shards:
         path = folder / entry["file"]
+        if not path.resolve().is_relative_to(root):
+            raise StiffnetError(f"dataset {folder}: shard {entry['file']} lies outside the folder")
         if not path.is_file():
             raise StiffnetError(f"dataset {folder}: shard {entry['file']} is missing")
-        if verify and sha256_file(path) != entry["sha256"]:
-            raise StiffnetError(f"dataset {folder}: shard {entry['file']} is corrupt (SHA-256)")
-        tables.append(pq.read_table(path))
+        # the card is the dataset's identity: a shard written by another run (a mixed
+        # folder) or changed since is refused
+        data = path.read_bytes()  # hashed and parsed from the same bytes
+        if verify and hashlib.sha256(data).hexdigest() != entry["sha256"]:
+            raise StiffnetError(
+                f"dataset {folder}: shard {entry['file']} does not match its SHA-256 in "
+                f"{CARD} (corrupt, or written by another run)"
+            )
+        tables.append(pq.read_table(pa.BufferReader(data)))
     return Dataset(pa.concat_tables(tables), card)

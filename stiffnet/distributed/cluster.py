@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
@@ -37,14 +38,27 @@ def import_distributed() -> Any:
     return distributed
 
 
+#: A Dask scheduler address: tcp|tls|ucx://host[:port], or host:port.
+SCHEDULER_ADDRESS = re.compile(
+    r"^(?:(?:tcp|tls|ucx)://(?:[\w.\-]+|\[[0-9a-fA-F:]+\])(?::\d{1,5})?"
+    r"|(?:[\w.\-]+|\[[0-9a-fA-F:]+\]):\d{1,5})/?$"
+)
+
+
 def check_target(scheduler: str | None, workers: int | None) -> None:
     """Validate a ``scheduler``/``workers`` pair (both set, or a bad count, is an error)."""
     if scheduler is not None and workers is not None:
         raise StiffnetError(f"use either --scheduler (or {SCHEDULER_ENV}) or --workers, not both")
-    if workers is not None and workers < 1:
-        raise StiffnetError(f"--workers must be at least 1, got {workers}")
+    from stiffnet.inputs import bounded_count, max_local_workers, one_line
+
+    bounded_count(workers, "--workers", 1, max_local_workers())
     if scheduler is not None and not scheduler.strip():
         raise StiffnetError("--scheduler is empty: give a Dask scheduler address")
+    if scheduler is not None and not SCHEDULER_ADDRESS.match(scheduler.strip()):
+        raise StiffnetError(
+            f"--scheduler {one_line(scheduler, 80)!r} is not a Dask scheduler address "
+            "(tcp://host:port, tls://host:port or host:port)"
+        )
 
 
 def scheduler_from_env() -> str | None:

@@ -7,7 +7,6 @@ command functions; the shared console helpers come from :mod:`stiffnet.console`.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -50,6 +49,17 @@ def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
     return camp, cfg
 
 
+#: Keys (and their JSON types) a `--diagnosis` / `--loop` result must have.
+_RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
+    "diagnosis": {"baseline_discrepancy": (int, float), "ranking": list,
+                  "missing_effect": (str, type(None))},
+    "loop": {"before": dict, "after": dict, "effect": str},
+}  # fmt: skip
+
+
+_COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
+
+
 def _eta_bar(console: Any, description: str) -> Any:
     """A progress bar with the time left (on stderr's console; hidden when not a terminal)."""
     from rich.progress import (
@@ -74,14 +84,29 @@ def _eta_bar(console: Any, description: str) -> Any:
 
 
 def _read_json(path: Path | None, what: str) -> Any:
+    """A `diagnose --json` / `loop --json` result, checked at the boundary (stiffnet.inputs)."""
     from stiffnet.errors import StiffnetError
+    from stiffnet.inputs import read_json_object
 
     if path is None:
         return None
-    try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise StiffnetError(f"{path}: cannot read the {what} JSON ({exc})") from None
+    data = read_json_object(path, f"{what} JSON")
+    for key, kind in _RESULT_KEYS.get(what, {}).items():
+        if not isinstance(data.get(key), kind) or isinstance(data.get(key), bool):
+            raise StiffnetError(
+                f"{path}: not a `{_COMMAND[what]} --json` result (key {key!r} missing or wrong)"
+            )
+    if what == "diagnosis":
+        for i, r in enumerate(data["ranking"]):
+            ok = isinstance(r, dict) and isinstance(r.get("effect"), str)
+            ok = ok and isinstance(r.get("params"), dict) and isinstance(r.get("fitted", []), list)
+            ok = ok and isinstance(r.get("significant"), bool)
+            numbers = [*r.get("params", {}).values(), r.get("relative_reduction"),
+                       r.get("discrepancy_reduction")] if ok else []  # fmt: skip
+            ok = ok and all(isinstance(v, int | float) and not isinstance(v, bool) for v in numbers)
+            if not ok:
+                raise StiffnetError(f"{path}: ranking[{i}] is not a diagnosed effect")
+    return data
 
 
 def _metrics_table(title: str, metrics: dict[str, Any]) -> Any:
@@ -293,8 +318,9 @@ def loop(
     """Add an effect to the simulator, regenerate data, retrain, re-evaluate: before vs after."""
     from rich.table import Table
 
-    from stiffnet.measurement.loop import run_loop
+    from stiffnet.measurement.loop import check_n_trajectories, run_loop
 
+    check_n_trajectories(n_trajectories)
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
     n = n_trajectories or cfg.n_trajectories
@@ -347,11 +373,12 @@ def report(
     from stiffnet.measurement.report import render_report, write_report
 
     out, _, write_json = _io()
+    diag = _read_json(diagnosis, "diagnosis")  # the given results are checked before any work
+    loop_result = _read_json(loop_json, "loop")
     camp, cfg = _load(campaign, config)
     effects = config_effects(cfg)
     ev = evaluate_campaign(camp, str(model) if model else None, effects)
     cmp = compare_campaign(camp, effects, config_settings(cfg))
-    diag = _read_json(diagnosis, "diagnosis")
     if diag is None and run_diagnose:
         diag = diagnose_campaign(camp, effects)
     page = render_report(
@@ -359,7 +386,7 @@ def report(
         ev,
         cmp,
         diag,
-        _read_json(loop_json, "loop"),
+        loop_result,
     )
     write_report(out_path, page)
     out.print(f"report written to {out_path}")

@@ -150,7 +150,12 @@ def diagnose_campaign(
         ``unexplained_where``, ``summary``, ``nuisances``, ``settings``, ``seconds``.
     """
     from stiffnet.distributed import map_tasks
+    from stiffnet.distributed.cluster import check_target
+    from stiffnet.inputs import bounded_count
 
+    bounded_count(budget, "--budget", 1, 100_000)  # checked before any simulation
+    bounded_count(budget_numerical, "--budget-numerical", 1, 100_000)
+    check_target(scheduler, workers)
     t0 = time.perf_counter()
     bar = _Progress(progress)
     rows, nuisance_info = resolve_rows(campaign, model_path)

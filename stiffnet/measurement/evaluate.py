@@ -24,6 +24,7 @@ import numpy as np
 
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
 from stiffnet.effects.base import Effect
+from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
 from stiffnet.measurement.simulate import impact_regime, natural_frequency, simulated_contact
 
@@ -157,6 +158,11 @@ def evaluate_campaign(
     """
     from serving.predictor import Predictor
 
+    if all(r.beta is None for r in campaign.rows):
+        raise StiffnetError(
+            f"{campaign.manifest_path}: no recording has a known beta (manifest column beta): "
+            "evaluate needs a calibration campaign; use predict-batch for unknown ones"
+        )
     predictor = Predictor.load(model_path)
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
     contact = simulated_contact(campaign.rows, dynamics) if simulable else None

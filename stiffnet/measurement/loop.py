@@ -30,6 +30,7 @@ from stiffnet.campaign import Campaign
 from stiffnet.config.sim import EffectSpec, SimulationConfig
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
+from stiffnet.io_utils import finish_run_folder, output_lock, start_run_folder
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
 from stiffnet.measurement.fitting import fit_effect
 from stiffnet.measurement.simulate import DEFAULT_SEED
@@ -150,6 +151,21 @@ def _flat(ev: dict[str, Any], discrepancy: float) -> dict[str, float | None]:
     }
 
 
+#: ``kind`` in the marker (``stiffnet-run.json``) of a loop's output folder.
+LOOP_KIND = "stiffnet-loop"
+#: Fewest trajectories per generated dataset: every class in training and in test.
+MIN_TRAJECTORIES = 50
+
+
+def check_n_trajectories(n: int | None) -> None:
+    """Refuse a dataset size too small to split into training and test trajectories."""
+    if n is not None and not MIN_TRAJECTORIES <= n <= 10_000_000:
+        raise StiffnetError(
+            f"--n-trajectories must be {MIN_TRAJECTORIES}..10000000 (each dataset is split into "
+            f"training and test trajectories of every class), got {n}"
+        )
+
+
 def run_loop(
     campaign: Campaign,
     cfg: SimulationConfig,
@@ -198,13 +214,36 @@ def run_loop(
         ``discrepancy``, ``run_id``, ...), ``effect``, ``params``, ``chart``,
         ``seconds``.
     """
-    from stiffnet.measurement.plots import loop_figure
 
     if model not in ("gbm", "cnn"):
         raise StiffnetError(f"model {model!r} is not available: use gbm or cnn")
-    t0 = time.perf_counter()
+    check_n_trajectories(n_trajectories)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    with output_lock(out):  # one loop per folder; a killed run's files are never mixed in
+        start_run_folder(out, LOOP_KIND)
+        result = _iterate(campaign, cfg, effect, out, diagnosis, n_trajectories, spread, model,
+                          tracking_uri, train_overrides, seed)  # fmt: skip
+        result["out"] = str(out.resolve())
+        finish_run_folder(out, LOOP_KIND)
+    return result
+
+
+def _iterate(
+    campaign: Campaign,
+    cfg: SimulationConfig,
+    effect: str,
+    out: Path,
+    diagnosis: dict[str, Any] | None,
+    n_trajectories: int | None,
+    spread: float,
+    model: str,
+    tracking_uri: str | None,
+    train_overrides: dict[str, Any] | None,
+    seed: int,
+) -> dict[str, Any]:
+    from stiffnet.measurement.plots import loop_figure
+
+    t0 = time.perf_counter()
     if n_trajectories is not None:
         cfg = cfg.model_copy(update={"n_trajectories": int(n_trajectories)})
     base_cfg = cfg

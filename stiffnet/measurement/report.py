@@ -33,7 +33,7 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.3g}"
     if isinstance(v, dict):
-        return ", ".join(f"{k}={_fmt(x)}" for k, x in v.items())
+        return ", ".join(f"{html.escape(str(k))}={_fmt(x)}" for k, x in v.items())
     return html.escape(str(v))
 
 
@@ -44,6 +44,41 @@ def _table(rows: list[dict[str, Any]], cols: list[str], row_class: Any = None) -
         cls = f' class="{row_class(r)}"' if row_class and row_class(r) else ""
         body.append(f"<tr{cls}>" + "".join(f"<td>{_fmt(r.get(c))}</td>" for c in cols) + "</tr>")
     return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+
+
+#: PNG files start with these bytes.
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Largest figure embedded.
+MAX_FIGURE_BYTES = 20 * 1024 * 1024
+
+
+def loop_chart(loop: dict[str, Any]) -> tuple[Path | None, str]:
+    """The chart of a ``loop --json`` result, if the report may embed it, else why not.
+
+    The page embeds only what stiffnet's own commands produced: a PNG (regular file,
+    no symbolic link) inside the loop's run folder, which carries the loop's
+    completion marker. A ``--loop`` file naming any other path embeds nothing.
+    """
+    from stiffnet.io_utils import is_run_folder
+    from stiffnet.measurement.loop import LOOP_KIND
+
+    run, chart = loop.get("out"), loop.get("chart")
+    if not isinstance(run, str) or not isinstance(chart, str):
+        return None, "the loop result names no run folder and chart"
+    run_dir, path = Path(run).resolve(), Path(chart)
+    if not is_run_folder(run_dir, LOOP_KIND):
+        return None, f"{run} is not a finished loop run folder"
+    if path.is_symlink() or not path.resolve().is_relative_to(run_dir):
+        return None, "the chart is not a file inside the loop's run folder"
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(len(PNG_SIGNATURE))
+        size = path.stat().st_size
+    except OSError:
+        return None, "the chart cannot be read"
+    if not path.is_file() or head != PNG_SIGNATURE or size > MAX_FIGURE_BYTES:
+        return None, "the chart is not a PNG figure"
+    return path, ""
 
 
 def _img(path: Path) -> str:
@@ -198,7 +233,7 @@ def render_report(
                         "bic_delta",
                         "why not",
                     ],
-                    lambda r: "sig" if r.get("selected") else "",
+                    lambda r: "sig" if r.get("selected") is True else "",
                 )
             )
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
@@ -219,9 +254,11 @@ def render_report(
                     ["", "accuracy", "beta_mape", "discrepancy", "run_id"],
                 )
             )
-            chart = Path(loop.get("chart", ""))
-            if chart.is_file():
+            chart, why = loop_chart(loop)
+            if chart is not None:
                 parts.append(_img(chart))
+            else:
+                parts.append(f"<p class='note'>loop chart not embedded: {html.escape(why)}</p>")
     parts.append("</body></html>")
     return "\n".join(parts)
 

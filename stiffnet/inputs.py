@@ -1,0 +1,351 @@
+"""The one boundary for user input: documents, numbers, physical rates, knobs, output paths.
+
+Everything a user hands to stiffnet (a JSON sidecar, card or ``--diagnosis`` file, a
+YAML config, a number on the command line or in a request, an output path) passes
+through one of these functions first, so that bad input is one clear
+:class:`~stiffnet.errors.StiffnetError` line before any work starts, never a
+traceback and never a silently wrong value. Rules:
+
+* **Documents** are UTF-8, at most :data:`MAX_DOCUMENT_BYTES`, nested at most
+  :data:`MAX_DEPTH` deep, with finite numbers only (``NaN``/``Infinity`` are not
+  JSON, and an integer too large for a float is refused).
+* **Numbers** are real numbers: ``true`` is not 1 and ``"1000"`` is not 1000.
+* **Rates** lie in physical ranges (:data:`FS_RANGE_HZ`, :data:`FN_RANGE_HZ`,
+  :data:`RATIO_RANGE` for ``fs / f_n``), so derived sizes (samples per window) stay finite.
+* **Knobs** (threads, workers, budgets) are bounded by what the machine has.
+* **Output paths** are checked before the work: a file target is a regular file
+  or absent, in an existing folder; a folder target is a folder or absent.
+
+numpy-free and light: the HTTP predictor imports it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+import os
+import re
+import stat
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from stiffnet.errors import StiffnetError
+
+#: Largest JSON or YAML document read (a card, sidecar or config is a few kB).
+MAX_DOCUMENT_BYTES = 16 * 1024 * 1024
+#: Deepest nesting of lists and objects in a document.
+MAX_DEPTH = 64
+#: Sampling rates accepted, Hz: from a slow logger to a fast digitiser.
+FS_RANGE_HZ = (1e-2, 1e8)
+#: Natural frequencies of a rig accepted, Hz.
+FN_RANGE_HZ = (1e-3, 1e6)
+#: Samples per natural period accepted (``fs / f_n``): below 1 nothing is resolved,
+#: above 1e5 one 16-period window would hold over a million samples.
+RATIO_RANGE = (1.0, 1e5)
+
+
+def one_line(text: object, limit: int = 1000) -> str:
+    """``text`` on one line: newlines and other control characters shown escaped."""
+    s = str(text)
+    out = "".join(
+        ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode() for ch in s
+    )
+    return out if len(out) <= limit else out[: limit - 3] + "..."
+
+
+#: What a message may quote from a file: a short word or number (a column name, a cell).
+_QUOTABLE = re.compile(r"^[A-Za-z0-9_ .+\-]{0,32}$")
+
+
+def quote_content(text: str, cells: int = 1) -> str | None:
+    """``repr(text)`` if it is safe to quote in a message, else None.
+
+    Errors never echo file contents: a file that is not what it should be (a link to
+    a secret, a binary) shows up only as its shape. Short words and numbers, comma-
+    separated into at most ``cells`` cells, are quoted, since they name the problem.
+    """
+    parts = text.split(",")
+    if len(parts) <= cells and all(_QUOTABLE.match(c) for c in parts):
+        return repr(text)
+    return None
+
+
+# ------------------------------------------------------------------------------ numbers
+
+
+def real_number(value: Any, what: str) -> float:
+    """``value`` as a finite float; bools, strings and huge integers are refused."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy scalars are Real
+        raise StiffnetError(f"{what} must be a number, got {_show(value)}")
+    try:
+        v = float(value)
+    except (OverflowError, ValueError, TypeError):
+        raise StiffnetError(f"{what} is too large to be a number: {_show(value)}") from None
+    if not math.isfinite(v):
+        raise StiffnetError(f"{what} must be a finite number, got {_show(value)}")
+    return v
+
+
+def in_range(value: Any, what: str, lo: float, hi: float, unit: str = "") -> float:
+    """A finite number in ``[lo, hi]`` (the message names the range)."""
+    v = real_number(value, what)
+    if not lo <= v <= hi:
+        u = f" {unit}" if unit else ""
+        raise StiffnetError(f"{what} must be in [{lo:g}, {hi:g}]{u}, got {v:.6g}{u}")
+    return v
+
+
+def sampling_rate(value: Any, what: str = "sampling rate fs_hz") -> float:
+    """A sampling rate in :data:`FS_RANGE_HZ`."""
+    return in_range(value, what, *FS_RANGE_HZ, unit="Hz")
+
+
+def natural_frequency(value: Any, what: str = "natural_frequency_hz") -> float:
+    """A natural frequency in :data:`FN_RANGE_HZ`."""
+    return in_range(value, what, *FN_RANGE_HZ, unit="Hz")
+
+
+def rate_ratio(fs_hz: float, fn_hz: float, what: str = "") -> float:
+    """``fs / f_n`` checked against :data:`RATIO_RANGE` (both already range-checked)."""
+    ratio = fs_hz / fn_hz
+    lo, hi = RATIO_RANGE
+    if not lo <= ratio <= hi:
+        prefix = f"{what}: " if what else ""
+        raise StiffnetError(
+            f"{prefix}sampling rate {fs_hz:.6g} Hz is {ratio:.3g} x the natural frequency "
+            f"{fn_hz:.6g} Hz; it must be {lo:g} to {hi:g} x"
+        )
+    return ratio
+
+
+def available_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:  # pragma: no cover - not on Linux
+        return os.cpu_count() or 1
+
+
+def max_local_workers() -> int:
+    """Most local Dask worker processes: 4 per core (each holds a simulator's memory)."""
+    return 4 * available_cores()
+
+
+def bounded_count(value: int | None, what: str, lo: int = 1, hi: int | None = None) -> int | None:
+    """An integer knob in ``[lo, hi]`` (None passes through)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise StiffnetError(f"{what} must be an integer, got {_show(value)}")
+    if value < lo or (hi is not None and value > hi):
+        span = f"{lo}..{hi}" if hi is not None else f">= {lo}"
+        raise StiffnetError(f"{what} must be {span}, got {value}")
+    return value
+
+
+def threads(value: int | None, what: str = "--threads") -> int | None:
+    """A thread count: 1 to the number of available cores."""
+    return bounded_count(value, what, 1, available_cores())
+
+
+# ---------------------------------------------------------------------------- documents
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return one_line(text if len(text) <= 40 else text[:37] + "...", 60)
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > 300:  # beyond float range: 1e300 is the biggest sane value
+        raise ValueError("integer too large for a number")
+    return int(text)
+
+
+def check_depth(obj: Any, what: str, limit: int = MAX_DEPTH) -> None:
+    """Refuse lists/objects nested deeper than ``limit`` (iterative: no recursion)."""
+    stack = [(obj, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict | list):
+            if depth > limit:
+                raise StiffnetError(f"{what}: nested deeper than {limit} levels")
+            children = item.values() if isinstance(item, dict) else item
+            stack.extend((c, depth + 1) for c in children)
+
+
+def _read_bounded(path: Path, what: str, limit: int) -> bytes:
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise StiffnetError(f"{path}: {what} not found") from None
+    except OSError as exc:
+        raise StiffnetError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise StiffnetError(f"{path}: the {what} is not a regular file")
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise StiffnetError(f"{path}: cannot read the {what} ({exc.strerror})") from None
+    if len(data) > limit:
+        raise StiffnetError(f"{path}: the {what} is larger than {limit // (1024 * 1024)} MB")
+    return data
+
+
+def parse_json(data: bytes | str, what: str) -> Any:
+    """Decode one JSON document under the rules of the module notes."""
+    if isinstance(data, bytes):
+        if len(data) > MAX_DOCUMENT_BYTES:
+            raise StiffnetError(f"{what} is larger than {MAX_DOCUMENT_BYTES // 2**20} MB")
+        try:
+            data = data.decode("utf-8-sig")
+        except UnicodeDecodeError:
+            raise StiffnetError(f"{what} is not UTF-8 text") from None
+    # A quick bound on nesting before the (recursive) decoder sees the text.
+    if data.count("[") + data.count("{") > MAX_DEPTH:
+        depth = peak = 0
+        for ch in data:
+            if ch in "[{":
+                depth += 1
+                peak = max(peak, depth)
+                if peak > MAX_DEPTH:
+                    break
+            elif ch in "]}":
+                depth -= 1
+        if peak > MAX_DEPTH:  # brackets in strings only make this conservative
+            raise StiffnetError(f"{what}: nested deeper than {MAX_DEPTH} levels")
+    try:
+        obj = json.loads(data, parse_constant=_no_constant, parse_int=_bounded_int)
+    except RecursionError:
+        raise StiffnetError(f"{what}: nested deeper than {MAX_DEPTH} levels") from None
+    except json.JSONDecodeError as exc:
+        raise StiffnetError(
+            f"{what} is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
+        ) from None
+    except ValueError as exc:
+        raise StiffnetError(f"{what} is not valid JSON ({one_line(exc, 120)})") from None
+    _check_floats(obj, what)
+    return obj
+
+
+def _check_floats(obj: Any, what: str) -> None:
+    stack = [obj]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, float) and not math.isfinite(item):  # 1e400 parses as inf
+            raise StiffnetError(f"{what}: a number is too large (beyond float range)")
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+
+
+def read_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
+    """Read a JSON file (regular file, size-, depth- and number-checked)."""
+    p = Path(path)
+    return parse_json(_read_bounded(p, what, MAX_DOCUMENT_BYTES), f"{p}: {what}")
+
+
+def read_json_object(path: str | os.PathLike[str], what: str = "JSON file") -> dict[str, Any]:
+    """:func:`read_json` that must give an object."""
+    obj = read_json(path, what)
+    if not isinstance(obj, dict):
+        raise StiffnetError(f"{path}: the {what} must be a JSON object, not {_kind(obj)}")
+    return obj
+
+
+def read_yaml_mapping(path: str | os.PathLike[str], what: str = "config") -> dict[str, Any]:
+    """Read a YAML mapping with ``yaml.safe_load`` (empty file: ``{}``)."""
+    import yaml
+
+    p = Path(path)
+    if not p.exists():
+        raise StiffnetError(f"{what} file not found: {p}")
+    data = _read_bounded(p, f"{what} file", MAX_DOCUMENT_BYTES)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise StiffnetError(f"{p}: the {what} file is not UTF-8 text") from None
+    try:
+        obj = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f" at line {mark.line + 1}" if mark else ""
+        raise StiffnetError(f"{p}: invalid YAML{line}") from None
+    except RecursionError:
+        raise StiffnetError(f"{p}: nested deeper than {MAX_DEPTH} levels") from None
+    if obj is None:
+        return {}
+    if not isinstance(obj, dict):
+        raise StiffnetError(
+            f"{p}: the {what} must be a YAML mapping (key: value), not {_kind(obj)}"
+        )
+    check_depth(obj, str(p))
+    _check_floats(obj, str(p))
+    return obj
+
+
+def _kind(obj: Any) -> str:
+    return {list: "a list", str: "a string", int: "a number", float: "a number",
+            bool: "a boolean", type(None): "null"}.get(type(obj), type(obj).__name__)  # fmt: skip
+
+
+# ------------------------------------------------------------------------- output paths
+
+
+def output_file(path: str | os.PathLike[str] | None, what: str = "--json") -> Path | None:
+    """Check an output file path before any work (see the module notes)."""
+    if path is None:
+        return None
+    p = Path(path)
+    if "\n" in str(p) or "\r" in str(p):
+        raise StiffnetError(f"{what} {one_line(p)}: a file name with a line break")
+    try:
+        st = os.lstat(p)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise StiffnetError(f"{what} {p}: cannot use this path ({exc.strerror})") from None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        if stat.S_ISLNK(st.st_mode):
+            kind = "a symbolic link"
+        raise StiffnetError(f"{what} {p}: is {kind}; give a regular file path")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise StiffnetError(f"{what} {p}: folder {parent} does not exist (create it first)")
+    try:  # the atomic write creates a temporary file there: try it now, not after the work
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise StiffnetError(f"{what} {p}: cannot write in {parent} ({exc.strerror})") from None
+    return p
+
+
+def output_folder(path: str | os.PathLike[str] | None, what: str = "--out") -> Path | None:
+    """Check an output folder path before any work: a folder, or absent under a folder."""
+    if path is None:
+        return None
+    p = Path(path)
+    if "\n" in str(p) or "\r" in str(p):
+        raise StiffnetError(f"{what} {one_line(p)}: a folder name with a line break")
+    if p.is_symlink() or (p.exists() and not p.is_dir()):
+        raise StiffnetError(f"{what} {p}: exists and is not a folder")
+    anchor = p
+    while not anchor.exists():  # the nearest existing ancestor must be a writable folder
+        if anchor.parent == anchor:
+            break
+        anchor = anchor.parent
+    if not anchor.is_dir():
+        raise StiffnetError(f"{what} {p}: {anchor} is not a folder")
+    if not os.access(anchor, os.W_OK | os.X_OK):
+        raise StiffnetError(f"{what} {p}: {anchor} is not writable")
+    return p
