@@ -205,10 +205,12 @@ def render_report(
         if diagnosis is not None:
             parts.append("<h2>Diagnose: which effect is missing</h2>")
             verdict = diagnosis.get("verdict")
+            first = diagnosis.get("missing_effect")
+            selected = diagnosis.get("missing_effects") or ([first] if first else [])
             parts.append(
                 f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}, the "
                 f"campaign's noise floor {diagnosis.get('noise_floor', float('nan')):.3g}. "
-                f"Selected: <b>{html.escape(', '.join(diagnosis['missing_effects']) or 'none')}"
+                f"Selected: <b>{html.escape(', '.join(map(str, selected)) or 'none')}"
                 f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
                 f"({html.escape(str(diagnosis.get('summary', '')))}).</p>"
             )
@@ -217,7 +219,11 @@ def render_report(
                     [
                         {
                             **r,
-                            "params": {k: r["params"][k] for k in r.get("fitted", r["params"])},
+                            "params": {
+                                k: v
+                                for k, v in r.get("params", {}).items()
+                                if k in (r.get("fitted") or r.get("params", {}))
+                            },
                             "why not": "; ".join(r.get("reasons", [])),
                         }
                         for r in diagnosis["ranking"]
