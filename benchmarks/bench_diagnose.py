@@ -14,7 +14,8 @@ fits on a 2-process LocalCluster (the profile then covers only this process).
 
 Run (from the repository root, so this checkout's package is imported)::
 
-    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py [--workers 2] [--fast-only]
+    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
+        [--workers 2] [--fast-only] [--no-inclination]
 """
 
 from __future__ import annotations
@@ -59,6 +60,8 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--fast-only", action="store_true", help="closed-form effects only")
+    ap.add_argument("--no-inclination", action="store_true", help="leave out the geometric "
+                    "method's inclination statistics (as the tests do)")  # fmt: skip
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
@@ -69,6 +72,7 @@ def main() -> None:
         prof.enable()
         res = diagnose_campaign(
             camp, effects=FAST if args.fast_only else None, workers=args.workers,
+            inclination=not args.no_inclination,
             progress=lambda done, total: print(f"  fits {done}/{total}", flush=True),
         )  # fmt: skip
         prof.disable()
