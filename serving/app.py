@@ -65,7 +65,13 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.requests import ClientDisconnect
 
 from serving.predictor import Predictor
-from serving.schemas import ErrorBody, PredictionResult, PredictRequest
+from serving.schemas import (
+    ErrorBody,
+    HealthResponse,
+    ModelResponse,
+    PredictionResult,
+    PredictRequest,
+)
 from stiffnet.errors import StiffnetError
 
 #: One-line log of the server's events (uvicorn configures this logger).
@@ -264,6 +270,14 @@ def _number_field(value: Any, name: str) -> float | None:
         raise StiffnetError(f"form field {name}: {value[:40]!r} is not a number") from None
 
 
+def _text_field(value: Any, name: str) -> str | None:
+    if value is None or (isinstance(value, str) and not value.strip()):
+        return None
+    if not isinstance(value, str):
+        raise StiffnetError(f"form field {name} must be text, not a file")
+    return value.strip()[:200]
+
+
 def _predict_file(
     predictor: Predictor,
     data: bytes,
@@ -271,10 +285,16 @@ def _predict_file(
     fs: Any,
     fn: Any,
     max_samples: int = 2_000_000,
+    columns: Any = None,
+    time_unit: Any = None,
 ) -> dict:
     from stiffnet.recordings import read_recording
 
     fs_hz = _number_field(fs, "fs_hz")
+    layout = {
+        "columns": _text_field(columns, "columns"),
+        "time_unit": _text_field(time_unit, "time_unit"),
+    }
     fn_hz = _number_field(fn, "natural_frequency_hz")
     suffix = Path(filename).suffix
     if not _SUFFIX.match(suffix):
@@ -284,7 +304,7 @@ def _predict_file(
         path = Path(tmp) / f"upload{suffix}"
         path.write_bytes(data)
         try:
-            rec = read_recording(path, fs_hz=fs_hz)
+            rec = read_recording(path, fs_hz=fs_hz, **layout)
         except StiffnetError as exc:
             raise StiffnetError(str(exc).replace(str(path), shown)) from None
     _check_samples(rec.accel.size, max_samples)
@@ -314,6 +334,17 @@ _PREDICT_BODY = {
                         },
                         "fs_hz": {"type": "number", "description": "Sampling rate (.npy)"},
                         "natural_frequency_hz": {"type": "number"},
+                        "columns": {
+                            "type": "string",
+                            "description": "CSV columns TIME,ACCEL (header names or 0-based "
+                            "indices) when the header is not t,accel",
+                            "examples": ["time_s,acc_g"],
+                        },
+                        "time_unit": {
+                            "type": "string",
+                            "enum": ["s", "ms", "us"],
+                            "description": "Unit of the CSV time column (default s)",
+                        },
                     },
                 }
             },
@@ -325,6 +356,7 @@ _ERRORS = {
     for code, text in {
         400: "malformed request or host not allowed",
         401: "missing or wrong bearer token (when the server has one)",
+        405: "method not allowed",
         408: "body not received in time",
         413: "body too large, or too many samples",
         415: "unsupported content type",
@@ -332,6 +364,13 @@ _ERRORS = {
         429: "too many requests waiting",
         504: "timed out",
     }.items()
+}
+
+
+#: Errors any route can answer (the body limit and method checks run before routing).
+_GET_ERRORS = {
+    code: {"model": ErrorBody, "description": text}
+    for code, text in {405: "method not allowed", 413: "body too large"}.items()
 }
 
 
@@ -429,7 +468,8 @@ def create_app(
                 return _error(400, "multipart body needs a 'file' part holding the recording")
             data = await upload.read()
             return partial(_predict_file, predictor, data, upload.filename or "upload",
-                           form.get("fs_hz"), form.get("natural_frequency_hz"), n)  # fmt: skip
+                           form.get("fs_hz"), form.get("natural_frequency_hz"), n,
+                           form.get("columns"), form.get("time_unit"))  # fmt: skip
 
     @app.post(
         "/predict",
@@ -484,7 +524,12 @@ def create_app(
         state["served"] += 1
         return JSONResponse(result)
 
-    @app.get("/health", summary="Liveness and load")
+    @app.get(
+        "/health",
+        response_model=HealthResponse,
+        responses=_GET_ERRORS,
+        summary="Liveness and load",
+    )
     async def health() -> dict[str, Any]:
         return {
             "status": "ok",
@@ -495,7 +540,12 @@ def create_app(
             "served": state["served"],
         }
 
-    @app.get("/model", summary="The served model and the server limits")
+    @app.get(
+        "/model",
+        response_model=ModelResponse,
+        responses=_GET_ERRORS,
+        summary="The served model and the server limits",
+    )
     async def model() -> dict[str, Any]:
         return {
             **predictor.info(),

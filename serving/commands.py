@@ -13,10 +13,12 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import (
+    ColumnsOption,
     FsOption,
     JsonOption,
     ModelOption,
     NaturalFrequencyOption,
+    TimeUnitOption,
 )
 
 
@@ -24,6 +26,8 @@ def predict(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
     fs: FsOption = None,
     fn: NaturalFrequencyOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
@@ -37,7 +41,14 @@ def predict(
 
         raise StiffnetError(f"{recording}: sampling rate missing (a .npy recording needs --fs HZ)")
     predictor = Predictor.load(model, threads=threads)
-    result = predict_recording(recording, fs_hz=fs, natural_frequency_hz=fn, predictor=predictor)
+    result = predict_recording(
+        recording,
+        fs_hz=fs,
+        natural_frequency_hz=fn,
+        predictor=predictor,
+        columns=columns,
+        time_unit=time_unit,
+    )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):
@@ -82,6 +93,14 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
+    ph = result["physical"]
+    if ph["beta"] is not None:
+        lo, hi = ph["beta_interval"]
+        rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
+        rf += "  agrees" if result["physical_agreement"] else "  [red]disagrees[/]"
+    else:
+        rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
+    t.add_row("restoring force", rf, "")
     alarm = result.get("alarm")
     if alarm is not None:
         verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (

@@ -38,7 +38,7 @@ Pipeline of :meth:`Predictor.predict`:
    ``agreement`` is ``model class == geometric class``. Bounding the number of
    windows keeps a 60 s recording under ~60 ms on one core.
    A second, physical cross-check (:mod:`serving.physical`): the restoring-force
-   estimate on 32 forcing periods from the middle of the recording:
+   estimate on 24 forcing periods from the middle of the recording:
    ``physical_class``, ``physical_beta`` and its bootstrap interval,
    ``physical_agreement`` (null when that method refused, with its reason).
 6. **Alarm** (:mod:`stiffnet.uncertainty.alarm`): checks on what the model
@@ -341,13 +341,19 @@ class Predictor:
             )
         a = self._check_samples(accel, source)
         what = source or "recording"
-        ratio = rate_ratio(fs, fn, what)
-        if ratio < MIN_SAMPLES_PER_PERIOD:
+        ratio = fs / fn
+        if ratio < MIN_SAMPLES_PER_PERIOD:  # first: its message names a unit mistake
+            from stiffnet.recordings import unit_mistake_hint
+
+            hint = unit_mistake_hint(
+                fs, MIN_SAMPLES_PER_PERIOD * fn, 4 * MAX_TRAINED_SAMPLES_PER_PERIOD * fn
+            )
             raise StiffnetError(
                 f"{what}: sampling rate {fs:.6g} Hz is below the minimum "
                 f"{MIN_SAMPLES_PER_PERIOD * fn:.6g} Hz ({MIN_SAMPLES_PER_PERIOD:g} x the natural "
-                f"frequency {fn:.6g} Hz)"
+                f"frequency {fn:.6g} Hz){hint}"
             )
+        rate_ratio(fs, fn, what)  # the physical upper bound
         if ratio > MAX_TRAINED_SAMPLES_PER_PERIOD:
             warnings.append(
                 f"sampling rate is {ratio:.3g} x the natural frequency, above the training data's "
@@ -634,6 +640,8 @@ def predict_recording(
     natural_frequency_hz: float | None = None,
     model_path: str | Path | None = None,
     predictor: Predictor | None = None,
+    columns: str | None = None,
+    time_unit: str | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -653,6 +661,8 @@ def predict_recording(
         Model to load (ignored when `predictor` is given).
     predictor : Predictor, optional
         An already loaded predictor.
+    columns, time_unit : str, optional
+        CSV layout, as :func:`stiffnet.recordings.read_recording`.
 
     Returns
     -------
@@ -662,7 +672,7 @@ def predict_recording(
     from stiffnet.recordings import read_recording
 
     pred = predictor or _cached_load(model_path)
-    rec = read_recording(path, fs_hz=fs_hz)
+    rec = read_recording(path, fs_hz=fs_hz, columns=columns, time_unit=time_unit)
     fn_source = "argument"
     if natural_frequency_hz is None:
         natural_frequency_hz, sidecar = read_sidecar(path)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any, Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -151,3 +153,50 @@ class ErrorBody(BaseModel):
     """Every error response: one line."""
 
     error: str
+
+
+class HealthResponse(BaseModel):
+    """``GET /health``: liveness and load."""
+
+    status: Literal["ok"] = Field(description="Always 'ok' when the server answers.")
+    model: str = Field(description="Name of the served model (file stem).")
+    sha256: str = Field(description="SHA-256 of the served ONNX file.")
+    in_flight: int = Field(ge=0, description="Small predictions running or queued now.")
+    large_in_flight: int = Field(
+        ge=0, description="Large requests admitted now (reading, waiting or running)."
+    )
+    served: int = Field(ge=0, description="Predictions answered since start.")
+
+
+class ServerLimits(BaseModel):
+    """The server's limits (``stiffnet serve`` options)."""
+
+    max_upload_mb: float = Field(description="Largest request body in MB (413 beyond).")
+    timeout_s: float = Field(description="Per-request time limit in s (504 beyond).")
+    max_concurrency: int = Field(description="Predictions running at once.")
+    max_queue: int = Field(description="Requests waiting beyond which 429 is returned.")
+
+
+class ModelResponse(BaseModel):
+    """``GET /model``: the served model, the predictor's settings and the server limits."""
+
+    # fields the predictor adds later still reach clients (documented once added here)
+    model_config = ConfigDict(extra="allow")
+
+    name: str = Field(description="File stem of the model (cnn, gbm).")
+    sha256: str = Field(description="SHA-256 of the ONNX file (verified against its card).")
+    kind: str = Field(description="Model family: cnn or gbm.")
+    class_names: list[str] = Field(description="Output classes, in the model's column order.")
+    window_periods: float = Field(description="Natural periods per model window.")
+    min_samples_per_natural_period: float = Field(
+        description="Lowest accepted fs / f_n (the sampling-rate floor)."
+    )
+    training_natural_frequency_hz: float | None = Field(
+        description="f_n of the training data: the default when a request gives none."
+    )
+    segment_windows: int = Field(description="Windows aggregated per reported segment.")
+    geometric_windows: int = Field(description="Windows the geometric cross-check analyses.")
+    ood_reference: bool = Field(description="An OOD reference is loaded (ood_score is set).")
+    ood_threshold: float | None = Field(description="OOD alarm threshold; null without one.")
+    metadata: dict[str, Any] = Field(description="The ONNX file's metadata_props, decoded.")
+    limits: ServerLimits

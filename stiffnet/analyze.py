@@ -2,8 +2,10 @@
 
 Strings together the paper's pipeline (sections 3-5): smoothing, impact
 detection, embedding delay and dimension, stationarity, determinism and the
-geometric stiffness estimate, returning the curves as well as the numbers so
-that plots and JSON come from one computation. numpy/scipy only.
+geometric stiffness estimate, plus the restoring-force (force-state mapping)
+estimate of :mod:`stiffnet.restoring_force` as a physical cross-check,
+returning the curves as well as the numbers so that plots and JSON come from
+one computation. numpy/scipy only.
 """
 
 from __future__ import annotations
@@ -14,8 +16,10 @@ from typing import Any
 import numpy as np
 
 from stiffnet import nlts
-from stiffnet.errors import SignalError
+from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
+from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
+from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
 #: samples: they converge long before, and their cost grows as N log N.
@@ -43,6 +47,9 @@ class Analysis:
     determinism_factor: float
     geometric: GeometricResult
     smoothed: np.ndarray
+    natural_frequency_hz: float = PAPER_NATURAL_FREQUENCY_HZ
+    restoring_force: RestoringForceResult | None = None
+    restoring_force_error: str = ""
 
     def summary(self) -> dict[str, Any]:
         """The JSON result (keys are stable: programs read them)."""
@@ -53,6 +60,7 @@ class Analysis:
             "n_samples": self.n_samples,
             "embedding_delay": self.delay,
             "embedding_delay_s": self.delay / self.fs_hz,
+            "geometric_delay": int(g.delay),  # the attractor figure's and the inclinations' delay
             "delay_rule": self.delay_rule,
             "embedding_dimension": self.dimension,
             "dimension_rule": self.dimension_rule,
@@ -76,6 +84,21 @@ class Analysis:
             "geometric_class": g.geometric_class,
             "polarity": int(g.polarity),
             "dominant_frequency_hz": float(g.dominant_frequency_hz),
+            "natural_frequency_hz": self.natural_frequency_hz,
+            **self._physical(),
+        }
+
+    def _physical(self) -> dict[str, Any]:
+        """The restoring-force estimate's fields (``physical_*``) and its full summary."""
+        r = self.restoring_force
+        if r is None:
+            d = {"ok": False, "reason": self.restoring_force_error}
+            return {"physical_beta": None, "physical_class": None, "restoring_force": d}
+        return {
+            "physical_beta": _num(r.beta),
+            "physical_class": r.physical_class,
+            "physical_beta_interval": list(r.beta_interval) if r.beta_interval else None,
+            "restoring_force": r.to_dict(),
         }
 
 
@@ -102,12 +125,26 @@ def _unit_scale(x: np.ndarray) -> np.ndarray:
     return np.ldexp(x, -int(np.frexp(peak)[1]))
 
 
-def analyze_signal(accel: np.ndarray, fs_hz: float) -> Analysis:
-    """Run the whole analysis on one acceleration record sampled at ``fs_hz``."""
+def analyze_signal(
+    accel: np.ndarray, fs_hz: float, natural_frequency_hz: float | None = None
+) -> Analysis:
+    """Run the whole analysis on one acceleration record sampled at ``fs_hz``.
+
+    ``natural_frequency_hz`` (default: the paper's 9.48 Hz) fixes the free-flight
+    stiffness of the restoring-force estimate.
+    """
     if not np.isfinite(fs_hz) or fs_hz <= 0:
         raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
+    fn = PAPER_NATURAL_FREQUENCY_HZ if natural_frequency_hz is None else natural_frequency_hz
+    if not (np.isfinite(fn) and fn > 0):
+        raise SignalError(f"natural frequency must be a positive number of Hz, got {fn}")
     x = _unit_scale(nlts.as_signal(accel, 64))
     geo = geometric_estimate(x, fs_hz)
+    rf, rf_error = None, ""
+    try:
+        rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn)
+    except StiffnetError as exc:  # the other analyses still stand
+        rf_error = str(exc)
     # Analyse the smoothed signal, as the paper does before embedding (section 5.1).
     s = nlts.savgol_smooth(x, smoothing_window(geo.period_samples))
     s = (s - s.mean()) / s.std()
@@ -133,5 +170,6 @@ def analyze_signal(accel: np.ndarray, fs_hz: float) -> Analysis:
         delay_rule=delay.rule, fnn=fnn, cao_e1=e1, cao_e2=e2, dimension=int(dim),
         dimension_rule="cao_E1_plateau", fnn_dimension=fnn_dim, cross_prediction=cross,
         stationary=bool(nlts.is_stationary(cross)), determinism_factor=float(det),
-        geometric=geo, smoothed=s,
+        geometric=geo, smoothed=s, natural_frequency_hz=float(fn), restoring_force=rf,
+        restoring_force_error=rf_error,
     )  # fmt: skip

@@ -25,7 +25,7 @@ import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import (
@@ -42,6 +42,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import quote_content
 from stiffnet.io_utils import check_replaceable_folder, output_lock
+from stiffnet.progress import task as progress_task
 from stiffnet.recordings import Recording, read_recording, write_recording_csv
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -94,6 +95,11 @@ class ManifestRow(BaseModel):
         White-noise std of a simulated recording as a fraction of ``a w^2`` (>= 0).
     channel : str, optional
         Channel to read from a multi-channel WAV (index) or TDMS (name) file.
+    columns : str, optional
+        CSV recordings: ``TIME;ACCEL`` (or ``TIME,ACCEL`` in a quoted cell),
+        header names or 0-based indices, when the header is not ``t,accel``.
+    time_unit : {"s", "ms", "us"}, optional
+        CSV recordings: unit of the time column (default s).
     """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, str_strip_whitespace=True)
@@ -109,6 +115,8 @@ class ManifestRow(BaseModel):
     duration_s: float | None = Field(None, gt=0)
     noise: float | None = Field(None, ge=0)
     channel: str | None = None
+    columns: str | None = None
+    time_unit: Literal["s", "ms", "us"] | None = None
     # physical units (converted to the model columns above, see docs/campaign.md)
     forcing_frequency_hz: float | None = Field(None, gt=0)
     base_acceleration_ms2: float | None = Field(None, gt=0)
@@ -197,6 +205,8 @@ class ManifestRow(BaseModel):
         return f"{manifest}: {line}({self.recording})"
 
 
+#: Columns that say how to read a recording file (not properties of the measurement).
+READ_COLUMNS = ("channel", "columns", "time_unit")
 #: Manifest columns in their canonical (written) order.
 COLUMNS: tuple[str, ...] = tuple(ManifestRow.model_fields)
 
@@ -416,7 +426,13 @@ class Campaign:
     def recording(self, key: int | str) -> Recording:
         """Read one recording with the row's ``fs_hz`` (and ``channel``)."""
         row = self.row(key)
-        return read_recording(self.path(key), fs_hz=row.fs_hz, channel=row.channel)
+        return read_recording(
+            self.path(key),
+            fs_hz=row.fs_hz,
+            channel=row.channel,
+            columns=None if row.columns is None else row.columns.replace(";", ","),
+            time_unit=row.time_unit,
+        )
 
     def recordings(self) -> Iterator[tuple[ManifestRow, Recording]]:
         """``(row, recording)`` pairs in manifest order, one file at a time."""
@@ -602,8 +618,10 @@ def _simulate_into(
     # Simulate first (rows as tasks, results back here), then write: workers need no
     # access to the output folder, and a failed row leaves nothing behind.
     jobs = [_RowJob(row, eff, int(seed), default_duration_s, row.where(manifest)) for row in rows]
-    report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
-                       names=[row.recording for row in rows])  # fmt: skip
+    with progress_task("simulating recordings", len(jobs)) as bar:
+        report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
+                           names=[row.recording for row in rows],
+                           progress=lambda done, _: bar.update(done))  # fmt: skip
     if report.failed:
         name, msg = next(iter(report.failed.items()))
         raise StiffnetError(msg) from report.errors.get(name)
@@ -620,7 +638,9 @@ def _simulate_into(
             else:
                 write_recording_csv(target, accel, row.fs_hz)
             card_rows.append(card_row)
-        write_manifest(tmp / MANIFEST_NAME, rows, columns)
+        # simulated CSVs are written as t,accel in seconds: drop the input's read options
+        plain = [r.model_copy(update=dict.fromkeys(READ_COLUMNS)) for r in rows]
+        write_manifest(tmp / MANIFEST_NAME, plain, [c for c in columns if c not in READ_COLUMNS])
         card = {
             "stiffnet_version": __version__,
             "generator": "stiffnet.campaign.simulate_campaign",

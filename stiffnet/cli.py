@@ -19,8 +19,23 @@ from typer.core import TyperGroup
 # ``stiffnet predict`` must not import torch, scikit-learn or mlflow, and
 # ``stiffnet --help`` must stay fast.
 from serving import commands as serving_commands  # predict, serve
-from stiffnet.cli_options import FsOption, JsonOption, SchedulerOption, WorkersOption
-from stiffnet.console import out, progress_bar, report_error, user_errors, write_json
+from stiffnet import progress
+from stiffnet.cli_options import (
+    ColumnsOption,
+    FsOption,
+    JsonOption,
+    SchedulerOption,
+    TimeUnitOption,
+    WorkersOption,
+)
+from stiffnet.console import (
+    WIDE_COLUMNS,
+    out,
+    report_error,
+    show_progress,
+    user_errors,
+    write_json,
+)
 from stiffnet.distributed import commands as distributed_commands  # predict-batch
 from stiffnet.measurement import commands as measurement_commands  # evaluate ... report
 
@@ -59,6 +74,20 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+@app.callback()
+def _options(
+    wide: Annotated[
+        bool,
+        typer.Option(
+            "--wide",
+            help="Print tables at full width, without wrapping (for wide terminals or files).",
+        ),
+    ] = False,
+) -> None:
+    """Identify the stiffness of an impacted material from one accelerometer."""
+    out.width = WIDE_COLUMNS if wide else None  # type: ignore[assignment]  # None: auto
 
 
 @app.command()
@@ -102,13 +131,12 @@ def simulate(
     if n_trajectories is not None:
         data["n_trajectories"] = n_trajectories
     cfg = validate_config(SimulationConfig, data, str(config))
-    with progress_bar("simulating shards") as bar:
-        task = bar.add_task("shards", total=len(shard_sizes(cfg)))
+    with show_progress(), progress.task("simulating shards", len(shard_sizes(cfg))) as bar:
         card = generate_dataset(
             cfg,
             out_dir,
             overwrite=overwrite,
-            progress=lambda done, _: bar.update(task, completed=done),
+            progress=lambda done, _: bar.update(completed=done),
             scheduler=scheduler,
             workers=workers,
             resume=resume,
@@ -153,8 +181,9 @@ def simulate_campaign_cmd(
     effects = [build_effect(*parse_effect_option(text)) for text in effect or []]
     from stiffnet.campaign import simulate_campaign
 
-    path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite,
-                             scheduler=scheduler, workers=workers)  # fmt: skip
+    with show_progress():
+        path = simulate_campaign(manifest, out_dir, effects, seed=seed, overwrite=overwrite,
+                                 scheduler=scheduler, workers=workers)  # fmt: skip
     result = {"out": str(path), "effects": [repr(e) for e in effects], "seed": seed}
     out.print(f"campaign written to {path} with effects: {', '.join(result['effects']) or 'none'}")
     write_json(json_path, result)
@@ -204,7 +233,7 @@ def train(
     from training.train import train as run_training
 
     out_dir = out_dir or fresh_run_folder(f"train-{model}")
-    with output_lock(out_dir):  # a concurrent train into the same folder is refused
+    with output_lock(out_dir), show_progress(), progress.task(f"training {model}"):
         result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
     out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
@@ -224,20 +253,30 @@ def train(
 def analyze(
     recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
     fs: FsOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     plots: Annotated[
         Path | None, typer.Option(help="Write figures (PNG) into this folder.")
     ] = None,
     json_path: JsonOption = None,
+    fn: Annotated[
+        float | None,
+        typer.Option(
+            "--fn", help="Natural frequency of the rig in Hz (default 9.48, the paper's)."
+        ),
+    ] = None,
 ) -> None:
-    """Nonlinear time-series analysis and the geometric stiffness estimate of a recording."""
+    """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
     from stiffnet.recordings import read_recording
 
-    rec = read_recording(recording, fs_hz=fs)
-    analysis = analyze_signal(rec.accel, rec.fs_hz)
+    rec = read_recording(recording, fs_hz=fs, columns=columns, time_unit=time_unit)
+    analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
     result = {"recording": str(recording), **analysis.summary()}
     table = Table(title=f"analysis of {recording}", show_header=False)
     for key, value in result.items():
+        if isinstance(value, dict):  # the restoring-force details: in the JSON only
+            continue
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out.print(table)
     if plots is not None:

@@ -31,6 +31,20 @@ WorkersOption = Annotated[
 FsOption = Annotated[
     float | None, typer.Option("--fs", help="Sampling rate in Hz (needed for .npy).")
 ]
+ColumnsOption = Annotated[
+    str | None,
+    typer.Option(
+        "--columns",
+        metavar="TIME,ACCEL",
+        help="CSV columns holding time and acceleration: header names or 0-based indices "
+        "(e.g. time_s,acc_g or 0,3); a single ACCEL means no time column (give --fs). "
+        "Default t,accel.",
+    ),
+]
+TimeUnitOption = Annotated[
+    str | None,
+    typer.Option("--time-unit", metavar="s|ms|us", help="Unit of the CSV time column (default s)."),
+]
 NaturalFrequencyOption = Annotated[
     float | None,
     typer.Option(

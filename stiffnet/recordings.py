@@ -6,7 +6,10 @@ files (chosen by extension):
 ``.csv``
     header ``t,accel``, time in seconds, acceleration in any unit (the sensor
     gain does not matter to stiffnet). The rate is inferred from ``t`` unless
-    given, in which case ``t`` must agree with it.
+    given, in which case ``t`` must agree with it. Other layouts are read with
+    ``columns="TIME,ACCEL"`` (header names or 0-based indices; a single
+    ``ACCEL`` means no time column, the rate is then required; with indices the
+    file may have no header) and ``time_unit="s"|"ms"|"us"``.
 ``.npy``
     a 1-D numeric array; the rate must be given (the manifest's ``fs_hz``).
 ``.wav``
@@ -33,9 +36,11 @@ import csv
 import logging
 import math
 import os
+import re
 import tempfile
 import threading
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,9 +55,16 @@ from stiffnet.inputs import quote_content
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
 #: Column names of a CSV recording.
 CSV_COLUMNS = ("t", "accel")
+#: Units a CSV time column may be in, as seconds per unit.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6}
+#: Scale factors that betray a time column read in the wrong unit.
+_UNIT_FACTORS = {1e3: ("milliseconds", "ms"), 1e6: ("microseconds", "us")}
 #: A time column may deviate from the uniform grid by this fraction of a sample
 #: period (rounding of the written times); a dropped sample deviates by >= 1/2.
 TIME_JITTER_TOLERANCE = 0.2
+#: CSV files larger than this are parsed on several threads (smaller ones start faster
+#: on one: part of ``stiffnet predict``'s cold start).
+THREADED_CSV_BYTES = 8 * 2**20
 #: Relative tolerance between a given rate and the one a file carries.
 FS_TOLERANCE = 1e-3
 
@@ -105,6 +117,9 @@ def read_recording(
     path: str | os.PathLike[str],
     fs_hz: float | None = None,
     channel: str | int | None = None,
+    *,
+    columns: str | Sequence[str | int] | None = None,
+    time_unit: str | None = None,
 ) -> Recording:
     """Read one acceleration channel from a CSV, NPY, WAV or TDMS file.
 
@@ -118,6 +133,14 @@ def read_recording(
     channel : str or int, optional
         WAV: channel index (default 0). TDMS: channel name or ``group/name``
         (default: the first channel holding data).
+    columns : str or sequence, optional
+        CSV only: ``"TIME,ACCEL"`` (or a pair), each a header name
+        (case-insensitive) or a 0-based column index; a single ``"ACCEL"``
+        reads a file without a time column (then `fs_hz` is required). Default
+        ``t,accel``. With indices only, a file whose first line is numeric is
+        read as having no header.
+    time_unit : {"s", "ms", "us"}, optional
+        CSV only: unit of the time column (default seconds).
 
     Returns
     -------
@@ -148,8 +171,15 @@ def read_recording(
         raise StiffnetError(f"{name}: recording file not found")
     if channel is not None and ext in (".csv", ".npy"):
         raise StiffnetError(f"{name}: a {ext} recording has one channel; do not give 'channel'")
-    reader = {".csv": _read_csv, ".npy": _read_npy, ".wav": _read_wav, ".tdms": _read_tdms}[ext]
-    accel, fs, source = reader(p, fs_hz, channel)
+    layout = _CsvLayout.parse(columns, time_unit, name)
+    if ext != ".csv" and (columns is not None or time_unit is not None):
+        what = "columns" if columns is not None else "time_unit"
+        raise StiffnetError(f"{name}: '{what}' applies to CSV recordings only, not {ext}")
+    if ext == ".csv":
+        accel, fs, source = _read_csv(p, fs_hz, layout)
+    else:
+        reader = {".npy": _read_npy, ".wav": _read_wav, ".tdms": _read_tdms}[ext]
+        accel, fs, source = reader(p, fs_hz, channel)
     if accel.size < 2:
         what = "is empty" if accel.size == 0 else "has only one sample"
         raise StiffnetError(f"{source}: recording {what} (need at least 2 samples)")
@@ -210,9 +240,107 @@ def _brief(exc: BaseException) -> str:
 # ---------------------------------------------------------------------------- CSV
 
 
-def _read_csv(
-    p: Path, fs_hz: float | None, channel: str | int | None
-) -> tuple[np.ndarray, float, str]:
+def unit_mistake_hint(fs_hz: float, lo_hz: float, hi_hz: float = math.inf) -> str:
+    """A hint when `fs_hz` is implausible but 1e3x or 1e6x it would fit ``[lo_hz, hi_hz]``.
+
+    A time column in milliseconds read as seconds gives a rate 1000 times too
+    low; this names that mistake and the option that fixes it. Empty when no
+    such factor fits.
+    """
+    for factor, (word, unit) in _UNIT_FACTORS.items():
+        if lo_hz <= fs_hz * factor <= hi_hz:
+            return (
+                f"; if the time column is in {word}, give the time unit {unit} "
+                f"(--time-unit {unit}; manifest/HTTP field time_unit), which gives "
+                f"{fs_hz * factor:.6g} Hz"
+            )
+    return ""
+
+
+@dataclass(frozen=True)
+class _CsvLayout:
+    """Which CSV columns hold time and acceleration, and the time unit."""
+
+    time: str | int | None = CSV_COLUMNS[0]
+    accel: str | int = CSV_COLUMNS[1]
+    seconds_per_unit: float = 1.0
+    custom: bool = False
+
+    @classmethod
+    def parse(
+        cls, columns: str | Sequence[str | int] | None, time_unit: str | None, name: str
+    ) -> _CsvLayout:
+        scale = 1.0
+        if time_unit is not None:
+            unit = str(time_unit).strip().lower().replace("µ", "u")
+            if unit not in TIME_UNITS:
+                raise StiffnetError(
+                    f"{name}: unknown time unit {time_unit!r} (use {', '.join(TIME_UNITS)})"
+                )
+            scale = TIME_UNITS[unit]
+        if columns is None:
+            return cls(seconds_per_unit=scale)
+        parts = columns.split(",") if isinstance(columns, str) else list(columns)
+        keys = [_column_key(c) for c in parts]
+        if len(keys) not in (1, 2) or any(k == "" for k in keys):
+            raise StiffnetError(
+                f"{name}: columns must be 'TIME,ACCEL' or 'ACCEL' (names or 0-based "
+                f"indices), got {columns!r}"
+            )
+        if len(keys) == 1:
+            if time_unit is not None:
+                raise StiffnetError(f"{name}: time_unit given but columns names no time column")
+            return cls(None, keys[0], scale, True)
+        if keys[0] == keys[1]:
+            raise StiffnetError(f"{name}: columns names the same column twice ({columns!r})")
+        return cls(keys[0], keys[1], scale, True)
+
+    @property
+    def wanted(self) -> list[str | int]:
+        return [k for k in (self.time, self.accel) if k is not None]
+
+
+def _column_key(cell: str | int) -> str | int:
+    if isinstance(cell, int):
+        return cell
+    text = str(cell).strip()
+    return int(text) if text.isdigit() else text.lower()
+
+
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+#: What a quotable column name looks like: words, units in brackets, no separators of
+#: other file formats (``root:*:...`` is not a header).
+_COLUMN_NAME = re.compile(r"^[\w ()\[\]/.\-]{1,32}$")
+
+
+def _header_hint(header: list[str]) -> str:
+    """How to read a file whose header is not ``t,accel``."""
+    if len(header) == 1:
+        return " (the file must be comma-separated)"
+    if all(_is_number(c) for c in header if c.strip()):
+        return " (no header: give columns as indices, e.g. --columns 0,1, with --fs if needed)"
+    time, accel = header[0].strip(), header[1].strip()
+    unit = ""
+    low = time.lower()
+    for u in ("ms", "us"):
+        if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
+            unit = f" --time-unit {u}"
+    # column names are quoted only when they look like names (a secret's line does not)
+    example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
+    return (
+        f"; name its columns, e.g. --columns {example}{unit} "
+        "(manifest/HTTP fields columns and time_unit)"
+    )
+
+
+def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndarray, float, str]:
     name = str(p)
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:  # -sig: Excel's BOM
@@ -221,72 +349,133 @@ def _read_csv(
         raise StiffnetError(f"{name}: not a UTF-8 text file (expected a CSV 't,accel')") from None
     if not first.strip():
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
-    header = [c.strip().lower() for c in first.strip().split(",")]
-    if tuple(header) != CSV_COLUMNS:
-        hint = " (the file must be comma-separated)" if len(header) == 1 else ""
+    raw = next(csv.reader([first]))
+    header = [c.strip().lower() for c in raw]
+    if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
-        shown = quote_content(first.strip(), cells=4) or f"({len(header)} cell(s), not shown)"
-        raise StiffnetError(f"{name}: wrong header {shown}, expected 't,accel' on line 1{hint}")
+        shown = quote_content(first.strip(), cells=4) or f"({len(raw)} cell(s), not shown)"
+        raise StiffnetError(
+            f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
+        )
+    has_header = not (
+        all(isinstance(k, int) for k in layout.wanted) and all(_is_number(c) for c in raw)
+    )
+    index = [_column_index(k, header if has_header else None, len(raw), name)
+             for k in layout.wanted]  # fmt: skip
+    names = [f"c{i}" for i in range(len(raw))]
+    wanted = [names[i] for i in index]
     try:
         table = pacsv.read_csv(
             p,
-            read_options=pacsv.ReadOptions(skip_rows=1, column_names=list(CSV_COLUMNS)),
+            read_options=pacsv.ReadOptions(
+                skip_rows=int(has_header),
+                column_names=names,
+                # starting the thread pool costs ~40 ms: worth it only for large files
+                use_threads=p.stat().st_size > THREADED_CSV_BYTES,
+            ),
             convert_options=pacsv.ConvertOptions(
-                column_types={c: pa.float64() for c in CSV_COLUMNS},
+                include_columns=wanted,
+                column_types={c: pa.float64() for c in wanted},
                 null_values=[],  # empty cells are errors, 'nan' parses as NaN
                 strings_can_be_null=False,
             ),
         )
     except (pa.ArrowInvalid, UnicodeDecodeError):
         # the fast parser does not say where: find the line ourselves
-        raise StiffnetError(f"{name}: {_locate_csv_problem(p)}") from None
-    t = table.column("t").to_numpy()
-    accel = table.column("accel").to_numpy()
+        raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header)}") from None
+    accel = _float_column(table, wanted[-1])
+    t = _float_column(table, wanted[0]) * layout.seconds_per_unit if len(wanted) == 2 else None
     if accel.size < 2:
         return accel, fs_hz or 1.0, name  # read_recording reports it
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(accel))):
-        raise StiffnetError(f"{name}: {_locate_csv_problem(p)}")  # names the line
-    fs = _rate_from_times(t, name)
+    if not (np.all(np.isfinite(accel)) and (t is None or np.all(np.isfinite(t)))):
+        raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header)}")
+    if t is None:
+        if fs_hz is None:
+            raise StiffnetError(f"{name}: sampling rate missing (no time column; give fs_hz)")
+        return accel, fs_hz, name
+    tname = raw[index[0]].strip() if has_header else f"{index[0]}"
+    fs = _rate_from_times(t, name, f"column {tname}", first_line=1 + int(has_header))
     if fs_hz is not None and abs(fs - fs_hz) > FS_TOLERANCE * fs_hz:
+        hint = ""
+        for factor, (word, unit) in _UNIT_FACTORS.items():
+            if abs(fs * factor - fs_hz) <= FS_TOLERANCE * fs_hz:
+                hint = f" (is the time in {word}? give time unit {unit})"
         raise StiffnetError(
-            f"{name}: column t gives fs = {fs:.6g} Hz but fs_hz = {fs_hz:.6g} Hz was given"
+            f"{name}: column {tname} gives fs = {fs:.6g} Hz but fs_hz = {fs_hz:.6g} Hz "
+            f"was given{hint}"
         )
     return accel, fs_hz if fs_hz is not None else fs, name
 
 
-def _rate_from_times(t: np.ndarray, name: str) -> float:
+def _float_column(table: pa.Table, name: str) -> np.ndarray:
+    """A float64 column without nulls as numpy, read from its buffers.
+
+    ``ChunkedArray.to_numpy`` imports pandas (0.2 s) to check for pandas types;
+    reading the value buffers keeps ``stiffnet predict``'s cold start short.
+    """
+    chunks = table.column(name).chunks
+    parts = [
+        np.frombuffer(c.buffers()[1], dtype=np.float64, count=len(c), offset=c.offset * 8)
+        for c in chunks
+        if len(c)
+    ]
+    return np.concatenate(parts) if parts else np.empty(0)
+
+
+def _column_index(key: str | int, header: list[str] | None, n: int, name: str) -> int:
+    if header is not None and isinstance(key, str):
+        if key in header:
+            if header.count(key) > 1:
+                raise StiffnetError(f"{name}: column {key!r} appears twice in the header")
+            return header.index(key)
+        listed = ",".join(header)
+        raise StiffnetError(f"{name}: no column {key!r} in the header ({listed})")
+    if isinstance(key, str):
+        raise StiffnetError(f"{name}: column {key!r} given by name but the file has no header")
+    if not 0 <= key < n:
+        raise StiffnetError(f"{name}: column index {key} out of range (the file has {n} columns)")
+    return key
+
+
+def _rate_from_times(t: np.ndarray, name: str, col: str = "column t", first_line: int = 2) -> float:
     """Sampling rate of a time column, checking it is strictly increasing and uniform."""
     dt = np.diff(t)
     if np.any(dt <= 0):
         i = int(np.argmax(dt <= 0))
         raise StiffnetError(
-            f"{name}: column t is not strictly increasing (line {i + 3}: t = {float(t[i + 1])!r} "
-            f"after {float(t[i])!r})"
+            f"{name}: {col} is not strictly increasing (line {i + first_line + 1}: "
+            f"t = {float(t[i + 1])!r} after {float(t[i])!r})"
         )
     step = (t[-1] - t[0]) / (t.size - 1)
     dev = np.abs(t - (t[0] + np.arange(t.size) * step))
     if dev.max() > TIME_JITTER_TOLERANCE * step:
         i = int(np.argmax(dev))
         raise StiffnetError(
-            f"{name}: column t is not uniformly sampled (line {i + 2} is {dev[i] / step:.2g} "
-            "sample periods off the uniform grid: dropped or repeated samples?)"
+            f"{name}: {col} is not uniformly sampled (line {i + first_line} is "
+            f"{dev[i] / step:.2g} sample periods off the uniform grid: dropped or repeated "
+            "samples?)"
         )
     return float(1.0 / step)
 
 
-def _locate_csv_problem(p: Path) -> str:
+def _locate_csv_problem(p: Path, raw: list[str], index: list[int], has_header: bool) -> str:
     """Describe the first malformed data line (slow path, run only on error)."""
+    n = len(raw)
+    labels = [raw[i].strip() if has_header else f"#{i}" for i in index]
+    layout = ",".join(c.strip() for c in raw) if has_header else f"{n} columns"
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:
             reader = csv.reader(fh)
-            next(reader, None)  # header, checked already
+            if has_header:
+                next(reader, None)  # header, checked already
             for row in reader:
                 line = reader.line_num
                 if not row or all(not c.strip() for c in row):
                     continue
-                if len(row) != len(CSV_COLUMNS):
-                    return f"line {line} has {len(row)} cells, expected 2 (t,accel)"
-                for col, cell in zip(CSV_COLUMNS, row, strict=True):
+                if len(row) != n:
+                    return f"line {line} has {len(row)} cells, expected {n} ({layout})"
+                for col, i in zip(labels, index, strict=True):
+                    cell = row[i]
                     try:
                         value = float(cell)
                     except ValueError:

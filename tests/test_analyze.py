@@ -51,9 +51,15 @@ def test_analyze_json_keys_and_plots(impact_csv, tmp_path):
     assert result["geometric_class"] in {"medium", "hard"}  # beta = 31, class edge at 35
     assert result["determinism_factor"] > 0.8  # Fig. 6: ~0.91 for an impacting case
     assert result["inclination_after_deg"] > result["inclination_before_deg"]
+    # the restoring-force cross-check: gain-free beta from the force-displacement map
+    assert result["physical_class"] == "medium"
+    assert result["physical_beta"] == pytest.approx(31.0, rel=0.03)
+    lo, hi = result["physical_beta_interval"]
+    assert lo <= result["physical_beta"] <= hi
+    assert result["restoring_force"]["ok"] and result["restoring_force"]["n_impacts"] > 20
     names = {Path(p).name for p in result["plots"]}
     assert names == {"ami.png", "dimension.png", "attractor_xz.png", "tangent_histogram.png",
-                     "inclinations.png"}  # fmt: skip
+                     "inclinations.png", "force_displacement.png"}  # fmt: skip
     for p in result["plots"]:
         assert Path(p).stat().st_size > 5000
 
@@ -62,6 +68,8 @@ def test_no_impact_gives_no_contact_not_a_number():
     a = analyze_signal(simulated(31.0, gap=50.0), 100 * FN).summary()
     assert a["contact_detected"] is False and a["impacts_found"] == 0
     assert a["geometric_class"] == "no_contact" and a["geometric_beta"] is None
+    assert a["physical_class"] == "no_contact" and a["physical_beta"] is None
+    assert a["restoring_force"]["reason"].startswith("no contact")
 
 
 def run_cli(*args):

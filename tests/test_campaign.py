@@ -350,3 +350,31 @@ def test_load_campaign_refuses_symlinks_out(tmp_path):
     write(camp / MANIFEST_NAME, "recording,fs_hz\nlink.csv,1000\n")
     with pytest.raises(StiffnetError, match="recording path leaves the campaign folder"):
         load_campaign(camp)
+
+
+def test_manifest_columns_and_time_unit_read_lab_files(tmp_path):
+    """Each row may name its CSV columns and time unit (a quoted cell or ';' between them)."""
+    x = np.sin(np.arange(400) / 7.0)
+    lines = "\n".join(f"{k * 2},{float(v)!r}" for k, v in enumerate(x))  # 2 ms steps
+    write(tmp_path / "lab.csv", "time_ms,acc_g\n" + lines + "\n")
+    text = 'recording,fs_hz,columns,time_unit\nlab.csv,500,"time_ms,acc_g",ms\n'
+    write(tmp_path / MANIFEST_NAME, text)
+    rec = load_campaign(tmp_path).recording(0)
+    assert rec.fs_hz == 500 and np.array_equal(rec.accel, x)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz,columns,time_unit\nlab.csv,500,0;1,ms\n")
+    assert np.array_equal(load_campaign(tmp_path).recording(0).accel, x)
+    # a wrong unit is a manifest error naming the line and column
+    manifest_error(tmp_path, "recording,fs_hz,time_unit\nlab.csv,500,min\n",
+                   "line 2, column time_unit")  # fmt: skip
+    # without the columns the header error says how to map it
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nlab.csv,500\n")
+    with pytest.raises(StiffnetError, match="--columns time_ms,acc_g --time-unit ms"):
+        load_campaign(tmp_path).recording(0)
+
+
+def test_simulated_manifest_drops_read_options(tmp_path):
+    text = SMALL.replace(HEADER, HEADER + ",time_unit").replace("0.4\n", "0.4,ms\n", 1)
+    text = text.replace("0.3\n", "0.3,\n").replace("0.2\n", "0.2,\n")
+    out = simulate_campaign(write(tmp_path / "plan.csv", text), tmp_path / "out")
+    assert "time_unit" not in (out / MANIFEST_NAME).read_text()  # written in seconds
+    assert load_campaign(out).recording(0).fs_hz == pytest.approx(500)

@@ -1,6 +1,7 @@
 """CNN on canonical windows: invariances, end-to-end training, ONNX export and parity."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -8,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import onnx
 import pytest
+from test_progress import Recorder
 
+from stiffnet import progress
 from stiffnet.config import load_config, validate_config
 from stiffnet.config.train import CNNConfig, TrainConfig
 from stiffnet.dataset.store import load_dataset
@@ -42,8 +45,34 @@ def trained(tiny_dir, tmp_path_factory):
     work = tmp_path_factory.mktemp("cnnrun")
     uri = f"sqlite:///{work / 'mlflow.db'}"
     cfg = TrainConfig(model="cnn", experiment="test-cnn", cnn=SMALL_CNN)
-    summary = train(tiny_dir, cfg, work / "out", tracking_uri=uri, progress=None)
+    display = Recorder()
+    with progress.reporting(display):
+        summary = train(tiny_dir, cfg, work / "out", tracking_uri=uri, progress=None)
+    summary["_progress"] = display
     return summary, uri, work
+
+
+def test_onnx_export_prints_no_torchvision_warnings():
+    """torch.onnx logs four "torchvision is not installed" lines on its first export."""
+    code = (
+        "from training.cnn import StiffnessCNN\n"
+        "from training.export_onnx_cnn import _export_proto\n"
+        "_export_proto(StiffnessCNN(3, 5, 8, 2), 3, 64)\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, env={**os.environ, "PYTHONPATH": str(root)})  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "torchvision" not in proc.stderr + proc.stdout
+
+
+def test_training_reports_each_epoch_with_losses(trained):
+    summary = trained[0]
+    updates = [e for e in summary["_progress"].events if e[:2] == ("update", "training epochs")]
+    assert [e[2] for e in updates] == list(range(1, len(updates) + 1))
+    assert 1 <= len(updates) <= SMALL_CNN["max_epochs"]
+    assert all("train loss" in e[3] and "val loss" in e[3] for e in updates)
+    assert ("add", "training epochs", SMALL_CNN["max_epochs"]) in summary["_progress"].events
 
 
 def _spiky(fs_ratio=97.3, periods=10, fn=9.48, seed=0):
@@ -208,3 +237,40 @@ def test_mlflow_run_has_cnn_metrics(trained):
     assert "cnn/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
     assert run.data.params["model"] == "cnn"
     assert run.data.tags["stiffnet.model"] == "cnn"
+
+
+def test_mlflow_logs_epoch_losses_and_the_model(trained):
+    import mlflow
+    import onnxruntime as ort
+
+    summary, uri, _ = trained
+    client = mlflow.MlflowClient(uri)
+    run_id = summary["run_id"]
+    path = Path(summary["paths"]["onnx"])
+    card = json.loads(path.with_suffix(".card.json").read_text())
+    history = card["training"]["history"]
+    for key in ("train_loss", "val_loss"):
+        points = client.get_metric_history(run_id, key)
+        assert [p.step for p in sorted(points, key=lambda p: p.step)] == [
+            h["epoch"] for h in history
+        ]
+        assert [p.value for p in sorted(points, key=lambda p: p.step)] == pytest.approx(
+            [h[key] for h in history]
+        )
+    run = client.get_run(run_id)
+    models = client.search_logged_models(experiment_ids=[run.info.experiment_id])
+    mine = [m for m in models if m.source_run_id == run_id]
+    assert len(mine) == 1 and mine[0].name == "model"
+    model = mine[0]
+    assert model.metrics and {m.key for m in model.metrics} >= {"cnn/accuracy"}
+    onnx_model = mlflow.onnx.load_model(f"models:/{model.model_id}")
+    info = mlflow.models.get_model_info(f"models:/{model.model_id}")
+    sig = info.signature.inputs.to_dict()[0]
+    sess = ort.InferenceSession(str(path))
+    logged = ort.InferenceSession(onnx_model.SerializeToString())
+    inp = sess.get_inputs()[0]
+    x = np.random.default_rng(0).standard_normal((3, *inp.shape[1:])).astype(np.float32)
+    for a, b in zip(sess.run(None, {inp.name: x}), logged.run(None, {inp.name: x}), strict=True):
+        np.testing.assert_array_equal(a, b)  # the logged model is the exported one
+    assert list(sig["tensor-spec"]["shape"][1:]) == list(sess.get_inputs()[0].shape[1:])
+    assert info.metadata["stiffnet_card"]["sha256"] == card["sha256"]

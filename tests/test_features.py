@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from sklearn.base import BaseEstimator, TransformerMixin
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
@@ -20,7 +21,7 @@ from stiffnet.features import (
     features_and_estimate,
     inclination_features,
 )
-from training.transformers import InclinationFeatures, window_records
+from training.transformers import SKLEARN_CHECKS, InclinationFeatures, window_records
 
 TINY = {
     "seed": 3,
@@ -124,3 +125,35 @@ def test_records_with_unknown_natural_frequency(tiny):
     ]
     X = InclinationFeatures().fit_transform(recs)
     assert (X[:, FEATURE_NAMES.index("period_natural")] == -1.0).all()
+
+
+@pytest.mark.parametrize("check", SKLEARN_CHECKS)
+def test_transformer_passes_the_sklearn_checks_that_apply(check):
+    import sklearn.utils.estimator_checks as ec
+
+    getattr(ec, check)("InclinationFeatures", InclinationFeatures())
+
+
+def test_transformer_tags_and_data_contract(tiny):
+    import pickle
+
+    from sklearn.base import clone
+    from sklearn.utils import get_tags
+
+    tags = get_tags(InclinationFeatures())
+    assert tags.estimator_type is None and tags.transformer_tags is not None
+    assert not tags.requires_fit and tags.input_tags.dict and not tags.input_tags.two_d_array
+    assert InclinationFeatures.__mro__.index(TransformerMixin) < InclinationFeatures.__mro__.index(
+        BaseEstimator
+    )
+    recs = window_records(tiny)[:6]
+    tr = InclinationFeatures()
+    X = tr.transform(recs)  # stateless: no fit needed
+    assert tr.fit(recs) is tr
+    np.testing.assert_array_equal(tr.fit_transform(recs), X)  # fit_transform == transform
+    np.testing.assert_array_equal(tr.fit(recs).transform(recs), X)  # idempotent
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(tr)).transform(recs), X)
+    np.testing.assert_array_equal(clone(tr).transform(recs), X)
+    assert X.dtype == np.float64 and X.shape[1] == len(tr.get_feature_names_out())
+    df = InclinationFeatures().set_output(transform="pandas").fit_transform(recs)
+    assert list(df.columns) == FEATURE_NAMES and np.array_equal(df.to_numpy(), X)

@@ -117,13 +117,17 @@ def test_diagnose_json_contract(diagnoses):
     assert {r["effect"] for r in d["ranking"]} == {*FAST_EFFECTS, USER_EFFECT}
 
 
-def test_base_model_error_worse_than_on_clean_twin(campaigns):
+def test_shipped_model_holds_on_a_damped_contact(campaigns):
+    """The shipped CNN trains on rigs with dissipative contacts (docs/priors.md): a damped
+    campaign costs it little, and its per-recording interval still holds the truth. (The
+    model trained on the ideal world lost 0.4 in beta MAPE here: issue 11.)"""
     from stiffnet.measurement.evaluate import evaluate_campaign
 
     clean = evaluate_campaign(campaigns["clean"])["metrics"]["learned"]
     hidden = evaluate_campaign(campaigns["contact_damping_0.3"])["metrics"]["learned"]
-    assert hidden["beta_mape"] > clean["beta_mape"] + 0.05
-    assert hidden["accuracy"] <= clean["accuracy"]
+    assert hidden["beta_mape"] < clean["beta_mape"] + 0.1
+    assert hidden["interval_coverage"] >= 0.75 and clean["interval_coverage"] >= 0.75
+    assert hidden["alarm_rate"] is not None
 
 
 def test_compare_says_where_it_fails(campaigns):

@@ -5,7 +5,7 @@ import pytest
 from _lorenz import lorenz_x
 from scipy.spatial.distance import cdist
 
-from stiffnet.errors import SignalError
+from stiffnet.errors import ConfigError, SignalError
 from stiffnet.nlts import (
     cao_curves,
     cao_dimension,
@@ -160,3 +160,46 @@ def test_carried_neighbours_give_the_per_dimension_search_bit_for_bit(signal, lo
             np.testing.assert_array_equal(e2, r2)
         f = false_nearest_neighbours(x, tau, 8, theiler=theiler)
         np.testing.assert_array_equal(f, reference_fnn(x, tau, 8, w))
+
+
+def _tisean_fnn_brute_force(x, tau, max_dim, rt, theiler):
+    """TISEAN false_nearest's definition, written out with O(N^2) loops over pairs.
+
+    Reference points i < N - M tau, candidates j < N - (M + 1) tau (M = max_dim),
+    |i - j| > theiler, maximum norm, distance 0 skipped; a pair counts when its
+    distance is <= std / rt and is false when the next coordinate differs by more
+    than rt times the distance; fraction = false / counted.
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    n_ref, n_cand = n - max_dim * tau, n - (max_dim + 1) * tau
+    sigma = np.sqrt(np.mean(x**2) - np.mean(x) ** 2)
+    i, j = np.arange(n_ref)[:, None], np.arange(n_cand)[None, :]
+    out = []
+    for m in range(1, max_dim + 1):  # all pairs at once: an (n_ref, n_cand) matrix
+        d = np.max([np.abs(x[i + k * tau] - x[j + k * tau]) for k in range(m)], axis=0)
+        d[(np.abs(i - j) <= theiler) | (d == 0.0)] = np.inf
+        which = np.argmin(d, axis=1)
+        best = d[np.arange(n_ref), which]
+        counted = best <= sigma / rt
+        gap = np.abs(x[np.arange(n_ref) + m * tau] - x[which + m * tau])
+        false = (gap / best > rt) & counted
+        out.append(false.sum() / counted.sum() if counted.any() else np.nan)
+    return np.array(out)
+
+
+@pytest.mark.parametrize(("rt", "theiler"), [(2.0, 0), (3.0, 4)])
+def test_fnn_max_norm_reproduces_tisean_definition(rt, theiler):
+    x = lorenz_x(600, dt=0.05)
+    got = false_nearest_neighbours(x, 2, max_dim=4, rtol=rt, theiler=theiler, norm="max")
+    want = _tisean_fnn_brute_force(x, 2, 4, rt, theiler)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert np.isfinite(want).all() and want[0] > want[-1]  # a meaningful check
+    # and it is not the default (Kennel's, Euclidean) definition
+    default = false_nearest_neighbours(x, 2, max_dim=4, rtol=rt, theiler=theiler)
+    assert not np.allclose(default, want)
+
+
+def test_fnn_norm_is_checked():
+    with pytest.raises(ConfigError, match="norm"):
+        false_nearest_neighbours(np.sin(np.arange(500) / 5), 3, norm="manhattan")

@@ -54,3 +54,45 @@ def test_rule_uses_floor_for_near_perfect_predictions():
 def test_rule_rejects_non_square():
     with pytest.raises(ConfigError):
         is_stationary(np.ones((2, 3)))
+
+
+def _cross_prediction_brute_force(x, dim, tau, n_seg, k, theiler, p, per_segment):
+    """The documented definition with explicit distance matrices (no tree)."""
+    x = np.asarray(x, dtype=float)
+    length = x.size // n_seg
+    span = (dim - 1) * tau
+    segs = [x[s * length : (s + 1) * length] for s in range(n_seg)]
+    vec = [np.column_stack([g[q * tau : length - 1 - span + q * tau] for q in range(dim)])
+           for g in segs]  # fmt: skip
+    fut = [g[span + 1 :] for g in segs]
+    out = np.empty((n_seg, n_seg))
+    for i in range(n_seg):
+        for j in range(n_seg):
+            diff = np.abs(vec[j][:, None, :] - vec[i][None, :, :])
+            d = diff.max(axis=2) if p == "max" else np.sqrt((diff**2).sum(axis=2))
+            if i == j:
+                t = np.arange(len(vec[i]))
+                d[np.abs(t[:, None] - t[None, :]) <= theiler] = np.inf
+            nn = np.argsort(d, axis=1, kind="stable")[:, :k]
+            err = np.sqrt(np.mean((fut[i][nn].mean(axis=1) - fut[j]) ** 2))
+            out[i, j] = err / (segs[j].std() if per_segment else x.std())
+    return out
+
+
+@pytest.mark.parametrize(("norm", "scale"), [("max", "segment"), ("euclidean", "signal")])
+def test_cross_prediction_norm_and_scale_follow_their_definition(norm, scale):
+    rng = np.random.default_rng(4)
+    t = np.arange(1200)
+    x = np.sin(0.13 * t) + 0.4 * np.sin(0.031 * t) * (t > 600) + 0.05 * rng.standard_normal(t.size)
+    got = cross_prediction_errors(x, 3, 4, n_segments=3, n_neighbours=4, norm=norm, scale=scale)
+    want = _cross_prediction_brute_force(x, 3, 4, 3, 4, 2 * 4 + 1, norm, scale == "segment")
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_cross_prediction_tisean_options_change_the_numbers():
+    x = np.sin(0.13 * np.arange(1200)) * (1 + 0.5 * (np.arange(1200) > 800))
+    base = cross_prediction_errors(x, 3, 4, n_segments=3)
+    tisean = cross_prediction_errors(x, 3, 4, n_segments=3, norm="max", scale="segment")
+    assert not np.allclose(base, tisean)
+    with pytest.raises(ConfigError, match="scale"):
+        cross_prediction_errors(x, 3, 4, scale="range")

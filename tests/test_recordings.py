@@ -331,3 +331,85 @@ def test_tdms_corrupt_after_lead_in_is_quiet(tmp_path, capfd):
         read_recording(path, fs_hz=FS)
     assert "\n" not in str(exc.value)
     assert capfd.readouterr().err == ""  # npTDMS's warnings are silenced
+
+
+# ------------------------------------------------------- user layouts (columns, time unit)
+
+
+def lab_csv(path: Path, header: str, scale: float, n: int = 300, fs: float = FS) -> Path:
+    """A lab export: time in 1/scale seconds, acceleration in column 2 of 3."""
+    x = signal(n)
+    rows = [f"{k / fs * scale:.9g},{0.5 * k},{float(v)!r}" for k, v in enumerate(x)]
+    return write_text(path, header + "\n" + "\n".join(rows) + "\n")
+
+
+def test_columns_by_name_and_time_unit(tmp_path):
+    path = lab_csv(tmp_path / "lab.csv", "time_ms,temp_C,acc_g", 1e3)
+    rec = read_recording(path, columns="time_ms,acc_g", time_unit="ms")
+    assert rec.fs_hz == pytest.approx(FS, rel=1e-9)
+    np.testing.assert_array_equal(rec.accel, signal(300))
+    # names are case-insensitive; a (time, accel) pair works like the string
+    same = read_recording(path, columns=("TIME_MS", "Acc_G"), time_unit="ms")
+    np.testing.assert_array_equal(same.accel, rec.accel)
+    # microseconds
+    us = lab_csv(tmp_path / "us.csv", "t_us,x,a", 1e6)
+    assert read_recording(us, columns="0,2", time_unit="us").fs_hz == pytest.approx(FS)
+
+
+def test_columns_by_index_reads_headerless_files(tmp_path):
+    path = lab_csv(tmp_path / "raw.csv", "", 1.0)
+    path.write_text(path.read_text().lstrip("\n"))  # no header line at all
+    rec = read_recording(path, columns="0,2")
+    assert len(rec) == 300 and rec.fs_hz == pytest.approx(FS)
+    np.testing.assert_array_equal(rec.accel, signal(300))
+    # with a header, indices skip it
+    named = lab_csv(tmp_path / "named.csv", "t,x,a", 1.0)
+    assert len(read_recording(named, columns="0,2")) == 300
+
+
+def test_accel_only_column_needs_the_rate(tmp_path):
+    path = lab_csv(tmp_path / "lab.csv", "time,x,acc", 1.0)
+    rec = read_recording(path, columns="acc", fs_hz=2 * FS)  # no time column: the given rate
+    assert rec.fs_hz == 2 * FS and len(rec) == 300
+    assert_error("sampling rate missing \\(no time column", path, columns="acc")
+    assert_error("time_unit given but columns names no time column", path, columns="acc",
+                 time_unit="ms")  # fmt: skip
+
+
+def test_wrong_header_says_how_to_map_it(tmp_path):
+    path = lab_csv(tmp_path / "lab.csv", "time_ms,acc_g,temp", 1e3)
+    with pytest.raises(StiffnetError) as info:
+        read_recording(path)
+    msg = str(info.value)
+    assert "wrong header" in msg and "--columns time_ms,acc_g --time-unit ms" in msg
+    assert "time_unit" in msg and "\n" not in msg  # also names the manifest/HTTP fields
+    numeric = write_text(tmp_path / "n.csv", "0,1\n0.001,2\n")
+    assert_error("no header: give columns as indices", numeric)
+
+
+def test_layout_errors_are_one_line(tmp_path):
+    path = lab_csv(tmp_path / "lab.csv", "time,x,acc", 1.0)
+    assert_error(r"no column 'accel' in the header \(time,x,acc\)", path, columns="time,accel")
+    assert_error("column index 5 out of range \\(the file has 3 columns\\)", path, columns="0,5")
+    assert_error("unknown time unit 'min'", path, columns="time,acc", time_unit="min")
+    assert_error("columns must be 'TIME,ACCEL'", path, columns="a,b,c")
+    assert_error("names the same column twice", path, columns="acc,acc")
+    bad = write_text(tmp_path / "b.csv", "time,x,acc\n0,1,2\n0.001,1,oops\n")
+    assert_error("line 3, column acc: 'oops' is not a number", bad, columns="time,acc")
+    short = write_text(tmp_path / "s.csv", "time,x,acc\n0,1,2\n0.001,1\n")
+    assert_error(r"line 3 has 2 cells, expected 3 \(time,x,acc\)", short, columns="time,acc")
+    np.save(tmp_path / "r.npy", signal())
+    assert_error("applies to CSV recordings only", tmp_path / "r.npy", fs_hz=FS, columns="0")
+    assert_error("applies to CSV recordings only", tmp_path / "r.npy", fs_hz=FS, time_unit="ms")
+
+
+def test_a_rate_off_by_a_unit_factor_says_so(tmp_path):
+    from stiffnet.recordings import unit_mistake_hint
+
+    path = lab_csv(tmp_path / "lab.csv", "time,x,acc", 1e3)  # times in ms
+    assert_error(r"gives fs = 1 Hz but fs_hz = 1000 Hz was given \(is the time in milliseconds",
+                 path, columns="time,acc", fs_hz=FS)  # fmt: skip
+    # the rule itself: a rate 1000x (or 1e6x) too low for the expected band
+    assert "--time-unit ms" in unit_mistake_hint(5.0, 474.0, 5000.0 * 4)
+    assert "--time-unit us" in unit_mistake_hint(0.005, 474.0, 20000.0)
+    assert unit_mistake_hint(300.0, 474.0, 20000.0) == ""  # just too low: no unit story

@@ -123,13 +123,21 @@ def test_bad_input_raises_one_line_errors():
 
 
 def test_damped_contact_seen_through_sensor_dynamics():
+    """Resonance, 1 kHz low-pass and the 1 Hz charge-amplifier high-pass, its corner given."""
     effects = [("contact_damping", {"damping_ratio": 0.25}), ("sensor_dynamics", {})]
     accel, fs = simulate(45.0, effects, fs_ratio=300.0, noise=0.02)
-    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz=1.0)
     assert r.ok, r.reason
     assert r.beta == pytest.approx(45.0, rel=0.1)
     assert r.physical_class == "hard"
     assert r.contact_damping_ratio == pytest.approx(0.25, abs=0.08)
+    # the corner recovered from the filter's start-up transient
+    auto = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz="auto")
+    assert auto.highpass_hz == pytest.approx(1.0, abs=0.2)
+    assert auto.beta == pytest.approx(45.0, rel=0.1)
+    # ignoring the high-pass breaks the map: refused, or far off
+    plain = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert not plain.ok or abs(plain.beta / 45.0 - 1) > 0.1
 
 
 def test_forcing_harmonics_with_phases():

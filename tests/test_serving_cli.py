@@ -164,3 +164,20 @@ def test_predict_wav_and_npy(tmp_path, accel):
         res = _run("predict", path, *extra, "--json", out)
         assert res.exit_code == 0, res.output
         assert json.loads(out.read_text())["class"] == "hard"
+
+
+def test_predict_reads_a_lab_layout_with_columns_and_time_unit(tmp_path, accel):
+    lab = tmp_path / "lab.csv"
+    rows = "\n".join(f"{k:d},{float(a)!r}" for k, a in enumerate(accel))  # time in ms
+    lab.write_text("time_ms,acc_g\n" + rows + "\n")
+    ref, got = tmp_path / "ref.json", tmp_path / "got.json"
+    assert _run("predict", EXAMPLE, "--fn", "9.48", "--json", ref).exit_code == 0
+    res = _run("predict", lab, "--fn", "9.48", "--columns", "time_ms,acc_g",
+               "--time-unit", "ms", "--json", got)  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert json.loads(got.read_text())["beta"] == json.loads(ref.read_text())["beta"]
+    # the plain call names the fix; seconds instead of ms names the unit mistake
+    res = _run("predict", lab, "--fn", "9.48")
+    assert res.exit_code == 2 and "--columns time_ms,acc_g --time-unit ms" in res.output
+    res = _run("predict", lab, "--fn", "9.48", "--columns", "time_ms,acc_g")
+    assert res.exit_code == 2 and "--time-unit ms" in res.output and "1000 Hz" in res.output

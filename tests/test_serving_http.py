@@ -261,3 +261,54 @@ def test_live_server(samples):
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+def test_upload_with_columns_and_time_unit_fields(client):
+    """A lab export (time in ms, other column names) predicts like the t,accel file."""
+    rec = read_recording(EXAMPLE)
+    lines = [f"{1000 * k / rec.fs_hz:.6g};{float(a)!r},0" for k, a in enumerate(rec.accel)]
+    lab = ("Time (ms),Acc (g),T\n" + "\n".join(lines).replace(";", ",")).encode()
+    with open(EXAMPLE, "rb") as fh:
+        ref = client.post("/predict", files={"file": ("run.csv", fh)},
+                          data={"natural_frequency_hz": "9.48"}).json()  # fmt: skip
+    fields = {"natural_frequency_hz": "9.48", "columns": "time (ms),acc (g)", "time_unit": "ms"}
+    r = client.post("/predict", files={"file": ("lab.csv", lab)}, data=fields)
+    assert r.status_code == 200, r.text
+    assert r.json()["beta"] == pytest.approx(ref["beta"], rel=1e-9)
+    assert r.json()["fs_hz"] == pytest.approx(rec.fs_hz)
+    # without the fields the header is refused with the mapping to use
+    _is_error(client.post("/predict", files={"file": ("lab.csv", lab)}), 422,
+              "--columns Time (ms),Acc (g) --time-unit ms")  # fmt: skip
+    _is_error(client.post("/predict", files={"file": ("lab.csv", lab)},
+                          data={**fields, "time_unit": "h"}), 422, "unknown time unit")  # fmt: skip
+    spec = client.get("/openapi.json").json()["paths"]["/predict"]["post"]["requestBody"]
+    props = spec["content"]["multipart/form-data"]["schema"]["properties"]
+    assert props["time_unit"]["enum"] == ["s", "ms", "us"] and "columns" in props
+
+
+def test_every_route_has_a_typed_response_and_lists_its_errors(client):
+    from serving.schemas import HealthResponse, ModelResponse
+
+    schema = client.get("/openapi.json").json()
+    comps = schema["components"]["schemas"]
+    expected = {
+        ("/predict", "post"): ("PredictionResult", {"400", "413", "415", "422", "429", "504"}),
+        ("/health", "get"): ("HealthResponse", {"405", "413"}),
+        ("/model", "get"): ("ModelResponse", {"405", "413"}),
+    }
+    for (path, method), (model, errors) in expected.items():
+        responses = schema["paths"][path][method]["responses"]
+        ok = responses["200"]["content"]["application/json"]["schema"]
+        assert ok == {"$ref": f"#/components/schemas/{model}"}, path
+        assert comps[model]["properties"], model  # a typed object, not {}
+        assert errors <= set(responses), (path, set(responses))
+        for code in set(responses) - {"200"}:
+            ref = responses[code]["content"]["application/json"]["schema"]["$ref"]
+            assert ref.endswith("/ErrorBody"), (path, code)
+    assert comps["HealthResponse"]["properties"]["in_flight"]["type"] == "integer"
+    assert "limits" in comps["ModelResponse"]["properties"]
+    # the answers validate against their models
+    HealthResponse.model_validate(client.get("/health").json())
+    m = ModelResponse.model_validate(client.get("/model").json())
+    assert m.limits.max_upload_mb == 2.0 and m.class_names
+    _is_error(client.delete("/health"), 405)

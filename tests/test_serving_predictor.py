@@ -231,8 +231,12 @@ def test_bad_signals(cnn, example):
         cnn.predict(example.accel[:1000], fs)
     with pytest.raises(StiffnetError, match="constant"):
         cnn.predict(np.full(5000, 3.0), fs)
-    with pytest.raises(StiffnetError, match="below the minimum 474 Hz"):
+    with pytest.raises(StiffnetError, match="below the minimum 474 Hz") as info:
         cnn.predict(example.accel[::3], fs / 3)
+    assert "time unit" not in str(info.value)  # 333 Hz: simply too low
+    # times in milliseconds read as seconds: 1 Hz, and the message names the fix
+    with pytest.raises(StiffnetError, match=r"in milliseconds.*--time-unit ms.*1000 Hz"):
+        cnn.predict(example.accel, fs / 1000)
     for fs_bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(StiffnetError, match="fs_hz"):
             cnn.predict(example.accel, fs_bad)

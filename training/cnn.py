@@ -168,6 +168,7 @@ def fit_cnn(
     cfg: CNNConfig,
     seed: int,
     progress: Callable[[str], None] | None = None,
+    on_epoch: Callable[[dict[str, float]], None] | None = None,
 ) -> FitResult:
     """Train the CNN on ``split.train``, early-stopping on ``split.val``.
 
@@ -189,6 +190,9 @@ def fit_cnn(
         Seed of the weights, the batch order and dropout.
     progress : callable, optional
         Receives one line per epoch.
+    on_epoch : callable, optional
+        Receives each epoch's history entry (``epoch``, ``train_loss``,
+        ``val_loss``) as it ends (progress bars, experiment trackers).
 
     Returns
     -------
@@ -245,6 +249,8 @@ def fit_cnn(
         else:
             val_loss = train_loss
         history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss})
+        if on_epoch:
+            on_epoch(history[-1])
         if val_loss < best:
             best, best_epoch, best_state = val_loss, epoch, copy.deepcopy(model.state_dict())
         if progress:

@@ -22,9 +22,12 @@ adds (``training_data_sha256``, ``conformal_quantile``, ...). Writes are atomic.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import tempfile
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -44,12 +47,27 @@ INPUT_NAME = "windows"
 OUTPUT_NAMES = ["probabilities", "log_beta", "log_beta_scale", "embedding"]
 
 
+@contextlib.contextmanager
+def _quiet_exporter_logs() -> Iterator[None]:
+    """Silence torch.onnx's exporter loggers (e.g. four "torchvision is not installed.
+    Skipping torchvision::nms" warnings: stiffnet has no torchvision ops)."""
+    loggers = [logging.getLogger(n) for n in ("torch.onnx", "torch._dynamo", "torch.export")]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
 def _export_proto(net: StiffnessCNN, n_channels: int, length: int) -> onnx.ModelProto:
     wrapper = ProbabilityModel(net).eval()
     example = torch.zeros(2, n_channels, length)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "model.onnx"
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), _quiet_exporter_logs():
             warnings.simplefilter("ignore")
             try:
                 torch.onnx.export(

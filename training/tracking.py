@@ -3,6 +3,12 @@
 Default store: ``sqlite:///mlflow.db``, a SQLite file in the current folder;
 any MLflow tracking URI can be passed instead. With a SQLite store, a new
 experiment keeps its artifacts in ``mlruns/`` beside the database file.
+
+A run holds what MLflow users compare in the UI: parameters, final metrics, the
+per-epoch ``train_loss`` / ``val_loss`` as step metrics (CNN), and the exported
+ONNX file as a *logged model* (``mlflow.onnx.log_model``: MLmodel with the input
+signature read from the graph, the model card as its metadata, the ONNX Runtime
+requirement) linked to the run's metrics, so ``models:/<model_id>`` loads it.
 """
 
 from __future__ import annotations
@@ -83,6 +89,8 @@ def log_run(
     confusions: dict[str, np.ndarray],
     class_names: list[str],
     tags: dict[str, str] | None = None,
+    history: list[dict[str, float]] | None = None,
+    onnx_model: str | Path | None = None,
 ) -> str:
     """Log one training run and return its run id.
 
@@ -107,6 +115,12 @@ def log_run(
         Confusion-matrix axis labels.
     tags : dict, optional
         Run tags.
+    history : list of dict, optional
+        Per-epoch entries (``epoch``, ``train_loss``, ``val_loss``): logged as
+        step metrics ``train_loss`` and ``val_loss`` (step = epoch).
+    onnx_model : str or Path, optional
+        The exported ONNX file, logged as the run's logged model ``model``
+        (card ``<stem>.card.json`` beside it as metadata).
 
     Returns
     -------
@@ -125,6 +139,12 @@ def log_run(
         mlflow.log_params({_clean_key(k): v for k, v in params.items()})
         finite = {_clean_key(k): float(v) for k, v in metrics.items() if np.isfinite(v)}
         mlflow.log_metrics(finite)
+        for h in history or []:
+            step = {k: float(v) for k, v in h.items() if k != "epoch" and np.isfinite(v)}
+            mlflow.log_metrics(step, step=int(h["epoch"]))
+        if onnx_model is not None:
+            info = log_onnx_model(onnx_model)
+            mlflow.log_metrics(finite, model_id=info.model_id)  # the model's own metrics
         mlflow.log_artifact(str(data_card_path), artifact_path="data")
         for a in artifacts:
             mlflow.log_artifact(str(a), artifact_path="model")
@@ -133,3 +153,47 @@ def log_run(
                 png = confusion_png(cm, class_names, f"{name} (test)", Path(tmp) / f"{name}.png")
                 mlflow.log_artifact(str(png), artifact_path="figures")
         return run.info.run_id
+
+
+def onnx_signature(model: Any) -> Any:
+    """MLflow signature of an ONNX graph's inputs (dynamic dimensions as -1)."""
+    from mlflow.models import ModelSignature
+    from mlflow.types.schema import Schema, TensorSpec
+    from onnx import helper
+
+    specs = []
+    for inp in model.graph.input:
+        t = inp.type.tensor_type
+        shape = tuple(d.dim_value if d.HasField("dim_value") else -1 for d in t.shape.dim)
+        dtype = np.dtype(helper.tensor_dtype_to_np_dtype(t.elem_type))
+        specs.append(TensorSpec(dtype, shape, inp.name))
+    return ModelSignature(inputs=Schema(specs))
+
+
+def log_onnx_model(path: str | Path) -> Any:
+    """Log an exported ONNX file (and its card) as the active run's logged model ``model``.
+
+    Returns
+    -------
+    mlflow.models.model.ModelInfo
+        With ``model_id`` and ``model_uri``.
+    """
+    import json
+
+    import mlflow
+    import mlflow.onnx
+    import onnx
+    import onnxruntime
+
+    p = Path(path)
+    model = onnx.load(str(p))
+    card_path = p.with_suffix(".card.json")
+    card = json.loads(card_path.read_text()) if card_path.is_file() else {}
+    flat = {k: v for k, v in card.items() if isinstance(v, str | int | float | bool)}
+    return mlflow.onnx.log_model(
+        model,
+        name="model",
+        signature=onnx_signature(model),
+        metadata={"stiffnet_card": flat, "onnx_file": p.name},
+        pip_requirements=[f"onnxruntime=={onnxruntime.__version__}"],  # no inference: offline
+    )

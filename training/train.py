@@ -32,6 +32,7 @@ from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION
 from stiffnet.geometry import geometric_estimate
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from stiffnet.progress import task as progress_task
 from stiffnet.uncertainty.alarm import save_alarm
 from training.calibration import calibrate_recording_level
 from training.export_onnx import export_onnx, parity
@@ -48,6 +49,10 @@ MODEL_FILE = "gbm.onnx"
 CNN_MODEL_FILE = "cnn.onnx"
 #: The alarm reference sits beside its model: ``cnn.onnx`` -> ``cnn.alarm.npz``.
 ALARM_SUFFIX = ".alarm.npz"
+
+
+def _losses(h: dict[str, float]) -> str:
+    return f"epoch {h['epoch']:.0f}: train loss {h['train_loss']:.4f}, val loss {h['val_loss']:.4f}"
 
 
 def _stderr(msg: str) -> None:
@@ -160,7 +165,7 @@ def _data_summary(data_dir: Path, card_sha: str, ds: Any) -> dict[str, Any]:
 
 
 def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, *, params,
-           metrics, confusions) -> str | None:  # fmt: skip
+           metrics, confusions, history=None) -> str | None:  # fmt: skip
     """Log the run to MLflow (when tracking is on); returns the run id."""
     if not config.tracking:
         return None
@@ -194,6 +199,8 @@ def _track(config, tracking_uri, data_dir, ds, card_sha, onnx_path, names, say, 
         confusions=confusions,
         class_names=names,
         tags={"stiffnet.model": config.model, "stiffnet.data_sha256": card_sha},
+        history=history,
+        onnx_model=onnx_path,
     )
     say(f"MLflow run {run_id} in {uri} (experiment {config.experiment})")
     return run_id
@@ -414,7 +421,9 @@ def train_cnn(
     sp = _split(ds, data_dir, config, cc.validation_fraction, say)
 
     t = time.perf_counter()
-    fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed)
+    with progress_task("training epochs", cc.max_epochs) as bar:
+        fit = fit_cnn(X, label, beta, sp, len(names), cc, config.seed,
+                      on_epoch=lambda h: bar.advance(note=_losses(h)))  # fmt: skip
     t_fit = time.perf_counter() - t
     say(f"fitted: best epoch {fit.best_epoch} of {fit.epochs} ({t_fit:.1f} s)")
     net = fit.model
@@ -513,6 +522,7 @@ def train_cnn(
             "cnn": confusion(label[te], pred, len(names)),
             "geometric": confusion(label[te], g_pred, len(names)),
         },
+        history=fit.history,
     )  # fmt: skip
 
     summary = {

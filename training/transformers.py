@@ -49,8 +49,17 @@ def window_records(data: Dataset | pa.Table | WindowRecords) -> list[Mapping[str
     return list(data)
 
 
-class InclinationFeatures(BaseEstimator, TransformerMixin):
+class InclinationFeatures(TransformerMixin, BaseEstimator):
     """Window records -> inclination feature matrix (stateless).
+
+    scikit-learn conventions: mixins before :class:`~sklearn.base.BaseEstimator`;
+    tags say what is true - the input is a sequence of records (mappings), not a
+    2-D array (``input_tags.dict``, ``two_d_array=False``), and nothing is learned
+    (``requires_fit=False``). ``check_estimator`` therefore runs only its clone
+    check (it cannot build records); ``tests/test_features.py`` runs every check
+    that needs no 2-D data (:data:`SKLEARN_CHECKS`) plus the data checks with real
+    window records (fit/transform agreement, idempotence, pickling, cloning,
+    feature names, ``set_output``).
 
     Parameters
     ----------
@@ -117,8 +126,26 @@ class InclinationFeatures(BaseEstimator, TransformerMixin):
         return np.asarray(FEATURE_NAMES, dtype=object)
 
     def __sklearn_tags__(self) -> Any:
-        """Stateless, and the input is a sequence of records rather than a 2-D array."""
+        """Stateless; the input is a sequence of records (mappings), not a 2-D array."""
         tags = super().__sklearn_tags__()
         tags.requires_fit = False
         tags.input_tags.two_d_array = False
+        tags.input_tags.dict = True
+        tags.transformer_tags.preserves_dtype = ["float64"]  # features are float64
         return tags
+
+
+#: scikit-learn estimator checks that apply to this transformer without 2-D input
+#: (run by the tests; the data checks are done with window records instead).
+SKLEARN_CHECKS = (
+    "check_estimator_cloneable",
+    "check_estimator_repr",
+    "check_no_attributes_set_in_init",
+    "check_parameters_default_constructible",
+    "check_get_params_invariance",
+    "check_set_params",
+    "check_do_not_raise_errors_in_init_or_set_params",
+    "check_estimator_tags_renamed",
+    "check_valid_tag_types",
+    "check_mixin_order",
+)

@@ -139,6 +139,9 @@ class PartJob:
     fs_hz: float | None
     natural_frequency_hz: float | None
     fingerprint: str
+    #: CSV layout (see stiffnet.recordings.read_recording)
+    columns: str | None = None
+    time_unit: str | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
 
@@ -167,7 +170,8 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     for path, file in zip(job.paths, job.files, strict=True):
         try:
             result = predict_recording(file, fs_hz=job.fs_hz, predictor=predictor,
-                                       natural_frequency_hz=job.natural_frequency_hz)  # fmt: skip
+                                       natural_frequency_hz=job.natural_frequency_hz,
+                                       columns=job.columns, time_unit=job.time_unit)  # fmt: skip
             rows.append(result_row(path, result, None))
         except StiffnetError as exc:
             rows.append(result_row(path, None, str(exc)))
@@ -208,8 +212,11 @@ def _finished_part(parts_dir: Path, index: int, fingerprint: str) -> dict[str, A
     return record
 
 
-def _fingerprint(paths: tuple[str, ...], model_sha256: str, fs_hz, fn) -> str:
-    text = json.dumps({"paths": paths, "model": model_sha256, "fs_hz": fs_hz, "fn": fn})
+def _fingerprint(paths: tuple[str, ...], model_sha256: str, fs_hz, fn, layout=()) -> str:
+    data = {"paths": paths, "model": model_sha256, "fs_hz": fs_hz, "fn": fn}
+    if any(layout):  # only then, so parts of earlier runs keep their fingerprint
+        data["layout"] = list(layout)
+    text = json.dumps(data)
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -220,6 +227,8 @@ def predict_batch(
     model_path: str | Path | None = None,
     fs_hz: float | None = None,
     natural_frequency_hz: float | None = None,
+    columns: str | None = None,
+    time_unit: str | None = None,
     part_size: int = PART_SIZE,
     scheduler: str | None = None,
     workers: int | None = None,
@@ -242,6 +251,8 @@ def predict_batch(
     fs_hz, natural_frequency_hz
         Sampling rate (needed for ``.npy``) and natural frequency (default: each
         recording's sidecar, else the training data's), for every recording.
+    columns, time_unit
+        CSV layout for every recording, see :func:`stiffnet.recordings.read_recording`.
     part_size
         Recordings per task.
     scheduler, workers
@@ -287,7 +298,8 @@ def predict_batch(
         jobs, records = [], {}
         for index, lo in enumerate(range(0, len(paths), part_size)):
             chunk = tuple(paths[lo : lo + part_size])
-            fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz)
+            fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
+                              (columns, time_unit))  # fmt: skip
             record = _finished_part(parts_dir, index, fp) if resume else None
             if record is not None:
                 records[index] = record
@@ -295,7 +307,7 @@ def predict_batch(
             files = tuple(str(Path(p).resolve()) for p in chunk)
             jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
                                 predictor.sha256, class_names, fs_hz, natural_frequency_hz, fp,
-                                before_part))  # fmt: skip
+                                columns, time_unit, before_part))  # fmt: skip
         n_parts = len(records) + len(jobs)
         kept = len(records)
         if progress and kept:

@@ -12,10 +12,12 @@ from typing import Annotated
 import typer
 
 from stiffnet.cli_options import (
+    ColumnsOption,
     FsOption,
     ModelOption,
     NaturalFrequencyOption,
     SchedulerOption,
+    TimeUnitOption,
     WorkersOption,
 )
 
@@ -34,6 +36,8 @@ def predict_batch_cmd(
     model: ModelOption = None,
     fn: NaturalFrequencyOption = None,
     fs: FsOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
     part_size: Annotated[int, typer.Option(help="Recordings per task.")] = 16,
     scheduler: SchedulerOption = None,
     workers: WorkersOption = None,
@@ -52,23 +56,25 @@ def predict_batch_cmd(
     """
     from rich.table import Table
 
-    from stiffnet.console import out, progress_bar, write_json
+    from stiffnet import progress
+    from stiffnet.console import out, show_progress, write_json
     from stiffnet.distributed.batch import predict_batch
 
-    with progress_bar("predicting parts") as bar:
-        task = bar.add_task("parts", total=None)
+    with show_progress(), progress.task("predicting parts") as bar:
         summary = predict_batch(
             recordings,
             out_path,
             model_path=model,
             fs_hz=fs,
             natural_frequency_hz=fn,
+            columns=columns,
+            time_unit=time_unit,
             part_size=part_size,
             scheduler=scheduler,
             workers=workers,
             overwrite=overwrite,
             resume=resume,
-            progress=lambda done, total: bar.update(task, completed=done, total=total),
+            progress=lambda done, total: bar.update(completed=done, total=total),
         )
     table = Table(title=f"{summary['recordings']} recordings -> {out_path}")
     table.add_column("class")

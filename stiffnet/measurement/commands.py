@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.progress import task as progress_task
 from stiffnet.shipped import default_config
 
 DEFAULT_SIM_CONFIG = default_config("sim/ideal.yaml")
@@ -32,6 +33,13 @@ def _io() -> tuple[Any, Any, Any]:
     from stiffnet.console import console, out, write_json
 
     return out, console, write_json
+
+
+def _progress() -> Any:
+    """Bars with ETA on a terminal (see :func:`stiffnet.console.show_progress`)."""
+    from stiffnet.console import show_progress
+
+    return show_progress()
 
 
 def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
@@ -58,29 +66,6 @@ _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
 
 
 _COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
-
-
-def _eta_bar(console: Any, description: str) -> Any:
-    """A progress bar with the time left (on stderr's console; hidden when not a terminal)."""
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    return Progress(
-        TextColumn(description),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=console,
-        disable=not console.is_terminal,
-    )
 
 
 def _read_json(path: Path | None, what: str) -> Any:
@@ -130,16 +115,17 @@ def evaluate(
     config: ConfigOpt = None,
     json_path: JsonOption = None,
 ) -> None:
-    """Learned model and geometric method against the campaign's known betas."""
+    """Learned model, geometric and restoring-force cross-checks against the known betas."""
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
-    res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
+    with _progress(), progress_task("predicting recordings"):
+        res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
-    out.print(f"worst recordings: {worst}")
+    out.print(f"worst recordings by error (1 for a wrong class + relative beta error): {worst}")
     flagged = [r for r in res["recordings"] if r["ood"]]
     if flagged:
         out.print(
@@ -168,7 +154,8 @@ def compare(
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
-    cmp = compare_campaign(camp, config_effects(cfg), config_settings(cfg), seed)
+    with _progress(), progress_task("simulating and comparing"):
+        cmp = compare_campaign(camp, config_effects(cfg), config_settings(cfg), seed)
     res = cmp.result
     table = Table(title=f"simulator vs {campaign}: discrepancy {res['discrepancy']:.3g}")
     for col in (
@@ -176,9 +163,9 @@ def compare(
         "beta",
         "discrepancy",
         "worst statistic",
-        "contact",
-        "free flight",
-        "global",
+        "contact Σd²",
+        "free-flight Σd²",
+        "global Σd²",
     ):
         table.add_column(col)
     for r in res["recordings"]:
@@ -254,8 +241,7 @@ def diagnose(
 
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    with _eta_bar(console, "diagnosing (fits)") as bar:
-        task = bar.add_task("fits", total=None)
+    with _progress():
         res = diagnose_campaign(
             camp,
             config_effects(cfg),
@@ -267,7 +253,6 @@ def diagnose(
             inclination=inclination,
             scheduler=scheduler,
             workers=workers,
-            progress=lambda done, total: bar.update(task, completed=done, total=total),
         )
     table = Table(
         title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}, "
@@ -325,17 +310,18 @@ def loop(
     camp, cfg = _load(campaign, config)
     n = n_trajectories or cfg.n_trajectories
     console.print(f"loop on {campaign}: +{add_effect}, {n} trajectories per dataset, {model}")
-    res = run_loop(
-        camp,
-        cfg,
-        add_effect,
-        out_dir,
-        diagnosis=_read_json(diagnosis, "diagnosis"),
-        n_trajectories=n_trajectories,
-        spread=spread,
-        model=model,
-        tracking_uri=tracking_uri if tracking else None,
-    )
+    with _progress():
+        res = run_loop(
+            camp,
+            cfg,
+            add_effect,
+            out_dir,
+            diagnosis=_read_json(diagnosis, "diagnosis"),
+            n_trajectories=n_trajectories,
+            spread=spread,
+            model=model,
+            tracking_uri=tracking_uri if tracking else None,
+        )
     table = Table(title=f"loop +{add_effect} on {campaign} ({res['seconds']:.0f} s)")
     for col in ("", "accuracy", "beta MAPE", "geometric acc.", "discrepancy", "run id"):
         table.add_column(col)
@@ -377,10 +363,17 @@ def report(
     loop_result = _read_json(loop_json, "loop")
     camp, cfg = _load(campaign, config)
     effects = config_effects(cfg)
-    ev = evaluate_campaign(camp, str(model) if model else None, effects)
-    cmp = compare_campaign(camp, effects, config_settings(cfg))
-    if diag is None and run_diagnose:
-        diag = diagnose_campaign(camp, effects)
+    diag = _read_json(diagnosis, "diagnosis")
+    stages = 2 + int(diag is None and run_diagnose)
+    with _progress(), progress_task("report stages", stages) as bar:
+        bar.update(note="evaluate")
+        ev = evaluate_campaign(camp, str(model) if model else None, effects)
+        bar.advance(note="compare")
+        cmp = compare_campaign(camp, effects, config_settings(cfg))
+        if diag is None and run_diagnose:
+            bar.advance(note="diagnose")
+            diag = diagnose_campaign(camp, effects)
+        bar.advance()
     page = render_report(
         f"stiffnet: model versus measurement, {camp.folder.name}",
         ev,

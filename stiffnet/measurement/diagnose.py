@@ -52,6 +52,7 @@ from stiffnet.measurement.target import (
     needs_numerical,
     settings_for,
 )
+from stiffnet.progress import task as progress_task
 
 #: A candidate is refitted on top of selected effects when alone it removed at least this
 #: fraction of the excess discrepancy (closed-form candidates always are: they are cheap).
@@ -84,10 +85,11 @@ def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[E
 
 
 class _Progress:
-    """``progress(done, total)`` over fits whose total grows as selection proceeds."""
+    """``progress(done, total)`` over fits whose total grows as selection proceeds, also shown
+    as a :func:`stiffnet.progress.task` line (bars with ETA when a command installs a display)."""
 
-    def __init__(self, fn: Callable[[int, int], None] | None) -> None:
-        self.fn, self.done, self.total = fn, 0, 0
+    def __init__(self, fn: Callable[[int, int], None] | None, line: Any = None) -> None:
+        self.fn, self.line, self.done, self.total = fn, line, 0, 0
 
     def plan(self, n: int) -> None:
         self.total += n
@@ -97,6 +99,8 @@ class _Progress:
         self.done += n
         if self.fn is not None:
             self.fn(self.done, max(self.total, self.done))
+        if self.line is not None:
+            self.line.update(self.done, max(self.total, self.done))
 
 
 def diagnose_campaign(
@@ -149,7 +153,6 @@ def diagnose_campaign(
         ``residual_discrepancy``, ``explained_fraction``, ``verdict``,
         ``unexplained_where``, ``summary``, ``nuisances``, ``settings``, ``seconds``.
     """
-    from stiffnet.distributed import map_tasks
     from stiffnet.distributed.cluster import check_target
     from stiffnet.inputs import bounded_count
 
@@ -157,7 +160,31 @@ def diagnose_campaign(
     bounded_count(budget_numerical, "--budget-numerical", 1, 100_000)
     check_target(scheduler, workers)
     t0 = time.perf_counter()
-    bar = _Progress(progress)
+    with progress_task("diagnosis: effect fits") as line:
+        return _diagnose(
+            campaign, base_effects, effects, user_effects, budget, budget_numerical, seed,
+            inclination, scheduler, workers, _Progress(progress, line), model_path, t0,
+        )  # fmt: skip
+
+
+def _diagnose(
+    campaign: Campaign,
+    base_effects: Sequence[Effect],
+    effects: Sequence[str] | None,
+    user_effects: Sequence[str],
+    budget: int | None,
+    budget_numerical: int | None,
+    seed: int,
+    inclination: bool,
+    scheduler: str | None,
+    workers: int | None,
+    bar: _Progress,
+    model_path: str | None,
+    t0: float,
+) -> dict[str, Any]:
+    """The body of :func:`diagnose_campaign`."""
+    from stiffnet.distributed import map_tasks
+
     rows, nuisance_info = resolve_rows(campaign, model_path)
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
     target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)

@@ -1,8 +1,9 @@
-"""Evaluate the learned model and the geometric method on a campaign against its known betas.
+"""Evaluate the learned model and both cross-checks on a campaign against its known betas.
 
 Every recording goes through the ONNX predictor (:class:`serving.predictor.Predictor`,
 with the manifest's ``natural_frequency_hz``); its result holds the learned class
-and beta and the geometric method's class and beta. Metrics per method:
+and beta, the geometric method's class and beta and the restoring-force
+estimate's (``physical_*``; a refusal counts as a wrong class). Metrics per method:
 accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
 known beta and an estimate), sliced by beta class, gap, frequency ratio,
 amplitude and impact regime, with the worst recordings listed.
@@ -86,19 +87,28 @@ def method_metrics(rows: Sequence[dict[str, Any]], cls_key: str, beta_key: str) 
 def alarm_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """How often the alarm fired, on the wrongly classified recordings too, and how often
     the beta interval held the manifest's beta (recordings with contact and a known beta)."""
-    flags = [bool(r.get("ood")) for r in rows]
     known = [r for r in rows if r["true_class"] is not None]
-    wrong = [bool(r.get("ood")) for r in known if r["class"] != r["true_class"]]
-    held = [
-        r["beta_interval"][0] <= r["beta"] <= r["beta_interval"][1]
-        for r in known
-        if r["true_class"] != NO_CONTACT and r["beta"] and r.get("beta_interval")
-    ]
     return {
-        "alarm_rate": float(np.mean(flags)) if flags else None,
-        "alarm_rate_wrong": float(np.mean(wrong)) if wrong else None,
-        "interval_coverage": float(np.mean(held)) if held else None,
+        "alarm_rate": _share(r.get("ood") for r in rows),
+        "alarm_rate_wrong": _share(r.get("ood") for r in known if r["class"] != r["true_class"]),
+        "interval_coverage": interval_coverage(rows, "beta_interval"),
     }
+
+
+def interval_coverage(rows: Sequence[dict[str, Any]], key: str) -> float | None:
+    """Fraction of the recordings with a known beta and an interval whose interval holds it."""
+    hits = [
+        r[key][0] <= r["beta"] <= r[key][1]
+        for r in rows
+        if r.get(key) and r["beta"] and r["true_class"] not in (None, NO_CONTACT)
+    ]
+    return float(np.mean(hits)) if hits else None
+
+
+def _share(flags) -> float | None:
+    """Fraction of True among the flags that are not None."""
+    known = [bool(f) for f in flags if f is not None]
+    return float(np.mean(known)) if known else None
 
 
 def _bin_label(value: float | None, edges: list[float]) -> str:
@@ -126,6 +136,7 @@ def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             g: {
                 "learned": method_metrics(rs, "class", "beta_estimate"),
                 "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
+                "restoring_force": method_metrics(rs, "physical_class", "physical_beta"),
             }
             for g, rs in sorted(groups.items())
         }
@@ -153,8 +164,9 @@ def evaluate_campaign(
         ``model`` (name, sha256, kind), ``recordings`` (each ``recording``,
         ``beta``, ``class``, ``beta_estimate``, ``geometric_class``,
         ``geometric_beta``, ``true_class``, ``impact_regime``, ...),
-        ``metrics`` (``learned`` and ``geometric``: ``accuracy``, ``macro_f1``,
-        ``beta_mape``), ``slices``, ``worst``.
+        ``metrics`` (``learned``, ``geometric`` and ``restoring_force``:
+        ``accuracy``, ``macro_f1``, ``beta_mape``; the last also
+        ``interval_coverage`` and ``agreement_with_learned``), ``slices``, ``worst``.
     """
     from serving.predictor import Predictor
 
@@ -192,6 +204,11 @@ def evaluate_campaign(
                 "agreement": res.get("agreement"),
                 # the alarm (issue 11): did it fire, how far past its threshold, which checks
                 "ood": bool(res.get("ood_flag")),
+                "physical_class": res.get("physical_class"),
+                "physical_beta": res.get("physical_beta"),
+                "physical_beta_interval": res.get("physical_beta_interval"),
+                "physical_agreement": res.get("physical_agreement"),
+                "physical_reason": (res.get("physical") or {}).get("reason"),
                 "ood_score": res.get("ood_score"),
                 "ood_threshold": res.get("ood_threshold"),
                 "ood_checks": list((res.get("alarm") or {}).get("fired") or []),
@@ -218,6 +235,11 @@ def evaluate_campaign(
         "metrics": {
             "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},
             "geometric": method_metrics(rows, "geometric_class", "geometric_beta"),
+            "restoring_force": {
+                **method_metrics(rows, "physical_class", "physical_beta"),
+                "interval_coverage": interval_coverage(rows, "physical_beta_interval"),
+                "agreement_with_learned": _share(r["physical_agreement"] for r in rows),
+            },
         },
         "slices": sliced_metrics(rows),
         "worst": [

@@ -35,6 +35,7 @@ from stiffnet.measurement.compare import compare_campaign, config_effects, confi
 from stiffnet.measurement.fitting import fit_effect
 from stiffnet.measurement.simulate import DEFAULT_SEED
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
+from stiffnet.progress import task as progress_task
 
 DEFAULT_SPREAD = 0.25
 
@@ -75,13 +76,14 @@ def _train_and_evaluate(
 ) -> dict[str, Any]:
     from stiffnet.config import validate_config
     from stiffnet.config.train import TrainConfig
-    from stiffnet.dataset.generate import generate_dataset
+    from stiffnet.dataset.generate import generate_dataset, shard_sizes
     from stiffnet.measurement.evaluate import evaluate_campaign
     from training.train import train
 
     t0 = time.perf_counter()
     data = work / f"data-{label}"
-    generate_dataset(cfg, data, overwrite=True)
+    with progress_task(f"simulating shards ({label})", len(shard_sizes(cfg))) as bar:
+        generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
     t_data = time.perf_counter() - t0
     from stiffnet.config import load_yaml
     from stiffnet.shipped import default_config
@@ -250,22 +252,32 @@ def _iterate(
     fit = None
     if diagnosis is not None:
         fit = next((r for r in diagnosis.get("ranking", []) if r["effect"] == effect), None)
-    if fit is None:
-        measured, lengths, _ = measured_statistics(campaign)
-        target = CampaignTarget(
-            list(campaign.rows), measured, lengths, config_effects(base_cfg), seed
-        )
-        fit = fit_effect(target, effect)
-    params = {k: float(v) for k, v in fit["params"].items()}
-    fitted = list(fit.get("fitted", params))
-    new_cfg = config_with_effect(base_cfg, effect, spread_params(effect, params, fitted, spread))
-    fixed_cfg = config_with_effect(base_cfg, effect, params)
+    stages = progress_task("loop stages", 4 if fit is not None else 5)
+    with stages as bar:
+        if fit is None:
+            bar.update(note=f"fitting {effect}")
+            measured, lengths, _ = measured_statistics(campaign)
+            target = CampaignTarget(
+                list(campaign.rows), measured, lengths, config_effects(base_cfg), seed
+            )
+            fit = fit_effect(target, effect)
+            bar.advance()
+        params = {k: float(v) for k, v in fit["params"].items()}
+        fitted = list(fit.get("fitted", params))
+        spread_p = spread_params(effect, params, fitted, spread)
+        new_cfg = config_with_effect(base_cfg, effect, spread_p)
+        fixed_cfg = config_with_effect(base_cfg, effect, params)
 
-    settings = config_settings(base_cfg)
-    d_before = compare_campaign(campaign, config_effects(base_cfg), settings, seed)
-    d_after = compare_campaign(campaign, config_effects(fixed_cfg), settings, seed)
-    before = _train_and_evaluate(base_cfg, campaign, out, "before", model, train_overrides)
-    after = _train_and_evaluate(new_cfg, campaign, out, "after", model, train_overrides)
+        settings = config_settings(base_cfg)
+        bar.update(note="discrepancy before")
+        d_before = compare_campaign(campaign, config_effects(base_cfg), settings, seed)
+        bar.advance(note=f"discrepancy with {effect}")
+        d_after = compare_campaign(campaign, config_effects(fixed_cfg), settings, seed)
+        bar.advance(note="dataset + model before")
+        before = _train_and_evaluate(base_cfg, campaign, out, "before", model, train_overrides)
+        bar.advance(note=f"dataset + model with {effect}")
+        after = _train_and_evaluate(new_cfg, campaign, out, "after", model, train_overrides)
+        bar.advance()
 
     iterations = [
         {"label": "before", **_flat(before["evaluation"], d_before.result["discrepancy"])},

@@ -30,6 +30,12 @@ def _save(fig: Any, path: str | Path) -> Path:
     return Path(path)
 
 
+def panel_grid(n: int, max_cols: int = 4) -> tuple[int, int]:
+    """Rows and columns for `n` panels: the fewest rows of at most `max_cols`, balanced."""
+    rows = int(np.ceil(n / max_cols))
+    return rows, int(np.ceil(n / rows))
+
+
 def _recording_panels(
     names: Sequence[str],
     measured: Sequence[SignalStatistics],
@@ -40,11 +46,14 @@ def _recording_panels(
     path: str | Path,
     max_panels: int,
 ) -> Path:
-    """One panel per recording (at most ``max_panels``, 4 per row) drawn by ``draw``."""
+    """One panel per recording (at most ``max_panels``) drawn by ``draw``.
+
+    The grid is sized to the panel count (:func:`panel_grid`): 5 panels are 2 x 3,
+    not a 4-wide row with three empty cells below.
+    """
     plt = _plt()
-    n = min(len(names), max_panels)
-    cols = min(4, n)
-    rows = int(np.ceil(n / cols))
+    n = max(1, min(len(names), max_panels))
+    rows, cols = panel_grid(n)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.6 * rows), squeeze=False)
     for k, ax in enumerate(axes.flat):
         if k >= n:
@@ -101,8 +110,9 @@ def spectrum_figure(
     max_panels: int = 8,
 ) -> Path:
     """Measured vs simulated band-averaged log PSD per recording, with the residual."""
-    return _recording_panels(names, measured, simulated, _draw_spectrum, "f / f_n",
-                             "log10 PSD", path, max_panels)  # fmt: skip
+    ylabel = "log10 PSD [log10 (robust units² / Hz)]"
+    return _recording_panels(names, measured, simulated, _draw_spectrum, "f / f_n", ylabel,
+                             path, max_panels)  # fmt: skip
 
 
 def components_figure(result: dict[str, Any], path: str | Path) -> Path:
@@ -128,19 +138,32 @@ def components_figure(result: dict[str, Any], path: str | Path) -> Path:
     return _save(fig, path)
 
 
+#: Lowest relative reduction drawn; worse effects are clipped there, hatched and labelled.
+RANKING_FLOOR = -0.2
+
+
 def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
     """Discrepancy removed by each fitted effect (significant ones filled)."""
     plt = _plt()
     rk = diagnosis["ranking"]
     fig, ax = plt.subplots(figsize=(6, 0.4 * len(rk) + 1.2))
     y = np.arange(len(rk))[::-1]
-    red = [max(r["relative_reduction"], -0.2) for r in rk]
+    rel = np.array([r["relative_reduction"] for r in rk], dtype=float)
+    red = np.maximum(rel, RANKING_FLOOR)
     colors = ["tab:green" if r["significant"] else "lightgray" for r in rk]
-    ax.barh(y, red, color=colors, edgecolor="k")
+    bars = ax.barh(y, 100 * red, color=colors, edgecolor="k")
+    for bar, value in zip(bars, rel, strict=True):
+        if value < RANKING_FLOOR:  # clipped: hatch it and print the true value
+            bar.set_hatch("//")
+            ax.annotate(f"◀ {100 * value:.0f} % (clipped)", (100 * RANKING_FLOOR, bar.get_y()
+                        + bar.get_height() / 2), xytext=(3, 0), textcoords="offset points",
+                        va="center", ha="left", fontsize=7)  # fmt: skip
     ax.set_yticks(y, [r["effect"] for r in rk], fontsize=8)
     ax.axvline(0, color="k", lw=0.5)
-    ax.set_xlabel("relative discrepancy reduction (green: significant)")
-    ax.set_title(f"baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}", fontsize=9)
+    ax.set_xlim(left=min(100 * RANKING_FLOOR * 1.05, ax.get_xlim()[0]))
+    ax.set_xlabel("discrepancy removed [% of baseline]")
+    ax.set_title(f"baseline discrepancy {diagnosis['baseline_discrepancy']:.3g} (mean d²); "
+                 "green: significant, hatched: clipped", fontsize=8)  # fmt: skip
     fig.tight_layout()
     return _save(fig, path)
 
@@ -158,10 +181,10 @@ def loop_figure(iterations: Sequence[dict[str, Any]], path: str | Path) -> Path:
         ax[0].plot(x, [1 - a if a is not None else np.nan for a in v], "o-", label=f"1 - {label}")
     ax[0].plot(x, [it.get("beta_mape") or np.nan for it in iterations], "s-", label="beta MAPE")
     ax[0].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
-    ax[0].set_ylabel("error")
+    ax[0].set_ylabel("error [fraction]")
     ax[0].legend(fontsize=7)
     ax[1].semilogy(x, [it.get("discrepancy") or np.nan for it in iterations], "o-", color="k")
     ax[1].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
-    ax[1].set_ylabel("simulator-measurement discrepancy")
+    ax[1].set_ylabel("simulator-measurement discrepancy [mean d², dimensionless]")
     fig.tight_layout()
     return _save(fig, path)

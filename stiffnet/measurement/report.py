@@ -15,14 +15,37 @@ from typing import Any
 from stiffnet.io_utils import write_bytes_atomic
 
 _CSS = """
-body{font-family:system-ui,sans-serif;margin:2em auto;max-width:1100px;color:#222}
+body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1240px;padding:0 1em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.2em;border-bottom:1px solid #ccc;margin-top:2em}
-table{border-collapse:collapse;font-size:.85em;margin:.5em 0}
-td,th{border:1px solid #ddd;padding:3px 7px;text-align:right}
-th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}
-.sig{background:#d9f2d9}.bad{background:#fde2e2}img{max-width:100%}
+.wrap{max-width:100%;overflow-x:auto}
+table{border-collapse:collapse;font-size:.85em;margin:.5em 0;width:100%;table-layout:auto}
+td,th{border:1px solid #ddd;padding:3px 6px;text-align:right;overflow-wrap:break-word}
+th{background:#f3f3f3;font-weight:600;vertical-align:bottom}
+td:first-child,th:first-child{text-align:left}
+.sig{background:#d9f2d9}.bad{background:#fde2e2}img{max-width:100%;height:auto}
 .note{color:#666;font-size:.85em}
 """
+#: Column headers with the quantity and its unit (keys are the JSON names).
+_HEADERS = {
+    "n": "n (recordings)",
+    "beta_mape": "beta MAPE (fraction)",
+    "macro_f1": "macro-F1",
+    "beta_estimate": "beta (learned)",
+    "geometric_beta": "beta (geometric)",
+    "error": "error (1 if wrong class + relative beta error)",
+    "discrepancy": "discrepancy (mean d²)",
+    "discrepancy_reduction": "discrepancy reduction (abs.)",
+    "relative_reduction": "relative reduction (fraction)",
+    "improved_fraction": "recordings improved (fraction)",
+    "sign_test_p": "sign test p",
+    "bootstrap_positive": "bootstrap P(reduction > 0)",
+    "leave_one_out_relative_reduction": "leave-one-out relative reduction",
+    "bic_delta": "BIC delta (lower is better)",
+    "contact": "contact Σd²",
+    "free_flight": "free-flight Σd²",
+    "global": "global Σd²",
+    "worst": "worst statistic",
+}
 
 
 def _fmt(v: Any) -> str:
@@ -38,12 +61,12 @@ def _fmt(v: Any) -> str:
 
 
 def _table(rows: list[dict[str, Any]], cols: list[str], row_class: Any = None) -> str:
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    head = "".join(f"<th>{html.escape(_HEADERS.get(c, c.replace('_', ' ')))}</th>" for c in cols)
     body = []
     for r in rows:
         cls = f' class="{row_class(r)}"' if row_class and row_class(r) else ""
         body.append(f"<tr{cls}>" + "".join(f"<td>{_fmt(r.get(c))}</td>" for c in cols) + "</tr>")
-    return f"<table><tr>{head}</tr>{''.join(body)}</table>"
+    return f"<div class='wrap'><table><tr>{head}</tr>{''.join(body)}</table></div>"
 
 
 #: PNG files start with these bytes.
@@ -104,7 +127,7 @@ def render_report(
         t = Path(tmp)
         if evaluation is not None:
             m = evaluation["metrics"]
-            parts.append("<h2>Evaluate: learned model and geometric method</h2>")
+            parts.append("<h2>Evaluate: learned model and the two cross-checks</h2>")
             parts.append(f"<p class='note'>model {_fmt(evaluation['model'])}</p>")
             parts.append(
                 _table(
@@ -132,6 +155,8 @@ def render_report(
                         "beta_estimate",
                         "geometric_class",
                         "geometric_beta",
+                        "physical_class",
+                        "physical_beta",
                         "impact_regime",
                         "ood",
                         "ood_checks",
@@ -149,6 +174,8 @@ def render_report(
                         "learned beta MAPE": v["learned"]["beta_mape"],
                         "geometric accuracy": v["geometric"]["accuracy"],
                         "geometric beta MAPE": v["geometric"]["beta_mape"],
+                        "restoring-force accuracy": v.get("restoring_force", {}).get("accuracy"),
+                        "restoring-force beta MAPE": v.get("restoring_force", {}).get("beta_mape"),
                     }
                     for g, v in groups.items()
                 ]

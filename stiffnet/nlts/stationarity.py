@@ -1,10 +1,18 @@
 """Stationarity: cross-prediction errors between segments (paper section 4.2.1).
 
-Schreiber (1997), as in TISEAN ``nstat_z``: the record is cut into
+Schreiber's (1997) idea, also behind TISEAN ``nstat_z``: the record is cut into
 non-overlapping segments, each segment's delay vectors serve as the "model" that
 predicts every other segment with a locally constant (nearest-neighbour average)
 predictor. If the dynamics changed during the record, segments from different
 regimes predict each other badly.
+
+Not TISEAN's numbers by default: stiffnet averages the `k` nearest neighbours in
+the Euclidean norm and divides the RMS error by the whole signal's standard
+deviation; ``nstat_z`` averages an epsilon-neighbourhood in the maximum norm
+(grown by a factor until it holds at least ``-k`` points) and divides by the
+standard deviation of the segment forecast. ``norm="max", scale="segment"``
+reproduces the norm and the normalisation; the neighbourhood (k nearest versus
+an epsilon-ball of at least k points) remains different.
 """
 
 from __future__ import annotations
@@ -15,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from stiffnet.errors import ConfigError
 from stiffnet.nlts._neighbours import nearest_outside_window
-from stiffnet.nlts._validate import as_signal, check_int
+from stiffnet.nlts._validate import as_signal, check_choice, check_int
 from stiffnet.nlts.embedding import embed_unchecked
 
 
@@ -27,13 +35,18 @@ def cross_prediction_errors(
     horizon: int = 1,
     n_neighbours: int = 5,
     theiler: int | None = None,
+    norm: str = "euclidean",
+    scale: str = "signal",
 ) -> np.ndarray:
     """Matrix of cross-prediction errors ``S[i, j]``: segment i predicting segment j.
 
     For every delay vector y_t (dimension `dim`, delay `tau`) of segment j, the
-    `n_neighbours` nearest delay vectors of segment i are found (cKDTree,
-    Euclidean), and the future value ``x_{t + (dim-1) tau + horizon}`` is
+    `n_neighbours` nearest delay vectors of segment i are found (cKDTree, in the
+    `norm`), and the future value ``x_{t + (dim-1) tau + horizon}`` is
     predicted as the mean of their futures (locally constant predictor).
+    ``S[i, j] = sqrt(mean_t (prediction - x)^2) / sigma``, with sigma the standard
+    deviation of the whole signal (``scale="signal"``) or of segment j
+    (``scale="segment"``, TISEAN ``nstat_z``'s normalisation).
 
     Parameters
     ----------
@@ -55,15 +68,21 @@ def cross_prediction_errors(
         this in time are excluded, so a point never predicts itself. Default
         ``(dim - 1) * tau + horizon``: the neighbour shares no sample with the
         point's delay vector or its target.
+    norm : {"euclidean", "max"}
+        Distance between delay vectors; TISEAN uses the maximum norm.
+    scale : {"signal", "segment"}
+        Divide by the standard deviation of the whole signal, or of the
+        predicted segment (as ``nstat_z`` does).
 
     Returns
     -------
     numpy.ndarray
         Shape ``(n_segments, n_segments)``; ``S[i, j]`` is the root-mean-square
-        prediction error of segment j from segment i divided by the standard
-        deviation of the whole signal (1 = no better than predicting the mean;
-        the paper's Fig. 5 has values 0.11-0.19).
+        prediction error of segment j from segment i divided by sigma (1 = no
+        better than predicting the mean; the paper's Fig. 5 has values 0.11-0.19).
     """
+    p = {"euclidean": 2.0, "max": np.inf}[check_choice(norm, "norm", ("euclidean", "max"))]
+    scale = check_choice(scale, "scale", ("signal", "segment"))
     dim = check_int(dim, "dim", 1)
     tau = check_int(tau, "tau", 1)
     n_segments = check_int(n_segments, "n_segments", 2)
@@ -75,7 +94,7 @@ def cross_prediction_errors(
     seg_len_min = span + horizon + 2 * theiler + k + 10
     a = as_signal(x, n_segments * seg_len_min, "signal")
     length = a.size // n_segments
-    scale = a.std()
+    sigma = a.std()
 
     vectors, futures = [], []
     for s in range(n_segments):
@@ -88,12 +107,16 @@ def cross_prediction_errors(
         tree = cKDTree(vectors[i])
         for j in range(n_segments):
             if i == j:
-                _, idx = nearest_outside_window(vectors[i], theiler, k=k, tree=tree, min_dist=-1.0)
+                _, idx = nearest_outside_window(
+                    vectors[i], theiler, p=p, k=k, tree=tree, min_dist=-1.0
+                )
             else:
-                _, idx = tree.query(vectors[j], k=k)
+                _, idx = tree.query(vectors[j], k=k, p=p)
                 idx = idx.reshape(-1, k)
             pred = futures[i][idx].mean(axis=1)
-            out[i, j] = np.sqrt(np.mean((pred - futures[j]) ** 2)) / scale
+            seg = a[j * length : (j + 1) * length]
+            ref = seg.std() if scale == "segment" else sigma
+            out[i, j] = np.sqrt(np.mean((pred - futures[j]) ** 2)) / ref
     return out
 
 

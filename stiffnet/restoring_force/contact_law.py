@@ -27,8 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, optimize, stats
 
-#: Bounds of the contact exponent.
-EXPONENT_BOUNDS = (0.5, 3.0)
+#: Bounds of the contact exponent: from linear to well beyond Hertz (1.5). Below 1 (softer
+#: than linear) a free exponent mostly absorbs reconstruction error at a damped onset.
+EXPONENT_BOUNDS = (1.0, 3.0)
 
 
 @dataclass(frozen=True)

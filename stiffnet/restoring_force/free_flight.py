@@ -96,7 +96,9 @@ def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     out = np.zeros(a.shape[1])
     try:
         out[keep] = linalg.cho_solve(linalg.cho_factor(gram), scaled.T @ b) / norms[keep]
-    except linalg.LinAlgError:
+    except (linalg.LinAlgError, ValueError):
+        out[keep] = np.nan
+    if not np.all(np.isfinite(out)):  # (nearly) singular: the SVD's minimum-norm answer
         out[keep] = linalg.lstsq(scaled, b)[0] / norms[keep]
     return out
 
@@ -110,7 +112,7 @@ def _impulse_corrections(
     free: np.ndarray,
     contact: np.ndarray,
     stiffness: float,
-) -> tuple[np.ndarray, np.ndarray, float, float]:
+) -> tuple[np.ndarray, np.ndarray, float, float] | None:
     """Per-flight line corrections of the displacement: the impulses' quadrature errors.
 
     A spike sampled with a few points carries an impulse the discrete integral
@@ -127,12 +129,14 @@ def _impulse_corrections(
         Displacement and velocity corrections.
     damping, r2 : float
         Refitted ``c`` and the free-flight goodness of fit.
+    None
+        With fewer than two flights (no contact): nothing to correct.
     """
     flights, n = ndimage.label(free)
     corr = np.zeros_like(tau)
     dcorr = np.zeros_like(tau)
     if n < 2:
-        return corr, dcorr, float("nan"), float("nan")
+        return None
     target = -accel - stiffness * disp
     idx = np.arange(1, n + 1)
     centre = ndimage.mean(tau, flights, idx)
@@ -257,8 +261,10 @@ def fit_free_flight(
     x = disp + s + offset
     v = vel + ds
     if stiffness is not None and k > 0:
-        corr, dcorr, c, r2 = _impulse_corrections(accel, v, x, tau, use, free, contact, k)
-        x, v = x + corr, v + dcorr
+        fixed = _impulse_corrections(accel, v, x, tau, use, free, contact, k)
+        if fixed is not None:
+            corr, dcorr, c, r2 = fixed
+            x, v = x + corr, v + dcorr
     return FreeFlightFit(
         stiffness=k,
         damping=c,

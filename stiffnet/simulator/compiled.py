@@ -222,7 +222,7 @@ def _locate(mode, lo, hi, glo, ghi, tol, has_start, start,
 def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
                  k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                  beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                 out_x, out_v, out_f, out_a, sn, cs, carry, xh, vh):  # fmt: skip
+                 outs, sn, cs, carry, xh, vh):  # fmt: skip
     """Samples ns, ns+1, ... with times before t_end of a segment in ``region``.
 
     The segment's homogeneous state is (z0, z1) at tp. With ``carry`` the
@@ -246,7 +246,8 @@ def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
         for j in range(nj):
             ph = fv[j] * tn
             sn[j], cs[j] = math.sin(ph), math.cos(ph)
-    m00, m01, m10, m11 = phih[0, 0], phih[0, 1], phih[1, 0], phih[1, 1]
+    m00, m01 = phih[region, row, 0, 0], phih[region, row, 0, 1]
+    m10, m11 = phih[region, row, 1, 0], phih[region, row, 1, 1]
     while True:
         xp, vp = 0.0, 0.0
         for j in range(nj):
@@ -262,10 +263,10 @@ def _write_piece(row, region, tp, z0, z1, t_end, ns, n_samples, t_first, h,
                     e += ga[j] * (sj * gcp[j] + cj * gsp[j])
                     de += ga[j] * fv[jf + j] * (cj * gcp[j] - sj * gsp[j])
             force = max(beta * (x - e) + cc * (v - de), 0.0)
-        out_x[row, ns] = x
-        out_v[row, ns] = v
-        out_f[row, ns] = force
-        out_a[row, ns] = -(2 * xi * v + x + force)
+        outs[0, row, ns] = x
+        outs[1, row, ns] = v
+        outs[2, row, ns] = force
+        outs[3, row, ns] = -(2 * xi * v + x + force)
         ns += 1
         if ns >= n_samples:
             return ns, xh, vh, False
@@ -289,7 +290,7 @@ def _count_entry(row, te, t_first, h, n_samples, impacts):
 @_jit
 def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
          beta_a, cc_a, e0_a, xi_a, ga_a, gf_a, gp_a, gcp_a, gsp_a, has_gap, jf,
-         x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts):  # fmt: skip
+         x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
     fv = freq[row]
     nj = fv.size
     beta, cc, e0, xi = beta_a[row], cc_a[row], e0_a[row], xi_a[row]
@@ -381,16 +382,16 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                     ns_anchor = ns
                 ns, wxh, wvh, carry = _write_piece(
                     row, r, t, z0, z1, t1, ns, n_samples, tf, hh,
-                    k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[r, row],
+                    k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                     beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                    out_x, out_v, out_f, out_a, wsn, wcs, carry, wxh, wvh,
+                    outs, wsn, wcs, carry, wxh, wvh,
                 )  # fmt: skip
             x, v = x1, v1
             if r == 0 and free_bound < e_low:
-                # In free flight x = x_h + x_p with |x_p| <= free_bound's particular
-                # part and |x_h| bounded by its decaying amplitude: if even their sum
-                # stays below the lowest gap, the row never touches again. Its
-                # remaining samples are the closed form of this one segment.
+                # In free flight x = x_h + x_p with |x_p| <= free_bound and |x_h| at
+                # most its present amplitude (it only decays): if even their sum stays
+                # below the lowest gap, the row never touches again, and its remaining
+                # samples are the closed form of this one segment.
                 zh0, zh1 = x1 - xp1, v1 - vp1
                 wz = (zh1 + sig * zh0) / root
                 if free_bound + math.sqrt(zh0 * zh0 + wz * wz) < e_low:
@@ -398,9 +399,9 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                         t_end = tf + min(ns + REANCHOR_EVERY, n_samples) * hh
                         ns, _, _, _ = _write_piece(
                             row, 0, t1, zh0, zh1, t_end, ns, n_samples, tf, hh,
-                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[0, row],
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                             beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                            outs, wsn, wcs, False, 0.0, 0.0,
                         )  # fmt: skip
                     break
         else:
@@ -445,9 +446,9 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                     if tf + ns * hh < t1:  # the piece holds samples
                         ns, _, _, _ = _write_piece(
                             row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                            k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                             beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                            out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                            outs, wsn, wcs, False, 0.0, 0.0,
                         )  # fmt: skip
                     xx, vv = xl, vl
                     finished = True
@@ -488,9 +489,9 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                 if tf + ns * hh < tt + s_go:  # the piece holds samples
                     ns, _, _, _ = _write_piece(
                         row, rr, tt, z0, z1, tt + s_go, ns, n_samples, tf, hh,
-                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                         beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        outs, wsn, wcs, False, 0.0, 0.0,
                     )  # fmt: skip
                 xx, vv = x_go, v_go
                 tt += s_go
@@ -510,9 +511,9 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                 if tf + ns * hh < t1:  # the piece holds samples
                     ns, _, _, _ = _write_piece(
                         row, rr, tt, z0, z1, t1, ns, n_samples, tf, hh,
-                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih[rr, row],
+                        k, sig, root, disc, xc, pv, qv, fv, hc, hs, phih,
                         beta, cc, e0, jf, ga, gcp, gsp, has_gap, xi,
-                        out_x, out_v, out_f, out_a, wsn, wcs, False, 0.0, 0.0,
+                        outs, wsn, wcs, False, 0.0, 0.0,
                     )  # fmt: skip
                 xx, vv, _ = _state(left, tt, z0, z1, k, c, sig, root, disc, xc, pv, qv, fv)
             x, v, region = xx, vv, rr
@@ -528,21 +529,20 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
 
 def _kernel_serial(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                    beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-                   x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts):  # fmt: skip
+                   x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
     for row in range(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-             x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
+             x0, v0, t_first, h, n_samples, outs, impacts)  # fmt: skip
 
 
 def _kernel_parallel(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                      beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-                     x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a,
-                     impacts):  # fmt: skip
+                     x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
     for row in numba.prange(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-             x0, v0, t_first, h, n_samples, out_x, out_v, out_f, out_a, impacts)  # fmt: skip
+             x0, v0, t_first, h, n_samples, outs, impacts)  # fmt: skip
 
 
 _kernel_serial = numba.njit(cache=True, error_model="numpy")(_kernel_serial)
@@ -584,7 +584,7 @@ def simulate_closed_form(
     hcos, hsin = np.cos(freq * h[:, None]), np.sin(freq * h[:, None])
     gv = model.gap_variation
     jf = model.forcing.freq.shape[1]
-    out_x, out_v, out_f, out_a = (np.empty((b, n_samples)) for _ in range(4))
+    outs = np.empty((4, b, n_samples))  # x, v, contact force, accel: one block
     impacts = np.zeros((b, n_samples), dtype=np.int8)
     kernel = _kernel_parallel if parallel else _kernel_serial
     kernel(
@@ -592,9 +592,9 @@ def simulate_closed_form(
         _c(rots), _c(hreg), _c(phih), _c(hcos), _c(hsin), _c(reg.beta), _c(reg.cc),
         _c(reg.e0), _c(reg.xi), _c(gv.amp), _c(gv.freq), _c(gv.phase), _c(np.cos(gv.phase)),
         _c(np.sin(gv.phase)), bool(reg.has_gap_var), int(jf), _c(x0), _c(v0), _c(t_first),
-        _c(h), int(n_samples), out_x, out_v, out_f, out_a, impacts,
+        _c(h), int(n_samples), outs, impacts,
     )  # fmt: skip
     return EngineResult(
-        x=out_x, v=out_v, accel=out_a, contact_force=out_f, impacts=impacts,
+        x=outs[0], v=outs[1], contact_force=outs[2], accel=outs[3], impacts=impacts,
         t0=np.array(t_first, dtype=float),
     )  # fmt: skip
