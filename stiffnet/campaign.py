@@ -28,7 +28,15 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
@@ -36,6 +44,7 @@ from stiffnet.inputs import quote_content
 from stiffnet.io_utils import check_replaceable_folder, output_lock
 from stiffnet.progress import task as progress_task
 from stiffnet.recordings import Recording, read_recording, write_recording_csv
+from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 MANIFEST_NAME = "manifest.csv"
 CARD_NAME = "campaign_card.json"
@@ -49,6 +58,11 @@ DEFAULT_NOISE = 0.02
 STANDARD_GRAVITY = 9.80665
 #: Model length unit assumed when converting simulated accelerations to g, m.
 MODEL_LENGTH_UNIT_M = 1e-3
+MODEL_LENGTH_MM = MODEL_LENGTH_UNIT_M * 1e3
+
+
+def _div(v: float | None, d: float) -> float | None:
+    return None if v is None else v / d
 
 
 class ManifestRow(BaseModel):
@@ -103,6 +117,23 @@ class ManifestRow(BaseModel):
     channel: str | None = None
     columns: str | None = None
     time_unit: Literal["s", "ms", "us"] | None = None
+    # physical units (converted to the model columns above, see docs/campaign.md)
+    forcing_frequency_hz: float | None = Field(None, gt=0)
+    base_acceleration_ms2: float | None = Field(None, gt=0)
+    base_acceleration_g: float | None = Field(None, gt=0)
+    base_displacement_mm: float | None = Field(None, gt=0)
+    gap_mm: float | None = None
+    # tolerances (+-, in the unit of their nominal)
+    frequency_ratio_tol: float | None = Field(None, ge=0)
+    amplitude_tol: float | None = Field(None, ge=0)
+    gap_tol: float | None = Field(None, ge=0)
+    damping_ratio_tol: float | None = Field(None, ge=0)
+    beta_tol: float | None = Field(None, ge=0)
+    forcing_frequency_hz_tol: float | None = Field(None, ge=0)
+    base_acceleration_ms2_tol: float | None = Field(None, ge=0)
+    base_acceleration_g_tol: float | None = Field(None, ge=0)
+    base_displacement_mm_tol: float | None = Field(None, ge=0)
+    gap_mm_tol: float | None = Field(None, ge=0)
 
     #: Manifest line the row was read from (for messages); None when built in code.
     _line: int | None = PrivateAttr(None)
@@ -119,6 +150,54 @@ class ManifestRow(BaseModel):
         if norm in (".", ""):
             raise ValueError("must name a file")
         return norm
+
+    @model_validator(mode="after")
+    def _physical_units(self) -> ManifestRow:
+        """Fill the model columns from the physical ones (docs/campaign.md, "Units")."""
+        f_n = self.natural_frequency_hz or PAPER_NATURAL_FREQUENCY_HZ
+        derived: dict[str, tuple[float, float | None]] = {}
+        if self.forcing_frequency_hz is not None:
+            tol = self.forcing_frequency_hz_tol
+            derived["frequency_ratio"] = (
+                self.forcing_frequency_hz / f_n,
+                None if tol is None else tol / f_n,
+            )
+        ratio = derived.get("frequency_ratio", (self.frequency_ratio, None))[0]
+        accel = [
+            (v, t, k)
+            for v, t, k in (
+                (self.base_acceleration_ms2, self.base_acceleration_ms2_tol, 1.0),
+                (self.base_acceleration_g, self.base_acceleration_g_tol, STANDARD_GRAVITY),
+            )
+            if v is not None
+        ]
+        given = len(accel) + (self.base_displacement_mm is not None)
+        if given > 1:
+            raise ValueError("give one of base_acceleration_ms2, base_acceleration_g, "
+                             "base_displacement_mm")  # fmt: skip
+        if self.base_displacement_mm is not None:
+            t = self.base_displacement_mm_tol
+            derived["amplitude"] = (
+                self.base_displacement_mm / MODEL_LENGTH_MM,
+                _div(t, MODEL_LENGTH_MM),
+            )
+        elif accel:
+            if ratio is None:
+                raise ValueError("a base acceleration needs forcing_frequency_hz (or "
+                                 "frequency_ratio) to become a displacement")  # fmt: skip
+            v, t, k = accel[0]
+            w2 = (2 * math.pi * ratio * f_n) ** 2 * MODEL_LENGTH_UNIT_M  # m/s^2 per model unit
+            derived["amplitude"] = (v * k / w2, None if t is None else t * k / w2)
+        if self.gap_mm is not None:
+            derived["gap"] = (self.gap_mm / MODEL_LENGTH_MM, _div(self.gap_mm_tol, MODEL_LENGTH_MM))
+        for col, (value, tol) in derived.items():
+            own = getattr(self, col)
+            if own is not None and not math.isclose(own, value, rel_tol=1e-6, abs_tol=1e-9):
+                raise ValueError(f"{col}={own} disagrees with the physical columns ({value:.6g})")
+            object.__setattr__(self, col, float(value))
+            if tol is not None and getattr(self, f"{col}_tol") is None:
+                object.__setattr__(self, f"{col}_tol", float(tol))
+        return self
 
     def where(self, manifest: str | os.PathLike[str] = MANIFEST_NAME) -> str:
         """``manifest: line N (recording)`` for messages about this row."""
@@ -241,6 +320,8 @@ def _validate_row(data: dict[str, Any], where: str) -> ManifestRow:
             msg = f"must be {op} {err['ctx'][key]}"
         else:
             msg = _MESSAGES.get(kind, err["msg"].removeprefix("Value error, "))
+        if not col:  # a rule across columns
+            raise StiffnetError(f"{where}: {msg}") from None
         got = quote_content(str(err["input"])) if isinstance(err["input"], str) else None
         got = f" (got {got})" if got else ""
         raise StiffnetError(f"{where}, column {col}: {msg}{got}") from None

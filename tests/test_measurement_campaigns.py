@@ -1,6 +1,8 @@
 """Evidence for the measurement loop (issue 6) on synthetic campaigns with a hidden effect.
 
-Campaigns are simulated once per module from ``examples/hidden_effect_manifest.csv``
+The diagnosis tests here are slow (six campaigns with the inclination statistics); the
+fast evidence for the diagnosis is ``test_measurement_diagnosis.py``. Campaigns are
+simulated once per module from ``examples/hidden_effect_manifest.csv``
 (8 recordings, 2 % white noise) shortened to 3 s, with an effect the default
 config lacks; a clean twin (same manifest and seed, no effect) is the control.
 The diagnosis fits the closed-form and measurement effects of the library and
@@ -10,15 +12,14 @@ seconds per evaluation, their fit is exercised in ``test_measurement_units.py``.
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import pytest
+from campaign_helpers import short_manifest
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.measurement.diagnose import diagnose_campaign
 
-MANIFEST = Path(__file__).resolve().parents[1] / "examples" / "hidden_effect_manifest.csv"
 #: The library's effects that keep the closed-form engine, plus the measurement chain.
 FAST_EFFECTS = [
     "contact_damping",
@@ -28,7 +29,6 @@ FAST_EFFECTS = [
     "colored_noise",
     "adc",
 ]
-BUDGET = 14
 
 HIDDEN = {
     "contact_damping_0.12": "contact_damping:damping_ratio=0.12",
@@ -40,22 +40,10 @@ HIDDEN = {
 USER_EFFECT = "user_effects:ConstantPreload"
 
 
-def _short_manifest(tmp: Path) -> Path:
-    with open(MANIFEST, encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    out = tmp / "manifest.csv"
-    with open(out, "w", encoding="utf-8", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({**r, "duration_s": "3"})
-    return out
-
-
 @pytest.fixture(scope="module")
 def campaigns(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("measurement")
-    manifest = _short_manifest(tmp)
+    manifest = short_manifest(tmp)
     out = {"clean": simulate_campaign(manifest, tmp / "clean", [], seed=0)}
     for key, eff in HIDDEN.items():
         out[key] = simulate_campaign(manifest, tmp / key, [eff], seed=0)
@@ -71,32 +59,38 @@ def diagnoses(campaigns):
             c,
             effects=FAST_EFFECTS,
             user_effects=[USER_EFFECT],
-            budget=BUDGET,
             inclination=k == "clean",
         )
         for k, c in campaigns.items()
     }
 
 
+@pytest.mark.slow
 def test_control_campaign_nothing_missing(diagnoses):
     d = diagnoses["clean"]
-    assert d["missing_effect"] is None
+    assert d["missing_effect"] is None and d["verdict"] == "nothing_missing"
     assert not any(r["significant"] for r in d["ranking"])
     assert d["baseline_discrepancy"] < 0.5  # the noise floor of the statistics
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", list(HIDDEN))
 def test_diagnose_ranks_hidden_effect_first(diagnoses, key):
     d = diagnoses[key]
     hidden = USER_EFFECT if key == "user_preload" else HIDDEN[key].split(":")[0]
+    # a constant force towards the restraint is a static gap change: the gap drift (now
+    # fitted with its phase) may name it, a physically equivalent diagnosis
+    allowed = {hidden, "gap_drift"} if key == "user_preload" else {hidden}
     top = d["ranking"][0]
-    assert top["effect"] == hidden, [(r["effect"], r["bic_delta"]) for r in d["ranking"]]
+    assert top["effect"] in allowed, [(r["effect"], r["bic_delta"]) for r in d["ranking"]]
     assert top["significant"]
-    assert d["missing_effect"] == hidden
+    assert d["missing_effect"] in allowed
     assert top["relative_reduction"] > 0.8
+    assert d["verdict"] == "explained", d["summary"]
     assert d["baseline_discrepancy"] > 10 * diagnoses["clean"]["baseline_discrepancy"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("key", "param", "expected", "tol"),
     [
@@ -107,15 +101,19 @@ def test_diagnose_ranks_hidden_effect_first(diagnoses, key):
     ],
 )
 def test_fitted_parameters_recover_the_hidden_values(diagnoses, key, param, expected, tol):
-    top = diagnoses[key]["ranking"][0]
-    assert top["params"][param] == pytest.approx(expected, abs=tol)
+    name = USER_EFFECT if key == "user_preload" else HIDDEN[key].split(":")[0]
+    entry = next(r for r in diagnoses[key]["ranking"] if r["effect"] == name)
+    assert entry["params"][param] == pytest.approx(expected, abs=tol)
 
 
+@pytest.mark.slow
 def test_diagnose_json_contract(diagnoses):
     d = diagnoses["contact_damping_0.3"]
-    assert {"baseline_discrepancy", "ranking", "missing_effect"} <= set(d)
+    keys = {"baseline_discrepancy", "ranking", "missing_effect", "noise_floor", "verdict",
+            "residual_discrepancy", "explained_fraction", "unexplained_where"}  # fmt: skip
+    assert keys <= set(d)
     for r in d["ranking"]:
-        assert {"effect", "discrepancy_reduction", "params", "significant"} <= set(r)
+        assert {"effect", "discrepancy_reduction", "params", "significant", "reasons"} <= set(r)
     assert {r["effect"] for r in d["ranking"]} == {*FAST_EFFECTS, USER_EFFECT}
 
 

@@ -106,12 +106,16 @@ def test_diagnose_and_report(campaign, tmp_path):
     diag = json.loads(dj.read_text())
     assert diag["missing_effect"] == "contact_damping"
     assert [r["effect"] for r in diag["ranking"]][0] == "contact_damping"
+    assert diag["verdict"] in ("explained", "partially_explained")
+    assert "verdict:" in res.output and "why not" in res.output
+    assert all(r["reasons"] for r in diag["ranking"] if not r["selected"])
     html = tmp_path / "report.html"
     res = _run(["report", campaign, "--diagnosis", dj, "--out", html])
     assert res.exit_code == 0, res.output
     page = html.read_text()
     assert page.count("data:image/png;base64,") >= 4 and "<style>" in page
     assert "contact_damping" in page and 'src="http' not in page
+    assert "Verdict" in page and "why not" in page
 
 
 @pytest.mark.parametrize(

@@ -53,3 +53,20 @@ class Gain(MeasurementEffect):
         self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator
     ) -> np.ndarray:
         return signal * p["gain"][:, None]
+
+
+class StiffeningContact(DynamicsEffect):
+    """A two-stage restraint (a contact law the library lacks): the spring ``beta`` until the
+    penetration reaches ``knee``, then ``ratio`` times stiffer (a beam that bottoms out on a
+    stop). Elastic, so it needs the numerical engine."""
+
+    name = "stiffening_contact"
+
+    class Params(EffectParams):
+        knee: ParamValue = param(0.05, 1e-3, 1.0, "penetration of the second stage", "model")
+        ratio: ParamValue = param(4.0, 1.0, 20.0, "stiffness of the second stage over beta")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        beta = np.asarray(batch.beta, float)
+        knee, ratio = p["knee"], p["ratio"]
+        return beta * (delta + (ratio - 1.0) * np.maximum(delta - knee, 0.0))

@@ -15,6 +15,7 @@ from stiffnet.effects.base import (
     param,
     per_row,
 )
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 def lsb(full_scale: np.ndarray, bits: np.ndarray) -> np.ndarray:
@@ -81,6 +82,11 @@ class ADC(MeasurementEffect):
         full_scale: ParamValue = param(
             200.0, 0.5, 10000.0, "full-scale amplitude +/-FS as a multiple of a w^2", ""
         )
+
+    #: Resolution and full scale (clipping and quantisation).
+    fit_space = FitSpace(
+        (FitParam("bits", 4.0, 16.0), FitParam("full_scale", 1.0, 1000.0, log=True))
+    )
 
     def apply(
         self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator

@@ -30,6 +30,10 @@ fields carry the physical default and the allowed range; a YAML value is either
 a number or a ``[low, high]`` range sampled uniformly per trajectory. Hooks
 receive ``p``, a dict of per-trajectory arrays of shape ``(B,)``.
 
+Each effect also declares its *fit space* (:attr:`Effect.fit_space`, see
+:mod:`stiffnet.effects.fit_space`): the parameters the measurement loop fits to a
+campaign and their search ranges; its ``neutral`` values are "effect off".
+
 A user effect is any subclass found at ``"package.module:ClassName"``.
 """
 
@@ -41,6 +45,7 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from stiffnet.effects.fit_space import FitSpace, default_fit_space
 from stiffnet.errors import ConfigError
 
 ParamArrays = dict[str, np.ndarray]
@@ -97,6 +102,15 @@ class Effect:
     #: ``relative`` frequency draws (see :class:`stiffnet.config.sim.EffectSpec`);
     #: None when training rigs never have it.
     prior: ClassVar[dict[str, Any] | None] = None
+    #: Parameters fitted to a campaign (None: every parameter with a declared range).
+    fit_space: ClassVar[FitSpace | None] = None
+    neutral: ClassVar[dict[str, float] | None] = None
+    """Parameter values at which the effect does nothing (e.g. zero contact damping).
+
+    Declared by dynamics effects that can be switched off row by row inside one
+    batch (a randomised dataset where only some rigs have the effect; an effect
+    without them is simulated separately for the rows that lack it), and used by
+    the measurement loop as "effect off" (any effect)."""
 
     def __init__(self, **params: Any) -> None:
         try:
@@ -126,6 +140,24 @@ class Effect:
             else:
                 out[name] = np.full(n, float(value))
         return out
+
+    @classmethod
+    def campaign_fit_space(cls, fs_hz_min: float) -> FitSpace:
+        """The fit space for a campaign whose lowest sampling rate is ``fs_hz_min``.
+
+        Override when a range depends on the sampling rate (a sensor resonance
+        must stay below Nyquist).
+        """
+        return (
+            cls.fit_space if cls.fit_space is not None else default_fit_space(cls.parameter_table())
+        )
+
+    @classmethod
+    def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
+        """Data-driven starting points of a fit (effect parameters), from what the
+        measurement shows (``observed``: e.g. ``ringing_hz``, the median post-impact ringing
+        frequency in Hz). Default: none."""
+        return []
 
     @classmethod
     def parameter_table(cls) -> list[dict[str, Any]]:
@@ -186,13 +218,6 @@ class DynamicsEffect(Effect):
     """
 
     kind = "dynamics"
-
-    neutral: ClassVar[dict[str, float] | None] = None
-    """Parameter values at which the effect does nothing (e.g. zero contact damping).
-
-    Declared by effects that can be switched off row by row inside one batch (a
-    randomised dataset where only some rigs have the effect); an effect without
-    them is simulated separately for the rows that lack it."""
 
     # ---- closed-form hooks (also used by the numerical integrator) ----
     def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids | None:

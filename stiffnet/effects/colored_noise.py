@@ -22,6 +22,7 @@ from stiffnet.effects.base import (
     param,
     per_row,
 )
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 def _normalise_rows(noise: np.ndarray, std: np.ndarray) -> np.ndarray:
@@ -148,6 +149,13 @@ class ColoredNoise(MeasurementEffect):
         narrowband_width_hz: ParamValue = param(
             1.0, 0.01, 1000.0, "-3 dB bandwidth of the narrow-band noise", "Hz"
         )
+
+    neutral = {"pink_level": 0.0, "narrowband_level": 0.0}
+    #: The two noise levels; spectral shape and the mains line held at their defaults.
+    fit_space = FitSpace(
+        (FitParam("pink_level", 0.0, 0.3), FitParam("narrowband_level", 0.0, 0.3)),
+        fixed={"pink_exponent": 1.0, "narrowband_hz": 50.0, "narrowband_width_hz": 1.0},
+    )
 
     def apply(
         self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator

@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 class ContactDamping(DynamicsEffect):
@@ -37,6 +38,9 @@ class ContactDamping(DynamicsEffect):
         damping_ratio: ParamValue = param(
             0.1, 0.0, 1.0, "damping ratio of the contact spring, c_c = 2 zeta_c sqrt(beta)"
         )
+
+    #: The contact's damping ratio; 0.6 is a restitution coefficient of about 0.1.
+    fit_space = FitSpace((FitParam("damping_ratio", 0.0, 0.6),))
 
     def contact_damping(self, p: ParamArrays, batch: Any) -> np.ndarray:
         return 2.0 * p["damping_ratio"] * np.sqrt(batch.beta)

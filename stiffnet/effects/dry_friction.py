@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 #: Discrete modes of :class:`DryFriction`.
 SLIP_FORWARD = 0.0
@@ -56,6 +57,11 @@ class DryFriction(DynamicsEffect):
         static_ratio: ParamValue = param(
             1.2, 1.0, 5.0, "static over kinetic friction force (breakaway level)", ""
         )
+
+    #: The kinetic friction force; the breakaway ratio held at the default.
+    fit_space = FitSpace(
+        (FitParam("coefficient", 0.001, 1.0, log=True),), fixed={"static_ratio": 1.2}
+    )
 
     def extra_force(
         self,

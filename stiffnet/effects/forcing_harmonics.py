@@ -14,6 +14,7 @@ from stiffnet.effects.base import (
     Sinusoids,
     param,
 )
+from stiffnet.effects.fit_space import FitParam, FitSpace, Polar
 
 
 class ForcingHarmonics(DynamicsEffect):
@@ -51,6 +52,17 @@ class ForcingHarmonics(DynamicsEffect):
         third: ParamValue = param(0.02, 0.0, 0.5, "3rd-harmonic amplitude / fundamental")
         phase_second: ParamValue = param(0.0, -np.pi, np.pi, "phase of the 2nd harmonic", "rad")
         phase_third: ParamValue = param(0.0, -np.pi, np.pi, "phase of the 3rd harmonic", "rad")
+
+    #: Both harmonics with their phases, each pair fitted as (h cos phi, h sin phi).
+    fit_space = FitSpace(
+        (
+            FitParam("second_cos", -0.5, 0.5),
+            FitParam("second_sin", -0.5, 0.5),
+            FitParam("third_cos", -0.5, 0.5),
+            FitParam("third_sin", -0.5, 0.5),
+        ),
+        polar=(Polar("second", "phase_second", 0.5), Polar("third", "phase_third", 0.5)),
+    )
 
     def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:
         scale = batch.amplitude * batch.omega**2

@@ -14,6 +14,7 @@ from stiffnet.effects.base import (
     Sinusoids,
     param,
 )
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 class GapDrift(DynamicsEffect):
@@ -46,6 +47,16 @@ class GapDrift(DynamicsEffect):
             200.0, 10.0, 1e5, "drift period in natural periods (2 pi model time)"
         )
         phase: ParamValue = param(0.0, -np.pi, np.pi, "phase of the drift at t = 0", "rad")
+
+    #: Amplitude, period and phase of the drift (a slow drift's phase sets which part of
+    #: its cycle a short record sees).
+    fit_space = FitSpace(
+        (
+            FitParam("amplitude", 0.0, 1.0),
+            FitParam("period", 10.0, 1000.0, log=True),
+            FitParam("phase", -np.pi, np.pi),
+        ),
+    )
 
     def gap_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:
         freq = 1.0 / p["period"]  # 2 pi / (2 pi * period)

@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 class HertzContact(DynamicsEffect):
@@ -55,6 +56,9 @@ class HertzContact(DynamicsEffect):
             "penetration at which the Hertz secant stiffness equals beta",
             "model length",
         )
+
+    #: The penetration scale of the law (the elastic law tends to the linear one above it).
+    fit_space = FitSpace((FitParam("reference_penetration", 0.01, 10.0, log=True),))
 
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
         """``beta / sqrt(delta_ref) * delta**1.5`` for penetrations ``delta >= 0``.

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 
 class RestraintMass(DynamicsEffect):
@@ -56,6 +57,15 @@ class RestraintMass(DynamicsEffect):
         damping_ratio: ParamValue = param(
             0.05, 0.0, 2.0, "damping ratio of the restraint on its support", ""
         )
+
+    #: The restraint's mass and support stiffness; its own damping held at the default.
+    fit_space = FitSpace(
+        (
+            FitParam("mass_ratio", 0.1, 3.0, log=True),
+            FitParam("stiffness_ratio", 1.0, 100.0, log=True),
+        ),
+        fixed={"damping_ratio": 0.05},
+    )
 
     def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
         """Upper bound of the coupled system's fastest rate, (B,), rad per model time.

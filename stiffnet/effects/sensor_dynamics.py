@@ -8,6 +8,7 @@ this effect adds its linear dynamics to the sampled acceleration.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -22,6 +23,7 @@ from stiffnet.effects.base import (
     param,
     per_row,
 )
+from stiffnet.effects.fit_space import FitParam, FitSpace
 
 _MAX_CORNER_FRACTION = 0.45
 """Corners at or above this fraction of the sampling rate are skipped (see SensorDynamics)."""
@@ -147,6 +149,41 @@ class SensorDynamics(MeasurementEffect):
             "",
             integer=True,
         )
+
+    #: The mounted resonance; the high-pass stays at 1 Hz and the low-pass is off (they
+    #: shape the band the resonance rings in far less than the resonance itself).
+    fit_space = FitSpace(
+        (
+            FitParam("resonance_hz", 50.0, 1000.0, log=True),
+            FitParam("resonance_damping", 0.01, 0.3, log=True),
+        ),
+        fixed={"highpass_hz": 1.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
+    )
+
+    @classmethod
+    def campaign_fit_space(cls, fs_hz_min: float) -> FitSpace:
+        """The resonance searched up to the campaign's lowest ``0.45 fs`` (above, it is skipped)."""
+        res, damp = cls.fit_space.free
+        top = max(60.0, _MAX_CORNER_FRACTION * fs_hz_min)
+        return replace(cls.fit_space, free=(replace(res, high=top), damp))
+
+    @classmethod
+    def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
+        """Start at the measured post-impact ringing frequency: the resonance's basin is a
+        few per cent wide (the ringing is a few samples per cycle), a grid alone misses it."""
+        f = observed.get("ringing_hz")
+        if f is None or not np.isfinite(f):
+            return []
+        res, damp = space.free
+        return [
+            {
+                **space.fixed,
+                "resonance_hz": float(np.clip(f * scale, res.low, res.high)),
+                "resonance_damping": float(np.clip(zeta, damp.low, damp.high)),
+            }
+            for scale in (0.98, 1.0, 1.02)
+            for zeta in (0.01, 0.03, 0.1)
+        ]
 
     def apply(
         self, signal: np.ndarray, fs_hz: np.ndarray, p: ParamArrays, rng: np.random.Generator

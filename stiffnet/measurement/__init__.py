@@ -1,4 +1,4 @@
-"""Model versus measurement: evaluate, compare, diagnose, loop, report (issue 6).
+"""Model versus measurement: evaluate, compare, diagnose, loop, report (issues 6, 13).
 
 One topic per module:
 
@@ -9,7 +9,12 @@ One topic per module:
 ``simulate``        a campaign's rows through the simulator, one batch, common random numbers
 ``evaluate``        learned model and geometric method against the known betas
 ``compare``         simulator versus measurement: where the model fails
-``diagnose``        fit every effect, rank by discrepancy removed, significance
+``target``          what a fit compares against: rows, measured statistics, base model
+``fitting``         one effect on top of a model, or all jointly (each effect's fit space)
+``significance``    paired tests on per-recording discrepancies, reasons in words
+``noise_floor``     the campaign's own noise floor (split halves) and the verdict
+``nuisance``        manifest gaps: forcing frequency, gap, damping, beta, initial state
+``diagnose``        forward selection with joint refits, the verdict (orchestration)
 ``loop``            add the effect, regenerate, retrain, re-evaluate (MLflow)
 ``report``          one self-contained HTML page
 ``plots``           matplotlib figures (imported only by commands and report)

@@ -217,7 +217,10 @@ def diagnose(
         typer.Option(help="Try only these effects (repeatable; default: the whole library)."),
     ] = None,
     budget: Annotated[
-        int | None, typer.Option(help="Objective evaluations per closed-form effect (24).")
+        int | None,
+        typer.Option(
+            help="Evaluations of one closed-form fit (default: its design + 8-24 refinement steps)."
+        ),
     ] = None,
     budget_numerical: Annotated[
         int | None, typer.Option(help="Evaluations per numerical-engine effect (6).")
@@ -236,7 +239,7 @@ def diagnose(
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.diagnose import diagnose_campaign
 
-    out, _, write_json = _io()
+    out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
     with _progress():
         res = diagnose_campaign(
@@ -252,33 +255,25 @@ def diagnose(
             workers=workers,
         )
     table = Table(
-        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}"
+        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}, "
+        f"noise floor {res['noise_floor']:.3g}"
     )
-    for col in (
-        "effect",
-        "reduction (abs.)",
-        "reduction (rel.)",
-        "fitted params",
-        "recordings improved",
-        "significant",
-    ):
+    for col in ("effect", "reduction", "of excess", "params", "selected", "why not"):
         table.add_column(col)
     for r in res["ranking"]:
         p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
         table.add_row(
             r["effect"],
             f"{r['discrepancy_reduction']:.3g}",
-            f"{r['relative_reduction']:.0%}",
+            f"{r['excess_reduction']:.0%}",
             p,
-            f"{r['improved_fraction']:.0%}",
-            "yes" if r["significant"] else "no",
+            "yes" if r["selected"] else "no",
+            "; ".join(r["reasons"]),
         )
     out.print(table)
-    missing = res["missing_effect"]
     out.print(
-        f"missing effect: {missing}"
-        if missing
-        else "nothing significant is missing: the model explains the data"
+        f"verdict: {res['verdict']} (residual {res['residual_discrepancy']:.3g}, explained "
+        f"{res['explained_fraction']:.0%}): {res['summary']}"
     )
     write_json(json_path, res)
 

@@ -86,10 +86,15 @@ def compare_campaign(
         (share of the squared differences), ``by_beta_class`` and ``failure``
         (one line: where it fails).
     """
-    check_rows(campaign.rows, str(campaign.manifest_path))
+    from stiffnet.measurement.nuisance import resolve_rows
+
+    # a manifest without the simulation columns is completed from the recordings (forcing
+    # frequency from the spectrum, beta from the model's estimate, documented defaults)
+    rows, _ = resolve_rows(campaign)
+    check_rows(rows, str(campaign.manifest_path))
     measured: list[SignalStatistics] = []
     lengths = []
-    for row, rec in campaign.recordings():
+    for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
         try:
             measured.append(
                 signal_statistics(rec.accel, rec.fs_hz, natural_frequency(row), row.frequency_ratio)
@@ -97,9 +102,9 @@ def compare_campaign(
         except SignalError as exc:
             raise StiffnetError(f"{row.recording}: {exc}") from None
         lengths.append(len(rec.accel))
-    sims = simulate_rows(campaign.rows, effects, lengths, seed, settings)
+    sims = simulate_rows(rows, effects, lengths, seed, settings)
     simulated: list[SignalStatistics | None] = []
-    for row, a in zip(campaign.rows, sims, strict=True):
+    for row, a in zip(rows, sims, strict=True):
         try:
             simulated.append(
                 signal_statistics(a, row.fs_hz, natural_frequency(row), row.frequency_ratio)
@@ -109,7 +114,7 @@ def compare_campaign(
 
     recs = []
     sq = {c: [] for c in COMPONENTS}
-    for row, m, s in zip(campaign.rows, measured, simulated, strict=True):
+    for row, m, s in zip(rows, measured, simulated, strict=True):
         if s is None:
             recs.append(
                 {

@@ -115,6 +115,37 @@ def group_discrepancies(normalised: Mapping[str, float]) -> dict[str, float]:
     return out
 
 
+#: Where an unexplained discrepancy lives (the verdict of :mod:`stiffnet.measurement.diagnose`):
+#: the spectrum is split at :data:`SENSOR_BAND_LOW` f_n into the sensor's band (with the
+#: post-impact ringing) and the motion's.
+WHERE: dict[str, tuple[str, ...]] = {
+    "contact": ("waveform", "spike_height", "spike_width", "inclination_after", "impact_rate"),
+    "free_flight": ("harmonic_2", "harmonic_3", "inclination_before"),
+    "sensor_band": ("ringing", "spectrum_high"),
+    "spectrum": ("spectrum_low",),
+}
+#: Lower edge of the sensor band, in multiples of f_n (the ringing high-pass of the statistics).
+SENSOR_BAND_LOW = 10.0
+
+
+def where_sums(measured: SignalStatistics, simulated: SignalStatistics) -> dict[str, float]:
+    """Sum of squared normalised differences per :data:`WHERE` group (absent: 0)."""
+    nd = normalised_differences(measured, simulated)
+    if measured.psd_f.size == simulated.psd_f.size and np.allclose(measured.psd_f, simulated.psd_f):
+        diff = simulated.log_psd - measured.log_psd
+        high = measured.psd_f >= SENSOR_BAND_LOW
+        for key, sel in (("spectrum_low", ~high), ("spectrum_high", high)):
+            nd[key] = (
+                float(np.sqrt(np.mean(diff[sel] ** 2)) / TOLERANCES["spectrum"])
+                if sel.any()
+                else float("nan")
+            )
+    return {
+        g: float(sum(nd[k] ** 2 for k in keys if np.isfinite(nd.get(k, np.nan))))
+        for g, keys in WHERE.items()
+    }
+
+
 def campaign_discrepancy(per_recording: Sequence[float]) -> float:
     """Mean of the per-recording discrepancies (NaN recordings left out)."""
     v = np.asarray(per_recording, dtype=np.float64)

@@ -32,8 +32,9 @@ from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import finish_run_folder, output_lock, start_run_folder
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
-from stiffnet.measurement.diagnose import CampaignTarget, fit_effect, measured_statistics
+from stiffnet.measurement.fitting import fit_effect
 from stiffnet.measurement.simulate import DEFAULT_SEED
+from stiffnet.measurement.target import CampaignTarget, measured_statistics
 from stiffnet.progress import task as progress_task
 
 DEFAULT_SPREAD = 0.25
@@ -255,7 +256,7 @@ def _iterate(
     with stages as bar:
         if fit is None:
             bar.update(note=f"fitting {effect}")
-            measured, lengths = measured_statistics(campaign)
+            measured, lengths, _ = measured_statistics(campaign)
             target = CampaignTarget(
                 list(campaign.rows), measured, lengths, config_effects(base_cfg), seed
             )

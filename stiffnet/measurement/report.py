@@ -231,31 +231,42 @@ def render_report(
             parts.append(_img(plots.components_figure(res, t / "c.png")))
         if diagnosis is not None:
             parts.append("<h2>Diagnose: which effect is missing</h2>")
-            missing = diagnosis["missing_effect"]
+            verdict = diagnosis.get("verdict")
+            first = diagnosis.get("missing_effect")
+            selected = diagnosis.get("missing_effects") or ([first] if first else [])
             parts.append(
-                f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}. "
-                + (
-                    f"Missing effect: <b>{html.escape(missing)}</b>.</p>"
-                    if missing
-                    else "Nothing significant is missing: the model explains the data.</p>"
-                )
+                f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}, the "
+                f"campaign's noise floor {diagnosis.get('noise_floor', float('nan')):.3g}. "
+                f"Selected: <b>{html.escape(', '.join(map(str, selected)) or 'none')}"
+                f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
+                f"({html.escape(str(diagnosis.get('summary', '')))}).</p>"
             )
             parts.append(
                 _table(
-                    diagnosis["ranking"],
+                    [
+                        {
+                            **r,
+                            "params": {
+                                k: v
+                                for k, v in r.get("params", {}).items()
+                                if k in (r.get("fitted") or r.get("params", {}))
+                            },
+                            "why not": "; ".join(r.get("reasons", [])),
+                        }
+                        for r in diagnosis["ranking"]
+                    ],
                     [
                         "effect",
-                        "discrepancy_reduction",
-                        "relative_reduction",
+                        "selected",
                         "params",
-                        "improved_fraction",
-                        "sign_test_p",
+                        "discrepancy_reduction",
+                        "excess_reduction",
                         "bootstrap_positive",
-                        "leave_one_out_relative_reduction",
+                        "leave_one_out_excess_reduction",
                         "bic_delta",
-                        "significant",
+                        "why not",
                     ],
-                    lambda r: "sig" if r.get("significant") is True else "",
+                    lambda r: "sig" if r.get("selected") is True else "",
                 )
             )
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))

@@ -35,6 +35,7 @@ numpy/scipy only.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -173,12 +174,18 @@ def skew_polarity(z: np.ndarray) -> int:
     return 1 if float(np.mean(z**3)) >= 0 else -1
 
 
+@functools.lru_cache(maxsize=256)
+def _butter_sos(wn: float, btype: str) -> np.ndarray:
+    """4th-order Butterworth SOS at normalised corner ``wn`` (cached: a fit designs the same
+    few filters thousands of times; the design costs as much as the filtering)."""
+    return sps.butter(4, wn, btype, output="sos")
+
+
 def lowpass(y: np.ndarray, cycles_per_sample: float) -> np.ndarray:
     """Zero-phase 4th-order Butterworth low-pass (unchanged when the corner is near Nyquist)."""
     if not cycles_per_sample < 0.45:
         return y
-    sos = sps.butter(4, 2 * cycles_per_sample, "lowpass", output="sos")
-    return sps.sosfiltfilt(sos, y)
+    return sps.sosfiltfilt(_butter_sos(2 * cycles_per_sample, "lowpass"), y)
 
 
 def spike_peaks(
@@ -225,14 +232,11 @@ def aligned_segments(
     """
     t = np.arange(-int(before * rate), int(after * rate) + 1) / rate
     n = y.size
-    pos = np.arange(n, dtype=np.float64)
-    segs = []
-    for p in peaks:
-        ts = p + t * samples_per_natural_period
-        if ts[0] < 0 or ts[-1] > n - 1:
-            continue
-        segs.append(np.interp(ts, pos, y))
-    return t, (np.array(segs) if segs else np.empty((0, t.size)))
+    ts = np.asarray(peaks, dtype=np.float64)[:, None] + t[None, :] * samples_per_natural_period
+    ts = ts[(ts[:, 0] >= 0) & (ts[:, -1] <= n - 1)]
+    if ts.shape[0] == 0:
+        return t, np.empty((0, t.size))
+    return t, np.interp(ts.ravel(), np.arange(n, dtype=np.float64), y).reshape(ts.shape)
 
 
 def spike_heights_widths(t: np.ndarray, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -249,15 +253,13 @@ def spike_heights_widths(t: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     height = segments[:, i0] - base
     level = base + 0.5 * height
     dt = t[1] - t[0]
-    widths = np.full(segments.shape[0], np.nan)
-    for k, seg in enumerate(segments):
-        if height[k] <= 0:
-            continue
-        below_l = np.flatnonzero(seg[:i0] <= level[k])
-        below_r = np.flatnonzero(seg[i0:] <= level[k])
-        left = i0 - below_l[-1] if below_l.size else i0
-        right = below_r[0] if below_r.size else seg.size - i0
-        widths[k] = (left + right) * dt
+    below = segments <= level[:, None]
+    left_any = below[:, :i0].any(axis=1)
+    right_any = below[:, i0:].any(axis=1)
+    # last sample at or below half height before the extremum, first one after it
+    left = np.where(left_any, 1 + np.argmax(below[:, :i0][:, ::-1], axis=1), i0)
+    right = np.where(right_any, np.argmax(below[:, i0:], axis=1), segments.shape[1] - i0)
+    widths = np.where(height > 0, (left + right) * dt, np.nan)
     return height, widths
 
 
@@ -265,8 +267,7 @@ def highpass(y: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
     """Zero-phase 4th-order Butterworth high-pass (unchanged when the cutoff is near Nyquist)."""
     if cutoff_hz >= 0.45 * fs_hz:
         return np.zeros_like(y)
-    sos = sps.butter(4, cutoff_hz, "highpass", fs=fs_hz, output="sos")
-    return sps.sosfiltfilt(sos, y)
+    return sps.sosfiltfilt(_butter_sos(2 * cutoff_hz / fs_hz, "highpass"), y)
 
 
 def ringing_curves(
@@ -279,13 +280,14 @@ def ringing_curves(
     """
     p_n = samples_per_natural_period
     a0, a1 = int(round(start * p_n)), int(round((start + 0.25) * p_n)) + 1
-    post, pre = [], []
-    for p in peaks:
-        if p - a1 < 0 or p + a1 > r.size:
-            continue
-        post.append(np.sqrt(np.mean(r[p + a0 : p + a1] ** 2)))
-        pre.append(np.sqrt(np.mean(r[p - a1 : p - a0] ** 2)))
-    return np.array(post), np.array(pre)
+    p = np.asarray(peaks, dtype=np.int64)
+    p = p[(p - a1 >= 0) & (p + a1 <= r.size)]
+    if p.size == 0 or a1 <= a0:
+        return np.empty(0), np.empty(0)
+    k = np.arange(a0, a1)
+    post = np.sqrt(np.mean(r[p[:, None] + k[None, :]] ** 2, axis=1))
+    pre = np.sqrt(np.mean(r[p[:, None] - a1 + (k - a0)[None, :]] ** 2, axis=1))
+    return post, pre
 
 
 def ringing_spectrum(
@@ -294,12 +296,13 @@ def ringing_spectrum(
     """Mean periodogram of the post-impact high-passed windows (frequency in cycles/sample)."""
     p_n = samples_per_natural_period
     a0, a1 = int(round(start * p_n)), int(round((start + 0.25) * p_n)) + 1
-    segs = [r[p + a0 : p + a1] for p in peaks if p + a1 <= r.size]
-    if not segs or a1 - a0 < 8:
+    p = np.asarray(peaks, dtype=np.int64)
+    p = p[p + a1 <= r.size]
+    if p.size == 0 or a1 - a0 < 8:
         return np.empty(0), np.empty(0)
     nfft = 4 * (a1 - a0)
-    w = np.hanning(a1 - a0)
-    spec = np.mean([np.abs(np.fft.rfft(s * w, nfft)) ** 2 for s in segs], axis=0)
+    segs = r[p[:, None] + np.arange(a0, a1)[None, :]] * np.hanning(a1 - a0)[None, :]
+    spec = np.mean(np.abs(np.fft.rfft(segs, nfft, axis=1)) ** 2, axis=0)
     return np.fft.rfftfreq(nfft), spec
 
 

@@ -1,0 +1,347 @@
+"""Fitting effects to a campaign: one effect on top of a model, or several jointly.
+
+Objective. The campaign discrepancy itself (:func:`campaign_discrepancy`, the
+mean over recordings of the mean squared normalised differences, i.e. a
+chi-square with fixed tolerances): the number the fit minimises is the number
+reported. The simulations use common random numbers
+(:mod:`stiffnet.measurement.simulate`), so it is a deterministic function of
+the parameters. The model without the effect ("effect off") is always one of
+the candidates: a fit can end at "no improvement" (reduction 0), never below it.
+
+Search, in the unit cube of the effect's fit space
+(:attr:`stiffnet.effects.base.Effect.fit_space`, declared by each effect):
+
+* :func:`fit_effect` (one effect, others held): an initial design (9 points for
+  one coordinate, a 3 x 3 grid for two, 32 Sobol points plus the centre for
+  more), the effect's data-driven seeds (:meth:`~stiffnet.effects.base.Effect.fit_seeds`,
+  e.g. the sensor resonance at the measured ringing frequency), then a bounded
+  Brent search between the best design point's neighbours (one coordinate) or a
+  bounded Nelder-Mead from it, within ``budget`` evaluations.
+  Numerical-engine effects (seconds per evaluation) get only a design spread
+  over the budget, searched on :data:`SUBSET_NUMERICAL` recordings and the best point
+  evaluated on all of them.
+* :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
+  current values over all their coordinates, so an effect fitted first cannot
+  keep a share of the discrepancy that belongs to one found later.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+from scipy.stats import qmc
+
+from stiffnet.effects.base import Effect
+from stiffnet.effects.fit_space import FitSpace
+from stiffnet.effects.registry import effect_class
+from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.simulate import SolverSettings
+from stiffnet.measurement.target import CampaignTarget, needs_numerical
+
+#: Evaluations of a one-effect fit (closed form) after its initial design.
+REFINE_EVALUATIONS = {1: 8, 2: 12}
+REFINE_EVALUATIONS_MANY = 24
+#: Evaluations of a numerical-engine effect's fit (design only).
+DEFAULT_BUDGET_NUMERICAL = 6
+#: A numerical-engine effect is searched on at most this many recordings (evenly spread
+#: over the campaign), then its best point is evaluated on all of them: its simulations
+#: cost seconds, and the search needs only the shape of the objective.
+SUBSET_NUMERICAL = 8
+#: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
+JOINT_PER_COORDINATE = 8
+JOINT_PER_COORDINATE_NUMERICAL = 2
+#: Nelder-Mead's first step in the unit cube for a joint refit (a local search).
+JOINT_STEP = 0.08
+
+
+def objective_value(per_recording: np.ndarray) -> float:
+    """The fit's objective: the campaign discrepancy (mean over recordings)."""
+    return campaign_discrepancy(per_recording)
+
+
+def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
+    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance)."""
+    return effect_class(name).campaign_fit_space(min(r.fs_hz for r in rows))
+
+
+def initial_design(space: FitSpace) -> np.ndarray:
+    """Design points in the unit cube (see the module notes)."""
+    k = len(space.free)
+    if k == 0:
+        return np.empty((1, 0))
+    if k == 1:
+        return np.linspace(0.0, 1.0, 9)[:, None]
+    if k == 2:
+        g = np.linspace(0.0, 1.0, 3)
+        return np.array([[a, b] for a in g for b in g])
+    pts = qmc.Sobol(d=k, scramble=True, seed=0).random(32)
+    return np.vstack([np.full(k, 0.5), pts])
+
+
+@dataclass
+class _Evaluator:
+    """Cached per-recording discrepancies of a model with some effects fixed, one set free."""
+
+    target: CampaignTarget
+    fixed: list[Effect]
+    names: list[str]
+    spaces: list[FitSpace]
+    settings: SolverSettings
+    budget: int
+
+    def __post_init__(self) -> None:
+        self.cache: dict[tuple[float, ...], np.ndarray] = {}
+        self.sizes = [len(s.free) for s in self.spaces]
+
+    def split(self, u: np.ndarray) -> list[dict[str, float]]:
+        out, i = [], 0
+        for space, k in zip(self.spaces, self.sizes, strict=True):
+            out.append(space.params(np.asarray(u[i : i + k])))
+            i += k
+        return out
+
+    def key(self, u: np.ndarray) -> tuple[float, ...]:
+        return tuple(np.round(np.clip(np.asarray(u, float), 0.0, 1.0), 6))
+
+    def per(self, u: np.ndarray) -> np.ndarray | None:
+        key = self.key(u)
+        if key not in self.cache:
+            if len(self.cache) >= self.budget:
+                return None
+            effects = [
+                effect_class(n)(**p)
+                for n, p in zip(self.names, self.split(np.array(key)), strict=True)
+            ]
+            self.cache[key] = self.target.per_recording(
+                [*self.target.base_effects, *self.fixed, *effects], self.settings
+            )
+        return self.cache[key]
+
+    def __call__(self, u: np.ndarray) -> float:
+        per = self.per(u)
+        return float("inf") if per is None else objective_value(per)
+
+    def best(self) -> tuple[np.ndarray, np.ndarray]:
+        key = min(self.cache, key=lambda k: objective_value(self.cache[k]))
+        return np.array(key), self.cache[key]
+
+
+def _result(
+    ev: _Evaluator, off: np.ndarray, t0: float, off_params: list[dict[str, float]] | None = None
+) -> dict[str, Any]:
+    """The best point, or the starting model ("off") when nothing beats it."""
+    u, per = ev.best()
+    improves = objective_value(per) < objective_value(off)
+    params = ev.split(u)
+    if not improves:
+        per = off
+        params = off_params if off_params is not None else params
+    return {
+        "effects": list(ev.names),
+        "params": params,
+        "fitted": [s.fitted for s in ev.spaces],
+        "per_recording": per,
+        "improves": bool(improves),
+        "evaluations": len(ev.cache),
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+def fit_effect(
+    target: CampaignTarget,
+    name: str,
+    fixed: Sequence[Effect] = (),
+    settings: SolverSettings | None = None,
+    budget: int | None = None,
+    off: np.ndarray | None = None,
+    seeds: Sequence[dict[str, float]] = (),
+) -> dict[str, Any]:
+    """Fit one effect's parameters, shared by all recordings, on top of ``fixed`` effects.
+
+    Parameters
+    ----------
+    target : CampaignTarget
+    name : str
+        Canonical name or ``module:Class``.
+    fixed : sequence of Effect
+        Effects already in the model (held at their values; ``target.base_effects`` too).
+    settings : SolverSettings, optional
+        Default: by the engine the model needs.
+    budget : int, optional
+        Objective evaluations (default: design + :data:`REFINE_EVALUATIONS`, or
+        :data:`DEFAULT_BUDGET_NUMERICAL` for a numerical-engine effect).
+    off : numpy.ndarray, optional
+        Per-recording discrepancies of the model without the effect, if known.
+    seeds : sequence of dict
+        Extra starting points (effect parameters), e.g. the current values in a joint refit.
+
+    Returns
+    -------
+    dict
+        ``effect``, ``params`` (fitted and fixed), ``fitted``, ``per_recording``,
+        ``off_per_recording``, ``improves``, ``evaluations``, ``seconds``, ``engine``.
+    """
+    from stiffnet.measurement.target import settings_for
+
+    t0 = time.perf_counter()
+    fixed = list(fixed)
+    space = effect_space(name, target.rows)
+    numerical = needs_numerical(name)
+    if settings is None:
+        settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
+    if off is None:
+        off = target.per_recording([*target.base_effects, *fixed], settings)
+    n = len(target.rows)
+    if numerical and n > SUBSET_NUMERICAL:
+        idx = np.unique(np.round(np.linspace(0, n - 1, SUBSET_NUMERICAL)).astype(int))
+        sub = fit_effect(target.subset(idx), name, fixed, settings, budget, off[idx], seeds)
+        per = target.per_recording(
+            [*target.base_effects, *fixed, effect_class(name)(**sub["params"])], settings
+        )
+        improves = bool(sub["improves"] and objective_value(per) < objective_value(off))
+        if not improves:
+            per = off
+        return {
+            **sub,
+            "params": sub["params"]
+            if improves or effect_class(name).neutral is None
+            else {**space.fixed, **effect_class(name).neutral},
+            "per_recording": per.tolist(),
+            "off_per_recording": off.tolist(),
+            "improves": improves,
+            "evaluations": sub["evaluations"] + 1,
+            "seconds": round(time.perf_counter() - t0, 3),
+            "searched_on": [target.rows[i].recording for i in idx],
+        }
+    design = initial_design(space)
+    n_seeds = len(seeds)
+    seeds = [*seeds, *effect_class(name).fit_seeds(target.observed(), space)]
+    if seeds:
+        design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
+    k = len(space.free)
+    if budget is None:
+        refine = REFINE_EVALUATIONS.get(k, REFINE_EVALUATIONS_MANY)
+        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + refine
+    if len(design) > budget:  # a small budget keeps the given seeds, spreads the rest
+        keep = np.unique(
+            np.r_[
+                np.arange(min(n_seeds, budget)),
+                np.round(np.linspace(0, len(design) - 1, budget - min(n_seeds, budget))),
+            ]
+        )
+        design = design[keep.astype(int)[:budget]]
+    ev = _Evaluator(target, fixed, [name], [space], settings, budget)
+    values = [ev(u) for u in design]
+    best = design[int(np.argmin(values))]
+    if len(ev.cache) < budget and k == 1:  # bounded Brent between the design neighbours
+        h = 1.0 / (len(design) - 1) if len(design) > 1 else 0.5
+        optimize.minimize_scalar(
+            lambda x: ev(np.array([x])),
+            bounds=(max(0.0, best[0] - h), min(1.0, best[0] + h)),
+            method="bounded",
+            options={"maxiter": budget - len(ev.cache), "xatol": 1e-3},
+        )
+    elif len(ev.cache) < budget and k > 1:
+        _nelder_mead(ev, best, 0.5 / 3, budget - len(ev.cache))
+    neutral = effect_class(name).neutral
+    res = _result(ev, off, t0, None if neutral is None else [{**space.fixed, **neutral}])
+    return {
+        "effect": name,
+        "params": res["params"][0],
+        "fitted": res["fitted"][0],
+        "per_recording": res["per_recording"].tolist(),
+        "off_per_recording": off.tolist(),
+        "improves": res["improves"],
+        "evaluations": res["evaluations"],
+        "seconds": res["seconds"],
+        "engine": "numerical" if numerical else "closed_form",
+    }
+
+
+def _nelder_mead(ev: _Evaluator, start: np.ndarray, step: float, maxfev: int) -> None:
+    k = start.size
+    simplex = np.vstack(
+        [start]
+        + [
+            np.clip(start + step * np.eye(k)[j] * (1 if start[j] < 0.5 else -1), 0, 1)
+            for j in range(k)
+        ]
+    )
+    optimize.minimize(
+        ev,
+        start,
+        method="Nelder-Mead",
+        bounds=[(0.0, 1.0)] * k,
+        options={"initial_simplex": simplex, "maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-4},
+    )
+
+
+def fit_joint(
+    target: CampaignTarget,
+    names: Sequence[str],
+    params: Sequence[dict[str, float]],
+    settings: SolverSettings,
+    budget: int | None = None,
+    start: np.ndarray | None = None,
+    rounds: int = 2,
+) -> dict[str, Any]:
+    """Refit every effect of a model jointly, from ``params`` (a local Nelder-Mead).
+
+    ``start`` is the per-recording discrepancy at ``params`` if known;
+    ``rounds`` of block coordinate descent come first (0 for a polish only). The
+    result never ends worse than the start.
+
+    Returns
+    -------
+    dict
+        ``effects``, ``params`` (one dict per effect), ``fitted``, ``per_recording``,
+        ``improves`` (over the start), ``evaluations``, ``seconds``.
+    """
+    t0 = time.perf_counter()
+    names = list(names)
+    spaces = [effect_space(n, target.rows) for n in names]
+    k = sum(len(s.free) for s in spaces)
+    params = [{**s.fixed, **p} for s, p in zip(spaces, params, strict=True)]
+    numerical = any(needs_numerical(n) for n in names)
+    if start is None:
+        start = target.per_recording([*target.base_effects, *_effects(names, params)], settings)
+    start = np.asarray(start, float)
+    given, evaluations = [dict(p) for p in params], 0
+    # block coordinate descent: each effect refitted from its own design with the others
+    # held, so one effect cannot keep a share that belongs to another (a local search alone
+    # stays in the valley where the first effect was fitted)
+    for _ in range(0 if numerical else rounds):
+        round_start = objective_value(start)
+        for i, n in enumerate(names):
+            others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
+            fit = fit_effect(target, n, others, settings, seeds=[params[i]])
+            evaluations += fit["evaluations"]
+            if objective_value(np.asarray(fit["per_recording"])) < objective_value(start):
+                params[i], start = dict(fit["params"]), np.asarray(fit["per_recording"], float)
+        if objective_value(start) >= round_start:  # a round that moved nothing ends the descent
+            break
+    if budget is None:
+        per = JOINT_PER_COORDINATE_NUMERICAL if numerical else JOINT_PER_COORDINATE
+        budget = max(1, per * k) + 1
+    ev = _Evaluator(target, [], names, spaces, settings, budget)
+    u0 = np.concatenate([s.unit(p) for s, p in zip(spaces, params, strict=True)])
+    if start is not None:
+        ev.cache[ev.key(u0)] = np.asarray(start, float)
+    off = ev.per(u0)
+    if k and len(ev.cache) < budget:
+        _nelder_mead(ev, u0, JOINT_STEP, budget - len(ev.cache))
+    res = _result(ev, off, t0, [dict(p) for p in params])
+    if not res["improves"]:  # keep the values exactly (not their unit-cube image)
+        res["params"] = [dict(p) for p in params]
+    res["improves"] = bool(res["improves"] or params != given)
+    res["evaluations"] += evaluations
+    return res
+
+
+def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[Effect]:
+    return [effect_class(n)(**p) for n, p in zip(names, params, strict=True)]

@@ -1,0 +1,152 @@
+"""What a fit compares against: a campaign's rows, measured statistics and base model.
+
+:class:`CampaignTarget` holds the rows (with the nuisance parameters as last
+estimated, :mod:`stiffnet.measurement.nuisance`), the measured statistics, the
+recordings' lengths and the current model's effects, and turns a list of
+effects into per-recording discrepancies (one simulated batch,
+:func:`stiffnet.measurement.simulate.simulate_rows`, common random numbers).
+It is picklable, so a fit can run on a Dask worker.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.effects.base import Effect
+from stiffnet.effects.registry import effect_class
+from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
+from stiffnet.measurement.simulate import (
+    DEFAULT_SEED,
+    FIT_SETTINGS,
+    FIT_SETTINGS_NUMERICAL,
+    SolverSettings,
+    natural_frequency,
+    simulate_rows,
+)
+from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
+
+#: Discrepancy scored by a recording whose simulation cannot be analysed.
+FAILED_DISCREPANCY = 100.0
+
+
+def needs_numerical(name: str) -> bool:
+    """True when the effect switches the simulator to the numerical engine."""
+    cls = effect_class(name)
+    return cls.kind == "dynamics" and not cls().closed_form
+
+
+def settings_for(names: Sequence[str]) -> SolverSettings:
+    """Solver settings for a model holding these effects (numerical engine: short records)."""
+    return FIT_SETTINGS_NUMERICAL if any(needs_numerical(n) for n in names) else FIT_SETTINGS
+
+
+@dataclass
+class CampaignTarget:
+    """Rows, measured statistics, lengths and base effects of a campaign (see module notes)."""
+
+    rows: list[ManifestRow]
+    measured: list[SignalStatistics]
+    lengths: list[int]
+    base_effects: list[Effect] = field(default_factory=list)
+    seed: int = DEFAULT_SEED
+    inclination: bool = True
+    #: Initial-state variant per row (multistable orbits; profiled as a nuisance).
+    starts: list[int] | None = None
+
+    def simulated_statistics(
+        self,
+        effects: Sequence[Effect],
+        settings: SolverSettings,
+        rows: Sequence[ManifestRow] | None = None,
+        starts: Sequence[int] | None = None,
+    ) -> list[SignalStatistics | None]:
+        """Statistics of the campaign simulated with ``effects`` (one batch)."""
+        rows = self.rows if rows is None else list(rows)
+        starts = self.starts if starts is None else starts
+        sims = simulate_rows(rows, effects, self.lengths, self.seed, settings, starts)
+        out: list[SignalStatistics | None] = []
+        for row, a in zip(rows, sims, strict=True):
+            try:
+                out.append(
+                    signal_statistics(
+                        a,
+                        row.fs_hz,
+                        natural_frequency(row),
+                        row.frequency_ratio,
+                        inclination=self.inclination,
+                    )
+                )
+            except SignalError:
+                out.append(None)
+        return out
+
+    def per_recording(
+        self,
+        effects: Sequence[Effect],
+        settings: SolverSettings,
+        rows: Sequence[ManifestRow] | None = None,
+        starts: Sequence[int] | None = None,
+    ) -> np.ndarray:
+        """Per-recording discrepancies of the campaign simulated with ``effects``
+        (``rows``, ``starts``: other nuisance values than the target's)."""
+        sims = self.simulated_statistics(effects, settings, rows, starts)
+        out = np.full(len(self.rows), FAILED_DISCREPANCY)
+        for i, (m, s) in enumerate(zip(self.measured, sims, strict=True)):
+            if s is not None:
+                d = recording_discrepancy(normalised_differences(m, s))
+                out[i] = d if np.isfinite(d) else FAILED_DISCREPANCY
+        return out
+
+    def subset(self, idx: Sequence[int]) -> CampaignTarget:
+        """The target restricted to the recordings ``idx`` (same model, seed and nuisances)."""
+        idx = [int(i) for i in idx]
+        return CampaignTarget(
+            [self.rows[i] for i in idx],
+            [self.measured[i] for i in idx],
+            [self.lengths[i] for i in idx],
+            list(self.base_effects),
+            self.seed,
+            self.inclination,
+            None if self.starts is None else [self.starts[i] for i in idx],
+        )
+
+    def observed(self) -> dict[str, float]:
+        """What the measurement shows that seeds a fit: ``ringing_hz``, the median post-impact
+        ringing frequency (Hz) of the recordings that ring (ringing above 0.2 decades)."""
+        f = [
+            m.ringing_frequency * m.natural_frequency_hz
+            for m in self.measured
+            if np.isfinite(m.ringing) and m.ringing > 0.2 and np.isfinite(m.ringing_frequency)
+        ]
+        return {"ringing_hz": float(np.median(f))} if f else {}
+
+
+def measured_statistics(
+    campaign: Campaign,
+    rows: Sequence[ManifestRow] | None = None,
+    inclination: bool = True,
+) -> tuple[list[SignalStatistics], list[int], list[np.ndarray]]:
+    """Statistics, lengths and samples of every recording (``rows``: resolved rows)."""
+    stats_, lengths, signals = [], [], []
+    rows = list(campaign.rows) if rows is None else list(rows)
+    for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
+        try:
+            stats_.append(
+                signal_statistics(
+                    rec.accel,
+                    rec.fs_hz,
+                    natural_frequency(row),
+                    row.frequency_ratio,
+                    inclination=inclination,
+                )
+            )
+        except SignalError as exc:
+            raise StiffnetError(f"{row.recording}: {exc}") from None
+        lengths.append(len(rec.accel))
+        signals.append(np.asarray(rec.accel, dtype=np.float64))
+    return stats_, lengths, signals
