@@ -391,11 +391,23 @@ def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: 
         "n_windows": sum(r["rows"] for r in records if r is not None),
         "class_names": cfg.class_names(),
         "class_balance": counts,
-        "engine": build_simulator(cfg).engine,
+        "engine": _engines(cfg),
         "seconds": round(seconds, 3),
         "shards": [{k: r[k] for k in ("file", "rows", "sha256")} for r in records if r],
         "config": cfg.model_dump(mode="json"),
     }
+
+
+def _engines(cfg: SimulationConfig) -> str:
+    """The engine(s) that ran: rigs without a nonlinear contact keep the closed form."""
+    sim = build_simulator(cfg)
+    switchable = _switchable(sim)
+    partial = cfg.ideal_fraction > 0 or any(
+        e.probability < 1 for e in cfg.effects if e.build().name not in switchable
+    )
+    if sim.engine == "numerical" and partial:
+        return "closed_form+numerical"
+    return sim.engine
 
 
 def _code_version() -> str:
