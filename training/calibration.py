@@ -64,6 +64,7 @@ def trajectory_table(
     emb_scores = None
     if alarm is not None and alarm.embeddings is not None and "embedding" in outputs:
         emb_scores = alarm.embedding_scores(outputs["embedding"])
+    edges = (alarm.info.get("class_edges") if alarm is not None else None) or None
     rows: dict[str, list[Any]] = {k: [] for k in ("label", "beta", "pred", "lb", "scale")}
     checks: dict[str, list[float]] = {}
     for j in range(len(ids)):
@@ -79,7 +80,6 @@ def trajectory_table(
         rows["pred"].append(est.label)
         rows["lb"].append(np.nan if est.log_beta is None else est.log_beta)
         rows["scale"].append(np.nan if est.scale is None else est.scale)
-        edges = (alarm.info.get("class_edges") if alarm is not None else None) or None
         c = recording_checks(est, None if emb_scores is None else emb_scores[w], None, edges)
         for k, v in c.items():
             checks.setdefault(k, []).append(np.nan if v is None else float(v))
