@@ -13,14 +13,13 @@ import os
 import shutil
 import socket
 import stat
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from live_server import serving
 from typer.testing import CliRunner
 
 from stiffnet.cli import app
@@ -519,12 +518,6 @@ def test_user_effect_is_imported_only_after_everything_else(tmp_path, monkeypatc
 # ------------------------------------------------------------------ the server under abuse
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_serve_on_a_busy_port_is_one_line():
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
@@ -590,36 +583,11 @@ def test_token_host_and_cors_policy():
 
 @pytest.fixture(scope="module")
 def live_server(tmp_path_factory):
-    port = _free_port()
     log = tmp_path_factory.mktemp("serve") / "stderr.txt"
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    with open(log, "wb") as err:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "stiffnet", "serve", "--port", str(port), "--model",
-             str(ROOT / "models" / "gbm.onnx"), "--body-timeout-s", "1"],
-            stdout=subprocess.DEVNULL, stderr=err, env=env, cwd=ROOT,
-        )  # fmt: skip
-    import httpx
-
-    base = f"http://127.0.0.1:{port}"
-    try:
-        for _ in range(300):
-            try:
-                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                import time
-
-                time.sleep(0.1)
-            assert proc.poll() is None, log.read_text()
+    model = str(ROOT / "models" / "gbm.onnx")
+    with open(log, "wb") as err, serving("--model", model, "--body-timeout-s", "1",
+                                         stderr=err) as port:  # fmt: skip
         yield port, log
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def _raw(port: int, head: bytes, body: bytes = b"", close: bool = False, wait: float = 5.0):

@@ -4,10 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import json
-import os
-import socket
-import subprocess
-import sys
+import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -17,6 +14,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from live_server import serving
 
 from serving.app import Limits, create_app
 from serving.predictor import Predictor
@@ -220,31 +218,10 @@ def test_http_never_500(client, body, raw, name, use_file):
         assert set(r.json()) == {"error"}
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_live_server(samples):
     """`stiffnet serve` as a process: health, a prediction, a 413, then a clean stop."""
-    port = _free_port()
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "stiffnet", "serve", "--port", str(port), "--max-upload-mb", "1"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        env=env,
-    )
-    base = f"http://127.0.0.1:{port}"
-    try:
-        for _ in range(300):
-            try:
-                if httpx.get(f"{base}/health", timeout=1).status_code == 200:
-                    break
-            except httpx.HTTPError:
-                time.sleep(0.1)
-            assert proc.poll() is None, proc.stderr.read().decode()
+    with tempfile.TemporaryFile() as err, serving("--max-upload-mb", "1", stderr=err) as port:
+        base = f"http://127.0.0.1:{port}"
         r = httpx.post(f"{base}/predict", json={"samples": samples, "fs_hz": 1000.0}, timeout=30)
         assert r.status_code == 200 and r.json()["class"] == "hard"
         r = httpx.post(
@@ -254,13 +231,6 @@ def test_live_server(samples):
             timeout=30,
         )
         assert r.status_code == 413 and "error" in r.json()
-    finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def test_upload_with_columns_and_time_unit_fields(client):
