@@ -3,10 +3,14 @@
 from pathlib import Path
 
 import pytest
+import yaml
 
 from stiffnet.config import load_config, validate_config
 from stiffnet.config.sim import SimulationConfig, randomised_effects
 from stiffnet.errors import ConfigError
+from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
+from stiffnet.measurement.compare import beta_class_name
+from stiffnet.measurement.evaluate import true_class
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -27,6 +31,22 @@ def test_shipped_configs_validate_and_default_matches_model():
     assert default.class_names() == ["no_contact", "soft", "medium", "hard", "very_hard"]
     quick = load_config(SimulationConfig, ROOT / "configs/sim/quick.yaml")
     assert quick.n_trajectories < default.n_trajectories
+
+
+def test_class_edges_have_one_source():
+    # the shipped YAMLs leave the classes to the model, whose default is the geometry's table
+    for name in ("ideal", "default", "quick"):
+        assert "classes" not in yaml.safe_load((ROOT / f"configs/sim/{name}.yaml").read_text())
+    cfg = SimulationConfig()
+    assert [(c.name, *c.beta) for c in cfg.classes] == list(DEFAULT_CLASSES)
+    assert cfg.no_contact_class == NO_CONTACT
+    # the measurement reports label a known beta by the same nearest-class rule
+    for beta in (1.0, 5.0, 14.99, 15.0, 35.0, 59.9, 60.0, 100.0, 250.0):
+        assert beta_class_name(beta) == true_class(beta, True) == beta_class(beta)
+    assert (beta_class_name(14.99), beta_class_name(15.0)) == ("soft", "medium")
+    assert (beta_class_name(None), true_class(None, True), true_class(20.0, False)) == (
+        "unknown", None, NO_CONTACT,
+    )  # fmt: skip
 
 
 def test_priors_cover_the_issue_ranges():

@@ -28,6 +28,7 @@ from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.store import CARD, load_dataset
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from stiffnet.shipped import default_config
 from stiffnet.uncertainty.alarm import save_alarm
 from training.calibration import calibrate_recording_level
 from training.export_onnx import onnx_session
@@ -115,7 +116,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", default=None, help="the training config (YAML)")
     args = ap.parse_args(argv)
     try:
-        default = "configs/train/cnn.yaml" if "cnn" in Path(args.model).stem else None
+        # the shipped config next to the package, never the current folder's
+        default = default_config("train/cnn.yaml") if "cnn" in Path(args.model).stem else None
         cfg_path = args.config or default
         cfg = load_config(TrainConfig, cfg_path) if cfg_path else TrainConfig()
         print(json.dumps(recalibrate(args.model, args.data_dir, cfg), indent=1))

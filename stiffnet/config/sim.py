@@ -8,6 +8,7 @@ import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
 from stiffnet.effects.registry import CANONICAL, build_effect
+from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 
@@ -64,12 +65,8 @@ class ClassSpec(_Strict):
 
 
 def default_classes() -> list[ClassSpec]:
-    return [
-        ClassSpec(name="soft", beta=(5.0, 15.0)),
-        ClassSpec(name="medium", beta=(15.0, 35.0)),
-        ClassSpec(name="hard", beta=(35.0, 60.0)),
-        ClassSpec(name="very_hard", beta=(60.0, 100.0)),
-    ]
+    """The shipped stiffness classes (:data:`stiffnet.geometry.calibration.DEFAULT_CLASSES`)."""
+    return [ClassSpec(name=name, beta=(lo, hi)) for name, lo, hi in DEFAULT_CLASSES]
 
 
 class RelativeParam(_Strict):
@@ -164,7 +161,7 @@ class SimulationConfig(_Strict):
     sweep: SweepConfig = Field(default_factory=SweepConfig)
     windows: WindowConfig = Field(default_factory=WindowConfig)
     classes: list[ClassSpec] = Field(default_factory=default_classes, min_length=1)
-    no_contact_class: str = "no_contact"
+    no_contact_class: str = NO_CONTACT
     effects: list[EffectSpec] = Field(default_factory=list)
     ideal_fraction: float = Field(
         0.0,

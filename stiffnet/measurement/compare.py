@@ -21,7 +21,7 @@ from stiffnet.campaign import Campaign
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.effects.base import Effect
 from stiffnet.errors import SignalError, StiffnetError
-from stiffnet.geometry.calibration import DEFAULT_CLASSES
+from stiffnet.geometry.calibration import beta_class
 from stiffnet.measurement.discrepancy import (
     COMPONENTS,
     GROUPS,
@@ -60,12 +60,7 @@ def config_settings(cfg: SimulationConfig, periods: float | None = None) -> Solv
 
 
 def beta_class_name(beta: float | None) -> str:
-    if beta is None:
-        return "unknown"
-    for name, lo, hi in DEFAULT_CLASSES:
-        if lo <= beta < hi:
-            return name
-    return DEFAULT_CLASSES[0][0] if beta < DEFAULT_CLASSES[0][1] else DEFAULT_CLASSES[-1][0]
+    return "unknown" if beta is None else str(beta_class(beta))
 
 
 def compare_campaign(

@@ -26,7 +26,7 @@ import numpy as np
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
-from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
+from stiffnet.geometry.calibration import NO_CONTACT, beta_class
 from stiffnet.measurement.simulate import impact_regime, natural_frequency, simulated_contact
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
@@ -42,12 +42,7 @@ def true_class(beta: float | None, contact: bool) -> str | None:
     """The label a recording should get: its beta class, or no_contact."""
     if beta is None:
         return None
-    if not contact:
-        return NO_CONTACT
-    for name, lo, hi in DEFAULT_CLASSES:
-        if lo <= beta < hi:
-            return name
-    return DEFAULT_CLASSES[0][0] if beta < DEFAULT_CLASSES[0][1] else DEFAULT_CLASSES[-1][0]
+    return str(beta_class(beta)) if contact else NO_CONTACT
 
 
 def macro_f1(truth: Sequence[str], pred: Sequence[str]) -> float:

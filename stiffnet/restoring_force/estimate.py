@@ -422,7 +422,7 @@ def restoring_force_estimate(
     exponent : float, optional
         Fix the contact exponent (1 for a linear restraint); fitted when None.
     classes : sequence of (name, low, high)
-        Class edges in beta (configs/sim/default.yaml).
+        Class edges in beta (the shipped ones: ``geometry.calibration.DEFAULT_CLASSES``).
     coverage : float
         Nominal coverage of the bootstrap interval.
     seed : int
