@@ -595,6 +595,7 @@ def _simulate_into(
     from stiffnet import __version__
     from stiffnet.distributed.tasks import run_tasks
     from stiffnet.effects.registry import build_effect, parse_effect_option
+    from stiffnet.simulator.compiled import limited_threads
 
     eff = [build_effect(*parse_effect_option(e)) if isinstance(e, str) else e for e in effects]
 
@@ -620,7 +621,7 @@ def _simulate_into(
     jobs = [_RowJob(row, eff, int(seed), default_duration_s, row.where(manifest)) for row in rows]
     with progress_task("simulating recordings", len(jobs)) as bar:
         report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
-                           names=[row.recording for row in rows],
+                           names=[row.recording for row in rows], thread_limit=limited_threads,
                            progress=lambda done, _: bar.update(done))  # fmt: skip
     if report.failed:
         name, msg = next(iter(report.failed.items()))

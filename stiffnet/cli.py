@@ -18,7 +18,7 @@ from typer.core import TyperGroup
 # Command modules keep their heavy imports inside the command functions:
 # ``stiffnet predict`` must not import torch, scikit-learn or mlflow, and
 # ``stiffnet --help`` must stay fast.
-from serving import commands as serving_commands  # predict, serve
+from serving import commands as serving_commands  # predict, predict-batch, serve
 from stiffnet import progress
 from stiffnet.cli_options import (
     ColumnsOption,
@@ -36,7 +36,6 @@ from stiffnet.console import (
     user_errors,
     write_json,
 )
-from stiffnet.distributed import commands as distributed_commands  # predict-batch
 from stiffnet.measurement import commands as measurement_commands  # evaluate ... report
 
 
@@ -310,7 +309,7 @@ def effects(json_path: JsonOption = None) -> None:
     write_json(json_path, result)
 
 
-for _commands in (serving_commands, measurement_commands, distributed_commands):
+for _commands in (serving_commands, measurement_commands):
     _commands.register(app)
 
 

@@ -1,8 +1,8 @@
 """What every ``stiffnet`` command shares: consoles, JSON output, error mapping, progress.
 
 The command modules (:mod:`stiffnet.cli`, :mod:`serving.commands`,
-:mod:`stiffnet.measurement.commands`, :mod:`stiffnet.distributed.commands`) import
-these from here; nothing imports :mod:`stiffnet.cli`, which only assembles the app.
+:mod:`stiffnet.measurement.commands`) import these from here; nothing imports
+:mod:`stiffnet.cli`, which only assembles the app.
 A light module (typer and rich): ``stiffnet --help`` and the predictor's commands
 load nothing heavier through it.
 """

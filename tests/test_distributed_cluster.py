@@ -9,6 +9,7 @@ and the shard is reported as run again.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import functools
 import json
 import os
@@ -74,6 +75,20 @@ def _user_error(x: int) -> int:
     return x
 
 
+@contextlib.contextmanager
+def _record_limit(n: int):
+    """A thread limit that leaves its ``n`` where the task can read it."""
+    os.environ["STIFFNET_TEST_THREAD_LIMIT"] = str(n)
+    try:
+        yield
+    finally:
+        del os.environ["STIFFNET_TEST_THREAD_LIMIT"]
+
+
+def _limit_seen(x: int) -> tuple[int, str | None]:
+    return x, os.environ.get("STIFFNET_TEST_THREAD_LIMIT")
+
+
 def _always_fails_on(victim: int, shard: int) -> None:
     if shard == victim:
         raise RuntimeError(f"shard {shard} cannot be simulated")
@@ -110,6 +125,17 @@ def test_map_tasks_on_the_cluster_retries_and_reports(cluster, tmp_path):
     with pytest.raises(StiffnetError, match=r"task _flaky\[0\] failed: .*transient.*after 1 run"):
         map_tasks(functools.partial(_flaky, str(fresh)), [2], scheduler=cluster.scheduler_address,
                   retries=0)  # fmt: skip
+
+
+def test_thread_limit_is_the_callers_and_applies_on_workers_only(cluster):
+    # the runner imports no compute library: the caller's limit wraps each Dask task
+    on_cluster = map_tasks(_limit_seen, [1, 2, 3], scheduler=cluster.scheduler_address,
+                           thread_limit=_record_limit)  # fmt: skip
+    assert on_cluster == [(1, "1"), (2, "1"), (3, "1")]
+    plain = map_tasks(_limit_seen, [1], scheduler=cluster.scheduler_address)
+    assert plain == [(1, None)]
+    # in-process the task keeps every thread of the caller's process
+    assert map_tasks(_limit_seen, [4], thread_limit=_record_limit) == [(4, None)]
 
 
 def test_bad_input_is_not_retried(cluster):

@@ -1,11 +1,12 @@
 """The layer rule of docs/architecture.md, read from the source (AST, no imports run).
 
-Imports run one way: the core (science, configuration, data I/O and the task
-runner) at the bottom, then training and serving, then the measurement loop, the
-command line on top. A module may import its own layer and the layers below it,
-never one above; nothing imports ``stiffnet.cli``; the predictor (``serving``
-and everything it imports, function-level imports included) never reaches
-torch, scikit-learn or mlflow, nor the training code.
+Imports run one way: the base (errors, file writing, shipped files, the task
+runner), then the core (science, configuration, data I/O), then training and
+serving, then the measurement loop, the command line on top. A module may import
+its own layer and the layers below it, never one above; nothing imports
+``stiffnet.cli``; the predictor (``serving`` and everything it imports,
+function-level imports included) never reaches torch, scikit-learn or mlflow,
+nor the training code.
 """
 
 from __future__ import annotations
@@ -21,7 +22,14 @@ PACKAGES = ("stiffnet", "serving", "training")
 
 #: Layers from the bottom; a module belongs to the longest prefix listed.
 LAYERS: dict[str, tuple[str, ...]] = {
-    "base": ("stiffnet", "stiffnet.errors", "stiffnet.io_utils", "stiffnet.shipped"),
+    # the task runner is infrastructure: the callers pass in their tasks and thread limits
+    "base": (
+        "stiffnet",
+        "stiffnet.errors",
+        "stiffnet.io_utils",
+        "stiffnet.shipped",
+        "stiffnet.distributed",
+    ),  # fmt: skip
     "core": (
         "stiffnet.config",
         "stiffnet.effects",
@@ -34,11 +42,10 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.dataset",
         "stiffnet.analyze",
         "stiffnet.plots",
-        "stiffnet.distributed",
         "stiffnet.restoring_force",
         "stiffnet.uncertainty",
     ),  # fmt: skip
-    "models": ("training", "serving", "stiffnet.distributed.batch"),
+    "models": ("training", "serving"),
     "measurement": ("stiffnet.measurement",),
     "cli": (
         "stiffnet.cli",
@@ -47,7 +54,6 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.cli_options",
         "serving.commands",
         "stiffnet.measurement.commands",
-        "stiffnet.distributed.commands",
     ),  # fmt: skip
 }
 ORDER = list(LAYERS)

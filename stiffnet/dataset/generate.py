@@ -282,6 +282,7 @@ def _generate_locked(
 ) -> dict[str, Any]:
     from stiffnet.distributed.cluster import dask_client
     from stiffnet.distributed.tasks import run_tasks
+    from stiffnet.simulator.compiled import limited_threads
 
     fingerprint = config_fingerprint(cfg)
     keep = _check_folder(out, fingerprint, overwrite=overwrite, resume=resume)
@@ -308,6 +309,7 @@ def _generate_locked(
             retries=retries,
             names=[shard_name(i) for i in todo],
             progress=(lambda done, _: progress(kept + done, len(sizes))) if progress else None,
+            thread_limit=limited_threads,
         )
     report.raise_failures()
     for i, record in zip(todo, report.results, strict=True):

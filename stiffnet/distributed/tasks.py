@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import uuid
 from collections.abc import Callable, Iterable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -73,12 +75,15 @@ class _UserError:
     error: StiffnetError
 
 
-def _run_on_worker(fn: Callable[[Any], Any], item: Any) -> Any:
-    """Run ``fn(item)`` on a worker, numba on one thread (a worker is one core)."""
-    from stiffnet.simulator.compiled import limited_threads
+#: A thread limit: ``limit(n)`` is a context manager running its block on at most ``n``
+#: threads of the task's compute library (e.g. ``stiffnet.simulator.compiled.limited_threads``).
+ThreadLimit = Callable[[int], AbstractContextManager[Any]]
 
+
+def _run_on_worker(fn: Callable[[Any], Any], item: Any, thread_limit: ThreadLimit | None) -> Any:
+    """Run ``fn(item)`` on a worker, on one compute thread (a worker is one core)."""
     try:
-        with limited_threads(1):  # thread-local in numba: other tasks are unaffected
+        with thread_limit(1) if thread_limit is not None else contextlib.nullcontext():
             return fn(item)
     except StiffnetError as exc:
         return _UserError(exc)
@@ -94,6 +99,7 @@ def run_tasks(
     progress: Callable[[int, int], None] | None = None,
     names: Sequence[str] | None = None,
     client: Any = None,
+    thread_limit: ThreadLimit | None = None,
 ) -> TaskReport:
     """Run ``fn`` on every item and report results, failures and re-runs.
 
@@ -120,6 +126,12 @@ def run_tasks(
         Task names for reports (default ``fn-name[i]``).
     client
         An existing ``distributed.Client`` to use instead of ``scheduler``/``workers``.
+    thread_limit
+        On Dask, each task runs inside ``thread_limit(1)``: a worker process is one core,
+        and a task's own thread pool (numba's, for the simulator) would oversubscribe it
+        on a cluster whose workers were not started with one thread. In-process tasks
+        keep every thread. The callers pass the limit of the library they compute with;
+        this module imports none of them.
     """
     items = list(items)
     label = _label(fn)
@@ -127,11 +139,11 @@ def run_tasks(
     if len(names) != len(items):
         raise ValueError("names and items differ in length")
     if client is not None:
-        return _run_dask(client, fn, items, names, retries, progress)
+        return _run_dask(client, fn, items, names, retries, progress, thread_limit)
     with dask_client(scheduler, workers) as c:
         if c is None:
             return _run_local(fn, items, names, progress)
-        return _run_dask(c, fn, items, names, retries, progress)
+        return _run_dask(c, fn, items, names, retries, progress, thread_limit)
 
 
 def map_tasks(
@@ -143,6 +155,7 @@ def map_tasks(
     retries: int = 2,
     progress: Callable[[int, int], None] | None = None,
     names: Sequence[str] | None = None,
+    thread_limit: ThreadLimit | None = None,
 ) -> list[Any]:
     """``[fn(x) for x in items]``, in-process or on Dask, in the items' order.
 
@@ -151,6 +164,7 @@ def map_tasks(
     processes started for the call. A task that raises is retried ``retries`` times
     (not for a :class:`StiffnetError`: bad input); one that still fails raises a
     one-line :class:`StiffnetError` naming it (after the other tasks finished, on Dask).
+    ``thread_limit``: see :func:`run_tasks`.
 
     Examples
     --------
@@ -158,7 +172,7 @@ def map_tasks(
     [1, 2, 3]
     """
     report = run_tasks(fn, items, scheduler=scheduler, workers=workers, retries=retries,
-                       progress=progress, names=names)  # fmt: skip
+                       progress=progress, names=names, thread_limit=thread_limit)  # fmt: skip
     report.raise_failures()
     return report.results
 
@@ -177,14 +191,15 @@ def _run_local(fn, items, names, progress) -> TaskReport:
     return report
 
 
-def _run_dask(client, fn, items, names, retries, progress) -> TaskReport:
+def _run_dask(client, fn, items, names, retries, progress, thread_limit) -> TaskReport:
     from distributed import as_completed
 
     run_id = uuid.uuid4().hex[:8]
     label = _label(fn)  # Dask groups tasks by this prefix (dashboard, logs)
     keys = [f"{label}-{run_id}-{i}" for i in range(len(items))]
-    futures = client.map(_run_on_worker, [fn] * len(items), items, key=keys,
-                         retries=retries, pure=False)  # fmt: skip
+    futures = client.map(_run_on_worker, [fn] * len(items), items,
+                         [thread_limit] * len(items), key=keys, retries=retries,
+                         pure=False)  # fmt: skip
     report = TaskReport(results=[None] * len(items), names=names,
                         backend=str(client.scheduler.address))  # fmt: skip
     index = {f.key: i for i, f in enumerate(futures)}

@@ -184,6 +184,7 @@ def _diagnose(
 ) -> dict[str, Any]:
     """The body of :func:`diagnose_campaign`."""
     from stiffnet.distributed import map_tasks
+    from stiffnet.simulator.compiled import limited_threads
 
     rows, nuisance_info = resolve_rows(campaign, model_path)
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
@@ -214,6 +215,7 @@ def _diagnose(
             workers=workers,
             names=cands,
             progress=lambda done, _: bar.tick(start + done - bar.done),
+            thread_limit=limited_threads,
         )
 
     # ---- step 0: every candidate alone against the base model

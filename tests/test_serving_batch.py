@@ -19,8 +19,9 @@ import pytest
 pytest.importorskip("distributed")
 pytest.importorskip("onnxruntime")
 
+from serving.batch import find_recordings, predict_batch  # noqa: E402
+from serving.predictor import Predictor, predict_recording  # noqa: E402
 from stiffnet.campaign import simulate_campaign  # noqa: E402
-from stiffnet.distributed.batch import find_recordings, predict_batch  # noqa: E402
 from stiffnet.distributed.cluster import local_cluster  # noqa: E402
 from stiffnet.errors import StiffnetError  # noqa: E402
 
@@ -98,6 +99,30 @@ def test_every_recording_gets_a_row_and_bad_ones_an_error(recordings, reference)
     meta = pq.read_schema(reference).metadata
     assert meta[b"stiffnet.model"] == b"cnn"
     assert not reference.with_name("res.parquet.parts").exists()  # parts cleaned up
+
+
+def test_rows_carry_both_cross_checks_of_the_predictor(recordings, reference):
+    table = pq.read_table(reference).to_pandas().set_index("path")
+    good = table[table["error"].isna()]
+    predictor = Predictor.load(MODEL)
+    for path, row in good.iterrows():
+        result = predict_recording(path, predictor=predictor)
+        assert row["class"] == result["class"]
+        assert row["geometric_class"] == result["geometric"]["class"]
+        # the restoring-force cross-check, as the single-recording answer gives it
+        assert (row["physical_class"] or None) == result["physical_class"], path
+        if result["physical_class"] is None:  # that method refused: nulls, no verdict
+            assert row[["physical_beta", "physical_agreement"]].isna().all(), path
+            continue
+        assert row["physical_beta"] == pytest.approx(result["physical_beta"])
+        lo, hi = result["physical_beta_interval"]
+        assert (row["physical_beta_low"], row["physical_beta_high"]) == pytest.approx((lo, hi))
+        assert row["physical_beta_low"] <= row["physical_beta"] <= row["physical_beta_high"]
+        assert row["physical_agreement"] == (row["physical_class"] == row["class"])
+    # the simulated recordings are impacting: the restoring force answers for most of them
+    assert good["physical_class"].notna().sum() >= 3
+    bad = table[table["error"].notna()]
+    assert bad[["physical_class", "physical_beta", "physical_agreement"]].isna().all().all()
 
 
 def test_glob_and_no_match(recordings, tmp_path):

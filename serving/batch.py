@@ -1,4 +1,5 @@
-"""Batch prediction: many recordings, one Parquet table, parts computed as Dask tasks.
+"""Batch prediction (``predict-batch``): many recordings, one Parquet table, parts
+computed as tasks of :mod:`stiffnet.distributed` (in-process or on Dask).
 
 Recordings are sorted by path and cut into parts of ``part_size``; each part is one
 task that loads the predictor (once per worker process), predicts its recordings
@@ -7,6 +8,8 @@ and writes ``OUT.parts/part-NNNNN.parquet`` atomically, then its record
 part exists, they are concatenated into ``OUT`` (atomically) and the parts folder is
 removed. An interrupted run resumes: parts whose record matches are kept.
 
+Each row holds the model's answer and both cross-checks of :func:`serving.predictor.
+predict_recording`: the geometric one and the restoring-force one (``physical_*``).
 A recording that cannot be predicted (unreadable, too short, constant...) gets a row
 with its ``error`` and nulls elsewhere: one bad file never stops the batch.
 Workers must see the recordings and the model at the same paths (a shared file
@@ -29,6 +32,9 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from serving.predictor import Predictor, predict_recording
+from stiffnet.distributed.cluster import check_target, dask_client
+from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
 
@@ -80,6 +86,11 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("geometric_class", pa.string()),
             ("geometric_beta", pa.float64()),
             ("agreement", pa.bool_()),
+            ("physical_class", pa.string()),
+            ("physical_beta", pa.float64()),
+            ("physical_beta_low", pa.float64()),
+            ("physical_beta_high", pa.float64()),
+            ("physical_agreement", pa.bool_()),
             ("ood_score", pa.float64()),
             ("ood_flag", pa.bool_()),
             ("n_windows", pa.int64()),
@@ -98,6 +109,7 @@ def result_row(path: str, result: dict[str, Any] | None, error: str | None) -> d
     if result is None:
         return row
     interval = result.get("beta_interval") or [None, None]
+    physical_interval = result.get("physical_beta_interval") or [None, None]
     geometric = result.get("geometric") or {}
     row.update(
         {
@@ -109,6 +121,11 @@ def result_row(path: str, result: dict[str, Any] | None, error: str | None) -> d
             "geometric_class": geometric.get("class"),
             "geometric_beta": geometric.get("beta"),
             "agreement": result.get("agreement"),
+            "physical_class": result.get("physical_class"),
+            "physical_beta": result.get("physical_beta"),
+            "physical_beta_low": physical_interval[0],
+            "physical_beta_high": physical_interval[1],
+            "physical_agreement": result.get("physical_agreement"),
             "ood_score": result.get("ood_score"),
             "ood_flag": result.get("ood_flag"),
             "n_windows": result.get("n_windows"),
@@ -150,8 +167,6 @@ class PartJob:
 def _predictor(model_path: str, sha256: str) -> Any:
     """The predictor, loaded once per process (a worker runs many parts of many runs;
     the SHA-256 in the key makes a model replaced on disk load again)."""
-    from serving.predictor import Predictor
-
     predictor = Predictor.load(model_path)
     if predictor.sha256 != sha256:
         raise StiffnetError(f"{model_path} changed during the run (SHA-256)")
@@ -160,8 +175,6 @@ def _predictor(model_path: str, sha256: str) -> Any:
 
 def predict_part(job: PartJob) -> dict[str, Any]:
     """Predict one part's recordings, write the part atomically, then its record."""
-    from serving.predictor import predict_recording
-
     if job.before is not None:
         job.before(job.index)
     t0 = time.perf_counter()
@@ -213,8 +226,10 @@ def _finished_part(parts_dir: Path, index: int, fingerprint: str) -> dict[str, A
 
 
 def _fingerprint(paths: tuple[str, ...], model_sha256: str, fs_hz, fn, layout=()) -> str:
-    data = {"paths": paths, "model": model_sha256, "fs_hz": fs_hz, "fn": fn}
-    if any(layout):  # only then, so parts of earlier runs keep their fingerprint
+    # the table's columns too: a part written with other columns cannot be concatenated
+    columns = result_schema([]).names
+    data = {"paths": paths, "model": model_sha256, "fs_hz": fs_hz, "fn": fn, "columns": columns}
+    if any(layout):
         data["layout"] = list(layout)
     text = json.dumps(data)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -274,10 +289,6 @@ def predict_batch(
     dict
         A summary: counts per class, errors, parts kept and run, re-run parts.
     """
-    from serving.predictor import Predictor
-    from stiffnet.distributed.cluster import check_target, dask_client
-    from stiffnet.distributed.tasks import run_tasks
-
     check_target(scheduler, workers)
     if part_size < 1:
         raise StiffnetError(f"part size must be at least 1, got {part_size}")
