@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from stiffnet.campaign import ManifestRow
+from stiffnet.campaign.simulate import FIT_SETTINGS, CampaignSolverSettings, simulate_rows
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.errors import SignalError
 from stiffnet.measurement import fitting
@@ -19,7 +20,6 @@ from stiffnet.measurement.discrepancy import (
 )
 from stiffnet.measurement.fitting import effect_space, fit_effect, initial_design, objective_value
 from stiffnet.measurement.significance import significance
-from stiffnet.measurement.simulate import FIT_SETTINGS, SolverSettings, simulate_rows
 from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget
 
@@ -39,7 +39,7 @@ FAR = ROW.model_copy(update={"recording": "far.csv", "gap": 50.0})
 
 @pytest.fixture(scope="module")
 def signal():
-    return simulate_rows([ROW], [], [5000], settings=SolverSettings(periods=40))[0]
+    return simulate_rows([ROW], [], [5000], settings=CampaignSolverSettings(periods=40))[0]
 
 
 def test_statistics_are_gain_and_polarity_free(signal):
@@ -55,7 +55,7 @@ def test_statistics_are_gain_and_polarity_free(signal):
 
 
 def test_statistics_without_contact_and_bad_input():
-    free = simulate_rows([FAR], [], [4000], settings=SolverSettings(periods=40))[0]
+    free = simulate_rows([FAR], [], [4000], settings=CampaignSolverSettings(periods=40))[0]
     s = signal_statistics(free, 1250, 9.48, 1.0)
     assert not s.has_impacts and s.waveform.size == 0 and np.isnan(s.spike_height)
     assert s.harmonics[1] < 0.05  # a linear oscillator: almost no harmonics
@@ -66,7 +66,7 @@ def test_statistics_without_contact_and_bad_input():
 
 
 def test_discrepancy_of_contact_mismatch_is_large(signal):
-    free = simulate_rows([FAR], [], [4000], settings=SolverSettings(periods=40))[0]
+    free = simulate_rows([FAR], [], [4000], settings=CampaignSolverSettings(periods=40))[0]
     a, b = signal_statistics(signal, 1250, 9.48, 1.0), signal_statistics(free, 1250, 9.48, 1.0)
     d = normalised_differences(a, b)
     assert set(d) == set(COMPONENTS) == set(TOLERANCES)
@@ -75,12 +75,12 @@ def test_discrepancy_of_contact_mismatch_is_large(signal):
 
 
 def test_simulation_is_deterministic_and_seeded(signal):
-    again = simulate_rows([ROW], [], [5000], settings=SolverSettings(periods=40))[0]
+    again = simulate_rows([ROW], [], [5000], settings=CampaignSolverSettings(periods=40))[0]
     np.testing.assert_array_equal(signal, again)
-    other = simulate_rows([ROW], [], [5000], seed=1, settings=SolverSettings(periods=40))[0]
+    other = simulate_rows([ROW], [], [5000], seed=1, settings=CampaignSolverSettings(periods=40))[0]
     assert not np.array_equal(signal, other)
     assert signal.size == 5000  # the wanted length, under 40 natural periods
-    short = simulate_rows([ROW], [], [9000], settings=SolverSettings(periods=20))[0]
+    short = simulate_rows([ROW], [], [9000], settings=CampaignSolverSettings(periods=20))[0]
     assert short.size == int(np.ceil(20 * 1250 / 9.48))
 
 

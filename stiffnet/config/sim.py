@@ -10,6 +10,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validat
 from stiffnet.effects.registry import CANONICAL, build_effect
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
+from stiffnet.simulator.settings import SolverSettings
 
 
 def _bounds(lo: float, hi: float, *, open_lo: bool = False):
@@ -145,10 +146,10 @@ def randomised_effects() -> list[EffectSpec]:
     ]
 
 
-class SolverConfig(_Strict):
-    settle_tolerance: float = Field(1e-3, gt=0.0, lt=1.0)
-    min_transient_periods: float = Field(20.0, ge=0.0, le=1e4)
-    substeps: int = Field(8, ge=1, le=256, description="RK4 steps per sample (numerical engine)")
+class SolverConfig(SolverSettings):
+    """The simulator's settings (defaults and ranges from
+    :class:`~stiffnet.simulator.settings.SolverSettings`) and the batch size of a dataset."""
+
     batch_size: int = Field(256, ge=1, le=65536, description="trajectories simulated together")
 
 

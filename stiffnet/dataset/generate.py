@@ -49,14 +49,8 @@ def shard_sizes(cfg: SimulationConfig) -> list[int]:
 
 def build_simulator(cfg: SimulationConfig, without: frozenset[str] = frozenset()) -> Simulator:
     """The simulator of ``cfg``'s effects, less those named in ``without``."""
-    s = cfg.solver
     effects = [e.build() for e in cfg.effects]
-    return Simulator(
-        [e for e in effects if e.name not in without],
-        settle_tolerance=s.settle_tolerance,
-        min_transient_periods=s.min_transient_periods,
-        substeps=s.substeps,
-    )
+    return Simulator([e for e in effects if e.name not in without], cfg.solver)
 
 
 def simulate_shard(cfg: SimulationConfig, shard: int, n: int) -> pa.Table:

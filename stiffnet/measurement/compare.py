@@ -1,7 +1,7 @@
 """Simulator versus measurement on a campaign: where the model fails, and by how much.
 
 Each recording is simulated with its manifest's parameters and the current
-simulator config (:mod:`stiffnet.measurement.simulate`; the config's effects
+simulator config (:mod:`stiffnet.campaign.simulate`; the config's effects
 and solver settings), at the recording's own length, and compared by the
 phase-independent statistics of :mod:`stiffnet.measurement.statistics`
 through :mod:`stiffnet.measurement.discrepancy`. The result says where the
@@ -18,6 +18,13 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign
+from stiffnet.campaign.simulate import (
+    DEFAULT_SEED,
+    CampaignSolverSettings,
+    check_rows,
+    natural_frequency,
+    simulate_rows,
+)
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.effects.base import Effect
 from stiffnet.errors import SignalError, StiffnetError
@@ -29,13 +36,6 @@ from stiffnet.measurement.discrepancy import (
     group_discrepancies,
     normalised_differences,
     recording_discrepancy,
-)
-from stiffnet.measurement.simulate import (
-    DEFAULT_SEED,
-    SolverSettings,
-    check_rows,
-    natural_frequency,
-    simulate_rows,
 )
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
 
@@ -54,9 +54,9 @@ def config_effects(cfg: SimulationConfig) -> list[Effect]:
     return [e.build() for e in cfg.effects]
 
 
-def config_settings(cfg: SimulationConfig, periods: float | None = None) -> SolverSettings:
-    s = cfg.solver
-    return SolverSettings(periods, s.settle_tolerance, s.min_transient_periods, s.substeps)
+def config_settings(cfg: SimulationConfig, periods: float | None = None) -> CampaignSolverSettings:
+    """The config's solver settings, simulating ``periods`` natural periods per row."""
+    return CampaignSolverSettings(**cfg.solver.solver_settings().model_dump(), periods=periods)
 
 
 def beta_class_name(beta: float | None) -> str:
@@ -66,7 +66,7 @@ def beta_class_name(beta: float | None) -> str:
 def compare_campaign(
     campaign: Campaign,
     effects: Sequence[Effect] = (),
-    settings: SolverSettings = SolverSettings(),
+    settings: CampaignSolverSettings = CampaignSolverSettings(),
     seed: int = DEFAULT_SEED,
 ) -> Comparison:
     """Compare every recording with its simulation (see the module notes).

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign
+from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
@@ -45,7 +46,6 @@ from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, f
 from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
 from stiffnet.measurement.significance import AT_FLOOR_FACTOR, significance
-from stiffnet.measurement.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.measurement.target import (
     CampaignTarget,
     measured_statistics,

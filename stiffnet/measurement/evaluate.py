@@ -9,7 +9,7 @@ known beta and an estimate), sliced by beta class, gap, frequency ratio,
 amplitude and impact regime, with the worst recordings listed.
 
 Impact regime. From a simulation of the row with the manifest's parameters
-and the current model's dynamics (:func:`stiffnet.measurement.simulate.simulated_contact`):
+and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`):
 ``no_contact`` when the mass never reaches the restraint, ``grazing`` when the
 deepest penetration is under 5 % of the amplitude of the motion, else
 ``impacting``. Rows without the simulation columns fall back to the recording:
@@ -24,10 +24,10 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
+from stiffnet.campaign.simulate import impact_regime, natural_frequency, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
-from stiffnet.measurement.simulate import impact_regime, natural_frequency, simulated_contact
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
 SLICE_EDGES: dict[str, list[float]] = {

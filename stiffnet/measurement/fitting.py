@@ -4,7 +4,7 @@ Objective. The campaign discrepancy itself (:func:`campaign_discrepancy`, the
 mean over recordings of the mean squared normalised differences, i.e. a
 chi-square with fixed tolerances): the number the fit minimises is the number
 reported. The simulations use common random numbers
-(:mod:`stiffnet.measurement.simulate`), so it is a deterministic function of
+(:mod:`stiffnet.campaign.simulate`), so it is a deterministic function of
 the parameters. The model without the effect ("effect off") is always one of
 the candidates: a fit can end at "no improvement" (reduction 0), never below it.
 
@@ -36,11 +36,11 @@ import numpy as np
 from scipy import optimize
 from scipy.stats import qmc
 
+from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
 from stiffnet.effects.base import Effect
 from stiffnet.effects.fit_space import FitSpace
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
-from stiffnet.measurement.simulate import SolverSettings
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
 
 #: Evaluations of a one-effect fit (closed form) after its initial design.

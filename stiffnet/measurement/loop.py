@@ -27,13 +27,13 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.campaign import Campaign
+from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import finish_run_folder, output_lock, start_run_folder
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
 from stiffnet.measurement.fitting import fit_effect
-from stiffnet.measurement.simulate import DEFAULT_SEED
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
 from stiffnet.progress import task as progress_task
 

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import ManifestRow
+from stiffnet.campaign.simulate import natural_frequency
 from stiffnet.errors import SignalError
 from stiffnet.measurement.discrepancy import (
     WHERE,
@@ -35,7 +36,6 @@ from stiffnet.measurement.discrepancy import (
     where_sums,
 )
 from stiffnet.measurement.significance import AT_FLOOR_FACTOR
-from stiffnet.measurement.simulate import natural_frequency
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
 
 VERDICTS = ("nothing_missing", "explained", "partially_explained")

@@ -42,9 +42,9 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.simulate import CampaignSolverSettings, natural_frequency
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
-from stiffnet.measurement.simulate import SolverSettings, natural_frequency
 from stiffnet.measurement.target import CampaignTarget
 
 N_STARTS = 8
@@ -191,7 +191,7 @@ def resolve_rows(
 def profile_nuisances(
     target: CampaignTarget,
     effects: Sequence[Effect],
-    settings: SolverSettings,
+    settings: CampaignSolverSettings,
     info: dict[str, Any],
 ) -> dict[str, Any]:
     """Set the nuisances of ``target`` (its rows and starts) to their best values for the model
@@ -223,7 +223,7 @@ def profile_nuisances(
 def _profile(
     target: CampaignTarget,
     model: list[Effect],
-    settings: SolverSettings,
+    settings: CampaignSolverSettings,
     nu: Nuisance,
     grid: np.ndarray,
 ) -> np.ndarray:

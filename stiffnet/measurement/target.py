@@ -4,7 +4,7 @@
 estimated, :mod:`stiffnet.measurement.nuisance`), the measured statistics, the
 recordings' lengths and the current model's effects, and turns a list of
 effects into per-recording discrepancies (one simulated batch,
-:func:`stiffnet.measurement.simulate.simulate_rows`, common random numbers).
+:func:`stiffnet.campaign.simulate.simulate_rows`, common random numbers).
 It is picklable, so a fit can run on a Dask worker.
 """
 
@@ -16,18 +16,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.simulate import (
+    DEFAULT_SEED,
+    FIT_SETTINGS,
+    FIT_SETTINGS_NUMERICAL,
+    natural_frequency,
+    simulate_rows,
+)
+from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
-from stiffnet.measurement.simulate import (
-    DEFAULT_SEED,
-    FIT_SETTINGS,
-    FIT_SETTINGS_NUMERICAL,
-    SolverSettings,
-    natural_frequency,
-    simulate_rows,
-)
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
 
 #: Discrepancy scored by a recording whose simulation cannot be analysed.

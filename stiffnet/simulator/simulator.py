@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydantic import ValidationError
 
 from stiffnet.effects.base import (
     DynamicsEffect,
@@ -18,6 +19,7 @@ from stiffnet.errors import ConfigError
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.linear import LinearModel
 from stiffnet.simulator.numerical import simulate_numerical
+from stiffnet.simulator.settings import SolverSettings
 
 #: Internal steps never exceed this fraction of the contact's natural period / pi,
 #: so the switching function has at most one extremum per step.
@@ -64,12 +66,10 @@ class Simulator:
     Parameters
     ----------
     effects : dynamics and measurement effects, in any order.
-    settle_tolerance : the transient lasts until free oscillations have decayed
-        to this fraction, ``t = -ln(tol) / xi``, and at least ``min_transient_periods``
-        forcing periods.
-    min_transient_periods : lower bound of the transient, in forcing periods.
-    substeps : RK4 steps per sample of the numerical integrator (used only when
-        an effect is not piecewise linear).
+    settings : the solver settings (:class:`~stiffnet.simulator.settings.SolverSettings`:
+        transient rule and RK4 substeps); default: that model's defaults.
+    **overrides : fields of ``settings`` to change (``settle_tolerance=1e-2``...),
+        validated by the same model.
 
     The closed-form engine (:mod:`stiffnet.simulator.compiled`) runs the rows on
     numba's threads; :func:`~stiffnet.simulator.compiled.limited_threads` bounds them.
@@ -78,12 +78,16 @@ class Simulator:
     def __init__(
         self,
         effects: Sequence[Effect] = (),
-        settle_tolerance: float = 1e-3,
-        min_transient_periods: float = 20.0,
-        substeps: int = 8,
+        settings: SolverSettings | None = None,
+        **overrides: float,
     ) -> None:
-        if not 0 < settle_tolerance < 1:
-            raise ConfigError("settle_tolerance must be in (0, 1)")
+        base = SolverSettings() if settings is None else settings.solver_settings()
+        try:
+            self.settings = SolverSettings(**{**base.model_dump(), **overrides})
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            where = ".".join(str(x) for x in err["loc"])
+            raise ConfigError(f"solver setting {where}: {err['msg']}") from None
         self.effects = list(effects)
         names = [e.name for e in self.effects]
         dup = {n for n in names if names.count(n) > 1}
@@ -93,9 +97,9 @@ class Simulator:
         self.measurement = sorted(
             (e for e in self.effects if isinstance(e, MeasurementEffect)), key=lambda e: e.order
         )
-        self.settle_tolerance = settle_tolerance
-        self.min_transient_periods = min_transient_periods
-        self.substeps = substeps
+        self.settle_tolerance = self.settings.settle_tolerance
+        self.min_transient_periods = self.settings.min_transient_periods
+        self.substeps = self.settings.substeps
 
     @property
     def engine(self) -> str:

@@ -1,27 +1,18 @@
-"""Campaigns: a folder of recordings described by a ``manifest.csv``.
+"""Campaign manifests: the model of one row, reading and writing ``manifest.csv``, and
+a loaded campaign (a folder of recordings described by its manifest).
 
-A campaign is how users bring measurements to stiffnet (see ``docs/campaign.md``)::
-
-    my_campaign/
-        manifest.csv          recording,fs_hz[,natural_frequency_hz,...,beta]
-        run01.csv             t,accel   (or .npy / .wav / .tdms)
-        day2/run02.tdms
-
-:func:`simulate_campaign` turns a manifest of parameters into a synthetic
-campaign with the same layout, plus a ``campaign_card.json`` holding the ground
-truth that a real campaign would not tell (the effects and their drawn values).
+A row's physical-unit columns (forcing frequency in Hz, base acceleration or
+displacement, gap in mm, and their tolerances) are converted to the model columns of
+the paper's eqs (11)-(12) when the row is validated (``docs/campaign.md``, "Units").
 """
 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 import posixpath
 import secrets
-import shutil
-import zlib
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,22 +29,16 @@ from pydantic import (
     model_validator,
 )
 
-from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import quote_content
-from stiffnet.io_utils import check_replaceable_folder, output_lock
-from stiffnet.progress import task as progress_task
-from stiffnet.recordings import Recording, read_recording, write_recording_csv
+from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 MANIFEST_NAME = "manifest.csv"
+#: Ground truth of a synthetic campaign (:mod:`stiffnet.campaign.synthetic`).
 CARD_NAME = "campaign_card.json"
 #: Columns every manifest has.
 REQUIRED_COLUMNS = ("recording", "fs_hz")
-#: Columns :func:`simulate_campaign` needs besides the required ones.
-SIMULATION_COLUMNS = ("beta", "gap", "amplitude", "frequency_ratio", "damping_ratio")
-#: White-noise level (fraction of ``a w^2``) of simulated rows without ``noise``.
-DEFAULT_NOISE = 0.02
 #: Standard gravity, m/s^2: simulated recordings are written in g.
 STANDARD_GRAVITY = 9.80665
 #: Model length unit assumed when converting simulated accelerations to g, m.
@@ -234,11 +219,14 @@ def read_manifest(path: str | os.PathLike[str]) -> list[ManifestRow]:
         Missing or empty file, unknown/missing/duplicate columns, a cell out of
         range or not a number (naming the line and column), duplicate recordings.
     """
-    return _read_manifest(Path(path))[1]
+    return read_manifest_with_columns(path)[1]
 
 
-def _read_manifest(p: Path) -> tuple[list[str], list[ManifestRow]]:
-    """The manifest's columns (as written) and its rows."""
+def read_manifest_with_columns(
+    path: str | os.PathLike[str],
+) -> tuple[list[str], list[ManifestRow]]:
+    """The manifest's columns (as written, in order) and its rows; see :func:`read_manifest`."""
+    p = Path(path)
     if not p.is_file():
         raise StiffnetError(f"{p}: manifest not found")
     try:
@@ -494,258 +482,3 @@ def _inside(root: Path, relative: str, where: str) -> Path:
     if not path.is_relative_to(root):
         raise StiffnetError(f"{where}: recording path leaves the campaign folder ({path})")
     return path
-
-
-# --------------------------------------------------------------------------- simulation
-
-
-def sensor_gain(natural_frequency_hz: float) -> float:
-    """Model acceleration to g, for a model length unit of 1 mm.
-
-    Model time is ``2 pi f_n t``, so one model unit of acceleration is
-    ``L (2 pi f_n)^2`` m/s^2 with ``L`` the length unit. Any positive factor
-    would do: stiffnet does not depend on the sensor gain.
-    """
-    return MODEL_LENGTH_UNIT_M * (2 * math.pi * natural_frequency_hz) ** 2 / STANDARD_GRAVITY
-
-
-def simulate_campaign(
-    manifest_path: str | os.PathLike[str],
-    out_dir: str | os.PathLike[str],
-    effects: Sequence[Effect | str] = (),
-    seed: int = 0,
-    default_duration_s: float = 10.0,
-    overwrite: bool = False,
-    *,
-    scheduler: str | None = None,
-    workers: int | None = None,
-) -> Path:
-    """Simulate one recording per manifest row: a synthetic campaign.
-
-    Each row needs ``beta``, ``gap``, ``amplitude``, ``frequency_ratio`` and
-    ``damping_ratio``; ``natural_frequency_hz`` defaults to the paper's
-    9.48 Hz, ``duration_s`` to ``default_duration_s`` and ``noise`` to
-    :data:`DEFAULT_NOISE`. Rows are simulated one at a time by
-    :class:`~stiffnet.simulator.Simulator` with the given effects, sampled at
-    ``fs_hz`` (``fs_ratio = fs_hz / f_n``), and written in g (see
-    :func:`sensor_gain`) under the row's relative name (``.csv`` as ``t,accel``,
-    or ``.npy``).
-
-    The output folder holds the recordings, ``manifest.csv`` (the input's
-    columns and values) and ``campaign_card.json`` (the ground truth a real
-    campaign would not tell: effects, their per-recording drawn values, gains,
-    seed, stiffnet version). It is built in a hidden sibling folder and moved
-    into place at the end, so an interrupted run leaves nothing that looks
-    complete.
-
-    Parameters
-    ----------
-    manifest_path : str or os.PathLike
-        Input manifest (its recordings need not exist).
-    out_dir : str or os.PathLike
-        Folder to create.
-    effects : sequence of Effect or str
-        Effects to simulate with; a string is parsed as ``NAME[:k=v,...]``.
-    seed : int
-        Base seed. Each row draws from ``(seed, crc32(recording))``: the same
-        seed gives identical files, whatever the order of the rows.
-    default_duration_s : float
-        Duration of rows without ``duration_s``.
-    overwrite : bool
-        Replace ``out_dir`` if it exists and is not empty.
-    scheduler, workers : str or None, int or None
-        Simulate the rows as Dask tasks on this scheduler, or on a LocalCluster of
-        this many worker processes (see :mod:`stiffnet.distributed`); by default
-        in-process. The files are the same either way: a row depends only on
-        ``(seed, recording)``, and the recordings are written here, not on workers.
-
-    Returns
-    -------
-    pathlib.Path
-        ``out_dir``.
-    """
-    from stiffnet.distributed.cluster import check_target
-
-    manifest = Path(manifest_path)
-    out = Path(out_dir).resolve()  # a real name and parent, even for "." or "a/.."
-    if not isinstance(seed, int | np.integer) or isinstance(seed, bool) or seed < 0:
-        raise StiffnetError(f"seed must be a non-negative integer, got {seed!r}")
-    if not (math.isfinite(default_duration_s) and default_duration_s > 0):
-        raise StiffnetError(f"default_duration_s must be > 0, got {default_duration_s}")
-    check_target(scheduler, workers)
-    columns, rows = _read_manifest(manifest)
-    with output_lock(out):  # one writer per folder: a concurrent run is refused
-        _check_out_dir(out, manifest, overwrite)
-        _simulate_into(manifest, out, columns, rows, effects, seed, default_duration_s,
-                       scheduler, workers)  # fmt: skip
-    return Path(out_dir)
-
-
-def _simulate_into(
-    manifest: Path,
-    out: Path,
-    columns: list[str],
-    rows: list[ManifestRow],
-    effects: Sequence[Effect | str],
-    seed: int,
-    default_duration_s: float,
-    scheduler: str | None,
-    workers: int | None,
-) -> None:
-    from stiffnet import __version__
-    from stiffnet.distributed.tasks import run_tasks
-    from stiffnet.effects.registry import build_effect, parse_effect_option
-    from stiffnet.simulator.compiled import limited_threads
-
-    eff = [build_effect(*parse_effect_option(e)) if isinstance(e, str) else e for e in effects]
-
-    # Check every row before simulating anything.
-    for row in rows:
-        missing = [c for c in SIMULATION_COLUMNS if getattr(row, c) is None]
-        if missing:
-            raise StiffnetError(
-                f"{row.where(manifest)}: column {', '.join(missing)} is required for simulation"
-            )
-        if Path(row.recording).suffix.lower() not in (".csv", ".npy"):
-            raise StiffnetError(
-                f"{row.where(manifest)}: simulated recordings are .csv or .npy files"
-            )
-        if row.recording in (MANIFEST_NAME, CARD_NAME):
-            raise StiffnetError(f"{row.where(manifest)}: {row.recording} is a reserved name")
-        duration = row.duration_s or default_duration_s
-        if round(duration * row.fs_hz) < 2:
-            raise StiffnetError(f"{row.where(manifest)}: duration_s * fs_hz is under 2 samples")
-
-    # Simulate first (rows as tasks, results back here), then write: workers need no
-    # access to the output folder, and a failed row leaves nothing behind.
-    jobs = [_RowJob(row, eff, int(seed), default_duration_s, row.where(manifest)) for row in rows]
-    with progress_task("simulating recordings", len(jobs)) as bar:
-        report = run_tasks(simulate_row, jobs, scheduler=scheduler, workers=workers,
-                           names=[row.recording for row in rows], thread_limit=limited_threads,
-                           progress=lambda done, _: bar.update(done))  # fmt: skip
-    if report.failed:
-        name, msg = next(iter(report.failed.items()))
-        raise StiffnetError(msg) from report.errors.get(name)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.{secrets.token_hex(4)}.partial"
-    tmp.mkdir()
-    try:
-        card_rows = []
-        for row, (accel, card_row) in zip(rows, report.results, strict=True):
-            target = tmp / row.recording
-            if target.suffix.lower() == ".npy":
-                target.parent.mkdir(parents=True, exist_ok=True)
-                np.save(target, accel)
-            else:
-                write_recording_csv(target, accel, row.fs_hz)
-            card_rows.append(card_row)
-        # simulated CSVs are written as t,accel in seconds: drop the input's read options
-        plain = [r.model_copy(update=dict.fromkeys(READ_COLUMNS)) for r in rows]
-        write_manifest(tmp / MANIFEST_NAME, plain, [c for c in columns if c not in READ_COLUMNS])
-        card = {
-            "stiffnet_version": __version__,
-            "generator": "stiffnet.campaign.simulate_campaign",
-            "source_manifest": manifest.name,
-            "seed": int(seed),
-            "default_duration_s": default_duration_s,
-            "accel_unit": "g, for a model length unit of 1 mm (sensor_gain = model to g)",
-            "effects": [
-                {
-                    "name": e.name,
-                    "class": f"{type(e).__module__}:{type(e).__qualname__}",
-                    "kind": e.kind,
-                    "params": e.params.model_dump(),
-                }
-                for e in eff
-            ],
-            "recordings": card_rows,
-        }
-        (tmp / CARD_NAME).write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
-        _swap_in(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-@dataclass(frozen=True)
-class _RowJob:
-    """One campaign row to simulate (a task: picklable, independent of the others)."""
-
-    row: ManifestRow
-    effects: list[Effect]
-    seed: int
-    default_duration_s: float
-    where: str
-
-
-def simulate_row(job: _RowJob) -> tuple[np.ndarray, dict[str, Any]]:
-    """Simulate one campaign row: the recording in g and its entry of the campaign card."""
-    from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
-    from stiffnet.simulator.simulator import Simulator
-
-    row = job.row
-    f_n = row.natural_frequency_hz or PAPER_NATURAL_FREQUENCY_HZ
-    duration = row.duration_s or job.default_duration_s
-    noise = DEFAULT_NOISE if row.noise is None else row.noise
-    entropy = [job.seed, zlib.crc32(row.recording.encode())]
-    try:
-        batch = OscillatorBatch.single(
-            row.beta, row.gap, row.amplitude, row.frequency_ratio, row.damping_ratio, f_n
-        )
-        res = Simulator(job.effects).simulate(
-            batch,
-            fs_ratio=row.fs_hz / f_n,
-            n_samples=int(round(duration * row.fs_hz)),
-            noise=noise,
-            rng=np.random.default_rng(entropy),
-        )
-    except StiffnetError as exc:
-        raise StiffnetError(f"{job.where}: {exc}") from None
-    gain = sensor_gain(f_n)
-    accel = res.accel[0] * gain
-    entry = {
-        "recording": row.recording,
-        "seed_entropy": entropy,
-        "n_samples": int(accel.size),
-        "fs_hz": row.fs_hz,
-        "natural_frequency_hz": f_n,
-        "fs_ratio": row.fs_hz / f_n,
-        "noise": noise,
-        "sensor_gain": gain,
-        "engine": res.engine,
-        "n_impacts": int(res.impacts.sum()),
-        "effects": {
-            name: {k: float(v[0]) for k, v in params.items()}
-            for name, params in res.effect_params.items()
-        },
-    }
-    return accel, entry
-
-
-def _check_out_dir(out: Path, manifest: Path, overwrite: bool) -> None:
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise StiffnetError(f"{out}: exists and is not a folder")
-    if not any(out.iterdir()):
-        return
-    if not overwrite:
-        raise StiffnetError(f"{out}: folder exists and is not empty (use overwrite to replace it)")
-    if manifest.resolve().is_relative_to(out.resolve()):
-        raise StiffnetError(f"{out}: refusing to overwrite the folder holding the input manifest")
-    check_replaceable_folder(out, (CARD_NAME,))  # only a campaign stiffnet wrote is replaced
-
-
-def _swap_in(tmp: Path, out: Path) -> None:
-    """Move the finished ``tmp`` folder to ``out``, replacing what is there."""
-    if not out.exists():
-        os.replace(tmp, out)
-        return
-    old = out.parent / f".{out.name}.{secrets.token_hex(4)}.old"
-    os.replace(out, old)
-    try:
-        os.replace(tmp, out)
-    except BaseException:
-        os.replace(old, out)
-        raise
-    shutil.rmtree(old, ignore_errors=True)

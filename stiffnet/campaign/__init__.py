@@ -1,0 +1,74 @@
+"""Campaigns: a folder of recordings described by a ``manifest.csv``.
+
+A campaign is how users bring measurements to stiffnet (see ``docs/campaign.md``)::
+
+    my_campaign/
+        manifest.csv          recording,fs_hz[,natural_frequency_hz,...,beta]
+        run01.csv             t,accel   (or .npy / .wav / .tdms)
+        day2/run02.tdms
+
+- :mod:`stiffnet.campaign.manifest`: the model of a manifest row (physical-unit
+  columns included), reading and writing manifests, :class:`Campaign`.
+- :mod:`stiffnet.campaign.simulate`: manifest rows -> simulator, the one mapping used
+  by ``simulate-campaign``, ``compare``, ``diagnose`` and ``evaluate``.
+- :mod:`stiffnet.campaign.synthetic`: :func:`simulate_campaign`, a manifest of
+  parameters -> a synthetic campaign folder with its ``campaign_card.json``.
+"""
+
+from stiffnet.campaign.manifest import (
+    CARD_NAME,
+    COLUMNS,
+    MANIFEST_NAME,
+    MODEL_LENGTH_MM,
+    MODEL_LENGTH_UNIT_M,
+    READ_COLUMNS,
+    REQUIRED_COLUMNS,
+    STANDARD_GRAVITY,
+    Campaign,
+    ManifestRow,
+    load_campaign,
+    read_manifest,
+    read_manifest_with_columns,
+    write_manifest,
+)
+from stiffnet.campaign.simulate import (
+    DEFAULT_NOISE,
+    DEFAULT_SEED,
+    FIT_SETTINGS,
+    FIT_SETTINGS_NUMERICAL,
+    SIMULATION_COLUMNS,
+    CampaignSolverSettings,
+    check_rows,
+    sensor_gain,
+    simulate_row,
+    simulate_rows,
+)
+from stiffnet.campaign.synthetic import simulate_campaign
+
+__all__ = [
+    "CARD_NAME",
+    "COLUMNS",
+    "DEFAULT_NOISE",
+    "DEFAULT_SEED",
+    "FIT_SETTINGS",
+    "FIT_SETTINGS_NUMERICAL",
+    "MANIFEST_NAME",
+    "MODEL_LENGTH_MM",
+    "MODEL_LENGTH_UNIT_M",
+    "READ_COLUMNS",
+    "REQUIRED_COLUMNS",
+    "SIMULATION_COLUMNS",
+    "STANDARD_GRAVITY",
+    "Campaign",
+    "CampaignSolverSettings",
+    "ManifestRow",
+    "check_rows",
+    "load_campaign",
+    "read_manifest",
+    "read_manifest_with_columns",
+    "sensor_gain",
+    "simulate_campaign",
+    "simulate_row",
+    "simulate_rows",
+    "write_manifest",
+]

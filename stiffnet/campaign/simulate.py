@@ -1,0 +1,314 @@
+"""Manifest rows -> simulator: the one mapping from a campaign row to a simulation.
+
+A row is simulated with its own parameters (``beta``, ``gap``, ``amplitude``,
+``frequency_ratio``, ``damping_ratio``: :data:`SIMULATION_COLUMNS`); ``f_n``
+defaults to the paper's 9.48 Hz, ``noise`` to :data:`DEFAULT_NOISE`,
+``fs_ratio = fs_hz / f_n``, the transient is discarded and accelerations are
+written in g (:func:`sensor_gain`). Two callers, one mapping:
+
+- :func:`simulate_row`, one row as one task, for ``simulate-campaign``
+  (:mod:`stiffnet.campaign.synthetic`): everything random is drawn from
+  ``(seed, crc32(recording))``, so a file depends on its row alone.
+- :func:`simulate_rows`, all rows as one batch, for ``compare``, ``diagnose`` and
+  ``evaluate`` (:mod:`stiffnet.measurement`): every row is simulated for the
+  longest row's number of samples and cut to its own length.
+
+Common random numbers in :func:`simulate_rows`: the initial state of each row is
+drawn from ``(seed, crc32(recording))`` (independent of the batch), and the batch's
+noise and measurement effects from ``(seed, 1)``. The same call therefore gives the
+same signals, so an objective built on them is a deterministic, piecewise-smooth
+function of the effect parameters. The seed must differ from the one a synthetic
+campaign was made with (default 0), or the simulation would reproduce its noise
+exactly; :data:`DEFAULT_SEED` does.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import zlib
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from stiffnet.campaign.manifest import (
+    MANIFEST_NAME,
+    MODEL_LENGTH_UNIT_M,
+    STANDARD_GRAVITY,
+    ManifestRow,
+)
+from stiffnet.effects.base import Effect
+from stiffnet.errors import StiffnetError
+from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
+from stiffnet.simulator.settings import SolverSettings
+from stiffnet.simulator.simulator import Simulator
+
+#: Columns a row needs to be simulated.
+SIMULATION_COLUMNS = ("beta", "gap", "amplitude", "frequency_ratio", "damping_ratio")
+#: White-noise level (fraction of ``a w^2``) of simulated rows without ``noise``.
+DEFAULT_NOISE = 0.02
+#: Seed of the comparison simulations (not 0, the default of simulate-campaign).
+DEFAULT_SEED = 20_241
+
+
+class CampaignSolverSettings(SolverSettings):
+    """The simulator's settings (:class:`~stiffnet.simulator.settings.SolverSettings`)
+    and how long the comparison simulations of :func:`simulate_rows` are.
+
+    ``periods``: natural periods simulated per row (None: the recording's length).
+    Statistics need only a few tens of impacts, and the numerical engine (Hertz
+    contact, friction, restraint mass) costs about 0.1 ms per RK4 step and row, so
+    the fitting loop simulates short records.
+    """
+
+    periods: float | None = Field(None, gt=0.0)
+
+
+#: Settings of the fitting loop: 40 natural periods after the full transient (cheap in
+#: closed form; a transient cut short leaves a free oscillation the spectrum sees).
+FIT_SETTINGS = CampaignSolverSettings(periods=40.0, min_transient_periods=10.0, substeps=2)
+#: Numerical engine in the fitting loop: 16 natural periods (cost, see
+#: CampaignSolverSettings; on 10 the free-flight harmonic fit is already off by several
+#: tolerances on a clean record), after the full transient too (a shorter one leaves a
+#: decaying free oscillation that a dissipative effect such as dry friction "explains",
+#: a false alarm on a clean campaign).
+FIT_SETTINGS_NUMERICAL = CampaignSolverSettings(
+    periods=16.0, min_transient_periods=10.0, substeps=2
+)
+#: Settings of :func:`simulated_contact`: a short transient is enough to tell whether
+#: the motion touches the restraint.
+CONTACT_SETTINGS = SolverSettings(settle_tolerance=0.05, min_transient_periods=10.0, substeps=2)
+
+
+def sensor_gain(natural_frequency_hz: float) -> float:
+    """Model acceleration to g, for a model length unit of 1 mm.
+
+    Model time is ``2 pi f_n t``, so one model unit of acceleration is
+    ``L (2 pi f_n)^2`` m/s^2 with ``L`` the length unit. Any positive factor
+    would do: stiffnet does not depend on the sensor gain.
+    """
+    return MODEL_LENGTH_UNIT_M * (2 * math.pi * natural_frequency_hz) ** 2 / STANDARD_GRAVITY
+
+
+def check_rows(
+    rows: Sequence[ManifestRow], manifest: str | os.PathLike[str] = MANIFEST_NAME
+) -> None:
+    """Refuse rows the simulator cannot reproduce (a simulation column is missing).
+
+    The message names the manifest, the row's line and recording (``ManifestRow.where``).
+    """
+    for row in rows:
+        missing = [c for c in SIMULATION_COLUMNS if getattr(row, c) is None]
+        if missing:
+            raise StiffnetError(
+                f"{row.where(manifest)}: column {', '.join(missing)} is required for simulation"
+            )
+
+
+def natural_frequency(row: ManifestRow) -> float:
+    """The row's ``f_n`` in Hz, the paper's 9.48 Hz when the manifest gives none."""
+    return row.natural_frequency_hz or PAPER_NATURAL_FREQUENCY_HZ
+
+
+def row_noise(row: ManifestRow) -> float:
+    """The row's white-noise level, :data:`DEFAULT_NOISE` when the manifest gives none."""
+    return DEFAULT_NOISE if row.noise is None else row.noise
+
+
+def rows_batch(rows: Sequence[ManifestRow]) -> OscillatorBatch:
+    """The oscillator parameters of the rows."""
+    check_rows(rows)
+    return OscillatorBatch(
+        np.array([r.beta for r in rows], float),
+        np.array([r.gap for r in rows], float),
+        np.array([r.amplitude for r in rows], float),
+        np.array([r.frequency_ratio for r in rows], float),
+        np.array([r.damping_ratio for r in rows], float),
+        np.array([natural_frequency(r) for r in rows], float),
+    )
+
+
+def initial_states(
+    rows: Sequence[ManifestRow],
+    batch: OscillatorBatch,
+    seed: int,
+    starts: Sequence[int] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-row initial state drawn like the simulator's, from ``(seed, crc32(recording))``.
+
+    ``starts[i]`` > 0 draws row ``i``'s state from ``(seed, crc32, starts[i])`` instead: another
+    basin of attraction for a multistable orbit (a nuisance the diagnosis profiles).
+    """
+    starts = [0] * len(rows) if starts is None else list(starts)
+    u = np.array(
+        [
+            np.random.default_rng(
+                [int(seed), zlib.crc32(r.recording.encode())] + ([int(k)] if k else [])
+            ).uniform(-1, 1, 2)
+            for r, k in zip(rows, starts, strict=True)
+        ]
+    ).reshape(len(rows), 2)
+    return u[:, 0] * batch.amplitude, u[:, 1] * batch.amplitude * batch.omega
+
+
+# ------------------------------------------------------------- one row, one task
+
+
+@dataclass(frozen=True)
+class RowJob:
+    """One campaign row to simulate (a task: picklable, independent of the others)."""
+
+    row: ManifestRow
+    effects: list[Effect]
+    seed: int
+    default_duration_s: float
+    where: str
+
+
+def simulate_row(job: RowJob) -> tuple[np.ndarray, dict[str, Any]]:
+    """Simulate one campaign row: the recording in g and its entry of the campaign card.
+
+    Initial state, drawn effect parameters, noise and measurement effects all come from
+    ``(seed, crc32(recording))``: the same seed gives the same file whatever the other
+    rows. The simulator runs with its default settings.
+    """
+    row = job.row
+    f_n = natural_frequency(row)
+    duration = row.duration_s or job.default_duration_s
+    noise = row_noise(row)
+    entropy = [job.seed, zlib.crc32(row.recording.encode())]
+    try:
+        res = Simulator(job.effects).simulate(
+            rows_batch([row]),
+            fs_ratio=row.fs_hz / f_n,
+            n_samples=int(round(duration * row.fs_hz)),
+            noise=noise,
+            rng=np.random.default_rng(entropy),
+        )
+    except StiffnetError as exc:
+        raise StiffnetError(f"{job.where}: {exc}") from None
+    gain = sensor_gain(f_n)
+    accel = res.accel[0] * gain
+    entry = {
+        "recording": row.recording,
+        "seed_entropy": entropy,
+        "n_samples": int(accel.size),
+        "fs_hz": row.fs_hz,
+        "natural_frequency_hz": f_n,
+        "fs_ratio": row.fs_hz / f_n,
+        "noise": noise,
+        "sensor_gain": gain,
+        "engine": res.engine,
+        "n_impacts": int(res.impacts.sum()),
+        "effects": {
+            name: {k: float(v[0]) for k, v in params.items()}
+            for name, params in res.effect_params.items()
+        },
+    }
+    return accel, entry
+
+
+# ------------------------------------------------------------ all rows, one batch
+
+
+def simulate_rows(
+    rows: Sequence[ManifestRow],
+    effects: Sequence[Effect],
+    lengths: Sequence[int],
+    seed: int = DEFAULT_SEED,
+    settings: CampaignSolverSettings = CampaignSolverSettings(),
+    starts: Sequence[int] | None = None,
+) -> list[np.ndarray]:
+    """Simulate the rows as one batch; returns each row's acceleration in g.
+
+    Parameters
+    ----------
+    rows : sequence of ManifestRow
+        Rows with ``beta``, ``gap``, ``amplitude``, ``frequency_ratio`` and ``damping_ratio``.
+    effects : sequence of Effect
+        The simulator's effects (parameters given as numbers or ranges; a range
+        is drawn per row from the batch generator).
+    lengths : sequence of int
+        Samples wanted per row (the recordings' lengths); with
+        ``settings.periods`` each is capped at that many natural periods.
+    seed : int
+        Common-random-number seed (see the module notes).
+    settings : CampaignSolverSettings
+    starts : sequence of int, optional
+        Initial-state variant per row (see :func:`initial_states`).
+
+    Returns
+    -------
+    list of numpy.ndarray
+    """
+    if not rows:
+        return []
+    batch = rows_batch(rows)
+    fs_ratio = np.array([r.fs_hz for r in rows]) / batch.natural_frequency_hz
+    n = np.asarray(lengths, dtype=np.int64)
+    if settings.periods is not None:
+        n = np.minimum(n, np.ceil(settings.periods * fs_ratio).astype(np.int64))
+    noise = np.array([row_noise(r) for r in rows])
+    x0, v0 = initial_states(rows, batch, seed, starts)
+    sim = Simulator(list(effects), settings)
+    try:
+        res = sim.simulate(
+            batch,
+            fs_ratio,
+            int(n.max()),
+            noise=noise,
+            rng=np.random.default_rng([int(seed), 1]),
+            x0=x0,
+            v0=v0,
+        )
+    except StiffnetError as exc:
+        raise StiffnetError(f"simulating the campaign: {exc}") from None
+    gains = np.array([sensor_gain(natural_frequency(r)) for r in rows])
+    return [res.accel[i, : n[i]] * gains[i] for i in range(len(rows))]
+
+
+def simulated_contact(
+    rows: Sequence[ManifestRow],
+    effects: Sequence[Effect],
+    seed: int = DEFAULT_SEED,
+    periods: float = 40.0,
+) -> list[dict[str, float]]:
+    """Contact facts of the rows' simulated steady state (for the impact regime).
+
+    Returns per row ``contact_fraction`` (fraction of samples in contact),
+    ``impacts_per_period`` (per forcing period) and ``max_penetration_ratio``
+    (largest penetration ``x - e`` over the amplitude of free motion ``max |x|``).
+    """
+    batch = rows_batch(rows)
+    fs_ratio = np.array([r.fs_hz for r in rows]) / batch.natural_frequency_hz
+    n = int(np.ceil(periods * fs_ratio.max()))
+    x0, v0 = initial_states(rows, batch, seed)
+    sim = Simulator([e for e in effects if e.kind == "dynamics"], CONTACT_SETTINGS)
+    res = sim.simulate(batch, fs_ratio, n, rng=np.random.default_rng([int(seed), 1]), x0=x0, v0=v0)
+    out = []
+    for i in range(len(rows)):
+        k = int(np.ceil(periods * fs_ratio[i]))
+        x = res.x[i, :k]
+        pen = float(np.max(x - batch.gap[i]))
+        forcing_periods = k / fs_ratio[i] * batch.omega[i]
+        out.append(
+            {
+                "contact_fraction": float(np.mean(res.contact_force[i, :k] > 0)),
+                "impacts_per_period": float(res.impacts[i, :k].sum() / forcing_periods),
+                "max_penetration_ratio": pen / max(float(np.max(np.abs(x))), 1e-12),
+            }
+        )
+    return out
+
+
+def impact_regime(contact: dict[str, float], grazing_ratio: float = 0.05) -> str:
+    """``no_contact``, ``grazing`` (penetration under ``grazing_ratio`` of the motion) or
+    ``impacting``."""
+    if contact["contact_fraction"] <= 0 and contact["impacts_per_period"] <= 0:
+        return "no_contact"
+    if contact["max_penetration_ratio"] < grazing_ratio:
+        return "grazing"
+    return "impacting"
