@@ -8,18 +8,17 @@ and the shard is reported as run again.
 
 from __future__ import annotations
 
-import concurrent.futures
 import contextlib
 import functools
 import json
 import os
-import signal
-import time
 from pathlib import Path
 
 import pytest
 
 pytest.importorskip("distributed")
+
+from fault_injection import run_killing_one_task  # noqa: E402
 
 from stiffnet.config import validate_config  # noqa: E402
 from stiffnet.config.sim import SimulationConfig  # noqa: E402
@@ -94,15 +93,6 @@ def _always_fails_on(victim: int, shard: int) -> None:
         raise RuntimeError(f"shard {shard} cannot be simulated")
 
 
-def _announce_and_wait(flag: str, victim: int, shard: int) -> None:
-    """First attempt of ``victim``: write this worker's pid, then wait to be killed."""
-    if shard != victim or os.path.exists(flag):
-        return
-    Path(flag).write_text(str(os.getpid()))
-    time.sleep(60)
-    raise RuntimeError("the test did not kill this worker")
-
-
 # ----------------------------------------------------------------------- map_tasks
 
 
@@ -174,17 +164,11 @@ def test_one_and_two_workers_write_the_same_dataset(cluster, reference, tmp_path
 
 def test_killed_worker_loses_nothing(cluster, reference, tmp_path):
     cfg = validate_config(SimulationConfig, SMALL)
-    flag = tmp_path / "victim.pid"
-    hook = functools.partial(_announce_and_wait, str(flag), 1)
-    with concurrent.futures.ThreadPoolExecutor(1) as pool:
-        job = pool.submit(generate_dataset, cfg, tmp_path / "ds",
-                          scheduler=cluster.scheduler_address, before_shard=hook)  # fmt: skip
-        deadline = time.monotonic() + 30
-        while not flag.exists() or not flag.read_text():
-            assert time.monotonic() < deadline and not job.done(), "shard 1 never started"
-            time.sleep(0.05)
-        os.kill(int(flag.read_text()), signal.SIGKILL)  # the worker dies mid-task
-        card = job.result(timeout=60)
+    card = run_killing_one_task(
+        lambda hook: generate_dataset(cfg, tmp_path / "ds", scheduler=cluster.scheduler_address,
+                                      before_shard=hook),
+        tmp_path / "victim.pid", 1,
+    )  # fmt: skip
     assert shard_bytes(tmp_path / "ds") == shard_bytes(reference)
     assert "shard-00001" in card["run"]["rerun"]
     saved = json.loads((tmp_path / "ds" / "card.json").read_text())

@@ -6,11 +6,7 @@ an interrupted run resumes without predicting its finished parts again.
 
 from __future__ import annotations
 
-import concurrent.futures
 import functools
-import os
-import signal
-import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
@@ -18,6 +14,8 @@ import pytest
 
 pytest.importorskip("distributed")
 pytest.importorskip("onnxruntime")
+
+from fault_injection import run_killing_one_task  # noqa: E402
 
 from serving.batch import find_recordings, predict_batch  # noqa: E402
 from serving.predictor import Predictor, predict_recording  # noqa: E402
@@ -63,15 +61,6 @@ def reference(recordings, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("ref") / "res.parquet"
     predict_batch(recordings, out, model_path=MODEL, part_size=2)
     return out
-
-
-def _announce_and_wait(flag: str, victim: int, part: int) -> None:
-    """First attempt of part ``victim``: write this worker's pid, then wait to be killed."""
-    if part != victim or os.path.exists(flag):
-        return
-    Path(flag).write_text(str(os.getpid()))
-    time.sleep(60)
-    raise RuntimeError("the test did not kill this worker")
 
 
 def _crash_on(victim: int, part: int) -> None:
@@ -142,17 +131,11 @@ def test_cluster_gives_the_same_table(cluster, recordings, reference, tmp_path):
 
 def test_killed_worker_loses_nothing(cluster, recordings, reference, tmp_path):
     out = tmp_path / "res.parquet"
-    flag = tmp_path / "victim.pid"
-    hook = functools.partial(_announce_and_wait, str(flag), 2)
-    with concurrent.futures.ThreadPoolExecutor(1) as pool:
-        job = pool.submit(predict_batch, recordings, out, model_path=MODEL, part_size=2,
-                          scheduler=cluster.scheduler_address, before_part=hook)  # fmt: skip
-        deadline = time.monotonic() + 30
-        while not flag.exists() or not flag.read_text():
-            assert time.monotonic() < deadline and not job.done(), "part 2 never started"
-            time.sleep(0.05)
-        os.kill(int(flag.read_text()), signal.SIGKILL)
-        summary = job.result(timeout=60)
+    summary = run_killing_one_task(
+        lambda hook: predict_batch(recordings, out, model_path=MODEL, part_size=2,
+                                   scheduler=cluster.scheduler_address, before_part=hook),
+        tmp_path / "victim.pid", 2,
+    )  # fmt: skip
     assert "part-00002" in summary["rerun"]
     assert pq.read_table(out).equals(pq.read_table(reference))
     cluster.wait_for_workers(2, timeout=30)
