@@ -13,7 +13,7 @@ Pipeline of :meth:`Predictor.predict`:
    clipped signal (samples piled up at the extremes) and rates above the
    training range only add warnings.
 2. **Windows** of ``window_periods`` natural periods (16) at the recording's
-   rate, non-overlapping (:mod:`serving.windows`), windows constant on their own
+   rate, non-overlapping (:mod:`stiffnet.features.windows`), windows constant on their own
    dropped with a warning.
 3. **Model.** CNN: canonical windows (resampled to 32 samples per natural
    period, spikes up, unit std, delay channels) exactly as at training time;
@@ -64,8 +64,9 @@ from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
 from serving.physical import physical_check
 from serving.schemas import PredictionResult
-from serving.windows import canonical_tensor, window_length, window_starts
+from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.features.windows import window_length, window_starts, window_tensor
 from stiffnet.inputs import natural_frequency, rate_ratio, read_json, real_number, sampling_rate
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
@@ -77,7 +78,7 @@ MIN_SAMPLES_PER_PERIOD = 50.0
 #: Rates above this many samples per natural period are beyond the training data (warning).
 MAX_TRAINED_SAMPLES_PER_PERIOD = 500.0
 #: Default natural periods per window when the model metadata does not say (the dataset's).
-DEFAULT_WINDOW_PERIODS = 16.0
+DEFAULT_WINDOW_PERIODS = float(WINDOW_PERIODS)
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
 #: Default number of windows the geometric cross-check and the OOD score analyse (CNN).
@@ -541,7 +542,7 @@ class Predictor:
             X = X.astype(np.float32)
         else:
             m = self.metadata
-            X = canonical_tensor(
+            X = window_tensor(
                 W, fs, fn, int(m["canonical_rate"]), int(m["window_periods"]), m["delays"]
             )
             k = min(self.geometric_windows, len(W))
