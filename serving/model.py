@@ -21,12 +21,15 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import read_json
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import shipped_file
+
+if TYPE_CHECKING:
+    from serving.families.base import ModelFamily
 
 DEFAULT_MODEL_FILE = "cnn.onnx"
 
@@ -107,7 +110,7 @@ class LoadedModel:
     card: dict[str, Any]
     session: Any = field(repr=False)
     input_name: str = ""
-    family: Any = field(default=None, repr=False)
+    family: ModelFamily | None = field(default=None, repr=False)
 
     @property
     def class_names(self) -> list[str]:
