@@ -9,7 +9,7 @@ One table, by noise level (0, 2, 5, 9 %): accuracy, macro-F1 and beta MAPE of
 * **GBM** - ``models/gbm.onnx`` on the 23 inclination features
   (:class:`training.transformers.InclinationFeatures`, as in training);
 * **geometric** - the paper's method alone
-  (:func:`training.train.geometric_predictions`: shipped calibration, default
+  (:func:`training.geometric_baseline.geometric_predictions`: shipped calibration, default
   options; a window it cannot analyse counts as no_contact without a beta, and
   its MAPE is over the contact windows that got a beta, whose fraction is
   reported);
@@ -17,7 +17,7 @@ One table, by noise level (0, 2, 5, 9 %): accuracy, macro-F1 and beta MAPE of
   and ``RidgeCV`` on log beta, run by ``benchmarks/minirocket_peer.py`` in a
   separate virtual environment (aeon pins an older numpy), on the same canonical
   windows the CNN sees, trained on the same trajectories of ``data/default``
-  the CNN was fitted on (:func:`training.gbm.trajectory_split` with the seed
+  the CNN was fitted on (:func:`training.split.trajectory_split` with the seed
   and fractions of ``configs/train/cnn.yaml``; its training and early-stopping
   trajectories, since the ridge models choose their own regularisation by
   internal cross-validation).
@@ -25,7 +25,7 @@ One table, by noise level (0, 2, 5, 9 %): accuracy, macro-F1 and beta MAPE of
 The test set is simulated afresh from the default domain with another seed and
 discrete noise levels (``benchmarks/configs/model_test_set.yaml``: 2,000
 trajectories x 4 windows), so none of its trajectories was seen by the shipped
-models. Metrics are :func:`training.gbm.evaluate` (the ones training logs), per
+models. Metrics are :func:`training.metrics.evaluate` (the ones training logs), per
 exact noise level, for the levels up to 5 % pooled (the issue's "<= 5 % noise")
 and overall; each accuracy has a 95 % bootstrap interval that resamples whole
 trajectories (their four windows are not independent). For every CNN the JSON
@@ -73,8 +73,9 @@ from stiffnet.dataset.store import CARD, Dataset, load_dataset
 from stiffnet.features import FEATURE_VERSION
 from stiffnet.features.windows import window_tensor
 from stiffnet.io_utils import sha256_file, write_json_atomic
-from training.gbm import confusion, evaluate, noise_bin_names, trajectory_split
-from training.train import geometric_predictions
+from training.geometric_baseline import geometric_predictions
+from training.metrics import confusion, evaluate, noise_bin_names
+from training.split import trajectory_split
 from training.transformers import InclinationFeatures, window_records
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -254,7 +255,7 @@ def by_level(
     names: list[str],
     levels: list[float],
 ) -> dict[str, dict[str, float]]:
-    """:func:`training.gbm.evaluate` regrouped as ``{level or "all": {metric: value}}``."""
+    """:func:`training.metrics.evaluate` regrouped as ``{level or "all": {metric: value}}``."""
     m = evaluate(y, pred, beta, beta_hat, noise, names, levels)
     out: dict[str, dict[str, float]] = {"all": {k: v for k, v in m.items() if "/" not in k}}
     out["all"].update({k: v for k, v in m.items() if k.startswith("recall/")})

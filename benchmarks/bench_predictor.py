@@ -6,9 +6,10 @@ natural periods), pins the process to one CPU, and times, in process:
 * ``full``: :meth:`serving.predictor.Predictor.predict` - checks, windows, the
   model, the geometric cross-check and the OOD score (what ``stiffnet predict``
   and ``POST /predict`` run after reading the file);
-* ``onnx path``: canonical windows + the ONNX Runtime call only;
-* ``cross-check + OOD``: the geometric method and OOD features on the
-  predictor's windows.
+* ``onnx path``: the model family's input (CNN: canonical windows; GBM: the
+  features already computed) + the ONNX Runtime call only;
+* ``cross-check + OOD``: the geometric method and OOD features on the windows
+  the family picks (the GBM's model input: all of them).
 
 Prints the median wall and CPU (process) times - on a busy machine the CPU time
 is the better guide to the quiet-machine wall time - and ends with
@@ -70,7 +71,8 @@ def main() -> None:
     if hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {sorted(os.sched_getaffinity(0))[0]})
     from serving.predictor import Predictor
-    from serving.windows import canonical_tensor, window_length, window_starts
+    from stiffnet.features import features_and_estimate
+    from stiffnet.features.windows import window_length, window_starts
 
     a = simulate()
     p = Predictor.load(args.model, threads=1)
@@ -81,34 +83,31 @@ def main() -> None:
 
     full = timed(lambda: p.predict(a, FS_HZ, natural_frequency_hz=FN_HZ), repeats)
     rows = [("full (model + cross-check + OOD)", full)]
-    if p.kind == "cnn":
-        m = p.metadata
-        rate, periods, delays = int(m["canonical_rate"]), int(m["window_periods"]), m["delays"]
-        X = canonical_tensor(W, FS_HZ, FN_HZ, rate, periods, delays)
+    # the model family's own steps (serving.families): its input, then ONNX Runtime
+    family = p.model.family
+    idx = family.feature_windows(len(W), p.geometric_windows)
 
-        def onnx_run():
-            return p.model.session.run(["probabilities", "log_beta"], {"windows": X})
+    def cross_check():
+        feats = [features_and_estimate(W[i], FS_HZ, FN_HZ, calibration=p.calibration) for i in idx]
+        X = np.array([f for f, _ in feats]).reshape(len(feats), -1)
+        if p.ood is not None:
+            p.ood.scores(X)
+        return X
 
-        t_win = timed(lambda: canonical_tensor(W, FS_HZ, FN_HZ, rate, periods, delays), repeats)
-        t_onnx = timed(onnx_run, repeats)
-        rows += [
-            ("onnx path: canonical windows", t_win),
-            ("onnx path: ONNX Runtime", t_onnx),
-            ("onnx path total", (t_win[0] + t_onnx[0], t_win[1] + t_onnx[1])),
-        ]
-        from stiffnet.features import features_and_estimate
+    feats = cross_check()
+    X = family.model_input(W, FS_HZ, FN_HZ, feats)
 
-        k = min(p.geometric_windows, len(W))
-        idx = np.unique(np.round(np.linspace(0, len(W) - 1, k)).astype(int))
+    def onnx_run():
+        return p.model.session.run(["probabilities", "log_beta"], {p.model.input_name: X})
 
-        def cross_check():
-            feats = [
-                features_and_estimate(W[i], FS_HZ, FN_HZ, calibration=p.calibration) for i in idx
-            ]
-            if p.ood is not None:
-                p.ood.scores(np.array([f for f, _ in feats]))
-
-        rows.append((f"cross-check + OOD ({len(idx)} windows)", timed(cross_check, repeats)))
+    t_in = timed(lambda: family.model_input(W, FS_HZ, FN_HZ, feats), repeats)
+    t_onnx = timed(onnx_run, repeats)
+    rows += [
+        (f"onnx path: {family.kind} input", t_in),
+        ("onnx path: ONNX Runtime", t_onnx),
+        ("onnx path total", (t_in[0] + t_onnx[0], t_in[1] + t_onnx[1])),
+        (f"cross-check + OOD ({len(idx)} windows)", timed(cross_check, repeats)),
+    ]
     r = p.predict(a, FS_HZ, natural_frequency_hz=FN_HZ)
     print(
         f"recording: {DURATION_S:g} s at {FS_HZ:g} Hz ({a.size} samples, {r['n_windows']} "

@@ -3,7 +3,9 @@
 Installs with stiffnet's core plus the ``serve`` extra; imports numpy, scipy,
 onnxruntime and stiffnet's numpy-only modules, never torch, scikit-learn or
 mlflow. Modules: :mod:`serving.predictor` (``Predictor``, ``predict_recording``),
-:mod:`serving.model` (verified ONNX loading), :mod:`serving.windows`,
+:mod:`serving.model` (verified ONNX loading), :mod:`serving.families` (what each
+model family reads from the windows), the pipeline's steps :mod:`serving.checks`,
+:mod:`serving.aggregate`, :mod:`serving.alarm`, :mod:`serving.physical`, and
 :mod:`serving.ood`, :mod:`serving.schemas`, :mod:`serving.app` (FastAPI) and
 :mod:`serving.commands` (CLI). Nothing is imported here, so that ``stiffnet
 --help`` stays fast. See ``docs/serving.md``.

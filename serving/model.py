@@ -8,8 +8,9 @@ A model is a file ``NAME.onnx`` and its card ``NAME.card.json`` (written by
 2. opens an ONNX Runtime session (CPU, ``intra_op_num_threads`` = `threads`,
    ``inter_op_num_threads`` = 1), refusing a file ONNX Runtime cannot parse;
 3. reads the metadata from the file's ``metadata_props`` (JSON-decoded; the
-   card's copy fills anything missing) and checks it describes a stiffnet
-   CNN (input ``windows``) or GBM (input ``features``).
+   card's copy fills anything missing) and checks it describes a model of a
+   family the predictor serves (:data:`serving.families.FAMILIES`: the CNN with
+   input ``windows``, the GBM with input ``features``).
 
 Nothing is unpickled: the card and the reference files are JSON and the model is
 an ONNX protobuf run by ONNX Runtime.
@@ -20,15 +21,16 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import read_json
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import shipped_file
 
-#: Model kinds this predictor serves: ``model_kind`` metadata -> (kind, input name).
-KINDS = {"stiffnet.cnn": ("cnn", "windows"), "stiffnet.gbm": ("gbm", "features")}
+if TYPE_CHECKING:
+    from serving.families.base import ModelFamily
+
 DEFAULT_MODEL_FILE = "cnn.onnx"
 
 
@@ -96,6 +98,8 @@ class LoadedModel:
         The session (thread-safe for concurrent ``run`` calls).
     input_name : str
         Name of the model's input.
+    family : serving.families.ModelFamily
+        What the model reads from a recording's windows.
     """
 
     path: Path
@@ -106,6 +110,7 @@ class LoadedModel:
     card: dict[str, Any]
     session: Any = field(repr=False)
     input_name: str = ""
+    family: ModelFamily | None = field(default=None, repr=False)
 
     @property
     def class_names(self) -> list[str]:
@@ -143,6 +148,8 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
     """
     import onnxruntime as ort
 
+    from serving.families import FAMILIES
+
     p = Path(path) if path is not None else default_model_path()
     if int(threads) < 1:
         raise StiffnetError(f"threads must be >= 1, got {threads}")
@@ -171,12 +178,12 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
         raise StiffnetError(f"{p}: not a loadable ONNX model ({first[:200]})") from None
     meta = dict(card.get("metadata") or {})
     meta.update(onnx_metadata(sess))
-    kind_input = KINDS.get(str(meta.get("model_kind")))
-    if kind_input is None:
+    family = FAMILIES.get(str(meta.get("model_kind")))
+    if family is None:
         raise StiffnetError(
             f"{p}: model_kind {meta.get('model_kind')!r} is not a stiffnet cnn or gbm model"
         )
-    kind, input_name = kind_input
+    input_name = family.input_name
     inputs = [i.name for i in sess.get_inputs()]
     outputs = {o.name for o in sess.get_outputs()}
     if inputs != [input_name] or not {"probabilities", "log_beta"} <= outputs:
@@ -186,8 +193,5 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
         )
     if not isinstance(meta.get("class_names"), list) or not meta["class_names"]:
         raise StiffnetError(f"{p}: metadata has no class_names")
-    if kind == "cnn":
-        for key in ("canonical_rate", "window_periods", "delays"):
-            if key not in meta:
-                raise StiffnetError(f"{p}: CNN metadata lacks {key!r}")
-    return LoadedModel(p, p.stem, kind, digest, meta, card, sess, input_name)
+    family.check_metadata(meta, p)
+    return LoadedModel(p, p.stem, family.kind, digest, meta, card, sess, input_name, family(meta))

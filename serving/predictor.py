@@ -2,52 +2,34 @@
 
 Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
 (recordings, features, geometry, nlts) - never torch, scikit-learn or mlflow
-(a test checks ``sys.modules``). See ``docs/serving.md`` for the user's view.
+(``tests/test_import_rules.py`` checks every module it reaches). See
+``docs/serving.md`` for the user's view.
 
-Pipeline of :meth:`Predictor.predict`:
+:meth:`Predictor.predict` runs five steps, each in its own module:
 
-1. **Checks.** Finite 1-D samples, ``fs > 0``, a known natural frequency
-   ``f_n``; ``fs >= MIN_SAMPLES_PER_PERIOD * f_n`` (the lowest rate of the
-   training data: slower recordings do not resolve the impact spikes the models
-   and the geometric method read); at least one window; not constant. A
-   clipped signal (samples piled up at the extremes) and rates above the
-   training range only add warnings.
+1. **Check** (:mod:`serving.checks`): finite samples, sampling rate and natural
+   frequency in range, at least one window, not constant; clipping and rates
+   above the training data only warn.
 2. **Windows** of ``window_periods`` natural periods (16) at the recording's
-   rate, non-overlapping (:mod:`serving.windows`), windows constant on their own
-   dropped with a warning.
-3. **Model.** CNN: canonical windows (resampled to 32 samples per natural
-   period, spikes up, unit std, delay channels) exactly as at training time;
-   GBM: the inclination features of each window. Per-window probabilities and
-   log beta.
-4. **Aggregation** (:func:`stiffnet.uncertainty.aggregate_windows`, the same
-   function that calibrated the model on whole training trajectories). Class
-   probabilities: the mean of the windows' probabilities (robust to one odd
-   window, unlike a product of probabilities); class: its arg-max. Beta: ``exp``
-   of the mean log beta over the windows whose own class has contact. Its
-   interval: ``exp(mean +- q s)``, ``s`` the recording's error scale (the
-   model's own scale output plus the disagreement of the windows) and ``q`` the
-   model's normalised split-conformal quantile calibrated with one score per
-   trajectory (metadata ``conformal_quantile_recording``); models without it
-   fall back to the per-window quantile ``exp(mean +- q)``. **Segments**
-   aggregate ``segment_windows`` consecutive windows the same way.
-5. **Cross-check** by the geometric method (:func:`stiffnet.features.features_and_estimate`
-   with the shipped calibration) on ``geometric_windows`` windows spread evenly
-   over the recording (all windows for the GBM, which computes their features
-   anyway): contact if at least half of them have contact, then the mean of
-   their inclinations through the calibration gives beta and class.
-   ``agreement`` is ``model class == geometric class``. Bounding the number of
-   windows keeps a 60 s recording under ~60 ms on one core.
-   A second, physical cross-check (:mod:`serving.physical`): the restoring-force
-   estimate on 24 forcing periods from the middle of the recording:
-   ``physical_class``, ``physical_beta`` and its bootstrap interval,
-   ``physical_agreement`` (null when that method refused, with its reason).
-6. **Alarm** (:mod:`stiffnet.uncertainty.alarm`): checks on what the model
-   looks at - the distance of the windows to the training data in the model's
-   own embedding, the class ambiguity, the beta uncertainty - each against a
-   threshold calibrated on in-distribution trajectories (the model's
-   ``NAME.alarm.npz``, verified by its SHA-256). A model without one falls
-   back to the inclination-feature OOD score (:mod:`serving.ood`). ``ood_flag``
-   is the alarm; ``ood_score`` its largest score relative to its threshold.
+   rate, non-overlapping (:func:`stiffnet.features.windows.window_length`, the
+   dataset's rule), windows constant on their own dropped with a warning.
+3. **Model** (:mod:`serving.families`): the model's family says which windows
+   the geometric cross-check reads (their inclination features) and what the
+   ONNX input is (CNN: canonical delay-embedded windows exactly as at training
+   time; GBM: the inclination features of every window); ONNX Runtime gives
+   per-window probabilities, log beta and, when the model has them, the
+   log-beta scale and the embedding.
+4. **Aggregate** (:mod:`serving.aggregate`): recording and segment estimates
+   and the beta interval; the geometric cross-check
+   (:func:`stiffnet.features.features_and_estimate` with the shipped
+   calibration; ``agreement`` is ``model class == geometric class``; bounding
+   its windows keeps a 60 s recording under ~60 ms on one core); the physical
+   cross-check (:mod:`serving.physical`: the restoring-force estimate,
+   ``physical_class``, ``physical_beta`` with its bootstrap interval,
+   ``physical_agreement``, null when that method refused, with its reason);
+   the alarm (:mod:`serving.alarm`: ``ood_flag`` is the alarm, ``ood_score``
+   its largest score relative to its threshold).
+5. **Result**: :class:`serving.schemas.PredictionResult`.
 """
 
 from __future__ import annotations
@@ -60,36 +42,32 @@ from typing import Any
 
 import numpy as np
 
+from serving.aggregate import beta_interval, geometric_verdict, named, recording_estimate, segments
+from serving.alarm import alarm_ratio, alarm_verdict, load_model_alarm
+from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
 from serving.physical import physical_check
 from serving.schemas import PredictionResult
-from serving.windows import canonical_tensor, window_length, window_starts
+from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
-from stiffnet.inputs import natural_frequency, rate_ratio, read_json, real_number, sampling_rate
-from stiffnet.io_utils import sha256_file
+from stiffnet.features.windows import window_length, window_starts
+from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
-from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
-from stiffnet.uncertainty.alarm import AlarmReference, load_alarm, recording_checks
+from stiffnet.uncertainty.alarm import AlarmReference
 
-#: Minimum sampling rate in samples per natural period: the training data's lowest rate.
-MIN_SAMPLES_PER_PERIOD = 50.0
-#: Rates above this many samples per natural period are beyond the training data (warning).
-MAX_TRAINED_SAMPLES_PER_PERIOD = 500.0
-#: Default natural periods per window when the model metadata does not say (the dataset's).
-DEFAULT_WINDOW_PERIODS = 16.0
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
 #: Default number of windows the geometric cross-check and the OOD score analyse (CNN).
 GEOMETRIC_WINDOWS = 3
 #: Windows per ONNX Runtime call (bounds memory on very long recordings).
 BATCH = 256
-#: A signal is reported as clipped when this fraction of samples (and >= 3) sits at an extreme.
-CLIP_FRACTION = 1e-3
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
 #: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
 SIDECAR_SUFFIX = ".json"
+#: Outputs the predictor reads, when the model has them (older models: the first two).
+MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
 
 
 def _finite_positive(value: Any, what: str) -> float:
@@ -97,20 +75,6 @@ def _finite_positive(value: Any, what: str) -> float:
     if not v > 0:
         raise StiffnetError(f"{what} must be a finite number > 0, got {value!r}")
     return v
-
-
-def clipping_warning(a: np.ndarray) -> str | None:
-    """A warning if many samples sit exactly at the maximum or minimum (a saturated sensor)."""
-    n = a.size
-    need = max(3, int(CLIP_FRACTION * n))
-    parts = []
-    for name, value in (("maximum", a.max()), ("minimum", a.min())):
-        count = int(np.count_nonzero(a == value))
-        if count >= need:
-            parts.append(f"{count} samples at the {name} {value:.6g}")
-    if not parts:
-        return None
-    return f"signal looks clipped ({', '.join(parts)}): impacts may be flattened"
 
 
 def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
@@ -136,24 +100,6 @@ def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
     if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
         return None, p
     return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
-
-
-#: What each alarm check means, for the warning a user reads.
-ALARM_WORDS = {
-    "embedding": "the recording does not look like the training data to the model",
-    "ambiguity": "the model cannot decide between classes",
-    "beta_uncertainty": "the beta estimate is uncertain (the windows disagree or the model "
-    "expects a large error)",
-    "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
-    "features": "the recording's inclination features are unlike the training data",
-}
-
-
-def alarm_message(fired: list[str]) -> str:
-    """The alarm's verdict in words."""
-    if not fired:
-        return "no alarm: the recording looks like the data the model was calibrated on"
-    return "UNRELIABLE: " + "; ".join(ALARM_WORDS.get(f, f) for f in fired)
 
 
 class Predictor:
@@ -197,7 +143,7 @@ class Predictor:
         periods = self.metadata.get("window_periods")
         if periods is None and ood is not None:
             periods = ood.info.get("window_periods")
-        self.window_periods = float(periods or DEFAULT_WINDOW_PERIODS)
+        self.window_periods = float(periods or WINDOW_PERIODS)
         self.training_natural_frequency, self.training_natural_frequency_from = self._training_fn()
         self.ood_warning = None
         if ood is not None:
@@ -235,7 +181,7 @@ class Predictor:
             Model missing, modified (SHA-256), corrupt, or not a stiffnet model.
         """
         model = load_model(model_path, threads)
-        alarm = _load_model_alarm(model)
+        alarm = load_model_alarm(model)
         if ood_reference is not None:
             ood = load_reference(ood_reference)
         elif alarm is not None:
@@ -302,7 +248,7 @@ class Predictor:
         source: str = "",
         natural_frequency_source: str | None = None,
     ) -> dict[str, Any]:
-        """Predict one recording (see the module notes).
+        """Predict one recording: check -> windows -> model -> aggregate -> result.
 
         Parameters
         ----------
@@ -328,113 +274,36 @@ class Predictor:
         StiffnetError
             Unusable input, with a one-line message.
         """
-        warnings: list[str] = []
-        fs = sampling_rate(fs_hz)  # physical ranges (stiffnet.inputs)
-        if natural_frequency_hz is not None:
-            fn = natural_frequency(natural_frequency_hz)
-            fn_source = natural_frequency_source or "argument"
-        elif self.training_natural_frequency is not None:
-            fn, fn_source = self.training_natural_frequency, "training_data"
-        else:
-            raise StiffnetError(
-                "natural frequency unknown: give it (--fn HZ, natural_frequency_hz, or a sidecar)"
-            )
-        a = self._check_samples(accel, source)
         what = source or "recording"
-        ratio = fs / fn
-        if ratio < MIN_SAMPLES_PER_PERIOD:  # first: its message names a unit mistake
-            from stiffnet.recordings import unit_mistake_hint
-
-            hint = unit_mistake_hint(
-                fs, MIN_SAMPLES_PER_PERIOD * fn, 4 * MAX_TRAINED_SAMPLES_PER_PERIOD * fn
-            )
-            raise StiffnetError(
-                f"{what}: sampling rate {fs:.6g} Hz is below the minimum "
-                f"{MIN_SAMPLES_PER_PERIOD * fn:.6g} Hz ({MIN_SAMPLES_PER_PERIOD:g} x the natural "
-                f"frequency {fn:.6g} Hz){hint}"
-            )
-        rate_ratio(fs, fn, what)  # the physical upper bound
-        if ratio > MAX_TRAINED_SAMPLES_PER_PERIOD:
-            warnings.append(
-                f"sampling rate is {ratio:.3g} x the natural frequency, above the training data's "
-                f"{MAX_TRAINED_SAMPLES_PER_PERIOD:g} x"
-            )
-        # Scale by a power of two so that the peak lies in [0.5, 1): exact in floating
-        # point (the results do not change), and std/mean cannot overflow for 1e300 inputs.
-        peak = float(np.max(np.abs(a)))
-        if peak > 0:
-            a = np.ldexp(a, -int(np.frexp(peak)[1]))
-        if not a.std() > 0:
-            raise StiffnetError(f"{what}: recording is constant (no signal)")
-        need = self.window_periods * fs / fn  # samples in one window
-        if not (math.isfinite(need) and a.size >= round(need)):
-            raise StiffnetError(
-                f"{what}: recording is too short ({a.size / fs:.3g} s): one window of "
-                f"{self.window_periods:g} natural periods needs {need / fs:.3g} s "
-                f"({round(need) if need < 1e15 else f'{need:.3g}'} samples at {fs:.6g} Hz)"
-            )
-        n_win = window_length(fs, fn, self.window_periods)
-        clip = clipping_warning(a)
-        if clip:
-            warnings.append(clip)
+        fs, fn, fn_source = self._rates(fs_hz, natural_frequency_hz, natural_frequency_source)
+        a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
-
-        starts = window_starts(a.size, n_win, n_win)
-        W = a[starts[:, None] + np.arange(n_win)[None, :]]
-        ok = W.std(axis=1) > 0
-        if not ok.all():
-            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
-            W, starts = W[ok], starts[ok]
-            if len(W) == 0:
-                raise StiffnetError(f"{what}: every window is constant")
-
+        W, starts, n_win = self._windows(a, fs, fn, what, warnings)
         try:
             out, feats, geo = self._run_model(W, fs, fn)
         except SignalError as exc:
             raise StiffnetError(f"{what}: {exc}") from None
-        names = self.class_names
-        est = self._aggregate(out)
-        cls = names[est.label]
-        beta = math.exp(est.log_beta) if est.log_beta is not None else None
-        interval = self._interval(est)
 
-        segments = []
-        for k, lo in enumerate(range(0, len(W), self.segment_windows)):
-            hi = min(len(W), lo + self.segment_windows)
-            seg = self._aggregate({name: v[lo:hi] for name, v in out.items()})
-            segments.append(
-                {
-                    "index": k,
-                    "start_s": float(starts[lo] / fs),
-                    "end_s": float((starts[hi - 1] + n_win) / fs),
-                    "n_windows": hi - lo,
-                    "class": names[seg.label],
-                    "probabilities": self._named(seg.probabilities),
-                    "beta": math.exp(seg.log_beta) if seg.log_beta is not None else None,
-                }
-            )
-        seg_classes = [s["class"] for s in segments]
+        names, nc = self.class_names, self._nc
+        est = recording_estimate(out, nc)
+        cls = names[est.label]
+        segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
+        seg_classes = [s["class"] for s in segs]
         if len(set(seg_classes)) > 1:
             warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
-
-        geometric = self._geometric(geo)
-        alarm = self._alarm(est, out, feats)
+        geometric = geometric_verdict(geo, self.calibration)
+        alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         physical = physical_check(a, fs, fn)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
-        # the alarm as one number: its largest score over its threshold (fires above 1)
-        ratios = [
-            v / alarm["thresholds"][k]
-            for k, v in (alarm or {}).get("scores", {}).items()
-            if alarm["thresholds"].get(k)
-        ]
+        score = alarm_ratio(alarm)
         result = {
             "source": source,
             "class": cls,
-            "probabilities": self._named(est.probabilities),
-            "beta": beta,
-            "beta_interval": interval,
+            "probabilities": named(names, est.probabilities),
+            "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
+            "beta_interval": beta_interval(est, self.metadata, self.model.conformal_quantile),
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
@@ -444,8 +313,8 @@ class Predictor:
             "physical_beta_interval": physical["beta_interval"],
             "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
             "contact_detected": cls != "no_contact",
-            "ood_score": max(ratios) if ratios else None,
-            "ood_threshold": 1.0 if ratios else None,
+            "ood_score": score,
+            "ood_threshold": 1.0 if score is not None else None,
             "ood_flag": bool(alarm is not None and alarm["flag"]),
             "alarm": alarm,
             "n_windows": int(len(W)),
@@ -453,7 +322,7 @@ class Predictor:
             "hop_s": n_win / fs,
             "duration_s": a.size / fs,
             "fs_hz": fs,
-            "segments": segments,
+            "segments": segs,
             "model": {"name": self.name, "sha256": self.sha256, "kind": self.kind},
             "natural_frequency_hz": fn,
             "natural_frequency_source": fn_source,
@@ -461,92 +330,55 @@ class Predictor:
         }
         return PredictionResult.model_validate(result).model_dump(by_alias=True)
 
-    @staticmethod
-    def _check_samples(accel: Any, source: str) -> np.ndarray:
-        what = source or "recording"
-        try:
-            a = np.asarray(accel, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise StiffnetError(f"{what}: samples are not numbers") from None
-        if a.ndim != 1:
-            raise StiffnetError(f"{what}: expected 1-D samples, got shape {a.shape}")
-        if a.size < 2:
-            state = "is empty" if a.size == 0 else "has only one sample"
-            raise StiffnetError(f"{what}: recording {state} (need at least 2 samples)")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            raise StiffnetError(
-                f"{what}: {int(bad.sum())} NaN/inf samples (first at sample {int(np.argmax(bad))})"
+    def _rates(
+        self, fs_hz: Any, natural_frequency_hz: Any, natural_frequency_source: str | None
+    ) -> tuple[float, float, str]:
+        """Sampling rate, natural frequency and where the latter came from (range-checked)."""
+        fs = sampling_rate(fs_hz)  # physical ranges (stiffnet.inputs)
+        if natural_frequency_hz is not None:
+            return (
+                fs,
+                natural_frequency(natural_frequency_hz),
+                natural_frequency_source or "argument",
             )
-        return a
-
-    def _named(self, p: np.ndarray) -> dict[str, float]:
-        return {n: float(v) for n, v in zip(self.class_names, p, strict=True)}
-
-    def _aggregate(self, out: dict[str, np.ndarray]) -> RecordingEstimate:
-        return aggregate_windows(
-            out["probabilities"], out["log_beta"], out.get("log_beta_scale"), self._nc
+        if self.training_natural_frequency is not None:
+            return fs, self.training_natural_frequency, "training_data"
+        raise StiffnetError(
+            "natural frequency unknown: give it (--fn HZ, natural_frequency_hz, or a sidecar)"
         )
 
-    def _interval(self, est: RecordingEstimate) -> list[float] | None:
-        """Per-recording normalised interval, else the card's per-window one."""
-        if est.log_beta is None:
-            return None
-        q_rec = self.metadata.get("conformal_quantile_recording")
-        if isinstance(q_rec, int | float) and math.isfinite(q_rec) and est.scale is not None:
-            half = float(q_rec) * est.scale
-        elif self.model.conformal_quantile:
-            half = self.model.conformal_quantile
-        else:
-            return None
-        return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]
-
-    def _alarm(self, est: RecordingEstimate, out: dict[str, np.ndarray], feats: np.ndarray):
-        if self.alarm is None:
-            return None
-        emb = None
-        if "embedding" in out and "embedding" in self.alarm.thresholds:
-            emb = self.alarm.embedding_scores(out["embedding"])
-        feat = None
-        if self.ood is not None and len(feats) and "features" in self.alarm.thresholds:
-            feat = float(np.median(self.ood.scores(feats)))
-        edges = self.alarm.info.get("class_edges")
-        result = self.alarm.evaluate(recording_checks(est, emb, feat, edges))
-        result["scores"] = {k: v for k, v in result["scores"].items() if v is not None}
-        result["message"] = alarm_message(result["fired"])
-        return result
+    def _windows(
+        self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
+    ) -> tuple[np.ndarray, np.ndarray, int]:
+        """The recording's whole non-overlapping windows, constant ones dropped (warned)."""
+        n_win = window_length(fs, fn, self.window_periods)
+        starts = window_starts(a.size, n_win, n_win)
+        W = a[starts[:, None] + np.arange(n_win)[None, :]]
+        ok = W.std(axis=1) > 0
+        if not ok.all():
+            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
+            W, starts = W[ok], starts[ok]
+            if len(W) == 0:
+                raise StiffnetError(f"{what}: every window is constant")
+        return W, starts, n_win
 
     def _run_model(self, W: np.ndarray, fs: float, fn: float):
-        """Per-window model outputs (by ONNX output name), OOD features, geometric results."""
+        """Per-window model outputs (by ONNX output name), inclination features, geometric results.
+
+        The model's family picks the windows whose inclination features are
+        computed and builds the ONNX input.
+        """
         from stiffnet.features import features_and_estimate
 
-        def feature_rows(idx):
-            rows, ests = [], []
-            for i in idx:
-                f, est = features_and_estimate(W[i], fs, fn, calibration=self.calibration)
-                rows.append(f)
-                ests.append(est)
-            return np.array(rows).reshape(len(rows), -1), ests
-
+        family = self.model.family
+        rows, geo = [], []
+        for i in family.feature_windows(len(W), self.geometric_windows):
+            f, est = features_and_estimate(W[i], fs, fn, calibration=self.calibration)
+            rows.append(f)
+            geo.append(est)
+        feats = np.array(rows).reshape(len(rows), -1)
+        X = family.model_input(W, fs, fn, feats)
         sess, name = self.model.session, self.model.input_name
-        if self.kind == "gbm":
-            use_fn = self.metadata.get("requires_natural_frequency", True)
-            feats, geo = feature_rows(range(len(W)))
-            X = feats
-            if not use_fn:
-                from stiffnet.features import FEATURE_NAMES
-
-                X = feats.copy()
-                X[:, FEATURE_NAMES.index("period_natural")] = -1.0
-            X = X.astype(np.float32)
-        else:
-            m = self.metadata
-            X = canonical_tensor(
-                W, fs, fn, int(m["canonical_rate"]), int(m["window_periods"]), m["delays"]
-            )
-            k = min(self.geometric_windows, len(W))
-            idx = np.unique(np.round(np.linspace(0, len(W) - 1, k)).astype(int))
-            feats, geo = feature_rows(idx)
         wanted = [o for o in MODEL_OUTPUTS if o in self.model.output_names]
         parts: dict[str, list[np.ndarray]] = {o: [] for o in wanted}
         for lo in range(0, len(X), BATCH):
@@ -557,56 +389,6 @@ class Predictor:
             if o in out:
                 out[o] = out[o].reshape(-1)
         return out, feats, geo
-
-    def _geometric(self, results: list) -> dict[str, Any]:
-        """Aggregate the per-window geometric results (contact in >= half the windows)."""
-        contact = [r for r in results if r is not None and r.contact_detected]
-        n = len(results)
-        out: dict[str, Any] = {
-            "class": "no_contact",
-            "beta": None,
-            "inclination_before_deg": None,
-            "inclination_after_deg": None,
-            "contact_detected": False,
-            "n_windows": n,
-            "n_windows_with_contact": len(contact),
-            "polarity": 0,
-        }
-        if not contact or 2 * len(contact) < n:
-            return out
-        before = float(np.mean([r.inclination_before_deg for r in contact]))
-        after = float(np.mean([r.inclination_after_deg for r in contact]))
-        beta, cls = self.calibration.predict((before, after))
-        pol = int(np.sign(sum(r.polarity for r in contact))) or contact[0].polarity
-        out.update(
-            {
-                "class": str(cls),
-                "inclination_before_deg": before,
-                "inclination_after_deg": after,
-                "contact_detected": True,
-                "polarity": pol,
-                "beta": float(beta) if np.isfinite(beta) else None,
-            }
-        )
-        return out
-
-
-#: Outputs the predictor reads, when the model has them (older models: the first two).
-MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
-
-
-def _load_model_alarm(model: LoadedModel) -> AlarmReference | None:
-    """The model's alarm reference (metadata ``alarm_reference``), verified by SHA-256."""
-    name = model.metadata.get("alarm_reference")
-    if not name:
-        return None
-    path = model.path.parent / Path(str(name)).name  # beside the model, never elsewhere
-    if not path.is_file():
-        raise StiffnetError(f"{model.path.name}: its alarm reference {path} is missing")
-    want = model.metadata.get("alarm_sha256")
-    if want and sha256_file(path) != want:
-        raise StiffnetError(f"{path}: SHA-256 does not match the model's metadata (modified?)")
-    return load_alarm(path)
 
 
 _LOADED: dict[tuple, Predictor] = {}

@@ -14,8 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from serving.predictor import Predictor, predict_recording
-from serving.windows import canonical_tensor, window_length
 from stiffnet.errors import StiffnetError
+from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -141,25 +141,22 @@ def test_gain_and_polarity_invariance(cnn, example, gain):
     assert r["ood_score"] == pytest.approx(ref["ood_score"], rel=1e-4)
 
 
-def test_batched_canonical_tensor_equals_training_path(dataset_windows, example):
-    from stiffnet.features.windows import window_tensor
-
+def test_batched_canonical_windows_equal_one_at_a_time(dataset_windows, example):
+    """A recording's windows in one batch == the training path, window by window."""
     wins, fs, fn = dataset_windows
     for w, f, n in zip(wins, fs, fn, strict=True):
-        ours = canonical_tensor(w[None, :], f, n, 32, 16, (0, 6, 12))
-        assert np.array_equal(ours, window_tensor([w], f, n, 32, 16, (0, 6, 12)))
+        batched = window_tensor(np.asarray(w)[None, :], f, n, 32, 16, (0, 6, 12))
+        assert np.array_equal(batched, window_tensor([w], f, n, 32, 16, (0, 6, 12)))
     n = window_length(example.fs_hz, 9.48, 16)
     W = example.accel[: 4 * n].reshape(4, n)
     assert np.array_equal(
-        canonical_tensor(W, example.fs_hz, 9.48, 32, 16),
-        window_tensor(list(W), example.fs_hz, 9.48),
+        window_tensor(W, example.fs_hz, 9.48), window_tensor(list(W), example.fs_hz, 9.48)
     )
 
 
 def test_parity_with_the_training_onnx_path(cnn, gbm, dataset_windows):
     """One dataset window through the predictor == the training code's ONNX call."""
     from stiffnet.features import feature_matrix
-    from stiffnet.features.windows import window_tensor
     from training.export_onnx import onnx_predict
     from training.export_onnx_cnn import onnx_predict_cnn
 
@@ -360,7 +357,6 @@ def test_predict_only_raises_stiffnet_errors(cnn, fs, fn, n, seed, scale):
 
 def test_parity_on_example_windows(cnn, example):
     """The same check on the shipped example (runs on a fresh clone without data/default)."""
-    from stiffnet.features.windows import window_tensor
     from training.export_onnx_cnn import onnx_predict_cnn
 
     n = window_length(example.fs_hz, 9.48, 16)

@@ -12,8 +12,11 @@ from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError
 from stiffnet.features import FEATURE_NAMES, feature_matrix
 from stiffnet.io_utils import sha256_file
+from stiffnet.uncertainty import conformal_quantile
 from training.export_onnx import export_onnx, onnx_predict
-from training.gbm import conformal_quantile, fit_gbm, noise_bins, trajectory_split
+from training.gbm import fit_gbm
+from training.metrics import noise_bins
+from training.split import trajectory_split
 
 
 @pytest.fixture(scope="session")

@@ -15,9 +15,9 @@
   epoch's weights are kept).
 * :func:`predict_cnn`: probabilities and log(beta) in batches.
 
-Splits, the conformal half-width and the metrics are those of
-:mod:`training.gbm` (:func:`~training.gbm.trajectory_split`,
-:func:`~training.gbm.conformal_quantile`, :func:`~training.gbm.evaluate`).
+Splits, the conformal half-width and the metrics are those every family uses
+(:mod:`training.split`, :mod:`training.finish`, :mod:`training.metrics`);
+end-to-end training: :mod:`training.train_cnn`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,8 @@ import torch
 from torch import nn
 
 from stiffnet.config.train import CNNConfig
-from training.gbm import NO_CONTACT_LABEL, Split
+from training.metrics import NO_CONTACT_LABEL
+from training.split import Split
 
 #: Weight of the scale head's likelihood term in the loss.
 SCALE_LOSS_WEIGHT = 0.2

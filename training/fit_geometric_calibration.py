@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry import (
     DEFAULT_CALIBRATION_PATH,
@@ -206,7 +207,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-paper", type=int, default=600, help="trajectories, paper family")
     ap.add_argument("--n-domain", type=int, default=1200, help="trajectories, default domain")
     ap.add_argument("--windows", type=int, default=2, help="consecutive windows per trajectory")
-    ap.add_argument("--window-periods", type=float, default=16.0, help="natural periods/window")
+    ap.add_argument(
+        "--window-periods", type=float, default=float(WINDOW_PERIODS), help="natural periods/window"
+    )
     ap.add_argument("--noise-levels", type=float, nargs="+", default=[0.0, 0.02, 0.05, 0.09])
     ap.add_argument("--holdout", type=float, default=0.3, help="fraction of held-out trajectories")
     ap.add_argument("--degree", type=int, default=3, help="polynomial degree in the two angles")

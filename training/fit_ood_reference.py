@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from serving.ood import fit_reference
+from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.dataset.store import CARD, load_dataset
 from stiffnet.errors import StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION, feature_matrix
@@ -68,7 +69,7 @@ def fit(
         "natural_frequency_range_hz": [float(fn.min()), float(fn.max())],
         "fs_ratio_range": [float(fs_ratio.min()), float(fs_ratio.max())],
         "window_periods": float(
-            ds.card.get("config", {}).get("windows", {}).get("duration_periods", 16.0)
+            ds.card.get("config", {}).get("windows", {}).get("duration_periods", WINDOW_PERIODS)
         ),
         "n_fit_windows": int((~held).sum()),
         "seed": seed,

@@ -32,8 +32,9 @@ from stiffnet.shipped import default_config
 from stiffnet.uncertainty.alarm import save_alarm
 from training.calibration import calibrate_recording_level
 from training.export_onnx import onnx_session
-from training.gbm import trajectory_split
-from training.train import ALARM_SUFFIX, _alarm_info
+from training.finish import ALARM_SUFFIX, INTERVAL_METHOD
+from training.split import trajectory_split
+from training.training_data import alarm_info
 
 
 def model_outputs(path: Path, ds: Any, meta: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -83,14 +84,14 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
     outputs = model_outputs(path, ds, meta)
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), ds.column("label"), ds.column("beta"), sp, outputs,
-        config.coverage, config.alarm_false_alarm, config.seed, _alarm_info(ds, card_sha),
+        config.coverage, config.alarm_false_alarm, config.seed, alarm_info(ds, card_sha),
         config.alarm_checks,
     )  # fmt: skip
     alarm_path = path.with_suffix(ALARM_SUFFIX)
     save_alarm(alarm_path, alarm)
     update = {
         "conformal_quantile_recording": q_rec,
-        "interval": "normalised split-conformal, one score per trajectory",
+        "interval": INTERVAL_METHOD,
         "alarm_reference": alarm_path.name,
         "alarm_sha256": sha256_file(alarm_path),
     }

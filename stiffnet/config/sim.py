@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, model_validator
 
+from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.effects.registry import CANONICAL, build_effect
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
@@ -55,7 +56,10 @@ class SweepConfig(_Strict):
 
 class WindowConfig(_Strict):
     duration_periods: float = Field(
-        16.0, ge=2.0, le=500.0, description="window length in natural periods (2 pi model time)"
+        float(WINDOW_PERIODS),
+        ge=2.0,
+        le=500.0,
+        description="window length in natural periods (2 pi model time)",
     )
     per_trajectory: int = Field(4, ge=1, le=256, description="consecutive windows per trajectory")
 

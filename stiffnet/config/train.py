@@ -6,6 +6,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from stiffnet.config.window import CANONICAL_RATE, DELAY_FRACTION, WINDOW_PERIODS
+
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
@@ -36,13 +38,17 @@ class GBMConfig(_Strict):
 class CNNConfig(_Strict):
     """The 1-D CNN on canonical windows (``training/cnn.py``, ``stiffnet.features.windows``)."""
 
-    rate: int = Field(32, ge=8, le=256, description="canonical samples per natural period")
-    periods: int = Field(16, ge=2, le=128, description="natural periods per canonical window")
+    rate: int = Field(
+        CANONICAL_RATE, ge=8, le=256, description="canonical samples per natural period"
+    )
+    periods: int = Field(
+        WINDOW_PERIODS, ge=2, le=128, description="natural periods per canonical window"
+    )
     n_channels: int = Field(
         3, ge=1, le=8, description="delay-embedded input channels (delays 0, d, 2d, ...)"
     )
     delay_fraction: float = Field(
-        0.18, gt=0.0, le=1.0, description="embedding delay d in natural periods"
+        DELAY_FRACTION, gt=0.0, le=1.0, description="embedding delay d in natural periods"
     )
     width: int = Field(48, ge=4, le=256, description="convolution channels")
     n_blocks: int = Field(

@@ -1,4 +1,12 @@
-"""Canonical acceleration windows for the 1-D CNN (numpy/scipy only).
+"""Model windows: how a recording is cut, and the CNN's canonical input (numpy/scipy only).
+
+Cutting. A model window holds
+:data:`stiffnet.config.window.WINDOW_PERIODS` natural periods (16: the
+dataset's window and the CNN's canonical window), i.e. ``round(periods * fs / f_n)``
+samples at the recording's own rate (:func:`window_length`, the dataset's
+rounding rule); consecutive windows start ``hop`` samples apart
+(:func:`window_starts`, non-overlapping by default) and the tail that does not
+fill a whole window is not used.
 
 The CNN of ``training/cnn.py`` sees every window in one canonical form, so that
 the sampling rate, the sensor gain and the sensor polarity do not matter:
@@ -21,7 +29,7 @@ the sampling rate, the sensor gain and the sensor polarity do not matter:
    Savitzky-Golay-smoothed, standardised window at its own rate
    (:func:`stiffnet.nlts.detect_impacts`, at most one per quarter natural
    period) and their sign taken by the geometric method's polarity rule
-   (``stiffnet.geometry.estimate._polarity``); without impacts the sign of the
+   (:func:`stiffnet.geometry.estimate.impact_polarity`); without impacts the sign of the
    skewness decides.
 4. **Gain.** The mean is removed and the window divided by its standard
    deviation (over the valid, unpadded samples). The std is the scale the
@@ -29,6 +37,14 @@ the sampling rate, the sensor gain and the sensor polarity do not matter:
    the MAD of a window with sparse spikes is dominated by the slow forced
    response and varies more between classes, and the std never vanishes for a
    non-constant window.
+
+One implementation, batched: :func:`canonical_windows` normalises many windows
+of one length and rate at once (the Butterworth design is cached per rate; the
+standardisation, smoothing, zero-phase filtering and linear interpolation run on
+a 2-D array; only the peak search behind the polarity rule loops over rows).
+:func:`canonical_window` is its one-window case with argument checks, and
+:func:`window_tensor` feeds the training data (windows of varied rates) through
+it window by window and a recording's equal windows (the predictor) in one call.
 
 So ``canonical_window(g * a, ...)`` equals ``canonical_window(a, ...)`` for
 any gain ``g != 0`` up to floating-point rounding.
@@ -43,28 +59,44 @@ zero-padded at the end so all channels keep length ``L``.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, find_peaks, savgol_filter, sosfiltfilt
 
+from stiffnet.config.window import CANONICAL_RATE, DELAY_FRACTION, WINDOW_PERIODS
 from stiffnet.errors import ConfigError, SignalError
-from stiffnet.geometry.estimate import _polarity, smoothing_window
+from stiffnet.geometry.estimate import impact_polarity, smoothing_window
 from stiffnet.nlts._validate import as_signal
-from stiffnet.nlts.preprocess import detect_impacts, savgol_smooth
+from stiffnet.nlts.preprocess import MAD_TO_SIGMA
 
 #: Bumped whenever the canonical window's definition changes (recorded in model metadata).
 WINDOW_VERSION = 1
 #: Default canonical samples per natural period.
-DEFAULT_RATE = 32
+DEFAULT_RATE = CANONICAL_RATE
 #: Default natural periods per canonical window.
-DEFAULT_PERIODS = 16
-#: Delay of the embedded channels in natural periods (the geometric method's rule).
-DELAY_FRACTION = 0.18
+DEFAULT_PERIODS = WINDOW_PERIODS
 #: Anti-alias cut-off as a fraction of the canonical sampling rate.
 CUTOFF_FRACTION = 0.45
+#: ``k`` of :func:`stiffnet.nlts.preprocess.detect_impacts` (its default) in the polarity rule.
+IMPACT_K = 8.0
 #: Human-readable description stored in model metadata.
 NORMALISATION = "mean removed, divided by std of the valid samples; spikes up; zero-padded"
+
+
+def window_length(
+    fs_hz: float, natural_frequency_hz: float, periods: float = WINDOW_PERIODS
+) -> int:
+    """Samples in a window of `periods` natural periods (the dataset's rounding rule)."""
+    return max(8, int(round(periods * fs_hz / natural_frequency_hz)))
+
+
+def window_starts(n_samples: int, length: int, hop: int) -> np.ndarray:
+    """Start indices of the whole windows of `length` samples, `hop` apart."""
+    if n_samples < length:
+        return np.empty(0, dtype=np.int64)
+    return np.arange(0, n_samples - length + 1, max(1, hop), dtype=np.int64)
 
 
 def preprocessing_contract(rate: int, periods: int, delays: Sequence[int]) -> dict:
@@ -113,43 +145,126 @@ def preprocessing_contract(rate: int, periods: int, delays: Sequence[int]) -> di
     }
 
 
-def default_delays(rate: int = DEFAULT_RATE, n_channels: int = 3) -> tuple[int, ...]:
-    """Delays ``(0, d, 2 d, ...)`` with ``d = max(1, round(DELAY_FRACTION * rate))``."""
-    d = max(1, int(round(DELAY_FRACTION * rate)))
+def default_delays(
+    rate: int = DEFAULT_RATE, n_channels: int = 3, delay_fraction: float = DELAY_FRACTION
+) -> tuple[int, ...]:
+    """Delays ``(0, d, 2 d, ...)`` with ``d = max(1, round(delay_fraction * rate))``."""
+    d = max(1, int(round(delay_fraction * rate)))
     return tuple(k * d for k in range(n_channels))
 
 
-def canonical_polarity(a: np.ndarray, period: float) -> int:
-    """+1 if the impact spikes of the standardised window `a` point up, -1 if down.
+@lru_cache(maxsize=64)
+def _antialias(ratio: float) -> np.ndarray:
+    """The zero-phase low-pass for `ratio` input samples per canonical sample (cached)."""
+    return butter(8, CUTOFF_FRACTION * 2.0 / ratio, output="sos")
+
+
+def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
+    """Row-wise sign that makes the impact spikes of standardised windows point up.
+
+    The rule of :mod:`stiffnet.features.inclination`: Savitzky-Golay smoothing
+    (order 2, :func:`stiffnet.geometry.estimate.smoothing_window`), impacts as
+    :func:`stiffnet.nlts.preprocess.detect_impacts` finds them (``|gradient|``
+    above median + 8 * 1.4826 * MAD, at most one per quarter natural period),
+    their sign by :func:`stiffnet.geometry.estimate.impact_polarity`; without
+    impacts the sign of the skewness decides.
 
     Parameters
     ----------
     a : numpy.ndarray
-        Standardised window at its own rate.
+        Standardised windows at their own rate, shape ``(N, n)``.
     period : float
         Natural period in samples of `a`.
 
     Returns
     -------
-    int
-        The sign to multiply `a` with (never 0).
+    numpy.ndarray
+        ``(N,)`` of +1.0 / -1.0 (never 0).
     """
-    win = min(smoothing_window(period), a.size - (1 - a.size % 2))
-    s = savgol_smooth(a, win, 2) if win >= 3 else a
-    impacts = detect_impacts(s, min_separation=max(1, int(0.25 * period)))
-    pol = _polarity(s, impacts)
-    if pol == 0:
-        pol = 1 if float(np.mean(a**3)) >= 0 else -1
-    return pol
+    n = a.shape[1]
+    win = min(smoothing_window(period), n - (1 - n % 2))
+    s = savgol_filter(a, win, 2, mode="interp", axis=1) if win >= 3 else a
+    sep = max(1, int(0.25 * period))
+    # the indicator and its robust threshold for all rows at once (detect_impacts' numbers)
+    ind = np.abs(np.gradient(s, axis=1))
+    med = np.median(ind, axis=1)
+    thr = med + IMPACT_K * MAD_TO_SIGMA * np.median(np.abs(ind - med[:, None]), axis=1)
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        peaks, _ = find_peaks(ind[i], height=float(thr[i]), distance=sep)
+        pol = impact_polarity(s[i], peaks.astype(np.int64))
+        if pol == 0:
+            pol = 1 if float(np.mean(a[i] ** 3)) >= 0 else -1
+        out[i] = pol
+    return out
 
 
-def _resample(a: np.ndarray, ratio: float, n_out: int) -> np.ndarray:
-    """`a` sampled at ``ratio`` samples per canonical sample -> canonical rate."""
+def canonical_polarity(a: np.ndarray, period: float) -> int:
+    """+1 if the impact spikes of the standardised window `a` point up, -1 if down.
+
+    One row of :func:`canonical_polarities`.
+    """
+    return int(canonical_polarities(np.asarray(a, dtype=np.float64)[None, :], period)[0])
+
+
+def canonical_windows(
+    windows: ArrayLike,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    rate: int = DEFAULT_RATE,
+    periods: int = DEFAULT_PERIODS,
+) -> np.ndarray:
+    """Canonical form of equal-length windows sampled at one rate (see the module notes).
+
+    Parameters
+    ----------
+    windows : array_like
+        Shape ``(N, n)``, at least 32 samples each, none constant.
+    fs_hz, natural_frequency_hz : float
+        Sampling rate and natural frequency in Hz.
+    rate, periods : int, optional
+        Canonical samples per natural period and natural periods per window.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32, shape ``(N, rate * periods)``.
+
+    Raises
+    ------
+    SignalError
+        If a window is constant, or the windows are not ``(N, n >= 32)``.
+    """
+    a = np.asarray(windows, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] < 32:
+        raise SignalError(f"expected windows of at least 32 samples, got shape {a.shape}")
+    sd = a.std(axis=1, keepdims=True)
+    if np.any(~(sd > 0)):
+        raise SignalError("acceleration window is constant")
+    a = (a - a.mean(axis=1, keepdims=True)) / sd
+    period = float(fs_hz) / float(natural_frequency_hz)  # natural period in samples
+    a = a * canonical_polarities(a, period)[:, None]
+
+    ratio = period / rate  # input samples per canonical sample
+    n_avail = int(np.floor((a.shape[1] - 1) / ratio)) + 1
     if ratio > 1.1:
-        sos = butter(8, CUTOFF_FRACTION * 2.0 / ratio, output="sos")
-        a = sosfiltfilt(sos, a)
-    t = np.arange(n_out, dtype=np.float64) * ratio
-    return np.interp(t, np.arange(a.size, dtype=np.float64), a)
+        a = sosfiltfilt(_antialias(ratio), a, axis=1)
+    t = np.arange(n_avail, dtype=np.float64) * ratio
+    i0 = np.minimum(np.floor(t).astype(np.int64), a.shape[1] - 1)
+    i1 = np.minimum(i0 + 1, a.shape[1] - 1)
+    frac = t - i0
+    c = a[:, i0] * (1.0 - frac) + a[:, i1] * frac  # linear interpolation, row-wise
+    n = rate * periods
+    if c.shape[1] > n:
+        start = (c.shape[1] - n) // 2
+        c = c[:, start : start + n]
+    c = c - c.mean(axis=1, keepdims=True)
+    sd = c.std(axis=1, keepdims=True)
+    if np.any(~(sd > 0)):
+        raise SignalError("acceleration window is constant after resampling")
+    out = np.zeros((a.shape[0], n), dtype=np.float32)
+    out[:, : c.shape[1]] = c / sd
+    return out
 
 
 def canonical_window(
@@ -196,38 +311,17 @@ def canonical_window(
         )
     if int(rate) < 4 or int(periods) < 1:
         raise ConfigError(f"rate must be >= 4 and periods >= 1, got {rate} and {periods}")
-    rate, periods = int(rate), int(periods)
     a = as_signal(accel, 32, "acceleration")
-    sd = a.std()
-    if not sd > 0:
-        raise SignalError("acceleration is constant")
-    a = (a - a.mean()) / sd
-    period = float(fs_hz) / float(natural_frequency_hz)  # natural period in samples
-    a = canonical_polarity(a, period) * a
-
-    ratio = period / rate  # input samples per canonical sample
-    n_avail = int(np.floor((a.size - 1) / ratio)) + 1
-    c = _resample(a, ratio, n_avail)
-    n = rate * periods
-    if c.size > n:
-        start = (c.size - n) // 2
-        c = c[start : start + n]
-    c = c - c.mean()
-    sd = c.std()
-    if not sd > 0:
-        raise SignalError("acceleration is constant after resampling")
-    out = np.zeros(n, dtype=np.float32)
-    out[: c.size] = c / sd
-    return out
+    return canonical_windows(a[None, :], fs_hz, natural_frequency_hz, int(rate), int(periods))[0]
 
 
 def embedded_channels(w: ArrayLike, delays: Sequence[int] | None = None) -> np.ndarray:
-    """Delay-embedded channels of a canonical window: ``out[c, t] = w[t + delays[c]]``.
+    """Delay-embedded channels of canonical windows: ``out[..., c, t] = w[..., t + delays[c]]``.
 
     Parameters
     ----------
     w : array_like
-        Canonical window, shape ``(L,)``.
+        Canonical window, shape ``(L,)``, or windows ``(N, L)``.
     delays : sequence of int, optional
         Non-negative delays in canonical samples; default :func:`default_delays`
         for the default rate (``(0, 6, 12)``: 0.18 natural periods at 32 per period).
@@ -235,23 +329,25 @@ def embedded_channels(w: ArrayLike, delays: Sequence[int] | None = None) -> np.n
     Returns
     -------
     numpy.ndarray
-        float32, shape ``(len(delays), L)``; samples beyond the end are zero.
+        float32, shape ``(len(delays), L)`` (``(N, len(delays), L)`` for windows);
+        samples beyond the end are zero.
     """
     w = np.asarray(w, dtype=np.float32)
-    if w.ndim != 1:
-        raise ConfigError(f"window must be 1-D, got shape {w.shape}")
+    if w.ndim not in (1, 2):
+        raise ConfigError(f"window must be 1-D (or N windows, 2-D), got shape {w.shape}")
     delays = default_delays() if delays is None else tuple(int(d) for d in delays)
     if not delays or min(delays) < 0:
         raise ConfigError(f"delays must be non-empty and non-negative, got {delays}")
-    out = np.zeros((len(delays), w.size), dtype=np.float32)
+    n = w.shape[-1]
+    out = np.zeros((*w.shape[:-1], len(delays), n), dtype=np.float32)
     for c, d in enumerate(delays):
-        if d < w.size:
-            out[c, : w.size - d] = w[d:]
+        if d < n:
+            out[..., c, : n - d] = w[..., d:]
     return out
 
 
 def window_tensor(
-    windows: Sequence[ArrayLike],
+    windows: Sequence[ArrayLike] | np.ndarray,
     fs_hz: float | ArrayLike,
     natural_frequency_hz: float | ArrayLike,
     rate: int = DEFAULT_RATE,
@@ -260,12 +356,19 @@ def window_tensor(
 ) -> np.ndarray:
     """CNN input of many windows: shape ``(N, len(delays), rate * periods)``, float32.
 
-    `fs_hz` and `natural_frequency_hz` are scalars or one value per window.
+    `fs_hz` and `natural_frequency_hz` are scalars or one value per window. A
+    2-D array of windows with one rate (a recording's windows, the predictor)
+    goes through :func:`canonical_windows` in one call; a list of windows of
+    varied lengths or rates (the training data) one window at a time.
     """
+    delays = default_delays(rate) if delays is None else tuple(int(d) for d in delays)
+    one_rate = np.ndim(fs_hz) == 0 and np.ndim(natural_frequency_hz) == 0
+    if isinstance(windows, np.ndarray) and windows.ndim == 2 and one_rate:
+        c = canonical_windows(windows, float(fs_hz), float(natural_frequency_hz), rate, periods)
+        return embedded_channels(c, delays)
     n = len(windows)
     fs = np.broadcast_to(np.asarray(fs_hz, dtype=np.float64), (n,))
     fn = np.broadcast_to(np.asarray(natural_frequency_hz, dtype=np.float64), (n,))
-    delays = default_delays(rate) if delays is None else tuple(delays)
     out = np.empty((n, len(delays), rate * periods), dtype=np.float32)
     for i in range(n):
         out[i] = embedded_channels(

@@ -266,7 +266,7 @@ def _resolve_calibration(
     return _CALIBRATION_CACHE[path]
 
 
-def _polarity(s: np.ndarray, impacts: np.ndarray) -> int:
+def impact_polarity(s: np.ndarray, impacts: np.ndarray) -> int:
     """+1 if the samples at the impacts lie above the median, -1 if below."""
     if impacts.size == 0:
         return 0
@@ -447,7 +447,7 @@ def geometric_estimate(
         n_orbits=chosen.n_orbits if chosen is not None else 0,
         threshold=sep.threshold if contact else float("inf"),
         contact_fraction=sep.contact_fraction if contact else 0.0,
-        polarity=_polarity(s, impacts) if contact else 0,
+        polarity=impact_polarity(s, impacts) if contact else 0,
         separation=sep,
         reason=reason,
     )

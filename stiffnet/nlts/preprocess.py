@@ -16,7 +16,7 @@ from stiffnet.errors import ConfigError
 from stiffnet.nlts._validate import as_signal, check_choice, check_int
 
 # 1.4826 * MAD estimates the standard deviation of Gaussian data.
-_MAD_TO_SIGMA = 1.4826
+MAD_TO_SIGMA = 1.4826
 
 
 def savgol_smooth(x: ArrayLike, window: int, polyorder: int = 2) -> np.ndarray:
@@ -125,7 +125,7 @@ def robust_threshold(indicator: ArrayLike, k: float = 8.0) -> float:
     ind = np.asarray(indicator, dtype=np.float64)
     med = float(np.median(ind))
     mad = float(np.median(np.abs(ind - med)))
-    return med + k * _MAD_TO_SIGMA * mad
+    return med + k * MAD_TO_SIGMA * mad
 
 
 def detect_impacts(

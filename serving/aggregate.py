@@ -1,0 +1,115 @@
+"""The predictor's aggregation step: per-window model outputs -> the recording's answer.
+
+Class probabilities: the mean of the windows' probabilities (robust to one odd
+window, unlike a product of probabilities); class: its arg-max. Beta: ``exp``
+of the mean log beta over the windows whose own class has contact
+(:func:`stiffnet.uncertainty.aggregate_windows`, the same function that
+calibrated the model on whole training trajectories). Its interval:
+``exp(mean +- q s)``, ``s`` the recording's error scale (the model's own scale
+output plus the disagreement of the windows) and ``q`` the model's normalised
+split-conformal quantile calibrated with one score per trajectory (metadata
+``conformal_quantile_recording``); models without it fall back to the
+per-window quantile ``exp(mean +- q)``. Segments aggregate consecutive windows
+the same way. The geometric cross-check aggregates its windows' inclinations:
+contact if at least half of them have contact, then their mean inclinations
+through the calibration give beta and class.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
+
+
+def recording_estimate(out: dict[str, np.ndarray], no_contact: int | None) -> RecordingEstimate:
+    """Class probabilities, log beta and error scale of a run of windows."""
+    return aggregate_windows(
+        out["probabilities"], out["log_beta"], out.get("log_beta_scale"), no_contact
+    )
+
+
+def named(class_names: list[str], p: np.ndarray) -> dict[str, float]:
+    """Probabilities by class name."""
+    return {n: float(v) for n, v in zip(class_names, p, strict=True)}
+
+
+def beta_interval(
+    est: RecordingEstimate, metadata: dict[str, Any], conformal_quantile: float | None
+) -> list[float] | None:
+    """Per-recording normalised interval, else the card's per-window one."""
+    if est.log_beta is None:
+        return None
+    q_rec = metadata.get("conformal_quantile_recording")
+    if isinstance(q_rec, int | float) and math.isfinite(q_rec) and est.scale is not None:
+        half = float(q_rec) * est.scale
+    elif conformal_quantile:
+        half = conformal_quantile
+    else:
+        return None
+    return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]
+
+
+def segments(
+    out: dict[str, np.ndarray],
+    starts: np.ndarray,
+    window: int,
+    fs: float,
+    per_segment: int,
+    class_names: list[str],
+    no_contact: int | None,
+) -> list[dict[str, Any]]:
+    """Consecutive runs of `per_segment` windows, each aggregated like the recording."""
+    found = []
+    n = len(starts)
+    for k, lo in enumerate(range(0, n, per_segment)):
+        hi = min(n, lo + per_segment)
+        seg = recording_estimate({name: v[lo:hi] for name, v in out.items()}, no_contact)
+        found.append(
+            {
+                "index": k,
+                "start_s": float(starts[lo] / fs),
+                "end_s": float((starts[hi - 1] + window) / fs),
+                "n_windows": hi - lo,
+                "class": class_names[seg.label],
+                "probabilities": named(class_names, seg.probabilities),
+                "beta": math.exp(seg.log_beta) if seg.log_beta is not None else None,
+            }
+        )
+    return found
+
+
+def geometric_verdict(results: list, calibration: Any) -> dict[str, Any]:
+    """Aggregate the per-window geometric results (contact in >= half the windows)."""
+    contact = [r for r in results if r is not None and r.contact_detected]
+    n = len(results)
+    out: dict[str, Any] = {
+        "class": "no_contact",
+        "beta": None,
+        "inclination_before_deg": None,
+        "inclination_after_deg": None,
+        "contact_detected": False,
+        "n_windows": n,
+        "n_windows_with_contact": len(contact),
+        "polarity": 0,
+    }
+    if not contact or 2 * len(contact) < n:
+        return out
+    before = float(np.mean([r.inclination_before_deg for r in contact]))
+    after = float(np.mean([r.inclination_after_deg for r in contact]))
+    beta, cls = calibration.predict((before, after))
+    pol = int(np.sign(sum(r.polarity for r in contact))) or contact[0].polarity
+    out.update(
+        {
+            "class": str(cls),
+            "inclination_before_deg": before,
+            "inclination_after_deg": after,
+            "contact_detected": True,
+            "polarity": pol,
+            "beta": float(beta) if np.isfinite(beta) else None,
+        }
+    )
+    return out

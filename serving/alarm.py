@@ -1,0 +1,87 @@
+"""The predictor's alarm: checks on what the model looks at, in words a user reads.
+
+The distance of the windows to the training data in the model's own
+embedding, the class ambiguity, the beta uncertainty and a beta on a class
+edge (:mod:`stiffnet.uncertainty.alarm`), each against a threshold calibrated
+on in-distribution trajectories (the model's ``NAME.alarm.npz``, verified by
+its SHA-256). A model without one falls back to the inclination-feature OOD
+score (:mod:`serving.ood`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from serving.model import LoadedModel
+from serving.ood import OODReference
+from stiffnet.errors import StiffnetError
+from stiffnet.io_utils import sha256_file
+from stiffnet.uncertainty import RecordingEstimate
+from stiffnet.uncertainty.alarm import AlarmReference, load_alarm, recording_checks
+
+#: What each alarm check means, for the warning a user reads.
+ALARM_WORDS = {
+    "embedding": "the recording does not look like the training data to the model",
+    "ambiguity": "the model cannot decide between classes",
+    "beta_uncertainty": "the beta estimate is uncertain (the windows disagree or the model "
+    "expects a large error)",
+    "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
+    "features": "the recording's inclination features are unlike the training data",
+}
+
+
+def alarm_message(fired: list[str]) -> str:
+    """The alarm's verdict in words."""
+    if not fired:
+        return "no alarm: the recording looks like the data the model was calibrated on"
+    return "UNRELIABLE: " + "; ".join(ALARM_WORDS.get(f, f) for f in fired)
+
+
+def load_model_alarm(model: LoadedModel) -> AlarmReference | None:
+    """The model's alarm reference (metadata ``alarm_reference``), verified by SHA-256."""
+    name = model.metadata.get("alarm_reference")
+    if not name:
+        return None
+    path = model.path.parent / Path(str(name)).name  # beside the model, never elsewhere
+    if not path.is_file():
+        raise StiffnetError(f"{model.path.name}: its alarm reference {path} is missing")
+    want = model.metadata.get("alarm_sha256")
+    if want and sha256_file(path) != want:
+        raise StiffnetError(f"{path}: SHA-256 does not match the model's metadata (modified?)")
+    return load_alarm(path)
+
+
+def alarm_verdict(
+    alarm: AlarmReference | None,
+    ood: OODReference | None,
+    est: RecordingEstimate,
+    out: dict[str, np.ndarray],
+    feats: np.ndarray,
+) -> dict[str, Any] | None:
+    """The alarm's checks on one recording: flag, fired checks, scores, thresholds, message."""
+    if alarm is None:
+        return None
+    emb = None
+    if "embedding" in out and "embedding" in alarm.thresholds:
+        emb = alarm.embedding_scores(out["embedding"])
+    feat = None
+    if ood is not None and len(feats) and "features" in alarm.thresholds:
+        feat = float(np.median(ood.scores(feats)))
+    edges = alarm.info.get("class_edges")
+    result = alarm.evaluate(recording_checks(est, emb, feat, edges))
+    result["scores"] = {k: v for k, v in result["scores"].items() if v is not None}
+    result["message"] = alarm_message(result["fired"])
+    return result
+
+
+def alarm_ratio(alarm: dict[str, Any] | None) -> float | None:
+    """The alarm as one number: its largest score over its threshold (fires above 1)."""
+    ratios = [
+        v / alarm["thresholds"][k]
+        for k, v in (alarm or {}).get("scores", {}).items()
+        if alarm["thresholds"].get(k)
+    ]
+    return max(ratios) if ratios else None
