@@ -370,8 +370,16 @@ def loop(
         vals = [it["metrics"].get(k) for k in cols]
         table.add_row(
             str(it["index"]),
-            ", ".join(f"{a['name']} " + " ".join(f"{k}={v:.3g}" for k, v in a["params"].items()
-                      if isinstance(v, float)) for a in it["added"]) or "–",
+            ", ".join(
+                a["name"]
+                + "".join(
+                    f" {k}={a['params'][k]:.3g}"
+                    for k in a["fitted"] or a["params"]
+                    if isinstance(a["params"][k], int | float)
+                )
+                for a in it["added"]
+            )
+            or "–",
             *("–" if v is None else f"{v:.3g}" for v in vals),
             str(it.get("model_version") or "–"),
             f"{it['seconds']['total']:.0f}",

@@ -234,7 +234,7 @@ def _train(
         "train_metrics": {
             f"train/{k}": v
             for k, v in summary["metrics"].items()
-            if k.split("/")[-1] in ("accuracy", "macro_f1", "beta_mape")
+            if k.count("/") == 1 and k.endswith(("accuracy", "macro_f1", "beta_mape"))
         },
         "epochs": summary.get("epochs"),
         "seconds": {"dataset": round(t_data, 2), "train": round(t_train, 2)},
@@ -306,7 +306,7 @@ def _effects_to_add(
                 {
                     "name": n,
                     "params": params,
-                    "fitted": [] if p else list(params),
+                    "fitted": [] if p else list(fit.get("fitted") or params),
                     "source": "given",
                 }
             )
