@@ -276,3 +276,18 @@ def test_diagnosed_loop_with_the_shipped_family(two_effects, tmp):
     assert isinstance(cfg.effects[0].params["damping_ratio"], list)  # the prior around the fit
     again = loop_mod.run_loop(camp, _ideal(), tmp / "cnn-state", iterations=1, **kw)
     assert len(again["iterations"]) == 2 and "adds no effect" in again["stopped"]
+
+
+def test_loop_uses_only_the_public_tracking_api():
+    """The loop logs through ``training.tracking``'s public functions (issue 12 point 2)."""
+    import ast
+
+    tree = ast.parse(Path(loop_mod.__file__).read_text())
+    imported = [
+        (node.module, alias.name)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("training")
+        for alias in node.names
+    ]
+    assert ("training.tracking", "log_child_run") in imported
+    assert not [name for _, name in imported if name.startswith("_")]

@@ -5,11 +5,13 @@ per iteration) so that a rerun continues from the last finished iteration:
 
 * **iteration 0** is the starting simulator config (``configs/sim/ideal.yaml``
   by default) with a model trained on it the same way the later ones are;
-* **iteration k** diagnoses the campaign against the config of iteration k-1
-  (:func:`~stiffnet.measurement.diagnose.diagnose_campaign`; or takes the effects
-  the user names), adds *every* selected effect with its fitted values as a prior
-  centred on the fit (``[p (1 - s), p (1 + s)]``, ``s`` = ``spread``, clipped to the
-  effect's declared ranges), writes ``iter-k/config.yaml`` (a
+* **iteration k** diagnoses the campaign
+  (:func:`~stiffnet.measurement.diagnose.diagnose_campaign`, from the starting
+  config with the effects added so far among the candidates, so that they are
+  refitted jointly with the new ones; or takes the effects the user names), adds
+  *every* selected effect (and updates the earlier ones) with its joint fitted values
+  as a prior centred on the fit (``[p (1 - s), p (1 + s)]``, ``s`` = ``spread``,
+  clipped to the effect's declared ranges), writes ``iter-k/config.yaml`` (a
   :class:`~stiffnet.config.sim.SimulationConfig`, loadable by ``stiffnet simulate
   --config``), generates a dataset from it, retrains the family (CNN by default,
   GBM the fast option; every iteration from scratch with the same size, seed and
@@ -262,7 +264,8 @@ def iteration_metrics(evaluation: dict[str, Any], discrepancy: float | None) -> 
 
 def _effects_to_add(
     campaign: Campaign,
-    fixed_cfg: SimulationConfig,
+    start_cfg: SimulationConfig,
+    current: list[str],
     given: list[tuple[str, dict[str, Any]]],
     model_path: str,
     seed: int,
@@ -270,15 +273,31 @@ def _effects_to_add(
     inclination: bool,
 ) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
     """(effects, diagnosis summary): the given ones (fitted when given without values), else
-    every effect the diagnosis selects, with its joint fitted values."""
+    every effect the diagnosis selects, with its joint fitted values.
+
+    The diagnosis starts from the *starting* config and has the effects the loop added
+    before (``current``) among its candidates: so they are refitted jointly with the new
+    ones (a value fitted alone in an earlier iteration, biased by an effect not yet in
+    the model, never blocks the next one), and the iteration takes every joint value.
+    """
     from stiffnet.measurement.diagnose import diagnose_campaign
 
-    base = config_effects(fixed_cfg)
+    base = config_effects(start_cfg)
     if given and all(params for _, params in given):
         return [{"name": n, "params": p, "fitted": [], "source": "given"} for n, p in given], None
-    names = [n for n, _ in given] or candidates
+    names = [n for n, _ in given] or (
+        None if candidates is None else list(dict.fromkeys([*candidates, *current]))
+    )
+    shipped = None if names is None else [n for n in names if ":" not in n]
+    users = [n for n in (names or current) if ":" in n]
     diag = diagnose_campaign(
-        campaign, base, effects=names, seed=seed, inclination=inclination, model_path=model_path
+        campaign,
+        base,
+        effects=shipped,
+        user_effects=users,
+        seed=seed,
+        inclination=inclination,
+        model_path=model_path,
     )
     summary = {
         k: diag.get(k)
@@ -377,7 +396,7 @@ def _iteration(
         write_json_atomic(work / "diagnosis.json", diagnosis)
     return {
         "index": k,
-        "label": "start" if k == 0 else "+" + "+".join(a["name"] for a in added),
+        "label": _label(k, added, prev),
         "added": added,
         "effects": effects,
         "config": str(work / "config.yaml"),
@@ -403,6 +422,16 @@ def _iteration(
         ],
         "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
     }
+
+
+def _label(k: int, added: list[dict[str, Any]], prev: list[dict[str, Any]]) -> str:
+    """``start``, ``+new+new`` and, for effects already there and refitted, ``(refit x)``."""
+    if k == 0:
+        return "start"
+    had = {effect_class(e["name"]).name for e in prev}
+    new = [a["name"] for a in added if effect_class(a["name"]).name not in had]
+    refit = [a["name"] for a in added if effect_class(a["name"]).name in had]
+    return "+".join(["", *new]) + (f" (refit {', '.join(refit)})" if refit else "")
 
 
 def _track(state: dict[str, Any], it: dict[str, Any], chart: Path) -> None:
@@ -560,15 +589,14 @@ def run_loop(
                 if k > 0:
                     bar.update(note=f"iteration {k}: diagnosis")
                     last = state["iterations"][-1]
-                    fixed = config_with_effects(
-                        start_cfg, [(e["name"], e["params"]) for e in last["effects"]]
-                    )
+                    current = [e["name"] for e in last["effects"]]
                     if diagnosis is not None and not add_effects:
                         added, diag_summary = _from_diagnosis(diagnosis)
                     else:
                         added, diag_summary = _effects_to_add(
                             campaign,
-                            fixed,
+                            start_cfg,
+                            current,
                             list(add_effects or []),
                             last["model"],
                             state["seed"],
@@ -576,9 +604,15 @@ def run_loop(
                             inclination,
                         )
                     diagnosis, add_effects = None, None  # the first new iteration only
-                    if not added:
+                    classes = {effect_class(n).name for n in current}
+                    nothing_new = all(
+                        a["source"] == "diagnosis" and effect_class(a["name"]).name in classes
+                        for a in added
+                    )
+                    if nothing_new:
                         state["stopped"] = (
-                            f"iteration {k}: the diagnosis adds no effect (verdict "
+                            f"iteration {k}: the diagnosis adds no effect beyond "
+                            f"{', '.join(current) or 'the starting config'} (verdict "
                             f"{(diag_summary or {}).get('verdict')}); nothing left to iterate"
                         )
                         break
