@@ -9,13 +9,11 @@ runs; the slow one lets the diagnosis find both effects and trains the default f
 
 from __future__ import annotations
 
-import csv
 import json
-import shutil
 from pathlib import Path
 
 import pytest
-from campaign_helpers import short_manifest
+from campaign_helpers import short_manifest, without_beta
 from typer.testing import CliRunner
 
 from stiffnet.campaign import load_campaign, simulate_campaign
@@ -221,15 +219,7 @@ def test_bad_loop_options_are_one_line(two_effects, tmp, args, needle):
 
 def test_field_campaign_without_beta(two_effects, tmp):
     """No β: the error is the discrepancy and the agreement with the restoring force."""
-    field = tmp / "field"
-    shutil.copytree(two_effects / "recordings", field / "recordings")
-    with open(two_effects / "manifest.csv", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    with open(field / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
-        cols = [c for c in rows[0] if c != "beta"]
-        w = csv.DictWriter(fh, fieldnames=cols, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
+    field = without_beta(two_effects, tmp / "field")
     res = loop_mod.run_loop(
         load_campaign(field),
         _ideal(),

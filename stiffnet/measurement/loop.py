@@ -262,6 +262,16 @@ def iteration_metrics(evaluation: dict[str, Any], discrepancy: float | None) -> 
     }
 
 
+#: What an iteration keeps of its diagnosis (the full result is in ``iter-k/diagnosis.json``).
+DIAGNOSIS_SUMMARY = ("baseline_discrepancy", "residual_discrepancy", "noise_floor", "verdict",
+                     "explained_fraction", "missing_effects", "summary", "seconds")  # fmt: skip
+
+
+def diagnosis_summary(diagnosis: dict[str, Any]) -> dict[str, Any]:
+    """The verdict and numbers of a diagnosis that the loop's state keeps."""
+    return {k: diagnosis.get(k) for k in DIAGNOSIS_SUMMARY}
+
+
 def _effects_to_add(
     campaign: Campaign,
     start_cfg: SimulationConfig,
@@ -272,7 +282,7 @@ def _effects_to_add(
     candidates: list[str] | None,
     inclination: bool,
 ) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
-    """(effects, diagnosis summary): the given ones (fitted when given without values), else
+    """(effects, diagnosis result): the given ones (fitted when given without values), else
     every effect the diagnosis selects, with its joint fitted values.
 
     The diagnosis starts from the *starting* config and has the effects the loop added
@@ -299,19 +309,6 @@ def _effects_to_add(
         inclination=inclination,
         model_path=model_path,
     )
-    summary = {
-        k: diag.get(k)
-        for k in (
-            "baseline_discrepancy",
-            "residual_discrepancy",
-            "noise_floor",
-            "verdict",
-            "explained_fraction",
-            "missing_effects",
-            "summary",
-            "seconds",
-        )
-    }
     by_name = {r["effect"]: r for r in diag["ranking"]}
     if given:  # the user's choice: added even where the diagnosis would not select it
         out = []
@@ -329,13 +326,13 @@ def _effects_to_add(
                     "source": "given",
                 }
             )
-        return out, summary
+        return out, diag
     out = []
     for n in diag["missing_effects"]:
         params = {k: float(v) for k, v in diag["fitted_params"][n].items()}
         fitted = list(by_name.get(n, {}).get("fitted") or params)
         out.append({"name": n, "params": params, "fitted": fitted, "source": "diagnosis"})
-    return out, summary
+    return out, diag
 
 
 def _iteration(
@@ -404,7 +401,7 @@ def _iteration(
         "card": trained["card"],
         "metrics": metrics,
         "train_metrics": trained["train_metrics"],
-        "diagnosis": diagnosis,
+        "diagnosis": diagnosis_summary(diagnosis) if diagnosis is not None else None,
         "recordings": [
             {
                 c: r.get(c)
@@ -585,15 +582,15 @@ def run_loop(
             for _ in range(todo):
                 k = len(state["iterations"])
                 added: list[dict[str, Any]] = []
-                diag_summary = None
+                diag_result = None
                 if k > 0:
                     bar.update(note=f"iteration {k}: diagnosis")
                     last = state["iterations"][-1]
                     current = [e["name"] for e in last["effects"]]
                     if diagnosis is not None and not add_effects:
-                        added, diag_summary = _from_diagnosis(diagnosis)
+                        added, diag_result = _from_diagnosis(diagnosis)
                     else:
-                        added, diag_summary = _effects_to_add(
+                        added, diag_result = _effects_to_add(
                             campaign,
                             start_cfg,
                             current,
@@ -610,10 +607,11 @@ def run_loop(
                         for a in added
                     )
                     if nothing_new:
+                        state["stopped_diagnosis"] = diagnosis_summary(diag_result or {})
                         state["stopped"] = (
                             f"iteration {k}: the diagnosis adds no effect beyond "
                             f"{', '.join(current) or 'the starting config'} (verdict "
-                            f"{(diag_summary or {}).get('verdict')}); nothing left to iterate"
+                            f"{(diag_result or {}).get('verdict')}); nothing left to iterate"
                         )
                         break
                 it = _iteration(
@@ -623,7 +621,7 @@ def run_loop(
                     folder,
                     start_cfg,
                     added,
-                    diag_summary,
+                    diag_result,
                     train_overrides,
                     keep_data,
                     bar,
@@ -648,6 +646,7 @@ def run_loop(
         "after": {**its[-1]["metrics"], "run_id": its[-1].get("run_id")} if its else {},
         "effect": ", ".join(e["name"] for e in its[-1]["effects"]) if its else "",
         "stopped": state["stopped"],
+        "stopped_diagnosis": state.get("stopped_diagnosis") if state["stopped"] else None,
         "experiment": state["experiment"] if tracking_uri else None,
         "parent_run_id": state.get("parent_run_id") if tracking_uri else None,
         "registered_model": state["registered_model"] if tracking_uri else None,
@@ -676,16 +675,4 @@ def _from_diagnosis(diagnosis: dict[str, Any]) -> tuple[list[dict[str, Any]], di
                 "source": "diagnosis",
             }
         )
-    summary = {
-        k: diagnosis.get(k)
-        for k in (
-            "baseline_discrepancy",
-            "residual_discrepancy",
-            "noise_floor",
-            "verdict",
-            "explained_fraction",
-            "missing_effects",
-            "summary",
-        )
-    }
-    return added, summary
+    return added, diagnosis
