@@ -131,7 +131,7 @@ def write_config_yaml(cfg: SimulationConfig, path: Path, header: str) -> Simulat
     from stiffnet.config import load_config
     from stiffnet.io_utils import write_bytes_atomic
 
-    body = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False)
+    body = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
     text = "".join(f"# {line}\n" for line in header.splitlines()) + body
     write_bytes_atomic(path, text.encode())
     back = load_config(SimulationConfig, path)
@@ -585,6 +585,7 @@ def run_loop(
                 diag_result = None
                 if k > 0:
                     bar.update(note=f"iteration {k}: diagnosis")
+                    t_diag = time.perf_counter()
                     last = state["iterations"][-1]
                     current = [e["name"] for e in last["effects"]]
                     if diagnosis is not None and not add_effects:
@@ -614,6 +615,7 @@ def run_loop(
                             f"{(diag_result or {}).get('verdict')}); nothing left to iterate"
                         )
                         break
+                diag_s = round(time.perf_counter() - t_diag, 2) if k > 0 else 0.0
                 it = _iteration(
                     k,
                     campaign,
@@ -626,6 +628,8 @@ def run_loop(
                     keep_data,
                     bar,
                 )
+                it["seconds"]["diagnosis"] = diag_s  # the iteration's wall time includes it
+                it["seconds"]["total"] = round(it["seconds"]["total"] + diag_s, 2)
                 state["iterations"].append(it)
                 chart = _chart(folder, state)
                 if tracking_uri:
