@@ -81,7 +81,7 @@ def looped(two_effects, tmp):
             state,
             iterations=1,
             add_effects=[("contact_damping", {"damping_ratio": 0.25})],
-            **kw,
+            tracking_uri=uri,  # family and dataset size: the state's
         )
     return {"first": first, "second": second, "uri": uri, "state": state, "charts": charts}
 
@@ -91,6 +91,7 @@ def test_two_iterations_with_resume(looped):
     assert [it["index"] for it in first["iterations"]] == [0, 1]
     assert [it["index"] for it in second["iterations"]] == [0, 1, 2]  # resumed, not restarted
     assert second["iterations"][:2] == first["iterations"]
+    assert second["family"] == "gbm" and second["n_trajectories"] == TINY
     saved = json.loads((state / "state.json").read_text())
     assert [it["label"] for it in saved["iterations"]] == [
         "start",

@@ -305,8 +305,14 @@ def loop(
     ] = None,
     config: ConfigOpt = None,
     family: Annotated[
-        str, typer.Option("--family", "--model", help="Model family: cnn (shipped) or gbm (fast).")
-    ] = "cnn",
+        str | None,
+        typer.Option(
+            "--family",
+            "--model",
+            help="Model family: cnn (shipped, the default) or gbm (fast); a resumed loop keeps "
+            "its own.",
+        ),
+    ] = None,
     n_trajectories: Annotated[
         int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
     ] = None,
@@ -336,15 +342,16 @@ def loop(
     from stiffnet.inputs import bounded_count
     from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
 
-    check_family(family)
+    if family is not None:
+        check_family(family)
     check_n_trajectories(n_trajectories)
     bounded_count(max_epochs, "--max-epochs", 1, 1000)
     given = [parse_effect_option(t) for t in add_effect or []]
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs and family == "cnn" else None
-    console.print(f"loop on {campaign}: {iterations} new iteration(s), {family}")
+    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs else None
+    console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
         res = run_loop(
             camp,

@@ -164,7 +164,7 @@ def _open_state(folder: Path, campaign: Campaign, settings: dict[str, Any]) -> d
                 f"{folder}: the state belongs to another campaign ({state.get('campaign')}); "
                 "choose another --state folder"
             )
-        for key in ("family", "n_trajectories", "spread", "seed"):
+        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides"):
             if settings.get(key) is not None and settings[key] != state.get(key):
                 raise StiffnetError(
                     f"{folder}: the loop was started with {key} {state.get(key)!r}, not "
@@ -343,7 +343,6 @@ def _iteration(
     start_cfg: SimulationConfig,
     added: list[dict[str, Any]],
     diagnosis: dict[str, Any] | None,
-    train_overrides: dict[str, Any] | None,
     keep_data: bool,
     bar: Any,
 ) -> dict[str, Any]:
@@ -379,7 +378,7 @@ def _iteration(
         "stiffnet simulate --config this file",
     )
     bar.update(note=f"iteration {k}: dataset + {state['family']} training")
-    trained = _train(train_cfg, work, state["family"], train_overrides, keep_data)
+    trained = _train(train_cfg, work, state["family"], state["train_overrides"], keep_data)
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     evaluation = evaluate_campaign(
         campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
@@ -492,7 +491,7 @@ def run_loop(
     iterations: int = 1,
     add_effects: list[tuple[str, dict[str, Any]]] | None = None,
     diagnosis: dict[str, Any] | None = None,
-    family: str = FAMILIES[0],
+    family: str | None = None,
     n_trajectories: int | None = None,
     spread: float | None = None,
     tracking_uri: str | None = "sqlite:///mlflow.db",
@@ -520,7 +519,8 @@ def run_loop(
     diagnosis : dict, optional
         A ``diagnose --json`` result against the last iteration's config, used by the
         first new iteration instead of diagnosing again.
-    family : {"cnn", "gbm"}
+    family : {"cnn", "gbm"}, optional
+        Default: the state's; ``cnn`` (the shipped family) for a new loop.
     n_trajectories : int, optional
         Trajectories per dataset (default :data:`DEFAULT_TRAJECTORIES`).
     spread : float, optional
@@ -528,6 +528,7 @@ def run_loop(
     tracking_uri : str or None
         MLflow store; None disables tracking.
     train_overrides : dict, optional
+        (Kept in the state: a resumed loop trains as it started.)
         TrainConfig fields over ``configs/train/FAMILY.yaml`` and :data:`LOOP_TRAINING`.
     seed : int, optional
         Common-random-number seed of the diagnosis and the discrepancy.
@@ -546,7 +547,8 @@ def run_loop(
         ``before`` / ``after`` (metrics of the first and the last), ``chart``,
         ``stopped`` (why no effect was added, or None), ``out`` (the state folder).
     """
-    check_family(family)
+    if family is not None:
+        check_family(family)
     check_n_trajectories(n_trajectories)
     if not 0 <= iterations <= 100:
         raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
@@ -558,6 +560,7 @@ def run_loop(
         "n_trajectories": n_trajectories,
         "spread": spread,
         "seed": seed,
+        "train_overrides": train_overrides,
         "manifest_sha256": sha256_file(campaign.manifest_path),
     }
     t0 = time.perf_counter()
@@ -565,6 +568,7 @@ def run_loop(
         state = _open_state(folder, campaign, settings)
         if not state["iterations"]:  # a new state: its settings with the defaults filled in
             state.update(
+                family=family or FAMILIES[0],
                 n_trajectories=n_trajectories or DEFAULT_TRAJECTORIES,
                 spread=DEFAULT_SPREAD if spread is None else spread,
                 seed=DEFAULT_SEED if seed is None else seed,
@@ -624,7 +628,6 @@ def run_loop(
                     start_cfg,
                     added,
                     diag_result,
-                    train_overrides,
                     keep_data,
                     bar,
                 )
