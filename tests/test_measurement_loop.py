@@ -282,3 +282,33 @@ def test_loop_uses_only_the_public_tracking_api():
     ]
     assert ("training.tracking", "log_child_run") in imported
     assert not [name for _, name in imported if name.startswith("_")]
+
+
+def test_given_diagnosis_and_an_interrupted_iteration(two_effects, tmp):
+    """``--diagnosis``: its selected effects with their joint fits; a half-written iteration
+    folder (a killed run) is redone, not mixed in."""
+    state = tmp / "given-diagnosis"
+    camp = load_campaign(two_effects)
+    kw = dict(family="gbm", n_trajectories=TINY, tracking_uri=None)
+    start = loop_mod.run_loop(camp, _ideal(), state, iterations=0, **kw)
+    assert [it["index"] for it in start["iterations"]] == [0]
+    (state / "iter-001").mkdir()
+    (state / "iter-001" / "leftover.npy").write_bytes(b"partial")
+    diagnosis = {
+        "missing_effects": ["contact_damping", "sensor_dynamics"],
+        "fitted_params": {"contact_damping": {"damping_ratio": 0.25},
+                          "sensor_dynamics": SENSOR_PARAMS},
+        "ranking": [{"effect": "contact_damping", "fitted": ["damping_ratio"]},
+                    {"effect": "sensor_dynamics", "fitted": ["resonance_hz"]}],
+        "verdict": "explained",
+    }  # fmt: skip
+    res = loop_mod.run_loop(camp, _ideal(), state, diagnosis=diagnosis, **kw)
+    assert not (state / "iter-001" / "leftover.npy").exists()
+    it = res["iterations"][1]
+    assert it["diagnosis"]["verdict"] == "explained"
+    cfg = load_config(SimulationConfig, it["config"])
+    damping, sensor = cfg.effects
+    assert damping.params["damping_ratio"] == pytest.approx([0.1875, 0.3125])
+    assert sensor.params["resonance_hz"] == pytest.approx([177.75, 296.25])
+    assert sensor.params["resonance_damping"] == 0.03  # not fitted: fixed
+    assert it["metrics"]["discrepancy"] < 0.01 * res["before"]["discrepancy"]
