@@ -9,11 +9,19 @@ per-epoch ``train_loss`` / ``val_loss`` as step metrics (CNN), and the exported
 ONNX file as a *logged model* (``mlflow.onnx.log_model``: MLmodel with the input
 signature read from the graph, the model card as its metadata, the ONNX Runtime
 requirement) linked to the run's metrics, so ``models:/<model_id>`` loads it.
+
+Public API for the other layers (the measurement loop imports nothing private):
+:func:`use_experiment`, :func:`log_run` (one training run), :func:`parent_run` and
+:func:`log_child_run` (a process of resumable steps: one parent, a nested run per step,
+its model registered in the Model Registry), :func:`log_parent_artifact`,
+:func:`log_onnx_model`, :func:`finite_metrics`, :func:`clean_key`,
+:func:`artifact_location`.
 """
 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -222,7 +230,7 @@ def log_child_run(
     params: dict[str, Any],
     metrics: dict[str, float | None],
     tags: dict[str, str] | None = None,
-    artifacts: list[str | Path] = (),  # type: ignore[assignment]
+    artifacts: Sequence[str | Path] = (),
     onnx_model: str | Path | None = None,
     registered_model: str | None = None,
 ) -> dict[str, Any]:
