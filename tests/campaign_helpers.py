@@ -19,3 +19,19 @@ def short_manifest(tmp: Path, n: int | None = None, duration_s: str = "3") -> Pa
         for r in rows:
             w.writerow({**r, "duration_s": duration_s})
     return out
+
+
+def without_beta(campaign: Path, out: Path) -> Path:
+    """A field-campaign copy of ``campaign`` (its recordings, the manifest less ``beta``)."""
+    import shutil
+
+    shutil.copytree(campaign / "recordings", out / "recordings")
+    with open(campaign / "manifest.csv", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    with open(out / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
+        w = csv.DictWriter(
+            fh, fieldnames=[c for c in rows[0] if c != "beta"], extrasaction="ignore"
+        )
+        w.writeheader()
+        w.writerows(rows)
+    return out

@@ -129,7 +129,7 @@ def test_measurement_knobs_are_checked_first(tmp_path):
     one_line_error(["diagnose", CAMPAIGN, "--budget-numerical", "0"], "--budget-numerical")
     for n in ("8", "0"):
         args = ["loop", CAMPAIGN, "--add-effect", "hertz_contact", "--n-trajectories", n]
-        one_line_error([*args, "--out", tmp_path / "loop", "--no-tracking"], "--n-trajectories")
+        one_line_error([*args, "--state", tmp_path / "loop", "--no-tracking"], "--n-trajectories")
     assert not (tmp_path / "loop").exists()
     empty = tmp_path / "d.json"
     empty.write_text("{}")

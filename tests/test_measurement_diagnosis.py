@@ -16,7 +16,7 @@ import shutil
 from pathlib import Path
 
 import pytest
-from campaign_helpers import short_manifest
+from campaign_helpers import short_manifest, without_beta
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.measurement.diagnose import diagnose_campaign
@@ -87,15 +87,7 @@ def test_physical_units_manifest_with_errors(damped5, tmp):
 
 
 def test_field_campaign_without_beta(damped5, tmp):
-    out = tmp / "field"
-    shutil.copytree(damped5 / "recordings", out / "recordings")
-    with open(damped5 / "manifest.csv", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    with open(out / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
-        keep = [c for c in rows[0] if c != "beta"]
-        w = csv.DictWriter(fh, fieldnames=keep, extrasaction="ignore")
-        w.writeheader()
-        w.writerows(rows)
+    out = without_beta(damped5, tmp / "field")
     d = _diagnose(out)
     assert d["missing_effects"] == ["contact_damping"]
     assert d["fitted_params"]["contact_damping"]["damping_ratio"] == pytest.approx(0.25, rel=0.2)

@@ -9,11 +9,19 @@ per-epoch ``train_loss`` / ``val_loss`` as step metrics (CNN), and the exported
 ONNX file as a *logged model* (``mlflow.onnx.log_model``: MLmodel with the input
 signature read from the graph, the model card as its metadata, the ONNX Runtime
 requirement) linked to the run's metrics, so ``models:/<model_id>`` loads it.
+
+Public API for the other layers (the measurement loop imports nothing private):
+:func:`use_experiment`, :func:`log_run` (one training run), :func:`parent_run` and
+:func:`log_child_run` (a process of resumable steps: one parent, a nested run per step,
+its model registered in the Model Registry), :func:`log_parent_artifact`,
+:func:`log_onnx_model`, :func:`finite_metrics`, :func:`clean_key`,
+:func:`artifact_location`.
 """
 
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -64,17 +72,21 @@ def confusion_png(cm: np.ndarray, class_names: list[str], title: str, path: str 
     return Path(path)
 
 
-def _artifact_location(uri: str) -> str | None:
-    """For a SQLite store, artifacts go to ``mlruns/`` beside the database file (MLflow's
-    default would be ``./mlruns`` under whatever folder the process runs in)."""
+def artifact_location(uri: str) -> str | None:
+    """Where a new experiment of a store keeps its artifacts.
+
+    For a SQLite store, ``mlruns/`` beside the database file (MLflow's default
+    would be ``./mlruns`` under whatever folder the process runs in); None (MLflow's
+    choice) for any other store.
+    """
     if not uri.startswith("sqlite:///"):
         return None
     db = Path(uri.removeprefix("sqlite:///")).resolve()
     return (db.parent / "mlruns").as_uri()
 
 
-def _clean_key(key: str) -> str:
-    # MLflow allows alphanumerics, _ - . space : / ; keep the names readable
+def clean_key(key: str) -> str:
+    """A parameter or metric name MLflow accepts (alphanumerics, ``_ - . space : /``)."""
     return "".join(c if c.isalnum() or c in "_-./ :" else "_" for c in key)
 
 
@@ -129,15 +141,10 @@ def log_run(
     """
     import mlflow
 
-    uri = tracking_uri or DEFAULT_TRACKING_URI
-    mlflow.set_tracking_uri(uri)
-    client = mlflow.MlflowClient(uri)
-    if client.get_experiment_by_name(experiment) is None:
-        client.create_experiment(experiment, artifact_location=_artifact_location(uri))
-    mlflow.set_experiment(experiment)
+    use_experiment(tracking_uri, experiment)
     with mlflow.start_run(tags=tags or {}) as run:
-        mlflow.log_params({_clean_key(k): v for k, v in params.items()})
-        finite = {_clean_key(k): float(v) for k, v in metrics.items() if np.isfinite(v)}
+        mlflow.log_params({clean_key(k): v for k, v in params.items()})
+        finite = finite_metrics(metrics)
         mlflow.log_metrics(finite)
         for h in history or []:
             step = {k: float(v) for k, v in h.items() if k != "epoch" and np.isfinite(v)}
@@ -153,6 +160,141 @@ def log_run(
                 png = confusion_png(cm, class_names, f"{name} (test)", Path(tmp) / f"{name}.png")
                 mlflow.log_artifact(str(png), artifact_path="figures")
         return run.info.run_id
+
+
+def use_experiment(tracking_uri: str | None, experiment: str) -> str:
+    """Point MLflow at ``tracking_uri`` and make ``experiment`` the active one.
+
+    The experiment is created when missing (artifacts beside a SQLite store, see
+    :func:`artifact_location`).
+
+    Returns
+    -------
+    str
+        The experiment id.
+    """
+    import mlflow
+
+    uri = tracking_uri or DEFAULT_TRACKING_URI
+    mlflow.set_tracking_uri(uri)
+    client = mlflow.MlflowClient(uri)
+    found = client.get_experiment_by_name(experiment)
+    exp_id = (
+        found.experiment_id
+        if found is not None
+        else client.create_experiment(experiment, artifact_location=artifact_location(uri))
+    )
+    mlflow.set_experiment(experiment_id=exp_id)
+    return str(exp_id)
+
+
+def finite_metrics(metrics: dict[str, float | None]) -> dict[str, float]:
+    """Metrics with MLflow-safe names, None and non-finite values left out."""
+    return {
+        clean_key(k): float(v)
+        for k, v in metrics.items()
+        if v is not None and not isinstance(v, bool) and np.isfinite(v)
+    }
+
+
+def parent_run(tracking_uri: str | None, experiment: str, run_id: str | None, name: str,
+               tags: dict[str, str] | None = None) -> str:  # fmt: skip
+    """The id of the run ``run_id`` if the store has it, else of a new run ``name``.
+
+    The run of a process made of several resumable steps (the measurement loop):
+    each step is a child run (:func:`log_child_run`) and the parent carries the
+    per-step metrics as a series.
+    """
+    import mlflow
+    from mlflow.exceptions import MlflowException
+
+    exp_id = use_experiment(tracking_uri, experiment)
+    client = mlflow.MlflowClient(tracking_uri or DEFAULT_TRACKING_URI)
+    if run_id:
+        try:
+            return client.get_run(run_id).info.run_id
+        except MlflowException:
+            pass  # another store, or the run was deleted: start a new parent
+    run = client.create_run(exp_id, run_name=name, tags=tags or {})
+    client.set_terminated(run.info.run_id)
+    return run.info.run_id
+
+
+def log_child_run(
+    *,
+    tracking_uri: str | None,
+    experiment: str,
+    parent_run_id: str,
+    name: str,
+    step: int,
+    params: dict[str, Any],
+    metrics: dict[str, float | None],
+    tags: dict[str, str] | None = None,
+    artifacts: Sequence[str | Path] = (),
+    onnx_model: str | Path | None = None,
+    registered_model: str | None = None,
+) -> dict[str, Any]:
+    """Log one step of a parent run as a nested run; optionally register its model.
+
+    Parameters
+    ----------
+    tracking_uri, experiment : str
+        Store and experiment (created if missing).
+    parent_run_id : str
+        From :func:`parent_run`; the step's metrics are also logged there with
+        ``step`` (so the parent shows them against the step).
+    name : str
+        Run name.
+    step : int
+        Step index (tag ``stiffnet.step``).
+    params, metrics : dict
+        Flat; None and non-finite metrics are left out.
+    tags : dict, optional
+    artifacts : list of path
+        Files logged under ``files/``.
+    onnx_model : path, optional
+        Logged as the run's model (:func:`log_onnx_model`, card as metadata).
+    registered_model : str, optional
+        Register that model under this name in the Model Registry (a new version).
+
+    Returns
+    -------
+    dict
+        ``run_id``, ``model_id``, ``model_uri``, ``model_version`` (None when not
+        logged or registered).
+    """
+    import mlflow
+
+    use_experiment(tracking_uri, experiment)
+    client = mlflow.MlflowClient(tracking_uri or DEFAULT_TRACKING_URI)
+    finite = finite_metrics(metrics)
+    out: dict[str, Any] = {"model_id": None, "model_uri": None, "model_version": None}
+    all_tags = {"stiffnet.step": str(step), **(tags or {})}
+    with mlflow.start_run(run_name=name, parent_run_id=parent_run_id, tags=all_tags) as run:
+        out["run_id"] = run.info.run_id
+        mlflow.log_params({clean_key(k): str(v)[:500] for k, v in params.items()})
+        mlflow.log_metrics(finite)
+        for a in artifacts:
+            mlflow.log_artifact(str(a), artifact_path="files")
+        if onnx_model is not None:
+            info = log_onnx_model(onnx_model)
+            mlflow.log_metrics(finite, model_id=info.model_id)
+            out["model_id"], out["model_uri"] = info.model_id, info.model_uri
+            if registered_model:
+                version = mlflow.register_model(info.model_uri, registered_model, tags=all_tags)
+                out["model_version"] = int(version.version)
+    for k, v in finite.items():
+        client.log_metric(parent_run_id, k, v, step=step)
+    return out
+
+
+def log_parent_artifact(tracking_uri: str | None, run_id: str, path: str | Path) -> None:
+    """Attach a file (e.g. a chart over all steps) to a finished run, under ``files/``."""
+    import mlflow
+
+    mlflow.MlflowClient(tracking_uri or DEFAULT_TRACKING_URI).log_artifact(
+        run_id, str(path), artifact_path="files"
+    )
 
 
 def onnx_signature(model: Any) -> Any:

@@ -61,7 +61,7 @@ def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
 _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
     "diagnosis": {"baseline_discrepancy": (int, float), "ranking": list,
                   "missing_effect": (str, type(None))},
-    "loop": {"before": dict, "after": dict, "effect": str},
+    "loop": {"before": dict, "after": dict, "iterations": list},
 }  # fmt: skip
 
 
@@ -280,57 +280,123 @@ def diagnose(
 
 def loop(
     campaign: CampaignArg,
-    add_effect: Annotated[str, typer.Option("--add-effect", help="Effect to add (name).")],
+    state: Annotated[
+        Path | None,
+        typer.Option(
+            "--state",
+            help="State folder (default: CAMPAIGN-loop beside the campaign; runs/loop-NAME for "
+            "a shipped example). An existing one resumes after its last iteration.",
+        ),
+    ] = None,
+    iterations: Annotated[
+        int, typer.Option(help="New iterations to run (iteration 0, the start, comes first).")
+    ] = 1,
+    add_effect: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--add-effect",
+            help="Effect the next iteration adds instead of the diagnosed ones, NAME or "
+            "NAME:k=v,... (repeatable; without values it is fitted).",
+        ),
+    ] = None,
     diagnosis: Annotated[
-        Path | None, typer.Option(help="A `diagnose --json` result with the effect's fit.")
+        Path | None,
+        typer.Option(help="A `diagnose --json` result against the last iteration's config."),
     ] = None,
     config: ConfigOpt = None,
+    family: Annotated[
+        str | None,
+        typer.Option(
+            "--family",
+            "--model",
+            help="Model family: cnn (shipped, the default) or gbm (fast); a resumed loop keeps "
+            "its own.",
+        ),
+    ] = None,
     n_trajectories: Annotated[
-        int | None,
-        typer.Option(help="Trajectories per generated dataset (default: the config's, 2000)."),
+        int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
     ] = None,
     spread: Annotated[
-        float, typer.Option(help="Relative spread of the added effect's parameters.")
-    ] = 0.25,
-    model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
-    out_dir: Annotated[Path, typer.Option("--out", help="Folder for data, models, chart.")] = Path(
-        "runs/loop"
-    ),
+        float | None,
+        typer.Option(help="Relative half-width of the prior around each fitted value (0.25)."),
+    ] = None,
+    effect: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--effect", help="Candidate effect of the diagnosis (repeatable; default all)."
+        ),
+    ] = None,
+    max_epochs: Annotated[
+        int | None, typer.Option(help="CNN epochs per iteration (default 15).")
+    ] = None,
+    keep_data: Annotated[bool, typer.Option(help="Keep each iteration's dataset.")] = False,
+    seed: Annotated[int | None, typer.Option(help="Seed of the diagnosis and discrepancy.")] = None,
     tracking_uri: Annotated[str, typer.Option(help="MLflow tracking URI.")] = "sqlite:///mlflow.db",
-    tracking: Annotated[bool, typer.Option(help="Log before/after runs to MLflow.")] = True,
+    tracking: Annotated[bool, typer.Option(help="Log the iterations to MLflow.")] = True,
     json_path: JsonOption = None,
 ) -> None:
-    """Add an effect to the simulator, regenerate data, retrain, re-evaluate: before vs after."""
+    """Iterate: diagnose, add the missing effects to the simulator, retrain, re-evaluate."""
     from rich.table import Table
 
-    from stiffnet.measurement.loop import check_n_trajectories, run_loop
+    from stiffnet.effects.registry import parse_effect_option
+    from stiffnet.inputs import bounded_count
+    from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
 
+    if family is not None:
+        check_family(family)
     check_n_trajectories(n_trajectories)
+    bounded_count(max_epochs, "--max-epochs", 1, 1000)
+    given = [parse_effect_option(t) for t in add_effect or []]
+    diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    n = n_trajectories or cfg.n_trajectories
-    console.print(f"loop on {campaign}: +{add_effect}, {n} trajectories per dataset, {model}")
+    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs else None
+    console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
         res = run_loop(
             camp,
             cfg,
-            add_effect,
-            out_dir,
-            diagnosis=_read_json(diagnosis, "diagnosis"),
+            state,
+            iterations=iterations,
+            add_effects=given,
+            diagnosis=diag,
+            family=family,
             n_trajectories=n_trajectories,
             spread=spread,
-            model=model,
             tracking_uri=tracking_uri if tracking else None,
+            train_overrides=overrides,
+            seed=seed,
+            candidates=list(effect) if effect else None,
         )
-    table = Table(title=f"loop +{add_effect} on {campaign} ({res['seconds']:.0f} s)")
-    for col in ("", "accuracy", "beta MAPE", "geometric acc.", "discrepancy", "run id"):
+    table = Table(title=f"loop on {campaign} ({res['family']}, {res['seconds']:.0f} s this run)")
+    cols = ("discrepancy", "accuracy", "beta_mape", "restoring_force_agreement")
+    for col in ("iteration", "effects added", "discrepancy", "accuracy", "beta MAPE",
+                "agreement (restoring force)", "model version", "s"):  # fmt: skip
         table.add_column(col)
-    for key in ("before", "after"):
-        r = res[key]
-        vals = [r.get(k) for k in ("accuracy", "beta_mape", "geometric_accuracy", "discrepancy")]
-        table.add_row(key, *("–" if v is None else f"{v:.3g}" for v in vals), str(r["run_id"]))
+    for it in res["iterations"]:
+        vals = [it["metrics"].get(k) for k in cols]
+        table.add_row(
+            str(it["index"]),
+            ", ".join(
+                a["name"]
+                + "".join(
+                    f" {k}={a['params'][k]:.3g}"
+                    for k in a["fitted"] or a["params"]
+                    if isinstance(a["params"][k], int | float)
+                )
+                for a in it["added"]
+            )
+            or "–",
+            *("–" if v is None else f"{v:.3g}" for v in vals),
+            str(it.get("model_version") or "–"),
+            f"{it['seconds']['total']:.0f}",
+        )  # fmt: skip
     out.print(table)
-    out.print(f"chart written to {res['chart']}")
+    if res["stopped"]:
+        out.print(res["stopped"])
+    out.print(f"state in {res['out']}; chart {res['chart']}")
+    if res["iterations"]:
+        out.print(f"latest model: {res['iterations'][-1]['model']} (stiffnet predict --model)")
     write_json(json_path, res)
 
 

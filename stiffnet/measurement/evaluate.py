@@ -142,6 +142,7 @@ def evaluate_campaign(
     campaign: Campaign,
     model_path: str | None = None,
     dynamics: Sequence[Effect] = (),
+    require_beta: bool = True,
 ) -> dict[str, Any]:
     """Predictions and metrics of the learned model and the geometric method on a campaign.
 
@@ -152,6 +153,9 @@ def evaluate_campaign(
         ONNX model (default: the predictor's, ``models/cnn.onnx``).
     dynamics : sequence of Effect
         The current model's effects, for the impact regime by simulation.
+    require_beta : bool
+        Refuse a campaign without any β (the ``evaluate`` command); the loop
+        evaluates field campaigns too, where only the agreements mean something.
 
     Returns
     -------
@@ -165,7 +169,7 @@ def evaluate_campaign(
     """
     from serving.predictor import Predictor
 
-    if all(r.beta is None for r in campaign.rows):
+    if require_beta and all(r.beta is None for r in campaign.rows):
         raise StiffnetError(
             f"{campaign.manifest_path}: no recording has a known beta (manifest column beta): "
             "evaluate needs a calibration campaign; use predict-batch for unknown ones"

@@ -1,27 +1,37 @@
-"""One iteration of the measure-diagnose-fix loop: add an effect, retrain, re-evaluate.
+"""The measure-diagnose-fix loop, iterated: add the missing effects, retrain, re-evaluate.
 
-``run_loop`` takes a campaign, the current simulator config and the name of an
-effect (with its fitted parameters from a diagnose result, or fitted now):
+``run_loop`` keeps a **state folder** (``state.json`` and one ``iter-NNN/`` folder
+per iteration) so that a rerun continues from the last finished iteration:
 
-1. **before**: a dataset from the current config, a model trained on it
-   (GBM by default), evaluated on the campaign; the simulator-measurement
-   discrepancy of the current config;
-2. **after**: the config plus the effect with its fitted parameters and a
-   spread of +-``spread`` (relative, clipped to the declared ranges) drawn per
-   trajectory, a dataset of the same size and seed, a model trained the same
-   way, evaluated on the campaign; the discrepancy with the fitted values.
+* **iteration 0** is the starting simulator config (``configs/sim/ideal.yaml``
+  by default) with a model trained on it the same way the later ones are;
+* **iteration k** diagnoses the campaign
+  (:func:`~stiffnet.measurement.diagnose.diagnose_campaign`, from the starting
+  config with the effects added so far among the candidates, so that they are
+  refitted jointly with the new ones; or takes the effects the user names), adds
+  *every* selected effect (and updates the earlier ones) with its joint fitted values
+  as a prior centred on the fit (``[p (1 - s), p (1 + s)]``, ``s`` = ``spread``,
+  clipped to the effect's declared ranges), writes ``iter-k/config.yaml`` (a
+  :class:`~stiffnet.config.sim.SimulationConfig`, loadable by ``stiffnet simulate
+  --config``), generates a dataset from it, retrains the family (CNN by default,
+  GBM the fast option; every iteration from scratch with the same size, seed and
+  training settings, so the change between iterations is the physics alone),
+  evaluates the campaign and measures the simulator-measurement discrepancy with
+  the effects at their fitted values.
 
-Before and after are trained alike (same size, seed and training config), so
-the difference is the effect alone, not the amount of data. Each is an MLflow
-run in the campaign's experiment (``campaign-<folder name>``; tracking URI
-``sqlite:///mlflow.db`` by default) with the learned and geometric metrics
-and the discrepancy; the training runs themselves are not tracked (their
-metrics are on simulated test windows). The error-versus-iteration chart is
-written as a PNG and logged with the after run.
+Each iteration is a nested MLflow run under one parent run of the loop (its id is
+kept in the state), with the ONNX model and card as its logged model, registered
+in the Model Registry under the campaign's name (one version per iteration). The
+error-versus-iteration chart (``loop_error.png``) covers all iterations.
+
+The error of an iteration: the discrepancy and the agreement of the learned model
+with the restoring-force cross-check always; with β in the manifest, also the
+accuracy and the β MAPE.
 """
 
 from __future__ import annotations
 
+import shutil
 import time
 from pathlib import Path
 from typing import Any
@@ -31,132 +41,29 @@ from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import finish_run_folder, output_lock, start_run_folder
+from stiffnet.io_utils import RUN_MARKER, output_lock, sha256_file, write_json_atomic
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
-from stiffnet.measurement.fitting import fit_effect
-from stiffnet.measurement.target import CampaignTarget, measured_statistics
 from stiffnet.progress import task as progress_task
 
-DEFAULT_SPREAD = 0.25
-
-
-def spread_params(
-    name: str, params: dict[str, float], fitted: list[str], spread: float
-) -> dict[str, float | list[float]]:
-    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges."""
-    table = {r["name"]: r for r in effect_class(name).parameter_table()}
-    out: dict[str, float | list[float]] = {}
-    for k, v in params.items():
-        if k in fitted and spread > 0 and v != 0:
-            lo, hi = table[k]["range"]
-            a, b = sorted((v * (1 - spread), v * (1 + spread)))
-            out[k] = [max(a, lo), min(b, hi)]
-        else:
-            out[k] = float(v)
-    return out
-
-
-def config_with_effect(
-    cfg: SimulationConfig, name: str, params: dict[str, Any]
-) -> SimulationConfig:
-    """A copy of ``cfg`` with the effect added (replacing one of the same name)."""
-    cls_name = effect_class(name).name
-    effects = [e for e in cfg.effects if effect_class(e.name).name != cls_name]
-    effects.append(EffectSpec(name=name, params=params))
-    return cfg.model_copy(update={"effects": effects})
-
-
-def _train_and_evaluate(
-    cfg: SimulationConfig,
-    campaign: Campaign,
-    work: Path,
-    label: str,
-    model: str,
-    train_overrides: dict[str, Any] | None,
-) -> dict[str, Any]:
-    from stiffnet.config import validate_config
-    from stiffnet.config.train import TrainConfig
-    from stiffnet.dataset.generate import generate_dataset, shard_sizes
-    from stiffnet.measurement.evaluate import evaluate_campaign
-    from training.train import train
-
-    t0 = time.perf_counter()
-    data = work / f"data-{label}"
-    with progress_task(f"simulating shards ({label})", len(shard_sizes(cfg))) as bar:
-        generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
-    t_data = time.perf_counter() - t0
-    from stiffnet.config import load_yaml
-    from stiffnet.shipped import default_config
-
-    default = default_config(f"train/{model}.yaml")
-
-    raw = load_yaml(default) if default.is_file() else {"model": model}
-    raw.update(train_overrides or {})
-    raw["tracking"] = False
-    tcfg = validate_config(TrainConfig, raw, str(default))
-    summary = train(data, tcfg, work / f"model-{label}", progress=None)
-    t_train = time.perf_counter() - t0 - t_data
-    ev = evaluate_campaign(campaign, summary["paths"]["onnx"], config_effects(cfg))
-    return {
-        "evaluation": ev,
-        "model_path": summary["paths"]["onnx"],
-        "seconds": {
-            "dataset": round(t_data, 2),
-            "train": round(t_train, 2),
-            "total": round(time.perf_counter() - t0, 2),
-        },
-    }
-
-
-def _log_mlflow(
-    uri: str,
-    experiment: str,
-    name: str,
-    params: dict[str, Any],
-    metrics: dict[str, float],
-    artifacts: list[Path],
-) -> str:
-    import math
-
-    import mlflow
-
-    from training.tracking import _artifact_location, _clean_key
-
-    mlflow.set_tracking_uri(uri)
-    client = mlflow.MlflowClient(uri)
-    if client.get_experiment_by_name(experiment) is None:
-        client.create_experiment(experiment, artifact_location=_artifact_location(uri))
-    mlflow.set_experiment(experiment)
-    with mlflow.start_run(run_name=name, tags={"stiffnet.loop": name}) as run:
-        mlflow.log_params({_clean_key(k): str(v)[:500] for k, v in params.items()})
-        mlflow.log_metrics(
-            {
-                _clean_key(k): float(v)
-                for k, v in metrics.items()
-                if v is not None and math.isfinite(v)
-            }
-        )
-        for a in artifacts:
-            mlflow.log_artifact(str(a), artifact_path="figures")
-        return run.info.run_id
-
-
-def _flat(ev: dict[str, Any], discrepancy: float) -> dict[str, float | None]:
-    m = ev["metrics"]
-    return {
-        "accuracy": m["learned"]["accuracy"],
-        "macro_f1": m["learned"]["macro_f1"],
-        "beta_mape": m["learned"]["beta_mape"],
-        "geometric_accuracy": m["geometric"]["accuracy"],
-        "geometric_beta_mape": m["geometric"]["beta_mape"],
-        "discrepancy": discrepancy,
-    }
-
-
-#: ``kind`` in the marker (``stiffnet-run.json``) of a loop's output folder.
+#: ``kind`` in the marker (``stiffnet-run.json``) of a loop's state folder.
 LOOP_KIND = "stiffnet-loop"
+#: The state file in the state folder.
+STATE_FILE = "state.json"
+STATE_VERSION = 1
+#: Model families the loop trains; the first is the default (the shipped family).
+FAMILIES = ("cnn", "gbm")
+DEFAULT_SPREAD = 0.25
+#: Trajectories per generated dataset (1000: one CNN iteration within 15 minutes on
+#: two cores, see docs/measurement_loop.md).
+DEFAULT_TRAJECTORIES = 1000
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
+#: The loop's training settings over ``configs/train/FAMILY.yaml``: fewer epochs than the
+#: shipped CNN (40), which trains on 12 times the data; a wall-clock guard on the fit.
+LOOP_TRAINING: dict[str, dict[str, Any]] = {
+    "cnn": {"cnn": {"max_epochs": 15, "patience": 5, "max_train_seconds": 480}},
+    "gbm": {},
+}
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -168,157 +75,611 @@ def check_n_trajectories(n: int | None) -> None:
         )
 
 
+def check_family(family: str) -> None:
+    """Refuse a model family the loop cannot train."""
+    if family not in FAMILIES:
+        raise StiffnetError(
+            f"model family {family!r} is not available: use {' or '.join(FAMILIES)}"
+        )
+
+
+def default_state_dir(campaign_folder: str | Path) -> Path:
+    """``<campaign>-loop`` beside the campaign; ``runs/loop-<name>`` for a campaign shipped
+    inside stiffnet's checkout (the examples), so a default never writes into shipped files."""
+    folder = Path(campaign_folder).resolve()
+    checkout = Path(__file__).resolve().parents[2]
+    if folder.is_relative_to(checkout) and not folder.is_relative_to(checkout / "runs"):
+        return Path("runs") / f"loop-{folder.name}"
+    return folder.with_name(f"{folder.name}-loop")
+
+
+def spread_params(
+    name: str, params: dict[str, float], fitted: list[str], spread: float
+) -> dict[str, float | list[float]]:
+    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges."""
+    table = {r["name"]: r for r in effect_class(name).parameter_table()}
+    out: dict[str, float | list[float]] = {}
+    for k, v in params.items():
+        if isinstance(v, list):  # a range given by the user stays as it is
+            out[k] = [float(x) for x in v]
+        elif k in fitted and spread > 0 and v != 0 and table.get(k, {}).get("range"):
+            lo, hi = table[k]["range"]
+            a, b = sorted((v * (1 - spread), v * (1 + spread)))
+            a, b = max(a, lo), min(b, hi)
+            out[k] = [a, b] if a < b else float(v)
+        else:
+            out[k] = float(v)
+    return out
+
+
+def config_with_effects(
+    cfg: SimulationConfig, added: list[tuple[str, dict[str, Any]]]
+) -> SimulationConfig:
+    """A copy of ``cfg`` with the effects added (each replacing one of the same class)."""
+    effects = list(cfg.effects)
+    for name, params in added:
+        cls_name = effect_class(name).name
+        effects = [e for e in effects if effect_class(e.name).name != cls_name]
+        effects.append(EffectSpec(name=name, params=params))
+    return cfg.model_copy(update={"effects": effects})
+
+
+def write_config_yaml(cfg: SimulationConfig, path: Path, header: str) -> SimulationConfig:
+    """Write ``cfg`` as YAML (atomically) and read it back through the pydantic model."""
+    import yaml
+
+    from stiffnet.config import load_config
+    from stiffnet.io_utils import write_bytes_atomic
+
+    body = yaml.safe_dump(cfg.model_dump(mode="json"), sort_keys=False, default_flow_style=None)
+    text = "".join(f"# {line}\n" for line in header.splitlines()) + body
+    write_bytes_atomic(path, text.encode())
+    back = load_config(SimulationConfig, path)
+    if back != cfg:  # pragma: no cover - a field that does not survive YAML
+        raise StiffnetError(f"{path}: the written config does not read back identically")
+    return back
+
+
+# ---------------------------------------------------------------- state folder
+
+
+def _open_state(folder: Path, campaign: Campaign, settings: dict[str, Any]) -> dict[str, Any]:
+    """The state of an earlier loop on this campaign, or a new one (refusing foreign folders)."""
+    import json
+
+    marker, state_path = folder / RUN_MARKER, folder / STATE_FILE
+    if folder.is_dir() and any(folder.iterdir()):
+        try:
+            kind = json.loads(marker.read_text()).get("kind")
+            state = json.loads(state_path.read_text())
+        except (OSError, ValueError, AttributeError):
+            kind, state = None, None
+        if kind != LOOP_KIND or not isinstance(state, dict):
+            raise StiffnetError(
+                f"{folder}: folder exists and is not a loop state folder (no {RUN_MARKER} and "
+                f"{STATE_FILE}): choose another --state folder"
+            )
+        if state.get("manifest_sha256") != settings["manifest_sha256"]:
+            raise StiffnetError(
+                f"{folder}: the state belongs to another campaign ({state.get('campaign')}); "
+                "choose another --state folder"
+            )
+        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides"):
+            if settings.get(key) is not None and settings[key] != state.get(key):
+                raise StiffnetError(
+                    f"{folder}: the loop was started with {key} {state.get(key)!r}, not "
+                    f"{settings[key]!r}; resume with the same settings or choose another --state"
+                )
+        return state
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(marker, {"kind": LOOP_KIND, "status": "running"})
+    state = {
+        "kind": "stiffnet-loop-state",
+        "version": STATE_VERSION,
+        "campaign": str(campaign.folder.resolve()),
+        "iterations": [],
+        "parent_run_id": None,
+        "stopped": None,
+        **settings,
+    }
+    write_json_atomic(state_path, state)
+    return state
+
+
+def _save_state(folder: Path, state: dict[str, Any]) -> None:
+    write_json_atomic(folder / STATE_FILE, state)
+
+
+# ---------------------------------------------------------------- one iteration
+
+
+def _train_config(family: str, overrides: dict[str, Any] | None) -> Any:
+    from stiffnet.config import load_yaml, validate_config
+    from stiffnet.config.train import TrainConfig
+    from stiffnet.shipped import default_config
+
+    path = default_config(f"train/{family}.yaml")
+    raw = load_yaml(path) if path.is_file() else {"model": family}
+    for key, value in {**LOOP_TRAINING[family], **(overrides or {})}.items():
+        if isinstance(value, dict) and isinstance(raw.get(key), dict):
+            raw[key] = {**raw[key], **value}
+        else:
+            raw[key] = value
+    raw["tracking"] = False  # the loop logs its own run per iteration
+    return validate_config(TrainConfig, raw, str(path))
+
+
+def _train(
+    cfg: SimulationConfig,
+    work: Path,
+    family: str,
+    overrides: dict[str, Any] | None,
+    keep_data: bool,
+) -> dict[str, Any]:
+    from stiffnet.dataset.generate import generate_dataset, shard_sizes
+    from training.train import train
+
+    tcfg = _train_config(family, overrides)
+    t0 = time.perf_counter()
+    data = work / "data"
+    with progress_task("simulating shards", len(shard_sizes(cfg))) as bar:
+        generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
+    t_data = time.perf_counter() - t0
+    summary = train(data, tcfg, work / "model", progress=None)
+    t_train = time.perf_counter() - t0 - t_data
+    shutil.copyfile(data / "card.json", work / "data_card.json")
+    if not keep_data:
+        shutil.rmtree(data, ignore_errors=True)
+    return {
+        "onnx": summary["paths"]["onnx"],
+        "card": summary["paths"]["card"],
+        "train_metrics": {
+            f"train/{k}": v
+            for k, v in summary["metrics"].items()
+            if k.count("/") == 1 and k.endswith(("accuracy", "macro_f1", "beta_mape"))
+        },
+        "epochs": summary.get("epochs"),
+        "seconds": {"dataset": round(t_data, 2), "train": round(t_train, 2)},
+    }
+
+
+def iteration_metrics(evaluation: dict[str, Any], discrepancy: float | None) -> dict[str, Any]:
+    """The numbers of one iteration: discrepancy and cross-check agreement always, accuracy
+    and β MAPE of the learned model and the geometric method where the manifest has β."""
+    m = evaluation["metrics"]
+    rows = evaluation["recordings"]
+    geo = [r["agreement"] for r in rows if r.get("agreement") is not None]
+    return {
+        "discrepancy": discrepancy,
+        "restoring_force_agreement": m["restoring_force"].get("agreement_with_learned"),
+        "geometric_agreement": sum(map(bool, geo)) / len(geo) if geo else None,
+        "accuracy": m["learned"]["accuracy"],
+        "macro_f1": m["learned"]["macro_f1"],
+        "beta_mape": m["learned"]["beta_mape"],
+        "geometric_accuracy": m["geometric"]["accuracy"],
+        "geometric_beta_mape": m["geometric"]["beta_mape"],
+        "alarm_rate": m["learned"].get("alarm_rate"),
+    }
+
+
+#: What an iteration keeps of its diagnosis (the full result is in ``iter-k/diagnosis.json``).
+DIAGNOSIS_SUMMARY = ("baseline_discrepancy", "residual_discrepancy", "noise_floor", "verdict",
+                     "explained_fraction", "missing_effects", "summary", "seconds")  # fmt: skip
+
+
+def diagnosis_summary(diagnosis: dict[str, Any]) -> dict[str, Any]:
+    """The verdict and numbers of a diagnosis that the loop's state keeps."""
+    return {k: diagnosis.get(k) for k in DIAGNOSIS_SUMMARY}
+
+
+def _effects_to_add(
+    campaign: Campaign,
+    start_cfg: SimulationConfig,
+    current: list[str],
+    given: list[tuple[str, dict[str, Any]]],
+    model_path: str,
+    seed: int,
+    candidates: list[str] | None,
+    inclination: bool,
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """(effects, diagnosis result): the given ones (fitted when given without values), else
+    every effect the diagnosis selects, with its joint fitted values.
+
+    The diagnosis starts from the *starting* config and has the effects the loop added
+    before (``current``) among its candidates: so they are refitted jointly with the new
+    ones (a value fitted alone in an earlier iteration, biased by an effect not yet in
+    the model, never blocks the next one), and the iteration takes every joint value.
+    """
+    from stiffnet.measurement.diagnose import diagnose_campaign
+
+    base = config_effects(start_cfg)
+    if given and all(params for _, params in given):
+        return [{"name": n, "params": p, "fitted": [], "source": "given"} for n, p in given], None
+    names = [n for n, _ in given] or (
+        None if candidates is None else list(dict.fromkeys([*candidates, *current]))
+    )
+    shipped = None if names is None else [n for n in names if ":" not in n]
+    users = [n for n in (names or current) if ":" in n]
+    diag = diagnose_campaign(
+        campaign,
+        base,
+        effects=shipped,
+        user_effects=users,
+        seed=seed,
+        inclination=inclination,
+        model_path=model_path,
+    )
+    by_name = {r["effect"]: r for r in diag["ranking"]}
+    if given:  # the user's choice: added even where the diagnosis would not select it
+        out = []
+        for n, p in given:
+            fit = by_name.get(n, {})
+            params = p or {
+                k: float(v)
+                for k, v in (diag["fitted_params"].get(n) or fit.get("params") or {}).items()
+            }
+            out.append(
+                {
+                    "name": n,
+                    "params": params,
+                    "fitted": [] if p else list(fit.get("fitted") or params),
+                    "source": "given",
+                }
+            )
+        return out, diag
+    out = []
+    for n in diag["missing_effects"]:
+        params = {k: float(v) for k, v in diag["fitted_params"][n].items()}
+        fitted = list(by_name.get(n, {}).get("fitted") or params)
+        out.append({"name": n, "params": params, "fitted": fitted, "source": "diagnosis"})
+    return out, diag
+
+
+def _iteration(
+    k: int,
+    campaign: Campaign,
+    state: dict[str, Any],
+    folder: Path,
+    start_cfg: SimulationConfig,
+    added: list[dict[str, Any]],
+    diagnosis: dict[str, Any] | None,
+    keep_data: bool,
+    bar: Any,
+) -> dict[str, Any]:
+    from stiffnet.measurement.evaluate import evaluate_campaign
+
+    t0 = time.perf_counter()
+    work = folder / f"iter-{k:03d}"
+    if work.exists():  # an interrupted attempt: its files are not part of the state
+        shutil.rmtree(work)
+    work.mkdir(parents=True)
+    prev = state["iterations"][-1]["effects"] if state["iterations"] else []
+    effects = [
+        e
+        for e in prev
+        if effect_class(e["name"]).name not in {effect_class(a["name"]).name for a in added}
+    ] + [{"name": a["name"], "params": a["params"], "fitted": a["fitted"]} for a in added]
+    n = state["n_trajectories"]
+    base = start_cfg.model_copy(update={"n_trajectories": n})
+    train_cfg = config_with_effects(
+        base,
+        [
+            (e["name"], spread_params(e["name"], e["params"], e["fitted"], state["spread"]))
+            for e in effects
+        ],
+    )
+    fixed_cfg = config_with_effects(base, [(e["name"], e["params"]) for e in effects])
+    names = ", ".join(f"{e['name']}" for e in added) or "none (starting config)"
+    train_cfg = write_config_yaml(
+        train_cfg,
+        work / "config.yaml",
+        f"stiffnet loop on {campaign.folder.name}, iteration {k}: added {names}\n"
+        f"fitted values +-{state['spread']:.0%} (prior centred on the fit); "
+        "stiffnet simulate --config this file",
+    )
+    bar.update(note=f"iteration {k}: dataset + {state['family']} training")
+    trained = _train(train_cfg, work, state["family"], state["train_overrides"], keep_data)
+    bar.update(note=f"iteration {k}: evaluation and discrepancy")
+    evaluation = evaluate_campaign(
+        campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
+    )
+    cmp = compare_campaign(
+        campaign, config_effects(fixed_cfg), config_settings(fixed_cfg), state["seed"]
+    )
+    metrics = iteration_metrics(evaluation, cmp.result["discrepancy"])
+    write_json_atomic(work / "evaluation.json", evaluation)
+    if diagnosis is not None:
+        write_json_atomic(work / "diagnosis.json", diagnosis)
+    return {
+        "index": k,
+        "label": _label(k, added, prev),
+        "added": added,
+        "effects": effects,
+        "config": str(work / "config.yaml"),
+        "model": trained["onnx"],
+        "card": trained["card"],
+        "metrics": metrics,
+        "train_metrics": trained["train_metrics"],
+        "diagnosis": diagnosis_summary(diagnosis) if diagnosis is not None else None,
+        "recordings": [
+            {
+                c: r.get(c)
+                for c in (
+                    "recording",
+                    "beta",
+                    "class",
+                    "beta_estimate",
+                    "physical_beta",
+                    "physical_agreement",
+                    "error",
+                )
+            }
+            for r in evaluation["recordings"]
+        ],
+        "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
+    }
+
+
+def _label(k: int, added: list[dict[str, Any]], prev: list[dict[str, Any]]) -> str:
+    """``start``, ``+new+new`` and, for effects already there and refitted, ``(refit x)``."""
+    if k == 0:
+        return "start"
+    had = {effect_class(e["name"]).name for e in prev}
+    new = [a["name"] for a in added if effect_class(a["name"]).name not in had]
+    refit = [a["name"] for a in added if effect_class(a["name"]).name in had]
+    return "+".join(["", *new]) + (f" (refit {', '.join(refit)})" if refit else "")
+
+
+def _track(state: dict[str, Any], it: dict[str, Any], chart: Path) -> None:
+    """The iteration's nested MLflow run, its logged and registered model (training.tracking)."""
+    from training.tracking import log_child_run, log_parent_artifact, parent_run
+
+    uri, experiment = state["tracking_uri"], state["experiment"]
+    state["parent_run_id"] = parent_run(
+        uri,
+        experiment,
+        state.get("parent_run_id"),
+        f"loop {state['registered_model']}",
+        tags={"stiffnet.loop": state["registered_model"], "stiffnet.family": state["family"]},
+    )
+    params: dict[str, Any] = {
+        "iteration": it["index"],
+        "family": state["family"],
+        "n_trajectories": state["n_trajectories"],
+        "spread": state["spread"],
+        "added": ",".join(a["name"] for a in it["added"]) or "none",
+        "effects": ",".join(e["name"] for e in it["effects"]) or "none",
+    }
+    for e in it["effects"]:
+        params.update({f"{e['name']}.{p}": v for p, v in e["params"].items()})
+    logged = log_child_run(
+        tracking_uri=uri,
+        experiment=experiment,
+        parent_run_id=state["parent_run_id"],
+        name=f"iteration {it['index']}",
+        step=it["index"],
+        params=params,
+        metrics={**it["metrics"], **it["train_metrics"]},
+        tags={"stiffnet.loop": state["registered_model"], "stiffnet.iteration": str(it["index"])},
+        artifacts=[it["config"], Path(it["config"]).parent / "evaluation.json"],
+        onnx_model=it["model"],
+        registered_model=state["registered_model"],
+    )
+    it.update(
+        {
+            "run_id": logged["run_id"],
+            "model_uri": logged["model_uri"],
+            "model_version": logged["model_version"],
+        }
+    )
+    log_parent_artifact(uri, state["parent_run_id"], chart)
+
+
+def _chart(folder: Path, state: dict[str, Any]) -> Path:
+    from stiffnet.measurement.plots import loop_figure
+
+    return loop_figure(
+        [{"label": f"{it['index']}: {it['label']}", **it["metrics"]} for it in state["iterations"]],
+        folder / "loop_error.png",
+    )
+
+
 def run_loop(
     campaign: Campaign,
     cfg: SimulationConfig,
-    effect: str,
-    out_dir: str | Path,
+    state_dir: str | Path | None = None,
+    iterations: int = 1,
+    add_effects: list[tuple[str, dict[str, Any]]] | None = None,
     diagnosis: dict[str, Any] | None = None,
+    family: str | None = None,
     n_trajectories: int | None = None,
-    spread: float = DEFAULT_SPREAD,
-    model: str = "gbm",
+    spread: float | None = None,
     tracking_uri: str | None = "sqlite:///mlflow.db",
     train_overrides: dict[str, Any] | None = None,
-    seed: int = DEFAULT_SEED,
+    seed: int | None = None,
+    candidates: list[str] | None = None,
+    inclination: bool = False,
+    keep_data: bool = False,
 ) -> dict[str, Any]:
-    """One loop iteration (see the module notes).
+    """Run ``iterations`` more loop iterations on the state in ``state_dir`` (see the module notes).
 
     Parameters
     ----------
     campaign : Campaign
     cfg : SimulationConfig
-        The current simulator config (its ``n_trajectories`` is replaced).
-    effect : str
-        Effect to add (canonical name or ``module:Class``).
-    out_dir : str or Path
-        Folder for datasets, models and the chart.
+        The starting simulator config (used when the state is new).
+    state_dir : str or Path, optional
+        The state folder (default :func:`default_state_dir`); an existing one resumes.
+    iterations : int
+        New iterations after the last finished one (iteration 0, the start, is added
+        first when the state is new and does not count).
+    add_effects : list of (name, params), optional
+        Effects the first new iteration adds instead of the diagnosed ones; empty
+        ``params`` are fitted (by the diagnosis restricted to those effects).
     diagnosis : dict, optional
-        A :func:`~stiffnet.measurement.diagnose.diagnose_campaign` result holding
-        the effect's fit; without it (or without the effect in it) it is fitted now.
+        A ``diagnose --json`` result against the last iteration's config, used by the
+        first new iteration instead of diagnosing again.
+    family : {"cnn", "gbm"}, optional
+        Default: the state's; ``cnn`` (the shipped family) for a new loop.
     n_trajectories : int, optional
-        Trajectories of each generated dataset (default: the config's, 2000 in
-        ``configs/sim/default.yaml``: one iteration takes about 3 minutes on two
-        cores, see ``docs/measurement_loop.md``).
-    spread : float
-        Relative half-width of the parameter ranges around the fitted values.
-    model : {"gbm", "cnn"}
+        Trajectories per dataset (default :data:`DEFAULT_TRAJECTORIES`).
+    spread : float, optional
+        Relative half-width of the prior around each fitted value (default 0.25).
     tracking_uri : str or None
-        MLflow URI; None disables tracking.
+        MLflow store; None disables tracking.
     train_overrides : dict, optional
-        TrainConfig fields overriding ``configs/train/MODEL.yaml``.
-    seed : int
-        Common-random-number seed of the discrepancy simulations.
+        (Kept in the state: a resumed loop trains as it started.)
+        TrainConfig fields over ``configs/train/FAMILY.yaml`` and :data:`LOOP_TRAINING`.
+    seed : int, optional
+        Common-random-number seed of the diagnosis and the discrepancy.
+    candidates : list of str, optional
+        Candidate effects of the diagnosis (default: every library effect).
+    inclination : bool
+        Include the inclination statistics in the diagnosis (slower).
+    keep_data : bool
+        Keep each iteration's dataset (by default only its card).
 
     Returns
     -------
     dict
-        ``before`` and ``after`` (each ``accuracy``, ``beta_mape``,
-        ``discrepancy``, ``run_id``, ...), ``effect``, ``params``, ``chart``,
-        ``seconds``.
+        ``iterations`` (each ``index``, ``label``, ``added``, ``effects``, ``config``,
+        ``model``, ``metrics``, ``run_id``, ``model_version``, ``seconds``, ...),
+        ``before`` / ``after`` (metrics of the first and the last), ``chart``,
+        ``stopped`` (why no effect was added, or None), ``out`` (the state folder).
     """
-
-    if model not in ("gbm", "cnn"):
-        raise StiffnetError(f"model {model!r} is not available: use gbm or cnn")
+    if family is not None:
+        check_family(family)
     check_n_trajectories(n_trajectories)
-    out = Path(out_dir)
-    with output_lock(out):  # one loop per folder; a killed run's files are never mixed in
-        start_run_folder(out, LOOP_KIND)
-        result = _iterate(campaign, cfg, effect, out, diagnosis, n_trajectories, spread, model,
-                          tracking_uri, train_overrides, seed)  # fmt: skip
-        result["out"] = str(out.resolve())
-        finish_run_folder(out, LOOP_KIND)
-    return result
-
-
-def _iterate(
-    campaign: Campaign,
-    cfg: SimulationConfig,
-    effect: str,
-    out: Path,
-    diagnosis: dict[str, Any] | None,
-    n_trajectories: int | None,
-    spread: float,
-    model: str,
-    tracking_uri: str | None,
-    train_overrides: dict[str, Any] | None,
-    seed: int,
-) -> dict[str, Any]:
-    from stiffnet.measurement.plots import loop_figure
-
-    t0 = time.perf_counter()
-    if n_trajectories is not None:
-        cfg = cfg.model_copy(update={"n_trajectories": int(n_trajectories)})
-    base_cfg = cfg
-    fit = None
-    if diagnosis is not None:
-        fit = next((r for r in diagnosis.get("ranking", []) if r["effect"] == effect), None)
-    stages = progress_task("loop stages", 4 if fit is not None else 5)
-    with stages as bar:
-        if fit is None:
-            bar.update(note=f"fitting {effect}")
-            measured, lengths, _ = measured_statistics(campaign)
-            target = CampaignTarget(
-                list(campaign.rows), measured, lengths, config_effects(base_cfg), seed
-            )
-            fit = fit_effect(target, effect)
-            bar.advance()
-        params = {k: float(v) for k, v in fit["params"].items()}
-        fitted = list(fit.get("fitted", params))
-        spread_p = spread_params(effect, params, fitted, spread)
-        new_cfg = config_with_effect(base_cfg, effect, spread_p)
-        fixed_cfg = config_with_effect(base_cfg, effect, params)
-
-        settings = config_settings(base_cfg)
-        bar.update(note="discrepancy before")
-        d_before = compare_campaign(campaign, config_effects(base_cfg), settings, seed)
-        bar.advance(note=f"discrepancy with {effect}")
-        d_after = compare_campaign(campaign, config_effects(fixed_cfg), settings, seed)
-        bar.advance(note="dataset + model before")
-        before = _train_and_evaluate(base_cfg, campaign, out, "before", model, train_overrides)
-        bar.advance(note=f"dataset + model with {effect}")
-        after = _train_and_evaluate(new_cfg, campaign, out, "after", model, train_overrides)
-        bar.advance()
-
-    iterations = [
-        {"label": "before", **_flat(before["evaluation"], d_before.result["discrepancy"])},
-        {"label": f"+{effect}", **_flat(after["evaluation"], d_after.result["discrepancy"])},
-    ]
-    chart = loop_figure(iterations, out / "loop_error.png")
-    result: dict[str, Any] = {
-        "campaign": str(campaign.folder),
-        "effect": effect,
-        "params": params,
+    if not 0 <= iterations <= 100:
+        raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
+    if spread is not None and not 0 <= spread < 1:
+        raise StiffnetError(f"--spread must be in [0, 1), got {spread}")
+    folder = Path(state_dir) if state_dir is not None else default_state_dir(campaign.folder)
+    settings = {
+        "family": family,
+        "n_trajectories": n_trajectories,
         "spread": spread,
-        "config_effects": [e.model_dump() for e in new_cfg.effects],
-        "n_trajectories": int(base_cfg.n_trajectories),
-        "model": model,
-        "chart": str(chart),
+        "seed": seed,
+        "train_overrides": train_overrides,
+        "manifest_sha256": sha256_file(campaign.manifest_path),
     }
-    experiment = f"campaign-{campaign.folder.name}"
-    for key, it, run in (("before", iterations[0], before), ("after", iterations[1], after)):
-        run_id = None
-        if tracking_uri:
-            run_id = _log_mlflow(
-                tracking_uri,
-                experiment,
-                key,
-                {
-                    "iteration": 0 if key == "before" else 1,
-                    "effect": "" if key == "before" else effect,
-                    "params": params if key == "after" else {},
-                    "n_trajectories": base_cfg.n_trajectories,
-                    "model": model,
-                },
-                {k: v for k, v in it.items() if k != "label"},
-                [chart] if key == "after" else [],
+    t0 = time.perf_counter()
+    with output_lock(folder):
+        state = _open_state(folder, campaign, settings)
+        if not state["iterations"]:  # a new state: its settings with the defaults filled in
+            state.update(
+                family=family or FAMILIES[0],
+                n_trajectories=n_trajectories or DEFAULT_TRAJECTORIES,
+                spread=DEFAULT_SPREAD if spread is None else spread,
+                seed=DEFAULT_SEED if seed is None else seed,
+                start_config=cfg.model_dump(mode="json"),
+                tracking_uri=tracking_uri,
+                experiment=f"campaign-{campaign.folder.name}",
+                registered_model=campaign.folder.name,
             )
-        result[key] = {
-            **{k: v for k, v in it.items() if k != "label"},
-            "run_id": run_id,
-            "model_path": run["model_path"],
-            "seconds": run["seconds"],
-            "recordings": run["evaluation"]["recordings"],
-        }
-    result["experiment"] = experiment if tracking_uri else None
-    result["seconds"] = round(time.perf_counter() - t0, 2)
-    return result
+        state["tracking_uri"] = tracking_uri
+        start_cfg = SimulationConfig.model_validate(state["start_config"])
+        state["stopped"] = None
+        todo = iterations + (0 if state["iterations"] else 1)
+        write_json_atomic(folder / RUN_MARKER, {"kind": LOOP_KIND, "status": "running"})
+        with progress_task("loop iterations", todo) as bar:
+            for _ in range(todo):
+                k = len(state["iterations"])
+                added: list[dict[str, Any]] = []
+                diag_result = None
+                if k > 0:
+                    bar.update(note=f"iteration {k}: diagnosis")
+                    t_diag = time.perf_counter()
+                    last = state["iterations"][-1]
+                    current = [e["name"] for e in last["effects"]]
+                    if diagnosis is not None and not add_effects:
+                        added, diag_result = _from_diagnosis(diagnosis)
+                    else:
+                        added, diag_result = _effects_to_add(
+                            campaign,
+                            start_cfg,
+                            current,
+                            list(add_effects or []),
+                            last["model"],
+                            state["seed"],
+                            candidates,
+                            inclination,
+                        )
+                    diagnosis, add_effects = None, None  # the first new iteration only
+                    classes = {effect_class(n).name for n in current}
+                    nothing_new = all(
+                        a["source"] == "diagnosis" and effect_class(a["name"]).name in classes
+                        for a in added
+                    )
+                    if nothing_new:
+                        state["stopped_diagnosis"] = diagnosis_summary(diag_result or {})
+                        state["stopped"] = (
+                            f"iteration {k}: the diagnosis adds no effect beyond "
+                            f"{', '.join(current) or 'the starting config'} (verdict "
+                            f"{(diag_result or {}).get('verdict')}); nothing left to iterate"
+                        )
+                        break
+                diag_s = round(time.perf_counter() - t_diag, 2) if k > 0 else 0.0
+                it = _iteration(
+                    k,
+                    campaign,
+                    state,
+                    folder,
+                    start_cfg,
+                    added,
+                    diag_result,
+                    keep_data,
+                    bar,
+                )
+                it["seconds"]["diagnosis"] = diag_s  # the iteration's wall time includes it
+                it["seconds"]["total"] = round(it["seconds"]["total"] + diag_s, 2)
+                state["iterations"].append(it)
+                chart = _chart(folder, state)
+                if tracking_uri:
+                    _track(state, it, chart)
+                _save_state(folder, state)
+                bar.advance()
+        chart = _chart(folder, state) if state["iterations"] else None
+        _save_state(folder, state)
+        write_json_atomic(folder / RUN_MARKER, {"kind": LOOP_KIND, "status": "complete"})
+    its = state["iterations"]
+    return {
+        "campaign": state["campaign"],
+        "family": state["family"],
+        "n_trajectories": state["n_trajectories"],
+        "spread": state["spread"],
+        "iterations": its,
+        "before": {**its[0]["metrics"], "run_id": its[0].get("run_id")} if its else {},
+        "after": {**its[-1]["metrics"], "run_id": its[-1].get("run_id")} if its else {},
+        "effect": ", ".join(e["name"] for e in its[-1]["effects"]) if its else "",
+        "stopped": state["stopped"],
+        "stopped_diagnosis": state.get("stopped_diagnosis") if state["stopped"] else None,
+        "experiment": state["experiment"] if tracking_uri else None,
+        "parent_run_id": state.get("parent_run_id") if tracking_uri else None,
+        "registered_model": state["registered_model"] if tracking_uri else None,
+        "chart": str(chart) if chart else None,
+        "out": str(folder.resolve()),
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
+
+
+def _from_diagnosis(diagnosis: dict[str, Any]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """The selected effects of a given ``diagnose --json`` result."""
+    by_name = {r["effect"]: r for r in diagnosis.get("ranking", [])}
+    names = diagnosis.get("missing_effects")
+    if names is None:  # an older result: the single named effect
+        names = [diagnosis["missing_effect"]] if diagnosis.get("missing_effect") else []
+    fitted_params = diagnosis.get("fitted_params") or {}
+    added = []
+    for n in names:
+        params = fitted_params.get(n) or by_name.get(n, {}).get("params") or {}
+        params = {k: float(v) for k, v in params.items()}
+        added.append(
+            {
+                "name": n,
+                "params": params,
+                "fitted": list(by_name.get(n, {}).get("fitted") or params),
+                "source": "diagnosis",
+            }
+        )
+    return added, diagnosis

@@ -169,22 +169,38 @@ def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
 
 
 def loop_figure(iterations: Sequence[dict[str, Any]], path: str | Path) -> Path:
-    """Error and discrepancy against loop iteration (before = 0, after = 1, ...)."""
+    """Error and discrepancy against loop iteration (0 = the starting config, 1, 2, ...).
+
+    Left: ``1 - accuracy`` (learned, geometric), β MAPE and ``1 - agreement`` of the
+    learned model with the restoring-force cross-check (the one error a field campaign
+    without β has); right: the simulator-measurement discrepancy (log scale).
+    """
     plt = _plt()
-    x = np.arange(len(iterations))
-    fig, ax = plt.subplots(1, 2, figsize=(8, 3))
-    for key, label in (
-        ("accuracy", "learned accuracy"),
-        ("geometric_accuracy", "geometric accuracy"),
-    ):
+
+    def series(key: str, one_minus: bool = False) -> list[float]:
         v = [it.get(key) for it in iterations]
-        ax[0].plot(x, [1 - a if a is not None else np.nan for a in v], "o-", label=f"1 - {label}")
-    ax[0].plot(x, [it.get("beta_mape") or np.nan for it in iterations], "s-", label="beta MAPE")
-    ax[0].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
+        return [np.nan if a is None else (1 - a if one_minus else a) for a in v]
+
+    x = np.arange(len(iterations))
+    labels = [it.get("label", str(i)) for i, it in enumerate(iterations)]
+    fig, ax = plt.subplots(1, 2, figsize=(9, 3.4))
+    for key, label, one_minus, style in (
+        ("accuracy", "1 - learned accuracy", True, "o-"),
+        ("beta_mape", "learned beta MAPE", False, "s-"),
+        ("geometric_accuracy", "1 - geometric accuracy", True, "^--"),
+        ("restoring_force_agreement", "1 - agreement with restoring force", True, "d:"),
+    ):
+        y = series(key, one_minus)
+        if not all(np.isnan(y)):
+            ax[0].plot(x, y, style, label=label)
+    ax[0].set_xticks(x, labels, rotation=15, ha="right", fontsize=7)
     ax[0].set_ylabel("error [fraction]")
-    ax[0].legend(fontsize=7)
-    ax[1].semilogy(x, [it.get("discrepancy") or np.nan for it in iterations], "o-", color="k")
-    ax[1].set_xticks(x, [it.get("label", str(i)) for i, it in enumerate(iterations)])
-    ax[1].set_ylabel("simulator-measurement discrepancy [mean d², dimensionless]")
+    ax[0].set_xlabel("loop iteration")
+    if ax[0].get_legend_handles_labels()[0]:
+        ax[0].legend(fontsize=7)
+    ax[1].semilogy(x, series("discrepancy"), "o-", color="k")
+    ax[1].set_xticks(x, labels, rotation=15, ha="right", fontsize=7)
+    ax[1].set_ylabel("discrepancy [mean d²]")
+    ax[1].set_xlabel("loop iteration")
     fig.tight_layout()
     return _save(fig, path)

@@ -272,21 +272,15 @@ def render_report(
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
         if loop is not None:
             parts.append("<h2>Loop</h2>")
-            parts.append(
-                _table(
-                    [
-                        {
-                            "": k,
-                            **{
-                                c: loop[k].get(c)
-                                for c in ("accuracy", "beta_mape", "discrepancy", "run_id")
-                            },
-                        }
-                        for k in ("before", "after")
-                    ],
-                    ["", "accuracy", "beta_mape", "discrepancy", "run_id"],
-                )
-            )
+            cols = ["accuracy", "beta_mape", "restoring_force_agreement", "discrepancy"]
+            rows = [
+                {"iteration": f"{it.get('index')}: {it.get('label')}",
+                 **{c: (it.get("metrics") or {}).get(c) for c in cols},
+                 "model_version": it.get("model_version"), "run_id": it.get("run_id")}
+                for it in loop.get("iterations") or [] if isinstance(it, dict)
+            ] or [{"iteration": k, **{c: loop[k].get(c) for c in cols},
+                   "run_id": loop[k].get("run_id")} for k in ("before", "after")]  # fmt: skip
+            parts.append(_table(rows, ["iteration", *cols, "model_version", "run_id"]))
             chart, why = loop_chart(loop)
             if chart is not None:
                 parts.append(_img(chart))
