@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import integrate, ndimage, optimize
+from scipy import ndimage
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
@@ -47,6 +47,15 @@ from stiffnet.restoring_force.reconstruct import (
     integrate_spectral,
     periodic_length,
 )
+from stiffnet.restoring_force.sensor import (
+    RINGING_WINDOW,
+    fit_highpass_corner,
+    highpass_rule,
+    resonance_rule,
+    ringing_mode,
+    undo_highpass,
+    undo_resonance,
+)
 
 #: Shortest record, forcing periods.
 MIN_PERIODS = 4.0
@@ -56,10 +65,6 @@ MIN_IMPACTS = 3
 MIN_CONTACT_R2 = 0.5
 #: Refuse when the free-flight law explains less of the free restoring force than this.
 MIN_FREE_R2 = 0.5
-#: Below this contact R2 the "auto" high-pass correction is searched.
-HIGHPASS_SEARCH_R2 = 0.97
-#: A fitted high-pass corner must leave less than this fraction of the free-flight misfit.
-HIGHPASS_GAIN = 0.7
 #: Systematic part of the interval (log beta): a floor, and a term growing with the contact
 #: law's misfit; set on simulations with other seeds than bench_crosscheck's (90 % overall).
 SYSTEMATIC_FLOOR = 0.02
@@ -98,6 +103,8 @@ class RestoringForceResult:
         ``"given f_n"`` or ``"fitted"``.
     highpass_hz : float
         Corner of the sensor chain's high-pass undone before integrating (0: none).
+    resonance_hz : float or None
+        Mounted resonance of the accelerometer divided out (None: no ringing seen).
     n_impacts : int
     samples_per_contact : float
         Median samples in contact per impact (below ~4 the spike is barely resolved).
@@ -136,6 +143,7 @@ class RestoringForceResult:
     velocity: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
     force: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
     free_stiffness: float = float("nan")
+    resonance_hz: float | None = None
     law: ContactLaw | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict[str, Any]:
@@ -158,6 +166,7 @@ class RestoringForceResult:
             "forcing_frequency_hz": num(self.forcing_frequency_hz),
             "stiffness_rule": self.stiffness_rule,
             "highpass_hz": num(self.highpass_hz),
+            "resonance_hz": num(self.resonance_hz),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -277,23 +286,6 @@ class _Map:
     exponent: float | None = None
 
 
-def undo_highpass(y: np.ndarray, dtau: float, corner: float) -> np.ndarray:
-    """Invert a first-order high-pass at ``corner`` (forcing frequencies): ``y + w_h int_0^t y``.
-
-    A charge amplifier's high-pass (``s / (s + w_h)``) commutes with the linear
-    free-flight law but not with the contact's: it adds ``w_h int x`` to the
-    displacement (``+0.1 v`` at an impact for a 1 Hz corner under a 10 Hz
-    forcing, read as a negative contact damping of ``0.1 K``), and a record that
-    starts with the filter out of equilibrium carries its decaying transient.
-    The inverse runs in the time domain from the first sample so that it
-    removes that transient too; its constant of integration is the mean, which
-    the integration drops anyway.
-    """
-    if corner <= 0:
-        return y
-    return y + corner * integrate.cumulative_trapezoid(y, dx=dtau, initial=0.0)
-
-
 def _fit_map(
     y: np.ndarray,
     dtau: float,
@@ -363,35 +355,6 @@ def _fit_map(
     return out
 
 
-def _fit_highpass(args: tuple, ff: float, plain: _Map) -> float:
-    """Rule: the high-pass corner (forcing frequencies) that best restores the free-flight law.
-
-    In steady state the filter leaves the linear free-flight law intact, but a
-    record that starts with the filter out of equilibrium carries its start-up
-    transient, which no linear law explains: the corner whose inverse makes
-    the free flight linear again is the filter's. A grid up to 0.4 of the
-    forcing frequency, then a bounded scalar search around the best point; a
-    corner is kept only if it removes at least 30 % of the free-flight misfit
-    (a damped or poorly sampled contact alone does not move it). Returns 0
-    otherwise: a high-pass running long before the record cannot be seen in
-    the free flight and must be given (``highpass_hz``).
-    """
-
-    def misfit(corner: float) -> float:
-        return 1.0 - _fit_map(*args, corner, 1.0).fit.r2
-
-    plain_cost = 1.0 - plain.fit.r2
-    grid = np.array([0.0, 0.025, 0.05, 0.1, 0.2, 0.4])
-    costs = [plain_cost] + [misfit(c) for c in grid[1:]]
-    i = int(np.argmin(costs))
-    if not costs[i] < HIGHPASS_GAIN * plain_cost:
-        return 0.0
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    res = optimize.minimize_scalar(misfit, bounds=(lo, hi), method="bounded",
-                                   options={"xatol": 0.002, "maxiter": 8})  # fmt: skip
-    return float(res.x) if res.fun < costs[i] else float(grid[i])
-
-
 def restoring_force_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -403,7 +366,7 @@ def restoring_force_estimate(
     coverage: float = 0.9,
     seed: int = 0,
     max_periods: float | None = None,
-    highpass_hz: float | str = 0.0,
+    highpass_hz: float | str = "auto",
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -430,11 +393,11 @@ def restoring_force_estimate(
     max_periods : float, optional
         Analyse at most this many forcing periods (the middle of the record).
     highpass_hz : float or "auto"
-        Corner of a first-order high-pass in the sensor chain (charge amplifier,
-        from its data sheet), undone before integrating; 0 (default) assumes none.
-        ``"auto"`` fits it when the plain map fits the contact poorly, from the
-        filter's start-up transient (experimental: on noisy records without a
-        high-pass it can pick a spurious corner; see docs/crosscheck.md).
+        Corner of a first-order high-pass in the sensor chain (charge amplifier),
+        undone before integrating. ``"auto"`` (default) fits it jointly with the
+        free-flight law (:mod:`~stiffnet.restoring_force.sensor`; a corner
+        within two standard errors of zero counts as none); a number gives it
+        (the data sheet's), 0 assumes none.
 
     Returns
     -------
@@ -491,12 +454,7 @@ def restoring_force_estimate(
     k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
     args = (y, dtau, tau, use, period, k_given)
     if highpass_hz == "auto":
-        m = _fit_map(*args, 0.0, 1.0)
-        if m.law is None or m.law.r2 < HIGHPASS_SEARCH_R2:
-            corner = _fit_highpass(args, ff, m)
-            if corner > 0:
-                m = _fit_map(*args, corner, 1.0)
-        corner = m.corner
+        corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
@@ -504,7 +462,18 @@ def restoring_force_estimate(
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
     m = _fit_map(*args, corner, exponent)
+    resonance = None
+    natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
+    ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
+    mode = resonance_rule(ring, m.spc)
+    if mode is not None:  # the mount's ringing dominates the free flight: divide it out
+        y = undo_resonance(y, *mode)
+        if highpass_hz == "auto":
+            corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))
+        m = _fit_map(y, dtau, tau, use, period, k_given, corner, exponent)
+        resonance = mode[0] * fs_hz / (2 * np.pi)
     fit, info = m.fit, m.info
+    info["resonance_hz"] = resonance
     info.update(
         forcing_frequency_hz=ff,
         polarity=polarity,

@@ -179,6 +179,41 @@ def _impulse_corrections(
     return corr, dcorr, c, r2
 
 
+def robust_split(
+    design: np.ndarray, target: np.ndarray, use: np.ndarray, dilate: int = 2
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Least squares of a free-flight regression with the contacts split off as outliers.
+
+    The contact forces are one-sided outliers: least squares on every sample,
+    then on the samples whose residual stays within the free-flight scatter, a
+    few times, the first passes with a looser cut (they are biased by the
+    contacts).
+
+    Returns
+    -------
+    coef : numpy.ndarray
+        Coefficients on the free samples.
+    free, contact : numpy.ndarray
+        Boolean masks (contact dilated by `dilate` samples, both within `use`).
+    sigma : float
+        Robust scatter of the residual on the free samples.
+    """
+    scale = float(np.std(target)) or 1.0
+    free = use.copy()
+    contact = np.zeros_like(use)
+    sigma = scale
+    coef = _lstsq(design[free], target[free])
+    for i in range(5):
+        force = target - design @ coef
+        resid = force[free]
+        sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) or 1e-12 * scale
+        contact = force > (CONTACT_SIGMAS if i >= 2 else 2.0) * sigma
+        contact = ndimage.binary_dilation(contact, iterations=dilate) & use
+        free = use & ~contact
+        coef = _lstsq(design[free], target[free])
+    return coef, free, contact, sigma
+
+
 def table_motion(coef: np.ndarray, stiffness: float, damping: float, harmonics=HARMONICS):
     """Solve ``k s + c s' = p cos + q sin`` for the table's ``(cos, sin)`` amplitudes."""
     out = np.empty((len(harmonics), 2))
@@ -226,22 +261,7 @@ def fit_free_flight(
     if stiffness is not None:  # move the known k x_i to the target side
         target = target - stiffness * disp
         design[:, 1] = 0.0
-    scale = float(np.std(target)) or 1.0
-    # the one-sided contact forces are the outliers: least squares on every sample, then
-    # on the samples whose residual force stays within the free-flight scatter, four times
-    free = use.copy()
-    contact = np.zeros_like(use)
-    sigma = scale
-    coef = _lstsq(design[free], target[free])
-    for i in range(5):
-        force = target - design @ coef
-        resid = force[free]
-        sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) or 1e-12 * scale
-        # the first passes are biased by the contacts: a looser cut until they are out
-        contact = force > (CONTACT_SIGMAS if i >= 2 else 2.0) * sigma
-        contact = ndimage.binary_dilation(contact, iterations=dilate) & use
-        free = use & ~contact
-        coef = _lstsq(design[free], target[free])
+    coef, free, contact, sigma = robust_split(design, target, use, dilate)
     c = float(coef[0])
     k = float(coef[1]) if stiffness is None else float(stiffness)
     fitted = design[free] @ coef
