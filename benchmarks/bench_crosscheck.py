@@ -273,7 +273,8 @@ def campaign_agreement(seed: int = 0) -> dict[str, Any]:
             )
             per.append(dict(recording=row.recording, truth=class_of(row.beta), learned=p["class"],
                             physical=p["physical_class"], geometric=p["geometric"]["class"],
-                            physical_beta=p["physical_beta"], beta=row.beta))  # fmt: skip
+                            physical_beta=p["physical_beta"], beta=row.beta,
+                            reason=p["physical"]["reason"]))  # fmt: skip
     n = len(per)
 
     def count(a: str, b: str) -> int:
