@@ -11,6 +11,7 @@ from stiffnet.effects.sensor_dynamics import resonance_sos
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.restoring_force import (
     contact_force,
+    forcing_frequency,
     integrate_spectral,
     restoring_force_estimate,
     table_motion,
@@ -105,9 +106,22 @@ def test_no_contact_is_refused_with_a_reason():
 def test_noise_alone_is_refused():
     noise = np.random.default_rng(0).standard_normal(6000)
     with pytest.raises(SignalError, match="forcing periods"):  # no forcing line
-        restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48)
+        restoring_force_estimate(noise, 1000.0)
+    # with f_n the search starts at f_n / 4: some noise line is found, the law refuses it
+    r = restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48)
+    assert not r.ok and "free-flight law explains" in r.reason
     r = restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48, forcing_frequency_hz=10)
     assert not r.ok and r.beta is None and r.reason
+
+
+def test_highpass_start_up_transient_does_not_pass_for_the_forcing_line():
+    """A charge amplifier started with the record: its slow transient tops the velocity
+    spectrum; with f_n known the forcing line is searched above f_n / 4."""
+    accel, fs = simulate(40.0, fs_ratio=60.0, noise=0.02)
+    y = sps.sosfilt(sps.butter(1, 0.5, "highpass", fs=fs, output="sos"), accel + 3 * accel.std())
+    assert forcing_frequency(y, fs) < 0.2 * FN  # without the bound: the transient
+    r = restoring_force_estimate(y, fs, natural_frequency_hz=FN)
+    assert r.forcing_frequency_hz == pytest.approx(1.1 * FN, rel=0.01)
 
 
 def test_bad_input_raises_one_line_errors():

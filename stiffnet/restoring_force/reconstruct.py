@@ -25,7 +25,27 @@ from stiffnet.errors import SignalError
 CUTOFF = 0.25
 
 
-def forcing_frequency(accel: ArrayLike, fs_hz: float, pad: int = 8) -> float:
+def coarse_period(a: np.ndarray, fs_hz: float, min_hz: float | None = None) -> float:
+    """Forcing period in samples: :func:`stiffnet.geometry.dominant_period`, or with `min_hz`
+    the velocity spectrum's peak above `min_hz` (a charge amplifier's start-up transient
+    puts a low line on top of the velocity spectrum, 1/f**2 weighted)."""
+    from stiffnet.geometry.estimate import dominant_period
+
+    if not min_hz:
+        return dominant_period(a)
+    n = a.size
+    spec = np.abs(np.fft.rfft((a - a.mean()) * np.hanning(n))) ** 2
+    k = np.arange(spec.size, dtype=np.float64)
+    lo = max(2, int(np.ceil(min_hz * n / fs_hz)))
+    if lo >= spec.size - 1:
+        raise SignalError(f"record too short to find a forcing line above {min_hz:.3g} Hz")
+    j = lo + int(np.argmax(spec[lo:-1] / k[lo:-1] ** 2))
+    return float(n / j)
+
+
+def forcing_frequency(
+    accel: ArrayLike, fs_hz: float, pad: int = 8, min_hz: float | None = None
+) -> float:
     """Forcing frequency of an impact-oscillator record in Hz: the velocity spectrum's peak.
 
     The coarse peak is :func:`stiffnet.geometry.dominant_period` (velocity
@@ -44,16 +64,16 @@ def forcing_frequency(accel: ArrayLike, fs_hz: float, pad: int = 8) -> float:
         Sampling rate, Hz.
     pad : int
         Zero-padding factor of the refining periodogram.
+    min_hz : float, optional
+        Lowest forcing frequency searched (the caller's bound from a known f_n).
 
     Returns
     -------
     float
         Forcing frequency, Hz.
     """
-    from stiffnet.geometry.estimate import dominant_period
-
     a = np.asarray(accel, dtype=np.float64)
-    period = dominant_period(a)
+    period = coarse_period(a, fs_hz, min_hz)
     n = a.size
     m = int(2 ** np.ceil(np.log2(pad * n)))
     spec = np.abs(np.fft.rfft((a - a.mean()) * np.hanning(n), m)) ** 2
