@@ -43,7 +43,7 @@ from stiffnet.restoring_force.contact_law import (
 from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS, fit_free_flight
 from stiffnet.restoring_force.reconstruct import (
     check_record,
-    coarse_period,
+    forcing_candidates,
     forcing_frequency,
     integrate_spectral,
     periodic_length,
@@ -448,16 +448,46 @@ def restoring_force_estimate(
         coarse = (
             fs_hz / forcing_frequency_hz
             if forcing_frequency_hz
-            else coarse_period(mid, fs_hz, min_hz)
+            else max(forcing_candidates(mid, fs_hz, min_hz))
         )
         keep = int(1.1 * max_periods * coarse)
         if a.size > keep:
             a = a[(a.size - keep) // 2 :][:keep]
-    ff = (
-        float(forcing_frequency_hz)
-        if forcing_frequency_hz
-        else forcing_frequency(a, fs_hz, min_hz=min_hz)
-    )
+    if forcing_frequency_hz:
+        lines = [float(forcing_frequency_hz)]
+    else:  # rival lines (period-n orbits): the free-flight law picks the forcing
+        lines = [
+            forcing_frequency(a, fs_hz, coarse=c) for c in forcing_candidates(a, fs_hz, min_hz)
+        ]
+    options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
+                   classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
+                   highpass_hz=highpass_hz)  # fmt: skip
+    results = []
+    for i, ff in enumerate(lines):
+        try:
+            results.append(_estimate_at(a, fs_hz, ff, **options))
+        except SignalError:
+            if i == 0 and len(lines) == 1:
+                raise
+    if not results:
+        raise SignalError("no forcing line leaves four forcing periods in the record")
+    return max(results, key=lambda r: r.free_r2 if np.isfinite(r.free_r2) else -np.inf)
+
+
+def _estimate_at(
+    a: np.ndarray,
+    fs_hz: float,
+    ff: float,
+    *,
+    natural_frequency_hz: float | None,
+    exponent: float | None,
+    classes,
+    coverage: float,
+    seed: int,
+    max_periods: float | None,
+    highpass_hz: float | str,
+) -> RestoringForceResult:
+    """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
     if not ff < 0.5 * fs_hz:
         raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
     period = fs_hz / ff
