@@ -245,27 +245,24 @@ def campaign_agreement(seed: int = 0) -> dict[str, Any]:
     x1.02), 4 s each, written by ``simulate_campaign`` and read back from disk;
     every recording goes through ``Predictor.predict`` with the manifest's f_n.
     """
-    import csv
     import tempfile
 
     from serving.predictor import Predictor
-    from stiffnet.campaign import load_campaign, simulate_campaign
+    from stiffnet.campaign import load_campaign, read_manifest, simulate_campaign, write_manifest
 
-    root = Path(__file__).resolve().parents[1]
-    with open(root / "examples" / "hidden_effect_manifest.csv", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
+    base = read_manifest(
+        Path(__file__).resolve().parents[1] / "examples" / "hidden_effect_manifest.csv"
+    )
+    rows = [
+        r.model_copy(update={"recording": f"{prefix}/{Path(r.recording).name}",
+                             "frequency_ratio": round(r.frequency_ratio * shift, 4)})
+        for prefix, shift in (("a", 0.98), ("b", 1.0), ("c", 1.02))
+        for r in base
+    ]  # fmt: skip
     predictor = Predictor.load()
     per: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as d:
-        manifest = Path(d) / "manifest24.csv"
-        with open(manifest, "w", encoding="utf-8", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-            w.writeheader()
-            for prefix, shift in (("a", 0.98), ("b", 1.0), ("c", 1.02)):
-                for r in rows:
-                    ratio = f"{float(r['frequency_ratio']) * shift:.4f}"
-                    name = f"{prefix}/{Path(r['recording']).name}"
-                    w.writerow({**r, "recording": name, "frequency_ratio": ratio})
+        manifest = write_manifest(Path(d) / "manifest24.csv", rows)
         camp = load_campaign(simulate_campaign(manifest, Path(d) / "campaign24", [], seed=seed))
         for row, rec in camp.recordings():
             p = predictor.predict(

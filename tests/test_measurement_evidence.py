@@ -1,12 +1,11 @@
 """Restoring-force evidence beside diagnose's fits: rules and a simulated damped campaign."""
 
-import csv
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from stiffnet.campaign import load_campaign, simulate_campaign
+from stiffnet.campaign import load_campaign, read_manifest, simulate_campaign, write_manifest
 from stiffnet.measurement.evidence import contact_evidence, restitution, restoring_force_evidence
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,13 +38,10 @@ def test_evidence_rules_name_dissipation_and_stiffening():
 def test_evidence_on_a_simulated_campaign(tmp_path, zeta):
     """The hidden-effect manifest's 8 rows: dissipation named only when the contact has it."""
     effects = [f"contact_damping:damping_ratio={zeta}"] if zeta else []
-    with open(ROOT / "examples" / "hidden_effect_manifest.csv", encoding="utf-8") as fh:
-        rows = list(csv.DictReader(fh))
-    manifest = tmp_path / "m.csv"
-    with open(manifest, "w", encoding="utf-8", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows({**r, "duration_s": "2"} for r in rows)
+    rows = read_manifest(ROOT / "examples" / "hidden_effect_manifest.csv")
+    manifest = write_manifest(
+        tmp_path / "m.csv", [r.model_copy(update={"duration_s": 2.0}) for r in rows]
+    )
     camp = load_campaign(simulate_campaign(manifest, tmp_path / "c", effects, seed=0))
     ev = restoring_force_evidence(camp, camp.rows)
     assert ev["answered"] >= 6

@@ -508,15 +508,19 @@ def _estimate_at(
     use[:edge] = use[-edge:] = False
     k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
     args = (y, dtau, tau, use, period, k_given)
-    if highpass_hz == "auto":
-        corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))
+    if highpass_hz == "auto":  # the plain map first: its free-flight scatter judges the corner
+        m = _fit_map(*args, 0.0, exponent)
+        fitted = fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
+        corner = highpass_rule(*fitted)
+        if corner > 0:
+            m = _fit_map(*args, corner, exponent)
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
         ):
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
-    m = _fit_map(*args, corner, exponent)
+        m = _fit_map(*args, corner, exponent)
     resonance = None
     natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
     ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
@@ -524,7 +528,7 @@ def _estimate_at(
     if mode is not None:  # the mount's ringing dominates the free flight: divide it out
         y = undo_resonance(y, *mode)
         if highpass_hz == "auto":
-            corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))
+            corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))  # fresh
         m = _fit_map(y, dtau, tau, use, period, k_given, corner, exponent)
         resonance = mode[0] * fs_hz / (2 * np.pi)
     fit, info = m.fit, m.info

@@ -81,7 +81,7 @@ def free_flight_design(
     return np.column_stack(cols)
 
 
-def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def scaled_lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Least squares by the normal equations of the unit-norm columns (zero columns get 0).
 
     The designs are tall and narrow (thousands of rows, 9-40 columns) and, with
@@ -146,7 +146,7 @@ def _impulse_corrections(
     a[:, 0] = vel[rows]
     a[np.arange(rows.size), 1 + j] = 1.0
     a[np.arange(rows.size), 1 + n + j] = tau[rows] - centre[j]
-    coef = _lstsq(a, target[rows])
+    coef = scaled_lstsq(a, target[rows])
     c = float(coef[0])
     slope = coef[1 + n :] / stiffness
     level = (coef[1 : 1 + n] - c * slope) / stiffness
@@ -202,7 +202,7 @@ def robust_split(
     free = use.copy()
     contact = np.zeros_like(use)
     sigma = scale
-    coef = _lstsq(design[free], target[free])
+    coef = scaled_lstsq(design[free], target[free])
     for i in range(5):
         force = target - design @ coef
         resid = force[free]
@@ -210,7 +210,7 @@ def robust_split(
         contact = force > (CONTACT_SIGMAS if i >= 2 else 2.0) * sigma
         contact = ndimage.binary_dilation(contact, iterations=dilate) & use
         free = use & ~contact
-        coef = _lstsq(design[free], target[free])
+        coef = scaled_lstsq(design[free], target[free])
     return coef, free, contact, sigma
 
 

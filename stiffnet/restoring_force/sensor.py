@@ -83,6 +83,7 @@ def fit_highpass_corner(
     use: np.ndarray,
     stiffness: float | None = None,
     harmonics=HARMONICS,
+    sigma_plain: float | None = None,
 ) -> tuple[float, float, float]:
     """Corner ``w_h`` of a first-order high-pass in forcing frequencies, and its standard error.
 
@@ -100,6 +101,9 @@ def fit_highpass_corner(
         Known free-flight stiffness ``k = (f_n / f_f)**2``; fitted alongside when None.
     harmonics : tuple of int
         Forcing harmonics of the table's motion.
+    sigma_plain : float, optional
+        Robust free-flight scatter without a high-pass (``FreeFlightFit.sigma`` of
+        the same record); computed here when None.
 
     Returns
     -------
@@ -122,9 +126,10 @@ def fit_highpass_corner(
         target = -y
         design = np.column_stack([base[:, :2], big_y, disp_y, vel_y, base[:, 2:]])
         j = 2
-    plain = np.delete(design, range(j, j + (2 if stiffness is not None else 3)), axis=1)
-    sigma_plain = robust_split(plain, target, use)[3]
     coef, free, _, sigma = robust_split(design, target, use)
+    if sigma_plain is None:  # the free-flight fit without the high-pass terms
+        plain = np.delete(design, range(j, j + (2 if stiffness is not None else 3)), axis=1)
+        sigma_plain = robust_split(plain, target, use)[3]
     a = design[free]
     norms = np.sqrt(np.einsum("ij,ij->j", a, a))
     norms[norms == 0] = 1.0
