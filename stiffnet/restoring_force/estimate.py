@@ -524,7 +524,7 @@ def _estimate_at(
     resonance = None
     natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
     ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
-    mode = resonance_rule(ring, m.spc)
+    mode = resonance_rule(ring, m.spc, natural)
     if mode is not None:  # the mount's ringing dominates the free flight: divide it out
         y = undo_resonance(y, *mode)
         if highpass_hz == "auto":

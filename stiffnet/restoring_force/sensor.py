@@ -157,6 +157,8 @@ RINGING_FRACTION = 0.8
 RINGING_MAX_DAMPING = 0.2
 #: Post-impact window of the AR(2) fit, natural periods.
 RINGING_WINDOW = 0.3
+#: Without contacts to compare with, a ring must be this many times the natural frequency.
+RINGING_MIN_FN = 5.0
 #: The equaliser's taper: a fourth-order roll-off at this multiple of f_r.
 TAPER = 2.0
 
@@ -169,8 +171,9 @@ def ringing_mode(
     Least squares of an AR(`order`) model ``r[n] = sum_i a_i r[n-i]`` of the
     residual force's first difference in the `window` samples after each
     contact; each complex root ``z`` of its polynomial is ``exp(s)`` with
-    ``s = -zeta w + i w sqrt(1 - zeta^2)``, and the fastest lightly damped one is
-    the mount's (order 4: the contact's own slow tail takes the other pair).
+    ``s = -zeta w + i w sqrt(1 - zeta^2)``, and the lightly damped one with the
+    strongest AR spectral peak is the mount's (order 4: the contact's own slow
+    tail, or the noise the difference lifts, takes the other pair).
 
     Returns
     -------
@@ -201,25 +204,37 @@ def ringing_mode(
         return None
     s = np.log(np.abs(z)) + 1j * np.abs(np.angle(z))
     zeta = -s.real / np.abs(s)
-    # the mount: the fastest lightly damped pair (the others model the contact's tail, or
-    # nothing when the order is more than the ring needs)
+    # the mount: the lightly damped pair with the strongest AR spectral peak (the other pair
+    # models the contact's tail, or the noise the difference lifts near Nyquist)
     light = np.flatnonzero(zeta < RINGING_MAX_DAMPING)
-    i = light[np.argmax(s.imag[light])] if light.size else int(np.argmin(zeta))
+    if not light.size:
+        i = int(np.argmin(zeta))
+    else:
+        lags = np.arange(1, order + 1)
+        a_of_w = 1.0 - np.exp(-1j * np.outer(s.imag[light], lags)) @ coef
+        i = light[int(np.argmin(np.abs(a_of_w)))]
     return float(abs(s[i])), float(zeta[i]), fraction
 
 
 def resonance_rule(
-    mode: tuple[float, float, float] | None, samples_per_contact: float
+    mode: tuple[float, float, float] | None, samples_per_contact: float, natural_samples: float
 ) -> tuple[float, float] | None:
     """Rule: ``(w_r, zeta_r)`` (radians per sample) when a light ringing dominates the
     post-impact residual and is at least twice as fast as the contact itself (a contact of
-    ``n`` samples is half a cycle of ``pi / n``: slower "ringing" is the contact's own tail)."""
-    if mode is None or not samples_per_contact > 0:
+    ``n`` samples is half a cycle of ``pi / n``: slower "ringing" is the contact's own tail);
+    when the contacts could not be split (a ring that dominates the free flight), at least
+    :data:`RINGING_MIN_FN` times the natural frequency (``natural_samples`` per period)."""
+    if mode is None:
         return None
     w, zeta, fraction = mode
     if fraction < RINGING_FRACTION or not 0 < zeta < RINGING_MAX_DAMPING or w >= 0.9 * np.pi:
         return None
-    if w < 2 * np.pi / samples_per_contact:
+    slowest = (
+        2 * np.pi / samples_per_contact
+        if samples_per_contact > 0
+        else 2 * np.pi * RINGING_MIN_FN / natural_samples
+    )
+    if w < slowest:
         return None
     return w, zeta
 
