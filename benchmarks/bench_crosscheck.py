@@ -60,7 +60,7 @@ SETS: dict[str, tuple[float, list[tuple[str, dict[str, Any]]]]] = {
     "ideal 2%": (0.02, []),
     "ideal 5%": (0.05, []),
     "ideal 9%": (0.09, []),
-    "damped": (0.02, [("contact_damping", {"damping_ratio": [0.0, 0.3]})]),
+    "damped": (0.02, [("contact_damping", {"damping_ratio": [0.0, 0.5]})]),
     "sensor": (0.02, [("sensor_dynamics", {})]),
     "harmonics": (
         0.02,

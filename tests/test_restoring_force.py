@@ -86,6 +86,18 @@ def test_kelvin_voigt_contact_gives_its_damping(zeta):
     assert r.beta == pytest.approx(40.0, rel=0.02)
 
 
+def test_strongly_damped_contact_restitution_016():
+    """zeta_c = 0.5 (the priors' edge): mostly damping force at the contact's start; the
+    onset profiled over a grid gives the least-squares fit a start it recovers from."""
+    effects = [("contact_damping", {"damping_ratio": 0.5})]
+    accel, fs = simulate(60.0, effects, fs_ratio=300.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(60.0, rel=0.1)
+    assert r.contact_damping_ratio == pytest.approx(0.5, abs=0.1)
+    assert 0.3 < r.duration_ratio < 1.0  # the early release: shorter than half a period
+
+
 def test_gain_and_polarity_do_not_change_beta():
     accel, fs = simulate(20.0, noise=0.02)
     base = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)

@@ -39,6 +39,7 @@ from stiffnet.restoring_force.contact_law import (
     exponent_matters,
     fit_contact_law,
     linear_contact_start,
+    profile_contact_start,
 )
 from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS, fit_free_flight
 from stiffnet.restoring_force.reconstruct import (
@@ -66,6 +67,8 @@ MIN_FORCING_RATIO = 0.25
 MIN_IMPACTS = 3
 #: Refuse when the contact law explains less of the contact force than this.
 MIN_CONTACT_R2 = 0.5
+#: Refuse when the contacts last longer than this many half periods of the fitted law.
+MAX_DURATION_RATIO = 2.0
 #: Refuse when the free-flight law explains less of the free restoring force than this.
 MIN_FREE_R2 = 0.5
 #: Systematic part of the interval (log beta): a floor, and a term growing with the contact
@@ -111,6 +114,9 @@ class RestoringForceResult:
         Corner of the sensor chain's high-pass undone before integrating (0: none).
     resonance_hz : float or None
         Mounted resonance of the accelerometer divided out (None: no ringing seen).
+    duration_ratio : float
+        Median contact duration over the fitted law's half period ``pi / sqrt(K + k)``
+        (~1 for a linear contact, less for a damped one's early release).
     n_impacts : int
     samples_per_contact : float
         Median samples in contact per impact (below ~4 the spike is barely resolved).
@@ -150,6 +156,7 @@ class RestoringForceResult:
     force: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
     free_stiffness: float = float("nan")
     resonance_hz: float | None = None
+    duration_ratio: float = float("nan")
     law: ContactLaw | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict[str, Any]:
@@ -173,6 +180,7 @@ class RestoringForceResult:
             "stiffness_rule": self.stiffness_rule,
             "highpass_hz": num(self.highpass_hz),
             "resonance_hz": num(self.resonance_hz),
+            "duration_ratio": num(self.duration_ratio),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -302,6 +310,39 @@ class _Map:
     exponent: float | None = None
 
 
+def _auto_map(
+    y: np.ndarray,
+    dtau: float,
+    tau: np.ndarray,
+    use: np.ndarray,
+    period: float,
+    k_given: float | None,
+    exponent: float | None,
+) -> tuple[_Map, float]:
+    """The map with the high-pass corner fitted (:mod:`.sensor`), and that corner.
+
+    The plain map comes first: its free-flight scatter judges the corner
+    (:func:`~.sensor.highpass_rule`), and a kept corner must not worsen the
+    contact law's fit (on strongly damped contacts without any high-pass, the
+    corner's terms absorb some free-flight misfit and pass the first tests).
+    """
+    args = (y, dtau, tau, use, period, k_given)
+    m = _fit_map(*args, 0.0, exponent)
+    corner = highpass_rule(
+        *fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
+    )
+    if corner > 0:
+        corrected = _fit_map(*args, corner, exponent)
+        if _contact_r2(corrected) >= _contact_r2(m):
+            return corrected, corner
+    return m, 0.0
+
+
+def _contact_r2(m: _Map) -> float:
+    """The contact law's R2 of a map (-inf when it has none)."""
+    return m.law.r2 if m.law is not None else -np.inf
+
+
 def _fit_map(
     y: np.ndarray,
     dtau: float,
@@ -354,19 +395,33 @@ def _fit_map(
     peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
     dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
     state = (fit.force, fit.displacement, fit.velocity, near)
-    law = fit_contact_law(*state, (kc0, e0, cc0), dr, 1.0 if exponent is None else exponent)
+    fixed = 1.0 if exponent is None else exponent
+    law = fit_contact_law(*state, (kc0, e0, cc0), dr, fixed)
+    profiled = profile_contact_start(*state)
+    if np.isfinite(profiled[0]):  # a second start: strongly damped contacts mislead the first
+        other = fit_contact_law(*state, profiled, dr, fixed)
+        law = other if other.sse < law.sse else law
     fitted_exponent = law.exponent
     if exponent is None:  # the exponent is reported; it sets beta only where it is significant
         free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
         fitted_exponent = free_law.exponent
         if exponent_matters(law, free_law):
             law = free_law
-    info.update(law=law, contact_r2=law.r2)
+    # the contacts last about half a period of the contact's own oscillation (less when a
+    # damped contact releases early, a little more when a filter smears them): a law far
+    # stiffer than its contacts' duration allows is fitting something else
+    duration = spc * dtau / (np.pi / np.sqrt(law.stiffness + fit.stiffness))
+    info.update(law=law, contact_r2=law.r2, duration_ratio=duration)
     out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent)
     if law.r2 < MIN_CONTACT_R2:
         out.refusal = (
             f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
             "no meaningful fit"
+        )
+    elif duration > MAX_DURATION_RATIO:
+        out.refusal = (
+            f"the contacts last {duration:.1f}x the half period of the fitted contact law "
+            f"(> {MAX_DURATION_RATIO:g}): its stiffness does not describe them"
         )
     return out
 
@@ -508,12 +563,8 @@ def _estimate_at(
     use[:edge] = use[-edge:] = False
     k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
     args = (y, dtau, tau, use, period, k_given)
-    if highpass_hz == "auto":  # the plain map first: its free-flight scatter judges the corner
-        m = _fit_map(*args, 0.0, exponent)
-        fitted = fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
-        corner = highpass_rule(*fitted)
-        if corner > 0:
-            m = _fit_map(*args, corner, exponent)
+    if highpass_hz == "auto":
+        m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent)
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
@@ -526,11 +577,13 @@ def _estimate_at(
     ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
     mode = resonance_rule(ring, m.spc, natural)
     if mode is not None:  # the mount's ringing dominates the free flight: divide it out
-        y = undo_resonance(y, *mode)
+        flat = undo_resonance(y, *mode)
         if highpass_hz == "auto":
-            corner = highpass_rule(*fit_highpass_corner(y, dtau, tau, use, k_given))  # fresh
-        m = _fit_map(y, dtau, tau, use, period, k_given, corner, exponent)
-        resonance = mode[0] * fs_hz / (2 * np.pi)
+            m2, corner2 = _auto_map(flat, dtau, tau, use, period, k_given, exponent)
+        else:
+            m2, corner2 = _fit_map(flat, dtau, tau, use, period, k_given, corner, exponent), corner
+        if _contact_r2(m2) >= _contact_r2(m):
+            m, corner, resonance = m2, corner2, mode[0] * fs_hz / (2 * np.pi)
     fit, info = m.fit, m.info
     info["resonance_hz"] = resonance
     info.update(
