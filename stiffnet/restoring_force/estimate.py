@@ -67,6 +67,8 @@ MIN_FORCING_RATIO = 0.25
 MIN_IMPACTS = 3
 #: Refuse when the contact law explains less of the contact force than this.
 MIN_CONTACT_R2 = 0.5
+#: Below this contact R2 the contact law is fitted again from an onset profiled over a grid.
+SECOND_START_R2 = 0.95
 #: Refuse when the contacts last longer than this many half periods of the fitted law.
 MAX_DURATION_RATIO = 2.0
 #: Refuse when the free-flight law explains less of the free restoring force than this.
@@ -397,8 +399,9 @@ def _fit_map(
     state = (fit.force, fit.displacement, fit.velocity, near)
     fixed = 1.0 if exponent is None else exponent
     law = fit_contact_law(*state, (kc0, e0, cc0), dr, fixed)
-    profiled = profile_contact_start(*state)
-    if np.isfinite(profiled[0]):  # a second start: strongly damped contacts mislead the first
+    # a second start where the first fit is poor: strongly damped contacts mislead it
+    profiled = profile_contact_start(*state) if law.r2 < SECOND_START_R2 else (np.nan,)
+    if np.isfinite(profiled[0]):
         other = fit_contact_law(*state, profiled, dr, fixed)
         law = other if other.sse < law.sse else law
     fitted_exponent = law.exponent

@@ -57,8 +57,8 @@ def forcing_candidates(
         raise SignalError("no oscillation found in the record")
     top = int(np.argmax(vel))
     peaks = np.flatnonzero((vel[1:-1] > vel[:-2]) & (vel[1:-1] >= vel[2:])) + 1
-    rivals = [int(j) for j in peaks[np.argsort(vel[peaks])[::-1]]
-              if vel[j] >= rival * vel[top] and abs(j / top - 1) > 0.1][:2]  # fmt: skip
+    peaks = peaks[(vel[peaks] >= rival * vel[top]) & (np.abs(peaks / top - 1) > 0.1)]
+    rivals = [int(j) for j in peaks[np.argsort(vel[peaks])[::-1]][:2]]
     out = [float(n / top)]
     for j in rivals:
         if all(abs((n / j) / p - 1) > 0.1 for p in out):
