@@ -6,7 +6,8 @@ cost stays bounded on long recordings), turned into the JSON fields of
 :class:`serving.schemas.PhysicalCheck`. A recording the method cannot read
 (no contact, no forcing line, a meaningless fit) gives ``class`` null or
 ``no_contact`` and the reason, never an error: the cross-check must not stop a
-prediction.
+prediction. The sensor chain's high-pass corner and mount resonance are fitted
+from the recording itself (``highpass_hz``, ``resonance_hz``).
 """
 
 from __future__ import annotations
@@ -46,5 +47,6 @@ def physical_check(accel: Any, fs_hz: float, natural_frequency_hz: float) -> dic
         "n_impacts": d["n_impacts"],
         "contact_r2": d["contact_r2"],
         "highpass_hz": d["highpass_hz"],
+        "resonance_hz": d["resonance_hz"],
         "reason": d["reason"],
     }

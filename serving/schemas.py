@@ -52,7 +52,10 @@ class PhysicalCheck(BaseModel):
     n_impacts: int | None = None
     contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
     highpass_hz: float | None = Field(
-        default=None, description="Sensor high-pass corner undone (0: none)."
+        default=None, description="Sensor high-pass corner fitted and undone (0: none)."
+    )
+    resonance_hz: float | None = Field(
+        default=None, description="Accelerometer mount resonance divided out (null: none seen)."
     )
     reason: str = Field(description="What was estimated, or why not.")
 

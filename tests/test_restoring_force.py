@@ -4,15 +4,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.signal as sps
 
 from stiffnet.effects.registry import build_effect
+from stiffnet.effects.sensor_dynamics import resonance_sos
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.restoring_force import (
     contact_force,
+    forcing_frequency,
     integrate_spectral,
     restoring_force_estimate,
     table_motion,
 )
+from stiffnet.restoring_force.sensor import ringing_mode, undo_resonance
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ as FN
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
@@ -82,6 +86,18 @@ def test_kelvin_voigt_contact_gives_its_damping(zeta):
     assert r.beta == pytest.approx(40.0, rel=0.02)
 
 
+def test_strongly_damped_contact_restitution_016():
+    """zeta_c = 0.5 (the priors' edge): mostly damping force at the contact's start; the
+    onset profiled over a grid gives the least-squares fit a start it recovers from."""
+    effects = [("contact_damping", {"damping_ratio": 0.5})]
+    accel, fs = simulate(60.0, effects, fs_ratio=300.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(60.0, rel=0.1)
+    assert r.contact_damping_ratio == pytest.approx(0.5, abs=0.1)
+    assert 0.3 < r.duration_ratio < 1.0  # the early release: shorter than half a period
+
+
 def test_gain_and_polarity_do_not_change_beta():
     accel, fs = simulate(20.0, noise=0.02)
     base = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
@@ -102,9 +118,22 @@ def test_no_contact_is_refused_with_a_reason():
 def test_noise_alone_is_refused():
     noise = np.random.default_rng(0).standard_normal(6000)
     with pytest.raises(SignalError, match="forcing periods"):  # no forcing line
-        restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48)
+        restoring_force_estimate(noise, 1000.0)
+    # with f_n the search starts at f_n / 4: some noise line is found, the law refuses it
+    r = restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48)
+    assert not r.ok and "free-flight law explains" in r.reason
     r = restoring_force_estimate(noise, 1000.0, natural_frequency_hz=9.48, forcing_frequency_hz=10)
     assert not r.ok and r.beta is None and r.reason
+
+
+def test_highpass_start_up_transient_does_not_pass_for_the_forcing_line():
+    """A charge amplifier started with the record: its slow transient tops the velocity
+    spectrum; with f_n known the forcing line is searched above f_n / 4."""
+    accel, fs = simulate(40.0, fs_ratio=60.0, noise=0.02)
+    y = sps.sosfilt(sps.butter(1, 0.5, "highpass", fs=fs, output="sos"), accel + 3 * accel.std())
+    assert forcing_frequency(y, fs) < 0.2 * FN  # without the bound: the transient
+    r = restoring_force_estimate(y, fs, natural_frequency_hz=FN)
+    assert r.forcing_frequency_hz == pytest.approx(1.1 * FN, rel=0.01)
 
 
 def test_bad_input_raises_one_line_errors():
@@ -123,21 +152,76 @@ def test_bad_input_raises_one_line_errors():
 
 
 def test_damped_contact_seen_through_sensor_dynamics():
-    """Resonance, 1 kHz low-pass and the 1 Hz charge-amplifier high-pass, its corner given."""
+    """Resonance, 1 kHz low-pass and the 1 Hz charge-amplifier high-pass, corner not given."""
     effects = [("contact_damping", {"damping_ratio": 0.25}), ("sensor_dynamics", {})]
     accel, fs = simulate(45.0, effects, fs_ratio=300.0, noise=0.02)
-    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz=1.0)
+    given = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz=1.0)
+    assert given.ok, given.reason
+    assert given.beta == pytest.approx(45.0, rel=0.1)
+    # by default the corner is fitted jointly with the free-flight law
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
     assert r.ok, r.reason
+    assert r.highpass_hz == pytest.approx(1.0, abs=0.1)
     assert r.beta == pytest.approx(45.0, rel=0.1)
     assert r.physical_class == "hard"
     assert r.contact_damping_ratio == pytest.approx(0.25, abs=0.08)
-    # the corner recovered from the filter's start-up transient
-    auto = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz="auto")
-    assert auto.highpass_hz == pytest.approx(1.0, abs=0.2)
-    assert auto.beta == pytest.approx(45.0, rel=0.1)
     # ignoring the high-pass breaks the map: refused, or far off
-    plain = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    plain = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz=0)
     assert not plain.ok or abs(plain.beta / 45.0 - 1) > 0.1
+
+
+def test_highpass_corner_fitted_from_the_free_flight():
+    """A first-order high-pass (bilinear, as sosfilt applies it) is recovered to 15 %."""
+    accel, fs = simulate(20.0, fs_ratio=200.0, noise=0.01)
+    for corner_hz in (0.3, 1.5):
+        sos = sps.butter(1, corner_hz, "highpass", fs=fs, output="sos")
+        y = sps.sosfilt(sos, accel)
+        r = restoring_force_estimate(y, fs, natural_frequency_hz=FN)
+        assert r.highpass_hz == pytest.approx(corner_hz, rel=0.15)
+        assert r.beta == pytest.approx(20.0, rel=0.03)
+
+
+def test_no_spurious_highpass_on_records_without_one():
+    for noise in (0.0, 0.02):
+        accel, fs = simulate(30.0, noise=noise)
+        r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+        assert r.highpass_hz == 0.0
+        assert r.resonance_hz is None
+
+
+def test_undo_resonance_inverts_the_mounted_resonance():
+    fs = 1000.0
+    t = np.arange(4000) / fs
+    x = np.sin(2 * np.pi * 9 * t) + 5 * np.abs(np.sin(2 * np.pi * 4.5 * t)) ** 40
+    m = sps.sosfilt(resonance_sos(150.0, 0.03, fs), x)
+    u = undo_resonance(m, 2 * np.pi * 150.0 / fs, 0.03)
+    inner = slice(1000, 3000)  # after the filter's start-up ring
+    assert np.std(u[inner] - x[inner]) < 1e-4 * np.std(x)
+    assert np.std(m[inner] - x[inner]) > 1e-2 * np.std(x)
+
+
+def test_ringing_mode_gives_frequency_and_damping_of_a_decaying_ring():
+    n, w, zeta = 2000, 0.3, 0.04
+    force = np.zeros(n)
+    contact = np.zeros(n, dtype=bool)
+    for start in range(100, n, 400):
+        contact[start - 5 : start] = True
+        k = np.arange(n - start)
+        force[start:] = np.exp(-zeta * w * k) * np.cos(w * np.sqrt(1 - zeta**2) * k)
+    w_fit, zeta_fit, fraction = ringing_mode(force, contact, 60)
+    assert w_fit == pytest.approx(w, rel=1e-3)
+    assert zeta_fit == pytest.approx(zeta, rel=1e-2)
+    assert fraction > 0.99
+
+
+def test_low_mounted_resonance_is_divided_out():
+    """A magnet/wax mount ringing at 20 f_n: the resonance is seen, divided out, beta kept."""
+    chain = {"resonance_hz": 20 * FN, "resonance_damping": 0.04, "highpass_hz": 0.5}
+    accel, fs = simulate(25.0, [("sensor_dynamics", chain)], fs_ratio=150.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.resonance_hz == pytest.approx(20 * FN, rel=0.05)
+    assert r.beta == pytest.approx(25.0, rel=0.1)
 
 
 def test_forcing_harmonics_with_phases():

@@ -10,6 +10,7 @@ rules that pick a number.
 ``inclination``    inclinations before and after impact in the x-z projection
                    (gradient approach, eqs 7-10; polynomial fit, Table 1)
 ``calibration``    inclinations -> beta and stiffness class, fitted on simulations (Fig. 11)
+``orbit``          which orbit the record is on (n impacts every m forcing periods)
 ``estimate``       :func:`geometric_estimate`, the whole chain on one record
 ``paper``          the paper's parameter set, Table 1, simulation on the period-1
                    branch (imports the simulator; not imported here)

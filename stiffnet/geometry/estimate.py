@@ -59,6 +59,7 @@ from stiffnet.geometry.inclination import (
     gradient_inclinations,
     polynomial_inclinations,
 )
+from stiffnet.geometry.orbit import describe_pattern, impact_pattern
 from stiffnet.geometry.separation import ContactSeparation, separate_contact
 from stiffnet.geometry.tangent import tangent_lag, tangent_magnitudes, tangent_vectors
 from stiffnet.nlts import (
@@ -182,7 +183,12 @@ class GeometricResult:
     separation : ContactSeparation
         Histogram and criteria of the contact separation.
     reason : str
-        One line: why contact was or was not detected.
+        One line: why contact was or was not detected, and the orbit when it is
+        not the period-1 orbit the calibration and Table 1 describe.
+    impact_pattern : tuple of int or None
+        ``(n, m)``: n impacts every m forcing periods
+        (:func:`stiffnet.geometry.orbit.impact_pattern`); None without contact or
+        without a repeating pattern.
     """
 
     contact_detected: bool
@@ -212,6 +218,7 @@ class GeometricResult:
     polarity: int
     separation: ContactSeparation = field(repr=False)
     reason: str = ""
+    impact_pattern: tuple[int, int] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays except the per-orbit angles and impacts)."""
@@ -246,6 +253,7 @@ class GeometricResult:
             "contact_fraction": self.contact_fraction,
             "polarity": self.polarity,
             "reason": self.reason,
+            "impact_pattern": list(self.impact_pattern) if self.impact_pattern else None,
         }
 
 
@@ -408,6 +416,14 @@ def geometric_estimate(
             contact = False
             reason = f"{grad.n_orbits} complete orbit(s) with an impact, {MIN_ORBITS} needed"
     chosen: OrbitInclinations | None = (grad if method == "gradient" else poly) if contact else None
+    pattern = impact_pattern(impacts, period) if contact else None
+    if contact and pattern != (1, 1):
+        # the inclination before an impact depends on the orbit's phase at impact: say so
+        reason = (
+            f"{reason}; orbit: {describe_pattern(pattern)} - the calibration and Table 1 are "
+            "for one impact per period, the 'before' inclination here reads the orbit as "
+            "much as beta"
+        )
 
     if chosen is None:
         beta, cls = None, NO_CONTACT
@@ -450,4 +466,5 @@ def geometric_estimate(
         polarity=impact_polarity(s, impacts) if contact else 0,
         separation=sep,
         reason=reason,
+        impact_pattern=pattern,
     )

@@ -275,6 +275,7 @@ def diagnose(
         f"verdict: {res['verdict']} (residual {res['residual_discrepancy']:.3g}, explained "
         f"{res['explained_fraction']:.0%}): {res['summary']}"
     )
+    out.print(res["restoring_force_evidence"]["summary"])
     write_json(json_path, res)
 
 

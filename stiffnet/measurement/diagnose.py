@@ -42,6 +42,7 @@ from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
+from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
 from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
@@ -396,6 +397,8 @@ def _diagnose(
         "selection": steps,
         "residual_per_recording": residual.tolist(),
         **v,
+        # the contact law read off each force-displacement map: evidence without simulation
+        "restoring_force_evidence": restoring_force_evidence(campaign, rows),
         "nuisances": nuisances,
         "settings": {
             "seed": seed,

@@ -241,6 +241,9 @@ def render_report(
                 f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
                 f"({html.escape(str(diagnosis.get('summary', '')))}).</p>"
             )
+            evidence = (diagnosis.get("restoring_force_evidence") or {}).get("summary")
+            if evidence:
+                parts.append(f"<p>{html.escape(evidence)}.</p>")
             parts.append(
                 _table(
                     [

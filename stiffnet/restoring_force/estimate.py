@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import integrate, ndimage, optimize
+from scipy import ndimage
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
@@ -39,31 +39,47 @@ from stiffnet.restoring_force.contact_law import (
     exponent_matters,
     fit_contact_law,
     linear_contact_start,
+    profile_contact_start,
 )
 from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS, fit_free_flight
 from stiffnet.restoring_force.reconstruct import (
     check_record,
+    forcing_candidates,
     forcing_frequency,
     integrate_spectral,
     periodic_length,
 )
+from stiffnet.restoring_force.sensor import (
+    RINGING_WINDOW,
+    fit_highpass_corner,
+    highpass_rule,
+    resonance_rule,
+    ringing_mode,
+    undo_highpass,
+    undo_resonance,
+)
 
 #: Shortest record, forcing periods.
 MIN_PERIODS = 4.0
+#: With f_n given, forcing lines below this fraction of it are not searched.
+MIN_FORCING_RATIO = 0.25
 #: Impacts needed for an estimate (and for the bootstrap).
 MIN_IMPACTS = 3
 #: Refuse when the contact law explains less of the contact force than this.
 MIN_CONTACT_R2 = 0.5
+#: Below this contact R2 the contact law is fitted again from an onset profiled over a grid.
+SECOND_START_R2 = 0.95
+#: Refuse when the contacts last longer than this many half periods of the fitted law.
+MAX_DURATION_RATIO = 2.0
 #: Refuse when the free-flight law explains less of the free restoring force than this.
 MIN_FREE_R2 = 0.5
-#: Below this contact R2 the "auto" high-pass correction is searched.
-HIGHPASS_SEARCH_R2 = 0.97
-#: A fitted high-pass corner must leave less than this fraction of the free-flight misfit.
-HIGHPASS_GAIN = 0.7
 #: Systematic part of the interval (log beta): a floor, and a term growing with the contact
 #: law's misfit; set on simulations with other seeds than bench_crosscheck's (90 % overall).
 SYSTEMATIC_FLOOR = 0.02
 SYSTEMATIC_PER_MISFIT = 4.0
+#: ... and one over the samples per contact (an unseen anti-alias low-pass; set on
+#: sensor chains drawn from the priors, seeds 11-12 of the development script).
+SYSTEMATIC_PER_SAMPLE = 1.0
 #: Bootstrap replicates over impacts.
 N_BOOTSTRAP = 200
 
@@ -98,6 +114,11 @@ class RestoringForceResult:
         ``"given f_n"`` or ``"fitted"``.
     highpass_hz : float
         Corner of the sensor chain's high-pass undone before integrating (0: none).
+    resonance_hz : float or None
+        Mounted resonance of the accelerometer divided out (None: no ringing seen).
+    duration_ratio : float
+        Median contact duration over the fitted law's half period ``pi / sqrt(K + k)``
+        (~1 for a linear contact, less for a damped one's early release).
     n_impacts : int
     samples_per_contact : float
         Median samples in contact per impact (below ~4 the spike is barely resolved).
@@ -136,6 +157,8 @@ class RestoringForceResult:
     velocity: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
     force: np.ndarray = field(repr=False, default_factory=lambda: np.empty(0))
     free_stiffness: float = float("nan")
+    resonance_hz: float | None = None
+    duration_ratio: float = float("nan")
     law: ContactLaw | None = field(repr=False, default=None)
 
     def to_dict(self) -> dict[str, Any]:
@@ -158,6 +181,8 @@ class RestoringForceResult:
             "forcing_frequency_hz": num(self.forcing_frequency_hz),
             "stiffness_rule": self.stiffness_rule,
             "highpass_hz": num(self.highpass_hz),
+            "resonance_hz": num(self.resonance_hz),
+            "duration_ratio": num(self.duration_ratio),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -223,14 +248,24 @@ def bootstrap_beta(
     return float(min(lo, beta)), float(max(hi, beta))
 
 
-def widen_interval(beta: float, lo: float, hi: float, contact_r2: float) -> tuple[float, float]:
+def widen_interval(
+    beta: float, lo: float, hi: float, contact_r2: float, samples_per_contact: float = np.inf
+) -> tuple[float, float]:
     """Add the reconstruction's systematic error to the bootstrap interval (in log beta).
 
     The bootstrap over impacts sees the scatter between impacts, not the bias
-    they share (integration of spikes sampled with a few points, a damped onset):
-    a floor of 2 % and ``4 (1 - R2)`` of the contact law are added in quadrature.
+    they share (integration of spikes sampled with a few points, a damped onset,
+    an anti-alias low-pass that rounds the spikes): a floor of 2 %, ``4 (1 - R2)``
+    of the contact law and ``1 / n`` for contacts of ``n`` samples are added in
+    quadrature. The last is the sensor chain's: its low-pass sits at 0.15-0.45 fs
+    (the priors), so the fewer samples a contact spans the closer the filter is to
+    the contact's band, and the lower (by up to ~1/n in log beta on the priors'
+    chains) the rounded spikes read beta, with the contact law still fitting well.
     """
-    sys_hw = float(np.hypot(SYSTEMATIC_FLOOR, SYSTEMATIC_PER_MISFIT * (1.0 - contact_r2)))
+    sys_hw = float(
+        np.linalg.norm([SYSTEMATIC_FLOOR, SYSTEMATIC_PER_MISFIT * (1.0 - contact_r2),
+                        SYSTEMATIC_PER_SAMPLE / max(samples_per_contact, 1.0)])
+    )  # fmt: skip
     lo_hw = float(np.hypot(np.log(beta / lo), sys_hw)) if lo > 0 else np.inf
     hi_hw = float(np.hypot(np.log(hi / beta), sys_hw))
     return float(beta * np.exp(-lo_hw)), float(beta * np.exp(hi_hw))
@@ -277,21 +312,37 @@ class _Map:
     exponent: float | None = None
 
 
-def undo_highpass(y: np.ndarray, dtau: float, corner: float) -> np.ndarray:
-    """Invert a first-order high-pass at ``corner`` (forcing frequencies): ``y + w_h int_0^t y``.
+def _auto_map(
+    y: np.ndarray,
+    dtau: float,
+    tau: np.ndarray,
+    use: np.ndarray,
+    period: float,
+    k_given: float | None,
+    exponent: float | None,
+) -> tuple[_Map, float]:
+    """The map with the high-pass corner fitted (:mod:`.sensor`), and that corner.
 
-    A charge amplifier's high-pass (``s / (s + w_h)``) commutes with the linear
-    free-flight law but not with the contact's: it adds ``w_h int x`` to the
-    displacement (``+0.1 v`` at an impact for a 1 Hz corner under a 10 Hz
-    forcing, read as a negative contact damping of ``0.1 K``), and a record that
-    starts with the filter out of equilibrium carries its decaying transient.
-    The inverse runs in the time domain from the first sample so that it
-    removes that transient too; its constant of integration is the mean, which
-    the integration drops anyway.
+    The plain map comes first: its free-flight scatter judges the corner
+    (:func:`~.sensor.highpass_rule`), and a kept corner must not worsen the
+    contact law's fit (on strongly damped contacts without any high-pass, the
+    corner's terms absorb some free-flight misfit and pass the first tests).
     """
-    if corner <= 0:
-        return y
-    return y + corner * integrate.cumulative_trapezoid(y, dx=dtau, initial=0.0)
+    args = (y, dtau, tau, use, period, k_given)
+    m = _fit_map(*args, 0.0, exponent)
+    corner = highpass_rule(
+        *fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
+    )
+    if corner > 0:
+        corrected = _fit_map(*args, corner, exponent)
+        if _contact_r2(corrected) >= _contact_r2(m):
+            return corrected, corner
+    return m, 0.0
+
+
+def _contact_r2(m: _Map) -> float:
+    """The contact law's R2 of a map (-inf when it has none)."""
+    return m.law.r2 if m.law is not None else -np.inf
 
 
 def _fit_map(
@@ -346,50 +397,36 @@ def _fit_map(
     peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
     dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
     state = (fit.force, fit.displacement, fit.velocity, near)
-    law = fit_contact_law(*state, (kc0, e0, cc0), dr, 1.0 if exponent is None else exponent)
+    fixed = 1.0 if exponent is None else exponent
+    law = fit_contact_law(*state, (kc0, e0, cc0), dr, fixed)
+    # a second start where the first fit is poor: strongly damped contacts mislead it
+    profiled = profile_contact_start(*state) if law.r2 < SECOND_START_R2 else (np.nan,)
+    if np.isfinite(profiled[0]):
+        other = fit_contact_law(*state, profiled, dr, fixed)
+        law = other if other.sse < law.sse else law
     fitted_exponent = law.exponent
     if exponent is None:  # the exponent is reported; it sets beta only where it is significant
         free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
         fitted_exponent = free_law.exponent
         if exponent_matters(law, free_law):
             law = free_law
-    info.update(law=law, contact_r2=law.r2)
+    # the contacts last about half a period of the contact's own oscillation (less when a
+    # damped contact releases early, a little more when a filter smears them): a law far
+    # stiffer than its contacts' duration allows is fitting something else
+    duration = spc * dtau / (np.pi / np.sqrt(law.stiffness + fit.stiffness))
+    info.update(law=law, contact_r2=law.r2, duration_ratio=duration)
     out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent)
     if law.r2 < MIN_CONTACT_R2:
         out.refusal = (
             f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
             "no meaningful fit"
         )
+    elif duration > MAX_DURATION_RATIO:
+        out.refusal = (
+            f"the contacts last {duration:.1f}x the half period of the fitted contact law "
+            f"(> {MAX_DURATION_RATIO:g}): its stiffness does not describe them"
+        )
     return out
-
-
-def _fit_highpass(args: tuple, ff: float, plain: _Map) -> float:
-    """Rule: the high-pass corner (forcing frequencies) that best restores the free-flight law.
-
-    In steady state the filter leaves the linear free-flight law intact, but a
-    record that starts with the filter out of equilibrium carries its start-up
-    transient, which no linear law explains: the corner whose inverse makes
-    the free flight linear again is the filter's. A grid up to 0.4 of the
-    forcing frequency, then a bounded scalar search around the best point; a
-    corner is kept only if it removes at least 30 % of the free-flight misfit
-    (a damped or poorly sampled contact alone does not move it). Returns 0
-    otherwise: a high-pass running long before the record cannot be seen in
-    the free flight and must be given (``highpass_hz``).
-    """
-
-    def misfit(corner: float) -> float:
-        return 1.0 - _fit_map(*args, corner, 1.0).fit.r2
-
-    plain_cost = 1.0 - plain.fit.r2
-    grid = np.array([0.0, 0.025, 0.05, 0.1, 0.2, 0.4])
-    costs = [plain_cost] + [misfit(c) for c in grid[1:]]
-    i = int(np.argmin(costs))
-    if not costs[i] < HIGHPASS_GAIN * plain_cost:
-        return 0.0
-    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    res = optimize.minimize_scalar(misfit, bounds=(lo, hi), method="bounded",
-                                   options={"xatol": 0.002, "maxiter": 8})  # fmt: skip
-    return float(res.x) if res.fun < costs[i] else float(grid[i])
 
 
 def restoring_force_estimate(
@@ -403,7 +440,7 @@ def restoring_force_estimate(
     coverage: float = 0.9,
     seed: int = 0,
     max_periods: float | None = None,
-    highpass_hz: float | str = 0.0,
+    highpass_hz: float | str = "auto",
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -430,11 +467,11 @@ def restoring_force_estimate(
     max_periods : float, optional
         Analyse at most this many forcing periods (the middle of the record).
     highpass_hz : float or "auto"
-        Corner of a first-order high-pass in the sensor chain (charge amplifier,
-        from its data sheet), undone before integrating; 0 (default) assumes none.
-        ``"auto"`` fits it when the plain map fits the contact poorly, from the
-        filter's start-up transient (experimental: on noisy records without a
-        high-pass it can pick a spurious corner; see docs/crosscheck.md).
+        Corner of a first-order high-pass in the sensor chain (charge amplifier),
+        undone before integrating. ``"auto"`` (default) fits it jointly with the
+        free-flight law (:mod:`~stiffnet.restoring_force.sensor`; a corner
+        within two standard errors of zero counts as none); a number gives it
+        (the data sheet's), 0 assumes none.
 
     Returns
     -------
@@ -461,15 +498,54 @@ def restoring_force_estimate(
     a = as_signal(accel, 32, "acceleration")
     if float(np.std(a)) == 0.0:
         raise SignalError("acceleration is constant")
+    # a forcing line below a quarter of f_n is no rig's (the priors: 0.8-1.2 f_n); below it
+    # a charge amplifier's start-up transient can top the velocity spectrum
+    min_hz = MIN_FORCING_RATIO * natural_frequency_hz if natural_frequency_hz else None
     if max_periods is not None:  # crop first: the spectrum of a long record costs most
-        from stiffnet.geometry.estimate import dominant_period
-
         mid = a[max(0, a.size // 2 - 32768) : a.size // 2 + 32768]
-        coarse = fs_hz / forcing_frequency_hz if forcing_frequency_hz else dominant_period(mid)
+        coarse = (
+            fs_hz / forcing_frequency_hz
+            if forcing_frequency_hz
+            else max(forcing_candidates(mid, fs_hz, min_hz))
+        )
         keep = int(1.1 * max_periods * coarse)
         if a.size > keep:
             a = a[(a.size - keep) // 2 :][:keep]
-    ff = float(forcing_frequency_hz) if forcing_frequency_hz else forcing_frequency(a, fs_hz)
+    if forcing_frequency_hz:
+        lines = [float(forcing_frequency_hz)]
+    else:  # rival lines (period-n orbits): the free-flight law picks the forcing
+        lines = [
+            forcing_frequency(a, fs_hz, coarse=c) for c in forcing_candidates(a, fs_hz, min_hz)
+        ]
+    options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
+                   classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
+                   highpass_hz=highpass_hz)  # fmt: skip
+    results = []
+    for i, ff in enumerate(lines):
+        try:
+            results.append(_estimate_at(a, fs_hz, ff, **options))
+        except SignalError:
+            if i == 0 and len(lines) == 1:
+                raise
+    if not results:
+        raise SignalError("no forcing line leaves four forcing periods in the record")
+    return max(results, key=lambda r: r.free_r2 if np.isfinite(r.free_r2) else -np.inf)
+
+
+def _estimate_at(
+    a: np.ndarray,
+    fs_hz: float,
+    ff: float,
+    *,
+    natural_frequency_hz: float | None,
+    exponent: float | None,
+    classes,
+    coverage: float,
+    seed: int,
+    max_periods: float | None,
+    highpass_hz: float | str,
+) -> RestoringForceResult:
+    """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
     if not ff < 0.5 * fs_hz:
         raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
     period = fs_hz / ff
@@ -491,20 +567,28 @@ def restoring_force_estimate(
     k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
     args = (y, dtau, tau, use, period, k_given)
     if highpass_hz == "auto":
-        m = _fit_map(*args, 0.0, 1.0)
-        if m.law is None or m.law.r2 < HIGHPASS_SEARCH_R2:
-            corner = _fit_highpass(args, ff, m)
-            if corner > 0:
-                m = _fit_map(*args, corner, 1.0)
-        corner = m.corner
+        m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent)
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
         ):
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
-    m = _fit_map(*args, corner, exponent)
+        m = _fit_map(*args, corner, exponent)
+    resonance = None
+    natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
+    ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
+    mode = resonance_rule(ring, m.spc, natural)
+    if mode is not None:  # the mount's ringing dominates the free flight: divide it out
+        flat = undo_resonance(y, *mode)
+        if highpass_hz == "auto":
+            m2, corner2 = _auto_map(flat, dtau, tau, use, period, k_given, exponent)
+        else:
+            m2, corner2 = _fit_map(flat, dtau, tau, use, period, k_given, corner, exponent), corner
+        if _contact_r2(m2) >= _contact_r2(m):
+            m, corner, resonance = m2, corner2, mode[0] * fs_hz / (2 * np.pi)
     fit, info = m.fit, m.info
+    info["resonance_hz"] = resonance
     info.update(
         forcing_frequency_hz=ff,
         polarity=polarity,
@@ -522,7 +606,7 @@ def restoring_force_estimate(
     lo, hi = bootstrap_beta(
         law, fit.force, fit.displacement, fit.velocity, labels, n_imp, k, coverage, rng
     )
-    lo, hi = widen_interval(beta, lo, hi, law.r2)
+    lo, hi = widen_interval(beta, lo, hi, law.r2, spc)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(k))
     cls = str(beta_class(np.array([beta]), classes)[0])
     return RestoringForceResult(

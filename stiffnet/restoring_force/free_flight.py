@@ -81,7 +81,7 @@ def free_flight_design(
     return np.column_stack(cols)
 
 
-def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def scaled_lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Least squares by the normal equations of the unit-norm columns (zero columns get 0).
 
     The designs are tall and narrow (thousands of rows, 9-40 columns) and, with
@@ -146,7 +146,7 @@ def _impulse_corrections(
     a[:, 0] = vel[rows]
     a[np.arange(rows.size), 1 + j] = 1.0
     a[np.arange(rows.size), 1 + n + j] = tau[rows] - centre[j]
-    coef = _lstsq(a, target[rows])
+    coef = scaled_lstsq(a, target[rows])
     c = float(coef[0])
     slope = coef[1 + n :] / stiffness
     level = (coef[1 : 1 + n] - c * slope) / stiffness
@@ -177,6 +177,41 @@ def _impulse_corrections(
         corr[pos] = (1 - share) * line(before, tau[pos]) + share * line(after, tau[pos])
         dcorr[pos] = (1 - share) * slope[before] + share * slope[after]
     return corr, dcorr, c, r2
+
+
+def robust_split(
+    design: np.ndarray, target: np.ndarray, use: np.ndarray, dilate: int = 2
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Least squares of a free-flight regression with the contacts split off as outliers.
+
+    The contact forces are one-sided outliers: least squares on every sample,
+    then on the samples whose residual stays within the free-flight scatter, a
+    few times, the first passes with a looser cut (they are biased by the
+    contacts).
+
+    Returns
+    -------
+    coef : numpy.ndarray
+        Coefficients on the free samples.
+    free, contact : numpy.ndarray
+        Boolean masks (contact dilated by `dilate` samples, both within `use`).
+    sigma : float
+        Robust scatter of the residual on the free samples.
+    """
+    scale = float(np.std(target)) or 1.0
+    free = use.copy()
+    contact = np.zeros_like(use)
+    sigma = scale
+    coef = scaled_lstsq(design[free], target[free])
+    for i in range(5):
+        force = target - design @ coef
+        resid = force[free]
+        sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) or 1e-12 * scale
+        contact = force > (CONTACT_SIGMAS if i >= 2 else 2.0) * sigma
+        contact = ndimage.binary_dilation(contact, iterations=dilate) & use
+        free = use & ~contact
+        coef = scaled_lstsq(design[free], target[free])
+    return coef, free, contact, sigma
 
 
 def table_motion(coef: np.ndarray, stiffness: float, damping: float, harmonics=HARMONICS):
@@ -226,22 +261,7 @@ def fit_free_flight(
     if stiffness is not None:  # move the known k x_i to the target side
         target = target - stiffness * disp
         design[:, 1] = 0.0
-    scale = float(np.std(target)) or 1.0
-    # the one-sided contact forces are the outliers: least squares on every sample, then
-    # on the samples whose residual force stays within the free-flight scatter, four times
-    free = use.copy()
-    contact = np.zeros_like(use)
-    sigma = scale
-    coef = _lstsq(design[free], target[free])
-    for i in range(5):
-        force = target - design @ coef
-        resid = force[free]
-        sigma = 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) or 1e-12 * scale
-        # the first passes are biased by the contacts: a looser cut until they are out
-        contact = force > (CONTACT_SIGMAS if i >= 2 else 2.0) * sigma
-        contact = ndimage.binary_dilation(contact, iterations=dilate) & use
-        free = use & ~contact
-        coef = _lstsq(design[free], target[free])
+    coef, free, contact, sigma = robust_split(design, target, use, dilate)
     c = float(coef[0])
     k = float(coef[1]) if stiffness is None else float(stiffness)
     fitted = design[free] @ coef

@@ -25,7 +25,59 @@ from stiffnet.errors import SignalError
 CUTOFF = 0.25
 
 
-def forcing_frequency(accel: ArrayLike, fs_hz: float, pad: int = 8) -> float:
+#: A velocity-spectrum line this strong against the top one is a rival forcing line (an
+#: orbit of two impacts every three periods has lines at f and 4f/3 of nearly equal power).
+RIVAL = 0.5
+
+
+def forcing_candidates(
+    a: np.ndarray, fs_hz: float, min_hz: float | None = None, rival: float = RIVAL
+) -> list[float]:
+    """Candidate forcing periods in samples, strongest first: the velocity spectrum's peak and
+    its rivals.
+
+    The top line is :func:`stiffnet.geometry.dominant_period`'s (velocity spectrum:
+    the forcing line stays on top of the impact harmonics); with `min_hz` only
+    lines above it are searched (a charge amplifier's start-up transient puts a
+    low line on top, 1/f**2 weighted). Local maxima within `rival` of the top
+    and more than 10 % away from it in frequency are returned too (at most two):
+    on a period-n orbit the spectrum alone cannot tell the forcing line from a
+    sub-harmonic multiple, the free-flight law can (:func:`restoring_force_estimate`).
+    """
+    a = np.asarray(a, dtype=np.float64)
+    n = a.size
+    spec = np.abs(np.fft.rfft((a - a.mean()) * np.hanning(n))) ** 2
+    k = np.arange(spec.size, dtype=np.float64)
+    lo = max(2, int(np.ceil(min_hz * n / fs_hz))) if min_hz else 2
+    if lo >= spec.size - 2:
+        raise SignalError("record too short to find a forcing line")
+    vel = np.zeros_like(spec)
+    vel[lo:-1] = spec[lo:-1] / k[lo:-1] ** 2
+    if not np.any(vel > 0):
+        raise SignalError("no oscillation found in the record")
+    top = int(np.argmax(vel))
+    peaks = np.flatnonzero((vel[1:-1] > vel[:-2]) & (vel[1:-1] >= vel[2:])) + 1
+    peaks = peaks[(vel[peaks] >= rival * vel[top]) & (np.abs(peaks / top - 1) > 0.1)]
+    rivals = [int(j) for j in peaks[np.argsort(vel[peaks])[::-1]][:2]]
+    out = [float(n / top)]
+    for j in rivals:
+        if all(abs((n / j) / p - 1) > 0.1 for p in out):
+            out.append(float(n / j))
+    return out
+
+
+def coarse_period(a: np.ndarray, fs_hz: float, min_hz: float | None = None) -> float:
+    """Forcing period in samples: the strongest of :func:`forcing_candidates`."""
+    return forcing_candidates(a, fs_hz, min_hz)[0]
+
+
+def forcing_frequency(
+    accel: ArrayLike,
+    fs_hz: float,
+    pad: int = 8,
+    min_hz: float | None = None,
+    coarse: float | None = None,
+) -> float:
     """Forcing frequency of an impact-oscillator record in Hz: the velocity spectrum's peak.
 
     The coarse peak is :func:`stiffnet.geometry.dominant_period` (velocity
@@ -44,16 +96,18 @@ def forcing_frequency(accel: ArrayLike, fs_hz: float, pad: int = 8) -> float:
         Sampling rate, Hz.
     pad : int
         Zero-padding factor of the refining periodogram.
+    min_hz : float, optional
+        Lowest forcing frequency searched (the caller's bound from a known f_n).
+    coarse : float, optional
+        Coarse period in samples to refine (one of :func:`forcing_candidates`).
 
     Returns
     -------
     float
         Forcing frequency, Hz.
     """
-    from stiffnet.geometry.estimate import dominant_period
-
     a = np.asarray(accel, dtype=np.float64)
-    period = dominant_period(a)
+    period = coarse_period(a, fs_hz, min_hz) if coarse is None else float(coarse)
     n = a.size
     m = int(2 ** np.ceil(np.log2(pad * n)))
     spec = np.abs(np.fft.rfft((a - a.mean()) * np.hanning(n), m)) ** 2
