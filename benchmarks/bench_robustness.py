@@ -11,7 +11,12 @@ per-recording interval, alarm). Per set and model the table gives:
 * class accuracy and beta MAPE (contact recordings the model calls contact);
 * interval coverage: the fraction of contact recordings whose true beta lies in
   the reported interval (a missing interval counts as a miss);
-* alarm rate, and the alarm rate on the recordings whose class is wrong.
+* alarm rate, and the alarm rate on the recordings whose class is wrong;
+* silent failures: recordings with a wrong class or a beta outside its interval and
+  no alarm (the failures a user is not warned of).
+
+Alarm rate and silent failures are given with all the predictor's checks and, in
+brackets, with the model's own checks only (without the restoring-force check).
 
 Models are ``NAME=PATH`` pairs (``--model``); each is loaded with its own alarm
 reference / OOD reference as the predictor finds them. The models shipped before
@@ -102,22 +107,28 @@ def recordings(cfg: SimulationConfig, folder: Path) -> list[dict[str, Any]]:
 
 def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
     """Accuracy, beta MAPE, coverage, alarm rates of one model on one set."""
-    right, flags, covered, ape, width = [], [], [], [], []
+    right, flags, model_flags, misses, covered, ape, width = [], [], [], [], [], [], []
     t0 = time.perf_counter()
     for r in recs:
         res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
         ok = res["class"] == r["class"]
         right.append(ok)
         flags.append(bool(res["ood_flag"]))
+        fired = (res["alarm"] or {}).get("fired", [])
+        model_flags.append(any(f != "physical" for f in fired))
+        miss = not ok
         if r["class"] != "no_contact":
             iv = res["beta_interval"]
-            covered.append(bool(iv and iv[0] <= r["beta"] <= iv[1]))
+            inside = bool(iv and iv[0] <= r["beta"] <= iv[1])
+            covered.append(inside)
+            miss = miss or not inside
             if iv:
                 width.append(iv[1] / iv[0])
             if res["beta"] is not None:
                 ape.append(abs(res["beta"] - r["beta"]) / r["beta"])
-    right_a, flags_a = np.array(right), np.array(flags)
-    wrong = ~right_a
+        misses.append(miss)
+    right_a, flags_a, model_a = np.array(right), np.array(flags), np.array(model_flags)
+    wrong, miss_a = ~right_a, np.array(misses)
     return {
         "n": len(recs),
         "accuracy": float(right_a.mean()),
@@ -127,6 +138,12 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         "alarm_rate": float(flags_a.mean()),
         "alarm_rate_wrong": float(flags_a[wrong].mean()) if wrong.any() else None,
         "n_wrong": int(wrong.sum()),
+        # without the restoring-force check (the model's own checks only)
+        "alarm_rate_model_checks": float(model_a.mean()),
+        # a wrong class or a beta outside its interval, with no alarm: the failures a
+        # user is not warned of, with all checks and with the model's own checks only
+        "silent_failure_rate": float((miss_a & ~flags_a).mean()),
+        "silent_failure_rate_model_checks": float((miss_a & ~model_a).mean()),
         "ms_per_recording": 1e3 * (time.perf_counter() - t0) / max(1, len(recs)),
     }
 
@@ -143,8 +160,8 @@ def markdown(result: dict[str, Any]) -> str:
         f"(!): coverage under the {COVERAGE_TARGET:.0%} target on a set inside the priors",
         "",
         "| set | inside priors | model | accuracy | beta MAPE | coverage (90 %) | "
-        "alarm rate | alarm on wrong (n wrong) |",
-        "|---|---|---|---|---|---|---|---|",
+        "alarm rate | alarm on wrong (n wrong) | silent failures |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in result["sets"].items():
         for model, m in s["models"].items():
@@ -153,7 +170,10 @@ def markdown(result: dict[str, Any]) -> str:
                 f"| {name} | {'yes' if s['inside_priors'] else 'no'} | {model} | "
                 f"{f(m['accuracy'])} | {f(m['beta_mape'])} | {f(m['coverage'])}"
                 f"{' (!)' if short else ''} | "
-                f"{f(m['alarm_rate'], True)} | {f(m['alarm_rate_wrong'], True)} ({m['n_wrong']}) |"
+                f"{f(m['alarm_rate'], True)} ({f(m.get('alarm_rate_model_checks'), True)}) | "
+                f"{f(m['alarm_rate_wrong'], True)} ({m['n_wrong']}) | "
+                f"{f(m.get('silent_failure_rate'), True)} "
+                f"({f(m.get('silent_failure_rate_model_checks'), True)}) |"
             )
     return "\n".join(lines)
 

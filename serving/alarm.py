@@ -30,7 +30,13 @@ ALARM_WORDS = {
     "expects a large error)",
     "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
     "features": "the recording's inclination features are unlike the training data",
+    "physical": "the restoring-force cross-check reads a beta outside the model's interval "
+    "(the physics of this rig may be missing from the training data)",
 }
+
+#: The physical check fires when the two beta intervals are disjoint: its score is the
+#: log-gap between them (0 when they overlap), so its threshold is 0 by construction.
+PHYSICAL_THRESHOLD = 0.0
 
 
 def alarm_message(fired: list[str]) -> str:
@@ -75,6 +81,47 @@ def alarm_verdict(
     result["scores"] = {k: v for k, v in result["scores"].items() if v is not None}
     result["message"] = alarm_message(result["fired"])
     return result
+
+
+def physical_gap(
+    model_interval: list[float] | None, physical_interval: list[float] | None
+) -> float | None:
+    """Log-gap between the model's and the restoring-force beta intervals (0 if they overlap).
+
+    Two independent readings of beta whose intervals (each ~90 %) do not even
+    touch cannot both be right; the restoring-force estimate reads the contact
+    law itself, so a gap says the model meets a rig it was not trained on (a
+    contact law or sensor chain outside its priors). None when either interval
+    is missing (the cross-check refused).
+    """
+    if not model_interval or not physical_interval:
+        return None
+    lo_m, hi_m = (float(v) for v in model_interval)
+    lo_p, hi_p = (float(v) for v in physical_interval)
+    if min(lo_m, hi_m, lo_p, hi_p) <= 0:
+        return None
+    return max(0.0, float(np.log(lo_p / hi_m)), float(np.log(lo_m / hi_p)))
+
+
+def with_physical_check(alarm: dict[str, Any] | None, gap: float | None) -> dict[str, Any] | None:
+    """The alarm with the restoring-force check added (fires when the intervals are disjoint).
+
+    Uncalibrated on purpose: it needs no threshold fitted to the model, it only
+    says that two physical readings contradict each other. A model without an
+    alarm reference gets an alarm made of this check alone.
+    """
+    if gap is None:
+        return alarm
+    if alarm is None:
+        alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
+    alarm["scores"]["physical"] = gap
+    alarm["thresholds"]["physical"] = PHYSICAL_THRESHOLD
+    if gap > PHYSICAL_THRESHOLD:
+        alarm["fired"] = [*alarm["fired"], "physical"]
+        alarm["flag"] = True
+    alarm["message"] = alarm_message(alarm["fired"])
+    return alarm
 
 
 def alarm_ratio(alarm: dict[str, Any] | None) -> float | None:

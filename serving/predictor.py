@@ -43,7 +43,13 @@ from typing import Any
 import numpy as np
 
 from serving.aggregate import beta_interval, geometric_verdict, named, recording_estimate, segments
-from serving.alarm import alarm_ratio, alarm_verdict, load_model_alarm
+from serving.alarm import (
+    alarm_ratio,
+    alarm_verdict,
+    load_model_alarm,
+    physical_gap,
+    with_physical_check,
+)
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
@@ -293,8 +299,10 @@ class Predictor:
         if len(set(seg_classes)) > 1:
             warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
         geometric = geometric_verdict(geo, self.calibration)
-        alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
+        interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn)
+        alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
+        alarm = with_physical_check(alarm, physical_gap(interval, physical["beta_interval"]))
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         score = alarm_ratio(alarm)
@@ -303,7 +311,7 @@ class Predictor:
             "class": cls,
             "probabilities": named(names, est.probabilities),
             "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
-            "beta_interval": beta_interval(est, self.metadata, self.model.conformal_quantile),
+            "beta_interval": interval,
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,

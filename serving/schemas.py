@@ -82,10 +82,12 @@ class AlarmResult(BaseModel):
     scores: dict[str, float | None] = Field(
         description="Each check's score: embedding (distance of the windows to the training "
         "data in the model's embedding), ambiguity (1 - top class probability), "
-        "beta_uncertainty (scale of the log-beta error), features (inclination-feature OOD)."
+        "beta_uncertainty (scale of the log-beta error), features (inclination-feature OOD), "
+        "physical (log-gap between the model's and the restoring-force beta intervals; "
+        "fires above 0, i.e. when they are disjoint)."
     )
     thresholds: dict[str, float] = Field(
-        description="Thresholds calibrated on in-distribution trajectories."
+        description="Thresholds calibrated on in-distribution trajectories (physical: 0)."
     )
     message: str = Field(description="The verdict in words.")
 

@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from serving.alarm import physical_gap, with_physical_check
 from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
@@ -127,6 +128,59 @@ def test_physical_cross_check_fields(cnn):
     r = cnn.predict(free, 2000.0)
     assert r["physical_beta"] is None and r["physical"]["reason"]
     assert r["physical_agreement"] in (None, r["physical_class"] == r["class"])
+
+
+def test_physical_gap_is_the_log_gap_between_disjoint_intervals():
+    assert physical_gap([10.0, 20.0], [15.0, 40.0]) == 0.0  # overlapping
+    assert physical_gap([10.0, 20.0], [20.0, 40.0]) == 0.0  # touching
+    assert physical_gap([10.0, 20.0], [40.0, 80.0]) == pytest.approx(np.log(2.0))
+    assert physical_gap([40.0, 80.0], [10.0, 20.0]) == pytest.approx(np.log(2.0))
+    assert physical_gap(None, [1.0, 2.0]) is None and physical_gap([1.0, 2.0], None) is None
+
+
+def test_physical_check_joins_the_alarm():
+    quiet = {
+        "flag": False,
+        "fired": [],
+        "scores": {"embedding": 0.5},
+        "thresholds": {"embedding": 1.0},
+    }
+    assert with_physical_check(quiet, None) is quiet  # the cross-check refused: nothing to say
+    agree = with_physical_check(quiet, 0.0)
+    assert not agree["flag"] and agree["scores"]["physical"] == 0.0
+    clash = with_physical_check(quiet, 0.7)
+    assert (
+        clash["flag"] and clash["fired"] == ["physical"] and "restoring-force" in clash["message"]
+    )
+    assert quiet["fired"] == [] and "physical" not in quiet["scores"]  # the input is not changed
+    alone = with_physical_check(None, 0.7)  # a model without an alarm reference
+    assert alone["flag"] and alone["fired"] == ["physical"]
+
+
+def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch):
+    """Two physical readings of beta that cannot both be right: the user is warned."""
+    import serving.predictor as predictor_module
+
+    accel, fs = example.accel, example.fs_hz
+    r = cnn.predict(accel, fs)
+    assert not r["ood_flag"] and r["alarm"]["scores"]["physical"] == 0.0
+    lo, hi = r["beta_interval"]
+
+    def far(*args, **kwargs):
+        beta = 3.0 * hi
+        return {
+            "class": "hard",
+            "beta": beta,
+            "beta_interval": [0.9 * beta, 1.1 * beta],
+            "reason": "a contradicting reading (test)",
+        }
+
+    monkeypatch.setattr(predictor_module, "physical_check", far)
+    r = cnn.predict(accel, fs)
+    assert r["ood_flag"] and "physical" in r["alarm"]["fired"]
+    assert r["alarm"]["scores"]["physical"] == pytest.approx(np.log(2.7 * hi / hi))
+    assert any("restoring-force" in w for w in r["warnings"])
+    assert r["class"] == "hard"  # the model's answer stands; it now carries the warning
 
 
 @pytest.mark.parametrize("gain", [1e3, 1e-3, -1.0, -1e3, 1e300, -1e-300])
