@@ -160,7 +160,7 @@ def test_numerical_effect_fit_runs_within_budget(monkeypatch):
     monkeypatch.setattr(fitting, "SUBSET_NUMERICAL", 1)
     sub = fit_effect(target, "hertz_contact", budget=2)
     assert len(sub["searched_on"]) == 1 and len(sub["per_recording"]) == 2
-    assert sub["evaluations"] == 3
+    assert sub["evaluations"] in (3, 4)  # design, off on the subset, the best on all if it helps
     off = np.asarray(sub["off_per_recording"])
     assert objective_value(np.asarray(sub["per_recording"])) <= objective_value(off)
 

@@ -279,7 +279,7 @@ def _fit_design(
 ) -> dict[str, Any]:
     """A numerical-engine effect's fit: its design simulated as one batch on a subset of the
     recordings (:meth:`CampaignTarget.per_recording_points`), the best point scored alone on
-    all of them."""
+    all of them when it beats "effect off" on the subset."""
     cls = effect_class(name)
     model = [*target.base_effects, *fixed]
     points = [space.params(u) for u in design]
@@ -287,10 +287,18 @@ def _fit_design(
     idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
     pers = searched.per_recording_points(model, name, points, settings, inclination=False)
-    j = int(np.argmin([objective_value(p) for p in pers]))
-    rescored = not (j == 0 and idx.size == n and not target.inclination)
-    # the first point of the batch drew the standard noise; the others did not
-    per = target.per_recording([*model, cls(**points[j])], settings) if rescored else pers[0]
+    values = [objective_value(p) for p in pers]
+    j = int(np.argmin(values))
+    # "effect off" on the same recordings, scored like the design: when no point beats it
+    # there, the effect is off (the best point would need a full evaluation to say so)
+    same = idx.size == n and not target.inclination
+    off_searched = off if same else searched.per_recording(model, settings, inclination=False)
+    if values[j] >= objective_value(off_searched):
+        per, rescored = off, False
+    else:
+        rescored = not (j == 0 and same)
+        # the first point of the batch drew the standard noise; the others did not
+        per = target.per_recording([*model, cls(**points[j])], settings) if rescored else pers[0]
     improves = bool(objective_value(per) < objective_value(off))
     params = points[j]
     if not improves:
@@ -304,7 +312,7 @@ def _fit_design(
         "per_recording": per.tolist(),
         "off_per_recording": off.tolist(),
         "improves": improves,
-        "evaluations": len(points) + rescored,
+        "evaluations": len(points) + (not same) + rescored,
         "seconds": round(time.perf_counter() - t0, 3),
         "engine": "numerical",
         "searched_on": [target.rows[i].recording for i in idx],
