@@ -4,18 +4,30 @@ The campaign: the 8 rows of ``examples/hidden_effect_manifest.csv`` three times
 (``a/``, ``b/``, ``c/``: forcing frequency ratio shifted by -2 %, 0, +2 %), 4 s each,
 with two hidden effects at once (contact damping 0.25 and an accelerometer
 resonance at 237 Hz). ``diagnose`` runs on it with every shipped effect (the three
-numerical-engine ones included) and the default budgets, under cProfile, and the
-table splits the wall time by what it was spent on: simulation
-(``simulate_rows``), statistics (``signal_statistics``) and the rest (search,
-significance, nuisances). The diagnosis itself is checked (both effects found).
+numerical-engine ones included) and the default budgets, and the table splits
+the wall time of this process by what it was spent on: simulation
+(``simulate_rows``), statistics (``signal_statistics`` / ``batch_signal_statistics``)
+and the rest (search, significance, nuisances, waiting for the workers), timed by
+wrappers (cProfile's own overhead on the numerical engine's Python loop would
+quadruple its share; ``--profile-out`` still writes a cProfile file), with the
+CPU time (this process and its worker processes) and the load average (the
+machine may be shared). The diagnosis itself is checked (both effects found).
 
-Target (issue 13): <= 2 minutes wall on 2 cores. ``--workers 2`` runs each step's
-fits on a 2-process LocalCluster (the profile then covers only this process).
+Baseline in the same run: one objective evaluation (the 24 rows simulated once,
+their statistics and discrepancies) the way every evaluation ran before
+(statistics record by record, inclinations included) against the search's
+evaluation now (rows batched per sampling rate, inclinations left out; the best
+point of each fit is scored with them).
+
+Target (issue 13): <= 2 minutes wall on 2 cores: ``--workers 2`` (the default) runs
+each step's fits on one 2-process LocalCluster for the whole diagnosis (the split
+then covers only this process: the joint refits, nuisances and verdict);
+``--workers 0`` runs everything in-process.
 
 Run (from the repository root, so this checkout's package is imported)::
 
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
-        [--workers 2] [--fast-only] [--no-inclination]
+        [--workers N] [--fast-only] [--no-inclination]
 """
 
 from __future__ import annotations
@@ -25,12 +37,19 @@ import cProfile
 import csv
 import os
 import pstats
+import resource
 import tempfile
 import time
 from pathlib import Path
 
 from stiffnet.campaign import load_campaign, simulate_campaign
+from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
+from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
+from stiffnet.measurement.nuisance import resolve_rows
+from stiffnet.measurement.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
+from stiffnet.measurement.statistics import signal_statistics
+from stiffnet.measurement.target import CampaignTarget, measured_statistics
 
 ROOT = Path(__file__).resolve().parents[1]
 HIDDEN = [
@@ -56,36 +75,111 @@ def campaign(tmp: Path) -> Path:
     return simulate_campaign(manifest, tmp / "campaign24", HIDDEN, seed=0)
 
 
+def timed() -> dict[str, float]:
+    """Wrap the simulation and statistics entry points of the modules diagnose calls with
+    timers (this process only); returns the seconds spent in each, filled as it runs."""
+    from stiffnet.measurement import noise_floor, target
+
+    spent = {"simulation": 0.0, "statistics": 0.0}
+
+    def wrap(module, name: str, stage: str) -> None:
+        fn = getattr(module, name)
+
+        def timed_fn(*a, **k):
+            t = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                spent[stage] += time.perf_counter() - t
+
+        setattr(module, name, timed_fn)
+
+    wrap(target, "simulate_rows", "simulation")
+    for module, name in ((target, "batch_signal_statistics"), (target, "signal_statistics"),
+                         (noise_floor, "signal_statistics")):  # fmt: skip
+        wrap(module, name, "statistics")
+    return spent
+
+
+def cpu_seconds() -> float:
+    """User + system CPU time of this process and its waited-for children (the workers)."""
+    own, kids = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def evaluation_ratio(camp, repeats: int = 5) -> tuple[float, float]:
+    """Seconds of one objective evaluation before (record by record, inclinations in every
+    evaluation) and now (the search's: batched, inclinations left out)."""
+    rows, _ = resolve_rows(camp)
+    measured, lengths, _ = measured_statistics(camp, rows, True)
+    target = CampaignTarget(rows, measured, lengths, [], inclination=True)
+    model = [effect_class("contact_damping")(damping_ratio=0.2)]
+
+    def before() -> None:
+        sims = simulate_rows(rows, model, lengths, target.seed, FIT_SETTINGS)
+        for m, a, r in zip(measured, sims, rows, strict=True):
+            s = signal_statistics(a, r.fs_hz, natural_frequency(r), r.frequency_ratio, True)
+            recording_discrepancy(normalised_differences(m, s))
+
+    def now() -> None:
+        target.per_recording(model, FIT_SETTINGS, inclination=False)
+
+    out = []
+    for fn in (before, now):
+        fn()  # warm (imports, numba, filter designs)
+        t = time.perf_counter()
+        for _ in range(repeats):
+            fn()
+        out.append((time.perf_counter() - t) / repeats)
+    return out[0], out[1]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--workers", type=int, default=2, help="LocalCluster processes (0: none)")
     ap.add_argument("--fast-only", action="store_true", help="closed-form effects only")
     ap.add_argument("--no-inclination", action="store_true", help="leave out the geometric "
                     "method's inclination statistics (as the tests do)")  # fmt: skip
+    ap.add_argument("--profile-out", help="also write the cProfile statistics to this file")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
         camp = load_campaign(campaign(Path(d)))
         t_sim = time.perf_counter() - t
-        prof = cProfile.Profile()
+        t_before, t_now = evaluation_ratio(camp)
+        load0 = os.getloadavg()[0]
+        prof = cProfile.Profile() if args.profile_out else None
+        spent = timed()
+        cpu0 = cpu_seconds()
         t = time.perf_counter()
-        prof.enable()
+        if prof is not None:
+            prof.enable()
         res = diagnose_campaign(
-            camp, effects=FAST if args.fast_only else None, workers=args.workers,
+            camp, effects=FAST if args.fast_only else None, workers=args.workers or None,
             inclination=not args.no_inclination,
             progress=lambda done, total: print(f"  fits {done}/{total}", flush=True),
         )  # fmt: skip
-        prof.disable()
+        if prof is not None:
+            prof.disable()
+            pstats.Stats(prof).dump_stats(args.profile_out)
         wall = time.perf_counter() - t
-    st = pstats.Stats(prof)
-    cum = {k[2]: v[3] for k, v in st.stats.items()}  # function name -> cumulative s
-    sim, stats_ = cum.get("simulate_rows", 0.0), cum.get("signal_statistics", 0.0)
-    print(f"\nload average {os.getloadavg()[0]:.2f}; campaign simulated in {t_sim:.1f} s")
-    print("| stage | seconds | share |\n|---|---|---|")
+        cpu = cpu_seconds() - cpu0
+    sim, stats_ = spent["simulation"], spent["statistics"]
+    load1 = os.getloadavg()[0]
+    where = "this process" if args.workers else "in-process, everything"
+    print(f"\nload average {load0:.2f} at the start, {load1:.2f} at the end; "
+          f"campaign simulated in {t_sim:.1f} s; workers: {args.workers or 'none'}")  # fmt: skip
+    print(f"one objective evaluation (24 rows): before {t_before:.3f} s, now {t_now:.3f} s "
+          f"(x{t_before / t_now:.1f})")  # fmt: skip
+    print(f"| stage ({where}) | seconds | share of wall |\n|---|---|---|")
     rest = wall - sim - stats_
     stages = [("simulation", sim), ("statistics", stats_), ("search, tests, nuisances", rest)]
     for name, v in [*stages, ("total (wall)", wall)]:
         print(f"| {name} | {v:.1f} | {v / wall:.0%} |")
+    print(f"| CPU time (this process + workers) | {cpu:.1f} | {cpu / wall:.0%} |")
     print(f"\nselected {res['missing_effects']} {res['fitted_params']}")
     print(f"verdict {res['verdict']}, residual {res['residual_discrepancy']:.3g}, "
           f"noise floor {res['noise_floor']:.3g}; target <= 120 s: "

@@ -221,6 +221,7 @@ def simulate_rows(
     seed: int = DEFAULT_SEED,
     settings: CampaignSolverSettings = CampaignSolverSettings(),
     starts: Sequence[int] | None = None,
+    effect_params: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> list[np.ndarray]:
     """Simulate the rows as one batch; returns each row's acceleration in g.
 
@@ -239,6 +240,9 @@ def simulate_rows(
     settings : CampaignSolverSettings
     starts : sequence of int, optional
         Initial-state variant per row (see :func:`initial_states`).
+    effect_params : dict, optional
+        Per-row parameter arrays by effect name (:meth:`Simulator.simulate`), e.g. the
+        points of a fit's design stacked into one batch.
 
     Returns
     -------
@@ -263,6 +267,7 @@ def simulate_rows(
             rng=np.random.default_rng([int(seed), 1]),
             x0=x0,
             v0=v0,
+            effect_params=effect_params,
         )
     except StiffnetError as exc:
         raise StiffnetError(f"simulating the campaign: {exc}") from None

@@ -160,11 +160,14 @@ def diagnose_campaign(
     bounded_count(budget, "--budget", 1, 100_000)  # checked before any simulation
     bounded_count(budget_numerical, "--budget-numerical", 1, 100_000)
     check_target(scheduler, workers)
+    from stiffnet.distributed.cluster import dask_client
+
     t0 = time.perf_counter()
-    with progress_task("diagnosis: effect fits") as line:
+    # one cluster for the whole diagnosis (a LocalCluster starts in seconds; steps are many)
+    with progress_task("diagnosis: effect fits") as line, dask_client(scheduler, workers) as client:
         return _diagnose(
             campaign, base_effects, effects, user_effects, budget, budget_numerical, seed,
-            inclination, scheduler, workers, _Progress(progress, line), model_path, t0,
+            inclination, client, _Progress(progress, line), model_path, t0,
         )  # fmt: skip
 
 
@@ -177,14 +180,13 @@ def _diagnose(
     budget_numerical: int | None,
     seed: int,
     inclination: bool,
-    scheduler: str | None,
-    workers: int | None,
+    client: Any,
     bar: _Progress,
     model_path: str | None,
     t0: float,
 ) -> dict[str, Any]:
-    """The body of :func:`diagnose_campaign`."""
-    from stiffnet.distributed import map_tasks
+    """The body of :func:`diagnose_campaign` (``client``: Dask client or None, in-process)."""
+    from stiffnet.distributed.tasks import run_tasks
     from stiffnet.simulator.compiled import limited_threads
 
     rows, nuisance_info = resolve_rows(campaign, model_path)
@@ -205,19 +207,23 @@ def _diagnose(
     bar.plan(len(candidates))
 
     def run_fits(cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
+        # numerical-engine fits (the long ones) first, so parallel workers finish together
+        order = sorted(cands, key=lambda n: not needs_numerical(n))
         items = [
-            (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in cands
+            (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in order
         ]
         start = bar.done
-        return map_tasks(
+        report = run_tasks(
             _fit_task,
             items,
-            scheduler=scheduler,
-            workers=workers,
-            names=cands,
+            client=client,
+            names=order,
             progress=lambda done, _: bar.tick(start + done - bar.done),
             thread_limit=limited_threads,
         )
+        report.raise_failures()
+        by_name = dict(zip(order, report.results, strict=True))
+        return [by_name[n] for n in cands]
 
     # ---- step 0: every candidate alone against the base model
     entries: dict[str, dict[str, Any]] = {}

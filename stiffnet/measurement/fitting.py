@@ -2,11 +2,16 @@
 
 Objective. The campaign discrepancy itself (:func:`campaign_discrepancy`, the
 mean over recordings of the mean squared normalised differences, i.e. a
-chi-square with fixed tolerances): the number the fit minimises is the number
-reported. The simulations use common random numbers
+chi-square with fixed tolerances). The simulations use common random numbers
 (:mod:`stiffnet.campaign.simulate`), so it is a deterministic function of
 the parameters. The model without the effect ("effect off") is always one of
 the candidates: a fit can end at "no improvement" (reduction 0), never below it.
+The search leaves out the two inclination statistics when the target has them
+(the geometric method costs twice all the other statistics together, and what
+moves them, the shape of the contact and of free flight, moves the waveform,
+spike and harmonic statistics as well); the best point is then scored with
+every statistic, and that number, compared with "effect off" scored the same
+way, is the one reported and tested.
 
 Search, in the unit cube of the effect's fit space
 (:attr:`stiffnet.effects.base.Effect.fit_space`, declared by each effect):
@@ -17,9 +22,12 @@ Search, in the unit cube of the effect's fit space
   e.g. the sensor resonance at the measured ringing frequency), then a bounded
   Brent search between the best design point's neighbours (one coordinate) or a
   bounded Nelder-Mead from it, within ``budget`` evaluations.
-  Numerical-engine effects (seconds per evaluation) get only a design spread
-  over the budget, searched on :data:`SUBSET_NUMERICAL` recordings and the best point
-  evaluated on all of them.
+  Numerical-engine effects (seconds per simulated batch, whatever its number of
+  rows: the integrator's cost is per time step) get only a design spread over the
+  budget, simulated as one batch holding :data:`SUBSET_NUMERICAL` recordings
+  (spread over the campaign) once per point
+  (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`); the
+  best point is then scored alone on every recording.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
   keep a share of the discrepancy that belongs to one found later.
@@ -48,9 +56,9 @@ REFINE_EVALUATIONS = {1: 8, 2: 12}
 REFINE_EVALUATIONS_MANY = 24
 #: Evaluations of a numerical-engine effect's fit (design only).
 DEFAULT_BUDGET_NUMERICAL = 6
-#: A numerical-engine effect is searched on at most this many recordings (evenly spread
-#: over the campaign), then its best point is evaluated on all of them: its simulations
-#: cost seconds, and the search needs only the shape of the objective.
+#: A numerical-engine effect's design is simulated on at most this many recordings (evenly
+#: spread over the campaign; the engine's cost grows with the batch's rows, though far
+#: slower than with the number of batches), then its best point is scored on all of them.
 SUBSET_NUMERICAL = 8
 #: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
 JOINT_PER_COORDINATE = 8
@@ -97,6 +105,8 @@ class _Evaluator:
     def __post_init__(self) -> None:
         self.cache: dict[tuple[float, ...], np.ndarray] = {}
         self.sizes = [len(s.free) for s in self.spaces]
+        self.scored = 0  # evaluations with every statistic (the search's leave inclinations out)
+        self.full: dict[tuple[float, ...], np.ndarray] = {}  # known values with every statistic
 
     def split(self, u: np.ndarray) -> list[dict[str, float]]:
         out, i = [], 0
@@ -118,7 +128,9 @@ class _Evaluator:
                 for n, p in zip(self.names, self.split(np.array(key)), strict=True)
             ]
             self.cache[key] = self.target.per_recording(
-                [*self.target.base_effects, *self.fixed, *effects], self.settings
+                [*self.target.base_effects, *self.fixed, *effects],
+                self.settings,
+                inclination=False,
             )
         return self.cache[key]
 
@@ -127,8 +139,20 @@ class _Evaluator:
         return float("inf") if per is None else objective_value(per)
 
     def best(self) -> tuple[np.ndarray, np.ndarray]:
+        """The best point searched and its per-recording discrepancies with every statistic
+        (scored again when the search left the inclinations out)."""
         key = min(self.cache, key=lambda k: objective_value(self.cache[k]))
-        return np.array(key), self.cache[key]
+        if not self.target.inclination:
+            return np.array(key), self.cache[key]
+        if key in self.full:
+            return np.array(key), self.full[key]
+        effects = [
+            effect_class(n)(**p) for n, p in zip(self.names, self.split(np.array(key)), strict=True)
+        ]
+        self.scored += 1
+        return np.array(key), self.target.per_recording(
+            [*self.target.base_effects, *self.fixed, *effects], self.settings
+        )
 
 
 def _result(
@@ -147,7 +171,7 @@ def _result(
         "fitted": [s.fitted for s in ev.spaces],
         "per_recording": per,
         "improves": bool(improves),
-        "evaluations": len(ev.cache),
+        "evaluations": len(ev.cache) + ev.scored,
         "seconds": round(time.perf_counter() - t0, 3),
     }
 
@@ -196,28 +220,6 @@ def fit_effect(
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
     if off is None:
         off = target.per_recording([*target.base_effects, *fixed], settings)
-    n = len(target.rows)
-    if numerical and n > SUBSET_NUMERICAL:
-        idx = np.unique(np.round(np.linspace(0, n - 1, SUBSET_NUMERICAL)).astype(int))
-        sub = fit_effect(target.subset(idx), name, fixed, settings, budget, off[idx], seeds)
-        per = target.per_recording(
-            [*target.base_effects, *fixed, effect_class(name)(**sub["params"])], settings
-        )
-        improves = bool(sub["improves"] and objective_value(per) < objective_value(off))
-        if not improves:
-            per = off
-        return {
-            **sub,
-            "params": sub["params"]
-            if improves or effect_class(name).neutral is None
-            else {**space.fixed, **effect_class(name).neutral},
-            "per_recording": per.tolist(),
-            "off_per_recording": off.tolist(),
-            "improves": improves,
-            "evaluations": sub["evaluations"] + 1,
-            "seconds": round(time.perf_counter() - t0, 3),
-            "searched_on": [target.rows[i].recording for i in idx],
-        }
     design = initial_design(space)
     n_seeds = len(seeds)
     seeds = [*seeds, *effect_class(name).fit_seeds(target.observed(), space)]
@@ -235,6 +237,8 @@ def fit_effect(
             ]
         )
         design = design[keep.astype(int)[:budget]]
+    if numerical:
+        return _fit_design(target, name, fixed, space, design, settings, off, t0)
     ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
@@ -260,6 +264,58 @@ def fit_effect(
         "evaluations": res["evaluations"],
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
+    }
+
+
+def _fit_design(
+    target: CampaignTarget,
+    name: str,
+    fixed: list[Effect],
+    space: FitSpace,
+    design: np.ndarray,
+    settings: SolverSettings,
+    off: np.ndarray,
+    t0: float,
+) -> dict[str, Any]:
+    """A numerical-engine effect's fit: its design simulated as one batch on a subset of the
+    recordings (:meth:`CampaignTarget.per_recording_points`), the best point scored alone on
+    all of them when it beats "effect off" on the subset."""
+    cls = effect_class(name)
+    model = [*target.base_effects, *fixed]
+    points = [space.params(u) for u in design]
+    n = len(target.rows)
+    idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
+    searched = target if idx.size == n else target.subset(idx)
+    pers = searched.per_recording_points(model, name, points, settings, inclination=False)
+    values = [objective_value(p) for p in pers]
+    j = int(np.argmin(values))
+    # "effect off" on the same recordings, scored like the design: when no point beats it
+    # there, the effect is off (the best point would need a full evaluation to say so)
+    same = idx.size == n and not target.inclination
+    off_searched = off if same else searched.per_recording(model, settings, inclination=False)
+    if values[j] >= objective_value(off_searched):
+        per, rescored = off, False
+    else:
+        rescored = not (j == 0 and same)
+        # the first point of the batch drew the standard noise; the others did not
+        per = target.per_recording([*model, cls(**points[j])], settings) if rescored else pers[0]
+    improves = bool(objective_value(per) < objective_value(off))
+    params = points[j]
+    if not improves:
+        per = off
+        if cls.neutral is not None:
+            params = {**space.fixed, **cls.neutral}
+    return {
+        "effect": name,
+        "params": params,
+        "fitted": space.fitted,
+        "per_recording": per.tolist(),
+        "off_per_recording": off.tolist(),
+        "improves": improves,
+        "evaluations": len(points) + (not same) + rescored,
+        "seconds": round(time.perf_counter() - t0, 3),
+        "engine": "numerical",
+        "searched_on": [target.rows[i].recording for i in idx],
     }
 
 
@@ -330,12 +386,13 @@ def fit_joint(
         budget = max(1, per * k) + 1
     ev = _Evaluator(target, [], names, spaces, settings, budget)
     u0 = np.concatenate([s.unit(p) for s, p in zip(spaces, params, strict=True)])
-    if start is not None:
-        ev.cache[ev.key(u0)] = np.asarray(start, float)
-    off = ev.per(u0)
+    ev.full[ev.key(u0)] = start
+    if not target.inclination:  # the search's values are the full ones
+        ev.cache[ev.key(u0)] = start
+    ev.per(u0)
     if k and len(ev.cache) < budget:
         _nelder_mead(ev, u0, JOINT_STEP, budget - len(ev.cache))
-    res = _result(ev, off, t0, [dict(p) for p in params])
+    res = _result(ev, start, t0, [dict(p) for p in params])
     if not res["improves"]:  # keep the values exactly (not their unit-cube image)
         res["params"] = [dict(p) for p in params]
     res["improves"] = bool(res["improves"] or params != given)

@@ -199,7 +199,10 @@ def profile_nuisances(
     model = [*target.base_effects, *effects]
     n = len(target.rows)
     # initial states: each recording keeps the start whose orbit matches it best
-    pers = [target.per_recording(model, settings, starts=[k] * n) for k in range(N_STARTS)]
+    pers = [
+        target.per_recording(model, settings, starts=[k] * n, inclination=False)
+        for k in range(N_STARTS)
+    ]
     target.starts = [int(k) for k in np.argmin(np.vstack(pers), axis=0)]
     for nu in info.get("nuisances", []):
         grid = np.linspace(0.0, 1.0, GRID)
@@ -239,7 +242,7 @@ def _profile(
             r.model_copy(update={nu.name: float(v)})
             for r, v in zip(target.rows, values, strict=True)
         ]
-        scores[:, j] = target.per_recording(model, settings, rows)
+        scores[:, j] = target.per_recording(model, settings, rows, inclination=False)
     best = np.empty(n)
     for grp in np.unique(nu.groups):
         sel = nu.groups == grp

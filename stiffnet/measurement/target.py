@@ -28,7 +28,11 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
-from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
+from stiffnet.measurement.statistics import (
+    SignalStatistics,
+    batch_signal_statistics,
+    signal_statistics,
+)
 
 #: Discrepancy scored by a recording whose simulation cannot be analysed.
 FAILED_DISCREPANCY = 100.0
@@ -64,25 +68,33 @@ class CampaignTarget:
         settings: SolverSettings,
         rows: Sequence[ManifestRow] | None = None,
         starts: Sequence[int] | None = None,
+        inclination: bool | None = None,
     ) -> list[SignalStatistics | None]:
-        """Statistics of the campaign simulated with ``effects`` (one batch)."""
+        """Statistics of the campaign simulated with ``effects`` (one batch; ``inclination``:
+        override the target's choice, e.g. False while a fit searches)."""
         rows = self.rows if rows is None else list(rows)
         starts = self.starts if starts is None else starts
         sims = simulate_rows(rows, effects, self.lengths, self.seed, settings, starts)
-        out: list[SignalStatistics | None] = []
-        for row, a in zip(rows, sims, strict=True):
-            try:
-                out.append(
-                    signal_statistics(
-                        a,
-                        row.fs_hz,
-                        natural_frequency(row),
-                        row.frequency_ratio,
-                        inclination=self.inclination,
-                    )
-                )
-            except SignalError:
-                out.append(None)
+        return self._statistics(sims, rows, inclination)
+
+    def _statistics(
+        self, sims: Sequence[np.ndarray], rows: Sequence[ManifestRow], inclination: bool | None
+    ) -> list[SignalStatistics | None]:
+        incl = self.inclination if inclination is None else self.inclination and inclination
+        return batch_signal_statistics(
+            sims,
+            [r.fs_hz for r in rows],
+            [natural_frequency(r) for r in rows],
+            [r.frequency_ratio for r in rows],
+            inclination=incl,
+        )
+
+    def _discrepancies(self, sims: Sequence[SignalStatistics | None]) -> np.ndarray:
+        out = np.full(len(self.rows), FAILED_DISCREPANCY)
+        for i, (m, s) in enumerate(zip(self.measured, sims, strict=True)):
+            if s is not None:
+                d = recording_discrepancy(normalised_differences(m, s))
+                out[i] = d if np.isfinite(d) else FAILED_DISCREPANCY
         return out
 
     def per_recording(
@@ -91,16 +103,50 @@ class CampaignTarget:
         settings: SolverSettings,
         rows: Sequence[ManifestRow] | None = None,
         starts: Sequence[int] | None = None,
+        inclination: bool | None = None,
     ) -> np.ndarray:
         """Per-recording discrepancies of the campaign simulated with ``effects``
-        (``rows``, ``starts``: other nuisance values than the target's)."""
-        sims = self.simulated_statistics(effects, settings, rows, starts)
-        out = np.full(len(self.rows), FAILED_DISCREPANCY)
-        for i, (m, s) in enumerate(zip(self.measured, sims, strict=True)):
-            if s is not None:
-                d = recording_discrepancy(normalised_differences(m, s))
-                out[i] = d if np.isfinite(d) else FAILED_DISCREPANCY
-        return out
+        (``rows``, ``starts``: other nuisance values than the target's; ``inclination``: see
+        :meth:`simulated_statistics`)."""
+        return self._discrepancies(
+            self.simulated_statistics(effects, settings, rows, starts, inclination)
+        )
+
+    def per_recording_points(
+        self,
+        effects: Sequence[Effect],
+        name: str,
+        points: Sequence[dict[str, float]],
+        settings: SolverSettings,
+        inclination: bool | None = None,
+    ) -> list[np.ndarray]:
+        """Per-recording discrepancies of ``effects`` plus effect ``name`` at each of ``points``,
+        simulated as **one** batch (the campaign's rows once per point).
+
+        For the numerical engine: its cost is per time step, hardly per row, so a
+        whole design costs about one evaluation. The first point's rows draw the
+        same noise as :meth:`per_recording`; the other points' draw other noise
+        (one generator for the batch), so their values carry the scatter of the
+        noise floor: a design to pick a point from, to be scored again alone.
+        """
+        n, k = len(self.rows), len(points)
+        if k == 0:
+            return []
+        cls = effect_class(name)
+        first = cls(**points[0])
+        rng = np.random.default_rng(0)  # fixed parameters: batch_params draws nothing
+        per_point = [cls(**p).batch_params(n, rng) for p in points]
+        stacked = {first.name: {key: np.concatenate([pp[key] for pp in per_point])
+                                for key in per_point[0]}}  # fmt: skip
+        starts = None if self.starts is None else list(self.starts) * k
+        sims = simulate_rows(
+            self.rows * k, [*effects, first], self.lengths * k, self.seed, settings, starts,
+            effect_params=stacked,
+        )  # fmt: skip
+        return [
+            self._discrepancies(self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination))
+            for j in range(k)
+        ]
 
     def subset(self, idx: Sequence[int]) -> CampaignTarget:
         """The target restricted to the recordings ``idx`` (same model, seed and nuisances)."""
