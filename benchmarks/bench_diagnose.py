@@ -43,11 +43,11 @@ import time
 from pathlib import Path
 
 from stiffnet.campaign import load_campaign, simulate_campaign
+from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
 from stiffnet.measurement.nuisance import resolve_rows
-from stiffnet.measurement.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
 from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
 

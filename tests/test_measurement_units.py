@@ -168,7 +168,7 @@ def test_numerical_effect_fit_runs_within_budget(monkeypatch):
 def test_design_points_as_one_batch_match_single_evaluations():
     """per_recording_points: the campaign's rows once per point in one batch; each point
     scores what it scores alone (exactly without noise; the first point also with noise)."""
-    from stiffnet.measurement.simulate import FIT_SETTINGS_NUMERICAL
+    from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
 
     quiet = ROW.model_copy(update={"noise": 0.0})
     rows = [quiet, quiet.model_copy(update={"recording": "b.csv", "beta": 60.0})]
