@@ -10,10 +10,10 @@ the period-1 branch the approach slope barely changes with beta (0.04-0.05 in
 standardised units, beta 12-80) and the rising Table-1 trend comes from the
 x-slope falling (0.009 -> 0.0045) as the impact phase moves; on the other orbit
 the point ``2 tau`` back sits at another phase of the free flight (x-slope
-0.02-0.027) and the angle falls from ~88 to ~58-65 deg at the same beta. No
+0.019-0.027) and the angle falls from ~88 to ~56-65 deg at the same beta. No
 phase-free rewriting of "before" keeps the trend (against the record's RMS
-free-flight x-slope instead of its own it is flat, ~50-55 deg, on period-1):
-the angle reads the orbit. So the estimate
+free-flight x-slope instead of each impact's own it is flat or falling on
+period-1, 46-56 deg): the angle reads the orbit. So the estimate
 
 * names the orbit (:func:`impact_pattern`) and calibrates period-1 windows and
   the others separately (:meth:`stiffnet.geometry.calibration.GeometricCalibration.for_orbit`);
