@@ -81,7 +81,8 @@ def all_betas(period1: list, other: list, res_other) -> None:
     print("\n## All sixteen betas (noise-free)\n")
     print(
         "| beta | polynomial before / after | gradient before / after | beta est. | class "
-        "| coexisting attractor: impacts/period, polynomial before / after, class |"
+        "| coexisting attractor: impacts/period, polynomial before / after, "
+        "before by position (flight in periods: angle), beta est., class |"
     )
     print("|---:|---:|---:|---:|---|---|")
     for i, b in enumerate(PAPER_BETAS):
@@ -89,9 +90,12 @@ def all_betas(period1: list, other: list, res_other) -> None:
         ipp = impacts_per_period(res_other, i)
         alt = "same orbit"
         if abs(ipp - 1.0) > 0.05:
+            pos = "; ".join(
+                f"{p['flight_periods']:.2f}: {p['before_deg']:.1f}" for p in o.positions()
+            )
             alt = (
                 f"{ipp:.2f}, {o.polynomial_before_deg:.1f} / {o.polynomial_after_deg:.2f}, "
-                f"{o.geometric_class}"
+                f"{pos}, {o.geometric_beta:.0f}, {o.geometric_class}"
             )
         print(
             f"| {b:g} | {r.polynomial_before_deg:.1f} / {r.polynomial_after_deg:.2f} | "
@@ -253,7 +257,7 @@ def figure(accel: np.ndarray, period1: list, noise_runs: dict, path: Path) -> No
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=80)
     plt.close(fig)
-    print(f"\nfigure: {path.relative_to(ROOT)} ({path.stat().st_size / 1024:.0f} KB)")
+    print(f"\nfigure: {path} ({path.stat().st_size / 1024:.0f} KB)")
 
 
 def main() -> None:

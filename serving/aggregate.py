@@ -11,8 +11,9 @@ split-conformal quantile calibrated with one score per trajectory (metadata
 ``conformal_quantile_recording``); models without it fall back to the
 per-window quantile ``exp(mean +- q)``. Segments aggregate consecutive windows
 the same way. The geometric cross-check aggregates its windows' inclinations:
-contact if at least half of them have contact, then their mean inclinations
-through the calibration give beta and class.
+contact if at least half of them have contact, then the mean inclinations of
+the windows on the recording's orbit (period-1 or not, as most of them) through
+the calibration's map for that orbit give beta and class.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.geometry.orbit import is_period1
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
 
 
@@ -98,9 +100,13 @@ def geometric_verdict(results: list, calibration: Any) -> dict[str, Any]:
     }
     if not contact or 2 * len(contact) < n:
         return out
-    before = float(np.mean([r.inclination_before_deg for r in contact]))
-    after = float(np.mean([r.inclination_after_deg for r in contact]))
-    beta, cls = calibration.predict((before, after))
+    # the 'before' angle reads the orbit: average windows of one kind, use its map
+    one = [is_period1(r.impact_pattern) for r in contact]
+    period1 = 2 * sum(one) >= len(contact)
+    same = [r for r, o in zip(contact, one, strict=True) if o == period1]
+    before = float(np.mean([r.inclination_before_deg for r in same]))
+    after = float(np.mean([r.inclination_after_deg for r in same]))
+    beta, cls = calibration.for_orbit((1, 1) if period1 else None).predict((before, after))
     pol = int(np.sign(sum(r.polarity for r in contact))) or contact[0].polarity
     out.update(
         {

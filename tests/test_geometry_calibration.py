@@ -1,6 +1,7 @@
 """Calibration from inclinations to beta and class (Fig. 11), and its JSON file."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -76,7 +77,27 @@ def test_save_load_roundtrip(tmp_path):
     back = load_calibration(path)
     assert back == cal
     d = json.loads(path.read_text())
-    assert d["format"] == "stiffnet.geometric_calibration" and d["version"] == 1
+    assert d["format"] == "stiffnet.geometric_calibration" and d["version"] == 2
+
+
+def test_period_n_map_is_picked_by_orbit_and_round_trips(tmp_path):
+    """Two maps: period-1 windows use the main one, every other orbit ``period_n``."""
+    b, a, beta = _synthetic()
+    main = fit_calibration(b, a, beta, degree=1)
+    # on the other orbit the same beta shows a 'before' angle 25 degrees lower
+    other = fit_calibration(b - 25.0, a, beta, degree=1)
+    cal = replace(main, period_n=other)
+    assert cal.for_orbit((1, 1)) is cal
+    assert cal.for_orbit((2, 3)) is other and cal.for_orbit(None) is other
+    assert main.for_orbit((2, 3)) is main  # no second map: one for every orbit
+    np.testing.assert_allclose(cal.for_orbit((2, 3)).predict_beta(b - 25.0, a), beta, rtol=1e-6)
+    back = load_calibration(save_calibration(cal, tmp_path / "two.json"))
+    assert back == cal and back.period_n == other
+    d = json.loads((tmp_path / "two.json").read_text())
+    d["period_n"] = [1, 2]
+    (tmp_path / "two.json").write_text(json.dumps(d))
+    with pytest.raises(ConfigError, match="period_n"):
+        load_calibration(tmp_path / "two.json")
 
 
 def test_load_errors(tmp_path):
@@ -109,7 +130,12 @@ def test_shipped_calibration_is_small_and_documented():
     assert cal.method in ("polynomial", "gradient") and cal.validity
     assert {"families", "noise_levels", "processing"} <= set(cal.simulation)
     res = cal.residuals
-    assert {"train", "heldout_by_noise", "heldout_by_family"} <= set(res)
+    assert {"train", "heldout_by_noise", "heldout_by_family", "heldout_by_orbit"} <= set(res)
+    # one map per orbit kind (geometry/orbit.py): the other orbits are not worse served
+    assert cal.period_n is not None and cal.period_n.method == cal.method
+    by_orbit = res["heldout_by_orbit"]
+    assert by_orbit["period_n"]["class_accuracy_all"] > 0.6
+    assert by_orbit["period1"]["class_accuracy_all"] > 0.6
     # what the docs quote: the paper's parameter set is classified far above chance (0.25)
     assert res["heldout_by_family"]["paper"]["class_accuracy_all"] > 0.7
     assert res["heldout_by_noise"]["all"]["false_contact"] == 0

@@ -14,6 +14,13 @@ after impact"; here that trend is fitted on simulated windows:
   standardised log-gradients. Features are clipped to the range seen in
   training and estimates to the training range of beta, so the polynomial is
   never extrapolated.
+* orbit: the "before" angle reads the orbit as well as beta
+  (:mod:`stiffnet.geometry.orbit`), so a calibration holds one map for period-1
+  windows (one impact per forcing period, the paper's Table 1) and, optionally,
+  a second one (``period_n``) fitted on the windows of every other orbit (several
+  impacts per period, one every few periods, no repeating pattern);
+  :meth:`GeometricCalibration.for_orbit` picks it. Files without ``period_n``
+  (version 1) use their one map for every orbit.
 * class: the class whose beta interval contains the estimate (the nearest
   interval for estimates outside 5-100) - the nearest-class rule on the beta
   axis. A window without contact gives ``"no_contact"`` and beta NaN.
@@ -29,7 +36,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +56,7 @@ DEFAULT_CLASSES: tuple[tuple[str, float, float], ...] = (
 )
 NO_CONTACT = "no_contact"
 FORMAT = "stiffnet.geometric_calibration"
-VERSION = 1
+VERSION = 2
 #: File name of the shipped calibration in ``models/``.
 CALIBRATION_FILE = "geometric_calibration.json"
 #: The shipped calibration of the source checkout (where the fitting script writes it).
@@ -123,6 +130,9 @@ class GeometricCalibration:
         Fit quality (training and held-out).
     validity : str
         The domain in which the calibration was fitted and checked.
+    period_n : GeometricCalibration or None
+        The map for windows that are not on the period-1 orbit (None: this one
+        serves every orbit).
     version : int
         File format version.
     """
@@ -140,7 +150,18 @@ class GeometricCalibration:
     simulation: dict[str, Any] = field(default_factory=dict)
     residuals: dict[str, Any] = field(default_factory=dict)
     validity: str = ""
+    period_n: GeometricCalibration | None = None
     version: int = VERSION
+
+    def for_orbit(self, pattern: Sequence[int] | None) -> GeometricCalibration:
+        """The map for windows with impact pattern `pattern` (``(1, 1)``: period-1).
+
+        Period-1 windows get this calibration; any other pattern (or None: no
+        repeating pattern) gets :attr:`period_n` when the file has one.
+        """
+        if self.period_n is None or (pattern is not None and tuple(pattern) == (1, 1)):
+            return self
+        return self.period_n
 
     def features(self, before_deg: ArrayLike, after_deg: ArrayLike) -> np.ndarray:
         """Standardised, clipped log-gradients, shape (N, 2)."""
@@ -280,13 +301,26 @@ def calibration_errors(
         whose angles are NaN count as wrong class and are left out of the
         beta errors (``n_missing``).
     """
+    return beta_errors(cal.predict_beta(before_deg, after_deg), beta, cal.classes)
+
+
+def beta_errors(
+    pred: ArrayLike, beta: ArrayLike, classes: Sequence[Sequence[Any]] = DEFAULT_CLASSES
+) -> dict[str, float]:
+    """Errors of estimated betas `pred` (NaN: no estimate) against the true `beta`.
+
+    Returns
+    -------
+    dict
+        As :func:`calibration_errors`.
+    """
     y = np.asarray(beta, dtype=np.float64)
-    pred = cal.predict_beta(before_deg, after_deg)
+    pred = np.asarray(pred, dtype=np.float64)
     ok = np.isfinite(pred)
     err = np.log(pred[ok]) - np.log(y[ok])
     ape = 100.0 * np.abs(pred[ok] - y[ok]) / y[ok]
-    cls_true = beta_class(y, cal.classes)
-    cls_pred = beta_class(pred, cal.classes)
+    cls_true = beta_class(y, classes)
+    cls_pred = beta_class(pred, classes)
     nan = float("nan")
     return {
         "n": int(y.size),
@@ -348,6 +382,11 @@ def load_calibration(path: str | Path | None = None) -> GeometricCalibration:
             f"{path} has calibration version {d['version']}; this stiffnet reads up to {VERSION}"
         )
     d.pop("format")
+    return _from_dict(d, path)
+
+
+def _from_dict(d: dict[str, Any], path: Path) -> GeometricCalibration:
+    sub = d.pop("period_n", None)
     try:
         cal = GeometricCalibration(**d)
     except TypeError as exc:
@@ -355,4 +394,11 @@ def load_calibration(path: str | Path | None = None) -> GeometricCalibration:
     check_method(cal.method)
     if len(cal.coefficients) != len(_exponents(cal.degree)):
         raise ConfigError(f"{path}: {len(cal.coefficients)} coefficients for degree {cal.degree}")
+    if sub is not None:
+        if not isinstance(sub, dict):
+            raise ConfigError(f"{path}: malformed calibration (period_n is not a mapping)")
+        inner = _from_dict(dict(sub), path)
+        if inner.method != cal.method or inner.period_n is not None:
+            raise ConfigError(f"{path}: period_n must be a plain {cal.method} calibration")
+        cal = replace(cal, period_n=inner)
     return cal

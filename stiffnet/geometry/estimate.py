@@ -59,7 +59,13 @@ from stiffnet.geometry.inclination import (
     gradient_inclinations,
     polynomial_inclinations,
 )
-from stiffnet.geometry.orbit import describe_pattern, impact_pattern
+from stiffnet.geometry.orbit import (
+    describe_pattern,
+    flight_periods,
+    impact_pattern,
+    is_period1,
+    position_summary,
+)
 from stiffnet.geometry.separation import ContactSeparation, separate_contact
 from stiffnet.geometry.tangent import tangent_lag, tangent_magnitudes, tangent_vectors
 from stiffnet.nlts import (
@@ -189,6 +195,14 @@ class GeometricResult:
         ``(n, m)``: n impacts every m forcing periods
         (:func:`stiffnet.geometry.orbit.impact_pattern`); None without contact or
         without a repeating pattern.
+    orbit_flight_periods : numpy.ndarray
+        Per orbit (as `orbit_before_deg`): the free flight before its impact in
+        forcing periods, its position in the orbit
+        (:func:`stiffnet.geometry.orbit.flight_periods`; NaN for the first).
+    calibration_orbit : str or None
+        Which map of the calibration gave beta: ``"period1"`` or ``"period_n"``
+        (:meth:`~stiffnet.geometry.calibration.GeometricCalibration.for_orbit`);
+        None without contact or calibration.
     """
 
     contact_detected: bool
@@ -219,6 +233,15 @@ class GeometricResult:
     separation: ContactSeparation = field(repr=False)
     reason: str = ""
     impact_pattern: tuple[int, int] | None = None
+    orbit_flight_periods: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False)
+    calibration_orbit: str | None = None
+
+    def positions(self) -> list[dict[str, float]]:
+        """Inclinations grouped by position in the orbit
+        (:func:`stiffnet.geometry.orbit.position_summary`)."""
+        return position_summary(
+            self.orbit_flight_periods, self.orbit_before_deg, self.orbit_after_deg
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays except the per-orbit angles and impacts)."""
@@ -254,6 +277,8 @@ class GeometricResult:
             "polarity": self.polarity,
             "reason": self.reason,
             "impact_pattern": list(self.impact_pattern) if self.impact_pattern else None,
+            "impact_positions": self.positions(),
+            "calibration_orbit": self.calibration_orbit,
         }
 
 
@@ -417,14 +442,20 @@ def geometric_estimate(
             reason = f"{grad.n_orbits} complete orbit(s) with an impact, {MIN_ORBITS} needed"
     chosen: OrbitInclinations | None = (grad if method == "gradient" else poly) if contact else None
     pattern = impact_pattern(impacts, period) if contact else None
-    if contact and pattern != (1, 1):
-        # the inclination before an impact depends on the orbit's phase at impact: say so
+    if contact and not is_period1(pattern):
+        # the 'before' inclination depends on the orbit's phase at impact (see orbit.py)
+        which = (
+            "calibrated for orbits other than period-1"
+            if cal is not None and cal.period_n is not None
+            else "the calibration and Table 1 are for one impact per period"
+        )
         reason = (
-            f"{reason}; orbit: {describe_pattern(pattern)} - the calibration and Table 1 are "
-            "for one impact per period, the 'before' inclination here reads the orbit as "
-            "much as beta"
+            f"{reason}; orbit: {describe_pattern(pattern)} - the 'before' inclination reads "
+            f"the orbit as much as beta ({which})"
         )
 
+    flights = np.empty(0)
+    cal_orbit = None
     if chosen is None:
         beta, cls = None, NO_CONTACT
         before = after = nan
@@ -432,8 +463,12 @@ def geometric_estimate(
     else:
         before, after = chosen.mean_before, chosen.mean_after
         orbit_b, orbit_a = chosen.before, chosen.after
+        # tangent k's z-coordinate is sample k + 2 tau: where the impact region starts
+        flights = flight_periods(chosen.starts + 2 * tau, impacts, period)
         if cal is not None:
-            b, c = cal.predict((before, after))
+            used = cal.for_orbit(pattern)
+            cal_orbit = "period1" if used is cal else "period_n"
+            b, c = used.predict((before, after))
             beta, cls = float(b), str(c)
         else:
             beta, cls = None, None
@@ -467,4 +502,6 @@ def geometric_estimate(
         separation=sep,
         reason=reason,
         impact_pattern=pattern,
+        orbit_flight_periods=flights,
+        calibration_orbit=cal_orbit,
     )
