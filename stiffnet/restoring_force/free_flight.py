@@ -112,6 +112,7 @@ def _impulse_corrections(
     free: np.ndarray,
     contact: np.ndarray,
     stiffness: float,
+    damping: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, float, float] | None:
     """Per-flight line corrections of the displacement: the impulses' quadrature errors.
 
@@ -146,8 +147,11 @@ def _impulse_corrections(
     a[:, 0] = vel[rows]
     a[np.arange(rows.size), 1 + j] = 1.0
     a[np.arange(rows.size), 1 + n + j] = tau[rows] - centre[j]
+    if damping is not None:
+        target = target - damping * vel
+        a[:, 0] = 0.0
     coef = scaled_lstsq(a, target[rows])
-    c = float(coef[0])
+    c = float(coef[0]) if damping is None else float(damping)
     slope = coef[1 + n :] / stiffness
     level = (coef[1 : 1 + n] - c * slope) / stiffness
     r2 = 1.0 - float(np.var(target[rows] - a @ coef)) / max(float(np.var(-accel[rows])), 1e-300)
@@ -232,6 +236,7 @@ def fit_free_flight(
     harmonics=HARMONICS,
     dilate: int = 2,
     stiffness: float | None = None,
+    damping: float | None = None,
 ) -> FreeFlightFit:
     """Fit the free-flight law and the table's motion, and split contact from free flight.
 
@@ -251,6 +256,9 @@ def fit_free_flight(
         Samples added on each side of a contact before refitting the free flight.
     stiffness : float, optional
         Known ``k`` (``(f_n / f_f)**2`` from a given natural frequency); fitted when None.
+    damping : float, optional
+        Fix ``c`` (with `stiffness` given): on a near-sinusoidal orbit the free flight
+        alone cannot tell ``c v`` from the table's motion at the forcing frequency.
 
     Returns
     -------
@@ -261,8 +269,11 @@ def fit_free_flight(
     if stiffness is not None:  # move the known k x_i to the target side
         target = target - stiffness * disp
         design[:, 1] = 0.0
+    if damping is not None:
+        target = target - damping * vel
+        design[:, 0] = 0.0
     coef, free, contact, sigma = robust_split(design, target, use, dilate)
-    c = float(coef[0])
+    c = float(coef[0]) if damping is None else float(damping)
     k = float(coef[1]) if stiffness is None else float(stiffness)
     fitted = design[free] @ coef
     total = -accel[free]
@@ -281,7 +292,7 @@ def fit_free_flight(
     x = disp + s + offset
     v = vel + ds
     if stiffness is not None and k > 0:
-        fixed = _impulse_corrections(accel, v, x, tau, use, free, contact, k)
+        fixed = _impulse_corrections(accel, v, x, tau, use, free, contact, k, damping)
         if fixed is not None:
             corr, dcorr, c, r2 = fixed
             x, v = x + corr, v + dcorr
