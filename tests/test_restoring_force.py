@@ -16,6 +16,7 @@ from stiffnet.restoring_force import (
     restoring_force_estimate,
     table_motion,
 )
+from stiffnet.restoring_force.contact_poles import fit_contact_poles
 from stiffnet.restoring_force.sensor import ringing_mode, undo_resonance
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ as FN
 from stiffnet.simulator.batch import OscillatorBatch
@@ -57,6 +58,29 @@ def test_damped_contact_releases_before_the_gap_closes():
     # penetration 0.1, receding at v = -1: K d + c v = 10 * 0.1 - 2 * 1 < 0 -> no force
     f = contact_force(np.array([0.1, 0.1, -0.1]), np.array([-1.0, 0.0, 0.0]), 10.0, 0.0, 2.0)
     np.testing.assert_allclose(f, [0.0, 1.0, 0.0])
+
+
+@pytest.mark.parametrize("samples", [3, 4])
+def test_contact_poles_read_a_sampled_damped_oscillation_exactly(samples):
+    """Pulses ``exp(-s t)(A cos w t + B sin w t) + C`` cut at random onsets: the
+    recursion of their samples gives ``w**2 + s**2`` and ``s`` whatever the onset."""
+    sigma, omega, dt = 1.5, 9.0, 0.08
+    rng = np.random.default_rng(3)
+    force = np.zeros(400)
+    contact = np.zeros(400, dtype=bool)
+    offset = rng.uniform(-1, 1)  # 3 samples: one equation per impact, C shared
+    for start in range(10, 390, 20):
+        t = rng.uniform(0, dt) + dt * np.arange(samples)  # onset between samples
+        a, b = rng.uniform(1, 3, 2)
+        c = offset if samples == 3 else rng.uniform(-1, 1)
+        force[start : start + samples] = (
+            np.exp(-sigma * t) * (a * np.cos(omega * t) + b * np.sin(omega * t)) + c
+        )
+        contact[start : start + samples] = True
+    poles = fit_contact_poles(force, contact, dt)
+    assert poles.total_stiffness == pytest.approx(omega**2 + sigma**2, rel=1e-8)
+    assert poles.decay == pytest.approx(sigma, rel=1e-6)
+    assert poles.r2 > 1 - 1e-10
 
 
 # --- simulated contacts ----------------------------------------------------------------
@@ -245,3 +269,51 @@ def test_user_power_law_contact(monkeypatch):
     # units: x integrated in forcing radians is w**2 x): beta (d_r / w**2 / 0.3)**0.3
     d_r = r.law.reference_penetration / omega**2
     assert r.beta == pytest.approx(50.0 * (d_r / 0.3) ** 0.3, rel=0.03)
+
+
+def _record(beta, effects, fs_ratio, gap, amp, omega, xi, noise=0.02):
+    batch = OscillatorBatch.single(beta=beta, gap=gap, amplitude=amp, omega=omega, damping=xi)
+    sim = Simulator([build_effect(n, p) for n, p in effects])
+    res = sim.simulate(batch, fs_ratio, int(16 * fs_ratio), noise=noise, rng=1)
+    return res.accel[0], fs_ratio * FN
+
+
+def test_hard_damped_contact_sampled_with_five_samples():
+    """zeta_c 0.47, beta 67 at fs/f_n 114: five samples per contact. The map read it
+    43 (the onset's jump integrated wrong); the contact's own oscillation reads it."""
+    accel, fs = _record(66.8, [("contact_damping", {"damping_ratio": 0.47})],
+                        113.6, 0.17, 1.73, 0.984, 0.022)  # fmt: skip
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert "contact's oscillation" in r.reason and r.samples_per_contact < 8
+    assert r.beta == pytest.approx(66.8, rel=0.1)
+    assert r.beta_interval[0] <= 66.8 <= r.beta_interval[1]
+    assert r.contact_damping_ratio == pytest.approx(0.47, abs=0.1)
+
+
+def test_lowpass_near_the_contact_band_is_not_read_as_the_contact():
+    """A 3rd-order anti-alias low-pass at 0.3 fs adds poles next to the contact's: the
+    recursion would read beta 41 as ~160; its fit and the contacts' length reject it."""
+    effects = [
+        ("contact_damping", {"damping_ratio": 0.4}),
+        ("sensor_dynamics", {"resonance_hz": 979.0, "resonance_damping": 0.074,
+                             "highpass_hz": 0.0, "lowpass_hz": 210.0, "lowpass_order": 3}),
+    ]  # fmt: skip
+    accel, fs = _record(41.5, effects, 75.0, 1.0, 1.0, 1.0, 0.03)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert "contact's oscillation" not in r.reason
+    assert not r.ok or r.beta < 100
+
+
+def test_negative_free_damping_is_profiled(monkeypatch):
+    """A record of the damped benchmark (tuning seed 777, row 8: beta 12.4, zeta_c 0.5, 8
+    samples per contact) whose free flight gives a negative c: it read 19.5 (wrong class);
+    with c profiled by the contact law's fit it reads soft."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    from bench_crosscheck import simulate_set
+
+    rows, fs, beta, _ = simulate_set("damped", 40, 777)
+    r = restoring_force_estimate(rows[8], fs[8], natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.free_damping_ratio >= 0
+    assert r.physical_class == "soft" and r.beta == pytest.approx(beta[8], rel=0.2)
