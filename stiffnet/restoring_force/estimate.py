@@ -87,6 +87,9 @@ FREE_DAMPING_GRID = (0.0, 0.015, 0.03, 0.05, 0.08)
 #: quadrature errors dominate the contact law's residual, which then prefers a ``c``
 #: that lets a strongly damped, soft law absorb them (beta read 2-10x low).
 PROFILE_MIN_SAMPLES = 8
+#: ... and where the contact law explains >= 90 % to begin with: a poorer law has other
+#: errors (a mount resonance in the contact's band) that its fit would trade ``c`` for.
+PROFILE_MIN_R2 = 0.9
 #: Below this contact R2 the contact law is fitted again from an onset profiled over a grid.
 SECOND_START_R2 = 0.95
 #: Refuse when the contacts last longer than this many half periods of the fitted law.
@@ -474,7 +477,8 @@ def _profile_free_damping(
     It runs where the free flight's own ``c`` is negative: a passive mass in free
     flight dissipates, so a negative ``c`` is the sign of that confusion (on the
     damped-contact records of a tuning seed, the over-estimates by 16-140 % all
-    had one), and where the contacts span :data:`PROFILE_MIN_SAMPLES` samples.
+    had one), where the contacts span :data:`PROFILE_MIN_SAMPLES` samples and where
+    the contact law explains :data:`PROFILE_MIN_R2` of the contact force.
     """
     best, best_r2 = m, -np.inf
     for xi in FREE_DAMPING_GRID:
@@ -644,7 +648,7 @@ def _estimate_at(
         if _contact_r2(m2) >= _contact_r2(m):
             m, corner, resonance = m2, corner2, mode[0] * fs_hz / (2 * np.pi)
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
-            and m.spc >= PROFILE_MIN_SAMPLES):  # fmt: skip
+            and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
         m = _profile_free_damping(m, dtau, tau, use, period, k_given, exponent)
     fit, info = m.fit, m.info
     info["resonance_hz"] = resonance
