@@ -302,7 +302,8 @@ class Predictor:
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
-        alarm = with_physical_check(alarm, physical_gap(interval, physical["beta_interval"]))
+        gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
+        alarm = with_physical_check(alarm, gap)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         score = alarm_ratio(alarm)

@@ -136,6 +136,9 @@ def test_physical_gap_is_the_log_gap_between_disjoint_intervals():
     assert physical_gap([10.0, 20.0], [40.0, 80.0]) == pytest.approx(np.log(2.0))
     assert physical_gap([40.0, 80.0], [10.0, 20.0]) == pytest.approx(np.log(2.0))
     assert physical_gap(None, [1.0, 2.0]) is None and physical_gap([1.0, 2.0], None) is None
+    # a poor contact-law fit contradicts nothing; a good one does
+    assert physical_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.8) is None
+    assert physical_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.99) == pytest.approx(np.log(2.0))
 
 
 def test_physical_check_joins_the_alarm():
@@ -172,6 +175,7 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
             "class": "hard",
             "beta": beta,
             "beta_interval": [0.9 * beta, 1.1 * beta],
+            "contact_r2": 0.99,
             "reason": "a contradicting reading (test)",
         }
 
