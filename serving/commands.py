@@ -109,7 +109,11 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
             "[green]none[/]")  # fmt: skip
         t.add_row("alarm", verdict, "")
         scores = ", ".join(
-            f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
+            # the physical check's score is a log-gap that fires above 0: "0/0" would read
+            # as a ratio
+            f"{k} log-gap {_num(v)} (fires > 0)"
+            if k == "physical"
+            else f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
             for k, v in alarm["scores"].items()
             if k in alarm["thresholds"]
         )
