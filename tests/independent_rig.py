@@ -1,0 +1,222 @@
+"""An impact-oscillator rig simulated independently of stiffnet, in physical units.
+
+The people steering stiffnet check it on campaigns written by a code it has never
+seen. This module is a small stand-in for that code: it imports nothing from
+stiffnet's simulator, effects or campaign packages, integrates the paper's
+base-excited impact oscillator (eqs 11-12) in SI units with
+:func:`scipy.integrate.solve_ivp` (DOP853, contact onset and release located as
+events), passes the absolute acceleration of the mass through an optional sensor
+chain built with :mod:`scipy.signal`, and writes a campaign folder the way a lab
+would: ``t,accel`` CSV files in g and a ``manifest.csv`` in Hz, g and mm.
+
+Model (relative displacement ``x`` of the mass, positive towards the restraint,
+metres; base acceleration ``-A sin(Ω t)``)::
+
+    x'' = A sin(Ω t) - 2 ζ ω_n x' - ω_n² x - F_c / m
+    F_c / m = max(0, β ω_n² δ + damping),  δ = x - e > 0
+
+with contact damping either Kelvin-Voigt, ``2 ζ_c sqrt(β) ω_n δ'``, or
+Hunt-Crossley, ``β ω_n² δ λ δ'`` (λ in s/m: damping proportional to the
+penetration, so the force starts at zero). The accelerometer on the mass reads
+its absolute acceleration ``x'' - A sin(Ω t) = -(2 ζ ω_n x' + ω_n² x + F_c/m)``:
+impacts are negative spikes.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import zlib
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+from scipy.integrate import solve_ivp
+
+G = 9.80665  # m/s^2 per g
+
+
+@dataclass
+class RigRun:
+    """One recording of the rig, in the units a lab would write down."""
+
+    recording: str
+    beta: float
+    natural_frequency_hz: float = 9.48
+    forcing_frequency_hz: float = 9.95
+    base_acceleration_g: float = 0.75
+    gap_mm: float = 2.0
+    damping_ratio: float = 0.02
+    fs_hz: float = 1000.0
+    duration_s: float = 4.0
+    #: None, "kelvin_voigt" (uses contact_zeta) or "hunt_crossley" (uses hc_lambda_s_per_m).
+    contact: str | None = None
+    contact_zeta: float = 0.0
+    hc_lambda_s_per_m: float = 0.0
+    #: Sensor chain: mounted resonance (Hz, damping), high-pass and anti-alias corners (Hz).
+    sensor: dict | None = field(default=None)
+    #: White noise std as a fraction of the base-acceleration amplitude.
+    noise: float = 0.02
+
+    @property
+    def omega_n(self) -> float:
+        return 2 * math.pi * self.natural_frequency_hz
+
+    @property
+    def base_acceleration_ms2(self) -> float:
+        return self.base_acceleration_g * G
+
+    @property
+    def base_displacement_mm(self) -> float:
+        """The table's displacement amplitude, ``A / Ω²``, in mm."""
+        return self.base_acceleration_ms2 / (2 * math.pi * self.forcing_frequency_hz) ** 2 * 1e3
+
+
+def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Contact force per unit mass (m/s²), zero out of contact; never pulls."""
+    e = run.gap_mm * 1e-3
+    d = x - e
+    k = run.beta * run.omega_n**2
+    f = k * d
+    if run.contact == "kelvin_voigt":
+        f = f + 2 * run.contact_zeta * math.sqrt(run.beta) * run.omega_n * v
+    elif run.contact == "hunt_crossley":
+        f = f * (1 + run.hc_lambda_s_per_m * v)
+    return np.where(d > 0, np.maximum(f, 0.0), 0.0)
+
+
+def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Integrate the rig from rest and return ``(t, absolute acceleration in m/s²)``.
+
+    The motion is integrated phase by phase (free flight / contact) so that the
+    integrator never steps across the contact's switch; each phase ends at an event.
+    """
+    wn, zeta = run.omega_n, run.damping_ratio
+    big_a, om = run.base_acceleration_ms2, 2 * math.pi * run.forcing_frequency_hz
+    e = run.gap_mm * 1e-3
+    if transient_s is None:  # free oscillations down to 1e-4, at least 20 forcing periods
+        transient_s = max(math.log(1e4) / (zeta * wn), 20 / run.forcing_frequency_hz)
+    n = int(round(run.duration_s * run.fs_hz))
+    t_rec = transient_s + np.arange(n) / run.fs_hz
+    t_end = t_rec[-1]
+
+    def rhs(contact: bool):
+        def f(t, y):
+            fc = _contact_force(run, np.array(y[0]), np.array(y[1])) if contact else 0.0
+            return [y[1], big_a * math.sin(om * t) - 2 * zeta * wn * y[1] - wn**2 * y[0] - fc]
+
+        return f
+
+    def touch(t, y):
+        return y[0] - e
+
+    touch.terminal, touch.direction = True, 1
+
+    def release(t, y):  # the force reaches zero (or the penetration does)
+        d = y[0] - e
+        if run.contact == "kelvin_voigt":
+            return run.beta * wn**2 * d + 2 * run.contact_zeta * math.sqrt(run.beta) * wn * y[1]
+        if run.contact == "hunt_crossley":
+            return d * (1 + run.hc_lambda_s_per_m * y[1])
+        return d
+
+    release.terminal, release.direction = True, -1
+
+    x_out = np.empty(n)
+    v_out = np.empty(n)
+    in_contact = np.zeros(n, bool)
+    t0, y0, contact = 0.0, [0.0, 0.0], False
+    max_step = 1 / (20 * max(run.natural_frequency_hz, run.forcing_frequency_hz))
+    while t0 < t_end:
+        sol = solve_ivp(
+            rhs(contact),
+            (t0, t_end),
+            y0,
+            method="DOP853",
+            rtol=1e-9,
+            atol=1e-12,
+            max_step=max_step if not contact else max_step / 4,
+            events=release if contact else touch,
+            dense_output=True,
+        )
+        t1 = sol.t[-1]
+        sel = (t_rec >= t0) & (t_rec <= t1)
+        if sel.any():
+            xs, vs = sol.sol(t_rec[sel])
+            x_out[sel], v_out[sel], in_contact[sel] = xs, vs, contact
+        if sol.status != 1:
+            break
+        y0 = list(sol.y[:, -1])
+        t0, contact = t1, not contact
+    fc = np.where(in_contact, _contact_force(run, x_out, v_out), 0.0)
+    accel = -(2 * zeta * wn * v_out + wn**2 * x_out + fc)
+    return t_rec - t_rec[0], accel
+
+
+def sensor_chain(accel: np.ndarray, fs_hz: float, sensor: dict) -> np.ndarray:
+    """Mounted resonance, then a 1st-order high-pass, then a 4th-order anti-alias low-pass.
+
+    ``sensor`` keys: ``resonance_hz``, ``resonance_damping``, ``highpass_hz``,
+    ``lowpass_hz`` (any left out or 0 is skipped). Causal filters, as in hardware.
+    """
+    y = accel
+    fr = sensor.get("resonance_hz") or 0
+    if fr:
+        wr, zr = 2 * math.pi * fr, sensor.get("resonance_damping", 0.05)
+        b, a = signal.bilinear([wr**2], [1, 2 * zr * wr, wr**2], fs=fs_hz)
+        y = signal.lfilter(b, a, y)
+    if sensor.get("highpass_hz"):
+        y = signal.sosfilt(
+            signal.butter(1, sensor["highpass_hz"], "high", fs=fs_hz, output="sos"), y
+        )
+    if sensor.get("lowpass_hz"):
+        y = signal.sosfilt(signal.butter(4, sensor["lowpass_hz"], "low", fs=fs_hz, output="sos"), y)
+    return y
+
+
+def record(run: RigRun, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """``(t in s, accel in g)`` as the data logger stores it: chain, then white noise."""
+    t, acc = simulate(run)
+    if run.sensor:
+        acc = sensor_chain(acc, run.fs_hz, run.sensor)
+    rng = np.random.default_rng([seed, zlib.crc32(run.recording.encode())])
+    acc = acc + rng.normal(0.0, run.noise * run.base_acceleration_ms2, acc.shape)
+    return t, acc / G
+
+
+MANIFEST_COLUMNS = ["recording", "fs_hz", "natural_frequency_hz", "forcing_frequency_hz",
+                    "base_acceleration_g", "gap_mm", "damping_ratio", "beta"]  # fmt: skip
+
+
+def write_campaign(
+    folder: Path, runs: list[RigRun], seed: int = 0, tolerances: dict | None = None
+) -> Path:
+    """Write ``folder/manifest.csv`` (physical units) and one ``t,accel`` CSV per run.
+
+    ``tolerances`` maps a manifest column to its ± (written as ``<column>_tol``).
+    A ``rig_truth.csv`` beside the campaign folder keeps every run's full settings.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    tol = tolerances or {}
+    cols = MANIFEST_COLUMNS + [f"{c}_tol" for c in tol]
+    with open(folder / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols)
+        for run in runs:
+            t, acc = record(run, seed)
+            path = folder / run.recording
+            path.parent.mkdir(parents=True, exist_ok=True)
+            np.savetxt(path, np.column_stack([t, acc]), delimiter=",", header="t,accel",
+                       comments="", fmt=["%.9f", "%.8e"])  # fmt: skip
+            vals = [getattr(run, c) for c in MANIFEST_COLUMNS] + list(tol.values())
+            w.writerow(vals)
+    with open(
+        folder.parent / f"{folder.name}_rig_truth.csv", "w", encoding="utf-8", newline=""
+    ) as fh:
+        rows = [asdict(r) for r in runs]
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    return folder

@@ -1,0 +1,170 @@
+"""stiffnet end to end on campaigns written by an independent simulator (tests/independent_rig.py).
+
+The rig integrates the paper's model in SI units with scipy's solve_ivp and writes
+what a lab writes: CSV recordings in g and a manifest in Hz, g and mm. Nothing of
+stiffnet's simulator, effects or campaign code wrote these files, so a convention
+mismatch (model-unit conversion, gain, polarity, gap sign) shows up as wrong β.
+The thresholds are the numbers measured on these campaigns (docs in the report of
+the branch issue-ind), not wishes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from independent_rig import G, RigRun, write_campaign
+
+from stiffnet.campaign import load_campaign
+from stiffnet.geometry.calibration import beta_class
+from stiffnet.measurement.diagnose import diagnose_campaign
+from stiffnet.measurement.evaluate import evaluate_campaign
+
+#: (beta, forcing / natural frequency, base displacement mm, gap mm, fs Hz): the
+#: operating points of examples/campaign_manifest.csv, two betas per class.
+POINTS = [(8, 1.05, 1.9, 2.8, 1000), (12, 0.95, 1.0, 0.5, 1000), (20, 1.0, 1.2, 1.2, 1250),
+          (31, 1.1, 1.9, 2.0, 1250), (40, 0.98, 1.5, 1.6, 1500), (55, 1.05, 1.9, 2.8, 1500),
+          (70, 1.02, 1.3, 0.9, 2000), (90, 1.08, 1.7, 2.4, 2000)]  # fmt: skip
+F_N = 9.48
+
+
+def _runs(points=POINTS, duration_s: float = 4.0, **kw) -> list[RigRun]:
+    """The rig's settings as a lab writes them: forcing in Hz (2 decimals), base in g (3)."""
+    runs = []
+    for beta, ratio, disp_mm, gap_mm, fs in points:
+        f_f = round(ratio * F_N, 2)
+        acc_g = round(disp_mm * 1e-3 * (2 * math.pi * f_f) ** 2 / G, 3)
+        runs.append(
+            RigRun(
+                f"rec/beta{beta:03d}.csv", beta, F_N, f_f, acc_g, gap_mm, 0.02, fs, duration_s, **kw
+            )  # fmt: skip
+        )
+    return runs
+
+
+@pytest.fixture(scope="module")
+def tmp(tmp_path_factory):
+    return tmp_path_factory.mktemp("independent")
+
+
+@pytest.fixture(scope="module")
+def ideal(tmp):
+    return write_campaign(tmp / "ideal", _runs())
+
+
+def test_manifest_physical_units_become_the_rigs_model_units(ideal):
+    """Hz, g and mm -> ω = f/f_n, a = A/Ω² in mm, e in mm, as the rig defines them."""
+    camp = load_campaign(ideal)
+    for row, run in zip(camp.rows, _runs(), strict=True):
+        assert row.frequency_ratio == pytest.approx(run.forcing_frequency_hz / F_N, rel=1e-9)
+        assert row.amplitude == pytest.approx(run.base_displacement_mm, rel=1e-6)
+        assert row.gap == pytest.approx(run.gap_mm, rel=1e-9)
+        assert row.beta == run.beta
+
+
+def test_ideal_independent_campaign_classified_and_cross_checked(ideal):
+    """Measured: learned 8/8 classes, β MAPE 6 %; restoring force 8/8, β within 0.2 %."""
+    ev = evaluate_campaign(load_campaign(ideal))
+    recs = ev["recordings"]
+    assert all(r["impact_regime"] == "impacting" for r in recs)  # the manifest's rig impacts
+    right = sum(r["class"] == r["true_class"] for r in recs)
+    assert right >= 7, [(r["recording"], r["class"], r["beta_estimate"]) for r in recs]
+    assert ev["metrics"]["learned"]["beta_mape"] < 0.15
+    for r in recs:  # the restoring force reads β from the recording's own force-displacement
+        assert r["physical_beta"] == pytest.approx(r["beta"], rel=0.03), r["recording"]
+        assert r["physical_class"] == r["true_class"]
+    assert ev["metrics"]["restoring_force"]["agreement_with_learned"] >= 7 / 8
+
+
+def test_gain_and_polarity_conventions(tmp):
+    """The same rig recorded in m/s² instead of g, or with the sensor mounted upside down,
+    gives the same class and β: the predictor normalises gain and polarity
+    (stiffnet/features/windows.py, steps 3-4)."""
+    import numpy as np
+
+    from serving.predictor import Predictor
+    from stiffnet.recordings import read_recording
+
+    run = _runs()[3]  # beta 31
+    folder = write_campaign(tmp / "one", [run])
+    rec = read_recording(folder / run.recording)
+    pred = Predictor.load()
+    in_g = pred.predict(rec.accel, rec.fs_hz, natural_frequency_hz=F_N)
+    in_ms2 = pred.predict(rec.accel * G, rec.fs_hz, natural_frequency_hz=F_N)
+    assert in_ms2["physical_beta"] == pytest.approx(in_g["physical_beta"], rel=1e-6)
+    assert in_ms2["class"] == in_g["class"] == str(beta_class(run.beta))
+    flipped = pred.predict(-np.asarray(rec.accel), rec.fs_hz, natural_frequency_hz=F_N)
+    assert flipped["class"] == in_g["class"]
+    assert flipped["physical_beta"] == pytest.approx(in_g["physical_beta"], rel=1e-6)
+
+
+def _silent_failures(recs) -> list[str]:
+    """Wrong learned class, no alarm, and the restoring-force check agreeing with it."""
+    return [
+        r["recording"]
+        for r in recs
+        if r["class"] != r["true_class"] and not r["ood"] and r["physical_agreement"] is True
+    ]
+
+
+@pytest.mark.parametrize(
+    ("lam", "max_silent"),
+    [(3.0, 0), (8.0, 1)],  # the measured silent-failure counts (see the docstring)
+)
+def test_hunt_crossley_contact_is_right_or_says_so(tmp, lam, max_silent):
+    """Hunt-Crossley, F = β δ (1 + λ δ') (not in the library): restitution 0.64-0.83
+    (λ = 3 s/m) and 0.38-0.65 (λ = 8 s/m) for approach speeds 0.28-0.1 m/s.
+
+    Measured, λ = 3: learned 8/8 right, the alarm fired on 6 (the physical check).
+    λ = 8: learned wrong on 4/8, the alarm fired on 3 of those; the fourth (β 31,
+    called hard at 40.6) is a silent failure: no alarm, and the restoring force
+    (44.5; the linear contact law explains 93 % of the force) agrees with it.
+    """
+    runs = _runs(contact="hunt_crossley", hc_lambda_s_per_m=lam)
+    recs = evaluate_campaign(load_campaign(write_campaign(tmp / f"hc{lam:g}", runs)))
+    recs = recs["recordings"]
+    silent = _silent_failures(recs)
+    assert len(silent) <= max_silent, silent
+    if lam >= 8:
+        assert sum(r["class"] != r["true_class"] for r in recs) >= 2  # the law costs something
+
+
+DIAG_POINTS = POINTS[:1] + POINTS[2:5] + POINTS[6:7]  # five recordings, no 0.5 mm gap
+DIAG_EFFECTS = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics"]
+
+
+def _diagnose(folder):
+    return diagnose_campaign(load_campaign(folder), effects=DIAG_EFFECTS, inclination=False)
+
+
+@pytest.mark.slow
+def test_diagnose_names_kelvin_voigt_contact_damping(tmp):
+    runs = _runs(DIAG_POINTS, 3.0, contact="kelvin_voigt", contact_zeta=0.25)
+    d = _diagnose(write_campaign(tmp / "kv", runs))
+    assert "contact_damping" in d["missing_effects"], d["summary"]
+    # measured: explained, ζ_c fitted 0.230 (the rig's 0.25), residual at the noise floor
+    assert d["verdict"] == "explained", d["summary"]
+    assert d["fitted_params"]["contact_damping"]["damping_ratio"] == pytest.approx(0.25, rel=0.1)
+
+
+@pytest.mark.slow
+def test_diagnose_hunt_crossley_is_not_nothing_missing(tmp):
+    runs = _runs(DIAG_POINTS, 3.0, contact="hunt_crossley", hc_lambda_s_per_m=8.0)
+    d = _diagnose(write_campaign(tmp / "hc", runs))
+    # measured: partially_explained, 80 % by contact_damping (ζ 0.43) + forcing_harmonics
+    # (a 33 % second harmonic standing in for the contact law), 1.97 left vs floor 0.073
+    assert d["verdict"] == "partially_explained", d["summary"]
+    assert d["residual_discrepancy"] > 2 * d["noise_floor"]
+
+
+def test_sensor_chain_right_or_says_so(tmp):
+    """Mounted resonance 400 Hz (ζ 0.05), 0.5 Hz high-pass, 300 Hz 4th-order anti-alias.
+
+    Measured: learned 7/8 (β 55 called very_hard at 65, the restoring force says
+    hard: the disagreement tells); no silent failure.
+    """
+    chain = {"resonance_hz": 400, "resonance_damping": 0.05, "highpass_hz": 0.5, "lowpass_hz": 300}
+    recs = evaluate_campaign(load_campaign(write_campaign(tmp / "chain", _runs(sensor=chain))))
+    recs = recs["recordings"]
+    assert sum(r["class"] == r["true_class"] for r in recs) >= 7
+    assert _silent_failures(recs) == []
