@@ -190,27 +190,41 @@ MANIFEST_COLUMNS = ["recording", "fs_hz", "natural_frequency_hz", "forcing_frequ
 
 
 def write_campaign(
-    folder: Path, runs: list[RigRun], seed: int = 0, tolerances: dict | None = None
+    folder: Path,
+    runs: list[RigRun],
+    seed: int = 0,
+    tolerances: dict | None = None,
+    errors: list[dict] | None = None,
+    accel_unit: str = "g",
 ) -> Path:
     """Write ``folder/manifest.csv`` (physical units) and one ``t,accel`` CSV per run.
 
-    ``tolerances`` maps a manifest column to its ± (written as ``<column>_tol``).
-    A ``rig_truth.csv`` beside the campaign folder keeps every run's full settings.
+    ``tolerances`` maps a manifest column to its relative ± (written as
+    ``<column>_tol`` in the column's unit); ``errors`` gives per run the relative
+    error of the *declared* value of some columns (the lab's nominal is off);
+    ``accel_unit`` ``"ms2"`` writes ``base_acceleration_ms2`` instead of ``_g``.
+    A ``<folder>_rig_truth.csv`` beside the campaign keeps every run's true settings.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     tol = tolerances or {}
-    cols = MANIFEST_COLUMNS + [f"{c}_tol" for c in tol]
+    base = MANIFEST_COLUMNS
+    if accel_unit == "ms2":
+        base = [c.replace("_g", "_ms2") if c == "base_acceleration_g" else c for c in base]
+    cols = base + [f"{c}_tol" for c in tol]
     with open(folder / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(cols)
-        for run in runs:
+        for i, run in enumerate(runs):
             t, acc = record(run, seed)
             path = folder / run.recording
             path.parent.mkdir(parents=True, exist_ok=True)
             np.savetxt(path, np.column_stack([t, acc]), delimiter=",", header="t,accel",
                        comments="", fmt=["%.9f", "%.8e"])  # fmt: skip
-            vals = [getattr(run, c) for c in MANIFEST_COLUMNS] + list(tol.values())
+            err = errors[i] if errors else {}
+            declared = {c: getattr(run, c) for c in base}
+            declared.update({c: declared[c] * (1 + e) for c, e in err.items()})
+            vals = [declared[c] for c in base] + [abs(declared[c]) * r for c, r in tol.items()]
             w.writerow(vals)
     with open(
         folder.parent / f"{folder.name}_rig_truth.csv", "w", encoding="utf-8", newline=""
