@@ -80,6 +80,22 @@ def test_ideal_independent_campaign_classified_and_cross_checked(ideal):
     assert ev["metrics"]["restoring_force"]["agreement_with_learned"] >= 7 / 8
 
 
+def test_evaluate_cli_on_the_lab_folder(ideal, tmp):
+    """`stiffnet evaluate` reads the lab's manifest (Hz, g, mm) and reports the same."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    out = tmp / "ideal_eval.json"
+    res = CliRunner().invoke(app, ["evaluate", str(ideal), "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    metrics = json.loads(out.read_text())["metrics"]
+    assert metrics["learned"]["accuracy"] >= 7 / 8
+    assert metrics["restoring_force"]["accuracy"] == 1.0
+
+
 def test_gain_and_polarity_conventions(tmp):
     """The same rig recorded in m/s² instead of g, or with the sensor mounted upside down,
     gives the same class and β: the predictor normalises gain and polarity
