@@ -11,7 +11,9 @@ the branch issue-ind), not wishes.
 from __future__ import annotations
 
 import math
+import shutil
 
+import numpy as np
 import pytest
 from independent_rig import G, RigRun, write_campaign
 
@@ -100,8 +102,6 @@ def test_gain_and_polarity_conventions(tmp):
     """The same rig recorded in m/s² instead of g, or with the sensor mounted upside down,
     gives the same class and β: the predictor normalises gain and polarity
     (stiffnet/features/windows.py, steps 3-4)."""
-    import numpy as np
-
     from serving.predictor import Predictor
     from stiffnet.recordings import read_recording
 
@@ -176,11 +176,23 @@ def _diagnose(folder):
 @pytest.mark.slow
 def test_diagnose_names_kelvin_voigt_contact_damping(tmp):
     runs = _runs(DIAG_POINTS, 3.0, contact="kelvin_voigt", contact_zeta=0.25)
-    d = _diagnose(write_campaign(tmp / "kv", runs))
+    folder = write_campaign(tmp / "kv", runs)
+    d = _diagnose(folder)
     assert "contact_damping" in d["missing_effects"], d["summary"]
     # measured: explained, ζ_c fitted 0.230 (the rig's 0.25), residual at the noise floor
     assert d["verdict"] == "explained", d["summary"]
     assert d["fitted_params"]["contact_damping"]["damping_ratio"] == pytest.approx(0.25, rel=0.1)
+    # the sensor mounted upside down: diagnose normalises polarity (docs/campaign.md)
+    flipped = tmp / "kv_flipped"
+    shutil.copytree(folder, flipped)
+    for run in runs:
+        path = flipped / run.recording
+        data = np.loadtxt(path, delimiter=",", skiprows=1)
+        data[:, 1] *= -1
+        np.savetxt(path, data, delimiter=",", header="t,accel", comments="", fmt=["%.9f", "%.8e"])
+    f = _diagnose(flipped)
+    assert f["missing_effects"] == d["missing_effects"]
+    assert f["fitted_params"] == d["fitted_params"]
 
 
 @pytest.mark.slow
