@@ -114,6 +114,25 @@ def physical_gap(
     return max(0.0, float(np.log(lo_p / hi_m)), float(np.log(lo_m / hi_p)))
 
 
+def weak_physical_fit(physical: dict[str, Any]) -> str | None:
+    """A warning when the restoring-force estimate answered from a poor contact-law fit.
+
+    Below :data:`PHYSICAL_MIN_R2` its agreement with the model is weak evidence
+    (and its disagreement raises no alarm): the contact may follow a law the
+    fitted one lacks (a Hunt-Crossley or layered contact), or a sensor chain near
+    the contact's band distorts it. Saying so keeps an agreement from reading as
+    a confirmation.
+    """
+    r2 = physical.get("contact_r2")
+    if physical.get("beta") is None or r2 is None or r2 >= PHYSICAL_MIN_R2:
+        return None
+    return (
+        f"the restoring-force contact law explains only {100 * r2:.0f} % of the contact force "
+        f"(< {100 * PHYSICAL_MIN_R2:.0f} %): its beta and its agreement with the model are "
+        "weak evidence (the contact law or the sensor chain may be outside what it fits)"
+    )
+
+
 def with_physical_check(alarm: dict[str, Any] | None, gap: float | None) -> dict[str, Any] | None:
     """The alarm with the restoring-force check added (fires when the intervals are disjoint).
 

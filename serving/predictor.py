@@ -48,6 +48,7 @@ from serving.alarm import (
     alarm_verdict,
     load_model_alarm,
     physical_gap,
+    weak_physical_fit,
     with_physical_check,
 )
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
@@ -306,6 +307,8 @@ class Predictor:
         alarm = with_physical_check(alarm, gap)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
+        if weak := weak_physical_fit(physical):
+            warnings.append(weak)
         score = alarm_ratio(alarm)
         result = {
             "source": source,

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from serving.alarm import physical_gap, with_physical_check
+from serving.alarm import physical_gap, weak_physical_fit, with_physical_check
 from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
@@ -158,6 +158,13 @@ def test_physical_check_joins_the_alarm():
     assert quiet["fired"] == [] and "physical" not in quiet["scores"]  # the input is not changed
     alone = with_physical_check(None, 0.7)  # a model without an alarm reference
     assert alone["flag"] and alone["fired"] == ["physical"]
+
+
+def test_a_poor_contact_law_fit_is_called_weak_evidence():
+    assert weak_physical_fit({"beta": 30.0, "contact_r2": 0.99}) is None
+    assert weak_physical_fit({"beta": None, "contact_r2": 0.5}) is None  # refused: said already
+    words = weak_physical_fit({"beta": 30.0, "contact_r2": 0.93})
+    assert "93 %" in words and "weak evidence" in words
 
 
 def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch):
