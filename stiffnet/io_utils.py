@@ -247,11 +247,6 @@ def start_run_folder(out: str | Path, kind: str) -> None:
     write_json_atomic(out / RUN_MARKER, {"kind": kind, "status": "running"})
 
 
-def finish_run_folder(out: str | Path, kind: str) -> None:
-    """Mark the run folder complete."""
-    write_json_atomic(Path(out) / RUN_MARKER, {"kind": kind, "status": "complete"})
-
-
 def is_run_folder(folder: str | Path, kind: str) -> bool:
     """Whether ``folder`` carries the marker of a finished run of ``kind``."""
     try:

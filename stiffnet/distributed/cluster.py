@@ -61,12 +61,6 @@ def check_target(scheduler: str | None, workers: int | None) -> None:
         )
 
 
-def scheduler_from_env() -> str | None:
-    """The scheduler address in ``STIFFNET_SCHEDULER``, if set and not empty."""
-    value = os.environ.get(SCHEDULER_ENV, "").strip()
-    return value or None
-
-
 @contextlib.contextmanager
 def dask_client(
     scheduler: str | None = None, workers: int | None = None

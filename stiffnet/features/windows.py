@@ -199,14 +199,6 @@ def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
     return out
 
 
-def canonical_polarity(a: np.ndarray, period: float) -> int:
-    """+1 if the impact spikes of the standardised window `a` point up, -1 if down.
-
-    One row of :func:`canonical_polarities`.
-    """
-    return int(canonical_polarities(np.asarray(a, dtype=np.float64)[None, :], period)[0])
-
-
 def canonical_windows(
     windows: ArrayLike,
     fs_hz: float,

@@ -38,7 +38,6 @@ from stiffnet.measurement.discrepancy import (
 from stiffnet.measurement.significance import AT_FLOOR_FACTOR
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
 
-VERDICTS = ("nothing_missing", "explained", "partially_explained")
 
 
 def split_half(
