@@ -67,12 +67,12 @@ import numpy as np
 
 from stiffnet.config import load_config, load_yaml, validate_config
 from stiffnet.config.sim import SimulationConfig
-from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.generate import generate_dataset
 from stiffnet.dataset.store import CARD, Dataset, load_dataset
 from stiffnet.features import FEATURE_VERSION
 from stiffnet.features.windows import window_tensor
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from training.config import TrainConfig
 from training.geometric_baseline import geometric_predictions
 from training.metrics import confusion, evaluate, noise_bin_names
 from training.split import trajectory_split
@@ -421,7 +421,7 @@ def time_gbm(data_dir: Path, train_config: Path, cache: Path | None, threads: in
     """
     from threadpoolctl import threadpool_limits
 
-    from training.gbm import fit_gbm
+    from training.families.gbm.model import fit_gbm
 
     cfg = load_config(TrainConfig, train_config)
     ds = load_dataset(data_dir)

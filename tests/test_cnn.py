@@ -13,7 +13,6 @@ from test_progress import Recorder
 
 from stiffnet import progress
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.train import CNNConfig, TrainConfig
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.features.windows import (
@@ -24,6 +23,8 @@ from stiffnet.features.windows import (
 )
 from stiffnet.io_utils import sha256_file
 from stiffnet.uncertainty.alarm import load_alarm
+from training.config import TrainConfig
+from training.families.cnn.config import CNNConfig
 
 torch = pytest.importorskip("torch")
 
@@ -55,8 +56,8 @@ def trained(tiny_dir, tmp_path_factory):
 def test_onnx_export_prints_no_torchvision_warnings():
     """torch.onnx logs four "torchvision is not installed" lines on its first export."""
     code = (
-        "from training.cnn import StiffnessCNN\n"
-        "from training.export_onnx_cnn import _export_proto\n"
+        "from training.families.cnn.network import StiffnessCNN\n"
+        "from training.families.cnn.export import _export_proto\n"
         "_export_proto(StiffnessCNN(3, 5, 8, 2), 3, 64)\n"
     )
     root = Path(__file__).resolve().parents[1]
@@ -228,8 +229,8 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
 
 
 def test_onnx_parity_and_dynamic_batch(trained, tiny_dir):
-    from training.cnn import StiffnessCNN, predict_cnn
-    from training.export_onnx_cnn import export_cnn_onnx, onnx_predict_cnn, parity_cnn
+    from training.families.cnn.export import export_cnn_onnx, onnx_predict_cnn, parity_cnn
+    from training.families.cnn.network import StiffnessCNN, predict_cnn
 
     summary, _, _ = trained
     assert summary["parity"]["max_abs_proba_diff"] < 1e-4

@@ -7,14 +7,14 @@ import onnx
 import pytest
 
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError
 from stiffnet.features import FEATURE_NAMES, feature_matrix
 from stiffnet.io_utils import sha256_file
 from stiffnet.uncertainty import conformal_quantile
-from training.export_onnx import export_onnx, onnx_predict
-from training.gbm import fit_gbm
+from training.config import TrainConfig
+from training.families.gbm.export import export_onnx, onnx_predict
+from training.families.gbm.model import fit_gbm
 from training.metrics import noise_bins
 from training.split import trajectory_split
 

@@ -1,9 +1,9 @@
 """The training tail both model families share: calibrate, evaluate, export, track.
 
-A family's trainer (:mod:`training.train_gbm`, :mod:`training.train_cnn`)
-loads the data, builds its inputs, splits by trajectory and fits; it hands a
-:class:`TrainedModel` to :func:`finish_training`, which then, the same way for
-every family:
+:func:`training.train.train` loads the data, asks the family
+(:mod:`training.families`) for its inputs, splits by trajectory and lets the
+family fit; the family's :class:`~training.families.base.TrainedModel` goes to
+:func:`finish_training`, which then, the same way for every family:
 
 1. calibrates the per-window split-conformal log-beta half-width on the
    calibration trajectories' contact windows, and the recording-level interval
@@ -22,18 +22,18 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.store import CARD
 from stiffnet.io_utils import sha256_file, write_json_atomic
 from stiffnet.uncertainty import conformal_quantile
 from stiffnet.uncertainty.alarm import save_alarm
 from training.calibration import calibrate_recording_level
+from training.config import TrainConfig
+from training.families.base import TrainedModel
 from training.geometric_baseline import geometric_baseline
 from training.metrics import NO_CONTACT_LABEL, confusion, evaluate
 from training.split import Split
@@ -43,53 +43,6 @@ from training.training_data import alarm_info, data_summary
 ALARM_SUFFIX = ".alarm.npz"
 #: How the shipped interval is calibrated (model metadata ``interval``).
 INTERVAL_METHOD = "normalised split-conformal, one score per trajectory"
-
-
-@dataclass
-class TrainedModel:
-    """A fitted model of one family, as :func:`finish_training` needs it.
-
-    Attributes
-    ----------
-    name : str
-        The family (``gbm``, ``cnn``): metric prefix, ``NAME.onnx``, the card's ``model``.
-    inputs : numpy.ndarray
-        The model's input for every window of the dataset (the parity check's rows).
-    outputs : dict of numpy.ndarray
-        The model's outputs on every window, by ONNX output name: ``probabilities``
-        and ``log_beta``, and ``log_beta_scale`` and ``embedding`` where the family has them.
-    classes : numpy.ndarray
-        The class index of each ``probabilities`` column.
-    export : callable
-        ``export(onnx_path, metadata, card) -> card``: writes ``NAME.onnx`` and its card.
-    parity : callable
-        ``parity(onnx_path, X) -> dict``: the ONNX model against the fitted one on rows `X`.
-    metadata, card : dict
-        The family's own ONNX metadata and model-card entries.
-    versions : dict
-        The training library's version, first in the card.
-    params, metrics : dict
-        The family's MLflow parameters and extra metrics.
-    summary, timing : dict
-        Extra ``summary.json`` entries and the seconds of the family's own steps.
-    history : list of dict, optional
-        Per-epoch losses, logged with the run.
-    """
-
-    name: str
-    inputs: np.ndarray
-    outputs: dict[str, np.ndarray]
-    classes: np.ndarray
-    export: Callable[[Path, dict[str, Any], dict[str, Any]], dict[str, Any]]
-    parity: Callable[[Path, np.ndarray], dict[str, float]]
-    metadata: dict[str, Any] = field(default_factory=dict)
-    card: dict[str, Any] = field(default_factory=dict)
-    versions: dict[str, str] = field(default_factory=dict)
-    params: dict[str, Any] = field(default_factory=dict)
-    metrics: dict[str, float] = field(default_factory=dict)
-    summary: dict[str, Any] = field(default_factory=dict)
-    timing: dict[str, float] = field(default_factory=dict)
-    history: list[dict[str, float]] | None = None
 
 
 def finish_training(

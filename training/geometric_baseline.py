@@ -14,9 +14,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from stiffnet.config.train import TrainConfig
 from stiffnet.errors import SignalError
 from stiffnet.geometry import geometric_estimate
+from training.config import TrainConfig
 from training.metrics import evaluate
 
 

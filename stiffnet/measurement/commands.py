@@ -310,8 +310,8 @@ def loop(
         typer.Option(
             "--family",
             "--model",
-            help="Model family: cnn (shipped, the default) or gbm (fast); a resumed loop keeps "
-            "its own.",
+            help="Model family (`stiffnet families`; default: the shipped model's); a resumed "
+            "loop keeps its own. --model is its deprecated name.",
         ),
     ] = None,
     n_trajectories: Annotated[
@@ -328,7 +328,8 @@ def loop(
         ),
     ] = None,
     max_epochs: Annotated[
-        int | None, typer.Option(help="CNN epochs per iteration (default 15).")
+        int | None,
+        typer.Option(help="Epochs per iteration, for a family trained in epochs (CNN: 15)."),
     ] = None,
     keep_data: Annotated[bool, typer.Option(help="Keep each iteration's dataset.")] = False,
     seed: Annotated[int | None, typer.Option(help="Seed of the diagnosis and discrepancy.")] = None,
@@ -351,7 +352,7 @@ def loop(
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs else None
+    overrides = {"max_epochs": max_epochs} if max_epochs else None
     console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
         res = run_loop(

@@ -17,7 +17,7 @@
 
 Splits, the conformal half-width and the metrics are those every family uses
 (:mod:`training.split`, :mod:`training.finish`, :mod:`training.metrics`);
-end-to-end training: :mod:`training.train_cnn`.
+end-to-end training: :mod:`training.families.cnn.train`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stiffnet.config.train import CNNConfig
+from training.families.cnn.config import CNNConfig
 from training.metrics import NO_CONTACT_LABEL
 from training.split import Split
 
@@ -49,7 +49,7 @@ class StiffnessCNN(nn.Module):
     n_classes : int
         Number of class logits.
     width, n_blocks, kernel_size, dropout
-        Architecture (see :class:`~stiffnet.config.train.CNNConfig`).
+        Architecture (see :class:`~training.families.cnn.config.CNNConfig`).
     log_beta_mean, log_beta_std : float
         Standardisation of the regression target (the head predicts the
         standardised value; :meth:`forward` returns log(beta)).
