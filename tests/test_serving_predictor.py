@@ -13,11 +13,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from serving.alarm import physical_gap, weak_physical_fit, with_physical_check
 from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
+from stiffnet.uncertainty.alarm_verdict import physical_gap, weak_physical_fit, with_physical_check
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "recordings"

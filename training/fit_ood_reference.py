@@ -3,7 +3,7 @@
 Computes the inclination features (:func:`stiffnet.features.feature_matrix`,
 with each window's natural frequency, exactly as ``training/train.py`` does for
 the GBM) of every window of a dataset, splits the trajectories 80/20 (seeded),
-fits the class-conditional Gaussian reference of :mod:`serving.ood` on the 80 %
+fits the class-conditional Gaussian reference of :mod:`stiffnet.uncertainty.ood` on the 80 %
 and sets the flag threshold to a percentile (99th by default) of the scores of
 the held-out 20 %. Also records the dataset's identity (SHA-256 of its
 ``card.json``, the value the model cards carry as ``training_data_sha256``),
@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from serving.ood import fit_reference
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.dataset.store import CARD, load_dataset
 from stiffnet.errors import StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION, feature_matrix
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from stiffnet.uncertainty.ood import fit_reference
 
 
 def fit(
