@@ -263,7 +263,7 @@ def train(
     table = Table(title=f"{name} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):
         table.add_column(col)
-    for method, prefix in ((name, f"{name}/"), ("geometric", "geometric/")):
+    for method, prefix in ((name, ""), ("geometric", "geometric/")):
         values = (metrics.get(f"{prefix}{k}", float("nan")) for k in ("accuracy", "macro_f1",
                                                                         "beta_mape"))  # fmt: skip
         table.add_row(method, *(f"{v:.3f}" for v in values))

@@ -179,9 +179,9 @@ def test_cnn_yaml_restates_defaults():
     assert cfg.model == "cnn" and cfg.cnn == CNNConfig()
     # the held-out fractions are the one deliberate change (models/README.md: 4,000 trajectories)
     assert (cfg.test_fraction, cfg.calibration_fraction) == (0.1, 0.1)
-    restated = {"model": "gbm", "experiment": "stiffnet-gbm", "test_fraction": 0.2,
-                "calibration_fraction": 0.2}  # fmt: skip
-    assert cfg.model_copy(update=restated) == TrainConfig()
+    restated = {"test_fraction": 0.2, "calibration_fraction": 0.2}
+    assert cfg.model_copy(update=restated) == TrainConfig(model="cnn")
+    assert cfg.experiment == cfg.registered_model == "stiffnet-cnn"
     with pytest.raises(ConfigError, match="width"):
         validate_config(TrainConfig, {"model": "cnn", "cnn": {"width": 0}})
 
@@ -222,10 +222,14 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert set(load_alarm(alarm).thresholds) <= {
         "embedding", "ambiguity", "beta_uncertainty", "class_edge"}  # fmt: skip
     metrics = summary["metrics"]
-    for prefix in ("cnn", "geometric"):
-        assert 0.0 <= metrics[f"{prefix}/accuracy"] <= 1.0
-        assert f"{prefix}/macro_f1" in metrics
-    assert "cnn/beta_mape" in metrics and "cnn/beta_coverage" in metrics
+    for prefix in ("", "geometric/"):
+        assert 0.0 <= metrics[f"{prefix}accuracy"] <= 1.0
+        assert f"{prefix}macro_f1" in metrics
+    assert "beta_mape" in metrics and "beta_coverage" in metrics
+    # self-describing: the training rig's f_n and the class edges travel in the metadata
+    assert json.loads(meta["natural_frequency_hz"]) == card["data"]["natural_frequency_hz"]
+    edges = [c["beta"][0] for c in ds.card["config"]["classes"]]
+    assert json.loads(meta["class_edges"])[:-1] == edges
 
 
 def test_onnx_parity_and_dynamic_batch(trained, tiny_dir):
@@ -270,9 +274,9 @@ def test_mlflow_run_has_cnn_metrics(trained):
 
     summary, uri, _ = trained
     run = mlflow.MlflowClient(uri).get_run(summary["run_id"])
-    assert "cnn/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
-    assert run.data.params["model"] == "cnn"
-    assert run.data.tags["stiffnet.model"] == "cnn"
+    # the same metric names as every family's, the family a parameter and a tag
+    assert "accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
+    assert run.data.params["family"] == "cnn" and run.data.tags["stiffnet.family"] == "cnn"
 
 
 def test_mlflow_logs_epoch_losses_and_the_model(trained):
@@ -298,7 +302,7 @@ def test_mlflow_logs_epoch_losses_and_the_model(trained):
     mine = [m for m in models if m.source_run_id == run_id]
     assert len(mine) == 1 and mine[0].name == "model"
     model = mine[0]
-    assert model.metrics and {m.key for m in model.metrics} >= {"cnn/accuracy"}
+    assert model.metrics and {m.key for m in model.metrics} >= {"accuracy"}
     onnx_model = mlflow.onnx.load_model(f"models:/{model.model_id}")
     info = mlflow.models.get_model_info(f"models:/{model.model_id}")
     sig = info.signature.inputs.to_dict()[0]

@@ -79,9 +79,16 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert m.graph.input[0].type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     assert m.graph.input[0].type.tensor_type.shape.dim[0].dim_param == "N"  # dynamic batch
     assert [o.name for o in m.graph.output] == ["label", "probabilities", "log_beta"]
-    for key in ("gbm/accuracy", "geometric/accuracy", "gbm/macro_f1", "gbm/beta_mape"):
+    # self-describing: the feature contract (the tiny set's windows are 8 periods long),
+    # the training rig's f_n and the class edges
+    contract = json.loads(meta["feature_contract"])
+    assert contract["feature_version"] == json.loads(meta["feature_version"])
+    assert json.loads(meta["window_periods"]) == contract["cut"]["window_periods"] == 8
+    assert json.loads(meta["natural_frequency_hz"]) == card["data"]["natural_frequency_hz"]
+    assert len(json.loads(meta["class_edges"])) == len(names)  # no_contact has no edge
+    for key in ("accuracy", "geometric/accuracy", "macro_f1", "beta_mape"):
         assert key in summary["metrics"]
-    bins = {k.split("/")[1] for k in summary["metrics"] if k.startswith("gbm/noise_")}
+    bins = {k.split("/")[0] for k in summary["metrics"] if k.startswith("noise_")}
     assert bins and bins <= {"noise_0", "noise_0.05", "noise_gt0.09"}  # levels 0, 3 %, 12 %
     assert {f"geometric/{b}/accuracy" for b in bins} <= set(summary["metrics"])
     assert summary["parity"]["max_abs_proba_diff"] < 1e-4
@@ -118,14 +125,26 @@ def test_onnx_parity_with_sklearn(tiny_dir, tmp_path):
     assert out["probabilities"].shape == (len(Xr), len(clf.classes_))
 
 
-def test_mlflow_run_has_both_methods(trained):
+def test_mlflow_run_has_both_methods(trained, tiny_dir):
     import mlflow
 
     summary, uri, work = trained
     client = mlflow.MlflowClient(tracking_uri=uri)
     run = client.get_run(summary["run_id"])
-    assert "gbm/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
-    assert run.data.params["model"] == "gbm"
+    assert "accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
+    assert run.data.params["family"] == "gbm" and run.data.tags["stiffnet.family"] == "gbm"
+    # a name that says what ran, and a run that covers the training, not only its logging
+    assert run.info.run_name.startswith("gbm on ds at ")
+    assert (run.info.end_time - run.info.start_time) / 1e3 >= 0.9 * summary["timing"]["total_s"]
+    # the dataset is the run's input, identified by its card's SHA-256
+    (inp,) = run.inputs.dataset_inputs
+    card_sha = sha256_file(tiny_dir / "card.json")
+    assert inp.dataset.name == "ds" and card_sha.startswith(inp.dataset.digest)
+    assert {t.key: t.value for t in inp.tags}["sha256"] == card_sha
+    # the model is registered (as the loop's are), its version in the summary
+    assert summary["registered_model"] == "stiffnet-gbm" and summary["model_version"] >= 1
+    version = client.get_model_version("stiffnet-gbm", str(summary["model_version"]))
+    assert version.run_id == summary["run_id"]
     arts = {
         a.path
         for d in ("data", "model", "figures")
@@ -151,7 +170,7 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     result = json.loads((tmp_path / "r.json").read_text())
-    assert 0.0 <= result["metrics"]["gbm/accuracy"] <= 1.0
+    assert 0.0 <= result["metrics"]["accuracy"] <= 1.0 and result["family"] == "gbm"
     assert (tmp_path / "m" / "gbm.onnx").is_file()
     bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "not a finished stiffnet dataset" in bad.output

@@ -67,6 +67,12 @@ class TrainConfig(BaseModel):
     experiment: str | None = Field(
         None, min_length=1, description="MLflow experiment (default: stiffnet-FAMILY)"
     )
+    registered_model: str | None = Field(
+        None,
+        max_length=200,
+        description="MLflow Model Registry name the trained model is registered under "
+        "(default: stiffnet-FAMILY; an empty string registers nothing)",
+    )
 
     @model_validator(mode="before")
     @classmethod
@@ -109,6 +115,8 @@ class TrainConfig(BaseModel):
             raise ValueError("n_jobs must be -1 or >= 1")
         if self.experiment is None:
             self.experiment = f"stiffnet-{self.model}"
+        if self.registered_model is None:
+            self.registered_model = f"stiffnet-{self.model}"
         return self
 
     @property

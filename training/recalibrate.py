@@ -97,9 +97,10 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
     helper.set_model_props(model, props)
     write_bytes_atomic(path, model.SerializeToString())
     kind = family.name
+    # the recording-level metrics are replaced (older cards named them FAMILY/recording/...)
     metrics = {k: v for k, v in (card.get("metrics") or {}).items()
-               if not k.startswith(f"{kind}/recording/")}  # fmt: skip
-    metrics.update({f"{kind}/recording/{k}": v for k, v in m_rec.items()})
+               if not k.startswith(("recording/", f"{kind}/recording/"))}  # fmt: skip
+    metrics.update({f"recording/{k}": v for k, v in m_rec.items()})
     card.update(sha256=sha256_file(path), metadata={**meta, **update}, metrics=metrics)
     write_json_atomic(card_path, card)
     return {"conformal_quantile_recording": q_rec, "thresholds": alarm.thresholds, **m_rec}

@@ -241,10 +241,11 @@ def _train(
     return {
         "onnx": summary["paths"]["onnx"],
         "card": summary["paths"]["card"],
+        # the model's test metrics (named alike for every family) and the geometric method's
         "train_metrics": {
             f"train/{k}": v
             for k, v in summary["metrics"].items()
-            if k.count("/") == 1 and k.endswith(("accuracy", "macro_f1", "beta_mape"))
+            if k.removeprefix("geometric/") in ("accuracy", "macro_f1", "beta_mape")
         },
         "epochs": summary.get("epochs"),
         "seconds": {"dataset": round(t_data, 2), "train": round(t_train, 2)},
