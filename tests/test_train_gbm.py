@@ -1,6 +1,7 @@
 """GBM training end to end on a tiny dataset: split, ONNX export and parity, MLflow run."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import onnx
@@ -180,3 +181,61 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
         app, ["train", "--data", str(tiny_dir), "--model", "cnn", "--config", str(cfg)]
     )
     assert bad.exit_code == 2 and "trains 'gbm', not 'cnn'" in bad.output
+
+
+def test_train_cli_family_option_and_deprecated_model(tiny_dir, tmp_path):
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    cfg = tmp_path / "gbm.yaml"
+    cfg.write_text("gbm: {max_iter: 20, min_samples_leaf: 5}\ntracking: false\n")
+    runner = CliRunner()
+    args = ["train", "--data", str(tiny_dir), "--config", str(cfg)]
+    res = runner.invoke(app, [*args, "--family", "gbm", "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    assert "deprecated" not in res.output
+    res = runner.invoke(app, [*args, "--model", "gbm", "--out", str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    assert "`train --model` is deprecated" in res.output and "--family" in res.output
+    # the two spellings train the same model
+    assert (tmp_path / "a/gbm.onnx").read_bytes() == (tmp_path / "b/gbm.onnx").read_bytes()
+    bad = runner.invoke(app, [*args, "--model", "gbm", "--family", "cnn"])
+    assert bad.exit_code == 2 and "disagree" in bad.output
+    bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--family", "svm"])
+    assert bad.exit_code == 2 and "'svm' is not available: use cnn or gbm" in bad.output
+
+
+def test_families_and_recalibrate_commands(trained, tiny_dir, tmp_path):
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["families", "--json", str(tmp_path / "f.json")])
+    assert res.exit_code == 0, res.output
+    listed = {f["family"]: f for f in json.loads((tmp_path / "f.json").read_text())}
+    assert listed["gbm"]["default_of"] == ["train"] and listed["cnn"]["default_of"] == ["loop"]
+    assert listed["gbm"]["model_kind"] == "stiffnet.gbm"
+    # recalibrate a copy of the trained model (its own config, a looser alarm)
+    summary, _, _ = trained
+    src = Path(summary["paths"]["onnx"])
+    for f in src.parent.glob("gbm.*"):
+        shutil.copy(f, tmp_path / f.name)
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("gbm: {max_iter: 60, min_samples_leaf: 5}\nalarm_false_alarm: 0.3\n")
+    before = json.loads((tmp_path / "gbm.card.json").read_text())
+    res = runner.invoke(app, ["recalibrate", str(tmp_path / "gbm.onnx"), "--data",
+                              str(tiny_dir), "--config", str(cfg), "--json",
+                              str(tmp_path / "r.json")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    after = json.loads((tmp_path / "gbm.card.json").read_text())
+    assert after["sha256"] == sha256_file(tmp_path / "gbm.onnx") != before["sha256"]
+    assert after["metadata"]["alarm_sha256"] == sha256_file(tmp_path / "gbm.alarm.npz")
+    assert "thresholds" in json.loads((tmp_path / "r.json").read_text())
+    assert {k for k in after["metrics"] if k.startswith("recording/")}
+    bad = runner.invoke(app, ["recalibrate", str(tmp_path / "gbm.onnx"), "--data",
+                              str(tmp_path / "nope")])  # fmt: skip
+    assert bad.exit_code == 2
