@@ -160,6 +160,34 @@ def _loss(
     return loss
 
 
+def _train_epoch(
+    model: StiffnessCNN, opt: torch.optim.Optimizer, perm: np.ndarray, batch_size: int, data: tuple
+) -> float:
+    """One pass over the training windows in the order `perm`; their mean loss."""
+    Xt, yt, lbt, ce, beta_weight = data
+    model.train()
+    total = 0.0
+    for i in range(0, perm.size, batch_size):
+        b = torch.from_numpy(np.sort(perm[i : i + batch_size]))
+        if b.numel() < 2:  # BatchNorm needs two samples
+            continue
+        opt.zero_grad()
+        loss = _loss(model, Xt[b], yt[b], lbt[b], ce, beta_weight)
+        loss.backward()
+        opt.step()
+        total += loss.item() * b.numel()
+    return total / max(1, perm.size)
+
+
+def _validation_loss(model: StiffnessCNN, va: np.ndarray, data: tuple) -> float:
+    """The loss on the validation windows (the early-stopping criterion)."""
+    Xt, yt, lbt, ce, beta_weight = data
+    model.eval()
+    with torch.no_grad():
+        v = torch.from_numpy(va)
+        return float(_loss(model, Xt[v], yt[v], lbt[v], ce, beta_weight))
+
+
 def fit_cnn(
     X: np.ndarray,
     label: np.ndarray,
@@ -228,27 +256,10 @@ def fit_cnn(
     t0 = time.perf_counter()
     epoch = 0
     for epoch in range(1, cfg.max_epochs + 1):
-        model.train()
-        perm = rng.permutation(tr)
-        total = 0.0
-        for i in range(0, perm.size, cfg.batch_size):
-            b = torch.from_numpy(np.sort(perm[i : i + cfg.batch_size]))
-            if b.numel() < 2:  # BatchNorm needs two samples
-                continue
-            opt.zero_grad()
-            loss = _loss(model, Xt[b], yt[b], lbt[b], ce, cfg.beta_loss_weight)
-            loss.backward()
-            opt.step()
-            total += loss.item() * b.numel()
+        data = (Xt, yt, lbt, ce, cfg.beta_loss_weight)
+        train_loss = _train_epoch(model, opt, rng.permutation(tr), cfg.batch_size, data)
         sched.step()
-        train_loss = total / max(1, perm.size)
-        if va.size:
-            model.eval()
-            with torch.no_grad():
-                v = torch.from_numpy(va)
-                val_loss = float(_loss(model, Xt[v], yt[v], lbt[v], ce, cfg.beta_loss_weight))
-        else:
-            val_loss = train_loss
+        val_loss = _validation_loss(model, va, data) if va.size else train_loss
         history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss})
         if on_epoch:
             on_epoch(history[-1])
