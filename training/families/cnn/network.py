@@ -1,4 +1,4 @@
-"""A small 1-D CNN on canonical windows: class logits and log(beta) (issue 4).
+"""A small 1-D CNN on canonical windows: class logits and log(beta).
 
 * Input: :func:`stiffnet.features.windows.window_tensor`, shape ``(N, C, L)``:
   the canonical window (``rate`` samples per natural period, ``periods``
