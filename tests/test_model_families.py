@@ -107,3 +107,19 @@ def test_recalibration_refits_through_the_family(toy, tiny_dir):
     assert q == before["metadata"]["conformal_quantile_recording"]
     assert res["thresholds"] and set(res) >= {"conformal_quantile_recording", "thresholds"}
     Predictor.load(summary["paths"]["onnx"])  # still verifies against its card
+
+
+def test_loop_family_option_and_deprecated_model(tmp_path):
+    """`loop --model` still names a family (with a note); a wrong one fails before any work."""
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    state = tmp_path / "state"
+    args = ["loop", "examples/recordings", "--state", str(state)]
+    res = CliRunner().invoke(app, [*args, "--model", "svm"])
+    assert res.exit_code == 2 and "`loop --model` is deprecated" in res.output
+    assert "model family 'svm' is not available" in res.output
+    res = CliRunner().invoke(app, [*args, "--model", "gbm", "--family", "cnn"])
+    assert res.exit_code == 2 and "disagree" in res.output
+    assert not state.exists()

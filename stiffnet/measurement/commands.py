@@ -309,10 +309,13 @@ def loop(
         str | None,
         typer.Option(
             "--family",
-            "--model",
             help="Model family (`stiffnet families`; default: the shipped model's); a resumed "
-            "loop keeps its own. --model is its deprecated name.",
+            "loop keeps its own.",
         ),
+    ] = None,
+    model_family: Annotated[
+        str | None,
+        typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
     ] = None,
     n_trajectories: Annotated[
         int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
@@ -341,9 +344,15 @@ def loop(
     from rich.table import Table
 
     from stiffnet.effects.registry import parse_effect_option
+    from stiffnet.errors import StiffnetError
     from stiffnet.inputs import bounded_count
     from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
 
+    if model_family is not None:  # --model is a file everywhere else
+        if family is not None and family != model_family:
+            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
+        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
+        family = model_family
     if family is not None:
         check_family(family)
     check_n_trajectories(n_trajectories)
