@@ -64,6 +64,32 @@ def write_model(
     return full
 
 
+def rewrite_metadata(
+    path: str | Path, update: dict[str, Any], card_update: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """Add or replace metadata of an exported model, its graph untouched; the card follows.
+
+    The model file is rewritten atomically, then its card with the new SHA-256, the
+    merged metadata and `card_update`. Returns the card as written.
+    """
+    path = Path(path)
+    card_path = path.with_suffix(".card.json")
+    card = json.loads(card_path.read_text())
+    model = onnx.load(str(path))
+    props = {p.key: p.value for p in model.metadata_props}
+    props.update({k: v if isinstance(v, str) else json.dumps(v) for k, v in update.items()})
+    del model.metadata_props[:]
+    helper.set_model_props(model, props)
+    write_bytes_atomic(path, model.SerializeToString())
+    card.update(
+        sha256=sha256_file(path),
+        metadata={**(card.get("metadata") or {}), **update},
+        **(card_update or {}),
+    )
+    write_json_atomic(card_path, card)
+    return card
+
+
 def onnx_session(path: str | Path) -> Any:
     """onnxruntime session with one intra-op thread (deterministic, no oversubscription)."""
     import onnxruntime as ort

@@ -18,21 +18,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import onnx
-from onnx import helper
 
 from stiffnet.config import load_config, validate_config
 from stiffnet.dataset.store import CARD, load_dataset
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import read_json
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import default_config
 from stiffnet.uncertainty.alarm import save_alarm
 from training.calibration import calibrate_recording_level
 from training.config import TrainConfig
 from training.families import family_for_model
 from training.finish import ALARM_SUFFIX, INTERVAL_METHOD
-from training.onnx_export import onnx_session
+from training.onnx_export import onnx_session, rewrite_metadata
 from training.split import trajectory_split
 from training.training_data import alarm_info
 
@@ -90,19 +88,11 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
         "alarm_reference": alarm_path.name,
         "alarm_sha256": sha256_file(alarm_path),
     }
-    model = onnx.load(str(path))
-    props = {p.key: p.value for p in model.metadata_props}
-    props.update({k: v if isinstance(v, str) else json.dumps(v) for k, v in update.items()})
-    del model.metadata_props[:]
-    helper.set_model_props(model, props)
-    write_bytes_atomic(path, model.SerializeToString())
-    kind = family.name
     # the recording-level metrics are replaced (older cards named them FAMILY/recording/...)
     metrics = {k: v for k, v in (card.get("metrics") or {}).items()
-               if not k.startswith(("recording/", f"{kind}/recording/"))}  # fmt: skip
+               if not k.startswith(("recording/", f"{family.name}/recording/"))}  # fmt: skip
     metrics.update({f"recording/{k}": v for k, v in m_rec.items()})
-    card.update(sha256=sha256_file(path), metadata={**meta, **update}, metrics=metrics)
-    write_json_atomic(card_path, card)
+    rewrite_metadata(path, update, {"metrics": metrics})
     return {"conformal_quantile_recording": q_rec, "thresholds": alarm.thresholds, **m_rec}
 
 
