@@ -62,6 +62,8 @@ def test_config_sections_are_the_families(toy):
     assert validate_config(TrainConfig, {"ridge": {"alpha": 2}}).model == "ridge"
     with pytest.raises(ConfigError, match="unknown field 'svm'"):
         validate_config(TrainConfig, {"svm": {}})
+    with pytest.raises(ConfigError, match="disagree"):
+        validate_config(TrainConfig, {"model": "ridge", "family": "gbm"})
     with pytest.raises(ConfigError, match="ridge.alpha"):
         validate_config(TrainConfig, {"ridge": {"alpha": -1}})
 

@@ -89,7 +89,9 @@ class TrainConfig(BaseModel):
                 f"unknown field {key!r} (a family section must name one of {sorted(known)})"
             )
         given = [name for name in known if name in data]
-        name = data.get("model", data.get("family"))
+        if data.get("model") and data.get("family") and data["model"] != data["family"]:
+            raise ValueError(f"model: {data['model']} and family: {data['family']} disagree")
+        name = data.get("model") or data.get("family")
         if name is None:
             name = given[0] if len(given) == 1 else default_family("train").name
             data["model"] = name
