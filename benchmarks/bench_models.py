@@ -224,7 +224,7 @@ def cnn_windows(ds: Dataset, meta: dict[str, Any]) -> np.ndarray:
 
 
 def gbm_features(ds: Dataset, meta: dict[str, Any]) -> np.ndarray:
-    """The inclination feature matrix, as ``training/train.py`` computes it."""
+    """The inclination feature matrix, as the GBM family computes it (``training/families/gbm``)."""
     use_fn = bool(meta.get("requires_natural_frequency", True))
     return InclinationFeatures(use_fn, n_jobs=1).fit_transform(window_records(ds))
 
