@@ -27,7 +27,7 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
    cross-check (:mod:`serving.physical`: the restoring-force estimate,
    ``physical_class``, ``physical_beta`` with its bootstrap interval,
    ``physical_agreement``, null when that method refused, with its reason);
-   the alarm (:mod:`serving.alarm`: ``ood_flag`` is the alarm, ``ood_score``
+   the alarm (:mod:`stiffnet.uncertainty.alarm_verdict`: ``ood_flag`` is the alarm, ``ood_score``
    its largest score relative to its threshold).
 5. **Result**: :class:`serving.schemas.PredictionResult`.
 """
@@ -42,18 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from serving.aggregate import beta_interval, geometric_verdict, named, recording_estimate, segments
-from serving.alarm import (
-    alarm_ratio,
-    alarm_verdict,
-    load_model_alarm,
-    physical_gap,
-    weak_physical_fit,
-    with_physical_check,
-)
+from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.model import LoadedModel, load_model
-from serving.ood import OODReference, load_reference
 from serving.physical import physical_check
 from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
@@ -61,7 +52,17 @@ from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
 from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
+from stiffnet.uncertainty import aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
+from stiffnet.uncertainty.alarm_verdict import (
+    alarm_ratio,
+    alarm_verdict,
+    load_model_alarm,
+    physical_gap,
+    weak_physical_fit,
+    with_physical_check,
+)
+from stiffnet.uncertainty.ood import OODReference, load_reference
 
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
@@ -293,7 +294,9 @@ class Predictor:
             raise StiffnetError(f"{what}: {exc}") from None
 
         names, nc = self.class_names, self._nc
-        est = recording_estimate(out, nc)
+        est = aggregate_windows(
+            out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
+        )
         cls = names[est.label]
         segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
         seg_classes = [s["class"] for s in segs]

@@ -188,20 +188,51 @@ def simulate_campaign_cmd(
     write_json(json_path, result)
 
 
+def _train_config(family: str | None, config: Path | None) -> Any:
+    """The training config: `config`, else the shipped ``configs/train/FAMILY.yaml``."""
+    from stiffnet.config import load_config, validate_config
+    from stiffnet.errors import ConfigError
+    from stiffnet.shipped import default_config
+    from training.config import TrainConfig
+    from training.families import default_family, get_family
+
+    if config is not None:
+        cfg = load_config(TrainConfig, config)
+        if family is not None and cfg.model != family:
+            raise ConfigError(f"{config}: the config trains {cfg.model!r}, not {family!r}")
+        return cfg
+    name = get_family(family).name if family is not None else default_family("train").name
+    default = default_config(f"train/{name}.yaml")
+    if default.is_file():
+        return load_config(TrainConfig, default)
+    return validate_config(TrainConfig, {"model": name})
+
+
 @app.command()
 @user_errors
 def train(
     data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
-    model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
+    family: Annotated[
+        str | None,
+        typer.Option(
+            "--family",
+            help="Model family (`stiffnet families` lists them; default: the config's, else "
+            "the family marked as train's default there).",
+        ),
+    ] = None,
+    model: Annotated[
+        str | None,
+        typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
+    ] = None,
     config: Annotated[
         Path | None,
-        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/MODEL.yaml."),
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/FAMILY.yaml."),
     ] = None,
     out_dir: Annotated[
         Path | None,
         typer.Option(
             "--out",
-            help="Folder for the ONNX model and card (default: a fresh runs/train-MODEL-TIME; "
+            help="Folder for the ONNX model and card (default: a fresh runs/train-FAMILY-TIME; "
             "the shipped models/ is only replaced when named).",
         ),
     ] = None,
@@ -211,39 +242,79 @@ def train(
     json_path: JsonOption = None,
 ) -> None:
     """Train a stiffness model on a dataset, export it to ONNX and track it in MLflow."""
-    from stiffnet.config import load_config, validate_config
-    from stiffnet.config.train import TrainConfig
+    from stiffnet.console import console
     from stiffnet.errors import ConfigError
 
-    if model not in ("gbm", "cnn"):
-        raise ConfigError(f"model {model!r} is not available: use gbm or cnn")
-    from stiffnet.shipped import default_config
-
-    default = default_config(f"train/{model}.yaml")
-    if config is not None:
-        cfg = load_config(TrainConfig, config)
-    elif default.is_file():
-        cfg = load_config(TrainConfig, default)
-    else:
-        cfg = validate_config(TrainConfig, {"model": model})
-    if cfg.model != model:
-        raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
+    if model is not None:
+        if family is not None and family != model:
+            raise ConfigError(f"--model {model} and --family {family} disagree: use --family")
+        console.print("note: `train --model` is deprecated (it is a file elsewhere): use --family")
+        family = model
+    cfg = _train_config(family, config)
     from stiffnet.io_utils import fresh_run_folder, output_lock
     from training.train import train as run_training
 
-    out_dir = out_dir or fresh_run_folder(f"train-{model}")
-    with output_lock(out_dir), show_progress(), progress.task(f"training {model}"):
+    name = str(cfg.model)
+    out_dir = out_dir or fresh_run_folder(f"train-{name}")
+    with output_lock(out_dir), show_progress(), progress.task(f"training {name}"):
         result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
     out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
-    table = Table(title=f"{model} on {data} (test windows)")
+    table = Table(title=f"{name} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):
         table.add_column(col)
-    for method in (model, "geometric"):
-        values = (metrics.get(f"{method}/{k}", float("nan")) for k in ("accuracy", "macro_f1",
-                                                                       "beta_mape"))  # fmt: skip
+    for method, prefix in ((name, ""), ("geometric", "geometric/")):
+        values = (metrics.get(f"{prefix}{k}", float("nan")) for k in ("accuracy", "macro_f1",
+                                                                        "beta_mape"))  # fmt: skip
         table.add_row(method, *(f"{v:.3f}" for v in values))
     out.print(table)
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def families(json_path: JsonOption = None) -> None:
+    """List the model families `train`, `loop` and `recalibrate` know."""
+    from training.families import families as registered
+
+    table = Table(title="model families")
+    for col in ("family", "model_kind", "ONNX input", "default of", "module"):
+        table.add_column(col)
+    result = []
+    for name, cls in registered().items():
+        row = {
+            "family": name,
+            "model_kind": cls.serving.model_kind,
+            "input": cls.serving.input_name,
+            "default_of": list(cls.defaults),
+            "module": cls.__module__,
+        }
+        result.append(row)
+        table.add_row(name, row["model_kind"], row["input"], ", ".join(cls.defaults), row["module"])
+    out.print(table)
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def recalibrate(
+    model: Annotated[Path, typer.Argument(help="The trained model (NAME.onnx with its card).")],
+    data: Annotated[Path, typer.Option("--data", help="The dataset it was trained on.")],
+    config: Annotated[
+        Path | None,
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/FAMILY.yaml."),
+    ] = None,
+    json_path: JsonOption = None,
+) -> None:
+    """Refit a trained model's interval and alarm (its ONNX metadata and card updated in place)."""
+    from stiffnet.io_utils import output_lock
+    from training.recalibrate import recalibrate as run_recalibration
+    from training.recalibrate import recalibration_config
+
+    cfg = recalibration_config(model, config)
+    with output_lock(model.parent):
+        result = run_recalibration(model, data, cfg)
+    out.print(f"recalibrated {model}: " + ", ".join(f"{k} {v}" for k, v in result.items()))
     write_json(json_path, result)
 
 

@@ -13,11 +13,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from serving.alarm import physical_gap, weak_physical_fit, with_physical_check
 from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
+from stiffnet.uncertainty.alarm_verdict import physical_gap, weak_physical_fit, with_physical_check
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "recordings"
@@ -222,8 +222,8 @@ def test_batched_canonical_windows_equal_one_at_a_time(dataset_windows, example)
 def test_parity_with_the_training_onnx_path(cnn, gbm, dataset_windows):
     """One dataset window through the predictor == the training code's ONNX call."""
     from stiffnet.features import feature_matrix
-    from training.export_onnx import onnx_predict
-    from training.export_onnx_cnn import onnx_predict_cnn
+    from training.families.cnn.export import onnx_predict_cnn
+    from training.families.gbm.export import onnx_predict
 
     wins, fs, fn = dataset_windows
     X = window_tensor(wins, fs, fn, 32, 16, (0, 6, 12))
@@ -422,7 +422,7 @@ def test_predict_only_raises_stiffnet_errors(cnn, fs, fn, n, seed, scale):
 
 def test_parity_on_example_windows(cnn, example):
     """The same check on the shipped example (runs on a fresh clone without data/default)."""
-    from training.export_onnx_cnn import onnx_predict_cnn
+    from training.families.cnn.export import onnx_predict_cnn
 
     n = window_length(example.fs_hz, 9.48, 16)
     wins = [example.accel[i * n : (i + 1) * n] for i in range(3)]

@@ -309,10 +309,13 @@ def loop(
         str | None,
         typer.Option(
             "--family",
-            "--model",
-            help="Model family: cnn (shipped, the default) or gbm (fast); a resumed loop keeps "
-            "its own.",
+            help="Model family (`stiffnet families`; default: the shipped model's); a resumed "
+            "loop keeps its own.",
         ),
+    ] = None,
+    model_family: Annotated[
+        str | None,
+        typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
     ] = None,
     n_trajectories: Annotated[
         int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
@@ -328,7 +331,8 @@ def loop(
         ),
     ] = None,
     max_epochs: Annotated[
-        int | None, typer.Option(help="CNN epochs per iteration (default 15).")
+        int | None,
+        typer.Option(help="Epochs per iteration, for a family trained in epochs (CNN: 15)."),
     ] = None,
     keep_data: Annotated[bool, typer.Option(help="Keep each iteration's dataset.")] = False,
     seed: Annotated[int | None, typer.Option(help="Seed of the diagnosis and discrepancy.")] = None,
@@ -340,9 +344,15 @@ def loop(
     from rich.table import Table
 
     from stiffnet.effects.registry import parse_effect_option
+    from stiffnet.errors import StiffnetError
     from stiffnet.inputs import bounded_count
     from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
 
+    if model_family is not None:  # --model is a file everywhere else
+        if family is not None and family != model_family:
+            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
+        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
+        family = model_family
     if family is not None:
         check_family(family)
     check_n_trajectories(n_trajectories)
@@ -351,7 +361,7 @@ def loop(
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs else None
+    overrides = {"max_epochs": max_epochs} if max_epochs else None
     console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
         res = run_loop(

@@ -22,7 +22,7 @@ from it by the exact one-sample transition matrix and the rotation of the forcin
 phases (at most a handful of products, round-off only). One compiled loop per row,
 the rows spread over numba's threads.
 
-The numpy solver :mod:`stiffnet.simulator.reference_closed_form` is this engine's
+The numpy solver ``tests/reference_closed_form.py`` is this engine's
 test oracle.
 """
 
