@@ -289,8 +289,8 @@ def _count_entry(row, te, t_first, h, n_samples, impacts):
 
 # Why one long function: this is numba's inner loop over one trajectory (step, event
 # search, region switch, sample writer). Its state lives in local scalars that numba
-# keeps in registers; split into calls that return tuples of that state, it ran
-# measurably slower and the event rules became harder to compare with linear.py's.
+# keeps in registers; split into calls, that state would travel in tuples on every
+# step, and the event rules are easier to compare with linear.py's read in one place.
 @_jit
 def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
          beta_a, cc_a, e0_a, xi_a, ga_a, gf_a, gp_a, gcp_a, gsp_a, has_gap, jf,
