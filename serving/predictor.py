@@ -109,6 +109,35 @@ def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
     return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
+#: Why f_n is never guessed from a record (measured: docs/field.md).
+FN_UNKNOWN = (
+    "natural frequency unknown: give it (--fn HZ; a sidecar <recording>.json with "
+    "natural_frequency_hz; the manifest column natural_frequency_hz; the HTTP field "
+    "natural_frequency_hz). A steady-state record does not show it (its motion is at the "
+    "forcing frequency) and the training data's value is not assumed"
+)
+
+
+def record_natural_frequency(
+    recording: str | Path | None, natural_frequency_hz: float | None
+) -> tuple[float, str]:
+    """f_n of a recording and where it came from: the option, else its sidecar, else refuse.
+
+    Raises
+    ------
+    StiffnetError
+        Neither is there (:data:`FN_UNKNOWN`), or the value is out of range.
+    """
+    if natural_frequency_hz is not None:
+        return natural_frequency(natural_frequency_hz, "--fn"), "option --fn"
+    if recording is not None:
+        value, sidecar = read_sidecar(recording)
+        if value is not None:
+            return value, f"sidecar:{sidecar}"
+    where = f"{recording}: " if recording is not None else ""
+    raise StiffnetError(where + FN_UNKNOWN)
+
+
 class Predictor:
     """A verified model plus the OOD reference and the geometric calibration.
 

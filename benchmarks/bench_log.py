@@ -1,0 +1,150 @@
+"""``stiffnet log``: penalty calibration, speed offline and lag online.
+
+1. **Calibration** of the change penalty (:data:`stiffnet.layers.PENALTY_PER_WINDOW`):
+   constant-beta records of 10 minutes at 2 kHz (the paper's rig, f_n 9.48 Hz, damped
+   contact) across the classes and the training world's noise range (white noise 3 %
+   and 10 % of ``a w^2``, the top of its prior; one with 1/f noise on top), logged with
+   each candidate penalty: false changes per 10 minutes (target <= 1 at every level),
+   and on records with known changes (soft -> hard, medium -> hard -> soft, 13 -> 17
+   across the soft/medium edge): changes found within +-1 s, layer beta error.
+2. **Speed**: ``log`` on a 10-minute record, one core: real-time factor (target >= 100x)
+   against ``predict`` on the same record in the same run (its non-overlapping windows).
+3. **Online lag**: the record fed in 0.1 s chunks through
+   :class:`serving.log.StiffnessLogger`: a point is emitted half a window after its
+   centre plus the time to process the chunk that completes it; the worst case over
+   the record (target <= 2 s at 2 kHz).
+
+Prints tables and the machine's load (``uptime``)::
+
+    python benchmarks/bench_log.py [--quick]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from drill_records import layered_record  # noqa: E402
+
+FS = 2000.0
+FN = 9.48
+PENALTIES = (3.0, 4.0, 6.0, 8.0, 12.0)
+
+
+def constant_records(minutes: float) -> list[tuple[str, np.ndarray]]:
+    d = 60.0 * minutes
+    out = []
+    for beta, noise, damping in [
+        (8, 0.03, 0.15), (14, 0.10, 0.3), (25, 0.03, 0.05), (25, 0.10, 0.4),
+        (45, 0.03, 0.15), (45, 0.10, 0.15), (80, 0.03, 0.3), (80, 0.10, 0.1),
+    ]:  # fmt: skip
+        a, _ = layered_record([beta], [d], noise=noise, contact_damping=damping, seed=beta)
+        out.append((f"beta {beta}, noise {noise:.0%}, contact damping {damping}", a))
+    return out
+
+
+def changing_records() -> list[tuple[str, np.ndarray, list[float], list[float]]]:
+    out = []
+    for betas, durs in [([10, 45], [60, 60]), ([25, 50, 12], [40, 40, 40]), ([13, 17], [60, 60])]:
+        for noise in (0.03, 0.10):
+            a, ch = layered_record(betas, durs, noise=noise, seed=len(betas))
+            out.append((f"{betas} noise {noise:.0%}", a, ch, betas))
+    return out
+
+
+def calibrate(predictor, minutes: float) -> None:
+    from serving.log import stiffness_log
+
+    consts = constant_records(minutes)
+    changes = changing_records()
+    print(f"\n## false changes per 10 min on constant records ({minutes:g} min each)")
+    print("| record | " + " | ".join(f"pen {p:g}" for p in PENALTIES) + " |")
+    print("|---|" + "---|" * len(PENALTIES))
+    worst = {p: 0.0 for p in PENALTIES}
+    for name, a in consts:
+        row = []
+        for pen in PENALTIES:
+            r = stiffness_log(predictor, a, FS, FN, penalty=pen, physical_every_s=None)
+            rate = (len(r["layers"]) - 1) * 10.0 / minutes
+            worst[pen] = max(worst[pen], rate)
+            row.append(f"{rate:.1f}")
+        print(f"| {name} | " + " | ".join(row) + " |")
+    print("| **worst** | " + " | ".join(f"**{worst[p]:.1f}**" for p in PENALTIES) + " |")
+    print("\n## records with changes: changes found within +-1 s / true; worst layer beta error")
+    print("| record | " + " | ".join(f"pen {p:g}" for p in PENALTIES) + " |")
+    print("|---|" + "---|" * len(PENALTIES))
+    for name, a, true, betas in changes:
+        row = []
+        for pen in PENALTIES:
+            r = stiffness_log(predictor, a, FS, FN, penalty=pen, physical_every_s=None)
+            found = [c["t_s"] for c in r["changes"]]
+            hit = sum(any(abs(f - t) <= 1.0 for f in found) for t in true)
+            err = "-"
+            if len(r["layers"]) == len(betas):
+                pairs = zip(r["layers"], betas, strict=True)
+                err = f"{max(abs(la['beta'] / b - 1) for la, b in pairs):.0%}"
+            row.append(f"{hit}/{len(true)} ({len(found)} found), {err}")
+        print(f"| {name} | " + " | ".join(row) + " |")
+
+
+def speed(predictor) -> None:
+    from serving.log import StiffnessLogger, stiffness_log
+
+    a, _ = layered_record([20, 50], [300, 300], seed=11)
+    dur = a.size / FS
+    t0 = time.perf_counter()
+    r = stiffness_log(predictor, a, FS, FN)
+    t_log = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    predictor.predict(a, FS, natural_frequency_hz=FN)
+    t_pred = time.perf_counter() - t0
+    print(f"\n## speed, {dur:.0f} s record at {FS:g} Hz, one core")
+    print("| step | wall s | real-time factor |")
+    print("|---|---|---|")
+    print(
+        f"| log ({r['n_points']} points, hop {r['hop_s']} s) | {t_log:.2f} | {dur / t_log:.0f}x |"
+    )
+    print(f"| predict (baseline, non-overlapping windows) | {t_pred:.2f} | {dur / t_pred:.0f}x |")
+    log = StiffnessLogger(predictor, FS, FN)
+    chunk = int(0.1 * FS)
+    worst = 0.0
+    for lo in range(0, a.size, chunk):
+        t0 = time.perf_counter()
+        ev = log.feed(a[lo : lo + chunk])
+        dt = time.perf_counter() - t0
+        if ev:
+            worst = max(worst, dt)
+    log.finish()
+    lag = 0.5 * log.window_s + 0.1 + worst
+    print(f"\nonline: window {log.window_s:.2f} s; worst chunk processing {worst * 1e3:.0f} ms; "
+          f"worst lag of a point behind its window centre {lag:.2f} s (target <= 2 s)")  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="2-minute constant records")
+    ap.add_argument("--skip-calibration", action="store_true")
+    args = ap.parse_args()
+    from serving.predictor import Predictor
+
+    print("load:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
+    predictor = Predictor.load()
+    speed(predictor)
+    if not args.skip_calibration:
+        calibrate(predictor, 2.0 if args.quick else 10.0)
+    print("\nload:", subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip())
+
+
+if __name__ == "__main__":
+    main()
