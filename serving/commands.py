@@ -31,6 +31,7 @@ def predict(
     fn: NaturalFrequencyOption = None,
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = None,
+    channel: ChannelOption = None,
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
@@ -51,6 +52,7 @@ def predict(
         predictor=predictor,
         columns=columns,
         time_unit=time_unit,
+        channel=channel,
     )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"
@@ -131,6 +133,20 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         p.add_column(name, justify="right")
     p.add_row(*(f"{v:.3f}" for v in result["probabilities"].values()))
     parts: list[Any] = [t, p]
+    if len(result.get("layers") or []) > 1:
+        la_t = Table(title="layers: beta changes along this record (the overall beta is a blend)")
+        for col in ("from s", "to s", "class", "beta [interval]", "windows"):
+            la_t.add_column(col, justify="right")
+        for la in result["layers"]:
+            iv = la["beta_interval"]
+            la_t.add_row(
+                f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
+                f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
+                la["class"],
+                _num(la["beta"]) + (f" [{iv[0]:.3g}, {iv[1]:.3g}]" if iv else ""),
+                str(la["n_points"]),
+            )
+        parts.append(la_t)
     if len(result["segments"]) > 1:
         s = Table(title="segments")
         for col in ("from s", "to s", "windows", "class", "beta"):
@@ -277,7 +293,8 @@ def predict_batch_cmd(
         str,
         typer.Argument(
             metavar="DIR_OR_GLOB",
-            help="A folder (searched recursively), a glob ('runs/**/*.csv') or one recording.",
+            help="A campaign folder (its manifest.csv), a folder (searched recursively), a "
+            "glob ('runs/**/*.csv') or one recording.",
         ),
     ],
     out_path: Annotated[
@@ -288,6 +305,7 @@ def predict_batch_cmd(
     fs: FsOption = None,
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = None,
+    channel: ChannelOption = None,
     part_size: Annotated[int, typer.Option(help="Recordings per task.")] = 16,
     scheduler: SchedulerOption = None,
     workers: WorkersOption = None,
@@ -301,8 +319,10 @@ def predict_batch_cmd(
 ) -> None:
     """Predict many recordings into one Parquet table, in parts, in-process or on Dask.
 
-    A recording that cannot be predicted gets a row with its error; an interrupted run
-    resumes without predicting its finished parts again.
+    A campaign folder is read through its manifest.csv (fs, f_n, columns, time unit,
+    channel per recording). A recording that cannot be predicted gets a row with its
+    error, is named on stderr and makes the command exit 1; an interrupted run resumes
+    without predicting its finished parts again.
     """
     from rich.table import Table
 
@@ -319,6 +339,7 @@ def predict_batch_cmd(
             natural_frequency_hz=fn,
             columns=columns,
             time_unit=time_unit,
+            channel=channel,
             part_size=part_size,
             scheduler=scheduler,
             workers=workers,
@@ -340,6 +361,18 @@ def predict_batch_cmd(
         notes.append(f"run again by the cluster: {', '.join(summary['rerun'])}")
     out.print(f"{'; '.join(notes)}; {summary['seconds']:.1f} s ({summary['backend']})")
     write_json(json_path, summary)
+    if summary["failed"]:
+        from stiffnet.console import console
+
+        for f in summary["failed"]:
+            console.print(f"[red]failed:[/] {f['path']}: {f['error']}", highlight=False,
+                          soft_wrap=True)  # fmt: skip
+        console.print(
+            f"[bold red]error:[/] {len(summary['failed'])} of {summary['recordings']} "
+            f"recording(s) failed (rows with their error in {out_path})",
+            highlight=False,
+        )
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:

@@ -426,3 +426,58 @@ def iter_events(
     for chunk in chunks:
         yield from log.feed(chunk)
     yield from log.finish()
+
+
+#: The alarm check a record with several layers fires (its score: the number of changes).
+LAYERS_CHECK = "layers"
+
+
+def record_layers(
+    predictor: Any, accel: np.ndarray, fs_hz: float, natural_frequency_hz: float
+) -> list[dict[str, Any]]:
+    """The layers of a recording as ``stiffnet log`` finds them (without the physical checks).
+
+    What ``predict`` uses to say that beta changes along the record instead of
+    reporting a blend in silence: the same sliding windows (hop 0.5 s) and the same
+    calibrated segmenter as the log, so both commands name the same layers.
+    """
+    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, physical_every_s=None)
+    if accel.size < log.n_win:
+        return []
+    layers = [item for kind, item in log.feed(accel) if kind == "layer"]
+    layers += [item for _, item in log.finish()]
+    keep = ("index", "start_s", "start_sd_s", "end_s", "end_sd_s", "class", "near_edge", "beta",
+            "beta_interval", "n_points", "alarm_fraction")  # fmt: skip
+    return [{k: la[k] for k in keep} for la in layers]
+
+
+def with_layers_alarm(
+    alarm: dict[str, Any] | None, layers: list[dict[str, Any]]
+) -> dict[str, Any] | None:
+    """The alarm with the layers check: fires when beta changes along the record."""
+    if len(layers) <= 1:
+        return alarm
+    if alarm is None:
+        alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}, "message": ""}
+    alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
+    alarm["scores"][LAYERS_CHECK] = float(len(layers) - 1)
+    alarm["thresholds"][LAYERS_CHECK] = 0.0
+    alarm["fired"] = [*alarm["fired"], LAYERS_CHECK]
+    alarm["flag"] = True
+    text = layers_text(layers)
+    previous = alarm.get("message") or ""
+    alarm["message"] = (
+        f"UNRELIABLE: {text}" if not previous.startswith("UNRELIABLE") else f"{previous}; {text}"
+    )
+    return alarm
+
+
+def layers_text(layers: list[dict[str, Any]]) -> str:
+    """One line naming the layers: 'beta changes along this record: soft 10 (0-30 s) -> ...'."""
+    parts = [
+        f"{la['class']} {la['beta']:.3g}" if la["beta"] is not None else la["class"]
+        for la in layers
+    ]
+    spans = [f"{p} ({la['start_s']:.0f}-{la['end_s']:.0f} s)" for p, la in zip(parts, layers,
+             strict=True)]  # fmt: skip
+    return "beta changes along this record (the overall beta is a blend): " + " -> ".join(spans)

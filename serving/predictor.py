@@ -52,6 +52,7 @@ from serving.alarm import (
     with_physical_check,
 )
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
+from serving.log import layers_text, record_layers, with_layers_alarm
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
 from serving.physical import physical_check
@@ -292,8 +293,9 @@ class Predictor:
             1-D acceleration samples, any unit and sign.
         fs_hz : float
             Sampling rate in Hz.
-        natural_frequency_hz : float, optional
-            Natural frequency of the rig; default: the training data's.
+        natural_frequency_hz : float
+            Natural frequency of the rig (required: never the training data's in silence;
+            None raises a :class:`StiffnetError` saying how to give it).
         source : str, optional
             Name of the recording, echoed in the result.
         natural_frequency_source : str, optional
@@ -311,6 +313,10 @@ class Predictor:
             Unusable input, with a one-line message.
         """
         what = source or "recording"
+        if natural_frequency_hz is None:
+            from serving.checks import finite_samples
+
+            finite_samples(accel, what)  # the samples' own faults first
         fs, fn, fn_source = self._rates(fs_hz, natural_frequency_hz, natural_frequency_source)
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
@@ -325,15 +331,16 @@ class Predictor:
         est = recording_estimate(out, nc)
         cls = names[est.label]
         segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
-        seg_classes = [s["class"] for s in segs]
-        if len(set(seg_classes)) > 1:
-            warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
+        layers = record_layers(self, a, fs, fn)
+        if len(layers) > 1:
+            warnings.append(layers_text(layers))
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
+        alarm = with_layers_alarm(alarm, layers)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         if weak := weak_physical_fit(physical):
@@ -364,6 +371,7 @@ class Predictor:
             "duration_s": a.size / fs,
             "fs_hz": fs,
             "segments": segs,
+            "layers": layers,
             "model": {"name": self.name, "sha256": self.sha256, "kind": self.kind},
             "natural_frequency_hz": fn,
             "natural_frequency_source": fn_source,
@@ -382,11 +390,7 @@ class Predictor:
                 natural_frequency(natural_frequency_hz),
                 natural_frequency_source or "argument",
             )
-        if self.training_natural_frequency is not None:
-            return fs, self.training_natural_frequency, "training_data"
-        raise StiffnetError(
-            "natural frequency unknown: give it (--fn HZ, natural_frequency_hz, or a sidecar)"
-        )
+        raise StiffnetError(FN_UNKNOWN)
 
     def _windows(
         self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
@@ -465,12 +469,14 @@ def predict_recording(
     predictor: Predictor | None = None,
     columns: str | None = None,
     time_unit: str | None = None,
+    channel: str | int | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
     The natural frequency is, in this order: `natural_frequency_hz`; the
-    sidecar ``<recording>.json``'s ``natural_frequency_hz``; the model's
-    training data's (``natural_frequency_source`` says which).
+    sidecar ``<recording>.json``'s ``natural_frequency_hz``; else a one-line
+    refusal (``natural_frequency_source`` says which; the training data's value is
+    never assumed).
 
     Parameters
     ----------
@@ -486,6 +492,8 @@ def predict_recording(
         An already loaded predictor.
     columns, time_unit : str, optional
         CSV layout, as :func:`stiffnet.recordings.read_recording`.
+    channel : str or int, optional
+        Channel of a multi-channel file (required when it has several).
 
     Returns
     -------
@@ -495,11 +503,11 @@ def predict_recording(
     from stiffnet.recordings import read_recording
 
     pred = predictor or _cached_load(model_path)
-    rec = read_recording(path, fs_hz=fs_hz, columns=columns, time_unit=time_unit)
+    rec = read_recording(path, fs_hz=fs_hz, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
     fn_source = "argument"
     if natural_frequency_hz is None:
-        natural_frequency_hz, sidecar = read_sidecar(path)
-        fn_source = f"sidecar:{sidecar}"
+        natural_frequency_hz, fn_source = record_natural_frequency(path, None)
     return pred.predict(
         rec.accel,
         rec.fs_hz,

@@ -59,6 +59,19 @@ def noise_scale(x: np.ndarray, lag: int) -> float:
     return s if s > 0 else (float(np.std(x)) or 1.0)
 
 
+def series_noise(x: np.ndarray, lag: int) -> float:
+    """The noise level a change must stand out from: the largest :func:`noise_scale` at
+    lags ``lag, 2 lag, 4 lag, 8 lag`` (those within a quarter of the series).
+
+    The model's error is not white: windows that see the same phase of a periodic
+    orbit err alike, so short-lag differences alone understate the wander a false
+    change would be made of.
+    """
+    n = np.asarray(x).size
+    lags = [lag * 2**k for k in range(4) if lag * 2**k <= max(lag, n // 4)]
+    return max(noise_scale(x, g) for g in lags)
+
+
 def change_points(x: np.ndarray, penalty: float, min_size: int) -> list[int]:
     """Indices where a new segment starts (penalised least squares on a mean change).
 
@@ -85,6 +98,59 @@ def change_points(x: np.ndarray, penalty: float, min_size: int) -> list[int]:
     return [int(b) for b in algo.predict(pen=float(penalty))[:-1]]
 
 
+def split_gain(x: np.ndarray, lo: int, k: int, hi: int, half: int) -> float:
+    """Residual sum of squares a change at ``k`` saves in ``x[lo:hi]``, leaving out the
+    ``half`` points either side of it and of the neighbouring changes ``lo`` and ``hi``
+    (the windows that straddle a change; the record's ends straddle nothing)."""
+    n = np.asarray(x).size
+    start = lo + half if lo > 0 else lo
+    stop = hi - half if hi < n else hi
+    a = np.asarray(x[start : max(start, k - half)], dtype=np.float64)
+    b = np.asarray(x[min(stop, k + half) : stop], dtype=np.float64)
+    if a.size == 0 or b.size == 0:
+        return 0.0
+    return float(a.size * b.size / (a.size + b.size) * (a.mean() - b.mean()) ** 2)
+
+
+def prune_transitions(x: np.ndarray, cps: list[int], half: int, penalty: float) -> list[int]:
+    """Drop changes that only the windows straddling a neighbouring change explain.
+
+    On a quiet record the windows that straddle a change form a ramp whose misfit
+    outweighs a penalty: least squares buys it a short "layer" of its own. Without
+    those windows the two sides of such a change do not differ (the gain of
+    :func:`split_gain` is below the penalty); removing it, weakest first, leaves the
+    real change, whose position is then the best split between its neighbours.
+    """
+    cps = list(cps)
+    while cps:
+        bounds = [0, *cps, len(x)]
+        gains = [split_gain(x, bounds[i], bounds[i + 1], bounds[i + 2], half)
+                 for i in range(len(cps))]  # fmt: skip
+        i = int(np.argmin(gains))
+        if gains[i] >= penalty:
+            break
+        del cps[i]
+    bounds = [0, *cps, len(x)]
+    return [best_split(x, bounds[i], bounds[i + 2]) for i in range(len(cps))]
+
+
+def best_split(x: np.ndarray, lo: int, hi: int) -> int:
+    """The index splitting ``x[lo:hi]`` into two means with the least squares."""
+    sse = _split_sse(np.asarray(x[lo:hi], dtype=np.float64))
+    return lo + 1 + int(np.argmin(sse))
+
+
+def _split_sse(seg: np.ndarray) -> np.ndarray:
+    """Two-mean residual sum of squares of ``seg`` split before each of ``1..n-1``."""
+    n = seg.size
+    c1 = np.cumsum(seg)
+    c2 = np.cumsum(seg**2)
+    j = np.arange(1, n)
+    left = c2[j - 1] - c1[j - 1] ** 2 / j
+    right = (c2[-1] - c2[j - 1]) - (c1[-1] - c1[j - 1]) ** 2 / (n - j)
+    return left + right
+
+
 def change_interval(x: np.ndarray, k: int, lo: int, hi: int, inflation: float) -> tuple[int, int]:
     """Profile interval of a change at ``k`` between neighbouring changes ``lo`` and ``hi``.
 
@@ -96,12 +162,7 @@ def change_interval(x: np.ndarray, k: int, lo: int, hi: int, inflation: float) -
     n = seg.size
     if n < 3:
         return k, k
-    c1 = np.cumsum(seg)
-    c2 = np.cumsum(seg**2)
-    j = np.arange(1, n)
-    left = c2[j - 1] - c1[j - 1] ** 2 / j
-    right = (c2[-1] - c2[j - 1]) - (c1[-1] - c1[j - 1]) ** 2 / (n - j)
-    sse = left + right
+    sse = _split_sse(seg)
     ok = (sse - sse[k - lo - 1]) <= CHANGE_TIME_CHI2 * inflation
     # the interval is the connected run of accepted splits around the change
     i = k - lo - 1
@@ -212,11 +273,14 @@ class LayerSegmenter:
 
     @property
     def min_points(self) -> int:
-        return max(3, self.window_points)
+        """Fewest points of a layer: two windows (the windows straddling a change form a
+        ramp about one window long, which must not pass for a layer of its own)."""
+        return max(3, 2 * self.window_points)
 
     @property
     def confirm_points(self) -> int:
-        return 6 * self.min_points
+        """Points after a change before it is final (later points no longer move it)."""
+        return 3 * self.min_points
 
     def push(self, point: dict[str, Any]) -> list[dict[str, Any]]:
         """Add one point; the layers this closes (usually none)."""
@@ -245,8 +309,10 @@ class LayerSegmenter:
         closed = []
         while len(self.points) >= 2 * self.min_points:
             x = self._series()
-            z = x / noise_scale(x, self.window_points)
-            cps = change_points(z, self.penalty * self.window_points, self.min_points)
+            z = x / series_noise(x, self.window_points)
+            pen = self.penalty * self.window_points
+            cps = change_points(z, pen, self.min_points)
+            cps = prune_transitions(z, cps, (self.window_points + 1) // 2 + 1, pen)
             limit = len(self.points) if final else len(self.points) - self.confirm_points
             cps = [c for c in cps if c <= limit]
             if not cps:
