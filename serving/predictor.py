@@ -60,7 +60,8 @@ from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
-from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
+from stiffnet.inputs import natural_frequency, real_number, sampling_rate
+from stiffnet.recordings import read_sidecar
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty.alarm import AlarmReference
 
@@ -72,8 +73,6 @@ GEOMETRIC_WINDOWS = 3
 BATCH = 256
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
-#: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
-SIDECAR_SUFFIX = ".json"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
 MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
 
@@ -83,31 +82,6 @@ def _finite_positive(value: Any, what: str) -> float:
     if not v > 0:
         raise StiffnetError(f"{what} must be a finite number > 0, got {value!r}")
     return v
-
-
-def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
-    """Natural frequency from the recording's sidecar ``<recording>.json``, if present.
-
-    The sidecar is a JSON object with at least ``natural_frequency_hz`` (Hz); any
-    other keys (provenance, rig notes) are ignored here.
-
-    Returns
-    -------
-    (float or None, Path)
-        The value (None when there is no sidecar or it has no such key) and the sidecar path.
-
-    Raises
-    ------
-    StiffnetError
-        If the sidecar exists but is not valid JSON or the value is not a number > 0.
-    """
-    p = Path(str(recording) + SIDECAR_SUFFIX)
-    if not p.is_file():
-        return None, p
-    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
-    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
-        return None, p
-    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
 #: Why f_n is never guessed from a record (measured: docs/field.md).

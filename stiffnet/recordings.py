@@ -56,7 +56,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import quote_content
+from stiffnet.inputs import natural_frequency, quote_content, read_json
 
 #: Extensions :func:`read_recording` understands.
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
@@ -76,6 +76,33 @@ THREADED_CSV_BYTES = 8 * 2**20
 FS_TOLERANCE = 1e-3
 
 _TDMS_LOCK = threading.Lock()
+#: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
+SIDECAR_SUFFIX = ".json"
+
+
+def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]:
+    """Natural frequency from the recording's sidecar ``<recording>.json``, if present.
+
+    The sidecar is a JSON object with at least ``natural_frequency_hz`` (Hz); any
+    other keys (provenance, rig notes) are ignored here.
+
+    Returns
+    -------
+    (float or None, Path)
+        The value (None when there is no sidecar or it has no such key) and the sidecar path.
+
+    Raises
+    ------
+    StiffnetError
+        If the sidecar exists but is not valid JSON or the value is not a number > 0.
+    """
+    p = Path(str(recording) + SIDECAR_SUFFIX)
+    if not p.is_file():
+        return None, p
+    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
+    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
+        return None, p
+    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
 @dataclass
