@@ -449,6 +449,11 @@ def log_cmd(
 
         if fs is None:
             raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
+        if columns is not None or time_unit is not None or channel is not None:
+            raise StiffnetError(
+                "--columns, --time-unit and --channel read files; a --follow stream takes "
+                "--stream-format and --stream-column"
+            )
         fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
         logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
                                  hop_s=hop, physical_every_s=every)  # fmt: skip

@@ -82,10 +82,16 @@ class StiffnessLogger:
         physical_every_s: float | None = PHYSICAL_EVERY_S,
         penalty: float | None = None,
     ) -> None:
+        from serving.checks import rate_warnings
+        from stiffnet.inputs import natural_frequency, sampling_rate
+
         if not (math.isfinite(hop_s) and 0 < hop_s <= MAX_HOP_S):
             raise StiffnetError(f"hop must be in (0, {MAX_HOP_S}] s, got {hop_s}")
         self.p = predictor
-        self.fs, self.fn = float(fs_hz), float(natural_frequency_hz)
+        self.fs = sampling_rate(fs_hz)
+        self.fn = natural_frequency(natural_frequency_hz)
+        #: the rate checks of the predictor (a rate below the training data's is refused)
+        self.warnings = rate_warnings(self.fs, self.fn, "record")
         self.n_win = window_length(self.fs, self.fn, predictor.window_periods)
         self.hop = max(1, int(round(hop_s * self.fs)))
         self.hop_s = self.hop / self.fs
@@ -369,14 +375,18 @@ def stiffness_log(
             f"{source or 'recording'}: {a.size / fs_hz:.3g} s is shorter than one model window "
             f"({log.window_s:.3g} s)"
         )
+    from serving.checks import clipping_warning
+
     points, layers = [], []
-    step = 60 * log.hop * 20  # about a minute of record per progress step
+    step = max(log.hop, int(60 * log.fs))  # a minute of record per progress step
     for lo in range(0, a.size, step):
         for kind, item in log.feed(a[lo : lo + step]):
             (points if kind == "point" else layers).append(item)
         if progress is not None:
             progress(min(a.size, lo + step), a.size)
     layers.extend(item for _, item in log.finish())
+    if clipped := clipping_warning(a):
+        log.warnings.append(clipped)
     return log_result(log, points, layers, source, a.size / log.fs)
 
 
@@ -395,7 +405,7 @@ def log_result(
          "from_beta": layers[i - 1]["beta"], "to_beta": la["beta"]}
         for i, la in enumerate(layers) if i > 0
     ]  # fmt: skip
-    warnings = []
+    warnings = list(log.warnings)
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")
     flagged = [la["index"] for la in layers if la["alarm"]]

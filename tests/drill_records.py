@@ -29,8 +29,12 @@ def layered_record(
     contact_damping: float = 0.15,
     seed: int = 0,
     natural_frequency_hz: float = FN_HZ,
+    extra_effects: Sequence[tuple[str, dict]] = (),
 ) -> tuple[np.ndarray, list[float]]:
-    """Acceleration (g) of consecutive layers and the change times (s) between them."""
+    """Acceleration (g) of consecutive layers and the change times (s) between them.
+
+    ``extra_effects``: further effects as ``(name, params)``, on top of the damped contact.
+    """
     parts, changes, t = [], [], 0.0
     for i, (beta, dur) in enumerate(zip(betas, durations_s, strict=True)):
         row = ManifestRow(
@@ -46,6 +50,7 @@ def layered_record(
             noise=noise,
         )
         effects = [build_effect("contact_damping", {"damping_ratio": contact_damping})]
+        effects += [build_effect(name, params) for name, params in extra_effects]
         accel, _ = simulate_row(RowJob(row, effects, seed + 7919 * i, dur, row.recording))
         parts.append(accel)
         t += accel.size / fs_hz
