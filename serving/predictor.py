@@ -52,7 +52,7 @@ from serving.alarm import (
     with_physical_check,
 )
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
-from serving.log import layers_text, record_layers, with_layers_alarm
+from serving.log import record_layers, with_layers_alarm
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
 from serving.physical import physical_check
@@ -305,9 +305,7 @@ class Predictor:
         est = recording_estimate(out, nc)
         cls = names[est.label]
         segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
-        layers = record_layers(self, a, fs, fn)
-        if len(layers) > 1:
-            warnings.append(layers_text(layers))
+        layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn)
