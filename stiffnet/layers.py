@@ -112,31 +112,50 @@ def split_gain(x: np.ndarray, lo: int, k: int, hi: int, half: int) -> float:
     return float(a.size * b.size / (a.size + b.size) * (a.mean() - b.mean()) ** 2)
 
 
-def prune_transitions(x: np.ndarray, cps: list[int], half: int, penalty: float) -> list[int]:
+def prune_transitions(
+    x: np.ndarray, cps: list[int], half: int, penalty: float, min_gap: int = 1
+) -> list[int]:
     """Drop changes that only the windows straddling a neighbouring change explain.
 
-    On a quiet record the windows that straddle a change form a ramp whose misfit
-    outweighs a penalty: least squares buys it a short "layer" of its own. Without
-    those windows the two sides of such a change do not differ (the gain of
+    On a quiet record the windows that straddle a change (and, on a real rig, the
+    orbit settling into the new layer) form a ramp whose misfit outweighs a
+    penalty: least squares buys it a short "layer" of its own. Without those
+    windows the two sides of such a change do not differ (the gain of
     :func:`split_gain` is below the penalty); removing it, weakest first, leaves the
     real change, whose position is then the best split between its neighbours.
+    Two changes closer than `min_gap` after that are one change seen twice: the
+    weaker goes, and the rest is split again.
     """
     cps = list(cps)
-    while cps:
-        bounds = [0, *cps, len(x)]
-        gains = [split_gain(x, bounds[i], bounds[i + 1], bounds[i + 2], half)
-                 for i in range(len(cps))]  # fmt: skip
-        i = int(np.argmin(gains))
-        if gains[i] >= penalty:
-            break
-        del cps[i]
-    bounds = [0, *cps, len(x)]
-    return [best_split(x, bounds[i], bounds[i + 2]) for i in range(len(cps))]
+    n = len(x)
+    while True:
+        while cps:
+            bounds = [0, *cps, n]
+            gains = [split_gain(x, bounds[i], bounds[i + 1], bounds[i + 2], half)
+                     for i in range(len(cps))]  # fmt: skip
+            i = int(np.argmin(gains))
+            if gains[i] >= penalty:
+                break
+            del cps[i]
+        bounds = [0, *cps, n]
+        cps = [best_split(x, bounds[i], bounds[i + 2], min_gap) for i in range(len(cps))]
+        close = [i for i in range(len(cps) - 1) if cps[i + 1] - cps[i] < min_gap]
+        if not close:
+            return cps
+        i = close[0]
+        bounds = [0, *cps, n]
+        weak = [split_gain(x, bounds[j], bounds[j + 1], bounds[j + 2], 0) for j in (i, i + 1)]
+        del cps[i if weak[0] <= weak[1] else i + 1]
 
 
-def best_split(x: np.ndarray, lo: int, hi: int) -> int:
-    """The index splitting ``x[lo:hi]`` into two means with the least squares."""
+def best_split(x: np.ndarray, lo: int, hi: int, min_size: int = 1) -> int:
+    """The index splitting ``x[lo:hi]`` into two means with the least squares, each side at
+    least `min_size` long when there is room for that."""
     sse = _split_sse(np.asarray(x[lo:hi], dtype=np.float64))
+    j = np.arange(1, hi - lo)
+    room = (j >= min_size) & (hi - lo - j >= min_size)
+    if room.any():
+        sse = np.where(room, sse, np.inf)
     return lo + 1 + int(np.argmin(sse))
 
 
@@ -307,19 +326,32 @@ class LayerSegmenter:
 
     def _confirm(self, final: bool) -> list[dict[str, Any]]:
         closed = []
-        while len(self.points) >= 2 * self.min_points:
-            x = self._series()
+        while True:
+            # the first window after a change is the ramp of the windows straddling it and
+            # the orbit settling into the new layer: no change is sought there
+            skip = 0
+            if self.start_sd > 0 and self.start_t is not None:
+                while (
+                    skip < len(self.points)
+                    and self.points[skip]["t"] - self.start_t < 2 * self.half_window_s
+                ):
+                    skip += 1  # fmt: skip
+            x = self._series()[skip:]
+            if len(x) < 2 * self.min_points:
+                break
             z = x / series_noise(x, self.window_points)
             pen = self.penalty * self.window_points
             cps = change_points(z, pen, self.min_points)
-            cps = prune_transitions(z, cps, (self.window_points + 1) // 2 + 1, pen)
-            limit = len(self.points) if final else len(self.points) - self.confirm_points
+            half = (self.window_points + 1) // 2 + 1
+            cps = prune_transitions(z, cps, half, pen, self.min_points)
+            limit = len(z) if final else len(z) - self.confirm_points
             cps = [c for c in cps if c <= limit]
             if not cps:
                 break
             k = cps[0]
-            hi = cps[1] if len(cps) > 1 else len(self.points)
+            hi = cps[1] if len(cps) > 1 else len(z)
             a, b = change_interval(z, k, 0, hi, float(self.window_points))
+            k, a, b = k + skip, a + skip, b + skip
             t = 0.5 * (self.points[k - 1]["t"] + self.points[k]["t"])
             sd = 0.5 * (self.points[b]["t"] - self.points[a - 1]["t"]) if b > a - 1 else 0.0
             sd = max(sd, 0.5 * self.hop_s)

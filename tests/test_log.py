@@ -203,3 +203,26 @@ def test_cli_refuses_without_natural_frequency_or_rate(records, tmp_path):
     assert b"Traceback" not in r.stderr and len(r.stderr.decode().strip().splitlines()) == 1
     r = _cli("-", "--follow", "--fn", "9.48", stdin=b"")
     assert r.returncode == 2 and b"--follow needs --fs" in r.stderr
+
+
+@pytest.mark.slow
+def test_log_on_an_independent_rig_whose_motion_carries_across_the_change():
+    """Layers of records from tests/independent_rig.py (solve_ivp, SI units, Kelvin-Voigt
+    contact): the state carries on across each change, so the orbit settles into the new
+    layer over a few periods - a transition that must not pass for a layer of its own."""
+    from independent_rig import RigRun, record
+
+    cases = [([], 30.0, [30.0]), ([(15.0, 45.0)], 10.0, [10.0, 45.0]),
+             ([(12.0, 50.0), (26.0, 12.0)], 25.0, [25.0, 50.0, 12.0])]  # fmt: skip
+    for schedule, first, betas in cases:
+        run = RigRun("drill.csv", beta=first, fs_hz=2000.0, duration_s=40.0,
+                     contact="kelvin_voigt", contact_zeta=0.1, noise=0.03)  # fmt: skip
+        _, a = record(run, beta_schedule=schedule)
+        log = stiffness_log(Predictor.load(), a, FS, FN_HZ, physical_every_s=None)
+        assert [round(la["beta"]) for la in log["layers"]] and len(log["layers"]) == len(betas), [
+            la["beta"] for la in log["layers"]
+        ]
+        for found, (true, _) in zip(log["changes"], schedule, strict=True):
+            assert abs(found["t_s"] - true) <= 1.0
+        for layer, beta in zip(log["layers"], betas, strict=True):
+            assert abs(layer["beta"] / beta - 1) <= 0.10, (layer["beta"], beta)
