@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import ruptures as rpt
 
 #: Penalty of one change in units of the scaled series' variance, per window length of
 #: points (calibrated: benchmarks/bench_log.py; <= 1 false change per 10 min at the
@@ -89,8 +90,6 @@ def change_points(x: np.ndarray, penalty: float, min_size: int) -> list[int]:
     list of int
         Sorted start indices of every segment but the first (empty: no change).
     """
-    import ruptures as rpt
-
     x = np.asarray(x, dtype=np.float64).reshape(-1, 1)
     if x.shape[0] < 2 * min_size:
         return []
