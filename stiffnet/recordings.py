@@ -376,8 +376,16 @@ def _header_hint(header: list[str]) -> str:
     example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
     return (
         f"; name its columns, e.g. --columns {example}{unit} "
-        "(manifest/HTTP fields columns and time_unit)"
+        "(manifest/HTTP fields columns and time_unit)" + _channels_hint(header)
     )
+
+
+def _channels_hint(header: list[str]) -> str:
+    """With more than two columns, which ones the file has (only names that look like names)."""
+    names = [c.strip() for c in header]
+    if len(names) <= 2 or not all(map(_COLUMN_NAME.match, names)):
+        return ""
+    return f"; its {len(names)} columns: {', '.join(names)} (--channel NAME picks the acceleration)"
 
 
 def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndarray, float, str]:

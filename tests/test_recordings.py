@@ -176,6 +176,8 @@ def test_csv_channel_names_the_acceleration_column(tmp_path):
     np.testing.assert_array_equal(read_recording(path, channel=1).accel, -x)
     assert_error("no column 'bogus'", path, channel="bogus")
     assert_error("either 'columns' or 'channel'", path, channel="accel", columns="t,accel")
+    # without a choice: refused, naming its columns
+    assert_error(r"its 3 columns: t, force, accel \(--channel NAME", path)
 
 
 # --------------------------------------------------------------------------- NPY
