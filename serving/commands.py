@@ -462,7 +462,12 @@ def log_cmd(
             f"f_n {fn_value:.4g} Hz ({fn_source})",
             highlight=False,
         )
-        points, layers = [], []
+        from collections import deque
+
+        # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
+        # per hour) for the final --json/--rows/--plot: memory stays bounded
+        points: deque = deque(maxlen=FOLLOW_POINTS)
+        layers: list = []
         chunks = sample_chunks(recording, stream_format, column=stream_column,
                                idle_timeout_s=idle_timeout)  # fmt: skip
         for chunk in chunks:
@@ -470,7 +475,12 @@ def log_cmd(
                 _emit(kind, item, points, layers)
         for kind, item in logger.finish():
             _emit(kind, item, points, layers)
-        result = log_result(logger, points, layers, recording, logger.n_total / logger.fs)
+        result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
+        if logger.segmenter.n_seen > len(points):
+            result["warnings"].append(
+                f"--json/--rows/--plot hold the last {len(points)} of "
+                f"{logger.segmenter.n_seen} points (stdout had them all)"
+            )
     else:
         from stiffnet.recordings import read_recording
 
@@ -500,7 +510,11 @@ def log_cmd(
             "class_edges"))  # fmt: skip
 
 
-def _emit(kind: str, item: dict[str, Any], points: list, layers: list) -> None:
+#: Points ``log --follow`` keeps for its final outputs (two hours at a 0.5 s hop).
+FOLLOW_POINTS = 14_400
+
+
+def _emit(kind: str, item: dict[str, Any], points: Any, layers: list) -> None:
     """One NDJSON line on stdout per point or closed layer, flushed (a DAQ reads it live)."""
     import json
     import sys

@@ -48,6 +48,8 @@ from stiffnet.uncertainty.alarm import recording_checks
 MAX_HOP_S = 0.5
 #: Seconds between two restoring-force cross-checks along the record (~30 ms each).
 PHYSICAL_EVERY_S = 10.0
+#: Restoring-force checks an open layer keeps for its median (the latest; ~3 h at 10 s).
+MAX_PHYSICAL_CHECKS = 1000
 #: Windows per ONNX Runtime call in the log.
 LOG_BATCH = 128
 #: Share of a layer's points with the alarm above which the layer is flagged.
@@ -185,6 +187,7 @@ class StiffnessLogger:
                 ph = physical_check(seg, self.fs, self.fn)
                 point["physical"] = _physical_fields(ph)
                 self.physical.append({"t": point["t"], **point["physical"]})
+                del self.physical[:-MAX_PHYSICAL_CHECKS]  # an endless layer: bounded
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
