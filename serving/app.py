@@ -68,6 +68,7 @@ from serving.predictor import Predictor
 from serving.schemas import (
     ErrorBody,
     HealthResponse,
+    LogResult,
     ModelResponse,
     PredictionResult,
     PredictRequest,
@@ -240,7 +241,9 @@ def _check_samples(n: int, max_samples: int) -> None:
         )
 
 
-def _predict_json(predictor: Predictor, body: bytes, max_samples: int = 2_000_000) -> dict:
+def _predict_json(
+    predictor: Predictor, body: bytes, max_samples: int = 2_000_000, what: str = "predict"
+) -> dict:
     try:
         req = PredictRequest.model_validate_json(body)
     except ValidationError as exc:
@@ -250,13 +253,29 @@ def _predict_json(predictor: Predictor, body: bytes, max_samples: int = 2_000_00
         more = f" (+{len(errs) - 1} more)" if len(errs) > 1 else ""
         raise StiffnetError(f"invalid JSON body: {where}: {first.get('msg')}{more}") from None
     _check_samples(len(req.samples), max_samples)
+    accel = np.asarray(req.samples, dtype=np.float64)
+    if what == "log":
+        return _log(predictor, accel, req.fs_hz, req.natural_frequency_hz, "request")
     return predictor.predict(
-        np.asarray(req.samples, dtype=np.float64),
+        accel,
         req.fs_hz,
         natural_frequency_hz=req.natural_frequency_hz,
         source="request",
         natural_frequency_source="request",
     )
+
+
+def _log(predictor: Predictor, accel: np.ndarray, fs: Any, fn: Any, source: str) -> dict:
+    """``POST /log``: the stiffness log of the samples (f_n required, as for /predict)."""
+    from serving.log import stiffness_log
+    from serving.predictor import record_natural_frequency
+    from stiffnet.inputs import natural_frequency, sampling_rate
+
+    if fn is None:
+        record_natural_frequency(None, None)  # the one-line refusal
+    doc = stiffness_log(predictor, accel, sampling_rate(fs), natural_frequency(fn), source=source)
+    doc["natural_frequency_source"] = "request"
+    return doc
 
 
 def _number_field(value: Any, name: str) -> float | None:
@@ -287,6 +306,8 @@ def _predict_file(
     max_samples: int = 2_000_000,
     columns: Any = None,
     time_unit: Any = None,
+    channel: Any = None,
+    what: str = "predict",
 ) -> dict:
     from stiffnet.recordings import read_recording
 
@@ -304,10 +325,14 @@ def _predict_file(
         path = Path(tmp) / f"upload{suffix}"
         path.write_bytes(data)
         try:
-            rec = read_recording(path, fs_hz=fs_hz, **layout)
+            rec = read_recording(
+                path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout
+            )
         except StiffnetError as exc:
             raise StiffnetError(str(exc).replace(str(path), shown)) from None
     _check_samples(rec.accel.size, max_samples)
+    if what == "log":
+        return _log(predictor, rec.accel, rec.fs_hz, fn_hz, shown)
     return predictor.predict(
         rec.accel,
         rec.fs_hz,
@@ -344,6 +369,12 @@ _PREDICT_BODY = {
                             "type": "string",
                             "enum": ["s", "ms", "us"],
                             "description": "Unit of the CSV time column (default s)",
+                        },
+                        "channel": {
+                            "type": "string",
+                            "description": "Channel of a multi-channel file (TDMS name or "
+                            "group/name, WAV/NPY index, CSV column); required when it has "
+                            "several",
                         },
                     },
                 }
@@ -456,12 +487,14 @@ def create_app(
 
         return done
 
-    async def body_job(request: Request, ctype: str) -> Callable[[], dict] | JSONResponse:
+    async def body_job(
+        request: Request, ctype: str, what: str
+    ) -> Callable[[], dict] | JSONResponse:
         """Read the body (the event loop only streams it) into a job for a worker thread."""
         n = limits.max_samples
         if ctype == "application/json":
             body = await request.body()
-            return partial(_predict_json, predictor, body, n)
+            return partial(_predict_json, predictor, body, n, what)
         async with request.form(max_files=1, max_fields=8) as form:
             upload = form.get("file")
             if upload is None or isinstance(upload, str):
@@ -469,7 +502,8 @@ def create_app(
             data = await upload.read()
             return partial(_predict_file, predictor, data, upload.filename or "upload",
                            form.get("fs_hz"), form.get("natural_frequency_hz"), n,
-                           form.get("columns"), form.get("time_unit"))  # fmt: skip
+                           form.get("columns"), form.get("time_unit"), form.get("channel"),
+                           what)  # fmt: skip
 
     @app.post(
         "/predict",
@@ -479,6 +513,20 @@ def create_app(
         summary="Predict one recording (JSON samples or a file upload)",
     )
     async def predict(request: Request) -> JSONResponse:
+        return await answer(request, "predict")
+
+    @app.post(
+        "/log",
+        response_model=LogResult,
+        responses=_ERRORS,
+        openapi_extra=_PREDICT_BODY,
+        summary="Stiffness log of one recording: beta(t), layers, change times "
+        "(the document of stiffnet log --json)",
+    )
+    async def log_route(request: Request) -> JSONResponse:
+        return await answer(request, "log")
+
+    async def answer(request: Request, what: str) -> JSONResponse:
         ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
         if ctype not in ("application/json", "multipart/form-data"):
             return _error(
@@ -497,7 +545,7 @@ def create_app(
         state[key] += 1
         done = release(key)
         try:
-            job = await body_job(request, ctype)
+            job = await body_job(request, ctype, what)
         except BaseException:
             done()
             raise

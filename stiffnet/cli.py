@@ -21,6 +21,7 @@ from typer.core import TyperGroup
 from serving import commands as serving_commands  # predict, predict-batch, serve
 from stiffnet import progress
 from stiffnet.cli_options import (
+    ChannelOption,
     ColumnsOption,
     FsOption,
     JsonOption,
@@ -332,20 +333,29 @@ def analyze(
     fn: Annotated[
         float | None,
         typer.Option(
-            "--fn", help="Natural frequency of the rig in Hz (default 9.48, the paper's)."
+            "--fn",
+            help="Natural frequency of the rig in Hz (default: the sidecar <recording>.json; "
+            "without either the restoring-force estimate is not run).",
         ),
     ] = None,
+    channel: ChannelOption = None,
 ) -> None:
     """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
-    from stiffnet.recordings import read_recording
+    from stiffnet.recordings import read_recording, read_sidecar
 
-    rec = read_recording(recording, fs_hz=fs, columns=columns, time_unit=time_unit)
+    rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
+    fn_source = "option --fn"
+    if fn is None:
+        fn, sidecar = read_sidecar(recording)
+        fn_source = f"sidecar:{sidecar}" if fn is not None else "unknown"
     analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
     result = {"recording": str(recording), **analysis.summary()}
+    result["natural_frequency_source"] = fn_source
     table = Table(title=f"analysis of {recording}", show_header=False)
     for key, value in result.items():
-        if isinstance(value, dict):  # the restoring-force details: in the JSON only
+        if isinstance(value, dict | list):  # details (restoring force, spans): the JSON only
             continue
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out.print(table)

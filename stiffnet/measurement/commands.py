@@ -444,7 +444,8 @@ def report(
     stages = 2 + int(diag is None and run_diagnose)
     with _progress(), progress_task("report stages", stages) as bar:
         bar.update(note="evaluate")
-        ev = evaluate_campaign(camp, str(model) if model else None, effects)
+        # a field campaign (no beta) is reported too: the readings side by side
+        ev = evaluate_campaign(camp, str(model) if model else None, effects, require_beta=False)
         bar.advance(note="compare")
         cmp = compare_campaign(camp, effects, config_settings(cfg))
         if diag is None and run_diagnose:
