@@ -35,13 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from serving.aggregate import beta_interval
 from serving.physical import physical_check
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
 from stiffnet.layers import LayerSegmenter, class_with_hysteresis
-from stiffnet.uncertainty import RecordingEstimate
+from stiffnet.uncertainty import RecordingEstimate, beta_interval
 from stiffnet.uncertainty.alarm import recording_checks
 
 #: Largest hop between points (s).
