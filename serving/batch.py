@@ -22,7 +22,6 @@ import functools
 import glob
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,7 +35,13 @@ from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from stiffnet.io_utils import (
+    claim_parts_folder,
+    remove_parts_folder,
+    sha256_file,
+    write_bytes_atomic,
+    write_json_atomic,
+)
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
 #: overhead (~10 ms) and small enough to balance a few thousand recordings.
@@ -302,10 +307,12 @@ def predict_batch(
     model_file = str(Path(predictor.model.path).resolve())
     class_names = tuple(predictor.class_names)
     parts_dir = out.parent / f"{out.name}.parts"
+    run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
+                       (columns, time_unit, part_size))  # fmt: skip
+    claim_parts_folder(parts_dir, run)  # a user's folder of that name is refused, not used
     t0 = time.perf_counter()
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
-        parts_dir.mkdir(parents=True, exist_ok=True)
         jobs, records = [], {}
         for index, lo in enumerate(range(0, len(paths), part_size)):
             chunk = tuple(paths[lo : lo + part_size])
@@ -341,7 +348,7 @@ def predict_batch(
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(out, _parquet_bytes(table))
-    shutil.rmtree(parts_dir, ignore_errors=True)
+    remove_parts_folder(parts_dir)  # only the run's own files
     classes = table.column("class").drop_null().to_pylist()
     return {
         "out": str(out),

@@ -70,9 +70,31 @@ app = typer.Typer(
     name="stiffnet",
     help="Identify the stiffness of an impacted material from one accelerometer.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, pwsh)
     pretty_exceptions_enable=False,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from stiffnet import __version__
+
+        typer.echo(f"stiffnet {__version__}")
+        raise typer.Exit()
+
+
+def _plugins(paths: list[Path] | None) -> list[Path] | None:
+    """Load each ``--plugin`` file now: its effects are then known by ``module:Class``."""
+    from stiffnet.errors import StiffnetError
+
+    for path in paths or []:
+        from stiffnet.effects.registry import register_plugin
+
+        try:
+            register_plugin(path)
+        except StiffnetError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--plugin") from None
+    return paths
 
 
 @app.callback()
@@ -84,6 +106,23 @@ def _options(
             help="Print tables at full width, without wrapping (for wide terminals or files).",
         ),
     ] = False,
+    plugin: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--plugin",
+            metavar="FILE.py",
+            callback=_plugins,
+            help="Load user effects from this Python file (repeatable): name them "
+            "MODULE:Class, MODULE being the file's name without .py. Effect names never "
+            "import anything else (not from the working folder).",
+        ),
+    ] = None,
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,  # fmt: skip
 ) -> None:
     """Identify the stiffness of an impacted material from one accelerometer."""
     out.width = WIDE_COLUMNS if wide else None  # type: ignore[assignment]  # None: auto
@@ -228,12 +267,19 @@ def train(
         cfg = validate_config(TrainConfig, {"model": model})
     if cfg.model != model:
         raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
-    from stiffnet.io_utils import fresh_run_folder, output_lock
-    from training.train import train as run_training
+    from stiffnet.inputs import tracking_uri as checked_uri
+    from stiffnet.io_utils import claim_run_folder, finish_run_folder, fresh_run_folder, output_lock
 
+    if cfg.tracking and tracking_uri is None:  # the config's URI: checked before the work too
+        checked_uri(cfg.tracking_uri, f"{config or default}: tracking_uri")
     out_dir = out_dir or fresh_run_folder(f"train-{model}")
-    with output_lock(out_dir), show_progress(), progress.task(f"training {model}"):
-        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    with output_lock(out_dir):
+        marker = claim_run_folder(out_dir, "stiffnet-train")  # a foreign folder: refused
+        from training.train import train as run_training
+
+        with show_progress(), progress.task(f"training {model}"):
+            result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+        finish_run_folder(out_dir, marker)
     out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
     table = Table(title=f"{model} on {data} (test windows)")

@@ -49,7 +49,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import quote_content
+from stiffnet.inputs import columns_hint, quote_content
 
 #: Extensions :func:`read_recording` understands.
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
@@ -325,19 +325,16 @@ def _header_hint(header: list[str]) -> str:
     if len(header) == 1:
         return " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
-        return " (no header: give columns as indices, e.g. --columns 0,1, with --fs if needed)"
+        return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
     time, accel = header[0].strip(), header[1].strip()
-    unit = ""
+    unit = None
     low = time.lower()
     for u in ("ms", "us"):
         if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
-            unit = f" --time-unit {u}"
+            unit = u
     # column names are quoted only when they look like names (a secret's line does not)
     example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
-    return (
-        f"; name its columns, e.g. --columns {example}{unit} "
-        "(manifest/HTTP fields columns and time_unit)"
-    )
+    return f"; {columns_hint(example, unit)}"
 
 
 def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndarray, float, str]:
@@ -353,7 +350,10 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
+        names = [c.strip() for c in raw]
         shown = quote_content(first.strip(), cells=4) or f"({len(raw)} cell(s), not shown)"
+        if len(raw) <= 4 and all(map(_COLUMN_NAME.match, names)):  # names: shown, as the hint
+            shown = repr(",".join(names))
         raise StiffnetError(
             f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
         )
