@@ -19,7 +19,6 @@ system on a multi-machine cluster).
 from __future__ import annotations
 
 import functools
-import glob
 import hashlib
 import json
 import time
@@ -35,6 +34,7 @@ from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import walk_files
 from stiffnet.io_utils import (
     claim_parts_folder,
     remove_parts_folder,
@@ -59,13 +59,7 @@ def find_recordings(spec: str | Path) -> list[Path]:
     from stiffnet.recordings import SUPPORTED_EXTENSIONS
 
     text = str(spec)
-    root = Path(text)
-    if root.is_dir():
-        found = [p for p in root.rglob("*") if p.is_file()]
-    elif root.is_file():
-        found = [root]
-    else:
-        found = [Path(p) for p in glob.glob(text, recursive=True) if Path(p).is_file()]
+    found = walk_files(text)  # bounded: a glob over /proc is one error, not a hang
     found = [
         p for p in found
         if p.suffix.lower() in SUPPORTED_EXTENSIONS and not p.name.startswith(".")

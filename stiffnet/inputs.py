@@ -345,7 +345,7 @@ def output_file(path: str | os.PathLike[str] | None, what: str = "--json") -> Pa
     if not parent.is_dir():
         raise StiffnetError(f"{what} {p}: folder {parent} does not exist (create it first)")
     try:  # the atomic write creates a temporary file there: try it now, not after the work
-        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name[:100]}.", suffix=".probe", dir=parent)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
@@ -575,3 +575,98 @@ def columns_hint(columns: str, time_unit: str | None = None) -> str:
 def mpl_text(text: object) -> str:
     """``text`` safe for a matplotlib title or label: ``$`` shown, not mathtext."""
     return one_line(text, 200).replace("\\", "\\\\").replace("$", r"\$")
+
+
+def check_fields(data: dict[str, Any], spec: dict[str, tuple[type, ...]], where: str) -> None:
+    """Optional ``data`` keys have the JSON types of ``spec`` (a bool is not a number).
+
+    A list type in ``spec`` given as ``(list, str)`` means a list of strings.
+    """
+    for key, kinds in spec.items():
+        if key not in data:
+            continue
+        value = data[key]
+        items = kinds[1:] if kinds[0] is list and len(kinds) > 1 else None
+        ok = isinstance(value, list) if items else isinstance(value, kinds)
+        if ok and items:
+            ok = all(isinstance(v, items) and not isinstance(v, bool) for v in value)
+        if not ok or (isinstance(value, bool) and bool not in kinds):
+            raise StiffnetError(f"{where}: key {key!r} is {_kind(value)}, not the expected type")
+
+
+# ---------------------------------------------------------------------------- file walks
+
+#: Most folder entries one walk looks at (a folder or glob of recordings): beyond it the
+#: walk stops with an error instead of running on (``/proc/**``).
+MAX_WALK_ENTRIES = 200_000
+_MAGIC = re.compile(r"[*?\[]")
+
+
+def _part_regex(part: str) -> str:
+    out, i = [], 0
+    while i < len(part):
+        c = part[i]
+        if c == "*":
+            out.append("[^/]*")
+        elif c == "?":
+            out.append("[^/]")
+        elif c == "[" and "]" in part[i + 2 :]:
+            j = part.index("]", i + 2)
+            body = part[i + 1 : j].replace("\\", "\\\\")
+            out.append(f"[{'^' + body[1:] if body.startswith('!') else body}]")
+            i = j
+        else:
+            out.append(re.escape(c))
+        i += 1
+    return "".join(out)
+
+
+def walk_files(spec: str, what: str = "recordings", limit: int = MAX_WALK_ENTRIES) -> list[Path]:
+    """Files named by a folder (searched recursively), a glob (``**`` included) or one file.
+
+    Symbolic links to folders are not followed, and at most ``limit`` entries are
+    looked at: a glob over ``/proc`` or a huge tree is one error line, not a hang.
+    """
+    root = Path(spec)
+    if root.is_file():
+        return [root]
+    if root.is_dir():
+        base, regex, depth = root, None, None
+    else:
+        parts = root.parts
+        first = next((i for i, p in enumerate(parts) if _MAGIC.search(p)), None)
+        if first is None:
+            return []
+        base = Path(*parts[:first]) if first else Path(".")
+        rest = parts[first:]
+        regex = re.compile("/".join("(?:[^/]+/)*[^/]+" if p == "**" else _part_regex(p)
+                                    for p in rest).replace("(?:[^/]+/)*[^/]+/", "(?:[^/]+/)*")
+                           + r"\Z")  # fmt: skip
+        depth = None if "**" in rest else len(rest)
+    found: list[Path] = []
+    seen = 0
+    stack = [(base, 0)]
+    while stack:
+        folder, level = stack.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue  # unreadable folders are skipped, as glob does
+        seen += len(entries)
+        if seen > limit:
+            raise StiffnetError(f"{what} {one_line(spec, 200)}: more than {limit} entries under "
+                                f"{base}; name a smaller folder or a narrower glob")  # fmt: skip
+        for entry in entries:
+            path = Path(entry.path)
+            try:
+                is_dir, is_file = entry.is_dir(follow_symlinks=False), entry.is_file()
+            except OSError:  # a dangling or forbidden link: not a recording
+                continue
+            if is_dir:
+                if depth is None or level + 1 < depth:
+                    stack.append((path, level + 1))
+            elif is_file:
+                rel = path.relative_to(base).as_posix()
+                if regex is None or regex.match(rel):
+                    found.append(path)
+    return found

@@ -34,7 +34,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     path = Path(path)
     _check_replaceable_file(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:100]}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
         raise StiffnetError(f"{path}: cannot write here ({exc.strerror})") from None
     try:
@@ -128,12 +128,12 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
             raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
         check_replaceable_folder(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.partial-", dir=out.parent))
     tmp.chmod(0o777 & ~_umask())  # mkdtemp makes 0700; a normal folder honours the umask
     try:
         yield tmp
         if out.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+            trash = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.old-", dir=out.parent))
             os.replace(out, trash / "old")
             os.replace(tmp, out)
             shutil.rmtree(trash, ignore_errors=True)
@@ -274,7 +274,7 @@ def start_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
                 "that kind): choose another output folder"
             )
         check_replaceable_folder(out, (RUN_MARKER,))
-        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+        trash = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.old-", dir=out.parent))
         os.replace(out, trash / "old")
         shutil.rmtree(trash, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)

@@ -218,7 +218,7 @@ def write_recording_csv(path: str | os.PathLike[str], accel: np.ndarray, fs_hz: 
         raise StiffnetError(f"{p}: refusing to write NaN/inf samples")
     table = pa.table({"t": rec.t, "accel": rec.accel})
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name[:100]}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             # pyarrow always quotes the header: write it ourselves
