@@ -333,8 +333,8 @@ def claim_parts_folder(parts: str | Path, run: str) -> None:
                                 f"{RUN_MARKER}); move it or choose another --out")  # fmt: skip
         if marker.get("run") == run:
             return
-        remove_parts_folder(parts)
-    parts.mkdir(parents=True)
+        remove_parts_folder(parts)  # a user's file in it stays, and so does the folder
+    parts.mkdir(parents=True, exist_ok=True)
     write_json_atomic(parts / RUN_MARKER, new_marker("stiffnet-parts", run=run))
 
 
