@@ -102,8 +102,9 @@ log = logging.getLogger("uvicorn.error")
 MAX_SMALL_READERS = 256
 #: Small bodies one client address may have in reception at once.
 MAX_READERS_PER_CLIENT = 16
-#: Large requests (admitted, waiting or running) of one client address.
-MAX_LARGE_PER_CLIENT = 1
+#: Large requests (admitted, waiting or running) of one client address: fewer than the
+#: lane holds (3 by default), so one client stalling its uploads leaves the lane open.
+MAX_LARGE_PER_CLIENT = 2
 #: Seconds a connection may take to send a whole request head (line and headers).
 HEADER_TIMEOUT_S = 10.0
 #: Form fields of a multipart request; any other is refused, as unknown JSON keys are.
