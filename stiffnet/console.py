@@ -57,7 +57,10 @@ def fit_table(table: Table, width: int) -> Table:
     room = width - _frame(table)
     if sum(natural) <= room:
         return table
-    floor = [natural[i] if numeric[i] else max(_longest_word(x) for x in [heads[i], *cells[i]])
+    # the floor of a column: its longest word (a number: its longest cell, whole;
+    # headers wrap at spaces)
+    floor = [max(_longest_word(heads[i]),
+                 *(_longest_line(c) if numeric[i] else _longest_word(c) for c in cells[i]))
              for i in range(len(cols))]  # fmt: skip
     if sum(floor) > room:
         return _vertical(table, heads, width) if len(cols) > 2 or table.show_header else table
