@@ -63,6 +63,7 @@ import logging
 import math
 import re
 import secrets
+import shutil
 import sys
 import tempfile
 import time
@@ -444,15 +445,72 @@ def _text_field(value: Any, name: str) -> str | None:
     return value.strip()[:200]
 
 
+def upload_suffix(filename: str) -> str:
+    """The file name's extension if it is a plain one (it picks the reader), else ""."""
+    suffix = Path(filename).suffix
+    return suffix if _SUFFIX.match(suffix) else ""
+
+
+def spool_upload(source: Any, filename: str) -> Path:
+    """Copy an uploaded file part into a private temporary folder, in 1 MB chunks.
+
+    A large upload waiting for its lane then holds a file, not 20 MB of memory;
+    :func:`_predict_file` removes the folder.
+    """
+    folder = Path(tempfile.mkdtemp(prefix="stiffnet-upload-"))
+    path = folder / f"upload{upload_suffix(filename)}"
+    try:
+        source.seek(0)
+        with open(path, "wb") as fh:
+            shutil.copyfileobj(source, fh, 1 << 20)
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
+    return path
+
+
+def _lines_over(path: Path, limit: int) -> bool:
+    n = 0
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            n += chunk.count(b"\n")
+            if n > limit:
+                return True
+    return False
+
+
 def _predict_file(
     predictor: Predictor,
-    data: bytes,
+    data: bytes | Path,
     filename: str,
     fs: Any,
     fn: Any,
     max_samples: int = 2_000_000,
     columns: Any = None,
     time_unit: Any = None,
+) -> dict:
+    """Predict an uploaded recording: its bytes, or a file of :func:`spool_upload` (removed)."""
+    if isinstance(data, Path):
+        try:
+            return _predict_path(predictor, data, filename, fs, fn, max_samples, columns,
+                                 time_unit)  # fmt: skip
+        finally:
+            shutil.rmtree(data.parent, ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="stiffnet-upload-") as tmp:
+        path = Path(tmp) / f"upload{upload_suffix(filename)}"
+        path.write_bytes(data)
+        return _predict_path(predictor, path, filename, fs, fn, max_samples, columns, time_unit)
+
+
+def _predict_path(
+    predictor: Predictor,
+    path: Path,
+    filename: str,
+    fs: Any,
+    fn: Any,
+    max_samples: int,
+    columns: Any,
+    time_unit: Any,
 ) -> dict:
     from stiffnet.recordings import read_recording
 
@@ -462,22 +520,16 @@ def _predict_file(
         "time_unit": _text_field(time_unit, "time_unit"),
     }
     fn_hz = _number_field(fn, "natural_frequency_hz")
-    suffix = Path(filename).suffix
-    if not _SUFFIX.match(suffix):
-        suffix = ""
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
-    if suffix.lower() == ".csv" and data.count(b"\n") > max_samples + 2:  # a line per sample
+    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
         _check_samples(max_samples + 1, max_samples, "over")
-    with tempfile.TemporaryDirectory(prefix="stiffnet-upload-") as tmp:
-        path = Path(tmp) / f"upload{suffix}"
-        path.write_bytes(data)
-        hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
-        try:
-            rec = read_recording(path, fs_hz=fs_hz, **layout)
-        except StiffnetError as exc:
-            raise StiffnetError(str(exc).replace(str(path), shown)) from None
-        finally:
-            HINT_CONTEXT.reset(hints)
+    hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
+    try:
+        rec = read_recording(path, fs_hz=fs_hz, **layout)
+    except StiffnetError as exc:
+        raise StiffnetError(str(exc).replace(str(path), shown)) from None
+    finally:
+        HINT_CONTEXT.reset(hints)
     _check_samples(rec.accel.size, max_samples)
     return predictor.predict(
         rec.accel,
@@ -666,10 +718,13 @@ def create_app(
             if unknown:  # as an unknown JSON key is: a misspelt field is not silently ignored
                 return _error(422, f"unknown form field {unknown[0][:40]!r} (fields: "
                               f"{', '.join(FORM_FIELDS)})")  # fmt: skip
-            data = await upload.read()
-            return partial(_predict_file, predictor, data, upload.filename or "upload",
-                           form.get("fs_hz"), form.get("natural_frequency_hz"), n,
-                           form.get("columns"), form.get("time_unit"))  # fmt: skip
+            name = upload.filename or "upload"
+            spooled = await asyncio.to_thread(spool_upload, upload.file, name)
+            job = partial(_predict_file, predictor, spooled, name, form.get("fs_hz"),
+                          form.get("natural_frequency_hz"), n, form.get("columns"),
+                          form.get("time_unit"))  # fmt: skip
+            job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
+            return job
 
     @app.post(
         "/predict",
@@ -716,6 +771,9 @@ def create_app(
             return job
         if not is_large:
             if state["in_flight"] >= limits.max_concurrency + limits.max_queue:
+                spooled = getattr(job, "spooled", None)
+                if spooled is not None:  # the job never runs: its upload goes now
+                    shutil.rmtree(spooled.parent, ignore_errors=True)
                 return _error(429, "too many requests in flight; retry later",
                               {"Retry-After": "1"})  # fmt: skip
             state["in_flight"] += 1
