@@ -207,3 +207,16 @@ def test_globs_are_bounded_and_never_follow_folder_links(tmp_path):
     with pytest.raises(StiffnetError, match="more than 50 entries"):
         walk_files(str(tmp_path / "**" / "*.csv"), limit=50)
     assert [p.name for p in walk_files(str(tmp_path / "a" / "r1?.csv"))] != []
+
+
+def test_deep_documents_anywhere_are_one_line(tmp_path, monkeypatch):
+    """A RecursionError from any reader (ONNX metadata, a card's JSON) is one line, exit 2."""
+    import serving.predictor as predictor_module
+
+    def deep(*_a, **_k):
+        raise RecursionError("maximum recursion depth exceeded while decoding a JSON object")
+
+    monkeypatch.setattr(predictor_module.Predictor, "load", deep)
+    rec = tmp_path / "rec.csv"
+    shutil.copy(EXAMPLE, rec)
+    one_line_error(["predict", rec], "nested too deeply")
