@@ -335,12 +335,13 @@ def analyze(
 @app.command()
 @user_errors
 def effects(json_path: JsonOption = None) -> None:
-    """List the physical effects with their parameters, defaults and ranges."""
-    from stiffnet.effects.registry import available_effects
+    """List the physical effects (shipped, then plugins') with their parameters and ranges."""
+    from stiffnet.effects.registry import available_effects, user_effects
 
     result = []
-    for cls in available_effects():
-        table = Table(title=f"{cls.name} ({cls.kind})", title_justify="left")
+    named = [(cls.name, cls) for cls in available_effects()]
+    for name, cls in [*named, *user_effects()]:
+        table = Table(title=f"{name} ({cls.kind})", title_justify="left")
         for col in ("parameter", "default", "range", "unit", "description"):
             table.add_column(col)
         rows = cls.parameter_table()
@@ -350,7 +351,7 @@ def effects(json_path: JsonOption = None) -> None:
                           row["description"])  # fmt: skip
         out.print(table)
         doc = (cls.__doc__ or "").strip().splitlines()
-        result.append({"name": cls.name, "kind": cls.kind, "summary": doc[0] if doc else "",
+        result.append({"name": name, "kind": cls.kind, "summary": doc[0] if doc else "",
                        "parameters": rows})  # fmt: skip
     write_json(json_path, result)
 

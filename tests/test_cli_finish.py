@@ -107,3 +107,23 @@ def test_json_dash_keeps_stdout_pure_json(tmp_path):
     effects = json.loads(res.stdout)
     assert {e["name"] for e in effects} >= {"contact_damping", "sensor_dynamics"}
     assert "contact_damping (dynamics)" in res.stderr  # the tables, out of the way
+
+
+def test_effects_lists_the_loaded_plugins_by_the_name_to_type(tmp_path):
+    import json
+
+    plugin = tmp_path / "lab_laws.py"
+    plugin.write_text(
+        "from stiffnet.effects.base import EffectParams, MeasurementEffect, ParamValue, param\n"
+        "class Tilt(MeasurementEffect):\n"
+        '    """A gain."""\n'
+        '    name = "tilt"\n'
+        "    class Params(EffectParams):\n"
+        '        gain: ParamValue = param(1.0, 0.1, 10.0, "gain")\n'
+        "    def apply(self, signal, fs_hz, p, rng):\n"
+        '        return signal * p["gain"][:, None]\n'
+    )
+    res = runner.invoke(app, ["--plugin", str(plugin), "effects", "--json", "-"])
+    assert res.exit_code == 0, res.output
+    listed = {e["name"]: e for e in json.loads(res.stdout)}
+    assert listed["lab_laws:Tilt"]["kind"] == "measurement" and "contact_damping" in listed

@@ -202,3 +202,21 @@ def check_effect_option(text: str, flag: str = "--effect") -> None:
 def available_effects() -> Iterable[type[Effect]]:
     """The shipped effect classes, in canonical order."""
     return [effect_class(name) for name in CANONICAL]
+
+
+def user_effects() -> list[tuple[str, type[Effect]]]:
+    """``(name to type, class)`` of the effects beyond the shipped ones.
+
+    The installed packages' entry points, then the classes the loaded plugin files
+    define (``module:Class``).
+    """
+    _environment_plugins()
+    found = [(name, effect_class(name)) for name in _entry_points()]
+    for module_name in _PLUGINS:
+        module = sys.modules.get(module_name)
+        for attr, obj in sorted(vars(module).items()) if module else ():
+            if (isinstance(obj, type) and issubclass(obj, Effect) and not attr.startswith("_")
+                    and obj.__module__ == module_name
+                    and getattr(obj, "kind", None) in ("dynamics", "measurement")):  # fmt: skip
+                found.append((f"{module_name}:{attr}", obj))
+    return found
