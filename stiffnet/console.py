@@ -249,11 +249,11 @@ def user_errors(fn: F) -> F:
 
                 for path in _locked_outputs(kwargs):
                     stack.enter_context(output_lock(path))
-                rv = fn(*args, **kwargs)
-                if kwargs.get("plots") is not None:
-                    from stiffnet.inputs import mark_figure_folder
+                if kwargs.get("plots") is not None:  # claimed first: a failed run's figures
+                    from stiffnet.inputs import mark_figure_folder  # can be replaced later
 
                     mark_figure_folder(Path(kwargs["plots"]))
+                rv = fn(*args, **kwargs)
             return rv
         except StiffnetError as exc:
             report_error(exc)

@@ -443,7 +443,7 @@ def figure_folder(path: str | os.PathLike[str] | None, what: str = "--plots") ->
     """A ``--plots`` folder: absent, empty, or one stiffnet wrote figures into before.
 
     Figures replace files of fixed names: in a user's folder they would overwrite a
-    ``force_displacement.png`` of the user's. :func:`mark_figure_folder` marks it after.
+    ``force_displacement.png`` of the user's. :func:`mark_figure_folder` marks it first.
     """
     from stiffnet.io_utils import RUN_MARKER, read_marker
 
@@ -458,10 +458,11 @@ def figure_folder(path: str | os.PathLike[str] | None, what: str = "--plots") ->
 
 
 def mark_figure_folder(path: Path) -> None:
-    """Mark ``path`` as a figure folder of stiffnet's (after the figures are written)."""
+    """Create ``path`` (checked by :func:`figure_folder`) and mark it as stiffnet's figures."""
     from stiffnet.io_utils import RUN_MARKER, new_marker, read_marker, write_json_atomic
 
-    if path.is_dir() and read_marker(path / RUN_MARKER) is None:
+    path.mkdir(parents=True, exist_ok=True)
+    if read_marker(path / RUN_MARKER) is None:
         write_json_atomic(path / RUN_MARKER, new_marker(FIGURES_KIND))
 
 
