@@ -412,7 +412,9 @@ def check_outputs(outputs: dict[str, tuple[Path, str]], inputs: dict[str, Path])
 
     ``outputs``: flag -> (path, ``"file"`` or ``"folder"``); ``inputs``: name -> path of
     a recording, campaign, manifest, dataset, config, model or result the command reads.
-    An output file may not be an input file nor replace a file inside an input folder;
+    An output file may not be an input file nor replace the data of an input folder
+    (a recording, its sidecar, a manifest, config, model or shard: :func:`_input_data`;
+    an earlier report or JSON result there may be replaced);
     an output folder may not be, hold, or lie inside an input folder's files it would
     replace; two outputs may not be the same path.
     """
@@ -430,9 +432,24 @@ def check_outputs(outputs: dict[str, tuple[Path, str]], inputs: dict[str, Path])
                 raise StiffnetError(f"{flag} {path}: holds the input {name} ({inputs[name]}); "
                                     "choose another output folder")  # fmt: skip
             inside = real.is_relative_to(src) and src.is_dir()
-            if inside and kind == "file" and os.path.lexists(path):
+            if inside and kind == "file" and os.path.lexists(path) and _input_data(Path(path)):
                 raise StiffnetError(f"{flag} {path}: would replace a file of the input {name} "
                                     f"({inputs[name]}); choose another output")  # fmt: skip
+
+
+#: What an input folder's files that an output must never replace look like:
+#: recordings, manifests, configs, models, shards (an earlier report or result may go).
+_DATA_SUFFIXES = (".csv", ".npy", ".wav", ".tdms", ".yaml", ".yml", ".onnx", ".npz", ".parquet")
+_DATA_JSON = ("card.json", "campaign_card.json", "job.json", "stiffnet-run.json",
+              "ood_reference.json", "geometric_calibration.json")  # fmt: skip
+
+
+def _input_data(path: Path) -> bool:
+    """Whether ``path`` (in an input folder) is data the input is made of."""
+    name = path.name.lower()
+    if path.suffix.lower() in _DATA_SUFFIXES or name in _DATA_JSON or name.endswith(".card.json"):
+        return True
+    return name.endswith(".json") and path.with_suffix("").exists()  # a recording's sidecar
 
 
 #: Kind of the marker (``stiffnet-run.json``) of a figure folder stiffnet wrote.

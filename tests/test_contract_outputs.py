@@ -14,6 +14,7 @@ import pytest
 from test_contract import CAMPAIGN, EXAMPLE, ROOT, one_line_error, runner
 
 from stiffnet.cli import app
+from stiffnet.errors import StiffnetError
 
 MODEL = ROOT / "models" / "gbm.onnx"
 
@@ -184,3 +185,16 @@ def test_json_dash_writes_to_stdout(tmp_path):
     result = json.loads(res.stdout)  # stdout holds the JSON alone (the tables go to stderr)
     assert result["class"] in result["probabilities"]
     assert not Path("-").exists()
+
+
+def test_a_result_inside_a_campaign_folder_can_be_written_again(tmp_path):
+    """Replacing an earlier result in an input folder is fine; replacing its data is not."""
+    camp = tmp_path / "C"
+    shutil.copytree(CAMPAIGN, camp)
+    (camp / "compare.json").write_text("{}")  # an earlier `compare --json C/compare.json`
+    from stiffnet.console import check_arguments
+
+    check_arguments({"campaign": camp, "json_path": camp / "compare.json"})
+    rec = next(camp.rglob("*.csv"))
+    with pytest.raises(StiffnetError, match="would replace a file of the input campaign"):
+        check_arguments({"campaign": camp, "json_path": rec})
