@@ -191,8 +191,8 @@ def check_arguments(kwargs: dict[str, Any]) -> None:
             outputs[flag] = (inputs.figure_folder(kwargs[name], flag), "folder")
     # paths only (`train --model gbm` names a family); a folder or glob of recordings is text
     ins = {name: Path(kwargs[name]) for name in _INPUTS
-           if (isinstance(kwargs.get(name), Path) or name == "recordings")
-           and kwargs[name] is not None and os.path.lexists(str(kwargs[name]))}  # fmt: skip
+           if (isinstance(kwargs.get(name), Path) or (name == "recordings" and kwargs.get(name)))
+           and os.path.lexists(str(kwargs[name]))}  # fmt: skip
     inputs.check_outputs(outputs, ins)
 
 
