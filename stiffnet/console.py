@@ -13,6 +13,7 @@ import csv
 import errno
 import functools
 import os
+import re
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
@@ -84,7 +85,8 @@ def _longest_line(text: str) -> int:
 
 
 def _longest_word(text: str) -> int:
-    return max((cell_len(w) for w in text.split()), default=0)
+    # rich wraps words with their leading spaces (" aa" is one word of 3 cells)
+    return max((cell_len(w) for w in re.findall(r"\s*\S+", text)), default=0)
 
 
 def _frame(table: Table) -> int:

@@ -8,6 +8,8 @@ import shlex
 import shutil
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_contract import EXAMPLE, ROOT, runner
 
 from stiffnet import __version__
@@ -127,3 +129,40 @@ def test_effects_lists_the_loaded_plugins_by_the_name_to_type(tmp_path):
     assert res.exit_code == 0, res.output
     listed = {e["name"]: e for e in json.loads(res.stdout)}
     assert listed["lab_laws:Tilt"]["kind"] == "measurement" and "contact_damping" in listed
+
+
+WORD = st.text(alphabet="abcdefghij_=.0123456789[],%", min_size=1, max_size=18)
+CELL = st.lists(WORD, min_size=1, max_size=6).map(" ".join)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    heads=st.lists(st.text(alphabet="abcdefgh ", min_size=1, max_size=14).filter(str.strip),
+                   min_size=1, max_size=7),
+    data=st.data(),
+    width=st.sampled_from([60, 80, 100]),
+)  # fmt: skip
+def test_any_table_keeps_its_words_whole(heads, data, width):
+    """Generated tables at 60/80/100 columns: every word and number is whole on a line."""
+    import io
+
+    from rich.table import Table
+    from rich.text import Text
+
+    from stiffnet.console import _Out
+
+    rows = data.draw(st.lists(st.lists(CELL, min_size=len(heads), max_size=len(heads)),
+                              min_size=1, max_size=4))  # fmt: skip
+    table = Table(title="t")
+    for h in heads:
+        table.add_column(h)
+    for row in rows:
+        table.add_row(*map(Text, row))  # text, not rich markup ("[a]" would be a tag)
+    buf = io.StringIO()
+    _Out(file=buf, width=width, color_system=None).print(table)
+    lines = buf.getvalue().splitlines()
+    assert max(map(len, lines)) <= width
+    found = set().union(*(set(TOKEN.findall(line)) for line in lines))
+    words = {t for row in rows for cell in row for t in TOKEN.findall(cell)}
+    words |= {t for h in heads for t in TOKEN.findall(h)}
+    assert words <= found, sorted(words - found)[:5]
