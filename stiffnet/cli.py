@@ -57,6 +57,8 @@ class OneLineErrors(TyperGroup):
             ctx = getattr(exc, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
             message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+            if "--plugin" in message or "--version" in message:  # options of `stiffnet` itself
+                hint = " (give it before the command: stiffnet --plugin FILE.py COMMAND ...)"
             report_error(f"{message}{hint}")
             sys.exit(2)
         except typer.Abort:

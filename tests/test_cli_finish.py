@@ -94,6 +94,11 @@ def test_evaluate_hint_names_the_manifest_not_an_option(tmp_path):
     assert 'in the manifest: columns "Time [ms],Acceleration [g]" and time_unit ms' in res.stderr
 
 
+def test_plugin_after_the_command_says_where_it_goes():
+    res = runner.invoke(app, ["simulate", "--plugin", "x.py"])
+    assert res.exit_code == 2 and "stiffnet --plugin FILE.py COMMAND" in res.stderr
+
+
 def test_version_and_completion():
     res = runner.invoke(app, ["--version"])
     assert res.exit_code == 0 and res.stdout.strip() == f"stiffnet {__version__}"
