@@ -469,6 +469,19 @@ def spool_upload(source: Any, filename: str) -> Path:
     return path
 
 
+def _npy_values(path: Path) -> int:
+    """Values in an ``.npy`` file by its header (0 when unreadable: the reader says why)."""
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as fh:
+            version = fmt.read_magic(fh)
+            read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+            shape = read(fh)[0]
+        return math.prod(int(n) for n in shape)
+    except (OSError, ValueError, TypeError):
+        return 0
+
+
 def _lines_over(path: Path, limit: int) -> bool:
     n = 0
     with open(path, "rb") as fh:
@@ -523,6 +536,8 @@ def _predict_path(
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
     if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
         _check_samples(max_samples + 1, max_samples, "over")
+    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
+        _check_samples(_npy_values(path), max_samples, "over")
     hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
     try:
         rec = read_recording(path, fs_hz=fs_hz, **layout)

@@ -148,6 +148,15 @@ def test_samples_are_counted_before_the_body_is_parsed(client, monkeypatch):
     csv = b"t,accel\n" + b"".join(b"%d,0\n" % i for i in range(5000))
     r = client.post("/predict", files={"file": ("x.csv", csv)})
     assert r.status_code == 413 and "over 1000" in r.json()["error"]
+    import io
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    np.save(buf, np.zeros(5000, dtype=np.float32))
+    monkeypatch.setattr(np, "load", parsed)  # the header decides: the array is never loaded
+    r = client.post("/predict", files={"file": ("x.npy", buf.getvalue())}, data={"fs_hz": "1e3"})
+    assert r.status_code == 413 and "over 1000" in r.json()["error"]
 
 
 def test_unknown_form_fields_are_refused_and_the_version_is_the_packages(client):
