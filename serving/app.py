@@ -35,8 +35,8 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   closed (a trickle of header lines no longer holds it open), and uvicorn's own
   400s (a malformed ``Content-Length``, a broken request line) are JSON too.
 * **Samples before parsing** - a JSON body holding more numbers than
-  ``max_samples`` (counted by its commas, before the parser builds anything), or a
-  CSV upload with more lines, gets 413 unparsed.
+  ``max_samples`` (counted by its commas, before the parser builds anything), a
+  CSV upload with more lines, or an ``.npy`` whose header says more, gets 413 unparsed.
 * **Access log** - one line per request (client, method, path, status, bytes,
   milliseconds) on the ``stiffnet.access`` logger (``stiffnet serve`` prints it).
 * **Access** - :class:`Guard`: an optional bearer token (every path except
