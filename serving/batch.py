@@ -27,10 +27,8 @@ system on a multi-machine cluster).
 from __future__ import annotations
 
 import functools
-import glob
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,7 +42,14 @@ from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from stiffnet.inputs import walk_files
+from stiffnet.io_utils import (
+    claim_parts_folder,
+    remove_parts_folder,
+    sha256_file,
+    write_bytes_atomic,
+    write_json_atomic,
+)
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
 #: overhead (~10 ms) and small enough to balance a few thousand recordings.
@@ -62,13 +67,7 @@ def find_recordings(spec: str | Path) -> list[Path]:
     from stiffnet.recordings import SUPPORTED_EXTENSIONS
 
     text = str(spec)
-    root = Path(text)
-    if root.is_dir():
-        found = [p for p in root.rglob("*") if p.is_file()]
-    elif root.is_file():
-        found = [root]
-    else:
-        found = [Path(p) for p in glob.glob(text, recursive=True) if Path(p).is_file()]
+    found = walk_files(text)  # bounded: a glob over /proc is one error, not a hang
     found = [
         p for p in found
         if p.suffix.lower() in SUPPORTED_EXTENSIONS and not p.name.startswith(".")
@@ -381,10 +380,12 @@ def predict_batch(
     model_file = str(Path(predictor.model.path).resolve())
     class_names = tuple(predictor.class_names)
     parts_dir = out.parent / f"{out.name}.parts"
+    run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
+                       (columns, time_unit, part_size))  # fmt: skip
+    claim_parts_folder(parts_dir, run)  # a user's folder of that name is refused, not used
     t0 = time.perf_counter()
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
-        parts_dir.mkdir(parents=True, exist_ok=True)
         jobs, records = [], {}
         for index, lo in enumerate(range(0, len(paths), part_size)):
             chunk = tuple(paths[lo : lo + part_size])
@@ -422,7 +423,7 @@ def predict_batch(
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(out, _parquet_bytes(table))
-    shutil.rmtree(parts_dir, ignore_errors=True)
+    remove_parts_folder(parts_dir)  # only the run's own files
     classes = table.column("class").drop_null().to_pylist()
     errors = table.select(["path", "error"]).to_pylist()
     return {

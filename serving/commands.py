@@ -194,6 +194,12 @@ def serve(
     body_timeout_s: Annotated[
         float, typer.Option(help="Whole request body within this time, else 408.")
     ] = 20.0,
+    body_idle_s: Annotated[
+        float, typer.Option(help="A body silent this long gets 408 (a stalled upload).")
+    ] = 5.0,
+    header_timeout_s: Annotated[
+        float, typer.Option(help="Whole request head (line and headers) within this time.")
+    ] = 10.0,
     token: Annotated[
         str | None,
         typer.Option(
@@ -218,7 +224,7 @@ def serve(
     """Serve the predictor over HTTP (FastAPI): POST /predict, GET /health, GET /model."""
     import uvicorn
 
-    from serving.app import Limits, create_app
+    from serving.app import Limits, create_app, enable_access_log, guarded_protocol
     from serving.predictor import Predictor
     from stiffnet.console import console
     from stiffnet.errors import StiffnetError
@@ -226,7 +232,7 @@ def serve(
     limits = Limits.checked(
         max_upload_mb, timeout_s, max_concurrency, max_queue, max_samples=max_samples,
         small_upload_mb=small_upload_mb, max_large_queue=max_large_queue,
-        body_timeout_s=body_timeout_s,
+        body_timeout_s=body_timeout_s, body_idle_s=body_idle_s, header_timeout_s=header_timeout_s,
     )  # fmt: skip
     if not 0 <= port <= 65535:
         raise StiffnetError(f"port must be in 0..65535, got {port}")
@@ -248,7 +254,13 @@ def serve(
         f"(docs at /docs)"
     )
     app = create_app(predictor, limits, token=token, allowed_hosts=hosts, cors_origins=cors_origin)
-    config = uvicorn.Config(app, log_level="warning", timeout_keep_alive=5)
+    enable_access_log()
+    config = uvicorn.Config(
+        app,
+        log_level="warning",
+        timeout_keep_alive=5,
+        http=guarded_protocol(limits.header_timeout_s),
+    )
     uvicorn.Server(config).run(sockets=[sock])
 
 

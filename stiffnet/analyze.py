@@ -162,12 +162,18 @@ def analyze_signal(
     silent default). The stationarity test reads the whole record: on long records
     :data:`STATIONARITY_SEGMENTS` probes spread over it.
     """
-    if not np.isfinite(fs_hz) or fs_hz <= 0:
-        raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
+    from stiffnet.inputs import natural_frequency, rate_ratio, sampling_rate
+
+    sampling_rate(fs_hz, "sampling rate")  # the predictor's physical ranges (1e12 Hz is not)
     fn = natural_frequency_hz
-    if fn is not None and not (np.isfinite(fn) and fn > 0):
-        raise SignalError(f"natural frequency must be a positive number of Hz, got {fn}")
-    x = _unit_scale(nlts.as_signal(accel, 64))
+    if fn is not None:
+        rate_ratio(fs_hz, natural_frequency(fn, "natural frequency"))
+    a = np.asarray(accel)
+    if a.ndim == 1 and a.size and a.dtype.kind in "fiu" and np.isfinite(a).all():
+        peak = float(np.abs(a).max())
+        if 0 < peak < 0.5:  # the constant check is absolute below 1: a tiny signal up first
+            a = np.ldexp(a.astype(np.float64), -int(np.frexp(peak)[1]))
+    x = _unit_scale(nlts.as_signal(a, 64))
     geo = geometric_estimate(x, fs_hz)
     rf, rf_error = None, FN_MISSING
     if fn is not None:

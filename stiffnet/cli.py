@@ -58,6 +58,8 @@ class OneLineErrors(TyperGroup):
             ctx = getattr(exc, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
             message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+            if "--plugin" in message or "--version" in message:  # options of `stiffnet` itself
+                hint = " (give it before the command: stiffnet --plugin FILE.py COMMAND ...)"
             report_error(f"{message}{hint}")
             sys.exit(2)
         except typer.Abort:
@@ -71,9 +73,31 @@ app = typer.Typer(
     name="stiffnet",
     help="Identify the stiffness of an impacted material from one accelerometer.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, pwsh)
     pretty_exceptions_enable=False,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from stiffnet import __version__
+
+        typer.echo(f"stiffnet {__version__}")
+        raise typer.Exit()
+
+
+def _plugins(paths: list[Path] | None) -> list[Path] | None:
+    """Load each ``--plugin`` file now: its effects are then known by ``module:Class``."""
+    from stiffnet.errors import StiffnetError
+
+    for path in paths or []:
+        from stiffnet.effects.registry import register_plugin
+
+        try:
+            register_plugin(path)
+        except StiffnetError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--plugin") from None
+    return paths
 
 
 @app.callback()
@@ -85,6 +109,23 @@ def _options(
             help="Print tables at full width, without wrapping (for wide terminals or files).",
         ),
     ] = False,
+    plugin: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--plugin",
+            metavar="FILE.py",
+            callback=_plugins,
+            help="Load user effects from this Python file (repeatable): name them "
+            "MODULE:Class, MODULE being the file's name without .py. Effect names never "
+            "import anything else (not from the working folder).",
+        ),
+    ] = None,
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,  # fmt: skip
 ) -> None:
     """Identify the stiffness of an impacted material from one accelerometer."""
     out.width = WIDE_COLUMNS if wide else None  # type: ignore[assignment]  # None: auto
@@ -252,13 +293,20 @@ def train(
         console.print("note: `train --model` is deprecated (it is a file elsewhere): use --family")
         family = model
     cfg = _train_config(family, config)
-    from stiffnet.io_utils import fresh_run_folder, output_lock
-    from training.train import train as run_training
+    from stiffnet.inputs import tracking_uri as checked_uri
+    from stiffnet.io_utils import claim_run_folder, finish_run_folder, fresh_run_folder, output_lock
 
+    if cfg.tracking and tracking_uri is None:  # the config's URI: checked before the work too
+        checked_uri(cfg.tracking_uri, f"{config or 'the training config'}: tracking_uri")
     name = str(cfg.model)
     out_dir = out_dir or fresh_run_folder(f"train-{name}")
-    with output_lock(out_dir), show_progress(), progress.task(f"training {name}"):
-        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+    with output_lock(out_dir):
+        marker = claim_run_folder(out_dir, "stiffnet-train")  # a foreign folder: refused
+        from training.train import train as run_training
+
+        with show_progress(), progress.task(f"training {name}"):
+            result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+        finish_run_folder(out_dir, marker)
     out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
     table = Table(title=f"{name} on {data} (test windows)")
@@ -370,12 +418,13 @@ def analyze(
 @app.command()
 @user_errors
 def effects(json_path: JsonOption = None) -> None:
-    """List the physical effects with their parameters, defaults and ranges."""
-    from stiffnet.effects.registry import available_effects
+    """List the physical effects (shipped, then plugins') with their parameters and ranges."""
+    from stiffnet.effects.registry import available_effects, user_effects
 
     result = []
-    for cls in available_effects():
-        table = Table(title=f"{cls.name} ({cls.kind})", title_justify="left")
+    named = [(cls.name, cls) for cls in available_effects()]
+    for name, cls in [*named, *user_effects()]:
+        table = Table(title=f"{name} ({cls.kind})", title_justify="left")
         for col in ("parameter", "default", "range", "unit", "description"):
             table.add_column(col)
         rows = cls.parameter_table()
@@ -385,7 +434,7 @@ def effects(json_path: JsonOption = None) -> None:
                           row["description"])  # fmt: skip
         out.print(table)
         doc = (cls.__doc__ or "").strip().splitlines()
-        result.append({"name": cls.name, "kind": cls.kind, "summary": doc[0] if doc else "",
+        result.append({"name": name, "kind": cls.kind, "summary": doc[0] if doc else "",
                        "parameters": rows})  # fmt: skip
     write_json(json_path, result)
 

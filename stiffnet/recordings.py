@@ -56,7 +56,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import natural_frequency, quote_content, read_json
+from stiffnet.inputs import columns_hint, natural_frequency, quote_content, read_json
 
 #: Extensions :func:`read_recording` understands.
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
@@ -258,7 +258,7 @@ def write_recording_csv(path: str | os.PathLike[str], accel: np.ndarray, fs_hz: 
         raise StiffnetError(f"{p}: refusing to write NaN/inf samples")
     table = pa.table({"t": rec.t, "accel": rec.accel})
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name[:100]}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             # pyarrow always quotes the header: write it ourselves
@@ -365,19 +365,16 @@ def _header_hint(header: list[str]) -> str:
     if len(header) == 1:
         return " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
-        return " (no header: give columns as indices, e.g. --columns 0,1, with --fs if needed)"
+        return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
     time, accel = header[0].strip(), header[1].strip()
-    unit = ""
+    unit = None
     low = time.lower()
     for u in ("ms", "us"):
         if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
-            unit = f" --time-unit {u}"
+            unit = u
     # column names are quoted only when they look like names (a secret's line does not)
     example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
-    return (
-        f"; name its columns, e.g. --columns {example}{unit} "
-        "(manifest/HTTP fields columns and time_unit)" + _channels_hint(header)
-    )
+    return f"; {columns_hint(example, unit)}" + _channels_hint(header)
 
 
 def _channels_hint(header: list[str]) -> str:
@@ -401,7 +398,10 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
+        names = [c.strip() for c in raw]
         shown = quote_content(first.strip(), cells=4) or f"({len(raw)} cell(s), not shown)"
+        if len(raw) <= 4 and all(map(_COLUMN_NAME.match, names)):  # names: shown, as the hint
+            shown = repr(",".join(names))
         raise StiffnetError(
             f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
         )

@@ -402,9 +402,18 @@ def test_wrong_header_says_how_to_map_it(tmp_path):
         read_recording(path)
     msg = str(info.value)
     assert "wrong header" in msg and "--columns time_ms,acc_g --time-unit ms" in msg
-    assert "time_unit" in msg and "\n" not in msg  # also names the manifest/HTTP fields
+    assert "\n" not in msg
+    from stiffnet.inputs import HINT_CONTEXT
+
+    token = HINT_CONTEXT.set("manifest")  # a campaign's recording: the manifest's columns
+    try:
+        with pytest.raises(StiffnetError, match="in the manifest: columns time_ms,acc_g and "
+                                                "time_unit ms"):  # fmt: skip
+            read_recording(path)
+    finally:
+        HINT_CONTEXT.reset(token)
     numeric = write_text(tmp_path / "n.csv", "0,1\n0.001,2\n")
-    assert_error("no header: give columns as indices", numeric)
+    assert_error("no header: name its columns: --columns 0,1", numeric)
 
 
 def test_layout_errors_are_one_line(tmp_path):

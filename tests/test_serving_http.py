@@ -261,7 +261,7 @@ def test_upload_with_columns_and_time_unit_fields(client):
     assert r.json()["fs_hz"] == pytest.approx(rec.fs_hz)
     # without the fields the header is refused with the mapping to use
     _is_error(client.post("/predict", files={"file": ("lab.csv", lab)}), 422,
-              "--columns Time (ms),Acc (g) --time-unit ms")  # fmt: skip
+              "form field columns=Time (ms),Acc (g) and time_unit=ms")  # fmt: skip
     _is_error(client.post("/predict", files={"file": ("lab.csv", lab)},
                           data={**fields, "time_unit": "h"}), 422, "unknown time unit")  # fmt: skip
     spec = client.get("/openapi.json").json()["paths"]["/predict"]["post"]["requestBody"]

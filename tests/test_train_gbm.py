@@ -173,7 +173,8 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
     result = json.loads((tmp_path / "r.json").read_text())
     assert 0.0 <= result["metrics"]["accuracy"] <= 1.0 and result["family"] == "gbm"
     assert (tmp_path / "m" / "gbm.onnx").is_file()
-    bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path)])
+    bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out",
+                              str(tmp_path / "m2")])  # fmt: skip
     assert bad.exit_code == 2 and "not a finished stiffnet dataset" in bad.output
     bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--model", "svm"])
     assert bad.exit_code == 2 and "not available" in bad.output

@@ -65,13 +65,19 @@ _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
 }  # fmt: skip
 
 
+#: Keys a result may have, with their JSON types (a list of str: ``(list, str)``).
+_OPTIONAL_KEYS: dict[str, dict[str, tuple[type, ...]]] = {
+    "diagnosis": {"noise_floor": (int, float, type(None)), "verdict": (str, type(None)),
+                  "summary": (str,), "missing_effects": (list, str),
+                  "restoring_force_evidence": (dict, type(None))},
+}  # fmt: skip
 _COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
 
 
 def _read_json(path: Path | None, what: str) -> Any:
     """A `diagnose --json` / `loop --json` result, checked at the boundary (stiffnet.inputs)."""
     from stiffnet.errors import StiffnetError
-    from stiffnet.inputs import read_json_object
+    from stiffnet.inputs import check_fields, read_json_object
 
     if path is None:
         return None
@@ -81,8 +87,14 @@ def _read_json(path: Path | None, what: str) -> Any:
             raise StiffnetError(
                 f"{path}: not a `{_COMMAND[what]} --json` result (key {key!r} missing or wrong)"
             )
+    check_fields(data, _OPTIONAL_KEYS.get(what, {}), f"{path}: not a `{_COMMAND[what]} --json` "
+                 "result")  # fmt: skip
     if what == "diagnosis":
+        evidence = data.get("restoring_force_evidence") or {}
+        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force_evidence")
         for i, r in enumerate(data["ranking"]):
+            if isinstance(r, dict):
+                check_fields(r, {"reasons": (list, str)}, f"{path}: ranking[{i}]")
             ok = isinstance(r, dict) and isinstance(r.get("effect"), str)
             ok = ok and isinstance(r.get("params"), dict) and isinstance(r.get("fitted", []), list)
             ok = ok and isinstance(r.get("significant"), bool)
