@@ -58,8 +58,8 @@ def test_effects_tables_never_split_a_name_or_a_number(width):
 def test_predict_and_analyze_tables_never_split_a_token(width, tmp_path):
     rec = tmp_path / "rec.csv"
     shutil.copy(EXAMPLE, rec)
-    assert_no_token_split(["predict", str(rec), "--model", str(MODEL)], width)
-    assert_no_token_split(["analyze", str(rec)], width)
+    assert_no_token_split(["predict", str(rec), "--model", str(MODEL), "--fn", "9.48"], width)
+    assert_no_token_split(["analyze", str(rec), "--fn", "9.48"], width)
 
 
 def _lab_recording(path):
@@ -73,13 +73,15 @@ def _lab_recording(path):
 
 def test_wrong_header_hint_can_be_pasted(tmp_path):
     rec = _lab_recording(tmp_path / "lab.csv")
-    res = runner.invoke(app, ["predict", str(rec), "--model", str(MODEL)])
+    res = runner.invoke(app, ["predict", str(rec), "--model", str(MODEL), "--fn", "9.48"])
     assert res.exit_code == 2
     line = res.stderr.strip()
     assert "wrong header 'Time [ms],Acceleration [g]'" in line  # the header it then names
     hint = line.split("name its columns: ", 1)[1]
     assert hint == '--columns "Time [ms],Acceleration [g]" --time-unit ms'
-    pasted = runner.invoke(app, ["predict", str(rec), "--model", str(MODEL), *shlex.split(hint)])
+    pasted = runner.invoke(
+        app, ["predict", str(rec), "--model", str(MODEL), "--fn", "9.48", *shlex.split(hint)]
+    )
     assert pasted.exit_code == 0, pasted.output
 
 

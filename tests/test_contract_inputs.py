@@ -90,7 +90,9 @@ def test_disk_full_is_one_line_exit_1_and_keeps_the_old_file(tmp_path, monkeypat
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(io_utils.os, "fsync", full)
-    res = runner.invoke(app, ["predict", str(rec), "--model", str(MODEL), "--json", str(out)])
+    res = runner.invoke(
+        app, ["predict", str(rec), "--model", str(MODEL), "--fn", "9.48", "--json", str(out)]
+    )
     assert res.exit_code == 1, res.output
     (line,) = res.stderr.strip().splitlines()
     assert line.startswith("error: ") and "No space left on device" in line

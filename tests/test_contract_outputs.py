@@ -180,7 +180,9 @@ def test_report_holds_its_outputs_lock(tmp_path):
 def test_json_dash_writes_to_stdout(tmp_path):
     rec = tmp_path / "rec.csv"
     shutil.copy(EXAMPLE, rec)
-    res = runner.invoke(app, ["predict", str(rec), "--model", str(MODEL), "--json", "-"])
+    res = runner.invoke(
+        app, ["predict", str(rec), "--model", str(MODEL), "--fn", "9.48", "--json", "-"]
+    )
     assert res.exit_code == 0, res.output
     result = json.loads(res.stdout)  # stdout holds the JSON alone (the tables go to stderr)
     assert result["class"] in result["probabilities"]
