@@ -342,46 +342,63 @@ def _predict_file(
     )
 
 
-_PREDICT_BODY = {
-    "requestBody": {
-        "required": True,
-        "content": {
-            "application/json": {"schema": PredictRequest.model_json_schema()},
-            "multipart/form-data": {
-                "schema": {
-                    "type": "object",
-                    "required": ["file"],
-                    "properties": {
-                        "file": {
-                            "type": "string",
-                            "format": "binary",
-                            "description": "Recording: CSV t,accel, .npy, .wav, .tdms",
+def _predict_body() -> dict:
+    """The upload's OpenAPI schema; the formats from the reader registry."""
+    from stiffnet.recordings import (
+        channels_help,
+        formats_help,
+        rate_needed_for,
+        supported_extensions,
+    )
+
+    return {
+        "requestBody": {
+            "required": True,
+            "content": {
+                "application/json": {"schema": PredictRequest.model_json_schema()},
+                "multipart/form-data": {
+                    "schema": {
+                        "type": "object",
+                        "required": ["file"],
+                        "properties": {
+                            "file": {
+                                "type": "string",
+                                "format": "binary",
+                                "description": "Recording; its name's extension picks the format: "
+                                + formats_help(),
+                                "x-extensions": list(supported_extensions()),
+                            },
+                            "fs_hz": {
+                                "type": "number",
+                                "description": "Sampling rate in Hz (needed for "
+                                + ", ".join(rate_needed_for())
+                                + "; otherwise checked against the file's own)",
+                            },
+                            "natural_frequency_hz": {"type": "number"},
+                            "columns": {
+                                "type": "string",
+                                "description": "CSV columns TIME,ACCEL (header names or 0-based "
+                                "indices) when the header is not t,accel",
+                                "examples": ["time_s,acc_g"],
+                            },
+                            "time_unit": {
+                                "type": "string",
+                                "enum": ["s", "ms", "us"],
+                                "description": "Unit of the CSV time column (default s)",
+                            },
+                            "channel": {
+                                "type": "string",
+                                "description": "Channel of a multi-channel file (required when "
+                                "it has several): " + channels_help(),
+                            },
                         },
-                        "fs_hz": {"type": "number", "description": "Sampling rate (.npy)"},
-                        "natural_frequency_hz": {"type": "number"},
-                        "columns": {
-                            "type": "string",
-                            "description": "CSV columns TIME,ACCEL (header names or 0-based "
-                            "indices) when the header is not t,accel",
-                            "examples": ["time_s,acc_g"],
-                        },
-                        "time_unit": {
-                            "type": "string",
-                            "enum": ["s", "ms", "us"],
-                            "description": "Unit of the CSV time column (default s)",
-                        },
-                        "channel": {
-                            "type": "string",
-                            "description": "Channel of a multi-channel file (TDMS name or "
-                            "group/name, WAV/NPY index, CSV column); required when it has "
-                            "several",
-                        },
-                    },
-                }
+                    }
+                },
             },
-        },
+        }
     }
-}
+
+
 _ERRORS = {
     code: {"model": ErrorBody, "description": text}
     for code, text in {
@@ -422,6 +439,7 @@ def create_app(
     from fastapi_offline import FastAPIOffline  # Swagger UI / ReDoc assets, no CDN
 
     limits = limits or Limits()
+    predict_body = _predict_body()  # the formats registered now
     small = ThreadPoolExecutor(max_workers=limits.max_concurrency, thread_name_prefix="predict")
     large = ThreadPoolExecutor(max_workers=limits.max_large, thread_name_prefix="predict-large")
     state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
@@ -509,7 +527,7 @@ def create_app(
         "/predict",
         response_model=PredictionResult,
         responses=_ERRORS,
-        openapi_extra=_PREDICT_BODY,
+        openapi_extra=predict_body,
         summary="Predict one recording (JSON samples or a file upload)",
     )
     async def predict(request: Request) -> JSONResponse:
@@ -519,7 +537,7 @@ def create_app(
         "/log",
         response_model=LogResult,
         responses=_ERRORS,
-        openapi_extra=_PREDICT_BODY,
+        openapi_extra=predict_body,
         summary="Stiffness log of one recording: beta(t), layers, change times "
         "(the document of stiffnet log --json)",
     )

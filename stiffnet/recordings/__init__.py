@@ -40,6 +40,7 @@ from stiffnet.recordings.csv import (
 )
 from stiffnet.recordings.read import read_recording
 from stiffnet.recordings.registry import (
+    channels_help,
     formats_help,
     rate_needed_for,
     reader_for,
@@ -68,6 +69,7 @@ __all__ = [
     "Samples",
     "check_agreement",
     "check_rate",
+    "channels_help",
     "formats_help",
     "natural_frequency_of",
     "rate_needed_for",

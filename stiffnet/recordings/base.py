@@ -168,11 +168,14 @@ class RecordingReader(ABC):
     options : tuple of str
         Layout keywords of :func:`~stiffnet.recordings.read_recording` this format
         accepts besides ``fs_hz`` and ``channel`` (CSV: ``columns``, ``time_unit``).
+    channel_help : str
+        How ``channel`` names one of its channels (``"an index"``), for help texts.
     """
 
     name: ClassVar[str]
     extensions: ClassVar[tuple[str, ...]]
     description: ClassVar[str]
+    channel_help: ClassVar[str] = "an index"
     rate_in_file: ClassVar[bool] = True
     options: ClassVar[tuple[str, ...]] = ()
 

@@ -56,6 +56,7 @@ class CsvReader(RecordingReader):
     extensions = (".csv",)
     description = "header t,accel (other layouts: columns, time_unit), rate from the time column"
     options = ("columns", "time_unit")
+    channel_help = "the acceleration column's name or index"
 
     def channels(self, path: Path) -> list[str]:
         """The header's column names (indices for a file without a header)."""

@@ -20,8 +20,9 @@ class NpyReader(RecordingReader):
 
     name = "NPY"
     extensions = (".npy",)
-    description = "a 1-D array or 2-D (samples, channels) with channel, rate given (fs)"
+    description = "a 1-D array or 2-D (samples, channels) with channel, no rate: give it"
     rate_in_file = False
+    channel_help = "a column index"
 
     def channels(self, path: Path) -> list[str]:
         """Column indices of a 2-D array (one entry for a 1-D array)."""

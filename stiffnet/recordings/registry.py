@@ -141,6 +141,11 @@ def formats_help() -> str:
     return "; ".join(f"{'/'.join(r.extensions)}: {r.description}" for r in readers())
 
 
+def channels_help() -> str:
+    """How each format names a channel, for help texts: ``.csv: …; .npy: …``."""
+    return "; ".join(f"{'/'.join(r.extensions)}: {r.channel_help}" for r in readers())
+
+
 def require_rate(path: str | os.PathLike[str], fs_hz: float | None, option: str = "--fs") -> None:
     """Refuse early (before loading a model) a file whose format needs a rate not given.
 

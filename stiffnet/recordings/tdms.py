@@ -25,7 +25,8 @@ class TdmsReader(RecordingReader):
 
     name = "TDMS"
     extensions = (".tdms",)
-    description = "LabVIEW file, the channel holding data or the one named, rate from wf_increment"
+    channel_help = "a channel name, group/name, or index among those holding data"
+    description = "LabVIEW file, one channel (see channel), rate from wf_increment or given"
 
     def channels(self, path: Path) -> list[str]:
         """``group/name`` of every channel holding data."""
