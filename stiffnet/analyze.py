@@ -19,6 +19,7 @@ from stiffnet import nlts
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
 from stiffnet.nlts.stationarity import record_probes
+from stiffnet.recordings.base import check_rate
 from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
@@ -162,8 +163,7 @@ def analyze_signal(
     silent default). The stationarity test reads the whole record: on long records
     :data:`STATIONARITY_SEGMENTS` probes spread over it.
     """
-    if not np.isfinite(fs_hz) or fs_hz <= 0:
-        raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
+    fs_hz = check_rate(fs_hz, "analyze", SignalError)
     fn = natural_frequency_hz
     if fn is not None and not (np.isfinite(fn) and fn > 0):
         raise SignalError(f"natural frequency must be a positive number of Hz, got {fn}")
