@@ -43,6 +43,7 @@ samples), 415 wrong content type, 422 unusable recording
 from __future__ import annotations
 
 import asyncio
+import copy
 import logging
 import math
 import re
@@ -342,8 +343,45 @@ def _predict_file(
     )
 
 
+_PREDICT_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": PredictRequest.model_json_schema()},
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "required": ["file"],
+                    "properties": {
+                        "file": {
+                            "type": "string",
+                            "format": "binary",
+                            # the formats: _predict_body() fills them in from the registry
+                        },
+                        "fs_hz": {"type": "number"},
+                        "natural_frequency_hz": {"type": "number"},
+                        "columns": {
+                            "type": "string",
+                            "description": "CSV columns TIME,ACCEL (header names or 0-based "
+                            "indices) when the header is not t,accel",
+                            "examples": ["time_s,acc_g"],
+                        },
+                        "time_unit": {
+                            "type": "string",
+                            "enum": ["s", "ms", "us"],
+                            "description": "Unit of the CSV time column (default s)",
+                        },
+                        "channel": {"type": "string"},
+                    },
+                }
+            },
+        },
+    }
+}
+
+
 def _predict_body() -> dict:
-    """The upload's OpenAPI schema; the formats from the reader registry."""
+    """The request body's schema with the formats registered now (a plugin's included)."""
     from stiffnet.recordings import (
         channels_help,
         formats_help,
@@ -351,52 +389,20 @@ def _predict_body() -> dict:
         supported_extensions,
     )
 
-    return {
-        "requestBody": {
-            "required": True,
-            "content": {
-                "application/json": {"schema": PredictRequest.model_json_schema()},
-                "multipart/form-data": {
-                    "schema": {
-                        "type": "object",
-                        "required": ["file"],
-                        "properties": {
-                            "file": {
-                                "type": "string",
-                                "format": "binary",
-                                "description": "Recording; its name's extension picks the format: "
-                                + formats_help(),
-                                "x-extensions": list(supported_extensions()),
-                            },
-                            "fs_hz": {
-                                "type": "number",
-                                "description": "Sampling rate in Hz (needed for "
-                                + ", ".join(rate_needed_for())
-                                + "; otherwise checked against the file's own)",
-                            },
-                            "natural_frequency_hz": {"type": "number"},
-                            "columns": {
-                                "type": "string",
-                                "description": "CSV columns TIME,ACCEL (header names or 0-based "
-                                "indices) when the header is not t,accel",
-                                "examples": ["time_s,acc_g"],
-                            },
-                            "time_unit": {
-                                "type": "string",
-                                "enum": ["s", "ms", "us"],
-                                "description": "Unit of the CSV time column (default s)",
-                            },
-                            "channel": {
-                                "type": "string",
-                                "description": "Channel of a multi-channel file (required when "
-                                "it has several): " + channels_help(),
-                            },
-                        },
-                    }
-                },
-            },
-        }
-    }
+    body = copy.deepcopy(_PREDICT_BODY)
+    form = body["requestBody"]["content"]["multipart/form-data"]["schema"]["properties"]
+    form["file"]["description"] = "Recording; its name's extension picks the format: " + (
+        formats_help()
+    )
+    form["file"]["x-extensions"] = list(supported_extensions())
+    form["fs_hz"]["description"] = (
+        f"Sampling rate in Hz (needed for {', '.join(rate_needed_for())}; otherwise checked "
+        "against the file's own)"
+    )
+    form["channel"]["description"] = (
+        "Channel of a multi-channel file (required when it has several): " + channels_help()
+    )
+    return body
 
 
 _ERRORS = {
