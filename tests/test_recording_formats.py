@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_import_rules import docstring_ids
 from toy_format import TextColumnReader, write_text_recording
 
 from stiffnet.errors import StiffnetError
@@ -183,14 +184,7 @@ def format_lists(source: str, names: dict[str, str]) -> list[str]:
     stands alone (``manifest.csv`` names CSV once, ``runs/*.csv`` too).
     """
     tree = ast.parse(source)
-    docstrings = {
-        id(node.body[0].value)
-        for node in ast.walk(tree)
-        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
-        and node.body
-        and isinstance(node.body[0], ast.Expr)
-        and isinstance(node.body[0].value, ast.Constant)
-    }
+    docstrings = docstring_ids(tree)
     word = re.compile(r"(?<![\w])\.?(" + "|".join(n.lstrip(".") for n in names) + r")\b", re.I)
 
     def formats(text: str) -> set[str]:
