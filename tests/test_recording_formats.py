@@ -21,17 +21,7 @@ from test_import_rules import docstring_ids
 from toy_format import TextColumnReader, write_text_recording
 
 from stiffnet.errors import StiffnetError
-from stiffnet.recordings import (
-    SUPPORTED_EXTENSIONS,
-    read_recording,
-    reader_for,
-    readers,
-    register_reader,
-    require_rate,
-    supported_extensions,
-    unregister_reader,
-)
-from stiffnet.recordings.registry import discover_readers
+from stiffnet.recordings import SUPPORTED_EXTENSIONS, read_recording, registry
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "recordings" / "impact_beta45.csv"
@@ -44,23 +34,23 @@ MAY_LIST_FORMATS = {
 
 @pytest.fixture
 def toy():
-    reader = register_reader(TextColumnReader())
+    reader = registry.register_reader(TextColumnReader())
     yield reader
-    unregister_reader(reader)
-    assert ".txt" not in supported_extensions()
+    registry.unregister_reader(reader)
+    assert ".txt" not in registry.supported_extensions()
 
 
 def test_the_shipped_formats_are_found_by_discovery():
-    found = {type(r).__name__: r for r in discover_readers()}
+    found = {type(r).__name__: r for r in registry.discover_readers()}
     assert set(found) == {"CsvReader", "NpyReader", "WavReader", "TdmsReader"}
     assert set(SUPPORTED_EXTENSIONS) == {".csv", ".npy", ".wav", ".tdms"}
-    assert supported_extensions()[0] == ".csv"  # the common one first in help texts
-    for reader in readers():
+    assert registry.supported_extensions()[0] == ".csv"  # the common one first in help texts
+    for reader in registry.readers():
         assert reader.description and "\n" not in reader.description
-        assert reader_for(f"x{reader.extensions[0].upper()}") is reader  # case-insensitive
-    assert [r.extensions for r in readers() if not r.rate_in_file] == [(".npy",)]
+        assert registry.reader_for(f"x{reader.extensions[0].upper()}") is reader  # case-insensitive
+    assert [r.extensions for r in registry.readers() if not r.rate_in_file] == [(".npy",)]
     with pytest.raises(StiffnetError, match=r"unknown recording extension '\.txt' \(use one of"):
-        reader_for("run.txt")
+        registry.reader_for("run.txt")
 
 
 def test_a_new_module_in_the_package_is_a_new_format(tmp_path, monkeypatch):
@@ -76,7 +66,7 @@ def test_a_new_module_in_the_package_is_a_new_format(tmp_path, monkeypatch):
     (pkg / "helpers.py").write_text("from fmtpkg.dat import DatReader  # re-exported\n")
     (pkg / "_private.py").write_text("raise RuntimeError('never imported')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    found = discover_readers("fmtpkg")
+    found = registry.discover_readers("fmtpkg")
     assert [type(r).__name__ for r in found] == ["DatReader"]
     assert found[0].extensions == (".dat",)
     for name in [m for m in sys.modules if m.startswith("fmtpkg")]:
@@ -88,15 +78,15 @@ def test_a_clash_of_extensions_is_refused(toy):
         extensions = (".csv",)
 
     with pytest.raises(ValueError, match=r"\.csv is already read by CsvReader"):
-        register_reader(OtherCsv())
+        registry.register_reader(OtherCsv())
     with pytest.raises(ValueError, match="lower case"):
 
         class Upper(TextColumnReader):
             extensions = (".TXT2",)
 
-        register_reader(Upper())
+        registry.register_reader(Upper())
     with pytest.raises(TypeError):
-        register_reader(TextColumnReader)  # the class, not an instance
+        registry.register_reader(TextColumnReader)  # the class, not an instance
 
 
 def test_channels_of_the_shipped_formats(tmp_path):
@@ -111,10 +101,10 @@ def test_channels_of_the_shipped_formats(tmp_path):
     with TdmsWriter(tmp_path / "r.tdms") as w:
         w.write_segment([ChannelObject("g", "force", x), ChannelObject("g", "mass", x),
                          ChannelObject("g", "empty", np.empty(0))])  # fmt: skip
-    assert reader_for(csv).channels(csv) == ["time_ms", "acc_g", "temp"]
-    assert reader_for("x.npy").channels(tmp_path / "two.npy") == ["0", "1"]
-    assert reader_for("x.wav").channels(tmp_path / "one.wav") == ["0"]
-    assert reader_for("x.tdms").channels(tmp_path / "r.tdms") == ["g/force", "g/mass"]
+    assert registry.reader_for(csv).channels(csv) == ["time_ms", "acc_g", "temp"]
+    assert registry.reader_for("x.npy").channels(tmp_path / "two.npy") == ["0", "1"]
+    assert registry.reader_for("x.wav").channels(tmp_path / "one.wav") == ["0"]
+    assert registry.reader_for("x.tdms").channels(tmp_path / "r.tdms") == ["g/force", "g/mass"]
 
 
 def test_a_toy_format_from_the_tests_folder_reads_and_predicts(toy, tmp_path):
@@ -140,7 +130,7 @@ def test_a_toy_format_from_the_tests_folder_reads_and_predicts(toy, tmp_path):
         read_recording(txt, columns="0")
     with pytest.raises(StiffnetError, match=r"line 1 says .* Hz, not 10.0 Hz"):
         read_recording(txt, fs_hz=10.0)
-    require_rate(bare, None)  # the file may carry its rate: no early refusal
+    registry.require_rate(bare, None)  # the file may carry its rate: no early refusal
     assert read_recording(bare, fs_hz=rec.fs_hz).accel.size == 50
 
     runner = CliRunner()
@@ -163,7 +153,7 @@ def test_the_http_schema_lists_the_registered_formats(toy):
 
     upload = _predict_body()["requestBody"]["content"]["multipart/form-data"]["schema"]
     props = upload["properties"]
-    assert props["file"]["x-extensions"] == list(supported_extensions())
+    assert props["file"]["x-extensions"] == list(registry.supported_extensions())
     assert ".txt" in props["file"]["x-extensions"]
     assert ".txt: one value per line" in props["file"]["description"]
     assert "needed for .npy" in props["fs_hz"]["description"]
@@ -173,7 +163,7 @@ def test_the_http_schema_lists_the_registered_formats(toy):
 def test_the_command_line_help_lists_the_formats():
     from stiffnet.cli_options import RECORDING_HELP
 
-    for reader in readers():
+    for reader in registry.readers():
         assert f"{reader.extensions[0]}: {reader.description}" in RECORDING_HELP
 
 
@@ -204,7 +194,7 @@ def format_lists(source: str, names: dict[str, str]) -> list[str]:
 
 def _format_words() -> dict[str, str]:
     words = {}
-    for reader in readers():
+    for reader in registry.readers():
         for ext in reader.extensions:
             words[ext.lstrip(".")] = reader.name
         words[reader.name.lower()] = reader.name

@@ -22,10 +22,9 @@ _RATE_LINE = re.compile(r"#\s*fs_hz\s*=\s*(\S+)\s*$")
 class TextColumnReader(RecordingReader):
     """One acceleration value per line, an optional ``# fs_hz = …`` first line."""
 
-    name = "TXT"
     extensions = (".txt",)
+    name, channel_help = "TXT", "none (one channel)"
     description = "one value per line, rate from a '# fs_hz = …' first line or given"
-    channel_help = "none (one channel)"
 
     def channels(self, path: Path) -> list[str]:
         return ["0"]
