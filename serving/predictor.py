@@ -453,9 +453,10 @@ def predict_recording(
     Parameters
     ----------
     path : str or os.PathLike
-        CSV ``t,accel``, ``.npy`` (needs `fs_hz`), WAV or TDMS.
+        A recording of any registered format (:mod:`stiffnet.recordings`).
     fs_hz : float, optional
-        Sampling rate (required for ``.npy``; checked against the file otherwise).
+        Sampling rate (required for a format without one; checked against the file's
+        own otherwise).
     natural_frequency_hz : float, optional
         Natural frequency of the rig in Hz.
     model_path : str or Path, optional

@@ -60,8 +60,11 @@ class CsvReader(RecordingReader):
 
     def channels(self, path: Path) -> list[str]:
         """The header's column names (indices for a file without a header)."""
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            raw = next(csv.reader([fh.readline()]), [])
+        try:
+            with open(path, encoding="utf-8-sig", newline="") as fh:
+                raw = next(csv.reader([fh.readline()]), [])
+        except UnicodeDecodeError:
+            raise StiffnetError(f"{path}: not a UTF-8 text file (expected a CSV)") from None
         if raw and all(_is_number(c) for c in raw):
             return [str(i) for i in range(len(raw))]
         return [c.strip() for c in raw]
