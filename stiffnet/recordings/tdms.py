@@ -7,7 +7,6 @@ index among the channels holding data). The rate comes from the channel's
 
 from __future__ import annotations
 
-import logging
 import math
 import threading
 from pathlib import Path
@@ -64,6 +63,8 @@ class TdmsReader(RecordingReader):
 
 def _channels(path: Path) -> list[tuple[str, Any]]:
     """Every ``(group name, channel)`` of the file."""
+    import logging  # here: the CLI's help imports this module (logging costs ~7 ms)
+
     try:
         from nptdms import TdmsFile
         from nptdms.log import log_manager
