@@ -54,23 +54,27 @@ def test_the_shipped_formats_are_found_by_discovery():
 
 
 def test_a_new_module_in_the_package_is_a_new_format(tmp_path, monkeypatch):
-    """Discovery: a module defining a reader is a format; one merely importing it is not."""
-    pkg = tmp_path / "fmtpkg"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "dat.py").write_text(
+    """One file dropped into stiffnet/recordings/ is a format; a module merely importing one
+    is not, and ``_private`` modules are never imported."""
+    import stiffnet.recordings as package
+
+    (tmp_path / "dat.py").write_text(
         "from toy_format import TextColumnReader\n"
         "class DatReader(TextColumnReader):\n"
         "    extensions = ('.dat',)\n"
     )
-    (pkg / "helpers.py").write_text("from fmtpkg.dat import DatReader  # re-exported\n")
-    (pkg / "_private.py").write_text("raise RuntimeError('never imported')\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    found = registry.discover_readers("fmtpkg")
-    assert [type(r).__name__ for r in found] == ["DatReader"]
-    assert found[0].extensions == (".dat",)
-    for name in [m for m in sys.modules if m.startswith("fmtpkg")]:
-        monkeypatch.delitem(sys.modules, name)
+    (tmp_path / "helpers.py").write_text(
+        "from stiffnet.recordings.dat import DatReader  # re-exported\n"
+    )
+    (tmp_path / "_private.py").write_text("raise RuntimeError('never imported')\n")
+    # the folder joins the package's search path: as if the files were in it
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(tmp_path)])
+    try:
+        found = [type(r).__name__ for r in registry.discover_readers()]
+    finally:
+        for name in ("stiffnet.recordings.dat", "stiffnet.recordings.helpers"):
+            sys.modules.pop(name, None)
+    assert found == ["CsvReader", "DatReader", "NpyReader", "TdmsReader", "WavReader"]
 
 
 def test_a_clash_of_extensions_is_refused(toy):
