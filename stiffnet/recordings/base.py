@@ -31,8 +31,9 @@ if TYPE_CHECKING:
 FS_TOLERANCE = 1e-3
 
 
-def check_rate(value: Any, where: str = "recording", error: type[StiffnetError] = StiffnetError
-               ) -> float:  # fmt: skip
+def check_rate(
+    value: Any, where: str = "recording", error: type[StiffnetError] = StiffnetError
+) -> float:
     """A sampling rate as a float: a number, finite and > 0.
 
     Parameters
