@@ -57,6 +57,7 @@ field), 429 saturated, 503 the server's disk or memory failed, 504 timeout.
 from __future__ import annotations
 
 import asyncio
+import copy
 import csv
 import json
 import logging
@@ -594,9 +595,9 @@ _PREDICT_BODY = {
                         "file": {
                             "type": "string",
                             "format": "binary",
-                            "description": "Recording: CSV t,accel, .npy, .wav, .tdms",
+                            # the formats: _predict_body() fills them in from the registry
                         },
-                        "fs_hz": {"type": "number", "description": "Sampling rate (.npy)"},
+                        "fs_hz": {"type": "number"},
                         "natural_frequency_hz": {"type": "number"},
                         "columns": {
                             "type": "string",
@@ -609,18 +610,40 @@ _PREDICT_BODY = {
                             "enum": ["s", "ms", "us"],
                             "description": "Unit of the CSV time column (default s)",
                         },
-                        "channel": {
-                            "type": "string",
-                            "description": "Channel of a multi-channel file (TDMS name or "
-                            "group/name, WAV/NPY index, CSV column); required when it has "
-                            "several",
-                        },
+                        "channel": {"type": "string"},
                     },
                 }
             },
         },
     }
 }
+
+
+def _predict_body() -> dict:
+    """The request body's schema with the formats registered now (a plugin's included)."""
+    from stiffnet.recordings import (
+        channels_help,
+        formats_help,
+        rate_needed_for,
+        supported_extensions,
+    )
+
+    body = copy.deepcopy(_PREDICT_BODY)
+    form = body["requestBody"]["content"]["multipart/form-data"]["schema"]["properties"]
+    form["file"]["description"] = "Recording; its name's extension picks the format: " + (
+        formats_help()
+    )
+    form["file"]["x-extensions"] = list(supported_extensions())
+    form["fs_hz"]["description"] = (
+        f"Sampling rate in Hz (needed for {', '.join(rate_needed_for())}; otherwise checked "
+        "against the file's own)"
+    )
+    form["channel"]["description"] = (
+        "Channel of a multi-channel file (required when it has several): " + channels_help()
+    )
+    return body
+
+
 _ERRORS = {
     code: {"model": ErrorBody, "description": text}
     for code, text in {
@@ -663,6 +686,7 @@ def create_app(
     from fastapi_offline import FastAPIOffline  # Swagger UI / ReDoc assets, no CDN
 
     limits = limits or Limits()
+    predict_body = _predict_body()  # the formats registered now
     small = ThreadPoolExecutor(max_workers=limits.max_concurrency, thread_name_prefix="predict")
     large = ThreadPoolExecutor(max_workers=limits.max_large, thread_name_prefix="predict-large")
     state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
@@ -779,7 +803,7 @@ def create_app(
         "/predict",
         response_model=PredictionResult,
         responses=_ERRORS,
-        openapi_extra=_PREDICT_BODY,
+        openapi_extra=predict_body,
         summary="Predict one recording (JSON samples or a file upload)",
     )
     async def predict(request: Request) -> JSONResponse:
@@ -789,7 +813,7 @@ def create_app(
         "/log",
         response_model=LogResult,
         responses=_ERRORS,
-        openapi_extra=_PREDICT_BODY,
+        openapi_extra=predict_body,
         summary="Stiffness log of one recording: beta(t), layers, change times "
         "(the document of stiffnet log --json)",
     )

@@ -59,24 +59,24 @@ PART_SIZE = 16
 def find_recordings(spec: str | Path) -> list[Path]:
     """Recordings named by a folder (searched recursively), a glob or one file, sorted.
 
-    Only files with an extension of :data:`stiffnet.recordings.SUPPORTED_EXTENSIONS`
-    count; hidden files (temporary files) and campaign manifests (``manifest.csv``)
-    are skipped.
+    Only files with an extension of a registered format
+    (:func:`stiffnet.recordings.supported_extensions`) count; hidden files (temporary
+    files) and campaign manifests (``manifest.csv``) are skipped.
     """
     from stiffnet.campaign import MANIFEST_NAME
-    from stiffnet.recordings import SUPPORTED_EXTENSIONS
+    from stiffnet.recordings import supported_extensions
+
+    extensions = supported_extensions()
 
     text = str(spec)
     found = walk_files(text)  # bounded: a glob over /proc is one error, not a hang
     found = [
         p for p in found
-        if p.suffix.lower() in SUPPORTED_EXTENSIONS and not p.name.startswith(".")
+        if p.suffix.lower() in extensions and not p.name.startswith(".")
         and p.name != MANIFEST_NAME
     ]  # fmt: skip
     if not found:
-        raise StiffnetError(
-            f"no recordings found at {text} (looked for {', '.join(SUPPORTED_EXTENSIONS)})"
-        )
+        raise StiffnetError(f"no recordings found at {text} (looked for {', '.join(extensions)})")
     return sorted(found, key=str)
 
 

@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import (
+    RECORDING_HELP,
     ChannelOption,
     ColumnsOption,
     FsOption,
@@ -26,7 +27,7 @@ from stiffnet.cli_options import (
 
 
 def predict(
-    recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
+    recording: Annotated[Path, typer.Argument(help=RECORDING_HELP)],
     fs: FsOption = None,
     fn: NaturalFrequencyOption = None,
     columns: ColumnsOption = None,
@@ -39,11 +40,9 @@ def predict(
     """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
     from serving.predictor import Predictor, predict_recording
     from stiffnet.console import out, write_json
+    from stiffnet.recordings import require_rate
 
-    if fs is None and recording.suffix.lower() == ".npy":
-        from stiffnet.errors import StiffnetError
-
-        raise StiffnetError(f"{recording}: sampling rate missing (a .npy recording needs --fs HZ)")
+    require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -402,8 +401,7 @@ def log_cmd(
         str,
         typer.Argument(
             metavar="RECORDING|-",
-            help="Recording (CSV t,accel, .npy, WAV, TDMS); with --follow a growing file or - "
-            "(stdin).",
+            help=RECORDING_HELP + " With --follow a growing file or - (stdin).",
         ),
     ],
     follow: Annotated[

@@ -52,7 +52,7 @@ from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
 from stiffnet.inputs import natural_frequency, real_number, sampling_rate
-from stiffnet.recordings import read_sidecar
+from stiffnet.recordings import natural_frequency_of
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
@@ -104,12 +104,9 @@ def record_natural_frequency(
     StiffnetError
         Neither is there (:data:`FN_UNKNOWN`), or the value is out of range.
     """
-    if natural_frequency_hz is not None:
-        return natural_frequency(natural_frequency_hz, "--fn"), "option --fn"
-    if recording is not None:
-        value, sidecar = read_sidecar(recording)
-        if value is not None:
-            return value, f"sidecar:{sidecar}"
+    value, source = natural_frequency_of(recording, natural_frequency_hz)
+    if value is not None:
+        return value, source
     where = f"{recording}: " if recording is not None else ""
     raise StiffnetError(where + FN_UNKNOWN)
 
@@ -456,9 +453,10 @@ def predict_recording(
     Parameters
     ----------
     path : str or os.PathLike
-        CSV ``t,accel``, ``.npy`` (needs `fs_hz`), WAV or TDMS.
+        A recording of any registered format (:mod:`stiffnet.recordings`).
     fs_hz : float, optional
-        Sampling rate (required for ``.npy``; checked against the file otherwise).
+        Sampling rate (required for a format without one; checked against the file's
+        own otherwise).
     natural_frequency_hz : float, optional
         Natural frequency of the rig in Hz.
     model_path : str or Path, optional

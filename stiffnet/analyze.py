@@ -19,6 +19,7 @@ from stiffnet import nlts
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
 from stiffnet.nlts.stationarity import record_probes
+from stiffnet.recordings.base import check_rate
 from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
@@ -164,6 +165,7 @@ def analyze_signal(
     """
     from stiffnet.inputs import natural_frequency, rate_ratio, sampling_rate
 
+    fs_hz = check_rate(fs_hz, "analyze", SignalError)
     sampling_rate(fs_hz, "sampling rate")  # the predictor's physical ranges (1e12 Hz is not)
     fn = natural_frequency_hz
     if fn is not None:

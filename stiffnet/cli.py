@@ -21,6 +21,7 @@ from typer.core import TyperGroup
 from serving import commands as serving_commands  # predict, predict-batch, serve
 from stiffnet import progress
 from stiffnet.cli_options import (
+    RECORDING_HELP,
     ChannelOption,
     ColumnsOption,
     FsOption,
@@ -370,7 +371,7 @@ def recalibrate(
 @app.command()
 @user_errors
 def analyze(
-    recording: Annotated[Path, typer.Argument(help="Recording: CSV t,accel, .npy, WAV, TDMS.")],
+    recording: Annotated[Path, typer.Argument(help=RECORDING_HELP)],
     fs: FsOption = None,
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = None,
@@ -390,14 +391,11 @@ def analyze(
 ) -> None:
     """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
-    from stiffnet.recordings import read_recording, read_sidecar
+    from stiffnet.recordings import natural_frequency_of, read_recording
 
     rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
                          time_unit=time_unit)  # fmt: skip
-    fn_source = "option --fn"
-    if fn is None:
-        fn, sidecar = read_sidecar(recording)
-        fn_source = f"sidecar:{sidecar}" if fn is not None else "unknown"
+    fn, fn_source = natural_frequency_of(recording, fn)
     analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
     result = {"recording": str(recording), **analysis.summary()}
     result["natural_frequency_source"] = fn_source

@@ -1,6 +1,7 @@
 """Command-line options shared by several ``stiffnet`` commands.
 
-A light module (typer and pathlib only): the command modules that
+A light module (typer, pathlib and the reader registry, which imports no numpy until a
+file is read): the command modules that
 :mod:`stiffnet.cli` assembles import it at module level.
 """
 
@@ -10,6 +11,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from stiffnet.recordings.registry import channels_help, formats_help, rate_needed_for
 
 #: Environment variable that ``--scheduler`` reads (see docs/distributed.md).
 SCHEDULER_ENVVAR = "STIFFNET_SCHEDULER"
@@ -28,8 +31,15 @@ WorkersOption = Annotated[
     int | None,
     typer.Option(help="Run the tasks on a local Dask cluster of N worker processes."),
 ]
+#: The recording argument's help: the formats from the reader registry.
+RECORDING_HELP = f"Recording; the format by its extension: {formats_help()}."
 FsOption = Annotated[
-    float | None, typer.Option("--fs", help="Sampling rate in Hz (needed for .npy).")
+    float | None,
+    typer.Option(
+        "--fs",
+        help=f"Sampling rate in Hz (needed for {', '.join(rate_needed_for())}; "
+        "otherwise checked against the file's own).",
+    ),
 ]
 ColumnsOption = Annotated[
     str | None,
@@ -59,7 +69,7 @@ ChannelOption = Annotated[
     typer.Option(
         "--channel",
         metavar="NAME|INDEX",
-        help="Channel of a multi-channel recording: a TDMS channel name (or group/name), a WAV "
-        "or NPY column index, a CSV column name or index (required when the file has several).",
+        help=f"Channel of a multi-channel recording (required when the file has several): "
+        f"{channels_help()}.",
     ),
 ]

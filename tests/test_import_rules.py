@@ -224,14 +224,9 @@ def words(text: str) -> set[str]:
     return {w.lower() for w in re.split(r"[^A-Za-z0-9]+", spaced) if w}
 
 
-def family_mentions(source: str, families: set[str]) -> list[str]:
-    """Code that names a family: identifiers, imports and identifier-like strings.
-
-    Docstrings and prose strings (messages, help texts: they contain a space) may
-    name a family as an example; code may not depend on one.
-    """
-    tree = ast.parse(source)
-    docstrings = {
+def docstring_ids(tree: ast.AST) -> set[int]:
+    """``id`` of every docstring node (module, class, function) of a parsed source."""
+    return {
         id(node.body[0].value)
         for node in ast.walk(tree)
         if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
@@ -239,6 +234,16 @@ def family_mentions(source: str, families: set[str]) -> list[str]:
         and isinstance(node.body[0], ast.Expr)
         and isinstance(node.body[0].value, ast.Constant)
     }
+
+
+def family_mentions(source: str, families: set[str]) -> list[str]:
+    """Code that names a family: identifiers, imports and identifier-like strings.
+
+    Docstrings and prose strings (messages, help texts: they contain a space) may
+    name a family as an example; code may not depend on one.
+    """
+    tree = ast.parse(source)
+    docstrings = docstring_ids(tree)
     found = []
     for node in ast.walk(tree):
         texts: list[str] = []

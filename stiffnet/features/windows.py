@@ -70,6 +70,7 @@ from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.estimate import impact_polarity, smoothing_window
 from stiffnet.nlts._validate import as_signal
 from stiffnet.nlts.preprocess import MAD_TO_SIGMA
+from stiffnet.recordings.base import check_rate
 
 #: Bumped whenever the canonical window's definition changes (recorded in model metadata).
 WINDOW_VERSION = 1
@@ -293,8 +294,7 @@ def canonical_window(
     ConfigError
         If a rate, frequency or length is not positive.
     """
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise ConfigError(f"fs_hz must be a positive number, got {fs_hz!r}")
+    fs_hz = check_rate(fs_hz, "fs_hz", ConfigError)
     if natural_frequency_hz is None or not (
         np.isfinite(natural_frequency_hz) and natural_frequency_hz > 0
     ):

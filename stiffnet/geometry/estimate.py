@@ -76,6 +76,7 @@ from stiffnet.nlts import (
 )
 from stiffnet.nlts._validate import as_signal
 from stiffnet.nlts.embedding import embed_unchecked
+from stiffnet.recordings.base import check_rate
 from stiffnet.shipped import shipped_file
 
 #: Delay as a fraction of the dominant period (see the module notes).
@@ -441,8 +442,7 @@ def geometric_estimate(
         For invalid options or an unreadable calibration file.
     """
     check_method(method)
-    if not (isinstance(fs_hz, int | float | np.number) and np.isfinite(fs_hz) and fs_hz > 0):
-        raise ConfigError(f"fs_hz must be a positive number, got {fs_hz!r}")
+    fs_hz = check_rate(fs_hz, "fs_hz", ConfigError)
     a = as_signal(accel, 32, "acceleration")
     cal = _resolve_calibration(calibration)
     if cal is not None and cal.method != method:

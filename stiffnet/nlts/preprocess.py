@@ -14,6 +14,7 @@ from scipy.signal import find_peaks, savgol_filter
 
 from stiffnet.errors import ConfigError
 from stiffnet.nlts._validate import as_signal, check_choice, check_int
+from stiffnet.recordings.base import check_rate
 
 # 1.4826 * MAD estimates the standard deviation of Gaussian data.
 MAD_TO_SIGMA = 1.4826
@@ -70,8 +71,8 @@ def impact_indicator_derivative(x: ArrayLike, fs: float | None = None) -> np.nda
     The derivative is largest on the flanks of a spike, so the indicator peaks
     up to the spike half-width before or after the acceleration maximum.
     """
-    if fs is not None and not fs > 0:
-        raise ConfigError(f"fs must be positive, got {fs}")
+    if fs is not None:
+        fs = check_rate(fs, "fs", ConfigError)
     a = as_signal(x, 3)
     d = np.abs(np.gradient(a))
     return d * fs if fs is not None else d
@@ -164,8 +165,8 @@ def detect_impacts(
         if there are no impacts.
     """
     check_choice(method, "impact method", ("derivative", "rms"))
-    if fs is not None and not fs > 0:
-        raise ConfigError(f"fs must be positive, got {fs}")
+    if fs is not None:
+        fs = check_rate(fs, "fs", ConfigError)
     if min_separation is None:
         min_separation = max(1, round(0.01 * fs)) if fs is not None else 10
     min_separation = check_int(min_separation, "min_separation", 1)

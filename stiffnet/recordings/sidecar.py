@@ -1,0 +1,70 @@
+"""The sidecar ``<recording>.json``: what a recording's file does not say (f_n).
+
+One home for the sidecar: the commands (``analyze``, ``predict``, ``log``,
+``predict-batch``) and the predictor resolve a recording's natural frequency through
+:func:`natural_frequency_of` (the option, else the sidecar), so each says the same
+about where the value came from.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from stiffnet.inputs import natural_frequency, read_json
+
+#: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
+SIDECAR_SUFFIX = ".json"
+
+
+def sidecar_path(recording: str | os.PathLike[str]) -> Path:
+    """Where a recording's sidecar lives: ``run01.csv`` -> ``run01.csv.json``."""
+    return Path(str(recording) + SIDECAR_SUFFIX)
+
+
+def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]:
+    """Natural frequency from the recording's sidecar ``<recording>.json``, if present.
+
+    The sidecar is a JSON object with at least ``natural_frequency_hz`` (Hz); any
+    other keys (provenance, rig notes) are ignored here.
+
+    Returns
+    -------
+    (float or None, Path)
+        The value (None when there is no sidecar or it has no such key) and the sidecar path.
+
+    Raises
+    ------
+    StiffnetError
+        If the sidecar exists but is not valid JSON or the value is not a number > 0.
+    """
+    p = sidecar_path(recording)
+    if not p.is_file():
+        return None, p
+    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
+    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
+        return None, p
+    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
+
+
+def natural_frequency_of(
+    recording: str | os.PathLike[str] | None,
+    given_hz: float | None,
+    option: str = "--fn",
+) -> tuple[float | None, str]:
+    """A recording's f_n and where it came from: the option, else its sidecar.
+
+    Returns
+    -------
+    (float or None, str)
+        The value in Hz (range-checked) and its source: ``"option --fn"``,
+        ``"sidecar:<path>"``, or ``(None, "unknown")`` when neither gives it (the
+        caller decides whether that is a refusal).
+    """
+    if given_hz is not None:
+        return natural_frequency(given_hz, option), f"option {option}"
+    if recording is not None:
+        value, sidecar = read_sidecar(recording)
+        if value is not None:
+            return value, f"sidecar:{sidecar}"
+    return None, "unknown"
