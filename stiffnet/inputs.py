@@ -437,9 +437,10 @@ def check_outputs(outputs: dict[str, tuple[Path, str]], inputs: dict[str, Path])
                                     f"({inputs[name]}); choose another output")  # fmt: skip
 
 
-#: What an input folder's files that an output must never replace look like:
-#: recordings, manifests, configs, models, shards (an earlier report or result may go).
-_DATA_SUFFIXES = (".csv", ".npy", ".wav", ".tdms", ".yaml", ".yml", ".onnx", ".npz", ".parquet")
+#: What an output may replace inside an input folder: an earlier report, figure or
+#: JSON result. Anything else there (recordings of any format, manifests, configs,
+#: models, shards, a user's own files) is the input's data and is never replaced.
+_RESULT_SUFFIXES = (".json", ".html", ".png", ".svg")
 _DATA_JSON = ("card.json", "campaign_card.json", "job.json", "stiffnet-run.json",
               "ood_reference.json", "geometric_calibration.json")  # fmt: skip
 
@@ -447,7 +448,9 @@ _DATA_JSON = ("card.json", "campaign_card.json", "job.json", "stiffnet-run.json"
 def _input_data(path: Path) -> bool:
     """Whether ``path`` (in an input folder) is data the input is made of."""
     name = path.name.lower()
-    if path.suffix.lower() in _DATA_SUFFIXES or name in _DATA_JSON or name.endswith(".card.json"):
+    if path.suffix.lower() not in _RESULT_SUFFIXES:
+        return True
+    if name in _DATA_JSON or name.endswith(".card.json"):
         return True
     return name.endswith(".json") and path.with_suffix("").exists()  # a recording's sidecar
 
