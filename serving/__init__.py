@@ -8,7 +8,7 @@ model family reads from the windows), the pipeline's steps :mod:`serving.checks`
 :mod:`serving.aggregate`, :mod:`serving.physical`, :mod:`serving.schemas`,
 :mod:`serving.app` (FastAPI), :mod:`serving.log` (the stiffness log along a record,
 with :mod:`serving.stream` and :mod:`serving.log_plot`), :mod:`serving.batch`
-(``predict-batch``) and :mod:`serving.commands` (CLI); the interval, the alarm and
+(``predict-batch``) and :mod:`stiffnet.cli.predict` (CLI); the interval, the alarm and
 the OOD reference are applied from :mod:`stiffnet.uncertainty`, where training fits
 them. Nothing is imported here, so that ``stiffnet
 --help`` stays fast. See ``docs/serving.md``.

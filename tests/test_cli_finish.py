@@ -156,7 +156,7 @@ def test_any_table_keeps_its_words_whole(heads, data, width):
     from rich.table import Table
     from rich.text import Text
 
-    from stiffnet.console import _Out
+    from stiffnet.cli.console import _Out
 
     rows = data.draw(st.lists(st.lists(CELL, min_size=len(heads), max_size=len(heads)),
                               min_size=1, max_size=4))  # fmt: skip

@@ -433,7 +433,7 @@ def test_serve_beyond_loopback_warns(monkeypatch):
     """The warning line, without binding anything (tests bind 127.0.0.1 only)."""
     import uvicorn
 
-    import serving.commands as sc
+    import stiffnet.cli.predict as sc
 
     monkeypatch.setattr(sc, "listen_socket", lambda host, port: None)
     monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets=None: None)

@@ -194,7 +194,7 @@ def test_a_result_inside_a_campaign_folder_can_be_written_again(tmp_path):
     camp = tmp_path / "C"
     shutil.copytree(CAMPAIGN, camp)
     (camp / "compare.json").write_text("{}")  # an earlier `compare --json C/compare.json`
-    from stiffnet.console import check_arguments
+    from stiffnet.cli.console import check_arguments
 
     check_arguments({"campaign": camp, "json_path": camp / "compare.json"})
     rec = next(camp.rglob("*.csv"))

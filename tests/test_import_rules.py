@@ -49,14 +49,8 @@ LAYERS: dict[str, tuple[str, ...]] = {
     ),  # fmt: skip
     "models": ("training", "serving"),
     "measurement": ("stiffnet.measurement",),
-    "cli": (
-        "stiffnet.cli",
-        "stiffnet.__main__",
-        "stiffnet.console",
-        "stiffnet.cli_options",
-        "serving.commands",
-        "stiffnet.measurement.commands",
-    ),  # fmt: skip
+    # the command line is one package (app, console, options, one module per command group)
+    "cli": ("stiffnet.cli", "stiffnet.__main__"),
 }
 ORDER = list(LAYERS)
 FORBIDDEN_IN_PREDICTOR = ("torch", "sklearn", "mlflow", "training")

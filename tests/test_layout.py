@@ -12,7 +12,7 @@ from rich.table import Table
 from typer.testing import CliRunner
 
 from stiffnet.cli import app
-from stiffnet.console import _Out
+from stiffnet.cli.console import _Out
 from stiffnet.measurement import plots
 from stiffnet.measurement.report import _CSS, _table
 

@@ -80,7 +80,7 @@ def test_simulate_campaign_reports_each_recording(tmp_path):
 
 def _cli(monkeypatch, terminal: bool, *args: str) -> tuple[int, str]:
     import stiffnet.cli as cli
-    import stiffnet.console as shared
+    import stiffnet.cli.console as shared
 
     buf = io.StringIO()
     console = Console(file=buf, force_terminal=terminal, width=120)

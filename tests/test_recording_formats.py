@@ -165,7 +165,7 @@ def test_the_http_schema_lists_the_registered_formats(toy):
 
 
 def test_the_command_line_help_lists_the_formats():
-    from stiffnet.cli_options import RECORDING_HELP
+    from stiffnet.cli.options import RECORDING_HELP
 
     for reader in registry.readers():
         assert f"{reader.extensions[0]}: {reader.description}" in RECORDING_HELP

@@ -1,7 +1,7 @@
 """The ``stiffnet`` command line (also ``python -m stiffnet``).
 
 The top of the package: it assembles the app from its own commands and the
-command modules of the packages below, which share :mod:`stiffnet.console`;
+command modules of the packages below, which share :mod:`stiffnet.cli.console`;
 nothing imports this module.
 """
 
@@ -15,12 +15,22 @@ import typer
 from rich.table import Table
 from typer.core import TyperGroup
 
+from stiffnet import progress
+from stiffnet.cli import measurement as measurement_commands  # evaluate ... report
+
 # Command modules keep their heavy imports inside the command functions:
 # ``stiffnet predict`` must not import torch, scikit-learn or mlflow, and
 # ``stiffnet --help`` must stay fast.
-from serving import commands as serving_commands  # predict, predict-batch, serve
-from stiffnet import progress
-from stiffnet.cli_options import (
+from stiffnet.cli import predict as serving_commands  # predict, predict-batch, serve
+from stiffnet.cli.console import (
+    WIDE_COLUMNS,
+    out,
+    report_error,
+    show_progress,
+    user_errors,
+    write_json,
+)
+from stiffnet.cli.options import (
     RECORDING_HELP,
     ChannelOption,
     ColumnsOption,
@@ -30,15 +40,6 @@ from stiffnet.cli_options import (
     TimeUnitOption,
     WorkersOption,
 )
-from stiffnet.console import (
-    WIDE_COLUMNS,
-    out,
-    report_error,
-    show_progress,
-    user_errors,
-    write_json,
-)
-from stiffnet.measurement import commands as measurement_commands  # evaluate ... report
 
 
 class OneLineErrors(TyperGroup):
@@ -285,7 +286,7 @@ def train(
     json_path: JsonOption = None,
 ) -> None:
     """Train a stiffness model on a dataset, export it to ONNX and track it in MLflow."""
-    from stiffnet.console import console
+    from stiffnet.cli.console import console
     from stiffnet.errors import ConfigError
 
     if model is not None:

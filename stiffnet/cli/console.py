@@ -1,7 +1,7 @@
 """What every ``stiffnet`` command shares: consoles, JSON output, error mapping, progress.
 
-The command modules (:mod:`stiffnet.cli`, :mod:`serving.commands`,
-:mod:`stiffnet.measurement.commands`) import these from here; nothing imports
+The command modules (:mod:`stiffnet.cli`, :mod:`stiffnet.cli.predict`,
+:mod:`stiffnet.cli.measurement`) import these from here; nothing imports
 :mod:`stiffnet.cli`, which only assembles the app.
 A light module (typer and rich): ``stiffnet --help`` and the predictor's commands
 load nothing heavier through it.

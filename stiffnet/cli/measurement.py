@@ -2,7 +2,7 @@
 ``report`` (registered by :mod:`stiffnet.cli`).
 
 Heavy imports (matplotlib, mlflow, scikit-learn, torch) are imported inside the
-command functions; the shared console helpers come from :mod:`stiffnet.console`.
+command functions; the shared console helpers come from :mod:`stiffnet.cli.console`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Annotated, Any
 
 import typer
 
-from stiffnet.cli_options import JsonOption, SchedulerOption, WorkersOption
+from stiffnet.cli.options import JsonOption, SchedulerOption, WorkersOption
 from stiffnet.progress import task as progress_task
 from stiffnet.shipped import default_config
 
@@ -30,14 +30,14 @@ SeedOpt = Annotated[int, typer.Option(help="Common-random-number seed of the sim
 
 
 def _io() -> tuple[Any, Any, Any]:
-    from stiffnet.console import console, out, write_json
+    from stiffnet.cli.console import console, out, write_json
 
     return out, console, write_json
 
 
 def _progress() -> Any:
-    """Bars with ETA on a terminal (see :func:`stiffnet.console.show_progress`)."""
-    from stiffnet.console import show_progress
+    """Bars with ETA on a terminal (see :func:`stiffnet.cli.console.show_progress`)."""
+    from stiffnet.cli.console import show_progress
 
     return show_progress()
 
@@ -485,7 +485,7 @@ def report(
 
 def register(app: typer.Typer) -> None:
     """Add ``evaluate``, ``compare``, ``diagnose``, ``loop`` and ``report`` to the app."""
-    from stiffnet.console import user_errors
+    from stiffnet.cli.console import user_errors
 
     for fn in (evaluate, compare, diagnose, loop, report):
         app.command(fn.__name__)(user_errors(fn))

@@ -2,7 +2,7 @@
 
 Heavy imports (onnxruntime, FastAPI, uvicorn, Dask) stay inside the command functions,
 so ``stiffnet --help`` stays fast and ``stiffnet predict`` never loads torch,
-scikit-learn or mlflow. The shared console helpers come from :mod:`stiffnet.console`.
+scikit-learn or mlflow. The shared console helpers come from :mod:`stiffnet.cli.console`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import Annotated, Any
 
 import typer
 
-from stiffnet.cli_options import (
+from stiffnet.cli.options import (
     RECORDING_HELP,
     ChannelOption,
     ColumnsOption,
@@ -39,7 +39,7 @@ def predict(
 ) -> None:
     """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
     from serving.predictor import Predictor, predict_recording
-    from stiffnet.console import out, write_json
+    from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
 
     require_rate(recording, fs)  # before loading the model
@@ -225,7 +225,7 @@ def serve(
 
     from serving.app import Limits, create_app, enable_access_log, guarded_protocol
     from serving.predictor import Predictor
-    from stiffnet.console import console
+    from stiffnet.cli.console import console
     from stiffnet.errors import StiffnetError
 
     limits = Limits.checked(
@@ -339,7 +339,7 @@ def predict_batch_cmd(
 
     from serving.batch import predict_batch
     from stiffnet import progress
-    from stiffnet.console import out, show_progress, write_json
+    from stiffnet.cli.console import out, show_progress, write_json
 
     with show_progress(), progress.task("predicting parts") as bar:
         summary = predict_batch(
@@ -373,7 +373,7 @@ def predict_batch_cmd(
     out.print(f"{'; '.join(notes)}; {summary['seconds']:.1f} s ({summary['backend']})")
     write_json(json_path, summary)
     if summary["failed"]:
-        from stiffnet.console import console
+        from stiffnet.cli.console import console
 
         for f in summary["failed"]:
             console.print(f"[red]failed:[/] {f['path']}: {f['error']}", highlight=False,
@@ -388,7 +388,7 @@ def predict_batch_cmd(
 
 def register(app: typer.Typer) -> None:
     """Add ``predict``, ``predict-batch``, ``serve`` and ``log`` to the ``stiffnet`` app."""
-    from stiffnet.console import user_errors
+    from stiffnet.cli.console import user_errors
 
     app.command("predict")(user_errors(predict))
     app.command("predict-batch")(user_errors(predict_batch_cmd))
@@ -443,7 +443,7 @@ def log_cmd(
     from serving.log import StiffnessLogger, log_result, stiffness_log
     from serving.predictor import Predictor, record_natural_frequency
     from stiffnet import inputs, progress
-    from stiffnet.console import console, out, show_progress, write_json
+    from stiffnet.cli.console import console, out, show_progress, write_json
     from stiffnet.errors import StiffnetError
 
     for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
