@@ -44,6 +44,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.plots",
         "stiffnet.restoring_force",
         "stiffnet.uncertainty",
+        "stiffnet.discovery",
     ),  # fmt: skip
     "models": ("training", "serving"),
     "measurement": ("stiffnet.measurement",),

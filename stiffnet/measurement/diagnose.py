@@ -68,7 +68,9 @@ def candidate_effects(
     base_effects: Sequence[Effect], extra: Sequence[str] = (), only: Sequence[str] | None = None
 ) -> list[str]:
     """Effects to try: the library (or ``only``) plus user effects, minus those in the model."""
-    names = list(only) if only is not None else list(CANONICAL)
+    # a learned law is proposed by the contact-law discovery with its own terms, not searched
+    # blind from its class defaults
+    names = list(only) if only is not None else [n for n in CANONICAL if n != "learned_contact"]
     names += [e for e in extra if e not in names]
     present = {e.name for e in base_effects}
     for n in names:
