@@ -133,7 +133,6 @@ def test_hunt_crossley_user_effect():
     assert law.library_explained_fraction < law.explained_fraction - 0.03
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("effects", [[], [ContactDamping(damping_ratio=0.2)]])
 def test_library_laws_find_nothing_new(effects):
     law = discover_contact_law(campaign_samples(effects, 0.03), n_boot=0)

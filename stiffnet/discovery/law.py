@@ -49,8 +49,9 @@ class DiscoveredLaw:
     explained_fraction : float
         Fraction of the contact force's variance the law explains (each recording
         weighted alike).
-    library_explained_fraction, library_terms :
-        The same for the best of the library's laws (linear, Kelvin-Voigt, Hertz).
+    library_explained_fraction, library_terms, library_params, library_betas, library_onsets :
+        The same for the best of the library's laws (linear, Kelvin-Voigt, Hertz),
+        with its parameters.
     path : list of dict
         The forward path: every step's term, whether it entered, BIC, held-out
         error and gain, explained fraction.
@@ -74,6 +75,9 @@ class DiscoveredLaw:
     new_terms: tuple[str, ...] = ()
     n_impacts: int = 0
     coverage: float = 0.9
+    library_params: dict[str, float] = field(default_factory=dict)
+    library_betas: tuple[float, ...] = ()
+    library_onsets: tuple[float, ...] = ()
 
     @property
     def new(self) -> bool:

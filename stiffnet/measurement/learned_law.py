@@ -1,0 +1,208 @@
+"""``diagnose`` proposes the contact law the library lacks, learned from the recordings.
+
+When the library's effects leave a campaign ``partially_explained`` with the rest
+of the discrepancy in the contact or the free flight (where a contact law shows:
+the spikes, and the approach to the next impact), :func:`propose_learned_law`
+runs the contact-law discovery (:mod:`stiffnet.discovery`) on the campaign's
+force-displacement maps and, when the law has terms outside the library, adds it
+as a candidate: the ``learned_contact`` effect at the discovered values replaces
+the library's contact effects (``contact_damping``, ``hertz_contact``: the law
+holds its own dissipation) on top of the other selected effects, and the
+campaign is simulated with it. Reported: the law (equation, words, coefficients
+with intervals, the term path), the discrepancy before and after, the share of
+it removed, whether the rest is at the noise floor, and the force-penetration
+map (data, library law, learned law) as compact data for the figure
+(:func:`learned_law_figure`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stiffnet.discovery import campaign_contact_samples, discover_contact_law
+from stiffnet.discovery.samples import ContactSamples
+from stiffnet.effects.base import Effect
+from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
+from stiffnet.errors import StiffnetError
+from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.noise_floor import at_floor
+from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
+
+#: Residual groups where a contact law shows.
+CONTACT_GROUPS = ("contact", "free_flight")
+#: The discovery runs when these groups hold at least this share of the residual's excess.
+MIN_CONTACT_SHARE = 0.5
+#: Effects the learned law replaces (it holds its own elastic law and dissipation).
+REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
+#: Recordings (low, middle and high beta) and points per recording kept for the map figure.
+MAP_RECORDINGS = 3
+MAP_POINTS = 300
+
+
+def should_propose(verdict_info: dict[str, Any]) -> tuple[bool, str]:
+    """Rule: a partially explained campaign whose rest lies mostly in contact or free flight."""
+    if verdict_info.get("verdict") != "partially_explained":
+        return False, f"the verdict is {verdict_info.get('verdict')}: no law to learn"
+    where = verdict_info.get("unexplained_where") or {}
+    share = sum(float(where.get(g, 0.0)) for g in CONTACT_GROUPS)
+    if share < MIN_CONTACT_SHARE:
+        return False, (
+            f"only {share:.0%} of what is left lies in the contact and the free flight "
+            f"(< {MIN_CONTACT_SHARE:.0%}): not a contact law"
+        )
+    return True, f"{share:.0%} of what is left lies in the contact and the free flight"
+
+
+def learned_law_proposal(
+    campaign: Any,
+    rows: Sequence[Any],
+    target: Any,
+    verdict_info: dict[str, Any],
+    effects: Sequence[Effect],
+    residual: np.ndarray,
+    floor: float,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """diagnose's ``learned_law`` entry: :func:`propose_learned_law` where
+    :func:`should_propose` says so, else why not (``ran`` False)."""
+    run, why = should_propose(verdict_info)
+    if not run:
+        return {"ran": False, "proposed": False, "summary": why}
+    out = propose_learned_law(campaign, rows, target, effects, residual, floor, seed)
+    return {"ran": True, "why": why, **out}
+
+
+def propose_learned_law(
+    campaign: Any,
+    rows: Sequence[Any],
+    target: Any,
+    effects: Sequence[Effect],
+    residual: np.ndarray,
+    floor: float,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Discover the campaign's contact law and score the model with it (see the module notes).
+
+    Parameters
+    ----------
+    campaign, rows
+        The campaign and its resolved rows (diagnose's).
+    target : CampaignTarget
+        Diagnose's target (rows, measured statistics, nuisances).
+    effects : sequence of Effect
+        The diagnosed model (base effects and the selected ones).
+    residual : numpy.ndarray
+        Its per-recording discrepancy at diagnose's settings.
+    floor : float
+        The campaign's noise floor at the numerical engine's settings.
+    seed : int
+        Seed of the discovery's folds and bootstrap.
+
+    Returns
+    -------
+    dict
+        ``proposed`` (bool), ``summary`` (one line), and when the discovery ran:
+        ``law`` (:meth:`DiscoveredLaw.to_dict`), ``effect`` (name and params),
+        ``replaces``, ``discrepancy_before``/``_after`` and per recording,
+        ``removed_fraction``, ``at_floor``, ``noise_floor``, ``map``, ``skipped``.
+    """
+    samples, skipped = campaign_contact_samples(campaign, rows)
+    try:
+        law = discover_contact_law(samples, seed=seed)
+    except StiffnetError as exc:
+        return {"proposed": False, "summary": f"no contact law learned: {exc}",
+                "skipped": skipped}  # fmt: skip
+    out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
+    if not law.new:
+        out.update(proposed=False, summary=(
+            f"the learned contact law has nothing the library lacks ({law.words})"))  # fmt: skip
+        return out
+    learned = LearnedContact(**law.effect_params)
+    kept = [e for e in effects if e.name not in REPLACED]
+    settings = FIT_SETTINGS_NUMERICAL
+    before = residual if _numerical(effects) else target.per_recording(list(effects), settings)
+    after = target.per_recording([*kept, learned], settings)
+    d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
+    removed = float((d0 - d1) / d0) if d0 > 0 else 0.0
+    rest = at_floor(d1, floor)
+    out.update(
+        proposed=bool(d1 < d0),
+        effect={"name": LearnedContact.name, "params": law.effect_params},
+        replaces=[e.name for e in effects if e.name in REPLACED],
+        discrepancy_before=d0,
+        discrepancy_after=d1,
+        before_per_recording=np.asarray(before).tolist(),
+        after_per_recording=np.asarray(after).tolist(),
+        removed_fraction=removed,
+        at_floor=rest,
+        noise_floor=float(floor),
+    )
+    floor_words = "at the noise floor" if rest else f"above the noise floor ({floor:.3g})"
+    out["summary"] = (
+        f"learned contact law: {law.equation}; {law.words}. With it the discrepancy goes from "
+        f"{d0:.3g} to {d1:.3g} ({removed:.0%} removed), the rest {floor_words}"
+    )
+    return out
+
+
+def _numerical(effects: Sequence[Effect]) -> bool:
+    return any(e.kind == "dynamics" and not e.closed_form for e in effects)
+
+
+def law_map(samples: Sequence[ContactSamples], law: Any) -> list[dict[str, Any]]:
+    """Force against penetration of a few recordings: data, library law and learned law."""
+    order = np.argsort(law.betas)
+    picks = sorted(
+        {int(order[k]) for k in np.linspace(0, len(order) - 1, MAP_RECORDINGS).round().astype(int)}
+    )
+    out = []
+    for r in picks:
+        s = samples[r]
+        step = max(1, s.force.size // MAP_POINTS)
+        x, v, f = s.displacement[::step], s.velocity[::step], s.force[::step]
+        delta = x - law.onsets[r]
+        learned = learned_contact_force(delta, v, law.betas[r], law.params)
+        library = (
+            learned_contact_force(
+                x - law.library_onsets[r], v, law.library_betas[r], law.library_params
+            )
+            if law.library_params
+            else np.zeros_like(f)
+        )
+        out.append({
+            "recording": s.recording, "beta": float(law.betas[r]),
+            "penetration": np.round(delta, 5).tolist(), "force": np.round(f, 4).tolist(),
+            "learned": np.round(learned, 4).tolist(), "library": np.round(library, 4).tolist(),
+        })  # fmt: skip
+    return out
+
+
+def learned_law_figure(proposal: dict[str, Any], path: str | Path) -> Path:
+    """The force-penetration map of :func:`law_map`: measured samples, library law, learned law."""
+    from stiffnet.measurement.plots import _plt, _save
+
+    plt = _plt()
+    maps = proposal.get("map") or []
+    fig, axes = plt.subplots(1, max(1, len(maps)), figsize=(4 * max(1, len(maps)), 3.4))
+    axes = np.atleast_1d(axes)
+    for ax, m in zip(axes, maps, strict=False):
+        d = np.asarray(m["penetration"])
+        i = np.argsort(d)
+        ax.plot(d, m["force"], ".", ms=2.5, color="0.4", label="measured (restoring force)")
+        ax.plot(d[i], np.asarray(m["library"])[i], "x", ms=3, color="tab:blue",
+                label="library's best law")  # fmt: skip
+        ax.plot(d[i], np.asarray(m["learned"])[i], "o", ms=2, mfc="none", color="tab:red",
+                label="learned law")  # fmt: skip
+        ax.set_title(f"{m['recording']} (law's beta {m['beta']:.3g})", fontsize=8)
+        ax.set_xlabel("penetration delta [model length]")
+        ax.set_ylabel("contact force [model units]")
+        ax.axvline(0, color="k", lw=0.5)
+    axes[0].legend(fontsize=7)
+    law = proposal.get("law") or {}
+    fig.suptitle(law.get("equation", ""), fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)

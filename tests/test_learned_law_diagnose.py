@@ -1,0 +1,92 @@
+"""``diagnose`` proposes the learned contact law where the library lacks it, and only there.
+
+The campaigns are written here from one batch of the simulator (the numerical engine
+runs the eight rows together) in g, like ``simulate_campaign``'s, from the example
+manifest's operating points; the laws are user effects of ``tests/unknown_contact_laws.py``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import unknown_contact_laws as laws
+from campaign_helpers import MANIFEST
+
+from stiffnet.campaign import load_campaign, sensor_gain
+from stiffnet.effects.contact_damping import ContactDamping
+from stiffnet.measurement.diagnose import diagnose_campaign
+from stiffnet.measurement.learned_law import (
+    learned_law_figure,
+    propose_learned_law,
+    should_propose,
+)
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+
+def batch_campaign(folder, effects, noise=0.02, duration_s=3.0, seed=0):
+    """The example manifest's eight rows simulated as one batch, written as a campaign."""
+    with open(MANIFEST, encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0] if k != "recording"}
+    fn = col["natural_frequency_hz"]
+    batch = OscillatorBatch(beta=col["beta"], gap=col["gap"], amplitude=col["amplitude"],
+                            omega=col["frequency_ratio"], damping=col["damping_ratio"])  # fmt: skip
+    n = (duration_s * col["fs_hz"]).astype(int)
+    res = Simulator(effects).simulate(batch, col["fs_hz"] / fn, int(n.max()), noise=noise, rng=seed)
+    (folder / "recordings").mkdir(parents=True)
+    for i, r in enumerate(rows):
+        r["recording"] = r["recording"].replace(".csv", ".npy")
+        r["duration_s"], r["noise"] = str(duration_s), str(noise)
+        np.save(folder / r["recording"], res.accel[i, : n[i]] * sensor_gain(fn[i]))
+    with open(folder / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    return load_campaign(folder)
+
+
+def test_rule_runs_only_on_a_partial_verdict_left_in_the_contact():
+    assert not should_propose({"verdict": "explained", "unexplained_where": None})[0]
+    assert not should_propose({"verdict": "nothing_missing"})[0]
+    run, why = should_propose(
+        {
+            "verdict": "partially_explained",
+            "unexplained_where": {"contact": 0.1, "sensor_band": 0.9},
+        }
+    )
+    assert not run and "not a contact law" in why
+    assert should_propose(
+        {
+            "verdict": "partially_explained",
+            "unexplained_where": {"contact": 0.3, "free_flight": 0.4},
+        }
+    )[0]
+
+
+def test_kelvin_voigt_campaign_gets_no_new_law(tmp_path):
+    camp = batch_campaign(tmp_path / "kv", [ContactDamping(damping_ratio=0.25)])
+    out = propose_learned_law(camp, camp.rows, None, [], np.zeros(8), 0.05)
+    assert out["proposed"] is False and out["law"]["new"] is False
+    assert "nothing the library lacks" in out["summary"]
+    assert out["law"]["terms"] == ["damping"]
+
+
+@pytest.mark.slow
+def test_two_stage_campaign_is_partially_explained_then_learned(tmp_path):
+    camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+    d = diagnose_campaign(camp, effects=["contact_damping"], inclination=False)
+    assert d["verdict"] == "partially_explained", d["summary"]
+    ll = d["learned_law"]
+    assert ll["ran"] and ll["proposed"], ll["summary"]
+    assert ll["law"]["terms"] == ["hinge"] and ll["law"]["new_terms"] == ["hinge"]
+    assert ll["law"]["params"]["knee"] == pytest.approx(0.2, rel=0.15)
+    assert ll["removed_fraction"] >= 0.8
+    assert ll["discrepancy_after"] < ll["discrepancy_before"]
+    assert ll["effect"] == {"name": "learned_contact", "params": ll["law"]["params"]}
+    json.dumps(d)  # the whole diagnosis stays JSON
+    png = learned_law_figure(ll, tmp_path / "law.png")
+    assert png.stat().st_size > 5000
