@@ -206,3 +206,24 @@ def learned_law_figure(proposal: dict[str, Any], path: str | Path) -> Path:
     fig.suptitle(law.get("equation", ""), fontsize=8)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def learned_law_html(proposal: dict[str, Any] | None, png: Path) -> list[str]:
+    """The report's section on the learned law (nothing when the discovery did not run)."""
+    import html
+
+    from stiffnet.measurement.report import _img
+
+    if not proposal or not proposal.get("ran"):
+        return []
+    parts = ["<h3>Learned contact law</h3>", f"<p>{html.escape(proposal['summary'])}.</p>"]
+    law = proposal.get("law")
+    if law:
+        path = " &rarr; ".join(
+            f"{html.escape(s['term'])} ({'in' if s['entered'] else 'out'}, explains "
+            f"{s['explained_fraction']:.1%})"
+            for s in law["path"]
+        )
+        parts.append(f"<p>Term path: {path}.</p>")
+        parts.append(_img(learned_law_figure(proposal, png)))
+    return parts
