@@ -227,3 +227,28 @@ def learned_law_html(proposal: dict[str, Any] | None, png: Path) -> list[str]:
         parts.append(f"<p>Term path: {path}.</p>")
         parts.append(_img(learned_law_figure(proposal, png)))
     return parts
+
+
+def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | None) -> list[dict]:
+    """The loop's effects to add, with the diagnosis's learned law where it proposed one.
+
+    The law enters like any diagnosed effect (its discovered values, the non-neutral ones
+    fitted, so the loop's prior is centred on them) and replaces the library's contact
+    effects (it holds its own dissipation; two elastic laws cannot run together).
+    """
+    learned = (diagnosis or {}).get("learned_law") or {}
+    if not learned.get("proposed"):
+        return added
+    params = {k: float(v) for k, v in learned["effect"]["params"].items()}
+    fitted = [k for k, v in params.items()
+              if k in LearnedContact.neutral and v != LearnedContact.neutral[k]] + [
+              k for k in ("knee",) if "hinge" in learned["law"]["terms"]]  # fmt: skip
+    keep = [a for a in added if a["name"] not in REPLACED]
+    return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
+                    "source": "diagnosis", "origin": "contact-law discovery"}]  # fmt: skip
+
+
+def replaced_by(added: list[dict[str, Any]]) -> set[str]:
+    """Effects of earlier iterations that the added ones replace (a learned law: the
+    library's contact effects)."""
+    return set(REPLACED) if any(a["name"] == LearnedContact.name for a in added) else set()
