@@ -16,13 +16,19 @@ import unknown_contact_laws as laws
 from campaign_helpers import MANIFEST
 
 from stiffnet.campaign import load_campaign, sensor_gain
+from stiffnet.config import load_config
+from stiffnet.config.sim import SimulationConfig
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.learned_law import (
     learned_law_figure,
     propose_learned_law,
+    replaced_by,
     should_propose,
+    with_learned_law,
 )
+from stiffnet.measurement.loop import run_loop
+from stiffnet.shipped import default_config
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
 
@@ -90,3 +96,39 @@ def test_two_stage_campaign_is_partially_explained_then_learned(tmp_path):
     json.dumps(d)  # the whole diagnosis stays JSON
     png = learned_law_figure(ll, tmp_path / "law.png")
     assert png.stat().st_size > 5000
+
+
+def test_loop_adds_the_learned_law_in_place_of_the_library_contact():
+    diag = {"learned_law": {"proposed": True, "law": {"terms": ["hinge"]},
+                            "effect": {"name": "learned_contact",
+                                       "params": {"exponent": 1.0, "knee": 0.19,
+                                                  "knee_ratio": 2.5, "hunt_crossley": 0.0,
+                                                  "damping_ratio": 0.0, "preload": 0.0,
+                                                  "reference_penetration": 0.45}}}}  # fmt: skip
+    added = [{"name": "contact_damping", "params": {"damping_ratio": 0.1}, "fitted": [],
+              "source": "diagnosis"}, {"name": "gap_drift", "params": {}, "fitted": [],
+              "source": "diagnosis"}]  # fmt: skip
+    out = with_learned_law(added, diag)
+    assert [a["name"] for a in out] == ["gap_drift", "learned_contact"]
+    assert sorted(out[-1]["fitted"]) == ["knee", "knee_ratio"]  # the prior is centred on them
+    assert replaced_by(out) >= {"contact_damping", "hertz_contact"}
+    assert with_learned_law(added, {"learned_law": {"proposed": False}}) == added
+
+
+@pytest.mark.slow
+def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
+    camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])  # bounded cost: the numerical engine
+    d["solver"].update(settle_tolerance=0.05, min_transient_periods=10, substeps=4)
+    d["windows"]["per_trajectory"] = 2
+    res = run_loop(camp, SimulationConfig.model_validate(d), tmp_path / "state", iterations=1,
+                   family="gbm", n_trajectories=60, tracking_uri=None,
+                   candidates=["contact_damping"])  # fmt: skip
+    first, second = res["iterations"]
+    assert second["label"] == "+learned_contact"
+    assert second["metrics"]["discrepancy"] <= 0.5 * first["metrics"]["discrepancy"]
+    cfg = load_config(SimulationConfig, second["config"])
+    (spec,) = cfg.effects
+    knee = spec.params["knee"]
+    assert spec.name == "learned_contact" and isinstance(knee, list) and knee[0] < 0.2 < knee[1]

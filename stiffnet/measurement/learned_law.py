@@ -116,6 +116,10 @@ def propose_learned_law(
     except StiffnetError as exc:
         return {"proposed": False, "summary": f"no contact law learned: {exc}",
                 "skipped": skipped}  # fmt: skip
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a fit that breaks numerically is a missing proposal, never a failed diagnosis
+        why = f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
+        return {"proposed": False, "summary": why, "skipped": skipped}
     out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
     if not law.new:
         out.update(proposed=False, summary=(
