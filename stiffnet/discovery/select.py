@@ -46,8 +46,9 @@ N_BOOTSTRAP = 30
 KNOT_QUANTILES = (0.15, 0.4, 0.7)
 #: Systematic part of the intervals (relative): a floor and a term growing with the law's
 #: misfit, as the restoring-force estimate's (the bootstrap over impacts sees the scatter
-#: between impacts, not the reconstruction's bias they share).
-SYSTEMATIC_FLOOR = 0.02
+#: between impacts, not the reconstruction's bias they share). The floor is the shared bias
+#: measured on the two-stage and power-law campaigns (3-6 % on the ratio and exponent).
+SYSTEMATIC_FLOOR = 0.05
 SYSTEMATIC_PER_MISFIT = 4.0
 #: Recordings needed.
 MIN_RECORDINGS = 2
