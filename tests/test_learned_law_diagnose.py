@@ -13,7 +13,7 @@ import json
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
-from campaign_helpers import MANIFEST
+from campaign_helpers import MANIFEST, without_beta
 
 from stiffnet.campaign import load_campaign, sensor_gain
 from stiffnet.config import load_config
@@ -76,10 +76,15 @@ def test_kelvin_voigt_campaign_gets_no_new_law(tmp_path):
     assert out["law"]["terms"] == ["damping"]
 
 
+@pytest.fixture(scope="module")
+def two_stage(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("learned") / "two"
+    return batch_campaign(folder, [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+
+
 @pytest.mark.slow
-def test_two_stage_campaign_is_partially_explained_then_learned(tmp_path):
-    camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
-    d = diagnose_campaign(camp, effects=["contact_damping"], inclination=False)
+def test_two_stage_campaign_is_partially_explained_then_learned(two_stage, tmp_path):
+    d = diagnose_campaign(two_stage, effects=["contact_damping"], inclination=False)
     assert d["verdict"] == "partially_explained", d["summary"]
     ll = d["learned_law"]
     assert ll["ran"] and ll["proposed"], ll["summary"]
@@ -132,3 +137,16 @@ def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
     (spec,) = cfg.effects
     knee = spec.params["knee"]
     assert spec.name == "learned_contact" and isinstance(knee, list) and knee[0] < 0.2 < knee[1]
+
+
+@pytest.mark.slow
+def test_field_campaign_without_beta_simulates_the_law_at_its_own_beta(two_stage, tmp_path):
+    """Without beta, diagnose profiles one per recording with the library's linear law: for a
+    two-stage law that is a secant between the stages, and the law simulated at it was far
+    too stiff (measured on a 3-s campaign: discrepancy 2.74 -> 11.2); at the law's own beta
+    it fell to 0.81."""
+    camp = load_campaign(without_beta(two_stage.folder, tmp_path / "field"))
+    d = diagnose_campaign(camp, effects=["contact_damping"], inclination=False)
+    ll = d["learned_law"]
+    assert ll["proposed"] and ll["law"]["terms"] == ["hinge"], ll["summary"]
+    assert ll["removed_fraction"] >= 0.5

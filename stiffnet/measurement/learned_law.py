@@ -134,7 +134,8 @@ def propose_learned_law(
     base = {id(e) for e in target.base_effects}
     models = [[e for e in effects if e.name not in REPLACED],
               [e for e in effects if id(e) in base and e.name not in REPLACED]]  # fmt: skip
-    trials = [target.per_recording([*m, learned], settings) for m in models]
+    rows_law = law_rows(campaign, target.rows, law)
+    trials = [target.per_recording([*m, learned], settings, rows=rows_law) for m in models]
     best = int(np.argmin([campaign_discrepancy(t) for t in trials]))
     after, kept = trials[best], models[best]
     d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
@@ -157,6 +158,18 @@ def propose_learned_law(
         f"learned contact law: {law.equation}; {law.words}. With it the discrepancy goes from "
         f"{d0:.3g} to {d1:.3g} ({removed:.0%} removed), the rest {floor_words}"
     )
+    return out
+
+
+def law_rows(campaign: Any, rows: Sequence[Any], law: Any) -> list[Any]:
+    """The rows to simulate the law on: a recording without a manifest beta takes the law's
+    (the β diagnose profiled there belongs to the library's linear law, another quantity
+    for a nonlinear one: docs/crosscheck.md, "Beta for a nonlinear contact law")."""
+    betas = dict(zip(law.recordings, law.betas, strict=True))
+    out = []
+    for given, row in zip(campaign.rows, rows, strict=True):
+        b = betas.get(row.recording)
+        out.append(row.model_copy(update={"beta": b}) if given.beta is None and b else row)
     return out
 
 
