@@ -138,3 +138,14 @@ def test_library_laws_find_nothing_new(effects):
     law = discover_contact_law(campaign_samples(effects, 0.03), n_boot=0)
     assert not law.new, law.words
     np.testing.assert_allclose(law.betas, BETA, rtol=0.15)
+
+
+def test_a_law_that_explains_little_says_so():
+    samples = synthetic_samples({}, 0.03)
+    rng = np.random.default_rng(1)
+    noisy = [ContactSamples(s.recording, s.displacement, s.velocity,
+                            s.force + 0.5 * s.force.std() * rng.standard_normal(s.force.size),
+                            s.impact, s.onset, s.beta) for s in samples]  # fmt: skip
+    law = discover_contact_law(noisy, n_boot=0)
+    assert law.poorly_explained and "dynamics no candidate term describes" in law.words
+    assert not discover_contact_law(samples, n_boot=0).poorly_explained

@@ -9,6 +9,9 @@ import numpy as np
 
 #: A fitted exponent this close to 1 or to Hertz's 3/2 is the library's law.
 EXPONENT_TOLERANCE = 0.12
+#: Below this explained fraction the law does not describe the contact (a restraint with
+#: its own mass: 51 % on mu 0.5, kappa 30, where no candidate term enters).
+POOR_FIT = 0.9
 
 WORDS = {
     "linear": "a linear spring",
@@ -134,10 +137,21 @@ class DiscoveredLaw:
             if self.new_terms
             else "; nothing outside the library's laws"
         )
+        poor = (
+            f"; it explains only {self.explained_fraction:.0%}: the contact has dynamics no "
+            "candidate term describes (a restraint with its own mass or modes?)"
+            if self.poorly_explained
+            else ""
+        )
         return (
             f"{text} (explains {self.explained_fraction:.1%} of the contact force; the "
-            f"library's best law {self.library_explained_fraction:.1%}){new}"
+            f"library's best law {self.library_explained_fraction:.1%}){new}{poor}"
         )
+
+    @property
+    def poorly_explained(self) -> bool:
+        """Whether the law leaves more than ``1 - POOR_FIT`` of the contact force unexplained."""
+        return bool(self.explained_fraction < POOR_FIT)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
@@ -145,6 +159,7 @@ class DiscoveredLaw:
             "terms": list(self.terms),
             "new_terms": list(self.new_terms),
             "new": self.new,
+            "poorly_explained": self.poorly_explained,
             "equation": self.equation,
             "words": self.words,
             "params": self.effect_params,
