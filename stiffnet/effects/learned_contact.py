@@ -123,11 +123,13 @@ class LearnedContact(DynamicsEffect):
             0.0, 0.0, 1.0, "Kelvin-Voigt damping ratio, c_c = 2 zeta_c sqrt(beta)"
         )
 
-    #: The shape of the law (stages, exponent, dissipation); knee, d_r and preload stay where
-    #: the discovery put them (an effect's fit space is declared once for the class).
+    #: The shape of the law (exponent, second stage, Hunt-Crossley dissipation) when fitted by
+    #: ``diagnose --only learned_contact``; d_r, preload and the Kelvin-Voigt damping stay at
+    #: their values (the discovery sets all of them from the maps, where they are measured).
     fit_space = FitSpace(
         (
             FitParam("exponent", 0.7, 3.0),
+            FitParam("knee", 0.01, 2.0, log=True),
             FitParam("knee_ratio", 0.2, 20.0, log=True),
             FitParam("hunt_crossley", 0.0, 5.0),
         ),
