@@ -50,6 +50,9 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stiffnet.effects.registry import register_plugin  # noqa: E402
+
+register_plugin(Path(__file__).resolve().parent / "crosscheck_effects.py")  # the user law
 
 FN_HZ = 9.48
 PERIODS = 16

@@ -67,12 +67,12 @@ import numpy as np
 
 from stiffnet.config import load_config, load_yaml, validate_config
 from stiffnet.config.sim import SimulationConfig
-from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.generate import generate_dataset
 from stiffnet.dataset.store import CARD, Dataset, load_dataset
 from stiffnet.features import FEATURE_VERSION
 from stiffnet.features.windows import window_tensor
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from training.config import TrainConfig
 from training.geometric_baseline import geometric_predictions
 from training.metrics import confusion, evaluate, noise_bin_names
 from training.split import trajectory_split
@@ -224,7 +224,7 @@ def cnn_windows(ds: Dataset, meta: dict[str, Any]) -> np.ndarray:
 
 
 def gbm_features(ds: Dataset, meta: dict[str, Any]) -> np.ndarray:
-    """The inclination feature matrix, as ``training/train.py`` computes it."""
+    """The inclination feature matrix, as the GBM family computes it (``training/families/gbm``)."""
     use_fn = bool(meta.get("requires_natural_frequency", True))
     return InclinationFeatures(use_fn, n_jobs=1).fit_transform(window_records(ds))
 
@@ -421,7 +421,7 @@ def time_gbm(data_dir: Path, train_config: Path, cache: Path | None, threads: in
     """
     from threadpoolctl import threadpool_limits
 
-    from training.gbm import fit_gbm
+    from training.families.gbm.model import fit_gbm
 
     cfg = load_config(TrainConfig, train_config)
     ds = load_dataset(data_dir)

@@ -57,7 +57,11 @@ from stiffnet.config import load_yaml, validate_config  # noqa: E402
 from stiffnet.config.sim import SimulationConfig  # noqa: E402
 from stiffnet.dataset.generate import generate_dataset  # noqa: E402
 from stiffnet.dataset.store import CARD, load_dataset  # noqa: E402
+from stiffnet.effects.registry import register_plugin  # noqa: E402
 from stiffnet.io_utils import write_json_atomic  # noqa: E402
+
+# the user effects of the sets: a plugin file, named as the configs name it
+register_plugin(ROOT / "benchmarks" / "contact_laws.py", "benchmarks.contact_laws")
 
 DEFAULT_SETS = ROOT / "benchmarks" / "configs" / "robustness_sets.yaml"
 #: The issue's target for sets inside the priors: the 90 % interval covers >= 88 %.

@@ -12,16 +12,21 @@ and at the end; then stops the server. Exit code 1 if any 5xx or transport error
     python benchmarks/load_http.py --quick    # 20 clients, 300 requests
     python benchmarks/load_http.py --abuse    # small requests alone, then under abuse
 
-``--abuse`` measures the same small requests twice: alone, then while the server
-is abused by big uploads (``--uploaders`` clients each sending ``--uploads``
+``--abuse`` measures the same small requests three times: alone, while
+``--uploaders`` clients upload big files (nothing else), and while the server is
+abused by big uploads (``--uploaders`` clients each sending ``--uploads``
 multipart ``.npy`` files of 2,000,000 float64 samples (16 MB, at the
 ``--max-samples`` limit) or 5,000,000 float32 samples (20 MB, over it) at
-fs = 50 kHz), stalled bodies (``--stalled`` connections that send half a body and
-then nothing) and disconnects (``--disconnects`` connections that send half a
-body and close). Everything is bounded in count and time (``--deadline``) and
-sent to 127.0.0.1 only. Reports the status codes of each kind (5xx must be 0),
-p50/p99 of the small requests alone and under abuse, the server's peak RSS
-(``VmHWM``), and its log: one line per disconnect, no traceback.
+fs = 50 kHz), stalled bodies (``--stalled`` connections from one other client
+address, 127.0.0.2, that send half a body and then nothing), stalled large uploads
+(``--stalled-large`` from 127.0.0.3), connections trickling header lines
+(``--trickle``, one line every 0.5 s), a 20 MB JSON of zeros (``--zeros``) and
+disconnects (``--disconnects`` connections that send half a body and close).
+Everything is bounded in count and time (``--deadline``) and sent to loopback
+addresses only. Reports the status codes of each kind (5xx must be 0), p50/p99 of
+the small requests in each phase, the server's peak RSS (``VmHWM``), its log (one
+line per disconnect, no traceback) and the machine's load (``uptime``) at the start
+and the end.
 """
 
 from __future__ import annotations
@@ -169,20 +174,30 @@ async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter
     return codes
 
 
-async def half_bodies(port: int, n: int, close: bool, wait_s: float) -> Counter:
-    """``n`` connections sending headers and half a JSON body; then close, or wait."""
-    head = (b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\n"
-            b"Content-Type: application/json\r\nContent-Length: 200000\r\n\r\n")  # fmt: skip
+async def half_bodies(
+    port: int, n: int, close: bool, wait_s: float, source: str = "127.0.0.1", large: bool = False
+) -> Counter:
+    """``n`` connections from ``source`` sending headers and half a body; then close, or wait.
+
+    ``large``: a 5 MB multipart upload's head (the large lane) instead of a small JSON.
+    """
+    kind, length = ((b"multipart/form-data; boundary=x", 5_000_000) if large
+                    else (b"application/json", 200_000))  # fmt: skip
+    head = (b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: " + kind
+            + b"\r\nContent-Length: %d\r\n\r\n" % length)  # fmt: skip
     codes: Counter = Counter()
 
     async def one(i: int) -> None:
         await asyncio.sleep(0.02 * i)  # spread over the abuse phase
         try:
-            reader, writer = await asyncio.open_connection("127.0.0.1", port)
+            reader, writer = await asyncio.open_connection("127.0.0.1", port,
+                                                           local_addr=(source, 0))  # fmt: skip
         except OSError as exc:
             codes[f"connect error {type(exc).__name__}"] += 1
             return
-        writer.write(head + b'{"samples": [0.5, 1.5, ' * 200)
+        part = (b'--x\r\nContent-Disposition: form-data; name="file"; filename="a.npy"\r\n\r\n'
+                + b"\x00" * 4000 if large else b'{"samples": [0.5, 1.5, ' * 200)  # fmt: skip
+        writer.write(head + part)
         await writer.drain()
         if close:
             writer.close()
@@ -198,6 +213,56 @@ async def half_bodies(port: int, n: int, close: bool, wait_s: float) -> Counter:
 
     await asyncio.gather(*(one(i) for i in range(n)))
     return codes
+
+
+async def trickle_heads(port: int, n: int, seconds: float) -> Counter:
+    """``n`` connections sending one header line every 0.5 s for ``seconds``, never ending."""
+    codes: Counter = Counter()
+
+    async def one(i: int) -> None:
+        try:
+            reader, writer = await asyncio.open_connection("127.0.0.1", port,
+                                                           local_addr=("127.0.0.4", 0))  # fmt: skip
+        except OSError as exc:
+            codes[f"connect error {type(exc).__name__}"] += 1
+            return
+        t0 = time.perf_counter()
+        answer = asyncio.ensure_future(reader.readline())
+        try:
+            writer.write(b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\n")
+            while time.perf_counter() - t0 < seconds and not answer.done():
+                await asyncio.sleep(0.5)
+                writer.write(b"X-Trickle: %d\r\n" % i)
+                await writer.drain()
+        except OSError:
+            pass  # closed by the server
+        try:
+            line = await asyncio.wait_for(answer, 1.0)
+            waited = 5 * round((time.perf_counter() - t0) / 5)
+            codes[f"{int(line.split()[1])} after ~{waited} s" if line else "closed"] += 1
+        except (OSError, TimeoutError):
+            codes["still open at the end"] += 1
+        finally:
+            writer.close()
+
+    await asyncio.gather(*(one(i) for i in range(n)))
+    return codes
+
+
+async def zeros_json(base: str, megabytes: float) -> Counter:
+    """One JSON body of ``megabytes`` of zeros (``"0,"`` repeated): 413 before parsing."""
+    body = b'{"fs_hz": 1000, "samples": [' + b"0," * int(megabytes * 5e5) + b"0]}"
+    async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
+        try:
+            r = await c.post("/predict", content=body,
+                             headers={"content-type": "application/json"})  # fmt: skip
+            return Counter([r.status_code])
+        except httpx.HTTPError as exc:
+            return Counter([f"transport error {type(exc).__name__}"])
+
+
+def load_average() -> str:
+    return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
 
 def percentiles(lat: list[float]) -> str:
@@ -232,18 +297,32 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
             httpx.post(f"{base}/predict", content=body, timeout=60,
                        headers={"content-type": "application/json"})  # fmt: skip
         rss_start = rss_mb(proc.pid)
+        load_start = load_average()
         alone, codes_alone = asyncio.run(small_requests(base, body, args.small, args.small_clients))
 
+        async def uploads_only() -> tuple:
+            return await asyncio.wait_for(asyncio.gather(
+                small_requests(base, body, args.small, args.small_clients),
+                big_uploads(base, npy, args.uploads)), args.deadline)  # fmt: skip
+
+        (uploading, codes_up), codes_big_only = asyncio.run(uploads_only())
+
         async def abuse() -> tuple:
+            wait = args.body_timeout_s + 30
             return await asyncio.wait_for(asyncio.gather(
                 small_requests(base, body, args.small, args.small_clients),
                 big_uploads(base, npy, args.uploads),
-                half_bodies(port, args.stalled, close=False, wait_s=args.body_timeout_s + 30),
-                half_bodies(port, args.disconnects, close=True, wait_s=0),
+                half_bodies(port, args.stalled, close=False, wait_s=wait, source="127.0.0.2"),
+                half_bodies(port, args.stalled_large, close=False, wait_s=wait,
+                            source="127.0.0.3", large=True),
+                trickle_heads(port, args.trickle, args.trickle_s),
+                zeros_json(base, 20.0) if args.zeros else asyncio.sleep(0, Counter()),
+                half_bodies(port, args.disconnects, close=True, wait_s=0, source="127.0.0.5"),
             ), args.deadline)  # fmt: skip
 
         t0 = time.perf_counter()
-        (under, codes_small), codes_big, codes_stall, codes_gone = asyncio.run(abuse())
+        ((under, codes_small), codes_big, codes_stall, codes_stall_large, codes_trickle,
+         codes_zeros, codes_gone) = asyncio.run(abuse())  # fmt: skip
         wall = time.perf_counter() - t0
         time.sleep(1.0)
         health = httpx.get(f"{base}/health", timeout=5).status_code
@@ -253,18 +332,25 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
         log.close()
     text = Path(log.name).read_text(errors="replace")
     Path(log.name).unlink()
-    all_codes = [codes_alone, codes_small, codes_big, codes_stall]
+    all_codes = [codes_alone, codes_up, codes_big_only, codes_small, codes_big, codes_stall,
+                 codes_stall_large, codes_zeros]  # fmt: skip
     n5xx = sum(v for c in all_codes for k, v in c.items() if isinstance(k, int) and k >= 500)
     opts = (
         "defaults" if args.legacy_server else f"defaults, --body-timeout-s {args.body_timeout_s:g}"
     )
     print(f"server: stiffnet serve ({opts}); small request = {len(body) / 1e3:.0f} kB JSON, "
           f"{args.small_clients} clients")  # fmt: skip
+    print(f"load average (uptime) at start: {load_start}; at the end: {load_average()}")
     print(f"small requests alone:       {percentiles(alone)}; codes {dict(codes_alone)}")
+    print(f"small requests, {args.uploaders} uploaders: {percentiles(uploading)}; codes "
+          f"{dict(codes_up)}; uploads {dict(sorted(codes_big_only.items(), key=str))}")  # fmt: skip
     print(f"small requests under abuse: {percentiles(under)}; codes {dict(codes_small)}")
     print(f"big uploads ({args.uploaders} clients x {args.uploads}, 16-20 MB .npy): "
           f"codes {dict(sorted(codes_big.items(), key=str))}")  # fmt: skip
-    print(f"stalled bodies ({args.stalled}): {dict(codes_stall)}")
+    print(f"stalled bodies ({args.stalled}, one client): {dict(codes_stall)}")
+    print(f"stalled large uploads ({args.stalled_large}, one client): {dict(codes_stall_large)}")
+    print(f"trickled heads ({args.trickle}, {args.trickle_s:g} s): {dict(codes_trickle)}")
+    print(f"20 MB JSON of zeros: {dict(codes_zeros)}")
     print(f"disconnects ({args.disconnects}): {dict(codes_gone)}")
     lines = text.splitlines()
     n_gone = sum("disconnected before its request body" in ln for ln in lines)
@@ -289,7 +375,11 @@ def main() -> int:
     ab.add_argument("--small-clients", type=int, default=4)
     ab.add_argument("--uploaders", type=int, default=4)
     ab.add_argument("--uploads", type=int, default=3, help="uploads per uploader")
-    ab.add_argument("--stalled", type=int, default=100)
+    ab.add_argument("--stalled", type=int, default=300)
+    ab.add_argument("--stalled-large", type=int, default=3)
+    ab.add_argument("--trickle", type=int, default=200, help="connections trickling headers")
+    ab.add_argument("--trickle-s", type=float, default=20.0)
+    ab.add_argument("--zeros", type=int, default=1, help="send one 20 MB JSON of zeros (1/0)")
     ab.add_argument("--disconnects", type=int, default=200)
     ab.add_argument("--body-timeout-s", type=float, default=5.0)
     ab.add_argument("--deadline", type=float, default=300.0, help="abuse phase limit, s")

@@ -4,13 +4,9 @@ Class probabilities: the mean of the windows' probabilities (robust to one odd
 window, unlike a product of probabilities); class: its arg-max. Beta: ``exp``
 of the mean log beta over the windows whose own class has contact
 (:func:`stiffnet.uncertainty.aggregate_windows`, the same function that
-calibrated the model on whole training trajectories). Its interval:
-``exp(mean +- q s)``, ``s`` the recording's error scale (the model's own scale
-output plus the disagreement of the windows) and ``q`` the model's normalised
-split-conformal quantile calibrated with one score per trajectory (metadata
-``conformal_quantile_recording``); models without it fall back to the
-per-window quantile ``exp(mean +- q)``. Segments aggregate consecutive windows
-the same way. The geometric cross-check aggregates its windows' inclinations:
+calibrated the model on whole training trajectories); its interval is
+:func:`stiffnet.uncertainty.beta_interval`. Segments aggregate consecutive
+windows the same way. The geometric cross-check aggregates its windows' inclinations:
 contact if at least half of them have contact, then the mean inclinations of
 the windows on the recording's orbit (period-1 or not, as most of them) through
 the calibration's map for that orbit give beta and class.
@@ -24,35 +20,12 @@ from typing import Any
 import numpy as np
 
 from stiffnet.geometry.orbit import is_period1
-from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
-
-
-def recording_estimate(out: dict[str, np.ndarray], no_contact: int | None) -> RecordingEstimate:
-    """Class probabilities, log beta and error scale of a run of windows."""
-    return aggregate_windows(
-        out["probabilities"], out["log_beta"], out.get("log_beta_scale"), no_contact
-    )
+from stiffnet.uncertainty import aggregate_windows
 
 
 def named(class_names: list[str], p: np.ndarray) -> dict[str, float]:
     """Probabilities by class name."""
     return {n: float(v) for n, v in zip(class_names, p, strict=True)}
-
-
-def beta_interval(
-    est: RecordingEstimate, metadata: dict[str, Any], conformal_quantile: float | None
-) -> list[float] | None:
-    """Per-recording normalised interval, else the card's per-window one."""
-    if est.log_beta is None:
-        return None
-    q_rec = metadata.get("conformal_quantile_recording")
-    if isinstance(q_rec, int | float) and math.isfinite(q_rec) and est.scale is not None:
-        half = float(q_rec) * est.scale
-    elif conformal_quantile:
-        half = conformal_quantile
-    else:
-        return None
-    return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]
 
 
 def segments(
@@ -69,7 +42,10 @@ def segments(
     n = len(starts)
     for k, lo in enumerate(range(0, n, per_segment)):
         hi = min(n, lo + per_segment)
-        seg = recording_estimate({name: v[lo:hi] for name, v in out.items()}, no_contact)
+        run = {name: v[lo:hi] for name, v in out.items()}
+        seg = aggregate_windows(
+            run["probabilities"], run["log_beta"], run.get("log_beta_scale"), no_contact
+        )
         found.append(
             {
                 "index": k,

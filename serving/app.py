@@ -24,9 +24,21 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   memory of a prediction grow with the samples, not the bytes (a 20 MB ``.npy``
   holds 2.6 M samples, a CSV of the same size about 1 M).
 * **Body read timeout** - a body not complete within ``body_timeout_s`` of the
-  request's start gets 408 and the connection is closed (slow or stalled
-  senders do not hold a connection for ever). A client that disconnects
-  mid-body is logged as one line.
+  request's start, or silent for ``body_idle_s``, gets 408 and the connection is
+  closed (slow or stalled senders do not hold a connection for ever). A client
+  that disconnects mid-body is logged as one line.
+* **Per client** - one client address holds at most :data:`MAX_READERS_PER_CLIENT`
+  small bodies being received and :data:`MAX_LARGE_PER_CLIENT` large requests: a
+  client stalling its uploads locks out only itself.
+* **Headers** - :class:`GuardedH11Protocol` (``stiffnet serve``): a connection that
+  has not sent a whole request head within :data:`HEADER_TIMEOUT_S` gets 408 and is
+  closed (a trickle of header lines no longer holds it open), and uvicorn's own
+  400s (a malformed ``Content-Length``, a broken request line) are JSON too.
+* **Samples before parsing** - a JSON body holding more numbers than
+  ``max_samples`` (counted by its commas, before the parser builds anything), a
+  CSV upload with more lines, or an ``.npy`` whose header says more, gets 413 unparsed.
+* **Access log** - one line per request (client, method, path, status, bytes,
+  milliseconds) on the ``stiffnet.access`` logger (``stiffnet serve`` prints it).
 * **Access** - :class:`Guard`: an optional bearer token (every path except
   ``/health`` and the API docs; 401 without it), an optional list of allowed
   ``Host`` headers (400; ``stiffnet serve`` sets it, which blocks DNS rebinding),
@@ -34,20 +46,27 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   load Swagger UI and ReDoc from the ``fastapi-offline`` package: nothing is
   fetched from a CDN.
 
-Every error is JSON ``{"error": "one line"}``: 400 malformed request or host,
+Every error is JSON ``{"error": "one line"}`` (a foreign CORS preflight's 400 too): 400
+malformed request or host,
 401 missing token, 404/405, 408 body too slow, 413 too large (bytes or
 samples), 415 wrong content type, 422 unusable recording
-(:class:`~stiffnet.errors.StiffnetError`), 429 saturated, 504 timeout.
+(:class:`~stiffnet.errors.StiffnetError`, a CSV the parser refuses, an unknown form
+field), 429 saturated, 503 the server's disk or memory failed, 504 timeout.
 """
 
 from __future__ import annotations
 
 import asyncio
+import csv
+import json
 import logging
 import math
 import re
 import secrets
+import shutil
+import sys
 import tempfile
+import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
@@ -68,11 +87,14 @@ from serving.predictor import Predictor
 from serving.schemas import (
     ErrorBody,
     HealthResponse,
+    LogResult,
     ModelResponse,
     PredictionResult,
     PredictRequest,
 )
+from stiffnet import __version__
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import HINT_CONTEXT
 
 #: One-line log of the server's events (uvicorn configures this logger).
 log = logging.getLogger("uvicorn.error")
@@ -80,6 +102,17 @@ log = logging.getLogger("uvicorn.error")
 
 #: Small bodies (each <= small_upload_mb) being received at once; more get 429 unread.
 MAX_SMALL_READERS = 256
+#: Small bodies one client address may have in reception at once.
+MAX_READERS_PER_CLIENT = 16
+#: Large requests (admitted, waiting or running) of one client address: fewer than the
+#: lane holds (3 by default), so one client stalling its uploads leaves the lane open.
+MAX_LARGE_PER_CLIENT = 2
+#: Seconds a connection may take to send a whole request head (line and headers).
+HEADER_TIMEOUT_S = 10.0
+#: Form fields of a multipart request; any other is refused, as unknown JSON keys are.
+FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
+#: One line per request: client, method, path, status, bytes, milliseconds.
+access_log = logging.getLogger("stiffnet.access")
 
 
 class BodyTooLarge(Exception):
@@ -107,6 +140,8 @@ class Limits:
     max_large: int = 1
     max_large_queue: int = 2
     body_timeout_s: float = 20.0
+    body_idle_s: float = 5.0
+    header_timeout_s: float = HEADER_TIMEOUT_S
 
     @property
     def max_bytes(self) -> int:
@@ -151,10 +186,13 @@ def _error(status: int, message: str, headers: dict[str, str] | None = None) -> 
 class BodyLimit:
     """ASGI middleware: 413 on a too-large ``Content-Length``, :class:`BodyTooLarge` on streams."""
 
-    def __init__(self, app: Any, max_bytes: int, timeout_s: float = 20.0) -> None:
+    def __init__(
+        self, app: Any, max_bytes: int, timeout_s: float = 20.0, idle_s: float = 5.0
+    ) -> None:
         self.app = app
         self.max_bytes = max_bytes
         self.timeout_s = timeout_s
+        self.idle_s = idle_s
 
     async def __call__(self, scope: dict, receive: Callable, send: Callable) -> None:
         if scope["type"] != "http":
@@ -176,8 +214,11 @@ class BodyLimit:
 
         async def limited() -> dict:
             nonlocal seen
-            try:  # the whole body within timeout_s: a trickling sender is cut off too
-                message = await asyncio.wait_for(receive(), max(0.0, deadline - loop.time()))
+            # the whole body within timeout_s (a trickling sender is cut off too), and no
+            # silence longer than idle_s (a stalled sender frees its slot early)
+            wait = max(0.0, min(deadline - loop.time(), self.idle_s))
+            try:
+                message = await asyncio.wait_for(receive(), wait)
             except TimeoutError:
                 raise BodyTimeout from None
             if message["type"] == "http.request":
@@ -230,17 +271,146 @@ class Guard:
         await self.app(scope, receive, send)
 
 
+class JsonCORS:
+    """Starlette's CORS middleware whose refusals (a foreign origin's preflight) are JSON."""
+
+    def __new__(cls, app: Any, **options: Any) -> Any:
+        from starlette.middleware.cors import CORSMiddleware
+
+        class _Cors(CORSMiddleware):
+            def preflight_response(self, request_headers: Any) -> Any:
+                response = super().preflight_response(request_headers)
+                if response.status_code != 200:
+                    text = response.body.decode("utf-8", "replace")
+                    return _error(response.status_code, text)
+                return response
+
+        return _Cors(app, **options)
+
+
+class AccessLog:
+    """ASGI middleware: one line per request on :data:`access_log`.
+
+    ``client "METHOD path" status bytes ms`` (the query string is left out: it is not
+    used, and a token must never reach a log).
+    """
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: dict, receive: Callable, send: Callable) -> None:
+        if scope["type"] != "http" or not access_log.isEnabledFor(logging.INFO):
+            await self.app(scope, receive, send)
+            return
+        t0 = time.perf_counter()
+        seen = {"status": 0, "bytes": 0}
+
+        async def counted(message: dict) -> None:
+            if message["type"] == "http.response.start":
+                seen["status"] = message["status"]
+            elif message["type"] == "http.response.body":
+                seen["bytes"] += len(message.get("body", b""))
+            await send(message)
+
+        try:
+            await self.app(scope, receive, counted)
+        finally:
+            client = scope.get("client") or ("-", 0)
+            path = "".join(ch if ch.isprintable() else "?" for ch in scope.get("path", ""))[:200]
+            access_log.info('%s "%s %s" %d %d %.0f ms', client[0], scope.get("method", "-"),
+                            path, seen["status"] or 500, seen["bytes"],
+                            1e3 * (time.perf_counter() - t0))  # fmt: skip
+
+
+def enable_access_log(stream: Any = None) -> None:
+    """Print :data:`access_log` lines (``stiffnet serve``) on ``stream`` (stderr)."""
+    if not access_log.handlers:
+        handler = logging.StreamHandler(stream or sys.stderr)
+        handler.setFormatter(logging.Formatter("%(asctime)s access %(message)s"))
+        access_log.addHandler(handler)
+    access_log.setLevel(logging.INFO)
+    access_log.propagate = False
+
+
+def _raw_json_response(status: int, reason: str, message: str) -> bytes:
+    body = json.dumps({"error": message}).encode()
+    head = (f"HTTP/1.1 {status} {reason}\r\ncontent-type: application/json\r\n"
+            f"content-length: {len(body)}\r\nconnection: close\r\n\r\n")  # fmt: skip
+    return head.encode() + body
+
+
+def guarded_protocol(header_timeout_s: float = HEADER_TIMEOUT_S) -> type:
+    """uvicorn's h11 protocol with a header-read timeout and JSON bodies for its own 400s.
+
+    uvicorn cancels its keep-alive timer at the first byte of a request and arms no
+    other until a response is sent: a client trickling header lines held the
+    connection for ever. Here every request head must be complete within
+    ``header_timeout_s`` of the connection (or of the previous response), else 408
+    and close. A request uvicorn cannot parse gets ``{"error": ...}`` like every other
+    error of the server.
+    """
+    import h11
+    from uvicorn.protocols.http.h11_impl import H11Protocol
+
+    class GuardedH11Protocol(H11Protocol):
+        def connection_made(self, transport: Any) -> None:  # type: ignore[override]
+            super().connection_made(transport)
+            self._arm_header_timer()
+
+        def _arm_header_timer(self) -> None:
+            timer = getattr(self, "_header_timer", None)
+            if timer is not None:
+                timer.cancel()
+            self._header_timer = self.loop.call_later(header_timeout_s, self._head_late)
+
+        def _head_late(self) -> None:
+            if self.transport.is_closing() or self.conn.their_state is not h11.IDLE:
+                return  # closed, or a head arrived (its body has its own timeout)
+            if self.cycle is not None and not self.cycle.response_complete:
+                return  # a response is under way
+            if self.conn.trailing_data[0]:  # part of a head arrived, then too little
+                log.warning("408: request head not complete within %g s", header_timeout_s)
+                message = f"request head not received within {header_timeout_s:g} s"
+                self.transport.write(_raw_json_response(408, "Request Timeout", message))
+            self.transport.close()
+
+        def on_response_complete(self) -> None:
+            super().on_response_complete()
+            if not self.transport.is_closing():
+                self._arm_header_timer()
+
+        def connection_lost(self, exc: Exception | None) -> None:
+            timer = getattr(self, "_header_timer", None)
+            if timer is not None:
+                timer.cancel()
+            super().connection_lost(exc)
+
+        def send_400_response(self, msg: str) -> None:
+            message = "malformed HTTP request (request line, headers or Content-Length)"
+            self.transport.write(_raw_json_response(400, "Bad Request", message))
+            self.transport.close()
+
+    return GuardedH11Protocol
+
+
 _SUFFIX = re.compile(r"^\.[A-Za-z0-9]{1,8}$")
 
 
-def _check_samples(n: int, max_samples: int) -> None:
+def _check_samples(n: int, max_samples: int, how: str = "") -> None:
     if n > max_samples:
+        count = f"over {max_samples}" if how else str(n)
         raise TooManySamples(
-            f"recording has {n} samples; this server takes at most {max_samples} per request"
+            f"recording has {count} samples; this server takes at most {max_samples} per request"
         )
 
 
-def _predict_json(predictor: Predictor, body: bytes, max_samples: int = 2_000_000) -> dict:
+def _predict_json(
+    predictor: Predictor, body: bytes, max_samples: int = 2_000_000, what: str = "predict"
+) -> dict:
+    # the numbers are counted before the parser builds them: 20 MB of "0," is 10 M
+    # samples and ~1 GB of Python floats, refused here for the price of one scan
+    if body.count(b",") > max_samples + len(PredictRequest.model_fields):
+        _check_samples(max_samples + 1, max_samples, "over")
     try:
         req = PredictRequest.model_validate_json(body)
     except ValidationError as exc:
@@ -250,13 +420,29 @@ def _predict_json(predictor: Predictor, body: bytes, max_samples: int = 2_000_00
         more = f" (+{len(errs) - 1} more)" if len(errs) > 1 else ""
         raise StiffnetError(f"invalid JSON body: {where}: {first.get('msg')}{more}") from None
     _check_samples(len(req.samples), max_samples)
+    accel = np.asarray(req.samples, dtype=np.float64)
+    if what == "log":
+        return _log(predictor, accel, req.fs_hz, req.natural_frequency_hz, "request")
     return predictor.predict(
-        np.asarray(req.samples, dtype=np.float64),
+        accel,
         req.fs_hz,
         natural_frequency_hz=req.natural_frequency_hz,
         source="request",
         natural_frequency_source="request",
     )
+
+
+def _log(predictor: Predictor, accel: np.ndarray, fs: Any, fn: Any, source: str) -> dict:
+    """``POST /log``: the stiffness log of the samples (f_n required, as for /predict)."""
+    from serving.log import stiffness_log
+    from serving.predictor import record_natural_frequency
+    from stiffnet.inputs import natural_frequency, sampling_rate
+
+    if fn is None:
+        record_natural_frequency(None, None)  # the one-line refusal
+    doc = stiffness_log(predictor, accel, sampling_rate(fs), natural_frequency(fn), source=source)
+    doc["natural_frequency_source"] = "request"
+    return doc
 
 
 def _number_field(value: Any, name: str) -> float | None:
@@ -278,15 +464,90 @@ def _text_field(value: Any, name: str) -> str | None:
     return value.strip()[:200]
 
 
+def upload_suffix(filename: str) -> str:
+    """The file name's extension if it is a plain one (it picks the reader), else ""."""
+    suffix = Path(filename).suffix
+    return suffix if _SUFFIX.match(suffix) else ""
+
+
+def spool_upload(source: Any, filename: str) -> Path:
+    """Copy an uploaded file part into a private temporary folder, in 1 MB chunks.
+
+    A large upload waiting for its lane then holds a file, not 20 MB of memory;
+    :func:`_predict_file` removes the folder.
+    """
+    folder = Path(tempfile.mkdtemp(prefix="stiffnet-upload-"))
+    path = folder / f"upload{upload_suffix(filename)}"
+    try:
+        source.seek(0)
+        with open(path, "wb") as fh:
+            shutil.copyfileobj(source, fh, 1 << 20)
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
+    return path
+
+
+def _npy_values(path: Path) -> int:
+    """Values in an ``.npy`` file by its header (0 when unreadable: the reader says why)."""
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as fh:
+            version = fmt.read_magic(fh)
+            read = fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0
+            shape = read(fh)[0]
+        return math.prod(int(n) for n in shape)
+    except (OSError, ValueError, TypeError):
+        return 0
+
+
+def _lines_over(path: Path, limit: int) -> bool:
+    n = 0
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            n += chunk.count(b"\n")
+            if n > limit:
+                return True
+    return False
+
+
 def _predict_file(
     predictor: Predictor,
-    data: bytes,
+    data: bytes | Path,
     filename: str,
     fs: Any,
     fn: Any,
     max_samples: int = 2_000_000,
     columns: Any = None,
     time_unit: Any = None,
+    channel: Any = None,
+    what: str = "predict",
+) -> dict:
+    """Predict an uploaded recording: its bytes, or a file of :func:`spool_upload` (removed)."""
+    if isinstance(data, Path):
+        try:
+            return _predict_path(predictor, data, filename, fs, fn, max_samples, columns,
+                                 time_unit, channel, what)  # fmt: skip
+        finally:
+            shutil.rmtree(data.parent, ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="stiffnet-upload-") as tmp:
+        path = Path(tmp) / f"upload{upload_suffix(filename)}"
+        path.write_bytes(data)
+        return _predict_path(predictor, path, filename, fs, fn, max_samples, columns, time_unit,
+                             channel, what)  # fmt: skip
+
+
+def _predict_path(
+    predictor: Predictor,
+    path: Path,
+    filename: str,
+    fs: Any,
+    fn: Any,
+    max_samples: int,
+    columns: Any,
+    time_unit: Any,
+    channel: Any = None,
+    what: str = "predict",
 ) -> dict:
     from stiffnet.recordings import read_recording
 
@@ -296,18 +557,21 @@ def _predict_file(
         "time_unit": _text_field(time_unit, "time_unit"),
     }
     fn_hz = _number_field(fn, "natural_frequency_hz")
-    suffix = Path(filename).suffix
-    if not _SUFFIX.match(suffix):
-        suffix = ""
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
-    with tempfile.TemporaryDirectory(prefix="stiffnet-upload-") as tmp:
-        path = Path(tmp) / f"upload{suffix}"
-        path.write_bytes(data)
-        try:
-            rec = read_recording(path, fs_hz=fs_hz, **layout)
-        except StiffnetError as exc:
-            raise StiffnetError(str(exc).replace(str(path), shown)) from None
+    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
+        _check_samples(max_samples + 1, max_samples, "over")
+    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
+        _check_samples(_npy_values(path), max_samples, "over")
+    hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
+    try:
+        rec = read_recording(path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout)
+    except StiffnetError as exc:
+        raise StiffnetError(str(exc).replace(str(path), shown)) from None
+    finally:
+        HINT_CONTEXT.reset(hints)
     _check_samples(rec.accel.size, max_samples)
+    if what == "log":
+        return _log(predictor, rec.accel, rec.fs_hz, fn_hz, shown)
     return predictor.predict(
         rec.accel,
         rec.fs_hz,
@@ -345,6 +609,12 @@ _PREDICT_BODY = {
                             "enum": ["s", "ms", "us"],
                             "description": "Unit of the CSV time column (default s)",
                         },
+                        "channel": {
+                            "type": "string",
+                            "description": "Channel of a multi-channel file (TDMS name or "
+                            "group/name, WAV/NPY index, CSV column); required when it has "
+                            "several",
+                        },
                     },
                 }
             },
@@ -381,12 +651,14 @@ def create_app(
     token: str | None = None,
     allowed_hosts: list[str] | None = None,
     cors_origins: list[str] | None = None,
+    access: bool = True,
 ) -> FastAPI:
     """The FastAPI application serving `predictor` under `limits` (see the module notes).
 
     ``token``: bearer token required on every path but ``/health`` and the docs;
     ``allowed_hosts``: accepted ``Host`` names (None: any); ``cors_origins``:
-    origins allowed to call from a browser (None: no CORS headers).
+    origins allowed to call from a browser (None: no CORS headers); ``access``: the
+    access-log middleware (lines appear once :func:`enable_access_log` is called).
     """
     from fastapi_offline import FastAPIOffline  # Swagger UI / ReDoc assets, no CDN
 
@@ -403,20 +675,21 @@ def create_app(
 
     app = FastAPIOffline(
         title="stiffnet predictor",
-        version="1",
+        version=__version__,
         description="Stiffness class and beta of an accelerometer recording (ONNX model) with "
         'the geometric inclination method as cross-check. Errors: {"error": "..."}.',
         lifespan=lifespan,
     )
     app.state.load = state  # requests in flight per lane (read by /health and tests)
-    app.add_middleware(BodyLimit, max_bytes=limits.max_bytes, timeout_s=limits.body_timeout_s)
+    app.add_middleware(BodyLimit, max_bytes=limits.max_bytes, timeout_s=limits.body_timeout_s,
+                       idle_s=limits.body_idle_s)  # fmt: skip
     app.add_middleware(Guard, token=token, allowed_hosts=allowed_hosts)
     if cors_origins:
-        from starlette.middleware.cors import CORSMiddleware
-
-        app.add_middleware(CORSMiddleware, allow_origins=list(cors_origins),
+        app.add_middleware(JsonCORS, allow_origins=list(cors_origins),
                            allow_methods=["GET", "POST"],
                            allow_headers=["Authorization", "Content-Type"])  # fmt: skip
+    if access:  # outermost: every answer is logged, the guards' refusals included
+        app.add_middleware(AccessLog)
 
     @app.exception_handler(StiffnetError)
     async def _stiffnet(_req: Request, exc: StiffnetError) -> JSONResponse:
@@ -432,15 +705,31 @@ def create_app(
 
     @app.exception_handler(BodyTimeout)
     async def _slow(_req: Request, _exc: BodyTimeout) -> JSONResponse:
-        log.warning("408: request body not complete within %g s", limits.body_timeout_s)
-        return _error(408, f"request body not received within {limits.body_timeout_s:g} s",
-                      {"Connection": "close"})  # fmt: skip
+        log.warning("408: request body not complete within %g s or silent for %g s",
+                    limits.body_timeout_s, limits.body_idle_s)  # fmt: skip
+        message = (f"request body not received within {limits.body_timeout_s:g} s "
+                   f"(or silent for {limits.body_idle_s:g} s)")  # fmt: skip
+        return _error(408, message, {"Connection": "close"})
 
     @app.exception_handler(ClientDisconnect)
     async def _gone(req: Request, _exc: ClientDisconnect) -> JSONResponse:
         client = f"{req.client.host}:{req.client.port}" if req.client else "client"
         log.warning("%s disconnected before its request body was complete", client)
         return _error(400, "client disconnected")  # not delivered: the client is gone
+
+    @app.exception_handler(csv.Error)
+    async def _csv(_req: Request, exc: csv.Error) -> JSONResponse:
+        return _error(422, f"malformed CSV ({exc}): a cell or line is too long or badly quoted")
+
+    @app.exception_handler(RecursionError)
+    async def _deep(_req: Request, _exc: RecursionError) -> JSONResponse:
+        return _error(422, "input nested too deeply to read")
+
+    @app.exception_handler(OSError)
+    async def _environment(_req: Request, exc: OSError) -> JSONResponse:
+        log.warning("503: %s", exc.strerror or type(exc).__name__)
+        return _error(503, f"the server cannot store the request ({exc.strerror or 'error'})",
+                      {"Retry-After": "10"})  # fmt: skip
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_req: Request, exc: StarletteHTTPException) -> JSONResponse:
@@ -450,26 +739,41 @@ def create_app(
     async def _validation(_req: Request, exc: RequestValidationError) -> JSONResponse:
         return _error(422, f"invalid request: {exc.errors()[:1]}")
 
-    def release(key: str) -> Callable[[Any], None]:
+    per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
+
+    def release(key: str, host: str | None = None) -> Callable[[Any], None]:
         def done(_f: Any = None) -> None:
             state[key] -= 1
+            if host is not None:
+                per_client[key, host] -= 1
+                if not per_client[key, host]:
+                    del per_client[key, host]
 
         return done
 
-    async def body_job(request: Request, ctype: str) -> Callable[[], dict] | JSONResponse:
+    async def body_job(
+        request: Request, ctype: str, what: str
+    ) -> Callable[[], dict] | JSONResponse:
         """Read the body (the event loop only streams it) into a job for a worker thread."""
         n = limits.max_samples
         if ctype == "application/json":
             body = await request.body()
-            return partial(_predict_json, predictor, body, n)
+            return partial(_predict_json, predictor, body, n, what)
         async with request.form(max_files=1, max_fields=8) as form:
             upload = form.get("file")
             if upload is None or isinstance(upload, str):
                 return _error(400, "multipart body needs a 'file' part holding the recording")
-            data = await upload.read()
-            return partial(_predict_file, predictor, data, upload.filename or "upload",
-                           form.get("fs_hz"), form.get("natural_frequency_hz"), n,
-                           form.get("columns"), form.get("time_unit"))  # fmt: skip
+            unknown = sorted(k for k in form if k not in FORM_FIELDS)
+            if unknown:  # as an unknown JSON key is: a misspelt field is not silently ignored
+                return _error(422, f"unknown form field {unknown[0][:40]!r} (fields: "
+                              f"{', '.join(FORM_FIELDS)})")  # fmt: skip
+            name = upload.filename or "upload"
+            spooled = await asyncio.to_thread(spool_upload, upload.file, name)
+            job = partial(_predict_file, predictor, spooled, name, form.get("fs_hz"),
+                          form.get("natural_frequency_hz"), n, form.get("columns"),
+                          form.get("time_unit"), form.get("channel"), what)  # fmt: skip
+            job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
+            return job
 
     @app.post(
         "/predict",
@@ -479,6 +783,20 @@ def create_app(
         summary="Predict one recording (JSON samples or a file upload)",
     )
     async def predict(request: Request) -> JSONResponse:
+        return await answer(request, "predict")
+
+    @app.post(
+        "/log",
+        response_model=LogResult,
+        responses=_ERRORS,
+        openapi_extra=_PREDICT_BODY,
+        summary="Stiffness log of one recording: beta(t), layers, change times "
+        "(the document of stiffnet log --json)",
+    )
+    async def log_route(request: Request) -> JSONResponse:
+        return await answer(request, "log")
+
+    async def answer(request: Request, what: str) -> JSONResponse:
         ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
         if ctype not in ("application/json", "multipart/form-data"):
             return _error(
@@ -488,16 +806,23 @@ def create_app(
         is_large = length is None or not length.isdigit() or int(length) > limits.small_bytes
         # Large: admitted (reading, waiting or running) up to its cap, refused unread beyond.
         # Small: bodies being read are bounded apart (a stalled sender must not take a
-        # worker's queue place); the worker queue counts read bodies only.
-        key, cap = ("large", limits.max_large + limits.max_large_queue) if is_large else (
-            "reading", MAX_SMALL_READERS)  # fmt: skip
+        # worker's queue place); the worker queue counts read bodies only. Each lane also
+        # bounds what one client address holds: a client stalling uploads blocks itself.
+        key, cap, mine = ("large", limits.max_large + limits.max_large_queue,
+                          MAX_LARGE_PER_CLIENT) if is_large else (
+            "reading", MAX_SMALL_READERS, MAX_READERS_PER_CLIENT)  # fmt: skip
+        host = request.client.host if request.client else "unknown"
+        lane = "large requests" if is_large else "uploads being received"
+        if per_client.get((key, host), 0) >= mine:
+            return _error(429, f"too many {lane} from this client; retry later",
+                          {"Retry-After": "1"})  # fmt: skip
         if state[key] >= cap:  # refused before its body is read: memory stays bounded
-            what = "large requests" if is_large else "uploads being received"
-            return _error(429, f"too many {what}; retry later", {"Retry-After": "1"})
+            return _error(429, f"too many {lane}; retry later", {"Retry-After": "1"})
         state[key] += 1
-        done = release(key)
+        per_client[key, host] = per_client.get((key, host), 0) + 1
+        done = release(key, host)
         try:
-            job = await body_job(request, ctype)
+            job = await body_job(request, ctype, what)
         except BaseException:
             done()
             raise
@@ -509,6 +834,9 @@ def create_app(
             return job
         if not is_large:
             if state["in_flight"] >= limits.max_concurrency + limits.max_queue:
+                spooled = getattr(job, "spooled", None)
+                if spooled is not None:  # the job never runs: its upload goes now
+                    shutil.rmtree(spooled.parent, ignore_errors=True)
                 return _error(429, "too many requests in flight; retry later",
                               {"Retry-After": "1"})  # fmt: skip
             state["in_flight"] += 1

@@ -11,7 +11,15 @@ removed. An interrupted run resumes: parts whose record matches are kept.
 Each row holds the model's answer and both cross-checks of :func:`serving.predictor.
 predict_recording`: the geometric one and the restoring-force one (``physical_*``).
 A recording that cannot be predicted (unreadable, too short, constant...) gets a row
-with its ``error`` and nulls elsewhere: one bad file never stops the batch.
+with its ``error`` and nulls elsewhere: one bad file never stops the batch, and the
+summary names every failed recording (``failed``; the command then exits 1).
+
+A campaign folder (one holding ``manifest.csv``, or the manifest itself) is read
+through its manifest: its recordings, and per recording the columns that say how to
+read it (``fs_hz``, ``natural_frequency_hz``, ``columns``, ``time_unit``,
+``channel``); an option fills only what the manifest leaves empty. A record whose
+beta changes along it (several layers, :func:`serving.log.record_layers`) has them
+in ``layers`` (JSON) and the alarm fired.
 Workers must see the recordings and the model at the same paths (a shared file
 system on a multi-machine cluster).
 """
@@ -19,10 +27,8 @@ system on a multi-machine cluster).
 from __future__ import annotations
 
 import functools
-import glob
 import hashlib
 import json
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,7 +42,14 @@ from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from stiffnet.inputs import walk_files
+from stiffnet.io_utils import (
+    claim_parts_folder,
+    remove_parts_folder,
+    sha256_file,
+    write_bytes_atomic,
+    write_json_atomic,
+)
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
 #: overhead (~10 ms) and small enough to balance a few thousand recordings.
@@ -54,13 +67,7 @@ def find_recordings(spec: str | Path) -> list[Path]:
     from stiffnet.recordings import SUPPORTED_EXTENSIONS
 
     text = str(spec)
-    root = Path(text)
-    if root.is_dir():
-        found = [p for p in root.rglob("*") if p.is_file()]
-    elif root.is_file():
-        found = [root]
-    else:
-        found = [Path(p) for p in glob.glob(text, recursive=True) if Path(p).is_file()]
+    found = walk_files(text)  # bounded: a glob over /proc is one error, not a hang
     found = [
         p for p in found
         if p.suffix.lower() in SUPPORTED_EXTENSIONS and not p.name.startswith(".")
@@ -71,6 +78,47 @@ def find_recordings(spec: str | Path) -> list[Path]:
             f"no recordings found at {text} (looked for {', '.join(SUPPORTED_EXTENSIONS)})"
         )
     return sorted(found, key=str)
+
+
+def campaign_inputs(
+    spec: str | Path,
+    fs_hz: float | None = None,
+    natural_frequency_hz: float | None = None,
+    columns: str | None = None,
+    time_unit: str | None = None,
+    channel: str | None = None,
+) -> tuple[list[str], list[tuple[Any, ...]], Path] | None:
+    """A campaign folder's recordings and per-recording read settings, from its manifest.
+
+    None when ``spec`` is not a campaign (no ``manifest.csv`` in the folder, and not a
+    manifest file). The manifest's columns win; the options fill the empty ones.
+    Recording files that do not exist stay in the list (their rows get the error).
+    """
+    from stiffnet.campaign import MANIFEST_NAME
+    from stiffnet.campaign.manifest import read_manifest
+
+    p = Path(spec)
+    if p.is_dir() and (p / MANIFEST_NAME).is_file():
+        manifest = p / MANIFEST_NAME
+    elif p.is_file() and p.name == MANIFEST_NAME:
+        manifest = p
+    else:
+        return None
+    root = manifest.parent.resolve()
+    paths, settings = [], []
+    for row in read_manifest(manifest):
+        path = (root / row.recording).resolve()
+        if not path.is_relative_to(root):
+            raise StiffnetError(f"{row.where(manifest)}: recording path leaves the campaign folder")
+        paths.append(str(manifest.parent / row.recording))
+        settings.append((
+            row.fs_hz if row.fs_hz is not None else fs_hz,
+            row.natural_frequency_hz or natural_frequency_hz,
+            row.columns.replace(";", ",") if row.columns else columns,
+            row.time_unit or time_unit,
+            row.channel or channel,
+        ))  # fmt: skip
+    return paths, settings, manifest
 
 
 def result_schema(class_names: list[str]) -> pa.Schema:
@@ -97,15 +145,21 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("fs_hz", pa.float64()),
             ("natural_frequency_hz", pa.float64()),
             ("duration_s", pa.float64()),
+            ("natural_frequency_source", pa.string()),
+            ("channel", pa.string()),
+            ("n_layers", pa.int64()),
+            ("layers", pa.string()),
             ("warnings", pa.string()),
             ("error", pa.string()),
         ]
     )
 
 
-def result_row(path: str, result: dict[str, Any] | None, error: str | None) -> dict[str, Any]:
+def result_row(
+    path: str, result: dict[str, Any] | None, error: str | None, channel: str | None = None
+) -> dict[str, Any]:
     """A table row from a prediction (or from the error that prevented it)."""
-    row: dict[str, Any] = {"path": path, "error": error}
+    row: dict[str, Any] = {"path": path, "error": error, "channel": channel}
     if result is None:
         return row
     interval = result.get("beta_interval") or [None, None]
@@ -132,6 +186,9 @@ def result_row(path: str, result: dict[str, Any] | None, error: str | None) -> d
             "fs_hz": result.get("fs_hz"),
             "natural_frequency_hz": result.get("natural_frequency_hz"),
             "duration_s": result.get("duration_s"),
+            "natural_frequency_source": result.get("natural_frequency_source"),
+            "n_layers": len(result.get("layers") or []) or None,
+            "layers": json.dumps(result["layers"]) if len(result.get("layers") or []) > 1 else None,
             "warnings": "; ".join(result.get("warnings") or []) or None,
         }
     )
@@ -159,6 +216,9 @@ class PartJob:
     #: CSV layout (see stiffnet.recordings.read_recording)
     columns: str | None = None
     time_unit: str | None = None
+    #: per recording (a campaign's manifest): (fs_hz, natural_frequency_hz, columns,
+    #: time_unit, channel), replacing the part's shared settings
+    settings: tuple[tuple[Any, ...], ...] | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
 
@@ -180,16 +240,20 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     t0 = time.perf_counter()
     predictor = _predictor(job.model_path, job.model_sha256)
     rows = []
-    for path, file in zip(job.paths, job.files, strict=True):
+    shared = (job.fs_hz, job.natural_frequency_hz, job.columns, job.time_unit, None)
+    settings = job.settings or (shared,) * len(job.paths)
+    for path, file, (fs, fn, columns, time_unit, channel) in zip(
+        job.paths, job.files, settings, strict=True
+    ):
         try:
-            result = predict_recording(file, fs_hz=job.fs_hz, predictor=predictor,
-                                       natural_frequency_hz=job.natural_frequency_hz,
-                                       columns=job.columns, time_unit=job.time_unit)  # fmt: skip
-            rows.append(result_row(path, result, None))
+            result = predict_recording(file, fs_hz=fs, predictor=predictor,
+                                       natural_frequency_hz=fn, columns=columns,
+                                       time_unit=time_unit, channel=channel)  # fmt: skip
+            rows.append(result_row(path, result, None, channel))
         except StiffnetError as exc:
-            rows.append(result_row(path, None, str(exc)))
+            rows.append(result_row(path, None, str(exc), channel))
         except Exception as exc:  # noqa: BLE001 - one odd file must not stop a batch
-            rows.append(result_row(path, None, f"{type(exc).__name__}: {exc}"))
+            rows.append(result_row(path, None, f"{type(exc).__name__}: {exc}", channel))
     table = pa.Table.from_pylist(rows, schema=result_schema(list(job.class_names)))
     path = Path(job.parts_dir) / f"part-{job.index:05d}.parquet"
     write_bytes_atomic(path, _parquet_bytes(table))
@@ -225,12 +289,16 @@ def _finished_part(parts_dir: Path, index: int, fingerprint: str) -> dict[str, A
     return record
 
 
-def _fingerprint(paths: tuple[str, ...], model_sha256: str, fs_hz, fn, layout=()) -> str:
+def _fingerprint(
+    paths: tuple[str, ...], model_sha256: str, fs_hz, fn, layout=(), settings=None
+) -> str:
     # the table's columns too: a part written with other columns cannot be concatenated
     columns = result_schema([]).names
     data = {"paths": paths, "model": model_sha256, "fs_hz": fs_hz, "fn": fn, "columns": columns}
     if any(layout):
         data["layout"] = list(layout)
+    if settings is not None:
+        data["settings"] = [list(x) for x in settings]
     text = json.dumps(data)
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -244,6 +312,7 @@ def predict_batch(
     natural_frequency_hz: float | None = None,
     columns: str | None = None,
     time_unit: str | None = None,
+    channel: str | None = None,
     part_size: int = PART_SIZE,
     scheduler: str | None = None,
     workers: int | None = None,
@@ -258,16 +327,19 @@ def predict_batch(
     Parameters
     ----------
     recordings
-        A folder (searched recursively), a glob or a file; see :func:`find_recordings`.
+        A campaign folder or its ``manifest.csv`` (:func:`campaign_inputs`), else a
+        folder (searched recursively), a glob or a file; see :func:`find_recordings`.
     out
         The result table (one row per recording, see :func:`result_schema`).
     model_path
         The ONNX model (default: the predictor's, ``models/cnn.onnx``).
     fs_hz, natural_frequency_hz
-        Sampling rate (needed for ``.npy``) and natural frequency (default: each
-        recording's sidecar, else the training data's), for every recording.
-    columns, time_unit
-        CSV layout for every recording, see :func:`stiffnet.recordings.read_recording`.
+        Sampling rate (needed for ``.npy``) and natural frequency (default: the
+        manifest's, else each recording's sidecar; a recording without any fails with
+        that reason), for every recording.
+    columns, time_unit, channel
+        How to read every recording (where a manifest leaves them empty), see
+        :func:`stiffnet.recordings.read_recording`.
     part_size
         Recordings per task.
     scheduler, workers
@@ -297,20 +369,29 @@ def predict_batch(
         raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
     if out.is_dir():
         raise StiffnetError(f"{out} is a folder: give a .parquet file name")
-    paths = [str(p) for p in find_recordings(recordings)]
+    campaign = campaign_inputs(recordings, fs_hz, natural_frequency_hz, columns, time_unit,
+                               channel)  # fmt: skip
+    if campaign is not None:
+        paths, settings, manifest = campaign
+    else:
+        paths, manifest = [str(p) for p in find_recordings(recordings)], None
+        settings = [(fs_hz, natural_frequency_hz, columns, time_unit, channel)] * len(paths)
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
     model_file = str(Path(predictor.model.path).resolve())
     class_names = tuple(predictor.class_names)
     parts_dir = out.parent / f"{out.name}.parts"
+    run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
+                       (columns, time_unit, part_size))  # fmt: skip
+    claim_parts_folder(parts_dir, run)  # a user's folder of that name is refused, not used
     t0 = time.perf_counter()
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
-        parts_dir.mkdir(parents=True, exist_ok=True)
         jobs, records = [], {}
         for index, lo in enumerate(range(0, len(paths), part_size)):
             chunk = tuple(paths[lo : lo + part_size])
+            chunk_settings = tuple(settings[lo : lo + part_size])
             fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
-                              (columns, time_unit))  # fmt: skip
+                              (columns, time_unit), chunk_settings)  # fmt: skip
             record = _finished_part(parts_dir, index, fp) if resume else None
             if record is not None:
                 records[index] = record
@@ -318,7 +399,8 @@ def predict_batch(
             files = tuple(str(Path(p).resolve()) for p in chunk)
             jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
                                 predictor.sha256, class_names, fs_hz, natural_frequency_hz, fp,
-                                columns, time_unit, before_part))  # fmt: skip
+                                columns, time_unit, settings=chunk_settings,
+                                before=before_part))  # fmt: skip
         n_parts = len(records) + len(jobs)
         kept = len(records)
         if progress and kept:
@@ -341,11 +423,14 @@ def predict_batch(
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(out, _parquet_bytes(table))
-    shutil.rmtree(parts_dir, ignore_errors=True)
+    remove_parts_folder(parts_dir)  # only the run's own files
     classes = table.column("class").drop_null().to_pylist()
+    errors = table.select(["path", "error"]).to_pylist()
     return {
         "out": str(out),
+        "manifest": None if manifest is None else str(manifest),
         "recordings": table.num_rows,
+        "failed": [r for r in errors if r["error"] is not None],
         "errors": int(table.column("error").is_valid().to_numpy(zero_copy_only=False).sum()),
         "class_counts": {name: classes.count(name) for name in class_names},
         "model": {"name": predictor.name, "sha256": predictor.sha256},

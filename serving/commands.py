@@ -13,6 +13,7 @@ from typing import Annotated, Any
 import typer
 
 from stiffnet.cli_options import (
+    ChannelOption,
     ColumnsOption,
     FsOption,
     JsonOption,
@@ -30,6 +31,7 @@ def predict(
     fn: NaturalFrequencyOption = None,
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = None,
+    channel: ChannelOption = None,
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
@@ -50,6 +52,7 @@ def predict(
         predictor=predictor,
         columns=columns,
         time_unit=time_unit,
+        channel=channel,
     )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"
@@ -130,6 +133,20 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         p.add_column(name, justify="right")
     p.add_row(*(f"{v:.3f}" for v in result["probabilities"].values()))
     parts: list[Any] = [t, p]
+    if len(result.get("layers") or []) > 1:
+        la_t = Table(title="layers: beta changes along this record (the overall beta is a blend)")
+        for col in ("from s", "to s", "class", "beta [interval]", "windows"):
+            la_t.add_column(col, justify="right")
+        for la in result["layers"]:
+            iv = la["beta_interval"]
+            la_t.add_row(
+                f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
+                f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
+                la["class"],
+                _num(la["beta"]) + (f" [{iv[0]:.3g}, {iv[1]:.3g}]" if iv else ""),
+                str(la["n_points"]),
+            )
+        parts.append(la_t)
     if len(result["segments"]) > 1:
         s = Table(title="segments")
         for col in ("from s", "to s", "windows", "class", "beta"):
@@ -177,6 +194,12 @@ def serve(
     body_timeout_s: Annotated[
         float, typer.Option(help="Whole request body within this time, else 408.")
     ] = 20.0,
+    body_idle_s: Annotated[
+        float, typer.Option(help="A body silent this long gets 408 (a stalled upload).")
+    ] = 5.0,
+    header_timeout_s: Annotated[
+        float, typer.Option(help="Whole request head (line and headers) within this time.")
+    ] = 10.0,
     token: Annotated[
         str | None,
         typer.Option(
@@ -201,7 +224,7 @@ def serve(
     """Serve the predictor over HTTP (FastAPI): POST /predict, GET /health, GET /model."""
     import uvicorn
 
-    from serving.app import Limits, create_app
+    from serving.app import Limits, create_app, enable_access_log, guarded_protocol
     from serving.predictor import Predictor
     from stiffnet.console import console
     from stiffnet.errors import StiffnetError
@@ -209,7 +232,7 @@ def serve(
     limits = Limits.checked(
         max_upload_mb, timeout_s, max_concurrency, max_queue, max_samples=max_samples,
         small_upload_mb=small_upload_mb, max_large_queue=max_large_queue,
-        body_timeout_s=body_timeout_s,
+        body_timeout_s=body_timeout_s, body_idle_s=body_idle_s, header_timeout_s=header_timeout_s,
     )  # fmt: skip
     if not 0 <= port <= 65535:
         raise StiffnetError(f"port must be in 0..65535, got {port}")
@@ -231,7 +254,13 @@ def serve(
         f"(docs at /docs)"
     )
     app = create_app(predictor, limits, token=token, allowed_hosts=hosts, cors_origins=cors_origin)
-    config = uvicorn.Config(app, log_level="warning", timeout_keep_alive=5)
+    enable_access_log()
+    config = uvicorn.Config(
+        app,
+        log_level="warning",
+        timeout_keep_alive=5,
+        http=guarded_protocol(limits.header_timeout_s),
+    )
     uvicorn.Server(config).run(sockets=[sock])
 
 
@@ -276,7 +305,8 @@ def predict_batch_cmd(
         str,
         typer.Argument(
             metavar="DIR_OR_GLOB",
-            help="A folder (searched recursively), a glob ('runs/**/*.csv') or one recording.",
+            help="A campaign folder (its manifest.csv), a folder (searched recursively), a "
+            "glob ('runs/**/*.csv') or one recording.",
         ),
     ],
     out_path: Annotated[
@@ -287,6 +317,7 @@ def predict_batch_cmd(
     fs: FsOption = None,
     columns: ColumnsOption = None,
     time_unit: TimeUnitOption = None,
+    channel: ChannelOption = None,
     part_size: Annotated[int, typer.Option(help="Recordings per task.")] = 16,
     scheduler: SchedulerOption = None,
     workers: WorkersOption = None,
@@ -300,8 +331,10 @@ def predict_batch_cmd(
 ) -> None:
     """Predict many recordings into one Parquet table, in parts, in-process or on Dask.
 
-    A recording that cannot be predicted gets a row with its error; an interrupted run
-    resumes without predicting its finished parts again.
+    A campaign folder is read through its manifest.csv (fs, f_n, columns, time unit,
+    channel per recording). A recording that cannot be predicted gets a row with its
+    error, is named on stderr and makes the command exit 1; an interrupted run resumes
+    without predicting its finished parts again.
     """
     from rich.table import Table
 
@@ -318,6 +351,7 @@ def predict_batch_cmd(
             natural_frequency_hz=fn,
             columns=columns,
             time_unit=time_unit,
+            channel=channel,
             part_size=part_size,
             scheduler=scheduler,
             workers=workers,
@@ -339,12 +373,244 @@ def predict_batch_cmd(
         notes.append(f"run again by the cluster: {', '.join(summary['rerun'])}")
     out.print(f"{'; '.join(notes)}; {summary['seconds']:.1f} s ({summary['backend']})")
     write_json(json_path, summary)
+    if summary["failed"]:
+        from stiffnet.console import console
+
+        for f in summary["failed"]:
+            console.print(f"[red]failed:[/] {f['path']}: {f['error']}", highlight=False,
+                          soft_wrap=True)  # fmt: skip
+        console.print(
+            f"[bold red]error:[/] {len(summary['failed'])} of {summary['recordings']} "
+            f"recording(s) failed (rows with their error in {out_path})",
+            highlight=False,
+        )
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``predict``, ``predict-batch`` and ``serve`` to the ``stiffnet`` app."""
+    """Add ``predict``, ``predict-batch``, ``serve`` and ``log`` to the ``stiffnet`` app."""
     from stiffnet.console import user_errors
 
     app.command("predict")(user_errors(predict))
     app.command("predict-batch")(user_errors(predict_batch_cmd))
     app.command("serve")(user_errors(serve))
+    app.command("log")(user_errors(log_cmd))
+
+
+def log_cmd(
+    recording: Annotated[
+        str,
+        typer.Argument(
+            metavar="RECORDING|-",
+            help="Recording (CSV t,accel, .npy, WAV, TDMS); with --follow a growing file or - "
+            "(stdin).",
+        ),
+    ],
+    follow: Annotated[
+        bool,
+        typer.Option(help="Read a growing file or stdin; print points and layers as they come."),
+    ] = False,
+    fs: FsOption = None,
+    fn: NaturalFrequencyOption = None,
+    columns: ColumnsOption = None,
+    time_unit: TimeUnitOption = None,
+    channel: ChannelOption = None,
+    model: ModelOption = None,
+    hop: Annotated[float, typer.Option(help="Seconds between points (<= 0.5).")] = 0.5,
+    physical_every: Annotated[
+        float, typer.Option(help="Seconds between restoring-force cross-checks (0: none).")
+    ] = 10.0,
+    stream_format: Annotated[
+        str, typer.Option(help="--follow: csv (one sample per line) or f32 (raw float32).")
+    ] = "csv",
+    stream_column: Annotated[
+        int | None,
+        typer.Option(help="--follow csv: 0-based column of the acceleration (default last)."),
+    ] = None,
+    idle_timeout: Annotated[
+        float | None,
+        typer.Option(help="--follow FILE: stop after this many seconds without new samples."),
+    ] = 10.0,
+    threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
+    json_path: JsonOption = None,
+    rows_path: Annotated[
+        Path | None,
+        typer.Option("--rows", help="Points as a table: .csv or .parquet (one row per point)."),
+    ] = None,
+    plot_path: Annotated[
+        Path | None, typer.Option("--plot", help="The log as a PNG picture.")
+    ] = None,
+) -> None:
+    """Stiffness log along a record: beta(t) with intervals, layers and their change times."""
+    from serving.log import StiffnessLogger, log_result, stiffness_log
+    from serving.predictor import Predictor, record_natural_frequency
+    from stiffnet import inputs, progress
+    from stiffnet.console import console, out, show_progress, write_json
+    from stiffnet.errors import StiffnetError
+
+    for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
+        inputs.output_file(path, what)
+    if rows_path is not None and rows_path.suffix.lower() not in (".csv", ".parquet"):
+        raise StiffnetError(f"--rows {rows_path}: use a .csv or .parquet file name")
+    if plot_path is not None and plot_path.suffix.lower() != ".png":
+        raise StiffnetError(f"--plot {plot_path}: use a .png file name")
+    predictor = Predictor.load(model, threads=threads)
+    every = physical_every if physical_every > 0 else None
+    if follow:
+        from serving.stream import sample_chunks
+
+        if fs is None:
+            raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
+        if columns is not None or time_unit is not None or channel is not None:
+            raise StiffnetError(
+                "--columns, --time-unit and --channel read files; a --follow stream takes "
+                "--stream-format and --stream-column"
+            )
+        fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
+        logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
+                                 hop_s=hop, physical_every_s=every)  # fmt: skip
+        console.print(
+            f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
+            f"f_n {fn_value:.4g} Hz ({fn_source})",
+            highlight=False,
+        )
+        from collections import deque
+
+        # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
+        # per hour) for the final --json/--rows/--plot: memory stays bounded
+        points: deque = deque(maxlen=FOLLOW_POINTS)
+        layers: list = []
+        chunks = sample_chunks(recording, stream_format, column=stream_column,
+                               idle_timeout_s=idle_timeout)  # fmt: skip
+        for chunk in chunks:
+            for kind, item in logger.feed(chunk):
+                _emit(kind, item, points, layers)
+        for kind, item in logger.finish():
+            _emit(kind, item, points, layers)
+        result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
+        if logger.segmenter.n_seen > len(points):
+            result["warnings"].append(
+                f"--json/--rows/--plot hold the last {len(points)} of "
+                f"{logger.segmenter.n_seen} points (stdout had them all)"
+            )
+    else:
+        from stiffnet.recordings import read_recording
+
+        rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
+                             time_unit=time_unit)  # fmt: skip
+        fn_value, fn_source = record_natural_frequency(recording, fn)
+        with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
+            result = stiffness_log(
+                predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, physical_every_s=every,
+                source=rec.source,
+                progress=lambda done, total: bar.update(completed=done, total=total),
+            )  # fmt: skip
+    result["natural_frequency_source"] = fn_source
+    if not follow:
+        for renderable in log_tables(result):
+            out.print(renderable)
+    else:
+        for renderable in log_tables(result):
+            console.print(renderable)
+    write_json(json_path, result)
+    if rows_path is not None:
+        write_log_rows(result, rows_path)
+    if plot_path is not None:
+        from serving.log_plot import log_figure
+
+        log_figure(result, plot_path, (predictor.alarm.info if predictor.alarm else {}).get(
+            "class_edges"))  # fmt: skip
+
+
+#: Points ``log --follow`` keeps for its final outputs (two hours at a 0.5 s hop).
+FOLLOW_POINTS = 14_400
+
+
+def _emit(kind: str, item: dict[str, Any], points: Any, layers: list) -> None:
+    """One NDJSON line on stdout per point or closed layer, flushed (a DAQ reads it live)."""
+    import json
+    import sys
+
+    (points if kind == "point" else layers).append(item)
+    sys.stdout.write(json.dumps({"type": kind, **item}, allow_nan=False) + "\n")
+    sys.stdout.flush()
+
+
+def log_tables(result: dict[str, Any]) -> list[Any]:
+    """Rich renderables of a stiffness log: the layers with their changes, and warnings."""
+    from rich.table import Table
+
+    t = Table(
+        title=f"stiffness log of {result['source'] or 'the stream'}: {len(result['layers'])} "
+        f"layer(s), {result['n_points']} points every {result['hop_s']:g} s "
+        f"(window {result['window_s']:.3g} s)"
+    )
+    for col in ("layer", "from s", "to s", "class", "beta [interval]", "alarm", "restoring force"):
+        t.add_column(col, justify="right" if col.endswith("s") else "left")
+    for la in result["layers"]:
+        beta = _num(la["beta"])
+        if la["beta_interval"]:
+            beta += f" [{la['beta_interval'][0]:.3g}, {la['beta_interval'][1]:.3g}]"
+        ph = la["physical"]
+        if ph["beta"] is not None:
+            rf = f"{ph['beta']:.3g} " + ("agrees" if ph["agreement"] else "[red]disagrees[/]")
+        else:
+            rf = "-"
+        t.add_row(
+            str(la["index"]),
+            f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
+            f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
+            la["class"] + (" (edge)" if la["near_edge"] else ""),
+            beta,
+            f"[red]{la['alarm_fraction']:.0%}[/]" if la["alarm"] else f"{la['alarm_fraction']:.0%}",
+            rf,
+        )
+    parts: list[Any] = [t]
+    for c in result["changes"]:
+        parts.append(
+            f"change at {c['t_s']:.1f} ± {c['sd_s']:.1f} s: {c['from']} -> {c['to']} "
+            f"(beta {_num(c['from_beta'])} -> {_num(c['to_beta'])})"
+        )
+    if not result["changes"]:
+        parts.append("no change of beta along this record")
+    for w in result["warnings"]:
+        parts.append(f"[yellow]warning:[/] {w}")
+    return parts
+
+
+def write_log_rows(result: dict[str, Any], path: Path) -> None:
+    """The log's points as a CSV or Parquet table (one row per point), written atomically."""
+    import io
+
+    import numpy as np
+    import pyarrow as pa
+
+    from stiffnet.io_utils import write_bytes_atomic
+
+    pts = result["points"]
+    ends = np.array([la["end_s"] for la in result["layers"]])
+    last = len(ends) - 1
+    layer_of = [min(int(np.searchsorted(ends, p["t_s"], side="right")), last) for p in pts]
+    iv = [p["beta_interval"] or [None, None] for p in pts]
+    table = pa.table({
+        "t_s": [p["t_s"] for p in pts],
+        "beta": [p["beta"] for p in pts],
+        "beta_lo": [v[0] for v in iv],
+        "beta_hi": [v[1] for v in iv],
+        "class": [p["class"] for p in pts],
+        "near_edge": [p["near_edge"] for p in pts],
+        "alarm": [p["alarm"] for p in pts],
+        "alarm_fired": [",".join(p["alarm_fired"]) for p in pts],
+        "layer": layer_of,
+        "physical_beta": [p.get("physical", {}).get("beta") for p in pts],
+    })  # fmt: skip
+    buf = io.BytesIO()
+    if path.suffix.lower() == ".parquet":
+        import pyarrow.parquet as pq
+
+        pq.write_table(table, buf)
+    else:
+        import pyarrow.csv as pacsv
+
+        pacsv.write_csv(table, buf)
+    write_bytes_atomic(path, buf.getvalue())

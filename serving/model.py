@@ -1,7 +1,7 @@
 """Loading a shipped ONNX model: integrity check against its card, metadata, session.
 
-A model is a file ``NAME.onnx`` and its card ``NAME.card.json`` (written by
-``training/export_onnx.py`` / ``training/export_onnx_cnn.py``). Loading
+A model is a file ``NAME.onnx`` and its card ``NAME.card.json`` (written by its
+family's exporter, ``training/families/NAME/``). Loading
 
 1. reads the card (plain JSON) and refuses the model when the file's SHA-256
    differs from the card's ``sha256`` - a model is never run unverified;
@@ -9,8 +9,8 @@ A model is a file ``NAME.onnx`` and its card ``NAME.card.json`` (written by
    ``inter_op_num_threads`` = 1), refusing a file ONNX Runtime cannot parse;
 3. reads the metadata from the file's ``metadata_props`` (JSON-decoded; the
    card's copy fills anything missing) and checks it describes a model of a
-   family the predictor serves (:data:`serving.families.FAMILIES`: the CNN with
-   input ``windows``, the GBM with input ``features``).
+   family the predictor serves (:func:`serving.families.family_for`), with the
+   family's one input and the outputs ``probabilities`` and ``log_beta``.
 
 Nothing is unpickled: the card and the reference files are JSON and the model is
 an ONNX protobuf run by ONNX Runtime.
@@ -31,12 +31,14 @@ from stiffnet.shipped import shipped_file
 if TYPE_CHECKING:
     from serving.families.base import ModelFamily
 
-DEFAULT_MODEL_FILE = "cnn.onnx"
-
 
 def default_model_path() -> Path:
-    """``models/cnn.onnx`` of the repository, else of the current folder."""
-    return shipped_file(DEFAULT_MODEL_FILE)
+    """The shipped model of the default family (:attr:`ModelFamily.default`):
+    ``models/KIND.onnx`` of the repository, else of the current folder."""
+    from serving.families import families
+
+    (kind,) = {f.kind for f in families().values() if f.default}
+    return shipped_file(f"{kind}.onnx")
 
 
 def card_path(model_path: Path) -> Path:
@@ -85,9 +87,9 @@ class LoadedModel:
     path : Path
         The ``.onnx`` file.
     name : str
-        File stem (``cnn``, ``gbm``).
+        File stem.
     kind : str
-        ``"cnn"`` or ``"gbm"``.
+        The model's family (:attr:`serving.families.base.ModelFamily.kind`).
     sha256 : str
         SHA-256 of the file (equal to the card's).
     metadata : dict
@@ -144,11 +146,11 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
     ------
     StiffnetError
         Missing file or card, SHA-256 mismatch, a file ONNX Runtime cannot
-        load, or metadata that is not a stiffnet CNN or GBM.
+        load, or metadata that is no served family's.
     """
     import onnxruntime as ort
 
-    from serving.families import FAMILIES
+    from serving.families import families, family_for
 
     p = Path(path) if path is not None else default_model_path()
     if int(threads) < 1:
@@ -178,10 +180,11 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
         raise StiffnetError(f"{p}: not a loadable ONNX model ({first[:200]})") from None
     meta = dict(card.get("metadata") or {})
     meta.update(onnx_metadata(sess))
-    family = FAMILIES.get(str(meta.get("model_kind")))
+    family = family_for(meta.get("model_kind"))
     if family is None:
+        served = " or ".join(f.kind for f in families().values())
         raise StiffnetError(
-            f"{p}: model_kind {meta.get('model_kind')!r} is not a stiffnet cnn or gbm model"
+            f"{p}: model_kind {meta.get('model_kind')!r} is not a stiffnet {served} model"
         )
     input_name = family.input_name
     inputs = [i.name for i in sess.get_inputs()]

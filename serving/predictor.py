@@ -27,7 +27,7 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
    cross-check (:mod:`serving.physical`: the restoring-force estimate,
    ``physical_class``, ``physical_beta`` with its bootstrap interval,
    ``physical_agreement``, null when that method refused, with its reason);
-   the alarm (:mod:`serving.alarm`: ``ood_flag`` is the alarm, ``ood_score``
+   the alarm (:mod:`stiffnet.uncertainty.alarm_verdict`: ``ood_flag`` is the alarm, ``ood_score``
    its largest score relative to its threshold).
 5. **Result**: :class:`serving.schemas.PredictionResult`.
 """
@@ -42,8 +42,21 @@ from typing import Any
 
 import numpy as np
 
-from serving.aggregate import beta_interval, geometric_verdict, named, recording_estimate, segments
-from serving.alarm import (
+from serving.aggregate import geometric_verdict, named, segments
+from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
+from serving.log import record_layers, with_layers_alarm
+from serving.model import LoadedModel, load_model
+from serving.physical import physical_check
+from serving.schemas import PredictionResult
+from stiffnet.config.window import WINDOW_PERIODS
+from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.features.windows import window_length, window_starts
+from stiffnet.inputs import natural_frequency, real_number, sampling_rate
+from stiffnet.recordings import read_sidecar
+from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
+from stiffnet.uncertainty import aggregate_windows, beta_interval
+from stiffnet.uncertainty.alarm import AlarmReference
+from stiffnet.uncertainty.alarm_verdict import (
     alarm_ratio,
     alarm_verdict,
     load_model_alarm,
@@ -51,17 +64,7 @@ from serving.alarm import (
     weak_physical_fit,
     with_physical_check,
 )
-from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
-from serving.model import LoadedModel, load_model
-from serving.ood import OODReference, load_reference
-from serving.physical import physical_check
-from serving.schemas import PredictionResult
-from stiffnet.config.window import WINDOW_PERIODS
-from stiffnet.errors import SignalError, StiffnetError
-from stiffnet.features.windows import window_length, window_starts
-from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
-from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
-from stiffnet.uncertainty.alarm import AlarmReference
+from stiffnet.uncertainty.ood import OODReference, load_reference
 
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
@@ -71,8 +74,6 @@ GEOMETRIC_WINDOWS = 3
 BATCH = 256
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
-#: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
-SIDECAR_SUFFIX = ".json"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
 MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
 
@@ -84,29 +85,33 @@ def _finite_positive(value: Any, what: str) -> float:
     return v
 
 
-def read_sidecar(recording: str | Path) -> tuple[float | None, Path]:
-    """Natural frequency from the recording's sidecar ``<recording>.json``, if present.
+#: Why f_n is never guessed from a record (measured: docs/field.md).
+FN_UNKNOWN = (
+    "natural frequency unknown: give it (--fn HZ; a sidecar <recording>.json with "
+    "natural_frequency_hz; the manifest column natural_frequency_hz; the HTTP field "
+    "natural_frequency_hz). A steady-state record does not show it (its motion is at the "
+    "forcing frequency) and the training data's value is not assumed"
+)
 
-    The sidecar is a JSON object with at least ``natural_frequency_hz`` (Hz); any
-    other keys (provenance, rig notes) are ignored here.
 
-    Returns
-    -------
-    (float or None, Path)
-        The value (None when there is no sidecar or it has no such key) and the sidecar path.
+def record_natural_frequency(
+    recording: str | Path | None, natural_frequency_hz: float | None
+) -> tuple[float, str]:
+    """f_n of a recording and where it came from: the option, else its sidecar, else refuse.
 
     Raises
     ------
     StiffnetError
-        If the sidecar exists but is not valid JSON or the value is not a number > 0.
+        Neither is there (:data:`FN_UNKNOWN`), or the value is out of range.
     """
-    p = Path(str(recording) + SIDECAR_SUFFIX)
-    if not p.is_file():
-        return None, p
-    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
-    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
-        return None, p
-    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
+    if natural_frequency_hz is not None:
+        return natural_frequency(natural_frequency_hz, "--fn"), "option --fn"
+    if recording is not None:
+        value, sidecar = read_sidecar(recording)
+        if value is not None:
+            return value, f"sidecar:{sidecar}"
+    where = f"{recording}: " if recording is not None else ""
+    raise StiffnetError(where + FN_UNKNOWN)
 
 
 class Predictor:
@@ -263,8 +268,9 @@ class Predictor:
             1-D acceleration samples, any unit and sign.
         fs_hz : float
             Sampling rate in Hz.
-        natural_frequency_hz : float, optional
-            Natural frequency of the rig; default: the training data's.
+        natural_frequency_hz : float
+            Natural frequency of the rig (required: never the training data's in silence;
+            None raises a :class:`StiffnetError` saying how to give it).
         source : str, optional
             Name of the recording, echoed in the result.
         natural_frequency_source : str, optional
@@ -282,6 +288,10 @@ class Predictor:
             Unusable input, with a one-line message.
         """
         what = source or "recording"
+        if natural_frequency_hz is None:
+            from serving.checks import finite_samples
+
+            finite_samples(accel, what)  # the samples' own faults first
         fs, fn, fn_source = self._rates(fs_hz, natural_frequency_hz, natural_frequency_source)
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
@@ -293,18 +303,19 @@ class Predictor:
             raise StiffnetError(f"{what}: {exc}") from None
 
         names, nc = self.class_names, self._nc
-        est = recording_estimate(out, nc)
+        est = aggregate_windows(
+            out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
+        )
         cls = names[est.label]
         segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
-        seg_classes = [s["class"] for s in segs]
-        if len(set(seg_classes)) > 1:
-            warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
+        layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
+        alarm = with_layers_alarm(alarm, layers)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         if weak := weak_physical_fit(physical):
@@ -335,6 +346,7 @@ class Predictor:
             "duration_s": a.size / fs,
             "fs_hz": fs,
             "segments": segs,
+            "layers": layers,
             "model": {"name": self.name, "sha256": self.sha256, "kind": self.kind},
             "natural_frequency_hz": fn,
             "natural_frequency_source": fn_source,
@@ -353,11 +365,7 @@ class Predictor:
                 natural_frequency(natural_frequency_hz),
                 natural_frequency_source or "argument",
             )
-        if self.training_natural_frequency is not None:
-            return fs, self.training_natural_frequency, "training_data"
-        raise StiffnetError(
-            "natural frequency unknown: give it (--fn HZ, natural_frequency_hz, or a sidecar)"
-        )
+        raise StiffnetError(FN_UNKNOWN)
 
     def _windows(
         self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
@@ -436,12 +444,14 @@ def predict_recording(
     predictor: Predictor | None = None,
     columns: str | None = None,
     time_unit: str | None = None,
+    channel: str | int | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
     The natural frequency is, in this order: `natural_frequency_hz`; the
-    sidecar ``<recording>.json``'s ``natural_frequency_hz``; the model's
-    training data's (``natural_frequency_source`` says which).
+    sidecar ``<recording>.json``'s ``natural_frequency_hz``; else a one-line
+    refusal (``natural_frequency_source`` says which; the training data's value is
+    never assumed).
 
     Parameters
     ----------
@@ -457,6 +467,8 @@ def predict_recording(
         An already loaded predictor.
     columns, time_unit : str, optional
         CSV layout, as :func:`stiffnet.recordings.read_recording`.
+    channel : str or int, optional
+        Channel of a multi-channel file (required when it has several).
 
     Returns
     -------
@@ -466,11 +478,11 @@ def predict_recording(
     from stiffnet.recordings import read_recording
 
     pred = predictor or _cached_load(model_path)
-    rec = read_recording(path, fs_hz=fs_hz, columns=columns, time_unit=time_unit)
+    rec = read_recording(path, fs_hz=fs_hz, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
     fn_source = "argument"
     if natural_frequency_hz is None:
-        natural_frequency_hz, sidecar = read_sidecar(path)
-        fn_source = f"sidecar:{sidecar}"
+        natural_frequency_hz, fn_source = record_natural_frequency(path, None)
     return pred.predict(
         rec.accel,
         rec.fs_hz,

@@ -74,6 +74,24 @@ class Segment(BaseModel):
     beta: float | None
 
 
+class Layer(BaseModel):
+    """A stretch of the record with one beta (a change point on each side)."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    index: int
+    start_s: float = Field(description="Start (s): the change point before it (0: the start).")
+    start_sd_s: float = Field(description="Uncertainty of start_s (s; 0 at the record's start).")
+    end_s: float
+    end_sd_s: float
+    class_: str = Field(alias="class", description="Class of the layer's beta (hysteresis).")
+    near_edge: bool = Field(description="Beta lies within 10 % of a class edge.")
+    beta: float | None = Field(description="exp(mean log beta) over the layer's windows.")
+    beta_interval: list[float] | None
+    n_points: int = Field(description="Windows (points of the log, hop 0.5 s) in the layer.")
+    alarm_fraction: float = Field(description="Share of the layer's windows with the alarm.")
+
+
 class AlarmResult(BaseModel):
     """The unreliability alarm: checks on what the model looks at (``stiffnet.uncertainty``)."""
 
@@ -131,11 +149,77 @@ class PredictionResult(BaseModel):
     duration_s: float
     fs_hz: float
     segments: list[Segment]
+    layers: list[Layer] = Field(
+        default_factory=list,
+        description="Stretches of constant beta (change points of stiffnet log); more "
+        "than one fires the alarm's 'layers' check: the overall beta is then a blend.",
+    )
     model: ModelInfo
     natural_frequency_hz: float
     natural_frequency_source: str = Field(
-        description="option / argument / request / sidecar:<path> / training_data"
+        description="option / argument / request / sidecar:<path> / manifest"
     )
+    warnings: list[str]
+
+
+class LogLayer(Layer):
+    """A layer of the stiffness log, with its share of alarms and restoring-force checks."""
+
+    beta_interval_coverage: float | None = None
+    probabilities: dict[str, float]
+    n_pooled: int = Field(description="Points pooled into beta (mixed windows left out).")
+    alarm: bool = Field(description="The alarm fired on more than half of its windows.")
+    physical: dict[str, Any] = Field(
+        description="The restoring-force checks inside the layer: median beta and interval, "
+        "class, agreement with the layer, or why there is none."
+    )
+
+
+class LogPoint(BaseModel):
+    """One window of the log (its centre ``t_s``)."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    t_s: float
+    class_: str = Field(alias="class")
+    beta: float | None
+    beta_interval: list[float] | None = Field(description="Per-window conformal interval.")
+    near_edge: bool
+    alarm: bool
+    alarm_fired: list[str]
+    physical: dict[str, Any] | None = Field(
+        default=None, description="Restoring-force check on this window (every 10 s)."
+    )
+
+
+class LogChange(BaseModel):
+    """A change of beta between two layers."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    t_s: float
+    sd_s: float = Field(description="Uncertainty of the change time (profile likelihood).")
+    from_: str = Field(alias="from")
+    to: str
+    from_beta: float | None
+    to_beta: float | None
+
+
+class LogResult(BaseModel):
+    """The stiffness log of a record (``stiffnet log --json``, ``POST /log``)."""
+
+    source: str
+    duration_s: float
+    fs_hz: float
+    natural_frequency_hz: float
+    natural_frequency_source: str | None = None
+    window_s: float
+    hop_s: float
+    model: ModelInfo
+    n_points: int
+    layers: list[LogLayer]
+    changes: list[LogChange]
+    points: list[LogPoint]
     warnings: list[str]
 
 
@@ -150,7 +234,9 @@ class PredictRequest(BaseModel):
     samples: list[float] = Field(description="Acceleration samples (any unit, either sign).")
     fs_hz: float = Field(description="Sampling rate in Hz.")
     natural_frequency_hz: float | None = Field(
-        default=None, description="Natural frequency of the rig; default: the training data's."
+        default=None,
+        description="Natural frequency of the rig (Hz). Required: without it the request is "
+        "refused (the training data's value is never assumed).",
     )
 
 
@@ -197,7 +283,7 @@ class ModelResponse(BaseModel):
         description="Lowest accepted fs / f_n (the sampling-rate floor)."
     )
     training_natural_frequency_hz: float | None = Field(
-        description="f_n of the training data: the default when a request gives none."
+        description="f_n of the training data (information only: never assumed for a request)."
     )
     segment_windows: int = Field(description="Windows aggregated per reported segment.")
     geometric_windows: int = Field(description="Windows the geometric cross-check analyses.")

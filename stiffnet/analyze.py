@@ -18,13 +18,21 @@ import numpy as np
 from stiffnet import nlts
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
+from stiffnet.nlts.stationarity import record_probes
 from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
-from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
 #: samples: they converge long before, and their cost grows as N log N.
 MAX_NEIGHBOUR_SAMPLES = 20_000
 MAX_DIM = 8
+#: Segments of the stationarity test; on a record longer than MAX_NEIGHBOUR_SAMPLES
+#: they are probes spread over the whole record (nlts.stationarity.record_probes).
+STATIONARITY_SEGMENTS = 8
+#: Why the restoring-force estimate does not run without f_n (docs/field.md).
+FN_MISSING = (
+    "natural frequency unknown (give --fn HZ or a sidecar <recording>.json): the "
+    "restoring-force estimate needs it, and a steady-state record does not show it"
+)
 
 
 @dataclass
@@ -44,10 +52,11 @@ class Analysis:
     fnn_dimension: int | None
     cross_prediction: np.ndarray
     stationary: bool
+    stationarity_spans: list[tuple[int, int]]
     determinism_factor: float
     geometric: GeometricResult
     smoothed: np.ndarray
-    natural_frequency_hz: float = PAPER_NATURAL_FREQUENCY_HZ
+    natural_frequency_hz: float | None = None
     restoring_force: RestoringForceResult | None = None
     restoring_force_error: str = ""
 
@@ -66,6 +75,10 @@ class Analysis:
             "dimension_rule": self.dimension_rule,
             "fnn_dimension": self.fnn_dimension,
             "stationary": self.stationary,
+            "stationarity_tested": self.stationarity_tested(),
+            "stationarity_segments_s": [
+                [lo / self.fs_hz, hi / self.fs_hz] for lo, hi in self.stationarity_spans
+            ],
             "cross_prediction_error_min": float(off.min()),
             "cross_prediction_error_max": float(off.max()),
             "determinism_factor": self.determinism_factor,
@@ -87,6 +100,20 @@ class Analysis:
             "natural_frequency_hz": self.natural_frequency_hz,
             **self._physical(),
         }
+
+    def stationarity_tested(self) -> str:
+        """Which part of the record the stationarity test read, in words."""
+        spans = self.stationarity_spans
+        n = len(spans)
+        covered = sum(hi - lo for lo, hi in spans)
+        first, last = spans[0][0] / self.fs_hz, spans[-1][1] / self.fs_hz
+        if covered >= 0.99 * self.n_samples:
+            return f"the whole record ({n} consecutive segments)"
+        return (
+            f"the whole record: {n} segments of {(spans[0][1] - spans[0][0]) / self.fs_hz:.3g} "
+            f"s spread from {first:.3g} s to {last:.3g} s ({100 * covered / self.n_samples:.0f} "
+            "% of the samples)"
+        )
 
     def _physical(self) -> dict[str, Any]:
         """The restoring-force estimate's fields (``physical_*``) and its full summary."""
@@ -130,21 +157,31 @@ def analyze_signal(
 ) -> Analysis:
     """Run the whole analysis on one acceleration record sampled at ``fs_hz``.
 
-    ``natural_frequency_hz`` (default: the paper's 9.48 Hz) fixes the free-flight
-    stiffness of the restoring-force estimate.
+    ``natural_frequency_hz`` fixes the free-flight stiffness of the restoring-force
+    estimate; without it that estimate is not run (its reason says why: never a
+    silent default). The stationarity test reads the whole record: on long records
+    :data:`STATIONARITY_SEGMENTS` probes spread over it.
     """
-    if not np.isfinite(fs_hz) or fs_hz <= 0:
-        raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
-    fn = PAPER_NATURAL_FREQUENCY_HZ if natural_frequency_hz is None else natural_frequency_hz
-    if not (np.isfinite(fn) and fn > 0):
-        raise SignalError(f"natural frequency must be a positive number of Hz, got {fn}")
-    x = _unit_scale(nlts.as_signal(accel, 64))
+    from stiffnet.inputs import natural_frequency, rate_ratio, sampling_rate
+
+    sampling_rate(fs_hz, "sampling rate")  # the predictor's physical ranges (1e12 Hz is not)
+    fn = natural_frequency_hz
+    if fn is not None:
+        rate_ratio(fs_hz, natural_frequency(fn, "natural frequency"))
+    a = np.asarray(accel)
+    if a.ndim == 1 and a.size and a.dtype.kind in "fiu" and np.isfinite(a).all():
+        peak = float(np.abs(a).max())
+        if 0 < peak < 0.5:  # the constant check is absolute below 1: a tiny signal up first
+            a = np.ldexp(a.astype(np.float64), -int(np.frexp(peak)[1]))
+    x = _unit_scale(nlts.as_signal(a, 64))
     geo = geometric_estimate(x, fs_hz)
-    rf, rf_error = None, ""
-    try:
-        rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn)
-    except StiffnetError as exc:  # the other analyses still stand
-        rf_error = str(exc)
+    rf, rf_error = None, FN_MISSING
+    if fn is not None:
+        try:
+            rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn)
+            rf_error = ""
+        except StiffnetError as exc:  # the other analyses still stand
+            rf_error = str(exc)
     # Analyse the smoothed signal, as the paper does before embedding (section 5.1).
     s = nlts.savgol_smooth(x, smoothing_window(geo.period_samples))
     s = (s - s.mean()) / s.std()
@@ -163,13 +200,16 @@ def analyze_signal(
         fnn_dim: int | None = nlts.fnn_dimension(fnn, threshold=0.05)
     except SignalError:
         fnn_dim = None  # reported as null: the fraction never fell low enough
-    cross = nlts.cross_prediction_errors(part, dim, tau, n_segments=4)
+    probes, spans = record_probes(s, STATIONARITY_SEGMENTS if s.size > part.size else 4,
+                                  MAX_NEIGHBOUR_SAMPLES)  # fmt: skip
+    cross = nlts.cross_prediction_errors(probes, dim, tau, n_segments=len(spans))
     _, det = nlts.kaplan_glass(part, min(dim, 4), max(tau, 2))
     return Analysis(
         fs_hz=float(fs_hz), n_samples=int(x.size), ami=ami, delay=tau,
         delay_rule=delay.rule, fnn=fnn, cao_e1=e1, cao_e2=e2, dimension=int(dim),
         dimension_rule="cao_E1_plateau", fnn_dimension=fnn_dim, cross_prediction=cross,
-        stationary=bool(nlts.is_stationary(cross)), determinism_factor=float(det),
-        geometric=geo, smoothed=s, natural_frequency_hz=float(fn), restoring_force=rf,
+        stationary=bool(nlts.is_stationary(cross)), stationarity_spans=spans,
+        determinism_factor=float(det), geometric=geo, smoothed=s,
+        natural_frequency_hz=None if fn is None else float(fn), restoring_force=rf,
         restoring_force_error=rf_error,
     )  # fmt: skip

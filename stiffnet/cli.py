@@ -21,6 +21,7 @@ from typer.core import TyperGroup
 from serving import commands as serving_commands  # predict, predict-batch, serve
 from stiffnet import progress
 from stiffnet.cli_options import (
+    ChannelOption,
     ColumnsOption,
     FsOption,
     JsonOption,
@@ -57,6 +58,8 @@ class OneLineErrors(TyperGroup):
             ctx = getattr(exc, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
             message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+            if "--plugin" in message or "--version" in message:  # options of `stiffnet` itself
+                hint = " (give it before the command: stiffnet --plugin FILE.py COMMAND ...)"
             report_error(f"{message}{hint}")
             sys.exit(2)
         except typer.Abort:
@@ -70,9 +73,31 @@ app = typer.Typer(
     name="stiffnet",
     help="Identify the stiffness of an impacted material from one accelerometer.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion / --show-completion (bash, zsh, fish, pwsh)
     pretty_exceptions_enable=False,
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from stiffnet import __version__
+
+        typer.echo(f"stiffnet {__version__}")
+        raise typer.Exit()
+
+
+def _plugins(paths: list[Path] | None) -> list[Path] | None:
+    """Load each ``--plugin`` file now: its effects are then known by ``module:Class``."""
+    from stiffnet.errors import StiffnetError
+
+    for path in paths or []:
+        from stiffnet.effects.registry import register_plugin
+
+        try:
+            register_plugin(path)
+        except StiffnetError as exc:
+            raise typer.BadParameter(str(exc), param_hint="--plugin") from None
+    return paths
 
 
 @app.callback()
@@ -84,6 +109,23 @@ def _options(
             help="Print tables at full width, without wrapping (for wide terminals or files).",
         ),
     ] = False,
+    plugin: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--plugin",
+            metavar="FILE.py",
+            callback=_plugins,
+            help="Load user effects from this Python file (repeatable): name them "
+            "MODULE:Class, MODULE being the file's name without .py. Effect names never "
+            "import anything else (not from the working folder).",
+        ),
+    ] = None,
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_version, is_eager=True, help="Print the version and exit."
+        ),
+    ] = False,  # fmt: skip
 ) -> None:
     """Identify the stiffness of an impacted material from one accelerometer."""
     out.width = WIDE_COLUMNS if wide else None  # type: ignore[assignment]  # None: auto
@@ -188,20 +230,51 @@ def simulate_campaign_cmd(
     write_json(json_path, result)
 
 
+def _train_config(family: str | None, config: Path | None) -> Any:
+    """The training config: `config`, else the shipped ``configs/train/FAMILY.yaml``."""
+    from stiffnet.config import load_config, validate_config
+    from stiffnet.errors import ConfigError
+    from stiffnet.shipped import default_config
+    from training.config import TrainConfig
+    from training.families import default_family, get_family
+
+    if config is not None:
+        cfg = load_config(TrainConfig, config)
+        if family is not None and cfg.model != family:
+            raise ConfigError(f"{config}: the config trains {cfg.model!r}, not {family!r}")
+        return cfg
+    name = get_family(family).name if family is not None else default_family("train").name
+    default = default_config(f"train/{name}.yaml")
+    if default.is_file():
+        return load_config(TrainConfig, default)
+    return validate_config(TrainConfig, {"model": name})
+
+
 @app.command()
 @user_errors
 def train(
     data: Annotated[Path, typer.Option("--data", help="Dataset folder from `stiffnet simulate`.")],
-    model: Annotated[str, typer.Option(help="Model family: gbm or cnn.")] = "gbm",
+    family: Annotated[
+        str | None,
+        typer.Option(
+            "--family",
+            help="Model family (`stiffnet families` lists them; default: the config's, else "
+            "the family marked as train's default there).",
+        ),
+    ] = None,
+    model: Annotated[
+        str | None,
+        typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
+    ] = None,
     config: Annotated[
         Path | None,
-        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/MODEL.yaml."),
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/FAMILY.yaml."),
     ] = None,
     out_dir: Annotated[
         Path | None,
         typer.Option(
             "--out",
-            help="Folder for the ONNX model and card (default: a fresh runs/train-MODEL-TIME; "
+            help="Folder for the ONNX model and card (default: a fresh runs/train-FAMILY-TIME; "
             "the shipped models/ is only replaced when named).",
         ),
     ] = None,
@@ -211,39 +284,86 @@ def train(
     json_path: JsonOption = None,
 ) -> None:
     """Train a stiffness model on a dataset, export it to ONNX and track it in MLflow."""
-    from stiffnet.config import load_config, validate_config
-    from stiffnet.config.train import TrainConfig
+    from stiffnet.console import console
     from stiffnet.errors import ConfigError
 
-    if model not in ("gbm", "cnn"):
-        raise ConfigError(f"model {model!r} is not available: use gbm or cnn")
-    from stiffnet.shipped import default_config
+    if model is not None:
+        if family is not None and family != model:
+            raise ConfigError(f"--model {model} and --family {family} disagree: use --family")
+        console.print("note: `train --model` is deprecated (it is a file elsewhere): use --family")
+        family = model
+    cfg = _train_config(family, config)
+    from stiffnet.inputs import tracking_uri as checked_uri
+    from stiffnet.io_utils import claim_run_folder, finish_run_folder, fresh_run_folder, output_lock
 
-    default = default_config(f"train/{model}.yaml")
-    if config is not None:
-        cfg = load_config(TrainConfig, config)
-    elif default.is_file():
-        cfg = load_config(TrainConfig, default)
-    else:
-        cfg = validate_config(TrainConfig, {"model": model})
-    if cfg.model != model:
-        raise ConfigError(f"{config or default}: the config trains {cfg.model!r}, not {model!r}")
-    from stiffnet.io_utils import fresh_run_folder, output_lock
-    from training.train import train as run_training
+    if cfg.tracking and tracking_uri is None:  # the config's URI: checked before the work too
+        checked_uri(cfg.tracking_uri, f"{config or 'the training config'}: tracking_uri")
+    name = str(cfg.model)
+    out_dir = out_dir or fresh_run_folder(f"train-{name}")
+    with output_lock(out_dir):
+        marker = claim_run_folder(out_dir, "stiffnet-train")  # a foreign folder: refused
+        from training.train import train as run_training
 
-    out_dir = out_dir or fresh_run_folder(f"train-{model}")
-    with output_lock(out_dir), show_progress(), progress.task(f"training {model}"):
-        result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+        with show_progress(), progress.task(f"training {name}"):
+            result = run_training(data, cfg, out_dir, tracking_uri=tracking_uri)
+        finish_run_folder(out_dir, marker)
     out.print(f"model written to {out_dir}")
     metrics = result.get("metrics", {})
-    table = Table(title=f"{model} on {data} (test windows)")
+    table = Table(title=f"{name} on {data} (test windows)")
     for col in ("method", "accuracy", "macro-F1", "beta MAPE"):
         table.add_column(col)
-    for method in (model, "geometric"):
-        values = (metrics.get(f"{method}/{k}", float("nan")) for k in ("accuracy", "macro_f1",
-                                                                       "beta_mape"))  # fmt: skip
+    for method, prefix in ((name, ""), ("geometric", "geometric/")):
+        values = (metrics.get(f"{prefix}{k}", float("nan")) for k in ("accuracy", "macro_f1",
+                                                                        "beta_mape"))  # fmt: skip
         table.add_row(method, *(f"{v:.3f}" for v in values))
     out.print(table)
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def families(json_path: JsonOption = None) -> None:
+    """List the model families `train`, `loop` and `recalibrate` know."""
+    from training.families import families as registered
+
+    table = Table(title="model families")
+    for col in ("family", "model_kind", "ONNX input", "default of", "module"):
+        table.add_column(col)
+    result = []
+    for name, cls in registered().items():
+        row = {
+            "family": name,
+            "model_kind": cls.serving.model_kind,
+            "input": cls.serving.input_name,
+            "default_of": list(cls.defaults),
+            "module": cls.__module__,
+        }
+        result.append(row)
+        table.add_row(name, row["model_kind"], row["input"], ", ".join(cls.defaults), row["module"])
+    out.print(table)
+    write_json(json_path, result)
+
+
+@app.command()
+@user_errors
+def recalibrate(
+    model: Annotated[Path, typer.Argument(help="The trained model (NAME.onnx with its card).")],
+    data: Annotated[Path, typer.Option("--data", help="The dataset it was trained on.")],
+    config: Annotated[
+        Path | None,
+        typer.Option(help="Training config (YAML); default: stiffnet's configs/train/FAMILY.yaml."),
+    ] = None,
+    json_path: JsonOption = None,
+) -> None:
+    """Refit a trained model's interval and alarm (its ONNX metadata and card updated in place)."""
+    from stiffnet.io_utils import output_lock
+    from training.recalibrate import recalibrate as run_recalibration
+    from training.recalibrate import recalibration_config
+
+    cfg = recalibration_config(model, config)
+    with output_lock(model.parent):
+        result = run_recalibration(model, data, cfg)
+    out.print(f"recalibrated {model}: " + ", ".join(f"{k} {v}" for k, v in result.items()))
     write_json(json_path, result)
 
 
@@ -261,20 +381,29 @@ def analyze(
     fn: Annotated[
         float | None,
         typer.Option(
-            "--fn", help="Natural frequency of the rig in Hz (default 9.48, the paper's)."
+            "--fn",
+            help="Natural frequency of the rig in Hz (default: the sidecar <recording>.json; "
+            "without either the restoring-force estimate is not run).",
         ),
     ] = None,
+    channel: ChannelOption = None,
 ) -> None:
     """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
-    from stiffnet.recordings import read_recording
+    from stiffnet.recordings import read_recording, read_sidecar
 
-    rec = read_recording(recording, fs_hz=fs, columns=columns, time_unit=time_unit)
+    rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
+    fn_source = "option --fn"
+    if fn is None:
+        fn, sidecar = read_sidecar(recording)
+        fn_source = f"sidecar:{sidecar}" if fn is not None else "unknown"
     analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
     result = {"recording": str(recording), **analysis.summary()}
+    result["natural_frequency_source"] = fn_source
     table = Table(title=f"analysis of {recording}", show_header=False)
     for key, value in result.items():
-        if isinstance(value, dict):  # the restoring-force details: in the JSON only
+        if isinstance(value, dict | list):  # details (restoring force, spans): the JSON only
             continue
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
     out.print(table)
@@ -289,12 +418,13 @@ def analyze(
 @app.command()
 @user_errors
 def effects(json_path: JsonOption = None) -> None:
-    """List the physical effects with their parameters, defaults and ranges."""
-    from stiffnet.effects.registry import available_effects
+    """List the physical effects (shipped, then plugins') with their parameters and ranges."""
+    from stiffnet.effects.registry import available_effects, user_effects
 
     result = []
-    for cls in available_effects():
-        table = Table(title=f"{cls.name} ({cls.kind})", title_justify="left")
+    named = [(cls.name, cls) for cls in available_effects()]
+    for name, cls in [*named, *user_effects()]:
+        table = Table(title=f"{name} ({cls.kind})", title_justify="left")
         for col in ("parameter", "default", "range", "unit", "description"):
             table.add_column(col)
         rows = cls.parameter_table()
@@ -304,7 +434,7 @@ def effects(json_path: JsonOption = None) -> None:
                           row["description"])  # fmt: skip
         out.print(table)
         doc = (cls.__doc__ or "").strip().splitlines()
-        result.append({"name": cls.name, "kind": cls.kind, "summary": doc[0] if doc else "",
+        result.append({"name": name, "kind": cls.kind, "summary": doc[0] if doc else "",
                        "parameters": rows})  # fmt: skip
     write_json(json_path, result)
 

@@ -50,7 +50,16 @@ NaturalFrequencyOption = Annotated[
     typer.Option(
         "--fn",
         help="Natural frequency of the rig in Hz (default: the recording's sidecar "
-        "<recording>.json, else the model's training data).",
+        "<recording>.json; without either the command refuses).",
     ),
 ]
 ModelOption = Annotated[Path | None, typer.Option(help="ONNX model (default models/cnn.onnx).")]
+ChannelOption = Annotated[
+    str | None,
+    typer.Option(
+        "--channel",
+        metavar="NAME|INDEX",
+        help="Channel of a multi-channel recording: a TDMS channel name (or group/name), a WAV "
+        "or NPY column index, a CSV column name or index (required when the file has several).",
+    ),
+]

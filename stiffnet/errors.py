@@ -19,3 +19,9 @@ class ConfigError(StiffnetError):
 
 class SignalError(StiffnetError):
     """A signal cannot be analysed (NaN/inf, constant, too short, no impacts...)."""
+
+
+class EnvironmentFailure(StiffnetError):
+    """The environment failed, not the input (disk full, a server unreachable): exit 1."""
+
+    exit_code = 1

@@ -21,6 +21,7 @@ numpy-free and light: the HTTP predictor imports it.
 
 from __future__ import annotations
 
+import contextvars
 import json
 import math
 import numbers
@@ -274,10 +275,12 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "config") -> dic
     except UnicodeDecodeError:
         raise StiffnetError(f"{p}: the {what} file is not UTF-8 text") from None
     try:
-        obj = yaml.safe_load(text)
+        obj = yaml.load(text, Loader=_loader(yaml))  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f" at line {mark.line + 1}" if mark else ""
+        if type(exc) is yaml.YAMLError:  # ours: the message says what
+            raise StiffnetError(f"{p}: {exc}") from None
         raise StiffnetError(f"{p}: invalid YAML{line}") from None
     except RecursionError:
         raise StiffnetError(f"{p}: nested deeper than {MAX_DEPTH} levels") from None
@@ -292,6 +295,26 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "config") -> dic
     return obj
 
 
+def _loader(yaml: Any) -> type:
+    """``yaml.SafeLoader`` without anchors and aliases.
+
+    An alias re-uses a node: a few hundred bytes of nested aliases ("billion laughs")
+    expand to ~10^9 nodes for every walk over the document. Configs need neither.
+    """
+
+    class NoAliasLoader(yaml.SafeLoader):
+        def compose_node(self, parent: Any, index: Any) -> Any:
+            event = self.peek_event()
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                raise yaml.YAMLError(
+                    f"YAML anchors and aliases (&, *) are not supported "
+                    f"(line {event.start_mark.line + 1})"
+                )
+            return super().compose_node(parent, index)
+
+    return NoAliasLoader
+
+
 def _kind(obj: Any) -> str:
     return {list: "a list", str: "a string", int: "a number", float: "a number",
             bool: "a boolean", type(None): "null"}.get(type(obj), type(obj).__name__)  # fmt: skip
@@ -304,7 +327,7 @@ def output_file(path: str | os.PathLike[str] | None, what: str = "--json") -> Pa
     """Check an output file path before any work (see the module notes)."""
     if path is None:
         return None
-    p = Path(path)
+    p = path_name(path, what)
     if "\n" in str(p) or "\r" in str(p):
         raise StiffnetError(f"{what} {one_line(p)}: a file name with a line break")
     try:
@@ -322,7 +345,7 @@ def output_file(path: str | os.PathLike[str] | None, what: str = "--json") -> Pa
     if not parent.is_dir():
         raise StiffnetError(f"{what} {p}: folder {parent} does not exist (create it first)")
     try:  # the atomic write creates a temporary file there: try it now, not after the work
-        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".probe", dir=parent)
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name[:100]}.", suffix=".probe", dir=parent)
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
@@ -334,7 +357,7 @@ def output_folder(path: str | os.PathLike[str] | None, what: str = "--out") -> P
     """Check an output folder path before any work: a folder, or absent under a folder."""
     if path is None:
         return None
-    p = Path(path)
+    p = path_name(path, what)
     if "\n" in str(p) or "\r" in str(p):
         raise StiffnetError(f"{what} {one_line(p)}: a folder name with a line break")
     if p.is_symlink() or (p.exists() and not p.is_dir()):
@@ -346,6 +369,322 @@ def output_folder(path: str | os.PathLike[str] | None, what: str = "--out") -> P
         anchor = anchor.parent
     if not anchor.is_dir():
         raise StiffnetError(f"{what} {p}: {anchor} is not a folder")
-    if not os.access(anchor, os.W_OK | os.X_OK):
-        raise StiffnetError(f"{what} {p}: {anchor} is not writable")
+    _probe_folder(anchor, p, what)  # /proc says writable to os.access, and is not
     return p
+
+
+def _probe_folder(folder: Path, p: Path, what: str) -> None:
+    """Create and remove a temporary folder in ``folder``: it is writable now, not later."""
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=f".{p.name[:40]}.", suffix=".probe", dir=folder))
+    except OSError as exc:
+        raise StiffnetError(f"{what} {p}: cannot write in {folder} ({exc.strerror})") from None
+
+
+#: Longest file or folder name (bytes) on the usual file systems.
+MAX_NAME_BYTES = 255
+
+
+def path_name(path: str | os.PathLike[str], what: str) -> Path:
+    """``path`` if every part of it is a usable name (no NUL, each part <= 255 bytes)."""
+    text = os.fspath(path)
+    if "\x00" in text:
+        raise StiffnetError(f"{what} {one_line(text, 80)}: a path with a NUL byte")
+    for part in Path(text).parts:
+        if len(part.encode("utf-8", "surrogateescape")) > MAX_NAME_BYTES:
+            raise StiffnetError(f"{what} {one_line(part, 60)}: a name longer than "
+                                f"{MAX_NAME_BYTES} bytes")  # fmt: skip
+    return Path(text)
+
+
+# ------------------------------------------------------------------ outputs vs inputs
+
+
+def _real(p: Path) -> Path:
+    try:
+        return p.resolve()
+    except (OSError, RuntimeError):  # a link loop: compare by name
+        return Path(os.path.abspath(p))
+
+
+def check_outputs(outputs: dict[str, tuple[Path, str]], inputs: dict[str, Path]) -> None:
+    """Refuse outputs that would land on an input, inside one, or on each other.
+
+    ``outputs``: flag -> (path, ``"file"`` or ``"folder"``); ``inputs``: name -> path of
+    a recording, campaign, manifest, dataset, config, model or result the command reads.
+    An output file may not be an input file nor replace the data of an input folder
+    (a recording, its sidecar, a manifest, config, model or shard: :func:`_input_data`;
+    an earlier report or JSON result there may be replaced);
+    an output folder may not be, hold, or lie inside an input folder's files it would
+    replace; two outputs may not be the same path.
+    """
+    seen: dict[Path, str] = {}
+    ins = {name: _real(p) for name, p in inputs.items() if p is not None}
+    for flag, (path, kind) in outputs.items():
+        real = _real(path)
+        if real in seen:
+            raise StiffnetError(f"{flag} {path}: is also {seen[real]}; give two different paths")
+        seen[real] = flag
+        for name, src in ins.items():
+            if real == src:
+                raise StiffnetError(f"{flag} {path}: is the input {name}; choose another output")
+            if kind == "folder" and src.is_relative_to(real):
+                raise StiffnetError(f"{flag} {path}: holds the input {name} ({inputs[name]}); "
+                                    "choose another output folder")  # fmt: skip
+            inside = real.is_relative_to(src) and src.is_dir()
+            if inside and kind == "file" and os.path.lexists(path) and _input_data(Path(path)):
+                raise StiffnetError(f"{flag} {path}: would replace a file of the input {name} "
+                                    f"({inputs[name]}); choose another output")  # fmt: skip
+
+
+#: What an input folder's files that an output must never replace look like:
+#: recordings, manifests, configs, models, shards (an earlier report or result may go).
+_DATA_SUFFIXES = (".csv", ".npy", ".wav", ".tdms", ".yaml", ".yml", ".onnx", ".npz", ".parquet")
+_DATA_JSON = ("card.json", "campaign_card.json", "job.json", "stiffnet-run.json",
+              "ood_reference.json", "geometric_calibration.json")  # fmt: skip
+
+
+def _input_data(path: Path) -> bool:
+    """Whether ``path`` (in an input folder) is data the input is made of."""
+    name = path.name.lower()
+    if path.suffix.lower() in _DATA_SUFFIXES or name in _DATA_JSON or name.endswith(".card.json"):
+        return True
+    return name.endswith(".json") and path.with_suffix("").exists()  # a recording's sidecar
+
+
+#: Kind of the marker (``stiffnet-run.json``) of a figure folder stiffnet wrote.
+FIGURES_KIND = "stiffnet-figures"
+
+
+def figure_folder(path: str | os.PathLike[str] | None, what: str = "--plots") -> Path | None:
+    """A ``--plots`` folder: absent, empty, or one stiffnet wrote figures into before.
+
+    Figures replace files of fixed names: in a user's folder they would overwrite a
+    ``force_displacement.png`` of the user's. :func:`mark_figure_folder` marks it first.
+    """
+    from stiffnet.io_utils import RUN_MARKER, read_marker
+
+    p = output_folder(path, what)
+    if p is None or not p.is_dir() or not any(p.iterdir()):
+        return p
+    marker = read_marker(p / RUN_MARKER)
+    if marker is None or marker.get("kind") != FIGURES_KIND:
+        raise StiffnetError(f"{what} {p}: folder holds files stiffnet did not write (no "
+                            f"{RUN_MARKER}); give a new or empty folder")  # fmt: skip
+    return p
+
+
+def mark_figure_folder(path: Path) -> None:
+    """Create ``path`` (checked by :func:`figure_folder`) and mark it as stiffnet's figures."""
+    from stiffnet.io_utils import RUN_MARKER, new_marker, read_marker, write_json_atomic
+
+    path.mkdir(parents=True, exist_ok=True)
+    if read_marker(path / RUN_MARKER) is None:
+        write_json_atomic(path / RUN_MARKER, new_marker(FIGURES_KIND))
+
+
+# ------------------------------------------------------------------------ seeds and URIs
+
+#: Seeds numpy's generators take: 0 to 2**32 - 1 (a negative seed is an error there).
+SEED_RANGE = (0, 2**32 - 1)
+
+
+def seed(value: int | None, what: str = "--seed") -> int | None:
+    """A random seed in :data:`SEED_RANGE` (None passes through)."""
+    return bounded_count(value, what, *SEED_RANGE)
+
+
+#: Seconds to wait for a remote MLflow tracking server before refusing it.
+TRACKING_TIMEOUT_S = 3.0
+_DB_SCHEMES = ("postgresql", "mysql", "mssql")
+
+
+def tracking_uri(uri: str | None, what: str = "--tracking-uri") -> str | None:
+    """Check an MLflow tracking URI before any work: scheme, writable store, reachable server.
+
+    ``sqlite:///PATH`` (the folder exists and is writable, PATH a regular file or
+    absent), ``file:///FOLDER`` or a plain folder (a folder, writable), ``http(s)://``
+    (a TCP connection within :data:`TRACKING_TIMEOUT_S`), or a database URL
+    (``postgresql://`` ...: reachable). An unreachable server is an
+    :class:`~stiffnet.errors.EnvironmentFailure` (exit 1), a bad URI an error (exit 2).
+    """
+    from urllib.parse import unquote, urlsplit
+
+    from stiffnet.errors import EnvironmentFailure
+
+    if uri is None:
+        return None
+    text = one_line(uri, 200)
+    if not uri.strip() or "\x00" in uri or "\n" in uri:
+        raise StiffnetError(f"{what} {text!r}: not a tracking URI")
+    parts = urlsplit(uri)
+    scheme = parts.scheme.lower()
+    if scheme == "sqlite":
+        if not uri.startswith("sqlite:///"):
+            raise StiffnetError(f"{what} {text}: write sqlite:///relative.db or "
+                                "sqlite:////absolute/path.db")  # fmt: skip
+        db = path_name(unquote(uri[len("sqlite:///") :]), what)
+        if str(db) in ("", ".") or str(db).startswith(":memory:"):
+            raise StiffnetError(f"{what} {text}: name a database file")
+        output_file(db, f"{what} database")
+        return uri
+    if scheme in ("", "file"):
+        folder = path_name(unquote(parts.path) if scheme else uri, what)
+        if folder.exists() and not folder.is_dir():
+            raise StiffnetError(f"{what} {text}: {folder} is not a folder (an MLflow file "
+                                "store is a folder)")  # fmt: skip
+        output_folder(folder, what)
+        return uri
+    if scheme in ("http", "https", *_DB_SCHEMES) or scheme.split("+")[0] in _DB_SCHEMES:
+        import socket
+
+        host = parts.hostname
+        try:
+            port = parts.port or {"http": 80, "https": 443}.get(scheme, 5432)
+        except ValueError:
+            raise StiffnetError(f"{what} {text}: invalid port") from None
+        if not host:
+            raise StiffnetError(f"{what} {text}: no host")
+        try:
+            socket.create_connection((host, port), timeout=TRACKING_TIMEOUT_S).close()
+        except (OSError, UnicodeError) as exc:
+            why = getattr(exc, "strerror", None) or type(exc).__name__
+            raise EnvironmentFailure(f"{what} {text}: tracking server not reachable within "
+                                     f"{TRACKING_TIMEOUT_S:g} s ({why})") from None  # fmt: skip
+        return uri
+    raise StiffnetError(f"{what} {text}: unsupported scheme {scheme!r} (use sqlite:///FILE.db, "
+                        "a folder, file:///FOLDER or http(s)://HOST:PORT)")  # fmt: skip
+
+
+# ------------------------------------------------------------------------------ hints
+
+#: Where the user gives a recording's layout: "cli" (--columns, --time-unit),
+#: "manifest" (its columns/time_unit columns) or "http" (form fields). The command
+#: wrapper and the HTTP app set it; hints then name what the user can actually type.
+HINT_CONTEXT: contextvars.ContextVar[str] = contextvars.ContextVar("hint_context",
+                                                                  default="cli")  # fmt: skip
+_SAFE_IN_DOUBLE_QUOTES = re.compile(r'^[^"$`\\!]*$')
+
+
+def shell_quote(text: str) -> str:
+    """``text`` as one shell word a user can paste (double quotes where they suffice)."""
+    import shlex
+
+    if re.fullmatch(r"[A-Za-z0-9_.,:/+\-=]+", text):
+        return text
+    if _SAFE_IN_DOUBLE_QUOTES.match(text):
+        return f'"{text}"'
+    return shlex.quote(text)
+
+
+def columns_hint(columns: str, time_unit: str | None = None) -> str:
+    """How to name a CSV's columns (``"TIME,ACCEL"``) where the user gives them."""
+    where = HINT_CONTEXT.get()
+    if where == "manifest":
+        unit = f" and time_unit {time_unit}" if time_unit else ""
+        return f"name its columns in the manifest: columns {shell_quote(columns)}{unit}"
+    if where == "http":
+        unit = f" and time_unit={time_unit}" if time_unit else ""
+        return f"name its columns: form field columns={columns}{unit}"
+    unit = f" --time-unit {time_unit}" if time_unit else ""
+    return f"name its columns: --columns {shell_quote(columns)}{unit}"
+
+
+def mpl_text(text: object) -> str:
+    """``text`` safe for a matplotlib title or label: ``$`` shown, not mathtext."""
+    return one_line(text, 200).replace("\\", "\\\\").replace("$", r"\$")
+
+
+def check_fields(data: dict[str, Any], spec: dict[str, tuple[type, ...]], where: str) -> None:
+    """Optional ``data`` keys have the JSON types of ``spec`` (a bool is not a number).
+
+    A list type in ``spec`` given as ``(list, str)`` means a list of strings.
+    """
+    for key, kinds in spec.items():
+        if key not in data:
+            continue
+        value = data[key]
+        items = kinds[1:] if kinds[0] is list and len(kinds) > 1 else None
+        ok = isinstance(value, list) if items else isinstance(value, kinds)
+        if ok and items:
+            ok = all(isinstance(v, items) and not isinstance(v, bool) for v in value)
+        if not ok or (isinstance(value, bool) and bool not in kinds):
+            raise StiffnetError(f"{where}: key {key!r} is {_kind(value)}, not the expected type")
+
+
+# ---------------------------------------------------------------------------- file walks
+
+#: Most folder entries one walk looks at (a folder or glob of recordings): beyond it the
+#: walk stops with an error instead of running on (``/proc/**``).
+MAX_WALK_ENTRIES = 200_000
+_MAGIC = re.compile(r"[*?\[]")
+
+
+def _part_regex(part: str) -> str:
+    out, i = [], 0
+    while i < len(part):
+        c = part[i]
+        if c == "*":
+            out.append("[^/]*")
+        elif c == "?":
+            out.append("[^/]")
+        elif c == "[" and "]" in part[i + 2 :]:
+            j = part.index("]", i + 2)
+            body = part[i + 1 : j].replace("\\", "\\\\")
+            out.append(f"[{'^' + body[1:] if body.startswith('!') else body}]")
+            i = j
+        else:
+            out.append(re.escape(c))
+        i += 1
+    return "".join(out)
+
+
+def walk_files(spec: str, what: str = "recordings", limit: int = MAX_WALK_ENTRIES) -> list[Path]:
+    """Files named by a folder (searched recursively), a glob (``**`` included) or one file.
+
+    Symbolic links to folders are not followed, and at most ``limit`` entries are
+    looked at: a glob over ``/proc`` or a huge tree is one error line, not a hang.
+    """
+    root = Path(spec)
+    if root.is_file():
+        return [root]
+    if root.is_dir():
+        base, regex, depth = root, None, None
+    else:
+        parts = root.parts
+        first = next((i for i, p in enumerate(parts) if _MAGIC.search(p)), None)
+        if first is None:
+            return []
+        base = Path(*parts[:first]) if first else Path(".")
+        rest = parts[first:]
+        regex = re.compile("/".join("(?:[^/]+/)*[^/]+" if p == "**" else _part_regex(p)
+                                    for p in rest).replace("(?:[^/]+/)*[^/]+/", "(?:[^/]+/)*")
+                           + r"\Z")  # fmt: skip
+        depth = None if "**" in rest else len(rest)
+    found: list[Path] = []
+    seen = 0
+    stack = [(base, 0)]
+    while stack:
+        folder, level = stack.pop()
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue  # unreadable folders are skipped, as glob does
+        seen += len(entries)
+        if seen > limit:
+            raise StiffnetError(f"{what} {one_line(spec, 200)}: more than {limit} entries under "
+                                f"{base}; name a smaller folder or a narrower glob")  # fmt: skip
+        for entry in entries:
+            path = Path(entry.path)
+            try:
+                is_dir, is_file = entry.is_dir(follow_symlinks=False), entry.is_file()
+            except OSError:  # a dangling or forbidden link: not a recording
+                continue
+            if is_dir:
+                if depth is None or level + 1 < depth:
+                    stack.append((path, level + 1))
+            elif is_file:
+                rel = path.relative_to(base).as_posix()
+                if regex is None or regex.match(rel):
+                    found.append(path)
+    return found

@@ -7,9 +7,11 @@ import hashlib
 import json
 import math
 import os
+import re
 import shutil
 import stat
 import tempfile
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -32,7 +34,7 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     path = Path(path)
     _check_replaceable_file(path)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name[:100]}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
         raise StiffnetError(f"{path}: cannot write here ({exc.strerror})") from None
     try:
@@ -59,10 +61,14 @@ def _check_replaceable_file(path: Path) -> None:
         raise StiffnetError(f"{path} is {kind}: refusing to replace it")
 
 
+def json_text(obj: Any) -> str:
+    """``obj`` as strict JSON text (NaN and infinities as ``null``), one final newline."""
+    return json.dumps(_finite(obj), indent=2, default=_json_default, allow_nan=False) + "\n"
+
+
 def write_json_atomic(path: str | Path, obj: Any) -> None:
     """Write ``obj`` as JSON atomically; NaN and infinities become ``null`` (JSON has none)."""
-    text = json.dumps(_finite(obj), indent=2, default=_json_default, allow_nan=False)
-    write_bytes_atomic(path, (text + "\n").encode())
+    write_bytes_atomic(path, json_text(obj).encode())
 
 
 def _finite(obj: Any) -> Any:
@@ -122,12 +128,12 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
             raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
         check_replaceable_folder(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.partial-", dir=out.parent))
     tmp.chmod(0o777 & ~_umask())  # mkdtemp makes 0700; a normal folder honours the umask
     try:
         yield tmp
         if out.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+            trash = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.old-", dir=out.parent))
             os.replace(out, trash / "old")
             os.replace(tmp, out)
             shutil.rmtree(trash, ignore_errors=True)
@@ -138,24 +144,55 @@ def atomic_directory(out: str | Path, overwrite: bool = False) -> Iterator[Path]
         raise
 
 
-#: Files whose presence marks a folder as written by stiffnet (dataset, campaign, run).
-OWN_MARKERS = ("card.json", "job.json", "campaign_card.json", "stiffnet-run.json")
+#: The marker file of a folder stiffnet wrote (run folders, figure folders, parts).
+RUN_MARKER = "stiffnet-run.json"
+#: Files that may mark a folder as stiffnet's; each counts only with the content of
+#: :func:`new_marker` (a ``stiffnet-`` kind and a run id): a user's ``card.json`` or
+#: ``job.json`` does not.
+OWN_MARKERS = (RUN_MARKER,)
+_RUN_ID = re.compile(r"^[0-9a-f]{32}$")
+
+
+def new_marker(kind: str, **more: Any) -> dict[str, Any]:
+    """The content of a marker: ``kind`` (``stiffnet-...``), a fresh run id, the version."""
+    from stiffnet import __version__
+
+    if not kind.startswith("stiffnet-"):
+        raise ValueError(f"marker kinds start with 'stiffnet-', got {kind!r}")
+    return {"kind": kind, "run_id": uuid.uuid4().hex, "stiffnet_version": __version__, **more}
+
+
+def read_marker(path: str | Path) -> dict[str, Any] | None:
+    """A marker written by :func:`new_marker`, or None (absent, foreign or malformed)."""
+    p = Path(path)
+    try:
+        if not stat.S_ISREG(os.lstat(p).st_mode) or os.lstat(p).st_size > 1 << 20:
+            return None
+        d = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not (isinstance(d, dict) and isinstance(d.get("kind"), str)
+            and d["kind"].startswith("stiffnet-") and isinstance(d.get("run_id"), str)
+            and _RUN_ID.match(d["run_id"])):  # fmt: skip
+        return None
+    return d
 
 
 def check_replaceable_folder(out: str | Path, markers: tuple[str, ...] = OWN_MARKERS) -> None:
     """Refuse to delete ``out`` unless stiffnet wrote it (``--overwrite``).
 
-    ``out`` must carry one of stiffnet's ``markers`` and must not be the working
-    directory or one of its ancestors.
+    ``out`` must carry one of ``markers`` holding a stiffnet marker (:func:`read_marker`:
+    a ``stiffnet-`` kind and a run id) and must not be the working directory or one of
+    its ancestors.
     """
     p = Path(out)
     real = p.resolve()
     if Path.cwd().resolve().is_relative_to(real):
         raise StiffnetError(f"{p}: refusing to overwrite the working directory or a parent of it")
-    if not any((p / m).is_file() for m in markers):
+    if not any(read_marker(p / m) is not None for m in markers):
         raise StiffnetError(
-            f"{p}: refusing to overwrite a folder stiffnet did not write (none of "
-            f"{', '.join(markers)} in it); choose another output folder"
+            f"{p}: refusing to overwrite a folder stiffnet did not write (no stiffnet marker "
+            f"with a run id in {' or '.join(markers)}); choose another output folder"
         )
 
 
@@ -180,10 +217,11 @@ def lock_path(folder: str | Path) -> Path:
 
 @contextlib.contextmanager
 def output_lock(folder: str | Path) -> Iterator[None]:
-    """Hold the output folder's lock (``filelock``) or refuse: another run is writing it.
+    """Hold the output's lock (``filelock``) or refuse: another run is writing it.
 
     An OS-level lock (``flock``): it is released when the holder exits, even by
-    ``kill -9``, so a crashed run never blocks the next one.
+    ``kill -9``, so a crashed run never blocks the next one. Files are locked the
+    same way as folders (``--json``, ``--out`` of ``report`` and ``predict-batch``).
     """
     from filelock import FileLock, Timeout
 
@@ -194,8 +232,8 @@ def output_lock(folder: str | Path) -> Iterator[None]:
         lock.acquire()
     except Timeout:
         raise StiffnetError(
-            f"{folder}: another stiffnet run is writing this folder (lock {path}); "
-            "wait for it or choose another output folder"
+            f"{folder}: another stiffnet run is writing this output (lock {path}); "
+            "wait for it or choose another output"
         ) from None
     try:
         yield
@@ -216,35 +254,108 @@ def fresh_run_folder(prefix: str, root: str | Path = "runs") -> Path:
     return path
 
 
-#: The marker file of a run folder (loop, train): what wrote it and whether it finished.
-RUN_MARKER = "stiffnet-run.json"
-
-
-def start_run_folder(out: str | Path, kind: str) -> None:
+def start_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
     """Make ``out`` a fresh run folder of ``kind``; call it holding :func:`output_lock`.
 
     An empty or absent folder is used as it is; an earlier run of the same kind
-    (its marker says so) is removed first, so a killed run's files never mix with
-    the new ones; any other non-empty folder is refused.
+    (its marker says so, with a run id) is removed first, so a killed run's files
+    never mix with the new ones; any other non-empty folder is refused, and so is
+    the working directory. Returns the new marker.
     """
     out = Path(out)
+    if Path.cwd().resolve().is_relative_to(out.resolve()):
+        raise StiffnetError(f"{out}: refusing to write a run into the working directory or a "
+                            "parent of it; choose a new folder")  # fmt: skip
     if out.is_dir() and any(out.iterdir()):
-        marker = out / RUN_MARKER
-        try:
-            same = json.loads(marker.read_text()).get("kind") == kind
-        except (OSError, ValueError, AttributeError):
-            same = False
-        if not same:
+        marker = read_marker(out / RUN_MARKER)
+        if marker is None or marker.get("kind") != kind:
             raise StiffnetError(
                 f"{out}: folder exists and is not an earlier {kind} run (no {RUN_MARKER} of "
                 "that kind): choose another output folder"
             )
         check_replaceable_folder(out, (RUN_MARKER,))
-        trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
+        trash = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.old-", dir=out.parent))
         os.replace(out, trash / "old")
         shutil.rmtree(trash, ignore_errors=True)
     out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(out / RUN_MARKER, {"kind": kind, "status": "running"})
+    marker = new_marker(kind, status="running")
+    write_json_atomic(out / RUN_MARKER, marker)
+    return marker
+
+
+def claim_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
+    """Make ``out`` an output folder of ``kind`` that keeps its other files (``train --out``).
+
+    Absent or empty: created. Non-empty: only a folder marked as an earlier run of
+    ``kind`` (the shipped ``models/`` is one) is written into, its own files replaced
+    one by one; a user's folder and the working directory are refused. Call it
+    holding :func:`output_lock`; returns the new marker.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise StiffnetError(f"{out}: exists and is not a folder")
+    if Path.cwd().resolve().is_relative_to(out.resolve()):
+        raise StiffnetError(f"{out}: refusing to write a run into the working directory or a "
+                            "parent of it; choose a new folder")  # fmt: skip
+    if out.is_dir() and any(out.iterdir()):
+        marker = read_marker(out / RUN_MARKER)
+        if marker is None or marker.get("kind") != kind:
+            raise StiffnetError(
+                f"{out}: folder is not empty and is not an earlier {kind} output (no "
+                f"{RUN_MARKER} of that kind): choose a new or empty folder"
+            )
+    out.mkdir(parents=True, exist_ok=True)
+    marker = new_marker(kind, status="running")
+    write_json_atomic(out / RUN_MARKER, marker)
+    return marker
+
+
+def finish_run_folder(out: str | Path, marker: dict[str, Any]) -> None:
+    """Mark the run folder ``out`` (started by :func:`start_run_folder`) complete."""
+    write_json_atomic(Path(out) / RUN_MARKER, {**marker, "status": "complete"})
+
+
+def claim_parts_folder(parts: str | Path, run: str) -> None:
+    """Make ``parts`` the folder of one run's parts (``run``: the whole run's fingerprint).
+
+    Absent: created with its marker. Ours and of the same run: kept (a resume). Ours
+    and of another run: emptied of its own parts files, never mixed. Anything else
+    (a user's folder of that name) is refused; nothing of it is deleted.
+    """
+    parts = Path(parts)
+    if parts.is_symlink() or (parts.exists() and not parts.is_dir()):
+        raise StiffnetError(f"{parts}: exists and is not a parts folder stiffnet wrote; "
+                            "move it or choose another --out")  # fmt: skip
+    if parts.is_dir():
+        marker = read_marker(parts / RUN_MARKER)
+        if marker is None or marker.get("kind") != "stiffnet-parts":
+            raise StiffnetError(f"{parts}: folder exists and stiffnet did not write it (no "
+                                f"{RUN_MARKER}); move it or choose another --out")  # fmt: skip
+        if marker.get("run") == run:
+            return
+        remove_parts_folder(parts)  # a user's file in it stays, and so does the folder
+    parts.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(parts / RUN_MARKER, new_marker("stiffnet-parts", run=run))
+
+
+#: What a parts folder may hold: its marker, parts, their records, atomic-write temporaries.
+_PART_FILE = re.compile(r"^(part-\d{5}\.(parquet|json)|\.part-\d{5}\.(parquet|json)\.\w+\.tmp)$")
+
+
+def remove_parts_folder(parts: str | Path) -> None:
+    """Delete a parts folder's own files (marker, parts, records), then the folder if empty.
+
+    A file stiffnet did not name (a user's) stays, and so does the folder holding it.
+    """
+    parts = Path(parts)
+    if read_marker(parts / RUN_MARKER) is None:
+        return
+    for entry in parts.iterdir():
+        if entry.is_file() and not entry.is_symlink() and _PART_FILE.match(entry.name):
+            entry.unlink()
+    (parts / RUN_MARKER).unlink()
+    with contextlib.suppress(OSError):
+        parts.rmdir()
 
 
 def is_run_folder(folder: str | Path, kind: str) -> bool:

@@ -11,14 +11,21 @@ files (chosen by extension):
     ``ACCEL`` means no time column, the rate is then required; with indices the
     file may have no header) and ``time_unit="s"|"ms"|"us"``.
 ``.npy``
-    a 1-D numeric array; the rate must be given (the manifest's ``fs_hz``).
+    a 1-D numeric array, or 2-D ``(samples, channels)`` read with ``channel``
+    (a column index); the rate must be given (the manifest's ``fs_hz``).
 ``.wav``
     integer samples are scaled to [-1, 1); the rate comes from the file. A
-    multi-channel file gives its first channel, or ``channel`` (an index).
+    multi-channel file needs ``channel`` (an index).
 ``.tdms``
-    LabVIEW files, read with npTDMS (imported only when needed): the first
-    channel holding data, or ``channel`` (``"name"`` or ``"group/name"``). The
-    rate comes from the channel's ``wf_increment`` property when present.
+    LabVIEW files, read with npTDMS (imported only when needed): the one
+    channel holding data, or ``channel`` (``"name"``, ``"group/name"`` or the
+    index among the channels holding data). The rate comes from the channel's
+    ``wf_increment`` property when present.
+
+A file with several channels and no ``channel`` is refused with one line listing
+them: reading the first one in silence gave a force channel's "no contact" for a
+LabVIEW file whose acceleration was the second. For CSV, ``channel`` names the
+acceleration column (header name or index; the time column stays ``t``).
 
 This module depends on numpy, scipy and pyarrow only, so that the light ONNX
 predictor can use it.
@@ -49,7 +56,7 @@ import pyarrow as pa
 import pyarrow.csv as pacsv
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import quote_content
+from stiffnet.inputs import columns_hint, natural_frequency, quote_content, read_json
 
 #: Extensions :func:`read_recording` understands.
 SUPPORTED_EXTENSIONS = (".csv", ".npy", ".wav", ".tdms")
@@ -69,6 +76,33 @@ THREADED_CSV_BYTES = 8 * 2**20
 FS_TOLERANCE = 1e-3
 
 _TDMS_LOCK = threading.Lock()
+#: Suffix of the sidecar JSON of a recording: ``run01.csv`` -> ``run01.csv.json``.
+SIDECAR_SUFFIX = ".json"
+
+
+def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]:
+    """Natural frequency from the recording's sidecar ``<recording>.json``, if present.
+
+    The sidecar is a JSON object with at least ``natural_frequency_hz`` (Hz); any
+    other keys (provenance, rig notes) are ignored here.
+
+    Returns
+    -------
+    (float or None, Path)
+        The value (None when there is no sidecar or it has no such key) and the sidecar path.
+
+    Raises
+    ------
+    StiffnetError
+        If the sidecar exists but is not valid JSON or the value is not a number > 0.
+    """
+    p = Path(str(recording) + SIDECAR_SUFFIX)
+    if not p.is_file():
+        return None, p
+    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
+    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
+        return None, p
+    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
 
 
 @dataclass
@@ -131,8 +165,10 @@ def read_recording(
         Sampling rate in Hz. Required for ``.npy``; for the other formats the
         file's own rate is used and must agree with it when both are known.
     channel : str or int, optional
-        WAV: channel index (default 0). TDMS: channel name or ``group/name``
-        (default: the first channel holding data).
+        WAV, 2-D NPY: channel (column) index. TDMS: channel name, ``group/name``
+        or index among the channels holding data. CSV: the acceleration column
+        (header name or index; time in ``t``). Required when the file has
+        several channels (the error lists them).
     columns : str or sequence, optional
         CSV only: ``"TIME,ACCEL"`` (or a pair), each a header name
         (case-insensitive) or a 0-based column index; a single ``"ACCEL"``
@@ -169,8 +205,12 @@ def read_recording(
         )
     if not p.is_file():
         raise StiffnetError(f"{name}: recording file not found")
-    if channel is not None and ext in (".csv", ".npy"):
-        raise StiffnetError(f"{name}: a {ext} recording has one channel; do not give 'channel'")
+    if channel is not None and str(channel).strip() == "":
+        channel = None
+    if channel is not None and ext == ".csv":
+        if columns is not None:
+            raise StiffnetError(f"{name}: give either 'columns' or 'channel' for a CSV, not both")
+        columns = f"{CSV_COLUMNS[0]},{channel}"
     layout = _CsvLayout.parse(columns, time_unit, name)
     if ext != ".csv" and (columns is not None or time_unit is not None):
         what = "columns" if columns is not None else "time_unit"
@@ -218,7 +258,7 @@ def write_recording_csv(path: str | os.PathLike[str], accel: np.ndarray, fs_hz: 
         raise StiffnetError(f"{p}: refusing to write NaN/inf samples")
     table = pa.table({"t": rec.t, "accel": rec.accel})
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=p.parent, prefix=f".{p.name[:100]}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             # pyarrow always quotes the header: write it ourselves
@@ -325,19 +365,24 @@ def _header_hint(header: list[str]) -> str:
     if len(header) == 1:
         return " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
-        return " (no header: give columns as indices, e.g. --columns 0,1, with --fs if needed)"
+        return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
     time, accel = header[0].strip(), header[1].strip()
-    unit = ""
+    unit = None
     low = time.lower()
     for u in ("ms", "us"):
         if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
-            unit = f" --time-unit {u}"
+            unit = u
     # column names are quoted only when they look like names (a secret's line does not)
     example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
-    return (
-        f"; name its columns, e.g. --columns {example}{unit} "
-        "(manifest/HTTP fields columns and time_unit)"
-    )
+    return f"; {columns_hint(example, unit)}" + _channels_hint(header)
+
+
+def _channels_hint(header: list[str]) -> str:
+    """With more than two columns, which ones the file has (only names that look like names)."""
+    names = [c.strip() for c in header]
+    if len(names) <= 2 or not all(map(_COLUMN_NAME.match, names)):
+        return ""
+    return f"; its {len(names)} columns: {', '.join(names)} (--channel NAME picks the acceleration)"
 
 
 def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndarray, float, str]:
@@ -353,7 +398,10 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
+        names = [c.strip() for c in raw]
         shown = quote_content(first.strip(), cells=4) or f"({len(raw)} cell(s), not shown)"
+        if len(raw) <= 4 and all(map(_COLUMN_NAME.match, names)):  # names: shown, as the hint
+            shown = repr(",".join(names))
         raise StiffnetError(
             f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
         )
@@ -503,6 +551,18 @@ def _read_npy(
         raise StiffnetError(f"{name}: not a readable .npy array ({_brief(exc)})") from None
     if not isinstance(arr, np.ndarray):
         raise StiffnetError(f"{name}: expected one array, not an archive")
+    if arr.ndim == 2 and arr.shape[1] > 1:
+        if channel is None:
+            raise StiffnetError(
+                f"{name}: {arr.shape[1]} channels (columns 0..{arr.shape[1] - 1} of shape "
+                f"{arr.shape}); choose one with --channel INDEX (manifest/HTTP field channel)"
+            )
+        idx = _channel_index(channel, arr.shape[1], name, "NPY")
+        arr, name = arr[:, idx], f"{name} (channel {idx})"
+    elif arr.ndim == 2:
+        arr = arr[:, 0]
+    elif channel not in (None, 0, "0"):
+        raise StiffnetError(f"{name}: channel {channel!r} requested but the file has one channel")
     if arr.ndim != 1:
         raise StiffnetError(f"{name}: expected a 1-D array, got shape {arr.shape}")
     if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
@@ -525,6 +585,11 @@ def _read_wav(
             rate, data = wavfile.read(p)
     except Exception as exc:  # noqa: BLE001 - a corrupt header raises assorted types
         raise StiffnetError(f"{name}: not a readable WAV file ({_brief(exc)})") from None
+    if data.ndim == 2 and data.shape[1] > 1 and channel is None:
+        raise StiffnetError(
+            f"{name}: {data.shape[1]} channels (0..{data.shape[1] - 1}); choose one with "
+            "--channel INDEX (manifest/HTTP field channel)"
+        )
     if data.ndim == 2:
         idx = _channel_index(channel, data.shape[1], name)
         data = data[:, idx]
@@ -545,13 +610,13 @@ def _read_wav(
     return accel, fs, name
 
 
-def _channel_index(channel: str | int | None, n: int, name: str) -> int:
+def _channel_index(channel: str | int | None, n: int, name: str, kind: str = "WAV") -> int:
     if channel is None:
         return 0
     try:
         idx = int(channel)
     except (TypeError, ValueError):
-        raise StiffnetError(f"{name}: WAV channel must be an index, got {channel!r}") from None
+        raise StiffnetError(f"{name}: {kind} channel must be an index, got {channel!r}") from None
     if not 0 <= idx < n:
         raise StiffnetError(f"{name}: channel {idx} requested but the file has {n} channels")
     return idx
@@ -586,14 +651,22 @@ def _read_tdms(
         finally:
             log_manager.set_level(level)
     channels = [(g.name, c) for g in tdms.groups() for c in g.channels()]
+    with_data = [(g, c) for g, c in channels if len(c) > 0]
     if channel is None:
-        found = [(g, c) for g, c in channels if len(c) > 0]
-        if not found:
+        if not with_data:
             raise StiffnetError(f"{name}: recording is empty (no TDMS channel holds data)")
-        group, chan = found[0]
+        if len(with_data) > 1:
+            listed = ", ".join(f"{g}/{c.name}" for g, c in with_data)
+            raise StiffnetError(
+                f"{name}: {len(with_data)} channels hold data ({listed}); choose one with "
+                "--channel NAME (manifest/HTTP field channel)"
+            )
+        group, chan = with_data[0]
     else:
         want = str(channel)
         found = [(g, c) for g, c in channels if want in (c.name, f"{g}/{c.name}")]
+        if not found and want.isdigit() and int(want) < len(with_data):
+            found = [with_data[int(want)]]  # an index among the channels holding data
         if not found:
             listed = ", ".join(f"{g}/{c.name}" for g, c in channels) or "none"
             raise StiffnetError(f"{name}: no TDMS channel {want!r} (channels: {listed})")

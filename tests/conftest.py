@@ -6,6 +6,16 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+# The user effects the tests name (user_effects:..., crosscheck_effects:...) are plugins
+# loaded explicitly, as a user's are (effect names never import from sys.path).
+_HERE = os.path.dirname(os.path.abspath(__file__))
+os.environ["STIFFNET_PLUGINS"] = os.pathsep.join(
+    [
+        os.path.join(_HERE, "user_effects.py"),
+        os.path.join(os.path.dirname(_HERE), "benchmarks", "crosscheck_effects.py"),
+    ]
+)
+
 
 import pytest  # noqa: E402
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import csv
 import math
 import zlib
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +88,7 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     k = run.beta * run.omega_n**2
     f = k * d
     if run.contact == "kelvin_voigt":
-        f = f + 2 * run.contact_zeta * math.sqrt(run.beta) * run.omega_n * v
+        f = f + 2 * run.contact_zeta * np.sqrt(run.beta) * run.omega_n * v
     elif run.contact == "hunt_crossley":
         f = f * (1 + run.hc_lambda_s_per_m * v)
     elif run.contact == "two_stage":
@@ -99,11 +99,18 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.where(d > 0, np.maximum(f, 0.0), 0.0)
 
 
-def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+def simulate(
+    run: RigRun,
+    transient_s: float | None = None,
+    beta_schedule: list[tuple[float, float]] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Integrate the rig from rest and return ``(t, absolute acceleration in m/s²)``.
 
     The motion is integrated phase by phase (free flight / contact) so that the
     integrator never steps across the contact's switch; each phase ends at an event.
+    ``beta_schedule``: ``(time from the record's start in s, beta)`` pairs, a drill bit
+    entering a new layer at each time; the motion carries on across the change (each
+    contact phase uses the beta of its start).
     """
     wn, zeta = run.omega_n, run.damping_ratio
     big_a, om = run.base_acceleration_ms2, 2 * math.pi * run.forcing_frequency_hz
@@ -113,10 +120,18 @@ def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray,
     n = int(round(run.duration_s * run.fs_hz))
     t_rec = transient_s + np.arange(n) / run.fs_hz
     t_end = t_rec[-1]
+    schedule = sorted(beta_schedule or [])
 
-    def rhs(contact: bool):
+    def beta_at(t: float) -> float:
+        beta = run.beta
+        for start, b in schedule:
+            if t - transient_s >= start:
+                beta = b
+        return beta
+
+    def rhs(contact: bool, r: RigRun):
         def f(t, y):
-            fc = _contact_force(run, np.array(y[0]), np.array(y[1])) if contact else 0.0
+            fc = _contact_force(r, np.array(y[0]), np.array(y[1])) if contact else 0.0
             return [y[1], big_a * math.sin(om * t) - 2 * zeta * wn * y[1] - wn**2 * y[0] - fc]
 
         return f
@@ -126,31 +141,35 @@ def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray,
 
     touch.terminal, touch.direction = True, 1
 
-    def release(t, y):  # the force reaches zero (or the penetration does)
-        d = y[0] - e
-        if run.contact == "kelvin_voigt":
-            return run.beta * wn**2 * d + 2 * run.contact_zeta * math.sqrt(run.beta) * wn * y[1]
-        if run.contact == "hunt_crossley":
-            return d * (1 + run.hc_lambda_s_per_m * y[1])
-        return d
+    def release_of(r: RigRun):
+        def release(t, y):  # the force reaches zero (or the penetration does)
+            d = y[0] - e
+            if r.contact == "kelvin_voigt":
+                return r.beta * wn**2 * d + 2 * r.contact_zeta * math.sqrt(r.beta) * wn * y[1]
+            if r.contact == "hunt_crossley":
+                return d * (1 + r.hc_lambda_s_per_m * y[1])
+            return d
 
-    release.terminal, release.direction = True, -1
+        release.terminal, release.direction = True, -1
+        return release
 
     x_out = np.empty(n)
     v_out = np.empty(n)
+    beta_out = np.full(n, float(run.beta))
     in_contact = np.zeros(n, bool)
     t0, y0, contact = 0.0, [0.0, 0.0], False
     max_step = 1 / (20 * max(run.natural_frequency_hz, run.forcing_frequency_hz))
     while t0 < t_end:
+        r = replace(run, beta=beta_at(t0)) if schedule else run
         sol = solve_ivp(
-            rhs(contact),
+            rhs(contact, r),
             (t0, t_end),
             y0,
             method="DOP853",
             rtol=1e-9,
             atol=1e-12,
             max_step=max_step if not contact else max_step / 4,
-            events=release if contact else touch,
+            events=release_of(r) if contact else touch,
             dense_output=True,
         )
         t1 = sol.t[-1]
@@ -158,11 +177,12 @@ def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray,
         if sel.any():
             xs, vs = sol.sol(t_rec[sel])
             x_out[sel], v_out[sel], in_contact[sel] = xs, vs, contact
+            beta_out[sel] = r.beta
         if sol.status != 1:
             break
         y0 = list(sol.y[:, -1])
         t0, contact = t1, not contact
-    fc = np.where(in_contact, _contact_force(run, x_out, v_out), 0.0)
+    fc = np.where(in_contact, _contact_force(replace(run, beta=beta_out), x_out, v_out), 0.0)
     accel = -(2 * zeta * wn * v_out + wn**2 * x_out + fc)
     return t_rec - t_rec[0], accel
 
@@ -188,9 +208,14 @@ def sensor_chain(accel: np.ndarray, fs_hz: float, sensor: dict) -> np.ndarray:
     return y
 
 
-def record(run: RigRun, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """``(t in s, accel in g)`` as the data logger stores it: chain, then white noise."""
-    t, acc = simulate(run)
+def record(
+    run: RigRun, seed: int = 0, beta_schedule: list[tuple[float, float]] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(t in s, accel in g)`` as the data logger stores it: chain, then white noise.
+
+    ``beta_schedule``: layers along the record (see :func:`simulate`).
+    """
+    t, acc = simulate(run, beta_schedule=beta_schedule)
     if run.sensor:
         acc = sensor_chain(acc, run.fs_hz, run.sensor)
     rng = np.random.default_rng([seed, zlib.crc32(run.recording.encode())])

@@ -40,8 +40,8 @@ def impact_csv(tmp_path_factory) -> Path:
 
 def test_analyze_json_keys_and_plots(impact_csv, tmp_path):
     res = runner.invoke(
-        app, ["analyze", str(impact_csv), "--json", str(tmp_path / "a.json"), "--plots",
-              str(tmp_path / "figs")],
+        app, ["analyze", str(impact_csv), "--fn", str(FN), "--json", str(tmp_path / "a.json"),
+              "--plots", str(tmp_path / "figs")],
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     result = json.loads((tmp_path / "a.json").read_text())
@@ -62,10 +62,38 @@ def test_analyze_json_keys_and_plots(impact_csv, tmp_path):
                      "inclinations.png", "force_displacement.png"}  # fmt: skip
     for p in result["plots"]:
         assert Path(p).stat().st_size > 5000
+    assert result["natural_frequency_source"] == "option --fn"
+    assert result["stationarity_tested"].startswith("the whole record")
+
+
+def test_analyze_without_natural_frequency_says_so(impact_csv, tmp_path):
+    res = runner.invoke(app, ["analyze", str(impact_csv), "--json", str(tmp_path / "a.json")])
+    assert res.exit_code == 0, res.output
+    result = json.loads((tmp_path / "a.json").read_text())
+    assert result["natural_frequency_hz"] is None and result["physical_beta"] is None
+    assert result["restoring_force"]["reason"].startswith("natural frequency unknown")
+    assert result["geometric_class"] in {"medium", "hard"}  # the rest stands
+
+
+def test_stationarity_reads_the_whole_record():
+    """A change of beta after the first 20,000 samples makes the record non-stationary."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from drill_records import layered_record
+
+    x, _ = layered_record([10.0, 45.0], [15.0, 15.0], fs_hz=2000.0, noise=0.01, seed=2)
+    a = analyze_signal(x, 2000.0)
+    assert not a.stationary
+    spans = a.summary()["stationarity_segments_s"]
+    assert len(spans) == 8 and spans[0][0] < 2.0 and spans[-1][1] > 28.0
+    assert "spread from" in a.stationarity_tested()
+    c, _ = layered_record([10.0], [30.0], fs_hz=2000.0, noise=0.01, seed=2)
+    assert analyze_signal(c, 2000.0).stationary
 
 
 def test_no_impact_gives_no_contact_not_a_number():
-    a = analyze_signal(simulated(31.0, gap=50.0), 100 * FN).summary()
+    a = analyze_signal(simulated(31.0, gap=50.0), 100 * FN, FN).summary()
     assert a["contact_detected"] is False and a["impacts_found"] == 0
     assert a["geometric_class"] == "no_contact" and a["geometric_beta"] is None
     assert a["physical_class"] == "no_contact" and a["physical_beta"] is None

@@ -151,7 +151,13 @@ def test_overwrite_replaces_the_folder(tmp_path):
     manifest = write(tmp_path / "m.csv", "\n".join(SMALL.splitlines()[:2]) + "\n")
     out = tmp_path / "out"
     write(out / "stale.txt", "old")
-    write(out / CARD_NAME, "{}")  # an earlier campaign: only such a folder is replaced
+    write(out / CARD_NAME, "{}")  # a card without stiffnet's marker: not trusted
+    with pytest.raises(StiffnetError, match="did not write"):
+        simulate_campaign(manifest, out, [], overwrite=True)
+    assert (out / "stale.txt").read_text() == "old"
+    from stiffnet.io_utils import new_marker
+
+    write(out / CARD_NAME, json.dumps(new_marker("stiffnet-campaign")))  # an earlier campaign
     simulate_campaign(manifest, out, [], overwrite=True)
     assert sorted(os.listdir(out)) == sorted([CARD_NAME, "a.csv", MANIFEST_NAME])
     assert sorted(os.listdir(tmp_path)) == ["m.csv", "out"]

@@ -13,7 +13,6 @@ from test_progress import Recorder
 
 from stiffnet import progress
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.train import CNNConfig, TrainConfig
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.features.windows import (
@@ -24,6 +23,8 @@ from stiffnet.features.windows import (
 )
 from stiffnet.io_utils import sha256_file
 from stiffnet.uncertainty.alarm import load_alarm
+from training.config import TrainConfig
+from training.families.cnn.config import CNNConfig
 
 torch = pytest.importorskip("torch")
 
@@ -55,8 +56,8 @@ def trained(tiny_dir, tmp_path_factory):
 def test_onnx_export_prints_no_torchvision_warnings():
     """torch.onnx logs four "torchvision is not installed" lines on its first export."""
     code = (
-        "from training.cnn import StiffnessCNN\n"
-        "from training.export_onnx_cnn import _export_proto\n"
+        "from training.families.cnn.network import StiffnessCNN\n"
+        "from training.families.cnn.export import _export_proto\n"
         "_export_proto(StiffnessCNN(3, 5, 8, 2), 3, 64)\n"
     )
     root = Path(__file__).resolve().parents[1]
@@ -178,9 +179,9 @@ def test_cnn_yaml_restates_defaults():
     assert cfg.model == "cnn" and cfg.cnn == CNNConfig()
     # the held-out fractions are the one deliberate change (models/README.md: 4,000 trajectories)
     assert (cfg.test_fraction, cfg.calibration_fraction) == (0.1, 0.1)
-    restated = {"model": "gbm", "experiment": "stiffnet-gbm", "test_fraction": 0.2,
-                "calibration_fraction": 0.2}  # fmt: skip
-    assert cfg.model_copy(update=restated) == TrainConfig()
+    restated = {"test_fraction": 0.2, "calibration_fraction": 0.2}
+    assert cfg.model_copy(update=restated) == TrainConfig(model="cnn")
+    assert cfg.experiment == cfg.registered_model == "stiffnet-cnn"
     with pytest.raises(ConfigError, match="width"):
         validate_config(TrainConfig, {"model": "cnn", "cnn": {"width": 0}})
 
@@ -221,15 +222,19 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert set(load_alarm(alarm).thresholds) <= {
         "embedding", "ambiguity", "beta_uncertainty", "class_edge"}  # fmt: skip
     metrics = summary["metrics"]
-    for prefix in ("cnn", "geometric"):
-        assert 0.0 <= metrics[f"{prefix}/accuracy"] <= 1.0
-        assert f"{prefix}/macro_f1" in metrics
-    assert "cnn/beta_mape" in metrics and "cnn/beta_coverage" in metrics
+    for prefix in ("", "geometric/"):
+        assert 0.0 <= metrics[f"{prefix}accuracy"] <= 1.0
+        assert f"{prefix}macro_f1" in metrics
+    assert "beta_mape" in metrics and "beta_coverage" in metrics
+    # self-describing: the training rig's f_n and the class edges travel in the metadata
+    assert json.loads(meta["natural_frequency_hz"]) == card["data"]["natural_frequency_hz"]
+    edges = [c["beta"][0] for c in ds.card["config"]["classes"]]
+    assert json.loads(meta["class_edges"])[:-1] == edges
 
 
 def test_onnx_parity_and_dynamic_batch(trained, tiny_dir):
-    from training.cnn import StiffnessCNN, predict_cnn
-    from training.export_onnx_cnn import export_cnn_onnx, onnx_predict_cnn, parity_cnn
+    from training.families.cnn.export import export_cnn_onnx, onnx_predict_cnn, parity_cnn
+    from training.families.cnn.network import StiffnessCNN, predict_cnn
 
     summary, _, _ = trained
     assert summary["parity"]["max_abs_proba_diff"] < 1e-4
@@ -269,9 +274,9 @@ def test_mlflow_run_has_cnn_metrics(trained):
 
     summary, uri, _ = trained
     run = mlflow.MlflowClient(uri).get_run(summary["run_id"])
-    assert "cnn/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
-    assert run.data.params["model"] == "cnn"
-    assert run.data.tags["stiffnet.model"] == "cnn"
+    # the same metric names as every family's, the family a parameter and a tag
+    assert "accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
+    assert run.data.params["family"] == "cnn" and run.data.tags["stiffnet.family"] == "cnn"
 
 
 def test_mlflow_logs_epoch_losses_and_the_model(trained):
@@ -297,7 +302,7 @@ def test_mlflow_logs_epoch_losses_and_the_model(trained):
     mine = [m for m in models if m.source_run_id == run_id]
     assert len(mine) == 1 and mine[0].name == "model"
     model = mine[0]
-    assert model.metrics and {m.key for m in model.metrics} >= {"cnn/accuracy"}
+    assert model.metrics and {m.key for m in model.metrics} >= {"accuracy"}
     onnx_model = mlflow.onnx.load_model(f"models:/{model.model_id}")
     info = mlflow.models.get_model_info(f"models:/{model.model_id}")
     sig = info.signature.inputs.to_dict()[0]

@@ -498,21 +498,75 @@ def test_errors_never_echo_file_contents(tmp_path):
     assert "admin" not in str(exc.value) and "S3CRET" not in str(exc.value)
 
 
-def test_user_effect_is_imported_only_after_everything_else(tmp_path, monkeypatch):
+def test_effect_names_never_import_from_the_path(tmp_path, monkeypatch):
+    """A `module:Class` on sys.path (the working folder under `python -m`) never runs;
+    an explicitly given plugin file does, and only after the rest of the config is valid."""
     from stiffnet.config import validate_config
     from stiffnet.config.sim import SimulationConfig
+    from stiffnet.effects.registry import register_plugin
     from stiffnet.errors import ConfigError
 
     ran = tmp_path / "ran"
     (tmp_path / "evil_effect_mod.py").write_text(f"open({str(ran)!r}, 'w').write('ran')\n")
     monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.chdir(tmp_path)
+    for effects in ([{"name": "evil_effect_mod:Evil"}], [{"name": "this:X"}]):
+        with pytest.raises(ConfigError, match="not a registered stiffnet effect"):
+            validate_config(SimulationConfig, {"effects": effects})
+    assert not ran.exists() and "this" not in __import__("sys").modules
+    one_line_error(
+        [
+            "simulate-campaign",
+            ROOT / "examples" / "campaign_manifest.csv",
+            "--out",
+            tmp_path / "o",
+            "--effect",
+            "evil_effect_mod:Evil",
+        ],
+        "nothing was imported",
+    )
+    assert not ran.exists() and not (tmp_path / "o").exists()
     bad = {"seed": -1, "effects": [{"name": "evil_effect_mod:Evil"}]}
+    register_plugin(tmp_path / "evil_effect_mod.py")  # the user names the file: it runs
+    assert ran.exists()
     with pytest.raises(ConfigError, match="seed"):
         validate_config(SimulationConfig, bad)
-    assert not ran.exists()  # the module never ran: the config was wrong elsewhere
-    with pytest.raises(ConfigError, match="Evil"):
+    with pytest.raises(ConfigError, match="Evil"):  # no such class in it
         validate_config(SimulationConfig, {"effects": [{"name": "evil_effect_mod:Evil"}]})
-    assert ran.exists()  # configs are code: a valid config does import it (documented)
+
+
+def test_python_m_stiffnet_ignores_the_working_folder(tmp_path):
+    """Under `python -m stiffnet` the cwd is on sys.path: an effect name still imports nothing."""
+    import subprocess
+    import sys
+
+    (tmp_path / "evil.py").write_text("open('ran', 'w').write('ran')\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "STIFFNET_PLUGINS": ""}
+    args = [
+        sys.executable,
+        "-m",
+        "stiffnet",
+        "simulate-campaign",
+        str(ROOT / "examples" / "campaign_manifest.csv"),
+        "--out",
+        "o",
+        "--effect",
+        "evil:X",
+    ]
+    res = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "not a registered stiffnet effect" in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and not (tmp_path / "ran").exists()
+    plugin = tmp_path / "my_law.py"
+    plugin.write_text("from stiffnet.effects.base import MeasurementEffect\n")
+    res = subprocess.run(
+        [*args[:3], "--plugin", str(plugin), *args[3:-1], "my_law:Nope"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert res.returncode == 2 and "'Nope' in 'my_law'" in res.stderr, res.stderr
 
 
 # ------------------------------------------------------------------ the server under abuse

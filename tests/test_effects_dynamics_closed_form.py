@@ -193,11 +193,12 @@ def test_gap_drift_switches_impacts_on_and_off_over_its_period() -> None:
 
 @pytest.fixture
 def user_module(monkeypatch: pytest.MonkeyPatch) -> str:
-    """Make ``tests/`` importable (it is under pytest's default import mode anyway)."""
+    """Load ``tests/user_effects.py`` as a plugin (effect names never import from sys.path)."""
     from pathlib import Path
 
-    monkeypatch.syspath_prepend(str(Path(__file__).parent))
-    return "user_effects"
+    from stiffnet.effects.registry import register_plugin
+
+    return register_plugin(Path(__file__).parent / "user_effects.py")
 
 
 def test_user_dynamics_effect_runs_in_closed_form(user_module: str) -> None:
@@ -248,7 +249,7 @@ def test_unknown_effect_names_the_known_ones() -> None:
     assert "'contact_dampening'" in msg
     for name in CANONICAL:
         assert name in msg
-    with pytest.raises(ConfigError, match="cannot import module 'no_such_module'"):
+    with pytest.raises(ConfigError, match="'no_such_module:Effect' is not a registered"):
         build_effect("no_such_module:Effect")
 
 

@@ -12,6 +12,7 @@ nor the training code.
 from __future__ import annotations
 
 import ast
+import re
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -45,6 +46,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.restoring_force",
         "stiffnet.uncertainty",
         "stiffnet.discovery",
+        "stiffnet.layers",
     ),  # fmt: skip
     "models": ("training", "serving"),
     "measurement": ("stiffnet.measurement",),
@@ -191,3 +193,104 @@ def test_rule_checker_catches_upward_imports() -> None:
     # relative imports resolve against the package
     rel = imports_of("serving.app", "from .predictor import Predictor\n", False, known)
     assert rel == {"serving.predictor"}
+
+
+# ---------------------------------------------------------------- model families
+
+#: Where the model families live: one package each under training/families/, one module
+#: each under serving/families/ (base.py is the contract, not a family).
+FAMILY_HOMES = ("training/families", "serving/families")
+
+
+def family_names(root: Path = ROOT) -> set[str]:
+    """The families, from the file system: each one's training package and serving module."""
+    training = {p.parent.name for p in (root / "training/families").glob("*/__init__.py")}
+    serving = {p.stem for p in (root / "serving/families").glob("*.py")}
+    return training | (serving - {"__init__", "base"})
+
+
+def in_family_folder(path: Path, families: set[str], root: Path = ROOT) -> bool:
+    rel = path.relative_to(root)
+    parts = rel.with_suffix("").parts
+    return any(
+        "/".join(parts[:2]) == home and len(parts) > 2 and parts[2] in families
+        for home in FAMILY_HOMES
+    )
+
+
+def words(text: str) -> set[str]:
+    """Lower-case words of an identifier or a file-like string: snake, camel, dots, slashes."""
+    spaced = re.sub(r"([A-Z]+)([A-Z][a-z])", r"\1 \2", text)  # GBMConfig -> GBM Config
+    spaced = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", spaced)  # fitGbm -> fit Gbm
+    return {w.lower() for w in re.split(r"[^A-Za-z0-9]+", spaced) if w}
+
+
+def family_mentions(source: str, families: set[str]) -> list[str]:
+    """Code that names a family: identifiers, imports and identifier-like strings.
+
+    Docstrings and prose strings (messages, help texts: they contain a space) may
+    name a family as an example; code may not depend on one.
+    """
+    tree = ast.parse(source)
+    docstrings = {
+        id(node.body[0].value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.body
+        and isinstance(node.body[0], ast.Expr)
+        and isinstance(node.body[0].value, ast.Constant)
+    }
+    found = []
+    for node in ast.walk(tree):
+        texts: list[str] = []
+        if isinstance(node, ast.Name):
+            texts = [node.id]
+        elif isinstance(node, ast.Attribute):
+            texts = [node.attr]
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            texts = [node.name]
+        elif isinstance(node, ast.arg):
+            texts = [node.arg]
+        elif isinstance(node, ast.keyword) and node.arg:
+            texts = [node.arg]
+        elif isinstance(node, ast.alias):
+            texts = [node.name, node.asname or ""]
+        elif isinstance(node, ast.ImportFrom):
+            texts = [node.module or ""]
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            if id(node) not in docstrings and not re.search(r"\s", node.value):
+                texts = [node.value]
+        for text in texts:
+            if words(text) & families:
+                found.append(f"line {getattr(node, 'lineno', '?')}: {text!r}")
+    return found
+
+
+def test_no_module_outside_a_family_folder_names_a_family() -> None:
+    families = family_names()
+    assert {"cnn", "gbm"} <= families  # the walk found the shipped families
+    bad = [
+        f"{path.relative_to(ROOT)} {hit}"
+        for path in all_modules().values()
+        if not in_family_folder(path, families)
+        for hit in family_mentions(path.read_text(), families)
+    ]
+    assert not bad, "only a family's own folder may name it (use the registry):\n" + "\n".join(bad)
+
+
+def test_family_checker_catches_names() -> None:
+    src = (
+        '"""The gbm docstring may name one."""\n'
+        "from training.families.gbm import GBMTraining\n"
+        "x = cfg.cnn\n"
+        'path = "train/gbm.yaml"\n'
+        'msg = "use gbm or cnn"\n'
+        "def fit_cnn(): pass\n"
+    )
+    hits = family_mentions(src, {"gbm", "cnn"})
+    lines = sorted({int(h.split(":", 1)[0].removeprefix("line ")) for h in hits})
+    assert lines == [2, 3, 4, 6]  # not the docstring (1) nor the message (5)
+    assert words("GBMConfig") == {"gbm", "config"} and words("stiffnet.cnn") == {"stiffnet", "cnn"}
+    assert in_family_folder(ROOT / "training/families/gbm/export.py", {"gbm"})
+    assert in_family_folder(ROOT / "serving/families/cnn.py", {"cnn"})
+    assert not in_family_folder(ROOT / "training/finish.py", {"gbm"})

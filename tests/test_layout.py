@@ -35,15 +35,20 @@ def _diagnosis_table() -> Table:
     return t
 
 
-def test_tables_fold_names_and_keep_numbers_whole_at_80_columns():
+def test_tables_keep_names_and_numbers_whole_at_80_columns():
+    """Too wide for its words side by side: the table turns vertical, nothing is cut."""
     text = _render(_diagnosis_table(), 80)
     assert "…" not in text and max(len(line) for line in text.splitlines()) <= 80
-    for number in ("0.123456", "45%", "100%"):  # numbers never cut
-        assert number in text
-    for header in ("reduction", "(abs.)", "recordings", "improved"):  # headers break at spaces
-        assert header in text
-    params = "".join(line.split("│")[4].strip() for line in text.splitlines() if "│" in line)
-    assert params.replace(" ", "") == "damping_ratio=0.314,restitution_exponent=1.57"
+    for token in (
+        "0.123456",
+        "45%",
+        "100%",
+        "contact_damping_with_a_long_name",
+        "damping_ratio=0.314,",
+        "restitution_exponent=1.57",
+        "reduction (abs.)",
+    ):
+        assert token in text, token  # numbers and names never cut
     wide = _render(_diagnosis_table(), 400)
     assert "contact_damping_with_a_long_name" in wide and "restitution_exponent=1.57" in wide
 

@@ -166,9 +166,18 @@ def test_fs_must_be_positive(tmp_path, fs):
     assert_error("sampling rate must be > 0", path, fs_hz=fs)
 
 
-def test_csv_has_no_channels(tmp_path):
-    path = write_recording_csv(tmp_path / "r.csv", signal(), FS)
-    assert_error("has one channel", path, channel=1)
+def test_csv_channel_names_the_acceleration_column(tmp_path):
+    path = tmp_path / "r.csv"
+    x = signal()
+    t = np.arange(x.size) / FS
+    lines = (f"{float(a)!r},{-float(b)!r},{float(b)!r}\n" for a, b in zip(t, x, strict=True))
+    path.write_text("t,force,accel\n" + "".join(lines))
+    np.testing.assert_array_equal(read_recording(path, channel="accel").accel, x)
+    np.testing.assert_array_equal(read_recording(path, channel=1).accel, -x)
+    assert_error("no column 'bogus'", path, channel="bogus")
+    assert_error("either 'columns' or 'channel'", path, channel="accel", columns="t,accel")
+    # without a choice: refused, naming its columns
+    assert_error(r"its 3 columns: t, force, accel \(--channel NAME", path)
 
 
 # --------------------------------------------------------------------------- NPY
@@ -195,8 +204,8 @@ def test_npy_needs_fs(tmp_path):
 
 def test_npy_must_be_1d(tmp_path):
     path = tmp_path / "r.npy"
-    np.save(path, np.zeros((10, 2)))
-    assert_error(r"expected a 1-D array, got shape \(10, 2\)", path, fs_hz=FS)
+    np.save(path, np.zeros((10, 2, 2)))
+    assert_error(r"expected a 1-D array, got shape \(10, 2, 2\)", path, fs_hz=FS)
 
 
 def test_npy_nan(tmp_path):
@@ -242,7 +251,8 @@ def test_wav_float_and_channel(tmp_path):
     data = np.stack([signal(), 5 * signal(seed=1)], axis=1).astype(np.float32)
     path = tmp_path / "r.wav"
     wavfile.write(path, 1000, data)
-    np.testing.assert_array_equal(read_recording(path).accel, data[:, 0])
+    assert_error(r"2 channels \(0..1\); choose one with --channel INDEX", path)
+    np.testing.assert_array_equal(read_recording(path, channel=0).accel, data[:, 0])
     rec = read_recording(path, channel=1)
     np.testing.assert_array_equal(rec.accel, data[:, 1])
     assert "channel 1" in rec.source
@@ -290,13 +300,22 @@ def write_tdms(path: Path, increment: float | None = 1 / FS) -> None:
         )
 
 
-def test_tdms_first_channel_with_data_and_fs(tmp_path):
+def test_tdms_several_channels_need_a_choice(tmp_path):
     path = tmp_path / "r.tdms"
     write_tdms(path)
-    rec = read_recording(path)
+    assert_error(r"2 channels hold data \(rig/mass, rig/base\); choose one with --channel", path)
+    rec = read_recording(path, channel="mass")
     np.testing.assert_array_equal(rec.accel, signal())
     assert rec.fs_hz == pytest.approx(FS)
     assert "rig/mass" in rec.source
+    np.testing.assert_array_equal(read_recording(path, channel="1").accel, 3 * signal(seed=2))
+
+
+def test_npy_columns_are_channels(tmp_path):
+    path = tmp_path / "r.npy"
+    np.save(path, np.stack([signal(), 2 * signal()], axis=1))
+    assert_error(r"2 channels \(columns 0..1 of shape", path, fs_hz=FS)
+    np.testing.assert_array_equal(read_recording(path, fs_hz=FS, channel=1).accel, 2 * signal())
 
 
 def test_tdms_named_channel(tmp_path):
@@ -310,14 +329,15 @@ def test_tdms_named_channel(tmp_path):
 def test_tdms_without_increment_needs_fs(tmp_path):
     path = tmp_path / "r.tdms"
     write_tdms(path, increment=None)
-    assert_error("sampling rate missing", path)
-    assert read_recording(path, fs_hz=250.0).fs_hz == 250.0
+    assert_error("sampling rate missing", path, channel="mass")
+    assert read_recording(path, fs_hz=250.0, channel="mass").fs_hz == 250.0
 
 
 def test_tdms_fs_must_agree(tmp_path):
     path = tmp_path / "r.tdms"
     write_tdms(path)
-    assert_error("wf_increment gives fs = 1000 Hz but fs_hz = 999 Hz", path, fs_hz=999)
+    assert_error("wf_increment gives fs = 1000 Hz but fs_hz = 999 Hz", path, fs_hz=999,
+                 channel="mass")  # fmt: skip
 
 
 def test_tdms_garbage(tmp_path):
@@ -382,9 +402,18 @@ def test_wrong_header_says_how_to_map_it(tmp_path):
         read_recording(path)
     msg = str(info.value)
     assert "wrong header" in msg and "--columns time_ms,acc_g --time-unit ms" in msg
-    assert "time_unit" in msg and "\n" not in msg  # also names the manifest/HTTP fields
+    assert "\n" not in msg
+    from stiffnet.inputs import HINT_CONTEXT
+
+    token = HINT_CONTEXT.set("manifest")  # a campaign's recording: the manifest's columns
+    try:
+        with pytest.raises(StiffnetError, match="in the manifest: columns time_ms,acc_g and "
+                                                "time_unit ms"):  # fmt: skip
+            read_recording(path)
+    finally:
+        HINT_CONTEXT.reset(token)
     numeric = write_text(tmp_path / "n.csv", "0,1\n0.001,2\n")
-    assert_error("no header: give columns as indices", numeric)
+    assert_error("no header: name its columns: --columns 0,1", numeric)
 
 
 def test_layout_errors_are_one_line(tmp_path):

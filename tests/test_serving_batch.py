@@ -24,6 +24,8 @@ from stiffnet.distributed.cluster import local_cluster  # noqa: E402
 from stiffnet.errors import StiffnetError  # noqa: E402
 
 MODEL = Path(__file__).resolve().parents[1] / "models" / "cnn.onnx"
+#: The simulated rig's natural frequency (the campaign simulator's default).
+FN = 9.48
 if not MODEL.is_file():  # pragma: no cover
     pytest.skip("no shipped model", allow_module_level=True)
 
@@ -50,6 +52,7 @@ def recordings(tmp_path_factory) -> Path:
     manifest = root / "plan.csv"
     manifest.write_text("\n".join([HEADER, *ROWS]) + "\n")
     camp = simulate_campaign(manifest, root / "camp", [], seed=3)
+    (camp / "manifest.csv").unlink()  # a plain folder of recordings, not a campaign
     (camp / "sub" / "broken.csv").write_text("not,a\nrecording,at all\n")
     (camp / "short.csv").write_text("t,accel\n0,0.1\n0.001,0.2\n0.002,0.1\n")
     (camp / "notes.txt").write_text("ignored: not a recording extension")
@@ -59,7 +62,7 @@ def recordings(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def reference(recordings, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("ref") / "res.parquet"
-    predict_batch(recordings, out, model_path=MODEL, part_size=2)
+    predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN, part_size=2)
     return out
 
 
@@ -95,7 +98,7 @@ def test_rows_carry_both_cross_checks_of_the_predictor(recordings, reference):
     good = table[table["error"].isna()]
     predictor = Predictor.load(MODEL)
     for path, row in good.iterrows():
-        result = predict_recording(path, predictor=predictor)
+        result = predict_recording(path, predictor=predictor, natural_frequency_hz=FN)
         assert row["class"] == result["class"]
         assert row["geometric_class"] == result["geometric"]["class"]
         # the restoring-force cross-check, as the single-recording answer gives it
@@ -122,7 +125,7 @@ def test_glob_and_no_match(recordings, tmp_path):
 
 def test_cluster_gives_the_same_table(cluster, recordings, reference, tmp_path):
     out = tmp_path / "res.parquet"
-    summary = predict_batch(recordings, out, model_path=MODEL, part_size=2,
+    summary = predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN, part_size=2,
                             scheduler=cluster.scheduler_address)  # fmt: skip
     assert summary["backend"].startswith("tcp://") and summary["errors"] == 2
     assert pq.read_table(out).equals(pq.read_table(reference))
@@ -132,8 +135,9 @@ def test_cluster_gives_the_same_table(cluster, recordings, reference, tmp_path):
 def test_killed_worker_loses_nothing(cluster, recordings, reference, tmp_path):
     out = tmp_path / "res.parquet"
     summary = run_killing_one_task(
-        lambda hook: predict_batch(recordings, out, model_path=MODEL, part_size=2,
-                                   scheduler=cluster.scheduler_address, before_part=hook),
+        lambda hook: predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN,
+                                   part_size=2, scheduler=cluster.scheduler_address,
+                                   before_part=hook),
         tmp_path / "victim.pid", 2,
     )  # fmt: skip
     assert "part-00002" in summary["rerun"]
@@ -144,19 +148,19 @@ def test_killed_worker_loses_nothing(cluster, recordings, reference, tmp_path):
 def test_interrupted_run_resumes_without_redoing_parts(recordings, reference, tmp_path):
     out = tmp_path / "res.parquet"
     with pytest.raises(KeyboardInterrupt):
-        predict_batch(recordings, out, model_path=MODEL, part_size=2,
+        predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN, part_size=2,
                       before_part=functools.partial(_crash_on, 2))  # fmt: skip
     parts = tmp_path / "res.parquet.parts"
     done = {p.name: p.stat().st_mtime_ns for p in parts.glob("*.parquet")}
     assert sorted(done) == ["part-00000.parquet", "part-00001.parquet"] and not out.exists()
     seen = []
-    summary = predict_batch(recordings, out, model_path=MODEL, part_size=2,
+    summary = predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN, part_size=2,
                             progress=lambda d, t: seen.append((d, t)),
                             before_part=functools.partial(_check_not_in, (0, 1)))  # fmt: skip
     assert summary["parts_kept"] == 2 and seen[0] == (2, 4) and seen[-1] == (4, 4)
     assert out.read_bytes() == reference.read_bytes()
     with pytest.raises(StiffnetError, match="exists .use --overwrite"):
-        predict_batch(recordings, out, model_path=MODEL)
+        predict_batch(recordings, out, model_path=MODEL, natural_frequency_hz=FN)
 
 
 def _check_not_in(finished: tuple[int, ...], part: int) -> None:
@@ -172,13 +176,58 @@ def test_cli_predict_batch(recordings, reference, tmp_path):
 
     out = tmp_path / "res.parquet"
     args = ["predict-batch", str(recordings), "--out", str(out), "--model", str(MODEL),
-            "--part-size", "2", "--json", str(tmp_path / "s.json")]  # fmt: skip
+            "--part-size", "2", "--fn", str(FN), "--json", str(tmp_path / "s.json")]  # fmt: skip
     res = CliRunner().invoke(app, args)
-    assert res.exit_code == 0, res.output
+    assert res.exit_code == 1, res.output  # two recordings failed: named, exit 1
+    assert "failed: " in res.output and "broken.csv" in res.output and "short.csv" in res.output
+    assert "2 of 7 recording(s) failed" in res.output
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["recordings"] == 7 and summary["errors"] == 2
+    assert sorted(Path(f["path"]).name for f in summary["failed"]) == ["broken.csv", "short.csv"]
     assert out.read_bytes() == reference.read_bytes()
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 2 and "use --overwrite" in res.output
     res = CliRunner().invoke(app, ["predict-batch", str(tmp_path / "none"), "--out", "x.parquet"])
     assert res.exit_code == 2 and "no recordings found" in res.output
+
+
+def test_campaign_folder_is_read_through_its_manifest(recordings, tmp_path):
+    """Columns, time unit, fs, f_n and channel per recording from manifest.csv; failures named."""
+    import numpy as np
+    import pandas as pd
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+    from stiffnet.recordings import read_recording, write_recording_csv
+
+    a = read_recording(recordings / "r1.csv")  # 800 Hz, beta 30
+    camp = tmp_path / "field"
+    camp.mkdir()
+    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
+    lines = (f"{float(t)!r},0.5,{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
+    (camp / "lab.csv").write_text("time_ms,force_n,acc_g\n" + "".join(lines))
+    np.save(camp / "two.npy", np.stack([np.zeros(a.accel.size), a.accel], axis=1))
+    write_recording_csv(camp / "nofn.csv", a.accel, a.fs_hz)
+    (camp / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz,columns,time_unit,channel\n"
+        "lab.csv,800,9.48,time_ms;acc_g,ms,\n"
+        "two.npy,800,9.48,,,1\n"
+        "nofn.csv,800,,,,\n"
+        "gone.csv,800,9.48,,,\n"
+    )
+    ref = predict_recording(recordings / "r1.csv", natural_frequency_hz=FN, model_path=MODEL)
+    summary = predict_batch(camp, tmp_path / "f.parquet", model_path=MODEL)
+    assert summary["manifest"] == str(camp / "manifest.csv")
+    table = pq.read_table(tmp_path / "f.parquet").to_pandas().set_index("path")
+    for name in ("lab.csv", "two.npy"):
+        row = table.loc[str(camp / name)]
+        assert pd.isna(row["error"]) and row["class"] == ref["class"], row["error"]
+        assert row["beta"] == pytest.approx(ref["beta"], rel=1e-6)
+    assert table.loc[str(camp / "two.npy"), "channel"] == "1"
+    failed = {Path(f["path"]).name: f["error"] for f in summary["failed"]}
+    assert set(failed) == {"nofn.csv", "gone.csv"}
+    assert "natural frequency unknown" in failed["nofn.csv"]
+    assert "not found" in failed["gone.csv"]
+    res = CliRunner().invoke(app, ["predict-batch", str(camp), "--out",
+                                   str(tmp_path / "g.parquet"), "--model", str(MODEL)])  # fmt: skip
+    assert res.exit_code == 1 and "nofn.csv" in res.output and "gone.csv" in res.output

@@ -82,7 +82,12 @@ def test_bad_inputs_give_one_line_and_exit_2(tmp_path, accel):
         "corrupt model": (EXAMPLE, ["--model", corrupt / "cnn.onnx"], "does not match"),
         "missing": (d / "nope.csv", [], "not found"),
     }
+    cases["fn missing"] = (_csv(d / "nofn.csv", accel), ["--no-fn"], "natural frequency unknown")
     for name, (path, extra, msg) in cases.items():
+        if extra == ["--no-fn"]:
+            extra = []
+        elif "--fn" not in extra:
+            extra = [*extra, "--fn", "9.48"]  # the checks after f_n's
         res = _run("predict", path, *extra)
         assert res.exit_code == 2, (name, res.output)
         lines = res.output.strip().splitlines()
@@ -93,7 +98,7 @@ def test_bad_inputs_give_one_line_and_exit_2(tmp_path, accel):
 
 def test_clipped_recording_warns_but_predicts(tmp_path, accel):
     lim = 0.3 * np.abs(accel).max()
-    res = _run("predict", _csv(tmp_path / "c.csv", np.clip(accel, -lim, lim)))
+    res = _run("predict", _csv(tmp_path / "c.csv", np.clip(accel, -lim, lim)), "--fn", "9.48")
     assert res.exit_code == 0, res.output
     assert "clipped" in res.output
 
@@ -161,7 +166,7 @@ def test_predict_wav_and_npy(tmp_path, accel):
     np.save(tmp_path / "r.npy", accel)
     for path, extra in ((tmp_path / "r.wav", []), (tmp_path / "r.npy", ["--fs", "1000"])):
         out = tmp_path / "r.json"
-        res = _run("predict", path, *extra, "--json", out)
+        res = _run("predict", path, *extra, "--fn", "9.48", "--json", out)
         assert res.exit_code == 0, res.output
         assert json.loads(out.read_text())["class"] == "hard"
 

@@ -5,16 +5,21 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from serving.families import FAMILIES, CNNFamily, GBMFamily
+from serving.families import families, family_for
 from serving.families.base import spread_windows
+from serving.families.cnn import CNNFamily
+from serving.families.gbm import GBMFamily
 from stiffnet.errors import StiffnetError
 from stiffnet.features import FEATURE_NAMES
 from stiffnet.features.windows import window_length, window_tensor
 
 
-def test_registry_maps_model_kind_to_family():
-    assert FAMILIES == {"stiffnet.cnn": CNNFamily, "stiffnet.gbm": GBMFamily}
+def test_registry_finds_the_modules_and_maps_model_kind_to_family():
+    assert {"stiffnet.cnn": CNNFamily, "stiffnet.gbm": GBMFamily}.items() <= families().items()
+    assert family_for("stiffnet.gbm") is GBMFamily and family_for("stiffnet.svm") is None
     assert (CNNFamily.input_name, GBMFamily.input_name) == ("windows", "features")
+    # exactly one family's shipped model is the predictor's default
+    assert [f for f in families().values() if f.default] == [CNNFamily]
 
 
 def test_spread_windows_cover_first_and_last():

@@ -25,7 +25,8 @@ with warnings.catch_warnings():
     from fastapi.testclient import TestClient
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "recordings" / "impact_beta45.csv"
+EXAMPLES = ROOT / "examples" / "recordings"
+EXAMPLE = EXAMPLES / "impact_beta45.csv"
 
 
 @pytest.fixture(scope="module")
@@ -63,9 +64,12 @@ def test_health_model_and_openapi(client, predictor):
 
 def test_predict_json_and_upload_agree(client, samples):
     r = client.post("/predict", json={"samples": samples, "fs_hz": 1000.0})
+    assert r.status_code == 422 and "natural frequency unknown" in r.json()["error"]
+    r = client.post("/predict", json={"samples": samples, "fs_hz": 1000.0,
+                                      "natural_frequency_hz": 9.48})  # fmt: skip
     assert r.status_code == 200, r.text
     a = r.json()
-    assert a["class"] == "hard" and a["natural_frequency_source"] == "training_data"
+    assert a["class"] == "hard" and a["natural_frequency_source"] == "request"
     with open(EXAMPLE, "rb") as fh:
         r = client.post(
             "/predict", files={"file": ("run.csv", fh)}, data={"natural_frequency_hz": "9.48"}
@@ -90,10 +94,18 @@ def test_errors_are_json_4xx(client, samples):
     _is_error(client.post("/predict", json={"samples": [], "fs_hz": 1000}), 422, "empty")
     _is_error(client.post("/predict", json={"samples": [1.0], "fs_hz": 1000}), 422, "one sample")
     _is_error(
-        client.post("/predict", json={"samples": samples[:500], "fs_hz": 1000}), 422, "too short"
+        client.post(
+            "/predict", json={"samples": samples[:500], "fs_hz": 1000, "natural_frequency_hz": 9.48}
+        ),
+        422,
+        "too short",
     )
     _is_error(
-        client.post("/predict", json={"samples": [2.0] * 3000, "fs_hz": 1000}), 422, "constant"
+        client.post(
+            "/predict", json={"samples": [2.0] * 3000, "fs_hz": 1000, "natural_frequency_hz": 9.48}
+        ),
+        422,
+        "constant",
     )
     _is_error(client.post("/predict", json={"samples": ["a"], "fs_hz": 1000}), 422, "samples")
     nan = '{"samples": [1.0, NaN, 2.0], "fs_hz": 1000}'
@@ -222,7 +234,8 @@ def test_live_server(samples):
     """`stiffnet serve` as a process: health, a prediction, a 413, then a clean stop."""
     with tempfile.TemporaryFile() as err, serving("--max-upload-mb", "1", stderr=err) as port:
         base = f"http://127.0.0.1:{port}"
-        r = httpx.post(f"{base}/predict", json={"samples": samples, "fs_hz": 1000.0}, timeout=30)
+        body = {"samples": samples, "fs_hz": 1000.0, "natural_frequency_hz": 9.48}
+        r = httpx.post(f"{base}/predict", json=body, timeout=30)
         assert r.status_code == 200 and r.json()["class"] == "hard"
         r = httpx.post(
             f"{base}/predict",
@@ -248,7 +261,7 @@ def test_upload_with_columns_and_time_unit_fields(client):
     assert r.json()["fs_hz"] == pytest.approx(rec.fs_hz)
     # without the fields the header is refused with the mapping to use
     _is_error(client.post("/predict", files={"file": ("lab.csv", lab)}), 422,
-              "--columns Time (ms),Acc (g) --time-unit ms")  # fmt: skip
+              "form field columns=Time (ms),Acc (g) and time_unit=ms")  # fmt: skip
     _is_error(client.post("/predict", files={"file": ("lab.csv", lab)},
                           data={**fields, "time_unit": "h"}), 422, "unknown time unit")  # fmt: skip
     spec = client.get("/openapi.json").json()["paths"]["/predict"]["post"]["requestBody"]
@@ -265,6 +278,7 @@ def test_every_route_has_a_typed_response_and_lists_its_errors(client):
         ("/predict", "post"): ("PredictionResult", {"400", "413", "415", "422", "429", "504"}),
         ("/health", "get"): ("HealthResponse", {"405", "413"}),
         ("/model", "get"): ("ModelResponse", {"405", "413"}),
+        ("/log", "post"): ("LogResult", {"400", "413", "415", "422", "429", "504"}),
     }
     for (path, method), (model, errors) in expected.items():
         responses = schema["paths"][path][method]["responses"]
@@ -282,3 +296,31 @@ def test_every_route_has_a_typed_response_and_lists_its_errors(client):
     m = ModelResponse.model_validate(client.get("/model").json())
     assert m.limits.max_upload_mb == 2.0 and m.class_names
     _is_error(client.delete("/health"), 405)
+
+
+def test_log_route_and_channel_field(client, tmp_path):
+    """POST /log gives the stiffness log; a two-channel upload needs its channel field."""
+    from scipy.io import wavfile
+
+    from serving.schemas import LogResult
+
+    rec = read_recording(EXAMPLES / "impact_beta12.csv")
+    hard = read_recording(EXAMPLE)
+    x = np.concatenate([rec.accel, hard.accel])
+    body = {"samples": x.tolist(), "fs_hz": rec.fs_hz, "natural_frequency_hz": 9.48}
+    r = client.post("/log", json=body)
+    assert r.status_code == 200, r.text
+    doc = LogResult.model_validate(r.json())
+    assert [la.class_ for la in doc.layers] == ["soft", "hard"]
+    assert abs(doc.changes[0].t_s - rec.duration_s) <= 1.0
+    _is_error(client.post("/log", json={**body, "natural_frequency_hz": None}), 422,
+              "natural frequency unknown")  # fmt: skip
+    two = np.stack([np.zeros(hard.accel.size), hard.accel], axis=1).astype(np.float32)
+    wavfile.write(tmp_path / "daq.wav", int(hard.fs_hz), two)
+    raw = (tmp_path / "daq.wav").read_bytes()
+    fields = {"natural_frequency_hz": "9.48"}
+    _is_error(client.post("/predict", files={"file": ("daq.wav", raw)}, data=fields), 422,
+              "2 channels (0..1); choose one")  # fmt: skip
+    r = client.post("/predict", files={"file": ("daq.wav", raw)}, data={**fields, "channel": "1"})
+    assert r.status_code == 200, r.text
+    assert r.json()["class"] == "hard"

@@ -13,16 +13,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from serving.alarm import physical_gap, weak_physical_fit, with_physical_check
 from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
+from stiffnet.uncertainty.alarm_verdict import physical_gap, weak_physical_fit, with_physical_check
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "recordings"
 EXAMPLE_FILES = sorted(EXAMPLES.glob("impact_*.csv"))
 EXAMPLE = EXAMPLES / "impact_beta45.csv"
+#: The examples' natural frequency (their sidecars say so).
+FN = 9.48
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +79,7 @@ def test_examples_are_predicted_right_and_use_their_sidecar(cnn):
 
 
 def test_output_fields(cnn, example):
-    r = cnn.predict(example.accel, example.fs_hz, source="x")
+    r = cnn.predict(example.accel, example.fs_hz, source="x", natural_frequency_hz=FN)
     for key in (
         "class",
         "probabilities",
@@ -105,10 +107,20 @@ def test_output_fields(cnn, example):
     assert r["model"] == {"name": "cnn", "sha256": cnn.sha256, "kind": "cnn"}
     assert abs(sum(r["probabilities"].values()) - 1) < 1e-5
     assert r["n_windows"] == int(example.duration_s // r["window_s"])
-    assert r["natural_frequency_source"] == "training_data"
+    assert r["natural_frequency_source"] == "argument"
     assert r["natural_frequency_hz"] == pytest.approx(9.48)
+    assert r["layers"] and len(r["layers"]) == 1 and "layers" not in r["alarm"]["fired"]
     assert r["agreement"] == (r["geometric"]["class"] == r["class"])
     assert r["contact_detected"] and not r["ood_flag"]
+
+
+def test_no_silent_natural_frequency(cnn, example, tmp_path):
+    """Without f_n (option, sidecar, manifest) the predictor refuses: never the training data's."""
+    with pytest.raises(StiffnetError, match="natural frequency unknown.*not assumed"):
+        cnn.predict(example.accel, example.fs_hz)
+    rec = write_recording_csv(tmp_path / "r.csv", example.accel, example.fs_hz)
+    with pytest.raises(StiffnetError, match=r"r\.csv: natural frequency unknown"):
+        predict_recording(rec, predictor=cnn)
 
 
 def test_physical_cross_check_fields(cnn):
@@ -125,7 +137,7 @@ def test_physical_cross_check_fields(cnn):
     # a recording without contact: the cross-check refuses with its reason, no error
     t = np.arange(20000) / 2000.0
     free = np.sin(2 * np.pi * 9.9 * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
-    r = cnn.predict(free, 2000.0)
+    r = cnn.predict(free, 2000.0, natural_frequency_hz=FN)
     assert r["physical_beta"] is None and r["physical"]["reason"]
     assert r["physical_agreement"] in (None, r["physical_class"] == r["class"])
 
@@ -172,7 +184,7 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
     import serving.predictor as predictor_module
 
     accel, fs = example.accel, example.fs_hz
-    r = cnn.predict(accel, fs)
+    r = cnn.predict(accel, fs, natural_frequency_hz=FN)
     assert not r["ood_flag"] and r["alarm"]["scores"]["physical"] == 0.0
     lo, hi = r["beta_interval"]
 
@@ -187,7 +199,7 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
         }
 
     monkeypatch.setattr(predictor_module, "physical_check", far)
-    r = cnn.predict(accel, fs)
+    r = cnn.predict(accel, fs, natural_frequency_hz=FN)
     assert r["ood_flag"] and "physical" in r["alarm"]["fired"]
     assert r["alarm"]["scores"]["physical"] == pytest.approx(np.log(2.7 * hi / hi))
     assert any("restoring-force" in w for w in r["warnings"])
@@ -196,8 +208,8 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
 
 @pytest.mark.parametrize("gain", [1e3, 1e-3, -1.0, -1e3, 1e300, -1e-300])
 def test_gain_and_polarity_invariance(cnn, example, gain):
-    ref = cnn.predict(example.accel, example.fs_hz)
-    r = cnn.predict(gain * example.accel, example.fs_hz)
+    ref = cnn.predict(example.accel, example.fs_hz, natural_frequency_hz=FN)
+    r = cnn.predict(gain * example.accel, example.fs_hz, natural_frequency_hz=FN)
     assert r["class"] == ref["class"]
     for k, p in ref["probabilities"].items():
         assert abs(r["probabilities"][k] - p) < 1e-5
@@ -222,8 +234,8 @@ def test_batched_canonical_windows_equal_one_at_a_time(dataset_windows, example)
 def test_parity_with_the_training_onnx_path(cnn, gbm, dataset_windows):
     """One dataset window through the predictor == the training code's ONNX call."""
     from stiffnet.features import feature_matrix
-    from training.export_onnx import onnx_predict
-    from training.export_onnx_cnn import onnx_predict_cnn
+    from training.families.cnn.export import onnx_predict_cnn
+    from training.families.gbm.export import onnx_predict
 
     wins, fs, fn = dataset_windows
     X = window_tensor(wins, fs, fn, 32, 16, (0, 6, 12))
@@ -247,8 +259,8 @@ def test_parity_with_the_training_onnx_path(cnn, gbm, dataset_windows):
 def test_natural_frequency_resolution(cnn, example, tmp_path):
     rec = tmp_path / "r.csv"
     shutil.copy(EXAMPLE, rec)
-    r = predict_recording(rec, predictor=cnn)
-    assert (r["natural_frequency_source"], r["natural_frequency_hz"]) == ("training_data", 9.48)
+    with pytest.raises(StiffnetError, match="natural frequency unknown"):
+        predict_recording(rec, predictor=cnn)  # no option, no sidecar: refused
     Path(str(rec) + ".json").write_text(json.dumps({"natural_frequency_hz": 9.5}))
     r = predict_recording(rec, predictor=cnn)
     assert r["natural_frequency_source"] == f"sidecar:{rec}.json"
@@ -260,71 +272,78 @@ def test_natural_frequency_resolution(cnn, example, tmp_path):
         predict_recording(rec, predictor=cnn)
 
 
-def test_long_recording_segments_show_a_change_of_formation(cnn):
+def test_a_record_with_layers_says_so_instead_of_a_silent_blend(cnn):
     a = [read_recording(p) for p in EXAMPLE_FILES]  # soft (beta 12), then hard (beta 45)
     x = np.concatenate([r.accel for r in a])
-    r = cnn.predict(x, a[0].fs_hz)
+    r = cnn.predict(x, a[0].fs_hz, natural_frequency_hz=FN)
     classes = [s["class"] for s in r["segments"]]
     assert classes[0] == "soft" and classes[-1] == "hard"
-    assert any("class changes over time" in w for w in r["warnings"])
+    layers = r["layers"]
+    assert [la["class"] for la in layers] == ["soft", "hard"]
+    assert abs(layers[1]["start_s"] - a[0].duration_s) <= 1.0
+    assert layers[0]["beta"] == pytest.approx(12, rel=0.15)
+    assert layers[1]["beta"] == pytest.approx(45, rel=0.15)
+    assert r["ood_flag"] and "layers" in r["alarm"]["fired"]
+    assert "beta changes along this record" in r["alarm"]["message"]
+    assert any("beta changes along this record" in w for w in r["warnings"])
     assert r["segments"][-1]["end_s"] <= r["duration_s"]
 
 
 def _ood(p: Predictor, x: np.ndarray, fs: float = 1000.0) -> float:
-    return p.predict(x, fs)["ood_score"]
+    return p.predict(x, fs, natural_frequency_hz=FN)["ood_score"]
 
 
 def test_ood_score_rises_off_distribution(cnn, example):
     rng = np.random.default_rng(0)
     t = np.arange(example.accel.size) / example.fs_hz
     base = _ood(cnn, example.accel)
-    noise = cnn.predict(rng.standard_normal(t.size), 1000.0)
+    noise = cnn.predict(rng.standard_normal(t.size), 1000.0, natural_frequency_hz=FN)
     assert noise["ood_score"] > 3 * base and noise["ood_flag"]
     sine = _ood(cnn, np.sin(2 * np.pi * 31.0 * t))  # no impacts, 3.3 x f_n
     assert sine > 3 * base
     distorted = np.tanh(50 * example.accel / np.abs(example.accel).max())  # saturated amplifier
     assert _ood(cnn, distorted) > base
-    assert not cnn.predict(example.accel, 1000.0)["ood_flag"]
+    assert not cnn.predict(example.accel, 1000.0, natural_frequency_hz=FN)["ood_flag"]
 
 
 def test_bad_signals(cnn, example):
     fs = example.fs_hz
     with pytest.raises(StiffnetError, match="too short.*needs 1.69 s"):
-        cnn.predict(example.accel[:1000], fs)
+        cnn.predict(example.accel[:1000], fs, natural_frequency_hz=FN)
     with pytest.raises(StiffnetError, match="constant"):
-        cnn.predict(np.full(5000, 3.0), fs)
+        cnn.predict(np.full(5000, 3.0), fs, natural_frequency_hz=FN)
     with pytest.raises(StiffnetError, match="below the minimum 474 Hz") as info:
-        cnn.predict(example.accel[::3], fs / 3)
+        cnn.predict(example.accel[::3], fs / 3, natural_frequency_hz=FN)
     assert "time unit" not in str(info.value)  # 333 Hz: simply too low
     # times in milliseconds read as seconds: 1 Hz, and the message names the fix
     with pytest.raises(StiffnetError, match=r"in milliseconds.*--time-unit ms.*1000 Hz"):
-        cnn.predict(example.accel, fs / 1000)
+        cnn.predict(example.accel, fs / 1000, natural_frequency_hz=FN)
     for fs_bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(StiffnetError, match="fs_hz"):
-            cnn.predict(example.accel, fs_bad)
+            cnn.predict(example.accel, fs_bad, natural_frequency_hz=FN)
     with pytest.raises(StiffnetError, match="natural_frequency_hz"):
         cnn.predict(example.accel, fs, natural_frequency_hz=-2)
     bad = example.accel.copy()
     bad[7] = np.nan
     with pytest.raises(StiffnetError, match="NaN/inf"):
-        cnn.predict(bad, fs)
+        cnn.predict(bad, fs, natural_frequency_hz=FN)
     for x in ([], [1.0]):
         with pytest.raises(StiffnetError, match="empty|one sample"):
-            cnn.predict(np.array(x), fs)
+            cnn.predict(np.array(x), fs, natural_frequency_hz=FN)
     with pytest.raises(StiffnetError, match="1-D"):
-        cnn.predict(np.ones((3, 3)), fs)
+        cnn.predict(np.ones((3, 3)), fs, natural_frequency_hz=FN)
     for fs_x, fn_x in ((1e308, 1e-308), (1e3, 1e-300), (1e300, 1.0)):  # overflowing windows
         with pytest.raises(StiffnetError, match=r"must be in \["):  # physical ranges first
             cnn.predict(example.accel, fs_x, natural_frequency_hz=fn_x)
     with pytest.raises(StiffnetError, match=r"1e\+06 x the natural frequency"):
         cnn.predict(example.accel, 1e6, natural_frequency_hz=1.0)  # fs/f_n over 1e5
     with pytest.raises(StiffnetError, match=r"\(1688 samples at 1000 Hz\)"):
-        cnn.predict(example.accel[:1000], fs)
+        cnn.predict(example.accel[:1000], fs, natural_frequency_hz=FN)
 
 
 def test_clipped_signal_warns(cnn, example):
     lim = 0.3 * np.abs(example.accel).max()
-    r = cnn.predict(np.clip(example.accel, -lim, lim), example.fs_hz)
+    r = cnn.predict(np.clip(example.accel, -lim, lim), example.fs_hz, natural_frequency_hz=FN)
     assert any("clipped" in w for w in r["warnings"])
 
 
@@ -422,7 +441,7 @@ def test_predict_only_raises_stiffnet_errors(cnn, fs, fn, n, seed, scale):
 
 def test_parity_on_example_windows(cnn, example):
     """The same check on the shipped example (runs on a fresh clone without data/default)."""
-    from training.export_onnx_cnn import onnx_predict_cnn
+    from training.families.cnn.export import onnx_predict_cnn
 
     n = window_length(example.fs_hz, 9.48, 16)
     wins = [example.accel[i * n : (i + 1) * n] for i in range(3)]

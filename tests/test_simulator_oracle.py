@@ -19,13 +19,13 @@ import math
 
 import numpy as np
 import pytest
+from reference_closed_form import closed_form_reference
 
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.gap_drift import GapDrift
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.compiled import simulate_closed_form
-from stiffnet.simulator.reference_closed_form import closed_form_reference
 from stiffnet.simulator.result import EngineResult
 from stiffnet.simulator.simulator import Simulator
 

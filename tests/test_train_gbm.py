@@ -1,20 +1,21 @@
 """GBM training end to end on a tiny dataset: split, ONNX export and parity, MLflow run."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import onnx
 import pytest
 
 from stiffnet.config import load_config, validate_config
-from stiffnet.config.train import TrainConfig
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import ConfigError
 from stiffnet.features import FEATURE_NAMES, feature_matrix
 from stiffnet.io_utils import sha256_file
 from stiffnet.uncertainty import conformal_quantile
-from training.export_onnx import export_onnx, onnx_predict
-from training.gbm import fit_gbm
+from training.config import TrainConfig
+from training.families.gbm.export import export_onnx, onnx_predict
+from training.families.gbm.model import fit_gbm
 from training.metrics import noise_bins
 from training.split import trajectory_split
 
@@ -79,9 +80,16 @@ def test_training_writes_onnx_with_card_and_metadata(trained, tiny_dir):
     assert m.graph.input[0].type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     assert m.graph.input[0].type.tensor_type.shape.dim[0].dim_param == "N"  # dynamic batch
     assert [o.name for o in m.graph.output] == ["label", "probabilities", "log_beta"]
-    for key in ("gbm/accuracy", "geometric/accuracy", "gbm/macro_f1", "gbm/beta_mape"):
+    # self-describing: the feature contract (the tiny set's windows are 8 periods long),
+    # the training rig's f_n and the class edges
+    contract = json.loads(meta["feature_contract"])
+    assert contract["feature_version"] == json.loads(meta["feature_version"])
+    assert json.loads(meta["window_periods"]) == contract["cut"]["window_periods"] == 8
+    assert json.loads(meta["natural_frequency_hz"]) == card["data"]["natural_frequency_hz"]
+    assert len(json.loads(meta["class_edges"])) == len(names)  # no_contact has no edge
+    for key in ("accuracy", "geometric/accuracy", "macro_f1", "beta_mape"):
         assert key in summary["metrics"]
-    bins = {k.split("/")[1] for k in summary["metrics"] if k.startswith("gbm/noise_")}
+    bins = {k.split("/")[0] for k in summary["metrics"] if k.startswith("noise_")}
     assert bins and bins <= {"noise_0", "noise_0.05", "noise_gt0.09"}  # levels 0, 3 %, 12 %
     assert {f"geometric/{b}/accuracy" for b in bins} <= set(summary["metrics"])
     assert summary["parity"]["max_abs_proba_diff"] < 1e-4
@@ -118,14 +126,26 @@ def test_onnx_parity_with_sklearn(tiny_dir, tmp_path):
     assert out["probabilities"].shape == (len(Xr), len(clf.classes_))
 
 
-def test_mlflow_run_has_both_methods(trained):
+def test_mlflow_run_has_both_methods(trained, tiny_dir):
     import mlflow
 
     summary, uri, work = trained
     client = mlflow.MlflowClient(tracking_uri=uri)
     run = client.get_run(summary["run_id"])
-    assert "gbm/accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
-    assert run.data.params["model"] == "gbm"
+    assert "accuracy" in run.data.metrics and "geometric/accuracy" in run.data.metrics
+    assert run.data.params["family"] == "gbm" and run.data.tags["stiffnet.family"] == "gbm"
+    # a name that says what ran, and a run that covers the training, not only its logging
+    assert run.info.run_name.startswith("gbm on ds at ")
+    assert (run.info.end_time - run.info.start_time) / 1e3 >= 0.9 * summary["timing"]["total_s"]
+    # the dataset is the run's input, identified by its card's SHA-256
+    (inp,) = run.inputs.dataset_inputs
+    card_sha = sha256_file(tiny_dir / "card.json")
+    assert inp.dataset.name == "ds" and card_sha.startswith(inp.dataset.digest)
+    assert {t.key: t.value for t in inp.tags}["sha256"] == card_sha
+    # the model is registered (as the loop's are), its version in the summary
+    assert summary["registered_model"] == "stiffnet-gbm" and summary["model_version"] >= 1
+    version = client.get_model_version("stiffnet-gbm", str(summary["model_version"]))
+    assert version.run_id == summary["run_id"]
     arts = {
         a.path
         for d in ("data", "model", "figures")
@@ -151,9 +171,10 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     result = json.loads((tmp_path / "r.json").read_text())
-    assert 0.0 <= result["metrics"]["gbm/accuracy"] <= 1.0
+    assert 0.0 <= result["metrics"]["accuracy"] <= 1.0 and result["family"] == "gbm"
     assert (tmp_path / "m" / "gbm.onnx").is_file()
-    bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out", str(tmp_path)])
+    bad = runner.invoke(app, ["train", "--data", str(tmp_path / "nope"), "--out",
+                              str(tmp_path / "m2")])  # fmt: skip
     assert bad.exit_code == 2 and "not a finished stiffnet dataset" in bad.output
     bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--model", "svm"])
     assert bad.exit_code == 2 and "not available" in bad.output
@@ -161,3 +182,61 @@ def test_train_cli_writes_model_and_json(tiny_dir, tmp_path):
         app, ["train", "--data", str(tiny_dir), "--model", "cnn", "--config", str(cfg)]
     )
     assert bad.exit_code == 2 and "trains 'gbm', not 'cnn'" in bad.output
+
+
+def test_train_cli_family_option_and_deprecated_model(tiny_dir, tmp_path):
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    cfg = tmp_path / "gbm.yaml"
+    cfg.write_text("gbm: {max_iter: 20, min_samples_leaf: 5}\ntracking: false\n")
+    runner = CliRunner()
+    args = ["train", "--data", str(tiny_dir), "--config", str(cfg)]
+    res = runner.invoke(app, [*args, "--family", "gbm", "--out", str(tmp_path / "a")])
+    assert res.exit_code == 0, res.output
+    assert "deprecated" not in res.output
+    res = runner.invoke(app, [*args, "--model", "gbm", "--out", str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    assert "`train --model` is deprecated" in res.output and "--family" in res.output
+    # the two spellings train the same model
+    assert (tmp_path / "a/gbm.onnx").read_bytes() == (tmp_path / "b/gbm.onnx").read_bytes()
+    bad = runner.invoke(app, [*args, "--model", "gbm", "--family", "cnn"])
+    assert bad.exit_code == 2 and "disagree" in bad.output
+    bad = runner.invoke(app, ["train", "--data", str(tiny_dir), "--family", "svm"])
+    assert bad.exit_code == 2 and "'svm' is not available: use cnn or gbm" in bad.output
+
+
+def test_families_and_recalibrate_commands(trained, tiny_dir, tmp_path):
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    runner = CliRunner()
+    res = runner.invoke(app, ["families", "--json", str(tmp_path / "f.json")])
+    assert res.exit_code == 0, res.output
+    listed = {f["family"]: f for f in json.loads((tmp_path / "f.json").read_text())}
+    assert listed["gbm"]["default_of"] == ["train"] and listed["cnn"]["default_of"] == ["loop"]
+    assert listed["gbm"]["model_kind"] == "stiffnet.gbm"
+    # recalibrate a copy of the trained model (its own config, a looser alarm)
+    summary, _, _ = trained
+    src = Path(summary["paths"]["onnx"])
+    for f in src.parent.glob("gbm.*"):
+        shutil.copy(f, tmp_path / f.name)
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text("gbm: {max_iter: 60, min_samples_leaf: 5}\nalarm_false_alarm: 0.3\n")
+    before = json.loads((tmp_path / "gbm.card.json").read_text())
+    res = runner.invoke(app, ["recalibrate", str(tmp_path / "gbm.onnx"), "--data",
+                              str(tiny_dir), "--config", str(cfg), "--json",
+                              str(tmp_path / "r.json")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    after = json.loads((tmp_path / "gbm.card.json").read_text())
+    assert after["sha256"] == sha256_file(tmp_path / "gbm.onnx") != before["sha256"]
+    assert after["metadata"]["alarm_sha256"] == sha256_file(tmp_path / "gbm.alarm.npz")
+    assert "thresholds" in json.loads((tmp_path / "r.json").read_text())
+    assert {k for k in after["metrics"] if k.startswith("recording/")}
+    bad = runner.invoke(app, ["recalibrate", str(tmp_path / "gbm.onnx"), "--data",
+                              str(tmp_path / "nope")])  # fmt: skip
+    assert bad.exit_code == 2

@@ -1,4 +1,4 @@
-"""Recording-level calibration of a trained model: its interval and its alarm (issue 11).
+"""Recording-level calibration of a trained model: its interval and its alarm.
 
 Everything is calibrated on whole *trajectories* of the calibration split,
 aggregated exactly as the predictor aggregates a recording's windows

@@ -1,7 +1,7 @@
 """Fit the geometric calibration (inclinations -> beta, class) on simulated windows.
 
 Simulates two families of trajectories, cuts them into windows of
-``--window-periods`` natural periods (the dataset's 16 by default), runs
+``window_periods`` natural periods (the dataset's 16 by default), runs
 :func:`stiffnet.geometry.geometric_estimate` without a calibration on every
 window, fits :func:`stiffnet.geometry.fit_calibration` on the windows of the
 training trajectories and reports the accuracy on held-out trajectories by
@@ -17,7 +17,7 @@ Families:
   (``configs/sim/ideal.yaml``: beta 5-100 log-uniform, gap 0-3, a 0.2-2,
   w 0.8-1.2, xi 0.01-0.05, fs_ratio 50-500 log-uniform).
 
-Noise: each trajectory gets one of ``--noise-levels`` (fractions of ``a w^2``,
+Noise: each trajectory gets one of ``noise_levels`` (fractions of ``a w^2``,
 the paper's 0, <5 % and 9 %).
 
 Orbits: the "before" inclination reads the orbit as well as beta
@@ -25,21 +25,24 @@ Orbits: the "before" inclination reads the orbit as well as beta
 window and used for the period-1 orbit (impact pattern (1, 1)), the windows of
 all other orbits (several impacts per period, one every few periods, no
 repeating pattern) fit the calibration's ``period_n`` map
-(``--period-n-degree``); ``--single`` writes the main map alone (the format
+(``period_n_degree``); ``single`` writes the main map alone (the format
 before the split). The held-out errors are reported by orbit too.
 
-Run: ``OMP_NUM_THREADS=1 python training/fit_geometric_calibration.py``
-(about 3-4 minutes on 2 cores; ``--quick`` for a smoke run).
+Library use (the settings of :class:`CalibrationRun` are the shipped file's):
+``OMP_NUM_THREADS=1 python -c "from training.fit_geometric_calibration import *;
+fit_geometric_calibration()"`` (about 3-4 minutes on 2 cores;
+``fit_geometric_calibration(CalibrationRun().quick(), out="/tmp/cal.json")`` for a
+smoke run).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import sys
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -225,58 +228,52 @@ def heldout_errors(cal: GeometricCalibration, rows: list[dict], key: str) -> dic
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=DEFAULT_CALIBRATION_PATH)
-    ap.add_argument("--n-paper", type=int, default=600, help="trajectories, paper family")
-    ap.add_argument("--n-domain", type=int, default=1200, help="trajectories, default domain")
-    ap.add_argument("--windows", type=int, default=2, help="consecutive windows per trajectory")
-    ap.add_argument(
-        "--window-periods", type=float, default=float(WINDOW_PERIODS), help="natural periods/window"
-    )
-    ap.add_argument("--noise-levels", type=float, nargs="+", default=[0.0, 0.02, 0.05, 0.09])
-    ap.add_argument("--holdout", type=float, default=0.3, help="fraction of held-out trajectories")
-    ap.add_argument("--degree", type=int, default=3, help="polynomial degree in the two angles")
-    ap.add_argument("--method", choices=("polynomial", "gradient"), default="polynomial")
-    ap.add_argument(
-        "--period-n-degree", type=int, default=2, help="degree of the map for other orbits"
-    )
-    ap.add_argument("--single", action="store_true", help="one map for every orbit")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
-    ap.add_argument("--cache", type=Path, help="reuse/save the analysed windows (JSON)")
-    ap.add_argument("--quick", action="store_true", help="small smoke run")
-    args = ap.parse_args(argv)
-    if args.quick:
-        args.n_paper, args.n_domain = 24, 48
+@dataclass(frozen=True)
+class CalibrationRun:
+    """What :func:`fit_geometric_calibration` simulates and fits (the shipped file's defaults)."""
 
-    t0 = time.perf_counter()
-    if args.cache and args.cache.exists():
-        rows = json.loads(args.cache.read_text())
-    else:
-        rows = []
-        for k, (family, n) in enumerate((("paper", args.n_paper), ("domain", args.n_domain))):
-            rows += simulate_windows(
-                family,
-                n,
-                args.noise_levels,
-                args.windows,
-                args.window_periods,
-                args.seed + k,
-                args.workers,
-            )
-        if args.cache:
-            args.cache.write_text(json.dumps(rows))
-    t_sim = time.perf_counter() - t0
+    n_paper: int = 600  # trajectories of the paper's parameter set
+    n_domain: int = 1200  # trajectories over the default domain
+    windows: int = 2  # consecutive windows per trajectory
+    window_periods: float = float(WINDOW_PERIODS)
+    noise_levels: tuple[float, ...] = (0.0, 0.02, 0.05, 0.09)
+    holdout: float = 0.3  # fraction of held-out trajectories
+    degree: int = 3  # polynomial degree in the two angles (main map)
+    method: str = "polynomial"  # or "gradient"
+    period_n_degree: int = 2  # degree of the map for the other orbits
+    single: bool = False  # one map for every orbit
+    seed: int = 0
+    workers: int = min(2, os.cpu_count() or 1)
 
-    # Held-out split by trajectory, so windows of one trajectory never straddle it.
+    def quick(self) -> CalibrationRun:
+        """A small smoke run of the same settings."""
+        return replace(self, n_paper=24, n_domain=48)
+
+
+def simulate_rows(run: CalibrationRun, cache: Path | None = None) -> list[dict]:
+    """Every analysed window of both families (read from / written to `cache` if given)."""
+    if cache is not None and cache.exists():
+        return json.loads(cache.read_text())
+    rows = []
+    for k, (family, n) in enumerate((("paper", run.n_paper), ("domain", run.n_domain))):
+        rows += simulate_windows(family, n, list(run.noise_levels), run.windows,
+                                 run.window_periods, run.seed + k, run.workers)  # fmt: skip
+    if cache is not None:
+        cache.write_text(json.dumps(rows))
+    return rows
+
+
+def split_heldout(rows: list[dict], run: CalibrationRun) -> tuple[list[dict], list[dict]]:
+    """Training and held-out windows, split by trajectory (a trajectory never straddles it)."""
     ids = np.unique([r["trajectory"] for r in rows])
-    perm = np.random.default_rng(args.seed + 7).permutation(ids)
-    held = set(perm[: int(args.holdout * ids.size)].tolist())
-    train = [r for r in rows if r["trajectory"] not in held]
-    test = [r for r in rows if r["trajectory"] in held]
-    fit_rows = [r for r in train if r["contact_detected"] and r["contact_fraction"] > 0]
-    m = args.method
+    perm = np.random.default_rng(run.seed + 7).permutation(ids)
+    held = set(perm[: int(run.holdout * ids.size)].tolist())
+    return ([r for r in rows if r["trajectory"] not in held],
+            [r for r in rows if r["trajectory"] in held])  # fmt: skip
+
+
+def provenance(run: CalibrationRun) -> tuple[dict, str]:
+    """The calibration's ``simulation`` record and its ``validity`` statement."""
     simulation = {
         "families": {
             "paper": {
@@ -284,23 +281,23 @@ def main(argv: list[str] | None = None) -> int:
                 "beta": [5, 100],
                 "beta_sampling": "log_uniform",
                 "initial_state": "random",
-            },
+            },  # fmt: skip
             "domain": {k: list(v) for k, v in DOMAIN.items()},
         },
         "fs_ratio_sampling": "log_uniform",
-        "trajectories": {"paper": args.n_paper, "domain": args.n_domain},
-        "windows_per_trajectory": args.windows,
-        "window_natural_periods": args.window_periods,
-        "noise_levels": args.noise_levels,
+        "trajectories": {"paper": run.n_paper, "domain": run.n_domain},
+        "windows_per_trajectory": run.windows,
+        "window_natural_periods": run.window_periods,
+        "noise_levels": list(run.noise_levels),
         "natural_frequency_hz": PAPER_NATURAL_FREQUENCY_HZ,
-        "seed": args.seed,
-        "heldout_fraction": args.holdout,
+        "seed": run.seed,
+        "heldout_fraction": run.holdout,
         "processing": {
             "delay": f"{DELAY_FRACTION} x dominant period",
             "smoothing": f"Savitzky-Golay order 2, window {SMOOTHING_FRACTION} x period",
             "tangent_lag": f"{TANGENT_LAG_FRACTION} x period",
-            "inclination_method": m,
-            "orbits": "one map" if args.single else "main map (all windows) for period-1; period_n",
+            "inclination_method": run.method,
+            "orbits": "one map" if run.single else "main map (all windows) for period-1; period_n",
         },
     }
     validity = (
@@ -312,64 +309,81 @@ def main(argv: list[str] | None = None) -> int:
         "cannot separate from beta. Period-1 windows (one impact per forcing period) use "
         "the main map (fitted on all windows); windows on any other orbit the period_n map."
     )
+    return simulation, validity
+
+
+def fit_maps(fit_rows: list[dict], run: CalibrationRun) -> GeometricCalibration:
+    """The main map on every window with contact, and (unless ``single``) the period-n map."""
+    simulation, validity = provenance(run)
+    m = run.method
 
     def fit(sel: list[dict], degree: int) -> GeometricCalibration:
         return fit_calibration(
             np.array([r[f"{m}_before_deg"] for r in sel]),
             np.array([r[f"{m}_after_deg"] for r in sel]),
             np.array([r["beta"] for r in sel]),
-            degree=degree,
-            method=m,
-            simulation=simulation,
-            validity=validity,
-        )
+            degree=degree, method=m, simulation=simulation, validity=validity,
+        )  # fmt: skip
 
     # The main map sees every window: fitted on period-1 windows alone it read
     # realistic records (damped contact, sensor chains) worse (docs/crosscheck.md).
-    cal = fit(fit_rows, args.degree)
-    if not args.single:
-        other = fit([r for r in fit_rows if _orbit(r) == "period_n"], args.period_n_degree)
-        other = GeometricCalibration(
-            **{**other.__dict__, "simulation": {"orbits": "all but period-1"}}
-        )
-        cal = GeometricCalibration(**{**cal.__dict__, "period_n": other})
+    cal = fit(fit_rows, run.degree)
+    if run.single:
+        return cal
+    other = fit([r for r in fit_rows if _orbit(r) == "period_n"], run.period_n_degree)
+    other = GeometricCalibration(**{**other.__dict__, "simulation": {"orbits": "all but period-1"}})
+    return GeometricCalibration(**{**cal.__dict__, "period_n": other})
+
+
+#: The held-out groupings of the calibration's residuals.
+HELDOUT_KEYS = {"heldout_by_noise": "noise", "heldout_by_family": "family",
+                "heldout_by_family_noise": "family/noise", "heldout_by_orbit": "orbit"}  # fmt: skip
+
+
+def fit_geometric_calibration(
+    run: CalibrationRun = CalibrationRun(),
+    out: str | Path = DEFAULT_CALIBRATION_PATH,
+    cache: Path | None = None,
+    say: Callable[[str], None] = print,
+) -> GeometricCalibration:
+    """Simulate, fit, score on held-out trajectories and write the calibration to `out`."""
+    t0 = time.perf_counter()
+    rows = simulate_rows(run, cache)
+    t_sim = time.perf_counter() - t0
+    train, test = split_heldout(rows, run)
+    fit_rows = [r for r in train if r["contact_detected"] and r["contact_fraction"] > 0]
+    cal = fit_maps(fit_rows, run)
     residuals = {
         **cal.residuals,
         **({"train_period_n": cal.period_n.residuals["train"]} if cal.period_n else {}),
-        "heldout_by_noise": heldout_errors(cal, test, "noise"),
-        "heldout_by_family": heldout_errors(cal, test, "family"),
-        "heldout_by_family_noise": heldout_errors(cal, test, "family/noise"),
-        "heldout_by_orbit": heldout_errors(cal, test, "orbit"),
+        **{key: heldout_errors(cal, test, by) for key, by in HELDOUT_KEYS.items()},
         "train_windows": len(train),
         "heldout_windows": len(test),
     }
     cal = GeometricCalibration(**{**cal.__dict__, "residuals": residuals})
-    save_calibration(cal, args.out)
-
-    print(
-        f"windows: {len(rows)} ({len(train)} train, {len(test)} held out); "
-        f"simulation + analysis {t_sim:.0f} s"
-    )
+    save_calibration(cal, out)
     n1 = sum(_orbit(r) == "period1" for r in fit_rows)
-    print(
-        f"fit on {len(fit_rows)} windows with contact ({n1} period-1), method={m}, "
-        f"degree={args.degree}" + ("" if args.single else f", period-n {args.period_n_degree}")
-    )
-    print("train:", json.dumps(cal.residuals["train"]))
-    keys = ("heldout_by_noise", "heldout_by_family", "heldout_by_family_noise", "heldout_by_orbit")
-    for key in keys:
-        print(key)
-        for g, e in residuals[key].items():
-            print(
+    say(f"windows: {len(rows)} ({len(train)} train, {len(test)} held out); "
+        f"simulation + analysis {t_sim:.0f} s")  # fmt: skip
+    maps = f"degree={run.degree}" + ("" if run.single else f", period-n {run.period_n_degree}")
+    say(f"fit on {len(fit_rows)} windows with contact ({n1} period-1), method={run.method}, {maps}")
+    for line in report_lines(cal):
+        say(line)
+    say(f"wrote {out}")
+    return cal
+
+
+def report_lines(cal: GeometricCalibration) -> list[str]:
+    """The calibration's training residuals and held-out errors, one line per group."""
+    lines = ["train: " + json.dumps(cal.residuals["train"])]
+    for key in HELDOUT_KEYS:
+        lines.append(key)
+        for g, e in cal.residuals[key].items():
+            lines.append(
                 f"  {g:>12}: class acc {e['class_accuracy_all']:.2f} (all windows), "
                 f"beta MAPE {e.get('mape_beta', float('nan')):.0f} %, "
                 f"median APE {e.get('median_ape_beta', float('nan')):.0f} %, "
                 f"contact found {e['contact_found']}/{e['with_contact']}, "
                 f"false contact {e['false_contact']}/{e['windows'] - e['with_contact']}"
             )
-    print(f"wrote {args.out}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return lines

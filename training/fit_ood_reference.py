@@ -1,35 +1,34 @@
 """Fit the predictor's out-of-distribution reference on the models' training dataset.
 
 Computes the inclination features (:func:`stiffnet.features.feature_matrix`,
-with each window's natural frequency, exactly as ``training/train.py`` does for
-the GBM) of every window of a dataset, splits the trajectories 80/20 (seeded),
-fits the class-conditional Gaussian reference of :mod:`serving.ood` on the 80 %
+with each window's natural frequency, as the gradient-boosting family computes
+its inputs) of every window of a dataset, splits the trajectories 80/20 (seeded),
+fits the class-conditional Gaussian reference of :mod:`stiffnet.uncertainty.ood` on the 80 %
 and sets the flag threshold to a percentile (99th by default) of the scores of
 the held-out 20 %. Also records the dataset's identity (SHA-256 of its
 ``card.json``, the value the model cards carry as ``training_data_sha256``),
 its natural frequency and its sampling-rate range, which the predictor uses as
 the fallback natural frequency and for range warnings.
 
-Run (about a minute on one core for the 8,000 default windows)::
+Library use (about a minute on one core for the 8,000 default windows)::
 
-    OMP_NUM_THREADS=1 python training/fit_ood_reference.py data/train4k models/ood_reference.json
+    OMP_NUM_THREADS=1 python -c "from training.fit_ood_reference import fit;
+        fit('data/train4k', 'models/ood_reference.json')"
 """
 
 from __future__ import annotations
 
-import argparse
-import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from serving.ood import fit_reference
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.dataset.store import CARD, load_dataset
-from stiffnet.errors import StiffnetError
 from stiffnet.features import FEATURE_NAMES, FEATURE_VERSION, feature_matrix
 from stiffnet.io_utils import sha256_file, write_json_atomic
+from stiffnet.uncertainty.ood import fit_reference
 
 
 def fit(
@@ -41,6 +40,7 @@ def fit(
     seed: int = 0,
     n_jobs: int = 1,
     max_windows: int | None = None,
+    say: Callable[[str], None] = print,
 ) -> dict:
     """Fit and write the reference; returns its content (see the module notes)."""
     data_dir = Path(data_dir)
@@ -90,38 +90,8 @@ def fit(
     content = ref.to_dict()
     Path(out).parent.mkdir(parents=True, exist_ok=True)
     write_json_atomic(out, content)
-    print(
+    say(
         f"features of {len(idx)} windows in {seconds:.1f} s; threshold (p{percentile:g} of "
-        f"{int(held.sum())} held-out windows) = {ref.threshold:.3f}; written to {out}",
-        file=sys.stderr,
+        f"{int(held.sum())} held-out windows) = {ref.threshold:.3f}; written to {out}"
     )
     return content
-
-
-def main(argv: list[str] | None = None) -> int:
-    """Command-line entry point."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("data_dir", nargs="?", default="data/default")
-    ap.add_argument("out", nargs="?", default="models/ood_reference.json")
-    ap.add_argument("--percentile", type=float, default=99.0)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--n-jobs", type=int, default=1)
-    ap.add_argument("--max-windows", type=int, default=None, help="subsample (quick runs)")
-    args = ap.parse_args(argv)
-    try:
-        fit(
-            args.data_dir,
-            args.out,
-            percentile=args.percentile,
-            seed=args.seed,
-            n_jobs=args.n_jobs,
-            max_windows=args.max_windows,
-        )
-    except StiffnetError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

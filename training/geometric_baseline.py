@@ -14,9 +14,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from stiffnet.config.train import TrainConfig
 from stiffnet.errors import SignalError
 from stiffnet.geometry import geometric_estimate
+from training.config import TrainConfig
 from training.metrics import evaluate
 
 
@@ -76,9 +76,9 @@ def geometric_baseline(
     m_geo = evaluate(label, g_pred, beta, g_beta, noise, names, config.noise_bins)
     metrics.update({f"geometric/{k}": v for k, v in m_geo.items()})
     say(
-        f"test accuracy: {model} {metrics[f'{model}/accuracy']:.3f}, geometric "
+        f"test accuracy: {model} {metrics['accuracy']:.3f}, geometric "
         f"{m_geo['accuracy']:.3f}; beta MAPE: {model} "
-        f"{metrics.get(f'{model}/beta_mape', np.nan):.3f}, geometric "
+        f"{metrics.get('beta_mape', np.nan):.3f}, geometric "
         f"{m_geo.get('beta_mape', np.nan):.3f}"
     )
     return g_pred, time.perf_counter() - t

@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from stiffnet.config.train import TrainConfig
 from stiffnet.errors import StiffnetError
+from training.config import TrainConfig
 
 
 @dataclass(frozen=True)

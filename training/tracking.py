@@ -21,6 +21,7 @@ its model registered in the Model Registry), :func:`log_parent_artifact`,
 from __future__ import annotations
 
 import tempfile
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -103,8 +104,12 @@ def log_run(
     tags: dict[str, str] | None = None,
     history: list[dict[str, float]] | None = None,
     onnx_model: str | Path | None = None,
-) -> str:
-    """Log one training run and return its run id.
+    run_name: str | None = None,
+    start_time: float | None = None,
+    dataset: dict[str, Any] | None = None,
+    registered_model: str | None = None,
+) -> dict[str, Any]:
+    """Log one training run; returns its run id, logged model id and registered version.
 
     Parameters
     ----------
@@ -115,7 +120,8 @@ def log_run(
     params : dict
         Flat parameters (values are stringified by MLflow).
     metrics : dict
-        Flat metrics, e.g. ``gbm/accuracy``, ``geometric/noise_0.05/accuracy``;
+        Flat metrics, the same names for every family, e.g. ``accuracy``,
+        ``recording/beta_coverage``, ``geometric/noise_0.05/accuracy``;
         non-finite values are skipped.
     data_card_path : str or Path
         The dataset's ``card.json``, logged under ``data/``.
@@ -133,17 +139,34 @@ def log_run(
     onnx_model : str or Path, optional
         The exported ONNX file, logged as the run's logged model ``model``
         (card ``<stem>.card.json`` beside it as metadata).
+    run_name : str, optional
+        What ran (family, dataset, time); MLflow's random name without it.
+    start_time : float, optional
+        When the run began (seconds since the epoch): the run covers the training,
+        not only its logging.
+    dataset : dict, optional
+        The training data's identity (``name``, ``digest``: the card's SHA-256,
+        ``source``: its folder's URI, plus counts), logged as the run's input
+        (``mlflow.log_input``, context ``training``).
+    registered_model : str, optional
+        Register the logged model under this name in the Model Registry (a new version).
 
     Returns
     -------
-    str
-        The MLflow run id.
+    dict
+        ``run_id``, ``model_id`` and ``model_version`` (None when not logged or registered).
     """
     import mlflow
 
-    use_experiment(tracking_uri, experiment)
-    with mlflow.start_run(tags=tags or {}) as run:
+    exp_id = use_experiment(tracking_uri, experiment)
+    client = mlflow.MlflowClient(tracking_uri or DEFAULT_TRACKING_URI)
+    start_ms = int(1000 * start_time) if start_time is not None else None
+    created = client.create_run(exp_id, start_time=start_ms, tags=tags or {}, run_name=run_name)
+    out: dict[str, Any] = {"run_id": created.info.run_id, "model_id": None, "model_version": None}
+    with mlflow.start_run(run_id=created.info.run_id):
         mlflow.log_params({clean_key(k): v for k, v in params.items()})
+        if dataset is not None:
+            log_dataset(dataset)
         finite = finite_metrics(metrics)
         mlflow.log_metrics(finite)
         for h in history or []:
@@ -152,6 +175,10 @@ def log_run(
         if onnx_model is not None:
             info = log_onnx_model(onnx_model)
             mlflow.log_metrics(finite, model_id=info.model_id)  # the model's own metrics
+            out["model_id"] = info.model_id
+            if registered_model:
+                version = mlflow.register_model(info.model_uri, registered_model, tags=tags)
+                out["model_version"] = int(version.version)
         mlflow.log_artifact(str(data_card_path), artifact_path="data")
         for a in artifacts:
             mlflow.log_artifact(str(a), artifact_path="model")
@@ -159,7 +186,26 @@ def log_run(
             for name, cm in confusions.items():
                 png = confusion_png(cm, class_names, f"{name} (test)", Path(tmp) / f"{name}.png")
                 mlflow.log_artifact(str(png), artifact_path="figures")
-        return run.info.run_id
+    return out
+
+
+def log_dataset(dataset: dict[str, Any]) -> None:
+    """Log a dataset's identity as the active run's training input (no data is copied)."""
+    import mlflow
+    from mlflow.data.dataset_source_registry import resolve_dataset_source
+    from mlflow.data.meta_dataset import MetaDataset
+
+    with warnings.catch_warnings():
+        # MLflow registers its local artifact source twice and says the URI is ambiguous
+        warnings.filterwarnings("ignore", "The specified dataset source", UserWarning)
+        source = resolve_dataset_source(str(dataset["source"]))  # file:// -> local artifact
+    meta = MetaDataset(
+        source,
+        name=str(dataset["name"]),
+        digest=str(dataset["digest"])[:36],  # MLflow keeps at most 36 characters
+    )
+    extra = {k: str(v) for k, v in dataset.items() if k not in ("name", "digest", "source")}
+    mlflow.log_input(meta, context="training", tags={"sha256": str(dataset["digest"]), **extra})
 
 
 def use_experiment(tracking_uri: str | None, experiment: str) -> str:

@@ -1,28 +1,27 @@
-"""Train a stiffness model end to end (``stiffnet train``): the gradient-boosting models or,
-with ``model: cnn``, the CNN.
+"""Train a stiffness model end to end (``stiffnet train``), whatever its family.
 
-:func:`train` picks the family's trainer (:mod:`training.train_gbm`,
-:mod:`training.train_cnn`); each loads the dataset, builds its inputs, splits by
-trajectory and fits, then runs the tail both share (:mod:`training.finish`):
-split-conformal beta interval and alarm, evaluation of the model and the
+:func:`train` loads the dataset, asks the configured family
+(:mod:`training.families`) for its inputs, splits by trajectory, lets the family
+fit, then runs the tail every family shares (:mod:`training.finish`):
+split-conformal beta interval and alarm, evaluation of the model and of the
 geometric method (:func:`stiffnet.geometry.geometric_estimate` with the shipped
-calibration and its default options) on the same test windows, ONNX export
-plus a model card, and the MLflow run.
-
-Run: ``OMP_NUM_THREADS=1 python -m training.train DATA_DIR OUT_DIR [--config FILE.yaml]``.
+calibration and its default options) on the same test windows, ONNX export plus a
+model card, and the MLflow run.
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from stiffnet.config import load_config
-from stiffnet.config.train import TrainConfig
 from stiffnet.errors import StiffnetError
+from training.config import TrainConfig
+from training.finish import finish_training
+from training.split import split_windows
+from training.training_data import load_training_data
 
 
 def _stderr(msg: str) -> None:
@@ -36,14 +35,14 @@ def train(
     tracking_uri: str | None = None,
     progress: Callable[[str], None] | None = _stderr,
 ) -> dict[str, Any]:
-    """Train, evaluate, export and track the model ``config.model`` on one dataset.
+    """Train, evaluate, export and track the model family ``config.model`` on one dataset.
 
     Parameters
     ----------
     data_dir : str or Path
         A finished dataset folder (``stiffnet simulate``).
     config : TrainConfig
-        Training configuration (``model: gbm`` or ``model: cnn``).
+        Training configuration (its ``model`` names the family).
     out_dir : str or Path
         Folder for ``NAME.onnx``, ``NAME.card.json``, ``NAME.alarm.npz`` and
         ``summary.json`` (created).
@@ -56,42 +55,38 @@ def train(
     Returns
     -------
     dict
-        ``metrics`` (flat ``NAME/...`` and ``geometric/...``), ``paths``,
-        ``run_id`` (None without tracking), ``conformal_quantile``,
-        ``conformal_quantile_recording``, ``parity``, ``timing`` (seconds) and
-        the split sizes (see :func:`training.finish.finish_training`).
+        ``metrics`` (``accuracy``, ..., ``recording/...`` and ``geometric/...``),
+        ``family``, ``paths``, ``run_id`` (None without tracking),
+        ``conformal_quantile``, ``conformal_quantile_recording``, ``parity``,
+        ``timing`` (seconds: ``inputs_s``, ``fit_s``, ...) and the split sizes
+        (see :func:`training.finish.finish_training`).
 
     Raises
     ------
     StiffnetError
-        If the dataset is missing or too small to split.
+        If the dataset is missing, lacks what the family needs or is too small to split.
     """
-    if config.model == "cnn":
-        from training.train_cnn import train_cnn as family_trainer
-    else:
-        from training.train_gbm import train_gbm as family_trainer
-    return family_trainer(data_dir, config, out_dir, tracking_uri, progress)
+    say = progress or (lambda _msg: None)
+    family = config.family
+    t0 = time.perf_counter()
+    data_dir, out_dir = Path(data_dir), Path(out_dir)
+    ds, _, card_sha = load_training_data(data_dir, say)
 
-
-def main(argv: list[str] | None = None) -> int:
-    """Command-line entry point (``stiffnet train`` is the user's)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("data_dir")
-    ap.add_argument("out_dir")
-    ap.add_argument("--config", default=None, help="YAML TrainConfig (defaults if omitted)")
-    ap.add_argument("--tracking-uri", default=None)
-    ap.add_argument("--no-tracking", action="store_true")
-    args = ap.parse_args(argv)
+    t = time.perf_counter()
     try:
-        cfg = load_config(TrainConfig, args.config) if args.config else TrainConfig()
-        if args.no_tracking:
-            cfg = cfg.model_copy(update={"tracking": False})
-        train(args.data_dir, cfg, args.out_dir, tracking_uri=args.tracking_uri)
+        X = family.inputs(ds, config)
     except StiffnetError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+        raise StiffnetError(f"{data_dir}: {exc}") from None
+    t_inputs = time.perf_counter() - t
+    say(f"{family.name} inputs {X.shape[1:]}, {1e3 * t_inputs / max(1, len(ds)):.2f} ms/window")
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    split = split_windows(ds, data_dir, config, config.section.validation_fraction, say)
+    t = time.perf_counter()
+    model = family.fit(X, ds, split, config, say)
+    t_fit = time.perf_counter() - t
+    say(f"fitted in {t_fit:.1f} s")
+    model.timing = {"inputs_s": t_inputs, "fit_s": t_fit, **model.timing}
+    return finish_training(
+        model, ds=ds, data_dir=data_dir, out_dir=out_dir, card_sha=card_sha, split=split,
+        config=config, tracking_uri=tracking_uri, say=say, started=t0,
+    )  # fmt: skip

@@ -1,13 +1,60 @@
-"""Model families the predictor serves (pysindy style: :mod:`.base` plus one file per family).
+"""Model families the predictor serves (pysindy style: :mod:`.base` plus one module per family).
 
-:data:`FAMILIES` maps a model's ``model_kind`` metadata to its family class.
+Every :class:`~serving.families.base.ModelFamily` subclass defined in a module of
+this package is registered by its ``model_kind`` metadata; a family defined
+elsewhere (a plugin, a test; :func:`training.families.register_family` does it
+for a family's serving half) joins with :func:`register`. The predictor finds a
+model's family here and holds no branch per family.
 """
 
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
 from serving.families.base import ModelFamily
-from serving.families.cnn import CNNFamily
-from serving.families.gbm import GBMFamily
 
-#: ``model_kind`` metadata -> family.
-FAMILIES: dict[str, type[ModelFamily]] = {f.model_kind: f for f in (CNNFamily, GBMFamily)}
+_FAMILIES: dict[str, type[ModelFamily]] = {}
+_discovered = False
 
-__all__ = ["FAMILIES", "CNNFamily", "GBMFamily", "ModelFamily"]
+
+def register(cls: type[ModelFamily]) -> type[ModelFamily]:
+    """Serve models whose ``model_kind`` metadata is ``cls.model_kind`` with `cls`."""
+    known = _FAMILIES.get(cls.model_kind)
+    if known is not None and known is not cls:
+        raise ValueError(f"model_kind {cls.model_kind!r} is already served by {known.__name__}")
+    _FAMILIES[cls.model_kind] = cls
+    return cls
+
+
+def _discover() -> None:
+    global _discovered
+    if _discovered:
+        return
+    _discovered = True
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
+        if info.name == "base":
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        for obj in vars(module).values():
+            if (
+                isinstance(obj, type)
+                and issubclass(obj, ModelFamily)
+                and obj.__module__ == module.__name__
+                and "model_kind" in vars(obj)
+            ):
+                register(obj)
+
+
+def families() -> dict[str, type[ModelFamily]]:
+    """Every served family by its ``model_kind``."""
+    _discover()
+    return dict(_FAMILIES)
+
+
+def family_for(model_kind: object) -> type[ModelFamily] | None:
+    """The family serving models with this ``model_kind`` (None if none does)."""
+    return families().get(str(model_kind))
+
+
+__all__ = ["ModelFamily", "families", "family_for", "register"]

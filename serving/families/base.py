@@ -4,9 +4,10 @@ The predictor cuts a recording into windows, asks its model's family which
 windows the geometric cross-check analyses (the inclination features of
 :func:`stiffnet.features.features_and_estimate`) and what the ONNX model's
 input is, runs the model and aggregates its outputs. A family is one subclass
-here and one file beside this one (:mod:`serving.families.cnn`,
-:mod:`serving.families.gbm`), registered in :data:`serving.families.FAMILIES`
-by its ``model_kind`` metadata; the predictor holds no branch per family.
+of :class:`ModelFamily` in one module beside this one, registered by its
+``model_kind`` metadata (:mod:`serving.families`); the predictor holds no branch
+per family. The serving half imports only numpy, scipy and onnxruntime; the
+training half is :mod:`training.families`.
 """
 
 from __future__ import annotations
@@ -32,6 +33,9 @@ class ModelFamily(ABC):
         The name of the ONNX model's one input.
     required_metadata : tuple of str
         Metadata keys the family needs to build the model's input.
+    default : bool
+        True for the one family whose shipped model (``models/KIND.onnx``) the
+        predictor loads when no model is named.
     metadata : dict
         The model's decoded metadata.
     """
@@ -40,6 +44,7 @@ class ModelFamily(ABC):
     model_kind: ClassVar[str]
     input_name: ClassVar[str]
     required_metadata: ClassVar[tuple[str, ...]] = ()
+    default: ClassVar[bool] = False
 
     def __init__(self, metadata: dict[str, Any]) -> None:
         self.metadata = metadata

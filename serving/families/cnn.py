@@ -20,6 +20,7 @@ class CNNFamily(ModelFamily):
     model_kind = "stiffnet.cnn"
     input_name = "windows"
     required_metadata = ("canonical_rate", "window_periods", "delays")
+    default = True  # models/cnn.onnx is the predictor's model unless another is named
 
     def feature_windows(self, n_windows: int, geometric_windows: int) -> np.ndarray:
         return spread_windows(n_windows, geometric_windows)

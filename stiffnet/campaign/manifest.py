@@ -134,6 +134,8 @@ class ManifestRow(BaseModel):
             raise ValueError("must stay inside the campaign folder (no leading '..')")
         if norm in (".", ""):
             raise ValueError("must name a file")
+        if "\x00" in norm or any(len(part.encode()) > 255 for part in norm.split("/")):
+            raise ValueError("must be a usable file name (no NUL byte, names <= 255 bytes)")
         return norm
 
     @model_validator(mode="after")
@@ -222,6 +224,18 @@ def read_manifest(path: str | os.PathLike[str]) -> list[ManifestRow]:
     return read_manifest_with_columns(path)[1]
 
 
+def _file_and_folder(name: str, seen: dict[str, int], folders: set[str], where: str) -> None:
+    """Refuse a recording that is also a folder of another (``a.csv`` and ``a.csv/b.csv``)."""
+    parts = name.split("/")
+    parents = ["/".join(parts[:i]) for i in range(1, len(parts))]
+    clash = next((d for d in parents if d in seen), None)
+    if clash is not None or name in folders:
+        other = clash or next(r for r in seen if r.startswith(name + "/"))
+        raise StiffnetError(f"{where}: recording {name!r} and {other!r}: one path cannot be "
+                            "both a file and a folder")  # fmt: skip
+    folders.update(parents)
+
+
 def read_manifest_with_columns(
     path: str | os.PathLike[str],
 ) -> tuple[list[str], list[ManifestRow]]:
@@ -238,6 +252,7 @@ def read_manifest_with_columns(
             columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num)
             rows: list[ManifestRow] = []
             seen: dict[str, int] = {}
+            folders: set[str] = set()
             for cells in reader:
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
@@ -256,6 +271,7 @@ def read_manifest_with_columns(
                         f"(also on line {seen[row.recording]})"
                     )
                 seen[row.recording] = line
+                _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
                 rows.append(row)
     except UnicodeDecodeError:
         raise StiffnetError(f"{p}: manifest is not a UTF-8 text file") from None

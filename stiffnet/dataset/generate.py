@@ -32,7 +32,12 @@ from stiffnet.dataset.store import (
     write_shard_record,
 )
 from stiffnet.errors import StiffnetError
-from stiffnet.io_utils import check_replaceable_folder, output_lock, write_json_atomic
+from stiffnet.io_utils import (
+    check_replaceable_folder,
+    new_marker,
+    output_lock,
+    write_json_atomic,
+)
 from stiffnet.simulator.simulator import Simulator
 
 
@@ -334,7 +339,7 @@ def _check_folder(out: Path, fingerprint: str, overwrite: bool, resume: bool) ->
                             "(use --overwrite or --no-resume to restart it)")  # fmt: skip
     if not unfinished and not overwrite:
         raise StiffnetError(f"output folder {out} exists and is not empty (use --overwrite)")
-    check_replaceable_folder(out, (CARD, JOB))  # only a dataset folder is ever deleted
+    check_replaceable_folder(out, (JOB,))  # only a dataset folder (its job's run id) is deleted
     return False  # --overwrite, or --no-resume on an unfinished run: start over
 
 
@@ -346,8 +351,7 @@ def _prepare_folder(out: Path, fingerprint: str, keep: bool) -> None:
     if out.is_dir() and any(out.iterdir()):
         _move_aside_and_delete(out)
     out.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(out / JOB, {"kind": "stiffnet-dataset-job", "fingerprint": fingerprint,
-                                  "stiffnet_version": __version__})  # fmt: skip
+    write_json_atomic(out / JOB, new_marker("stiffnet-dataset-job", fingerprint=fingerprint))
 
 
 def _read_fingerprint(path: Path) -> str | None:

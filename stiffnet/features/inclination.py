@@ -2,7 +2,7 @@
 
 :func:`inclination_features` turns one acceleration window into a fixed-length
 float64 vector (names in :data:`FEATURE_NAMES`) for the gradient-boosting
-models of ``training/gbm.py``:
+models of ``training/families/gbm/``:
 
 * the paper's **inclination statistics** from
   :func:`stiffnet.geometry.geometric_estimate` (section 5): mean angles before

@@ -8,7 +8,7 @@ rounding rule); consecutive windows start ``hop`` samples apart
 (:func:`window_starts`, non-overlapping by default) and the tail that does not
 fill a whole window is not used.
 
-The CNN of ``training/cnn.py`` sees every window in one canonical form, so that
+The CNN of ``training/families/cnn/`` sees every window in one canonical form, so that
 the sampling rate, the sensor gain and the sensor polarity do not matter:
 
 1. **Time base.** The window is resampled to ``rate`` samples per *natural*

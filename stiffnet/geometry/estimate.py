@@ -311,6 +311,84 @@ def impact_polarity(s: np.ndarray, impacts: np.ndarray) -> int:
     return 1 if float(np.median(ext)) > 0 else -1
 
 
+def embedding_delay(s: np.ndarray, period: float, delay: int | str) -> tuple[int, str]:
+    """The embedding delay in samples and the rule that gave it.
+
+    ``"period"``: ``round(0.18 T)`` of the dominant period ``T`` (the module notes say
+    why); ``"ami"``: the robust AMI rule; an int: that many samples.
+    """
+    if not isinstance(delay, str):
+        if int(delay) < 1:
+            raise ConfigError(f"delay must be >= 1, got {delay}")
+        return int(delay), "given"
+    if delay == "period":
+        return max(1, int(round(DELAY_FRACTION * period))), "period_0.18"
+    if delay == "ami":
+        est = estimate_delay(s, max_lag=min(s.size // 2, int(period)))
+        return est.value, est.rule
+    raise ConfigError(f"unknown delay rule {delay!r}; expected 'period', 'ami' or an int")
+
+
+def embedding_dimension(s: np.ndarray, tau: int, dimension: int | str) -> tuple[int, str]:
+    """The embedding dimension and the rule that gave it (Cao on at most 8192 samples)."""
+    if not isinstance(dimension, str):
+        if int(dimension) < 1:
+            raise ConfigError(f"dimension must be >= 1, got {dimension}")
+        return int(dimension), "given"
+    if dimension != "cao":
+        raise ConfigError(f"unknown dimension rule {dimension!r}; expected 'cao' or an int")
+    try:
+        est = estimate_dimension(s[:CAO_MAX_SAMPLES], tau, max_dim=6, method="cao")
+    except SignalError as exc:  # e.g. an exactly predictable segment
+        return 3, f"default 3 (cao failed: {exc})"
+    return est.value, est.rule
+
+
+def _period_n_caveat(pattern: Any, cal: GeometricCalibration | None) -> str:
+    """Why the inclinations of an orbit other than period-1 read the orbit (see orbit.py)."""
+    which = (
+        "calibrated for orbits other than period-1"
+        if cal is not None and cal.period_n is not None
+        else "the calibration and Table 1 are for one impact per period"
+    )
+    return (
+        f"orbit: {describe_pattern(pattern)} - the 'before' inclination reads "
+        f"the orbit as much as beta ({which})"
+    )
+
+
+def _both_inclinations(
+    y: np.ndarray,
+    v: np.ndarray,
+    sep: Any,
+    impacts: np.ndarray,
+    tau: int,
+    lag: int,
+    polynomial_degree: int,
+) -> tuple[OrbitInclinations | None, OrbitInclinations | None, bool, str]:
+    """Gradient and polynomial inclinations (eqs 7-10) of the impacting orbits.
+
+    Returns both (None without contact), whether contact stands once impacts and
+    complete orbits are counted, and the reason when it does not.
+    """
+    reason = sep.reason
+    if not sep.contact_detected:
+        return None, None, False, reason
+    if impacts.size == 0:
+        return None, None, False, "no impacts found by detect_impacts (derivative indicator)"
+    approach = max(3, tau)
+    merge_gap = max(lag, tau // 2)
+    hit = np.abs(v[:, 2]) > sep.threshold
+    grad = gradient_inclinations(v, sep.mask, hit, approach, merge_gap)
+    poly = polynomial_inclinations(
+        y[:, :3], sep.mask, hit, approach, lag, merge_gap, polynomial_degree
+    )
+    if grad.n_orbits < MIN_ORBITS:
+        reason = f"{grad.n_orbits} complete orbit(s) with an impact, {MIN_ORBITS} needed"
+        return grad, poly, False, reason
+    return grad, poly, True, reason
+
+
 def geometric_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -383,31 +461,8 @@ def geometric_estimate(
     win = smoothing_window(period)
     s = savgol_smooth(a, win, 2)
 
-    if isinstance(delay, str):
-        if delay == "period":
-            tau, delay_rule = max(1, int(round(DELAY_FRACTION * period))), "period_0.18"
-        elif delay == "ami":
-            est = estimate_delay(s, max_lag=min(s.size // 2, int(period)))
-            tau, delay_rule = est.value, est.rule
-        else:
-            raise ConfigError(f"unknown delay rule {delay!r}; expected 'period', 'ami' or an int")
-    else:
-        tau, delay_rule = int(delay), "given"
-        if tau < 1:
-            raise ConfigError(f"delay must be >= 1, got {delay}")
-    if isinstance(dimension, str):
-        if dimension != "cao":
-            raise ConfigError(f"unknown dimension rule {dimension!r}; expected 'cao' or an int")
-        seg = s[:CAO_MAX_SAMPLES]
-        try:
-            est = estimate_dimension(seg, tau, max_dim=6, method="cao")
-            m, dim_rule = est.value, est.rule
-        except SignalError as exc:  # e.g. exactly predictable segment
-            m, dim_rule = 3, f"default 3 (cao failed: {exc})"
-    else:
-        m, dim_rule = int(dimension), "given"
-        if m < 1:
-            raise ConfigError(f"dimension must be >= 1, got {dimension}")
+    tau, delay_rule = embedding_delay(s, period, delay)
+    m, dim_rule = embedding_dimension(s, tau, dimension)
     m_used = max(3, m)
     if s.size < (m_used - 1) * tau + 3 * period:
         raise SignalError(
@@ -423,36 +478,14 @@ def geometric_estimate(
     # One impact per quarter period at most: both flanks of a soft spike are one impact.
     impacts = detect_impacts(s, fs=float(fs_hz), min_separation=max(1, int(0.25 * period)))
 
-    approach = max(3, tau)
-    merge_gap = max(lag, tau // 2)
     nan = float("nan")
-    grad = poly = None
-    reason = sep.reason
-    contact = sep.contact_detected
-    if contact and impacts.size == 0:
-        contact, reason = False, "no impacts found by detect_impacts (derivative indicator)"
-    if contact:
-        hit = np.abs(v[:, 2]) > sep.threshold
-        grad = gradient_inclinations(v, sep.mask, hit, approach, merge_gap)
-        poly = polynomial_inclinations(
-            y[:, :3], sep.mask, hit, approach, lag, merge_gap, polynomial_degree
-        )
-        if grad.n_orbits < MIN_ORBITS:
-            contact = False
-            reason = f"{grad.n_orbits} complete orbit(s) with an impact, {MIN_ORBITS} needed"
+    grad, poly, contact, reason = _both_inclinations(
+        y, v, sep, impacts, tau, lag, polynomial_degree
+    )
     chosen: OrbitInclinations | None = (grad if method == "gradient" else poly) if contact else None
     pattern = impact_pattern(impacts, period) if contact else None
     if contact and not is_period1(pattern):
-        # the 'before' inclination depends on the orbit's phase at impact (see orbit.py)
-        which = (
-            "calibrated for orbits other than period-1"
-            if cal is not None and cal.period_n is not None
-            else "the calibration and Table 1 are for one impact per period"
-        )
-        reason = (
-            f"{reason}; orbit: {describe_pattern(pattern)} - the 'before' inclination reads "
-            f"the orbit as much as beta ({which})"
-        )
+        reason = f"{reason}; {_period_n_caveat(pattern, cal)}"
 
     flights = np.empty(0)
     cal_orbit = None

@@ -65,13 +65,19 @@ _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
 }  # fmt: skip
 
 
+#: Keys a result may have, with their JSON types (a list of str: ``(list, str)``).
+_OPTIONAL_KEYS: dict[str, dict[str, tuple[type, ...]]] = {
+    "diagnosis": {"noise_floor": (int, float, type(None)), "verdict": (str, type(None)),
+                  "summary": (str,), "missing_effects": (list, str),
+                  "restoring_force_evidence": (dict, type(None))},
+}  # fmt: skip
 _COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
 
 
 def _read_json(path: Path | None, what: str) -> Any:
     """A `diagnose --json` / `loop --json` result, checked at the boundary (stiffnet.inputs)."""
     from stiffnet.errors import StiffnetError
-    from stiffnet.inputs import read_json_object
+    from stiffnet.inputs import check_fields, read_json_object
 
     if path is None:
         return None
@@ -81,8 +87,14 @@ def _read_json(path: Path | None, what: str) -> Any:
             raise StiffnetError(
                 f"{path}: not a `{_COMMAND[what]} --json` result (key {key!r} missing or wrong)"
             )
+    check_fields(data, _OPTIONAL_KEYS.get(what, {}), f"{path}: not a `{_COMMAND[what]} --json` "
+                 "result")  # fmt: skip
     if what == "diagnosis":
+        evidence = data.get("restoring_force_evidence") or {}
+        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force_evidence")
         for i, r in enumerate(data["ranking"]):
+            if isinstance(r, dict):
+                check_fields(r, {"reasons": (list, str)}, f"{path}: ranking[{i}]")
             ok = isinstance(r, dict) and isinstance(r.get("effect"), str)
             ok = ok and isinstance(r.get("params"), dict) and isinstance(r.get("fitted", []), list)
             ok = ok and isinstance(r.get("significant"), bool)
@@ -311,10 +323,13 @@ def loop(
         str | None,
         typer.Option(
             "--family",
-            "--model",
-            help="Model family: cnn (shipped, the default) or gbm (fast); a resumed loop keeps "
-            "its own.",
+            help="Model family (`stiffnet families`; default: the shipped model's); a resumed "
+            "loop keeps its own.",
         ),
+    ] = None,
+    model_family: Annotated[
+        str | None,
+        typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
     ] = None,
     n_trajectories: Annotated[
         int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
@@ -330,7 +345,8 @@ def loop(
         ),
     ] = None,
     max_epochs: Annotated[
-        int | None, typer.Option(help="CNN epochs per iteration (default 15).")
+        int | None,
+        typer.Option(help="Epochs per iteration, for a family trained in epochs (CNN: 15)."),
     ] = None,
     keep_data: Annotated[bool, typer.Option(help="Keep each iteration's dataset.")] = False,
     seed: Annotated[int | None, typer.Option(help="Seed of the diagnosis and discrepancy.")] = None,
@@ -342,9 +358,15 @@ def loop(
     from rich.table import Table
 
     from stiffnet.effects.registry import parse_effect_option
+    from stiffnet.errors import StiffnetError
     from stiffnet.inputs import bounded_count
     from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
 
+    if model_family is not None:  # --model is a file everywhere else
+        if family is not None and family != model_family:
+            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
+        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
+        family = model_family
     if family is not None:
         check_family(family)
     check_n_trajectories(n_trajectories)
@@ -353,7 +375,7 @@ def loop(
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
-    overrides = {"cnn": {"max_epochs": max_epochs}} if max_epochs else None
+    overrides = {"max_epochs": max_epochs} if max_epochs else None
     console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
         res = run_loop(
@@ -436,7 +458,8 @@ def report(
     stages = 2 + int(diag is None and run_diagnose)
     with _progress(), progress_task("report stages", stages) as bar:
         bar.update(note="evaluate")
-        ev = evaluate_campaign(camp, str(model) if model else None, effects)
+        # a field campaign (no beta) is reported too: the readings side by side
+        ev = evaluate_campaign(camp, str(model) if model else None, effects, require_beta=False)
         bar.advance(note="compare")
         cmp = compare_campaign(camp, effects, config_settings(cfg))
         if diag is None and run_diagnose:

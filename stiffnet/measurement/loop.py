@@ -51,20 +51,12 @@ LOOP_KIND = "stiffnet-loop"
 #: The state file in the state folder.
 STATE_FILE = "state.json"
 STATE_VERSION = 1
-#: Model families the loop trains; the first is the default (the shipped family).
-FAMILIES = ("cnn", "gbm")
 DEFAULT_SPREAD = 0.25
 #: Trajectories per generated dataset (1000: one CNN iteration within 15 minutes on
 #: two cores, see docs/measurement_loop.md).
 DEFAULT_TRAJECTORIES = 1000
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
-#: The loop's training settings over ``configs/train/FAMILY.yaml``: fewer epochs than the
-#: shipped CNN (40), which trains on 12 times the data; a wall-clock guard on the fit.
-LOOP_TRAINING: dict[str, dict[str, Any]] = {
-    "cnn": {"cnn": {"max_epochs": 15, "patience": 5, "max_train_seconds": 480}},
-    "gbm": {},
-}
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -77,11 +69,16 @@ def check_n_trajectories(n: int | None) -> None:
 
 
 def check_family(family: str) -> None:
-    """Refuse a model family the loop cannot train."""
-    if family not in FAMILIES:
-        raise StiffnetError(
-            f"model family {family!r} is not available: use {' or '.join(FAMILIES)}"
-        )
+    """Refuse a model family the loop cannot train (the registry, :mod:`training.families`)."""
+    from training.families import get_family
+
+    get_family(family)
+
+
+def _default_family() -> str:
+    from training.families import default_family
+
+    return default_family("loop").name
 
 
 def default_state_dir(campaign_folder: str | Path) -> Path:
@@ -196,16 +193,27 @@ def _save_state(folder: Path, state: dict[str, Any]) -> None:
 
 def _train_config(family: str, overrides: dict[str, Any] | None) -> Any:
     from stiffnet.config import load_yaml, validate_config
-    from stiffnet.config.train import TrainConfig
     from stiffnet.shipped import default_config
+    from training.config import TrainConfig
+    from training.families import get_family
 
     path = default_config(f"train/{family}.yaml")
     raw = load_yaml(path) if path.is_file() else {"model": family}
-    for key, value in {**LOOP_TRAINING[family], **(overrides or {})}.items():
-        if isinstance(value, dict) and isinstance(raw.get(key), dict):
-            raw[key] = {**raw[key], **value}
+    section = get_family(family).config.model_fields
+    # the family's loop settings (smaller datasets than the shipped model's) under the
+    # user's; a user's key of the family's section (max_epochs) goes into the section
+    user = {family: {}}
+    for key, value in (overrides or {}).items():
+        if key in section and key not in TrainConfig.model_fields:
+            user[family][key] = value
         else:
-            raw[key] = value
+            user[key] = value
+    for layer in ({family: get_family(family).loop_settings}, user):
+        for key, value in layer.items():
+            if isinstance(value, dict) and isinstance(raw.get(key), dict):
+                raw[key] = {**raw[key], **value}
+            else:
+                raw[key] = value
     raw["tracking"] = False  # the loop logs its own run per iteration
     return validate_config(TrainConfig, raw, str(path))
 
@@ -234,10 +242,11 @@ def _train(
     return {
         "onnx": summary["paths"]["onnx"],
         "card": summary["paths"]["card"],
+        # the model's test metrics (named alike for every family) and the geometric method's
         "train_metrics": {
             f"train/{k}": v
             for k, v in summary["metrics"].items()
-            if k.count("/") == 1 and k.endswith(("accuracy", "macro_f1", "beta_mape"))
+            if k.removeprefix("geometric/") in ("accuracy", "macro_f1", "beta_mape")
         },
         "epochs": summary.get("epochs"),
         "seconds": {"dataset": round(t_data, 2), "train": round(t_train, 2)},
@@ -519,8 +528,9 @@ def run_loop(
     diagnosis : dict, optional
         A ``diagnose --json`` result against the last iteration's config, used by the
         first new iteration instead of diagnosing again.
-    family : {"cnn", "gbm"}, optional
-        Default: the state's; ``cnn`` (the shipped family) for a new loop.
+    family : str, optional
+        A registered model family (:mod:`training.families`). Default: the state's;
+        for a new loop the family whose ``defaults`` name ``loop`` (the shipped one).
     n_trajectories : int, optional
         Trajectories per dataset (default :data:`DEFAULT_TRAJECTORIES`).
     spread : float, optional
@@ -529,7 +539,7 @@ def run_loop(
         MLflow store; None disables tracking.
     train_overrides : dict, optional
         (Kept in the state: a resumed loop trains as it started.)
-        TrainConfig fields over ``configs/train/FAMILY.yaml`` and :data:`LOOP_TRAINING`.
+        TrainConfig fields over ``configs/train/FAMILY.yaml`` and the family's ``loop_settings``.
     seed : int, optional
         Common-random-number seed of the diagnosis and the discrepancy.
     candidates : list of str, optional
@@ -568,7 +578,7 @@ def run_loop(
         state = _open_state(folder, campaign, settings)
         if not state["iterations"]:  # a new state: its settings with the defaults filled in
             state.update(
-                family=family or FAMILIES[0],
+                family=family or _default_family(),
                 n_trajectories=n_trajectories or DEFAULT_TRAJECTORIES,
                 spread=DEFAULT_SPREAD if spread is None else spread,
                 seed=DEFAULT_SEED if seed is None else seed,

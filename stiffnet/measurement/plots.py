@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.inputs import mpl_text
 from stiffnet.io_utils import write_bytes_atomic
 from stiffnet.measurement.statistics import SignalStatistics
 
@@ -60,7 +61,7 @@ def _recording_panels(
             ax.axis("off")
             continue
         draw(ax, measured[k], simulated[k])
-        ax.set_title(names[k], fontsize=8)
+        ax.set_title(mpl_text(names[k]), fontsize=8)
         ax.tick_params(labelsize=7)
         if k == 0:
             ax.legend(fontsize=6)
@@ -131,7 +132,7 @@ def components_figure(result: dict[str, Any], path: str | Path) -> Path:
         lim = max(1.0, float(np.nanmax(np.abs(mat))) if np.isfinite(mat).any() else 1.0)
         im = ax.imshow(mat, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
         ax.set_xticks(range(len(comps)), comps, rotation=60, ha="right", fontsize=7)
-        ax.set_yticks(range(len(recs)), [r["recording"] for r in recs], fontsize=7)
+        ax.set_yticks(range(len(recs)), [mpl_text(r["recording"]) for r in recs], fontsize=7)
         fig.colorbar(im, ax=ax, label="(sim - meas) / tolerance")
     ax.set_title(f"discrepancy {result['discrepancy']:.3g}", fontsize=9)
     fig.tight_layout()
@@ -158,7 +159,7 @@ def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
             ax.annotate(f"◀ {100 * value:.0f} % (clipped)", (100 * RANKING_FLOOR, bar.get_y()
                         + bar.get_height() / 2), xytext=(3, 0), textcoords="offset points",
                         va="center", ha="left", fontsize=7)  # fmt: skip
-    ax.set_yticks(y, [r["effect"] for r in rk], fontsize=8)
+    ax.set_yticks(y, [mpl_text(r["effect"]) for r in rk], fontsize=8)
     ax.axvline(0, color="k", lw=0.5)
     ax.set_xlim(left=min(100 * RANKING_FLOOR * 1.05, ax.get_xlim()[0]))
     ax.set_xlabel("discrepancy removed [% of baseline]")

@@ -2,6 +2,13 @@
 
 Figures are inline base64 PNGs and the CSS is inline, so the page can be mailed
 or archived alone. It is written atomically.
+
+A **field campaign** (no recording has a known beta) has no accuracy to show: its
+page puts the three readings of beta side by side per recording (the learned
+model with its interval and alarm, the restoring-force estimate with its
+interval, and the beta ``diagnose`` profiled as a nuisance of the simulator), how
+often the cross-checks agree with the model, and, for each recording, why its
+readings differ (:func:`why_betas_differ`).
 """
 
 from __future__ import annotations
@@ -109,6 +116,114 @@ def _img(path: Path) -> str:
     return f'<p><img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}"></p>'
 
 
+#: How diagnose reaches its beta (stiffnet.measurement.nuisance): a grid of this many
+#: values within this factor of the model's estimate, per recording.
+DIAGNOSE_BETA_GRID = 7
+DIAGNOSE_BETA_FACTOR = 2.0
+
+
+def is_field_campaign(evaluation: dict[str, Any] | None) -> bool:
+    """True when no recording of the evaluated campaign has a known beta."""
+    rows = (evaluation or {}).get("recordings") or []
+    return bool(rows) and all(r.get("beta") is None for r in rows)
+
+
+def _disjoint(a: list[float] | None, b: list[float] | None) -> bool | None:
+    if not a or not b:
+        return None
+    return a[1] < b[0] or b[1] < a[0]
+
+
+def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled: list[str]) -> str:
+    """Why the learned, restoring-force and diagnose readings of one recording's beta differ.
+
+    Parameters
+    ----------
+    row : dict
+        The recording's row of ``evaluate`` (model and restoring-force readings).
+    diagnose_beta : float or None
+        The beta ``diagnose`` profiled for it (its JSON ``nuisances.beta``).
+    profiled : list of str
+        The other nuisances diagnose profiled with it (e.g. ``gap``).
+    """
+    learned, iv = row.get("beta_estimate"), row.get("beta_interval")
+    phys, piv = row.get("physical_beta"), row.get("physical_beta_interval")
+    reasons = []
+    fired = row.get("ood_checks") or []
+    if "layers" in fired:
+        reasons.append("beta changes along the record: the model's beta is a blend of layers")
+    if learned is None:
+        reasons.append(f"the model reads no contact ({row.get('class')})")
+    if phys is None:
+        reasons.append(f"no restoring-force beta: {row.get('physical_reason') or 'refused'}")
+    elif _disjoint(iv, piv):
+        why = row.get("physical_reason") or ""
+        weak = " (its contact law fits poorly: weak evidence)" if "explains only" in why else ""
+        reasons.append(
+            f"the restoring force reads the contact law itself and its interval misses the "
+            f"model's{weak}: the rig's physics may lie outside the model's training data"
+        )
+    if diagnose_beta is not None and learned is not None and iv:
+        if not iv[0] <= diagnose_beta <= iv[1]:
+            others = ", ".join(p for p in profiled if p != "beta") or "nothing else"
+            reasons.append(
+                f"diagnose's beta is a nuisance of the simulator, profiled on {DIAGNOSE_BETA_GRID} "
+                f"values within x/÷{DIAGNOSE_BETA_FACTOR:g} of the model's estimate jointly with "
+                f"{others}, to match phase-independent statistics: it trades off against them "
+                "(beta and the gap both set the impact), the simulator's best match, not a "
+                "measurement"
+            )
+    other = [f for f in fired if f not in ("layers",)]
+    if other:
+        reasons.append(f"the model's alarm fired ({', '.join(other)})")
+    if not reasons:
+        return "the readings agree (intervals overlap; diagnose's beta inside the model's)"
+    return "; ".join(reasons)
+
+
+def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) -> list[str]:
+    """HTML of a field campaign: the three betas side by side, agreement, reasons."""
+    rows = evaluation["recordings"]
+    nuis = (diagnosis or {}).get("nuisances") or {}
+    dbeta = nuis.get("beta") if isinstance(nuis.get("beta"), list) else None
+    profiled = [k for k, v in nuis.items() if isinstance(v, list) and k not in ("start",)]
+    table = []
+    for i, r in enumerate(rows):
+        db = dbeta[i] if dbeta is not None and i < len(dbeta) else None
+        table.append(
+            {
+                "recording": r["recording"],
+                "class": r.get("class"),
+                "beta (learned)": r.get("beta_estimate"),
+                "learned interval": _interval(r.get("beta_interval")),
+                "alarm": ", ".join(r.get("ood_checks") or []) or "none",
+                "beta (restoring force)": r.get("physical_beta"),
+                "restoring-force interval": _interval(r.get("physical_beta_interval")),
+                "beta (diagnose fit)": db,
+                "why they differ": why_betas_differ(r, db, profiled),
+            }
+        )
+    n = len(rows)
+    share = lambda key: sum(1 for r in rows if r.get(key) is True) / n if n else None  # noqa: E731
+    checked = [r for r in rows if r.get("physical_agreement") is not None]
+    parts = [
+        "<h2>Field campaign: no beta is known, the readings side by side</h2>",
+        f"<p>model {_fmt(evaluation['model'])}. Cross-check agreement with the model's class: "
+        f"geometric <b>{_fmt(share('agreement'))}</b> of {n} recordings, restoring force "
+        f"<b>{_fmt(share('physical_agreement'))}</b> ({len(checked)} with an estimate). "
+        f"Alarm on {sum(1 for r in rows if r.get('ood'))} of {n}."
+        + ("" if dbeta is not None else " No diagnose result: its fitted beta is not shown.")
+        + "</p>",
+        _table(table, list(table[0]) if table else ["recording"],
+               lambda r: "" if r["why they differ"].startswith("the readings agree") else "bad"),
+    ]  # fmt: skip
+    return parts
+
+
+def _interval(iv: list[float] | None) -> str | None:
+    return None if not iv else f"[{iv[0]:.3g}, {iv[1]:.3g}]"
+
+
 def render_report(
     title: str,
     evaluation: dict[str, Any] | None,
@@ -126,7 +241,9 @@ def render_report(
     ]
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
-        if evaluation is not None:
+        if evaluation is not None and is_field_campaign(evaluation):
+            parts.extend(field_section(evaluation, diagnosis))
+        elif evaluation is not None:
             m = evaluation["metrics"]
             parts.append("<h2>Evaluate: learned model and the two cross-checks</h2>")
             parts.append(f"<p class='note'>model {_fmt(evaluation['model'])}</p>")

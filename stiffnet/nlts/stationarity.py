@@ -154,3 +154,35 @@ def is_stationary(errors: ArrayLike, factor: float = 2.0, floor: float = 0.02) -
     if not factor >= 1:
         raise ConfigError(f"factor must be >= 1, got {factor}")
     return bool(s.max() <= factor * max(float(s.min()), floor))
+
+
+def record_probes(
+    x: ArrayLike, n_segments: int, max_samples: int
+) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Equal probes spread over the whole record, for a bounded whole-record test.
+
+    A record longer than `max_samples` is not cut at `max_samples` (which tests only
+    its beginning and misses a change of dynamics later on): it is cut into
+    `n_segments` equal parts and the middle ``max_samples // n_segments`` samples of
+    each are kept. Concatenated, the probes are the segments of
+    :func:`cross_prediction_errors` (``n_segments`` of them), so every part of the
+    record predicts every other.
+
+    Returns
+    -------
+    (numpy.ndarray, list of (int, int))
+        The concatenated probes and each probe's ``[start, stop)`` in the record.
+    """
+    a = np.asarray(x, dtype=np.float64)
+    n_segments = check_int(n_segments, "n_segments", 2)
+    if a.size <= max_samples:
+        length = a.size // n_segments
+        return a[: length * n_segments], [(k * length, (k + 1) * length) for k in
+                                           range(n_segments)]  # fmt: skip
+    part = a.size // n_segments
+    length = min(part, max_samples // n_segments)
+    spans = []
+    for k in range(n_segments):
+        start = k * part + (part - length) // 2
+        spans.append((start, start + length))
+    return np.concatenate([a[lo:hi] for lo, hi in spans]), spans

@@ -22,7 +22,7 @@ from it by the exact one-sample transition matrix and the rotation of the forcin
 phases (at most a handful of products, round-off only). One compiled loop per row,
 the rows spread over numba's threads.
 
-The numpy solver :mod:`stiffnet.simulator.reference_closed_form` is this engine's
+The numpy solver ``tests/reference_closed_form.py`` is this engine's
 test oracle.
 """
 
@@ -287,6 +287,10 @@ def _count_entry(row, te, t_first, h, n_samples, impacts):
 # ----------------------------------------------------------------- one trajectory
 
 
+# Why one long function: this is numba's inner loop over one trajectory (step, event
+# search, region switch, sample writer). Its state lives in local scalars that numba
+# keeps in registers; split into calls, that state would travel in tuples on every
+# step, and the event rules are easier to compare with linear.py's read in one place.
 @_jit
 def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
          beta_a, cc_a, e0_a, xi_a, ga_a, gf_a, gp_a, gcp_a, gsp_a, has_gap, jf,

@@ -12,7 +12,7 @@ This module holds what every closed-form solver of the model shares: the model
 (:class:`LinearModel`), its per-region coefficients (:class:`RegionCoefficients`),
 the transition matrix, the coarse-step rule and the event-location budgets. The
 production engine is :mod:`stiffnet.simulator.compiled`; the numpy solver in
-:mod:`stiffnet.simulator.reference_closed_form` is its test oracle.
+``tests/reference_closed_form.py`` is its test oracle.
 Everything here is vectorised over a leading batch axis.
 """
 

@@ -16,8 +16,11 @@ recordings exchangeable with the calibration trajectories.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+
+from stiffnet.uncertainty.aggregate import RecordingEstimate
 
 
 def conformal_quantile(scores: np.ndarray, coverage: float) -> float:
@@ -49,3 +52,26 @@ def normalized_scores(estimate: np.ndarray, scale: np.ndarray, truth: np.ndarray
     if np.any(~(scale > 0)):
         raise ValueError("scales must be > 0")
     return np.abs(truth - estimate) / scale
+
+
+def beta_interval(
+    est: RecordingEstimate, metadata: dict[str, Any], conformal_quantile: float | None
+) -> list[float] | None:
+    """Applying the interval: ``exp(log_beta +- q scale)`` of one recording.
+
+    ``q`` is the model's normalised quantile calibrated with one score per
+    trajectory (metadata ``conformal_quantile_recording``, :func:`conformal_quantile`
+    of :func:`normalized_scores`); a model without it falls back to its per-window
+    half-width ``conformal_quantile`` (``exp(log_beta +- q)``). None without a
+    contact class or a quantile.
+    """
+    if est.log_beta is None:
+        return None
+    q_rec = metadata.get("conformal_quantile_recording")
+    if isinstance(q_rec, int | float) and math.isfinite(q_rec) and est.scale is not None:
+        half = float(q_rec) * est.scale
+    elif conformal_quantile:
+        half = conformal_quantile
+    else:
+        return None
+    return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]

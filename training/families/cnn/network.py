@@ -1,4 +1,4 @@
-"""A small 1-D CNN on canonical windows: class logits and log(beta) (issue 4).
+"""A small 1-D CNN on canonical windows: class logits and log(beta).
 
 * Input: :func:`stiffnet.features.windows.window_tensor`, shape ``(N, C, L)``:
   the canonical window (``rate`` samples per natural period, ``periods``
@@ -17,7 +17,7 @@
 
 Splits, the conformal half-width and the metrics are those every family uses
 (:mod:`training.split`, :mod:`training.finish`, :mod:`training.metrics`);
-end-to-end training: :mod:`training.train_cnn`.
+end-to-end training: :mod:`training.families.cnn.train`.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from stiffnet.config.train import CNNConfig
+from training.families.cnn.config import CNNConfig
 from training.metrics import NO_CONTACT_LABEL
 from training.split import Split
 
@@ -49,7 +49,7 @@ class StiffnessCNN(nn.Module):
     n_classes : int
         Number of class logits.
     width, n_blocks, kernel_size, dropout
-        Architecture (see :class:`~stiffnet.config.train.CNNConfig`).
+        Architecture (see :class:`~training.families.cnn.config.CNNConfig`).
     log_beta_mean, log_beta_std : float
         Standardisation of the regression target (the head predicts the
         standardised value; :meth:`forward` returns log(beta)).
@@ -160,6 +160,34 @@ def _loss(
     return loss
 
 
+def _train_epoch(
+    model: StiffnessCNN, opt: torch.optim.Optimizer, perm: np.ndarray, batch_size: int, data: tuple
+) -> float:
+    """One pass over the training windows in the order `perm`; their mean loss."""
+    Xt, yt, lbt, ce, beta_weight = data
+    model.train()
+    total = 0.0
+    for i in range(0, perm.size, batch_size):
+        b = torch.from_numpy(np.sort(perm[i : i + batch_size]))
+        if b.numel() < 2:  # BatchNorm needs two samples
+            continue
+        opt.zero_grad()
+        loss = _loss(model, Xt[b], yt[b], lbt[b], ce, beta_weight)
+        loss.backward()
+        opt.step()
+        total += loss.item() * b.numel()
+    return total / max(1, perm.size)
+
+
+def _validation_loss(model: StiffnessCNN, va: np.ndarray, data: tuple) -> float:
+    """The loss on the validation windows (the early-stopping criterion)."""
+    Xt, yt, lbt, ce, beta_weight = data
+    model.eval()
+    with torch.no_grad():
+        v = torch.from_numpy(va)
+        return float(_loss(model, Xt[v], yt[v], lbt[v], ce, beta_weight))
+
+
 def fit_cnn(
     X: np.ndarray,
     label: np.ndarray,
@@ -228,27 +256,10 @@ def fit_cnn(
     t0 = time.perf_counter()
     epoch = 0
     for epoch in range(1, cfg.max_epochs + 1):
-        model.train()
-        perm = rng.permutation(tr)
-        total = 0.0
-        for i in range(0, perm.size, cfg.batch_size):
-            b = torch.from_numpy(np.sort(perm[i : i + cfg.batch_size]))
-            if b.numel() < 2:  # BatchNorm needs two samples
-                continue
-            opt.zero_grad()
-            loss = _loss(model, Xt[b], yt[b], lbt[b], ce, cfg.beta_loss_weight)
-            loss.backward()
-            opt.step()
-            total += loss.item() * b.numel()
+        data = (Xt, yt, lbt, ce, cfg.beta_loss_weight)
+        train_loss = _train_epoch(model, opt, rng.permutation(tr), cfg.batch_size, data)
         sched.step()
-        train_loss = total / max(1, perm.size)
-        if va.size:
-            model.eval()
-            with torch.no_grad():
-                v = torch.from_numpy(va)
-                val_loss = float(_loss(model, Xt[v], yt[v], lbt[v], ce, cfg.beta_loss_weight))
-        else:
-            val_loss = train_loss
+        val_loss = _validation_loss(model, va, data) if va.size else train_loss
         history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss})
         if on_epoch:
             on_epoch(history[-1])

@@ -23,7 +23,6 @@ adds (``training_data_sha256``, ``conformal_quantile``, ...). Writes are atomic.
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import tempfile
 import warnings
@@ -34,16 +33,15 @@ from typing import Any
 import numpy as np
 import onnx
 import torch
-from onnx import helper
 
+from serving.families.cnn import CNNFamily
 from stiffnet.features.windows import NORMALISATION, WINDOW_VERSION, preprocessing_contract
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
-from training.cnn import ProbabilityModel, StiffnessCNN
-from training.export_onnx import onnx_session
+from training.families.cnn.network import ProbabilityModel, StiffnessCNN
+from training.onnx_export import onnx_session, write_model
 
 #: ai.onnx opset of the exported graph.
 TARGET_OPSET = 18
-INPUT_NAME = "windows"
+INPUT_NAME = CNNFamily.input_name
 OUTPUT_NAMES = ["probabilities", "log_beta", "log_beta_scale", "embedding"]
 
 
@@ -148,7 +146,7 @@ def export_cnn_onnx(
     length = rate * periods
     model = _export_proto(net, len(delays), length)
     props = {
-        "model_kind": "stiffnet.cnn",
+        "model_kind": CNNFamily.model_kind,
         "class_names": list(class_names),
         "class_indices": list(range(len(class_names))),
         "input_name": INPUT_NAME,
@@ -166,15 +164,7 @@ def export_cnn_onnx(
         "opset": TARGET_OPSET,
         **metadata,
     }
-    meta = {k: v if isinstance(v, str) else json.dumps(v) for k, v in props.items()}
-    helper.set_model_props(model, meta)
-    model.producer_name = "stiffnet"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_bytes_atomic(path, model.SerializeToString())
-    full = {
-        "model_file": path.name,
-        "sha256": sha256_file(path),
-        "opset": {o.domain or "ai.onnx": o.version for o in model.opset_import},
+    shapes = {
         "inputs": {INPUT_NAME: ["N", len(delays), length]},
         "outputs": {
             "probabilities": ["N", len(class_names)],
@@ -182,11 +172,8 @@ def export_cnn_onnx(
             "log_beta_scale": ["N", 1],
             "embedding": ["N", int(net.cls.in_features)],
         },
-        "metadata": props,
-        **card,
     }
-    write_json_atomic(path.with_suffix(".card.json"), full)
-    return full
+    return write_model(model, path, props, shapes, card)
 
 
 def onnx_predict_cnn(path: str | Path, X: np.ndarray) -> dict[str, np.ndarray]:
@@ -207,7 +194,7 @@ def parity_cnn(path: str | Path, net: StiffnessCNN, X: np.ndarray) -> dict[str, 
     dict
         ``max_abs_proba_diff``, ``max_abs_log_beta_diff`` and ``label_agreement``.
     """
-    from training.cnn import predict_cnn
+    from training.families.cnn.network import predict_cnn
 
     if len(X) == 0:
         return {"max_abs_proba_diff": 0.0, "max_abs_log_beta_diff": 0.0, "label_agreement": 1.0}

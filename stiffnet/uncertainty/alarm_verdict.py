@@ -1,26 +1,34 @@
-"""The predictor's alarm: checks on what the model looks at, in words a user reads.
+"""Applying the alarm to one recording: checks on what the model looks at, in words a user reads.
 
 The distance of the windows to the training data in the model's own
 embedding, the class ambiguity, the beta uncertainty and a beta on a class
 edge (:mod:`stiffnet.uncertainty.alarm`), each against a threshold calibrated
 on in-distribution trajectories (the model's ``NAME.alarm.npz``, verified by
 its SHA-256). A model without one falls back to the inclination-feature OOD
-score (:mod:`serving.ood`).
+score (:mod:`stiffnet.uncertainty.ood`). The predictor applies it; the references
+are fitted beside it (:mod:`stiffnet.uncertainty.alarm`, :mod:`stiffnet.uncertainty.ood`).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from serving.model import LoadedModel
-from serving.ood import OODReference
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import sha256_file
-from stiffnet.uncertainty import RecordingEstimate
+from stiffnet.uncertainty.aggregate import RecordingEstimate
 from stiffnet.uncertainty.alarm import AlarmReference, load_alarm, recording_checks
+from stiffnet.uncertainty.ood import OODReference
+
+
+class ModelFile(Protocol):
+    """What the alarm needs of a loaded model: its file and its metadata."""
+
+    path: Path
+    metadata: dict[str, Any]
+
 
 #: What each alarm check means, for the warning a user reads.
 ALARM_WORDS = {
@@ -52,7 +60,7 @@ def alarm_message(fired: list[str]) -> str:
     return "UNRELIABLE: " + "; ".join(ALARM_WORDS.get(f, f) for f in fired)
 
 
-def load_model_alarm(model: LoadedModel) -> AlarmReference | None:
+def load_model_alarm(model: ModelFile) -> AlarmReference | None:
     """The model's alarm reference (metadata ``alarm_reference``), verified by SHA-256."""
     name = model.metadata.get("alarm_reference")
     if not name:

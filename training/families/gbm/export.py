@@ -16,7 +16,6 @@ in log-beta), ``conformal_coverage``, ``beta_transform`` (``"log"``),
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -27,11 +26,12 @@ from onnx import compose, helper
 from skl2onnx import convert_sklearn
 from skl2onnx.common.data_types import FloatTensorType
 
-from stiffnet.io_utils import sha256_file, write_bytes_atomic, write_json_atomic
+from serving.families.gbm import GBMFamily
+from training.onnx_export import onnx_session, write_model
 
 #: ai.onnx opset of the exported graph.
 TARGET_OPSET = 17
-INPUT_NAME = "features"
+INPUT_NAME = GBMFamily.input_name
 
 
 def _convert(model: Any, n_features: int, options: dict | None = None) -> onnx.ModelProto:
@@ -126,11 +126,10 @@ def export_onnx(
     dict
         The model card as written.
     """
-    path = Path(path)
     model = build_onnx(classifier, regressor, len(feature_names))
     names = [class_names[int(c)] for c in classifier.classes_]
     props = {
-        "model_kind": "stiffnet.gbm",
+        "model_kind": GBMFamily.model_kind,
         "class_names": names,
         "class_indices": [int(c) for c in classifier.classes_],
         "feature_names": list(feature_names),
@@ -138,31 +137,11 @@ def export_onnx(
         "opset": TARGET_OPSET,
         **metadata,
     }
-    meta = {k: v if isinstance(v, str) else json.dumps(v) for k, v in props.items()}
-    helper.set_model_props(model, meta)
-    model.producer_name = "stiffnet"
-    write_bytes_atomic(path, model.SerializeToString())
-    full = {
-        "model_file": path.name,
-        "sha256": sha256_file(path),
-        "opset": {o.domain or "ai.onnx": o.version for o in model.opset_import},
+    shapes = {
         "inputs": {INPUT_NAME: ["N", len(feature_names)]},
         "outputs": {"label": ["N"], "probabilities": ["N", len(names)], "log_beta": ["N", 1]},
-        "metadata": props,
-        **card,
     }
-    write_json_atomic(path.with_suffix(".card.json"), full)
-    return full
-
-
-def onnx_session(path: str | Path) -> Any:
-    """onnxruntime session with one intra-op thread (deterministic, no oversubscription)."""
-    import onnxruntime as ort
-
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.inter_op_num_threads = 1
-    return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
+    return write_model(model, path, props, shapes, card)
 
 
 def onnx_predict(path: str | Path, X: np.ndarray) -> dict[str, np.ndarray]:

@@ -4,7 +4,7 @@
 (no-contact plus the beta classes) and a
 :class:`~sklearn.ensemble.HistGradientBoostingRegressor` on ``log(beta)``
 (windows whose true label is a contact class), early-stopped on the validation
-trajectories (:mod:`training.split`). End-to-end training: :mod:`training.train_gbm`.
+trajectories (:mod:`training.split`). End-to-end training: :mod:`training.families.gbm.train`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from sklearn.ensemble import HistGradientBoostingClassifier, HistGradientBoostingRegressor
 
-from stiffnet.config.train import GBMConfig
+from training.families.gbm.config import GBMConfig
 from training.metrics import NO_CONTACT_LABEL
 from training.split import Split
 

@@ -1,0 +1,227 @@
+"""``stiffnet log``: beta along a record, layers, change times, online = offline."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from drill_records import FN_HZ, layered_record
+
+from serving.log import StiffnessLogger, stiffness_log
+from serving.predictor import Predictor
+from serving.stream import sample_chunks
+from stiffnet.geometry.calibration import DEFAULT_CLASSES
+from stiffnet.layers import change_points, class_with_hysteresis, noise_scale
+from stiffnet.recordings import write_recording_csv
+
+FS = 2000.0
+ROOT = Path(__file__).resolve().parents[1]
+
+#: name -> (betas, durations): 0, 1 and 2 changes, across class edges (soft/medium at 15)
+CASES = {
+    "constant": ([40.0], [60.0]),
+    "soft_to_hard": ([10.0, 45.0], [30.0, 30.0]),
+    "two_changes": ([25.0, 50.0, 12.0], [20.0, 20.0, 20.0]),
+    "across_edge": ([13.0, 17.5], [30.0, 30.0]),
+}
+
+
+@pytest.fixture(scope="module")
+def predictor() -> Predictor:
+    return Predictor.load()
+
+
+@pytest.fixture(scope="module")
+def records() -> dict[str, tuple[np.ndarray, list[float], list[float]]]:
+    out = {}
+    for i, (name, (betas, durs)) in enumerate(CASES.items()):
+        a, changes = layered_record(betas, durs, noise=0.03, seed=100 + i)
+        out[name] = (a, changes, betas)
+    return out
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_layers_found_with_times_and_betas(predictor, records, name):
+    a, changes, betas = records[name]
+    log = stiffness_log(predictor, a, FS, FN_HZ)
+    assert log["hop_s"] <= 0.5
+    assert len(log["layers"]) == len(betas), [la["beta"] for la in log["layers"]]
+    assert len(log["changes"]) == len(changes)
+    for found, true in zip(log["changes"], changes, strict=True):
+        assert abs(found["t_s"] - true) <= 1.0
+        assert 0 < found["sd_s"] <= 2.0
+    for layer, beta in zip(log["layers"], betas, strict=True):
+        assert abs(layer["beta"] / beta - 1) <= 0.10, (layer["beta"], beta)
+        lo, hi = layer["beta_interval"]
+        assert lo < layer["beta"] < hi
+    # the layers tile the record
+    assert log["layers"][0]["start_s"] == 0.0
+    assert log["layers"][-1]["end_s"] == pytest.approx(a.size / FS)
+    for a_, b_ in zip(log["layers"], log["layers"][1:], strict=False):
+        assert a_["end_s"] == b_["start_s"]
+    assert bool(log["warnings"]) == (len(betas) > 1)
+
+
+def test_points_carry_interval_alarm_and_crosscheck(predictor, records):
+    a, _, _ = records["soft_to_hard"]
+    log = stiffness_log(predictor, a, FS, FN_HZ, hop_s=0.25, physical_every_s=5.0)
+    pts = log["points"]
+    t = np.array([p["t_s"] for p in pts])
+    assert np.allclose(np.diff(t), 0.25)
+    assert all(p["beta_interval"][0] < p["beta"] < p["beta_interval"][1] for p in pts)
+    assert all(isinstance(p["alarm"], bool) for p in pts)
+    checked = [p for p in pts if "physical" in p]
+    assert 10 <= len(checked) <= 13  # one every 5 s
+    # the restoring force inside each layer agrees with it
+    for layer in log["layers"]:
+        assert layer["physical"]["n_checks"] >= 3 and layer["physical"]["agreement"] is True
+
+
+def test_chunked_stream_gives_the_same_layers(predictor, records):
+    a, _, _ = records["two_changes"]
+    whole = stiffness_log(predictor, a, FS, FN_HZ)
+    rng = np.random.default_rng(0)
+    log = StiffnessLogger(predictor, FS, FN_HZ)
+    events, lo = [], 0
+    while lo < a.size:
+        n = int(rng.integers(1, 5000))
+        events += log.feed(a[lo : lo + n])
+        lo += n
+    events += log.finish()
+    layers = [e for k, e in events if k == "layer"]
+    assert json.dumps(layers) == json.dumps(whole["layers"])
+    points = [e for k, e in events if k == "point"]
+    assert len(points) == len(whole["points"])
+    # a layer is emitted before the stream ends: the first closes while the third is read
+    first = next(i for i, (k, _) in enumerate(events) if k == "layer")
+    assert first < len(events) - 3
+
+
+def test_memory_stays_bounded(predictor):
+    a, _ = layered_record([30.0], [30.0], seed=5)
+    log = StiffnessLogger(predictor, FS, FN_HZ)
+    log.segmenter.max_points = 40  # fold early: an endless stream keeps sums, not points
+    for _ in range(4):
+        log.feed(a)
+        assert log.buf.size <= log.n_win + log.hop + a.size
+        assert len(log.segmenter.points) <= 60
+    layers = [e for k, e in log.finish() if k == "layer"]
+    assert len(layers) >= 1 and abs(layers[-1]["beta"] / 30 - 1) < 0.15
+
+
+def test_hysteresis_keeps_the_class_near_an_edge():
+    classes = DEFAULT_CLASSES
+    assert class_with_hysteresis(15.5, "soft", classes) == ("soft", True)
+    assert class_with_hysteresis(15.5, None, classes) == ("medium", True)
+    assert class_with_hysteresis(17.0, "soft", classes) == ("medium", False)
+    assert class_with_hysteresis(40.0, "soft", classes)[0] == "hard"  # not a neighbour
+
+
+def test_change_points_on_a_step():
+    rng = np.random.default_rng(1)
+    x = np.r_[np.zeros(100), np.ones(100)] + 0.1 * rng.standard_normal(200)
+    z = x / noise_scale(x, 1)
+    assert change_points(z, 20.0, 5) == [100]
+    assert change_points(rng.standard_normal(300), 30.0, 5) == []
+
+
+def test_stream_decoding(tmp_path):
+    p = tmp_path / "s.csv"
+    p.write_bytes(b"t,accel\n0,1.5\n0.001,2.5\n\n0.002,-1\n")
+    assert np.concatenate(list(sample_chunks(p, idle_timeout_s=0.1))).tolist() == [1.5, 2.5, -1.0]
+    p.write_bytes(b"1\n2\nx\n")
+    with pytest.raises(Exception, match="line 3 is not a sample"):
+        list(sample_chunks(p, idle_timeout_s=0.1))
+    f = tmp_path / "s.f32"
+    np.arange(5, dtype="<f4").tofile(f)
+    got = np.concatenate(list(sample_chunks(f, "f32", idle_timeout_s=0.1)))
+    assert got.tolist() == [0, 1, 2, 3, 4]
+
+
+def _cli(*args, stdin=None, **kw):
+    return subprocess.run([sys.executable, "-m", "stiffnet", "log", *args], input=stdin,
+                          capture_output=True, cwd=ROOT, timeout=120, **kw)  # fmt: skip
+
+
+@pytest.mark.slow
+def test_cli_offline_outputs_and_follow_stdin(records, tmp_path):
+    a, changes, _ = records["soft_to_hard"]
+    rec = write_recording_csv(tmp_path / "drill.csv", a, FS)
+    r = _cli(str(rec), "--fn", str(FN_HZ), "--json", str(tmp_path / "log.json"),
+             "--rows", str(tmp_path / "log.csv"), "--plot", str(tmp_path / "log.png"))  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
+    assert b"change at 30" in r.stdout
+    doc = json.loads((tmp_path / "log.json").read_text())
+    rows = (tmp_path / "log.csv").read_text().splitlines()
+    assert len(rows) == 1 + doc["n_points"] and rows[0].startswith('"t_s","beta"')
+    assert (tmp_path / "log.png").read_bytes()[:4] == b"\x89PNG"
+    # the same record as raw float32 on stdin: the same layers, as NDJSON lines
+    r = _cli("-", "--follow", "--fs", "2000", "--fn", str(FN_HZ), "--stream-format", "f32",
+             stdin=a.astype("<f4").tobytes())  # fmt: skip
+    assert r.returncode == 0, r.stderr.decode()
+    events = [json.loads(line) for line in r.stdout.decode().splitlines()]
+    layers = [e for e in events if e["type"] == "layer"]
+    assert [round(la["end_s"], 3) for la in layers] == [
+        round(la["end_s"], 3) for la in doc["layers"]
+    ]
+
+
+@pytest.mark.slow
+def test_cli_follows_a_growing_file(records, tmp_path):
+    a, _, _ = records["soft_to_hard"]
+    path = tmp_path / "daq.csv"
+    path.write_text("")
+    text = "".join(f"{float(v)!r}\n" for v in a).encode()
+
+    def writer():
+        with open(path, "ab") as fh:
+            for lo in range(0, len(text), 200_000):
+                fh.write(text[lo : lo + 200_000])
+                fh.flush()
+                time.sleep(0.05)
+
+    th = threading.Thread(target=writer)
+    th.start()
+    r = _cli(str(path), "--follow", "--fs", "2000", "--fn", str(FN_HZ), "--idle-timeout", "1.5")
+    th.join()
+    assert r.returncode == 0, r.stderr.decode()
+    layers = [json.loads(x) for x in r.stdout.decode().splitlines() if b'"layer"' in x.encode()]
+    assert len(layers) == 2 and abs(layers[0]["end_s"] - 30.0) <= 1.0
+
+
+def test_cli_refuses_without_natural_frequency_or_rate(records, tmp_path):
+    a, _, _ = records["constant"]
+    rec = write_recording_csv(tmp_path / "r.csv", a[:20000], FS)
+    r = _cli(str(rec))
+    assert r.returncode == 2 and b"natural frequency unknown" in r.stderr
+    assert b"Traceback" not in r.stderr and len(r.stderr.decode().strip().splitlines()) == 1
+    r = _cli("-", "--follow", "--fn", "9.48", stdin=b"")
+    assert r.returncode == 2 and b"--follow needs --fs" in r.stderr
+
+
+@pytest.mark.slow
+def test_log_on_an_independent_rig_whose_motion_carries_across_the_change():
+    """Layers of records from tests/independent_rig.py (solve_ivp, SI units, Kelvin-Voigt
+    contact): the state carries on across each change, so the orbit settles into the new
+    layer over a few periods - a transition that must not pass for a layer of its own."""
+    from independent_rig import RigRun, record
+
+    cases = [([], 30.0, [30.0]), ([(15.0, 45.0)], 10.0, [10.0, 45.0]),
+             ([(12.0, 50.0), (26.0, 12.0)], 25.0, [25.0, 50.0, 12.0])]  # fmt: skip
+    for schedule, first, betas in cases:
+        run = RigRun("drill.csv", beta=first, fs_hz=2000.0, duration_s=40.0,
+                     contact="kelvin_voigt", contact_zeta=0.1, noise=0.03)  # fmt: skip
+        _, a = record(run, beta_schedule=schedule)
+        log = stiffness_log(Predictor.load(), a, FS, FN_HZ, physical_every_s=None)
+        got = [la["beta"] for la in log["layers"]]
+        assert len(got) == len(betas), got
+        for found, (true, _) in zip(log["changes"], schedule, strict=True):
+            assert abs(found["t_s"] - true) <= 1.0
+        for layer, beta in zip(log["layers"], betas, strict=True):
+            assert abs(layer["beta"] / beta - 1) <= 0.10, (layer["beta"], beta)
