@@ -289,7 +289,7 @@ def diagnose(
     )
     out.print(res["restoring_force_evidence"]["summary"])
     if (res.get("learned_law") or {}).get("ran"):  # the library lacked the contact law
-        out.print(res["learned_law"]["summary"])
+        out.print(res["learned_law"]["summary"], markup=False)  # the equation has [ ]
     write_json(json_path, res)
 
 
