@@ -150,3 +150,20 @@ def test_field_campaign_without_beta_simulates_the_law_at_its_own_beta(two_stage
     ll = d["learned_law"]
     assert ll["proposed"] and ll["law"]["terms"] == ["hinge"], ll["summary"]
     assert ll["removed_fraction"] >= 0.5
+
+
+def test_report_section_shows_the_law_its_path_and_the_map(tmp_path):
+    from test_discovery import synthetic_samples
+
+    from stiffnet.discovery import discover_contact_law
+    from stiffnet.measurement.learned_law import law_map, learned_law_html
+
+    samples = synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03)
+    law = discover_contact_law(samples, n_boot=0)
+    proposal = {"ran": True, "summary": "learned contact law: " + law.equation,
+                "law": law.to_dict(), "map": law_map(samples, law)}  # fmt: skip
+    assert len(proposal["map"]) == 3 and proposal["map"][0]["beta"] < proposal["map"][-1]["beta"]
+    page = "".join(learned_law_html(proposal, tmp_path / "law.png"))
+    assert "Learned contact law" in page and "hinge (in" in page and "<img" in page
+    assert "max(0, beta [delta" in page  # the equation, escaped but whole
+    assert learned_law_html({"ran": False, "summary": "x"}, tmp_path / "n.png") == []
