@@ -17,7 +17,9 @@ metres; base acceleration ``-A sin(Ω t)``)::
 
 with contact damping either Kelvin-Voigt, ``2 ζ_c sqrt(β) ω_n δ'``, or
 Hunt-Crossley, ``β ω_n² δ λ δ'`` (λ in s/m: damping proportional to the
-penetration, so the force starts at zero). The accelerometer on the mass reads
+penetration, so the force starts at zero); or an elastic law other than the
+linear spring: a two-stage restraint (``(r - 1) β ω_n² (δ - δ_k)₊`` added beyond
+the knee) or a power law (``β ω_n² d0 (δ/d0)^n``). The accelerometer on the mass reads
 its absolute acceleration ``x'' - A sin(Ω t) = -(2 ζ ω_n x' + ω_n² x + F_c/m)``:
 impacts are negative spikes.
 """
@@ -50,10 +52,16 @@ class RigRun:
     damping_ratio: float = 0.02
     fs_hz: float = 1000.0
     duration_s: float = 4.0
-    #: None, "kelvin_voigt" (uses contact_zeta) or "hunt_crossley" (uses hc_lambda_s_per_m).
+    #: None, "kelvin_voigt" (uses contact_zeta), "hunt_crossley" (uses hc_lambda_s_per_m),
+    #: "two_stage" (stiffness x stage_ratio beyond knee_mm) or "power_law" (F = k d^n with
+    #: the secant stiffness beta at power_d0_mm).
     contact: str | None = None
     contact_zeta: float = 0.0
     hc_lambda_s_per_m: float = 0.0
+    knee_mm: float = 0.2
+    stage_ratio: float = 1.0
+    power_exponent: float = 1.0
+    power_d0_mm: float = 0.5
     #: Sensor chain: mounted resonance (Hz, damping), high-pass and anti-alias corners (Hz).
     sensor: dict | None = field(default=None)
     #: White noise std as a fraction of the base-acceleration amplitude.
@@ -83,6 +91,11 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         f = f + 2 * run.contact_zeta * np.sqrt(run.beta) * run.omega_n * v
     elif run.contact == "hunt_crossley":
         f = f * (1 + run.hc_lambda_s_per_m * v)
+    elif run.contact == "two_stage":
+        f = f + (run.stage_ratio - 1) * k * np.maximum(d - run.knee_mm * 1e-3, 0.0)
+    elif run.contact == "power_law":
+        d0 = run.power_d0_mm * 1e-3
+        f = k * d0 * (np.maximum(d, 0.0) / d0) ** run.power_exponent
     return np.where(d > 0, np.maximum(f, 0.0), 0.0)
 
 

@@ -45,6 +45,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet.plots",
         "stiffnet.restoring_force",
         "stiffnet.uncertainty",
+        "stiffnet.discovery",
         "stiffnet.layers",
     ),  # fmt: skip
     "models": ("training", "serving"),

@@ -288,6 +288,8 @@ def diagnose(
         f"{res['explained_fraction']:.0%}): {res['summary']}"
     )
     out.print(res["restoring_force_evidence"]["summary"])
+    if (res.get("learned_law") or {}).get("ran"):  # the library lacked the contact law
+        out.print(res["learned_law"]["summary"], markup=False)  # the equation has [ ]
     write_json(json_path, res)
 
 

@@ -237,6 +237,13 @@ class DynamicsEffect(Effect):
         """Elastic contact force for penetration ``delta >= 0`` (replaces ``beta*delta``)."""
         return None
 
+    def contact_dissipation(
+        self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
+    ) -> np.ndarray | None:
+        """Dissipative contact force that depends on the penetration (e.g. Hunt-Crossley
+        ``lambda delta^n delta'``), added to the elastic force in contact (B,)."""
+        return None
+
     n_states: ClassVar[int] = 0
     """Number of extra state variables the effect integrates (e.g. a restraint's DOF)."""
 
@@ -292,6 +299,7 @@ class DynamicsEffect(Effect):
         """True when the effect only uses the closed-form hooks."""
         numerical = (
             "elastic_contact",
+            "contact_dissipation",
             "restraint_position",
             "extra_force",
             "event_function",

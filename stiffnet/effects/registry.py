@@ -34,6 +34,7 @@ CANONICAL: dict[str, str] = {
     "contact_damping": "stiffnet.effects.contact_damping:ContactDamping",
     "hertz_contact": "stiffnet.effects.hertz_contact:HertzContact",
     "restraint_mass": "stiffnet.effects.restraint_mass:RestraintMass",
+    "learned_contact": "stiffnet.effects.learned_contact:LearnedContact",
     "forcing_harmonics": "stiffnet.effects.forcing_harmonics:ForcingHarmonics",
     "gap_drift": "stiffnet.effects.gap_drift:GapDrift",
     "dry_friction": "stiffnet.effects.dry_friction:DryFriction",

@@ -44,6 +44,7 @@ from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
+from stiffnet.measurement.learned_law import learned_law_proposal
 from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
 from stiffnet.measurement.significance import AT_FLOOR_FACTOR, significance
@@ -68,7 +69,9 @@ def candidate_effects(
     base_effects: Sequence[Effect], extra: Sequence[str] = (), only: Sequence[str] | None = None
 ) -> list[str]:
     """Effects to try: the library (or ``only``) plus user effects, minus those in the model."""
-    names = list(only) if only is not None else list(CANONICAL)
+    # a learned law is proposed by the contact-law discovery with its own terms, not searched
+    # blind from its class defaults
+    names = list(only) if only is not None else [n for n in CANONICAL if n != "learned_contact"]
     names += [e for e in extra if e not in names]
     present = {e.name for e in base_effects}
     for n in names:
@@ -380,6 +383,10 @@ def _diagnose(
         residual_where,
         floor_where,
     )
+    # the library lacks the physics: learn the contact law from the maps and score it
+    learned = learned_law_proposal(
+        campaign, rows, target, v, final_effects, residual, floors[FIT_SETTINGS_NUMERICAL], seed
+    )
     for n in kept:
         entries[n]["selected"] = True
     ranking = [entries[n] for n in kept] + sorted(
@@ -405,6 +412,7 @@ def _diagnose(
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
         "restoring_force_evidence": restoring_force_evidence(campaign, rows),
+        "learned_law": learned,
         "nuisances": nuisances,
         "settings": {
             "seed": seed,

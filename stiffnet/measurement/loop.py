@@ -43,6 +43,7 @@ from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import RUN_MARKER, output_lock, sha256_file, write_json_atomic
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
+from stiffnet.measurement.learned_law import replaced_by, with_learned_law
 from stiffnet.progress import task as progress_task
 
 #: ``kind`` in the marker (``stiffnet-run.json``) of a loop's state folder.
@@ -341,7 +342,7 @@ def _effects_to_add(
         params = {k: float(v) for k, v in diag["fitted_params"][n].items()}
         fitted = list(by_name.get(n, {}).get("fitted") or params)
         out.append({"name": n, "params": params, "fitted": fitted, "source": "diagnosis"})
-    return out, diag
+    return with_learned_law(out, diag), diag
 
 
 def _iteration(
@@ -363,11 +364,10 @@ def _iteration(
         shutil.rmtree(work)
     work.mkdir(parents=True)
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
-    effects = [
-        e
-        for e in prev
-        if effect_class(e["name"]).name not in {effect_class(a["name"]).name for a in added}
-    ] + [{"name": a["name"], "params": a["params"], "fitted": a["fitted"]} for a in added]
+    gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
+    effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
+        {"name": a["name"], "params": a["params"], "fitted": a["fitted"]} for a in added
+    ]
     n = state["n_trajectories"]
     base = start_cfg.model_copy(update={"n_trajectories": n})
     train_cfg = config_with_effects(
@@ -692,4 +692,4 @@ def _from_diagnosis(diagnosis: dict[str, Any]) -> tuple[list[dict[str, Any]], di
                 "source": "diagnosis",
             }
         )
-    return added, diagnosis
+    return with_learned_law(added, diagnosis), diagnosis

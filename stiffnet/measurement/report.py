@@ -233,6 +233,7 @@ def render_report(
 ) -> str:
     """The HTML page (``comparison`` is a :class:`~stiffnet.measurement.compare.Comparison`)."""
     from stiffnet.measurement import plots
+    from stiffnet.measurement.learned_law import learned_law_html
 
     parts = [
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
@@ -390,6 +391,7 @@ def render_report(
                 )
             )
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
+            parts += learned_law_html(diagnosis.get("learned_law"), t / "law.png")
         if loop is not None:
             parts.append("<h2>Loop</h2>")
             cols = ["accuracy", "beta_mape", "restoring_force_agreement", "discrepancy"]

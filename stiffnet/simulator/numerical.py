@@ -11,7 +11,7 @@ The right-hand side composes every hook (see :mod:`stiffnet.effects.base`)::
     v' = F(t) - 2 xi v - x - F_c + sum(extra forces)
     F(t)  = a w^2 sin(w t) + sum(forcing_terms)
     delta = x - e(t) - y_r,   e(t) = e + sum(gap_terms),  y_r = sum(restraint_position)
-    F_c   = elastic(delta) + c_c delta'   in contact, 0 in free flight
+    F_c   = elastic(delta) + c_c delta' + dissipation(delta, delta')   in contact, else 0
     s'    = state_derivative(t, s, F_c)   (extra states, e.g. a restraint's DOF)
 
 with ``elastic`` the (single) effect's ``elastic_contact`` or ``beta delta`` and
@@ -135,6 +135,9 @@ class _Model:
             names = ", ".join(effects[k].name for k in elastic)
             raise ConfigError(f"only one effect may set the elastic contact law, got {names}")
         self.elastic = elastic[0] if elastic else None
+        self.dissipative = [
+            k for k, e in enumerate(effects) if _overrides(e, "contact_dissipation")
+        ]
         self.force_fx = [k for k, e in enumerate(effects) if _overrides(e, "extra_force")]
         self.event_fx = [k for k, e in enumerate(effects) if _overrides(e, "event_function")]
         self.slices: list[tuple[int, slice]] = []
@@ -224,6 +227,9 @@ class _Model:
             k = self.elastic
             elastic = effects[k].elastic_contact(np.maximum(delta, 0.0), params[k], self.batch)
         fpot = elastic + self.cc * dd if self.has_cc else elastic
+        for k in self.dissipative:  # a damping that depends on the penetration (Hunt-Crossley)
+            dk = effects[k].contact_dissipation(np.maximum(delta, 0.0), dd, params[k], self.batch)
+            fpot = fpot + dk
         fc = np.where(contact, fpot, 0.0)
         base = f_t - self.xi2 * v - x - fc
         total = base
@@ -252,6 +258,8 @@ class _Model:
         # contact damping): the secant then crawls. There delta has G's sign and
         # is smooth, so the root is located on delta instead.
         g_root = np.where(self.cc != 0, g_contact, delta) if self.has_cc else delta
+        if self.dissipative:  # the force may reach zero first while the mass leaves
+            g_root = np.where(dd < 0, g_contact, delta)
         aux = {
             "G": g_contact,
             "Gr": g_root,

@@ -1,0 +1,182 @@
+"""A discovered contact law: its terms, coefficients with intervals, equation and words."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: A fitted exponent this close to 1 or to Hertz's 3/2 is the library's law.
+EXPONENT_TOLERANCE = 0.12
+#: Below this explained fraction the law does not describe the contact (a restraint with
+#: its own mass: 51 % on mu 0.5, kappa 30, where no candidate term enters).
+POOR_FIT = 0.9
+
+WORDS = {
+    "linear": "a linear spring",
+    "power": "a power-law spring (stiffening or softening with the penetration)",
+    "hertz": "a Hertz spring (exponent 3/2)",
+    "hinge": "a second stage that stiffens beyond a knee",
+    "damping": "viscous (Kelvin-Voigt) dissipation",
+    "hunt_crossley": "dissipation growing with the penetration (Hunt-Crossley)",
+    "preload": "a preload (a force step at first touch)",
+}
+
+
+def is_new_term(term: str, params: dict[str, float]) -> bool:
+    """Whether a term lies outside the library's laws (linear, Kelvin-Voigt, Hertz)."""
+    if term in ("damping", "hertz"):
+        return False
+    if term == "power":
+        p = params["exponent"]
+        return min(abs(p - 1.0), abs(p - 1.5)) > EXPONENT_TOLERANCE
+    return True
+
+
+@dataclass(frozen=True)
+class DiscoveredLaw:
+    """Result of :func:`stiffnet.discovery.discover_contact_law`.
+
+    Attributes
+    ----------
+    terms : tuple of str
+        Terms beyond the linear spring, in the order of :data:`.terms.TERMS`.
+    params : dict
+        The law as ``learned_contact`` parameters (model units, per unit beta).
+    intervals : dict
+        Bootstrap intervals (over impacts) of the fitted shared parameters.
+    recordings, betas, beta_intervals, onsets : tuple
+        Per recording: its name, beta (the law's, docs/crosscheck.md) with its
+        interval, contact onset (model length).
+    explained_fraction : float
+        Fraction of the contact force's variance the law explains (each recording
+        weighted alike).
+    library_explained_fraction, library_terms, library_params, library_betas, library_onsets :
+        The same for the best of the library's laws (linear, Kelvin-Voigt, Hertz),
+        with its parameters.
+    path : list of dict
+        The forward path: every step's term, whether it entered, BIC, held-out
+        error and gain, explained fraction.
+    new_terms : tuple of str
+        Terms outside the library's laws (empty: nothing new).
+    n_impacts : int
+    coverage : float
+    """
+
+    terms: tuple[str, ...]
+    params: dict[str, float]
+    intervals: dict[str, tuple[float, float]]
+    recordings: tuple[str, ...]
+    betas: tuple[float, ...]
+    beta_intervals: tuple[Any, ...]
+    onsets: tuple[float, ...]
+    explained_fraction: float
+    library_explained_fraction: float
+    library_terms: tuple[str, ...]
+    path: list[dict[str, Any]] = field(default_factory=list)
+    new_terms: tuple[str, ...] = ()
+    n_impacts: int = 0
+    coverage: float = 0.9
+    library_params: dict[str, float] = field(default_factory=dict)
+    library_betas: tuple[float, ...] = ()
+    library_onsets: tuple[float, ...] = ()
+
+    @property
+    def new(self) -> bool:
+        """Whether the law has terms the library lacks."""
+        return bool(self.new_terms)
+
+    @property
+    def effect_params(self) -> dict[str, float]:
+        """The ``learned_contact`` effect's parameters, rounded to 4 significant digits."""
+        return {k: float(f"{v:.4g}") for k, v in self.params.items()}
+
+    def coefficient(self, term: str, beta: float) -> float:
+        """A term's coefficient in absolute model units for a recording of this ``beta``."""
+        p = self.params
+        if term == "power":
+            return beta * p["reference_penetration"] ** (1 - p["exponent"])
+        if term == "hinge":
+            return beta * (p["knee_ratio"] - 1.0)
+        if term == "hunt_crossley":
+            return beta * p["hunt_crossley"] * p["reference_penetration"] ** (1 - p["exponent"])
+        if term == "damping":
+            return 2 * p["damping_ratio"] * np.sqrt(beta)
+        if term == "preload":
+            return beta * p["preload"]
+        raise KeyError(term)
+
+    @property
+    def equation(self) -> str:
+        """The law per unit beta, as an equation with its numbers."""
+        p = self.params
+        expo = p["exponent"]
+        dr = p["reference_penetration"]
+        lead = "delta" if expo == 1.0 else f"{dr:.3g} (delta/{dr:.3g})^{expo:.3g}"
+        parts = [lead]
+        if "hinge" in self.terms:
+            parts.append(f"{p['knee_ratio'] - 1:.3g} max(delta - {p['knee']:.3g}, 0)")
+        if "preload" in self.terms:
+            parts.append(f"{p['preload']:.3g}")
+        if "hunt_crossley" in self.terms:
+            parts.append(f"{p['hunt_crossley']:.3g} [{lead}] v")
+        eq = "F_c = max(0, beta [" + " + ".join(parts) + "]"
+        if "damping" in self.terms:
+            eq += f" + 2 ({p['damping_ratio']:.3g}) sqrt(beta) v"
+        return eq + ")  for delta = x - e > 0"
+
+    @property
+    def words(self) -> str:
+        """The law in words."""
+        names = ["power" if "power" in self.terms else "linear"]
+        names += [t for t in self.terms if t != "power"]
+        text = ", ".join(WORDS[n] for n in names)
+        new = (
+            f"; outside the library: {', '.join(self.new_terms)}"
+            if self.new_terms
+            else "; nothing outside the library's laws"
+        )
+        poor = (
+            f"; it explains only {self.explained_fraction:.0%}: the contact has dynamics no "
+            "candidate term describes (a restraint with its own mass or modes?)"
+            if self.poorly_explained
+            else ""
+        )
+        return (
+            f"{text} (explains {self.explained_fraction:.1%} of the contact force; the "
+            f"library's best law {self.library_explained_fraction:.1%}){new}{poor}"
+        )
+
+    @property
+    def poorly_explained(self) -> bool:
+        """Whether the law leaves more than ``1 - POOR_FIT`` of the contact force unexplained."""
+        return bool(self.explained_fraction < POOR_FIT)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary."""
+        return {
+            "terms": list(self.terms),
+            "new_terms": list(self.new_terms),
+            "new": self.new,
+            "poorly_explained": self.poorly_explained,
+            "equation": self.equation,
+            "words": self.words,
+            "params": self.effect_params,
+            "intervals": {k: list(v) for k, v in self.intervals.items()},
+            "coverage": self.coverage,
+            "explained_fraction": self.explained_fraction,
+            "library_explained_fraction": self.library_explained_fraction,
+            "library_terms": list(self.library_terms),
+            "path": [
+                {k: (float(v) if isinstance(v, np.floating) else v) for k, v in s.items()}
+                for s in self.path
+            ],
+            "n_impacts": self.n_impacts,
+            "per_recording": [
+                {"recording": n, "beta": b, "beta_interval": list(iv) if iv else None, "onset": e}
+                for n, b, iv, e in zip(
+                    self.recordings, self.betas, self.beta_intervals, self.onsets, strict=True
+                )
+            ],  # fmt: skip
+        }

@@ -1,0 +1,149 @@
+"""The force-state samples of every impact, in the model's units.
+
+The restoring-force map (:func:`~stiffnet.restoring_force.restoring_force_estimate`)
+is in the record's own units, with time in forcing radians ``tau = w t``. With
+the record's gain ``G`` (model acceleration to the record's unit; for a
+campaign in g, :func:`stiffnet.campaign.sensor_gain`) and ``k = 1 / w**2`` the
+free-flight stiffness of the map, the integrals scale as ``x_map = G w**2 x``
+and ``v_map = G w v``, so (docs/simulator.md, model units)::
+
+    x = x_map k / G,    v = v_map sqrt(k) / G,    F_c = F_map / G
+
+A linear law's beta is a ratio of slopes of one map and needs no ``G``; every
+other term (an exponent, a knee, a Hunt-Crossley coefficient) has a length
+scale, which is why the samples must be in model units.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from stiffnet.errors import StiffnetError
+from stiffnet.restoring_force import restoring_force_estimate
+from stiffnet.restoring_force.estimate import RestoringForceResult, impact_regions
+from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS
+
+#: Forcing periods read per recording (the predictor's cross-check reads as many).
+PERIODS = 24.0
+#: Samples kept around each contact, as a fraction of the forcing period (the estimate's).
+MARGIN = 0.03
+
+
+@dataclass(frozen=True)
+class ContactSamples:
+    """The samples near the impacts of one recording, in model units.
+
+    Attributes
+    ----------
+    recording : str
+    displacement, velocity, force : numpy.ndarray
+        Relative displacement ``x`` (its zero is the map's, not the onset),
+        velocity ``v`` and contact force ``F_c`` on the samples near impacts.
+    impact : numpy.ndarray
+        Impact number of each sample (1 ... n_impacts).
+    onset : float
+        The restoring-force law's contact onset (a start for the discovery's own).
+    beta : float
+        The restoring-force law's beta (a start).
+    """
+
+    recording: str
+    displacement: np.ndarray
+    velocity: np.ndarray
+    force: np.ndarray
+    impact: np.ndarray
+    onset: float
+    beta: float
+
+    @property
+    def n_impacts(self) -> int:
+        return int(self.impact.max()) if self.impact.size else 0
+
+
+def contact_samples(
+    result: RestoringForceResult, gain: float, recording: str = "", margin: int = 3
+) -> ContactSamples | None:
+    """The impacts' samples of one restoring-force map in model units (None without a law).
+
+    Parameters
+    ----------
+    result : RestoringForceResult
+        The estimate on the record (its map and contact law).
+    gain : float
+        Model acceleration to the record's unit.
+    recording : str
+        Name carried along.
+    margin : int
+        Samples kept on either side of each contact.
+    """
+    law = result.law
+    if law is None or result.force.size == 0 or not np.isfinite(result.free_stiffness):
+        return None
+    k = float(result.free_stiffness)
+    f = np.asarray(result.force, float)
+    sigma = 1.4826 * float(np.median(np.abs(f - np.median(f))))
+    labels, n = impact_regions(f > CONTACT_SIGMAS * max(sigma, 1e-300), margin)
+    if n < 2:
+        return None
+    near = labels > 0
+    return ContactSamples(
+        recording=recording,
+        displacement=result.displacement[near] * k / gain,
+        velocity=result.velocity[near] * np.sqrt(k) / gain,
+        force=f[near] / gain,
+        impact=labels[near].astype(int),
+        onset=float(law.onset) * k / gain,
+        beta=float(law.stiffness) / k,
+    )
+
+
+def record_contact_samples(
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    forcing_frequency_hz: float | None,
+    gain: float,
+    recording: str = "",
+    periods: float = PERIODS,
+) -> tuple[ContactSamples | None, RestoringForceResult]:
+    """Run the restoring-force estimate on one record and return its samples (and the estimate)."""
+    r = restoring_force_estimate(
+        accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
+        forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
+    )  # fmt: skip
+    margin = max(2, int(MARGIN * fs_hz / r.forcing_frequency_hz))
+    return contact_samples(r, gain, recording, margin), r
+
+
+def campaign_contact_samples(
+    campaign: Any, rows: Sequence[Any], periods: float = PERIODS
+) -> tuple[list[ContactSamples], list[dict[str, Any]]]:
+    """Samples of every recording of a campaign whose map has a contact law, and why not others.
+
+    ``rows`` are the campaign's rows with the natural frequency and forcing ratio
+    resolved (diagnose's); recordings are in g for a model length of 1 mm
+    (:func:`stiffnet.campaign.sensor_gain`).
+    """
+    from stiffnet.campaign import sensor_gain
+
+    out, skipped = [], []
+    for i, row in enumerate(rows):
+        fn = row.natural_frequency_hz
+        ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
+        try:
+            rec = campaign.recording(i)
+            s, r = record_contact_samples(
+                rec.accel, rec.fs_hz, fn, ff, sensor_gain(fn), row.recording, periods
+            )
+        except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            skipped.append({"recording": row.recording, "reason": str(exc)})
+            continue
+        if s is None:
+            skipped.append({"recording": row.recording, "reason": r.reason})
+        else:
+            out.append(s)
+    return out, skipped

@@ -1,0 +1,163 @@
+r"""A contact law learned from the recordings (:mod:`stiffnet.discovery`), as an effect.
+
+The law is a sparse combination of the discovery's candidate terms, each with
+its coefficient, in the model's units (docs/simulator.md) and *per unit beta*::
+
+    F_c = max(0, beta * shape(delta, v)),   delta = x - e > 0,   else 0
+
+    shape = d_r (delta / d_r)**p                      elastic leading term (p = 1: linear)
+          + (r - 1) * max(delta - delta_k, 0)         second stage beyond the knee delta_k
+          + f_0                                       preload (a force step at first touch)
+          + alpha * d_r (delta / d_r)**p * v          Hunt-Crossley dissipation
+    plus  2 zeta_c sqrt(beta) v                       Kelvin-Voigt dissipation
+
+**What beta means** for such a law (docs/crosscheck.md, "beta for a nonlinear
+law"): the coefficient of the leading elastic term. For a law whose leading
+term is linear (``p = 1``) that is the elastic slope at first contact,
+``dF/d delta (0+) = beta``, whatever the stages, dissipation and preload
+beyond; for a power law (``p != 1``, whose slope at first touch is 0 or
+infinite) it is the secant stiffness at the reference penetration ``d_r``,
+``F(d_r) / d_r = beta`` (the convention of ``hertz_contact``). The discovery,
+this effect and a dataset generated with it all use this one definition, so
+the models' labels, the learned law and the restoring-force reading report the
+same quantity.
+
+Every parameter is a plain number in the simulator config's YAML (readable,
+hand-editable); the neutral values (``exponent`` 1, ``knee_ratio`` 1, the rest
+0) give the paper's linear restraint. The Hunt-Crossley term needs the
+numerical engine's ``contact_dissipation`` hook, a damping that depends on the
+penetration; onset and release are located exactly (``G = min(delta, F_c)``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+from stiffnet.effects.fit_space import FitParam, FitSpace
+
+#: Parameter names of the law, in the order the equation is written.
+LAW_PARAMS = (
+    "exponent",
+    "reference_penetration",
+    "knee",
+    "knee_ratio",
+    "preload",
+    "hunt_crossley",
+    "damping_ratio",
+)
+#: "Effect off": the paper's linear restraint.
+NEUTRAL = {"exponent": 1.0, "knee_ratio": 1.0, "preload": 0.0, "hunt_crossley": 0.0,
+           "damping_ratio": 0.0}  # fmt: skip
+
+
+def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -> np.ndarray:
+    """``d_r (delta / d_r)**p`` for ``delta >= 0`` (exactly ``delta`` when ``p = 1``)."""
+    d = np.maximum(delta, 0.0)
+    dr = np.asarray(reference_penetration, float)
+    p = np.asarray(exponent, float)
+    return np.where(p == 1.0, d, dr * (d / dr) ** p)
+
+
+def elastic_shape(delta: np.ndarray, p: dict[str, Any]) -> np.ndarray:
+    """The elastic part of ``shape`` (per unit beta) for penetrations ``delta >= 0``."""
+    d = np.maximum(delta, 0.0)
+    lead = leading_term(d, p["exponent"], p["reference_penetration"])
+    stage = (np.asarray(p["knee_ratio"], float) - 1.0) * np.maximum(d - p["knee"], 0.0)
+    return lead + stage + np.where(d > 0, p["preload"], 0.0)
+
+
+def learned_contact_force(
+    delta: np.ndarray, vel: np.ndarray, beta: Any, p: dict[str, Any]
+) -> np.ndarray:
+    """The contact force of the law, ``max(0, beta shape + c_c v)`` in contact, else 0.
+
+    Parameters
+    ----------
+    delta, vel : numpy.ndarray
+        Penetration ``x - e`` and its rate (model units); the force is 0 where ``delta <= 0``.
+    beta : float or numpy.ndarray
+        The law's beta (see the module notes), broadcast against ``delta``.
+    p : dict
+        The law's parameters (:data:`LAW_PARAMS`), numbers or arrays broadcast against ``delta``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Contact force (model units), never negative (the restraint pushes, never pulls).
+    """
+    beta = np.asarray(beta, float)
+    lead = leading_term(delta, p["exponent"], p["reference_penetration"])
+    force = beta * (elastic_shape(delta, p) + p["hunt_crossley"] * lead * vel)
+    force = force + 2.0 * np.asarray(p["damping_ratio"], float) * np.sqrt(beta) * vel
+    return np.where(delta > 0, np.maximum(force, 0.0), 0.0)
+
+
+class LearnedContact(DynamicsEffect):
+    """A contact law discovered from a campaign (see the module notes for the equation)."""
+
+    name = "learned_contact"
+    neutral: ClassVar[dict[str, float] | None] = dict(NEUTRAL)
+
+    class Params(EffectParams):
+        exponent: ParamValue = param(1.0, 0.5, 4.0, "exponent p of the leading elastic term")
+        reference_penetration: ParamValue = param(
+            0.5, 1e-3, 10.0, "d_r: the power law's secant stiffness is beta there", "model length"
+        )
+        knee: ParamValue = param(
+            0.1, 0.0, 10.0, "penetration where the second stage begins", "model length"
+        )
+        knee_ratio: ParamValue = param(
+            1.0, 0.05, 50.0, "stiffness added beyond the knee, as (ratio - 1) beta"
+        )
+        preload: ParamValue = param(
+            0.0, -1.0, 1.0, "force step at first touch over beta", "model length"
+        )
+        hunt_crossley: ParamValue = param(
+            0.0, 0.0, 20.0, "alpha: Hunt-Crossley dissipation beta alpha d_r (d/d_r)^p v",
+            "model time / length",
+        )  # fmt: skip
+        damping_ratio: ParamValue = param(
+            0.0, 0.0, 1.0, "Kelvin-Voigt damping ratio, c_c = 2 zeta_c sqrt(beta)"
+        )
+
+    #: The shape of the law (exponent, second stage, Hunt-Crossley dissipation) when fitted by
+    #: ``diagnose --only learned_contact``; d_r, preload and the Kelvin-Voigt damping stay at
+    #: their values (the discovery sets all of them from the maps, where they are measured).
+    fit_space = FitSpace(
+        (
+            FitParam("exponent", 0.7, 3.0),
+            FitParam("knee", 0.01, 2.0, log=True),
+            FitParam("knee_ratio", 0.2, 20.0, log=True),
+            FitParam("hunt_crossley", 0.0, 5.0),
+        ),
+    )
+
+    def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
+        """Upper bound of the contact mode's rate, (B,): the stiffest slope the law reaches up
+        to twice ``d_r`` and twice the knee, with both dampings at that penetration."""
+        beta = np.asarray(batch.beta, float)
+        reach = 2.0 * np.maximum(p["reference_penetration"], p["knee"])
+        slope = np.maximum(p["exponent"], 1.0) * np.maximum(
+            (reach / p["reference_penetration"]) ** (p["exponent"] - 1.0), 1.0
+        ) + np.maximum(p["knee_ratio"] - 1.0, 0.0)
+        lead = leading_term(reach, p["exponent"], p["reference_penetration"])
+        c = 2.0 * p["damping_ratio"] * np.sqrt(beta) + beta * p["hunt_crossley"] * lead
+        return 0.5 * c + np.sqrt(0.25 * c * c + 1.0 + beta * slope)
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        """``beta`` times the elastic shape, (B,)."""
+        return np.asarray(batch.beta, float) * elastic_shape(delta, p)
+
+    def contact_damping(self, p: ParamArrays, batch: Any) -> np.ndarray:
+        """Kelvin-Voigt coefficient ``2 zeta_c sqrt(beta)``, (B,)."""
+        return 2.0 * p["damping_ratio"] * np.sqrt(np.asarray(batch.beta, float))
+
+    def contact_dissipation(
+        self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
+    ) -> np.ndarray:
+        """Hunt-Crossley force ``beta alpha d_r (delta/d_r)^p delta'``, (B,)."""
+        lead = leading_term(delta, p["exponent"], p["reference_penetration"])
+        return np.asarray(batch.beta, float) * p["hunt_crossley"] * lead * rate

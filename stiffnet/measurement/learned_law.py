@@ -1,0 +1,280 @@
+"""``diagnose`` proposes the contact law the library lacks, learned from the recordings.
+
+When the library's effects leave a campaign ``partially_explained``
+(:func:`should_propose`), :func:`propose_learned_law`
+runs the contact-law discovery (:mod:`stiffnet.discovery`) on the campaign's
+force-displacement maps and, when the law has terms outside the library, adds it
+as a candidate: the ``learned_contact`` effect at the discovered values replaces
+the library's contact effects (``contact_damping``, ``hertz_contact``: the law
+holds its own dissipation), on top of the other selected effects or of none
+(they may have stood in for the law), whichever fits better, and the campaign
+is simulated with it. Reported: the law (equation, words, coefficients
+with intervals, the term path), the discrepancy before and after, the share of
+it removed, whether the rest is at the noise floor, and the force-penetration
+map (data, library law, learned law) as compact data for the figure
+(:func:`learned_law_figure`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from stiffnet.discovery import campaign_contact_samples, discover_contact_law
+from stiffnet.discovery.samples import ContactSamples
+from stiffnet.effects.base import Effect
+from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
+from stiffnet.errors import StiffnetError
+from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.noise_floor import at_floor
+from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
+
+#: Residual groups where a contact law shows.
+CONTACT_GROUPS = ("contact", "free_flight")
+#: Effects the learned law replaces (it holds its own elastic law and dissipation).
+REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
+#: Recordings (low, middle and high beta) and points per recording kept for the map figure.
+MAP_RECORDINGS = 3
+MAP_POINTS = 300
+
+
+def should_propose(verdict_info: dict[str, Any]) -> tuple[bool, str]:
+    """Rule: the discovery runs on every partially explained campaign.
+
+    Where the residual statistics lie is reported, not required: once the library's
+    effects have stood in for a contact law (a damping at an implausible value, harmonics
+    mimicking the spikes' shape), what is left may sit in the sensor band although the
+    cause is the contact (an independent Hunt-Crossley rig: 45 % in contact and free
+    flight). The discovery reads the contact itself and proposes only terms that pass its
+    held-out test, so running it costs seconds and decides nothing by itself.
+    """
+    if verdict_info.get("verdict") != "partially_explained":
+        return False, f"the verdict is {verdict_info.get('verdict')}: no law to learn"
+    where = verdict_info.get("unexplained_where") or {}
+    share = sum(float(where.get(g, 0.0)) for g in CONTACT_GROUPS)
+    return True, f"{share:.0%} of what is left lies in the contact and the free flight"
+
+
+def learned_law_proposal(
+    campaign: Any,
+    rows: Sequence[Any],
+    target: Any,
+    verdict_info: dict[str, Any],
+    effects: Sequence[Effect],
+    residual: np.ndarray,
+    floor: float,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """diagnose's ``learned_law`` entry: :func:`propose_learned_law` where
+    :func:`should_propose` says so, else why not (``ran`` False)."""
+    run, why = should_propose(verdict_info)
+    if not run:
+        return {"ran": False, "proposed": False, "summary": why}
+    out = propose_learned_law(campaign, rows, target, effects, residual, floor, seed)
+    return {"ran": True, "why": why, **out}
+
+
+def propose_learned_law(
+    campaign: Any,
+    rows: Sequence[Any],
+    target: Any,
+    effects: Sequence[Effect],
+    residual: np.ndarray,
+    floor: float,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Discover the campaign's contact law and score the model with it (see the module notes).
+
+    Parameters
+    ----------
+    campaign, rows
+        The campaign and its resolved rows (diagnose's).
+    target : CampaignTarget
+        Diagnose's target (rows, measured statistics, nuisances).
+    effects : sequence of Effect
+        The diagnosed model (base effects and the selected ones).
+    residual : numpy.ndarray
+        Its per-recording discrepancy at diagnose's settings.
+    floor : float
+        The campaign's noise floor at the numerical engine's settings.
+    seed : int
+        Seed of the discovery's folds and bootstrap.
+
+    Returns
+    -------
+    dict
+        ``proposed`` (bool), ``summary`` (one line), and when the discovery ran:
+        ``law`` (:meth:`DiscoveredLaw.to_dict`), ``effect`` (name and params),
+        ``replaces``, ``discrepancy_before``/``_after`` and per recording,
+        ``removed_fraction``, ``at_floor``, ``noise_floor``, ``map``, ``skipped``.
+    """
+    samples, skipped = campaign_contact_samples(campaign, rows)
+    try:
+        law = discover_contact_law(samples, seed=seed)
+    except StiffnetError as exc:
+        return {"proposed": False, "summary": f"no contact law learned: {exc}",
+                "skipped": skipped}  # fmt: skip
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a fit that breaks numerically is a missing proposal, never a failed diagnosis
+        why = f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
+        return {"proposed": False, "summary": why, "skipped": skipped}
+    out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
+    if not law.new:
+        out.update(proposed=False, summary=(
+            f"the learned contact law has nothing the library lacks ({law.words})"))  # fmt: skip
+        return out
+    learned = LearnedContact(**law.effect_params)
+    settings = FIT_SETTINGS_NUMERICAL
+    before = residual if _numerical(effects) else target.per_recording(list(effects), settings)
+    # the law in place of the library's contact effects, or of every selected effect (they
+    # may have stood in for it): the better of the two
+    base = {id(e) for e in target.base_effects}
+    models = [[e for e in effects if e.name not in REPLACED],
+              [e for e in effects if id(e) in base and e.name not in REPLACED]]  # fmt: skip
+    rows_law = law_rows(campaign, target.rows, law)
+    trials = [target.per_recording([*m, learned], settings, rows=rows_law) for m in models]
+    best = int(np.argmin([campaign_discrepancy(t) for t in trials]))
+    after, kept = trials[best], models[best]
+    d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
+    removed = float((d0 - d1) / d0) if d0 > 0 else 0.0
+    rest = at_floor(d1, floor)
+    out.update(
+        proposed=bool(d1 < d0),
+        effect={"name": LearnedContact.name, "params": law.effect_params},
+        replaces=[e.name for e in effects if all(e is not k for k in kept)],
+        discrepancy_before=d0,
+        discrepancy_after=d1,
+        before_per_recording=np.asarray(before).tolist(),
+        after_per_recording=np.asarray(after).tolist(),
+        removed_fraction=removed,
+        at_floor=rest,
+        noise_floor=float(floor),
+    )
+    floor_words = "at the noise floor" if rest else f"above the noise floor ({floor:.3g})"
+    out["summary"] = (
+        f"learned contact law: {law.equation}; {law.words}. With it the discrepancy goes from "
+        f"{d0:.3g} to {d1:.3g} ({removed:.0%} removed), the rest {floor_words}"
+    )
+    return out
+
+
+def law_rows(campaign: Any, rows: Sequence[Any], law: Any) -> list[Any]:
+    """The rows to simulate the law on: a recording without a manifest beta takes the law's
+    (the β diagnose profiled there belongs to the library's linear law, another quantity
+    for a nonlinear one: docs/crosscheck.md, "Beta for a nonlinear contact law")."""
+    betas = dict(zip(law.recordings, law.betas, strict=True))
+    out = []
+    for given, row in zip(campaign.rows, rows, strict=True):
+        b = betas.get(row.recording)
+        out.append(row.model_copy(update={"beta": b}) if given.beta is None and b else row)
+    return out
+
+
+def _numerical(effects: Sequence[Effect]) -> bool:
+    return any(e.kind == "dynamics" and not e.closed_form for e in effects)
+
+
+def law_map(samples: Sequence[ContactSamples], law: Any) -> list[dict[str, Any]]:
+    """Force against penetration of a few recordings: data, library law and learned law."""
+    order = np.argsort(law.betas)
+    picks = sorted(
+        {int(order[k]) for k in np.linspace(0, len(order) - 1, MAP_RECORDINGS).round().astype(int)}
+    )
+    out = []
+    for r in picks:
+        s = samples[r]
+        step = max(1, s.force.size // MAP_POINTS)
+        x, v, f = s.displacement[::step], s.velocity[::step], s.force[::step]
+        delta = x - law.onsets[r]
+        learned = learned_contact_force(delta, v, law.betas[r], law.params)
+        library = (
+            learned_contact_force(
+                x - law.library_onsets[r], v, law.library_betas[r], law.library_params
+            )
+            if law.library_params
+            else np.zeros_like(f)
+        )
+        out.append({
+            "recording": s.recording, "beta": float(law.betas[r]),
+            "penetration": np.round(delta, 5).tolist(), "force": np.round(f, 4).tolist(),
+            "learned": np.round(learned, 4).tolist(), "library": np.round(library, 4).tolist(),
+        })  # fmt: skip
+    return out
+
+
+def learned_law_figure(proposal: dict[str, Any], path: str | Path) -> Path:
+    """The force-penetration map of :func:`law_map`: measured samples, library law, learned law."""
+    from stiffnet.measurement.plots import _plt, _save
+
+    plt = _plt()
+    maps = proposal.get("map") or []
+    fig, axes = plt.subplots(1, max(1, len(maps)), figsize=(4 * max(1, len(maps)), 3.4))
+    axes = np.atleast_1d(axes)
+    for ax, m in zip(axes, maps, strict=False):
+        d = np.asarray(m["penetration"])
+        i = np.argsort(d)
+        ax.plot(d, m["force"], ".", ms=2.5, color="0.4", label="measured (restoring force)")
+        ax.plot(d[i], np.asarray(m["library"])[i], "x", ms=3, color="tab:blue",
+                label="library's best law")  # fmt: skip
+        ax.plot(d[i], np.asarray(m["learned"])[i], "o", ms=2, mfc="none", color="tab:red",
+                label="learned law")  # fmt: skip
+        ax.set_title(f"{m['recording']} (law's beta {m['beta']:.3g})", fontsize=8)
+        ax.set_xlabel("penetration delta [model length]")
+        ax.set_ylabel("contact force [model units]")
+        ax.axvline(0, color="k", lw=0.5)
+    axes[0].legend(fontsize=7)
+    law = proposal.get("law") or {}
+    fig.suptitle(law.get("equation", ""), fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def learned_law_html(proposal: dict[str, Any] | None, png: Path) -> list[str]:
+    """The report's section on the learned law (nothing when the discovery did not run)."""
+    import html
+
+    from stiffnet.measurement.report import _img
+
+    if not proposal or not proposal.get("ran"):
+        return []
+    parts = ["<h3>Learned contact law</h3>", f"<p>{html.escape(proposal['summary'])}.</p>"]
+    law = proposal.get("law")
+    if law:
+        path = " &rarr; ".join(
+            f"{html.escape(s['term'])} ({'in' if s['entered'] else 'out'}, explains "
+            f"{s['explained_fraction']:.1%})"
+            for s in law["path"]
+        )
+        parts.append(f"<p>Term path: {path}.</p>")
+        parts.append(_img(learned_law_figure(proposal, png)))
+    return parts
+
+
+def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | None) -> list[dict]:
+    """The loop's effects to add, with the diagnosis's learned law where it proposed one.
+
+    The law enters like any diagnosed effect (its discovered values, the non-neutral ones
+    fitted, so the loop's prior is centred on them) and replaces the library's contact
+    effects (it holds its own dissipation; two elastic laws cannot run together).
+    """
+    learned = (diagnosis or {}).get("learned_law") or {}
+    if not learned.get("proposed"):
+        return added
+    params = {k: float(v) for k, v in learned["effect"]["params"].items()}
+    fitted = [k for k, v in params.items()
+              if k in LearnedContact.neutral and v != LearnedContact.neutral[k]] + [
+              k for k in ("knee",) if "hinge" in learned["law"]["terms"]]  # fmt: skip
+    gone = {*REPLACED, *learned.get("replaces", [])}
+    keep = [a for a in added if a["name"] not in gone]
+    return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
+                    "source": "diagnosis", "origin": "contact-law discovery",
+                    "replaces": sorted(gone)}]  # fmt: skip
+
+
+def replaced_by(added: list[dict[str, Any]]) -> set[str]:
+    """Effects of earlier iterations that the added ones replace (a learned law: the
+    library's contact effects)."""
+    return {n for a in added if a["name"] == LearnedContact.name for n in a.get("replaces", [])}

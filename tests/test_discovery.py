@@ -1,0 +1,151 @@
+"""Contact-law discovery: the right terms, no spurious ones, coefficients within 15 %.
+
+The laws of the slow tests are user effects written in ``tests/unknown_contact_laws.py``
+in their own parametrisations (not the library's, not ``learned_contact``'s); the
+eight recordings are simulated in one batch (the numerical engine), read back by the
+restoring-force estimate like any record (24 forcing periods), and discovered
+together. The fast tests use samples written from a known law.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import unknown_contact_laws as laws
+
+from stiffnet.discovery import ContactSamples, discover_contact_law
+from stiffnet.discovery.samples import record_contact_samples
+from stiffnet.effects.contact_damping import ContactDamping
+from stiffnet.effects.learned_contact import learned_contact_force
+from stiffnet.errors import StiffnetError
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+#: beta, forcing ratio, amplitude, gap, samples per natural period: the example campaign's
+#: eight operating points (examples/hidden_effect_manifest.csv).
+ROWS = [(8, 1.05, 1.9, 2.8, 100), (14, 1.0, 1.2, 1.2, 105), (22, 1.1, 1.9, 2.0, 130),
+        (30, 0.98, 1.5, 1.6, 130), (45, 1.08, 1.7, 2.4, 160), (65, 1.02, 1.3, 0.9, 160),
+        (80, 1.05, 1.9, 2.8, 210), (95, 1.0, 1.2, 1.2, 210)]  # fmt: skip
+BETA = np.array([r[0] for r in ROWS], float)
+
+
+def campaign_samples(effects, noise: float, periods: float = 26.0, seed: int = 0):
+    """Eight recordings with the given effects, through the restoring-force map."""
+    beta, w, a, e, fsr = (np.array(c, float) for c in zip(*ROWS, strict=True))
+    batch = OscillatorBatch(beta=beta, gap=e, amplitude=a, omega=w, damping=np.full(8, 0.02))
+    n = int(periods * fsr.max() / w.min())
+    res = Simulator(effects).simulate(batch, fsr, n, noise=noise, rng=seed)
+    out = []
+    for i in range(8):
+        m = int(periods * fsr[i] / w[i])
+        fn = 9.48
+        s, _ = record_contact_samples(res.accel[i, :m], fsr[i] * fn, fn, w[i] * fn, 1.0, str(i))
+        assert s is not None
+        out.append(s)
+    return out
+
+
+def synthetic_samples(params: dict, noise: float, seed: int = 0, n_impacts: int = 20):
+    """Impacts written from a known law: a half-sine penetration, 16 samples per contact
+    and margins, force with white noise of ``noise`` times each recording's peak force."""
+    rng = np.random.default_rng(seed)
+    full = {"exponent": 1.0, "reference_penetration": 0.3, "knee": 0.0, "knee_ratio": 1.0,
+            "preload": 0.0, "hunt_crossley": 0.0, "damping_ratio": 0.0, **params}  # fmt: skip
+    out = []
+    for r, beta in enumerate((8.0, 20.0, 45.0, 90.0)):
+        peak = 0.6 / np.sqrt(beta / 8.0)
+        om = np.sqrt(1.0 + beta)
+        t = np.linspace(-0.4, 1.4, 28) * np.pi / om
+        xs, vs, fs, imp = [], [], [], []
+        for j in range(n_impacts):
+            amp = peak * rng.uniform(0.7, 1.3)
+            delta = amp * np.sin(om * t)
+            vel = amp * om * np.cos(om * t)
+            f = learned_contact_force(delta, vel, beta, full)
+            fs.append(f + noise * f.max() * rng.standard_normal(f.size))
+            xs.append(delta + 1.5)
+            vs.append(vel)
+            imp.append(np.full(t.size, j + 1))
+        cat = np.concatenate
+        out.append(ContactSamples(f"r{r}", cat(xs), cat(vs), cat(fs), cat(imp), 1.5, beta))
+    return out
+
+
+def test_synthetic_two_stage_law_is_found_with_its_coefficients():
+    law = discover_contact_law(synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03))
+    assert law.terms == ("hinge",) and law.new_terms == ("hinge",)
+    assert law.params["knee"] == pytest.approx(0.12, rel=0.15)
+    assert law.params["knee_ratio"] == pytest.approx(3.0, rel=0.15)
+    np.testing.assert_allclose(law.betas, [8, 20, 45, 90], rtol=0.1)
+    assert law.path[0]["term"] == "linear" and law.path[1]["term"] == "hinge"
+    assert law.path[1]["entered"] and not law.path[-1]["entered"]
+    assert law.explained_fraction > 0.99 > law.library_explained_fraction
+    lo, hi = law.intervals["knee_ratio"]
+    assert lo <= 3.0 <= hi
+    d = law.to_dict()
+    assert d["new"] and "max(delta - 0.1" in d["equation"] and "second stage" in d["words"]
+
+
+def test_synthetic_linear_and_kelvin_voigt_laws_find_nothing_new():
+    lin = discover_contact_law(synthetic_samples({}, 0.03), n_boot=0)
+    assert lin.terms == () and not lin.new
+    kv = discover_contact_law(synthetic_samples({"damping_ratio": 0.2}, 0.03), n_boot=0)
+    assert kv.terms == ("damping",) and not kv.new
+    assert kv.params["damping_ratio"] == pytest.approx(0.2, rel=0.15)
+    assert "nothing outside the library" in kv.words
+
+
+def test_too_few_recordings_is_one_clear_error():
+    with pytest.raises(StiffnetError, match="needs the impacts of 2 recordings"):
+        discover_contact_law(synthetic_samples({}, 0.03)[:1])
+
+
+def _power_coefficient(law):
+    """The fitted ``k_p`` of ``F = k_p delta**p`` for each recording."""
+    return np.array([law.coefficient("power", b) for b in law.betas])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("noise", [0.02, 0.04])
+def test_power_law_user_effect(noise):
+    law = discover_contact_law(campaign_samples([laws.PowerLawContact(exponent=2.0)], noise))
+    assert law.terms == ("power",) and law.new_terms == ("power",)
+    assert law.params["exponent"] == pytest.approx(2.0, rel=0.15)
+    # the user's k_p = beta / d0**(n - 1) with d0 = 0.5, against the discovered one
+    np.testing.assert_allclose(_power_coefficient(law), BETA / 0.5, rtol=0.15)
+
+
+@pytest.mark.slow
+def test_two_stage_user_effect():
+    law = discover_contact_law(campaign_samples([laws.TwoStageContact(knee=0.2, ratio=3.0)], 0.03))
+    assert law.terms == ("hinge",)
+    assert law.params["knee"] == pytest.approx(0.2, rel=0.15)
+    assert law.params["knee_ratio"] == pytest.approx(3.0, rel=0.15)
+    np.testing.assert_allclose(law.betas, BETA, rtol=0.15)
+
+
+@pytest.mark.slow
+def test_hunt_crossley_user_effect():
+    law = discover_contact_law(campaign_samples([laws.HuntCrossleyContact(c=0.3)], 0.03))
+    assert law.terms == ("hunt_crossley",) and law.new_terms == ("hunt_crossley",)
+    assert law.params["hunt_crossley"] == pytest.approx(1.5 * 0.3, rel=0.15)
+    np.testing.assert_allclose(law.betas, BETA, rtol=0.15)
+    assert law.library_explained_fraction < law.explained_fraction - 0.03
+
+
+@pytest.mark.parametrize("effects", [[], [ContactDamping(damping_ratio=0.2)]])
+def test_library_laws_find_nothing_new(effects):
+    law = discover_contact_law(campaign_samples(effects, 0.03), n_boot=0)
+    assert not law.new, law.words
+    np.testing.assert_allclose(law.betas, BETA, rtol=0.15)
+
+
+def test_a_law_that_explains_little_says_so():
+    samples = synthetic_samples({}, 0.03)
+    rng = np.random.default_rng(1)
+    noisy = [ContactSamples(s.recording, s.displacement, s.velocity,
+                            s.force + 0.5 * s.force.std() * rng.standard_normal(s.force.size),
+                            s.impact, s.onset, s.beta) for s in samples]  # fmt: skip
+    law = discover_contact_law(noisy, n_boot=0)
+    assert law.poorly_explained and "dynamics no candidate term describes" in law.words
+    assert not discover_contact_law(samples, n_boot=0).poorly_explained

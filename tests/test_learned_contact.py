@@ -1,0 +1,81 @@
+"""The ``learned_contact`` effect: the discovered law in the simulator, its YAML, its listing."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import unknown_contact_laws as laws
+import yaml
+from typer.testing import CliRunner
+
+from stiffnet.cli import app
+from stiffnet.config import load_config
+from stiffnet.config.sim import SimulationConfig
+from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
+from stiffnet.effects.registry import build_effect
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+BATCH = OscillatorBatch(beta=[8.0, 45.0], gap=[2.8, 2.4], amplitude=[1.9, 1.7],
+                        omega=[1.05, 1.08], damping=[0.02, 0.02])  # fmt: skip
+
+
+def run(effect):
+    sim = Simulator([effect], settle_tolerance=0.2, min_transient_periods=5.0, substeps=4)
+    return sim.simulate(BATCH, 100.0, 1500, rng=1)
+
+
+def test_same_motion_as_the_user_two_stage_and_hunt_crossley_laws():
+    a = run(laws.TwoStageContact(knee=0.1, ratio=4.0)).accel
+    b = run(LearnedContact(knee=0.1, knee_ratio=4.0)).accel
+    np.testing.assert_allclose(a, b, atol=1e-9 * np.abs(a).max())
+    a = run(laws.HuntCrossleyContact(c=0.3)).accel
+    b = run(LearnedContact(hunt_crossley=0.45)).accel
+    np.testing.assert_allclose(a, b, atol=1e-9 * np.abs(a).max())
+    assert np.abs(b).max() > 1.0  # there were impacts
+
+
+def test_neutral_law_is_the_linear_restraint():
+    lin = Simulator([], settle_tolerance=0.2, min_transient_periods=5.0).simulate(
+        BATCH, 100.0, 1500, rng=1
+    )
+    learned = run(LearnedContact())
+    # the numerical engine (RK4, 4 substeps per sample) against the exact closed form
+    np.testing.assert_allclose(learned.accel, lin.accel, atol=2e-3 * np.abs(lin.accel).max())
+
+
+def test_law_force_definition_of_beta():
+    d = np.array([0.0, 0.05, 0.3, 0.6])
+    v = np.zeros(4)
+    p = {"exponent": 1.0, "reference_penetration": 0.3, "knee": 0.1, "knee_ratio": 3.0,
+         "preload": 0.0, "hunt_crossley": 0.0, "damping_ratio": 0.0}  # fmt: skip
+    # a linear leading term: beta is the slope at first touch; the second stage adds 2 beta
+    np.testing.assert_allclose(learned_contact_force(d, v, 10.0, p), [0, 0.5, 7.0, 16.0])
+    p.update(exponent=2.0, knee=10.0)
+    # a power law: beta is the secant stiffness at d_r
+    assert learned_contact_force(np.array([0.3]), np.zeros(1), 10.0, p)[0] == pytest.approx(3.0)
+    # the restraint never pulls: strong dissipation while leaving clips the force at zero
+    p.update(exponent=1.0, hunt_crossley=5.0)
+    assert learned_contact_force(np.array([0.2]), np.array([-1.0]), 10.0, p)[0] == 0.0
+
+
+def test_config_yaml_round_trip_and_effects_listing(tmp_path):
+    text = """
+effects:
+  - name: learned_contact
+    params: {exponent: 1.0, knee: 0.2, knee_ratio: 3.0, hunt_crossley: 0.45}
+"""
+    path = tmp_path / "c.yaml"
+    path.write_text(text)
+    cfg = load_config(SimulationConfig, path)
+    eff = cfg.effects[0].build()
+    assert isinstance(eff, LearnedContact) and eff.params.knee_ratio == 3.0
+    again = yaml.safe_load(yaml.safe_dump(cfg.model_dump(mode="json")))
+    assert again["effects"][0]["params"]["hunt_crossley"] == 0.45
+    assert build_effect("learned_contact", {"knee_ratio": 2.0}).params.knee_ratio == 2.0
+    res = CliRunner().invoke(app, ["effects", "--json", str(tmp_path / "e.json")])
+    assert res.exit_code == 0, res.output
+    names = {e["name"] for e in json.loads((tmp_path / "e.json").read_text())}
+    assert "learned_contact" in names

@@ -1,0 +1,169 @@
+"""``diagnose`` proposes the learned contact law where the library lacks it, and only there.
+
+The campaigns are written here from one batch of the simulator (the numerical engine
+runs the eight rows together) in g, like ``simulate_campaign``'s, from the example
+manifest's operating points; the laws are user effects of ``tests/unknown_contact_laws.py``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+import unknown_contact_laws as laws
+from campaign_helpers import MANIFEST, without_beta
+
+from stiffnet.campaign import load_campaign, sensor_gain
+from stiffnet.config import load_config
+from stiffnet.config.sim import SimulationConfig
+from stiffnet.effects.contact_damping import ContactDamping
+from stiffnet.measurement.diagnose import diagnose_campaign
+from stiffnet.measurement.learned_law import (
+    learned_law_figure,
+    propose_learned_law,
+    replaced_by,
+    should_propose,
+    with_learned_law,
+)
+from stiffnet.measurement.loop import run_loop
+from stiffnet.shipped import default_config
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+
+
+def batch_campaign(folder, effects, noise=0.02, duration_s=3.0, seed=0):
+    """The example manifest's eight rows simulated as one batch, written as a campaign."""
+    with open(MANIFEST, encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    col = {k: np.array([float(r[k]) for r in rows]) for k in rows[0] if k != "recording"}
+    fn = col["natural_frequency_hz"]
+    batch = OscillatorBatch(beta=col["beta"], gap=col["gap"], amplitude=col["amplitude"],
+                            omega=col["frequency_ratio"], damping=col["damping_ratio"])  # fmt: skip
+    n = (duration_s * col["fs_hz"]).astype(int)
+    res = Simulator(effects).simulate(batch, col["fs_hz"] / fn, int(n.max()), noise=noise, rng=seed)
+    (folder / "recordings").mkdir(parents=True)
+    for i, r in enumerate(rows):
+        r["recording"] = r["recording"].replace(".csv", ".npy")
+        r["duration_s"], r["noise"] = str(duration_s), str(noise)
+        np.save(folder / r["recording"], res.accel[i, : n[i]] * sensor_gain(fn[i]))
+    with open(folder / "manifest.csv", "w", encoding="utf-8", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    return load_campaign(folder)
+
+
+def test_rule_runs_only_on_a_partial_verdict():
+    assert not should_propose({"verdict": "explained", "unexplained_where": None})[0]
+    assert not should_propose({"verdict": "nothing_missing"})[0]
+    # where the rest lies is reported, not required: stand-ins move it to the sensor band
+    run, why = should_propose(
+        {
+            "verdict": "partially_explained",
+            "unexplained_where": {"contact": 0.2, "sensor_band": 0.8},
+        }
+    )
+    assert run and why.startswith("20%")
+
+
+def test_kelvin_voigt_campaign_gets_no_new_law(tmp_path):
+    camp = batch_campaign(tmp_path / "kv", [ContactDamping(damping_ratio=0.25)])
+    out = propose_learned_law(camp, camp.rows, None, [], np.zeros(8), 0.05)
+    assert out["proposed"] is False and out["law"]["new"] is False
+    assert "nothing the library lacks" in out["summary"]
+    assert out["law"]["terms"] == ["damping"]
+
+
+@pytest.fixture(scope="module")
+def two_stage(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("learned") / "two"
+    return batch_campaign(folder, [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+
+
+@pytest.mark.slow
+def test_two_stage_campaign_is_partially_explained_then_learned(two_stage, tmp_path):
+    d = diagnose_campaign(two_stage, effects=["contact_damping"], inclination=False)
+    assert d["verdict"] == "partially_explained", d["summary"]
+    ll = d["learned_law"]
+    assert ll["ran"] and ll["proposed"], ll["summary"]
+    assert ll["law"]["terms"] == ["hinge"] and ll["law"]["new_terms"] == ["hinge"]
+    assert ll["law"]["params"]["knee"] == pytest.approx(0.2, rel=0.15)
+    assert ll["removed_fraction"] >= 0.8
+    assert ll["discrepancy_after"] < ll["discrepancy_before"]
+    assert ll["effect"] == {"name": "learned_contact", "params": ll["law"]["params"]}
+    json.dumps(d)  # the whole diagnosis stays JSON
+    png = learned_law_figure(ll, tmp_path / "law.png")
+    assert png.stat().st_size > 5000
+
+
+def test_loop_adds_the_learned_law_in_place_of_the_library_contact():
+    diag = {"learned_law": {"proposed": True, "law": {"terms": ["hinge"]},
+                            "replaces": ["contact_damping", "forcing_harmonics"],
+                            "effect": {"name": "learned_contact",
+                                       "params": {"exponent": 1.0, "knee": 0.19,
+                                                  "knee_ratio": 2.5, "hunt_crossley": 0.0,
+                                                  "damping_ratio": 0.0, "preload": 0.0,
+                                                  "reference_penetration": 0.45}}}}  # fmt: skip
+    added = [{"name": "contact_damping", "params": {"damping_ratio": 0.1}, "fitted": [],
+              "source": "diagnosis"}, {"name": "gap_drift", "params": {}, "fitted": [],
+              "source": "diagnosis"}]  # fmt: skip
+    out = with_learned_law(added, diag)
+    assert [a["name"] for a in out] == ["gap_drift", "learned_contact"]
+    # a stand-in the proposal dropped (harmonics mimicking the law) goes too
+    assert [a["name"] for a in with_learned_law([*added, {"name": "forcing_harmonics",
+            "params": {}, "fitted": [], "source": "diagnosis"}], diag)] == [
+            "gap_drift", "learned_contact"]  # fmt: skip
+    assert sorted(out[-1]["fitted"]) == ["knee", "knee_ratio"]  # the prior is centred on them
+    assert replaced_by(out) >= {"contact_damping", "hertz_contact", "forcing_harmonics"}
+    assert with_learned_law(added, {"learned_law": {"proposed": False}}) == added
+
+
+@pytest.mark.slow
+def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
+    camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])  # bounded cost: the numerical engine
+    d["solver"].update(settle_tolerance=0.05, min_transient_periods=10, substeps=4)
+    d["windows"]["per_trajectory"] = 2
+    res = run_loop(camp, SimulationConfig.model_validate(d), tmp_path / "state", iterations=1,
+                   family="gbm", n_trajectories=60, tracking_uri=None,
+                   candidates=["contact_damping"])  # fmt: skip
+    first, second = res["iterations"]
+    assert second["label"] == "+learned_contact"
+    assert second["metrics"]["discrepancy"] <= 0.5 * first["metrics"]["discrepancy"]
+    cfg = load_config(SimulationConfig, second["config"])
+    (spec,) = cfg.effects
+    knee = spec.params["knee"]
+    assert spec.name == "learned_contact" and isinstance(knee, list) and knee[0] < 0.2 < knee[1]
+
+
+@pytest.mark.slow
+def test_field_campaign_without_beta_simulates_the_law_at_its_own_beta(two_stage, tmp_path):
+    """Without beta, diagnose profiles one per recording with the library's linear law: for a
+    two-stage law that is a secant between the stages, and the law simulated at it was far
+    too stiff (measured on a 3-s campaign: discrepancy 2.74 -> 11.2); at the law's own beta
+    it fell to 0.81."""
+    camp = load_campaign(without_beta(two_stage.folder, tmp_path / "field"))
+    d = diagnose_campaign(camp, effects=["contact_damping"], inclination=False)
+    ll = d["learned_law"]
+    assert ll["proposed"] and ll["law"]["terms"] == ["hinge"], ll["summary"]
+    assert ll["removed_fraction"] >= 0.5
+
+
+def test_report_section_shows_the_law_its_path_and_the_map(tmp_path):
+    from test_discovery import synthetic_samples
+
+    from stiffnet.discovery import discover_contact_law
+    from stiffnet.measurement.learned_law import law_map, learned_law_html
+
+    samples = synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03)
+    law = discover_contact_law(samples, n_boot=0)
+    proposal = {"ran": True, "summary": "learned contact law: " + law.equation,
+                "law": law.to_dict(), "map": law_map(samples, law)}  # fmt: skip
+    assert len(proposal["map"]) == 3 and proposal["map"][0]["beta"] < proposal["map"][-1]["beta"]
+    page = "".join(learned_law_html(proposal, tmp_path / "law.png"))
+    assert "Learned contact law" in page and "hinge (in" in page and "<img" in page
+    assert "max(0, beta [delta" in page  # the equation, escaped but whole
+    assert learned_law_html({"ran": False, "summary": "x"}, tmp_path / "n.png") == []

@@ -1,0 +1,66 @@
+"""Contact laws the effect library lacks, written as user effects (``module:Class``).
+
+The contact-law discovery (:mod:`stiffnet.discovery`) is tested on them: nothing
+here is library code, and their parametrisations are their own (a Hunt-Crossley
+law written with its restitution-like coefficient, a two-stage restraint with
+its own knee and ratio), so the discovery must find the terms and convert the
+coefficients, not read them back.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
+
+
+class PowerLawContact(DynamicsEffect):
+    """``F = k_p delta**n`` with ``k_p = beta / d0**(n - 1)`` (secant ``beta`` at ``d0``)."""
+
+    name = "test_power_law"
+
+    class Params(EffectParams):
+        exponent: ParamValue = param(2.0, 1.0, 3.0, "exponent n")
+        d0: ParamValue = param(0.5, 1e-3, 10.0, "penetration of secant stiffness beta", "model")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        return batch.beta * p["d0"] ** (1.0 - p["exponent"]) * delta ** p["exponent"]
+
+
+class TwoStageContact(DynamicsEffect):
+    """A soft first stage of stiffness ``beta`` up to ``knee``, then ``beta + k2`` beyond,
+    with ``k2 = (ratio - 1) beta`` (a layer over a stiffer body)."""
+
+    name = "test_two_stage"
+
+    class Params(EffectParams):
+        knee: ParamValue = param(0.1, 1e-3, 1.0, "penetration of the second stage", "model")
+        ratio: ParamValue = param(4.0, 1.0, 20.0, "second-stage stiffness over beta")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        beta = np.asarray(batch.beta, float)
+        return np.where(
+            delta <= p["knee"],
+            beta * delta,
+            beta * p["knee"] + p["ratio"] * beta * (delta - p["knee"]),
+        )
+
+
+class HuntCrossleyContact(DynamicsEffect):
+    """Hunt & Crossley (1975): ``F = beta delta (1 + 1.5 c v)``, ``c`` the law's own
+    coefficient (restitution ``e ~ 1 - c v_in`` at low impact speed)."""
+
+    name = "test_hunt_crossley"
+
+    class Params(EffectParams):
+        c: ParamValue = param(0.3, 0.0, 5.0, "Hunt-Crossley coefficient", "model time/length")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        return np.asarray(batch.beta, float) * delta
+
+    def contact_dissipation(
+        self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
+    ) -> np.ndarray:
+        return 1.5 * p["c"] * np.asarray(batch.beta, float) * delta * rate
