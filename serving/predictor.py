@@ -54,7 +54,7 @@ from serving.alarm import (
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
-from serving.physical import physical_check
+from serving.physical import physical_check, sensor_outside_priors, with_sensor_check
 from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
@@ -254,6 +254,7 @@ class Predictor:
         natural_frequency_hz: float | None = None,
         source: str = "",
         natural_frequency_source: str | None = None,
+        sensor: dict | None = None,
     ) -> dict[str, Any]:
         """Predict one recording: check -> windows -> model -> aggregate -> result.
 
@@ -269,6 +270,10 @@ class Predictor:
             Name of the recording, echoed in the result.
         natural_frequency_source : str, optional
             Label reported for a given `natural_frequency_hz` (default ``"argument"``).
+        sensor : dict, optional
+            The sensor chain's data sheet (``resonance_hz``, ``resonance_damping``,
+            ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the restoring-force check
+            undoes it instead of fitting one (:mod:`serving.physical`).
 
         Returns
         -------
@@ -301,10 +306,13 @@ class Predictor:
             warnings.append(f"class changes over time: {' -> '.join(seg_classes)}")
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
-        physical = physical_check(a, fs, fn)
+        physical = physical_check(a, fs, fn, sensor)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
+        priors = (self.model.card.get("data") or {}).get("priors")
+        alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,
+                                                               fs, fn))  # fmt: skip
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         if weak := weak_physical_fit(physical):

@@ -57,6 +57,12 @@ class PhysicalCheck(BaseModel):
     resonance_hz: float | None = Field(
         default=None, description="Accelerometer mount resonance divided out (null: none seen)."
     )
+    sensor: dict[str, Any] | None = Field(
+        default=None,
+        description="Sensor chain undone before the map (fitted from the impacts or the data "
+        "sheet's): resonance_hz, resonance_damping, lowpass_hz, lowpass_order, highpass_hz, "
+        "source, applied, intervals (90 %), contact_hz.",
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 
