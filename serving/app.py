@@ -256,6 +256,7 @@ def _predict_json(predictor: Predictor, body: bytes, max_samples: int = 2_000_00
         natural_frequency_hz=req.natural_frequency_hz,
         source="request",
         natural_frequency_source="request",
+        sensor=req.sensor,
     )
 
 

@@ -19,6 +19,7 @@ from stiffnet.cli_options import (
     ModelOption,
     NaturalFrequencyOption,
     SchedulerOption,
+    SensorOption,
     TimeUnitOption,
     WorkersOption,
 )
@@ -33,6 +34,7 @@ def predict(
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
     from serving.predictor import Predictor, predict_recording
@@ -42,6 +44,9 @@ def predict(
         from stiffnet.errors import StiffnetError
 
         raise StiffnetError(f"{recording}: sampling rate missing (a .npy recording needs --fs HZ)")
+    from stiffnet.restoring_force.chain import parse_sensor_option
+
+    sheet = parse_sensor_option(sensor) if sensor is not None else None
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -50,6 +55,7 @@ def predict(
         predictor=predictor,
         columns=columns,
         time_unit=time_unit,
+        sensor=sheet,
     )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"

@@ -67,6 +67,33 @@ def physical_check(
     }
 
 
+def check_sensor_sheet(sheet: Any, fs_hz: float, what: str = "sensor") -> dict[str, float]:
+    """A sensor data sheet (a mapping of :data:`SENSOR_KEYS` to numbers) checked before any
+    work, or a one-line :class:`StiffnetError` naming the bad key."""
+    from stiffnet.restoring_force.chain import SENSOR_KEYS, sensor_from_mapping
+
+    if not isinstance(sheet, dict):
+        raise StiffnetError(f"{what} must be an object with keys {', '.join(SENSOR_KEYS)}")
+    try:
+        sensor_from_mapping(sheet, fs_hz)
+    except ValueError as exc:
+        raise StiffnetError(f"{what}: {exc}") from None
+    return {k: float(v) for k, v in sheet.items()}
+
+
+def sidecar_sensor(recording: Any) -> dict | None:
+    """The ``sensor`` entry of the recording's sidecar ``<recording>.json`` (None without)."""
+    from pathlib import Path
+
+    from stiffnet.inputs import read_json
+
+    p = Path(str(recording) + ".json")
+    if not p.is_file():
+        return None
+    d = read_json(p, "sidecar")
+    return d.get("sensor") if isinstance(d, dict) else None
+
+
 def _sensor_prior(priors: dict | None) -> dict | None:
     """The ``sensor_dynamics`` entry of a model card's ``data.priors`` (None without one)."""
     for effect in (priors or {}).get("effects") or []:

@@ -54,7 +54,13 @@ from serving.alarm import (
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.model import LoadedModel, load_model
 from serving.ood import OODReference, load_reference
-from serving.physical import physical_check, sensor_outside_priors, with_sensor_check
+from serving.physical import (
+    check_sensor_sheet,
+    physical_check,
+    sensor_outside_priors,
+    sidecar_sensor,
+    with_sensor_check,
+)
 from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
@@ -288,6 +294,7 @@ class Predictor:
         """
         what = source or "recording"
         fs, fn, fn_source = self._rates(fs_hz, natural_frequency_hz, natural_frequency_source)
+        sensor = None if sensor is None else check_sensor_sheet(sensor, fs)
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
@@ -444,6 +451,7 @@ def predict_recording(
     predictor: Predictor | None = None,
     columns: str | None = None,
     time_unit: str | None = None,
+    sensor: dict | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -465,6 +473,8 @@ def predict_recording(
         An already loaded predictor.
     columns, time_unit : str, optional
         CSV layout, as :func:`stiffnet.recordings.read_recording`.
+    sensor : dict, optional
+        The sensor chain's data sheet; default: the sidecar's ``sensor`` entry, if any.
 
     Returns
     -------
@@ -485,4 +495,5 @@ def predict_recording(
         natural_frequency_hz=natural_frequency_hz,
         source=rec.source,
         natural_frequency_source=fn_source,
+        sensor=sensor if sensor is not None else sidecar_sensor(path),
     )

@@ -158,6 +158,12 @@ class PredictRequest(BaseModel):
     natural_frequency_hz: float | None = Field(
         default=None, description="Natural frequency of the rig; default: the training data's."
     )
+    sensor: dict[str, float] | None = Field(
+        default=None,
+        description="The accelerometer chain's data sheet (resonance_hz, resonance_damping, "
+        "lowpass_hz, lowpass_order, highpass_hz; a stage left out is none): undone as given "
+        "instead of fitted from the impacts.",
+    )
 
 
 class ErrorBody(BaseModel):

@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from stiffnet import nlts
-from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.errors import ConfigError, SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
 from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
+from stiffnet.restoring_force.chain import sensor_from_mapping
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
@@ -126,23 +127,32 @@ def _unit_scale(x: np.ndarray) -> np.ndarray:
 
 
 def analyze_signal(
-    accel: np.ndarray, fs_hz: float, natural_frequency_hz: float | None = None
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float | None = None,
+    sensor: dict | None = None,
 ) -> Analysis:
     """Run the whole analysis on one acceleration record sampled at ``fs_hz``.
 
     ``natural_frequency_hz`` (default: the paper's 9.48 Hz) fixes the free-flight
-    stiffness of the restoring-force estimate.
+    stiffness of the restoring-force estimate; ``sensor`` is the accelerometer chain's data
+    sheet (undone as given; default: identified from the impacts).
     """
     if not np.isfinite(fs_hz) or fs_hz <= 0:
         raise SignalError(f"sampling rate must be a positive number of Hz, got {fs_hz}")
     fn = PAPER_NATURAL_FREQUENCY_HZ if natural_frequency_hz is None else natural_frequency_hz
     if not (np.isfinite(fn) and fn > 0):
         raise SignalError(f"natural frequency must be a positive number of Hz, got {fn}")
+    if sensor is not None:  # a bad data sheet is the user's error, not a refusal
+        try:
+            sensor_from_mapping(sensor, fs_hz)
+        except ValueError as exc:
+            raise ConfigError(f"sensor: {exc}") from None
     x = _unit_scale(nlts.as_signal(accel, 64))
     geo = geometric_estimate(x, fs_hz)
     rf, rf_error = None, ""
     try:
-        rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn)
+        rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn, sensor=sensor)
     except StiffnetError as exc:  # the other analyses still stand
         rf_error = str(exc)
     # Analyse the smoothed signal, as the paper does before embedding (section 5.1).

@@ -25,6 +25,7 @@ from stiffnet.cli_options import (
     FsOption,
     JsonOption,
     SchedulerOption,
+    SensorOption,
     TimeUnitOption,
     WorkersOption,
 )
@@ -264,13 +265,16 @@ def analyze(
             "--fn", help="Natural frequency of the rig in Hz (default 9.48, the paper's)."
         ),
     ] = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
     from stiffnet.recordings import read_recording
+    from stiffnet.restoring_force.chain import parse_sensor_option
 
+    sheet = parse_sensor_option(sensor) if sensor is not None else None
     rec = read_recording(recording, fs_hz=fs, columns=columns, time_unit=time_unit)
-    analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
+    analysis = analyze_signal(rec.accel, rec.fs_hz, fn, sensor=sheet)
     result = {"recording": str(recording), **analysis.summary()}
     table = Table(title=f"analysis of {recording}", show_header=False)
     for key, value in result.items():

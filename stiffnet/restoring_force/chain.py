@@ -69,6 +69,10 @@ STAGE_GAIN = 0.7
 COVERAGE = 0.9
 #: The Wiener gain of the inverse is capped at this amplification.
 MAX_GAIN = 30.0
+#: Spectral subtraction's over-subtraction factor (how far above the noise floor a bin must
+#: rise before the inverse acts on it): 1, the Wiener filter. Larger values cut into the
+#: contact's band (beta 30 read 27 through a 4th-order low-pass at 0.1 fs with 1.5-4).
+OVER_SUBTRACTION = 1.0
 #: A low-pass corner below this multiple of the contact frequency refuses beta.
 MIN_LOWPASS_RATIO = 1.0
 
@@ -134,6 +138,36 @@ class SensorChain:
         return bool(self.resonance_hz) or bool(self.lowpass_hz)
 
 
+#: The keys of a sensor data sheet.
+SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
+
+
+def parse_sensor_option(text: str) -> dict[str, float]:
+    """``KEY=VALUE,...`` (the CLI's ``--sensor``) as a mapping; the keys are checked by
+    :func:`sensor_from_mapping`.
+
+    Raises
+    ------
+    ConfigError
+        One line, for an item without ``=`` or a value that is not a number.
+    """
+    from stiffnet.errors import ConfigError
+
+    keys = ", ".join(SENSOR_KEYS)
+    out: dict[str, float] = {}
+    for item in (p.strip() for p in text.split(",") if p.strip()):
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ConfigError(f"--sensor: {item!r} is not KEY=VALUE (keys: {keys})")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--sensor: {key.strip()} = {value!r} is not a number") from None
+    if not out:
+        raise ConfigError(f"--sensor: empty (give KEY=VALUE,... with keys {keys})")
+    return out
+
+
 def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
     ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage).
@@ -143,7 +177,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     ValueError
         With one line naming the key, for an unknown key or a value out of range.
     """
-    known = {"resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz"}
+    known = set(SENSOR_KEYS)
     unknown = sorted(set(data) - known)
     if unknown:
         raise ValueError(f"unknown sensor key(s) {', '.join(unknown)}; known: {sorted(known)}")
@@ -201,14 +235,16 @@ def chain_response(chain: SensorChain, freqs_hz: np.ndarray) -> np.ndarray:
 
 
 def wiener_gain(y: np.ndarray, h: np.ndarray, noise_var: float) -> np.ndarray:
-    """The regularised inverse ``(1 / h) max(0, 1 - N / P)`` per rfft bin, capped at
-    :data:`MAX_GAIN`: where the record's smoothed power ``P`` is its white noise floor
-    ``N`` the inverse is switched off, so it amplifies only the band the data support."""
+    """The regularised inverse ``(1 / h) max(0, 1 - a N / P)`` per rfft bin, capped at
+    :data:`MAX_GAIN`: where the record's smoothed power ``P`` is within ``a`` times its white
+    noise floor ``N`` (:data:`OVER_SUBTRACTION`: the smoothed periodogram of pure noise
+    scatters by tens of per cent) the inverse is switched off, so it amplifies only the band
+    the data support."""
     spec = np.abs(np.fft.rfft(y)) ** 2
     width = max(3, y.size // 400)
     power = ndimage.uniform_filter1d(spec, width, mode="nearest")
     floor = noise_var * y.size
-    weight = np.clip(1.0 - floor / np.maximum(power, 1e-300), 0.0, 1.0)
+    weight = np.clip(1.0 - OVER_SUBTRACTION * floor / np.maximum(power, 1e-300), 0.0, 1.0)
     inverse = 1.0 / h
     mag = np.abs(inverse)
     inverse = np.where(mag > MAX_GAIN, inverse * MAX_GAIN / np.maximum(mag, 1e-300), inverse)
@@ -557,12 +593,15 @@ def _chosen_chain(fits, fs_hz: float, highpass_hz: float) -> SensorChain:
         names += ["lowpass_hz"]
     intervals = {}
     for i, name in enumerate(names):
-        if name == "offset":
+        if name == "offset" or best.cov is None:
             continue
-        se = float(np.sqrt(max(best.cov[i, i], 0.0))) if best.cov is not None else np.inf
-        v = float(best.theta[i])
-        unit = contact_hz if name == "resonance_hz" else 1.0
-        intervals[name] = [unit * float(np.exp(v - z * se)), unit * float(np.exp(v + z * se))]
+        if name == "resonance_hz":  # log f_r = log(contact) + log(ratio): both variances
+            var = best.cov[0, 0] + best.cov[i, i] + 2 * best.cov[0, i]
+            v = float(best.theta[0] + best.theta[i])
+        else:
+            var, v = best.cov[i, i], float(best.theta[i])
+        se = float(np.sqrt(max(var, 0.0)))
+        intervals[name] = [float(np.exp(v - z * se)), float(np.exp(v + z * se))]
     cap = MAX_CORNER_FRACTION * fs_hz
     fr = chain.resonance_hz if chain.resonance_hz and chain.resonance_hz < cap else None
     fl = chain.lowpass_hz if chain.lowpass_hz and chain.lowpass_hz < cap else None

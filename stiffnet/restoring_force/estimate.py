@@ -514,6 +514,7 @@ def _undo_chain(
     highpass_hz: float | str,
     exponent: float | None,
     sensor: SensorChain | None,
+    beta_max: float = 100.0,
 ) -> tuple[_Map, SensorChain | None, float | None, str]:
     """The map of the record with its sensor chain undone, the chain, the resonance divided
     out (Hz) and a refusal where the chain's band does not carry the contact.
@@ -549,6 +550,13 @@ def _undo_chain(
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
     refusal = identifiability(chain)
+    fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
+    if m2.info.get("physical_class") == NO_CONTACT and (chain.lowpass_hz or np.inf) < fastest:
+        refusal = (
+            f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
+            f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
+            "this sensor smooths away"
+        )
     if chain.source == "fitted" and not refusal:
         # the chain that makes the contact force a function of the state: a fitted chain
         # whose inverse leaves the contact law worse than the record as recorded (or with only
@@ -727,8 +735,9 @@ def _estimate_at(
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
         m = _fit_map(*args, corner, exponent)
+    beta_max = max(float(hi) for _, _, hi in classes)
     m, chain, resonance, refusal = _undo_chain(m, y, fs_hz, ff, period, args, highpass_hz,
-                                               exponent, sensor)  # fmt: skip
+                                               exponent, sensor, beta_max)  # fmt: skip
     corner = m.corner
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
@@ -744,8 +753,10 @@ def _estimate_at(
         highpass_hz=corner * ff,
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
-    if refusal or m.refusal:
-        return _refuse(refusal or m.refusal, **info)
+    if refusal:  # the sensor's band: neither a class nor "no contact" can be read
+        return _refuse(refusal, **{**info, "physical_class": None})
+    if m.refusal:
+        return _refuse(m.refusal, **info)
     law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
     k = fit.stiffness
     beta = law.stiffness / k
