@@ -21,6 +21,7 @@ from stiffnet.restoring_force.chain import (
     deconvolve,
     identifiability,
     sensor_from_mapping,
+    shared_chain,
 )
 from tests.independent_rig import RigRun, record
 
@@ -89,6 +90,20 @@ def test_data_sheet_mapping_checks_its_keys():
         sensor_from_mapping({"resonance_hz": 500, "resonance_damping": 3}, 2000.0)
     with pytest.raises(ConfigError, match="unknown sensor key"):
         restoring_force_estimate(np.sin(np.arange(4000) * 0.03), 2000.0, sensor={"f": 1})
+
+
+def test_shared_chain_is_the_median_of_the_recordings_that_show_a_stage():
+    chains = [
+        {"resonance_hz": 400.0, "resonance_damping": 0.04, "lowpass_hz": None, "highpass_hz": 1.0},
+        {"resonance_hz": 420.0, "resonance_damping": 0.06, "lowpass_hz": 900.0, "highpass_hz": 1.2},
+        {"resonance_hz": 410.0, "resonance_damping": 0.05, "lowpass_hz": None, "highpass_hz": 0.0},
+        None,
+    ]
+    out = shared_chain(chains)
+    assert out["n"] == 3 and out["resonance_hz"] == 410.0 and out["resonance_damping"] == 0.05
+    assert out["lowpass_hz"] is None  # one recording of three: noise, not the shared sensor
+    assert out["highpass_hz"] == pytest.approx(1.1)
+    assert shared_chain([None, None]) is None
 
 
 # --- the alarm's check against the training priors --------------------------------------

@@ -616,3 +616,52 @@ def _chosen_chain(fits, fs_hz: float, highpass_hz: float) -> SensorChain:
         contact_hz=contact_hz,
         contact_damping=zeta,
     )
+
+
+def identify_sensor_chain(
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    forcing_frequency_hz: float | None = None,
+    max_periods: float | None = 24.0,
+) -> SensorChain | None:
+    """The accelerometer chain of one recording, identified from its impacts.
+
+    The restoring-force estimate's own identification
+    (:func:`~stiffnet.restoring_force.restoring_force_estimate` with no data sheet) on at most
+    `max_periods` forcing periods, for callers that want the chain alone: ``diagnose``'s
+    starting point for ``sensor_dynamics`` and its evidence. None where the record shows no
+    impacts to fit (or cannot be read at all).
+    """
+    from stiffnet.errors import StiffnetError
+    from stiffnet.restoring_force.estimate import restoring_force_estimate
+
+    try:
+        r = restoring_force_estimate(
+            accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
+            forcing_frequency_hz=forcing_frequency_hz, max_periods=max_periods,
+        )  # fmt: skip
+    except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+    return r.sensor
+
+
+def shared_chain(chains: list[dict | None]) -> dict[str, Any] | None:
+    """The chain a campaign's recordings share (one sensor): per stage, the median over the
+    recordings that show it, where at least half of the identified ones do; None without
+    any identified chain. Input: :meth:`SensorChain.to_dict` per recording (None: unread)."""
+    seen = [c for c in chains if c]
+    if not seen:
+        return None
+    out: dict[str, Any] = {"n": len(seen)}
+    for key, partner in (("resonance_hz", "resonance_damping"), ("lowpass_hz", "lowpass_order"),
+                         ("highpass_hz", None)):  # fmt: skip
+        values = [c for c in seen if c.get(key)]
+        if 2 * len(values) < len(seen):
+            out[key] = None
+            continue
+        out[key] = float(np.median([c[key] for c in values]))
+        out[f"{key}_range"] = [float(v) for v in np.quantile([c[key] for c in values], [0.1, 0.9])]
+        if partner:
+            out[partner] = float(np.median([c[partner] for c in values]))
+    return out
