@@ -111,11 +111,11 @@ def sensor_outside_priors(
     A resonance below the prior's lowest multiple of f_n rings in the band the model reads;
     a low-pass below its lowest fraction of fs rounds the spikes more than it ever saw; a
     high-pass above its highest corner shifts the free flight. Stages the chain lacks are
-    inside (an ideal sensor is in every prior). A model trained without any sensor chain
-    has every identified chain outside.
+    inside (an ideal sensor is in every prior), and so is a fitted chain the map did not
+    apply. A model trained without any sensor chain has every identified chain outside.
     """
-    if not sensor or priors is None:
-        return None
+    if not sensor or priors is None or sensor.get("applied") is False:
+        return None  # a fitted chain the contact law rejected is no evidence of one
     prior = _sensor_prior(priors)
     fr, fl, fh = sensor.get("resonance_hz"), sensor.get("lowpass_hz"), sensor.get("highpass_hz")
     if prior is None:

@@ -134,6 +134,8 @@ def test_sensor_outside_priors_says_which_stage():
     # a model trained without any chain: every chain is new to it; no card: nothing said
     assert sensor_outside_priors({"lowpass_hz": 900.0}, {"effects": []}, fs, FN) is not None
     assert sensor_outside_priors({"lowpass_hz": 90.0}, None, fs, FN) is None
+    rejected = {"lowpass_hz": 0.05 * fs, "applied": False}  # the contact law said no
+    assert sensor_outside_priors(rejected, PRIORS, fs, FN) is None
 
 
 def test_sensor_check_fires_the_alarm():
