@@ -515,9 +515,11 @@ def _undo_chain(
     exponent: float | None,
     sensor: SensorChain | None,
     beta_max: float = 100.0,
-) -> tuple[_Map, SensorChain | None, float | None, str]:
+) -> tuple[_Map, SensorChain | None, float | None, str, list[float]]:
     """The map of the record with its sensor chain undone, the chain, the resonance divided
-    out (Hz) and a refusal where the chain's band does not carry the contact.
+    out (Hz), a refusal where the chain's band does not carry the contact, and the beta the
+    other readings give where a chain was fitted (the record as recorded, with the chain
+    undone, with its low-pass at the ends of its interval): the interval spans them.
 
     The chain is the data sheet's (`sensor`) or fitted to the impacts of the plain map
     (:func:`~.chain.fit_chain`); a resonance or low-pass in the band is divided out within the
@@ -543,7 +545,7 @@ def _undo_chain(
         candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
     if chain is None or not chain.has_dynamics:
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
-        return best[0], chain, best[1], ""
+        return best[0], chain, best[1], "", []
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
     m2 = _remap(flat, args, highpass_hz, m.corner, exponent)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
@@ -561,10 +563,36 @@ def _undo_chain(
         # the chain that makes the contact force a function of the state: a fitted chain
         # whose inverse leaves the contact law worse than the record as recorded (or with only
         # its ringing divided out) is not the record's (it is still reported)
+        rivals = (
+            [c[0] for c in candidates]
+            + [m2]
+            + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        )
         other = max(candidates, key=lambda c: _contact_r2(c[0]))
         if _contact_r2(m2) < _contact_r2(other[0]) - R2_SLACK:
-            return other[0], dataclasses.replace(chain, applied=False), other[1], ""
-    return m2, chain, chain.resonance_hz, refusal
+            chain = dataclasses.replace(chain, applied=False)
+            return other[0], chain, other[1], "", _readings(rivals)
+        return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
+    return m2, chain, chain.resonance_hz, refusal, []
+
+
+def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
+    """The maps with the fitted low-pass at the ends of its interval (its uncertainty)."""
+    ends = chain.intervals.get("lowpass_hz") if chain.lowpass_hz else None
+    if not ends or not all(np.isfinite(ends)):
+        return []
+    return [
+        _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
+                          m.fit.sigma), args, highpass_hz, m.corner, exponent)
+        for f in ends if 0 < f < 0.5 * fs_hz
+    ]  # fmt: skip
+
+
+def _readings(maps: list[_Map]) -> list[float]:
+    """Beta of each readable map (no refusal, a contact law explaining half the force)."""
+    return [float(x.law.stiffness / x.fit.stiffness) for x in maps
+            if x.law is not None and not x.refusal and x.law.r2 >= MIN_CONTACT_R2
+            and x.fit.stiffness > 0]  # fmt: skip
 
 
 def _remap(y, args, highpass_hz, corner, exponent) -> _Map:
@@ -736,8 +764,9 @@ def _estimate_at(
         corner = float(highpass_hz) / ff
         m = _fit_map(*args, corner, exponent)
     beta_max = max(float(hi) for _, _, hi in classes)
-    m, chain, resonance, refusal = _undo_chain(m, y, fs_hz, ff, period, args, highpass_hz,
-                                               exponent, sensor, beta_max)  # fmt: skip
+    m, chain, resonance, refusal, rivals = _undo_chain(
+        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max
+    )
     corner = m.corner
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
@@ -784,6 +813,8 @@ def _estimate_at(
             law, fit.force, fit.displacement, fit.velocity, labels, n_imp, k, coverage, rng
         )
         lo, hi = widen_interval(beta, lo, hi, law.r2, spc)
+    if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
+        lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(k))
     cls = str(beta_class(np.array([beta]), classes)[0])
     return RestoringForceResult(
