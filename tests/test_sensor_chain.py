@@ -7,6 +7,8 @@ Recordings come from stiffnet's simulator and from the independent solve_ivp rig
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -169,6 +171,7 @@ def test_a_mount_resonance_is_identified_and_undone(contact):
     assert lo < r.sensor.resonance_hz < hi
     assert r.beta == pytest.approx(30.0, rel=0.1)
     assert r.to_dict()["sensor"]["resonance_hz"] == pytest.approx(r.sensor.resonance_hz)
+    json.dumps(r.to_dict(), allow_nan=False)  # JSON-safe (an unbounded interval is left out)
 
 
 @pytest.mark.slow
@@ -225,8 +228,6 @@ def lowpassed_csv(tmp_path_factory):
 
 @pytest.mark.slow
 def test_cli_reads_a_data_sheet_and_refuses_a_bad_one(lowpassed_csv, tmp_path):
-    import json
-
     from typer.testing import CliRunner
 
     from stiffnet.cli import app

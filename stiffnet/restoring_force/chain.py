@@ -601,7 +601,10 @@ def _chosen_chain(fits, fs_hz: float, highpass_hz: float) -> SensorChain:
         else:
             var, v = best.cov[i, i], float(best.theta[i])
         se = float(np.sqrt(max(var, 0.0)))
-        intervals[name] = [float(np.exp(v - z * se)), float(np.exp(v + z * se))]
+        with np.errstate(over="ignore"):
+            ends = [float(np.exp(v - z * se)), float(np.exp(v + z * se))]
+        if all(np.isfinite(ends)):  # an unbounded one is not reported (JSON has no inf)
+            intervals[name] = ends
     cap = MAX_CORNER_FRACTION * fs_hz
     fr = chain.resonance_hz if chain.resonance_hz and chain.resonance_hz < cap else None
     fl = chain.lowpass_hz if chain.lowpass_hz and chain.lowpass_hz < cap else None
