@@ -52,8 +52,13 @@ MIN_RESONANCE_RATIO = 1.5
 NOISE_FLOOR = 2.0
 #: The contact's half period is at most this many times its core's duration.
 MAX_HALF_PERIODS = 2.5
+#: The contact is at least this fraction of the plain map's contact frequency.
+PLAIN_CONTACT_FRACTION = 0.8
 #: Points of the coarse grid that starts each stage.
 GRID = 12
+#: A mount's resonance is lightly damped (0.01-0.1 on sensors): a better damped pair is a
+#: low-pass's (a Butterworth's lightest: 0.38 at order 4), which a free resonance would mimic.
+MAX_RESONANCE_DAMPING = 0.15
 #: Function evaluations per least-squares start.
 MAX_NFEV = 40
 #: Low-pass orders tried.
@@ -295,6 +300,7 @@ class _Windows:
     core: np.ndarray
     pre: int
     free_hz: float = 0.0
+    plain_contact_hz: float = 0.0
 
     @property
     def n(self) -> int:
@@ -399,8 +405,11 @@ class _StructureFit:
 def _slowest_contact(win: _Windows, fs_hz: float, fn_hz: float) -> float:
     """Lowest contact frequency: a contact lasts about half its period (less when damped), so
     its half period is at most :data:`MAX_HALF_PERIODS` times the core seen above the noise
-    (a chain only lengthens it)."""
+    (a chain only lengthens it), and at least :data:`PLAIN_CONTACT_FRACTION` of the contact
+    frequency the record as recorded gives (a low-pass smears the pulse, so that map reads the
+    contact softer, never much stiffer, than it is)."""
     slowest = fs_hz / (2 * MAX_HALF_PERIODS * max(float(np.median(win.core)), 1.0))
+    slowest = max(slowest, PLAIN_CONTACT_FRACTION * win.plain_contact_hz)
     return max(1.05 * fn_hz, min(slowest, 0.2 * fs_hz))
 
 
@@ -410,7 +419,7 @@ def _bounds(win: _Windows, fs_hz: float, fn_hz: float, structure):
     hi = [np.log(nyq), np.log(0.95), 0.5]
     if structure[0]:
         lo += [np.log(MIN_RESONANCE_RATIO), np.log(3e-3)]
-        hi += [np.log(nyq / fn_hz), np.log(0.25)]
+        hi += [np.log(nyq / fn_hz), np.log(MAX_RESONANCE_DAMPING)]
     if structure[1]:
         lo += [np.log(0.5 * fn_hz)]
         hi += [np.log(nyq)]
@@ -527,6 +536,7 @@ def fit_chain(
     if win.n < 3:
         return None
     win.free_hz = natural_frequency_hz
+    win.plain_contact_hz = float(contact_hz or 0.0)
     fn, cap = natural_frequency_hz, 0.45 * fs_hz
     timing = np.full(win.n, pre - 0.5)
 
