@@ -267,3 +267,19 @@ def test_http_predict_takes_a_sensor_field(lowpassed_csv):
         assert physical["beta"] == pytest.approx(30.0, rel=0.1)
         r = client.post("/predict", json={**body, "sensor": {"lowpass_hz": 100.0, "order": 2}})
         assert 400 <= r.status_code < 500 and "sensor" in r.json()["error"], r.text
+
+
+@pytest.mark.slow
+def test_identify_sensor_chain_gives_the_chain_alone():
+    """diagnose's starting point for sensor_dynamics: stiffnet's chain, a 60 f_n mount."""
+    from stiffnet.restoring_force import identify_sensor_chain
+    from tests.test_restoring_force import simulate
+
+    chain = {"resonance_hz": 60 * FN, "resonance_damping": 0.05, "highpass_hz": 0.0,
+             "lowpass_hz": 0.0}  # fmt: skip
+    accel, fs = simulate(30.0, [("sensor_dynamics", chain)], fs_ratio=300.0, noise=0.02,
+                         periods=24, omega=1.05)  # fmt: skip
+    got = identify_sensor_chain(accel, fs, FN)
+    assert got is not None and got.source == "fitted"
+    assert got.resonance_hz == pytest.approx(60 * FN, rel=0.1)
+    assert identify_sensor_chain(np.zeros(5000), fs, FN) is None  # unreadable: nothing
