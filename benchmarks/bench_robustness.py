@@ -16,7 +16,8 @@ per-recording interval, alarm). Per set and model the table gives:
   no alarm (the failures a user is not warned of).
 
 Alarm rate and silent failures are given with all the predictor's checks and, in
-brackets, with the model's own checks only (without the restoring-force check).
+brackets, with the model's own checks only (without the restoring-force checks: the
+interval contradiction and the identified sensor chain outside the model's priors).
 
 Models are ``NAME=PATH`` pairs (``--model``); each is loaded with its own alarm
 reference / OOD reference as the predictor finds them. The models shipped before
@@ -119,7 +120,7 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         right.append(ok)
         flags.append(bool(res["ood_flag"]))
         fired = (res["alarm"] or {}).get("fired", [])
-        model_flags.append(any(f != "physical" for f in fired))
+        model_flags.append(any(f not in ("physical", "sensor") for f in fired))
         miss = not ok
         if r["class"] != "no_contact":
             iv = res["beta_interval"]

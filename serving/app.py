@@ -430,6 +430,7 @@ def _predict_json(
         natural_frequency_hz=req.natural_frequency_hz,
         source="request",
         natural_frequency_source="request",
+        sensor=req.sensor,
     )
 
 

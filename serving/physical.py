@@ -6,8 +6,11 @@ cost stays bounded on long recordings), turned into the JSON fields of
 :class:`serving.schemas.PhysicalCheck`. A recording the method cannot read
 (no contact, no forcing line, a meaningless fit) gives ``class`` null or
 ``no_contact`` and the reason, never an error: the cross-check must not stop a
-prediction. The sensor chain's high-pass corner and mount resonance are fitted
-from the recording itself (``highpass_hz``, ``resonance_hz``).
+prediction. The sensor chain (mounted resonance, anti-alias low-pass, charge
+amplifier's high-pass) is identified from the recording's impacts, or taken from
+the user's data sheet (``sensor``), undone before the map and reported
+(``sensor``); :func:`sensor_outside_priors` says when it lies outside the sensor
+chains the model was trained on, which the predictor's alarm counts.
 """
 
 from __future__ import annotations
@@ -19,15 +22,26 @@ import numpy as np
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 
-#: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~15 ms).
+#: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~15 ms
+#: without a sensor chain to fit, ~1-3 s with one).
 PHYSICAL_PERIODS = 24.0
+#: A fitted stage counts as outside the training priors only beyond this factor of their
+#: range (the fit's own scatter: 2-10 % in frequency on simulated chains).
+PRIOR_SLACK = 1.15
 
 
-def physical_check(accel: Any, fs_hz: float, natural_frequency_hz: float) -> dict[str, Any]:
-    """Restoring-force beta, class and interval of one recording, or the reason there is none."""
+def physical_check(
+    accel: Any, fs_hz: float, natural_frequency_hz: float, sensor: dict | None = None
+) -> dict[str, Any]:
+    """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
+    there is none. `sensor` is the data sheet's chain (then nothing is fitted)."""
     try:
         r = restoring_force_estimate(
-            accel, fs_hz, natural_frequency_hz=natural_frequency_hz, max_periods=PHYSICAL_PERIODS
+            accel,
+            fs_hz,
+            natural_frequency_hz=natural_frequency_hz,
+            max_periods=PHYSICAL_PERIODS,
+            sensor=sensor,
         )
     except StiffnetError as exc:
         return {"class": None, "beta": None, "beta_interval": None, "reason": str(exc)}
@@ -48,5 +62,105 @@ def physical_check(accel: Any, fs_hz: float, natural_frequency_hz: float) -> dic
         "contact_r2": d["contact_r2"],
         "highpass_hz": d["highpass_hz"],
         "resonance_hz": d["resonance_hz"],
+        "sensor": d["sensor"],
         "reason": d["reason"],
     }
+
+
+def check_sensor_sheet(sheet: Any, fs_hz: float, what: str = "sensor") -> dict[str, float]:
+    """A sensor data sheet (a mapping of :data:`SENSOR_KEYS` to numbers) checked before any
+    work, or a one-line :class:`StiffnetError` naming the bad key."""
+    from stiffnet.restoring_force.chain import SENSOR_KEYS, sensor_from_mapping
+
+    if not isinstance(sheet, dict):
+        raise StiffnetError(f"{what} must be an object with keys {', '.join(SENSOR_KEYS)}")
+    try:
+        sensor_from_mapping(sheet, fs_hz)
+    except ValueError as exc:
+        raise StiffnetError(f"{what}: {exc}") from None
+    return {k: float(v) for k, v in sheet.items()}
+
+
+def sidecar_sensor(recording: Any) -> Any:
+    """The ``sensor`` entry of the recording's sidecar ``<recording>.json`` (None without;
+    :func:`check_sensor_sheet` judges what it holds)."""
+    from stiffnet.recordings import sidecar_entry
+
+    return sidecar_entry(recording, "sensor")
+
+
+def _sensor_prior(priors: dict | None) -> dict | None:
+    """The ``sensor_dynamics`` entry of a model card's ``data.priors`` (None without one)."""
+    for effect in (priors or {}).get("effects") or []:
+        if isinstance(effect, dict) and effect.get("name") == "sensor_dynamics":
+            return effect
+    return None
+
+
+def sensor_outside_priors(
+    sensor: dict | None, priors: dict | None, fs_hz: float, natural_frequency_hz: float
+) -> tuple[float, str] | None:
+    """How far (log ratio) and in words the identified chain lies outside the model's sensor
+    priors (the card's ``data.priors``), or None when inside, unknown or unread.
+
+    A resonance below the prior's lowest multiple of f_n rings in the band the model reads;
+    a low-pass below its lowest fraction of fs rounds the spikes more than it ever saw; a
+    high-pass above its highest corner shifts the free flight. Stages the chain lacks are
+    inside (an ideal sensor is in every prior), and so is a fitted chain the map did not
+    apply. A model trained without any sensor chain has every identified chain outside.
+    """
+    if not sensor or priors is None or sensor.get("applied") is False:
+        return None  # a fitted chain the contact law rejected is no evidence of one
+    prior = _sensor_prior(priors)
+    fr, fl, fh = sensor.get("resonance_hz"), sensor.get("lowpass_hz"), sensor.get("highpass_hz")
+    if prior is None:
+        if fr or fl or (fh or 0) > 0:
+            return np.inf, "a sensor chain, and the model was trained without one"
+        return None
+    rel, params = prior.get("relative") or {}, prior.get("params") or {}
+    out: list[tuple[float, str]] = []
+    checks = (
+        (fr, rel.get("resonance_hz"), params.get("resonance_hz"), "mount resonance"),
+        (fl, rel.get("lowpass_hz"), params.get("lowpass_hz"), "anti-alias low-pass"),
+    )
+    for value, relative, absolute, words in checks:
+        if not value:
+            continue
+        if relative:
+            per = natural_frequency_hz if relative.get("per") == "natural_frequency" else fs_hz
+            low = float(relative["range"][0]) * per
+        elif isinstance(absolute, list | tuple):
+            low = float(absolute[0])
+        else:
+            continue
+        if value * PRIOR_SLACK < low:
+            said = f"{words} at {value:.0f} Hz (the model saw {low:.0f} Hz and up)"
+            out.append((float(np.log(low / value)), said))
+    top = params.get("highpass_hz")
+    if fh and isinstance(top, list | tuple) and fh > PRIOR_SLACK * float(top[1]):
+        said = f"high-pass at {fh:.2g} Hz (the model saw up to {float(top[1]):.2g} Hz)"
+        out.append((float(np.log(fh / float(top[1]))), said))
+    if not out:
+        return None
+    return max(v for v, _ in out), "; ".join(w for _, w in out)
+
+
+def with_sensor_check(
+    alarm: dict[str, Any] | None, outside: tuple[float, str] | None
+) -> dict[str, Any] | None:
+    """The alarm with the sensor-chain check added: it fires when the identified chain lies
+    outside the model's training priors (`outside`, from :func:`sensor_outside_priors`)."""
+    from serving.alarm import alarm_message
+
+    if outside is None:
+        return alarm
+    if alarm is None:
+        alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    score, words = outside
+    alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
+    alarm["scores"]["sensor"] = float(min(score, 1e3))
+    alarm["thresholds"]["sensor"] = 0.0
+    alarm["fired"] = [*alarm["fired"], "sensor"]
+    alarm["flag"] = True
+    alarm["message"] = alarm_message(alarm["fired"]) + f" ({words})"
+    return alarm

@@ -46,7 +46,13 @@ from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import record_layers, with_layers_alarm
 from serving.model import LoadedModel, load_model
-from serving.physical import physical_check
+from serving.physical import (
+    check_sensor_sheet,
+    physical_check,
+    sensor_outside_priors,
+    sidecar_sensor,
+    with_sensor_check,
+)
 from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
@@ -256,6 +262,7 @@ class Predictor:
         natural_frequency_hz: float | None = None,
         source: str = "",
         natural_frequency_source: str | None = None,
+        sensor: dict | None = None,
     ) -> dict[str, Any]:
         """Predict one recording: check -> windows -> model -> aggregate -> result.
 
@@ -272,6 +279,10 @@ class Predictor:
             Name of the recording, echoed in the result.
         natural_frequency_source : str, optional
             Label reported for a given `natural_frequency_hz` (default ``"argument"``).
+        sensor : dict, optional
+            The sensor chain's data sheet (``resonance_hz``, ``resonance_damping``,
+            ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the restoring-force check
+            undoes it instead of fitting one (:mod:`serving.physical`).
 
         Returns
         -------
@@ -290,6 +301,7 @@ class Predictor:
 
             finite_samples(accel, what)  # the samples' own faults first
         fs, fn, fn_source = self._rates(fs_hz, natural_frequency_hz, natural_frequency_source)
+        sensor = None if sensor is None else check_sensor_sheet(sensor, fs)
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
@@ -308,11 +320,14 @@ class Predictor:
         layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
-        physical = physical_check(a, fs, fn)
+        physical = physical_check(a, fs, fn, sensor)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
         alarm = with_layers_alarm(alarm, layers)
+        priors = (self.model.card.get("data") or {}).get("priors")
+        alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,
+                                                               fs, fn))  # fmt: skip
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
         if weak := weak_physical_fit(physical):
@@ -442,6 +457,7 @@ def predict_recording(
     columns: str | None = None,
     time_unit: str | None = None,
     channel: str | int | None = None,
+    sensor: dict | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -467,6 +483,8 @@ def predict_recording(
         CSV layout, as :func:`stiffnet.recordings.read_recording`.
     channel : str or int, optional
         Channel of a multi-channel file (required when it has several).
+    sensor : dict, optional
+        The sensor chain's data sheet; default: the sidecar's ``sensor`` entry, if any.
 
     Returns
     -------
@@ -487,4 +505,5 @@ def predict_recording(
         natural_frequency_hz=natural_frequency_hz,
         source=rec.source,
         natural_frequency_source=fn_source,
+        sensor=sensor if sensor is not None else sidecar_sensor(path),
     )

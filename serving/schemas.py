@@ -57,6 +57,12 @@ class PhysicalCheck(BaseModel):
     resonance_hz: float | None = Field(
         default=None, description="Accelerometer mount resonance divided out (null: none seen)."
     )
+    sensor: dict[str, Any] | None = Field(
+        default=None,
+        description="Sensor chain undone before the map (fitted from the impacts or the data "
+        "sheet's): resonance_hz, resonance_damping, lowpass_hz, lowpass_order, highpass_hz, "
+        "source, applied, intervals (90 %), contact_hz.",
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 
@@ -237,6 +243,12 @@ class PredictRequest(BaseModel):
         default=None,
         description="Natural frequency of the rig (Hz). Required: without it the request is "
         "refused (the training data's value is never assumed).",
+    )
+    sensor: dict[str, float] | None = Field(
+        default=None,
+        description="The accelerometer chain's data sheet (resonance_hz, resonance_damping, "
+        "lowpass_hz, lowpass_order, highpass_hz; a stage left out is none): undone as given "
+        "instead of fitted from the impacts.",
     )
 
 

@@ -16,11 +16,12 @@ from typing import Any
 import numpy as np
 
 from stiffnet import nlts
-from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.errors import ConfigError, SignalError, StiffnetError
 from stiffnet.geometry.estimate import GeometricResult, geometric_estimate, smoothing_window
 from stiffnet.nlts.stationarity import record_probes
 from stiffnet.recordings.base import check_rate
 from stiffnet.restoring_force import RestoringForceResult, restoring_force_estimate
+from stiffnet.restoring_force.chain import sensor_from_mapping
 
 #: Nearest-neighbour statistics (FNN, Cao, cross-prediction) use at most this many
 #: samples: they converge long before, and their cost grows as N log N.
@@ -154,14 +155,18 @@ def _unit_scale(x: np.ndarray) -> np.ndarray:
 
 
 def analyze_signal(
-    accel: np.ndarray, fs_hz: float, natural_frequency_hz: float | None = None
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float | None = None,
+    sensor: dict | None = None,
 ) -> Analysis:
     """Run the whole analysis on one acceleration record sampled at ``fs_hz``.
 
     ``natural_frequency_hz`` fixes the free-flight stiffness of the restoring-force
     estimate; without it that estimate is not run (its reason says why: never a
-    silent default). The stationarity test reads the whole record: on long records
-    :data:`STATIONARITY_SEGMENTS` probes spread over it.
+    silent default). ``sensor`` is the accelerometer chain's data sheet (undone as
+    given; default: identified from the impacts). The stationarity test reads the whole
+    record: on long records :data:`STATIONARITY_SEGMENTS` probes spread over it.
     """
     from stiffnet.inputs import natural_frequency, rate_ratio, sampling_rate
 
@@ -170,6 +175,11 @@ def analyze_signal(
     fn = natural_frequency_hz
     if fn is not None:
         rate_ratio(fs_hz, natural_frequency(fn, "natural frequency"))
+    if sensor is not None:  # a bad data sheet is the user's error, not a refusal
+        try:
+            sensor_from_mapping(sensor, fs_hz)
+        except ValueError as exc:
+            raise ConfigError(f"sensor: {exc}") from None
     a = np.asarray(accel)
     if a.ndim == 1 and a.size and a.dtype.kind in "fiu" and np.isfinite(a).all():
         peak = float(np.abs(a).max())
@@ -180,7 +190,7 @@ def analyze_signal(
     rf, rf_error = None, FN_MISSING
     if fn is not None:
         try:
-            rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn)
+            rf = restoring_force_estimate(x, fs_hz, natural_frequency_hz=fn, sensor=sensor)
             rf_error = ""
         except StiffnetError as exc:  # the other analyses still stand
             rf_error = str(exc)

@@ -188,10 +188,11 @@ def simulate(
 
 
 def sensor_chain(accel: np.ndarray, fs_hz: float, sensor: dict) -> np.ndarray:
-    """Mounted resonance, then a 1st-order high-pass, then a 4th-order anti-alias low-pass.
+    """Mounted resonance, then a 1st-order high-pass, then a Butterworth anti-alias low-pass.
 
     ``sensor`` keys: ``resonance_hz``, ``resonance_damping``, ``highpass_hz``,
-    ``lowpass_hz`` (any left out or 0 is skipped). Causal filters, as in hardware.
+    ``lowpass_hz``, ``lowpass_order`` (default 4; any stage left out or 0 is skipped).
+    Causal filters, as in hardware.
     """
     y = accel
     fr = sensor.get("resonance_hz") or 0
@@ -204,7 +205,9 @@ def sensor_chain(accel: np.ndarray, fs_hz: float, sensor: dict) -> np.ndarray:
             signal.butter(1, sensor["highpass_hz"], "high", fs=fs_hz, output="sos"), y
         )
     if sensor.get("lowpass_hz"):
-        y = signal.sosfilt(signal.butter(4, sensor["lowpass_hz"], "low", fs=fs_hz, output="sos"), y)
+        order = int(sensor.get("lowpass_order", 4))
+        sos = signal.butter(order, sensor["lowpass_hz"], "low", fs=fs_hz, output="sos")
+        y = signal.sosfilt(sos, y)
     return y
 
 
@@ -213,11 +216,21 @@ def record(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(t in s, accel in g)`` as the data logger stores it: chain, then white noise.
 
-    ``beta_schedule``: layers along the record (see :func:`simulate`).
+    ``beta_schedule``: layers along the record (see :func:`simulate`). A sensor entry
+    ``oversample: m`` runs the chain on the motion sampled ``m`` times faster and keeps
+    every ``m``-th sample: the analog chain before the converter, as in hardware (the
+    plain chain filters the samples at the logger's rate).
     """
-    t, acc = simulate(run, beta_schedule=beta_schedule)
-    if run.sensor:
-        acc = sensor_chain(acc, run.fs_hz, run.sensor)
+    m = int((run.sensor or {}).get("oversample", 1))
+    if m > 1:
+        t, acc = simulate(replace(run, fs_hz=run.fs_hz * m), beta_schedule=beta_schedule)
+        chain = {k: v for k, v in run.sensor.items() if k != "oversample"}
+        acc = sensor_chain(acc, run.fs_hz * m, chain)[::m]
+        t = t[::m]
+    else:
+        t, acc = simulate(run, beta_schedule=beta_schedule)
+        if run.sensor:
+            acc = sensor_chain(acc, run.fs_hz, run.sensor)
     rng = np.random.default_rng([seed, zlib.crc32(run.recording.encode())])
     acc = acc + rng.normal(0.0, run.noise * run.base_acceleration_ms2, acc.shape)
     return t, acc / G

@@ -312,7 +312,7 @@ def test_negative_free_damping_is_profiled(monkeypatch):
     monkeypatch.syspath_prepend(str(BENCHMARKS))
     from bench_crosscheck import simulate_set
 
-    rows, fs, beta, _ = simulate_set("damped", 40, 777)
+    rows, fs, beta, _, _ = simulate_set("damped", 40, 777)
     r = restoring_force_estimate(rows[8], fs[8], natural_frequency_hz=FN)
     assert r.ok, r.reason
     assert r.free_damping_ratio >= 0

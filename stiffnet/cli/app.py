@@ -37,6 +37,7 @@ from stiffnet.cli.options import (
     FsOption,
     JsonOption,
     SchedulerOption,
+    SensorOption,
     TimeUnitOption,
     WorkersOption,
 )
@@ -389,15 +390,18 @@ def analyze(
         ),
     ] = None,
     channel: ChannelOption = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Nonlinear time-series analysis, the geometric and the restoring-force estimates."""
     from stiffnet.analyze import analyze_signal
     from stiffnet.recordings import natural_frequency_of, read_recording
+    from stiffnet.restoring_force.chain import parse_sensor_option
 
+    sheet = parse_sensor_option(sensor) if sensor is not None else None
     rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
                          time_unit=time_unit)  # fmt: skip
     fn, fn_source = natural_frequency_of(recording, fn)
-    analysis = analyze_signal(rec.accel, rec.fs_hz, fn)
+    analysis = analyze_signal(rec.accel, rec.fs_hz, fn, sensor=sheet)
     result = {"recording": str(recording), **analysis.summary()}
     result["natural_frequency_source"] = fn_source
     table = Table(title=f"analysis of {recording}", show_header=False)

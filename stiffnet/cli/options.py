@@ -63,6 +63,16 @@ NaturalFrequencyOption = Annotated[
         "<recording>.json; without either the command refuses).",
     ),
 ]
+SensorOption = Annotated[
+    str | None,
+    typer.Option(
+        "--sensor",
+        help="The accelerometer chain's data sheet, KEY=VALUE,... with keys resonance_hz, "
+        "resonance_damping, lowpass_hz, lowpass_order, highpass_hz (a stage left out is "
+        "none); undone as given instead of fitted (default: the sidecar's 'sensor', else "
+        "fitted from the impacts).",
+    ),
+]
 ModelOption = Annotated[Path | None, typer.Option(help="ONNX model (default models/cnn.onnx).")]
 ChannelOption = Annotated[
     str | None,

@@ -21,6 +21,7 @@ from stiffnet.cli.options import (
     ModelOption,
     NaturalFrequencyOption,
     SchedulerOption,
+    SensorOption,
     TimeUnitOption,
     WorkersOption,
 )
@@ -36,6 +37,7 @@ def predict(
     model: ModelOption = None,
     threads: Annotated[int, typer.Option(help="ONNX Runtime threads.")] = 1,
     json_path: JsonOption = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
     from serving.predictor import Predictor, predict_recording
@@ -43,6 +45,9 @@ def predict(
     from stiffnet.recordings import require_rate
 
     require_rate(recording, fs)  # before loading the model
+    from stiffnet.restoring_force.chain import parse_sensor_option
+
+    sheet = parse_sensor_option(sensor) if sensor is not None else None
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -52,6 +57,7 @@ def predict(
         columns=columns,
         time_unit=time_unit,
         channel=channel,
+        sensor=sheet,
     )
     if fn is not None:
         result["natural_frequency_source"] = "option --fn"

@@ -116,14 +116,16 @@ class SensorDynamics(MeasurementEffect):
 
     name = "sensor_dynamics"
     #: Training-world prior (docs/priors.md): resonance relative to f_n, anti-alias
-    #: corner relative to fs.
+    #: corner relative to fs; what labs have: a heavy or wax-mounted sensor on a light mass
+    #: rings a few f_n up, charge amplifiers offer 0.1-10 Hz lower corners, conditioning
+    #: amplifiers low-pass down to 0.05 fs.
     prior: ClassVar[dict | None] = {
         "probability": 0.7,
-        "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 2.0],
+        "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 5.0],
                    "lowpass_order": [1.0, 4.0]},
         "relative": {
-            "resonance_hz": {"per": "natural_frequency", "range": [15.0, 300.0]},
-            "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]},
+            "resonance_hz": {"per": "natural_frequency", "range": [6.0, 300.0]},
+            "lowpass_hz": {"per": "sampling_rate", "range": [0.05, 0.45]},
         },
     }  # fmt: skip
     order = 10

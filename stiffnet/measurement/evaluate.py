@@ -208,6 +208,7 @@ def evaluate_campaign(
                 "physical_beta_interval": res.get("physical_beta_interval"),
                 "physical_agreement": res.get("physical_agreement"),
                 "physical_reason": (res.get("physical") or {}).get("reason"),
+                "sensor": (res.get("physical") or {}).get("sensor"),
                 "ood_score": res.get("ood_score"),
                 "ood_threshold": res.get("ood_threshold"),
                 "ood_checks": list((res.get("alarm") or {}).get("fired") or []),

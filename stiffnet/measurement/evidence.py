@@ -20,6 +20,7 @@ import numpy as np
 from stiffnet.campaign import Campaign, ManifestRow
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
+from stiffnet.restoring_force.chain import shared_chain
 
 #: Forcing periods read per recording (the predictor's cross-check reads as many).
 PERIODS = 24.0
@@ -59,6 +60,7 @@ def contact_law_per_recording(campaign: Campaign, rows: list[ManifestRow]) -> li
             "recording": row.recording, "ok": r.ok, "beta": r.beta,
             "contact_damping_ratio": r.contact_damping_ratio, "exponent": r.exponent,
             "contact_r2": r.contact_r2 if r.ok else None, "reason": r.reason,
+            "sensor": r.sensor.to_dict() if r.sensor is not None else None,
         })  # fmt: skip
     return out
 
@@ -78,6 +80,7 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(per_recording)
     res: dict[str, Any] = {"n": n, "answered": len(ok), "per_recording": per_recording,
                            "supports": []}  # fmt: skip
+    res["sensor"] = shared_chain([p.get("sensor") for p in per_recording])  # sensor_dynamics' start
     if len(ok) < MIN_ANSWERED:
         res["summary"] = (
             f"restoring-force evidence: the contact law was read on {len(ok)} of {n} "

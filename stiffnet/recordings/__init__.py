@@ -54,6 +54,7 @@ from stiffnet.recordings.sidecar import (
     SIDECAR_SUFFIX,
     natural_frequency_of,
     read_sidecar,
+    sidecar_entry,
     sidecar_path,
 )
 
@@ -75,6 +76,7 @@ __all__ = [
     "rate_needed_for",
     "read_recording",
     "read_sidecar",
+    "sidecar_entry",
     "reader_for",
     "readers",
     "register_reader",

@@ -1,4 +1,4 @@
-"""The sidecar ``<recording>.json``: what a recording's file does not say (f_n).
+"""The sidecar ``<recording>.json``: what a recording's file does not say (f_n, the sensor).
 
 One home for the sidecar: the commands (``analyze``, ``predict``, ``log``,
 ``predict-batch``) and the predictor resolve a recording's natural frequency through
@@ -20,6 +20,20 @@ SIDECAR_SUFFIX = ".json"
 def sidecar_path(recording: str | os.PathLike[str]) -> Path:
     """Where a recording's sidecar lives: ``run01.csv`` -> ``run01.csv.json``."""
     return Path(str(recording) + SIDECAR_SUFFIX)
+
+
+def sidecar_entry(recording: str | os.PathLike[str], key: str) -> object | None:
+    """One entry of the recording's sidecar (None without a sidecar or without the key).
+
+    Read here, bounded and depth-checked like every user JSON, so that every part of
+    the sidecar (f_n here, the sensor chain's data sheet in the physical check) comes
+    from one reader.
+    """
+    p = sidecar_path(recording)
+    if not p.is_file():
+        return None
+    d = read_json(p, "sidecar")
+    return d.get(key) if isinstance(d, dict) else None
 
 
 def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]:

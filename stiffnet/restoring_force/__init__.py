@@ -14,6 +14,8 @@ cross-check beside the paper's geometric method (:mod:`stiffnet.geometry`).
                    forcing harmonics; contact split; per-flight impulse corrections
 ``contact_law``    Kelvin-Voigt power law with release at zero force:
                    onset, stiffness, damping, exponent
+``chain``          the sensor chain (mount resonance, low-pass, high-pass) fitted
+                   jointly with the contact pulse, or a data sheet; its inverse
 ``estimate``       :func:`restoring_force_estimate`: the chain, bootstrap interval
                    over impacts, goodness of fit, refusal reasons
 =================  ==============================================================
@@ -21,6 +23,7 @@ cross-check beside the paper's geometric method (:mod:`stiffnet.geometry`).
 Never import torch, sklearn, mlflow here, nor matplotlib: the predictor imports it.
 """
 
+from stiffnet.restoring_force.chain import SensorChain, identify_sensor_chain
 from stiffnet.restoring_force.contact_law import (
     ContactLaw,
     contact_force,
@@ -45,12 +48,14 @@ __all__ = [
     "ContactLaw",
     "FreeFlightFit",
     "RestoringForceResult",
+    "SensorChain",
     "bootstrap_beta",
     "contact_force",
     "exponent_matters",
     "fit_contact_law",
     "fit_free_flight",
     "forcing_frequency",
+    "identify_sensor_chain",
     "impact_regions",
     "integrate_spectral",
     "linear_contact_start",

@@ -25,6 +25,7 @@ a gain cancels.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,6 +35,13 @@ from scipy import ndimage, stats
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
+from stiffnet.restoring_force.chain import (
+    SensorChain,
+    deconvolve,
+    fit_chain,
+    identifiability,
+    sensor_from_mapping,
+)
 from stiffnet.restoring_force.contact_law import (
     ContactLaw,
     exponent_matters,
@@ -60,6 +68,8 @@ from stiffnet.restoring_force.sensor import (
     undo_resonance,
 )
 
+#: A fitted chain's inverse is kept unless the contact law explains this much less after it.
+R2_SLACK = 0.005
 #: Shortest record, forcing periods.
 MIN_PERIODS = 4.0
 #: With f_n given, forcing lines below this fraction of it are not searched.
@@ -139,6 +149,9 @@ class RestoringForceResult:
         Corner of the sensor chain's high-pass undone before integrating (0: none).
     resonance_hz : float or None
         Mounted resonance of the accelerometer divided out (None: no ringing seen).
+    sensor : SensorChain or None
+        The sensor chain undone before the map (:mod:`.chain`): fitted from the impacts or
+        the data sheet's; None where no impact could be read.
     duration_ratio : float
         Median contact duration over the fitted law's half period ``pi / sqrt(K + k)``
         (~1 for a linear contact, less for a damped one's early release).
@@ -183,6 +196,7 @@ class RestoringForceResult:
     resonance_hz: float | None = None
     duration_ratio: float = float("nan")
     law: ContactLaw | None = field(repr=False, default=None)
+    sensor: SensorChain | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -206,6 +220,7 @@ class RestoringForceResult:
             "highpass_hz": num(self.highpass_hz),
             "resonance_hz": num(self.resonance_hz),
             "duration_ratio": num(self.duration_ratio),
+            "sensor": self.sensor.to_dict() if self.sensor is not None else None,
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -489,6 +504,105 @@ def _profile_free_damping(
     return best
 
 
+def _undo_chain(
+    m: _Map,
+    y: np.ndarray,
+    fs_hz: float,
+    ff: float,
+    period: float,
+    args: tuple,
+    highpass_hz: float | str,
+    exponent: float | None,
+    sensor: SensorChain | None,
+    beta_max: float = 100.0,
+) -> tuple[_Map, SensorChain | None, float | None, str, list[float]]:
+    """The map of the record with its sensor chain undone, the chain, the resonance divided
+    out (Hz), a refusal where the chain's band does not carry the contact, and the beta the
+    other readings give where a chain was fitted (the record as recorded, with the chain
+    undone, with its low-pass at the ends of its interval): the interval spans them.
+
+    The chain is the data sheet's (`sensor`) or fitted to the impacts of the plain map
+    (:func:`~.chain.fit_chain`); a resonance or low-pass in the band is divided out within the
+    band the record supports (:func:`~.chain.deconvolve`) and the map fitted again. Without
+    impacts to fit, the post-impact ringing alone is divided out where it dominates (the
+    older rule of :mod:`.sensor`).
+    """
+    use, k_given = args[3], args[5]
+    natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
+    ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
+    chain = sensor
+    if chain is None and m.labels is not None:
+        fn_hz = fs_hz / natural
+        core = (m.fit.force > CONTACT_SIGMAS * m.fit.sigma) & use
+        ring_hz = ring[0] * fs_hz / (2 * np.pi) if ring is not None and ring[2] > 0.5 else None
+        hint = ff * float(np.sqrt(m.law.stiffness + m.fit.stiffness)) if m.law else None
+        chain = fit_chain(m.fit.force, core, fs_hz, fn_hz, m.spc, ring_hz, m.corner * ff, hint,
+                          m.fit.sigma)  # fmt: skip
+    candidates = [(m, None)]  # (map, resonance divided out)
+    mode = resonance_rule(ring, m.spc, natural) if sensor is None else None
+    if mode is not None:  # the post-impact ringing dominates: divide that mode out
+        m_ring = _remap(undo_resonance(y, *mode), args, highpass_hz, m.corner, exponent)
+        candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
+    if chain is None or not chain.has_dynamics:
+        best = max(candidates, key=lambda c: _contact_r2(c[0]))
+        return best[0], chain, best[1], "", []
+    flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
+    m2 = _remap(flat, args, highpass_hz, m.corner, exponent)
+    if chain.contact_hz is None and m2.law is not None and k_given is not None:
+        contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
+        chain = dataclasses.replace(chain, contact_hz=contact_hz)
+    refusal = identifiability(chain)
+    fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
+    if m2.info.get("physical_class") == NO_CONTACT and (chain.lowpass_hz or np.inf) < fastest:
+        refusal = (
+            f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
+            f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
+            "this sensor smooths away"
+        )
+    if chain.source == "fitted" and not refusal:
+        # the chain that makes the contact force a function of the state: a fitted chain
+        # whose inverse leaves the contact law worse than the record as recorded (or with only
+        # its ringing divided out) is not the record's (it is still reported)
+        rivals = (
+            [c[0] for c in candidates]
+            + [m2]
+            + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        )
+        other = max(candidates, key=lambda c: _contact_r2(c[0]))
+        if _contact_r2(m2) < _contact_r2(other[0]) - R2_SLACK:
+            chain = dataclasses.replace(chain, applied=False)
+            return other[0], chain, other[1], "", _readings(rivals)
+        return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
+    return m2, chain, chain.resonance_hz, refusal, []
+
+
+def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
+    """The maps with the fitted low-pass at the ends of its interval (its uncertainty)."""
+    ends = chain.intervals.get("lowpass_hz") if chain.lowpass_hz else None
+    if not ends or not all(np.isfinite(ends)):
+        return []
+    return [
+        _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
+                          m.fit.sigma), args, highpass_hz, m.corner, exponent)
+        for f in ends if 0 < f < 0.5 * fs_hz
+    ]  # fmt: skip
+
+
+def _readings(maps: list[_Map]) -> list[float]:
+    """Beta of each readable map (no refusal, a contact law explaining half the force)."""
+    return [float(x.law.stiffness / x.fit.stiffness) for x in maps
+            if x.law is not None and not x.refusal and x.law.r2 >= MIN_CONTACT_R2
+            and x.fit.stiffness > 0]  # fmt: skip
+
+
+def _remap(y, args, highpass_hz, corner, exponent) -> _Map:
+    """The map of `y` with the high-pass fitted again (``"auto"``) or at `corner`."""
+    _, dtau, tau, use, period, k_given = args
+    if highpass_hz == "auto":
+        return _auto_map(y, dtau, tau, use, period, k_given, exponent)[0]
+    return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent)
+
+
 def restoring_force_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -501,6 +615,7 @@ def restoring_force_estimate(
     seed: int = 0,
     max_periods: float | None = None,
     highpass_hz: float | str = "auto",
+    sensor: SensorChain | dict | None = None,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -532,6 +647,11 @@ def restoring_force_estimate(
         free-flight law (:mod:`~stiffnet.restoring_force.sensor`; a corner
         within two standard errors of zero counts as none); a number gives it
         (the data sheet's), 0 assumes none.
+    sensor : SensorChain or dict, optional
+        The sensor chain from its data sheet (``resonance_hz``, ``resonance_damping``,
+        ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; a stage left out is none): it is
+        undone as given and nothing is fitted. None (default) identifies the chain from the
+        impacts (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
 
     Returns
     -------
@@ -555,6 +675,13 @@ def restoring_force_estimate(
             raise ConfigError(f"{name} must be a positive number, got {value!r}")
     if not 0 < coverage < 1:
         raise ConfigError(f"coverage must be in (0, 1), got {coverage!r}")
+    if isinstance(sensor, dict):
+        try:
+            sensor = sensor_from_mapping(sensor, fs_hz)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+    if sensor is not None:  # the data sheet's high-pass is the one undone
+        highpass_hz = float(sensor.highpass_hz)
     a = as_signal(accel, 32, "acceleration")
     if float(np.std(a)) == 0.0:
         raise SignalError("acceleration is constant")
@@ -579,7 +706,7 @@ def restoring_force_estimate(
         ]
     options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
                    classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
-                   highpass_hz=highpass_hz)  # fmt: skip
+                   highpass_hz=highpass_hz, sensor=sensor)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -604,6 +731,7 @@ def _estimate_at(
     seed: int,
     max_periods: float | None,
     highpass_hz: float | str,
+    sensor: SensorChain | None,
 ) -> RestoringForceResult:
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
     if not ff < 0.5 * fs_hz:
@@ -635,23 +763,17 @@ def _estimate_at(
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
         m = _fit_map(*args, corner, exponent)
-    resonance = None
-    natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
-    ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
-    mode = resonance_rule(ring, m.spc, natural)
-    if mode is not None:  # the mount's ringing dominates the free flight: divide it out
-        flat = undo_resonance(y, *mode)
-        if highpass_hz == "auto":
-            m2, corner2 = _auto_map(flat, dtau, tau, use, period, k_given, exponent)
-        else:
-            m2, corner2 = _fit_map(flat, dtau, tau, use, period, k_given, corner, exponent), corner
-        if _contact_r2(m2) >= _contact_r2(m):
-            m, corner, resonance = m2, corner2, mode[0] * fs_hz / (2 * np.pi)
+    beta_max = max(float(hi) for _, _, hi in classes)
+    m, chain, resonance, refusal, rivals = _undo_chain(
+        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max
+    )
+    corner = m.corner
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
         m = _profile_free_damping(m, dtau, tau, use, period, k_given, exponent)
     fit, info = m.fit, m.info
     info["resonance_hz"] = resonance
+    info["sensor"] = chain
     info.update(
         forcing_frequency_hz=ff,
         polarity=polarity,
@@ -660,6 +782,8 @@ def _estimate_at(
         highpass_hz=corner * ff,
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
+    if refusal:  # the sensor's band: neither a class nor "no contact" can be read
+        return _refuse(refusal, **{**info, "physical_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
     law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
@@ -689,6 +813,8 @@ def _estimate_at(
             law, fit.force, fit.displacement, fit.velocity, labels, n_imp, k, coverage, rng
         )
         lo, hi = widen_interval(beta, lo, hi, law.r2, spc)
+    if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
+        lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(k))
     cls = str(beta_class(np.array([beta]), classes)[0])
     return RestoringForceResult(

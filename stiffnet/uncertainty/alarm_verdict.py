@@ -40,6 +40,7 @@ ALARM_WORDS = {
     "features": "the recording's inclination features are unlike the training data",
     "physical": "the restoring-force cross-check reads a beta outside the model's interval "
     "(the physics of this rig may be missing from the training data)",
+    "sensor": "the recording's sensor chain lies outside the chains the model was trained on",
 }
 
 #: The physical check fires when the two beta intervals are disjoint: its score is the

@@ -1,0 +1,680 @@
+"""The accelerometer's chain identified from the impacts, and undone within the band it passes.
+
+Every impact is a known kind of input. In contact a Kelvin-Voigt restraint and the
+free spring act in parallel, so the contact force is the damped oscillation::
+
+    F(t) = v0 exp(-s t) [ K / w_d sin(w_d t) + c_c (cos(w_d t) - s / w_d sin(w_d t)) ]
+
+from the onset (``d = 0``, ``d' = v0``) until it first returns to zero (the
+restraint never pulls), with ``w_d^2 + s^2 = W^2 = k + K``, ``c_c ~ 2 s`` and
+``K = W^2 - k``: its shape is set by the contact frequency ``W / 2 pi`` and
+damping ratio ``s / W`` alone, its size by the impact velocity ``v0``. The
+recorded acceleration is that force through the sensor chain (mounted resonance
+``w_r^2 / (s^2 + 2 z_r w_r s + w_r^2)``, Butterworth anti-alias low-pass of some
+order at ``f_l``): the free-flight law's residual around each impact
+(:mod:`.free_flight`) is ``v0_i (h * F)(t - t0_i)`` plus a slow baseline.
+:func:`fit_chain` fits that model to all the impacts of a record at once
+(shared contact shape and chain; per impact onset, size and a linear baseline,
+the linear ones by variable projection), for each chain structure (none, the
+resonance, the low-pass of order 1-4, both), and keeps the structure of least
+BIC. Intervals come from the fit's Jacobian.
+
+:func:`deconvolve` divides the record by the identified chain's response within
+the band the data support (a Wiener gain from the record's own noise floor,
+:func:`wiener_gain`), so that the force-displacement map downstream sees the
+contact force; :func:`identifiability` refuses where the low-pass sits below the
+contact's own frequency (there the contact's shape, hence beta, is the filter's).
+The charge amplifier's high-pass is not part of this fit: a first-order
+high-pass leaves a short pulse untouched and is identified with the free-flight
+law instead (:mod:`.sensor`).
+
+References: Worden & Tomlinson, *Nonlinearity in Structural Dynamics* (ch. 7,
+restoring force); the paper's eqs 11-12 (the contact law).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import ndimage, optimize, signal, stats
+
+#: Fine-grid oversampling of the pulse model (the chain as the analog one it discretises).
+OVERSAMPLE = 16
+#: Most impacts one fit uses (the largest); bounds the cost.
+MAX_IMPACTS = 8
+#: The mount's resonance is at least this many times the contact's frequency (slower
+#: ringing is the contact's own oscillation).
+MIN_RESONANCE_RATIO = 1.5
+#: The chain-free pulse fit within this factor of the noise variance ends the search (ideal
+#: records: 0.2-0.7; a chain that matters to beta: 3-50).
+NOISE_FLOOR = 2.0
+#: The contact's half period is at most this many times its core's duration.
+MAX_HALF_PERIODS = 2.5
+#: The contact is at least this fraction of the plain map's contact frequency.
+PLAIN_CONTACT_FRACTION = 0.8
+#: Points of the coarse grid that starts each stage.
+GRID = 12
+#: A mount's resonance is lightly damped (0.01-0.1 on sensors): a better damped pair is a
+#: low-pass's (a Butterworth's lightest: 0.38 at order 4), which a free resonance would mimic.
+MAX_RESONANCE_DAMPING = 0.15
+#: Function evaluations per least-squares start.
+MAX_NFEV = 40
+#: Low-pass orders tried.
+ORDERS = (1, 2, 3, 4)
+#: Corners at or above this fraction of fs barely touch the record: reported as none.
+MAX_CORNER_FRACTION = 0.45
+#: A chain stage is kept when it lowers the BIC by at least this much and leaves at most this
+#: fraction of the simpler structure's squared residual (the contact model is not exact: at
+#: 2 % noise a wrong extra stage buys a few per cent of it; a real one, half or more).
+MIN_BIC_GAIN = 10.0
+STAGE_GAIN = 0.7
+#: Nominal coverage of the reported intervals.
+COVERAGE = 0.9
+#: The Wiener gain of the inverse is capped at this amplification.
+MAX_GAIN = 30.0
+#: Spectral subtraction's over-subtraction factor (how far above the noise floor a bin must
+#: rise before the inverse acts on it): 1, the Wiener filter. Larger values cut into the
+#: contact's band (beta 30 read 27 through a 4th-order low-pass at 0.1 fs with 1.5-4).
+OVER_SUBTRACTION = 1.0
+#: A low-pass corner below this multiple of the contact frequency refuses beta.
+MIN_LOWPASS_RATIO = 1.0
+
+
+@dataclass(frozen=True)
+class SensorChain:
+    """A sensor chain: mounted resonance, anti-alias low-pass, charge-amplifier high-pass.
+
+    Attributes
+    ----------
+    resonance_hz, resonance_damping : float or None
+        Mounted resonance and its damping ratio (None: none in the band).
+    lowpass_hz : float or None
+        Butterworth corner (None: none in the band).
+    lowpass_order : int or None
+    highpass_hz : float
+        First-order high-pass corner (0: none).
+    source : str
+        ``"fitted"`` (from the record) or ``"data sheet"`` (given).
+    intervals : dict
+        ``name -> [low, high]`` at :data:`COVERAGE` for the fitted quantities.
+    contact_hz, contact_damping : float or None
+        The contact's own frequency ``W / 2 pi`` and damping ratio the fit gives.
+    applied : bool
+        Whether the map was read through its inverse (a fitted chain whose inverse leaves the
+        contact law worse than the record as recorded is reported, not applied).
+    """
+
+    resonance_hz: float | None = None
+    resonance_damping: float | None = None
+    lowpass_hz: float | None = None
+    lowpass_order: int | None = None
+    highpass_hz: float = 0.0
+    source: str = "fitted"
+    intervals: dict[str, list[float]] = field(default_factory=dict)
+    contact_hz: float | None = None
+    contact_damping: float | None = None
+    applied: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready summary."""
+
+        def num(v: float | None) -> float | None:
+            return float(v) if v is not None and np.isfinite(v) else None
+
+        return {
+            "resonance_hz": num(self.resonance_hz),
+            "resonance_damping": num(self.resonance_damping),
+            "lowpass_hz": num(self.lowpass_hz),
+            "lowpass_order": int(self.lowpass_order) if self.lowpass_order else None,
+            "highpass_hz": num(self.highpass_hz),
+            "source": self.source,
+            "intervals": {k: [float(a), float(b)] for k, a, b in
+                          ((k, *v) for k, v in self.intervals.items())},
+            "contact_hz": num(self.contact_hz),
+            "contact_damping": num(self.contact_damping),
+            "applied": self.applied,
+        }  # fmt: skip
+
+    @property
+    def has_dynamics(self) -> bool:
+        """Whether a resonance or a low-pass is in the band (what :func:`deconvolve` undoes)."""
+        return bool(self.resonance_hz) or bool(self.lowpass_hz)
+
+
+#: The keys of a sensor data sheet.
+SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
+
+
+def parse_sensor_option(text: str) -> dict[str, float]:
+    """``KEY=VALUE,...`` (the CLI's ``--sensor``) as a mapping; the keys are checked by
+    :func:`sensor_from_mapping`.
+
+    Raises
+    ------
+    ConfigError
+        One line, for an item without ``=`` or a value that is not a number.
+    """
+    from stiffnet.errors import ConfigError
+
+    keys = ", ".join(SENSOR_KEYS)
+    out: dict[str, float] = {}
+    for item in (p.strip() for p in text.split(",") if p.strip()):
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise ConfigError(f"--sensor: {item!r} is not KEY=VALUE (keys: {keys})")
+        try:
+            out[key.strip()] = float(value)
+        except ValueError:
+            raise ConfigError(f"--sensor: {key.strip()} = {value!r} is not a number") from None
+    if not out:
+        raise ConfigError(f"--sensor: empty (give KEY=VALUE,... with keys {keys})")
+    return out
+
+
+def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
+    """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
+    ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage).
+
+    Raises
+    ------
+    ValueError
+        With one line naming the key, for an unknown key or a value out of range.
+    """
+    known = set(SENSOR_KEYS)
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"unknown sensor key(s) {', '.join(unknown)}; known: {sorted(known)}")
+
+    def number(key: str, low: float, high: float) -> float:
+        v = data.get(key) or 0.0
+        if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
+            raise ValueError(f"sensor {key} must be a number, got {v!r}")
+        if v and not low <= v <= high:
+            raise ValueError(f"sensor {key} = {v:g} is outside [{low:g}, {high:g}]")
+        return float(v)
+
+    fr = number("resonance_hz", 1e-3, 1e7)
+    zr = number("resonance_damping", 1e-4, 1.0) or (0.03 if fr else 0.0)
+    fl = number("lowpass_hz", 1e-3, 1e7)
+    order = number("lowpass_order", 1, 8) or (2 if fl else 0)
+    if order != int(order):
+        raise ValueError(f"sensor lowpass_order must be an integer, got {order:g}")
+    fh = number("highpass_hz", 0.0, 1e3)
+    in_band = 0.5 * fs_hz
+    return SensorChain(
+        resonance_hz=fr if 0 < fr < in_band else None,
+        resonance_damping=zr if 0 < fr < in_band else None,
+        lowpass_hz=fl if 0 < fl < in_band else None,
+        lowpass_order=int(order) if 0 < fl < in_band else None,
+        highpass_hz=fh,
+        source="data sheet",
+    )
+
+
+def chain_sos(chain: SensorChain, fs_hz: float) -> np.ndarray | None:
+    """Digital sections of the chain's resonance and low-pass at rate `fs_hz` (bilinear,
+    prewarped: the corners land where the analog ones are), or None without either."""
+    stages = []
+    if chain.resonance_hz and chain.resonance_hz < 0.5 * fs_hz:
+        w = 2.0 * fs_hz * np.tan(np.pi * chain.resonance_hz / fs_hz)
+        poles = np.roots([1.0, 2.0 * chain.resonance_damping * w, w * w])
+        stages.append(signal.zpk2sos(*signal.bilinear_zpk([], poles, w * w, fs_hz)))
+    if chain.lowpass_hz and chain.lowpass_hz < 0.5 * fs_hz:
+        stages.append(signal.butter(chain.lowpass_order, chain.lowpass_hz, fs=fs_hz, output="sos"))
+    return np.vstack(stages) if stages else None
+
+
+def chain_response(chain: SensorChain, freqs_hz: np.ndarray) -> np.ndarray:
+    """The analog chain's complex response (resonance x low-pass) at `freqs_hz`."""
+    s = 2j * np.pi * np.asarray(freqs_hz, dtype=float)
+    h = np.ones_like(s)
+    if chain.resonance_hz:
+        wr = 2 * np.pi * chain.resonance_hz
+        h = h * wr**2 / (s**2 + 2 * chain.resonance_damping * wr * s + wr**2)
+    if chain.lowpass_hz:
+        b, a = signal.butter(chain.lowpass_order, 2 * np.pi * chain.lowpass_hz, analog=True)
+        h = h * np.polyval(b, s) / np.polyval(a, s)
+    return h
+
+
+def wiener_gain(y: np.ndarray, h: np.ndarray, noise_var: float) -> np.ndarray:
+    """The regularised inverse ``(1 / h) max(0, 1 - a N / P)`` per rfft bin, capped at
+    :data:`MAX_GAIN`: where the record's smoothed power ``P`` is within ``a`` times its white
+    noise floor ``N`` (:data:`OVER_SUBTRACTION`: the smoothed periodogram of pure noise
+    scatters by tens of per cent) the inverse is switched off, so it amplifies only the band
+    the data support."""
+    spec = np.abs(np.fft.rfft(y)) ** 2
+    width = max(3, y.size // 400)
+    power = ndimage.uniform_filter1d(spec, width, mode="nearest")
+    floor = noise_var * y.size
+    weight = np.clip(1.0 - OVER_SUBTRACTION * floor / np.maximum(power, 1e-300), 0.0, 1.0)
+    inverse = 1.0 / h
+    mag = np.abs(inverse)
+    inverse = np.where(mag > MAX_GAIN, inverse * MAX_GAIN / np.maximum(mag, 1e-300), inverse)
+    return inverse * weight
+
+
+def deconvolve(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: float) -> np.ndarray:
+    """The record divided by the chain's resonance and low-pass, within the band it passes.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        Recorded acceleration (treated as periodic: its ends are not used downstream).
+    fs_hz : float
+    chain : SensorChain
+    noise_sigma : float
+        Standard deviation of the record's white noise (the free flight's scatter).
+    """
+    if not chain.has_dynamics:
+        return y
+    freqs = np.fft.rfftfreq(y.size, 1.0 / fs_hz)
+    gain = wiener_gain(y, chain_response(chain, freqs), noise_sigma**2)
+    gain[0] = 1.0
+    return np.fft.irfft(np.fft.rfft(y) * gain, y.size)
+
+
+def identifiability(chain: SensorChain) -> str:
+    """Rule: the one-line refusal where the low-pass does not pass the contact, else ''."""
+    if chain.lowpass_hz and chain.contact_hz:
+        if chain.lowpass_hz < MIN_LOWPASS_RATIO * chain.contact_hz:
+            return (
+                f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
+                f"{chain.contact_hz:.0f} Hz: beta is not identifiable from this sensor"
+            )
+    return ""
+
+
+# --- the joint fit ----------------------------------------------------------------------
+
+
+@dataclass
+class _Windows:
+    """The impacts' samples: residual force ``(n, length)``, each window's first sample, and
+    each impact's core duration (samples)."""
+
+    r: np.ndarray
+    start: np.ndarray
+    core: np.ndarray
+    pre: int
+    free_hz: float = 0.0
+    plain_contact_hz: float = 0.0
+
+    @property
+    def n(self) -> int:
+        return self.r.shape[0]
+
+    @property
+    def length(self) -> int:
+        return self.r.shape[1]
+
+
+def impact_windows(force: np.ndarray, core: np.ndarray, pre: int, post: int) -> _Windows:
+    """Windows of `pre` samples before to `post` after each impact's first core sample, for the
+    :data:`MAX_IMPACTS` largest impacts whose windows lie inside the record."""
+    labels, n = ndimage.label(core)
+    idx = np.arange(1, n + 1)
+    first = np.array(ndimage.minimum(np.arange(force.size), labels, idx), dtype=int)
+    size = np.array(ndimage.sum(core, labels, idx), dtype=float)
+    peak = np.array(ndimage.maximum(force, labels, idx))
+    ok = (first - pre >= 0) & (first + post < force.size)
+    pick = np.flatnonzero(ok)[np.argsort(-peak[ok])[:MAX_IMPACTS]]
+    pick = pick[np.argsort(first[pick])]
+    starts = first[pick] - pre
+    rows = starts[:, None] + np.arange(pre + post)[None, :]
+    return _Windows(force[rows], starts, size[pick], pre)
+
+
+def _unpack(theta, structure, fs_hz):
+    """(chain, contact Hz, contact zeta) from the log parameters of a structure."""
+    res, order = structure
+    contact_hz, zeta = np.exp(theta[0]), np.exp(theta[1])
+    k = 3
+    fr = zr = fl = None
+    if res:  # the resonance relative to the contact: a mount rings faster than the contact
+        fr, zr = contact_hz * np.exp(theta[k]), np.exp(theta[k + 1])
+        k += 2
+    if order:
+        fl = np.exp(theta[k])
+    chain = SensorChain(resonance_hz=fr, resonance_damping=zr, lowpass_hz=fl,
+                        lowpass_order=order or None)  # fmt: skip
+    return chain, contact_hz, zeta
+
+
+def _n_shape(structure) -> int:
+    return 3 + 2 * bool(structure[0]) + bool(structure[1])
+
+
+def contact_pulse(
+    t: np.ndarray, contact_hz: float, zeta: float, offset: float = 0.0, free_hz: float = 0.0
+) -> np.ndarray:
+    """The Kelvin-Voigt contact force of unit impact velocity at times `t` (s): zero before
+    the onset and after the force first returns to zero (the restraint never pulls).
+
+    In contact ``d'' + 2 s d' + W^2 d = -k e + forcing``: the penetration oscillates from
+    ``d(0) = 0``, ``d'(0) = 1`` about an equilibrium ``offset / W`` (the free spring's pull
+    at the gap and the forcing, in units of the impact velocity over ``W``); the force is
+    ``K d + 2 s d'`` with ``K = W^2 - k`` (``k`` from `free_hz`).
+    """
+    w = 2 * np.pi * contact_hz
+    s = zeta * w
+    wd = w * np.sqrt(max(1.0 - zeta**2, 1e-6))
+    tt = np.maximum(t, 0.0)
+    decay = np.exp(-s * tt)
+    sin, cos = np.sin(wd * tt), np.cos(wd * tt)
+    rho = offset / w
+    d = rho * (1.0 - decay * (cos + s / wd * sin)) + decay * sin / wd
+    v = rho * decay * sin * w**2 / wd + decay * (cos - s / wd * sin)
+    f = (w**2 - (2 * np.pi * free_hz) ** 2) * d + 2 * s * v
+    after = np.cumsum((f <= 0) & (tt > 0)) > 0
+    return np.where((t >= 0) & ~after, f, 0.0)
+
+
+def _residuals(theta, win: _Windows, fs_hz: float, structure) -> np.ndarray:
+    """Residuals of the pulse model (onsets last in `theta`), each impact's size and linear
+    baseline projected out (variable projection)."""
+    n, length = win.n, win.length
+    chain, contact_hz, zeta = _unpack(theta, structure, fs_hz)
+    fine = fs_hz * OVERSAMPLE
+    t = np.arange((length + 2) * OVERSAMPLE) / fine
+    table = contact_pulse(t, contact_hz, zeta, theta[2], win.free_hz)
+    sos = chain_sos(chain, fine)
+    if sos is not None:
+        table = signal.sosfilt(sos, table)
+    t0 = theta[-n:]
+    pos = (np.arange(length)[None, :] - t0[:, None]) * OVERSAMPLE
+    pulse = np.interp(pos, np.arange(table.size), table, left=0.0, right=table[-1])
+    u = np.broadcast_to(np.arange(length) / length - 0.5, (n, length))
+    a = np.stack([pulse, np.ones((n, length)), u], axis=-1)
+    ata = np.einsum("nli,nlj->nij", a, a) + 1e-12 * np.eye(3)
+    coef = np.linalg.solve(ata, np.einsum("nli,nl->ni", a, win.r)[..., None])[..., 0]
+    return (win.r - np.einsum("nli,ni->nl", a, coef)).ravel()
+
+
+@dataclass
+class _StructureFit:
+    structure: tuple[bool, int]
+    theta: np.ndarray
+    sse: float
+    bic: float
+    cov: np.ndarray | None
+
+
+def _slowest_contact(win: _Windows, fs_hz: float, fn_hz: float) -> float:
+    """Lowest contact frequency: a contact lasts about half its period (less when damped), so
+    its half period is at most :data:`MAX_HALF_PERIODS` times the core seen above the noise
+    (a chain only lengthens it), and at least :data:`PLAIN_CONTACT_FRACTION` of the contact
+    frequency the record as recorded gives (a low-pass smears the pulse, so that map reads the
+    contact softer, never much stiffer, than it is)."""
+    slowest = fs_hz / (2 * MAX_HALF_PERIODS * max(float(np.median(win.core)), 1.0))
+    slowest = max(slowest, PLAIN_CONTACT_FRACTION * win.plain_contact_hz)
+    return max(1.05 * fn_hz, min(slowest, 0.2 * fs_hz))
+
+
+def _bounds(win: _Windows, fs_hz: float, fn_hz: float, structure):
+    nyq = 0.49 * fs_hz
+    lo = [np.log(_slowest_contact(win, fs_hz, fn_hz)), np.log(1e-3), -0.9]
+    hi = [np.log(nyq), np.log(0.95), 0.5]
+    if structure[0]:
+        lo += [np.log(MIN_RESONANCE_RATIO), np.log(3e-3)]
+        hi += [np.log(nyq / fn_hz), np.log(MAX_RESONANCE_DAMPING)]
+    if structure[1]:
+        lo += [np.log(0.5 * fn_hz)]
+        hi += [np.log(nyq)]
+    lo += [max(win.pre - 4.0, 0.0)] * win.n
+    hi += [win.pre + 1.0] * win.n
+    return np.array(lo), np.array(hi)
+
+
+def _fit_structure(win: _Windows, fs_hz: float, fn_hz: float, structure, starts) -> _StructureFit:
+    """Least squares of one chain structure from each start; the best."""
+    lower, upper = _bounds(win, fs_hz, fn_hz, structure)
+    k, n = _n_shape(structure), win.n
+    sparsity = np.zeros((win.r.size, k + n), dtype=int)
+    sparsity[:, :k] = 1
+    sparsity[np.arange(win.r.size), k + np.repeat(np.arange(n), win.length)] = 1
+    best = None
+    for start in starts:
+        sol = optimize.least_squares(
+            _residuals, np.clip(start, lower + 1e-9, upper - 1e-9), bounds=(lower, upper),
+            x_scale="jac", max_nfev=MAX_NFEV, diff_step=1e-4, jac_sparsity=sparsity,
+            args=(win, fs_hz, structure),
+        )  # fmt: skip
+        sse = float(np.sum(sol.fun**2))
+        if best is None or sse < best[1]:
+            best = (sol, sse)
+    sol, sse = best
+    m = win.r.size
+    p = k + 4 * n  # the shape, and each impact's onset, size and linear baseline
+    bic = m * np.log(max(sse, 1e-300) / m) + p * np.log(m)
+    jac = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
+    cov = np.linalg.pinv(jac.T @ jac)[:k, :k] * sse / max(m - p, 1)
+    return _StructureFit(structure, sol.x, sse, float(bic), cov)
+
+
+def _grid_best(win: _Windows, fs_hz: float, structure, thetas: list[np.ndarray], i: int) -> float:
+    """``exp(theta[i])`` of the candidate in `thetas` with the least squared residual (a
+    global look at one parameter before the local least squares)."""
+    sse = [float(np.sum(_residuals(th, win, fs_hz, structure) ** 2)) for th in thetas]
+    return float(np.exp(thetas[int(np.argmin(sse))][i]))
+
+
+def _theta(structure, contact, res, corner, timing: np.ndarray) -> np.ndarray:
+    """Parameters of a structure: logs of the shape's frequencies and damping, then timing."""
+    th = [np.log(contact[0]), np.log(contact[1]), contact[2]]
+    if structure[0]:
+        th += [np.log(max(res[0] / contact[0], MIN_RESONANCE_RATIO * 1.01)), np.log(res[1])]
+    if structure[1]:
+        th += [np.log(corner)]
+    return np.r_[th, timing]
+
+
+def _shape_of(fit: _StructureFit, fs_hz: float):
+    """(contact (Hz, zeta, offset), resonance (Hz, zeta) or None, corner or None, timing)."""
+    chain, contact_hz, zeta = _unpack(fit.theta, fit.structure, fs_hz)
+    res = (chain.resonance_hz, chain.resonance_damping) if chain.resonance_hz else None
+    timing = fit.theta[_n_shape(fit.structure) :]
+    return (contact_hz, zeta, fit.theta[2]), res, chain.lowpass_hz, timing
+
+
+def fit_chain(
+    force: np.ndarray,
+    core: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    samples_per_contact: float,
+    ring_hz: float | None = None,
+    highpass_hz: float = 0.0,
+    contact_hz: float | None = None,
+    noise_sigma: float | None = None,
+) -> SensorChain | None:
+    """The sensor chain and the contact's poles, fitted jointly to every impact's pulse.
+
+    Stage by stage, each from the last one's contact: no chain; the resonance (from the
+    post-impact ring, or a few multiples of the contact frequency); the second-order
+    low-pass (from 1.5 and 4 contact frequencies); both where the resonance paid; the
+    other orders from the best low-pass.
+
+    Parameters
+    ----------
+    force : numpy.ndarray
+        Residual force of the free-flight law (compressive positive), the record's rate.
+    core : numpy.ndarray
+        Samples well inside a contact (beyond a few free-flight sigmas).
+    fs_hz, natural_frequency_hz : float
+    samples_per_contact : float
+        Median core samples per impact (the contact's duration, smeared by the chain).
+    ring_hz : float, optional
+        A post-impact ringing frequency, the resonance's start.
+    highpass_hz : float
+        The high-pass corner found with the free-flight law (reported with the chain).
+    contact_hz : float, optional
+        The contact frequency of the plain map's law, a start beside the duration's.
+    noise_sigma : float, optional
+        The record's white-noise scatter: where the chain-free pulses fit down to
+        :data:`NOISE_FLOOR` times its variance, no chain is fitted.
+
+    Returns
+    -------
+    SensorChain or None
+        The structure of least BIC, its parameters and intervals (a stage kept only where it
+        lowers the BIC by :data:`MIN_BIC_GAIN`); None with fewer than 3 usable impacts.
+    """
+    labels, n_core = ndimage.label(core)
+    if n_core < 3:
+        return None
+    # the core's own runs: the map's impacts merge a ring's lobes into one
+    spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_core + 1))))
+    spc = max(min(spc, float(samples_per_contact)), 1.0)
+    pre = int(max(3, np.ceil(0.5 * spc)))
+    tail = int(max(8, np.ceil(1.5 * spc)))
+    if ring_hz:
+        tail = max(tail, int(np.ceil(3 * fs_hz / ring_hz)))
+    win = impact_windows(force, core, pre, int(np.ceil(spc)) + tail)
+    if win.n < 3:
+        return None
+    win.free_hz = natural_frequency_hz
+    win.plain_contact_hz = float(contact_hz or 0.0)
+    fn, cap = natural_frequency_hz, 0.45 * fs_hz
+    timing = np.full(win.n, pre - 0.5)
+
+    def run(structure, starts):
+        fits[structure] = _fit_structure(win, fs_hz, fn, structure, starts)
+        return fits[structure]
+
+    fits: dict[tuple[bool, int], _StructureFit] = {}
+    hint = [float(np.clip(contact_hz, 1.2 * fn, 0.4 * fs_hz))] if contact_hz else []
+    grid = np.geomspace(1.01 * _slowest_contact(win, fs_hz, fn), 0.4 * fs_hz, GRID)
+    st = (False, 0)
+    c_best = _grid_best(win, fs_hz, st, [_theta(st, (c, 0.1, 0.0), None, None, timing)
+                                          for c in grid], 0)  # fmt: skip
+    none = run(st, [_theta(st, (c, 0.1, 0.0), None, None, timing) for c in {c_best, *hint}])
+    contact, _, _, tm = _shape_of(none, fs_hz)
+    if noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2:
+        return _chosen_chain(fits, fs_hz, highpass_hz)  # the pulses leave nothing for a chain
+    st = (True, 0)
+    # a ring that dominates the pulse misleads the contact of the chain-free fit: the
+    # resonance's start is a grid over both
+    pairs = [(c, f) for c in {*grid, contact[0]} for f in np.geomspace(2 * fn, cap, GRID)
+             if f >= 1.05 * MIN_RESONANCE_RATIO * c]  # fmt: skip
+    sse = [float(np.sum(_residuals(_theta(st, (c, 0.1, 0.0), (f, 0.05), None, timing), win,
+                                   fs_hz, st) ** 2)) for c, f in pairs]  # fmt: skip
+    c_best, r_best = pairs[int(np.argmin(sse))]
+    res_starts = {r_best} | ({ring_hz} if ring_hz and ring_hz < cap else set())
+    res = run(st, [_theta(st, (c, 0.1, 0.0), (f, z), None, t) for c, f, t in
+                   [(c_best, r_best, timing), *[(contact[0], f, tm) for f in res_starts]]
+                   for z in (0.02, 0.08) if f >= 1.05 * MIN_RESONANCE_RATIO * c])  # fmt: skip
+    st = (False, 2)
+    corners = np.geomspace(0.5 * contact[0], cap, GRID)
+    l_best = _grid_best(win, fs_hz, st, [_theta(st, contact, None, f, tm) for f in corners], 3)
+    lp = run(st, [_theta(st, contact, None, l_best, tm)])
+    if res.bic < none.bic - MIN_BIC_GAIN:
+        c_r, r_r, _, t_r = _shape_of(res, fs_hz)
+        corner = _shape_of(lp, fs_hz)[2]
+        st = (True, 2)
+        l_best = _grid_best(win, fs_hz, st, [_theta(st, c_r, r_r, f, t_r) for f in corners], 5)
+        run(st, [_theta(st, c_r, r_r, c, t_r) for c in {l_best, corner}])
+    best = min((f for f in fits.values() if f.structure[1]), key=lambda f: f.bic)
+    if best.bic < min(none.bic, res.bic) - MIN_BIC_GAIN:
+        c_b, r_b, corner, t_b = _shape_of(best, fs_hz)
+        for order in (o for o in ORDERS if o != 2):
+            st = (best.structure[0], order)
+            run(st, [_theta(st, c_b, r_b, min(f * corner, cap), t_b) for f in (0.85, 1.2)])
+    return _chosen_chain(fits, fs_hz, highpass_hz)
+
+
+def _chosen_chain(fits, fs_hz: float, highpass_hz: float) -> SensorChain:
+    """Rule: the structure of least BIC, a stage kept only where it gains :data:`MIN_BIC_GAIN`;
+    a corner or resonance at or above :data:`MAX_CORNER_FRACTION` fs is reported as none."""
+    ranked = sorted(fits.values(), key=lambda f: (_n_shape(f.structure), f.structure[1]))
+    best = ranked[0]
+    for f in ranked[1:]:
+        more = _n_shape(f.structure) > _n_shape(best.structure)
+        if f.sse < (STAGE_GAIN if more else 1.0) * best.sse and f.bic < best.bic - MIN_BIC_GAIN:
+            best = f
+    chain, contact_hz, zeta = _unpack(best.theta, best.structure, fs_hz)
+    z = float(stats.norm.ppf(0.5 + COVERAGE / 2))
+    names = ["contact_hz", "contact_damping", "offset"]
+    if best.structure[0]:
+        names += ["resonance_hz", "resonance_damping"]
+    if best.structure[1]:
+        names += ["lowpass_hz"]
+    intervals = {}
+    for i, name in enumerate(names):
+        if name == "offset" or best.cov is None:
+            continue
+        if name == "resonance_hz":  # log f_r = log(contact) + log(ratio): both variances
+            var = best.cov[0, 0] + best.cov[i, i] + 2 * best.cov[0, i]
+            v = float(best.theta[0] + best.theta[i])
+        else:
+            var, v = best.cov[i, i], float(best.theta[i])
+        se = float(np.sqrt(max(var, 0.0)))
+        with np.errstate(over="ignore"):
+            ends = [float(np.exp(v - z * se)), float(np.exp(v + z * se))]
+        if all(np.isfinite(ends)):  # an unbounded one is not reported (JSON has no inf)
+            intervals[name] = ends
+    cap = MAX_CORNER_FRACTION * fs_hz
+    fr = chain.resonance_hz if chain.resonance_hz and chain.resonance_hz < cap else None
+    fl = chain.lowpass_hz if chain.lowpass_hz and chain.lowpass_hz < cap else None
+    return SensorChain(
+        resonance_hz=fr,
+        resonance_damping=chain.resonance_damping if fr else None,
+        lowpass_hz=fl,
+        lowpass_order=chain.lowpass_order if fl else None,
+        highpass_hz=highpass_hz,
+        source="fitted",
+        intervals=intervals,
+        contact_hz=contact_hz,
+        contact_damping=zeta,
+    )
+
+
+def identify_sensor_chain(
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    forcing_frequency_hz: float | None = None,
+    max_periods: float | None = 24.0,
+) -> SensorChain | None:
+    """The accelerometer chain of one recording, identified from its impacts.
+
+    The restoring-force estimate's own identification
+    (:func:`~stiffnet.restoring_force.restoring_force_estimate` with no data sheet) on at most
+    `max_periods` forcing periods, for callers that want the chain alone: ``diagnose``'s
+    starting point for ``sensor_dynamics`` and its evidence. None where the record shows no
+    impacts to fit (or cannot be read at all).
+    """
+    from stiffnet.errors import StiffnetError
+    from stiffnet.restoring_force.estimate import restoring_force_estimate
+
+    try:
+        r = restoring_force_estimate(
+            accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
+            forcing_frequency_hz=forcing_frequency_hz, max_periods=max_periods,
+        )  # fmt: skip
+    except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+    return r.sensor
+
+
+def shared_chain(chains: list[dict | None]) -> dict[str, Any] | None:
+    """The chain a campaign's recordings share (one sensor): per stage, the median over the
+    recordings that show it, where at least half of the identified ones do; None without
+    any identified chain. Input: :meth:`SensorChain.to_dict` per recording (None: unread)."""
+    seen = [c for c in chains if c]
+    if not seen:
+        return None
+    out: dict[str, Any] = {"n": len(seen)}
+    for key, partner in (("resonance_hz", "resonance_damping"), ("lowpass_hz", "lowpass_order"),
+                         ("highpass_hz", None)):  # fmt: skip
+        values = [c for c in seen if c.get(key)]
+        if 2 * len(values) < len(seen):
+            out[key] = None
+            continue
+        out[key] = float(np.median([c[key] for c in values]))
+        out[f"{key}_range"] = [float(v) for v in np.quantile([c[key] for c in values], [0.1, 0.9])]
+        if partner:
+            out[partner] = float(np.median([c[partner] for c in values]))
+    return out

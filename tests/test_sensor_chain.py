@@ -1,0 +1,285 @@
+"""The sensor chain: identified from the impacts, given by a data sheet, undone, refused.
+
+Recordings come from stiffnet's simulator and from the independent solve_ivp rig
+(tests/independent_rig.py) whose chain is scipy.signal's, run on an oversampled motion
+(the analog chain before the converter).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from serving.physical import sensor_outside_priors, with_sensor_check
+from stiffnet.errors import ConfigError
+from stiffnet.restoring_force import restoring_force_estimate
+from stiffnet.restoring_force.chain import (
+    MAX_GAIN,
+    SensorChain,
+    chain_response,
+    contact_pulse,
+    deconvolve,
+    identifiability,
+    sensor_from_mapping,
+    shared_chain,
+)
+from tests.independent_rig import RigRun, record
+
+FN = 9.48
+
+
+# --- analytic pieces --------------------------------------------------------------------
+
+
+def test_deconvolve_inverts_a_known_chain_within_its_band():
+    fs, n = 2000.0, 4000
+    t = np.arange(n) / fs
+    x = (
+        np.sin(2 * np.pi * 10 * t)
+        + 0.3 * np.cos(2 * np.pi * 150 * t)
+        + 0.1 * np.sin(2 * np.pi * 400 * t)
+    )
+    chain = SensorChain(resonance_hz=300.0, resonance_damping=0.05, lowpass_hz=250.0,
+                        lowpass_order=4)  # fmt: skip
+    freqs = np.fft.rfftfreq(n, 1 / fs)
+    y = np.fft.irfft(np.fft.rfft(x) * chain_response(chain, freqs), n)  # exact, periodic
+    assert np.max(np.abs(y - x)) > 0.1  # the chain does change the record
+    np.testing.assert_allclose(deconvolve(y, fs, chain, noise_sigma=1e-9), x, atol=1e-6)
+
+
+def test_deconvolve_leaves_bands_of_pure_noise_alone():
+    rng = np.random.default_rng(0)
+    fs, n = 2000.0, 8000
+    y = rng.standard_normal(n)  # nothing but white noise of unit variance
+    chain = SensorChain(lowpass_hz=50.0, lowpass_order=4)
+    out = deconvolve(y, fs, chain, noise_sigma=1.0)
+    freqs = np.fft.rfftfreq(n, 1 / fs)
+    plain = np.fft.irfft(np.fft.rfft(y) / chain_response(chain, freqs), n)
+    assert np.std(plain) > 1e4  # the plain inverse: up to (f / 50)^4 = 1e8 at Nyquist
+    assert np.std(out) < 0.25 * MAX_GAIN  # the Wiener weight: bounded, mostly switched off
+
+
+def test_contact_pulse_is_a_half_sine_for_an_elastic_contact():
+    w_hz = 50.0
+    t = np.linspace(-0.002, 0.02, 2000)
+    f = contact_pulse(t, w_hz, 1e-6)
+    w = 2 * np.pi * w_hz
+    inside = (t >= 0) & (t < np.pi / w)
+    np.testing.assert_allclose(f[inside], w * np.sin(w * t[inside]), rtol=1e-4, atol=1e-3)
+    assert np.all(f[~inside] == 0)
+
+
+def test_refusal_names_the_lowpass_and_the_contact_frequency():
+    chain = SensorChain(lowpass_hz=30.0, lowpass_order=4, contact_hz=52.8)
+    assert identifiability(chain) == (
+        "the low-pass at 30 Hz is below the contact's frequency 53 Hz: beta is not "
+        "identifiable from this sensor"
+    )
+    assert identifiability(SensorChain(lowpass_hz=120.0, lowpass_order=2, contact_hz=52.8)) == ""
+
+
+def test_data_sheet_mapping_checks_its_keys():
+    c = sensor_from_mapping({"resonance_hz": 1500, "lowpass_hz": 400, "highpass_hz": 1}, 2000.0)
+    assert (c.resonance_hz, c.resonance_damping, c.lowpass_order) == (None, None, 2)
+    assert c.lowpass_hz == 400 and c.highpass_hz == 1 and c.source == "data sheet"
+    with pytest.raises(ValueError, match="unknown sensor key"):
+        sensor_from_mapping({"resonance": 1500}, 2000.0)
+    with pytest.raises(ValueError, match="lowpass_order must be an integer"):
+        sensor_from_mapping({"lowpass_hz": 400, "lowpass_order": 2.5}, 2000.0)
+    with pytest.raises(ValueError, match="resonance_damping"):
+        sensor_from_mapping({"resonance_hz": 500, "resonance_damping": 3}, 2000.0)
+    with pytest.raises(ConfigError, match="unknown sensor key"):
+        restoring_force_estimate(np.sin(np.arange(4000) * 0.03), 2000.0, sensor={"f": 1})
+
+
+def test_shared_chain_is_the_median_of_the_recordings_that_show_a_stage():
+    chains = [
+        {"resonance_hz": 400.0, "resonance_damping": 0.04, "lowpass_hz": None, "highpass_hz": 1.0},
+        {"resonance_hz": 420.0, "resonance_damping": 0.06, "lowpass_hz": 900.0, "highpass_hz": 1.2},
+        {"resonance_hz": 410.0, "resonance_damping": 0.05, "lowpass_hz": None, "highpass_hz": 0.0},
+        None,
+    ]
+    out = shared_chain(chains)
+    assert out["n"] == 3 and out["resonance_hz"] == 410.0 and out["resonance_damping"] == 0.05
+    assert out["lowpass_hz"] is None  # one recording of three: noise, not the shared sensor
+    assert out["highpass_hz"] == pytest.approx(1.1)
+    assert shared_chain([None, None]) is None
+
+
+# --- the alarm's check against the training priors --------------------------------------
+
+PRIORS = {
+    "effects": [
+        {
+            "name": "sensor_dynamics",
+            "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 2.0]},
+            "relative": {
+                "resonance_hz": {"per": "natural_frequency", "range": [15.0, 300.0]},
+                "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]},
+            },
+        }
+    ]
+}
+
+
+def test_sensor_outside_priors_says_which_stage():
+    fs = 2000.0
+    inside = {"resonance_hz": 40 * FN, "lowpass_hz": 0.3 * fs, "highpass_hz": 1.0}
+    assert sensor_outside_priors(inside, PRIORS, fs, FN) is None
+    score, words = sensor_outside_priors({"lowpass_hz": 0.05 * fs}, PRIORS, fs, FN)
+    assert score == pytest.approx(np.log(3.0)) and "anti-alias low-pass at 100 Hz" in words
+    score, words = sensor_outside_priors({"resonance_hz": 5 * FN}, PRIORS, fs, FN)
+    assert "mount resonance" in words and score == pytest.approx(np.log(3.0))
+    assert "high-pass" in sensor_outside_priors({"highpass_hz": 5.0}, PRIORS, fs, FN)[1]
+    # a model trained without any chain: every chain is new to it; no card: nothing said
+    assert sensor_outside_priors({"lowpass_hz": 900.0}, {"effects": []}, fs, FN) is not None
+    assert sensor_outside_priors({"lowpass_hz": 90.0}, None, fs, FN) is None
+    rejected = {"lowpass_hz": 0.05 * fs, "applied": False}  # the contact law said no
+    assert sensor_outside_priors(rejected, PRIORS, fs, FN) is None
+
+
+def test_sensor_check_fires_the_alarm():
+    alarm = {"flag": False, "fired": [], "scores": {"embedding": 0.5},
+             "thresholds": {"embedding": 1.0}, "message": "no alarm"}  # fmt: skip
+    out = with_sensor_check(alarm, (1.1, "anti-alias low-pass at 100 Hz"))
+    assert out["flag"] and out["fired"] == ["sensor"] and "100 Hz" in out["message"]
+    assert with_sensor_check(alarm, None) is alarm
+
+
+# --- recordings through known chains -----------------------------------------------------
+
+
+def rig(sensor: dict, contact: str | None, fs: float = 2000.0, beta: float = 30.0):
+    run = RigRun(recording="r.csv", beta=beta, fs_hz=fs, duration_s=3.0, contact=contact,
+                 contact_zeta=0.15, sensor={**sensor, "oversample": 8})  # fmt: skip
+    return record(run, seed=3)[1], fs
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("contact", [None, "kelvin_voigt"])
+def test_a_mount_resonance_is_identified_and_undone(contact):
+    """Independent rig, a resonance at 40 f_n (zeta 0.05): alone and with a damped contact."""
+    accel, fs = rig({"resonance_hz": 40 * FN, "resonance_damping": 0.05}, contact)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24)
+    assert r.ok, r.reason
+    assert r.sensor.source == "fitted" and r.sensor.applied
+    assert r.sensor.resonance_hz == pytest.approx(40 * FN, rel=0.1)
+    assert r.sensor.resonance_damping == pytest.approx(0.05, rel=0.5)
+    lo, hi = r.sensor.intervals["resonance_hz"]
+    assert lo < r.sensor.resonance_hz < hi
+    assert r.beta == pytest.approx(30.0, rel=0.1)
+    assert r.to_dict()["sensor"]["resonance_hz"] == pytest.approx(r.sensor.resonance_hz)
+    json.dumps(r.to_dict(), allow_nan=False)  # JSON-safe (an unbounded interval is left out)
+
+
+@pytest.mark.slow
+def test_a_lowpass_and_highpass_are_identified_with_a_damped_contact():
+    """Independent rig: low-pass at 0.25 fs (2nd order), 1 Hz high-pass, damped contact."""
+    accel, fs = rig({"lowpass_hz": 500.0, "lowpass_order": 2, "highpass_hz": 1.0},
+                    "kelvin_voigt")  # fmt: skip
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24)
+    assert r.ok, r.reason
+    assert r.sensor.lowpass_hz == pytest.approx(500.0, rel=0.1)
+    assert r.beta == pytest.approx(30.0, rel=0.1)
+
+
+@pytest.mark.slow
+def test_data_sheet_chain_is_undone_as_given():
+    """A 4th-order low-pass at 2 contact frequencies: read from its data sheet, beta within 10 %
+    (stiffnet's own chain here), and a low-pass below the contact refused in one line
+    (the independent rig)."""
+    from tests.test_restoring_force import simulate
+
+    sheet = {"resonance_hz": 50000.0, "highpass_hz": 0.0, "lowpass_hz": 0.1 * 300 * FN,
+             "lowpass_order": 4}  # fmt: skip
+    accel, fs = simulate(30.0, [("sensor_dynamics", sheet)], fs_ratio=300.0, noise=0.02,
+                         periods=24, omega=1.05)  # fmt: skip
+    given = {k: v for k, v in sheet.items() if k != "resonance_hz"}
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, sensor=given)
+    assert r.ok, r.reason
+    assert r.sensor.source == "data sheet" and r.beta == pytest.approx(30.0, rel=0.1)
+    accel, fs = rig({"lowpass_hz": 30.0, "lowpass_order": 4}, "kelvin_voigt")
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
+                                 sensor={"lowpass_hz": 30.0, "lowpass_order": 4})  # fmt: skip
+    assert not r.ok and r.physical_class is None  # refused, not "no contact"
+    assert r.reason.startswith("the low-pass at 30 Hz is below the contact's frequency")
+    assert "\n" not in r.reason
+
+
+# --- the data sheet through the CLI and HTTP ---------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def lowpassed_csv(tmp_path_factory):
+    """A recording through a 4th-order low-pass at 0.1 fs (stiffnet's chain), as a CSV."""
+    from tests.test_restoring_force import simulate
+
+    chain = {"resonance_hz": 50000.0, "highpass_hz": 0.0, "lowpass_hz": 0.1 * 300 * FN,
+             "lowpass_order": 4}  # fmt: skip
+    accel, fs = simulate(30.0, [("sensor_dynamics", chain)], fs_ratio=300.0, noise=0.02,
+                         periods=40, omega=1.05)  # fmt: skip
+    path = tmp_path_factory.mktemp("rec") / "run.csv"
+    t = np.arange(accel.size) / fs
+    np.savetxt(path, np.column_stack([t, accel]), delimiter=",", header="t,accel", comments="")
+    return path, accel, fs
+
+
+@pytest.mark.slow
+def test_cli_reads_a_data_sheet_and_refuses_a_bad_one(lowpassed_csv, tmp_path):
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    path, _, fs = lowpassed_csv
+    out = tmp_path / "a.json"
+    sheet = f"lowpass_hz={0.1 * fs},lowpass_order=4"
+    res = CliRunner().invoke(
+        app, ["analyze", str(path), "--fn", str(FN), "--sensor", sheet, "--json", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    rf = json.loads(out.read_text())["restoring_force"]
+    assert rf["sensor"]["source"] == "data sheet" and rf["sensor"]["lowpass_order"] == 4
+    assert rf["beta"] == pytest.approx(30.0, rel=0.1)
+    for bad, words in (("lowpass=3", "unknown sensor key"), ("lowpass_hz", "not KEY=VALUE"),
+                       ("lowpass_hz=x", "is not a number")):  # fmt: skip
+        res = CliRunner().invoke(app, ["analyze", str(path), "--sensor", bad])
+        assert res.exit_code == 2 and words in res.output, res.output
+        assert "Traceback" not in res.output
+
+
+@pytest.mark.slow
+def test_http_predict_takes_a_sensor_field(lowpassed_csv):
+    from fastapi.testclient import TestClient
+
+    from serving.app import Limits, create_app
+    from serving.predictor import Predictor
+
+    _, accel, fs = lowpassed_csv
+    body = {"samples": accel.tolist(), "fs_hz": fs, "natural_frequency_hz": FN,
+            "sensor": {"lowpass_hz": 0.1 * fs, "lowpass_order": 4}}  # fmt: skip
+    with TestClient(create_app(Predictor.load(), Limits(max_upload_mb=4.0))) as client:
+        r = client.post("/predict", json=body)
+        assert r.status_code == 200, r.text
+        physical = r.json()["physical"]
+        assert physical["sensor"]["source"] == "data sheet"
+        assert physical["beta"] == pytest.approx(30.0, rel=0.1)
+        r = client.post("/predict", json={**body, "sensor": {"lowpass_hz": 100.0, "order": 2}})
+        assert 400 <= r.status_code < 500 and "sensor" in r.json()["error"], r.text
+
+
+@pytest.mark.slow
+def test_identify_sensor_chain_gives_the_chain_alone():
+    """diagnose's starting point for sensor_dynamics: stiffnet's chain, a 60 f_n mount."""
+    from stiffnet.restoring_force import identify_sensor_chain
+    from tests.test_restoring_force import simulate
+
+    chain = {"resonance_hz": 60 * FN, "resonance_damping": 0.05, "highpass_hz": 0.0,
+             "lowpass_hz": 0.0}  # fmt: skip
+    accel, fs = simulate(30.0, [("sensor_dynamics", chain)], fs_ratio=300.0, noise=0.02,
+                         periods=24, omega=1.05)  # fmt: skip
+    got = identify_sensor_chain(accel, fs, FN)
+    assert got is not None and got.source == "fitted"
+    assert got.resonance_hz == pytest.approx(60 * FN, rel=0.1)
+    assert identify_sensor_chain(np.zeros(5000), fs, FN) is None  # unreadable: nothing
