@@ -150,7 +150,7 @@ def with_sensor_check(
 ) -> dict[str, Any] | None:
     """The alarm with the sensor-chain check added: it fires when the identified chain lies
     outside the model's training priors (`outside`, from :func:`sensor_outside_priors`)."""
-    from serving.alarm import alarm_message
+    from stiffnet.uncertainty.alarm_verdict import alarm_message
 
     if outside is None:
         return alarm
