@@ -1,4 +1,4 @@
-"""Accuracy and cost of the two explainable cross-checks (and the shipped model) (issue 14).
+"""Accuracy and cost of the two explainable cross-checks (and the shipped model).
 
 For each test set it simulates recordings of 16 natural periods with parameters
 drawn from the default priors (configs/sim/default.yaml: beta 5-100 stratified
@@ -31,7 +31,7 @@ recording. Prints a Markdown table (docs/crosscheck.md) and JSON with ``--json``
 
 With the model it also measures, on an ideal 24-recording campaign written by
 ``simulate_campaign`` (:func:`campaign_agreement`), on how many recordings the
-learned model's class agrees with each cross-check's (issue 14's target: >= 22 of 24
+learned model's class agrees with each cross-check's (target: >= 22 of 24
 for the restoring force).
 """
 

@@ -1,4 +1,4 @@
-"""Benchmark the learned stiffness models on one held-out synthetic test set (issue 4).
+"""Benchmark the learned stiffness models on one held-out synthetic test set.
 
 One table, by noise level (0, 2, 5, 9 %): accuracy, macro-F1 and beta MAPE of
 

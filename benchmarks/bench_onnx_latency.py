@@ -1,4 +1,4 @@
-"""ONNX Runtime latency of the shipped models and their per-window preparation cost (issue 4).
+"""ONNX Runtime latency of the shipped models and their per-window preparation cost.
 
 For ``models/cnn.onnx`` and ``models/gbm.onnx``, in ONNX Runtime on the CPU
 with ``intra_op_num_threads=1`` (and one inter-op thread):

@@ -1,4 +1,4 @@
-"""Robustness of the shipped models on rigs with physical effects (issue 11).
+"""Robustness of the shipped models on rigs with physical effects.
 
 For each test set of ``benchmarks/configs/robustness_sets.yaml`` (the ideal world
 plus one effect in the upper half of its training prior, two at once, and
@@ -20,8 +20,8 @@ brackets, with the model's own checks only (without the restoring-force checks: 
 interval contradiction and the identified sensor chain outside the model's priors).
 
 Models are ``NAME=PATH`` pairs (``--model``); each is loaded with its own alarm
-reference / OOD reference as the predictor finds them. The models shipped before
-issue 11 (trained on the ideal world) are scored by pointing ``--model`` at a
+reference / OOD reference as the predictor finds them. The older models trained
+on the ideal world are scored by pointing ``--model`` at a
 copy: ``git show 7d10b2e:models/cnn.onnx > old/cnn.onnx`` (and its
 ``cnn.card.json`` and ``ood_reference.json``).
 

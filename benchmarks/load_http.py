@@ -384,7 +384,7 @@ def main() -> int:
     ab.add_argument("--body-timeout-s", type=float, default=5.0)
     ab.add_argument("--deadline", type=float, default=300.0, help="abuse phase limit, s")
     ab.add_argument("--legacy-server", action="store_true",
-                    help="the server has no --body-timeout-s (code before issue 15; run this "
+                    help="the server has no --body-timeout-s (older code; run this "
                     "script from such a checkout to compare)")  # fmt: skip
     args = ap.parse_args()
     if args.quick:

@@ -1,4 +1,4 @@
-"""The contract at every boundary (issue 15): bad input is one line, exit 2 (HTTP 4xx JSON),
+"""The contract at every boundary: bad input is one line, exit 2 (HTTP 4xx JSON),
 never a traceback nor a silently wrong output; outputs never destroy what is not theirs.
 
 Each explicit case is one of the red-team findings; the hypothesis tests probe the
