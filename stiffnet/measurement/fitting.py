@@ -77,6 +77,19 @@ def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
     return effect_class(name).campaign_fit_space(min(r.fs_hz for r in rows))
 
 
+def off_params(name: str, space: FitSpace) -> list[dict[str, float]] | None:
+    """ "Effect off" as a full parameter set (None for an effect without ``neutral``): the
+    neutral values, the fixed ones, and the declared defaults of every other fitted
+    parameter (a harmonic's phase at zero amplitude), so a rejected fit still names a value
+    for each parameter it fits."""
+    cls = effect_class(name)
+    if cls.neutral is None:
+        return None
+    defaults = cls().params.model_dump()
+    out = {k: defaults[k] for k in space.fitted if isinstance(defaults.get(k), int | float)}
+    return [{**out, **space.fixed, **cls.neutral}]
+
+
 def initial_design(space: FitSpace) -> np.ndarray:
     """Design points in the unit cube (see the module notes)."""
     k = len(space.free)
@@ -156,7 +169,7 @@ class _Evaluator:
 
 
 def _result(
-    ev: _Evaluator, off: np.ndarray, t0: float, off_params: list[dict[str, float]] | None = None
+    ev: _Evaluator, off: np.ndarray, t0: float, off_values: list[dict[str, float]] | None = None
 ) -> dict[str, Any]:
     """The best point, or the starting model ("off") when nothing beats it."""
     u, per = ev.best()
@@ -164,7 +177,7 @@ def _result(
     params = ev.split(u)
     if not improves:
         per = off
-        params = off_params if off_params is not None else params
+        params = off_values if off_values is not None else params
     return {
         "effects": list(ev.names),
         "params": params,
@@ -252,8 +265,7 @@ def fit_effect(
         )
     elif len(ev.cache) < budget and k > 1:
         _nelder_mead(ev, best, 0.5 / 3, budget - len(ev.cache))
-    neutral = effect_class(name).neutral
-    res = _result(ev, off, t0, None if neutral is None else [{**space.fixed, **neutral}])
+    res = _result(ev, off, t0, off_params(name, space))
     return {
         "effect": name,
         "params": res["params"][0],
@@ -303,8 +315,7 @@ def _fit_design(
     params = points[j]
     if not improves:
         per = off
-        if cls.neutral is not None:
-            params = {**space.fixed, **cls.neutral}
+        params = (off_params(name, space) or [params])[0]
     return {
         "effect": name,
         "params": params,

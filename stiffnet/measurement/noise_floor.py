@@ -39,7 +39,6 @@ from stiffnet.measurement.significance import AT_FLOOR_FACTOR
 from stiffnet.measurement.statistics import SignalStatistics, signal_statistics
 
 
-
 def split_half(
     accel: np.ndarray, row: ManifestRow, inclination: bool = True
 ) -> tuple[SignalStatistics, SignalStatistics] | None:
