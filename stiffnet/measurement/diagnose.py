@@ -44,9 +44,16 @@ from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
-from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
+from stiffnet.measurement.noise_floor import (
+    AT_FLOOR_FACTOR,
+    Floors,
+    noise_floor,
+    recording_floors,
+    verdict,
+)
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
-from stiffnet.measurement.significance import AT_FLOOR_FACTOR, significance
+from stiffnet.measurement.orbits import orbit_name, orbit_pattern
+from stiffnet.measurement.significance import significance
 from stiffnet.measurement.target import (
     CampaignTarget,
     measured_statistics,
@@ -194,12 +201,14 @@ def _diagnose(
     target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)
     names = [r.recording for r in rows]
     floor_info = noise_floor(signals, rows, FIT_SETTINGS.periods, inclination)
-    floors = {
-        FIT_SETTINGS: floor_info["floor"],
-        FIT_SETTINGS_NUMERICAL: rescale_floor(
+    floors: dict[Any, Floors] = {
+        FIT_SETTINGS: floor_info["floors"],
+        FIT_SETTINGS_NUMERICAL: recording_floors(
             floor_info, signals, rows, FIT_SETTINGS_NUMERICAL.periods
         ),
     }
+    # a non-repeatable recording (halves far apart) weighs less in every fit's objective
+    target.weights = floors[FIT_SETTINGS].weights().tolist()
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(list(base_effects), FIT_SETTINGS)
 
@@ -227,7 +236,7 @@ def _diagnose(
 
     # ---- step 0: every candidate alone against the base model
     entries: dict[str, dict[str, Any]] = {}
-    if at_floor(campaign_discrepancy(baseline), floors[FIT_SETTINGS]):
+    if floors[FIT_SETTINGS].at_floor(baseline):
         # nothing to explain, so no effect could pass the tests: no fits (a clean campaign
         # is diagnosed in seconds), every candidate says why
         candidates = []
@@ -254,9 +263,8 @@ def _diagnose(
         remaining = [n for n in candidates if n not in kept]
         if not remaining:
             break
-        if kept and at_floor(
-            campaign_discrepancy(next(iter(current.values()))), floors[FIT_SETTINGS]
-        ):
+        cur_settings, cur_per = next(iter(current.items()))
+        if kept and floors[cur_settings].at_floor(cur_per):
             for n in remaining:  # the model is at the noise floor: nothing left to explain
                 entries[n]["reasons"] = [
                     f"nothing left to explain: {', '.join(kept)} bring the model to the "
@@ -368,17 +376,18 @@ def _diagnose(
         baseline if settings is FIT_SETTINGS else target.per_recording(list(base_effects), settings)
     )
     final_stats = target.simulated_statistics(final_effects, settings)
-    residual = target.per_recording(final_effects, settings)
-    residual_where = _mean_where(measured, final_stats)
-    scale = floors[settings] / max(floor_info["floor"], 1e-12)
-    floor_where = {g: v * scale for g, v in floor_info["where"].items()}
-    v = verdict(
-        campaign_discrepancy(base_at),
-        campaign_discrepancy(residual),
-        floors[settings],
-        kept,
-        residual_where,
-        floor_where,
+    residual = target.discrepancies_of(final_stats)
+    residual_where = [
+        None if s is None else where_sums(m, s)
+        for m, s in zip(target.measured, final_stats, strict=True)
+    ]
+    v = verdict(base_at, residual, floors[settings], kept, residual_where)
+    recordings = recording_verdicts(
+        names, base_at, residual, floors[settings], target.measured, final_stats,
+        nuisances.get("orbits"),
+    )  # fmt: skip
+    v["summary"] += (
+        _above_note(recordings) + _orbit_warning(recordings) + _non_repeatable_note(recordings)
     )
     for n in kept:
         entries[n]["selected"] = True
@@ -402,6 +411,7 @@ def _diagnose(
         "fitted_params": dict(zip(kept, kept_params, strict=True)),
         "selection": steps,
         "residual_per_recording": residual.tolist(),
+        "per_recording": recordings,
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
         "restoring_force_evidence": restoring_force_evidence(campaign, rows),
@@ -420,16 +430,116 @@ def _diagnose(
     }
 
 
-def _unfitted(name: str, baseline: np.ndarray, floor: float) -> dict[str, Any]:
+def recording_verdicts(
+    names: Sequence[str],
+    baseline: np.ndarray,
+    residual: np.ndarray,
+    floors: Floors,
+    measured: Sequence[Any],
+    simulated: Sequence[Any],
+    orbits: Sequence[dict[str, Any]] | None,
+) -> list[dict[str, Any]]:
+    """Each recording judged against its own floor, with its orbit and the simulation's.
+
+    Returns
+    -------
+    list of dict
+        Per recording: ``recording``, ``floor``, ``baseline``, ``residual``, ``ratio``
+        (residual over its floor), ``above_floor``, ``non_repeatable``, ``weight``,
+        ``measured_orbit``, ``simulated_orbit``, ``orbit_matched`` (None when the measured
+        orbit does not repeat), ``distinct_orbits`` and ``starts_on_measured_orbit`` (the
+        starts profiled), ``note`` (words for the table).
+    """
+    ratios, eff = floors.ratios(residual), floors.effective()
+    non_rep, weights = floors.non_repeatable(), floors.weights()
+    out = []
+    for i, name in enumerate(names):
+        sim_orbit = orbit_name(simulated[i])
+        want = orbit_pattern(measured[i])
+        matched = None if want is None else orbit_pattern(simulated[i]) == want
+        o = (orbits or [{}] * len(names))[i]
+        notes = []
+        if non_rep[i]:
+            notes.append(
+                "non-repeatable: its halves differ by "
+                f"{floors.per_recording[i] / max(floors.median, 1e-300):.0f}x the campaign's "
+                "median floor (wandering or chaotic orbit, long transient, near grazing)"
+            )
+        if matched is False:
+            hits = o.get("starts_on_measured_orbit")
+            notes.append(
+                "simulated on another orbit than measured"
+                + (" (no start reached the measured one)" if hits == 0 else "")
+            )
+        out.append(
+            {
+                "recording": name,
+                "floor": float(eff[i]),
+                "baseline": float(baseline[i]),
+                "residual": float(residual[i]),
+                "ratio": float(ratios[i]),
+                "above_floor": bool(ratios[i] > AT_FLOOR_FACTOR),
+                "non_repeatable": bool(non_rep[i]),
+                "weight": float(weights[i]),
+                "measured_orbit": orbit_name(measured[i]),
+                "simulated_orbit": sim_orbit,
+                "orbit_matched": matched,
+                "distinct_orbits": o.get("distinct_orbits"),
+                "starts_on_measured_orbit": o.get("starts_on_measured_orbit"),
+                "note": "; ".join(notes),
+            }
+        )
+    return out
+
+
+def _above_note(recordings: Sequence[dict[str, Any]]) -> str:
+    """Which repeatable recordings stay above their floors (whatever the verdict)."""
+    above = [r for r in recordings if r["above_floor"] and not r["non_repeatable"]]
+    if not above:
+        return ""
+    worst = sorted(above, key=lambda r: -r["ratio"])[:5]
+    return (
+        f". Above {AT_FLOOR_FACTOR:g}x their own floor: "
+        + ", ".join(f"{r['recording']} ({r['ratio']:.1f}x)" for r in worst)
+        + (" and others" if len(above) > 5 else "")
+    )
+
+
+def _orbit_warning(recordings: Sequence[dict[str, Any]]) -> str:
+    """A sentence when no start reached a recording's measured orbit."""
+    lost = [r["recording"] for r in recordings if r["starts_on_measured_orbit"] == 0]
+    if not lost:
+        return ""
+    return (
+        f". No start reached the measured orbit of {', '.join(lost[:5])}"
+        + (" and others" if len(lost) > 5 else "")
+        + ": more starts, or continuation from the measured state, are needed before "
+        "concluding anything about physics there"
+    )
+
+
+def _non_repeatable_note(recordings: Sequence[dict[str, Any]]) -> str:
+    n = sum(r["non_repeatable"] for r in recordings)
+    if not n:
+        return ""
+    return (
+        f". {n} of {len(recordings)} recordings are non-repeatable (their halves disagree "
+        "more than the model does: wandering or chaotic orbits); they weigh less"
+    )
+
+
+def _unfitted(name: str, baseline: np.ndarray, floors: Floors) -> dict[str, Any]:
     """The ranking entry of a candidate not fitted because the base model is at the floor."""
     d = campaign_discrepancy(baseline)
+    judged = floors.judge(baseline)
     return {
         "effect": name,
         "selected": False,
         "significant": False,
         "reasons": [
-            f"nothing to explain: the base model ({d:.3g}) is within {AT_FLOOR_FACTOR:g}x "
-            f"the campaign's noise floor ({floor:.3g}), so it was not fitted"
+            f"nothing to explain: the base model is at the recordings' own noise floors "
+            f"({judged['n_above']} of {judged['n']} above {AT_FLOOR_FACTOR:g}x theirs), so it "
+            "was not fitted"
         ],
         "params": {},
         "fitted": [],
@@ -484,14 +594,4 @@ def _current(
     return current[settings]
 
 
-def _mean_where(measured: Sequence[Any], simulated: Sequence[Any]) -> dict[str, float]:
-    sums: dict[str, list[float]] = {}
-    for m, s in zip(measured, simulated, strict=True):
-        if s is None:
-            continue
-        for g, v in where_sums(m, s).items():
-            sums.setdefault(g, []).append(v)
-    return {g: float(np.mean(v)) for g, v in sums.items()}
-
-
-__all__ = ["candidate_effects", "diagnose_campaign"]
+__all__ = ["candidate_effects", "diagnose_campaign", "recording_verdicts"]

@@ -67,9 +67,10 @@ JOINT_PER_COORDINATE_NUMERICAL = 2
 JOINT_STEP = 0.08
 
 
-def objective_value(per_recording: np.ndarray) -> float:
-    """The fit's objective: the campaign discrepancy (mean over recordings)."""
-    return campaign_discrepancy(per_recording)
+def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None = None) -> float:
+    """The fit's objective: the campaign discrepancy (mean over recordings, weighted by the
+    target's weights: a non-repeatable recording weighs less)."""
+    return campaign_discrepancy(per_recording, weights)
 
 
 def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
@@ -149,12 +150,12 @@ class _Evaluator:
 
     def __call__(self, u: np.ndarray) -> float:
         per = self.per(u)
-        return float("inf") if per is None else objective_value(per)
+        return float("inf") if per is None else objective_value(per, self.target.weights)
 
     def best(self) -> tuple[np.ndarray, np.ndarray]:
         """The best point searched and its per-recording discrepancies with every statistic
         (scored again when the search left the inclinations out)."""
-        key = min(self.cache, key=lambda k: objective_value(self.cache[k]))
+        key = min(self.cache, key=lambda k: objective_value(self.cache[k], self.target.weights))
         if not self.target.inclination:
             return np.array(key), self.cache[key]
         if key in self.full:
@@ -173,7 +174,8 @@ def _result(
 ) -> dict[str, Any]:
     """The best point, or the starting model ("off") when nothing beats it."""
     u, per = ev.best()
-    improves = objective_value(per) < objective_value(off)
+    w = ev.target.weights
+    improves = objective_value(per, w) < objective_value(off, w)
     params = ev.split(u)
     if not improves:
         per = off
@@ -299,19 +301,19 @@ def _fit_design(
     idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
     pers = searched.per_recording_points(model, name, points, settings, inclination=False)
-    values = [objective_value(p) for p in pers]
+    values = [objective_value(p, searched.weights) for p in pers]
     j = int(np.argmin(values))
     # "effect off" on the same recordings, scored like the design: when no point beats it
     # there, the effect is off (the best point would need a full evaluation to say so)
     same = idx.size == n and not target.inclination
     off_searched = off if same else searched.per_recording(model, settings, inclination=False)
-    if values[j] >= objective_value(off_searched):
+    if values[j] >= objective_value(off_searched, searched.weights):
         per, rescored = off, False
     else:
         rescored = not (j == 0 and same)
         # the first point of the batch drew the standard noise; the others did not
         per = target.per_recording([*model, cls(**points[j])], settings) if rescored else pers[0]
-    improves = bool(objective_value(per) < objective_value(off))
+    improves = bool(objective_value(per, target.weights) < objective_value(off, target.weights))
     params = points[j]
     if not improves:
         per = off
@@ -383,14 +385,17 @@ def fit_joint(
     # held, so one effect cannot keep a share that belongs to another (a local search alone
     # stays in the valley where the first effect was fitted)
     for _ in range(0 if numerical else rounds):
-        round_start = objective_value(start)
+        round_start = objective_value(start, target.weights)
         for i, n in enumerate(names):
             others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
             fit = fit_effect(target, n, others, settings, seeds=[params[i]])
             evaluations += fit["evaluations"]
-            if objective_value(np.asarray(fit["per_recording"])) < objective_value(start):
+            w = target.weights
+            if objective_value(np.asarray(fit["per_recording"]), w) < objective_value(start, w):
                 params[i], start = dict(fit["params"]), np.asarray(fit["per_recording"], float)
-        if objective_value(start) >= round_start:  # a round that moved nothing ends the descent
+        if (
+            objective_value(start, target.weights) >= round_start
+        ):  # a round that moved nothing ends the descent
             break
     if budget is None:
         per = JOINT_PER_COORDINATE_NUMERICAL if numerical else JOINT_PER_COORDINATE

@@ -24,7 +24,8 @@ from the recordings, so a missing effect is not blamed for a wrong setting:
 ``start``
     the initial state (one of :data:`N_STARTS` draws per recording): impact
     oscillators are multistable and a simulation from another state can sit
-    on another orbit than the recording.
+    on another orbit than the recording; the orbits the starts reached are
+    returned per recording (:func:`stiffnet.measurement.orbits.start_orbits`).
 
 Profiling (:func:`profile_nuisances`): for the current effects, each nuisance
 in turn is set on a grid of :data:`GRID` values across its interval for every
@@ -45,6 +46,7 @@ from stiffnet.campaign import Campaign, ManifestRow
 from stiffnet.campaign.simulate import CampaignSolverSettings, natural_frequency
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
+from stiffnet.measurement.orbits import start_orbits
 from stiffnet.measurement.target import CampaignTarget
 
 N_STARTS = 8
@@ -199,11 +201,13 @@ def profile_nuisances(
     model = [*target.base_effects, *effects]
     n = len(target.rows)
     # initial states: each recording keeps the start whose orbit matches it best
-    pers = [
-        target.per_recording(model, settings, starts=[k] * n, inclination=False)
+    stats = [
+        target.simulated_statistics(model, settings, starts=[k] * n, inclination=False)
         for k in range(N_STARTS)
     ]
+    pers = [target.discrepancies_of(st) for st in stats]
     target.starts = [int(k) for k in np.argmin(np.vstack(pers), axis=0)]
+    orbits = start_orbits(target.measured, stats)
     for nu in info.get("nuisances", []):
         grid = np.linspace(0.0, 1.0, GRID)
         best = _profile(target, model, settings, nu, grid)
@@ -215,7 +219,11 @@ def profile_nuisances(
             r.model_copy(update={nu.name: float(v)})
             for r, v in zip(target.rows, values, strict=True)
         ]
-    out: dict[str, Any] = {"start": list(target.starts), **{"estimated": info.get("estimated", {})}}
+    out: dict[str, Any] = {
+        "start": list(target.starts),
+        "estimated": info.get("estimated", {}),
+        "orbits": orbits,
+    }
     for nu in info.get("nuisances", []):
         out[nu.name] = [float(getattr(r, nu.name)) for r in target.rows]
     if "frequency_ratio" in info.get("estimated", {}):

@@ -61,6 +61,9 @@ class CampaignTarget:
     inclination: bool = True
     #: Initial-state variant per row (multistable orbits; profiled as a nuisance).
     starts: list[int] | None = None
+    #: Per-recording weights of the objective (non-repeatable recordings weigh less;
+    #: :meth:`stiffnet.measurement.noise_floor.Floors.weights`); None: equal.
+    weights: list[float] | None = None
 
     def simulated_statistics(
         self,
@@ -89,7 +92,9 @@ class CampaignTarget:
             inclination=incl,
         )
 
-    def _discrepancies(self, sims: Sequence[SignalStatistics | None]) -> np.ndarray:
+    def discrepancies_of(self, sims: Sequence[SignalStatistics | None]) -> np.ndarray:
+        """Per-recording discrepancies of simulated statistics (a failed one scores
+        :data:`FAILED_DISCREPANCY`)."""
         out = np.full(len(self.rows), FAILED_DISCREPANCY)
         for i, (m, s) in enumerate(zip(self.measured, sims, strict=True)):
             if s is not None:
@@ -108,7 +113,7 @@ class CampaignTarget:
         """Per-recording discrepancies of the campaign simulated with ``effects``
         (``rows``, ``starts``: other nuisance values than the target's; ``inclination``: see
         :meth:`simulated_statistics`)."""
-        return self._discrepancies(
+        return self.discrepancies_of(
             self.simulated_statistics(effects, settings, rows, starts, inclination)
         )
 
@@ -144,7 +149,9 @@ class CampaignTarget:
             effect_params=stacked,
         )  # fmt: skip
         return [
-            self._discrepancies(self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination))
+            self.discrepancies_of(
+                self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination)
+            )
             for j in range(k)
         ]
 
@@ -159,6 +166,7 @@ class CampaignTarget:
             self.seed,
             self.inclination,
             None if self.starts is None else [self.starts[i] for i in idx],
+            None if self.weights is None else [self.weights[i] for i in idx],
         )
 
     def observed(self) -> dict[str, float]:

@@ -1,0 +1,121 @@
+"""Verdicts per recording: each residual against its own split-half floor, a robust
+campaign rule, non-repeatable recordings reported and weighted down, orbits named."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import binom
+
+from stiffnet.measurement.noise_floor import (
+    CHANCE_ABOVE,
+    NON_REPEATABLE_FACTOR,
+    Floors,
+    robust_summary,
+    verdict,
+)
+from stiffnet.measurement.significance import significance
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+FLOORS = np.array([0.1, 0.12, 0.08, 0.1, 0.09, 0.11, 0.1, 0.1, 2.5, 6.0])  # two wander
+
+
+def test_non_repeatable_recordings_are_flagged_and_weighted_down():
+    f = Floors(FLOORS)
+    assert f.median == pytest.approx(0.1)
+    assert f.non_repeatable().tolist() == [False] * 8 + [True, True]
+    w = f.weights()
+    assert np.all(w[:8] == 1.0)
+    limit = NON_REPEATABLE_FACTOR * 0.1
+    assert w[8:] == pytest.approx([limit / 2.5, limit / 6.0])
+
+
+def test_judge_is_a_binomial_sign_test_on_the_repeatable_recordings():
+    f = Floors(FLOORS)
+    per = FLOORS * 0.8  # every recording within its own floor
+    per[8:] = [20.0, 50.0]  # the wandering ones far above theirs: reported, not counted
+    j = f.judge(per)
+    assert j["n"] == 8 and j["n_above"] == 0 and j["at_floor"]
+    per[:3] = FLOORS[:3] * 5  # three of eight repeatable recordings above 2x their floor
+    j = f.judge(per)
+    assert j["n_above"] == 3
+    assert j["p_value"] == pytest.approx(binom.sf(2, 8, CHANCE_ABOVE))
+    assert not j["at_floor"]  # p = 0.038
+    per[1:3] = FLOORS[1:3]  # one above is what chance gives
+    assert f.judge(per)["at_floor"]
+
+
+def test_verdict_nothing_missing_despite_non_repeatable_outliers():
+    """The old rule (mean residual vs median floor) called this campaign incomplete."""
+    f = Floors(FLOORS)
+    base = FLOORS * 0.5
+    base[8:] = [4.0, 12.0]
+    assert np.mean(base) > 2 * f.median  # what the mean-based verdict saw
+    v = verdict(base, base, f, [], [None] * base.size)
+    assert v["verdict"] == "nothing_missing", v["summary"]
+    assert v["residual_summary"]["median"] == pytest.approx(np.median(base))
+
+
+def test_verdict_explained_and_robust_explained_fraction():
+    f = Floors(FLOORS)
+    base = FLOORS * 20
+    res = FLOORS * 1.2
+    res[9] = 30.0  # a non-repeatable recording left far off weighs little
+    where = [{"contact": 1.0, "free_flight": 0.0, "sensor_band": 0.0, "spectrum": 0.0}] * 10
+    v = verdict(base, res, f, ["contact_damping"], where)
+    assert v["verdict"] == "explained", v["summary"]
+    assert v["explained_fraction"] > 0.9
+    # the same residual on every repeatable recording: partially explained, where it lives
+    res = FLOORS * 5
+    v = verdict(base, res, f, ["contact_damping"], where)
+    assert v["verdict"] == "partially_explained"
+    assert v["unexplained_where"]["contact"] == pytest.approx(1.0)
+    assert 0.5 < v["explained_fraction"] < 0.95
+
+
+def test_significance_counts_excess_over_each_recordings_own_floor():
+    f = Floors(FLOORS)
+    before = FLOORS * 10
+    after = before.copy()
+    after[9] = 0.0  # only the non-repeatable recording improves: carried by one, tiny weight
+    sig = significance(before, after, 1, f)
+    assert not sig["significant"]
+    after = FLOORS * 1.0
+    sig = significance(before, after, 1, f)
+    assert sig["significant"] and sig["excess_reduction"] == pytest.approx(1.0)
+
+
+def test_robust_summary():
+    s = robust_summary(np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 100.0]))
+    assert s["median"] == 1.0 and s["trimmed_mean"] == pytest.approx(1.0)
+    assert s["mean"] == pytest.approx(10.9)
+
+
+@pytest.mark.slow
+def test_ideal_independent_rig_with_non_repeatable_recordings_is_nothing_missing(tmp_path):
+    """An ideal campaign from the independent solve_ivp rig holding a wandering
+    near-grazing recording (β 40 at 1.6 f_n, gap 0.6 mm: its halves differ ~500x the
+    campaign's median floor) and orbits of 5 impacts every 4 and 3 every 4 periods."""
+    from independent_rig import write_campaign
+    from test_independent_rig import POINTS, _runs
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.diagnose import diagnose_campaign
+
+    points = [POINTS[0], POINTS[4], POINTS[6], POINTS[7]]
+    points += [(40, 1.6, 1.9, 0.6, 1000), (60, 0.6, 1.9, 1.0, 1000), (25, 2.2, 1.9, 0.3, 1000)]
+    runs = _runs(points, duration_s=4.0)
+    for i, r in enumerate(runs):
+        r.recording = f"rec/r{i:02d}_b{r.beta}.csv"
+    d = diagnose_campaign(load_campaign(write_campaign(tmp_path / "ideal", runs)), effects=[])
+    assert d["verdict"] == "nothing_missing", d["summary"]
+    recs = {r["recording"]: r for r in d["per_recording"]}
+    assert recs["rec/r04_b40.csv"]["non_repeatable"]
+    assert "non-repeatable" in recs["rec/r04_b40.csv"]["note"]
+    assert "non-repeatable" in d["summary"]
+    assert recs["rec/r05_b60.csv"]["measured_orbit"] == "5 impacts every 4 forcing periods"
+    assert all(r["orbit_matched"] in (True, None) for r in d["per_recording"])
