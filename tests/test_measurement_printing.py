@@ -46,6 +46,7 @@ def _printed(res: dict) -> str:
     console = Console(width=200, record=True, file=None)
     with console.capture() as cap:
         console.print(commands.diagnosis_table(res, "diagnosis"))
+        console.print(commands.recording_table(res["per_recording"]))
         for line in commands.diagnosis_lines(res):
             console.print(line)
     return cap.get()
@@ -73,8 +74,17 @@ def test_rejected_and_fitted_entries_print_for_every_candidate(name):
         "explained_fraction": 0.95,
         "summary": "s",
         "restoring_force_evidence": {"summary": "evidence"},
-    }
+        "per_recording": [
+            {"recording": "a.csv", "floor": 0.1, "residual": 0.3, "ratio": 3.0,
+             "above_floor": True, "non_repeatable": False, "measured_orbit": "no impacts",
+             "simulated_orbit": "no impacts", "starts_on_measured_orbit": None,
+             "distinct_orbits": 1, "note": ""},
+            {"recording": "b.csv", "floor": 5.0, "residual": 0.3, "ratio": 0.06,
+             "above_floor": False, "non_repeatable": True, "note": "non-repeatable: ..."},
+        ],
+    }  # fmt: skip
     text = _printed(res)
+    assert "3 above" in text and "non-repeatable" in text
     assert name in text and "verdict: explained" in text
     for k in space.fitted:
         assert f"{k}=" in text

@@ -255,6 +255,8 @@ def diagnose(
     # the result is saved before anything is printed: a display problem never loses it
     write_json(json_path, res)
     out.print(diagnosis_table(res, f"diagnosis of {campaign}"))
+    if res.get("per_recording"):
+        out.print(recording_table(res["per_recording"]))
     for line in diagnosis_lines(res):
         out.print(line)
 
@@ -288,6 +290,31 @@ def diagnosis_table(res: dict[str, Any], title: str) -> Any:
             fitted_values(r),
             "yes" if r.get("selected") else "no",
             "; ".join(r.get("reasons") or []),
+        )
+    return table
+
+
+def recording_table(recordings: list[dict[str, Any]]) -> Any:
+    """Each recording against its own noise floor, with its orbit and the simulation's."""
+    from rich.table import Table
+
+    table = Table(title="per recording: the final model against each recording's own floor")
+    for col in ("recording", "floor", "residual", "x floor", "measured orbit",
+                "simulated orbit (starts on it / distinct orbits)", "note"):  # fmt: skip
+        table.add_column(col)
+    for r in recordings:
+        ratio = r.get("ratio")
+        flag = " above" if r.get("above_floor") and not r.get("non_repeatable") else ""
+        starts = r.get("starts_on_measured_orbit")
+        reach = f" ({'–' if starts is None else starts} / {r.get('distinct_orbits', '–')})"
+        table.add_row(
+            str(r.get("recording")),
+            _number(r.get("floor")),
+            _number(r.get("residual")),
+            (f"{ratio:.2g}" if isinstance(ratio, int | float) else "–") + flag,
+            str(r.get("measured_orbit", "–")),
+            str(r.get("simulated_orbit", "–")) + reach,
+            str(r.get("note", "")),
         )
     return table
 
