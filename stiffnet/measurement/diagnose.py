@@ -92,23 +92,44 @@ def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[E
     return [effect_class(n)(**p) for n, p in zip(names, params, strict=True)]
 
 
+#: Steps of the diagnosis before the fits: recordings and statistics, noise floor, nuisances.
+SETUP_STEPS = 3
+
+
+def planned_steps(n_candidates: int) -> list[int]:
+    """The diagnosis' plan, known before any work: the cumulative step count at the end of
+    the setup, of the single fits and of each possible selection step (its conditional
+    fits, :data:`JOINT_TRIES` joint refits and a profile of the nuisances), then the verdict.
+    An upper bound: a selection that stops early skips to the verdict."""
+    ends = [SETUP_STEPS, SETUP_STEPS + n_candidates]
+    for k in range(min(MAX_EFFECTS, n_candidates)):
+        ends.append(ends[-1] + (n_candidates - k if k else 0) + JOINT_TRIES + 1)
+    return [*ends, ends[-1] + 1]
+
+
 class _Progress:
-    """``progress(done, total)`` over fits whose total grows as selection proceeds, also shown
-    as a :func:`stiffnet.progress.task` line (bars with ETA when a command installs a display)."""
+    """The diagnosis' progress against its plan (:func:`planned_steps`): ``progress(done,
+    total)`` and a :func:`stiffnet.progress.task` line whose note names the stage and the
+    effect being fitted (bars with an ETA when a command installs a display)."""
 
-    def __init__(self, fn: Callable[[int, int], None] | None, line: Any = None) -> None:
-        self.fn, self.line, self.done, self.total = fn, line, 0, 0
+    def __init__(self, fn: Callable[[int, int], None] | None, line: Any, plan: list[int]) -> None:
+        self.fn, self.line, self.plan = fn, line, plan
+        self.done, self.total = 0, plan[-1]
 
-    def plan(self, n: int) -> None:
-        self.total += n
-        self.tick(0)
-
-    def tick(self, n: int = 1) -> None:
-        self.done += n
+    def to(self, done: int, note: str | None = None) -> None:
+        """Steps done so far (never backwards, never past the plan)."""
+        self.done = min(self.total, max(self.done, int(done)))
         if self.fn is not None:
-            self.fn(self.done, max(self.total, self.done))
+            self.fn(self.done, self.total)
         if self.line is not None:
-            self.line.update(self.done, max(self.total, self.done))
+            self.line.update(self.done, self.total, note=note)
+
+    def step(self, note: str | None = None) -> None:
+        self.to(self.done + 1, note)
+
+    def end_of(self, stage: int, note: str | None = None) -> None:
+        """Skip to the planned end of ``stage`` (0: setup, 1: single fits, 2 + k: step k)."""
+        self.to(self.plan[min(stage, len(self.plan) - 1)], note)
 
 
 def diagnose_campaign(
@@ -147,7 +168,8 @@ def diagnose_campaign(
     scheduler, workers
         Where the fits of one step run (:func:`stiffnet.distributed.map_tasks`).
     progress : callable, optional
-        ``progress(done, total)`` after each fit (the total grows with the steps).
+        ``progress(done, total)`` after each step of the plan (:func:`planned_steps`: the
+        total is known from the start).
     model_path : str, optional
         ONNX model whose β estimate starts the fit of recordings without β.
 
@@ -171,10 +193,16 @@ def diagnose_campaign(
 
     t0 = time.perf_counter()
     # one cluster for the whole diagnosis (a LocalCluster starts in seconds; steps are many)
-    with progress_task("diagnosis: effect fits") as line, dask_client(scheduler, workers) as client:
+    plan = planned_steps(len(candidate_effects(base_effects, user_effects, effects)))
+    with (
+        progress_task("diagnosis", plan[-1]) as line,
+        dask_client(scheduler, workers) as client,
+    ):
+        bar = _Progress(progress, line, plan)
+        bar.to(0, "reading the recordings")
         return _diagnose(
             campaign, base_effects, effects, user_effects, budget, budget_numerical, seed,
-            inclination, client, _Progress(progress, line), model_path, t0,
+            inclination, client, bar, model_path, t0,
         )  # fmt: skip
 
 
@@ -200,6 +228,7 @@ def _diagnose(
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
     target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)
     names = [r.recording for r in rows]
+    bar.step("noise floor (split halves)")
     floor_info = noise_floor(signals, rows, FIT_SETTINGS.periods, inclination)
     floors: dict[Any, Floors] = {
         FIT_SETTINGS: floor_info["floors"],
@@ -209,11 +238,11 @@ def _diagnose(
     }
     # a non-repeatable recording (halves far apart) weighs less in every fit's objective
     target.weights = floors[FIT_SETTINGS].weights().tolist()
+    bar.step("nuisances and initial states")
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(list(base_effects), FIT_SETTINGS)
-
     candidates = candidate_effects(base_effects, user_effects, effects)
-    bar.plan(len(candidates))
+    stage = ["single fits"]
 
     def run_fits(cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
         # numerical-engine fits (the long ones) first, so parallel workers finish together
@@ -222,14 +251,16 @@ def _diagnose(
             (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in order
         ]
         start = bar.done
+
+        def show(done: int, _total: int) -> None:
+            nxt = f": fitting {order[done]}" if done < len(order) else ""
+            bar.to(start + done, f"{stage[0]}{nxt}")
+
+        show(0, len(order))
         report = run_tasks(
-            _fit_task,
-            items,
-            client=client,
-            names=order,
-            progress=lambda done, _: bar.tick(start + done - bar.done),
+            _fit_task, items, client=client, names=order, progress=show,
             thread_limit=limited_threads,
-        )
+        )  # fmt: skip
         report.raise_failures()
         by_name = dict(zip(order, report.results, strict=True))
         return [by_name[n] for n in cands]
@@ -240,7 +271,6 @@ def _diagnose(
         # nothing to explain, so no effect could pass the tests: no fits (a clean campaign
         # is diagnosed in seconds), every candidate says why
         candidates = []
-        bar.plan(0)
         for n in candidate_effects(base_effects, user_effects, effects):
             entries[n] = _unfitted(n, baseline, floors[FIT_SETTINGS])
     for fit in run_fits(candidates, []):
@@ -253,6 +283,7 @@ def _diagnose(
             names,
         )
         entries[fit["effect"]] = _entry(fit, sig)
+    bar.end_of(1, "selection")
 
     # ---- forward selection with joint refits
     kept: list[str] = []
@@ -279,7 +310,7 @@ def _diagnose(
                 for n in remaining
                 if not needs_numerical(n) or entries[n]["excess_reduction"] >= SCREEN_EXCESS
             ]
-            bar.plan(len(cands))
+            stage[0] = f"step {len(kept) + 1}, on top of {', '.join(kept)}"
             fixed = _effects(kept, kept_params)
             conditional = {}
             for fit in run_fits(cands, fixed):
@@ -295,8 +326,8 @@ def _diagnose(
         order = sorted(conditional, key=lambda n: conditional[n]["bic_delta"])
         accepted = None
         tries = [n for n in order if conditional[n]["improves"]][:JOINT_TRIES]
-        bar.plan(len(tries))
         for n in tries:
+            bar.step(f"step {len(kept) + 1}: joint refit of {', '.join([*kept, n])}")
             c = conditional[n]
             names_new = [*kept, n]
             settings = settings_for(names_new)
@@ -310,7 +341,6 @@ def _diagnose(
                 rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             )
             after, params_new = joint["per_recording"], joint["params"]
-            bar.tick()
             sig = significance(before, after, len(c["fitted"]), floors[settings], names)
             prefix = f"on top of {', '.join(kept)} (joint refit): " if kept else ""
             record = {
@@ -355,6 +385,7 @@ def _diagnose(
         )
         for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
             entries[name_k]["params"] = p
+        bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
         before_profile = (list(target.rows), list(target.starts or []))
         nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, nuisance_info)
         if (list(target.rows), list(target.starts or [])) != before_profile:
@@ -370,6 +401,7 @@ def _diagnose(
         }
 
     # ---- the final model and the verdict
+    bar.to(bar.total - 1, "the final model against every recording")
     settings = settings_for(kept)
     final_effects = [*base_effects, *_effects(kept, kept_params)]
     base_at = (
@@ -382,6 +414,7 @@ def _diagnose(
         for m, s in zip(target.measured, final_stats, strict=True)
     ]
     v = verdict(base_at, residual, floors[settings], kept, residual_where)
+    bar.to(bar.total, "done")
     recordings = recording_verdicts(
         names, base_at, residual, floors[settings], target.measured, final_stats,
         nuisances.get("orbits"),
