@@ -43,11 +43,12 @@ def _progress() -> Any:
 
 
 def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
-    from stiffnet.campaign import load_campaign
+    from stiffnet.campaign import LoadedCampaign, load_campaign
     from stiffnet.config import load_config
     from stiffnet.config.sim import SimulationConfig
 
-    camp = load_campaign(campaign)
+    # one object read once: every stage of a command (and every loop iteration) shares it
+    camp = LoadedCampaign.of(load_campaign(campaign))
     if config is not None:
         cfg = load_config(SimulationConfig, config)
     elif DEFAULT_SIM_CONFIG.is_file():

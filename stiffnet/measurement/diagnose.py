@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign
+from stiffnet.campaign.loaded import LoadedCampaign, memo
 from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
@@ -58,6 +59,7 @@ from stiffnet.measurement.target import (
     CampaignTarget,
     measured_statistics,
     needs_numerical,
+    rows_key,
     settings_for,
 )
 from stiffnet.progress import task as progress_task
@@ -192,6 +194,7 @@ def diagnose_campaign(
     from stiffnet.distributed.cluster import dask_client
 
     t0 = time.perf_counter()
+    campaign = LoadedCampaign.of(campaign)  # each recording read once
     # one cluster for the whole diagnosis (a LocalCluster starts in seconds; steps are many)
     plan = planned_steps(len(candidate_effects(base_effects, user_effects, effects)))
     with (
@@ -229,7 +232,10 @@ def _diagnose(
     target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)
     names = [r.recording for r in rows]
     bar.step("noise floor (split halves)")
-    floor_info = noise_floor(signals, rows, FIT_SETTINGS.periods, inclination)
+    floor_info = memo(
+        campaign, ("noise_floor", inclination, rows_key(rows)),
+        lambda: noise_floor(signals, rows, FIT_SETTINGS.periods, inclination),
+    )  # fmt: skip
     floors: dict[Any, Floors] = {
         FIT_SETTINGS: floor_info["floors"],
         FIT_SETTINGS_NUMERICAL: recording_floors(
@@ -447,7 +453,11 @@ def _diagnose(
         "per_recording": recordings,
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
-        "restoring_force_evidence": restoring_force_evidence(campaign, rows),
+        "restoring_force_evidence": memo(
+            campaign,
+            ("restoring_force_evidence", rows_key(rows)),
+            lambda: restoring_force_evidence(campaign, rows),
+        ),  # fmt: skip
         "nuisances": nuisances,
         "settings": {
             "seed": seed,

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import CampaignSolverSettings, natural_frequency
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
@@ -100,22 +101,40 @@ def _operating_points(rows: Sequence[ManifestRow]) -> np.ndarray:
     return np.array([index.setdefault(k, len(index)) for k in keys])
 
 
+def predicted(
+    campaign: Campaign, i: int, row: ManifestRow, model_path: str | None
+) -> dict[str, Any]:
+    """The predictor's result for recording ``i`` (once per model for a loaded campaign).
+
+    Raises what :meth:`serving.predictor.Predictor.predict` raises."""
+    from serving.predictor import Predictor
+
+    def run() -> dict[str, Any]:
+        predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        rec = campaign.recording(i)
+        return predictor.predict(
+            rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
+            source=row.recording,
+        )  # fmt: skip
+
+    return memo(campaign, ("predicted", model_path, i, natural_frequency(row)), run)
+
+
 def _beta_starts(campaign: Campaign, rows: Sequence[ManifestRow], model_path: str | None) -> list:
     """The learned model's (else the geometric method's) β per recording."""
     try:
         from serving.predictor import Predictor
 
-        predictor = Predictor.load(model_path)
+        memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        have_model = True
     except Exception:  # noqa: BLE001 - no model: the geometric method or a default
-        predictor = None
+        have_model = False
     out = []
-    for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
+    for i, row in enumerate(rows):
         beta = None
-        if predictor is not None:
+        if have_model:
             try:
-                res = predictor.predict(
-                    rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row)
-                )
+                res = predicted(campaign, i, row, model_path)
                 beta = res.get("beta") or (res.get("geometric") or {}).get("beta")
             except Exception:  # noqa: BLE001 - a recording the predictor refuses
                 beta = None
@@ -126,7 +145,8 @@ def _beta_starts(campaign: Campaign, rows: Sequence[ManifestRow], model_path: st
 def resolve_rows(
     campaign: Campaign, model_path: str | None = None
 ) -> tuple[list[ManifestRow], dict[str, Any]]:
-    """Complete the rows for simulation and list the nuisances to profile (see module notes).
+    """Complete the rows for simulation and list the nuisances to profile (see module notes;
+    once per model for a :class:`~stiffnet.campaign.LoadedCampaign`).
 
     Returns
     -------
@@ -135,6 +155,15 @@ def resolve_rows(
     info : dict
         ``nuisances`` (list of :class:`Nuisance`) and ``estimated`` (column -> rows).
     """
+    rows, info = memo(
+        campaign, ("resolve_rows", model_path), lambda: _resolve(campaign, model_path)
+    )
+    return [r.model_copy() for r in rows], info
+
+
+def _resolve(
+    campaign: Campaign, model_path: str | None
+) -> tuple[list[ManifestRow], dict[str, Any]]:
     rows = [r.model_copy() for r in campaign.rows]
     estimated: dict[str, list[str]] = {}
     for i, (row, (_, rec)) in enumerate(zip(rows, campaign.recordings(), strict=True)):

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import (
     DEFAULT_SEED,
     FIT_SETTINGS,
@@ -185,9 +186,22 @@ def measured_statistics(
     rows: Sequence[ManifestRow] | None = None,
     inclination: bool = True,
 ) -> tuple[list[SignalStatistics], list[int], list[np.ndarray]]:
-    """Statistics, lengths and samples of every recording (``rows``: resolved rows)."""
-    stats_, lengths, signals = [], [], []
+    """Statistics, lengths and samples of every recording (``rows``: resolved rows; computed
+    once per rows and ``inclination`` for a :class:`~stiffnet.campaign.LoadedCampaign`)."""
     rows = list(campaign.rows) if rows is None else list(rows)
+    key = ("measured_statistics", inclination, rows_key(rows))
+    return memo(campaign, key, lambda: _measured_statistics(campaign, rows, inclination))
+
+
+def rows_key(rows: Sequence[ManifestRow]) -> tuple:
+    """What the measured statistics of ``rows`` depend on (hashable)."""
+    return tuple((r.recording, r.fs_hz, natural_frequency(r), r.frequency_ratio) for r in rows)
+
+
+def _measured_statistics(
+    campaign: Campaign, rows: list[ManifestRow], inclination: bool
+) -> tuple[list[SignalStatistics], list[int], list[np.ndarray]]:
+    stats_, lengths, signals = [], [], []
     for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
         try:
             stats_.append(
