@@ -58,6 +58,9 @@ class RigRun:
     sensor: dict | None = field(default=None)
     #: White noise std as a fraction of the base-acceleration amplitude.
     noise: float = 0.02
+    #: Shaker distortion: ``(order, level, phase)`` terms added to the base acceleration,
+    #: ``-A [sin Ωt + Σ level sin(order Ωt + phase)]``.
+    harmonics: tuple = ()
 
     @property
     def omega_n(self) -> float:
@@ -101,10 +104,15 @@ def simulate(run: RigRun, transient_s: float | None = None) -> tuple[np.ndarray,
     t_rec = transient_s + np.arange(n) / run.fs_hz
     t_end = t_rec[-1]
 
+    def forcing(t: float) -> float:
+        return big_a * (
+            math.sin(om * t) + sum(h * math.sin(k * om * t + ph) for k, h, ph in run.harmonics)
+        )
+
     def rhs(contact: bool):
         def f(t, y):
             fc = _contact_force(run, np.array(y[0]), np.array(y[1])) if contact else 0.0
-            return [y[1], big_a * math.sin(om * t) - 2 * zeta * wn * y[1] - wn**2 * y[0] - fc]
+            return [y[1], forcing(t) - 2 * zeta * wn * y[1] - wn**2 * y[0] - fc]
 
         return f
 

@@ -62,6 +62,7 @@ class ForcingHarmonics(DynamicsEffect):
             FitParam("third_sin", -0.5, 0.5),
         ),
         polar=(Polar("second", "phase_second", 0.5), Polar("third", "phase_third", 0.5)),
+        multimodal=("phase_second", "phase_third"),
     )
 
     def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:

@@ -158,6 +158,7 @@ class SensorDynamics(MeasurementEffect):
             FitParam("resonance_damping", 0.01, 0.3, log=True),
         ),
         fixed={"highpass_hz": 1.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
+        multimodal=("resonance_hz",),
     )
 
     @classmethod

@@ -19,7 +19,11 @@ Search, in the unit cube of the effect's fit space
 * :func:`fit_effect` (one effect, others held): an initial design (9 points for
   one coordinate, a 3 x 3 grid for two, 32 Sobol points plus the centre for
   more), the effect's data-driven seeds (:meth:`~stiffnet.effects.base.Effect.fit_seeds`,
-  e.g. the sensor resonance at the measured ringing frequency), then a bounded
+  e.g. the sensor resonance at the measured ringing frequency), a **global
+  stage** over the parameters the effect declares multimodal
+  (:attr:`~stiffnet.effects.fit_space.FitSpace.multimodal`: each phase swept over
+  8 angles at 3 amplitudes, each frequency over 9 points, block after block, two
+  rounds; :func:`global_stage`), then a bounded
   Brent search between the best design point's neighbours (one coordinate) or a
   bounded Nelder-Mead from it, within ``budget`` evaluations.
   Numerical-engine effects (seconds per simulated batch, whatever its number of
@@ -46,7 +50,7 @@ from scipy.stats import qmc
 
 from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
 from stiffnet.effects.base import Effect
-from stiffnet.effects.fit_space import FitSpace
+from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
@@ -65,6 +69,10 @@ JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
 #: Nelder-Mead's first step in the unit cube for a joint refit (a local search).
 JOINT_STEP = 0.08
+#: Rounds of the global stage over an effect's multimodal parameters, and the local
+#: search's first step after it (the grid already holds the basin).
+GLOBAL_ROUNDS = 2
+LOCAL_STEP = 0.08
 
 
 def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None = None) -> float:
@@ -241,9 +249,11 @@ def fit_effect(
     if seeds:
         design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
     k = len(space.free)
+    blocks = [] if numerical else global_blocks(space)
     if budget is None:
         refine = REFINE_EVALUATIONS.get(k, REFINE_EVALUATIONS_MANY)
-        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + refine
+        sweeps = GLOBAL_ROUNDS * sum(len(grid) for _, grid in blocks)
+        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + sweeps + refine
     if len(design) > budget:  # a small budget keeps the given seeds, spreads the rest
         keep = np.unique(
             np.r_[
@@ -257,6 +267,9 @@ def fit_effect(
     ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
+    step = 0.5 / 3
+    if blocks:  # the global stage: grids over the multimodal parameters, then a local search
+        best, step = global_stage(ev, blocks, best), LOCAL_STEP
     if len(ev.cache) < budget and k == 1:  # bounded Brent between the design neighbours
         h = 1.0 / (len(design) - 1) if len(design) > 1 else 0.5
         optimize.minimize_scalar(
@@ -266,7 +279,7 @@ def fit_effect(
             options={"maxiter": budget - len(ev.cache), "xatol": 1e-3},
         )
     elif len(ev.cache) < budget and k > 1:
-        _nelder_mead(ev, best, 0.5 / 3, budget - len(ev.cache))
+        _nelder_mead(ev, best, step, budget - len(ev.cache))
     res = _result(ev, off, t0, off_params(name, space))
     return {
         "effect": name,
@@ -279,6 +292,27 @@ def fit_effect(
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
+
+
+def global_stage(
+    ev: _Evaluator, blocks: Sequence[tuple[list[int], np.ndarray]], start: np.ndarray
+) -> np.ndarray:
+    """Sweep each multimodal block's grid with the other coordinates held at the best point
+    so far, block after block, for :data:`GLOBAL_ROUNDS` rounds (blocks interact: a
+    harmonic's best phase depends on the other's); returns the best point found."""
+    u = np.asarray(start, float).copy()
+    for _ in range(GLOBAL_ROUNDS):
+        before = u.copy()
+        for idx, grid in blocks:
+            pts = np.repeat(u[None, :], len(grid), axis=0)
+            pts[:, idx] = grid
+            values = [ev(p) for p in pts]
+            j = int(np.argmin(values))
+            if values[j] < ev(u):
+                u = pts[j]
+        if np.array_equal(u, before):
+            break
+    return u
 
 
 def _fit_design(
