@@ -119,3 +119,37 @@ def test_ideal_independent_rig_with_non_repeatable_recordings_is_nothing_missing
     assert "non-repeatable" in d["summary"]
     assert recs["rec/r05_b60.csv"]["measured_orbit"] == "5 impacts every 4 forcing periods"
     assert all(r["orbit_matched"] in (True, None) for r in d["per_recording"])
+
+
+@pytest.mark.slow
+def test_recording_on_a_coexisting_orbit_is_named_and_nothing_missing(tmp_path):
+    """β 55 at 1.05 f_n settles, from rest, on the coexisting orbit of two impacts every
+    three forcing periods (the rig's solve_ivp); the starts reach it, the diagnosis names
+    it for the measurement and the chosen simulation, and finds nothing missing."""
+    from independent_rig import write_campaign
+    from test_independent_rig import POINTS, _runs
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.diagnose import diagnose_campaign
+
+    runs = _runs([POINTS[i] for i in (0, 4, 5, 7)], duration_s=3.0)
+    d = diagnose_campaign(load_campaign(write_campaign(tmp_path / "orbit", runs)), effects=[])
+    assert d["verdict"] == "nothing_missing", d["summary"]
+    rec = next(r for r in d["per_recording"] if r["recording"].endswith("beta055.csv"))
+    assert rec["measured_orbit"] == "2 impacts every 3 forcing periods"
+    assert rec["simulated_orbit"] == rec["measured_orbit"] and rec["orbit_matched"]
+    assert rec["distinct_orbits"] >= 2 and rec["starts_on_measured_orbit"] >= 1
+    assert "No start reached" not in d["summary"]
+
+
+def test_a_measured_orbit_no_start_reached_is_said_plainly():
+    from stiffnet.measurement.diagnose import _orbit_warning
+
+    recs = [{"recording": "a.csv", "starts_on_measured_orbit": 0},
+            {"recording": "b.csv", "starts_on_measured_orbit": 3},
+            {"recording": "c.csv", "starts_on_measured_orbit": None}]  # fmt: skip
+    text = _orbit_warning(recs)
+    assert "No start reached the measured orbit of a.csv" in text
+    assert "b.csv" not in text and "c.csv" not in text
+    assert "before concluding anything about physics" in text
+    assert _orbit_warning(recs[1:]) == ""
