@@ -73,3 +73,19 @@ def test_a_plain_campaign_gives_the_same_diagnosis(campaign):
     loaded = diagnose_campaign(LoadedCampaign.of(load_campaign(campaign[0])), effects=[])
     for key in ("baseline_per_recording", "noise_floor_per_recording", "verdict"):
         assert plain[key] == loaded[key]
+
+
+def test_analog_effects_are_simulated_faster_with_a_lead_in():
+    """A mounted sensor is analog: its campaign simulation runs at 8x the logger's rate and
+    drops a lead-in long enough for the high-pass to settle (7 time constants)."""
+    import math
+
+    from stiffnet.campaign.simulate import ANALOG_OVERSAMPLING, lead_in_seconds, oversampling
+    from stiffnet.effects.registry import effect_class
+
+    sensor = effect_class("sensor_dynamics")
+    assert oversampling([]) == 1 and lead_in_seconds([]) == 0.0
+    assert oversampling([effect_class("contact_damping")()]) == 1
+    assert oversampling([sensor()]) == ANALOG_OVERSAMPLING == 8
+    assert lead_in_seconds([sensor(highpass_hz=0.0)]) == pytest.approx(0.1)
+    assert lead_in_seconds([sensor(highpass_hz=0.1)]) == pytest.approx(7 / (2 * math.pi * 0.1))

@@ -58,8 +58,14 @@ ABOVE_LEVEL = 0.05
 #: is *non-repeatable* (a wandering or chaotic orbit, a long transient, near-grazing impacts).
 NON_REPEATABLE_FACTOR = 4.0
 #: A recording's floor is taken as at least this share of the campaign's median (a single
-#: split-half draw can be near zero by chance).
+#: split-half draw can be near zero by chance) ...
 MIN_FLOOR_SHARE = 0.25
+#: ... and at least this discrepancy: an RMS difference of a fifth of a visible one
+#: (:data:`~stiffnet.measurement.discrepancy.TOLERANCES`) per statistic is not called
+#: missing physics. A clean periodic record repeats to 0.002-0.01 between its halves, while
+#: the right model with its fitted values scored 0.01-0.08 on such records of an
+#: independent rig (its analog sensor chain against the simulator's oversampled filter).
+VISIBLE_FLOOR = 0.04
 
 
 @dataclass(frozen=True)
@@ -95,10 +101,10 @@ class Floors:
 
     def effective(self) -> np.ndarray:
         """Each recording's floor as judged: its own (at least :data:`MIN_FLOOR_SHARE` of the
-        median), the median where unknown."""
+        median and :data:`VISIBLE_FLOOR`), the median where unknown."""
         med = self.median
         f = np.where(np.isfinite(self.per_recording), self.per_recording, med)
-        return np.maximum(f, MIN_FLOOR_SHARE * med)
+        return np.maximum(f, max(MIN_FLOOR_SHARE * med, VISIBLE_FLOOR))
 
     def non_repeatable(self) -> np.ndarray:
         """Recordings whose halves differ far more than the campaign's typical recording."""
