@@ -180,18 +180,22 @@ def simulate_row(job: RowJob) -> tuple[np.ndarray, dict[str, Any]]:
     duration = row.duration_s or job.default_duration_s
     noise = row_noise(row)
     entropy = [job.seed, zlib.crc32(row.recording.encode())]
+    # analog hardware: simulated faster, filtered, sampled, after a lead-in (as simulate_rows)
+    k = oversampling(job.effects)
+    n = int(round(duration * row.fs_hz))
+    lead = int(np.ceil(lead_in_seconds(job.effects) * row.fs_hz * k))
     try:
         res = Simulator(job.effects).simulate(
             rows_batch([row]),
-            fs_ratio=row.fs_hz / f_n,
-            n_samples=int(round(duration * row.fs_hz)),
+            fs_ratio=row.fs_hz / f_n * k,
+            n_samples=n * k + lead,
             noise=noise,
             rng=np.random.default_rng(entropy),
         )
     except StiffnetError as exc:
         raise StiffnetError(f"{job.where}: {exc}") from None
     gain = sensor_gain(f_n)
-    accel = res.accel[0] * gain
+    accel = res.accel[0, lead : lead + n * k : k] * gain
     entry = {
         "recording": row.recording,
         "seed_entropy": entropy,

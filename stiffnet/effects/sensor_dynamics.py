@@ -160,10 +160,10 @@ class SensorDynamics(MeasurementEffect):
             FitParam("resonance_hz", 50.0, 1000.0, log=True),
             FitParam("resonance_damping", 0.01, 0.3, log=True),
         ),
-        # the mount's resonance is fitted; the electronics' filters are left out (a 1-Hz
-        # high-pass assumed where a rig has none moved the impact-aligned waveform by 0.4-0.9
-        # tolerances and the 2nd harmonic by up to 3 on an independent rig)
-        fixed={"highpass_hz": 0.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
+        # the mount's resonance is fitted; the charge amplifier's high-pass is assumed at
+        # 1 Hz (on a rig without one it leaves the impact-aligned waveform 0.4-0.9
+        # tolerances off: fitting it needs a lead-in of 7 / (2 pi f_h), seconds at 0.1 Hz)
+        fixed={"highpass_hz": 1.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
         multimodal=("resonance_hz",),
     )
 
