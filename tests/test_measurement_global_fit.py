@@ -4,14 +4,26 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from stiffnet.campaign.simulate import FIT_SETTINGS
 from stiffnet.effects.fit_space import AMPLITUDE_LEVELS, AXIS_GRID, PHASE_GRID, global_blocks
+from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement import fitting
+
+
+class PhasedHarmonics(ForcingHarmonics):
+    """The shaker's harmonics with their phases declared multimodal (a user effect)."""
+
+    name = "phased_harmonics"
+    fit_space = replace(ForcingHarmonics.fit_space, multimodal=("phase_second", "phase_third"))
+
+
+PHASED = "test_measurement_global_fit:PhasedHarmonics"
 
 
 class _Row:
@@ -54,7 +66,7 @@ def test_every_declared_multimodal_parameter_has_a_grid():
         assert len(blocks) == len(space.multimodal)
         for idx, grid in blocks:
             assert grid.shape[1] == len(idx) and np.all((grid >= 0) & (grid <= 1))
-    fh = global_blocks(effect_class("forcing_harmonics").fit_space)
+    fh = global_blocks(PhasedHarmonics.fit_space)
     assert [len(g) for _, g in fh] == [PHASE_GRID * len(AMPLITUDE_LEVELS)] * 2
     sensor = global_blocks(effect_class("sensor_dynamics").fit_space)
     assert [len(g) for _, g in sensor] == [AXIS_GRID]
@@ -78,7 +90,7 @@ def _error(params, truth):
 
 @pytest.mark.parametrize("truth", TRUTHS)
 def test_random_phase_harmonics_are_fitted_within_10_percent_and_02_rad(truth):
-    fit = fitting.fit_effect(PhaseTarget(truth), "forcing_harmonics", settings=FIT_SETTINGS)
+    fit = fitting.fit_effect(PhaseTarget(truth), PHASED, settings=FIT_SETTINGS)
     level, phase = _error(fit["params"], truth)
     assert level < 0.10 and phase < 0.2, fit["params"]
 
@@ -87,7 +99,7 @@ def test_without_the_global_stage_a_local_search_stops_short(monkeypatch):
     monkeypatch.setattr(fitting, "global_blocks", lambda space: [])
     misses = 0
     for truth in TRUTHS:
-        fit = fitting.fit_effect(PhaseTarget(truth), "forcing_harmonics", settings=FIT_SETTINGS)
+        fit = fitting.fit_effect(PhaseTarget(truth), PHASED, settings=FIT_SETTINGS)
         level, phase = _error(fit["params"], truth)
         misses += not (level < 0.10 and phase < 0.2)
     assert misses >= 1
