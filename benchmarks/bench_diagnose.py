@@ -1,7 +1,8 @@
 """Benchmark ``diagnose`` on a 24-recording campaign with the whole library and joint refits.
 
 The campaign: the 8 rows of ``examples/hidden_effect_manifest.csv`` three times
-(``a/``, ``b/``, ``c/``: forcing frequency ratio shifted by -2 %, 0, +2 %), 4 s each,
+(``a/``, ``b/``, ``c/``: forcing frequency ratio shifted by -2 %, 0, +2 %), 6 s each
+(``--duration``),
 with two hidden effects at once (contact damping 0.25 and an accelerometer
 resonance at 237 Hz). ``diagnose`` runs on it with every shipped effect (the three
 numerical-engine ones included) and the default budgets, and the table splits
@@ -19,15 +20,19 @@ their statistics and discrepancies) the way every evaluation ran before
 evaluation now (rows batched per sampling rate, inclinations left out; the best
 point of each fit is scored with them).
 
-Target (issue 13): <= 2 minutes wall on 2 cores: ``--workers 2`` (the default) runs
-each step's fits on one 2-process LocalCluster for the whole diagnosis (the split
+``--baseline DIR`` runs the same diagnosis on the same campaign with the code of another
+checkout (e.g. ``git archive`` of the commit before) in a fresh process after this one,
+and prints the wall-time ratio: a before/after measured in the same run.
+
+Target: 24 recordings x 6 s in <= 60 s wall on a quiet 2-core machine: ``--workers 2``
+(the default) runs each step's fits on one 2-process LocalCluster for the whole diagnosis (the split
 then covers only this process: the joint refits, nuisances and verdict);
 ``--workers 0`` runs everything in-process.
 
 Run (from the repository root, so this checkout's package is imported)::
 
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
-        [--workers N] [--fast-only] [--no-inclination]
+        [--workers N] [--fast-only] [--no-inclination] [--duration S] [--baseline DIR]
 """
 
 from __future__ import annotations
@@ -60,7 +65,7 @@ FAST = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics",
         "colored_noise", "adc"]  # fmt: skip
 
 
-def campaign(tmp: Path) -> Path:
+def campaign(tmp: Path, duration_s: float = 6.0) -> Path:
     with open(ROOT / "examples" / "hidden_effect_manifest.csv", encoding="utf-8") as fh:
         rows = list(csv.DictReader(fh))
     manifest = tmp / "manifest24.csv"
@@ -71,7 +76,8 @@ def campaign(tmp: Path) -> Path:
             for r in rows:
                 ratio = f"{float(r['frequency_ratio']) * shift:.4f}"
                 name = f"{prefix}/{Path(r['recording']).name}"
-                w.writerow({**r, "recording": name, "frequency_ratio": ratio})
+                w.writerow({**r, "recording": name, "frequency_ratio": ratio,
+                            "duration_s": f"{duration_s:g}"})  # fmt: skip
     return simulate_campaign(manifest, tmp / "campaign24", HIDDEN, seed=0)
 
 
@@ -137,6 +143,34 @@ def evaluation_ratio(camp, repeats: int = 5) -> tuple[float, float]:
     return out[0], out[1]
 
 
+BASELINE = """
+import json, sys, time
+from stiffnet.campaign import load_campaign
+from stiffnet.measurement.diagnose import diagnose_campaign
+a = json.loads(sys.argv[1])
+t = time.perf_counter()
+res = diagnose_campaign(load_campaign(a["campaign"]), effects=a["effects"],
+                        workers=a["workers"], inclination=a["inclination"])
+print(json.dumps({"wall": time.perf_counter() - t, "selected": res["missing_effects"],
+                  "params": res["fitted_params"], "verdict": res["verdict"]}))
+"""
+
+
+def baseline_run(code: str, folder: Path, args: argparse.Namespace) -> dict:
+    """The same diagnosis with another checkout's code (``code``: its root), in a fresh
+    process on the same campaign folder: the before of a before/after in one run."""
+    import json
+    import subprocess
+    import sys
+
+    spec = {"campaign": str(folder), "effects": FAST if args.fast_only else None,
+            "workers": args.workers or None, "inclination": not args.no_inclination}  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
+    out = subprocess.run([sys.executable, "-c", BASELINE, json.dumps(spec)], env=env,
+                         capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--workers", type=int, default=2, help="LocalCluster processes (0: none)")
@@ -144,10 +178,14 @@ def main() -> None:
     ap.add_argument("--no-inclination", action="store_true", help="leave out the geometric "
                     "method's inclination statistics (as the tests do)")  # fmt: skip
     ap.add_argument("--profile-out", help="also write the cProfile statistics to this file")
+    ap.add_argument("--duration", type=float, default=6.0, help="seconds per recording (6)")
+    ap.add_argument("--baseline", help="root of another checkout (the code before): the same "
+                    "diagnosis run with it after this one, on the same campaign")  # fmt: skip
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
-        camp = load_campaign(campaign(Path(d)))
+        folder = campaign(Path(d), args.duration)
+        camp = load_campaign(folder)
         t_sim = time.perf_counter() - t
         t_before, t_now = evaluation_ratio(camp)
         load0 = os.getloadavg()[0]
@@ -167,8 +205,10 @@ def main() -> None:
             pstats.Stats(prof).dump_stats(args.profile_out)
         wall = time.perf_counter() - t
         cpu = cpu_seconds() - cpu0
+        load1 = os.getloadavg()[0]
+        base = baseline_run(args.baseline, folder, args) if args.baseline else None
+        load2 = os.getloadavg()[0]
     sim, stats_ = spent["simulation"], spent["statistics"]
-    load1 = os.getloadavg()[0]
     where = "this process" if args.workers else "in-process, everything"
     print(f"\nload average {load0:.2f} at the start, {load1:.2f} at the end; "
           f"campaign simulated in {t_sim:.1f} s; workers: {args.workers or 'none'}")  # fmt: skip
@@ -182,8 +222,16 @@ def main() -> None:
     print(f"| CPU time (this process + workers) | {cpu:.1f} | {cpu / wall:.0%} |")
     print(f"\nselected {res['missing_effects']} {res['fitted_params']}")
     print(f"verdict {res['verdict']}, residual {res['residual_discrepancy']:.3g}, "
-          f"noise floor {res['noise_floor']:.3g}; target <= 120 s: "
-          f"{'met' if wall <= 120 else 'NOT met'} ({wall:.0f} s)")  # fmt: skip
+          f"noise floor {res['noise_floor']:.3g}; target <= 60 s (quiet machine): "
+          f"{'met' if wall <= 60 else 'NOT met'} ({wall:.0f} s)")  # fmt: skip
+    if base is not None:
+        print(f"\nbaseline ({args.baseline}), same campaign, run after this one (load "
+              f"{load1:.2f} -> {load2:.2f}): {base['wall']:.1f} s wall, selected "
+              f"{base['selected']} {base['params']}, verdict {base['verdict']}")  # fmt: skip
+        print(
+            f"| code | wall s |\n|---|---|\n| before | {base['wall']:.1f} |\n"
+            f"| now | {wall:.1f} |\n| ratio before / now | {base['wall'] / wall:.2f} |"
+        )
 
 
 if __name__ == "__main__":

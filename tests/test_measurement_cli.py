@@ -116,6 +116,9 @@ def test_diagnose_and_report(campaign, tmp_path):
     assert page.count("data:image/png;base64,") >= 4 and "<style>" in page
     assert "contact_damping" in page and 'src="http' not in page
     assert "Verdict" in page and "why not" in page
+    # each recording against its own floor, with its orbit: terminal, JSON and report
+    assert [r["recording"] for r in diag["per_recording"]] == diag["recordings"]
+    assert "Per recording" in page and "measured orbit" in page
 
 
 @pytest.mark.parametrize(

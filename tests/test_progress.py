@@ -100,3 +100,37 @@ def test_cli_draws_bars_with_eta_only_on_a_terminal(tmp_path, monkeypatch, termi
         assert "simulating recordings" in err and "eta" in err and "/3" in err
     else:
         assert err == ""  # piped, redirected, scripted: silent
+
+
+def test_diagnose_plans_its_steps_and_names_the_stage(tmp_path):
+    """The total is known when the bar appears and never changes; the count only grows and
+    reaches it; the note names the stage and the effect being fitted."""
+    from stiffnet.campaign import ManifestRow, load_campaign, simulate_campaign, write_manifest
+    from stiffnet.measurement.diagnose import diagnose_campaign, planned_steps
+
+    rows = [
+        ManifestRow(recording=f"r{b}.csv", fs_hz=1000, natural_frequency_hz=9.48,
+                    frequency_ratio=w, amplitude=1.9, gap=e, damping_ratio=0.02, beta=b,
+                    duration_s=2.0, noise=0.02)
+        for b, w, e in ((10, 1.05, 2.8), (25, 1.1, 2.0), (45, 1.08, 2.4))
+    ]  # fmt: skip
+    write_manifest(tmp_path / "plan.csv", rows)
+    camp = simulate_campaign(
+        tmp_path / "plan.csv", tmp_path / "c", ["contact_damping:damping_ratio=0.3"]
+    )
+    rec = Recorder()
+    calls = []
+    with progress.reporting(rec):
+        diagnose_campaign(
+            load_campaign(camp), effects=["contact_damping", "colored_noise"],
+            inclination=False, progress=lambda d, t: calls.append((d, t)),
+        )  # fmt: skip
+    (tid,) = [i for i, t in rec.tasks.items() if t["description"] == "diagnosis"]
+    total = planned_steps(2)[-1]
+    assert ("add", "diagnosis", total) in rec.events  # known from the start
+    assert {t for _, t in calls} == {total}
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and done[-1] == total
+    notes = [e[3] for e in rec.events if e[0] == "update" and e[1] == "diagnosis"]
+    assert any(n and "fitting contact_damping" in n for n in notes)
+    assert any(n and "joint refit of contact_damping" in n for n in notes)

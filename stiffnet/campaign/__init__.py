@@ -15,6 +15,7 @@ A campaign is how users bring measurements to stiffnet (see ``docs/campaign.md``
   parameters -> a synthetic campaign folder with its ``campaign_card.json``.
 """
 
+from stiffnet.campaign.loaded import LoadedCampaign
 from stiffnet.campaign.manifest import (
     CARD_NAME,
     COLUMNS,
@@ -61,6 +62,7 @@ __all__ = [
     "STANDARD_GRAVITY",
     "Campaign",
     "CampaignSolverSettings",
+    "LoadedCampaign",
     "ManifestRow",
     "check_rows",
     "load_campaign",

@@ -325,6 +325,8 @@ def show_progress() -> Iterator[None]:
         TextColumn("{task.fields[note]}"),
         console=console,
         transient=True,
+        # steps of a diagnosis can take minutes: keep their speed for the ETA meanwhile
+        speed_estimate_period=3600.0,
     )
     with bar, progress.reporting(bar):
         yield

@@ -43,11 +43,12 @@ def _progress() -> Any:
 
 
 def _load(campaign: Path, config: Path | None) -> tuple[Any, Any]:
-    from stiffnet.campaign import load_campaign
+    from stiffnet.campaign import LoadedCampaign, load_campaign
     from stiffnet.config import load_config
     from stiffnet.config.sim import SimulationConfig
 
-    camp = load_campaign(campaign)
+    # one object read once: every stage of a command (and every loop iteration) shares it
+    camp = LoadedCampaign.of(load_campaign(campaign))
     if config is not None:
         cfg = load_config(SimulationConfig, config)
     elif DEFAULT_SIM_CONFIG.is_file():
@@ -246,8 +247,6 @@ def diagnose(
     json_path: JsonOption = None,
 ) -> None:
     """Fit every effect to the campaign and rank them: which physical effect is missing."""
-    from rich.table import Table
-
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.diagnose import diagnose_campaign
 
@@ -266,31 +265,88 @@ def diagnose(
             scheduler=scheduler,
             workers=workers,
         )
+    # the result is saved before anything is printed: a display problem never loses it
+    write_json(json_path, res)
+    out.print(diagnosis_table(res, f"diagnosis of {campaign}"))
+    if res.get("per_recording"):
+        out.print(recording_table(res["per_recording"]))
+    for line in diagnosis_lines(res):
+        out.print(line, markup=False)  # data, not markup (an equation has [ ])
+
+
+def _number(v: Any) -> str:
+    return f"{v:.3g}" if isinstance(v, int | float) and not isinstance(v, bool) else str(v)
+
+
+def fitted_values(entry: dict[str, Any]) -> str:
+    """``k=v`` for the parameters a ranking entry fitted (those it has; never a KeyError)."""
+    params = entry.get("params") or {}
+    return ", ".join(f"{k}={_number(params[k])}" for k in entry.get("fitted") or [] if k in params)
+
+
+def diagnosis_table(res: dict[str, Any], title: str) -> Any:
+    """The ranking of a ``diagnose`` result as a rich table (effects, fits, why not)."""
+    from rich.table import Table
+
     table = Table(
-        title=f"diagnosis of {campaign}: baseline discrepancy {res['baseline_discrepancy']:.3g}, "
-        f"noise floor {res['noise_floor']:.3g}"
+        title=f"{title}: baseline discrepancy {_number(res['baseline_discrepancy'])}, "
+        f"noise floor {_number(res['noise_floor'])}"
     )
     for col in ("effect", "reduction", "of excess", "params", "selected", "why not"):
         table.add_column(col)
     for r in res["ranking"]:
-        p = ", ".join(f"{k}={r['params'][k]:.3g}" for k in r["fitted"])
+        excess = r.get("excess_reduction")
         table.add_row(
-            r["effect"],
-            f"{r['discrepancy_reduction']:.3g}",
-            f"{r['excess_reduction']:.0%}",
-            p,
-            "yes" if r["selected"] else "no",
-            "; ".join(r["reasons"]),
+            str(r["effect"]),
+            _number(r.get("discrepancy_reduction")),
+            f"{excess:.0%}" if isinstance(excess, int | float) else "–",
+            fitted_values(r),
+            "yes" if r.get("selected") else "no",
+            "; ".join(r.get("reasons") or []),
         )
-    out.print(table)
-    out.print(
-        f"verdict: {res['verdict']} (residual {res['residual_discrepancy']:.3g}, explained "
-        f"{res['explained_fraction']:.0%}): {res['summary']}"
-    )
-    out.print(res["restoring_force_evidence"]["summary"])
+    return table
+
+
+def recording_table(recordings: list[dict[str, Any]]) -> Any:
+    """Each recording against its own noise floor, with its orbit and the simulation's."""
+    from rich.table import Table
+
+    table = Table(title="per recording: the final model against each recording's own floor")
+    for col in ("recording", "floor", "residual", "x floor", "measured orbit",
+                "simulated orbit (starts on it / distinct orbits)", "note"):  # fmt: skip
+        table.add_column(col)
+    for r in recordings:
+        ratio = r.get("ratio")
+        flag = " above" if r.get("above_floor") and not r.get("non_repeatable") else ""
+        starts = r.get("starts_on_measured_orbit")
+        reach = f" ({'–' if starts is None else starts} / {r.get('distinct_orbits', '–')})"
+        table.add_row(
+            str(r.get("recording")),
+            _number(r.get("floor")),
+            _number(r.get("residual")),
+            (f"{ratio:.2g}" if isinstance(ratio, int | float) else "–") + flag,
+            str(r.get("measured_orbit", "–")),
+            str(r.get("simulated_orbit", "–")) + reach,
+            str(r.get("note", "")),
+        )
+    return table
+
+
+def diagnosis_lines(res: dict[str, Any]) -> list[str]:
+    """The verdict and the restoring-force evidence in words."""
+    explained = res.get("explained_fraction")
+    lines = [
+        f"verdict: {res['verdict']} (residual {_number(res.get('residual_discrepancy'))}, "
+        f"explained {explained:.0%}): {res.get('summary', '')}"
+        if isinstance(explained, int | float)
+        else f"verdict: {res['verdict']}: {res.get('summary', '')}"
+    ]
+    evidence = res.get("restoring_force_evidence") or {}
+    if evidence.get("summary"):
+        lines.append(str(evidence["summary"]))
     if (res.get("learned_law") or {}).get("ran"):  # the library lacked the contact law
-        out.print(res["learned_law"]["summary"], markup=False)  # the equation has [ ]
-    write_json(json_path, res)
+        lines.append(str(res["learned_law"]["summary"]))
+    return lines
 
 
 def loop(
@@ -407,7 +463,7 @@ def loop(
                 + "".join(
                     f" {k}={a['params'][k]:.3g}"
                     for k in a["fitted"] or a["params"]
-                    if isinstance(a["params"][k], int | float)
+                    if isinstance(a["params"].get(k), int | float)
                 )
                 for a in it["added"]
             )

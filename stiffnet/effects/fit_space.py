@@ -11,6 +11,12 @@ wrap-around at +-pi and no degenerate phase at zero amplitude.
 
 The search works in the unit cube: :meth:`FitSpace.params` maps a point of it
 to the effect's parameters, :meth:`FitSpace.unit` back.
+
+An effect also declares which of its parameters make the objective
+*multimodal* (``multimodal``: phases, resonance or drift frequencies, knots):
+a local search started in the wrong basin of one of them stops short of the
+truth, so the fit sweeps a grid over each of them (:meth:`FitSpace.global_blocks`)
+before its local search.
 """
 
 from __future__ import annotations
@@ -80,11 +86,16 @@ class FitSpace:
         Parameters held at these values while fitting.
     polar : tuple of Polar
         Amplitude/phase pairs fitted in Cartesian coordinates.
+    multimodal : tuple of str
+        Parameters swept on a grid before the local search (see the module notes).
     """
 
     free: tuple[FitParam, ...]
     fixed: Mapping[str, float] = field(default_factory=dict)
     polar: tuple[Polar, ...] = ()
+    #: Parameters whose objective has several basins (a free parameter, or the phase of a
+    #: :class:`Polar` pair): each is swept on a grid before the local search.
+    multimodal: tuple[str, ...] = ()
 
     @property
     def names(self) -> list[str]:
@@ -117,6 +128,41 @@ class FitSpace:
             a, ph = float(params.get(p.amplitude, 0.0)), float(params.get(p.phase, 0.0))
             coords[p.names[0]], coords[p.names[1]] = a * math.cos(ph), a * math.sin(ph)
         return np.array([fp.unit(float(coords[fp.name])) for fp in self.free])
+
+
+#: Grid of a multimodal free coordinate (points across its unit interval).
+AXIS_GRID = 9
+#: Grid of a multimodal phase: angles, and amplitudes as fractions of the pair's maximum.
+PHASE_GRID = 8
+AMPLITUDE_LEVELS = (0.1, 0.3, 0.6)
+
+
+def global_blocks(space: FitSpace) -> list[tuple[list[int], np.ndarray]]:
+    """The global stage's sweeps: for each multimodal parameter, the free coordinates it
+    moves (their indices) and the grid of their unit-cube values (one row per point).
+
+    A free coordinate gets :data:`AXIS_GRID` points across its interval; the phase of a
+    polar pair gets :data:`PHASE_GRID` angles at each of :data:`AMPLITUDE_LEVELS`
+    (the pair's two Cartesian coordinates move together)."""
+    names = space.names
+    out = []
+    for m in space.multimodal:
+        pair = next((p for p in space.polar if m in (p.phase, p.amplitude)), None)
+        if pair is not None:
+            idx = [names.index(n) for n in pair.names]
+            fps = [space.free[i] for i in idx]
+            pts = [
+                [fps[0].unit(r * pair.max_amplitude * math.cos(a)),
+                 fps[1].unit(r * pair.max_amplitude * math.sin(a))]
+                for r in AMPLITUDE_LEVELS
+                for a in np.linspace(-math.pi, math.pi, PHASE_GRID, endpoint=False)
+            ]  # fmt: skip
+            out.append((idx, np.array(pts)))
+        elif m in names:
+            out.append(([names.index(m)], np.linspace(0.0, 1.0, AXIS_GRID)[:, None]))
+        else:
+            raise ValueError(f"multimodal {m!r} is not a free parameter nor a polar phase")
+    return out
 
 
 def default_fit_space(table: list[dict]) -> FitSpace:

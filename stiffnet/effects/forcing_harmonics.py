@@ -62,6 +62,11 @@ class ForcingHarmonics(DynamicsEffect):
             FitParam("third_sin", -0.5, 0.5),
         ),
         polar=(Polar("second", "phase_second", 0.5), Polar("third", "phase_third", 0.5)),
+        # the phases are multimodal, but not declared so: with the initial states held
+        # while a fit moves them, a recording jumps orbit and the sweep finds lower-scoring
+        # points away from the truth (8 recordings, 0.25/1.1 and 0.12/-2.0: with the sweep
+        # 0.225/1.65 and 0.076/2.87, without 0.253/1.08 and 0.104/-2.07); the Cartesian
+        # pair keeps the phase smooth for the local search
     )
 
     def forcing_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:

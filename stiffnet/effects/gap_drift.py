@@ -56,6 +56,7 @@ class GapDrift(DynamicsEffect):
             FitParam("period", 10.0, 1000.0, log=True),
             FitParam("phase", -np.pi, np.pi),
         ),
+        multimodal=("period", "phase"),
     )
 
     def gap_terms(self, p: ParamArrays, batch: Any) -> Sinusoids:

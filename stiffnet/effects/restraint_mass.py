@@ -65,6 +65,7 @@ class RestraintMass(DynamicsEffect):
             FitParam("stiffness_ratio", 1.0, 100.0, log=True),
         ),
         fixed={"damping_ratio": 0.05},
+        multimodal=("stiffness_ratio",),
     )
 
     def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:

@@ -115,6 +115,9 @@ class SensorDynamics(MeasurementEffect):
     """
 
     name = "sensor_dynamics"
+    #: Analog hardware: a campaign's comparison simulates the motion faster than the logger's
+    #: rate, filters it, then samples it (stiffnet.campaign.simulate.oversampling).
+    analog = True
     #: Training-world prior (docs/priors.md): resonance relative to f_n, anti-alias
     #: corner relative to fs; what labs have: a heavy or wax-mounted sensor on a light mass
     #: rings a few f_n up, charge amplifiers offer 0.1-10 Hz lower corners, conditioning
@@ -159,7 +162,11 @@ class SensorDynamics(MeasurementEffect):
             FitParam("resonance_hz", 50.0, 1000.0, log=True),
             FitParam("resonance_damping", 0.01, 0.3, log=True),
         ),
+        # the mount's resonance is fitted; the charge amplifier's high-pass is assumed at
+        # 1 Hz (on a rig without one it leaves the impact-aligned waveform 0.4-0.9
+        # tolerances off: fitting it needs a lead-in of 7 / (2 pi f_h), seconds at 0.1 Hz)
         fixed={"highpass_hz": 1.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
+        multimodal=("resonance_hz",),
     )
 
     @classmethod

@@ -27,7 +27,7 @@ from stiffnet.campaign.simulate import (
 )
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.effects.base import Effect
-from stiffnet.errors import SignalError, StiffnetError
+from stiffnet.errors import SignalError
 from stiffnet.geometry.calibration import beta_class
 from stiffnet.measurement.discrepancy import (
     COMPONENTS,
@@ -82,21 +82,13 @@ def compare_campaign(
         (one line: where it fails).
     """
     from stiffnet.measurement.nuisance import resolve_rows
+    from stiffnet.measurement.target import measured_statistics
 
     # a manifest without the simulation columns is completed from the recordings (forcing
     # frequency from the spectrum, beta from the model's estimate, documented defaults)
     rows, _ = resolve_rows(campaign)
     check_rows(rows, str(campaign.manifest_path))
-    measured: list[SignalStatistics] = []
-    lengths = []
-    for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
-        try:
-            measured.append(
-                signal_statistics(rec.accel, rec.fs_hz, natural_frequency(row), row.frequency_ratio)
-            )
-        except SignalError as exc:
-            raise StiffnetError(f"{row.recording}: {exc}") from None
-        lengths.append(len(rec.accel))
+    measured, lengths, _ = measured_statistics(campaign, rows)  # shared with diagnose
     sims = simulate_rows(rows, effects, lengths, seed, settings)
     simulated: list[SignalStatistics | None] = []
     for row, a in zip(rows, sims, strict=True):

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign
+from stiffnet.campaign.loaded import LoadedCampaign, memo
 from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
@@ -45,13 +46,21 @@ from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
 from stiffnet.measurement.learned_law import learned_law_proposal
-from stiffnet.measurement.noise_floor import at_floor, noise_floor, rescale_floor, verdict
+from stiffnet.measurement.noise_floor import (
+    AT_FLOOR_FACTOR,
+    Floors,
+    noise_floor,
+    recording_floors,
+    verdict,
+)
 from stiffnet.measurement.nuisance import profile_nuisances, resolve_rows
-from stiffnet.measurement.significance import AT_FLOOR_FACTOR, significance
+from stiffnet.measurement.orbits import orbit_name, orbit_pattern
+from stiffnet.measurement.significance import significance
 from stiffnet.measurement.target import (
     CampaignTarget,
     measured_statistics,
     needs_numerical,
+    rows_key,
     settings_for,
 )
 from stiffnet.progress import task as progress_task
@@ -88,23 +97,44 @@ def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[E
     return [effect_class(n)(**p) for n, p in zip(names, params, strict=True)]
 
 
+#: Steps of the diagnosis before the fits: recordings and statistics, noise floor, nuisances.
+SETUP_STEPS = 3
+
+
+def planned_steps(n_candidates: int) -> list[int]:
+    """The diagnosis' plan, known before any work: the cumulative step count at the end of
+    the setup, of the single fits and of each possible selection step (its conditional
+    fits, :data:`JOINT_TRIES` joint refits and a profile of the nuisances), then the verdict.
+    An upper bound: a selection that stops early skips to the verdict."""
+    ends = [SETUP_STEPS, SETUP_STEPS + n_candidates]
+    for k in range(min(MAX_EFFECTS, n_candidates)):
+        ends.append(ends[-1] + (n_candidates - k if k else 0) + JOINT_TRIES + 1)
+    return [*ends, ends[-1] + 1]
+
+
 class _Progress:
-    """``progress(done, total)`` over fits whose total grows as selection proceeds, also shown
-    as a :func:`stiffnet.progress.task` line (bars with ETA when a command installs a display)."""
+    """The diagnosis' progress against its plan (:func:`planned_steps`): ``progress(done,
+    total)`` and a :func:`stiffnet.progress.task` line whose note names the stage and the
+    effect being fitted (bars with an ETA when a command installs a display)."""
 
-    def __init__(self, fn: Callable[[int, int], None] | None, line: Any = None) -> None:
-        self.fn, self.line, self.done, self.total = fn, line, 0, 0
+    def __init__(self, fn: Callable[[int, int], None] | None, line: Any, plan: list[int]) -> None:
+        self.fn, self.line, self.plan = fn, line, plan
+        self.done, self.total = 0, plan[-1]
 
-    def plan(self, n: int) -> None:
-        self.total += n
-        self.tick(0)
-
-    def tick(self, n: int = 1) -> None:
-        self.done += n
+    def to(self, done: int, note: str | None = None) -> None:
+        """Steps done so far (never backwards, never past the plan)."""
+        self.done = min(self.total, max(self.done, int(done)))
         if self.fn is not None:
-            self.fn(self.done, max(self.total, self.done))
+            self.fn(self.done, self.total)
         if self.line is not None:
-            self.line.update(self.done, max(self.total, self.done))
+            self.line.update(self.done, self.total, note=note)
+
+    def step(self, note: str | None = None) -> None:
+        self.to(self.done + 1, note)
+
+    def end_of(self, stage: int, note: str | None = None) -> None:
+        """Skip to the planned end of ``stage`` (0: setup, 1: single fits, 2 + k: step k)."""
+        self.to(self.plan[min(stage, len(self.plan) - 1)], note)
 
 
 def diagnose_campaign(
@@ -143,7 +173,8 @@ def diagnose_campaign(
     scheduler, workers
         Where the fits of one step run (:func:`stiffnet.distributed.map_tasks`).
     progress : callable, optional
-        ``progress(done, total)`` after each fit (the total grows with the steps).
+        ``progress(done, total)`` after each step of the plan (:func:`planned_steps`: the
+        total is known from the start).
     model_path : str, optional
         ONNX model whose β estimate starts the fit of recordings without β.
 
@@ -166,11 +197,18 @@ def diagnose_campaign(
     from stiffnet.distributed.cluster import dask_client
 
     t0 = time.perf_counter()
+    campaign = LoadedCampaign.of(campaign)  # each recording read once
     # one cluster for the whole diagnosis (a LocalCluster starts in seconds; steps are many)
-    with progress_task("diagnosis: effect fits") as line, dask_client(scheduler, workers) as client:
+    plan = planned_steps(len(candidate_effects(base_effects, user_effects, effects)))
+    with (
+        progress_task("diagnosis", plan[-1]) as line,
+        dask_client(scheduler, workers) as client,
+    ):
+        bar = _Progress(progress, line, plan)
+        bar.to(0, "reading the recordings")
         return _diagnose(
             campaign, base_effects, effects, user_effects, budget, budget_numerical, seed,
-            inclination, client, _Progress(progress, line), model_path, t0,
+            inclination, client, bar, model_path, t0,
         )  # fmt: skip
 
 
@@ -196,18 +234,24 @@ def _diagnose(
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
     target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)
     names = [r.recording for r in rows]
-    floor_info = noise_floor(signals, rows, FIT_SETTINGS.periods, inclination)
-    floors = {
-        FIT_SETTINGS: floor_info["floor"],
-        FIT_SETTINGS_NUMERICAL: rescale_floor(
+    bar.step("noise floor (split halves)")
+    floor_info = memo(
+        campaign, ("noise_floor", inclination, rows_key(rows)),
+        lambda: noise_floor(signals, rows, FIT_SETTINGS.periods, inclination),
+    )  # fmt: skip
+    floors: dict[Any, Floors] = {
+        FIT_SETTINGS: floor_info["floors"],
+        FIT_SETTINGS_NUMERICAL: recording_floors(
             floor_info, signals, rows, FIT_SETTINGS_NUMERICAL.periods
         ),
     }
+    # a non-repeatable recording (halves far apart) weighs less in every fit's objective
+    target.weights = floors[FIT_SETTINGS].weights().tolist()
+    bar.step("nuisances and initial states")
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(list(base_effects), FIT_SETTINGS)
-
     candidates = candidate_effects(base_effects, user_effects, effects)
-    bar.plan(len(candidates))
+    stage = ["single fits"]
 
     def run_fits(cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
         # numerical-engine fits (the long ones) first, so parallel workers finish together
@@ -216,25 +260,26 @@ def _diagnose(
             (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in order
         ]
         start = bar.done
+
+        def show(done: int, _total: int) -> None:
+            nxt = f": fitting {order[done]}" if done < len(order) else ""
+            bar.to(start + done, f"{stage[0]}{nxt}")
+
+        show(0, len(order))
         report = run_tasks(
-            _fit_task,
-            items,
-            client=client,
-            names=order,
-            progress=lambda done, _: bar.tick(start + done - bar.done),
+            _fit_task, items, client=client, names=order, progress=show,
             thread_limit=limited_threads,
-        )
+        )  # fmt: skip
         report.raise_failures()
         by_name = dict(zip(order, report.results, strict=True))
         return [by_name[n] for n in cands]
 
     # ---- step 0: every candidate alone against the base model
     entries: dict[str, dict[str, Any]] = {}
-    if at_floor(campaign_discrepancy(baseline), floors[FIT_SETTINGS]):
+    if floors[FIT_SETTINGS].at_floor(baseline):
         # nothing to explain, so no effect could pass the tests: no fits (a clean campaign
         # is diagnosed in seconds), every candidate says why
         candidates = []
-        bar.plan(0)
         for n in candidate_effects(base_effects, user_effects, effects):
             entries[n] = _unfitted(n, baseline, floors[FIT_SETTINGS])
     for fit in run_fits(candidates, []):
@@ -247,6 +292,7 @@ def _diagnose(
             names,
         )
         entries[fit["effect"]] = _entry(fit, sig)
+    bar.end_of(1, "selection")
 
     # ---- forward selection with joint refits
     kept: list[str] = []
@@ -257,9 +303,8 @@ def _diagnose(
         remaining = [n for n in candidates if n not in kept]
         if not remaining:
             break
-        if kept and at_floor(
-            campaign_discrepancy(next(iter(current.values()))), floors[FIT_SETTINGS]
-        ):
+        cur_settings, cur_per = next(iter(current.items()))
+        if kept and floors[cur_settings].at_floor(cur_per):
             for n in remaining:  # the model is at the noise floor: nothing left to explain
                 entries[n]["reasons"] = [
                     f"nothing left to explain: {', '.join(kept)} bring the model to the "
@@ -274,7 +319,7 @@ def _diagnose(
                 for n in remaining
                 if not needs_numerical(n) or entries[n]["excess_reduction"] >= SCREEN_EXCESS
             ]
-            bar.plan(len(cands))
+            stage[0] = f"step {len(kept) + 1}, on top of {', '.join(kept)}"
             fixed = _effects(kept, kept_params)
             conditional = {}
             for fit in run_fits(cands, fixed):
@@ -290,8 +335,8 @@ def _diagnose(
         order = sorted(conditional, key=lambda n: conditional[n]["bic_delta"])
         accepted = None
         tries = [n for n in order if conditional[n]["improves"]][:JOINT_TRIES]
-        bar.plan(len(tries))
         for n in tries:
+            bar.step(f"step {len(kept) + 1}: joint refit of {', '.join([*kept, n])}")
             c = conditional[n]
             names_new = [*kept, n]
             settings = settings_for(names_new)
@@ -305,7 +350,6 @@ def _diagnose(
                 rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             )
             after, params_new = joint["per_recording"], joint["params"]
-            bar.tick()
             sig = significance(before, after, len(c["fitted"]), floors[settings], names)
             prefix = f"on top of {', '.join(kept)} (joint refit): " if kept else ""
             record = {
@@ -350,6 +394,7 @@ def _diagnose(
         )
         for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
             entries[name_k]["params"] = p
+        bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
         before_profile = (list(target.rows), list(target.starts or []))
         nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, nuisance_info)
         if (list(target.rows), list(target.starts or [])) != before_profile:
@@ -365,23 +410,26 @@ def _diagnose(
         }
 
     # ---- the final model and the verdict
+    bar.to(bar.total - 1, "the final model against every recording")
     settings = settings_for(kept)
     final_effects = [*base_effects, *_effects(kept, kept_params)]
     base_at = (
         baseline if settings is FIT_SETTINGS else target.per_recording(list(base_effects), settings)
     )
     final_stats = target.simulated_statistics(final_effects, settings)
-    residual = target.per_recording(final_effects, settings)
-    residual_where = _mean_where(measured, final_stats)
-    scale = floors[settings] / max(floor_info["floor"], 1e-12)
-    floor_where = {g: v * scale for g, v in floor_info["where"].items()}
-    v = verdict(
-        campaign_discrepancy(base_at),
-        campaign_discrepancy(residual),
-        floors[settings],
-        kept,
-        residual_where,
-        floor_where,
+    residual = target.discrepancies_of(final_stats)
+    residual_where = [
+        None if s is None else where_sums(m, s)
+        for m, s in zip(target.measured, final_stats, strict=True)
+    ]
+    v = verdict(base_at, residual, floors[settings], kept, residual_where)
+    bar.to(bar.total, "done")
+    recordings = recording_verdicts(
+        names, base_at, residual, floors[settings], target.measured, final_stats,
+        nuisances.get("orbits"),
+    )  # fmt: skip
+    v["summary"] += (
+        _above_note(recordings) + _orbit_warning(recordings) + _non_repeatable_note(recordings)
     )
     # the library lacks the physics: learn the contact law from the maps and score it
     learned = learned_law_proposal(
@@ -409,9 +457,14 @@ def _diagnose(
         "fitted_params": dict(zip(kept, kept_params, strict=True)),
         "selection": steps,
         "residual_per_recording": residual.tolist(),
+        "per_recording": recordings,
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
-        "restoring_force_evidence": restoring_force_evidence(campaign, rows),
+        "restoring_force_evidence": memo(
+            campaign,
+            ("restoring_force_evidence", rows_key(rows)),
+            lambda: restoring_force_evidence(campaign, rows),
+        ),  # fmt: skip
         "learned_law": learned,
         "nuisances": nuisances,
         "settings": {
@@ -428,16 +481,116 @@ def _diagnose(
     }
 
 
-def _unfitted(name: str, baseline: np.ndarray, floor: float) -> dict[str, Any]:
+def recording_verdicts(
+    names: Sequence[str],
+    baseline: np.ndarray,
+    residual: np.ndarray,
+    floors: Floors,
+    measured: Sequence[Any],
+    simulated: Sequence[Any],
+    orbits: Sequence[dict[str, Any]] | None,
+) -> list[dict[str, Any]]:
+    """Each recording judged against its own floor, with its orbit and the simulation's.
+
+    Returns
+    -------
+    list of dict
+        Per recording: ``recording``, ``floor``, ``baseline``, ``residual``, ``ratio``
+        (residual over its floor), ``above_floor``, ``non_repeatable``, ``weight``,
+        ``measured_orbit``, ``simulated_orbit``, ``orbit_matched`` (None when the measured
+        orbit does not repeat), ``distinct_orbits`` and ``starts_on_measured_orbit`` (the
+        starts profiled), ``note`` (words for the table).
+    """
+    ratios, eff = floors.ratios(residual), floors.effective()
+    non_rep, weights = floors.non_repeatable(), floors.weights()
+    out = []
+    for i, name in enumerate(names):
+        sim_orbit = orbit_name(simulated[i])
+        want = orbit_pattern(measured[i])
+        matched = None if want is None else orbit_pattern(simulated[i]) == want
+        o = (orbits or [{}] * len(names))[i]
+        notes = []
+        if non_rep[i]:
+            notes.append(
+                "non-repeatable: its halves differ by "
+                f"{floors.per_recording[i] / max(floors.median, 1e-300):.0f}x the campaign's "
+                "median floor (wandering or chaotic orbit, long transient, near grazing)"
+            )
+        if matched is False:
+            hits = o.get("starts_on_measured_orbit")
+            notes.append(
+                "simulated on another orbit than measured"
+                + (" (no start reached the measured one)" if hits == 0 else "")
+            )
+        out.append(
+            {
+                "recording": name,
+                "floor": float(eff[i]),
+                "baseline": float(baseline[i]),
+                "residual": float(residual[i]),
+                "ratio": float(ratios[i]),
+                "above_floor": bool(ratios[i] > AT_FLOOR_FACTOR),
+                "non_repeatable": bool(non_rep[i]),
+                "weight": float(weights[i]),
+                "measured_orbit": orbit_name(measured[i]),
+                "simulated_orbit": sim_orbit,
+                "orbit_matched": matched,
+                "distinct_orbits": o.get("distinct_orbits"),
+                "starts_on_measured_orbit": o.get("starts_on_measured_orbit"),
+                "note": "; ".join(notes),
+            }
+        )
+    return out
+
+
+def _above_note(recordings: Sequence[dict[str, Any]]) -> str:
+    """Which repeatable recordings stay above their floors (whatever the verdict)."""
+    above = [r for r in recordings if r["above_floor"] and not r["non_repeatable"]]
+    if not above:
+        return ""
+    worst = sorted(above, key=lambda r: -r["ratio"])[:5]
+    return (
+        f". Above {AT_FLOOR_FACTOR:g}x their own floor: "
+        + ", ".join(f"{r['recording']} ({r['ratio']:.1f}x)" for r in worst)
+        + (" and others" if len(above) > 5 else "")
+    )
+
+
+def _orbit_warning(recordings: Sequence[dict[str, Any]]) -> str:
+    """A sentence when no start reached a recording's measured orbit."""
+    lost = [r["recording"] for r in recordings if r["starts_on_measured_orbit"] == 0]
+    if not lost:
+        return ""
+    return (
+        f". No start reached the measured orbit of {', '.join(lost[:5])}"
+        + (" and others" if len(lost) > 5 else "")
+        + ": more starts, or continuation from the measured state, are needed before "
+        "concluding anything about physics there"
+    )
+
+
+def _non_repeatable_note(recordings: Sequence[dict[str, Any]]) -> str:
+    n = sum(r["non_repeatable"] for r in recordings)
+    if not n:
+        return ""
+    return (
+        f". {n} of {len(recordings)} recordings are non-repeatable (their halves disagree "
+        "more than the model does: wandering or chaotic orbits); they weigh less"
+    )
+
+
+def _unfitted(name: str, baseline: np.ndarray, floors: Floors) -> dict[str, Any]:
     """The ranking entry of a candidate not fitted because the base model is at the floor."""
     d = campaign_discrepancy(baseline)
+    judged = floors.judge(baseline)
     return {
         "effect": name,
         "selected": False,
         "significant": False,
         "reasons": [
-            f"nothing to explain: the base model ({d:.3g}) is within {AT_FLOOR_FACTOR:g}x "
-            f"the campaign's noise floor ({floor:.3g}), so it was not fitted"
+            f"nothing to explain: the base model is at the recordings' own noise floors "
+            f"({judged['n_above']} of {judged['n']} above {AT_FLOOR_FACTOR:g}x theirs), so it "
+            "was not fitted"
         ],
         "params": {},
         "fitted": [],
@@ -492,14 +645,4 @@ def _current(
     return current[settings]
 
 
-def _mean_where(measured: Sequence[Any], simulated: Sequence[Any]) -> dict[str, float]:
-    sums: dict[str, list[float]] = {}
-    for m, s in zip(measured, simulated, strict=True):
-        if s is None:
-            continue
-        for g, v in where_sums(m, s).items():
-            sums.setdefault(g, []).append(v)
-    return {g: float(np.mean(v)) for g, v in sums.items()}
-
-
-__all__ = ["candidate_effects", "diagnose_campaign"]
+__all__ = ["candidate_effects", "diagnose_campaign", "recording_verdicts"]

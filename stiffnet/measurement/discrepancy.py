@@ -146,11 +146,15 @@ def where_sums(measured: SignalStatistics, simulated: SignalStatistics) -> dict[
     }
 
 
-def campaign_discrepancy(per_recording: Sequence[float]) -> float:
-    """Mean of the per-recording discrepancies (NaN recordings left out)."""
+def campaign_discrepancy(
+    per_recording: Sequence[float], weights: Sequence[float] | None = None
+) -> float:
+    """Mean of the per-recording discrepancies (NaN recordings left out), weighted when
+    ``weights`` are given (the diagnosis weighs non-repeatable recordings down)."""
     v = np.asarray(per_recording, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    return float(np.mean(v)) if v.size else float("nan")
+    w = np.ones_like(v) if weights is None else np.asarray(weights, dtype=np.float64)
+    ok = np.isfinite(v)
+    return float(np.sum(w[ok] * v[ok]) / np.sum(w[ok])) if ok.any() else float("nan")
 
 
 def discrepancies(

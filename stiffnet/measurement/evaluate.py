@@ -24,10 +24,12 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
-from stiffnet.campaign.simulate import impact_regime, natural_frequency, simulated_contact
+from stiffnet.campaign.loaded import memo
+from stiffnet.campaign.simulate import impact_regime, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
+from stiffnet.measurement.nuisance import predicted
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
 SLICE_EDGES: dict[str, list[float]] = {
@@ -174,17 +176,12 @@ def evaluate_campaign(
             f"{campaign.manifest_path}: no recording has a known beta (manifest column beta): "
             "evaluate needs a calibration campaign; use predict-batch for unknown ones"
         )
-    predictor = Predictor.load(model_path)
+    predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
     contact = simulated_contact(campaign.rows, dynamics) if simulable else None
     rows: list[dict[str, Any]] = []
-    for i, (row, rec) in enumerate(campaign.recordings()):
-        res = predictor.predict(
-            rec.accel,
-            rec.fs_hz,
-            natural_frequency_hz=natural_frequency(row),
-            source=row.recording,
-        )
+    for i, row in enumerate(campaign.rows):
+        res = predicted(campaign, i, row, model_path)  # once per model and recording
         geo = res.get("geometric") or {}
         if contact is not None:
             regime = impact_regime(contact[i])

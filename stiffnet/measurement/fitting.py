@@ -19,7 +19,11 @@ Search, in the unit cube of the effect's fit space
 * :func:`fit_effect` (one effect, others held): an initial design (9 points for
   one coordinate, a 3 x 3 grid for two, 32 Sobol points plus the centre for
   more), the effect's data-driven seeds (:meth:`~stiffnet.effects.base.Effect.fit_seeds`,
-  e.g. the sensor resonance at the measured ringing frequency), then a bounded
+  e.g. the sensor resonance at the measured ringing frequency), a **global
+  stage** over the parameters the effect declares multimodal
+  (:attr:`~stiffnet.effects.fit_space.FitSpace.multimodal`: each phase swept over
+  8 angles at 3 amplitudes, each frequency over 9 points, block after block, two
+  rounds; :func:`global_stage`), then a bounded
   Brent search between the best design point's neighbours (one coordinate) or a
   bounded Nelder-Mead from it, within ``budget`` evaluations.
   Numerical-engine effects (seconds per simulated batch, whatever its number of
@@ -46,7 +50,7 @@ from scipy.stats import qmc
 
 from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
 from stiffnet.effects.base import Effect
-from stiffnet.effects.fit_space import FitSpace
+from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
@@ -65,16 +69,34 @@ JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
 #: Nelder-Mead's first step in the unit cube for a joint refit (a local search).
 JOINT_STEP = 0.08
+#: Rounds of the global stage over an effect's multimodal parameters, and the local
+#: search's first step after it (the grid already holds the basin).
+GLOBAL_ROUNDS = 2
+LOCAL_STEP = 0.08
 
 
-def objective_value(per_recording: np.ndarray) -> float:
-    """The fit's objective: the campaign discrepancy (mean over recordings)."""
-    return campaign_discrepancy(per_recording)
+def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None = None) -> float:
+    """The fit's objective: the campaign discrepancy (mean over recordings, weighted by the
+    target's weights: a non-repeatable recording weighs less)."""
+    return campaign_discrepancy(per_recording, weights)
 
 
 def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
     """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance)."""
     return effect_class(name).campaign_fit_space(min(r.fs_hz for r in rows))
+
+
+def off_params(name: str, space: FitSpace) -> list[dict[str, float]] | None:
+    """ "Effect off" as a full parameter set (None for an effect without ``neutral``): the
+    neutral values, the fixed ones, and the declared defaults of every other fitted
+    parameter (a harmonic's phase at zero amplitude), so a rejected fit still names a value
+    for each parameter it fits."""
+    cls = effect_class(name)
+    if cls.neutral is None:
+        return None
+    defaults = cls().params.model_dump()
+    out = {k: defaults[k] for k in space.fitted if isinstance(defaults.get(k), int | float)}
+    return [{**out, **space.fixed, **cls.neutral}]
 
 
 def initial_design(space: FitSpace) -> np.ndarray:
@@ -136,12 +158,12 @@ class _Evaluator:
 
     def __call__(self, u: np.ndarray) -> float:
         per = self.per(u)
-        return float("inf") if per is None else objective_value(per)
+        return float("inf") if per is None else objective_value(per, self.target.weights)
 
     def best(self) -> tuple[np.ndarray, np.ndarray]:
         """The best point searched and its per-recording discrepancies with every statistic
         (scored again when the search left the inclinations out)."""
-        key = min(self.cache, key=lambda k: objective_value(self.cache[k]))
+        key = min(self.cache, key=lambda k: objective_value(self.cache[k], self.target.weights))
         if not self.target.inclination:
             return np.array(key), self.cache[key]
         if key in self.full:
@@ -156,15 +178,16 @@ class _Evaluator:
 
 
 def _result(
-    ev: _Evaluator, off: np.ndarray, t0: float, off_params: list[dict[str, float]] | None = None
+    ev: _Evaluator, off: np.ndarray, t0: float, off_values: list[dict[str, float]] | None = None
 ) -> dict[str, Any]:
     """The best point, or the starting model ("off") when nothing beats it."""
     u, per = ev.best()
-    improves = objective_value(per) < objective_value(off)
+    w = ev.target.weights
+    improves = objective_value(per, w) < objective_value(off, w)
     params = ev.split(u)
     if not improves:
         per = off
-        params = off_params if off_params is not None else params
+        params = off_values if off_values is not None else params
     return {
         "effects": list(ev.names),
         "params": params,
@@ -226,9 +249,11 @@ def fit_effect(
     if seeds:
         design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
     k = len(space.free)
+    blocks = [] if numerical else global_blocks(space)
     if budget is None:
         refine = REFINE_EVALUATIONS.get(k, REFINE_EVALUATIONS_MANY)
-        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + refine
+        sweeps = GLOBAL_ROUNDS * sum(len(grid) for _, grid in blocks)
+        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + sweeps + refine
     if len(design) > budget:  # a small budget keeps the given seeds, spreads the rest
         keep = np.unique(
             np.r_[
@@ -242,6 +267,9 @@ def fit_effect(
     ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
+    step = 0.5 / 3
+    if blocks:  # the global stage: grids over the multimodal parameters, then a local search
+        best, step = global_stage(ev, blocks, best), LOCAL_STEP
     if len(ev.cache) < budget and k == 1:  # bounded Brent between the design neighbours
         h = 1.0 / (len(design) - 1) if len(design) > 1 else 0.5
         optimize.minimize_scalar(
@@ -251,9 +279,8 @@ def fit_effect(
             options={"maxiter": budget - len(ev.cache), "xatol": 1e-3},
         )
     elif len(ev.cache) < budget and k > 1:
-        _nelder_mead(ev, best, 0.5 / 3, budget - len(ev.cache))
-    neutral = effect_class(name).neutral
-    res = _result(ev, off, t0, None if neutral is None else [{**space.fixed, **neutral}])
+        _nelder_mead(ev, best, step, budget - len(ev.cache))
+    res = _result(ev, off, t0, off_params(name, space))
     return {
         "effect": name,
         "params": res["params"][0],
@@ -265,6 +292,27 @@ def fit_effect(
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
+
+
+def global_stage(
+    ev: _Evaluator, blocks: Sequence[tuple[list[int], np.ndarray]], start: np.ndarray
+) -> np.ndarray:
+    """Sweep each multimodal block's grid with the other coordinates held at the best point
+    so far, block after block, for :data:`GLOBAL_ROUNDS` rounds (blocks interact: a
+    harmonic's best phase depends on the other's); returns the best point found."""
+    u = np.asarray(start, float).copy()
+    for _ in range(GLOBAL_ROUNDS):
+        before = u.copy()
+        for idx, grid in blocks:
+            pts = np.repeat(u[None, :], len(grid), axis=0)
+            pts[:, idx] = grid
+            values = [ev(p) for p in pts]
+            j = int(np.argmin(values))
+            if values[j] < ev(u):
+                u = pts[j]
+        if np.array_equal(u, before):
+            break
+    return u
 
 
 def _fit_design(
@@ -287,24 +335,23 @@ def _fit_design(
     idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
     pers = searched.per_recording_points(model, name, points, settings, inclination=False)
-    values = [objective_value(p) for p in pers]
+    values = [objective_value(p, searched.weights) for p in pers]
     j = int(np.argmin(values))
     # "effect off" on the same recordings, scored like the design: when no point beats it
     # there, the effect is off (the best point would need a full evaluation to say so)
     same = idx.size == n and not target.inclination
     off_searched = off if same else searched.per_recording(model, settings, inclination=False)
-    if values[j] >= objective_value(off_searched):
+    if values[j] >= objective_value(off_searched, searched.weights):
         per, rescored = off, False
     else:
         rescored = not (j == 0 and same)
         # the first point of the batch drew the standard noise; the others did not
         per = target.per_recording([*model, cls(**points[j])], settings) if rescored else pers[0]
-    improves = bool(objective_value(per) < objective_value(off))
+    improves = bool(objective_value(per, target.weights) < objective_value(off, target.weights))
     params = points[j]
     if not improves:
         per = off
-        if cls.neutral is not None:
-            params = {**space.fixed, **cls.neutral}
+        params = (off_params(name, space) or [params])[0]
     return {
         "effect": name,
         "params": params,
@@ -372,14 +419,17 @@ def fit_joint(
     # held, so one effect cannot keep a share that belongs to another (a local search alone
     # stays in the valley where the first effect was fitted)
     for _ in range(0 if numerical else rounds):
-        round_start = objective_value(start)
+        round_start = objective_value(start, target.weights)
         for i, n in enumerate(names):
             others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
             fit = fit_effect(target, n, others, settings, seeds=[params[i]])
             evaluations += fit["evaluations"]
-            if objective_value(np.asarray(fit["per_recording"])) < objective_value(start):
+            w = target.weights
+            if objective_value(np.asarray(fit["per_recording"]), w) < objective_value(start, w):
                 params[i], start = dict(fit["params"]), np.asarray(fit["per_recording"], float)
-        if objective_value(start) >= round_start:  # a round that moved nothing ends the descent
+        if (
+            objective_value(start, target.weights) >= round_start
+        ):  # a round that moved nothing ends the descent
             break
     if budget is None:
         per = JOINT_PER_COORDINATE_NUMERICAL if numerical else JOINT_PER_COORDINATE

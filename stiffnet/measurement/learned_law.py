@@ -29,7 +29,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.discrepancy import campaign_discrepancy
-from stiffnet.measurement.noise_floor import at_floor
+from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
 
 #: Residual groups where a contact law shows.
@@ -65,7 +65,7 @@ def learned_law_proposal(
     verdict_info: dict[str, Any],
     effects: Sequence[Effect],
     residual: np.ndarray,
-    floor: float,
+    floor: Floors,
     seed: int = 0,
 ) -> dict[str, Any]:
     """diagnose's ``learned_law`` entry: :func:`propose_learned_law` where
@@ -83,7 +83,7 @@ def propose_learned_law(
     target: Any,
     effects: Sequence[Effect],
     residual: np.ndarray,
-    floor: float,
+    floor: Floors,
     seed: int = 0,
 ) -> dict[str, Any]:
     """Discover the campaign's contact law and score the model with it (see the module notes).
@@ -98,8 +98,9 @@ def propose_learned_law(
         The diagnosed model (base effects and the selected ones).
     residual : numpy.ndarray
         Its per-recording discrepancy at diagnose's settings.
-    floor : float
-        The campaign's noise floor at the numerical engine's settings.
+    floor : Floors
+        The recordings' own noise floors at the numerical engine's settings: the rest is
+        at the floor when no more recordings sit above theirs than chance allows.
     seed : int
         Seed of the discovery's folds and bootstrap.
 
@@ -140,7 +141,7 @@ def propose_learned_law(
     after, kept = trials[best], models[best]
     d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
     removed = float((d0 - d1) / d0) if d0 > 0 else 0.0
-    rest = at_floor(d1, floor)
+    rest = floor.at_floor(np.asarray(after, dtype=float))
     out.update(
         proposed=bool(d1 < d0),
         effect={"name": LearnedContact.name, "params": law.effect_params},
@@ -151,9 +152,13 @@ def propose_learned_law(
         after_per_recording=np.asarray(after).tolist(),
         removed_fraction=removed,
         at_floor=rest,
-        noise_floor=float(floor),
+        noise_floor=floor.median,
     )
-    floor_words = "at the noise floor" if rest else f"above the noise floor ({floor:.3g})"
+    floor_words = (
+        "at the noise floor"
+        if rest
+        else f"above the recordings' noise floors (median {floor.median:.3g})"
+    )
     out["summary"] = (
         f"learned contact law: {law.equation}; {law.words}. With it the discrepancy goes from "
         f"{d0:.3g} to {d1:.3g} ({removed:.0%} removed), the rest {floor_words}"

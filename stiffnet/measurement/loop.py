@@ -36,7 +36,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from stiffnet.campaign import Campaign
+from stiffnet.campaign import Campaign, LoadedCampaign
 from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
 from stiffnet.effects.registry import effect_class
@@ -557,6 +557,9 @@ def run_loop(
         ``before`` / ``after`` (metrics of the first and the last), ``chart``,
         ``stopped`` (why no effect was added, or None), ``out`` (the state folder).
     """
+    # the recordings, their statistics and predictions are read and computed once for all
+    # iterations (a LoadedCampaign is shared by diagnose, evaluate and compare)
+    campaign = LoadedCampaign.of(campaign)
     if family is not None:
         check_family(family)
     check_n_trajectories(n_trajectories)

@@ -24,7 +24,8 @@ from the recordings, so a missing effect is not blamed for a wrong setting:
 ``start``
     the initial state (one of :data:`N_STARTS` draws per recording): impact
     oscillators are multistable and a simulation from another state can sit
-    on another orbit than the recording.
+    on another orbit than the recording; the orbits the starts reached are
+    returned per recording (:func:`stiffnet.measurement.orbits.start_orbits`).
 
 Profiling (:func:`profile_nuisances`): for the current effects, each nuisance
 in turn is set on a grid of :data:`GRID` values across its interval for every
@@ -42,9 +43,11 @@ from typing import Any
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import CampaignSolverSettings, natural_frequency
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
+from stiffnet.measurement.orbits import start_orbits
 from stiffnet.measurement.target import CampaignTarget
 
 N_STARTS = 8
@@ -98,22 +101,40 @@ def _operating_points(rows: Sequence[ManifestRow]) -> np.ndarray:
     return np.array([index.setdefault(k, len(index)) for k in keys])
 
 
+def predicted(
+    campaign: Campaign, i: int, row: ManifestRow, model_path: str | None
+) -> dict[str, Any]:
+    """The predictor's result for recording ``i`` (once per model for a loaded campaign).
+
+    Raises what :meth:`serving.predictor.Predictor.predict` raises."""
+    from serving.predictor import Predictor
+
+    def run() -> dict[str, Any]:
+        predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        rec = campaign.recording(i)
+        return predictor.predict(
+            rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
+            source=row.recording,
+        )  # fmt: skip
+
+    return memo(campaign, ("predicted", model_path, i, natural_frequency(row)), run)
+
+
 def _beta_starts(campaign: Campaign, rows: Sequence[ManifestRow], model_path: str | None) -> list:
     """The learned model's (else the geometric method's) β per recording."""
     try:
         from serving.predictor import Predictor
 
-        predictor = Predictor.load(model_path)
+        memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        have_model = True
     except Exception:  # noqa: BLE001 - no model: the geometric method or a default
-        predictor = None
+        have_model = False
     out = []
-    for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
+    for i, row in enumerate(rows):
         beta = None
-        if predictor is not None:
+        if have_model:
             try:
-                res = predictor.predict(
-                    rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row)
-                )
+                res = predicted(campaign, i, row, model_path)
                 beta = res.get("beta") or (res.get("geometric") or {}).get("beta")
             except Exception:  # noqa: BLE001 - a recording the predictor refuses
                 beta = None
@@ -124,7 +145,8 @@ def _beta_starts(campaign: Campaign, rows: Sequence[ManifestRow], model_path: st
 def resolve_rows(
     campaign: Campaign, model_path: str | None = None
 ) -> tuple[list[ManifestRow], dict[str, Any]]:
-    """Complete the rows for simulation and list the nuisances to profile (see module notes).
+    """Complete the rows for simulation and list the nuisances to profile (see module notes;
+    once per model for a :class:`~stiffnet.campaign.LoadedCampaign`).
 
     Returns
     -------
@@ -133,6 +155,15 @@ def resolve_rows(
     info : dict
         ``nuisances`` (list of :class:`Nuisance`) and ``estimated`` (column -> rows).
     """
+    rows, info = memo(
+        campaign, ("resolve_rows", model_path), lambda: _resolve(campaign, model_path)
+    )
+    return [r.model_copy() for r in rows], info
+
+
+def _resolve(
+    campaign: Campaign, model_path: str | None
+) -> tuple[list[ManifestRow], dict[str, Any]]:
     rows = [r.model_copy() for r in campaign.rows]
     estimated: dict[str, list[str]] = {}
     for i, (row, (_, rec)) in enumerate(zip(rows, campaign.recordings(), strict=True)):
@@ -199,11 +230,13 @@ def profile_nuisances(
     model = [*target.base_effects, *effects]
     n = len(target.rows)
     # initial states: each recording keeps the start whose orbit matches it best
-    pers = [
-        target.per_recording(model, settings, starts=[k] * n, inclination=False)
+    stats = [
+        target.simulated_statistics(model, settings, starts=[k] * n, inclination=False)
         for k in range(N_STARTS)
     ]
+    pers = [target.discrepancies_of(st) for st in stats]
     target.starts = [int(k) for k in np.argmin(np.vstack(pers), axis=0)]
+    orbits = start_orbits(target.measured, stats)
     for nu in info.get("nuisances", []):
         grid = np.linspace(0.0, 1.0, GRID)
         best = _profile(target, model, settings, nu, grid)
@@ -215,7 +248,11 @@ def profile_nuisances(
             r.model_copy(update={nu.name: float(v)})
             for r, v in zip(target.rows, values, strict=True)
         ]
-    out: dict[str, Any] = {"start": list(target.starts), **{"estimated": info.get("estimated", {})}}
+    out: dict[str, Any] = {
+        "start": list(target.starts),
+        "estimated": info.get("estimated", {}),
+        "orbits": orbits,
+    }
     for nu in info.get("nuisances", []):
         out[nu.name] = [float(getattr(r, nu.name)) for r in target.rows]
     if "frequency_ratio" in info.get("estimated", {}):

@@ -391,6 +391,12 @@ def render_report(
                 )
             )
             parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
+            if diagnosis.get("per_recording"):
+                parts.append("<h3>Per recording: the final model against its own floor</h3>")
+                cols = ["recording", "floor", "residual", "ratio", "above_floor",
+                        "non_repeatable", "measured_orbit", "simulated_orbit",
+                        "starts_on_measured_orbit", "distinct_orbits", "note"]  # fmt: skip
+                parts.append(_table(diagnosis["per_recording"], cols))
             parts += learned_law_html(diagnosis.get("learned_law"), t / "law.png")
         if loop is not None:
             parts.append("<h2>Loop</h2>")

@@ -7,15 +7,18 @@ and ``deltas = before - after`` the per-recording reductions. It is
 **significant** when every test of :data:`TESTS` passes:
 
 ``above_floor``
-    the model before is not already at the campaign's noise floor
-    (:mod:`stiffnet.measurement.noise_floor`): its discrepancy exceeds
-    :data:`AT_FLOOR_FACTOR` times the floor, so there is something to explain;
+    the model before is not already at the recordings' own noise floors
+    (:meth:`stiffnet.measurement.noise_floor.Floors.judge`: more recordings above
+    :data:`AT_FLOOR_FACTOR` times their floor than chance allows), so there is
+    something to explain;
 ``effect_size``
     it removes at least :data:`MIN_EXCESS_REDUCTION` of the discrepancy
-    *above the noise floor* (the part a perfect model would remove);
+    *above the recordings' floors* (the part a perfect model would remove; each
+    recording's excess over its own floor, non-repeatable recordings weighted down,
+    :meth:`~stiffnet.measurement.noise_floor.Floors.excess`);
 ``bootstrap``
     in at least :data:`BOOTSTRAP_LEVEL` of :data:`N_BOOTSTRAP` paired bootstrap
-    resamples of the recordings the mean reduction is positive (a one-sided
+    resamples of the recordings the mean (weighted) reduction of the excess is positive (a one-sided
     95 % interval above zero; meaningful from 5 recordings, where a sign test
     cannot reach 5 % with one recording against);
 ``not_one_recording``
@@ -41,8 +44,8 @@ from typing import Any
 import numpy as np
 
 from stiffnet.measurement.discrepancy import COMPONENTS, campaign_discrepancy
+from stiffnet.measurement.noise_floor import AT_FLOOR_FACTOR, Floors
 
-AT_FLOOR_FACTOR = 2.0
 MIN_EXCESS_REDUCTION = 0.2
 MIN_LEAVE_ONE_OUT = 0.1
 BOOTSTRAP_LEVEL = 0.95
@@ -58,18 +61,22 @@ def bootstrap_positive_fraction(deltas: np.ndarray, n: int = N_BOOTSTRAP, seed: 
     return float(np.mean(deltas[idx].mean(axis=1) > 0))
 
 
-def excess_reduction(before: np.ndarray, after: np.ndarray, floor: float) -> float:
-    """Fraction of the discrepancy above the noise floor that ``after`` removes."""
-    d_b, d_a = campaign_discrepancy(before), campaign_discrepancy(after)
-    excess = d_b - floor
-    return float((d_b - d_a) / excess) if excess > 0 else 0.0
+def excess_reduction(before: np.ndarray, after: np.ndarray, floors: Floors | float) -> float:
+    """Fraction of the discrepancy above the recordings' floors that ``after`` removes."""
+    floors = _floors(floors, np.asarray(before).size)
+    excess = floors.excess(before)
+    return float((excess - floors.excess(after)) / excess) if excess > 0 else 0.0
+
+
+def _floors(floors: Floors | float, n: int) -> Floors:
+    return floors if isinstance(floors, Floors) else Floors.uniform(float(floors), n)
 
 
 def significance(
     before: np.ndarray,
     after: np.ndarray,
     k: int,
-    floor: float,
+    floor: Floors | float,
     recordings: Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """The evidence for an effect (see the module notes).
@@ -80,8 +87,8 @@ def significance(
         Per-recording discrepancies without and with the effect.
     k : int
         Parameters the effect adds.
-    floor : float
-        The campaign's noise floor (discrepancy a perfect model would score).
+    floor : Floors or float
+        The recordings' own noise floors (a number: the same for every recording).
     recordings : sequence of str, optional
         Recording names (for the reasons).
 
@@ -94,28 +101,37 @@ def significance(
         ``reasons`` (one sentence per failed test) and ``significant``.
     """
     before, after = np.asarray(before, float), np.asarray(after, float)
-    deltas = before - after
+    floors = _floors(floor, before.size)
+    w, fl = floors.weights(), floors.effective()
+    # each recording's reduction of its excess over its own floor, weighted
+    deltas = w * (np.maximum(before - fl, 0.0) - np.maximum(after - fl, 0.0))
     names = list(recordings) if recordings is not None else [f"#{i}" for i in range(deltas.size)]
-    d_b, d_a = campaign_discrepancy(before), campaign_discrepancy(after)
-    excess = excess_reduction(before, after, floor)
+    d_b, d_a = campaign_discrepancy(before, w), campaign_discrepancy(after, w)
+    excess = excess_reduction(before, after, floors)
     top = int(np.argmax(deltas))
     keep = np.arange(deltas.size) != top
-    loo = excess_reduction(before[keep], after[keep], floor) if keep.any() else 0.0
+    loo = (
+        excess_reduction(before[keep], after[keep], floors.subset(np.flatnonzero(keep)))
+        if keep.any()
+        else 0.0
+    )
     n_obs = deltas.size * len(COMPONENTS)
     bic = n_obs * math.log(max(d_a, 1e-12) / max(d_b, 1e-12)) + k * math.log(n_obs)
     boot = bootstrap_positive_fraction(deltas)
+    judged = floors.judge(before)
     tests = {
-        "above_floor": d_b > AT_FLOOR_FACTOR * floor,
+        "above_floor": not judged["at_floor"],
         "effect_size": excess >= MIN_EXCESS_REDUCTION,
         "bootstrap": boot >= BOOTSTRAP_LEVEL,
         "not_one_recording": loo >= MIN_LEAVE_ONE_OUT,
         "pays_for_parameters": bic < 0,
     }
     words = {
-        "above_floor": f"nothing to explain: the model without it ({d_b:.3g}) is within "
-        f"{AT_FLOOR_FACTOR:g}x the campaign's noise floor ({floor:.3g})",
-        "effect_size": f"too small: it removes {excess:.1%} of the discrepancy above the noise "
-        f"floor (needs {MIN_EXCESS_REDUCTION:.0%})",
+        "above_floor": f"nothing to explain: the model without it is at the recordings' own "
+        f"noise floors ({judged['n_above']} of {judged['n']} above {AT_FLOOR_FACTOR:g}x their own, "
+        f"p = {judged['p_value']:.2g})",
+        "effect_size": f"too small: it removes {excess:.1%} of the discrepancy above the "
+        f"recordings' floors (needs {MIN_EXCESS_REDUCTION:.0%})",
         "bootstrap": f"not consistent across recordings: the mean reduction is positive in "
         f"{boot:.0%} of {N_BOOTSTRAP} paired bootstrap resamples (needs "
         f"{BOOTSTRAP_LEVEL:.0%})",

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import (
     DEFAULT_SEED,
     FIT_SETTINGS,
@@ -61,6 +62,9 @@ class CampaignTarget:
     inclination: bool = True
     #: Initial-state variant per row (multistable orbits; profiled as a nuisance).
     starts: list[int] | None = None
+    #: Per-recording weights of the objective (non-repeatable recordings weigh less;
+    #: :meth:`stiffnet.measurement.noise_floor.Floors.weights`); None: equal.
+    weights: list[float] | None = None
 
     def simulated_statistics(
         self,
@@ -89,7 +93,9 @@ class CampaignTarget:
             inclination=incl,
         )
 
-    def _discrepancies(self, sims: Sequence[SignalStatistics | None]) -> np.ndarray:
+    def discrepancies_of(self, sims: Sequence[SignalStatistics | None]) -> np.ndarray:
+        """Per-recording discrepancies of simulated statistics (a failed one scores
+        :data:`FAILED_DISCREPANCY`)."""
         out = np.full(len(self.rows), FAILED_DISCREPANCY)
         for i, (m, s) in enumerate(zip(self.measured, sims, strict=True)):
             if s is not None:
@@ -108,7 +114,7 @@ class CampaignTarget:
         """Per-recording discrepancies of the campaign simulated with ``effects``
         (``rows``, ``starts``: other nuisance values than the target's; ``inclination``: see
         :meth:`simulated_statistics`)."""
-        return self._discrepancies(
+        return self.discrepancies_of(
             self.simulated_statistics(effects, settings, rows, starts, inclination)
         )
 
@@ -144,7 +150,9 @@ class CampaignTarget:
             effect_params=stacked,
         )  # fmt: skip
         return [
-            self._discrepancies(self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination))
+            self.discrepancies_of(
+                self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination)
+            )
             for j in range(k)
         ]
 
@@ -159,6 +167,7 @@ class CampaignTarget:
             self.seed,
             self.inclination,
             None if self.starts is None else [self.starts[i] for i in idx],
+            None if self.weights is None else [self.weights[i] for i in idx],
         )
 
     def observed(self) -> dict[str, float]:
@@ -177,9 +186,22 @@ def measured_statistics(
     rows: Sequence[ManifestRow] | None = None,
     inclination: bool = True,
 ) -> tuple[list[SignalStatistics], list[int], list[np.ndarray]]:
-    """Statistics, lengths and samples of every recording (``rows``: resolved rows)."""
-    stats_, lengths, signals = [], [], []
+    """Statistics, lengths and samples of every recording (``rows``: resolved rows; computed
+    once per rows and ``inclination`` for a :class:`~stiffnet.campaign.LoadedCampaign`)."""
     rows = list(campaign.rows) if rows is None else list(rows)
+    key = ("measured_statistics", inclination, rows_key(rows))
+    return memo(campaign, key, lambda: _measured_statistics(campaign, rows, inclination))
+
+
+def rows_key(rows: Sequence[ManifestRow]) -> tuple:
+    """What the measured statistics of ``rows`` depend on (hashable)."""
+    return tuple((r.recording, r.fs_hz, natural_frequency(r), r.frequency_ratio) for r in rows)
+
+
+def _measured_statistics(
+    campaign: Campaign, rows: list[ManifestRow], inclination: bool
+) -> tuple[list[SignalStatistics], list[int], list[np.ndarray]]:
+    stats_, lengths, signals = [], [], []
     for row, (_, rec) in zip(rows, campaign.recordings(), strict=True):
         try:
             stats_.append(
