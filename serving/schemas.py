@@ -57,6 +57,12 @@ class PhysicalCheck(BaseModel):
     resonance_hz: float | None = Field(
         default=None, description="Accelerometer mount resonance divided out (null: none seen)."
     )
+    dissipation_gain: float | None = Field(
+        default=None, description="Share of the contact law's misfit a delta*v term removes."
+    )
+    dissipation_share: float | None = Field(
+        default=None, description="Share of the contact's dissipation that delta*v term carries."
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 
