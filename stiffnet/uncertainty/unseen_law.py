@@ -17,8 +17,8 @@ them on rigs whose law the training world lacks, and neither needs the model:
   dissipation is ``c v`` alone.
 
 Thresholds were chosen on in-distribution rigs only (``bench_robustness``'s ideal,
-damped, Hertz, sensor and damped-with-sensor sets, 24 recordings each: at most one
-added alarm per set) and then measured on the out-of-library sets and the
+damped, Hertz, sensor and damped-with-sensor sets, 64-96 recordings each: at most
+3 % of a set fires) and then measured on the out-of-library sets and the
 independent rig (docs/crosscheck.md). numpy only: the predictor imports it.
 """
 
@@ -30,16 +30,18 @@ import numpy as np
 
 from stiffnet.uncertainty.alarm_verdict import alarm_message
 
-#: Exponents the restoring-force fit reads on the training world's laws: linear and
-#: Kelvin-Voigt contacts read 1.00-1.03, Hertz contacts 1.38-1.52 (robustness sets,
-#: R2 >= 0.98); each band widened by the scatter seen there.
-TRAINING_EXPONENT_BANDS = ((1.0, 1.05), (1.3, 1.6))
+#: Exponents the restoring-force fit reads on the training world's laws (robustness
+#: sets, R2 >= 0.98): linear and Kelvin-Voigt contacts 1.00-1.16, Hertz 1.38-1.52, and
+#: through a sensor chain (mount resonance, anti-alias low-pass) anything up to 1.83,
+#: which is what bounds the upper band.
+TRAINING_EXPONENT_BANDS = ((1.0, 1.2), (1.3, 1.85))
 #: The exponent counts only from a law that explains this share of the contact force
 #: (through a sensor chain the exponent of a poorer fit wanders over 1.0-3.0).
 EXPONENT_MIN_R2 = 0.98
-#: Fraction of the fitted law's misfit a ``delta v`` term must remove (in-distribution
-#: maximum with a positive share: 0.70 through a sensor chain, <= 0.46 on damped contacts).
-DISSIPATION_MIN_GAIN = 0.7
+#: Fraction of the fitted law's misfit a ``delta v`` term must remove (in-distribution,
+#: share >= 0.3: <= 0.59 on damped contacts, <= 0.16 through a sensor chain, up to 0.86
+#: on a damped contact through a sensor chain, where 2 of 96 reach 0.8).
+DISSIPATION_MIN_GAIN = 0.8
 #: Share of the dissipation the ``delta v`` term must carry, ``h d_r / (|c| + |h d_r|)``.
 DISSIPATION_MIN_SHARE = 0.3
 #: Fewest in-contact samples for the ``delta v`` regression.
@@ -92,7 +94,8 @@ def unseen_law_reasons(physical: dict[str, Any]) -> list[str]:
     if p is not None and r2 is not None and r2 >= EXPONENT_MIN_R2:
         if not any(lo <= p <= hi for lo, hi in TRAINING_EXPONENT_BANDS):
             reasons.append(
-                f"contact exponent {p:.2f} (R2 {r2:.3f}) is neither linear nor Hertz's 1.5"
+                f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
+                "contacts read"
             )
     gain, share = physical.get("dissipation_gain"), physical.get("dissipation_share")
     if gain is not None and share is not None:
