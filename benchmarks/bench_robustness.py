@@ -15,9 +15,11 @@ per-recording interval, alarm). Per set and model the table gives:
 * silent failures: recordings with a wrong class or a beta outside its interval and
   no alarm (the failures a user is not warned of).
 
-Alarm rate and silent failures are given with all the predictor's checks and, in
-brackets, with the model's own checks only (without the restoring-force checks: the
-interval contradiction and the identified sensor chain outside the model's priors).
+Alarm rate and silent failures are given with all the predictor's checks, in
+brackets with the model's own checks only (without the restoring-force checks: the
+interval contradiction, the identified sensor chain outside the model's priors and
+the unseen contact law), and in their own columns without the unseen-contact-law
+check (``contact_law``, :mod:`stiffnet.uncertainty.unseen_law`): its before and after.
 
 Models are ``NAME=PATH`` pairs (``--model``); each is loaded with its own alarm
 reference / OOD reference as the predictor finds them. The older models trained
@@ -113,6 +115,7 @@ def recordings(cfg: SimulationConfig, folder: Path) -> list[dict[str, Any]]:
 def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
     """Accuracy, beta MAPE, coverage, alarm rates of one model on one set."""
     right, flags, model_flags, misses, covered, ape, width = [], [], [], [], [], [], []
+    no_law_flags = []
     t0 = time.perf_counter()
     for r in recs:
         res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
@@ -120,7 +123,8 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         right.append(ok)
         flags.append(bool(res["ood_flag"]))
         fired = (res["alarm"] or {}).get("fired", [])
-        model_flags.append(any(f not in ("physical", "sensor") for f in fired))
+        model_flags.append(any(f not in ("physical", "sensor", "contact_law") for f in fired))
+        no_law_flags.append(any(f != "contact_law" for f in fired))
         miss = not ok
         if r["class"] != "no_contact":
             iv = res["beta_interval"]
@@ -134,6 +138,7 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         misses.append(miss)
     right_a, flags_a, model_a = np.array(right), np.array(flags), np.array(model_flags)
     wrong, miss_a = ~right_a, np.array(misses)
+    no_law = np.array(no_law_flags)
     return {
         "n": len(recs),
         "accuracy": float(right_a.mean()),
@@ -149,6 +154,11 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         # user is not warned of, with all checks and with the model's own checks only
         "silent_failure_rate": float((miss_a & ~flags_a).mean()),
         "silent_failure_rate_model_checks": float((miss_a & ~model_a).mean()),
+        # without the unseen-contact-law check: its before
+        "alarm_rate_without_law_check": float(no_law.mean()),
+        "silent_failure_rate_without_law_check": float((miss_a & ~no_law).mean()),
+        "silent_wrong_class": int((wrong & ~flags_a).sum()),
+        "silent_wrong_class_without_law_check": int((wrong & ~no_law).sum()),
         "ms_per_recording": 1e3 * (time.perf_counter() - t0) / max(1, len(recs)),
     }
 
@@ -165,8 +175,10 @@ def markdown(result: dict[str, Any]) -> str:
         f"(!): coverage under the {COVERAGE_TARGET:.0%} target on a set inside the priors",
         "",
         "| set | inside priors | model | accuracy | beta MAPE | coverage (90 %) | "
-        "alarm rate | alarm on wrong (n wrong) | silent failures |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "alarm rate | alarm on wrong (n wrong) | silent failures | "
+        "without contact_law: alarm rate / silent failures | wrong class, no alarm: "
+        "before -> after contact_law |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, s in result["sets"].items():
         for model, m in s["models"].items():
@@ -178,7 +190,11 @@ def markdown(result: dict[str, Any]) -> str:
                 f"{f(m['alarm_rate'], True)} ({f(m.get('alarm_rate_model_checks'), True)}) | "
                 f"{f(m['alarm_rate_wrong'], True)} ({m['n_wrong']}) | "
                 f"{f(m.get('silent_failure_rate'), True)} "
-                f"({f(m.get('silent_failure_rate_model_checks'), True)}) |"
+                f"({f(m.get('silent_failure_rate_model_checks'), True)}) | "
+                f"{f(m.get('alarm_rate_without_law_check'), True)} / "
+                f"{f(m.get('silent_failure_rate_without_law_check'), True)} | "
+                f"{m.get('silent_wrong_class_without_law_check', '-')} -> "
+                f"{m.get('silent_wrong_class', '-')} of {m['n']} |"
             )
     return "\n".join(lines)
 

@@ -56,3 +56,25 @@ class BilinearContact(DynamicsEffect):
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
         knee = p["knee"]
         return batch.beta * np.where(delta <= knee, delta, knee + p["ratio"] * (delta - knee))
+
+
+class HuntCrossleyContact(DynamicsEffect):
+    r"""Hunt & Crossley (1975): a dissipation that scales with penetration.
+
+    ``F = beta delta (1 + lam v)``: the damping force grows with the penetration (zero
+    at first touch, so no force jump at onset), unlike the library's Kelvin-Voigt
+    ``contact_damping`` (``c v``); wet or crushing rock, rubber pads.
+    """
+
+    name = "hunt_crossley_contact"
+
+    class Params(EffectParams):
+        lam: ParamValue = param(0.5, 0.0, 5.0, "dissipation per unit velocity", "model time/length")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        return np.asarray(batch.beta, float) * delta
+
+    def contact_dissipation(
+        self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
+    ) -> np.ndarray:
+        return p["lam"] * np.asarray(batch.beta, float) * delta * rate

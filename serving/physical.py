@@ -11,6 +11,8 @@ amplifier's high-pass) is identified from the recording's impacts, or taken from
 the user's data sheet (``sensor``), undone before the map and reported
 (``sensor``); :func:`sensor_outside_priors` says when it lies outside the sensor
 chains the model was trained on, which the predictor's alarm counts.
+``dissipation_gain`` / ``dissipation_share`` say whether the contact's dissipation
+grows with penetration (:mod:`stiffnet.uncertainty.unseen_law`).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
+from stiffnet.uncertainty.unseen_law import penetration_dissipation
 
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~15 ms
 #: without a sensor chain to fit, ~1-3 s with one).
@@ -56,6 +59,11 @@ def physical_check(
         reason = f"the restoring-force fit failed numerically ({type(exc).__name__})"
         return {"class": None, "beta": None, "beta_interval": None, "reason": reason}
     d = r.to_dict()
+    hc = None
+    if r.ok and r.law is not None:  # the map's own test for a Hunt-Crossley-like dissipation
+        law = r.law
+        hc = penetration_dissipation(r.displacement, r.velocity, r.force, law.onset,
+                                     law.exponent, law.reference_penetration)  # fmt: skip
     return {
         "class": d["physical_class"],
         "beta": d["beta"],
@@ -68,6 +76,8 @@ def physical_check(
         "highpass_hz": d["highpass_hz"],
         "resonance_hz": d["resonance_hz"],
         "sensor": d["sensor"],
+        "dissipation_gain": None if hc is None else hc[0],
+        "dissipation_share": None if hc is None else hc[1],
         "reason": d["reason"],
     }
 

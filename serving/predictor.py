@@ -71,6 +71,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     with_physical_check,
 )
 from stiffnet.uncertainty.ood import OODReference, load_reference
+from stiffnet.uncertainty.unseen_law import with_unseen_law_check
 
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
@@ -324,6 +325,7 @@ class Predictor:
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
+        alarm = with_unseen_law_check(alarm, physical)
         alarm = with_layers_alarm(alarm, layers)
         priors = (self.model.card.get("data") or {}).get("priors")
         alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,

@@ -63,6 +63,12 @@ class PhysicalCheck(BaseModel):
         "sheet's): resonance_hz, resonance_damping, lowpass_hz, lowpass_order, highpass_hz, "
         "source, applied, intervals (90 %), contact_hz.",
     )
+    dissipation_gain: float | None = Field(
+        default=None, description="Share of the contact law's misfit a delta*v term removes."
+    )
+    dissipation_share: float | None = Field(
+        default=None, description="Share of the contact's dissipation that delta*v term carries."
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 

@@ -17,8 +17,8 @@ from typer.testing import CliRunner
 
 from stiffnet.campaign import ManifestRow, simulate_campaign, write_manifest
 from stiffnet.cli import app
-from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.cli import measurement as commands
+from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.fitting import effect_space, off_params
 
 runner = CliRunner()

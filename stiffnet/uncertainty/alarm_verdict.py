@@ -41,6 +41,8 @@ ALARM_WORDS = {
     "physical": "the restoring-force cross-check reads a beta outside the model's interval "
     "(the physics of this rig may be missing from the training data)",
     "sensor": "the recording's sensor chain lies outside the chains the model was trained on",
+    "contact_law": "the restoring-force map reads a contact law the training data lack "
+    "(an exponent neither linear nor Hertz, or dissipation growing with penetration)",
 }
 
 #: The physical check fires when the two beta intervals are disjoint: its score is the

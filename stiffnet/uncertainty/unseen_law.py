@@ -1,0 +1,131 @@
+"""The alarm's unseen-contact-law check: what the restoring-force map says about the law itself.
+
+The restoring-force estimate (:mod:`stiffnet.restoring_force`) fits a Kelvin-Voigt
+power law ``F = K d_r (delta/d_r)^p + c v`` to every recording the predictor reads.
+The training world's contact laws are the linear spring (paper eqs 11-12), its
+Kelvin-Voigt damping and Hertz's ``p = 1.5``; two readings of the map fall outside
+them on rigs whose law the training world lacks, and neither needs the model:
+
+* **the exponent**: a well-fitted law (R2 >= :data:`EXPONENT_MIN_R2`) whose exponent
+  lies in neither band the training world's laws are read in
+  (:data:`TRAINING_EXPONENT_BANDS`) is a power law, or a stiffening law (a layer over
+  a stiffer body, a two-stage restraint) that a power law stands in for;
+* **dissipation that scales with penetration** (Hunt & Crossley, 1975,
+  ``F = k delta (1 + lambda v)``): a ``delta v`` term added to the fitted law
+  removes at least :data:`DISSIPATION_MIN_GAIN` of its misfit and carries most of
+  the dissipation (:data:`DISSIPATION_MIN_SHARE`); a Kelvin-Voigt contact's
+  dissipation is ``c v`` alone.
+
+Thresholds were chosen on in-distribution rigs only (``bench_robustness``'s ideal,
+damped, Hertz, sensor and damped-with-sensor sets, 64-96 recordings each: at most
+3 % of a set fires) and then measured on the out-of-library sets and the
+independent rig (docs/crosscheck.md). numpy only: the predictor imports it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from stiffnet.uncertainty.alarm_verdict import alarm_message
+
+#: Exponents the restoring-force fit reads on the training world's laws (robustness
+#: sets, R2 >= 0.98): linear and Kelvin-Voigt contacts 1.00-1.16, Hertz 1.38-1.52, and
+#: through a sensor chain (mount resonance, anti-alias low-pass) anything up to 1.83,
+#: which is what bounds the upper band.
+TRAINING_EXPONENT_BANDS = ((1.0, 1.2), (1.3, 1.85))
+#: The exponent counts only from a law that explains this share of the contact force
+#: (through a sensor chain the exponent of a poorer fit wanders over 1.0-3.0).
+EXPONENT_MIN_R2 = 0.98
+#: Fraction of the fitted law's misfit a ``delta v`` term must remove (in-distribution,
+#: share >= 0.3: <= 0.59 on damped contacts, <= 0.16 through a sensor chain, up to 0.86
+#: on a damped contact through a sensor chain, where 2 of 96 reach 0.8).
+DISSIPATION_MIN_GAIN = 0.8
+#: Share of the dissipation the ``delta v`` term must carry, ``h d_r / (|c| + |h d_r|)``.
+DISSIPATION_MIN_SHARE = 0.3
+#: Fewest in-contact samples for the ``delta v`` regression.
+MIN_CONTACT_SAMPLES = 10
+
+
+def penetration_dissipation(
+    disp: np.ndarray,
+    vel: np.ndarray,
+    force: np.ndarray,
+    onset: float,
+    exponent: float,
+    reference_penetration: float,
+) -> tuple[float, float] | None:
+    """How much a dissipation scaling with penetration improves the fitted contact law.
+
+    On the in-contact samples (``delta = x - onset > 0``) the law's shape is refitted
+    linearly, ``F = a (delta/d_r)^p + b + c v``, then with ``h (delta/d_r) v`` added
+    (Hunt-Crossley's term). Returns ``(gain, share)``: the fraction of the first
+    fit's residual sum of squares the term removes, and its share of the
+    dissipation at the reference penetration, ``h / (|c| + |h|)`` (positive when
+    the dissipation grows with penetration). None with too few contact samples.
+    """
+    d = np.asarray(disp, float) - onset
+    on = d > 0
+    if int(on.sum()) < MIN_CONTACT_SAMPLES or not reference_penetration > 0:
+        return None
+    dn = d[on] / reference_penetration
+    f, v = np.asarray(force, float)[on], np.asarray(vel, float)[on]
+    base = np.column_stack([dn**exponent, np.ones_like(dn), v])
+    full = np.column_stack([base, dn * v])
+    sse = []
+    for a in (base, full):
+        coef = np.linalg.lstsq(a, f, rcond=None)[0]
+        sse.append(float(np.sum((f - a @ coef) ** 2)))
+    if not sse[0] > 0:
+        return None
+    c, h = float(coef[2]), float(coef[3])
+    return 1.0 - sse[1] / sse[0], h / (abs(c) + abs(h) + 1e-300)
+
+
+def unseen_law_reasons(physical: dict[str, Any]) -> list[str]:
+    """Why the restoring-force map reads a contact law the training world lacks (empty: none).
+
+    ``physical`` holds the cross-check's fields (:func:`serving.physical.physical_check`):
+    ``exponent``, ``contact_r2`` and ``dissipation_gain`` / ``dissipation_share``.
+    """
+    reasons = []
+    p, r2 = physical.get("exponent"), physical.get("contact_r2")
+    if p is not None and r2 is not None and r2 >= EXPONENT_MIN_R2:
+        if not any(lo <= p <= hi for lo, hi in TRAINING_EXPONENT_BANDS):
+            reasons.append(
+                f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
+                "contacts read"
+            )
+    gain, share = physical.get("dissipation_gain"), physical.get("dissipation_share")
+    if gain is not None and share is not None:
+        if gain >= DISSIPATION_MIN_GAIN and share >= DISSIPATION_MIN_SHARE:
+            reasons.append(
+                f"the contact's dissipation grows with penetration (a delta*v term removes "
+                f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
+            )
+    return reasons
+
+
+def with_unseen_law_check(
+    alarm: dict[str, Any] | None, physical: dict[str, Any]
+) -> dict[str, Any] | None:
+    """The alarm with the ``contact_law`` check added (fires on any :func:`unseen_law_reasons`).
+
+    Its score is the number of reasons and its threshold 0; the reasons go to
+    ``alarm["contact_law"]``. A model without an alarm gets one made of this check.
+    """
+    reasons = unseen_law_reasons(physical)
+    if physical.get("exponent") is None and physical.get("dissipation_gain") is None:
+        return alarm  # the cross-check refused: nothing to judge
+    if alarm is None:
+        alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
+    alarm["scores"]["contact_law"] = float(len(reasons))
+    alarm["thresholds"]["contact_law"] = 0.0
+    if reasons:
+        alarm["fired"] = [*alarm["fired"], "contact_law"]
+        alarm["flag"] = True
+        alarm["contact_law"] = reasons
+    alarm["message"] = alarm_message(alarm["fired"])
+    return alarm

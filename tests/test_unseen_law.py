@@ -1,0 +1,103 @@
+"""The alarm's unseen-contact-law check (``stiffnet.uncertainty.unseen_law``).
+
+Analytic maps for the ``delta v`` regression; recordings simulated with the laws of
+``tests/unknown_contact_laws.py`` (user effects, not library code) read back by the
+predictor's restoring-force cross-check for the check itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import unknown_contact_laws as laws
+
+from serving.physical import physical_check
+from stiffnet.effects.contact_damping import ContactDamping
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
+from stiffnet.uncertainty.unseen_law import (
+    penetration_dissipation,
+    unseen_law_reasons,
+    with_unseen_law_check,
+)
+
+FN = 9.48
+
+
+def _half_sine_map(n_impacts: int = 12, per: int = 20):
+    """Penetration and velocity of half-sine impacts, peak 1, with the onset at 0."""
+    t = np.linspace(0, np.pi, per)
+    d = np.tile(np.sin(t), n_impacts) * np.repeat(np.linspace(0.6, 1.2, n_impacts), per)
+    v = np.tile(np.cos(t), n_impacts) * np.repeat(np.linspace(0.6, 1.2, n_impacts), per)
+    return d, v
+
+
+def test_hunt_crossley_dissipation_is_found_and_kelvin_voigt_is_not():
+    d, v = _half_sine_map()
+    rng = np.random.default_rng(0)
+    noise = rng.normal(0, 0.01, d.size)
+    gain, share = penetration_dissipation(d, v, d * (1 + 0.8 * v) + noise, 0.0, 1.0, 1.0)
+    assert gain > 0.95 and share > 0.9
+    gain, share = penetration_dissipation(d, v, d + 0.3 * v + noise, 0.0, 1.0, 1.0)
+    assert gain < 0.1 and abs(share) < 0.2
+    assert penetration_dissipation(d[:5], v[:5], d[:5], 0.0, 1.0, 1.0) is None
+
+
+@pytest.mark.parametrize(
+    "physical, fires",
+    [
+        ({"exponent": 2.0, "contact_r2": 0.99}, True),
+        ({"exponent": 1.5, "contact_r2": 0.99}, False),  # Hertz: in the training world
+        ({"exponent": 1.0, "contact_r2": 0.99}, False),
+        ({"exponent": 2.0, "contact_r2": 0.9}, False),  # a poor fit's exponent means little
+        (
+            {"exponent": 1.0, "contact_r2": 0.9, "dissipation_gain": 0.9, "dissipation_share": 0.6},
+            True,
+        ),  # fmt: skip
+        (
+            {
+                "exponent": 1.0,
+                "contact_r2": 0.9,
+                "dissipation_gain": 0.9,
+                "dissipation_share": -0.6,
+            },
+            False,
+        ),  # fmt: skip
+    ],
+)
+def test_reasons_follow_the_training_world_laws(physical, fires):
+    assert bool(unseen_law_reasons(physical)) is fires
+    alarm = with_unseen_law_check(None, physical)
+    assert alarm["flag"] is fires and ("contact_law" in alarm["fired"]) is fires
+
+
+def test_a_refused_cross_check_leaves_the_alarm_alone():
+    alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}, "message": "x"}
+    assert with_unseen_law_check(alarm, {"exponent": None, "dissipation_gain": None}) is alarm
+
+
+def _recording(effects, beta: float, seed: int) -> tuple[np.ndarray, float]:
+    """A 60-forcing-period recording at 3 % noise, 130 samples per natural period."""
+    batch = OscillatorBatch(
+        beta=np.array([beta]), gap=np.array([1.6]), amplitude=np.array([1.5]),
+        omega=np.array([1.0]), damping=np.array([0.02]),
+    )  # fmt: skip
+    res = Simulator(effects).simulate(batch, np.array([130.0]), 130 * 60, noise=0.03, rng=seed)
+    return res.accel[0], 130.0 * FN
+
+
+@pytest.mark.parametrize(
+    "effects, fires",
+    [
+        ([], False),
+        ([ContactDamping(damping_ratio=0.25)], False),
+        ([laws.PowerLawContact(exponent=2.2, d0=0.5)], True),
+        ([laws.TwoStageContact(knee=0.1, ratio=5.0)], True),
+        ([laws.HuntCrossleyContact(c=0.5)], True),
+    ],
+)
+def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
+    accel, fs = _recording(effects, beta=30.0, seed=1)
+    physical = physical_check(accel, fs, FN)
+    assert physical["beta"] is not None, physical["reason"]
+    assert bool(unseen_law_reasons(physical)) is fires, physical
