@@ -560,21 +560,25 @@ def _undo_chain(
             f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
             "this sensor smooths away"
         )
-    if chain.source == "fitted" and not refusal:
-        # the chain that makes the contact force a function of the state: a fitted chain
-        # whose inverse leaves the contact law worse than the record as recorded (or with only
-        # its ringing divided out) is not the record's (it is still reported)
-        rivals = (
-            [c[0] for c in candidates]
-            + [m2]
-            + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
-        )
-        other = max(candidates, key=lambda c: _contact_r2(c[0]))
-        if _contact_r2(m2) < _contact_r2(other[0]) - R2_SLACK:
-            chain = dataclasses.replace(chain, applied=False)
-            return other[0], chain, other[1], "", _readings(rivals)
-        return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
-    return m2, chain, chain.resonance_hz, refusal, []
+    if chain.source != "fitted":
+        return m2, chain, chain.resonance_hz, refusal, []
+    # the chain that makes the contact force a function of the state: a fitted chain whose
+    # inverse leaves the contact law worse than the record as recorded (or with only its
+    # ringing divided out) is not the record's (it is still reported) and refuses nothing -
+    # a contact law the library lacks also bends the pulse a chain would
+    other = max(candidates, key=lambda c: _contact_r2(c[0]))
+    applied = _contact_r2(m2) >= _contact_r2(other[0]) - R2_SLACK
+    if applied and refusal:
+        return m2, chain, chain.resonance_hz, refusal, []
+    rivals = (
+        [c[0] for c in candidates]
+        + [m2]
+        + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+    )
+    if not applied:
+        chain = dataclasses.replace(chain, applied=False)
+        return other[0], chain, other[1], "", _readings(rivals)
+    return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
 
 
 def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
