@@ -24,7 +24,11 @@ import numpy as np
 
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
-from stiffnet.restoring_force.estimate import RestoringForceResult, impact_regions
+from stiffnet.restoring_force.estimate import (
+    CHAIN_FIT_WHEN_NEEDED,
+    RestoringForceResult,
+    impact_regions,
+)
 from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS
 
 #: Forcing periods read per recording (the predictor's cross-check reads as many).
@@ -114,6 +118,7 @@ def record_contact_samples(
     r = restoring_force_estimate(
         accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
         forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
+        chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,  # a chain fitted to a law it lacks bends it
     )  # fmt: skip
     margin = max(2, int(MARGIN * fs_hz / r.forcing_frequency_hz))
     return contact_samples(r, gain, recording, margin), r

@@ -70,6 +70,10 @@ from stiffnet.restoring_force.sensor import (
 
 #: A fitted chain's inverse is kept unless the contact law explains this much less after it.
 R2_SLACK = 0.005
+#: ``chain_fit_below_r2`` when the chain is identified only where needed: where the record
+#: as recorded leaves the contact law explaining less than this. On a clean record the
+#: chain changes nothing; and a fitted chain bends the map a contact-law discovery reads.
+CHAIN_FIT_WHEN_NEEDED = 0.98
 #: Shortest record, forcing periods.
 MIN_PERIODS = 4.0
 #: With f_n given, forcing lines below this fraction of it are not searched.
