@@ -4,26 +4,19 @@
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
+from user_effects import PhasedHarmonics
 
 from stiffnet.campaign.simulate import FIT_SETTINGS
 from stiffnet.effects.fit_space import AMPLITUDE_LEVELS, AXIS_GRID, PHASE_GRID, global_blocks
-from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement import fitting
 
-
-class PhasedHarmonics(ForcingHarmonics):
-    """The shaker's harmonics with their phases declared multimodal (a user effect)."""
-
-    name = "phased_harmonics"
-    fit_space = replace(ForcingHarmonics.fit_space, multimodal=("phase_second", "phase_third"))
-
-
-PHASED = "test_measurement_global_fit:PhasedHarmonics"
+#: The shaker's harmonics with their phases declared multimodal: a user effect, loaded as
+#: a plugin like a user's (``tests/user_effects.py``).
+PHASED = "user_effects:PhasedHarmonics"
 
 
 class _Row:

@@ -7,6 +7,7 @@ and a measurement effect.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,7 @@ from stiffnet.effects.base import (
     Sinusoids,
     param,
 )
+from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 
 
 class ConstantPreload(DynamicsEffect):
@@ -70,3 +72,11 @@ class StiffeningContact(DynamicsEffect):
         beta = np.asarray(batch.beta, float)
         knee, ratio = p["knee"], p["ratio"]
         return beta * (delta + (ratio - 1.0) * np.maximum(delta - knee, 0.0))
+
+
+class PhasedHarmonics(ForcingHarmonics):
+    """The shaker's harmonics with their phases declared multimodal (the global fit stage's
+    tests: a user effect that widens a library effect's fit space)."""
+
+    name = "phased_harmonics"
+    fit_space = replace(ForcingHarmonics.fit_space, multimodal=("phase_second", "phase_third"))
