@@ -72,15 +72,16 @@ SCREEN_EXCESS = 0.05
 JOINT_TRIES = 2
 #: At most this many effects are selected.
 MAX_EFFECTS = 4
+#: Effects never searched blind from their class defaults: a learned law is proposed by the
+#: contact-law discovery with its own terms (``learned_law``).
+PROPOSED_ONLY = ("learned_contact",)
 
 
 def candidate_effects(
     base_effects: Sequence[Effect], extra: Sequence[str] = (), only: Sequence[str] | None = None
 ) -> list[str]:
     """Effects to try: the library (or ``only``) plus user effects, minus those in the model."""
-    # a learned law is proposed by the contact-law discovery with its own terms, not searched
-    # blind from its class defaults
-    names = list(only) if only is not None else [n for n in CANONICAL if n != "learned_contact"]
+    names = list(only) if only is not None else [n for n in CANONICAL if n not in PROPOSED_ONLY]
     names += [e for e in extra if e not in names]
     present = {e.name for e in base_effects}
     for n in names:
