@@ -254,6 +254,23 @@ def fresh_run_folder(prefix: str, root: str | Path = "runs") -> Path:
     return path
 
 
+def _earlier_run(out: Path, kind: str) -> bool:
+    """Whether ``out`` holds an earlier run of ``kind`` (False: absent or empty); refuses
+    the working directory (or a parent of it) and a non-empty folder of anything else."""
+    if Path.cwd().resolve().is_relative_to(out.resolve()):
+        raise StiffnetError(f"{out}: refusing to write a run into the working directory or a "
+                            "parent of it; choose a new folder")  # fmt: skip
+    if not (out.is_dir() and any(out.iterdir())):
+        return False
+    marker = read_marker(out / RUN_MARKER)
+    if marker is None or marker.get("kind") != kind:
+        raise StiffnetError(
+            f"{out}: folder is not empty and is not an earlier {kind} run (no {RUN_MARKER} of "
+            "that kind): choose a new or empty folder"
+        )
+    return True
+
+
 def start_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
     """Make ``out`` a fresh run folder of ``kind``; call it holding :func:`output_lock`.
 
@@ -263,16 +280,7 @@ def start_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
     the working directory. Returns the new marker.
     """
     out = Path(out)
-    if Path.cwd().resolve().is_relative_to(out.resolve()):
-        raise StiffnetError(f"{out}: refusing to write a run into the working directory or a "
-                            "parent of it; choose a new folder")  # fmt: skip
-    if out.is_dir() and any(out.iterdir()):
-        marker = read_marker(out / RUN_MARKER)
-        if marker is None or marker.get("kind") != kind:
-            raise StiffnetError(
-                f"{out}: folder exists and is not an earlier {kind} run (no {RUN_MARKER} of "
-                "that kind): choose another output folder"
-            )
+    if _earlier_run(out, kind):
         check_replaceable_folder(out, (RUN_MARKER,))
         trash = Path(tempfile.mkdtemp(prefix=f".{out.name[:100]}.old-", dir=out.parent))
         os.replace(out, trash / "old")
@@ -294,16 +302,7 @@ def claim_run_folder(out: str | Path, kind: str) -> dict[str, Any]:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise StiffnetError(f"{out}: exists and is not a folder")
-    if Path.cwd().resolve().is_relative_to(out.resolve()):
-        raise StiffnetError(f"{out}: refusing to write a run into the working directory or a "
-                            "parent of it; choose a new folder")  # fmt: skip
-    if out.is_dir() and any(out.iterdir()):
-        marker = read_marker(out / RUN_MARKER)
-        if marker is None or marker.get("kind") != kind:
-            raise StiffnetError(
-                f"{out}: folder is not empty and is not an earlier {kind} output (no "
-                f"{RUN_MARKER} of that kind): choose a new or empty folder"
-            )
+    _earlier_run(out, kind)
     out.mkdir(parents=True, exist_ok=True)
     marker = new_marker(kind, status="running")
     write_json_atomic(out / RUN_MARKER, marker)
