@@ -149,3 +149,22 @@ def test_a_law_that_explains_little_says_so():
     law = discover_contact_law(noisy, n_boot=0)
     assert law.poorly_explained and "dynamics no candidate term describes" in law.words
     assert not discover_contact_law(samples, n_boot=0).poorly_explained
+
+
+@pytest.mark.slow
+def test_sprung_face_user_effect():
+    """A restraint with its own mass (the user's face: mass 0.3, ringing at 12 natural
+    frequencies, loss factor 0.2): found as the ``face`` term, mu 0.3, kappa 43.2, zeta 0.1."""
+    face = laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)
+    law = discover_contact_law(campaign_samples([face], 0.03), n_boot=10)
+    assert law.terms == ("face",) and law.new_terms == ("face",), law.words
+    assert law.params["face_mass"] == pytest.approx(0.3, rel=0.15)
+    assert law.params["face_stiffness"] == pytest.approx(0.3 * 12.0**2, rel=0.15)
+    assert law.params["face_damping"] == pytest.approx(0.1, rel=0.15)
+    assert law.explained_fraction > 0.95 > law.library_explained_fraction + 0.1
+    lo, hi = law.intervals["face_stiffness"]
+    assert lo <= 43.2 <= hi
+    # each rig's beta is the contact's own (in series with the face's support)
+    close = np.abs(np.asarray(law.betas) / BETA - 1) < 0.15
+    assert close.sum() >= 7, law.betas
+    assert "own mass" in law.words and "y'' " in law.equation

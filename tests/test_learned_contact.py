@@ -79,3 +79,16 @@ effects:
     assert res.exit_code == 0, res.output
     names = {e["name"] for e in json.loads((tmp_path / "e.json").read_text())}
     assert "learned_contact" in names
+
+
+def test_a_face_with_its_own_mass_moves_as_the_user_sprung_face():
+    # the user's face: mass 0.3, ringing at 12 natural frequencies, loss factor 0.2, i.e.
+    # support stiffness 0.3 * 12**2 = 43.2 and damping ratio 0.1
+    a = run(laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)).accel
+    eff = LearnedContact(face_mass=0.3, face_stiffness=43.2, face_damping=0.1)
+    assert eff.n_states == 2 and LearnedContact().n_states == 0
+    b = run(eff).accel
+    np.testing.assert_allclose(a, b, atol=1e-9 * np.abs(a).max())
+    # the face changes the motion (it is not the rigid restraint)
+    c = run(LearnedContact()).accel
+    assert np.abs(c - b).max() > 0.1 * np.abs(b).max()

@@ -64,3 +64,35 @@ class HuntCrossleyContact(DynamicsEffect):
         self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
     ) -> np.ndarray:
         return 1.5 * p["c"] * np.asarray(batch.beta, float) * delta * rate
+
+
+class SprungFaceContact(DynamicsEffect):
+    """A linear contact (stiffness ``beta``) against a face that has its own mass and rings:
+    the face (mass ``m_f`` over the mass m) sits on a support that makes it ring at
+    ``f_face`` times the mass's natural frequency, with a loss factor ``eta`` (twice its
+    damping ratio); ``y`` is the face's recoil, pushed by the contact force::
+
+        m_f y'' + eta f_face m_f y' + m_f f_face**2 y = F_c,   F_c = beta (x - e - y)_+
+    """
+
+    name = "test_sprung_face"
+    n_states = 2
+
+    class Params(EffectParams):
+        m_f: ParamValue = param(0.5, 1e-3, 10.0, "face mass over the mass m")
+        f_face: ParamValue = param(8.0, 0.5, 100.0, "face frequency over the natural frequency")
+        eta: ParamValue = param(0.2, 0.0, 2.0, "loss factor of the face's support")
+
+    def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
+        k = 1.0 + batch.beta + (p["m_f"] * p["f_face"] ** 2 + batch.beta) / p["m_f"]
+        c = p["eta"] * p["f_face"]
+        return 0.5 * c + np.sqrt(0.25 * c * c + k)
+
+    def restraint_position(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
+        return s[:, 0]
+
+    def state_derivative(
+        self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
+    ) -> np.ndarray:
+        m, w, eta = p["m_f"], p["f_face"], p["eta"]
+        return np.stack([s[:, 1], contact_force / m - eta * w * s[:, 1] - w * w * s[:, 0]], 1)

@@ -21,6 +21,7 @@ WORDS = {
     "damping": "viscous (Kelvin-Voigt) dissipation",
     "hunt_crossley": "dissipation growing with the penetration (Hunt-Crossley)",
     "preload": "a preload (a force step at first touch)",
+    "face": "a restraint face with its own mass on a support spring (it recoils and rings)",
 }
 
 
@@ -105,6 +106,8 @@ class DiscoveredLaw:
             return 2 * p["damping_ratio"] * np.sqrt(beta)
         if term == "preload":
             return beta * p["preload"]
+        if term == "face":
+            return p["face_stiffness"]
         raise KeyError(term)
 
     @property
@@ -124,6 +127,12 @@ class DiscoveredLaw:
         eq = "F_c = max(0, beta [" + " + ".join(parts) + "]"
         if "damping" in self.terms:
             eq += f" + 2 ({p['damping_ratio']:.3g}) sqrt(beta) v"
+        if "face" in self.terms:
+            return eq + (
+                f")  for delta = x - e - y > 0, v = x' - y'; the face: {p['face_mass']:.3g} y'' "
+                f"+ 2 ({p['face_damping']:.3g}) sqrt({p['face_stiffness']:.4g} "
+                f"({p['face_mass']:.3g})) y' + {p['face_stiffness']:.4g} y = F_c"
+            )
         return eq + ")  for delta = x - e > 0"
 
     @property

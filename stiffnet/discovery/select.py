@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.discovery.face import face_starts
 from stiffnet.discovery.law import DiscoveredLaw, is_new_term
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.discovery.terms import (
@@ -115,6 +116,8 @@ def _candidates(data: Data, current: Fit, dr: float) -> list[Fit]:
         starts = [dict(current.shared)]
         if term == "hinge":
             starts = [{**current.shared, "knee": q * top} for q in KNOT_QUANTILES]
+        if term == "face":
+            starts = [{**current.shared, **s} for s in face_starts(current.betas)]
         fits = [fit_law(data, terms, dr, s, per) for s in starts]
         out.append(min(fits, key=lambda f: f.sse))
     return out
@@ -169,7 +172,7 @@ def bootstrap(
         w = counts[data.impact].astype(float)
         sel = w > 0
         boot = Data(data.x, data.v, data.f, data.weight * np.sqrt(w), data.rec, data.impact,
-                    data.beta0, data.onset0, data.names)  # fmt: skip
+                    data.beta0, data.onset0, data.names, data.dt)  # fmt: skip
         f = fit_law(boot, fit.terms, fit.dr, fit.shared, per, mask=sel, max_nfev=40)
         shared.append(f.theta[2 * fit.n_rec :])
         betas.append(f.betas)

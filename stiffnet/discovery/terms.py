@@ -16,6 +16,9 @@ term                      force per unit beta                    shared paramete
                           (Kelvin-Voigt)
 ``hunt_crossley``         ``alpha d_r (delta / d_r)**p v``       ``hunt_crossley``
 ``preload``               ``f_0`` (a step at first touch)        ``preload``
+``face``                  the law acts on ``delta - y``, ``y``   ``face_mass``,
+                          the recoil of a face with its own      ``face_stiffness``,
+                          mass (:mod:`.face`)                    ``face_damping``
 ========================  =====================================  =====================
 
 ``d_r`` is fixed (the campaign's median peak penetration, rounded), not fitted:
@@ -30,16 +33,18 @@ it to a few residual evaluations per step.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from scipy import optimize, sparse
 
+from stiffnet.discovery.face import FACE_PARAMS, Layout, face_response, layout, sample_interval
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.learned_contact import NEUTRAL, learned_contact_force
 
 #: Candidate terms beyond the linear spring, in the order they are tried.
-TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload")
+TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face")
 #: Terms of the library's own laws (``contact_damping``); ``hertz`` is ``power`` at 3/2.
 LIBRARY_TERMS = frozenset({"damping", "hertz"})
 #: Shared parameters of each term, with their bounds and starting value.
@@ -49,6 +54,7 @@ TERM_PARAMS: dict[str, tuple[tuple[str, float, float, float], ...]] = {
     "damping": (("damping_ratio", 0.0, 1.5, 0.1),),
     "hunt_crossley": (("hunt_crossley", 0.0, 50.0, 0.3),),
     "preload": (("preload", -0.5, 0.5, 0.0),),
+    "face": FACE_PARAMS,
 }
 #: Loss of the fit (squared; a soft-l1 loss at the force scale changed beta by < 10 % on the
 #: two-stage test campaigns and read the first stage as outliers at smaller scales).
@@ -71,10 +77,17 @@ class Data:
     beta0: np.ndarray
     onset0: np.ndarray
     names: tuple[str, ...]
+    #: Each recording's sampling interval in model time (the ``face`` term's filter).
+    dt: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n_rec(self) -> int:
         return len(self.names)
+
+    @cached_property
+    def layout(self) -> Layout:
+        """The samples' impacts as padded arrays per recording (the ``face`` term's)."""
+        return layout(self.rec, self.impact, self.n_rec)
 
 
 def stack(samples: Sequence[ContactSamples]) -> Data:
@@ -95,6 +108,7 @@ def stack(samples: Sequence[ContactSamples]) -> Data:
         cat(xs), cat(vs), cat(fs), cat(ws), cat(rs), cat(imps),
         np.array([max(s.beta, 1e-3) for s in samples]), np.array([s.onset for s in samples]),
         tuple(s.recording for s in samples),
+        np.array([sample_interval(s.displacement, s.velocity, s.impact) for s in samples]),
     )  # fmt: skip
 
 
@@ -151,7 +165,12 @@ def predict(data: Data, terms: frozenset[str], theta: np.ndarray, dr: float) -> 
     beta = np.exp(theta[:r])[data.rec]
     delta = data.x - theta[r : 2 * r][data.rec]
     shared = dict(zip(shared_names(terms), theta[2 * r :], strict=True))
-    return learned_contact_force(delta, data.v, beta, law_params(terms, shared, dr))
+    v = data.v
+    if "face" in terms:  # the law acts on the face, which recoils under the measured force
+        y, yd = face_response(data.f, data.layout, data.dt, shared["face_mass"],
+                              shared["face_stiffness"], shared["face_damping"])  # fmt: skip
+        delta, v = delta - y, v - yd
+    return learned_contact_force(delta, v, beta, law_params(terms, shared, dr))
 
 
 def weighted_sse(data: Data, fit: Fit, mask: np.ndarray | None = None) -> float:
@@ -216,7 +235,7 @@ def fit_law(
 def _subset(data: Data, idx: np.ndarray) -> Data:
     return Data(
         data.x[idx], data.v[idx], data.f[idx], data.weight[idx], data.rec[idx],
-        data.impact[idx], data.beta0, data.onset0, data.names,
+        data.impact[idx], data.beta0, data.onset0, data.names, data.dt,
     )  # fmt: skip
 
 

@@ -11,6 +11,17 @@ its coefficient, in the model's units (docs/simulator.md) and *per unit beta*::
           + alpha * d_r (delta / d_r)**p * v          Hunt-Crossley dissipation
     plus  2 zeta_c sqrt(beta) v                       Kelvin-Voigt dissipation
 
+A restraint with its own dynamics (``face_mass`` ``mu > 0``): the law acts on the
+penetration of a face that recoils, ``delta = x - e - y``, ``v -> v - y'``, the
+face a mass on its support (one mode, the library's ``restraint_mass`` physics)::
+
+    mu y'' + 2 zeta_f sqrt(kappa mu) y' + kappa y = F_c
+
+with ``kappa`` (``face_stiffness``) and ``zeta_f`` (``face_damping``) shared by the
+rigs (absolute, in the model's units: the face is the rig's, the contact the
+rock's). Beta is then the contact's own stiffness, in series with the face's
+support: the static stiffness is ``beta kappa / (beta + kappa)``.
+
 **What beta means** for such a law (docs/crosscheck.md, "beta for a nonlinear
 law"): the coefficient of the leading elastic term. For a law whose leading
 term is linear (``p = 1``) that is the elastic slope at first contact,
@@ -47,10 +58,13 @@ LAW_PARAMS = (
     "preload",
     "hunt_crossley",
     "damping_ratio",
+    "face_mass",
+    "face_stiffness",
+    "face_damping",
 )
 #: "Effect off": the paper's linear restraint.
 NEUTRAL = {"exponent": 1.0, "knee_ratio": 1.0, "preload": 0.0, "hunt_crossley": 0.0,
-           "damping_ratio": 0.0}  # fmt: skip
+           "damping_ratio": 0.0, "face_mass": 0.0}  # fmt: skip
 
 
 def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -> np.ndarray:
@@ -122,6 +136,13 @@ class LearnedContact(DynamicsEffect):
         damping_ratio: ParamValue = param(
             0.0, 0.0, 1.0, "Kelvin-Voigt damping ratio, c_c = 2 zeta_c sqrt(beta)"
         )
+        face_mass: ParamValue = param(
+            0.0, 0.0, 10.0, "mu: mass of the restraint's face over the mass m (0: no face)"
+        )
+        face_stiffness: ParamValue = param(
+            100.0, 0.1, 1e4, "kappa: the face's support stiffness over the primary spring"
+        )
+        face_damping: ParamValue = param(0.05, 0.0, 2.0, "damping ratio of the face's support")
 
     #: The shape of the law (exponent, second stage, Hunt-Crossley dissipation) when fitted by
     #: ``diagnose --only learned_contact``; d_r, preload and the Kelvin-Voigt damping stay at
@@ -145,7 +166,43 @@ class LearnedContact(DynamicsEffect):
         ) + np.maximum(p["knee_ratio"] - 1.0, 0.0)
         lead = leading_term(reach, p["exponent"], p["reference_penetration"])
         c = 2.0 * p["damping_ratio"] * np.sqrt(beta) + beta * p["hunt_crossley"] * lead
-        return 0.5 * c + np.sqrt(0.25 * c * c + 1.0 + beta * slope)
+        rate = 0.5 * c + np.sqrt(0.25 * c * c + 1.0 + beta * slope)
+        mu = np.asarray(p["face_mass"], float)
+        if not np.any(mu > 0):
+            return rate
+        # the face in contact: its support and the contact's steepest slope on its mass, plus
+        # the contact's damping on it (trace bound, as restraint_mass's)
+        m = np.where(mu > 0, mu, 1.0)
+        k = (p["face_stiffness"] + beta * slope) / m
+        cf = (2.0 * p["face_damping"] * np.sqrt(p["face_stiffness"] * m) + c) / m
+        face = 0.5 * cf + np.sqrt(0.25 * cf * cf + k + 1.0 + beta * slope)
+        return np.where(mu > 0, np.maximum(rate, face), rate)
+
+    @property
+    def n_states(self) -> int:  # type: ignore[override]
+        """The face's recoil and its rate when the law has a face (any row), else none."""
+        mu = self.params.face_mass
+        return 2 if np.any(np.asarray(mu, float) > 0) else 0
+
+    def restraint_position(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
+        """The face's recoil ``y``, (B,) (0 on rows without a face)."""
+        return s[:, 0]
+
+    def state_derivative(
+        self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
+    ) -> np.ndarray:
+        """``(y', y'')`` of the face pushed by the contact force, (B, 2); rows without a face
+        (``face_mass`` 0) stay at rest."""
+        mu = np.asarray(p["face_mass"], float)
+        has = mu > 0
+        m = np.where(has, mu, 1.0)
+        kappa = p["face_stiffness"]
+        c = 2.0 * p["face_damping"] * np.sqrt(kappa * m)
+        y, w = s[:, 0], s[:, 1]
+        out = np.empty_like(s)
+        out[:, 0] = np.where(has, w, 0.0)
+        out[:, 1] = np.where(has, (contact_force - kappa * y - c * w) / m, 0.0)
+        return out
 
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
         """``beta`` times the elastic shape, (B,)."""

@@ -1,0 +1,145 @@
+r"""The ``face`` term: a restraint whose contact face has its own mass (a mode of its own).
+
+A restraint with its own dynamics (a beam's tip, a tool holder: the library's
+``restraint_mass``) is not a function of the present penetration and its rate:
+the force depends on the impact's history. The discovery models it the way the
+physics is built, a face of mass ``mu`` (over the mass m) on a support of
+stiffness ``kappa`` with damping ratio ``zeta``, pushed by the contact force::
+
+    mu y'' + 2 zeta sqrt(kappa mu) y' + kappa y = F_c(t)
+    F_c = beta shape(x - e - y, v - y')           (the contact law acts on the face)
+
+Given the measured force of an impact, the face's recoil ``y`` (and ``y'``) is the
+force filtered by this mode: an exact discretisation of the linear ODE with the
+force linear between samples (first-order hold: the matrix exponential of the state augmented
+with the force and its slope),
+from rest at the impact's first sample (the samples start before the touch; a
+face that still rings from the previous impact is outside the model). The law's
+residual is then the equation error ``F - beta shape(x - e - y)``, as in an
+ARX model whose lagged terms are the force's own history, but with physical
+parameters (the face's mass, support stiffness and damping), so the learned law
+runs in the simulator as states of ``learned_contact`` with exact contact events.
+
+The sampling interval in model time is not carried by the samples: it is read
+from them (:func:`sample_interval`), since the map's displacement is the integral
+of its velocity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg
+
+#: Shared parameters of the term: name, lower and upper bound, starting value.
+FACE_PARAMS = (
+    ("face_mass", 1e-3, 10.0, 0.3),
+    ("face_stiffness", 0.3, 1e4, 40.0),
+    ("face_damping", 0.0, 1.0, 0.1),
+)
+#: Support stiffnesses tried as starts, as multiples of the campaign's median beta (a face
+#: much stiffer than the contact is invisible; one much softer dominates the series spring).
+STIFFNESS_STARTS = (0.6, 1.5, 4.0)
+#: Face frequencies tried as starts with each stiffness, as multiples of the fastest contact
+#: frequency ``sqrt(1 + beta)`` of the campaign.
+FREQUENCY_STARTS = (0.7, 1.5)
+
+
+def sample_interval(x: np.ndarray, v: np.ndarray, impact: np.ndarray) -> float:
+    """The sampling interval in model time, from ``dx = v dt`` within each impact (LSQ)."""
+    dx = np.diff(x)
+    vm = 0.5 * (v[1:] + v[:-1])
+    same = np.diff(impact) == 0
+    den = float(np.sum(vm[same] ** 2))
+    return float(np.sum(dx[same] * vm[same]) / den) if den > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each sample sits in an (impact, time) padded array, and each impact's recording."""
+
+    row: np.ndarray  # impact row of each sample
+    col: np.ndarray  # time column of each sample
+    rec: np.ndarray  # recording of each impact row
+    shape: tuple[int, int]
+
+
+def layout(rec: np.ndarray, impact: np.ndarray, n_rec: int) -> Layout:
+    """The padded layout of samples ordered by time within contiguous impacts."""
+    if impact.size == 0:
+        return Layout(impact, impact, impact, (0, 0))
+    start = np.r_[True, (np.diff(impact) != 0) | (np.diff(rec) != 0)]
+    row = np.cumsum(start) - 1
+    first = np.flatnonzero(start)
+    col = np.arange(impact.size) - first[row]
+    return Layout(row, col, rec[first], (int(row[-1]) + 1, int(col.max()) + 1))
+
+
+def face_transition(mass: float, stiffness: float, damping: float, dts: np.ndarray) -> np.ndarray:
+    """The exact one-step map of the face's state under a force linear between samples.
+
+    Returns ``E`` (R, 4, 4) ``= expm(M dt)`` for the augmented state ``(y, y', F, F')``
+    (``F'`` constant over the step): ``(y, y')_{k+1} = E[:2, :2] (y, y')_k + E[:2, 2] F_k
+    + E[:2, 3] (F_{k+1} - F_k) / dt``, per recording's interval ``dt``.
+    """
+    w2 = stiffness / mass
+    m = np.zeros((4, 4))
+    m[0, 1] = 1.0
+    m[1, 0], m[1, 1], m[1, 2] = -w2, -2.0 * damping * np.sqrt(w2), 1.0 / mass
+    m[2, 3] = 1.0
+    return linalg.expm(np.asarray(dts, float)[:, None, None] * m)
+
+
+def face_response(
+    force: np.ndarray,
+    lay: Layout,
+    dts: np.ndarray,
+    mass: float,
+    stiffness: float,
+    damping: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The face's recoil and its rate on every sample, driven by the measured force, (N,) each.
+
+    Parameters
+    ----------
+    force : numpy.ndarray
+        Contact force on every sample (model units).
+    lay : Layout
+        The samples' impacts (:func:`layout`).
+    dts : numpy.ndarray
+        Each recording's sampling interval in model time.
+    mass, stiffness, damping : float
+        ``mu``, ``kappa``, ``zeta`` of the face (see the module notes).
+    """
+    if force.size == 0:
+        return np.zeros(0), np.zeros(0)
+    e = face_transition(mass, stiffness, damping, dts)[lay.rec]  # (I, 4, 4)
+    u = np.zeros(lay.shape)
+    u[lay.row, lay.col] = force
+    du = np.zeros(lay.shape)
+    du[:, :-1] = np.diff(u, axis=1) / np.asarray(dts, float)[lay.rec][:, None]
+    y = np.zeros(lay.shape)
+    yd = np.zeros(lay.shape)
+    s0 = np.zeros(lay.shape[0])
+    s1 = np.zeros(lay.shape[0])
+    p00, p01, p10, p11 = e[:, 0, 0], e[:, 0, 1], e[:, 1, 0], e[:, 1, 1]
+    g0, g1, h0, h1 = e[:, 0, 2], e[:, 1, 2], e[:, 0, 3], e[:, 1, 3]
+    for k in range(lay.shape[1]):  # from rest at each impact's first sample
+        y[:, k], yd[:, k] = s0, s1
+        uk, dk = u[:, k], du[:, k]
+        s0, s1 = (p00 * s0 + p01 * s1 + g0 * uk + h0 * dk,
+                  p10 * s0 + p11 * s1 + g1 * uk + h1 * dk)  # fmt: skip
+    return y[lay.row, lay.col], yd[lay.row, lay.col]
+
+
+def face_starts(betas: np.ndarray) -> list[dict[str, float]]:
+    """Starting faces: support stiffnesses around the contacts' and frequencies around theirs."""
+    beta = float(np.median(betas))
+    w_top = float(np.sqrt(1.0 + np.max(betas)))
+    out = []
+    for ks in STIFFNESS_STARTS:
+        for fw in FREQUENCY_STARTS:
+            kappa = ks * beta
+            out.append({"face_stiffness": kappa, "face_mass": kappa / (fw * w_top) ** 2})
+    return out
