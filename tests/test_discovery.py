@@ -152,11 +152,12 @@ def test_a_law_that_explains_little_says_so():
 
 
 @pytest.mark.slow
-def test_sprung_face_user_effect():
+@pytest.mark.parametrize("noise", [0.02, 0.04])
+def test_sprung_face_user_effect(noise):
     """A restraint with its own mass (the user's face: mass 0.3, ringing at 12 natural
     frequencies, loss factor 0.2): found as the ``face`` term, mu 0.3, kappa 43.2, zeta 0.1."""
     face = laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)
-    law = discover_contact_law(campaign_samples([face], 0.03), n_boot=10)
+    law = discover_contact_law(campaign_samples([face], noise), n_boot=10)
     assert law.terms == ("face",) and law.new_terms == ("face",), law.words
     assert law.params["face_mass"] == pytest.approx(0.3, rel=0.15)
     assert law.params["face_stiffness"] == pytest.approx(0.3 * 12.0**2, rel=0.15)

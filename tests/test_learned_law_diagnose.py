@@ -120,6 +120,18 @@ def test_loop_adds_the_learned_law_in_place_of_the_library_contact():
     assert with_learned_law(added, {"learned_law": {"proposed": False}}) == added
 
 
+def test_loop_adds_a_law_with_its_own_face_in_place_of_the_library_restraint():
+    params = {"exponent": 1.0, "face_mass": 0.29, "face_stiffness": 43.0, "face_damping": 0.1}
+    diag = {"learned_law": {"proposed": True, "law": {"terms": ["face"]}, "replaces": [],
+                            "effect": {"name": "learned_contact", "params": params}}}  # fmt: skip
+    added = [{"name": "restraint_mass", "params": {"mass_ratio": 0.3}, "fitted": [],
+              "source": "diagnosis"}]  # fmt: skip
+    out = with_learned_law(added, diag)
+    assert [a["name"] for a in out] == ["learned_contact"]
+    assert sorted(out[-1]["fitted"]) == ["face_mass", "face_stiffness"]
+    assert "restraint_mass" in replaced_by(out)
+
+
 @pytest.mark.slow
 def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
     camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])

@@ -272,7 +272,10 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
     fitted = [k for k, v in params.items()
               if k in LearnedContact.neutral and v != LearnedContact.neutral[k]] + [
               k for k in ("knee",) if "hinge" in learned["law"]["terms"]]  # fmt: skip
-    gone = {*REPLACED, *learned.get("replaces", [])}
+    face = "face" in learned["law"]["terms"]
+    fitted += ["face_stiffness"] if face else []
+    # a law with its own face replaces a library restraint with a mass (two faces would add)
+    gone = {*REPLACED, *learned.get("replaces", []), *(["restraint_mass"] if face else [])}
     keep = [a for a in added if a["name"] not in gone]
     return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
                     "source": "diagnosis", "origin": "contact-law discovery",
