@@ -101,6 +101,7 @@ def _simulate_plan(cfg, sim, plan: TrajectoryPlan, n_samples: int, rng):
             sub.batch, sub.fs_ratio, n_samples, noise=sub.noise, rng=rng,
             effect_params={k: v for k, v in sub.effect_params.items() if k not in off},
             active={k: v for k, v in sub.active.items() if k not in off},
+            row_samples=cfg.windows.per_trajectory * sub.window_samples,
         )  # fmt: skip
         for k in out:
             out[k][rows] = getattr(res, k)

@@ -386,41 +386,74 @@ class _Stepper:
                 "(an effect faster than the step resolves): increase substeps"
             )
 
-    def march(self, h: np.ndarray, n_steps: int, substeps: int, out: dict | None) -> None:
-        """``n_steps`` steps of ``h`` (each ``substeps`` RK4 substeps); record into ``out``.
+    def march(
+        self,
+        h: np.ndarray,
+        n_steps: int,
+        substeps: int | np.ndarray,
+        out: dict | None,
+        row_steps: np.ndarray | None = None,
+    ) -> None:
+        """``n_steps`` steps of ``h``, each of ``substeps`` RK4 substeps; record into ``out``.
 
-        ``out`` holds ``(n_steps, B)`` arrays, one row per recorded step.
+        ``substeps`` is one count for every row or one per row, (B,): the batch marches
+        substep by substep together, each row on its own grid of ``h / substeps``, and a
+        row records its step when its count of substeps completes one. ``row_steps``
+        (B,), optional: the steps a row needs (at most ``n_steps``); the march ends when
+        every row has made its own, and a row's later steps stay unwritten. ``out`` holds
+        ``(n_steps, B)`` arrays, one row per recorded step.
         """
         m = self.m
-        hs = h / substeps
+        per = np.broadcast_to(np.asarray(substeps, dtype=np.int64), (m.n,))
+        need = np.full(m.n, n_steps, np.int64) if row_steps is None else np.asarray(row_steps)
+        hs = h / per
         t_start = self.t.copy()
-        for i in range(n_steps):
-            entries = np.zeros(m.n, dtype=np.int64)
-            for j in range(substeps):
-                # times from the step count, not by accumulation, so rows stay on their grid
-                t1 = t_start + (i * substeps + j + 1) * hs
-                y1 = _rk4(m, self.t, self.y, self.f, hs, self.contact, self.modes)
-                f1, aux1 = m.rhs(t1, y1, self.contact, self.modes, full=True)
-                sus = self._suspects(aux1, hs)
-                if sus.size:
-                    trial = (y1[sus], f1[sus], {k: v[sus] for k, v in aux1.items()})
-                    res = self._resolve(sus, hs[sus], trial)
-                    y1[sus], f1[sus] = res["y"], res["f"]
-                    for key, val in res["aux"].items():
-                        aux1[key][sus] = val
-                    self.contact[sus] = res["contact"]
-                    self.modes[:, sus] = res["modes"]
-                    entries[sus] += res["entries"]
-                self.t, self.y, self.f, self.aux = t1, y1, f1, aux1
-            if i % _CHECK_EVERY == _CHECK_EVERY - 1 or i == n_steps - 1:
+        entries = np.zeros(m.n, dtype=np.int64)
+        uniform = bool(np.all(per == per[0]))
+        total = int(np.max(need * per)) if m.n else 0
+        cols = np.arange(m.n)
+        for q in range(1, total + 1):
+            # times from the substep count, not by accumulation, so rows stay on their grid
+            t1 = t_start + q * hs
+            y1 = _rk4(m, self.t, self.y, self.f, hs, self.contact, self.modes)
+            f1, aux1 = m.rhs(t1, y1, self.contact, self.modes, full=True)
+            sus = self._suspects(aux1, hs)
+            if sus.size:
+                trial = (y1[sus], f1[sus], {k: v[sus] for k, v in aux1.items()})
+                res = self._resolve(sus, hs[sus], trial)
+                y1[sus], f1[sus] = res["y"], res["f"]
+                for key, val in res["aux"].items():
+                    aux1[key][sus] = val
+                self.contact[sus] = res["contact"]
+                self.modes[:, sus] = res["modes"]
+                entries[sus] += res["entries"]
+            self.t, self.y, self.f, self.aux = t1, y1, f1, aux1
+            if uniform:
+                if q % per[0]:
+                    continue
+                done = cols
+            else:
+                done = np.flatnonzero(q % per == 0)
+            step = q // per[done] - 1
+            keep = step < need[done]
+            done, step = done[keep], step[keep]
+            if step.size and (step.max() % _CHECK_EVERY == _CHECK_EVERY - 1 or q == total):
                 self.check_bounded()
-            if out is not None:
-                x, v, aux = self.y[:, 0], self.y[:, 1], self.aux
-                out["x"][i], out["v"][i] = x, v
-                out["contact_force"][i] = aux["fc"]
-                # absolute acceleration: the real forces on the mass (no base forcing)
-                out["accel"][i] = aux["extra"] - (m.xi2 * v + x + aux["fc"])
-                out["impacts"][i] = np.minimum(entries, 127)
+            if out is not None and done.size:
+                self._record(out, step, done, entries)
+            entries[done] = 0
+        if total:
+            self.check_bounded()
+
+    def _record(self, out: dict, step: np.ndarray, rows: np.ndarray, entries: np.ndarray) -> None:
+        """Write rows ``rows``'s state as their step ``step`` into ``out``."""
+        m, y, aux = self.m, self.y, self.aux
+        x, v = y[rows, 0], y[rows, 1]
+        out["x"][step, rows], out["v"][step, rows] = x, v
+        out["contact_force"][step, rows] = aux["fc"][rows]
+        # absolute acceleration: the real forces on the mass (no base forcing)
+        out["accel"][step, rows] = aux["extra"][rows] - (m.xi2[rows] * v + x + aux["fc"][rows])
+        out["impacts"][step, rows] = np.minimum(entries[rows], 127)
 
     def _suspects(self, aux1: dict, hs: np.ndarray) -> np.ndarray:
         """Rows whose contact function or an event function may change sign in the substep."""
@@ -561,6 +594,23 @@ class _Stepper:
         }
 
 
+def recording_substeps(h: np.ndarray, rate: np.ndarray, substeps: int) -> np.ndarray:
+    """RK4 substeps per sample of each row when rows are sampled at different rates, (B,).
+
+    Rule: the most coarsely sampled row takes ``substeps`` per sample and no row a
+    longer substep than that row's (``h_max / substeps``), nor one longer than its
+    fastest mode allows (``_MAX_RATE_STEP / rate``): every row is integrated at least
+    as finely as the coarsest one asked, and a row sampled ten times finer is not
+    integrated ten times finer (its samples are already short steps).
+    """
+    h_sub = np.max(h) / substeps
+    return (
+        np.maximum(np.ceil(h / h_sub - 1e-9), np.ceil(h * rate / _MAX_RATE_STEP - 1e-9))
+        .astype(np.int64)
+        .clip(1)
+    )
+
+
 def simulate_numerical(
     batch: OscillatorBatch,
     effects: list[DynamicsEffect],
@@ -572,6 +622,7 @@ def simulate_numerical(
     h: np.ndarray,
     n_samples: int,
     substeps: int = 8,
+    row_samples: np.ndarray | None = None,
 ) -> EngineResult:
     """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
 
@@ -597,6 +648,11 @@ def simulate_numerical(
     substeps : int
         RK4 substeps per step (at least; more where a fast mode needs them, see
         the module docstring); the global error falls as ``substeps**-4``.
+    row_samples : numpy.ndarray, optional
+        The samples each row needs, (B,) (at most ``n_samples``; a row's later samples
+        are left at 0): rows sampled at different rates then take
+        :func:`recording_substeps` each, so a finely sampled row is not integrated
+        ``substeps`` times per sample, and the batch stops when every row has its own.
 
     Returns
     -------
@@ -631,10 +687,15 @@ def simulate_numerical(
     if n_transient > 0:
         st.march(h_transient, n_transient, n_sub(h_transient), None)
     # (N, B) while recording: each sample writes one contiguous row
+    alloc = np.empty if row_samples is None else np.zeros
     out: dict[str, np.ndarray] = {
-        k: np.empty((n_samples, n)) for k in ("x", "v", "accel", "contact_force")
+        k: alloc((n_samples, n)) for k in ("x", "v", "accel", "contact_force")
     }
     out["impacts"] = np.zeros((n_samples, n), dtype=np.int8)
     t0 = st.t + h
-    st.march(h, n_samples, n_sub(h), out)
+    if row_samples is None:
+        st.march(h, n_samples, n_sub(h), out)
+    else:
+        need = np.minimum(np.broadcast_to(np.asarray(row_samples, np.int64), (n,)), n_samples)
+        st.march(h, n_samples, recording_substeps(h, rate, substeps), out, need)
     return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})  # (B, N) views

@@ -121,6 +121,7 @@ class Simulator:
         v0: np.ndarray | None = None,
         effect_params: dict[str, ParamArrays] | None = None,
         active: dict[str, np.ndarray] | None = None,
+        row_samples: np.ndarray | None = None,
     ) -> SimulationResult:
         """Simulate ``n_samples`` of each parameter set after its transient.
 
@@ -135,6 +136,10 @@ class Simulator:
         active : per-trajectory booleans by effect name: rows where the effect is off are
             simulated without it (a dynamics effect through its ``neutral`` parameters, a
             measurement effect by skipping those rows). Default: on everywhere.
+        row_samples : the samples each row needs (B,), when fewer than ``n_samples``: the
+            numerical engine then integrates each row at its own rate and stops a row at its
+            own count (:func:`~stiffnet.simulator.numerical.recording_substeps`); a row's
+            later samples are not simulated (noise only). Default: every row needs all.
         """
         b = len(batch)
         if n_samples < 1:
@@ -172,6 +177,7 @@ class Simulator:
             out = simulate_numerical(
                 batch, self.dynamics, [params[e.name] for e in self.dynamics],
                 x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
+                row_samples=row_samples,
             )  # fmt: skip
         measured = self._measure(out.accel, batch, fs_ratio, noise, params, rng, masks)
         return SimulationResult(

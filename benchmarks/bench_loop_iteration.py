@@ -1,0 +1,121 @@
+"""Speed of a measurement-loop iteration with a learned contact law (target: GBM <= 3 min).
+
+Part 1 (ratio, same run): the iteration's dataset, the part that dominated (the
+learned law needs the numerical engine). The config is the one ``loop`` writes: the
+ideal world (``configs/sim/ideal.yaml``: fs/f_n 50-500, four 16-period windows per
+trajectory) plus ``learned_contact`` with a two-stage prior (knee 0.2 +-25 %, ratio
+3 +-25 %). Old path: every row of a batch integrated for the batch's longest record,
+``substeps`` RK4 steps per sample at any rate. New path: each row integrated at its own
+rate up to its own record (``row_samples``, :func:`stiffnet.simulator.numerical.
+recording_substeps`). Part 2 (``--loop``): one whole GBM loop iteration on the example
+manifest's eight points simulated with a two-stage user law, with its phases' seconds.
+Prints Markdown with the machine's load.
+
+    OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
+        --trajectories 48 [--loop 120]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+from stiffnet.config import load_config  # noqa: E402
+from stiffnet.config.sim import SimulationConfig  # noqa: E402
+from stiffnet.dataset import generate  # noqa: E402
+from stiffnet.shipped import default_config  # noqa: E402
+from stiffnet.simulator.simulator import Simulator  # noqa: E402
+
+LAW = {"name": "learned_contact", "probability": 1.0,
+       "params": {"knee": [0.15, 0.25], "knee_ratio": [2.25, 3.75]}}  # fmt: skip
+
+
+def loop_config(n: int) -> SimulationConfig:
+    """The ideal config with the learned law's prior, as a loop iteration writes it."""
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d.update(n_trajectories=n, effects=[LAW])
+    return SimulationConfig.model_validate(d)
+
+
+class _OldPath(Simulator):
+    """The simulator before per-row records: ``row_samples`` ignored."""
+
+    def simulate(self, *args, row_samples=None, **kwargs):  # noqa: ARG002
+        return super().simulate(*args, **kwargs)
+
+
+def time_dataset(cfg: SimulationConfig, old: bool) -> tuple[float, np.ndarray]:
+    build = generate.build_simulator
+    if old:
+
+        def build_old(c, off=frozenset()):
+            s = build(c, off)
+            s.__class__ = _OldPath
+            return s
+
+        generate.build_simulator = build_old
+    try:
+        t0 = time.perf_counter()
+        table = generate.simulate_shard(cfg, 0, cfg.n_trajectories)
+        return time.perf_counter() - t0, np.concatenate(table.column("accel").to_numpy(False))
+    finally:
+        generate.build_simulator = build
+
+
+def dataset_ratio(n: int) -> None:
+    cfg = loop_config(n)
+    new_s, new_a = time_dataset(cfg, old=False)
+    old_s, old_a = time_dataset(cfg, old=True)
+    # the same windows up to the integration error of the coarser substeps
+    err = np.max(np.abs(new_a - old_a)) / np.max(np.abs(old_a))
+    print(f"| dataset, {n} trajectories, learned two-stage law | {old_s:.1f} | {new_s:.1f} | "
+          f"{old_s / new_s:.1f}x | {err:.2e} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
+
+
+def loop_iteration(n: int) -> None:
+    import unknown_contact_laws as laws
+    from test_learned_law_diagnose import batch_campaign
+
+    from stiffnet.measurement.loop import run_loop
+
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = batch_campaign(Path(tmp) / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+        start = load_config(SimulationConfig, default_config("sim/ideal.yaml"))
+        t0 = time.perf_counter()
+        res = run_loop(camp, start, Path(tmp) / "state", iterations=1, family="gbm",
+                       n_trajectories=n, tracking_uri=None,
+                       candidates=["contact_damping"])  # fmt: skip
+        total = time.perf_counter() - t0
+    for it in res["iterations"]:
+        sec = it["seconds"]
+        print(f"| {it['label']} | {n} | {it['metrics']['discrepancy']:.3g} | "
+              f"{it['metrics'].get('accuracy')} | {sec} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
+    print(f"\nwhole run (iterations 0 and 1, diagnosis included): {total:.0f} s")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--trajectories", type=int, default=48)
+    ap.add_argument("--loop", type=int, default=0, help="one GBM loop iteration, N trajectories")
+    args = ap.parse_args()
+    if args.trajectories:
+        print("| what | old path s | new path s | speed-up | max windows diff | load |")
+        print("|---|---|---|---|---|---|")
+        dataset_ratio(args.trajectories)
+    if args.loop:
+        print("\n| iteration | trajectories | discrepancy | accuracy | seconds | load |")
+        print("|---|---|---|---|---|---|")
+        loop_iteration(args.loop)
+
+
+if __name__ == "__main__":
+    main()
