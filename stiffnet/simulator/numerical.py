@@ -472,126 +472,171 @@ class _Stepper:
     def _resolve(self, idx: np.ndarray, hs: np.ndarray, trial: tuple) -> dict[str, Any]:
         """March rows ``idx`` through their substep, locating and switching at events.
 
-        ``trial``: the full-substep RK4 result ``(y, f, aux)`` of these rows.
+        ``trial``: the full-substep RK4 result ``(y, f, aux)`` of these rows. Each pass
+        brackets every switching function's first crossing (:func:`_brackets`), locates
+        them (:func:`_first_roots`) and switches at the earliest (:func:`_switch`); rows
+        with nothing left to cross finish the substep.
         """
         model = self.m.subset(idx)
-        t, y, f = self.t[idx].copy(), self.y[idx].copy(), self.f[idx].copy()
-        aux = {k: v[idx].copy() for k, v in self.aux.items()}
-        contact, modes = self.contact[idx].copy(), self.modes[:, idx].copy()
-        left = hs.copy()
-        entries = np.zeros(idx.size, dtype=np.int64)
-        n_ev = len(model.event_fx)
+        st = {
+            "t": self.t[idx].copy(), "y": self.y[idx].copy(), "f": self.f[idx].copy(),
+            "aux": {k: v[idx].copy() for k, v in self.aux.items()},
+            "contact": self.contact[idx].copy(), "modes": self.modes[:, idx].copy(),
+            "left": hs.copy(), "entries": np.zeros(idx.size, dtype=np.int64),
+        }  # fmt: skip
         active = np.arange(idx.size)
         for it in range(_MAX_EVENTS_PER_SUBSTEP + 1):
             if active.size == 0:
                 break
             a = active
             ma = model if a.size == idx.size else model.subset(a)
-            ta, ya, fa, la, ca, mo = t[a], y[a], f[a], left[a], contact[a], modes[:, a]
+            ta, la = st["t"][a], st["left"][a]
             if it == 0:  # nothing has moved yet: the main loop's trial step is this one
                 y1, f1, aux1 = trial
             else:
-                y1 = _rk4(ma, ta, ya, fa, la, ca, mo)
+                ca, mo = st["contact"][a], st["modes"][:, a]
+                y1 = _rk4(ma, ta, st["y"][a], st["f"][a], la, ca, mo)
                 f1, aux1 = ma.rhs(ta + la, y1, ca, mo, full=True)
             if it == _MAX_EVENTS_PER_SUBSTEP:  # chattering: finish without further events
-                t[a], y[a], f[a], left[a] = ta + la, y1, f1, 0.0
-                for key in aux:
-                    aux[key][a] = aux1[key]
+                _finish(st, a, np.ones(a.size, bool), y1, f1, aux1)
                 break
-
-            def partial(sel: np.ndarray, ma=ma, a=a):
-                rows = a[sel]
-                ms = ma if sel.size == a.size else ma.subset(sel)
-                return _partial_step(ms, t[rows], y[rows], f[rows], contact[rows], modes[:, rows])
-
-            # brackets [0, s_hi] per switching function: 0 = contact, 1.. = event effects
-            s_hi = np.full((a.size, 1 + n_ev), np.nan)
-            g_hi = np.full((a.size, 1 + n_ev), np.nan)
-            sign_in = np.where(ca, 1.0, -1.0)
-            out_c = aux1["G"] * sign_in <= 0
-            s_hi[out_c, 0], g_hi[out_c, 0] = la[out_c], aux1["Gr"][out_c]
-            a0 = {k: v[a] for k, v in aux.items()}
-            dd0, dd1 = a0["dd"], aux1["dd"]
-            turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
-            if np.any(turning):
-                sel = np.flatnonzero(turning)
-                at = partial(sel)
-                s_ext = _illinois(
-                    lambda s, _at=at: _at(s)["dd"], la[sel], dd0[sel], dd1[sel],
-                    _EXTREMUM_TOL * hs[a[sel]],
-                )  # fmt: skip
-                a_ext = at(s_ext)
-                hit = a_ext["G"] * sign_in[sel] <= 0
-                s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
-            for j in range(n_ev):
-                out_j = aux1["g"][:, j] <= 0
-                s_hi[out_j, 1 + j], g_hi[out_j, 1 + j] = la[out_j], aux1["g"][out_j, j]
-            has = np.isfinite(s_hi)
-            any_ev = np.any(has, axis=1)
-            quiet = ~any_ev
-            if np.any(quiet):
-                q = a[quiet]
-                t[q], y[q], f[q], left[q] = ta[quiet] + la[quiet], y1[quiet], f1[quiet], 0.0
-                for key in aux:
-                    aux[key][q] = aux1[key][quiet]
+            s_hi, g_hi = _brackets(st, ma, a, y1, aux1, hs)
+            any_ev = np.any(np.isfinite(s_hi), axis=1)
+            _finish(st, a, ~any_ev, y1, f1, aux1)
             if not np.any(any_ev):
                 break
-            # locate each function's first crossing; the earliest one wins
-            s_root = np.full(s_hi.shape, np.inf)
-            for col in range(1 + n_ev):
-                sel = np.flatnonzero(has[:, col])
-                if sel.size == 0:
-                    continue
-                at = partial(sel)
-                if col == 0:
-                    # right after an event G(0) is ~0 with either sign: use the region's
-                    glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
-
-                    def fun(s, _at=at):
-                        return _at(s)["Gr"]
-                else:
-                    glo = np.maximum(np.abs(a0["g"][sel, col - 1]), _TINY)
-
-                    def fun(s, _at=at, _j=col - 1):
-                        return _at(s)["g"][:, _j]
-
-                s_root[sel, col] = _illinois(
-                    fun, s_hi[sel, col], glo, g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
-                )
             ev = np.flatnonzero(any_ev)
-            s_star = np.min(s_root[ev], axis=1)
-            fired = s_root[ev] <= s_star[:, None] * (1 + 1e-12) + _TINY
-            e_rows = a[ev]
-            me = ma if ev.size == a.size else ma.subset(ev)
-            te, ce, moe = ta[ev] + s_star, ca[ev].copy(), mo[:, ev].copy()
-            ye = _rk4(me, ta[ev], ya[ev], fa[ev], s_star, ca[ev], mo[:, ev])
-            _, aux_e = me.rhs(te, ye, ce, moe, full=True)
-            # switch: the restraint region, then the effects' modes at the event state
-            flip = fired[:, 0]
-            entries[e_rows[flip & ~ce]] += 1
-            ce = np.where(flip, ~ce, ce)
-            for j, k in enumerate(model.event_fx):
-                fj = fired[:, 1 + j]
-                if np.any(fj):
-                    new = model.effects[k].next_mode(
-                        ye[:, 0], ye[:, 1], aux_e["other"][:, k], moe[k], me.params[k]
-                    )
-                    moe[k] = np.where(fj, new, moe[k])
-            fe, aux_e = me.rhs(te, ye, ce, moe, full=True)
-            t[e_rows], y[e_rows], f[e_rows] = te, ye, fe
-            contact[e_rows], modes[:, e_rows] = ce, moe
-            left[e_rows] = np.maximum(left[e_rows] - s_star, 0.0)
-            for key in aux:
-                aux[key][e_rows] = aux_e[key]
-            active = e_rows[left[e_rows] > 0]
-        return {
-            "y": y,
-            "f": f,
-            "aux": aux,
-            "contact": contact,
-            "modes": modes,
-            "entries": entries,
-        }
+            s_root = _first_roots(st, ma, a, s_hi, g_hi, hs)
+            e_rows = _switch(st, ma, a, ev, s_root[ev])
+            active = e_rows[st["left"][e_rows] > 0]
+        out = {k: st[k] for k in ("y", "f", "aux", "contact", "modes", "entries")}
+        return out
+
+
+def _finish(
+    st: dict[str, Any], a: np.ndarray, sel: np.ndarray, y1: np.ndarray, f1: np.ndarray, aux1: dict
+) -> None:
+    """Rows ``a[sel]`` end their substep at the trial step (no event left in it)."""
+    if not np.any(sel):
+        return
+    q = a[sel]
+    st["t"][q] = st["t"][q] + st["left"][q]
+    st["y"][q], st["f"][q], st["left"][q] = y1[sel], f1[sel], 0.0
+    for key in st["aux"]:
+        st["aux"][key][q] = aux1[key][sel]
+
+
+def _partial(st: dict[str, Any], ma: _Model, a: np.ndarray, sel: np.ndarray) -> Callable:
+    """``s -> aux`` after a partial RK4 step of rows ``a[sel]`` from their current state."""
+    rows = a[sel]
+    ms = ma if sel.size == a.size else ma.subset(sel)
+    return _partial_step(
+        ms, st["t"][rows], st["y"][rows], st["f"][rows], st["contact"][rows], st["modes"][:, rows]
+    )
+
+
+def _brackets(
+    st: dict[str, Any], ma: _Model, a: np.ndarray, y1: np.ndarray, aux1: dict, hs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Brackets ``[0, s_hi]`` of each switching function's crossing in the rest of the
+    substep, and the function's value at ``s_hi``: (A, 1 + n_events) each, NaN where none.
+
+    Column 0 is the contact: a sign change of ``G`` over the step, or one hidden between
+    two points of the same sign, found at the penetration's interior extremum (grazing);
+    the others are the effects' event functions.
+    """
+    n_ev = len(ma.event_fx)
+    la, ca = st["left"][a], st["contact"][a]
+    s_hi = np.full((a.size, 1 + n_ev), np.nan)
+    g_hi = np.full((a.size, 1 + n_ev), np.nan)
+    sign_in = np.where(ca, 1.0, -1.0)
+    out_c = aux1["G"] * sign_in <= 0
+    s_hi[out_c, 0], g_hi[out_c, 0] = la[out_c], aux1["Gr"][out_c]
+    dd0, dd1 = st["aux"]["dd"][a], aux1["dd"]
+    turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
+    if np.any(turning):
+        sel = np.flatnonzero(turning)
+        at = _partial(st, ma, a, sel)
+        s_ext = _illinois(
+            lambda s, _at=at: _at(s)["dd"], la[sel], dd0[sel], dd1[sel],
+            _EXTREMUM_TOL * hs[a[sel]],
+        )  # fmt: skip
+        a_ext = at(s_ext)
+        hit = a_ext["G"] * sign_in[sel] <= 0
+        s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
+    for j in range(n_ev):
+        out_j = aux1["g"][:, j] <= 0
+        s_hi[out_j, 1 + j], g_hi[out_j, 1 + j] = la[out_j], aux1["g"][out_j, j]
+    return s_hi, g_hi
+
+
+def _first_roots(
+    st: dict[str, Any],
+    ma: _Model,
+    a: np.ndarray,
+    s_hi: np.ndarray,
+    g_hi: np.ndarray,
+    hs: np.ndarray,
+) -> np.ndarray:
+    """Each bracketed function's first crossing (Illinois), (A, 1 + n_events); inf where
+    none."""
+    a0 = {k: v[a] for k, v in st["aux"].items()}
+    sign_in = np.where(st["contact"][a], 1.0, -1.0)
+    s_root = np.full(s_hi.shape, np.inf)
+    for col in range(s_hi.shape[1]):
+        sel = np.flatnonzero(np.isfinite(s_hi[:, col]))
+        if sel.size == 0:
+            continue
+        at = _partial(st, ma, a, sel)
+        if col == 0:
+            # right after an event G(0) is ~0 with either sign: use the region's
+            glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
+
+            def fun(s, _at=at):
+                return _at(s)["Gr"]
+        else:
+            glo = np.maximum(np.abs(a0["g"][sel, col - 1]), _TINY)
+
+            def fun(s, _at=at, _j=col - 1):
+                return _at(s)["g"][:, _j]
+
+        s_root[sel, col] = _illinois(
+            fun, s_hi[sel, col], glo, g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
+        )
+    return s_root
+
+
+def _switch(
+    st: dict[str, Any], ma: _Model, a: np.ndarray, ev: np.ndarray, s_root: np.ndarray
+) -> np.ndarray:
+    """Step rows ``a[ev]`` to their earliest event and switch there: the restraint region,
+    then the effects' modes at the event state. Returns the rows moved."""
+    s_star = np.min(s_root, axis=1)
+    fired = s_root <= s_star[:, None] * (1 + 1e-12) + _TINY
+    e_rows = a[ev]
+    me = ma if ev.size == a.size else ma.subset(ev)
+    ce, moe = st["contact"][e_rows].copy(), st["modes"][:, e_rows].copy()
+    t0 = st["t"][e_rows]
+    te = t0 + s_star
+    ye = _rk4(me, t0, st["y"][e_rows], st["f"][e_rows], s_star, ce, moe)
+    _, aux_e = me.rhs(te, ye, ce, moe, full=True)
+    flip = fired[:, 0]
+    st["entries"][e_rows[flip & ~ce]] += 1
+    ce = np.where(flip, ~ce, ce)
+    for j, k in enumerate(me.event_fx):
+        fj = fired[:, 1 + j]
+        if np.any(fj):
+            new = me.effects[k].next_mode(
+                ye[:, 0], ye[:, 1], aux_e["other"][:, k], moe[k], me.params[k]
+            )
+            moe[k] = np.where(fj, new, moe[k])
+    fe, aux_e = me.rhs(te, ye, ce, moe, full=True)
+    st["t"][e_rows], st["y"][e_rows], st["f"][e_rows] = te, ye, fe
+    st["contact"][e_rows], st["modes"][:, e_rows] = ce, moe
+    st["left"][e_rows] = np.maximum(st["left"][e_rows] - s_star, 0.0)
+    for key in st["aux"]:
+        st["aux"][key][e_rows] = aux_e[key]
+    return e_rows
 
 
 def recording_substeps(h: np.ndarray, rate: np.ndarray, substeps: int) -> np.ndarray:
