@@ -53,7 +53,7 @@ class _OldPath(Simulator):
         return super().simulate(*args, **kwargs)
 
 
-def time_dataset(cfg: SimulationConfig, old: bool) -> tuple[float, np.ndarray]:
+def time_dataset(cfg: SimulationConfig, old: bool) -> tuple[float, float, np.ndarray]:
     build = generate.build_simulator
     if old:
 
@@ -64,21 +64,57 @@ def time_dataset(cfg: SimulationConfig, old: bool) -> tuple[float, np.ndarray]:
 
         generate.build_simulator = build_old
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         table = generate.simulate_shard(cfg, 0, cfg.n_trajectories)
-        return time.perf_counter() - t0, np.concatenate(table.column("accel").to_numpy(False))
+        accel = np.concatenate(table.column("accel").to_numpy(False))
+        return time.perf_counter() - t0, time.process_time() - c0, accel
     finally:
         generate.build_simulator = build
 
 
 def dataset_ratio(n: int) -> None:
     cfg = loop_config(n)
-    new_s, new_a = time_dataset(cfg, old=False)
-    old_s, old_a = time_dataset(cfg, old=True)
+    new_s, new_c, new_a = time_dataset(cfg, old=False)
+    old_s, old_c, old_a = time_dataset(cfg, old=True)
     # the same windows up to the integration error of the coarser substeps
     err = np.max(np.abs(new_a - old_a)) / np.max(np.abs(old_a))
-    print(f"| dataset, {n} trajectories, learned two-stage law | {old_s:.1f} | {new_s:.1f} | "
-          f"{old_s / new_s:.1f}x | {err:.2e} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
+    print(f"| dataset, {n} trajectories, learned two-stage law | {old_s:.1f} (CPU {old_c:.1f}) "
+          f"| {new_s:.1f} (CPU {new_c:.1f}) | {old_c / new_c:.1f}x CPU | {err:.2e} | "
+          f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
+
+
+def time_campaign(camp, effects, old: bool) -> tuple[float, float, list[np.ndarray]]:
+    """Wall and CPU seconds of one simulation of the campaign's rows (what compare, evaluate
+    and every diagnose evaluation run), old or new path."""
+    from stiffnet.campaign import simulate as csim
+
+    real = csim.Simulator
+    if old:
+        csim.Simulator = _OldPath
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        lengths = [camp.recording(i).accel.size for i in range(len(camp.rows))]
+        out = csim.simulate_rows(camp.rows, effects, lengths)
+        return time.perf_counter() - t0, time.process_time() - c0, out
+    finally:
+        csim.Simulator = real
+
+
+def campaign_ratio() -> None:
+    import unknown_contact_laws as laws
+    from test_learned_law_diagnose import batch_campaign
+
+    from stiffnet.effects.learned_contact import LearnedContact
+
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = batch_campaign(Path(tmp) / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+        law = [LearnedContact(knee=0.2, knee_ratio=3.0)]
+        new_s, new_c, new_a = time_campaign(camp, law, old=False)
+        old_s, old_c, old_a = time_campaign(camp, law, old=True)
+    err = max(np.max(np.abs(a - b)) / np.max(np.abs(b)) for a, b in zip(new_a, old_a, strict=True))
+    print(f"| campaign simulation (8 recordings, 3 s, learned two-stage law) | {old_s:.1f} "
+          f"(CPU {old_c:.1f}) | {new_s:.1f} (CPU {new_c:.1f}) | {old_c / new_c:.1f}x CPU | "
+          f"{err:.2e} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
 
 
 def loop_iteration(n: int) -> None:
@@ -107,9 +143,10 @@ def main() -> None:
     ap.add_argument("--trajectories", type=int, default=48)
     ap.add_argument("--loop", type=int, default=0, help="one GBM loop iteration, N trajectories")
     args = ap.parse_args()
+    print("| what | old path s | new path s | speed-up | max difference / peak | load |")
+    print("|---|---|---|---|---|---|")
+    campaign_ratio()
     if args.trajectories:
-        print("| what | old path s | new path s | speed-up | max windows diff | load |")
-        print("|---|---|---|---|---|---|")
         dataset_ratio(args.trajectories)
     if args.loop:
         print("\n| iteration | trajectories | discrepancy | accuracy | seconds | load |")

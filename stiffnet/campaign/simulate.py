@@ -277,6 +277,7 @@ def simulate_rows(
             x0=x0,
             v0=v0,
             effect_params=effect_params,
+            row_samples=n * k + lead,  # each row at its own rate, to its own length
         )
     except StiffnetError as exc:
         raise StiffnetError(f"simulating the campaign: {exc}") from None

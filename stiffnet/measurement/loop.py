@@ -560,13 +560,7 @@ def run_loop(
     # the recordings, their statistics and predictions are read and computed once for all
     # iterations (a LoadedCampaign is shared by diagnose, evaluate and compare)
     campaign = LoadedCampaign.of(campaign)
-    if family is not None:
-        check_family(family)
-    check_n_trajectories(n_trajectories)
-    if not 0 <= iterations <= 100:
-        raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
-    if spread is not None and not 0 <= spread < 1:
-        raise StiffnetError(f"--spread must be in [0, 1), got {spread}")
+    _check_arguments(family, n_trajectories, iterations, spread)
     folder = Path(state_dir) if state_dir is not None else default_state_dir(campaign.folder)
     settings = {
         "family": family,
@@ -578,21 +572,8 @@ def run_loop(
     }
     t0 = time.perf_counter()
     with output_lock(folder):
-        state = _open_state(folder, campaign, settings)
-        if not state["iterations"]:  # a new state: its settings with the defaults filled in
-            state.update(
-                family=family or _default_family(),
-                n_trajectories=n_trajectories or DEFAULT_TRAJECTORIES,
-                spread=DEFAULT_SPREAD if spread is None else spread,
-                seed=DEFAULT_SEED if seed is None else seed,
-                start_config=cfg.model_dump(mode="json"),
-                tracking_uri=tracking_uri,
-                experiment=f"campaign-{campaign.folder.name}",
-                registered_model=campaign.folder.name,
-            )
-        state["tracking_uri"] = tracking_uri
+        state = _start_state(folder, campaign, settings, cfg, tracking_uri)
         start_cfg = SimulationConfig.model_validate(state["start_config"])
-        state["stopped"] = None
         todo = iterations + (0 if state["iterations"] else 1)
         write_json_atomic(folder / RUN_MARKER, {"kind": LOOP_KIND, "status": "running"})
         with progress_task("loop iterations", todo) as bar:
@@ -600,61 +581,123 @@ def run_loop(
                 k = len(state["iterations"])
                 added: list[dict[str, Any]] = []
                 diag_result = None
+                t_diag = time.perf_counter()
                 if k > 0:
                     bar.update(note=f"iteration {k}: diagnosis")
-                    t_diag = time.perf_counter()
-                    last = state["iterations"][-1]
-                    current = [e["name"] for e in last["effects"]]
-                    if diagnosis is not None and not add_effects:
-                        added, diag_result = _from_diagnosis(diagnosis)
-                    else:
-                        added, diag_result = _effects_to_add(
-                            campaign,
-                            start_cfg,
-                            current,
-                            list(add_effects or []),
-                            last["model"],
-                            state["seed"],
-                            candidates,
-                            inclination,
-                        )
-                    diagnosis, add_effects = None, None  # the first new iteration only
-                    classes = {effect_class(n).name for n in current}
-                    nothing_new = all(
-                        a["source"] == "diagnosis" and effect_class(a["name"]).name in classes
-                        for a in added
+                    given = (diagnosis, list(add_effects or []))
+                    added, diag_result = _next_effects(
+                        campaign, state, start_cfg, given, candidates, inclination
                     )
-                    if nothing_new:
-                        state["stopped_diagnosis"] = diagnosis_summary(diag_result or {})
-                        state["stopped"] = (
-                            f"iteration {k}: the diagnosis adds no effect beyond "
-                            f"{', '.join(current) or 'the starting config'} (verdict "
-                            f"{(diag_result or {}).get('verdict')}); nothing left to iterate"
-                        )
+                    diagnosis, add_effects = None, None  # the first new iteration only
+                    if _stop_when_nothing_new(state, k, added, diag_result):
                         break
                 diag_s = round(time.perf_counter() - t_diag, 2) if k > 0 else 0.0
                 it = _iteration(
-                    k,
-                    campaign,
-                    state,
-                    folder,
-                    start_cfg,
-                    added,
-                    diag_result,
-                    keep_data,
-                    bar,
+                    k, campaign, state, folder, start_cfg, added, diag_result, keep_data, bar
                 )
-                it["seconds"]["diagnosis"] = diag_s  # the iteration's wall time includes it
-                it["seconds"]["total"] = round(it["seconds"]["total"] + diag_s, 2)
-                state["iterations"].append(it)
-                chart = _chart(folder, state)
-                if tracking_uri:
-                    _track(state, it, chart)
-                _save_state(folder, state)
+                _record_iteration(folder, state, it, diag_s, tracking_uri)
                 bar.advance()
         chart = _chart(folder, state) if state["iterations"] else None
         _save_state(folder, state)
         write_json_atomic(folder / RUN_MARKER, {"kind": LOOP_KIND, "status": "complete"})
+    return _loop_result(state, folder, chart, tracking_uri, time.perf_counter() - t0)
+
+
+def _check_arguments(
+    family: str | None, n_trajectories: int | None, iterations: int, spread: float | None
+) -> None:
+    """One clear line for a loop argument out of range, before any work."""
+    if family is not None:
+        check_family(family)
+    check_n_trajectories(n_trajectories)
+    if not 0 <= iterations <= 100:
+        raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
+    if spread is not None and not 0 <= spread < 1:
+        raise StiffnetError(f"--spread must be in [0, 1), got {spread}")
+
+
+def _start_state(
+    folder: Path,
+    campaign: Campaign,
+    settings: dict[str, Any],
+    cfg: SimulationConfig,
+    tracking_uri: str | None,
+) -> dict[str, Any]:
+    """The state to continue: resumed, or new with its settings' defaults filled in."""
+    state = _open_state(folder, campaign, settings)
+    if not state["iterations"]:
+        state.update(
+            family=settings["family"] or _default_family(),
+            n_trajectories=settings["n_trajectories"] or DEFAULT_TRAJECTORIES,
+            spread=DEFAULT_SPREAD if settings["spread"] is None else settings["spread"],
+            seed=DEFAULT_SEED if settings["seed"] is None else settings["seed"],
+            start_config=cfg.model_dump(mode="json"),
+            tracking_uri=tracking_uri,
+            experiment=f"campaign-{campaign.folder.name}",
+            registered_model=campaign.folder.name,
+        )
+    state["tracking_uri"] = tracking_uri
+    state["stopped"] = None
+    return state
+
+
+def _next_effects(
+    campaign: Campaign,
+    state: dict[str, Any],
+    start_cfg: SimulationConfig,
+    given: tuple[dict[str, Any] | None, list[tuple[str, dict[str, Any]]]],
+    candidates: list[str] | None,
+    inclination: bool,
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """What the next iteration adds: a given diagnosis's selection, else the effects the
+    user names (fitted when without values) or the diagnosis selects."""
+    diagnosis, add_effects = given
+    last = state["iterations"][-1]
+    current = [e["name"] for e in last["effects"]]
+    if diagnosis is not None and not add_effects:
+        return _from_diagnosis(diagnosis)
+    return _effects_to_add(
+        campaign, start_cfg, current, add_effects, last["model"], state["seed"], candidates,
+        inclination,
+    )  # fmt: skip
+
+
+def _stop_when_nothing_new(
+    state: dict[str, Any], k: int, added: list[dict[str, Any]], diag: dict[str, Any] | None
+) -> bool:
+    """Rule: the loop stops when the diagnosis adds no effect the model lacks (it says why)."""
+    current = [e["name"] for e in state["iterations"][-1]["effects"]]
+    classes = {effect_class(n).name for n in current}
+    nothing_new = all(
+        a["source"] == "diagnosis" and effect_class(a["name"]).name in classes for a in added
+    )
+    if nothing_new:
+        state["stopped_diagnosis"] = diagnosis_summary(diag or {})
+        state["stopped"] = (
+            f"iteration {k}: the diagnosis adds no effect beyond "
+            f"{', '.join(current) or 'the starting config'} (verdict "
+            f"{(diag or {}).get('verdict')}); nothing left to iterate"
+        )
+    return nothing_new
+
+
+def _record_iteration(
+    folder: Path, state: dict[str, Any], it: dict[str, Any], diag_s: float, tracking_uri: str | None
+) -> None:
+    """A finished iteration into the state (with its diagnosis's time), chart and tracking."""
+    it["seconds"]["diagnosis"] = diag_s  # the iteration's wall time includes it
+    it["seconds"]["total"] = round(it["seconds"]["total"] + diag_s, 2)
+    state["iterations"].append(it)
+    chart = _chart(folder, state)
+    if tracking_uri:
+        _track(state, it, chart)
+    _save_state(folder, state)
+
+
+def _loop_result(
+    state: dict[str, Any], folder: Path, chart: Path | None, tracking_uri: str | None, sec: float
+) -> dict[str, Any]:
+    """``run_loop``'s summary of the state."""
     its = state["iterations"]
     return {
         "campaign": state["campaign"],
@@ -672,7 +715,7 @@ def run_loop(
         "registered_model": state["registered_model"] if tracking_uri else None,
         "chart": str(chart) if chart else None,
         "out": str(folder.resolve()),
-        "seconds": round(time.perf_counter() - t0, 2),
+        "seconds": round(sec, 2),
     }
 
 
