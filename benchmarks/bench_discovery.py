@@ -43,9 +43,11 @@ LAWS = {
     "two_stage 0.2 / 3": [laws.TwoStageContact(knee=0.2, ratio=3.0)],
     "power 2.0": [laws.PowerLawContact(exponent=2.0)],
     "hunt_crossley 0.3": [laws.HuntCrossleyContact(c=0.3)],
+    "sprung face 0.3 / 12": [laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)],
 }
 TRUTH = {"linear": (), "kelvin_voigt 0.2": ("damping",), "two_stage 0.2 / 3": ("hinge",),
-         "power 2.0": ("power",), "hunt_crossley 0.3": ("hunt_crossley",)}  # fmt: skip
+         "power 2.0": ("power",), "hunt_crossley 0.3": ("hunt_crossley",),
+         "sprung face 0.3 / 12": ("face",)}  # fmt: skip
 
 
 def recordings(effects, noise: float, periods: float, seed: int):
@@ -66,12 +68,15 @@ def main() -> None:
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--periods", type=float, default=26.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--law", action="append", choices=list(LAWS), help="only these laws")
     args = ap.parse_args()
     print(f"load average at start: {os.getloadavg()}")
     print("| law | terms found (truth) | explained (library) | maps s | discovery s | total s "
           "| discovery / maps | beta MAPE |")  # fmt: skip
     print("|---|---|---|---:|---:|---:|---:|---:|")
     for name, effects in LAWS.items():
+        if args.law and name not in args.law:
+            continue
         recs, beta = recordings(effects, args.noise, args.periods, args.seed)
         fn = 9.48
         t0 = time.perf_counter()
@@ -89,6 +94,10 @@ def main() -> None:
               f"{law.explained_fraction:.3f} ({law.library_explained_fraction:.3f}) | "
               f"{t1 - t0:.2f} | {t2 - t1:.2f} | {t2 - t0:.2f} | {(t2 - t1) / (t1 - t0):.1f} | "
               f"{mape:.3f} |")  # fmt: skip
+        if "face" in law.terms:
+            p = law.params
+            print(f"|  | mu {p['face_mass']:.3g}, kappa {p['face_stiffness']:.4g}, zeta "
+                  f"{p['face_damping']:.3g} (truth 0.3, 43.2, 0.1) | | | | | | |")  # fmt: skip
     print(f"load average at end: {os.getloadavg()}")
 
 

@@ -45,6 +45,8 @@ N_FOLDS = 4
 N_BOOTSTRAP = 30
 #: Knots tried as starts of a hinge, as quantiles of the peak penetrations.
 KNOT_QUANTILES = (0.15, 0.4, 0.7)
+#: Residual evaluations of the short fits that screen the face term's starts.
+FACE_SCREEN_NFEV = 12
 #: Systematic part of the intervals (relative): a floor and a term growing with the law's
 #: misfit, as the restoring-force estimate's (the bootstrap over impacts sees the scatter
 #: between impacts, not the reconstruction's bias they share). The floor is the shared bias
@@ -116,8 +118,15 @@ def _candidates(data: Data, current: Fit, dr: float) -> list[Fit]:
         starts = [dict(current.shared)]
         if term == "hinge":
             starts = [{**current.shared, "knee": q * top} for q in KNOT_QUANTILES]
-        if term == "face":
+        if term == "face":  # a short fit from every start, then the best one to the end
             starts = [{**current.shared, **s} for s in face_starts(current.betas)]
+            short = [fit_law(data, terms, dr, s, per, max_nfev=FACE_SCREEN_NFEV) for s in starts]
+            best = min(short, key=lambda f: f.sse)
+            if best.sse > (1 - MIN_HELD_OUT_GAIN) * current.sse:
+                # no face lowers the error by what a term must: the screen is its candidate
+                out.append(best)
+                continue
+            starts = [best.shared]
         fits = [fit_law(data, terms, dr, s, per) for s in starts]
         out.append(min(fits, key=lambda f: f.sse))
     return out
