@@ -92,3 +92,15 @@ def test_a_face_with_its_own_mass_moves_as_the_user_sprung_face():
     # the face changes the motion (it is not the rigid restraint)
     c = run(LearnedContact()).accel
     assert np.abs(c - b).max() > 0.1 * np.abs(b).max()
+
+
+def test_a_face_in_the_config_yaml(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text(
+        "effects:\n  - name: learned_contact\n"
+        "    params: {face_mass: [0.22, 0.37], face_stiffness: 43.0, face_damping: 0.1}\n"
+    )
+    eff = load_config(SimulationConfig, path).effects[0].build()
+    assert eff.n_states == 2 and eff.params.face_stiffness == 43.0
+    with pytest.raises(Exception, match="face_mass"):
+        LearnedContact(face_mass=-0.1)
