@@ -28,6 +28,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet",
         "stiffnet.errors",
         "stiffnet.io_utils",
+        "stiffnet.plugins",
         "stiffnet.shipped",
         "stiffnet.distributed",
     ),  # fmt: skip

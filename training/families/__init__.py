@@ -10,11 +10,9 @@ command, the measurement loop and recalibration list families from here.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from serving.families import register as register_serving
 from stiffnet.errors import StiffnetError
+from stiffnet.plugins import discover
 from training.families.base import TrainedModel, TrainingFamily
 
 _FAMILIES: dict[str, type[TrainingFamily]] = {}
@@ -37,17 +35,8 @@ def _discover() -> None:
     if _discovered:
         return
     _discovered = True
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
-        if not info.ispkg:
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        for obj in vars(module).values():
-            if (
-                isinstance(obj, type)
-                and issubclass(obj, TrainingFamily)
-                and obj.__module__ == module.__name__
-            ):
-                register_family(obj)
+    for cls in discover(__name__, TrainingFamily, packages_only=True):  # a family is a folder
+        register_family(cls)
 
 
 def families() -> dict[str, type[TrainingFamily]]:
