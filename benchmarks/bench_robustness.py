@@ -123,7 +123,9 @@ def score(pred: Predictor, recs: list[dict[str, Any]]) -> dict[str, Any]:
         right.append(ok)
         flags.append(bool(res["ood_flag"]))
         fired = (res["alarm"] or {}).get("fired", [])
-        model_flags.append(any(f not in ("physical", "sensor", "contact_law") for f in fired))
+        model_flags.append(
+            any(f not in ("restoring_force", "sensor", "contact_law") for f in fired)
+        )
         no_law_flags.append(any(f != "contact_law" for f in fired))
         miss = not ok
         if r["class"] != "no_contact":

@@ -9,7 +9,7 @@ part exists, they are concatenated into ``OUT`` (atomically) and the parts folde
 removed. An interrupted run resumes: parts whose record matches are kept.
 
 Each row holds the model's answer and both cross-checks of :func:`serving.predictor.
-predict_recording`: the geometric one and the restoring-force one (``physical_*``).
+predict_recording`: the geometric one and the restoring-force one (``restoring_force_*``).
 A recording that cannot be predicted (unreadable, too short, constant...) gets a row
 with its ``error`` and nulls elsewhere: one bad file never stops the batch, and the
 summary names every failed recording (``failed``; the command then exits 1).
@@ -134,11 +134,11 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("geometric_class", pa.string()),
             ("geometric_beta", pa.float64()),
             ("agreement", pa.bool_()),
-            ("physical_class", pa.string()),
-            ("physical_beta", pa.float64()),
-            ("physical_beta_low", pa.float64()),
-            ("physical_beta_high", pa.float64()),
-            ("physical_agreement", pa.bool_()),
+            ("restoring_force_class", pa.string()),
+            ("restoring_force_beta", pa.float64()),
+            ("restoring_force_beta_low", pa.float64()),
+            ("restoring_force_beta_high", pa.float64()),
+            ("restoring_force_agreement", pa.bool_()),
             ("ood_score", pa.float64()),
             ("ood_flag", pa.bool_()),
             ("n_windows", pa.int64()),
@@ -163,7 +163,7 @@ def result_row(
     if result is None:
         return row
     interval = result.get("beta_interval") or [None, None]
-    physical_interval = result.get("physical_beta_interval") or [None, None]
+    restoring_force_interval = result.get("restoring_force_beta_interval") or [None, None]
     geometric = result.get("geometric") or {}
     row.update(
         {
@@ -175,11 +175,11 @@ def result_row(
             "geometric_class": geometric.get("class"),
             "geometric_beta": geometric.get("beta"),
             "agreement": result.get("agreement"),
-            "physical_class": result.get("physical_class"),
-            "physical_beta": result.get("physical_beta"),
-            "physical_beta_low": physical_interval[0],
-            "physical_beta_high": physical_interval[1],
-            "physical_agreement": result.get("physical_agreement"),
+            "restoring_force_class": result.get("restoring_force_class"),
+            "restoring_force_beta": result.get("restoring_force_beta"),
+            "restoring_force_beta_low": restoring_force_interval[0],
+            "restoring_force_beta_high": restoring_force_interval[1],
+            "restoring_force_agreement": result.get("restoring_force_agreement"),
             "ood_score": result.get("ood_score"),
             "ood_flag": result.get("ood_flag"),
             "n_windows": result.get("n_windows"),

@@ -23,10 +23,10 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
    and the beta interval; the geometric cross-check
    (:func:`stiffnet.features.features_and_estimate` with the shipped
    calibration; ``agreement`` is ``model class == geometric class``; bounding
-   its windows keeps a 60 s recording under ~60 ms on one core); the physical
-   cross-check (:mod:`serving.physical`: the restoring-force estimate,
-   ``physical_class``, ``physical_beta`` with its bootstrap interval,
-   ``physical_agreement``, null when that method refused, with its reason);
+   its windows keeps a 60 s recording under ~60 ms on one core); the restoring-force
+   cross-check (:mod:`serving.restoring_force_check`: the restoring-force estimate,
+   ``restoring_force_class``, ``restoring_force_beta`` with its bootstrap interval,
+   ``restoring_force_agreement``, null when that method refused, with its reason);
    the alarm (:mod:`stiffnet.uncertainty.alarm_verdict`: ``ood_flag`` is the alarm, ``ood_score``
    its largest score relative to its threshold).
 5. **Result**: :class:`serving.schemas.PredictionResult`.
@@ -46,9 +46,9 @@ from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import record_layers, with_layers_alarm
 from serving.model import LoadedModel, load_model
-from serving.physical import (
+from serving.restoring_force_check import (
     check_sensor_sheet,
-    physical_check,
+    restoring_force_check,
     sensor_outside_priors,
     sidecar_sensor,
     with_sensor_check,
@@ -66,9 +66,9 @@ from stiffnet.uncertainty.alarm_verdict import (
     alarm_ratio,
     alarm_verdict,
     load_model_alarm,
-    physical_gap,
-    weak_physical_fit,
-    with_physical_check,
+    restoring_force_gap,
+    weak_restoring_force_fit,
+    with_restoring_force_check,
 )
 from stiffnet.uncertainty.ood import OODReference, load_reference
 from stiffnet.uncertainty.unseen_law import with_unseen_law_check
@@ -283,7 +283,7 @@ class Predictor:
         sensor : dict, optional
             The sensor chain's data sheet (``resonance_hz``, ``resonance_damping``,
             ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the restoring-force check
-            undoes it instead of fitting one (:mod:`serving.physical`).
+            undoes it instead of fitting one (:mod:`serving.restoring_force_check`).
 
         Returns
         -------
@@ -321,18 +321,20 @@ class Predictor:
         layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
-        physical = physical_check(a, fs, fn, sensor)
+        restoring_force = restoring_force_check(a, fs, fn, sensor)
         alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
-        gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
-        alarm = with_physical_check(alarm, gap)
-        alarm = with_unseen_law_check(alarm, physical)
+        gap = restoring_force_gap(
+            interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
+        )
+        alarm = with_restoring_force_check(alarm, gap)
+        alarm = with_unseen_law_check(alarm, restoring_force)
         alarm = with_layers_alarm(alarm, layers)
         priors = (self.model.card.get("data") or {}).get("priors")
-        alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,
-                                                               fs, fn))  # fmt: skip
+        outside = sensor_outside_priors(restoring_force.get("sensor"), priors, fs, fn)
+        alarm = with_sensor_check(alarm, outside)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
-        if weak := weak_physical_fit(physical):
+        if weak := weak_restoring_force_fit(restoring_force):
             warnings.append(weak)
         score = alarm_ratio(alarm)
         result = {
@@ -344,11 +346,13 @@ class Predictor:
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
-            "physical": physical,
-            "physical_class": physical["class"],
-            "physical_beta": physical["beta"],
-            "physical_beta_interval": physical["beta_interval"],
-            "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
+            "restoring_force": restoring_force,
+            "restoring_force_class": restoring_force["class"],
+            "restoring_force_beta": restoring_force["beta"],
+            "restoring_force_beta_interval": restoring_force["beta_interval"],
+            "restoring_force_agreement": None
+            if restoring_force["class"] is None
+            else restoring_force["class"] == cls,
             "contact_detected": cls != "no_contact",
             "ood_score": score,
             "ood_threshold": 1.0 if score is not None else None,

@@ -70,9 +70,33 @@ _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
 _OPTIONAL_KEYS: dict[str, dict[str, tuple[type, ...]]] = {
     "diagnosis": {"noise_floor": (int, float, type(None)), "verdict": (str, type(None)),
                   "summary": (str,), "missing_effects": (list, str),
-                  "restoring_force_evidence": (dict, type(None))},
+                  "restoring_force": (dict, type(None))},
 }  # fmt: skip
 _COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
+#: Keys that results written by earlier versions carry under another name (old: new): the
+#: restoring-force estimate was also called "physical" (``physical_beta``, ...) and its
+#: campaign summary "evidence".
+_EARLIER_KEYS = {"restoring_force_evidence": "restoring_force"}
+_EARLIER_PREFIX = ("physical_", "restoring_force_")
+
+
+def _with_current_keys(data: Any, depth: int = 4) -> Any:
+    """A saved result with the keys of earlier versions renamed to today's down to `depth`
+    levels (a loop's iterations' rows lie at 3; where both names stand, today's wins)."""
+    if depth < 0:
+        return data
+    if isinstance(data, list):
+        return [_with_current_keys(v, depth - 1) for v in data]
+    if not isinstance(data, dict):
+        return data
+    out: dict[str, Any] = {}
+    for k, v in data.items():
+        new = _EARLIER_KEYS.get(k, k)
+        if new.startswith(_EARLIER_PREFIX[0]):
+            new = _EARLIER_PREFIX[1] + new.removeprefix(_EARLIER_PREFIX[0])
+        if new == k or new not in data:
+            out[new] = _with_current_keys(v, depth - 1)
+    return out
 
 
 def _read_json(path: Path | None, what: str) -> Any:
@@ -82,7 +106,7 @@ def _read_json(path: Path | None, what: str) -> Any:
 
     if path is None:
         return None
-    data = read_json_object(path, f"{what} JSON")
+    data = _with_current_keys(read_json_object(path, f"{what} JSON"))
     for key, kind in _RESULT_KEYS.get(what, {}).items():
         if not isinstance(data.get(key), kind) or isinstance(data.get(key), bool):
             raise StiffnetError(
@@ -91,8 +115,8 @@ def _read_json(path: Path | None, what: str) -> Any:
     check_fields(data, _OPTIONAL_KEYS.get(what, {}), f"{path}: not a `{_COMMAND[what]} --json` "
                  "result")  # fmt: skip
     if what == "diagnosis":
-        evidence = data.get("restoring_force_evidence") or {}
-        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force_evidence")
+        evidence = data.get("restoring_force") or {}
+        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force")
         for i, r in enumerate(data["ranking"]):
             if isinstance(r, dict):
                 check_fields(r, {"reasons": (list, str)}, f"{path}: ranking[{i}]")
@@ -341,7 +365,7 @@ def diagnosis_lines(res: dict[str, Any]) -> list[str]:
         if isinstance(explained, int | float)
         else f"verdict: {res['verdict']}: {res.get('summary', '')}"
     ]
-    evidence = res.get("restoring_force_evidence") or {}
+    evidence = res.get("restoring_force") or {}
     if evidence.get("summary"):
         lines.append(str(evidence["summary"]))
     if (res.get("learned_law") or {}).get("ran"):  # the library lacked the contact law

@@ -103,11 +103,11 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
-    ph = result["physical"]
+    ph = result["restoring_force"]
     if ph["beta"] is not None:
         lo, hi = ph["beta_interval"]
         rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
-        rf += "  agrees" if result["physical_agreement"] else "  [red]disagrees[/]"
+        rf += "  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]"
     else:
         rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
     t.add_row("restoring force", rf, "")
@@ -117,10 +117,10 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
             "[green]none[/]")  # fmt: skip
         t.add_row("alarm", verdict, "")
         scores = ", ".join(
-            # the physical check's score is a log-gap that fires above 0: "0/0" would read
+            # the restoring_force check's score is a log-gap that fires above 0: "0/0" would read
             # as a ratio
             f"{k} log-gap {_num(v)} (fires > 0)"
-            if k == "physical"
+            if k == "restoring_force"
             else f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
             for k, v in alarm["scores"].items()
             if k in alarm["thresholds"]
@@ -421,8 +421,14 @@ def log_cmd(
     channel: ChannelOption = None,
     model: ModelOption = None,
     hop: Annotated[float, typer.Option(help="Seconds between points (<= 0.5).")] = 0.5,
-    physical_every: Annotated[
-        float, typer.Option(help="Seconds between restoring-force cross-checks (0: none).")
+    restoring_force_every: Annotated[
+        float,
+        typer.Option(
+            "--restoring-force-every",
+            # the option's earlier name, kept so that scripts written before still run
+            "--physical-every",
+            help="Seconds between restoring-force cross-checks (0: none).",
+        ),
     ] = 10.0,
     stream_format: Annotated[
         str, typer.Option(help="--follow: csv (one sample per line) or f32 (raw float32).")
@@ -459,7 +465,7 @@ def log_cmd(
     if plot_path is not None and plot_path.suffix.lower() != ".png":
         raise StiffnetError(f"--plot {plot_path}: use a .png file name")
     predictor = Predictor.load(model, threads=threads)
-    every = physical_every if physical_every > 0 else None
+    every = restoring_force_every if restoring_force_every > 0 else None
     if follow:
         from serving.stream import sample_chunks
 
@@ -472,7 +478,7 @@ def log_cmd(
             )
         fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
         logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
-                                 hop_s=hop, physical_every_s=every)  # fmt: skip
+                                 hop_s=hop, restoring_force_every_s=every)  # fmt: skip
         console.print(
             f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
             f"f_n {fn_value:.4g} Hz ({fn_source})",
@@ -505,7 +511,7 @@ def log_cmd(
         fn_value, fn_source = record_natural_frequency(recording, fn)
         with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
             result = stiffness_log(
-                predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, physical_every_s=every,
+                predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, restoring_force_every_s=every,
                 source=rec.source,
                 progress=lambda done, total: bar.update(completed=done, total=total),
             )  # fmt: skip
@@ -555,7 +561,7 @@ def log_tables(result: dict[str, Any]) -> list[Any]:
         beta = _num(la["beta"])
         if la["beta_interval"]:
             beta += f" [{la['beta_interval'][0]:.3g}, {la['beta_interval'][1]:.3g}]"
-        ph = la["physical"]
+        ph = la["restoring_force"]
         if ph["beta"] is not None:
             rf = f"{ph['beta']:.3g} " + ("agrees" if ph["agreement"] else "[red]disagrees[/]")
         else:
@@ -606,7 +612,7 @@ def write_log_rows(result: dict[str, Any], path: Path) -> None:
         "alarm": [p["alarm"] for p in pts],
         "alarm_fired": [",".join(p["alarm_fired"]) for p in pts],
         "layer": layer_of,
-        "physical_beta": [p.get("physical", {}).get("beta") for p in pts],
+        "restoring_force_beta": [p.get("restoring_force", {}).get("beta") for p in pts],
     })  # fmt: skip
     buf = io.BytesIO()
     if path.suffix.lower() == ".parquet":

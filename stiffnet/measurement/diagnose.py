@@ -461,9 +461,9 @@ def _diagnose(
         "per_recording": recordings,
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
-        "restoring_force_evidence": memo(
+        "restoring_force": memo(
             campaign,
-            ("restoring_force_evidence", rows_key(rows)),
+            ("restoring_force", rows_key(rows)),
             lambda: restoring_force_evidence(campaign, rows),
         ),  # fmt: skip
         "learned_law": learned,

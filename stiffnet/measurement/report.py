@@ -147,7 +147,7 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
         The other nuisances diagnose profiled with it (e.g. ``gap``).
     """
     learned, iv = row.get("beta_estimate"), row.get("beta_interval")
-    phys, piv = row.get("physical_beta"), row.get("physical_beta_interval")
+    phys, piv = row.get("restoring_force_beta"), row.get("restoring_force_beta_interval")
     reasons = []
     fired = row.get("ood_checks") or []
     if "layers" in fired:
@@ -155,9 +155,9 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
     if learned is None:
         reasons.append(f"the model reads no contact ({row.get('class')})")
     if phys is None:
-        reasons.append(f"no restoring-force beta: {row.get('physical_reason') or 'refused'}")
+        reasons.append(f"no restoring-force beta: {row.get('restoring_force_reason') or 'refused'}")
     elif _disjoint(iv, piv):
-        why = row.get("physical_reason") or ""
+        why = row.get("restoring_force_reason") or ""
         weak = " (its contact law fits poorly: weak evidence)" if "explains only" in why else ""
         reasons.append(
             f"the restoring force reads the contact law itself and its interval misses the "
@@ -197,20 +197,20 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                 "beta (learned)": r.get("beta_estimate"),
                 "learned interval": _interval(r.get("beta_interval")),
                 "alarm": ", ".join(r.get("ood_checks") or []) or "none",
-                "beta (restoring force)": r.get("physical_beta"),
-                "restoring-force interval": _interval(r.get("physical_beta_interval")),
+                "beta (restoring force)": r.get("restoring_force_beta"),
+                "restoring-force interval": _interval(r.get("restoring_force_beta_interval")),
                 "beta (diagnose fit)": db,
                 "why they differ": why_betas_differ(r, db, profiled),
             }
         )
     n = len(rows)
     share = lambda key: sum(1 for r in rows if r.get(key) is True) / n if n else None  # noqa: E731
-    checked = [r for r in rows if r.get("physical_agreement") is not None]
+    checked = [r for r in rows if r.get("restoring_force_agreement") is not None]
     parts = [
         "<h2>Field campaign: no beta is known, the readings side by side</h2>",
         f"<p>model {_fmt(evaluation['model'])}. Cross-check agreement with the model's class: "
         f"geometric <b>{_fmt(share('agreement'))}</b> of {n} recordings, restoring force "
-        f"<b>{_fmt(share('physical_agreement'))}</b> ({len(checked)} with an estimate). "
+        f"<b>{_fmt(share('restoring_force_agreement'))}</b> ({len(checked)} with an estimate). "
         f"Alarm on {sum(1 for r in rows if r.get('ood'))} of {n}."
         + ("" if dbeta is not None else " No diagnose result: its fitted beta is not shown.")
         + "</p>",
@@ -273,8 +273,8 @@ def render_report(
                         "beta_estimate",
                         "geometric_class",
                         "geometric_beta",
-                        "physical_class",
-                        "physical_beta",
+                        "restoring_force_class",
+                        "restoring_force_beta",
                         "impact_regime",
                         "ood",
                         "ood_checks",
@@ -359,7 +359,7 @@ def render_report(
                 f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
                 f"({html.escape(str(diagnosis.get('summary', '')))}).</p>"
             )
-            evidence = (diagnosis.get("restoring_force_evidence") or {}).get("summary")
+            evidence = (diagnosis.get("restoring_force") or {}).get("summary")
             if evidence:
                 parts.append(f"<p>{html.escape(evidence)}.</p>")
             parts.append(

@@ -26,7 +26,7 @@ def sidecar_entry(recording: str | os.PathLike[str], key: str) -> object | None:
     """One entry of the recording's sidecar (None without a sidecar or without the key).
 
     Read here, bounded and depth-checked like every user JSON, so that every part of
-    the sidecar (f_n here, the sensor chain's data sheet in the physical check) comes
+    the sidecar (f_n here, the sensor chain's data sheet in the restoring-force check) comes
     from one reader.
     """
     p = sidecar_path(recording)
