@@ -175,36 +175,29 @@ TOKEN_ENVVAR = "STIFFNET_TOKEN"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 
 
+def _opt(kind: type, help_text: str) -> Any:
+    """A plain option of `kind` with its help (serve's limits: one line each)."""
+    return Annotated[kind, typer.Option(help=help_text)]
+
+
 def serve(
-    host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option(help="TCP port.")] = 8000,
+    host: _opt(str, "Interface to listen on.") = "127.0.0.1",
+    port: _opt(int, "TCP port.") = 8000,
     model: ModelOption = None,
-    max_upload_mb: Annotated[float, typer.Option(help="Largest request body in MB (413).")] = 20.0,
-    timeout_s: Annotated[float, typer.Option(help="Per-request time limit (504).")] = 30.0,
-    max_concurrency: Annotated[
-        int, typer.Option(help="Small predictions running at once (worker threads).")
-    ] = 2,
-    max_queue: Annotated[
-        int, typer.Option(help="Requests waiting for a worker beyond which 429 is returned.")
-    ] = 64,
-    max_samples: Annotated[
-        int, typer.Option(help="Most samples in one recording (413): bounds compute and memory.")
-    ] = 2_000_000,
-    small_upload_mb: Annotated[
-        float, typer.Option(help="Bodies above this are large: their own lane (1 at a time).")
-    ] = 1.0,
-    max_large_queue: Annotated[
-        int, typer.Option(help="Large requests admitted to wait; more get 429 unread.")
-    ] = 2,
-    body_timeout_s: Annotated[
-        float, typer.Option(help="Whole request body within this time, else 408.")
-    ] = 20.0,
-    body_idle_s: Annotated[
-        float, typer.Option(help="A body silent this long gets 408 (a stalled upload).")
-    ] = 5.0,
-    header_timeout_s: Annotated[
-        float, typer.Option(help="Whole request head (line and headers) within this time.")
-    ] = 10.0,
+    max_upload_mb: _opt(float, "Largest request body in MB (413).") = 20.0,
+    timeout_s: _opt(float, "Per-request time limit (504).") = 30.0,
+    max_concurrency: _opt(int, "Small predictions running at once (worker threads).") = 2,
+    max_queue: _opt(int, "Requests waiting for a worker beyond which 429 is returned.") = 64,
+    max_samples: _opt(
+        int, "Most samples in one recording (413): bounds compute and memory."
+    ) = 2_000_000,
+    small_upload_mb: _opt(
+        float, "Bodies above this are large: their own lane (1 at a time)."
+    ) = 1.0,
+    max_large_queue: _opt(int, "Large requests admitted to wait; more get 429 unread.") = 2,
+    body_timeout_s: _opt(float, "Whole request body within this time, else 408.") = 20.0,
+    body_idle_s: _opt(float, "A body silent this long gets 408 (a stalled upload).") = 5.0,
+    header_timeout_s: _opt(float, "Whole request head (line and headers) within this time.") = 10.0,
     token: Annotated[
         str | None,
         typer.Option(
@@ -224,7 +217,7 @@ def serve(
         list[str] | None,
         typer.Option(help="Browser origin allowed to call the API (repeatable; default none)."),
     ] = None,
-    threads: Annotated[int, typer.Option(help="ONNX Runtime threads per prediction.")] = 1,
+    threads: _opt(int, "ONNX Runtime threads per prediction.") = 1,
 ) -> None:
     """Serve the predictor over HTTP (FastAPI): POST /predict, GET /health, GET /model."""
     import uvicorn
