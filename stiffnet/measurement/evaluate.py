@@ -200,7 +200,7 @@ def evaluate_campaign(
                 "geometric_class": geo.get("class"),
                 "geometric_beta": geo.get("beta"),
                 "agreement": res.get("agreement"),
-                # the alarm (issue 11): did it fire, how far past its threshold, which checks
+                # the alarm: did it fire, how far past its threshold, which checks
                 "ood": bool(res.get("ood_flag")),
                 "restoring_force_class": res.get("restoring_force_class"),
                 "restoring_force_beta": res.get("restoring_force_beta"),
