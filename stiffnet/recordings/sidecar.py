@@ -53,12 +53,10 @@ def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]
         If the sidecar exists but is not valid JSON or the value is not a number > 0.
     """
     p = sidecar_path(recording)
-    if not p.is_file():
+    value = sidecar_entry(recording, "natural_frequency_hz")
+    if value is None:
         return None, p
-    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
-    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
-        return None, p
-    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
+    return natural_frequency(value, f"{p}: natural_frequency_hz"), p
 
 
 def natural_frequency_of(
