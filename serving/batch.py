@@ -369,16 +369,9 @@ def predict_batch(
         raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
     if out.is_dir():
         raise StiffnetError(f"{out} is a folder: give a .parquet file name")
-    campaign = campaign_inputs(recordings, fs_hz, natural_frequency_hz, columns, time_unit,
-                               channel)  # fmt: skip
-    if campaign is not None:
-        paths, settings, manifest = campaign
-    else:
-        paths, manifest = [str(p) for p in find_recordings(recordings)], None
-        settings = [(fs_hz, natural_frequency_hz, columns, time_unit, channel)] * len(paths)
+    reading = (fs_hz, natural_frequency_hz, columns, time_unit, channel)
+    paths, settings, manifest = _recordings_and_settings(recordings, reading)
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
-    model_file = str(Path(predictor.model.path).resolve())
-    class_names = tuple(predictor.class_names)
     parts_dir = out.parent / f"{out.name}.parts"
     run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
                        (columns, time_unit, part_size))  # fmt: skip
@@ -386,21 +379,8 @@ def predict_batch(
     t0 = time.perf_counter()
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
-        jobs, records = [], {}
-        for index, lo in enumerate(range(0, len(paths), part_size)):
-            chunk = tuple(paths[lo : lo + part_size])
-            chunk_settings = tuple(settings[lo : lo + part_size])
-            fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
-                              (columns, time_unit), chunk_settings)  # fmt: skip
-            record = _finished_part(parts_dir, index, fp) if resume else None
-            if record is not None:
-                records[index] = record
-                continue
-            files = tuple(str(Path(p).resolve()) for p in chunk)
-            jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
-                                predictor.sha256, class_names, fs_hz, natural_frequency_hz, fp,
-                                columns, time_unit, settings=chunk_settings,
-                                before=before_part))  # fmt: skip
+        jobs, records = _plan_parts(paths, settings, part_size, predictor, parts_dir, reading,
+                                    resume, before_part)  # fmt: skip
         n_parts = len(records) + len(jobs)
         kept = len(records)
         if progress and kept:
@@ -416,27 +396,88 @@ def predict_batch(
     report.raise_failures()
     for job, record in zip(jobs, report.results, strict=True):
         records[job.index] = record
+    table = _joined_parts(parts_dir, records, predictor, out)
+    return {
+        "out": str(out),
+        "manifest": None if manifest is None else str(manifest),
+        **_table_summary(table, predictor),
+        "parts": n_parts,
+        "parts_kept": kept,
+        "rerun": report.rerun,
+        "backend": report.backend,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+def _recordings_and_settings(
+    recordings: str | Path, reading: tuple
+) -> tuple[list[str], list[tuple], Path | None]:
+    """The recordings to predict, how to read each ``(fs, f_n, columns, time unit,
+    channel)``, and the manifest they came from: a campaign's manifest rows where there
+    is one (:func:`campaign_inputs`), else every recording found, each read alike."""
+    campaign = campaign_inputs(recordings, *reading)
+    if campaign is not None:
+        return campaign
+    paths = [str(p) for p in find_recordings(recordings)]
+    return paths, [reading] * len(paths), None
+
+
+def _plan_parts(
+    paths: list[str],
+    settings: list[tuple],
+    part_size: int,
+    predictor: Predictor,
+    parts_dir: Path,
+    reading: tuple,
+    resume: bool,
+    before_part: Callable[[int], None] | None,
+) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
+    """The parts still to run (jobs) and the records of those an interrupted run with the
+    same inputs finished (kept when `resume`), by part index."""
+    fs_hz, natural_frequency_hz, columns, time_unit, _ = reading
+    model_file = str(Path(predictor.model.path).resolve())
+    jobs, records = [], {}
+    for index, lo in enumerate(range(0, len(paths), part_size)):
+        chunk = tuple(paths[lo : lo + part_size])
+        chunk_settings = tuple(settings[lo : lo + part_size])
+        fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
+                          (columns, time_unit), chunk_settings)  # fmt: skip
+        record = _finished_part(parts_dir, index, fp) if resume else None
+        if record is not None:
+            records[index] = record
+            continue
+        files = tuple(str(Path(p).resolve()) for p in chunk)
+        jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
+                            predictor.sha256, tuple(predictor.class_names), fs_hz,
+                            natural_frequency_hz, fp, columns, time_unit,
+                            settings=chunk_settings, before=before_part))  # fmt: skip
+    return jobs, records
+
+
+def _joined_parts(
+    parts_dir: Path, records: dict[int, dict[str, Any]], predictor: Predictor, out: Path
+) -> pa.Table:
+    """The parts' tables in order, written to `out` (atomically) with the model in the
+    schema metadata; the run's own part files are then removed."""
     table = pa.concat_tables(
-        pq.read_table(parts_dir / records[i]["file"]) for i in range(n_parts)
+        pq.read_table(parts_dir / records[i]["file"]) for i in range(len(records))
     ).replace_schema_metadata(
         {"stiffnet.model": predictor.name, "stiffnet.model_sha256": predictor.sha256}
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(out, _parquet_bytes(table))
     remove_parts_folder(parts_dir)  # only the run's own files
+    return table
+
+
+def _table_summary(table: pa.Table, predictor: Predictor) -> dict[str, Any]:
+    """Rows, failures (path and reason), counts per class and the model of a result table."""
     classes = table.column("class").drop_null().to_pylist()
     errors = table.select(["path", "error"]).to_pylist()
     return {
-        "out": str(out),
-        "manifest": None if manifest is None else str(manifest),
         "recordings": table.num_rows,
         "failed": [r for r in errors if r["error"] is not None],
         "errors": int(table.column("error").is_valid().to_numpy(zero_copy_only=False).sum()),
-        "class_counts": {name: classes.count(name) for name in class_names},
+        "class_counts": {name: classes.count(name) for name in predictor.class_names},
         "model": {"name": predictor.name, "sha256": predictor.sha256},
-        "parts": n_parts,
-        "parts_kept": kept,
-        "rerun": report.rerun,
-        "backend": report.backend,
-        "seconds": round(time.perf_counter() - t0, 3),
     }

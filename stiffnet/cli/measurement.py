@@ -435,20 +435,11 @@ def loop(
     json_path: JsonOption = None,
 ) -> None:
     """Iterate: diagnose, add the missing effects to the simulator, retrain, re-evaluate."""
-    from rich.table import Table
-
     from stiffnet.effects.registry import parse_effect_option
-    from stiffnet.errors import StiffnetError
     from stiffnet.inputs import bounded_count
-    from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
+    from stiffnet.measurement.loop import check_n_trajectories, run_loop
 
-    if model_family is not None:  # --model is a file everywhere else
-        if family is not None and family != model_family:
-            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
-        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
-        family = model_family
-    if family is not None:
-        check_family(family)
+    family = _loop_family(family, model_family)
     check_n_trajectories(n_trajectories)
     bounded_count(max_epochs, "--max-epochs", 1, 1000)
     given = [parse_effect_option(t) for t in add_effect or []]
@@ -473,6 +464,35 @@ def loop(
             seed=seed,
             candidates=list(effect) if effect else None,
         )
+    out.print(loop_table(res, campaign))
+    if res["stopped"]:
+        out.print(res["stopped"])
+    out.print(f"state in {res['out']}; chart {res['chart']}")
+    if res["iterations"]:
+        out.print(f"latest model: {res['iterations'][-1]['model']} (stiffnet predict --model)")
+    write_json(json_path, res)
+
+
+def _loop_family(family: str | None, model_family: str | None) -> str | None:
+    """The family `loop` trains: --family, or the deprecated --model (a file everywhere
+    else: a note says so), checked against the registry."""
+    from stiffnet.errors import StiffnetError
+    from stiffnet.measurement.loop import check_family
+
+    if model_family is not None:
+        if family is not None and family != model_family:
+            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
+        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
+        family = model_family
+    if family is not None:
+        check_family(family)
+    return family
+
+
+def loop_table(res: dict[str, Any], campaign: Any) -> Any:
+    """The loop's iterations as a table: effects added, the metrics, model version, time."""
+    from rich.table import Table
+
     table = Table(title=f"loop on {campaign} ({res['family']}, {res['seconds']:.0f} s this run)")
     cols = ("discrepancy", "accuracy", "beta_mape", "restoring_force_agreement")
     for col in ("iteration", "effects added", "discrepancy", "accuracy", "beta MAPE",
@@ -496,13 +516,7 @@ def loop(
             str(it.get("model_version") or "–"),
             f"{it['seconds']['total']:.0f}",
         )  # fmt: skip
-    out.print(table)
-    if res["stopped"]:
-        out.print(res["stopped"])
-    out.print(f"state in {res['out']}; chart {res['chart']}")
-    if res["iterations"]:
-        out.print(f"latest model: {res['iterations'][-1]['model']} (stiffnet predict --model)")
-    write_json(json_path, res)
+    return table
 
 
 def report(

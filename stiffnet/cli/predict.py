@@ -445,76 +445,21 @@ def log_cmd(
     ] = None,
 ) -> None:
     """Stiffness log along a record: beta(t) with intervals, layers and their change times."""
-    from serving.log import StiffnessLogger, log_result, stiffness_log
-    from serving.predictor import Predictor, record_natural_frequency
-    from stiffnet import inputs, progress
-    from stiffnet.cli.console import console, out, show_progress, write_json
-    from stiffnet.errors import StiffnetError
+    from serving.predictor import Predictor
+    from stiffnet.cli.console import console, out, write_json
 
-    for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
-        inputs.output_file(path, what)
-    if rows_path is not None and rows_path.suffix.lower() not in (".csv", ".parquet"):
-        raise StiffnetError(f"--rows {rows_path}: use a .csv or .parquet file name")
-    if plot_path is not None and plot_path.suffix.lower() != ".png":
-        raise StiffnetError(f"--plot {plot_path}: use a .png file name")
+    _check_log_outputs(rows_path, plot_path)
     predictor = Predictor.load(model, threads=threads)
     every = restoring_force_every if restoring_force_every > 0 else None
     if follow:
-        from serving.stream import sample_chunks
-
-        if fs is None:
-            raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
-        if columns is not None or time_unit is not None or channel is not None:
-            raise StiffnetError(
-                "--columns, --time-unit and --channel read files; a --follow stream takes "
-                "--stream-format and --stream-column"
-            )
-        fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
-        logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
-                                 hop_s=hop, restoring_force_every_s=every)  # fmt: skip
-        console.print(
-            f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
-            f"f_n {fn_value:.4g} Hz ({fn_source})",
-            highlight=False,
-        )
-        from collections import deque
-
-        # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
-        # per hour) for the final --json/--rows/--plot: memory stays bounded
-        points: deque = deque(maxlen=FOLLOW_POINTS)
-        layers: list = []
-        chunks = sample_chunks(recording, stream_format, column=stream_column,
-                               idle_timeout_s=idle_timeout)  # fmt: skip
-        for chunk in chunks:
-            for kind, item in logger.feed(chunk):
-                _emit(kind, item, points, layers)
-        for kind, item in logger.finish():
-            _emit(kind, item, points, layers)
-        result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
-        if logger.segmenter.n_seen > len(points):
-            result["warnings"].append(
-                f"--json/--rows/--plot hold the last {len(points)} of "
-                f"{logger.segmenter.n_seen} points (stdout had them all)"
-            )
+        stream = (stream_format, stream_column, idle_timeout)
+        result = _followed_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
+                               every, stream)  # fmt: skip
     else:
-        from stiffnet.recordings import read_recording
-
-        rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
-                             time_unit=time_unit)  # fmt: skip
-        fn_value, fn_source = record_natural_frequency(recording, fn)
-        with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
-            result = stiffness_log(
-                predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, restoring_force_every_s=every,
-                source=rec.source,
-                progress=lambda done, total: bar.update(completed=done, total=total),
-            )  # fmt: skip
-    result["natural_frequency_source"] = fn_source
-    if not follow:
-        for renderable in log_tables(result):
-            out.print(renderable)
-    else:
-        for renderable in log_tables(result):
-            console.print(renderable)
+        result = _recorded_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
+                               every)  # fmt: skip
+    for renderable in log_tables(result):
+        (console if follow else out).print(renderable)  # a stream's stdout is its NDJSON
     write_json(json_path, result)
     if rows_path is not None:
         write_log_rows(result, rows_path)
@@ -527,6 +472,98 @@ def log_cmd(
 
 #: Points ``log --follow`` keeps for its final outputs (two hours at a 0.5 s hop).
 FOLLOW_POINTS = 14_400
+
+
+def _check_log_outputs(rows_path: Path | None, plot_path: Path | None) -> None:
+    """Refuse, before any work, a --rows that is not .csv/.parquet or a --plot not .png."""
+    from stiffnet import inputs
+    from stiffnet.errors import StiffnetError
+
+    for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
+        inputs.output_file(path, what)
+    if rows_path is not None and rows_path.suffix.lower() not in (".csv", ".parquet"):
+        raise StiffnetError(f"--rows {rows_path}: use a .csv or .parquet file name")
+    if plot_path is not None and plot_path.suffix.lower() != ".png":
+        raise StiffnetError(f"--plot {plot_path}: use a .png file name")
+
+
+def _recorded_log(
+    predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
+    hop: float, every: float | None,
+) -> dict[str, Any]:  # fmt: skip
+    """The log of a recording file, with a progress bar (`reading`: columns, time unit,
+    channel)."""
+    from serving.log import stiffness_log
+    from serving.predictor import record_natural_frequency
+    from stiffnet import progress
+    from stiffnet.cli.console import show_progress
+    from stiffnet.recordings import read_recording
+
+    columns, time_unit, channel = reading
+    rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
+    fn_value, fn_source = record_natural_frequency(recording, fn)
+    with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
+        result = stiffness_log(
+            predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, restoring_force_every_s=every,
+            source=rec.source,
+            progress=lambda done, total: bar.update(completed=done, total=total),
+        )  # fmt: skip
+    result["natural_frequency_source"] = fn_source
+    return result
+
+
+def _followed_log(
+    predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
+    hop: float, every: float | None, stream: tuple,
+) -> dict[str, Any]:  # fmt: skip
+    """The log of a growing file or stdin (`stream`: format, column, idle timeout): each
+    point and closed layer printed as it comes, the last FOLLOW_POINTS kept for the
+    final outputs."""
+    from collections import deque
+
+    from serving.log import StiffnessLogger, log_result
+    from serving.predictor import record_natural_frequency
+    from serving.stream import sample_chunks
+    from stiffnet import inputs
+    from stiffnet.cli.console import console
+    from stiffnet.errors import StiffnetError
+
+    if fs is None:
+        raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
+    if any(v is not None for v in reading):
+        raise StiffnetError(
+            "--columns, --time-unit and --channel read files; a --follow stream takes "
+            "--stream-format and --stream-column"
+        )
+    fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
+    logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
+                             hop_s=hop, restoring_force_every_s=every)  # fmt: skip
+    console.print(
+        f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
+        f"f_n {fn_value:.4g} Hz ({fn_source})",
+        highlight=False,
+    )
+    # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
+    # per hour) for the final --json/--rows/--plot: memory stays bounded
+    points: deque = deque(maxlen=FOLLOW_POINTS)
+    layers: list = []
+    stream_format, stream_column, idle_timeout = stream
+    chunks = sample_chunks(recording, stream_format, column=stream_column,
+                           idle_timeout_s=idle_timeout)  # fmt: skip
+    for chunk in chunks:
+        for kind, item in logger.feed(chunk):
+            _emit(kind, item, points, layers)
+    for kind, item in logger.finish():
+        _emit(kind, item, points, layers)
+    result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
+    if logger.segmenter.n_seen > len(points):
+        result["warnings"].append(
+            f"--json/--rows/--plot hold the last {len(points)} of "
+            f"{logger.segmenter.n_seen} points (stdout had them all)"
+        )
+    result["natural_frequency_source"] = fn_source
+    return result
 
 
 def _emit(kind: str, item: dict[str, Any], points: Any, layers: list) -> None:
