@@ -7,7 +7,7 @@ mlflow. Modules: :mod:`serving.predictor` (``Predictor``, ``predict_recording``)
 model family reads from the windows), the pipeline's steps :mod:`serving.checks`,
 :mod:`serving.aggregate`, :mod:`serving.restoring_force_check`, :mod:`serving.schemas`,
 :mod:`serving.app` (FastAPI), :mod:`serving.log` (the stiffness log along a record,
-with :mod:`serving.stream` and :mod:`serving.log_plot`), :mod:`serving.batch`
+with :mod:`serving.stream` and :mod:`serving.log_plot`), :mod:`serving.batch_prediction`
 (``predict-batch``) and :mod:`stiffnet.cli.predict` (CLI); the interval, the alarm and
 the OOD reference are applied from :mod:`stiffnet.uncertainty`, where training fits
 them. Nothing is imported here, so that ``stiffnet

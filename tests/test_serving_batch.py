@@ -17,7 +17,7 @@ pytest.importorskip("onnxruntime")
 
 from fault_injection import run_killing_one_task  # noqa: E402
 
-from serving.batch import find_recordings, predict_batch  # noqa: E402
+from serving.batch_prediction import find_recordings, predict_batch  # noqa: E402
 from serving.predictor import Predictor, predict_recording  # noqa: E402
 from stiffnet.campaign import simulate_campaign  # noqa: E402
 from stiffnet.distributed.cluster import local_cluster  # noqa: E402

@@ -336,7 +336,7 @@ def predict_batch_cmd(
     """
     from rich.table import Table
 
-    from serving.batch import predict_batch
+    from serving.batch_prediction import predict_batch
     from stiffnet import progress
     from stiffnet.cli.console import out, show_progress, write_json
 
