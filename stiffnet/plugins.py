@@ -14,6 +14,7 @@ Standard library only: the predictor imports it.
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 import pkgutil
@@ -25,6 +26,22 @@ T = TypeVar("T")
 
 #: Module names that are never members: the contract itself.
 CONTRACT_MODULES = frozenset({"base"})
+
+
+def once(fn: Callable[[], None]) -> Callable[[], None]:
+    """`fn` (a registry's discovery) runs at its first call only; it counts as done from
+    the moment it starts, so a member module that asks the registry while discovery
+    imports it does not start discovery again."""
+    done = False
+
+    @functools.wraps(fn)
+    def run() -> None:
+        nonlocal done
+        if not done:
+            done = True
+            fn()
+
+    return run
 
 
 def defined_subclasses(module: ModuleType, base: type[T]) -> list[type[T]]:

@@ -5,7 +5,7 @@ import textwrap
 
 import pytest
 
-from stiffnet.plugins import defined_subclasses, discover, member_modules
+from stiffnet.plugins import defined_subclasses, discover, member_modules, once
 
 
 @pytest.fixture
@@ -95,3 +95,16 @@ def test_the_registries_find_the_shipped_members():
     assert {"stiffnet.cnn", "stiffnet.gbm"} <= set(families())  # by their model_kind
     exts = [e for r in discover_readers() for e in r.extensions]
     assert exts[0] == ".csv" and {".npy", ".wav", ".tdms"} <= set(exts)
+
+
+def test_discovery_runs_once_even_when_a_member_asks_again():
+    calls = []
+
+    @once
+    def discover_members():
+        calls.append(1)
+        discover_members()  # a member module asking the registry while it is imported
+
+    discover_members()
+    discover_members()
+    assert calls == [1]

@@ -10,10 +10,9 @@ model's family here and holds no branch per family.
 from __future__ import annotations
 
 from serving.families.base import ModelFamily
-from stiffnet.plugins import discover
+from stiffnet.plugins import discover, once
 
 _FAMILIES: dict[str, type[ModelFamily]] = {}
-_discovered = False
 
 
 def register(cls: type[ModelFamily]) -> type[ModelFamily]:
@@ -25,11 +24,8 @@ def register(cls: type[ModelFamily]) -> type[ModelFamily]:
     return cls
 
 
+@once
 def _discover() -> None:
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
     for cls in discover(__name__, ModelFamily):
         if "model_kind" in vars(cls):  # a family names its own kind (a helper subclass may not)
             register(cls)

@@ -12,11 +12,10 @@ from __future__ import annotations
 
 from serving.families import register as register_serving
 from stiffnet.errors import StiffnetError
-from stiffnet.plugins import discover
+from stiffnet.plugins import discover, once
 from training.families.base import TrainedModel, TrainingFamily
 
 _FAMILIES: dict[str, type[TrainingFamily]] = {}
-_discovered = False
 
 
 def register_family(cls: type[TrainingFamily]) -> type[TrainingFamily]:
@@ -30,11 +29,8 @@ def register_family(cls: type[TrainingFamily]) -> type[TrainingFamily]:
     return cls
 
 
+@once
 def _discover() -> None:
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
     for cls in discover(__name__, TrainingFamily, packages_only=True):  # a family is a folder
         register_family(cls)
 
