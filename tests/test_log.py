@@ -68,7 +68,7 @@ def test_layers_found_with_times_and_betas(predictor, records, name):
     assert bool(log["warnings"]) == (len(betas) > 1)
 
 
-def test_points_carry_interval_alarm_and_crosscheck(predictor, records):
+def test_points_carry_interval_alarm_and_restoring_force(predictor, records):
     a, _, _ = records["soft_to_hard"]
     log = stiffness_log(predictor, a, FS, FN_HZ, hop_s=0.25, restoring_force_every_s=5.0)
     pts = log["points"]
