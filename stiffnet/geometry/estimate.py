@@ -436,6 +436,40 @@ def _calibrated(
     return float(b), str(c), "period1" if used is cal else "period_n"
 
 
+def _chosen_inclinations(
+    chosen: OrbitInclinations | None, impacts: np.ndarray, tau: int, period: float
+) -> dict[str, Any]:
+    """The result's fields of the chosen inclinations: means, per orbit, the orbits'
+    flight periods (NaN and empty without contact)."""
+    if chosen is None:
+        empty = np.empty(0)
+        return dict(inclination_before_deg=float("nan"), inclination_after_deg=float("nan"),
+                    orbit_before_deg=empty, orbit_after_deg=empty, n_orbits=0,
+                    orbit_flight_periods=np.empty(0))  # fmt: skip
+    return dict(
+        inclination_before_deg=chosen.mean_before,
+        inclination_after_deg=chosen.mean_after,
+        orbit_before_deg=chosen.before,
+        orbit_after_deg=chosen.after,
+        n_orbits=chosen.n_orbits,
+        # tangent k's z-coordinate is sample k + 2 tau: where the impact region starts
+        orbit_flight_periods=flight_periods(chosen.starts + 2 * tau, impacts, period),
+    )
+
+
+def _both_means(
+    grad: OrbitInclinations | None, poly: OrbitInclinations | None, contact: bool
+) -> dict[str, float]:
+    """Mean inclinations of both approaches (NaN where one has none or there is no contact)."""
+    nan = float("nan")
+    return dict(
+        gradient_before_deg=grad.mean_before if contact and grad else nan,
+        gradient_after_deg=grad.mean_after if contact and grad else nan,
+        polynomial_before_deg=poly.mean_before if contact and poly else nan,
+        polynomial_after_deg=poly.mean_after if contact and poly else nan,
+    )
+
+
 def geometric_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -499,12 +533,9 @@ def geometric_estimate(
     y, tau, delay_rule, m_used, dim_rule = _embedded(s, period, delay, dimension)
     lag = tangent_lag(period)
     v = tangent_vectors(y[:, :3], lag)
-    mag = tangent_magnitudes(v)
-    sep = separate_contact(mag, min_mode_ratio=min_mode_ratio)
+    sep = separate_contact(tangent_magnitudes(v), min_mode_ratio=min_mode_ratio)
     # One impact per quarter period at most: both flanks of a soft spike are one impact.
     impacts = detect_impacts(s, fs=float(fs_hz), min_separation=max(1, int(0.25 * period)))
-
-    nan = float("nan")
     grad, poly, contact, reason = _both_inclinations(
         y, v, sep, impacts, tau, lag, polynomial_degree
     )
@@ -514,25 +545,12 @@ def geometric_estimate(
         reason = f"{reason}; {_period_n_caveat(pattern, cal)}"
 
     beta, cls, cal_orbit = _calibrated(chosen, cal, pattern)
-    before, after, orbit_b, orbit_a = nan, nan, np.empty(0), np.empty(0)
-    flights = np.empty(0)
-    if chosen is not None:
-        before, after = chosen.mean_before, chosen.mean_after
-        orbit_b, orbit_a = chosen.before, chosen.after
-        # tangent k's z-coordinate is sample k + 2 tau: where the impact region starts
-        flights = flight_periods(chosen.starts + 2 * tau, impacts, period)
     return GeometricResult(
         contact_detected=bool(contact),
         geometric_class=cls,
         geometric_beta=beta,
-        inclination_before_deg=before,
-        inclination_after_deg=after,
-        orbit_before_deg=orbit_b,
-        orbit_after_deg=orbit_a,
-        gradient_before_deg=grad.mean_before if contact and grad else nan,
-        gradient_after_deg=grad.mean_after if contact and grad else nan,
-        polynomial_before_deg=poly.mean_before if contact and poly else nan,
-        polynomial_after_deg=poly.mean_after if contact and poly else nan,
+        **_chosen_inclinations(chosen, impacts, tau, period),
+        **_both_means(grad, poly, contact),
         method=method,
         delay=tau,
         delay_rule=delay_rule,
@@ -543,13 +561,11 @@ def geometric_estimate(
         smoothing_window=win,
         tangent_lag=lag,
         impacts=impacts,
-        n_orbits=chosen.n_orbits if chosen is not None else 0,
         threshold=sep.threshold if contact else float("inf"),
         contact_fraction=sep.contact_fraction if contact else 0.0,
         polarity=impact_polarity(s, impacts) if contact else 0,
         separation=sep,
         reason=reason,
         impact_pattern=pattern,
-        orbit_flight_periods=flights,
         calibration_orbit=cal_orbit,
     )
