@@ -362,13 +362,7 @@ def predict_batch(
         A summary: counts per class, errors, parts kept and run, re-run parts.
     """
     check_target(scheduler, workers)
-    if part_size < 1:
-        raise StiffnetError(f"part size must be at least 1, got {part_size}")
-    out = Path(out)
-    if out.exists() and not overwrite:
-        raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
-    if out.is_dir():
-        raise StiffnetError(f"{out} is a folder: give a .parquet file name")
+    out = _checked_output(out, overwrite, part_size)
     reading = (fs_hz, natural_frequency_hz, columns, time_unit, channel)
     paths, settings, manifest = _recordings_and_settings(recordings, reading)
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
@@ -407,6 +401,19 @@ def predict_batch(
         "backend": report.backend,
         "seconds": round(time.perf_counter() - t0, 3),
     }
+
+
+def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
+    """The result table's path, refused before any work: an existing file without
+    `overwrite`, a folder, or parts of fewer than one recording."""
+    if part_size < 1:
+        raise StiffnetError(f"part size must be at least 1, got {part_size}")
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
+    if out.is_dir():
+        raise StiffnetError(f"{out} is a folder: give a .parquet file name")
+    return out
 
 
 def _recordings_and_settings(
