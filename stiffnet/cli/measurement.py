@@ -503,7 +503,8 @@ def report(
     from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
     from stiffnet.measurement.diagnose import diagnose_campaign
     from stiffnet.measurement.evaluate import evaluate_campaign
-    from stiffnet.measurement.report import render_report, write_report
+    from stiffnet.measurement.report import render_report, report_provenance, write_report
+    from stiffnet.measurement.report_words import Units
 
     out, _, write_json = _io()
     diag = _read_json(diagnosis, "diagnosis")  # the given results are checked before any work
@@ -528,7 +529,11 @@ def report(
         cmp,
         diag,
         loop_result,
-    )
+        report_provenance(camp, out_path, model, config, diagnosis, loop_json,
+                          run_diagnose, json_path,
+                          DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None),
+        Units.of(camp.rows),
+    )  # fmt: skip
     write_report(out_path, page)
     out.print(f"report written to {out_path}")
     write_json(
