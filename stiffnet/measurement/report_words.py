@@ -233,7 +233,8 @@ class Units:
                 if r.get("frequency_ratio") is not None
                 and r["recording"] in self.natural_frequency_hz
             ]
-            span = f"{min(hz):.3g}-{max(hz):.3g} Hz" if hz else "unknown Hz"
+            lo, hi = (f"{min(hz):.3g}", f"{max(hz):.3g}") if hz else ("unknown", "unknown")
+            span = f"{lo} Hz" if lo == hi else f"{lo}-{hi} Hz"
             return f"forcing frequency [Hz] {span} (f/f_n in {group})"
         return f"{name.replace('_', ' ')} {group}"
 
