@@ -186,7 +186,13 @@ def _evaluation(rows):
 
 def test_evaluate_table_has_both_beta_intervals_and_alarm_checks_in_words():
     rows = [_evaluated("quiet.csv"), _evaluated("loud.csv", fired=["embedding"])]
-    page = render_report("t", _evaluation(rows), None, None)
+    renamed = {k.replace("physical_", "restoring_force_"): v
+               for k, v in _evaluated("renamed.csv").items()}  # fmt: skip
+    renamed["restoring_force_beta_interval"] = [30.5, 41.0]  # either key is read
+    ev = _evaluation(rows)
+    ev["recordings"] = [*rows, renamed]
+    page = render_report("t", ev, None, None)
+    assert "[30.5, 41]" in page
     assert "learned 90 % interval" in page and "[17.5, 24.2]" in page
     assert "restoring-force interval" in page and "[16.1, 22.5]" in page
     assert "[&#x27;" not in page and "['" not in page  # no Python lists

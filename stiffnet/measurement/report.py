@@ -157,7 +157,7 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
         The other nuisances diagnose profiled with it (e.g. ``gap``).
     """
     learned, iv = row.get("beta_estimate"), row.get("beta_interval")
-    phys, piv = row.get("physical_beta"), row.get("physical_beta_interval")
+    phys, piv = _rf(row, "beta"), _rf(row, "beta_interval")
     reasons = []
     fired = row.get("ood_checks") or []
     if "layers" in fired:
@@ -165,9 +165,9 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
     if learned is None:
         reasons.append(f"the model reads no contact ({row.get('class')})")
     if phys is None:
-        reasons.append(f"no restoring-force beta: {row.get('physical_reason') or 'refused'}")
+        reasons.append(f"no restoring-force beta: {_rf(row, 'reason') or 'refused'}")
     elif _disjoint(iv, piv):
-        why = row.get("physical_reason") or ""
+        why = _rf(row, "reason") or ""
         weak = " (its contact law fits poorly: weak evidence)" if "explains only" in why else ""
         reasons.append(
             f"the restoring force reads the contact law itself and its interval misses the "
@@ -205,22 +205,24 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                 "recording": r["recording"],
                 "class": r.get("class"),
                 "beta (learned)": r.get("beta_estimate"),
-                "learned interval": _interval(r.get("beta_interval")),
+                "learned 90 % interval": _interval(r.get("beta_interval")),
                 "alarm": ", ".join(r.get("ood_checks") or []) or "none",
-                "beta (restoring force)": r.get("physical_beta"),
-                "restoring-force interval": _interval(r.get("physical_beta_interval")),
+                "beta (restoring force)": _rf(r, "beta"),
+                "restoring-force interval": _interval(_rf(r, "beta_interval")),
                 "beta (diagnose fit)": db,
                 "why they differ": why_betas_differ(r, db, profiled),
             }
         )
     n = len(rows)
-    share = lambda key: sum(1 for r in rows if r.get(key) is True) / n if n else None  # noqa: E731
-    checked = [r for r in rows if r.get("physical_agreement") is not None]
+    share = lambda flags: sum(1 for f in flags if f is True) / n if n else None  # noqa: E731
+    geometric = share(r.get("agreement") for r in rows)
+    restoring = share(_rf(r, "agreement") for r in rows)
+    checked = [r for r in rows if _rf(r, "agreement") is not None]
     parts = [
         "<h2>Field campaign: no beta is known, the readings side by side</h2>",
         f"<p>model {_fmt(evaluation['model'])}. Cross-check agreement with the model's class: "
-        f"geometric <b>{_fmt(share('agreement'))}</b> of {n} recordings, restoring force "
-        f"<b>{_fmt(share('physical_agreement'))}</b> ({len(checked)} with an estimate). "
+        f"geometric <b>{_fmt(geometric)}</b> of {n} recordings, restoring force "
+        f"<b>{_fmt(restoring)}</b> ({len(checked)} with an estimate). "
         f"Alarm on {sum(1 for r in rows if r.get('ood'))} of {n}."
         + ("" if dbeta is not None else " No diagnose result: its fitted beta is not shown.")
         + "</p>",
@@ -228,6 +230,13 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                lambda r: "" if r["why they differ"].startswith("the readings agree") else "bad"),
     ]  # fmt: skip
     return parts
+
+
+def _rf(row: dict[str, Any], what: str) -> Any:
+    """A restoring-force reading of an evaluated row (``restoring_force_*``, formerly
+    ``physical_*``: either key is read)."""
+    new = row.get(f"restoring_force_{what}")
+    return new if new is not None else row.get(f"physical_{what}")
 
 
 def _interval(iv: list[float] | None) -> str | None:
@@ -317,9 +326,9 @@ def _evaluated_row(r: dict[str, Any], units: Units) -> dict[str, Any]:
         "learned 90 % interval": _interval(r.get("beta_interval")),
         "geometric class": r.get("geometric_class"),
         "beta (geometric)": r.get("geometric_beta"),
-        "restoring-force class": r.get("physical_class"),
-        "beta (restoring force)": r.get("physical_beta"),
-        "restoring-force interval": _interval(r.get("physical_beta_interval")),
+        "restoring-force class": _rf(r, "class"),
+        "beta (restoring force)": _rf(r, "beta"),
+        "restoring-force interval": _interval(_rf(r, "beta_interval")),
         "impact regime": r.get("impact_regime"),
         "alarm": ("fired: " + ", ".join(map(str, fired))) if fired else "none",
         _HEADERS["error"]: r.get("error"),
