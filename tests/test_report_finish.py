@@ -163,6 +163,23 @@ def test_a_large_campaign_is_drawn_within_its_stated_bound(monkeypatch, tmp_path
     assert page.count("<tr>") >= 500  # every recording stays in the table
 
 
+def test_loop_and_learned_law_figures_have_alt_texts(tmp_path):
+    from stiffnet.measurement.learned_law import learned_law_html
+
+    loop = {"iterations": [{"index": 0, "label": "start", "metrics": {"discrepancy": 7.123456}},
+                           {"index": 1, "label": "+contact_damping",
+                            "metrics": {"discrepancy": 0.5}}]}  # fmt: skip
+    alt = report_figures.loop_alt(loop)
+    assert "0 (start): discrepancy 7.12; 1 (+contact_damping): discrepancy 0.5" in alt
+    d = [0.0, 0.1, 0.2]
+    proposal = {"ran": True, "summary": "a law", "law": {"path": [], "equation": "F = k d"},
+                "map": [{"recording": ODD, "penetration": d, "force": d, "library": d,
+                         "learned": d, "beta": 20.0}]}  # fmt: skip
+    page = "".join(learned_law_html(proposal, tmp_path / "law.png"))  # "$^}" drawn as text
+    (law_alt,) = _alts(page)
+    assert "a$^}&lt;b&gt;1.csv" in law_alt and "learned law F = k d" in law_alt
+
+
 # ------------------------------------------------------------------- 3, 4 and 5: evaluate
 
 

@@ -129,9 +129,13 @@ def ranking_alt(diagnosis: dict[str, Any]) -> str:
 def loop_alt(loop: dict[str, Any]) -> str:
     """Alt text of the loop chart: errors and discrepancy per iteration."""
     its = [it for it in loop.get("iterations") or [] if isinstance(it, dict)]
+
+    def num(v: Any) -> str:
+        return f"{v:.3g}" if isinstance(v, int | float) and not isinstance(v, bool) else "–"
+
     steps = "; ".join(
         f"{it.get('index')} ({it.get('label')}): discrepancy "
-        f"{(it.get('metrics') or {}).get('discrepancy')}"
+        f"{num((it.get('metrics') or {}).get('discrepancy'))}"
         for it in its
     )
     return (
