@@ -337,6 +337,11 @@ def test_report_command_writes_the_finished_page(tmp_path):
     assert f"<th>made</th><td>{today}" in page and f"<td>{__version__}</td>" in page
     assert f"stiffnet report {camp.resolve()} --out {out.resolve()} --diagnosis" in page
     assert hashlib.sha256(dj.read_bytes()).hexdigest() in page
+    from serving.model import default_model_path
+
+    card = default_model_path().with_suffix(".card.json")
+    assert f"<th>model card</th><td>{card.resolve()} (SHA-256 " in page
+    assert hashlib.sha256(card.read_bytes()).hexdigest() in page
     assert hashlib.sha256((camp / "manifest.csv").read_bytes()).hexdigest() in page
     assert "gap [mm]" in page and "forcing frequency [Hz]" in page
     assert "learned 90 % interval" in page and "restoring-force interval" in page

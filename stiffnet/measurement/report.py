@@ -488,6 +488,8 @@ def report_provenance(
     """The provenance of a ``stiffnet report`` page from its options (the command line is
     written back from them, with absolute paths, so it can be pasted and rerun;
     ``config_used``: the config file read when ``config`` is not given)."""
+    from serving.model import default_model_path
+
     args: list[Any] = [Path(campaign.folder).resolve(), "--out", Path(out).resolve()]
     for flag, value in (("--model", model), ("--config", config), ("--diagnosis", diagnosis),
                         ("--loop", loop), ("--json", json_path)):  # fmt: skip
@@ -497,7 +499,8 @@ def report_provenance(
         args.append("--no-diagnose")
     how = "run by this report" if run_diagnose else "not run (--no-diagnose)"
     return provenance(campaign, command_line("report", args), config or config_used, diagnosis,
-                      "" if diagnosis else how, loop)  # fmt: skip
+                      "" if diagnosis else how, loop,
+                      model=model if model is not None else default_model_path())  # fmt: skip
 
 
 def write_report(path: str | Path, page: str) -> Path:

@@ -51,6 +51,7 @@ def provenance(
     diagnosis_how: str = "",
     loop: str | Path | None = None,
     now: datetime | None = None,
+    model: str | Path | None = None,
 ) -> dict[str, Any]:
     """What made the page: date (UTC), stiffnet version, command line and input files.
 
@@ -62,6 +63,8 @@ def provenance(
         The command line (:func:`command_line`).
     config, diagnosis, loop : path, optional
         The simulator config, the ``diagnose --json`` and ``loop --json`` files used.
+    model : path, optional
+        The ONNX model file evaluated (its card ``NAME.card.json`` is hashed beside it).
     diagnosis_how : str
         Where the diagnosis came from when no file was given ("run by this report",
         "not run").
@@ -79,6 +82,8 @@ def provenance(
         "diagnosis": file_identity(diagnosis),
         "diagnosis_how": diagnosis_how,
         "loop": file_identity(loop),
+        "model_file": file_identity(model),
+        "model_card": file_identity(Path(model).with_suffix(".card.json")) if model else None,
     }
 
 
@@ -102,6 +107,9 @@ def provenance_rows(prov: dict[str, Any], model: dict[str, Any] | None) -> list[
                               f"{model.get('sha256')})"))  # fmt: skip
     else:
         rows.append(("model", "no evaluation: no model read"))
+    if prov.get("model_file"):
+        rows.append(("model file", ident(prov["model_file"], "–")))
+        rows.append(("model card", ident(prov.get("model_card"), "–")))
     rows.append(("simulator config", ident(prov.get("config"), "the default config")))
     rows.append(("diagnosis", ident(prov.get("diagnosis"), prov.get("diagnosis_how") or "none")))
     rows.append(("loop result", ident(prov.get("loop"), "none")))
