@@ -329,13 +329,16 @@ def test_report_command_writes_the_finished_page(tmp_path):
     dj = tmp_path / "diag.json"
     dj.write_text(json.dumps(_diagnosis(names)))
     out = tmp_path / "r.html"
-    res = CliRunner().invoke(app, ["report", str(camp), "--diagnosis", str(dj),
-                                   "--out", str(out)])  # fmt: skip
+    res = CliRunner().invoke(app, ["report", str(camp), "--diagnosis", str(dj), "--out",
+                                   str(out), "--json", str(tmp_path / "r.json")])  # fmt: skip
     assert res.exit_code == 0, res.output
+    prov = json.loads((tmp_path / "r.json").read_text())["provenance"]
+    assert prov["diagnosis"]["sha256"] == hashlib.sha256(dj.read_bytes()).hexdigest()
     page = out.read_text()
     today = datetime.now(UTC).strftime("%Y-%m-%d")
     assert f"<th>made</th><td>{today}" in page and f"<td>{__version__}</td>" in page
     assert f"stiffnet report {camp.resolve()} --out {out.resolve()} --diagnosis" in page
+    assert f"--json {(tmp_path / 'r.json').resolve()}" in page
     assert hashlib.sha256(dj.read_bytes()).hexdigest() in page
     from serving.model import default_model_path
 

@@ -523,17 +523,19 @@ def report(
             bar.advance(note="diagnose")
             diag = diagnose_campaign(camp, effects)
         bar.advance()
+    read = DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None
+    prov = report_provenance(
+        camp, out_path, model, config, diagnosis, loop_json, run_diagnose, json_path, read
+    )
     page = render_report(
         f"stiffnet: model versus measurement, {camp.folder.name}",
         ev,
         cmp,
         diag,
         loop_result,
-        report_provenance(camp, out_path, model, config, diagnosis, loop_json,
-                          run_diagnose, json_path,
-                          DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None),
+        prov,
         Units.of(camp.rows),
-    )  # fmt: skip
+    )
     write_report(out_path, page)
     out.print(f"report written to {out_path}")
     write_json(
@@ -542,6 +544,7 @@ def report(
             "report": str(out_path),
             "discrepancy": cmp.result["discrepancy"],
             "missing_effect": diag["missing_effect"] if diag else None,
+            "provenance": prov,
         },
     )
 

@@ -49,7 +49,8 @@ def drawn_recordings(result: dict[str, Any], bound: int) -> list[int]:
 def shown_sentence(n_drawn: int, n_all: int, bound: int, what: str) -> str:
     """What a figure kind shows of the campaign, and where the rest is."""
     if n_drawn == n_all:
-        return f"{what}: all {n_all} recordings."
+        return (f"{what}: all {n_all} recordings (at most {bound} are drawn; a larger campaign "
+                f"shows the {bound} with the largest discrepancy).")  # fmt: skip
     return (
         f"{what}: the {n_drawn} recordings with the largest discrepancy of {n_all} (at most "
         f"{bound} are drawn); every recording is in the comparison table above."
