@@ -3,6 +3,14 @@
 Figures are inline base64 PNGs and the CSS is inline, so the page can be mailed
 or archived alone. It is written atomically.
 
+:func:`render_report` assembles one function per section, each deciding what its
+part shows: :func:`provenance_section` (what made the page), :func:`evaluate_section`
+(metrics, every recording with both beta intervals and its operating point in the
+manifest's units, :func:`alarm_section`, :func:`slices_section`),
+:func:`compare_section` (with :mod:`~stiffnet.measurement.report_figures`: every
+recording drawn within a stated bound), :func:`diagnose_section` and
+:func:`loop_section`. The words come from :mod:`~stiffnet.measurement.report_words`.
+
 A **field campaign** (no recording has a known beta) has no accuracy to show: its
 page puts the three readings of beta side by side per recording (the learned
 model with its interval and alarm, the restoring-force estimate with its
