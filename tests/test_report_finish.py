@@ -210,7 +210,7 @@ def test_evaluate_table_has_both_beta_intervals_and_alarm_checks_in_words():
     ev["recordings"] = [*rows, renamed]
     page = render_report("t", ev, None, None)
     assert "[30.5, 41]" in page
-    assert "learned 90 % interval" in page and "[17.5, 24.2]" in page
+    assert "learned interval" in page and "[17.5, 24.2]" in page  # coverage unknown here
     assert "restoring-force interval" in page and "[16.1, 22.5]" in page
     assert "[&#x27;" not in page and "['" not in page  # no Python lists
     said = check_sentences(rows[1]["alarm"])
@@ -262,6 +262,19 @@ def test_provenance_names_date_version_command_and_hashes(tmp_path):
     assert hashlib.sha256(b"{}").hexdigest() in page
     assert "cd" * 32 in render_report("t", _evaluation([_evaluated("a")]) | {"model": model},
                                       None, None, provenance=prov)  # fmt: skip
+
+
+def test_the_interval_header_says_the_models_own_coverage(tmp_path):
+    from stiffnet.measurement.report_words import card_coverage
+
+    (tmp_path / "m.card.json").write_text('{"metadata": {"conformal_coverage": 0.8}}')
+    (tmp_path / "bad.card.json").write_text('{"metadata": [1]}')
+    assert card_coverage(tmp_path / "m.onnx") == 0.8
+    assert card_coverage(tmp_path / "bad.onnx") is None
+    assert card_coverage(tmp_path / "none.onnx") is None
+    ev = _evaluation([_evaluated("a.csv")])
+    page = render_report("t", ev, None, None, provenance={"interval_coverage": 0.8})
+    assert "learned 80 % interval" in page
 
 
 # ------------------------------------------------------------------- 7: two discrepancies

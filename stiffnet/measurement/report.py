@@ -199,8 +199,12 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
     return "; ".join(reasons)
 
 
-def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) -> list[str]:
-    """HTML of a field campaign: the three betas side by side, agreement, reasons."""
+def field_section(
+    evaluation: dict[str, Any], diagnosis: dict[str, Any] | None, coverage: float | None = None
+) -> list[str]:
+    """HTML of a field campaign: the three betas side by side, agreement, reasons
+    (``coverage``: the nominal coverage of the model's interval, from its card)."""
+    level = f"{100 * coverage:.0f} % " if coverage else ""
     rows = evaluation["recordings"]
     nuis = (diagnosis or {}).get("nuisances") or {}
     dbeta = nuis.get("beta") if isinstance(nuis.get("beta"), list) else None
@@ -213,7 +217,7 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                 "recording": r["recording"],
                 "class": r.get("class"),
                 "beta (learned)": r.get("beta_estimate"),
-                "learned 90 % interval": _interval(r.get("beta_interval")),
+                f"learned {level}interval": _interval(r.get("beta_interval")),
                 "alarm": ", ".join(r.get("ood_checks") or []) or "none",
                 "beta (restoring force)": _rf(r, "beta"),
                 "restoring-force interval": _interval(_rf(r, "beta_interval")),
@@ -267,6 +271,7 @@ def render_report(
     operating points read (mm and Hz for a physical-unit manifest).
     """
     units = units or Units()
+    coverage = (provenance or {}).get("interval_coverage")
     parts = [
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
         f"</title><style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"
@@ -275,10 +280,10 @@ def render_report(
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         if evaluation is not None and is_field_campaign(evaluation):
-            parts += field_section(evaluation, diagnosis)
+            parts += field_section(evaluation, diagnosis, coverage)
             parts += alarm_section(evaluation["recordings"])
         elif evaluation is not None:
-            parts += evaluate_section(evaluation, units)
+            parts += evaluate_section(evaluation, units, coverage)
         if comparison is not None:
             parts += compare_section(comparison, diagnosis, t)
         if diagnosis is not None:
@@ -301,8 +306,11 @@ def provenance_section(prov: dict[str, Any] | None, model: dict[str, Any] | None
     return [f"<h2>Provenance</h2><div class='wrap'><table class='prov'>{lines}</table></div>"]
 
 
-def evaluate_section(evaluation: dict[str, Any], units: Units) -> list[str]:
-    """Metrics per method, every recording with its intervals and alarm, the slices."""
+def evaluate_section(
+    evaluation: dict[str, Any], units: Units, coverage: float | None = None
+) -> list[str]:
+    """Metrics per method, every recording with its intervals and alarm, the slices
+    (``coverage``: the nominal coverage of the model's interval, from its card)."""
     m = evaluation["metrics"]
     parts = [
         "<h2>Evaluate: learned model and the two cross-checks</h2>",
@@ -311,7 +319,8 @@ def evaluate_section(evaluation: dict[str, Any], units: Units) -> list[str]:
                ["method", "n", "accuracy", "macro_f1", "beta_mape", "interval_coverage",
                 "alarm_rate", "alarm_rate_wrong"]),
     ]  # fmt: skip
-    rows = [_evaluated_row(r, units) for r in evaluation["recordings"]]
+    level = f"{100 * coverage:.0f} % " if coverage else ""
+    rows = [_evaluated_row(r, units, level) for r in evaluation["recordings"]]
     parts.append(
         _table(rows, list(rows[0]) if rows else ["recording"],
                lambda r: "bad" if r["class"] != r["true class"] else "")
@@ -321,8 +330,9 @@ def evaluate_section(evaluation: dict[str, Any], units: Units) -> list[str]:
     return parts
 
 
-def _evaluated_row(r: dict[str, Any], units: Units) -> dict[str, Any]:
-    """One recording of the evaluate table: readings with their intervals, operating point."""
+def _evaluated_row(r: dict[str, Any], units: Units, level: str) -> dict[str, Any]:
+    """One recording of the evaluate table: readings with their intervals (``level``: the
+    model interval's nominal coverage, "90 % "), operating point."""
     fired = r.get("ood_checks") or []
     return {
         "recording": r["recording"],
@@ -331,7 +341,7 @@ def _evaluated_row(r: dict[str, Any], units: Units) -> dict[str, Any]:
         "true class": r.get("true_class"),
         "class": r.get("class"),
         "beta (learned)": r.get("beta_estimate"),
-        "learned 90 % interval": _interval(r.get("beta_interval")),
+        f"learned {level}interval": _interval(r.get("beta_interval")),
         "geometric class": r.get("geometric_class"),
         "beta (geometric)": r.get("geometric_beta"),
         "restoring-force class": _rf(r, "class"),

@@ -84,7 +84,23 @@ def provenance(
         "loop": file_identity(loop),
         "model_file": file_identity(model),
         "model_card": file_identity(Path(model).with_suffix(".card.json")) if model else None,
+        "interval_coverage": card_coverage(model),
     }
+
+
+def card_coverage(model: str | Path | None) -> float | None:
+    """The nominal coverage of the model's beta interval (its card's ``conformal_coverage``),
+    None when the card cannot be read or does not say."""
+    import json
+
+    if model is None:
+        return None
+    try:
+        card = json.loads(Path(model).with_suffix(".card.json").read_text())
+        value = (card.get("metadata") or {}).get("conformal_coverage")
+    except (OSError, ValueError, AttributeError, RecursionError):
+        return None
+    return float(value) if _number(value) and 0 < value < 1 else None
 
 
 def provenance_rows(prov: dict[str, Any], model: dict[str, Any] | None) -> list[tuple[str, str]]:
