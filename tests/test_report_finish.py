@@ -286,7 +286,10 @@ def test_compare_and_diagnose_discrepancies_are_both_printed_and_explained(nine)
     c = nine.result["discrepancy"]
     assert f"compare's {c:.3g}" in note and "diagnose's baseline 1.25" in note
     assert "same statistic" in note and "best of 8" in note and "the gap within" in note
-    assert f"({c - 1.25:+.3g})" in note
+    assert f"(difference {c - 1.25:+.3g})" in note
+    with_orbits = _diagnosis(names, baseline=1.25)
+    with_orbits["nuisances"]["orbits"] = [{"measured_orbit": "1 impact"}] * len(names)
+    assert "orbits" not in discrepancy_note(nine.result, with_orbits)  # not a row parameter
     other = discrepancy_note(nine.result, _diagnosis(["x.csv"]))
     assert "other recordings" in other
 

@@ -34,6 +34,7 @@ from stiffnet.measurement.report_words import (
     check_sentences,
     command_line,
     discrepancy_note,
+    profiled_nuisances,
     provenance,
     provenance_rows,
 )
@@ -208,7 +209,7 @@ def field_section(
     rows = evaluation["recordings"]
     nuis = (diagnosis or {}).get("nuisances") or {}
     dbeta = nuis.get("beta") if isinstance(nuis.get("beta"), list) else None
-    profiled = [k for k, v in nuis.items() if isinstance(v, list) and k not in ("start",)]
+    profiled = profiled_nuisances(diagnosis)
     table = []
     for i, r in enumerate(rows):
         db = dbeta[i] if dbeta is not None and i < len(dbeta) else None

@@ -266,6 +266,19 @@ class Units:
 # ----------------------------------------------------------------------------- discrepancies
 
 
+def profiled_nuisances(diagnosis: dict[str, Any] | None) -> list[str]:
+    """The row parameters a diagnosis profiled (its JSON ``nuisances``: one number per
+    recording), not counting the initial state (``start``) or the orbits it reached."""
+    nuis = (diagnosis or {}).get("nuisances")
+    if not isinstance(nuis, dict):
+        return []
+    return [
+        str(k)
+        for k, v in nuis.items()
+        if k != "start" and isinstance(v, list) and v and all(_number(x) for x in v)
+    ]
+
+
 def discrepancy_note(comparison: dict[str, Any], diagnosis: dict[str, Any]) -> str:
     """One paragraph: what compare's discrepancy and diagnose's baseline each are.
 
@@ -286,8 +299,7 @@ def discrepancy_note(comparison: dict[str, Any], diagnosis: dict[str, Any]) -> s
     c, b = comparison.get("discrepancy"), diagnosis.get("baseline_discrepancy")
     if not _number(c) or not _number(b):
         return ""
-    nuis = diagnosis.get("nuisances") if isinstance(diagnosis.get("nuisances"), dict) else {}
-    profiled = [k for k, v in nuis.items() if isinstance(v, list) and k not in ("start",)]
+    profiled = profiled_nuisances(diagnosis)
     others = (f"the {', '.join(profiled)} within their tolerances" if profiled
               else "no other nuisance: the manifest gives them")  # fmt: skip
     names = [r.get("recording") for r in comparison.get("recordings") or []]
@@ -301,7 +313,8 @@ def discrepancy_note(comparison: dict[str, Any], diagnosis: dict[str, Any]) -> s
         f"recording once with the manifest's parameters, from the first initial state, over "
         f"the recording's length; diagnose's baseline {b:.3g} is taken after diagnose fitted "
         f"the nuisances to the recordings (the initial state, best of {N_STARTS} per "
-        f"recording; {others}) on {FIT_SETTINGS.periods:g}-natural-period records, so it "
-        f"is the simulator's best match before any effect is added, lower where the "
-        f"manifest's settings or first start miss a recording's orbit ({c - b:+.3g}).{scope}"
+        f"recording; {others}) on records of {FIT_SETTINGS.periods:g} natural periods, so "
+        f"it is the simulator's best match before any effect is added: lower where the "
+        f"manifest's settings or first start miss a recording's orbit, while the shorter "
+        f"record alone moves it either way (difference {c - b:+.3g}).{scope}"
     )
