@@ -28,6 +28,7 @@ from stiffnet.measurement.report_words import (
     check_sentences,
     discrepancy_note,
     provenance,
+    provenance_rows,
 )
 
 ODD = "a$^}<b>1.csv"  # mathtext and HTML in one recording name
@@ -262,6 +263,21 @@ def test_provenance_names_date_version_command_and_hashes(tmp_path):
     assert hashlib.sha256(b"{}").hexdigest() in page
     assert "cd" * 32 in render_report("t", _evaluation([_evaluated("a")]) | {"model": model},
                                       None, None, provenance=prov)  # fmt: skip
+
+
+def test_an_unreadable_input_is_named_not_fatal(tmp_path, monkeypatch):
+    from stiffnet import io_utils
+    from stiffnet.measurement.report_words import file_identity
+
+    def refuse(path):
+        raise PermissionError(path)
+
+    monkeypatch.setattr(io_utils, "sha256_file", refuse)
+    (tmp_path / "d.json").write_text("{}")
+    assert file_identity(tmp_path / "d.json") == {"path": str(tmp_path / "d.json"),
+                                                  "sha256": None}  # fmt: skip
+    rows = dict(provenance_rows({"diagnosis": file_identity(tmp_path / "d.json")}, None))
+    assert rows["diagnosis"].endswith("(SHA-256 unreadable)")
 
 
 def test_the_interval_header_says_the_models_own_coverage(tmp_path):

@@ -35,7 +35,11 @@ def file_identity(path: str | Path | None) -> dict[str, Any] | None:
     if path is None:
         return None
     p = Path(path).resolve()
-    return {"path": str(p), "sha256": sha256_file(p) if p.is_file() else None}
+    try:
+        digest = sha256_file(p) if p.is_file() else None
+    except OSError:  # unreadable: the page says so rather than failing after the work
+        digest = None
+    return {"path": str(p), "sha256": digest}
 
 
 def command_line(command: str, arguments: Sequence[Any]) -> str:
