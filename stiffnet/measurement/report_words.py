@@ -304,7 +304,7 @@ def discrepancy_note(comparison: dict[str, Any], diagnosis: dict[str, Any]) -> s
     if not _number(c) or not _number(b):
         return ""
     profiled = profiled_nuisances(diagnosis)
-    others = (f"the {', '.join(profiled)} within their tolerances" if profiled
+    others = (f"the {', '.join(profiled)} within their tolerances or ranges" if profiled
               else "no other nuisance: the manifest gives them")  # fmt: skip
     names = [r.get("recording") for r in comparison.get("recordings") or []]
     same = diagnosis.get("recordings")
@@ -314,7 +314,8 @@ def discrepancy_note(comparison: dict[str, Any], diagnosis: dict[str, Any]) -> s
     return (
         f"Two discrepancies of the same model, the same statistic (mean over recordings of "
         f"the mean squared normalised difference): compare's {c:.3g} simulates each "
-        f"recording once with the manifest's parameters, from the first initial state, over "
+        f"recording once with the manifest's parameters (missing ones estimated), from the "
+        f"first initial state, over "
         f"the recording's length; diagnose's baseline {b:.3g} is taken after diagnose fitted "
         f"the nuisances to the recordings (the initial state, best of {N_STARTS} per "
         f"recording; {others}) on records of {FIT_SETTINGS.periods:g} natural periods, so "
