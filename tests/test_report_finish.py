@@ -122,6 +122,19 @@ def test_every_recording_is_drawn_and_each_figure_says_what_it_shows(nine, monke
     assert "diagnose&#x27;s baseline 1.25" in page
 
 
+def test_compare_plots_draw_every_recording_too(nine, tmp_path):
+    figs = tmp_path / "figs"
+    res = CliRunner().invoke(app, ["compare", nine.result["campaign"], "--plots", str(figs),
+                                   "--json", str(tmp_path / "c.json")])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "all 9 recordings" in " ".join(res.output.split())
+    written = json.loads((tmp_path / "c.json").read_text())["plots"]
+    assert [Path(p).name for p in written] == [
+        "compare_waveform.png", "compare_spectrum.png", "compare_components.png"
+    ]  # fmt: skip
+    assert all(Path(p).stat().st_size > 5000 for p in written)
+
+
 def _fake_comparison(n):
     rng = np.random.default_rng(1)
     recs = [{"recording": f"r{k:03d}.csv", "beta": 20.0, "discrepancy": float(d),

@@ -197,24 +197,12 @@ def compare(
         f"{f['beta_class']}, recording {f['recording']})"
     )
     if plots is not None:
-        from stiffnet.measurement import plots as figs
+        from stiffnet.measurement.report_figures import comparison_figures
 
         plots.mkdir(parents=True, exist_ok=True)
-        names = [r["recording"] for r in res["recordings"]]
-        res["plots"] = [
-            str(
-                figs.waveform_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_waveform.png"
-                )
-            ),
-            str(
-                figs.spectrum_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_spectrum.png"
-                )
-            ),
-            str(figs.components_figure(res, plots / "compare_components.png")),
-        ]
-        out.print(f"figures written to {plots}")
+        figures, said = comparison_figures(cmp, plots, "compare_")
+        res["plots"] = [str(f.path) for f in figures]
+        out.print(f"figures written to {plots}. {' '.join(said)}")
     write_json(json_path, res)
 
 

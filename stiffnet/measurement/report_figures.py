@@ -62,10 +62,14 @@ def _names(names: Sequence[str], limit: int = 6) -> str:
     return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
-def comparison_figures(comparison: Any, folder: Path) -> tuple[list[Figure], list[str]]:
+def comparison_figures(
+    comparison: Any, folder: Path, prefix: str = ""
+) -> tuple[list[Figure], list[str]]:
     """The waveform and spectrum pages and the components heat map of a comparison.
 
-    Returns the figures (in page order) and the sentences saying what they show.
+    Files are ``PREFIXwaveform.png``, ``PREFIXwaveform_2.png`` (the second page), ...,
+    ``PREFIXcomponents.png`` in ``folder``. Returns the figures (in page order) and the
+    sentences saying what they show.
     """
     from stiffnet.measurement import plots
 
@@ -87,7 +91,8 @@ def comparison_figures(comparison: Any, folder: Path) -> tuple[list[Figure], lis
         for p, page in enumerate(pages):
             sel = [names[i] for i in page]
             path = draw(sel, [comparison.measured[i] for i in page],
-                        [comparison.simulated[i] for i in page], folder / f"{kind}{p}.png",
+                        [comparison.simulated[i] for i in page],
+                        folder / f"{prefix}{kind}{f'_{p + 1}' if p else ''}.png",
                         max_panels=len(page))  # fmt: skip
             alt = (f"{kind.capitalize()} figure, page {p + 1} of {len(pages)}: one panel per "
                    f"recording ({len(sel)}: {_names(sel)}); {what}.")  # fmt: skip
@@ -96,7 +101,7 @@ def comparison_figures(comparison: Any, folder: Path) -> tuple[list[Figure], lis
     sub = {**res, "recordings": [res["recordings"][i] for i in heat]}
     worst = res.get("failure") or {}
     figures.append(Figure(
-        plots.components_figure(sub, folder / "components.png"),
+        plots.components_figure(sub, folder / f"{prefix}components.png"),
         f"Heat map of the normalised differences (simulated minus measured over the "
         f"tolerance; red: simulation above, blue: below), one row per recording "
         f"({len(heat)} of {len(names)}) and one column per statistic; campaign discrepancy "
