@@ -221,24 +221,12 @@ def compare(
         f"{f['beta_class']}, recording {f['recording']})"
     )
     if plots is not None:
-        from stiffnet.measurement import plots as figs
+        from stiffnet.measurement.report_figures import comparison_figures
 
         plots.mkdir(parents=True, exist_ok=True)
-        names = [r["recording"] for r in res["recordings"]]
-        res["plots"] = [
-            str(
-                figs.waveform_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_waveform.png"
-                )
-            ),
-            str(
-                figs.spectrum_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_spectrum.png"
-                )
-            ),
-            str(figs.components_figure(res, plots / "compare_components.png")),
-        ]
-        out.print(f"figures written to {plots}")
+        figures, said = comparison_figures(cmp, plots, "compare_")
+        res["plots"] = [str(f.path) for f in figures]
+        out.print(f"figures written to {plots}. {' '.join(said)}")
     write_json(json_path, res)
 
 
@@ -541,7 +529,8 @@ def report(
     from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
     from stiffnet.measurement.diagnose import diagnose_campaign
     from stiffnet.measurement.evaluate import evaluate_campaign
-    from stiffnet.measurement.report import render_report, write_report
+    from stiffnet.measurement.report import render_report, report_provenance, write_report
+    from stiffnet.measurement.report_words import Units
 
     out, _, write_json = _io()
     diag = _read_json(diagnosis, "diagnosis")  # the given results are checked before any work
@@ -560,12 +549,18 @@ def report(
             bar.advance(note="diagnose")
             diag = diagnose_campaign(camp, effects)
         bar.advance()
+    read = DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None
+    prov = report_provenance(
+        camp, out_path, model, config, diagnosis, loop_json, run_diagnose, json_path, read
+    )
     page = render_report(
         f"stiffnet: model versus measurement, {camp.folder.name}",
         ev,
         cmp,
         diag,
         loop_result,
+        prov,
+        Units.of(camp.rows),
     )
     write_report(out_path, page)
     out.print(f"report written to {out_path}")
@@ -575,6 +570,7 @@ def report(
             "report": str(out_path),
             "discrepancy": cmp.result["discrepancy"],
             "missing_effect": diag["missing_effect"] if diag else None,
+            "provenance": prov,
         },
     )
 
