@@ -200,8 +200,9 @@ def test_loop_and_learned_law_figures_have_alt_texts(tmp_path):
 def _evaluated(name, ratio=1.05, fired=()):
     r = {"recording": name, "beta": 20.0, "class": "medium", "true_class": "medium",
          "beta_estimate": 21.0, "beta_interval": [17.5, 24.25], "geometric_class": "hard",
-         "geometric_beta": 40.0, "physical_class": "medium", "physical_beta": 19.0,
-         "physical_beta_interval": [16.125, 22.5], "impact_regime": "impacting",
+         "geometric_beta": 40.0, "restoring_force_class": "medium",
+         "restoring_force_beta": 19.0, "restoring_force_beta_interval": [16.125, 22.5],
+         "impact_regime": "impacting",
          "gap": 2.0, "frequency_ratio": ratio, "amplitude": 1.5, "ood": bool(fired),
          "ood_checks": list(fired), "error": 0.05,
          "alarm": {"flag": bool(fired), "fired": list(fired),
@@ -217,9 +218,8 @@ def _evaluation(rows):
 
 def test_evaluate_table_has_both_beta_intervals_and_alarm_checks_in_words():
     rows = [_evaluated("quiet.csv"), _evaluated("loud.csv", fired=["embedding"])]
-    renamed = {k.replace("physical_", "restoring_force_"): v
-               for k, v in _evaluated("renamed.csv").items()}  # fmt: skip
-    renamed["restoring_force_beta_interval"] = [30.5, 41.0]  # either key is read
+    renamed = _evaluated("renamed.csv")
+    renamed["restoring_force_beta_interval"] = [30.5, 41.0]
     ev = _evaluation(rows)
     ev["recordings"] = [*rows, renamed]
     page = render_report("t", ev, None, None)

@@ -246,10 +246,9 @@ def field_section(
 
 
 def _rf(row: dict[str, Any], what: str) -> Any:
-    """A restoring-force reading of an evaluated row (``restoring_force_*``, formerly
-    ``physical_*``: either key is read)."""
-    new = row.get(f"restoring_force_{what}")
-    return new if new is not None else row.get(f"physical_{what}")
+    """A restoring-force reading of an evaluated row (``restoring_force_*``; results saved
+    under earlier key names are renamed where they are read back)."""
+    return row.get(f"restoring_force_{what}")
 
 
 def _interval(iv: list[float] | None) -> str | None:
@@ -466,12 +465,10 @@ def diagnose_section(diagnosis: dict[str, Any], t: Path) -> list[str]:
 
 
 def _evidence(diagnosis: dict[str, Any]) -> dict[str, Any]:
-    """The restoring-force evidence of a diagnosis, under whichever key its JSON uses."""
-    for key in ("restoring_force_evidence", "restoring_force", "evidence"):
-        v = diagnosis.get(key)
-        if isinstance(v, dict):
-            return v
-    return {}
+    """The restoring-force evidence of a diagnosis (earlier key names are renamed where a
+    saved diagnosis is read back)."""
+    v = diagnosis.get("restoring_force")
+    return v if isinstance(v, dict) else {}
 
 
 def loop_section(loop: dict[str, Any]) -> list[str]:
