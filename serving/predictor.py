@@ -44,7 +44,14 @@ import numpy as np
 
 from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
-from serving.log import record_layers, with_layers_alarm
+from serving.log import (
+    MAX_HOP_S,
+    hop_samples,
+    record_layers,
+    varying_windows,
+    window_embedding_scores,
+    with_layers_alarm,
+)
 from serving.model import LoadedModel, load_model
 from serving.physical import (
     check_sensor_sheet,
@@ -306,19 +313,21 @@ class Predictor:
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
-        W, starts, n_win = self._windows(a, fs, fn, what, warnings)
+        starts, ok, n_win, hop = self._windows(a, fs, fn, what, warnings)
         try:
-            out, feats, geo = self._run_model(W, fs, fn)
+            out, feats, geo = self._run_model(a, starts[ok], n_win, fs, fn)
         except SignalError as exc:
             raise StiffnetError(f"{what}: {exc}") from None
+        emb = window_embedding_scores(self.alarm, out)
 
         names, nc = self.class_names, self._nc
         est = aggregate_windows(
             out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
         )
         cls = names[est.label]
-        segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
-        layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
+        segs = segments(out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc)
+        # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
+        layers = record_layers(self, a, fs, fn, windows=(ok, out, emb))
         geometric = geometric_verdict(geo, self.calibration)
         interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
         physical = physical_check(a, fs, fn, sensor)
@@ -354,9 +363,9 @@ class Predictor:
             "ood_threshold": 1.0 if score is not None else None,
             "ood_flag": bool(alarm is not None and alarm["flag"]),
             "alarm": alarm,
-            "n_windows": int(len(W)),
+            "n_windows": int(ok.sum()),
             "window_s": n_win / fs,
-            "hop_s": n_win / fs,
+            "hop_s": hop / fs,
             "duration_s": a.size / fs,
             "fs_hz": fs,
             "segments": segs,
@@ -383,40 +392,61 @@ class Predictor:
 
     def _windows(
         self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """The recording's whole non-overlapping windows, constant ones dropped (warned)."""
-        n_win = window_length(fs, fn, self.window_periods)
-        starts = window_starts(a.size, n_win, n_win)
-        W = a[starts[:, None] + np.arange(n_win)[None, :]]
-        ok = W.std(axis=1) > 0
-        if not ok.all():
-            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
-            W, starts = W[ok], starts[ok]
-            if len(W) == 0:
-                raise StiffnetError(f"{what}: every window is constant")
-        return W, starts, n_win
+    ) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """The log's sliding windows of the recording: starts, which vary, length, hop.
 
-    def _run_model(self, W: np.ndarray, fs: float, fn: float):
+        One set of windows serves the recording's estimate and its layers
+        (:func:`serving.log.record_layers`): the model reads each window once.
+        Constant windows are dropped (warned).
+        """
+        n_win = window_length(fs, fn, self.window_periods)
+        hop = hop_samples(MAX_HOP_S, fs)
+        starts = window_starts(a.size, n_win, hop)
+        ok = varying_windows(a, starts, n_win)
+        if not ok.all():
+            if not ok.any():
+                raise StiffnetError(f"{what}: every window is constant")
+            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
+        return starts, ok, n_win, hop
+
+    def _run_model(
+        self,
+        a: np.ndarray,
+        starts: np.ndarray,
+        n_win: int,
+        fs: float,
+        fn: float,
+        geometric_windows: int | None = None,
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, list]:
         """Per-window model outputs (by ONNX output name), inclination features, geometric results.
 
-        The model's family picks the windows whose inclination features are
-        computed and builds the ONNX input.
+        The windows are the `n_win` samples of `a` at `starts` (none constant), cut
+        :data:`BATCH` at a time so that memory stays bounded on long records. The
+        model's family picks the windows whose inclination features are computed
+        (those of the geometric cross-check, at most `geometric_windows`, default the
+        predictor's; 0 for none, as along the log) and builds the ONNX input.
         """
         from stiffnet.features import features_and_estimate
 
         family = self.model.family
+        gw = self.geometric_windows if geometric_windows is None else geometric_windows
+        idx = np.asarray(family.feature_windows(len(starts), gw), dtype=np.int64)
         rows, geo = [], []
-        for i in family.feature_windows(len(W), self.geometric_windows):
-            f, est = features_and_estimate(W[i], fs, fn, calibration=self.calibration)
+        for i in idx:
+            f, est = features_and_estimate(a[starts[i] : starts[i] + n_win], fs, fn,
+                                           calibration=self.calibration)  # fmt: skip
             rows.append(f)
             geo.append(est)
-        feats = np.array(rows).reshape(len(rows), -1)
-        X = family.model_input(W, fs, fn, feats)
+        feats = np.array(rows).reshape(len(rows), -1) if rows else np.empty((0, 0))
         sess, name = self.model.session, self.model.input_name
         wanted = [o for o in MODEL_OUTPUTS if o in self.model.output_names]
         parts: dict[str, list[np.ndarray]] = {o: [] for o in wanted}
-        for lo in range(0, len(X), BATCH):
-            for o, v in zip(wanted, sess.run(wanted, {name: X[lo : lo + BATCH]}), strict=True):
+        step = np.arange(n_win)[None, :]
+        for lo in range(0, len(starts), BATCH):
+            chunk = starts[lo : lo + BATCH]
+            X = family.model_input(a[chunk[:, None] + step], fs, fn,
+                                   feats[(idx >= lo) & (idx < lo + BATCH)])  # fmt: skip
+            for o, v in zip(wanted, sess.run(wanted, {name: X}), strict=True):
                 parts[o].append(v)
         out = {o: np.concatenate(v).astype(np.float64) for o, v in parts.items()}
         for o in ("log_beta", "log_beta_scale"):

@@ -106,7 +106,11 @@ def test_output_fields(cnn, example):
     }
     assert r["model"] == {"name": "cnn", "sha256": cnn.sha256, "kind": "cnn"}
     assert abs(sum(r["probabilities"].values()) - 1) < 1e-5
-    assert r["n_windows"] == int(example.duration_s // r["window_s"])
+    # the log's sliding windows (hop 0.5 s), read once for the estimate and the layers
+    assert r["hop_s"] == pytest.approx(0.5)
+    assert r["n_windows"] == int((example.duration_s - r["window_s"]) // r["hop_s"]) + 1
+    assert r["layers"][0]["n_points"] == r["n_windows"]
+    assert r["layers"][0]["beta"] == pytest.approx(r["beta"])  # one layer: the same windows
     assert r["natural_frequency_source"] == "argument"
     assert r["natural_frequency_hz"] == pytest.approx(9.48)
     assert r["layers"] and len(r["layers"]) == 1 and "layers" not in r["alarm"]["fired"]
