@@ -34,7 +34,6 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -64,7 +63,7 @@ from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
-from stiffnet.inputs import natural_frequency, real_number, sampling_rate
+from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
 from stiffnet.recordings import natural_frequency_of
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import aggregate_windows, beta_interval
@@ -234,11 +233,11 @@ class Predictor:
             for base in (REPO_MODELS_DIR.parent, Path.cwd()):
                 card = base / rel / "card.json"
                 if card.is_file():
-                    try:
-                        d = json.loads(card.read_text())
+                    try:  # bounded in size and depth (a card may point anywhere)
+                        d = read_json(card, "data card")
                         v = d["config"]["sweep"]["natural_frequency_hz"]
                         return _finite_positive(v, "natural_frequency_hz"), str(card)
-                    except (OSError, ValueError, KeyError, TypeError, StiffnetError):
+                    except (KeyError, TypeError, StiffnetError):
                         continue
         return None, ""
 

@@ -465,3 +465,62 @@ def test_metadata_hash_of_digits_stays_a_string():
     assert decode_metadata_value("training_data_sha256", "1234") == "1234"
     assert decode_metadata_value("window_length", "512") == 512
     assert decode_metadata_value("class_names", '["a", "b"]') == ["a", "b"]
+
+
+def _model_copy(tmp_path: Path, edit) -> Path:
+    """A copy of the shipped CNN whose ONNX metadata and card `edit(meta, card)` changed,
+    re-hashed so that only the edit can make the loader refuse it."""
+    import onnx
+
+    from stiffnet.io_utils import sha256_file
+
+    m = onnx.load(ROOT / "models" / "cnn.onnx")
+    meta = {p.key: p.value for p in m.metadata_props}
+    card = json.loads((ROOT / "models" / "cnn.card.json").read_text())
+    edit(meta, card)
+    del m.metadata_props[:]
+    for k, v in meta.items():
+        m.metadata_props.add(key=k, value=v)
+    path = tmp_path / "cnn.onnx"
+    onnx.save(m, path)
+    card["sha256"] = sha256_file(path)
+    path.with_suffix(".card.json").write_text(json.dumps(card))
+    shutil.copy(ROOT / "models" / "cnn.alarm.npz", tmp_path / "cnn.alarm.npz")
+    return path
+
+
+def test_deeply_nested_model_metadata_is_refused_in_one_line(tmp_path):
+    """In the library (HTTP and Python users too), not only by the CLI's catch-all."""
+    from serving.model import decode_metadata_value
+
+    deep = "[" * 100_000 + "]" * 100_000
+    with pytest.raises(StiffnetError, match=r"metadata 'extra' is nested deeper than 64 levels"):
+        decode_metadata_value("extra", deep)
+    assert decode_metadata_value("extra", "[" * 64 + "]" * 64) is not None  # at the bound
+    path = _model_copy(tmp_path, lambda meta, card: meta.update(extra=deep))
+    with pytest.raises(StiffnetError, match=r"cnn\.onnx: metadata 'extra' is nested deeper"):
+        Predictor.load(path)
+    (tmp_path / "huge").mkdir()
+    huge = _model_copy(tmp_path / "huge", lambda meta, card: meta.update(extra="x" * 17_000_000))
+    with pytest.raises(StiffnetError, match="metadata is larger than 16 MB"):
+        Predictor.load(huge)
+
+
+def test_a_card_pointing_at_a_nested_json_is_passed_over(tmp_path, example):
+    """The training f_n is looked up in the data card the model card names: a deeply nested
+    one is read bounded (no RecursionError) and passed over like a missing one."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "card.json").write_text("[" * 100_000 + "]" * 100_000)
+
+    def edit(meta, card):
+        meta.pop("natural_frequency_hz")
+        card["metadata"].pop("natural_frequency_hz", None)
+        card["data"].pop("natural_frequency_hz", None)
+        card["data"]["path"] = str(data)
+
+    p = Predictor.load(_model_copy(tmp_path, edit), ood_reference=None)
+    assert p.training_natural_frequency is None or p.training_natural_frequency_from != str(
+        data / "card.json"
+    )
+    assert p.predict(example.accel, example.fs_hz, natural_frequency_hz=FN)["class"] == "hard"
