@@ -45,6 +45,7 @@ from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import (
     MAX_HOP_S,
+    PHYSICAL_EVERY_S,
     hop_samples,
     record_layers,
     varying_windows,
@@ -375,6 +376,56 @@ class Predictor:
             "warnings": warnings,
         }
         return PredictionResult.model_validate(result).model_dump(by_alias=True)
+
+    def log(
+        self,
+        accel: np.ndarray,
+        fs_hz: float,
+        *,
+        natural_frequency_hz: float,
+        hop_s: float = MAX_HOP_S,
+        physical_every_s: float | None = PHYSICAL_EVERY_S,
+        source: str = "",
+    ) -> dict[str, Any]:
+        """The stiffness log of a record: beta along it, its layers and change times.
+
+        :func:`serving.log.stiffness_log` with this model (``stiffnet log``'s JSON:
+        ``points``, ``layers``, ``changes``, ``warnings``).
+
+        Parameters
+        ----------
+        accel : numpy.ndarray
+            1-D acceleration samples, any unit and sign.
+        fs_hz, natural_frequency_hz : float
+            Sampling rate and the rig's natural frequency in Hz.
+        hop_s : float, optional
+            Time between points (<= 0.5 s).
+        physical_every_s : float or None, optional
+            Seconds between restoring-force cross-checks (None: none).
+        source : str, optional
+            The record's name, echoed.
+        """
+        from serving.log import stiffness_log
+
+        return stiffness_log(self, accel, fs_hz, natural_frequency_hz, hop_s=hop_s,
+                             physical_every_s=physical_every_s, source=source)  # fmt: skip
+
+    def predict_file(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        fs_hz: float | None = None,
+        natural_frequency_hz: float | None = None,
+        **layout: Any,
+    ) -> dict[str, Any]:
+        """Read a recording file (any registered format) and predict it with this model.
+
+        :func:`predict_recording`: f_n from the argument, else the sidecar
+        ``<recording>.json``, else a one-line refusal; `layout` takes ``columns``,
+        ``time_unit``, ``channel`` and ``sensor``.
+        """
+        return predict_recording(path, fs_hz=fs_hz, natural_frequency_hz=natural_frequency_hz,
+                                 predictor=self, **layout)  # fmt: skip
 
     def _rates(
         self, fs_hz: Any, natural_frequency_hz: Any, natural_frequency_source: str | None
