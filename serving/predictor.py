@@ -86,6 +86,9 @@ SEGMENT_WINDOWS = 4
 GEOMETRIC_WINDOWS = 3
 #: Windows per ONNX Runtime call (bounds memory on very long recordings).
 BATCH = 256
+#: Samples cut per model call at most (4 MB of float64): a window of 16 natural periods
+#: at a high rate is long, and the model's input is built from float64 copies of it.
+CHUNK_SAMPLES = 2**19
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
@@ -471,7 +474,8 @@ class Predictor:
         """Per-window model outputs (by ONNX output name), inclination features, geometric results.
 
         The windows are the `n_win` samples of `a` at `starts` (none constant), cut
-        :data:`BATCH` at a time so that memory stays bounded on long records. The
+        at most :data:`BATCH` windows and :data:`CHUNK_SAMPLES` samples at a time, so that
+        memory stays bounded on long records and at high rates. The
         model's family picks the windows whose inclination features are computed
         (those of the geometric cross-check, at most `geometric_windows`, default the
         predictor's; 0 for none, as along the log) and builds the ONNX input.
@@ -492,10 +496,11 @@ class Predictor:
         wanted = [o for o in MODEL_OUTPUTS if o in self.model.output_names]
         parts: dict[str, list[np.ndarray]] = {o: [] for o in wanted}
         step = np.arange(n_win)[None, :]
-        for lo in range(0, len(starts), BATCH):
-            chunk = starts[lo : lo + BATCH]
+        per_call = max(1, min(BATCH, CHUNK_SAMPLES // n_win))
+        for lo in range(0, len(starts), per_call):
+            chunk = starts[lo : lo + per_call]
             X = family.model_input(a[chunk[:, None] + step], fs, fn,
-                                   feats[(idx >= lo) & (idx < lo + BATCH)])  # fmt: skip
+                                   feats[(idx >= lo) & (idx < lo + per_call)])  # fmt: skip
             for o, v in zip(wanted, sess.run(wanted, {name: X}), strict=True):
                 parts[o].append(v)
         out = {o: np.concatenate(v).astype(np.float64) for o, v in parts.items()}
