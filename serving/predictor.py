@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +68,7 @@ from stiffnet.features.windows import window_length, window_starts
 from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
 from stiffnet.recordings import natural_frequency_of
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
-from stiffnet.uncertainty import aggregate_windows, beta_interval
+from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
     alarm_ratio,
@@ -126,6 +127,21 @@ def record_natural_frequency(
         return value, source
     where = f"{recording}: " if recording is not None else ""
     raise StiffnetError(where + FN_UNKNOWN)
+
+
+@dataclass(frozen=True)
+class WindowReading:
+    """What the model read from a recording's windows (one pass), aggregated."""
+
+    estimate: RecordingEstimate
+    outputs: dict[str, np.ndarray]
+    features: np.ndarray
+    geometric: dict[str, Any]
+    n_windows: int
+    window_s: float
+    hop_s: float
+    segments: list[dict[str, Any]]
+    layers: list[dict[str, Any]]
 
 
 class Predictor:
@@ -307,6 +323,32 @@ class Predictor:
             Unusable input, with a one-line message.
         """
         what = source or "recording"
+        a, fs, fn, fn_source, sensor, warnings = self._checked_input(
+            accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
+        )
+        reading = self._read_windows(a, fs, fn, what, warnings)
+        interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
+        physical = physical_check(a, fs, fn, sensor)
+        alarm = self._alarm(reading, interval, physical, fs, fn)
+        if alarm is not None and alarm["flag"]:
+            warnings.append(alarm["message"])
+        if weak := weak_physical_fit(physical):
+            warnings.append(weak)
+        result = self._result(reading, interval, physical, alarm)
+        result.update(source=source, duration_s=a.size / fs, fs_hz=fs, natural_frequency_hz=fn,
+                      natural_frequency_source=fn_source, warnings=warnings)  # fmt: skip
+        return PredictionResult.model_validate(result).model_dump(by_alias=True)
+
+    def _checked_input(
+        self,
+        accel: Any,
+        fs_hz: Any,
+        natural_frequency_hz: Any,
+        natural_frequency_source: str | None,
+        sensor: dict | None,
+        what: str,
+    ) -> tuple[np.ndarray, float, float, str, dict | None, list[str]]:
+        """Is the input usable: samples, rates, f_n's source, sensor sheet, first warnings."""
         if natural_frequency_hz is None:
             from serving.checks import finite_samples
 
@@ -316,41 +358,72 @@ class Predictor:
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
+        return a, fs, fn, fn_source, sensor, warnings
+
+    def _read_windows(
+        self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
+    ) -> WindowReading:
+        """What the model says: one pass over the log's windows, aggregated three ways
+        (the recording, its segments, its layers)."""
         starts, ok, n_win, hop = self._windows(a, fs, fn, what, warnings)
         try:
             out, feats, geo = self._run_model(a, starts[ok], n_win, fs, fn)
         except SignalError as exc:
             raise StiffnetError(f"{what}: {exc}") from None
         emb = window_embedding_scores(self.alarm, out)
-
         names, nc = self.class_names, self._nc
         est = aggregate_windows(
             out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
         )
-        cls = names[est.label]
-        segs = segments(out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc)
-        # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
-        layers = record_layers(self, a, fs, fn, windows=(ok, out, emb))
-        geometric = geometric_verdict(geo, self.calibration)
-        interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
-        physical = physical_check(a, fs, fn, sensor)
-        alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
+        return WindowReading(
+            estimate=est,
+            outputs=out,
+            features=feats,
+            geometric=geometric_verdict(geo, self.calibration),
+            n_windows=int(ok.sum()),
+            window_s=n_win / fs,
+            hop_s=hop / fs,
+            segments=segments(
+                out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc
+            ),  # fmt: skip
+            # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
+            layers=record_layers(self, a, fs, fn, windows=(ok, out, emb)),
+        )
+
+    def _alarm(
+        self,
+        reading: WindowReading,
+        interval: list[float] | None,
+        physical: dict[str, Any],
+        fs: float,
+        fn: float,
+    ) -> dict[str, Any] | None:
+        """How far to trust the answer: the model's checks, then the restoring-force gap,
+        the unseen contact law, the layers and the sensor chain."""
+        alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
+                              reading.features)  # fmt: skip
         gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
         alarm = with_physical_check(alarm, gap)
         alarm = with_unseen_law_check(alarm, physical)
-        alarm = with_layers_alarm(alarm, layers)
+        alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")
-        alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,
-                                                               fs, fn))  # fmt: skip
-        if alarm is not None and alarm["flag"]:
-            warnings.append(alarm["message"])
-        if weak := weak_physical_fit(physical):
-            warnings.append(weak)
+        outside = sensor_outside_priors(physical.get("sensor"), priors, fs, fn)
+        return with_sensor_check(alarm, outside)
+
+    def _result(
+        self,
+        reading: WindowReading,
+        interval: list[float] | None,
+        physical: dict[str, Any],
+        alarm: dict[str, Any] | None,
+    ) -> dict[str, Any]:
+        """The answer's fields (the caller adds the recording's own)."""
+        est, geometric = reading.estimate, reading.geometric
+        cls = self.class_names[est.label]
         score = alarm_ratio(alarm)
-        result = {
-            "source": source,
+        return {
             "class": cls,
-            "probabilities": named(names, est.probabilities),
+            "probabilities": named(self.class_names, est.probabilities),
             "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
             "beta_interval": interval,
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
@@ -366,19 +439,13 @@ class Predictor:
             "ood_threshold": 1.0 if score is not None else None,
             "ood_flag": bool(alarm is not None and alarm["flag"]),
             "alarm": alarm,
-            "n_windows": int(ok.sum()),
-            "window_s": n_win / fs,
-            "hop_s": hop / fs,
-            "duration_s": a.size / fs,
-            "fs_hz": fs,
-            "segments": segs,
-            "layers": layers,
+            "n_windows": reading.n_windows,
+            "window_s": reading.window_s,
+            "hop_s": reading.hop_s,
+            "segments": reading.segments,
+            "layers": reading.layers,
             "model": {"name": self.name, "sha256": self.sha256, "kind": self.kind},
-            "natural_frequency_hz": fn,
-            "natural_frequency_source": fn_source,
-            "warnings": warnings,
         }
-        return PredictionResult.model_validate(result).model_dump(by_alias=True)
 
     def log(
         self,
