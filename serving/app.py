@@ -95,7 +95,7 @@ from serving.schemas import (
 )
 from stiffnet import __version__
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import HINT_CONTEXT
+from stiffnet.inputs import HINT_CONTEXT, one_line
 
 #: One-line log of the server's events (uvicorn configures this logger).
 log = logging.getLogger("uvicorn.error")
@@ -513,6 +513,15 @@ def _lines_over(path: Path, limit: int) -> bool:
     return False
 
 
+def check_upload_size(path: Path, max_samples: int) -> None:
+    """Refuse a file over `max_samples` by what it says before it is read (a CSV's lines,
+    an ``.npy`` header's shape); other formats are counted once read."""
+    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
+        _check_samples(max_samples + 1, max_samples, "over")
+    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
+        _check_samples(_npy_values(path), max_samples, "over")
+
+
 def _predict_file(
     predictor: Predictor,
     data: bytes | Path,
@@ -560,10 +569,7 @@ def _predict_path(
     }
     fn_hz = _number_field(fn, "natural_frequency_hz")
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
-    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
-        _check_samples(max_samples + 1, max_samples, "over")
-    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
-        _check_samples(_npy_values(path), max_samples, "over")
+    check_upload_size(path, max_samples)
     hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
     try:
         rec = read_recording(path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout)
@@ -833,6 +839,11 @@ class Admission:
                               f"{', '.join(FORM_FIELDS)})")  # fmt: skip
             name = upload.filename or "upload"
             spooled = await asyncio.to_thread(spool_upload, upload.file, name)
+            try:  # an upload over the limit is refused now, not after its wait for a worker
+                await asyncio.to_thread(check_upload_size, spooled, n)
+            except BaseException:
+                shutil.rmtree(spooled.parent, ignore_errors=True)
+                raise
             job = partial(_predict_file, predictor, spooled, name, form.get("fs_hz"),
                           form.get("natural_frequency_hz"), n, form.get("columns"),
                           form.get("time_unit"), form.get("channel"), what)  # fmt: skip
@@ -891,9 +902,18 @@ class Admission:
         try:
             result = await asyncio.wait_for(asyncio.shield(fut), self.limits.timeout_s)
         except TimeoutError:
+            fut.add_done_callback(_outcome_unheard)
             return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
         self.state["served"] += 1
         return JSONResponse(result)
+
+
+def _outcome_unheard(fut: Any) -> None:
+    """A job whose request was answered 504 ends later: one log line, never a traceback of an
+    unretrieved exception."""
+    exc = None if fut.cancelled() else fut.exception()
+    if exc is not None:
+        log.warning("a request answered 504 failed afterwards: %s", one_line(exc, 200))
 
 
 def _add_routes(app: FastAPI, predictor: Predictor, limits: Limits, admission: Admission) -> None:
