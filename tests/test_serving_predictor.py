@@ -524,3 +524,20 @@ def test_a_card_pointing_at_a_nested_json_is_passed_over(tmp_path, example):
         data / "card.json"
     )
     assert p.predict(example.accel, example.fs_hz, natural_frequency_hz=FN)["class"] == "hard"
+
+
+def test_one_model_pass_gives_the_logs_layers(cnn, monkeypatch):
+    """predict runs the model once over the log's windows; its layers are stiffnet log's."""
+    from serving.log import stiffness_log
+
+    a = [read_recording(p) for p in EXAMPLE_FILES]  # soft (beta 12), then hard (beta 45)
+    x = np.concatenate([r.accel for r in a])
+    log = stiffness_log(cnn, x, a[0].fs_hz, FN, physical_every_s=None)
+    calls = []
+    run = Predictor._run_model
+    monkeypatch.setattr(Predictor, "_run_model", lambda *p, **k: calls.append(1) or run(*p, **k))
+    r = cnn.predict(x, a[0].fs_hz, natural_frequency_hz=FN)
+    assert len(calls) == 1 and r["n_windows"] == log["n_points"]
+    assert len(r["layers"]) == len(log["layers"]) == 2
+    for mine, theirs in zip(r["layers"], log["layers"], strict=True):
+        assert mine == {k: theirs[k] for k in mine}
