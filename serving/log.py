@@ -94,7 +94,7 @@ class StiffnessLogger:
         #: the rate checks of the predictor (a rate below the training data's is refused)
         self.warnings = rate_warnings(self.fs, self.fn, "record")
         self.n_win = window_length(self.fs, self.fn, predictor.window_periods)
-        self.hop = max(1, int(round(hop_s * self.fs)))
+        self.hop = hop_samples(hop_s, self.fs)
         self.hop_s = self.hop / self.fs
         self.restoring_force_every = (
             None
@@ -162,19 +162,51 @@ class StiffnessLogger:
 
     def _windows(self, n: int) -> list[tuple[str, dict[str, Any]]]:
         starts = (self.next_window + np.arange(n)) * self.hop
-        idx = (starts - self.buf_start)[:, None] + np.arange(self.n_win)[None, :]
-        W = self.buf[idx]
-        ok = W.std(axis=1) > 0
-        events: list[tuple[str, dict[str, Any]]] = []
+        ok = varying_windows(self.buf, starts - self.buf_start, self.n_win)
         out: dict[str, np.ndarray] = {}
         emb = None
         if ok.any():
-            out, _, _ = self.p._run_model(W[ok], self.fs, self.fn)
-            a = self.p.alarm
-            if a is not None and "embedding" in out and "embedding" in a.thresholds:
-                emb = a.embedding_scores(out["embedding"])
+            # no geometric cross-check along the log: only what the model's input needs
+            out, _, _ = self.p._run_model(self.buf, starts[ok] - self.buf_start, self.n_win,
+                                          self.fs, self.fn, geometric_windows=0)  # fmt: skip
+            emb = window_embedding_scores(self.p.alarm, out)
+        return self._emit(starts, ok, out, emb)
+
+    def replay(
+        self,
+        accel: np.ndarray,
+        ok: np.ndarray,
+        out: dict[str, np.ndarray],
+        emb: np.ndarray | None,
+    ) -> list[tuple[str, dict[str, Any]]]:
+        """The events of a whole record whose windows the model has already read.
+
+        `accel` is the record, `ok` which of its windows (``window_starts(accel.size,
+        n_win, hop)``) are not constant, `out` and `emb` the model's outputs and the
+        embedding distances of those windows in order. The same points and layers as
+        :meth:`feed` followed by :meth:`finish`, without running the model again: what
+        ``predict`` uses, having run the model over these windows for the recording's
+        own estimate.
+        """
+        if self.n_total:
+            raise RuntimeError("replay() needs a fresh logger")
+        self.buf = np.asarray(accel, dtype=np.float64).reshape(-1)
+        self.n_total = self.buf.size
+        starts = np.arange(len(ok)) * self.hop
+        events = self._emit(starts, ok, out, emb)
+        return events + self.finish()
+
+    def _emit(
+        self,
+        starts: np.ndarray,
+        ok: np.ndarray,
+        out: dict[str, np.ndarray],
+        emb: np.ndarray | None,
+    ) -> list[tuple[str, dict[str, Any]]]:
+        """Points (and the layers they close) of the windows at `starts`, in order."""
+        events: list[tuple[str, dict[str, Any]]] = []
         k = 0
-        for i in range(n):
+        for i in range(len(starts)):
             j = self.next_window + i
             end = int(starts[i]) + self.n_win
             if not ok[i]:
@@ -192,7 +224,7 @@ class StiffnessLogger:
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
-        self.next_window += n
+        self.next_window += len(starts)
         return events
 
     def _point(self, j: int, out: dict[str, np.ndarray], k: int, emb: float | None) -> dict:
@@ -271,6 +303,33 @@ class StiffnessLogger:
         }
         self.layers.append(layer)
         return layer
+
+
+def hop_samples(hop_s: float, fs_hz: float) -> int:
+    """The log's hop in samples (the predictor's windows use the same)."""
+    return max(1, int(round(hop_s * fs_hz)))
+
+
+def varying_windows(a: np.ndarray, starts: np.ndarray, n_win: int) -> np.ndarray:
+    """Which windows of `n_win` samples of `a` at `starts` are not constant.
+
+    A constant window (a dropped-out sensor) gives no model output. Exact (a window
+    varies iff two neighbouring samples in it differ) and without cutting the
+    windows out of the record.
+    """
+    starts = np.asarray(starts, dtype=np.int64)
+    changes = np.flatnonzero(a[1:] != a[:-1])  # a[i + 1] differs from a[i]
+    if changes.size == 0:
+        return np.zeros(starts.size, dtype=bool)
+    k = np.minimum(np.searchsorted(changes, starts), changes.size - 1)
+    return (changes[k] >= starts) & (changes[k] <= starts + n_win - 2)
+
+
+def window_embedding_scores(alarm: Any, out: dict[str, np.ndarray]) -> np.ndarray | None:
+    """Each window's embedding distance to the training data (None when not checked)."""
+    if alarm is None or "embedding" not in out or "embedding" not in alarm.thresholds:
+        return None
+    return alarm.embedding_scores(out["embedding"])
 
 
 def _classes(edges: list[float] | None) -> tuple[tuple[str, float, float], ...]:
@@ -447,19 +506,29 @@ LAYERS_CHECK = "layers"
 
 
 def record_layers(
-    predictor: Any, accel: np.ndarray, fs_hz: float, natural_frequency_hz: float
+    predictor: Any,
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    windows: tuple[np.ndarray, dict[str, np.ndarray], np.ndarray | None] | None = None,
 ) -> list[dict[str, Any]]:
     """The layers of a recording as ``stiffnet log`` finds them (no restoring-force checks).
 
     What ``predict`` uses to say that beta changes along the record instead of
     reporting a blend in silence: the same sliding windows (hop 0.5 s) and the same
     calibrated segmenter as the log, so both commands name the same layers.
+    `windows` is ``(ok, out, emb)`` of :meth:`StiffnessLogger.replay` when the model
+    has already read the log's windows (the predictor's one pass); without it the
+    model reads them here.
     """
     log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, restoring_force_every_s=None)
     if accel.size < log.n_win:
         return []
-    layers = [item for kind, item in log.feed(accel) if kind == "layer"]
-    layers += [item for _, item in log.finish()]
+    if windows is not None:
+        layers = [item for kind, item in log.replay(accel, *windows) if kind == "layer"]
+    else:
+        layers = [item for kind, item in log.feed(accel) if kind == "layer"]
+        layers += [item for _, item in log.finish()]
     keep = ("index", "start_s", "start_sd_s", "end_s", "end_sd_s", "class", "near_edge", "beta",
             "beta_interval", "n_points", "alarm_fraction")  # fmt: skip
     return [{k: la[k] for k in keep} for la in layers]

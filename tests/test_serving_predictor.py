@@ -110,7 +110,11 @@ def test_output_fields(cnn, example):
     }
     assert r["model"] == {"name": "cnn", "sha256": cnn.sha256, "kind": "cnn"}
     assert abs(sum(r["probabilities"].values()) - 1) < 1e-5
-    assert r["n_windows"] == int(example.duration_s // r["window_s"])
+    # the log's sliding windows (hop 0.5 s), read once for the estimate and the layers
+    assert r["hop_s"] == pytest.approx(0.5)
+    assert r["n_windows"] == int((example.duration_s - r["window_s"]) // r["hop_s"]) + 1
+    assert r["layers"][0]["n_points"] == r["n_windows"]
+    assert r["layers"][0]["beta"] == pytest.approx(r["beta"])  # one layer: the same windows
     assert r["natural_frequency_source"] == "argument"
     assert r["natural_frequency_hz"] == pytest.approx(9.48)
     assert r["layers"] and len(r["layers"]) == 1 and "layers" not in r["alarm"]["fired"]
@@ -482,3 +486,79 @@ def test_metadata_hash_of_digits_stays_a_string():
     assert decode_metadata_value("training_data_sha256", "1234") == "1234"
     assert decode_metadata_value("window_length", "512") == 512
     assert decode_metadata_value("class_names", '["a", "b"]') == ["a", "b"]
+
+
+def _model_copy(tmp_path: Path, edit) -> Path:
+    """A copy of the shipped CNN whose ONNX metadata and card `edit(meta, card)` changed,
+    re-hashed so that only the edit can make the loader refuse it."""
+    import onnx
+
+    from stiffnet.io_utils import sha256_file
+
+    m = onnx.load(ROOT / "models" / "cnn.onnx")
+    meta = {p.key: p.value for p in m.metadata_props}
+    card = json.loads((ROOT / "models" / "cnn.card.json").read_text())
+    edit(meta, card)
+    del m.metadata_props[:]
+    for k, v in meta.items():
+        m.metadata_props.add(key=k, value=v)
+    path = tmp_path / "cnn.onnx"
+    onnx.save(m, path)
+    card["sha256"] = sha256_file(path)
+    path.with_suffix(".card.json").write_text(json.dumps(card))
+    shutil.copy(ROOT / "models" / "cnn.alarm.npz", tmp_path / "cnn.alarm.npz")
+    return path
+
+
+def test_deeply_nested_model_metadata_is_refused_in_one_line(tmp_path):
+    """In the library (HTTP and Python users too), not only by the CLI's catch-all."""
+    from serving.model import decode_metadata_value
+
+    deep = "[" * 100_000 + "]" * 100_000
+    with pytest.raises(StiffnetError, match=r"metadata 'extra' is nested deeper than 64 levels"):
+        decode_metadata_value("extra", deep)
+    assert decode_metadata_value("extra", "[" * 64 + "]" * 64) is not None  # at the bound
+    path = _model_copy(tmp_path, lambda meta, card: meta.update(extra=deep))
+    with pytest.raises(StiffnetError, match=r"cnn\.onnx: metadata 'extra' is nested deeper"):
+        Predictor.load(path)
+    (tmp_path / "huge").mkdir()
+    huge = _model_copy(tmp_path / "huge", lambda meta, card: meta.update(extra="x" * 17_000_000))
+    with pytest.raises(StiffnetError, match="metadata is larger than 16 MB"):
+        Predictor.load(huge)
+
+
+def test_a_card_pointing_at_a_nested_json_is_passed_over(tmp_path, example):
+    """The training f_n is looked up in the data card the model card names: a deeply nested
+    one is read bounded (no RecursionError) and passed over like a missing one."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "card.json").write_text("[" * 100_000 + "]" * 100_000)
+
+    def edit(meta, card):
+        meta.pop("natural_frequency_hz")
+        card["metadata"].pop("natural_frequency_hz", None)
+        card["data"].pop("natural_frequency_hz", None)
+        card["data"]["path"] = str(data)
+
+    p = Predictor.load(_model_copy(tmp_path, edit), ood_reference=None)
+    assert p.training_natural_frequency is None or p.training_natural_frequency_from != str(
+        data / "card.json"
+    )
+    assert p.predict(example.accel, example.fs_hz, natural_frequency_hz=FN)["class"] == "hard"
+
+
+def test_one_model_pass_gives_the_logs_layers(cnn, monkeypatch):
+    """predict runs the model once over the log's windows; its layers are stiffnet log's."""
+    from serving.log import stiffness_log
+
+    a = [read_recording(p) for p in EXAMPLE_FILES]  # soft (beta 12), then hard (beta 45)
+    x = np.concatenate([r.accel for r in a])
+    log = stiffness_log(cnn, x, a[0].fs_hz, FN, restoring_force_every_s=None)
+    calls = []
+    run = Predictor._run_model
+    monkeypatch.setattr(Predictor, "_run_model", lambda *p, **k: calls.append(1) or run(*p, **k))
+    r = cnn.predict(x, a[0].fs_hz, natural_frequency_hz=FN)
+    assert len(calls) == 1 and r["n_windows"] == log["n_points"]
+    assert len(r["layers"]) == len(log["layers"]) == 2
+    for mine, theirs in zip(r["layers"], log["layers"], strict=True):
+        assert mine == {k: theirs[k] for k in mine}

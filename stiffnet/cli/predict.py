@@ -70,6 +70,15 @@ def _num(v: float | None, fmt: str = ".3g") -> str:
     return "-" if v is None else format(v, fmt)
 
 
+def _source_text(result: dict[str, Any]) -> str:
+    """Where f_n came from, short enough for a table cell: a sidecar by its file name (it
+    sits beside the recording; the JSON keeps the whole path)."""
+    source = str(result["natural_frequency_source"])
+    if source.startswith("sidecar:"):
+        return "sidecar " + Path(source.removeprefix("sidecar:")).name
+    return source
+
+
 def result_tables(result: dict[str, Any], title: str) -> list[Any]:
     """Rich renderables of a prediction: summary with the cross-check, probabilities, segments."""
     from rich.table import Table
@@ -126,10 +135,14 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
             if k in alarm["thresholds"]
         )
         t.add_row("alarm checks (score/threshold)", scores, "")
-    t.add_row("windows", f"{result['n_windows']} x {result['window_s']:.3g} s", "")
+    t.add_row(
+        "windows",
+        f"{result['n_windows']} x {result['window_s']:.3g} s, hop {result['hop_s']:.3g} s",
+        "",
+    )
     t.add_row(
         "natural frequency",
-        f"{result['natural_frequency_hz']:.4g} Hz ({result['natural_frequency_source']})",
+        f"{result['natural_frequency_hz']:.4g} Hz ({_source_text(result)})",
         "",
     )
     t.add_row("model sha256", m["sha256"][:16] + "...", "")
