@@ -10,8 +10,11 @@ reach (the example campaign's ``fs/f_n`` of 158-211 against a test sweep of 60-1
 :data:`MARGIN`; β keeps its sweep (the model must place every class).
 
 Measured on the example campaign with a two-stage law (the learned law of the loop,
-300 trajectories, GBM): the model's own test accuracy 0.65 -> 0.82 and β MAPE
-0.37 -> 0.14; on the campaign β MAPE 0.34 -> 0.17 (docs/measurement_loop.md).
+300 trajectories, GBM): the model's own test accuracy 0.62 -> 0.82 and β MAPE
+0.42 -> 0.14; on the campaign β MAPE 0.26 -> 0.18 while the class accuracy on its
+eight recordings went 0.875 -> 0.625 (β 65 and 95 read about 50 with either world);
+on the independent rig's Hunt-Crossley campaign (150 trajectories) β MAPE 0.18
+(docs/measurement_loop.md).
 """
 
 from __future__ import annotations
