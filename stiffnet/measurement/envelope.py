@@ -12,7 +12,7 @@ reach (the example campaign's ``fs/f_n`` of 158-211 against a test sweep of 60-1
 Measured on the example campaign with a two-stage law (the learned law of the loop,
 300 trajectories, GBM): the model's own test accuracy 0.62 -> 0.82 and β MAPE
 0.42 -> 0.14; on the campaign β MAPE 0.26 -> 0.18 while the class accuracy on its
-eight recordings went 0.875 -> 0.625 (β 65 and 95 read about 50 with either world);
+eight recordings went 0.875 -> 0.625 (β 65 and 95 read 52 and 51, 60 and 69 before);
 on the independent rig's Hunt-Crossley campaign (150 trajectories) β MAPE 0.18
 (docs/measurement_loop.md).
 """
