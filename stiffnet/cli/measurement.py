@@ -421,6 +421,14 @@ def loop(
     tracking_uri: Annotated[str, typer.Option(help="MLflow tracking URI.")] = "sqlite:///mlflow.db",
     tracking: Annotated[bool, typer.Option(help="Log the iterations to MLflow.")] = True,
     json_path: JsonOption = None,
+    envelope: Annotated[
+        bool,
+        typer.Option(
+            help="Train on the campaign's operating envelope (the manifest's gap, amplitude, "
+            "frequency ratio, damping, fs/f_n and noise, widened 10 %) instead of the "
+            "config's whole sweep (a new loop only)."
+        ),
+    ] = False,
 ) -> None:
     """Iterate: diagnose, add the missing effects to the simulator, retrain, re-evaluate."""
     from stiffnet.effects.registry import parse_effect_option
@@ -434,6 +442,10 @@ def loop(
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
+    if envelope:
+        from stiffnet.measurement.envelope import campaign_envelope
+
+        cfg = campaign_envelope(cfg, camp.rows)
     overrides = {"max_epochs": max_epochs} if max_epochs else None
     console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():

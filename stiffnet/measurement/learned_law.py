@@ -122,6 +122,9 @@ def propose_learned_law(
         # a fit that breaks numerically is a missing proposal, never a failed diagnosis
         why = f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
         return {"proposed": False, "summary": why, "skipped": skipped}
+    # a power law's beta is a secant at d_r: referred to the manifest's where it gives beta
+    given = {g.recording: g.beta for g in campaign.rows}
+    law = law.referred_to([given.get(name) for name in law.recordings])
     out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
     if not law.new:
         out.update(proposed=False, summary=(
