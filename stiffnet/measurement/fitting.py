@@ -54,6 +54,7 @@ from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
+from stiffnet.simulator.motion_cache import reuse_motion
 
 #: Evaluations of a one-effect fit (closed form) after its initial design.
 REFINE_EVALUATIONS = {1: 8, 2: 12}
@@ -233,6 +234,20 @@ def fit_effect(
         ``effect``, ``params`` (fitted and fixed), ``fitted``, ``per_recording``,
         ``off_per_recording``, ``improves``, ``evaluations``, ``seconds``, ``engine``.
     """
+    # a measurement effect's evaluations share one motion (only its chain moves)
+    with reuse_motion():
+        return _fit_effect(target, name, fixed, settings, budget, off, seeds)
+
+
+def _fit_effect(
+    target: CampaignTarget,
+    name: str,
+    fixed: Sequence[Effect],
+    settings: SolverSettings | None,
+    budget: int | None,
+    off: np.ndarray | None,
+    seeds: Sequence[dict[str, float]],
+) -> dict[str, Any]:
     from stiffnet.measurement.target import settings_for
 
     t0 = time.perf_counter()
