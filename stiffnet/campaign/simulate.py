@@ -40,11 +40,11 @@ from stiffnet.campaign.manifest import (
     STANDARD_GRAVITY,
     ManifestRow,
 )
-from stiffnet.effects.base import Effect
+from stiffnet.effects.base import Effect, MeasurementEffect
 from stiffnet.errors import StiffnetError
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
 from stiffnet.simulator.settings import SolverSettings
-from stiffnet.simulator.simulator import Simulator
+from stiffnet.simulator.simulator import WHITE_NOISE_ORDER, Simulator
 
 #: Columns a row needs to be simulated.
 SIMULATION_COLUMNS = ("beta", "gap", "amplitude", "frequency_ratio", "damping_ratio")
@@ -261,8 +261,16 @@ def simulate_rows(
         n = np.minimum(n, np.ceil(settings.periods * fs_ratio).astype(np.int64))
     noise = np.array([row_noise(r) for r in rows])
     x0, v0 = initial_states(rows, batch, seed, starts)
-    sim = Simulator(list(effects), settings)
     k = oversampling(effects)
+    if k > 1:  # RK4 steps of an oversampled record: the sample step is already k times shorter
+        settings = settings.model_copy(update={"substeps": max(1, -(-settings.substeps // k))})
+    sim = Simulator(list(effects), settings)
+    # white noise at the end of the chain, drawn for the logger's samples only (not for the
+    # k - 1 dropped between them: the same law, k times fewer draws)
+    late = k > 1 and all(
+        e.order < WHITE_NOISE_ORDER for e in effects if isinstance(e, MeasurementEffect)
+    )
+    rng = np.random.default_rng([int(seed), 1])
     # the analog chain had been running before the record began: its start-up transient
     # (a charge amplifier's high-pass rings down over ~1/f_h) falls in a dropped lead-in
     lead = np.ceil(lead_in_seconds(effects) * np.array([r.fs_hz for r in rows]) * k)
@@ -272,8 +280,8 @@ def simulate_rows(
             batch,
             fs_ratio * k,
             int((n * k + lead).max()),
-            noise=noise,
-            rng=np.random.default_rng([int(seed), 1]),
+            noise=0.0 if late else noise,
+            rng=rng,
             x0=x0,
             v0=v0,
             effect_params=effect_params,
@@ -281,7 +289,12 @@ def simulate_rows(
     except StiffnetError as exc:
         raise StiffnetError(f"simulating the campaign: {exc}") from None
     gains = np.array([sensor_gain(natural_frequency(r)) for r in rows])
-    return [res.accel[i, lead[i] : lead[i] + n[i] * k : k] * gains[i] for i in range(len(rows))]
+    out = [res.accel[i, lead[i] : lead[i] + n[i] * k : k] for i in range(len(rows))]
+    if late and np.any(noise):
+        white = rng.standard_normal((len(rows), int(n.max())))
+        std = noise * batch.forcing_scale
+        out = [a + white[i, : a.size] * std[i] for i, a in enumerate(out)]
+    return [a * gains[i] for i, a in enumerate(out)]
 
 
 #: The motion is simulated this many times faster than the logger's rate when an effect

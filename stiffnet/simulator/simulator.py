@@ -27,6 +27,8 @@ from stiffnet.simulator.settings import SolverSettings
 #: so the switching function has at most one extremum per step.
 _CONTACT_STEP_FACTOR = 1.5
 _WHITE_NOISE_ORDER = 20
+#: The measurement chain's white noise comes after the effects of lower ``order``.
+WHITE_NOISE_ORDER = _WHITE_NOISE_ORDER
 
 
 @dataclass
