@@ -226,6 +226,7 @@ def simulate_rows(
     settings: CampaignSolverSettings = CampaignSolverSettings(),
     starts: Sequence[int] | None = None,
     effect_params: dict[str, dict[str, np.ndarray]] | None = None,
+    oversample: bool = True,
 ) -> list[np.ndarray]:
     """Simulate the rows as one batch; returns each row's acceleration in g.
 
@@ -247,6 +248,9 @@ def simulate_rows(
     effect_params : dict, optional
         Per-row parameter arrays by effect name (:meth:`Simulator.simulate`), e.g. the
         points of a fit's design stacked into one batch.
+    oversample : bool
+        False: analog effects filter at the logger's rate (:func:`oversampling`), a cheaper
+        and slightly biased simulation, for screening only.
 
     Returns
     -------
@@ -261,7 +265,7 @@ def simulate_rows(
         n = np.minimum(n, np.ceil(settings.periods * fs_ratio).astype(np.int64))
     noise = np.array([row_noise(r) for r in rows])
     x0, v0 = initial_states(rows, batch, seed, starts)
-    k = oversampling(effects)
+    k = oversampling(effects) if oversample else 1
     if k > 1:  # RK4 steps of an oversampled record: the sample step is already k times shorter
         settings = settings.model_copy(update={"substeps": max(1, -(-settings.substeps // k))})
     sim = Simulator(list(effects), settings)

@@ -30,8 +30,9 @@ Search, in the unit cube of the effect's fit space
   rows: the integrator's cost is per time step) get only a design spread over the
   budget, simulated as one batch holding :data:`SUBSET_NUMERICAL` recordings
   (spread over the campaign) once per point
-  (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`); the
-  best point is then scored alone on every recording.
+  (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`; an analog
+  sensor in the model filters at the logger's rate there, a screen at a quarter of the
+  integration steps); the best point is then scored alone on every recording, oversampled.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
   keep a share of the discrepancy that belongs to one found later.
@@ -49,6 +50,7 @@ from scipy import optimize
 from scipy.stats import qmc
 
 from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
+from stiffnet.campaign.simulate import oversampling
 from stiffnet.effects.base import Effect
 from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
@@ -349,13 +351,22 @@ def _fit_design(
     n = len(target.rows)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
-    pers = searched.per_recording_points(model, name, points, settings, inclination=False)
+    # the design screens: an analog sensor in the model filters at the logger's rate there
+    # (the numerical engine's cost is per step: 8x oversampled, 4x the steps), the best
+    # point is then scored with it oversampled
+    pers = searched.per_recording_points(
+        model, name, points, settings, inclination=False, oversample=False
+    )
     values = [objective_value(p, searched.weights) for p in pers]
     j = int(np.argmin(values))
     # "effect off" on the same recordings, scored like the design: when no point beats it
     # there, the effect is off (the best point would need a full evaluation to say so)
-    same = idx.size == n and not target.inclination
-    off_searched = off if same else searched.per_recording(model, settings, inclination=False)
+    same = idx.size == n and not target.inclination and oversampling(model) == 1
+    off_searched = (
+        off
+        if same
+        else searched.per_recording(model, settings, inclination=False, oversample=False)
+    )
     if values[j] >= objective_value(off_searched, searched.weights):
         per, rescored = off, False
     else:
