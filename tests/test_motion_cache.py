@@ -51,3 +51,22 @@ def test_reused_motion_gives_bitwise_the_same_signals_and_is_reused(monkeypatch)
         _run(models[0], x0=np.zeros(3), v0=np.zeros(3))
     assert len(calls) == 4
     assert not motion_cache._STORE  # nothing kept outside the block
+
+
+def test_a_longer_motion_serves_a_shorter_record_as_its_prefix(monkeypatch):
+    sensor = effect_class("sensor_dynamics")
+    model = [effect_class("contact_damping")(damping_ratio=0.2), sensor(highpass_hz=0.0)]
+
+    def run(n):
+        return Simulator(model).simulate(_batch(), 200.0, n, rng=np.random.default_rng(3))
+
+    fresh = run(500)
+    calls = []
+    real = Simulator._motion
+    monkeypatch.setattr(Simulator, "_motion", lambda self, *a: calls.append(1) or real(self, *a))
+    with motion_cache.reuse_motion():
+        run(800)
+        short = run(500)
+    assert len(calls) == 1
+    assert np.array_equal(short.accel, fresh.accel) and np.array_equal(short.x, fresh.x)
+    assert short.accel.shape == (3, 500)

@@ -71,16 +71,27 @@ def motion_key(*parts: Any) -> bytes:
     return h.digest()
 
 
-def motion(key: Callable[[], bytes], compute: Callable[[], Any]) -> Any:
-    """``compute()``, or the motion stored under ``key()`` inside :func:`reuse_motion`."""
+def motion(
+    key: Callable[[], bytes],
+    compute: Callable[[], Any],
+    n_samples: int,
+    prefix: Callable[[Any, int], Any],
+) -> Any:
+    """``compute()``, or the motion stored under ``key()`` inside :func:`reuse_motion`.
+
+    ``key`` leaves the number of samples out: a stored motion at least ``n_samples`` long
+    serves a shorter one as its first ``n_samples`` (``prefix(motion, n)``; the samples of a
+    longer record are the same, followed by more), e.g. a shorter lead-in before a record."""
     if not _STORE:
         return compute()
     (store, size), k = _STORE[-1], key()
-    if k in store:
+    if k in store and store[k][0] >= n_samples:
         store.move_to_end(k)
-        return store[k]
+        n, out = store[k]
+        return out if n == n_samples else prefix(out, n_samples)
     out = compute()
-    store[k] = out
+    store[k] = (n_samples, out)
+    store.move_to_end(k)
     while len(store) > size:
         store.popitem(last=False)
     return out

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -164,8 +164,10 @@ class Simulator:
         h = 2 * np.pi / fs_ratio
         t_tr = self.transient_time(batch)
         out = motion(
-            lambda: self._motion_key(batch, params, x0, v0, t_tr, h, n_samples),
+            lambda: self._motion_key(batch, params, x0, v0, t_tr, h),
             lambda: self._motion(batch, params, x0, v0, t_tr, h, n_samples),
+            n_samples,
+            _first_samples,
         )
         measured = self._measure(out.accel, batch, fs_ratio, noise, params, rng, masks)
         return SimulationResult(
@@ -192,7 +194,7 @@ class Simulator:
             x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
         )  # fmt: skip
 
-    def _motion_key(self, batch, params, x0, v0, t_tr, h, n_samples) -> bytes:
+    def _motion_key(self, batch, params, x0, v0, t_tr, h) -> bytes:
         """What the motion depends on (:mod:`stiffnet.simulator.motion_cache`)."""
         dyn = [
             (
@@ -205,8 +207,7 @@ class Simulator:
         ]
         fields = [getattr(batch, f) for f in ("beta", "gap", "amplitude", "omega", "damping")]
         return motion_key(
-            self.engine, dyn, fields, batch.natural_frequency_hz, x0, v0, t_tr, h,
-            n_samples, self.substeps,
+            self.engine, dyn, fields, batch.natural_frequency_hz, x0, v0, t_tr, h, self.substeps,
         )  # fmt: skip
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
@@ -283,3 +284,9 @@ class Simulator:
             return signal
         std = noise * batch.forcing_scale
         return signal + rng.standard_normal(signal.shape) * std[:, None]
+
+
+def _first_samples(out: Any, n: int) -> Any:
+    """The first ``n`` samples of an engine's output (``EngineResult``)."""
+    fields = ("x", "v", "accel", "contact_force", "impacts")
+    return replace(out, **{f: getattr(out, f)[:, :n] for f in fields})
