@@ -277,7 +277,8 @@ def simulate_rows(
     rng = np.random.default_rng([int(seed), 1])
     # the analog chain had been running before the record began: its start-up transient
     # (a charge amplifier's high-pass rings down over ~1/f_h) falls in a dropped lead-in
-    lead = np.ceil(lead_in_seconds(effects) * np.array([r.fs_hz for r in rows]) * k)
+    lead_s = lead_in_seconds(effects, LONGEST_COMPARISON_LEAD_IN_S)
+    lead = np.ceil(lead_s * np.array([r.fs_hz for r in rows]) * k)
     lead = lead.astype(np.int64)
     try:
         res = sim.simulate(
@@ -322,10 +323,19 @@ ANALOG_OVERSAMPLING = 8
 ANALOG_LEAD_IN_S = 1.5
 
 
-def lead_in_seconds(effects: Sequence[Effect]) -> float:
+#: The longest lead-in of the comparison simulations (:func:`simulate_rows`): a fit sweeps
+#: the sensor's high-pass corner down to 0, and seven time constants of a 0.05 Hz corner
+#: (22 s at 8x oversampling) would cost several evaluations; below 0.37 Hz the start-up
+#: drift that is left is a slow offset a fit of the corner avoids, and such a corner
+#: hardly touches a forcing near 10 Hz (a 0.6 degree lead at 0.1 Hz).
+LONGEST_COMPARISON_LEAD_IN_S = 3.0
+
+
+def lead_in_seconds(effects: Sequence[Effect], longest: float = 20.0) -> float:
     """Seconds simulated and dropped before each row: :data:`ANALOG_LEAD_IN_S` for an analog
     effect with a high-pass (``highpass_hz`` > 0: seven of its time constants, at least that
-    long), a tenth of a second for one without (a resonance rings in within ms), else 0."""
+    long, at most ``longest``), a tenth of a second for one without (a resonance rings in
+    within ms), else 0."""
     out = 0.0
     for e in effects:
         if not getattr(e, "analog", False):
@@ -333,7 +343,7 @@ def lead_in_seconds(effects: Sequence[Effect]) -> float:
         hp = getattr(getattr(e, "params", None), "highpass_hz", 0.0)
         hp = min(hp) if isinstance(hp, list | tuple) else float(hp or 0.0)
         lead = max(ANALOG_LEAD_IN_S, 7.0 / (2 * math.pi * hp)) if hp > 0 else 0.1
-        out = max(out, min(lead, 20.0))
+        out = max(out, min(lead, longest))
     return out
 
 
