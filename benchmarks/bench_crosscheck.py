@@ -219,7 +219,7 @@ def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
         cost = time.process_time() - t
         chain = getattr(r, "sensor", None)  # the code before the chain fit has none
         out["restoring_force"].append(
-            dict(cls=r.physical_class if r.ok else "refused", beta=r.beta, flag=False,
+            dict(cls=r.restoring_force_class if r.ok else "refused", beta=r.beta, flag=False,
                  interval=r.beta_interval, cost=cost, ok=r.ok,
                  sensor=chain.to_dict() if chain is not None else None)
         )  # fmt: skip
@@ -334,9 +334,10 @@ def campaign_agreement(seed: int = 0) -> dict[str, Any]:
                 rec.accel, rec.fs_hz, natural_frequency_hz=row.natural_frequency_hz
             )
             per.append(dict(recording=row.recording, truth=class_of(row.beta), learned=p["class"],
-                            physical=p["physical_class"], geometric=p["geometric"]["class"],
-                            physical_beta=p["physical_beta"], beta=row.beta,
-                            reason=p["physical"]["reason"]))  # fmt: skip
+                            restoring_force=p["restoring_force_class"],
+                            geometric=p["geometric"]["class"],
+                            restoring_force_beta=p["restoring_force_beta"], beta=row.beta,
+                            reason=p["restoring_force"]["reason"]))  # fmt: skip
     n = len(per)
 
     def count(a: str, b: str) -> int:
@@ -344,10 +345,10 @@ def campaign_agreement(seed: int = 0) -> dict[str, Any]:
 
     return {
         "n": n,
-        "learned_vs_restoring_force": count("learned", "physical"),
+        "learned_vs_restoring_force": count("learned", "restoring_force"),
         "learned_vs_geometric": count("learned", "geometric"),
-        "correct": {m: count(m, "truth") for m in ("learned", "physical", "geometric")},
-        "disagreements": [r for r in per if r["learned"] != r["physical"]],
+        "correct": {m: count(m, "truth") for m in ("learned", "restoring_force", "geometric")},
+        "disagreements": [r for r in per if r["learned"] != r["restoring_force"]],
     }
 
 
@@ -385,7 +386,7 @@ def main(argv: list[str] | None = None) -> int:
             f"\nideal 24-recording campaign: learned vs restoring force agree on "
             f"{agree['learned_vs_restoring_force']}/{n}, learned vs geometric on "
             f"{agree['learned_vs_geometric']}/{n}; correct class: learned {c['learned']}/{n}, "
-            f"restoring force {c['physical']}/{n}, geometric {c['geometric']}/{n}"
+            f"restoring force {c['restoring_force']}/{n}, geometric {c['geometric']}/{n}"
         )
         for r in agree["disagreements"]:
             print(f"  disagree: {r}")

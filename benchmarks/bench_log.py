@@ -86,7 +86,7 @@ def calibrate(predictor, minutes: float) -> None:
     for name, a in consts:
         row = []
         for pen in PENALTIES:
-            r = stiffness_log(predictor, a, FS, FN, penalty=pen, physical_every_s=None)
+            r = stiffness_log(predictor, a, FS, FN, penalty=pen, restoring_force_every_s=None)
             rate = (len(r["layers"]) - 1) * 10.0 / minutes
             worst[pen] = max(worst[pen], rate)
             row.append(f"{rate:.1f}")
@@ -98,7 +98,7 @@ def calibrate(predictor, minutes: float) -> None:
     for name, a, true, betas in changes:
         row = []
         for pen in PENALTIES:
-            r = stiffness_log(predictor, a, FS, FN, penalty=pen, physical_every_s=None)
+            r = stiffness_log(predictor, a, FS, FN, penalty=pen, restoring_force_every_s=None)
             found = [c["t_s"] for c in r["changes"]]
             hit = sum(any(abs(f - t) <= 1.0 for f in found) for t in true)
             err = "-"
@@ -177,7 +177,7 @@ def independent(predictor) -> None:
         run = RigRun("drill.csv", beta=first, fs_hz=FS, duration_s=120.0,
                      contact="kelvin_voigt", contact_zeta=0.1, noise=0.03)  # fmt: skip
         _, a = record(run, beta_schedule=schedule)
-        r = stiffness_log(predictor, a, FS, FN, physical_every_s=None)
+        r = stiffness_log(predictor, a, FS, FN, restoring_force_every_s=None)
         found = [c["t_s"] for c in r["changes"]]
         errs = ", ".join(
             f"{f:.1f} ({f - t:+.1f})" for f, (t, _) in zip(found, schedule, strict=False)

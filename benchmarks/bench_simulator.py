@@ -9,7 +9,7 @@ natural periods) and the same sample times.
 * ``Simulator`` (the compiled closed-form engine) runs the whole batch at once,
   on one numba thread (the headline: per core, like the reference) and on all
   of numba's threads (``NUMBA_NUM_THREADS``, default: the cores);
-* the reference, :func:`stiffnet.simulator.reference.reference_trajectory`
+* the reference, ``tests/reference_solve_ivp.py``'s ``reference_trajectory``
   (DOP853, rtol 1e-10, atol 1e-12, terminal events, dense output, scalar
   right-hand sides with ``math.sin``: an efficient scipy user's code), runs a
   handful of them, one after the other (it manages ~10,000 samples/s).
@@ -36,14 +36,18 @@ import argparse
 import cProfile
 import os
 import pstats
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from stiffnet.simulator import compiled
 from stiffnet.simulator.batch import OscillatorBatch
-from stiffnet.simulator.reference import reference_trajectory
 from stiffnet.simulator.simulator import Simulator
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from reference_solve_ivp import reference_trajectory  # noqa: E402  (a test oracle)
 
 DOMAIN = {  # the default sampling domain of the parameter sets
     "beta": (5.0, 100.0),

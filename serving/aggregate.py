@@ -32,26 +32,32 @@ def segments(
     out: dict[str, np.ndarray],
     starts: np.ndarray,
     window: int,
+    n_samples: int,
     fs: float,
     per_segment: int,
     class_names: list[str],
     no_contact: int | None,
 ) -> list[dict[str, Any]]:
-    """Consecutive runs of `per_segment` windows, each aggregated like the recording."""
+    """The record in tiles of `per_segment` window lengths, each aggregated like the recording.
+
+    A window belongs to the tile holding its centre (the windows slide, so each
+    tile gets the windows centred in it and none is counted twice); a tile
+    without a window is left out; the last tile ends with the record.
+    """
+    span = per_segment * window
+    tile = (np.asarray(starts) + window // 2) // span
     found = []
-    n = len(starts)
-    for k, lo in enumerate(range(0, n, per_segment)):
-        hi = min(n, lo + per_segment)
-        run = {name: v[lo:hi] for name, v in out.items()}
+    for k in np.unique(tile):
+        run = {name: v[tile == k] for name, v in out.items()}
         seg = aggregate_windows(
             run["probabilities"], run["log_beta"], run.get("log_beta_scale"), no_contact
         )
         found.append(
             {
-                "index": k,
-                "start_s": float(starts[lo] / fs),
-                "end_s": float((starts[hi - 1] + window) / fs),
-                "n_windows": hi - lo,
+                "index": len(found),
+                "start_s": float(k * span / fs),
+                "end_s": float(min(n_samples, (k + 1) * span) / fs),
+                "n_windows": int((tile == k).sum()),
                 "class": class_names[seg.label],
                 "probabilities": named(class_names, seg.probabilities),
                 "beta": math.exp(seg.log_beta) if seg.log_beta is not None else None,

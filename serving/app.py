@@ -95,7 +95,7 @@ from serving.schemas import (
 )
 from stiffnet import __version__
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import HINT_CONTEXT
+from stiffnet.inputs import HINT_CONTEXT, one_line
 
 #: One-line log of the server's events (uvicorn configures this logger).
 log = logging.getLogger("uvicorn.error")
@@ -513,6 +513,15 @@ def _lines_over(path: Path, limit: int) -> bool:
     return False
 
 
+def check_upload_size(path: Path, max_samples: int) -> None:
+    """Refuse a file over `max_samples` by what it says before it is read (a CSV's lines,
+    an ``.npy`` header's shape); other formats are counted once read."""
+    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
+        _check_samples(max_samples + 1, max_samples, "over")
+    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
+        _check_samples(_npy_values(path), max_samples, "over")
+
+
 def _predict_file(
     predictor: Predictor,
     data: bytes | Path,
@@ -560,10 +569,7 @@ def _predict_path(
     }
     fn_hz = _number_field(fn, "natural_frequency_hz")
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
-    if path.suffix.lower() == ".csv" and _lines_over(path, max_samples + 2):  # a line a sample
-        _check_samples(max_samples + 1, max_samples, "over")
-    if path.suffix.lower() == ".npy":  # the header says the shape: refused before loading
-        _check_samples(_npy_values(path), max_samples, "over")
+    check_upload_size(path, max_samples)
     hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
     try:
         rec = read_recording(path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout)
@@ -687,16 +693,12 @@ def create_app(
     from fastapi_offline import FastAPIOffline  # Swagger UI / ReDoc assets, no CDN
 
     limits = limits or Limits()
-    predict_body = _predict_body()  # the formats registered now
-    small = ThreadPoolExecutor(max_workers=limits.max_concurrency, thread_name_prefix="predict")
-    large = ThreadPoolExecutor(max_workers=limits.max_large, thread_name_prefix="predict-large")
-    state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
+    admission = Admission(predictor, limits)
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI):
         yield
-        for pool in (small, large):
-            pool.shutdown(wait=False, cancel_futures=True)
+        admission.shutdown()
 
     app = FastAPIOffline(
         title="stiffnet predictor",
@@ -705,7 +707,22 @@ def create_app(
         'the geometric inclination method as cross-check. Errors: {"error": "..."}.',
         lifespan=lifespan,
     )
-    app.state.load = state  # requests in flight per lane (read by /health and tests)
+    app.state.load = admission.state  # requests in flight per lane (read by /health and tests)
+    _add_guards(app, limits, token, allowed_hosts, cors_origins, access)
+    _add_error_handlers(app, limits)
+    _add_routes(app, predictor, limits, admission)
+    return app
+
+
+def _add_guards(
+    app: FastAPI,
+    limits: Limits,
+    token: str | None,
+    allowed_hosts: list[str] | None,
+    cors_origins: list[str] | None,
+    access: bool,
+) -> None:
+    """Who may call and how much they may send: body limits, token and Host, CORS, access log."""
     app.add_middleware(BodyLimit, max_bytes=limits.max_bytes, timeout_s=limits.body_timeout_s,
                        idle_s=limits.body_idle_s)  # fmt: skip
     app.add_middleware(Guard, token=token, allowed_hosts=allowed_hosts)
@@ -715,6 +732,10 @@ def create_app(
                            allow_headers=["Authorization", "Content-Type"])  # fmt: skip
     if access:  # outermost: every answer is logged, the guards' refusals included
         app.add_middleware(AccessLog)
+
+
+def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
+    """How each failure answers: a status and a JSON body with one line, never a traceback."""
 
     @app.exception_handler(StiffnetError)
     async def _stiffnet(_req: Request, exc: StiffnetError) -> JSONResponse:
@@ -764,23 +785,47 @@ def create_app(
     async def _validation(_req: Request, exc: RequestValidationError) -> JSONResponse:
         return _error(422, f"invalid request: {exc.errors()[:1]}")
 
-    per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
 
-    def release(key: str, host: str | None = None) -> Callable[[Any], None]:
+class Admission:
+    """Who gets a place, and where the work runs.
+
+    Two lanes: small requests (bodies being read are bounded apart from the worker
+    queue, which counts read bodies only) and large ones (admitted - reading,
+    waiting or running - up to their cap, refused unread beyond); each lane also
+    bounds what one client address holds, so a client stalling uploads blocks
+    itself. ``state`` counts what each lane holds (``/health``, tests).
+    """
+
+    def __init__(self, predictor: Predictor, limits: Limits) -> None:
+        self.predictor, self.limits = predictor, limits
+        self.small = ThreadPoolExecutor(max_workers=limits.max_concurrency,
+                                        thread_name_prefix="predict")  # fmt: skip
+        self.large = ThreadPoolExecutor(max_workers=limits.max_large,
+                                        thread_name_prefix="predict-large")  # fmt: skip
+        self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
+        self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
+
+    def shutdown(self) -> None:
+        for pool in (self.small, self.large):
+            pool.shutdown(wait=False, cancel_futures=True)
+
+    def release(self, key: str, host: str | None = None) -> Callable[[Any], None]:
+        """A callback that frees one place of lane `key` (and of its client)."""
+
         def done(_f: Any = None) -> None:
-            state[key] -= 1
+            self.state[key] -= 1
             if host is not None:
-                per_client[key, host] -= 1
-                if not per_client[key, host]:
-                    del per_client[key, host]
+                self.per_client[key, host] -= 1
+                if not self.per_client[key, host]:
+                    del self.per_client[key, host]
 
         return done
 
     async def body_job(
-        request: Request, ctype: str, what: str
+        self, request: Request, ctype: str, what: str
     ) -> Callable[[], dict] | JSONResponse:
         """Read the body (the event loop only streams it) into a job for a worker thread."""
-        n = limits.max_samples
+        predictor, n = self.predictor, self.limits.max_samples
         if ctype == "application/json":
             body = await request.body()
             return partial(_predict_json, predictor, body, n, what)
@@ -794,34 +839,20 @@ def create_app(
                               f"{', '.join(FORM_FIELDS)})")  # fmt: skip
             name = upload.filename or "upload"
             spooled = await asyncio.to_thread(spool_upload, upload.file, name)
+            try:  # an upload over the limit is refused now, not after its wait for a worker
+                await asyncio.to_thread(check_upload_size, spooled, n)
+            except BaseException:
+                shutil.rmtree(spooled.parent, ignore_errors=True)
+                raise
             job = partial(_predict_file, predictor, spooled, name, form.get("fs_hz"),
                           form.get("natural_frequency_hz"), n, form.get("columns"),
                           form.get("time_unit"), form.get("channel"), what)  # fmt: skip
             job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
             return job
 
-    @app.post(
-        "/predict",
-        response_model=PredictionResult,
-        responses=_ERRORS,
-        openapi_extra=predict_body,
-        summary="Predict one recording (JSON samples or a file upload)",
-    )
-    async def predict(request: Request) -> JSONResponse:
-        return await answer(request, "predict")
-
-    @app.post(
-        "/log",
-        response_model=LogResult,
-        responses=_ERRORS,
-        openapi_extra=predict_body,
-        summary="Stiffness log of one recording: beta(t), layers, change times "
-        "(the document of stiffnet log --json)",
-    )
-    async def log_route(request: Request) -> JSONResponse:
-        return await answer(request, "log")
-
-    async def answer(request: Request, what: str) -> JSONResponse:
+    async def answer(self, request: Request, what: str) -> JSONResponse:
+        """Admit the request to its lane (or 429), read its body, run it on a worker."""
+        limits, state = self.limits, self.state
         ctype = request.headers.get("content-type", "").split(";")[0].strip().lower()
         if ctype not in ("application/json", "multipart/form-data"):
             return _error(
@@ -829,25 +860,21 @@ def create_app(
             )
         length = request.headers.get("content-length")
         is_large = length is None or not length.isdigit() or int(length) > limits.small_bytes
-        # Large: admitted (reading, waiting or running) up to its cap, refused unread beyond.
-        # Small: bodies being read are bounded apart (a stalled sender must not take a
-        # worker's queue place); the worker queue counts read bodies only. Each lane also
-        # bounds what one client address holds: a client stalling uploads blocks itself.
         key, cap, mine = ("large", limits.max_large + limits.max_large_queue,
                           MAX_LARGE_PER_CLIENT) if is_large else (
             "reading", MAX_SMALL_READERS, MAX_READERS_PER_CLIENT)  # fmt: skip
         host = request.client.host if request.client else "unknown"
         lane = "large requests" if is_large else "uploads being received"
-        if per_client.get((key, host), 0) >= mine:
+        if self.per_client.get((key, host), 0) >= mine:
             return _error(429, f"too many {lane} from this client; retry later",
                           {"Retry-After": "1"})  # fmt: skip
         if state[key] >= cap:  # refused before its body is read: memory stays bounded
             return _error(429, f"too many {lane}; retry later", {"Retry-After": "1"})
         state[key] += 1
-        per_client[key, host] = per_client.get((key, host), 0) + 1
-        done = release(key, host)
+        self.per_client[key, host] = self.per_client.get((key, host), 0) + 1
+        done = self.release(key, host)
         try:
-            job = await body_job(request, ctype, what)
+            job = await self.body_job(request, ctype, what)
         except BaseException:
             done()
             raise
@@ -865,17 +892,55 @@ def create_app(
                 return _error(429, "too many requests in flight; retry later",
                               {"Retry-After": "1"})  # fmt: skip
             state["in_flight"] += 1
-            done = release("in_flight")
-        pool = large if is_large else small
+            done = self.release("in_flight")
+        return await self._run(job, self.large if is_large else self.small, done)
+
+    async def _run(self, job: Callable[[], dict], pool: Any, done: Callable) -> JSONResponse:
         loop = asyncio.get_running_loop()
         fut = loop.run_in_executor(pool, job)
         fut.add_done_callback(done)  # a timed-out job keeps its slot until its thread ends
         try:
-            result = await asyncio.wait_for(asyncio.shield(fut), limits.timeout_s)
+            result = await asyncio.wait_for(asyncio.shield(fut), self.limits.timeout_s)
         except TimeoutError:
-            return _error(504, f"prediction did not finish within {limits.timeout_s:g} s")
-        state["served"] += 1
+            fut.add_done_callback(_outcome_unheard)
+            return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
+        self.state["served"] += 1
         return JSONResponse(result)
+
+
+def _outcome_unheard(fut: Any) -> None:
+    """A job whose request was answered 504 ends later: one log line, never a traceback of an
+    unretrieved exception."""
+    exc = None if fut.cancelled() else fut.exception()
+    if exc is not None:
+        log.warning("a request answered 504 failed afterwards: %s", one_line(exc, 200))
+
+
+def _add_routes(app: FastAPI, predictor: Predictor, limits: Limits, admission: Admission) -> None:
+    """What is served: ``POST /predict``, ``POST /log``, ``GET /health``, ``GET /model``."""
+    predict_body = _predict_body()  # the formats registered now
+    state = admission.state
+
+    @app.post(
+        "/predict",
+        response_model=PredictionResult,
+        responses=_ERRORS,
+        openapi_extra=predict_body,
+        summary="Predict one recording (JSON samples or a file upload)",
+    )
+    async def predict(request: Request) -> JSONResponse:
+        return await admission.answer(request, "predict")
+
+    @app.post(
+        "/log",
+        response_model=LogResult,
+        responses=_ERRORS,
+        openapi_extra=predict_body,
+        summary="Stiffness log of one recording: beta(t), layers, change times "
+        "(the document of stiffnet log --json)",
+    )
+    async def log_route(request: Request) -> JSONResponse:
+        return await admission.answer(request, "log")
 
     @app.get(
         "/health",
@@ -914,5 +979,3 @@ def create_app(
                 "body_timeout_s": limits.body_timeout_s,
             },
         }
-
-    return app

@@ -7,9 +7,9 @@ per-window split-conformal interval (``exp(log beta +- q)``, ``q`` the model's
 ``conformal_quantile``), its class with hysteresis at class edges, and the alarm
 evaluated on that window (the model's embedding distance, ambiguity, beta
 uncertainty and class edge, against the thresholds calibrated per recording: one
-window is a short recording). Every :data:`PHYSICAL_EVERY_S` seconds a point also
+window is a short recording). Every :data:`RESTORING_FORCE_EVERY_S` seconds a point also
 carries the restoring-force cross-check on the window it ends
-(:func:`serving.physical.physical_check`).
+(:func:`serving.restoring_force_check.restoring_force_check`).
 
 The **layers** are the segments of constant mean log beta found by
 :class:`stiffnet.layers.LayerSegmenter` (penalised change in mean, penalty
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from serving.physical import physical_check
+from serving.restoring_force_check import restoring_force_check
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
@@ -46,9 +46,9 @@ from stiffnet.uncertainty.alarm import recording_checks
 #: Largest hop between points (s).
 MAX_HOP_S = 0.5
 #: Seconds between two restoring-force cross-checks along the record (~30 ms each).
-PHYSICAL_EVERY_S = 10.0
+RESTORING_FORCE_EVERY_S = 10.0
 #: Restoring-force checks an open layer keeps for its median (the latest; ~3 h at 10 s).
-MAX_PHYSICAL_CHECKS = 1000
+MAX_RESTORING_FORCE_CHECKS = 1000
 #: Windows per ONNX Runtime call in the log.
 LOG_BATCH = 128
 #: Share of a layer's points with the alarm above which the layer is flagged.
@@ -66,7 +66,7 @@ class StiffnessLogger:
         Sampling rate and natural frequency (range-checked by the caller).
     hop_s : float
         Time between points (<= :data:`MAX_HOP_S`).
-    physical_every_s : float or None
+    restoring_force_every_s : float or None
         Seconds between restoring-force cross-checks (None: none).
     penalty : float, optional
         Change penalty per window length (default
@@ -80,7 +80,7 @@ class StiffnessLogger:
         natural_frequency_hz: float,
         *,
         hop_s: float = MAX_HOP_S,
-        physical_every_s: float | None = PHYSICAL_EVERY_S,
+        restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
         penalty: float | None = None,
     ) -> None:
         from serving.checks import rate_warnings
@@ -94,10 +94,12 @@ class StiffnessLogger:
         #: the rate checks of the predictor (a rate below the training data's is refused)
         self.warnings = rate_warnings(self.fs, self.fn, "record")
         self.n_win = window_length(self.fs, self.fn, predictor.window_periods)
-        self.hop = max(1, int(round(hop_s * self.fs)))
+        self.hop = hop_samples(hop_s, self.fs)
         self.hop_s = self.hop / self.fs
-        self.physical_every = (
-            None if not physical_every_s else max(self.hop, int(round(physical_every_s * self.fs)))
+        self.restoring_force_every = (
+            None
+            if not restoring_force_every_s
+            else max(self.hop, int(round(restoring_force_every_s * self.fs)))
         )
         self.buf = np.empty(0)
         self.buf_start = 0  # absolute index of buf[0]
@@ -106,7 +108,7 @@ class StiffnessLogger:
         self.previous_class: str | None = None
         self.previous_layer_class: str | None = None
         self.layers: list[dict[str, Any]] = []
-        self.physical: list[dict[str, Any]] = []  # checks not yet assigned to a layer
+        self.restoring_force: list[dict[str, Any]] = []  # checks not yet assigned to a layer
         self.segmenter = LayerSegmenter(
             window_points=max(1, int(math.ceil(self.n_win / self.hop))),
             hop_s=self.hop_s,
@@ -138,7 +140,7 @@ class StiffnessLogger:
             if ready <= 0:
                 break
             events.extend(self._windows(min(int(ready), LOG_BATCH)))
-        # keep what the next window and the next physical check need
+        # keep what the next window and the next restoring-force check need
         keep_from = self.next_window * self.hop
         drop = max(0, keep_from - self.buf_start)
         if drop:
@@ -160,37 +162,69 @@ class StiffnessLogger:
 
     def _windows(self, n: int) -> list[tuple[str, dict[str, Any]]]:
         starts = (self.next_window + np.arange(n)) * self.hop
-        idx = (starts - self.buf_start)[:, None] + np.arange(self.n_win)[None, :]
-        W = self.buf[idx]
-        ok = W.std(axis=1) > 0
-        events: list[tuple[str, dict[str, Any]]] = []
+        ok = varying_windows(self.buf, starts - self.buf_start, self.n_win)
         out: dict[str, np.ndarray] = {}
         emb = None
         if ok.any():
-            out, _, _ = self.p._run_model(W[ok], self.fs, self.fn)
-            a = self.p.alarm
-            if a is not None and "embedding" in out and "embedding" in a.thresholds:
-                emb = a.embedding_scores(out["embedding"])
+            # no geometric cross-check along the log: only what the model's input needs
+            out, _, _ = self.p._run_model(self.buf, starts[ok] - self.buf_start, self.n_win,
+                                          self.fs, self.fn, geometric_windows=0)  # fmt: skip
+            emb = window_embedding_scores(self.p.alarm, out)
+        return self._emit(starts, ok, out, emb)
+
+    def replay(
+        self,
+        accel: np.ndarray,
+        ok: np.ndarray,
+        out: dict[str, np.ndarray],
+        emb: np.ndarray | None,
+    ) -> list[tuple[str, dict[str, Any]]]:
+        """The events of a whole record whose windows the model has already read.
+
+        `accel` is the record, `ok` which of its windows (``window_starts(accel.size,
+        n_win, hop)``) are not constant, `out` and `emb` the model's outputs and the
+        embedding distances of those windows in order. The same points and layers as
+        :meth:`feed` followed by :meth:`finish`, without running the model again: what
+        ``predict`` uses, having run the model over these windows for the recording's
+        own estimate.
+        """
+        if self.n_total:
+            raise RuntimeError("replay() needs a fresh logger")
+        self.buf = np.asarray(accel, dtype=np.float64).reshape(-1)
+        self.n_total = self.buf.size
+        starts = np.arange(len(ok)) * self.hop
+        events = self._emit(starts, ok, out, emb)
+        return events + self.finish()
+
+    def _emit(
+        self,
+        starts: np.ndarray,
+        ok: np.ndarray,
+        out: dict[str, np.ndarray],
+        emb: np.ndarray | None,
+    ) -> list[tuple[str, dict[str, Any]]]:
+        """Points (and the layers they close) of the windows at `starts`, in order."""
+        events: list[tuple[str, dict[str, Any]]] = []
         k = 0
-        for i in range(n):
+        for i in range(len(starts)):
             j = self.next_window + i
             end = int(starts[i]) + self.n_win
             if not ok[i]:
                 continue  # a constant window (a dropped-out sensor) gives no point
             point = self._point(j, out, k, None if emb is None else emb[k])
             k += 1
-            if self.physical_every and end // self.physical_every > (end - self.hop) // (
-                self.physical_every
-            ):
+            if self.restoring_force_every and end // self.restoring_force_every > (
+                end - self.hop
+            ) // (self.restoring_force_every):
                 seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
-                ph = physical_check(seg, self.fs, self.fn)
-                point["physical"] = _physical_fields(ph)
-                self.physical.append({"t": point["t"], **point["physical"]})
-                del self.physical[:-MAX_PHYSICAL_CHECKS]  # an endless layer: bounded
+                ph = restoring_force_check(seg, self.fs, self.fn)
+                point["restoring_force"] = _restoring_force_fields(ph)
+                self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
+                del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
-        self.next_window += n
+        self.next_window += len(starts)
         return events
 
     def _point(self, j: int, out: dict[str, np.ndarray], k: int, emb: float | None) -> dict:
@@ -245,10 +279,10 @@ class StiffnessLogger:
             cls, near = "no_contact", False
         inside = [
             c
-            for c in self.physical
+            for c in self.restoring_force
             if raw["start_s"] + self.window_s <= c["t"] <= raw["end_s"] - 0.5 * self.window_s
         ]
-        self.physical = [c for c in self.physical if c["t"] > raw["end_s"]]
+        self.restoring_force = [c for c in self.restoring_force if c["t"] > raw["end_s"]]
         layer = {
             "index": len(self.layers),
             "start_s": raw["start_s"],
@@ -265,10 +299,37 @@ class StiffnessLogger:
             "n_pooled": raw["n_pooled"],
             "alarm_fraction": raw["alarm_fraction"],
             "alarm": raw["alarm_fraction"] > LAYER_ALARM_SHARE,
-            "physical": _layer_physical(inside, cls),
+            "restoring_force": _layer_restoring_force(inside, cls),
         }
         self.layers.append(layer)
         return layer
+
+
+def hop_samples(hop_s: float, fs_hz: float) -> int:
+    """The log's hop in samples (the predictor's windows use the same)."""
+    return max(1, int(round(hop_s * fs_hz)))
+
+
+def varying_windows(a: np.ndarray, starts: np.ndarray, n_win: int) -> np.ndarray:
+    """Which windows of `n_win` samples of `a` at `starts` are not constant.
+
+    A constant window (a dropped-out sensor) gives no model output. Exact (a window
+    varies iff two neighbouring samples in it differ) and without cutting the
+    windows out of the record.
+    """
+    starts = np.asarray(starts, dtype=np.int64)
+    changes = np.flatnonzero(a[1:] != a[:-1])  # a[i + 1] differs from a[i]
+    if changes.size == 0:
+        return np.zeros(starts.size, dtype=bool)
+    k = np.minimum(np.searchsorted(changes, starts), changes.size - 1)
+    return (changes[k] >= starts) & (changes[k] <= starts + n_win - 2)
+
+
+def window_embedding_scores(alarm: Any, out: dict[str, np.ndarray]) -> np.ndarray | None:
+    """Each window's embedding distance to the training data (None when not checked)."""
+    if alarm is None or "embedding" not in out or "embedding" not in alarm.thresholds:
+        return None
+    return alarm.embedding_scores(out["embedding"])
 
 
 def _classes(edges: list[float] | None) -> tuple[tuple[str, float, float], ...]:
@@ -280,7 +341,7 @@ def _classes(edges: list[float] | None) -> tuple[tuple[str, float, float], ...]:
     return DEFAULT_CLASSES
 
 
-def _physical_fields(ph: dict[str, Any]) -> dict[str, Any]:
+def _restoring_force_fields(ph: dict[str, Any]) -> dict[str, Any]:
     return {
         "class": ph["class"],
         "beta": ph["beta"],
@@ -290,7 +351,7 @@ def _physical_fields(ph: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def _layer_physical(checks: list[dict[str, Any]], cls: str) -> dict[str, Any]:
+def _layer_restoring_force(checks: list[dict[str, Any]], cls: str) -> dict[str, Any]:
     """The restoring-force checks inside a layer: median beta and interval, agreement."""
     got = [c for c in checks if c["beta"] is not None and c["beta_interval"]]
     if not got:
@@ -323,8 +384,8 @@ def _public(point: dict[str, Any]) -> dict[str, Any]:
         "alarm": bool(point["alarm"]),
         "alarm_fired": list(point["alarm"]),
     }
-    if "physical" in point:
-        out["physical"] = point["physical"]
+    if "restoring_force" in point:
+        out["restoring_force"] = point["restoring_force"]
     return out
 
 
@@ -335,7 +396,7 @@ def stiffness_log(
     natural_frequency_hz: float,
     *,
     hop_s: float = MAX_HOP_S,
-    physical_every_s: float | None = PHYSICAL_EVERY_S,
+    restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
     penalty: float | None = None,
     source: str = "",
     progress: Callable[[int, int], None] | None = None,
@@ -352,7 +413,7 @@ def stiffness_log(
         Sampling rate and natural frequency in Hz.
     hop_s : float
         Time between points (<= 0.5 s).
-    physical_every_s : float or None
+    restoring_force_every_s : float or None
         Seconds between restoring-force cross-checks (None: none).
     penalty : float, optional
         Change penalty per window length (default: the calibrated one).
@@ -370,8 +431,8 @@ def stiffness_log(
     from serving.checks import finite_samples
 
     a = finite_samples(accel, source or "recording")
-    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, hop_s=hop_s,
-                          physical_every_s=physical_every_s, penalty=penalty)  # fmt: skip
+    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, hop_s=hop_s, penalty=penalty,
+                          restoring_force_every_s=restoring_force_every_s)  # fmt: skip
     if a.size < log.n_win:
         raise StiffnetError(
             f"{source or 'recording'}: {a.size / fs_hz:.3g} s is shorter than one model window "
@@ -445,19 +506,29 @@ LAYERS_CHECK = "layers"
 
 
 def record_layers(
-    predictor: Any, accel: np.ndarray, fs_hz: float, natural_frequency_hz: float
+    predictor: Any,
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    windows: tuple[np.ndarray, dict[str, np.ndarray], np.ndarray | None] | None = None,
 ) -> list[dict[str, Any]]:
-    """The layers of a recording as ``stiffnet log`` finds them (without the physical checks).
+    """The layers of a recording as ``stiffnet log`` finds them (no restoring-force checks).
 
     What ``predict`` uses to say that beta changes along the record instead of
     reporting a blend in silence: the same sliding windows (hop 0.5 s) and the same
     calibrated segmenter as the log, so both commands name the same layers.
+    `windows` is ``(ok, out, emb)`` of :meth:`StiffnessLogger.replay` when the model
+    has already read the log's windows (the predictor's one pass); without it the
+    model reads them here.
     """
-    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, physical_every_s=None)
+    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, restoring_force_every_s=None)
     if accel.size < log.n_win:
         return []
-    layers = [item for kind, item in log.feed(accel) if kind == "layer"]
-    layers += [item for _, item in log.finish()]
+    if windows is not None:
+        layers = [item for kind, item in log.replay(accel, *windows) if kind == "layer"]
+    else:
+        layers = [item for kind, item in log.feed(accel) if kind == "layer"]
+        layers += [item for _, item in log.finish()]
     keep = ("index", "start_s", "start_sd_s", "end_s", "end_sd_s", "class", "near_edge", "beta",
             "beta_interval", "n_points", "alarm_fraction")  # fmt: skip
     return [{k: la[k] for k in keep} for la in layers]

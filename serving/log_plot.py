@@ -41,9 +41,9 @@ def log_figure(
         al = np.array([p["alarm"] for p in pts])
         if al.any():
             ax.plot(t[al], b[al], "x", color="red", ms=5, label="alarm")
-    ph = [p for p in log["points"] if p.get("physical", {}).get("beta") is not None]
+    ph = [p for p in log["points"] if p.get("restoring_force", {}).get("beta") is not None]
     if ph:
-        ax.plot([p["t_s"] for p in ph], [p["physical"]["beta"] for p in ph], "D", ms=4,
+        ax.plot([p["t_s"] for p in ph], [p["restoring_force"]["beta"] for p in ph], "D", ms=4,
                 color="tab:green", label="restoring force")  # fmt: skip
     for la in log["layers"]:
         if la["beta"] is None:

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import read_json
+from stiffnet.inputs import MAX_DEPTH, MAX_DOCUMENT_BYTES, read_json
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import shipped_file
 
@@ -62,20 +62,54 @@ STRING_KEYS = frozenset(
 )
 
 
-def onnx_metadata(sess: Any) -> dict[str, Any]:
-    """An ONNX Runtime session's custom metadata, JSON values decoded (see :data:`STRING_KEYS`)."""
+def onnx_metadata(sess: Any, where: object = "model") -> dict[str, Any]:
+    """An ONNX Runtime session's custom metadata, JSON values decoded (see :data:`STRING_KEYS`).
+
+    Bounded like every document stiffnet reads (:mod:`stiffnet.inputs`): at most
+    :data:`~stiffnet.inputs.MAX_DOCUMENT_BYTES` in all and no value nested deeper
+    than :data:`~stiffnet.inputs.MAX_DEPTH` levels, else a one-line
+    :class:`StiffnetError` naming the model and the key - in the library, so the
+    CLI, HTTP and Python users all get it.
+    """
     items = sess.get_modelmeta().custom_metadata_map.items()
-    return {k: decode_metadata_value(k, v) for k, v in items}
+    size = sum(len(k) + len(v) for k, v in items)
+    if size > MAX_DOCUMENT_BYTES:
+        raise StiffnetError(
+            f"{where}: the model's metadata is larger than {MAX_DOCUMENT_BYTES // 2**20} MB"
+        )
+    return {k: decode_metadata_value(k, v, where) for k, v in items}
 
 
-def decode_metadata_value(key: str, value: str) -> Any:
-    """One metadata value: JSON-decoded, except the plain strings of :data:`STRING_KEYS`."""
+def decode_metadata_value(key: str, value: str, where: object = "model") -> Any:
+    """One metadata value: JSON-decoded, except the plain strings of :data:`STRING_KEYS`.
+
+    Raises
+    ------
+    StiffnetError
+        The value is JSON nested deeper than :data:`~stiffnet.inputs.MAX_DEPTH` levels.
+    """
     if key in STRING_KEYS:
         return value
+    what = f"{where}: metadata {key!r}"
+    if value.count("[") + value.count("{") > MAX_DEPTH:
+        check_nesting(value, what)  # before the (recursive) decoder sees it
     try:
         return json.loads(value)
     except ValueError:
         return value  # other plain string values are stored unencoded too
+
+
+def check_nesting(text: str, what: str) -> None:
+    """Refuse JSON text whose brackets open deeper than :data:`~stiffnet.inputs.MAX_DEPTH`
+    (brackets inside strings count too: conservative, and no decoding needed)."""
+    depth = 0
+    for ch in text:
+        if ch in "[{":
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise StiffnetError(f"{what} is nested deeper than {MAX_DEPTH} levels")
+        elif ch in "]}":
+            depth -= 1
 
 
 @dataclass
@@ -179,7 +213,7 @@ def load_model(path: str | Path | None = None, threads: int = 1) -> LoadedModel:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise StiffnetError(f"{p}: not a loadable ONNX model ({first[:200]})") from None
     meta = dict(card.get("metadata") or {})
-    meta.update(onnx_metadata(sess))
+    meta.update(onnx_metadata(sess, p))
     family = family_for(meta.get("model_kind"))
     if family is None:
         served = " or ".join(f.kind for f in families().values())

@@ -23,10 +23,10 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
    and the beta interval; the geometric cross-check
    (:func:`stiffnet.features.features_and_estimate` with the shipped
    calibration; ``agreement`` is ``model class == geometric class``; bounding
-   its windows keeps a 60 s recording under ~60 ms on one core); the physical
-   cross-check (:mod:`serving.physical`: the restoring-force estimate,
-   ``physical_class``, ``physical_beta`` with its bootstrap interval,
-   ``physical_agreement``, null when that method refused, with its reason);
+   its windows keeps a 60 s recording under ~60 ms on one core); the restoring-force
+   cross-check (:mod:`serving.restoring_force_check`: the restoring-force estimate,
+   ``restoring_force_class``, ``restoring_force_beta`` with its bootstrap interval,
+   ``restoring_force_agreement``, null when that method refused, with its reason);
    the alarm (:mod:`stiffnet.uncertainty.alarm_verdict`: ``ood_flag`` is the alarm, ``ood_score``
    its largest score relative to its threshold).
 5. **Result**: :class:`serving.schemas.PredictionResult`.
@@ -34,9 +34,9 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
 
 from __future__ import annotations
 
-import json
 import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -44,11 +44,19 @@ import numpy as np
 
 from serving.aggregate import geometric_verdict, named, segments
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
-from serving.log import record_layers, with_layers_alarm
+from serving.log import (
+    MAX_HOP_S,
+    RESTORING_FORCE_EVERY_S,
+    hop_samples,
+    record_layers,
+    varying_windows,
+    window_embedding_scores,
+    with_layers_alarm,
+)
 from serving.model import LoadedModel, load_model
-from serving.physical import (
+from serving.restoring_force_check import (
     check_sensor_sheet,
-    physical_check,
+    restoring_force_check,
     sensor_outside_priors,
     sidecar_sensor,
     with_sensor_check,
@@ -57,18 +65,18 @@ from serving.schemas import PredictionResult
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
-from stiffnet.inputs import natural_frequency, real_number, sampling_rate
+from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
 from stiffnet.recordings import natural_frequency_of
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
-from stiffnet.uncertainty import aggregate_windows, beta_interval
+from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
     alarm_ratio,
     alarm_verdict,
     load_model_alarm,
-    physical_gap,
-    weak_physical_fit,
-    with_physical_check,
+    restoring_force_gap,
+    weak_restoring_force_fit,
+    with_restoring_force_check,
 )
 from stiffnet.uncertainty.ood import OODReference, load_reference
 from stiffnet.uncertainty.unseen_law import with_unseen_law_check
@@ -79,6 +87,9 @@ SEGMENT_WINDOWS = 4
 GEOMETRIC_WINDOWS = 3
 #: Windows per ONNX Runtime call (bounds memory on very long recordings).
 BATCH = 256
+#: Samples cut per model call at most (4 MB of float64): a window of 16 natural periods
+#: at a high rate is long, and the model's input is built from float64 copies of it.
+CHUNK_SAMPLES = 2**19
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
@@ -116,6 +127,21 @@ def record_natural_frequency(
         return value, source
     where = f"{recording}: " if recording is not None else ""
     raise StiffnetError(where + FN_UNKNOWN)
+
+
+@dataclass(frozen=True)
+class WindowReading:
+    """What the model read from a recording's windows (one pass), aggregated."""
+
+    estimate: RecordingEstimate
+    outputs: dict[str, np.ndarray]
+    features: np.ndarray
+    geometric: dict[str, Any]
+    n_windows: int
+    window_s: float
+    hop_s: float
+    segments: list[dict[str, Any]]
+    layers: list[dict[str, Any]]
 
 
 class Predictor:
@@ -227,11 +253,11 @@ class Predictor:
             for base in (REPO_MODELS_DIR.parent, Path.cwd()):
                 card = base / rel / "card.json"
                 if card.is_file():
-                    try:
-                        d = json.loads(card.read_text())
+                    try:  # bounded in size and depth (a card may point anywhere)
+                        d = read_json(card, "data card")
                         v = d["config"]["sweep"]["natural_frequency_hz"]
                         return _finite_positive(v, "natural_frequency_hz"), str(card)
-                    except (OSError, ValueError, KeyError, TypeError, StiffnetError):
+                    except (KeyError, TypeError, StiffnetError):
                         continue
         return None, ""
 
@@ -283,7 +309,7 @@ class Predictor:
         sensor : dict, optional
             The sensor chain's data sheet (``resonance_hz``, ``resonance_damping``,
             ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the restoring-force check
-            undoes it instead of fitting one (:mod:`serving.physical`).
+            undoes it instead of fitting one (:mod:`serving.restoring_force_check`).
 
         Returns
         -------
@@ -297,6 +323,32 @@ class Predictor:
             Unusable input, with a one-line message.
         """
         what = source or "recording"
+        a, fs, fn, fn_source, sensor, warnings = self._checked_input(
+            accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
+        )
+        reading = self._read_windows(a, fs, fn, what, warnings)
+        interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
+        restoring_force = restoring_force_check(a, fs, fn, sensor)
+        alarm = self._alarm(reading, interval, restoring_force, fs, fn)
+        if alarm is not None and alarm["flag"]:
+            warnings.append(alarm["message"])
+        if weak := weak_restoring_force_fit(restoring_force):
+            warnings.append(weak)
+        result = self._result(reading, interval, restoring_force, alarm)
+        result.update(source=source, duration_s=a.size / fs, fs_hz=fs, natural_frequency_hz=fn,
+                      natural_frequency_source=fn_source, warnings=warnings)  # fmt: skip
+        return PredictionResult.model_validate(result).model_dump(by_alias=True)
+
+    def _checked_input(
+        self,
+        accel: Any,
+        fs_hz: Any,
+        natural_frequency_hz: Any,
+        natural_frequency_source: str | None,
+        sensor: dict | None,
+        what: str,
+    ) -> tuple[np.ndarray, float, float, str, dict | None, list[str]]:
+        """Is the input usable: samples, rates, f_n's source, sensor sheet, first warnings."""
         if natural_frequency_hz is None:
             from serving.checks import finite_samples
 
@@ -306,67 +358,150 @@ class Predictor:
         a, warnings = checked_recording(accel, fs, fn, self.window_periods, what)
         if self.ood_warning:
             warnings.append(self.ood_warning)
-        W, starts, n_win = self._windows(a, fs, fn, what, warnings)
+        return a, fs, fn, fn_source, sensor, warnings
+
+    def _read_windows(
+        self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
+    ) -> WindowReading:
+        """What the model says: one pass over the log's windows, aggregated three ways
+        (the recording, its segments, its layers)."""
+        starts, ok, n_win, hop = self._windows(a, fs, fn, what, warnings)
         try:
-            out, feats, geo = self._run_model(W, fs, fn)
+            out, feats, geo = self._run_model(a, starts[ok], n_win, fs, fn)
         except SignalError as exc:
             raise StiffnetError(f"{what}: {exc}") from None
-
+        emb = window_embedding_scores(self.alarm, out)
         names, nc = self.class_names, self._nc
         est = aggregate_windows(
             out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
         )
-        cls = names[est.label]
-        segs = segments(out, starts, n_win, fs, self.segment_windows, names, nc)
-        layers = record_layers(self, a, fs, fn)  # > 1: the alarm says so (warnings too)
-        geometric = geometric_verdict(geo, self.calibration)
-        interval = beta_interval(est, self.metadata, self.model.conformal_quantile)
-        physical = physical_check(a, fs, fn, sensor)
-        alarm = alarm_verdict(self.alarm, self.ood, est, out, feats)
-        gap = physical_gap(interval, physical["beta_interval"], physical.get("contact_r2"))
-        alarm = with_physical_check(alarm, gap)
-        alarm = with_unseen_law_check(alarm, physical)
-        alarm = with_layers_alarm(alarm, layers)
+        return WindowReading(
+            estimate=est,
+            outputs=out,
+            features=feats,
+            geometric=geometric_verdict(geo, self.calibration),
+            n_windows=int(ok.sum()),
+            window_s=n_win / fs,
+            hop_s=hop / fs,
+            segments=segments(
+                out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc
+            ),  # fmt: skip
+            # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
+            layers=record_layers(self, a, fs, fn, windows=(ok, out, emb)),
+        )
+
+    def _alarm(
+        self,
+        reading: WindowReading,
+        interval: list[float] | None,
+        restoring_force: dict[str, Any],
+        fs: float,
+        fn: float,
+    ) -> dict[str, Any] | None:
+        """How far to trust the answer: the model's checks, then the restoring-force gap,
+        the unseen contact law, the layers and the sensor chain."""
+        alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
+                              reading.features)  # fmt: skip
+        gap = restoring_force_gap(
+            interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
+        )
+        alarm = with_restoring_force_check(alarm, gap)
+        alarm = with_unseen_law_check(alarm, restoring_force)
+        alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")
-        alarm = with_sensor_check(alarm, sensor_outside_priors(physical.get("sensor"), priors,
-                                                               fs, fn))  # fmt: skip
-        if alarm is not None and alarm["flag"]:
-            warnings.append(alarm["message"])
-        if weak := weak_physical_fit(physical):
-            warnings.append(weak)
+        outside = sensor_outside_priors(restoring_force.get("sensor"), priors, fs, fn)
+        return with_sensor_check(alarm, outside)
+
+    def _result(
+        self,
+        reading: WindowReading,
+        interval: list[float] | None,
+        restoring_force: dict[str, Any],
+        alarm: dict[str, Any] | None,
+    ) -> dict[str, Any]:
+        """The answer's fields (the caller adds the recording's own)."""
+        est, geometric = reading.estimate, reading.geometric
+        cls = self.class_names[est.label]
         score = alarm_ratio(alarm)
-        result = {
-            "source": source,
+        return {
             "class": cls,
-            "probabilities": named(names, est.probabilities),
+            "probabilities": named(self.class_names, est.probabilities),
             "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
             "beta_interval": interval,
             "beta_interval_coverage": self.metadata.get("conformal_coverage"),
             "geometric": geometric,
             "agreement": geometric["class"] == cls,
-            "physical": physical,
-            "physical_class": physical["class"],
-            "physical_beta": physical["beta"],
-            "physical_beta_interval": physical["beta_interval"],
-            "physical_agreement": None if physical["class"] is None else physical["class"] == cls,
+            "restoring_force": restoring_force,
+            "restoring_force_class": restoring_force["class"],
+            "restoring_force_beta": restoring_force["beta"],
+            "restoring_force_beta_interval": restoring_force["beta_interval"],
+            "restoring_force_agreement": None
+            if restoring_force["class"] is None
+            else restoring_force["class"] == cls,
             "contact_detected": cls != "no_contact",
             "ood_score": score,
             "ood_threshold": 1.0 if score is not None else None,
             "ood_flag": bool(alarm is not None and alarm["flag"]),
             "alarm": alarm,
-            "n_windows": int(len(W)),
-            "window_s": n_win / fs,
-            "hop_s": n_win / fs,
-            "duration_s": a.size / fs,
-            "fs_hz": fs,
-            "segments": segs,
-            "layers": layers,
+            "n_windows": reading.n_windows,
+            "window_s": reading.window_s,
+            "hop_s": reading.hop_s,
+            "segments": reading.segments,
+            "layers": reading.layers,
             "model": {"name": self.name, "sha256": self.sha256, "kind": self.kind},
-            "natural_frequency_hz": fn,
-            "natural_frequency_source": fn_source,
-            "warnings": warnings,
         }
-        return PredictionResult.model_validate(result).model_dump(by_alias=True)
+
+    def log(
+        self,
+        accel: np.ndarray,
+        fs_hz: float,
+        *,
+        natural_frequency_hz: float,
+        hop_s: float = MAX_HOP_S,
+        restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
+        source: str = "",
+    ) -> dict[str, Any]:
+        """The stiffness log of a record: beta along it, its layers and change times.
+
+        :func:`serving.log.stiffness_log` with this model (``stiffnet log``'s JSON:
+        ``points``, ``layers``, ``changes``, ``warnings``).
+
+        Parameters
+        ----------
+        accel : numpy.ndarray
+            1-D acceleration samples, any unit and sign.
+        fs_hz, natural_frequency_hz : float
+            Sampling rate and the rig's natural frequency in Hz.
+        hop_s : float, optional
+            Time between points (<= 0.5 s).
+        restoring_force_every_s : float or None, optional
+            Seconds between restoring-force cross-checks (None: none).
+        source : str, optional
+            The record's name, echoed.
+        """
+        from serving.log import stiffness_log
+
+        return stiffness_log(
+            self, accel, fs_hz, natural_frequency_hz, hop_s=hop_s,
+            restoring_force_every_s=restoring_force_every_s, source=source,
+        )  # fmt: skip
+
+    def predict_file(
+        self,
+        path: str | os.PathLike[str],
+        *,
+        fs_hz: float | None = None,
+        natural_frequency_hz: float | None = None,
+        **layout: Any,
+    ) -> dict[str, Any]:
+        """Read a recording file (any registered format) and predict it with this model.
+
+        :func:`predict_recording`: f_n from the argument, else the sidecar
+        ``<recording>.json``, else a one-line refusal; `layout` takes ``columns``,
+        ``time_unit``, ``channel`` and ``sensor``.
+        """
+        return predict_recording(path, fs_hz=fs_hz, natural_frequency_hz=natural_frequency_hz,
+                                 predictor=self, **layout)  # fmt: skip
 
     def _rates(
         self, fs_hz: Any, natural_frequency_hz: Any, natural_frequency_source: str | None
@@ -383,40 +518,63 @@ class Predictor:
 
     def _windows(
         self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]
-    ) -> tuple[np.ndarray, np.ndarray, int]:
-        """The recording's whole non-overlapping windows, constant ones dropped (warned)."""
-        n_win = window_length(fs, fn, self.window_periods)
-        starts = window_starts(a.size, n_win, n_win)
-        W = a[starts[:, None] + np.arange(n_win)[None, :]]
-        ok = W.std(axis=1) > 0
-        if not ok.all():
-            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
-            W, starts = W[ok], starts[ok]
-            if len(W) == 0:
-                raise StiffnetError(f"{what}: every window is constant")
-        return W, starts, n_win
+    ) -> tuple[np.ndarray, np.ndarray, int, int]:
+        """The log's sliding windows of the recording: starts, which vary, length, hop.
 
-    def _run_model(self, W: np.ndarray, fs: float, fn: float):
+        One set of windows serves the recording's estimate and its layers
+        (:func:`serving.log.record_layers`): the model reads each window once.
+        Constant windows are dropped (warned).
+        """
+        n_win = window_length(fs, fn, self.window_periods)
+        hop = hop_samples(MAX_HOP_S, fs)
+        starts = window_starts(a.size, n_win, hop)
+        ok = varying_windows(a, starts, n_win)
+        if not ok.all():
+            if not ok.any():
+                raise StiffnetError(f"{what}: every window is constant")
+            warnings.append(f"{int((~ok).sum())} constant window(s) skipped")
+        return starts, ok, n_win, hop
+
+    def _run_model(
+        self,
+        a: np.ndarray,
+        starts: np.ndarray,
+        n_win: int,
+        fs: float,
+        fn: float,
+        geometric_windows: int | None = None,
+    ) -> tuple[dict[str, np.ndarray], np.ndarray, list]:
         """Per-window model outputs (by ONNX output name), inclination features, geometric results.
 
-        The model's family picks the windows whose inclination features are
-        computed and builds the ONNX input.
+        The windows are the `n_win` samples of `a` at `starts` (none constant), cut
+        at most :data:`BATCH` windows and :data:`CHUNK_SAMPLES` samples at a time, so that
+        memory stays bounded on long records and at high rates. The
+        model's family picks the windows whose inclination features are computed
+        (those of the geometric cross-check, at most `geometric_windows`, default the
+        predictor's; 0 for none, as along the log) and builds the ONNX input.
         """
         from stiffnet.features import features_and_estimate
 
         family = self.model.family
+        gw = self.geometric_windows if geometric_windows is None else geometric_windows
+        idx = np.asarray(family.feature_windows(len(starts), gw), dtype=np.int64)
         rows, geo = [], []
-        for i in family.feature_windows(len(W), self.geometric_windows):
-            f, est = features_and_estimate(W[i], fs, fn, calibration=self.calibration)
+        for i in idx:
+            f, est = features_and_estimate(a[starts[i] : starts[i] + n_win], fs, fn,
+                                           calibration=self.calibration)  # fmt: skip
             rows.append(f)
             geo.append(est)
-        feats = np.array(rows).reshape(len(rows), -1)
-        X = family.model_input(W, fs, fn, feats)
+        feats = np.array(rows).reshape(len(rows), -1) if rows else np.empty((0, 0))
         sess, name = self.model.session, self.model.input_name
         wanted = [o for o in MODEL_OUTPUTS if o in self.model.output_names]
         parts: dict[str, list[np.ndarray]] = {o: [] for o in wanted}
-        for lo in range(0, len(X), BATCH):
-            for o, v in zip(wanted, sess.run(wanted, {name: X[lo : lo + BATCH]}), strict=True):
+        step = np.arange(n_win)[None, :]
+        per_call = max(1, min(BATCH, CHUNK_SAMPLES // n_win))
+        for lo in range(0, len(starts), per_call):
+            chunk = starts[lo : lo + per_call]
+            X = family.model_input(a[chunk[:, None] + step], fs, fn,
+                                   feats[(idx >= lo) & (idx < lo + per_call)])  # fmt: skip
+            for o, v in zip(wanted, sess.run(wanted, {name: X}), strict=True):
                 parts[o].append(v)
         out = {o: np.concatenate(v).astype(np.float64) for o, v in parts.items()}
         for o in ("log_beta", "log_beta_scale"):

@@ -34,7 +34,7 @@ class GeometricCheck(BaseModel):
     polarity: int = Field(description="-1: impact spikes point down, +1: up, 0: no contact.")
 
 
-class PhysicalCheck(BaseModel):
+class RestoringForceCheck(BaseModel):
     """The restoring-force (force-state mapping) estimate on the same recording."""
 
     model_config = ConfigDict(populate_by_name=True)
@@ -113,11 +113,11 @@ class AlarmResult(BaseModel):
         description="Each check's score: embedding (distance of the windows to the training "
         "data in the model's embedding), ambiguity (1 - top class probability), "
         "beta_uncertainty (scale of the log-beta error), features (inclination-feature OOD), "
-        "physical (log-gap between the model's and the restoring-force beta intervals; "
+        "restoring_force (log-gap between the model's and the restoring-force beta intervals; "
         "fires above 0, i.e. when they are disjoint)."
     )
     thresholds: dict[str, float] = Field(
-        description="Thresholds calibrated on in-distribution trajectories (physical: 0)."
+        description="Thresholds calibrated on in-distribution trajectories (restoring_force: 0)."
     )
     message: str = Field(description="The verdict in words.")
 
@@ -140,11 +140,15 @@ class PredictionResult(BaseModel):
     )
     geometric: GeometricCheck
     agreement: bool = Field(description="Model class == geometric class.")
-    physical: PhysicalCheck
-    physical_class: str | None = Field(description="physical.class, at the top level.")
-    physical_beta: float | None = Field(description="physical.beta, at the top level.")
-    physical_beta_interval: list[float] | None
-    physical_agreement: bool | None = Field(
+    restoring_force: RestoringForceCheck
+    restoring_force_class: str | None = Field(
+        description="restoring_force.class, at the top level."
+    )
+    restoring_force_beta: float | None = Field(
+        description="restoring_force.beta, at the top level."
+    )
+    restoring_force_beta_interval: list[float] | None
+    restoring_force_agreement: bool | None = Field(
         description="Model class == restoring-force class; null when that method refused."
     )
     contact_detected: bool = Field(description="The model's class is not no_contact.")
@@ -181,7 +185,7 @@ class LogLayer(Layer):
     probabilities: dict[str, float]
     n_pooled: int = Field(description="Points pooled into beta (mixed windows left out).")
     alarm: bool = Field(description="The alarm fired on more than half of its windows.")
-    physical: dict[str, Any] = Field(
+    restoring_force: dict[str, Any] = Field(
         description="The restoring-force checks inside the layer: median beta and interval, "
         "class, agreement with the layer, or why there is none."
     )
@@ -199,7 +203,7 @@ class LogPoint(BaseModel):
     near_edge: bool
     alarm: bool
     alarm_fired: list[str]
-    physical: dict[str, Any] | None = Field(
+    restoring_force: dict[str, Any] | None = Field(
         default=None, description="Restoring-force check on this window (every 10 s)."
     )
 

@@ -100,7 +100,7 @@ class Analysis:
             "polarity": int(g.polarity),
             "dominant_frequency_hz": float(g.dominant_frequency_hz),
             "natural_frequency_hz": self.natural_frequency_hz,
-            **self._physical(),
+            **self._restoring_force(),
         }
 
     def stationarity_tested(self) -> str:
@@ -117,16 +117,20 @@ class Analysis:
             "% of the samples)"
         )
 
-    def _physical(self) -> dict[str, Any]:
-        """The restoring-force estimate's fields (``physical_*``) and its full summary."""
+    def _restoring_force(self) -> dict[str, Any]:
+        """The restoring-force estimate's fields (``restoring_force_*``) and its full summary."""
         r = self.restoring_force
         if r is None:
             d = {"ok": False, "reason": self.restoring_force_error}
-            return {"physical_beta": None, "physical_class": None, "restoring_force": d}
+            return {
+                "restoring_force_beta": None,
+                "restoring_force_class": None,
+                "restoring_force": d,
+            }
         return {
-            "physical_beta": _num(r.beta),
-            "physical_class": r.physical_class,
-            "physical_beta_interval": list(r.beta_interval) if r.beta_interval else None,
+            "restoring_force_beta": _num(r.beta),
+            "restoring_force_class": r.restoring_force_class,
+            "restoring_force_beta_interval": list(r.beta_interval) if r.beta_interval else None,
             "restoring_force": r.to_dict(),
         }
 

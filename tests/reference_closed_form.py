@@ -2,7 +2,7 @@
 
 Not used by :class:`~stiffnet.simulator.simulator.Simulator` (its engine is
 :mod:`stiffnet.simulator.compiled`); the accuracy tests run the compiled engine
-against this and against scipy's ``solve_ivp`` (:mod:`stiffnet.simulator.reference`).
+against this and against scipy's ``solve_ivp`` (``tests/reference_solve_ivp.py``).
 It shares the model and the coarse-step rule (:mod:`stiffnet.simulator.linear`)
 but not the execution: numpy calls over the whole batch, events logged while
 marching and every sample evaluated afterwards from its segment's closed form,

@@ -52,10 +52,10 @@ def test_analyze_json_keys_and_plots(impact_csv, tmp_path):
     assert result["determinism_factor"] > 0.8  # Fig. 6: ~0.91 for an impacting case
     assert result["inclination_after_deg"] > result["inclination_before_deg"]
     # the restoring-force cross-check: gain-free beta from the force-displacement map
-    assert result["physical_class"] == "medium"
-    assert result["physical_beta"] == pytest.approx(31.0, rel=0.03)
-    lo, hi = result["physical_beta_interval"]
-    assert lo <= result["physical_beta"] <= hi
+    assert result["restoring_force_class"] == "medium"
+    assert result["restoring_force_beta"] == pytest.approx(31.0, rel=0.03)
+    lo, hi = result["restoring_force_beta_interval"]
+    assert lo <= result["restoring_force_beta"] <= hi
     assert result["restoring_force"]["ok"] and result["restoring_force"]["n_impacts"] > 20
     names = {Path(p).name for p in result["plots"]}
     assert names == {"ami.png", "dimension.png", "attractor_xz.png", "tangent_histogram.png",
@@ -70,7 +70,7 @@ def test_analyze_without_natural_frequency_says_so(impact_csv, tmp_path):
     res = runner.invoke(app, ["analyze", str(impact_csv), "--json", str(tmp_path / "a.json")])
     assert res.exit_code == 0, res.output
     result = json.loads((tmp_path / "a.json").read_text())
-    assert result["natural_frequency_hz"] is None and result["physical_beta"] is None
+    assert result["natural_frequency_hz"] is None and result["restoring_force_beta"] is None
     assert result["restoring_force"]["reason"].startswith("natural frequency unknown")
     assert result["geometric_class"] in {"medium", "hard"}  # the rest stands
 
@@ -96,7 +96,7 @@ def test_no_impact_gives_no_contact_not_a_number():
     a = analyze_signal(simulated(31.0, gap=50.0), 100 * FN, FN).summary()
     assert a["contact_detected"] is False and a["impacts_found"] == 0
     assert a["geometric_class"] == "no_contact" and a["geometric_beta"] is None
-    assert a["physical_class"] == "no_contact" and a["physical_beta"] is None
+    assert a["restoring_force_class"] == "no_contact" and a["restoring_force_beta"] is None
     assert a["restoring_force"]["reason"].startswith("no contact")
 
 

@@ -173,3 +173,19 @@ def test_any_table_keeps_its_words_whole(heads, data, width):
     words = {t for row in rows for cell in row for t in TOKEN.findall(cell)}
     words |= {t for h in heads for t in TOKEN.findall(h)}
     assert words <= found, sorted(words - found)[:5]
+
+
+def test_predict_table_stays_side_by_side_at_80_columns_with_a_sidecar(tmp_path):
+    """The sidecar f_n came from is named by its file name (it sits beside the recording):
+    a long path is one unbreakable token that would turn the table vertical."""
+    deep = tmp_path / ("a-long-folder-name-" * 3) / "recordings"
+    deep.mkdir(parents=True)
+    rec = deep / "rec.csv"
+    shutil.copy(EXAMPLE, rec)
+    (deep / "rec.csv.json").write_text('{"natural_frequency_hz": 9.48}')
+    text = _render(["predict", str(rec)], 80)
+    assert "#1" not in text  # no record-by-record (vertical) layout
+    assert any("model cnn" in line and "geometric" in line for line in text.splitlines()) or any(
+        "model cnn" in line and line.count("┃") == 4 for line in text.splitlines()
+    )  # the header row: the model's and the geometric method's columns side by side
+    assert "rec.csv.json)" in _tokens(text) and str(deep) not in text

@@ -167,8 +167,8 @@ def test_analyze_refuses_unphysical_rates_and_scales_tiny_signals(tmp_path):
 
 @pytest.mark.parametrize(
     "change",
-    [{"noise_floor": "x"}, {"restoring_force_evidence": [1, 2]},
-     {"restoring_force_evidence": {"summary": 5}}, {"missing_effects": [1]},
+    [{"noise_floor": "x"}, {"restoring_force": [1, 2]}, {"restoring_force_evidence": [1, 2]},
+     {"restoring_force": {"summary": 5}}, {"missing_effects": [1]},
      {"ranking": [{"effect": "x", "params": {}, "significant": True, "relative_reduction": 0.1,
                    "discrepancy_reduction": 0.1, "reasons": 5}]}],
 )  # fmt: skip

@@ -145,7 +145,7 @@ def test_predict_batch_parts_of_another_run_are_replaced_wholly(tmp_path, record
     """An interrupted run's parts (other inputs) are removed, not concatenated with ours."""
     import pyarrow.parquet as pq
 
-    from serving.batch import predict_batch
+    from serving.batch_prediction import predict_batch
     from stiffnet.io_utils import RUN_MARKER
 
     out = tmp_path / "r.parquet"

@@ -95,6 +95,32 @@ def test_synthetic_linear_and_kelvin_voigt_laws_find_nothing_new():
     assert "nothing outside the library" in kv.words
 
 
+def test_power_law_beta_is_referred_to_the_manifests_penetration():
+    """A power law (p = 2) whose manifest gives the secant beta at 0.6: the discovery's
+    own d_r is the median peak penetration (0.29 here), so its betas are another
+    convention, off by (0.6 / d_r)^(p - 1), about 2; referred to the manifest's betas they
+    are the manifest's, d_r comes to 0.6 and the force is the same law."""
+    from dataclasses import replace
+
+    manifest = 2.0 * np.array([8.0, 20.0, 45.0, 90.0])  # the secant at 0.6 = 2 x at 0.3
+    law = discover_contact_law(synthetic_samples({"exponent": 2.0}, 0.02), n_boot=0)
+    extra = {"knee_ratio": 2.0, "preload": 0.05, "damping_ratio": 0.1}
+    law = replace(law, params={**law.params, **extra})
+    assert np.min(np.abs(np.asarray(law.betas) / manifest - 1)) > 0.3
+    ref = law.referred_to(list(manifest))
+    assert ref.reference == "the manifest's beta" and ref.to_dict()["beta_reference"]
+    assert ref.params["reference_penetration"] == pytest.approx(0.6, rel=0.05)
+    np.testing.assert_allclose(ref.betas, manifest, rtol=0.05)
+    d, v = np.linspace(0.0, 0.8, 9), np.linspace(-1.0, 1.0, 9)
+    for b0, b1 in zip(law.betas, ref.betas, strict=True):
+        before = learned_contact_force(d, v, b0, law.params)
+        np.testing.assert_allclose(learned_contact_force(d, v, b1, ref.params), before, rtol=1e-9)
+    # a missing beta counts for nothing; none given, or a linear leading term: unchanged
+    assert law.referred_to([None] * 4) is law
+    lin = discover_contact_law(synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03), n_boot=0)
+    assert lin.referred_to(list(manifest)) is lin
+
+
 def test_too_few_recordings_is_one_clear_error():
     with pytest.raises(StiffnetError, match="needs the impacts of 2 recordings"):
         discover_contact_law(synthetic_samples({}, 0.03)[:1])

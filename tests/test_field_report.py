@@ -40,9 +40,9 @@ def field(tmp_path_factory):
 
 def _row(**kw):
     base = {"recording": "r.csv", "beta": None, "class": "hard", "beta_estimate": 45.0,
-            "beta_interval": [40.0, 50.0], "physical_beta": 44.0,
-            "physical_beta_interval": [42.0, 46.0], "ood_checks": [],
-            "physical_reason": "ok"}  # fmt: skip
+            "beta_interval": [40.0, 50.0], "restoring_force_beta": 44.0,
+            "restoring_force_beta_interval": [42.0, 46.0], "ood_checks": [],
+            "restoring_force_reason": "ok"}  # fmt: skip
     return {**base, **kw}
 
 
@@ -50,16 +50,20 @@ def test_reasons_name_what_differs():
     assert why_betas_differ(_row(), 46.0, ["gap", "beta"]).startswith("the readings agree")
     text = why_betas_differ(_row(), 70.0, ["gap", "beta"])
     assert "nuisance of the simulator" in text and "jointly with gap" in text
-    text = why_betas_differ(_row(physical_beta=20.0, physical_beta_interval=[18, 22]), 46.0, [])
+    text = why_betas_differ(
+        _row(restoring_force_beta=20.0, restoring_force_beta_interval=[18, 22]), 46.0, []
+    )
     assert "restoring force reads the contact law itself" in text
-    text = why_betas_differ(_row(physical_beta=None, physical_reason="no contact"), None, [])
+    text = why_betas_differ(
+        _row(restoring_force_beta=None, restoring_force_reason="no contact"), None, []
+    )
     assert "no restoring-force beta: no contact" in text
     assert "blend of layers" in why_betas_differ(_row(ood_checks=["layers"]), None, [])
 
 
 def test_field_section_puts_the_readings_side_by_side():
     ev = {"model": {"name": "cnn"}, "recordings": [_row(), _row(recording="s.csv", ood=True,
-          ood_checks=["embedding"], physical_agreement=True, agreement=True)]}  # fmt: skip
+          ood_checks=["embedding"], restoring_force_agreement=True, agreement=True)]}  # fmt: skip
     assert is_field_campaign(ev)
     page = "".join(field_section(ev, {"nuisances": {"beta": [46.0, 80.0], "gap": [1, 2]}}))
     assert "beta (diagnose fit)" in page and "80" in page and "jointly with gap" in page

@@ -28,6 +28,7 @@ LAYERS: dict[str, tuple[str, ...]] = {
         "stiffnet",
         "stiffnet.errors",
         "stiffnet.io_utils",
+        "stiffnet.plugins",
         "stiffnet.shipped",
         "stiffnet.distributed",
     ),  # fmt: skip
@@ -50,6 +51,8 @@ LAYERS: dict[str, tuple[str, ...]] = {
     ),  # fmt: skip
     "models": ("training", "serving"),
     "measurement": ("stiffnet.measurement",),
+    # the Python front door (notebooks): re-exports the predictor; the base package cannot
+    "api": ("stiffnet.api",),
     # the command line is one package (app, console, options, one module per command group)
     "cli": ("stiffnet.cli", "stiffnet.__main__"),
 }

@@ -77,8 +77,8 @@ def test_ideal_independent_campaign_classified_and_cross_checked(ideal):
     assert right >= 7, [(r["recording"], r["class"], r["beta_estimate"]) for r in recs]
     assert ev["metrics"]["learned"]["beta_mape"] < 0.15
     for r in recs:  # the restoring force reads β from the recording's own force-displacement
-        assert r["physical_beta"] == pytest.approx(r["beta"], rel=0.03), r["recording"]
-        assert r["physical_class"] == r["true_class"]
+        assert r["restoring_force_beta"] == pytest.approx(r["beta"], rel=0.03), r["recording"]
+        assert r["restoring_force_class"] == r["true_class"]
     assert ev["metrics"]["restoring_force"]["agreement_with_learned"] >= 7 / 8
 
 
@@ -111,11 +111,11 @@ def test_gain_and_polarity_conventions(tmp):
     pred = Predictor.load()
     in_g = pred.predict(rec.accel, rec.fs_hz, natural_frequency_hz=F_N)
     in_ms2 = pred.predict(rec.accel * G, rec.fs_hz, natural_frequency_hz=F_N)
-    assert in_ms2["physical_beta"] == pytest.approx(in_g["physical_beta"], rel=1e-6)
+    assert in_ms2["restoring_force_beta"] == pytest.approx(in_g["restoring_force_beta"], rel=1e-6)
     assert in_ms2["class"] == in_g["class"] == str(beta_class(run.beta))
     flipped = pred.predict(-np.asarray(rec.accel), rec.fs_hz, natural_frequency_hz=F_N)
     assert flipped["class"] == in_g["class"]
-    assert flipped["physical_beta"] == pytest.approx(in_g["physical_beta"], rel=1e-6)
+    assert flipped["restoring_force_beta"] == pytest.approx(in_g["restoring_force_beta"], rel=1e-6)
 
 
 @pytest.mark.parametrize(
@@ -131,7 +131,7 @@ def test_other_natural_frequency_and_gap_sign(tmp, name, kw):
     recs = recs["recordings"]
     assert sum(r["class"] == r["true_class"] for r in recs) >= 7
     for r in recs:
-        assert r["physical_beta"] == pytest.approx(r["beta"], rel=0.1), r["recording"]
+        assert r["restoring_force_beta"] == pytest.approx(r["beta"], rel=0.1), r["recording"]
 
 
 def _silent_failures(recs) -> list[str]:
@@ -139,7 +139,7 @@ def _silent_failures(recs) -> list[str]:
     return [
         r["recording"]
         for r in recs
-        if r["class"] != r["true_class"] and not r["ood"] and r["physical_agreement"] is True
+        if r["class"] != r["true_class"] and not r["ood"] and r["restoring_force_agreement"] is True
     ]
 
 
@@ -151,7 +151,7 @@ def test_hunt_crossley_contact_is_right_or_says_so(tmp, lam, max_silent):
     """Hunt-Crossley, F = β δ (1 + λ δ') (not in the library): restitution 0.64-0.83
     (λ = 3 s/m) and 0.38-0.65 (λ = 8 s/m) for approach speeds 0.28-0.1 m/s.
 
-    Measured, λ = 3: learned 8/8 right, the alarm fired on 6 (the physical check).
+    Measured, λ = 3: learned 8/8 right, the alarm fired on 6 (the restoring_force check).
     λ = 8: learned wrong on 4/8, the alarm fired on 3 of those; the fourth (β 31,
     called hard at 40.6) is a silent failure: no alarm, and the restoring force
     (44.5; the linear contact law explains 93 % of the force) agrees with it.

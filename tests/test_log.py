@@ -68,19 +68,22 @@ def test_layers_found_with_times_and_betas(predictor, records, name):
     assert bool(log["warnings"]) == (len(betas) > 1)
 
 
-def test_points_carry_interval_alarm_and_crosscheck(predictor, records):
+def test_points_carry_interval_alarm_and_restoring_force(predictor, records):
     a, _, _ = records["soft_to_hard"]
-    log = stiffness_log(predictor, a, FS, FN_HZ, hop_s=0.25, physical_every_s=5.0)
+    log = stiffness_log(predictor, a, FS, FN_HZ, hop_s=0.25, restoring_force_every_s=5.0)
     pts = log["points"]
     t = np.array([p["t_s"] for p in pts])
     assert np.allclose(np.diff(t), 0.25)
     assert all(p["beta_interval"][0] < p["beta"] < p["beta_interval"][1] for p in pts)
     assert all(isinstance(p["alarm"], bool) for p in pts)
-    checked = [p for p in pts if "physical" in p]
+    checked = [p for p in pts if "restoring_force" in p]
     assert 10 <= len(checked) <= 13  # one every 5 s
     # the restoring force inside each layer agrees with it
     for layer in log["layers"]:
-        assert layer["physical"]["n_checks"] >= 3 and layer["physical"]["agreement"] is True
+        assert (
+            layer["restoring_force"]["n_checks"] >= 3
+            and layer["restoring_force"]["agreement"] is True
+        )
 
 
 def test_chunked_stream_gives_the_same_layers(predictor, records):
@@ -218,7 +221,7 @@ def test_log_on_an_independent_rig_whose_motion_carries_across_the_change():
         run = RigRun("drill.csv", beta=first, fs_hz=2000.0, duration_s=40.0,
                      contact="kelvin_voigt", contact_zeta=0.1, noise=0.03)  # fmt: skip
         _, a = record(run, beta_schedule=schedule)
-        log = stiffness_log(Predictor.load(), a, FS, FN_HZ, physical_every_s=None)
+        log = stiffness_log(Predictor.load(), a, FS, FN_HZ, restoring_force_every_s=None)
         got = [la["beta"] for la in log["layers"]]
         assert len(got) == len(betas), got
         for found, (true, _) in zip(log["changes"], schedule, strict=True):

@@ -1,4 +1,4 @@
-"""Evidence for the measurement loop (issue 6) on synthetic campaigns with a hidden effect.
+"""Evidence for the measurement loop on synthetic campaigns with a hidden effect.
 
 The diagnosis tests here are slow (six campaigns with the inclination statistics); the
 fast evidence for the diagnosis is ``test_measurement_diagnosis.py``. Campaigns are
@@ -119,8 +119,8 @@ def test_diagnose_json_contract(diagnoses):
 
 def test_shipped_model_holds_on_a_damped_contact(campaigns):
     """The shipped CNN trains on rigs with dissipative contacts (docs/priors.md): a damped
-    campaign costs it little, and its per-recording interval still holds the truth. (The
-    model trained on the ideal world lost 0.4 in beta MAPE here: issue 11.)"""
+    campaign costs it little, and its per-recording interval still holds the truth (a
+    model trained on the ideal world lost 0.4 in beta MAPE here)."""
     from stiffnet.measurement.evaluate import evaluate_campaign
 
     clean = evaluate_campaign(campaigns["clean"])["metrics"]["learned"]

@@ -1,4 +1,4 @@
-"""The diagnosis on campaigns as labs and drill sites have them (issue 13).
+"""The diagnosis on campaigns as labs and drill sites have them.
 
 Campaigns are built with ``simulate_campaign`` from ``examples/hidden_effect_manifest.csv``
 shortened to 3 s (5 or 8 recordings, 2 % white noise) and diagnosed against the

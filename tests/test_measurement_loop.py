@@ -1,4 +1,4 @@
-"""The iterating measurement loop (issue 13 point 6) on campaigns from ``simulate_campaign``.
+"""The iterating measurement loop on campaigns from ``simulate_campaign``.
 
 The campaigns hide two effects at realistic levels (a damped contact 0.25 and a 237 Hz
 accelerometer resonance, 5 recordings of 3 s, 2 % noise). The fast tests train GBMs on
@@ -270,7 +270,7 @@ def test_diagnosed_loop_with_the_shipped_family(two_effects, tmp):
 
 
 def test_loop_uses_only_the_public_tracking_api():
-    """The loop logs through ``training.tracking``'s public functions (issue 12 point 2)."""
+    """The loop logs through ``training.tracking``'s public functions."""
     import ast
 
     tree = ast.parse(Path(loop_mod.__file__).read_text())

@@ -74,7 +74,7 @@ def test_rejected_and_fitted_entries_print_for_every_candidate(name):
         "residual_discrepancy": 0.1,
         "explained_fraction": 0.95,
         "summary": "s",
-        "restoring_force_evidence": {"summary": "evidence"},
+        "restoring_force": {"summary": "evidence"},
         "per_recording": [
             {"recording": "a.csv", "floor": 0.1, "residual": 0.3, "ratio": 3.0,
              "above_floor": True, "non_repeatable": False, "measured_orbit": "no impacts",

@@ -115,7 +115,7 @@ def test_a_toy_format_from_the_tests_folder_reads_and_predicts(toy, tmp_path):
     """Registered from outside the package: read, refused like the others, predicted by the CLI."""
     from typer.testing import CliRunner
 
-    from serving.batch import find_recordings
+    from serving.batch_prediction import find_recordings
     from stiffnet.cli import app
 
     rec = read_recording(EXAMPLE)

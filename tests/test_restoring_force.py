@@ -93,7 +93,7 @@ def test_noise_free_linear_hinge_gives_beta_to_1e_3():
     assert r.beta == pytest.approx(30.0, rel=1e-3)
     assert r.exponent == pytest.approx(1.0, abs=0.01)
     assert r.contact_damping_ratio < 0.01
-    assert r.physical_class == "medium"
+    assert r.restoring_force_class == "medium"
     assert r.beta_interval[0] <= 30.0 <= r.beta_interval[1]
     assert r.polarity == -1 and r.n_impacts >= 12
     assert r.free_damping_ratio == pytest.approx(0.02, rel=0.05)
@@ -135,7 +135,7 @@ def test_gain_and_polarity_do_not_change_beta():
 def test_no_contact_is_refused_with_a_reason():
     accel, fs = simulate(30.0, gap=30.0, noise=0.02)
     r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
-    assert not r.ok and r.beta is None and r.physical_class == "no_contact"
+    assert not r.ok and r.beta is None and r.restoring_force_class == "no_contact"
     assert r.reason.startswith("no contact")
 
 
@@ -187,7 +187,7 @@ def test_damped_contact_seen_through_sensor_dynamics():
     assert r.ok, r.reason
     assert r.highpass_hz == pytest.approx(1.0, abs=0.1)
     assert r.beta == pytest.approx(45.0, rel=0.1)
-    assert r.physical_class == "hard"
+    assert r.restoring_force_class == "hard"
     assert r.contact_damping_ratio == pytest.approx(0.25, abs=0.08)
     # ignoring the high-pass breaks the map: refused, or far off
     plain = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, highpass_hz=0)
@@ -254,7 +254,7 @@ def test_forcing_harmonics_with_phases():
     r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
     assert r.ok, r.reason
     assert r.beta == pytest.approx(12.0, rel=0.05)
-    assert r.physical_class == "soft"
+    assert r.restoring_force_class == "soft"
 
 
 def test_user_power_law_contact(monkeypatch):
@@ -316,4 +316,4 @@ def test_negative_free_damping_is_profiled(monkeypatch):
     r = restoring_force_estimate(rows[8], fs[8], natural_frequency_hz=FN)
     assert r.ok, r.reason
     assert r.free_damping_ratio >= 0
-    assert r.physical_class == "soft" and r.beta == pytest.approx(beta[8], rel=0.2)
+    assert r.restoring_force_class == "soft" and r.beta == pytest.approx(beta[8], rel=0.2)

@@ -12,7 +12,7 @@ import json
 import numpy as np
 import pytest
 
-from serving.physical import sensor_outside_priors, with_sensor_check
+from serving.restoring_force_check import sensor_outside_priors, with_sensor_check
 from stiffnet.errors import ConfigError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.chain import (
@@ -203,7 +203,7 @@ def test_data_sheet_chain_is_undone_as_given():
     accel, fs = rig({"lowpass_hz": 30.0, "lowpass_order": 4}, "kelvin_voigt")
     r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
                                  sensor={"lowpass_hz": 30.0, "lowpass_order": 4})  # fmt: skip
-    assert not r.ok and r.physical_class is None  # refused, not "no contact"
+    assert not r.ok and r.restoring_force_class is None  # refused, not "no contact"
     assert r.reason.startswith("the low-pass at 30 Hz is below the contact's frequency")
     assert "\n" not in r.reason
 
@@ -262,9 +262,9 @@ def test_http_predict_takes_a_sensor_field(lowpassed_csv):
     with TestClient(create_app(Predictor.load(), Limits(max_upload_mb=4.0))) as client:
         r = client.post("/predict", json=body)
         assert r.status_code == 200, r.text
-        physical = r.json()["physical"]
-        assert physical["sensor"]["source"] == "data sheet"
-        assert physical["beta"] == pytest.approx(30.0, rel=0.1)
+        restoring_force = r.json()["restoring_force"]
+        assert restoring_force["sensor"]["source"] == "data sheet"
+        assert restoring_force["beta"] == pytest.approx(30.0, rel=0.1)
         r = client.post("/predict", json={**body, "sensor": {"lowpass_hz": 100.0, "order": 2}})
         assert 400 <= r.status_code < 500 and "sensor" in r.json()["error"], r.text
 

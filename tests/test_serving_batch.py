@@ -17,7 +17,7 @@ pytest.importorskip("onnxruntime")
 
 from fault_injection import run_killing_one_task  # noqa: E402
 
-from serving.batch import find_recordings, predict_batch  # noqa: E402
+from serving.batch_prediction import find_recordings, predict_batch  # noqa: E402
 from serving.predictor import Predictor, predict_recording  # noqa: E402
 from stiffnet.campaign import simulate_campaign  # noqa: E402
 from stiffnet.distributed.cluster import local_cluster  # noqa: E402
@@ -102,19 +102,30 @@ def test_rows_carry_both_cross_checks_of_the_predictor(recordings, reference):
         assert row["class"] == result["class"]
         assert row["geometric_class"] == result["geometric"]["class"]
         # the restoring-force cross-check, as the single-recording answer gives it
-        assert (row["physical_class"] or None) == result["physical_class"], path
-        if result["physical_class"] is None:  # that method refused: nulls, no verdict
-            assert row[["physical_beta", "physical_agreement"]].isna().all(), path
+        assert (row["restoring_force_class"] or None) == result["restoring_force_class"], path
+        if result["restoring_force_class"] is None:  # that method refused: nulls, no verdict
+            assert row[["restoring_force_beta", "restoring_force_agreement"]].isna().all(), path
             continue
-        assert row["physical_beta"] == pytest.approx(result["physical_beta"])
-        lo, hi = result["physical_beta_interval"]
-        assert (row["physical_beta_low"], row["physical_beta_high"]) == pytest.approx((lo, hi))
-        assert row["physical_beta_low"] <= row["physical_beta"] <= row["physical_beta_high"]
-        assert row["physical_agreement"] == (row["physical_class"] == row["class"])
+        assert row["restoring_force_beta"] == pytest.approx(result["restoring_force_beta"])
+        lo, hi = result["restoring_force_beta_interval"]
+        assert (row["restoring_force_beta_low"], row["restoring_force_beta_high"]) == pytest.approx(
+            (lo, hi)
+        )
+        assert (
+            row["restoring_force_beta_low"]
+            <= row["restoring_force_beta"]
+            <= row["restoring_force_beta_high"]
+        )
+        assert row["restoring_force_agreement"] == (row["restoring_force_class"] == row["class"])
     # the simulated recordings are impacting: the restoring force answers for most of them
-    assert good["physical_class"].notna().sum() >= 3
+    assert good["restoring_force_class"].notna().sum() >= 3
     bad = table[table["error"].notna()]
-    assert bad[["physical_class", "physical_beta", "physical_agreement"]].isna().all().all()
+    assert (
+        bad[["restoring_force_class", "restoring_force_beta", "restoring_force_agreement"]]
+        .isna()
+        .all()
+        .all()
+    )
 
 
 def test_glob_and_no_match(recordings, tmp_path):

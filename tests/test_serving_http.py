@@ -324,3 +324,28 @@ def test_log_route_and_channel_field(client, tmp_path):
     r = client.post("/predict", files={"file": ("daq.wav", raw)}, data={**fields, "channel": "1"})
     assert r.status_code == 200, r.text
     assert r.json()["class"] == "hard"
+
+
+def test_an_upload_over_the_limit_is_refused_before_it_queues(tmp_path):
+    """The size an .npy header or a CSV's lines say is checked as soon as it is spooled."""
+    from serving.app import TooManySamples, check_upload_size
+
+    path = tmp_path / "upload.npy"
+    np.save(path, np.zeros(101, dtype=np.float32))
+    check_upload_size(path, 101)
+    with pytest.raises(TooManySamples, match="over 100 samples"):
+        check_upload_size(path, 100)
+
+
+def test_a_job_that_fails_after_its_504_logs_one_line(caplog):
+    """Its exception has no request to go to: one warning, no 'exception never retrieved'."""
+    from concurrent.futures import Future
+
+    from serving.app import _outcome_unheard
+
+    fut: Future = Future()
+    fut.set_exception(ValueError("late\nfailure"))
+    with caplog.at_level("WARNING"):
+        _outcome_unheard(fut)
+    (line,) = [r.getMessage() for r in caplog.records]
+    assert line.startswith("a request answered 504 failed afterwards: late") and "\n" not in line

@@ -17,7 +17,11 @@ from serving.predictor import Predictor, predict_recording
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
-from stiffnet.uncertainty.alarm_verdict import physical_gap, weak_physical_fit, with_physical_check
+from stiffnet.uncertainty.alarm_verdict import (
+    restoring_force_gap,
+    weak_restoring_force_fit,
+    with_restoring_force_check,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "recordings"
@@ -106,7 +110,11 @@ def test_output_fields(cnn, example):
     }
     assert r["model"] == {"name": "cnn", "sha256": cnn.sha256, "kind": "cnn"}
     assert abs(sum(r["probabilities"].values()) - 1) < 1e-5
-    assert r["n_windows"] == int(example.duration_s // r["window_s"])
+    # the log's sliding windows (hop 0.5 s), read once for the estimate and the layers
+    assert r["hop_s"] == pytest.approx(0.5)
+    assert r["n_windows"] == int((example.duration_s - r["window_s"]) // r["hop_s"]) + 1
+    assert r["layers"][0]["n_points"] == r["n_windows"]
+    assert r["layers"][0]["beta"] == pytest.approx(r["beta"])  # one layer: the same windows
     assert r["natural_frequency_source"] == "argument"
     assert r["natural_frequency_hz"] == pytest.approx(9.48)
     assert r["layers"] and len(r["layers"]) == 1 and "layers" not in r["alarm"]["fired"]
@@ -123,59 +131,76 @@ def test_no_silent_natural_frequency(cnn, example, tmp_path):
         predict_recording(rec, predictor=cnn)
 
 
-def test_physical_cross_check_fields(cnn):
+def test_restoring_force_cross_check_fields(cnn):
     """The restoring-force estimate beside the model: beta of the examples, agreement, refusal."""
     for path in EXAMPLE_FILES:
         side = json.loads(Path(str(path) + ".json").read_text())
         r = predict_recording(path, predictor=cnn)
         true_beta = side["provenance"]["true_beta"]
-        assert r["physical_class"] == side["provenance"]["true_class"] == r["physical"]["class"]
-        assert r["physical_beta"] == pytest.approx(true_beta, rel=0.1)
-        lo, hi = r["physical_beta_interval"]
-        assert lo <= r["physical_beta"] <= hi
-        assert r["physical_agreement"] == (r["physical_class"] == r["class"])
+        assert (
+            r["restoring_force_class"]
+            == side["provenance"]["true_class"]
+            == r["restoring_force"]["class"]
+        )
+        assert r["restoring_force_beta"] == pytest.approx(true_beta, rel=0.1)
+        lo, hi = r["restoring_force_beta_interval"]
+        assert lo <= r["restoring_force_beta"] <= hi
+        assert r["restoring_force_agreement"] == (r["restoring_force_class"] == r["class"])
     # a recording without contact: the cross-check refuses with its reason, no error
     t = np.arange(20000) / 2000.0
     free = np.sin(2 * np.pi * 9.9 * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
     r = cnn.predict(free, 2000.0, natural_frequency_hz=FN)
-    assert r["physical_beta"] is None and r["physical"]["reason"]
-    assert r["physical_agreement"] in (None, r["physical_class"] == r["class"])
+    assert r["restoring_force_beta"] is None and r["restoring_force"]["reason"]
+    assert r["restoring_force_agreement"] in (None, r["restoring_force_class"] == r["class"])
 
 
-def test_physical_gap_is_the_log_gap_between_disjoint_intervals():
-    assert physical_gap([10.0, 20.0], [15.0, 40.0]) == 0.0  # overlapping
-    assert physical_gap([10.0, 20.0], [20.0, 40.0]) == 0.0  # touching
-    assert physical_gap([10.0, 20.0], [40.0, 80.0]) == pytest.approx(np.log(2.0))
-    assert physical_gap([40.0, 80.0], [10.0, 20.0]) == pytest.approx(np.log(2.0))
-    assert physical_gap(None, [1.0, 2.0]) is None and physical_gap([1.0, 2.0], None) is None
+def test_restoring_force_gap_is_the_log_gap_between_disjoint_intervals():
+    assert restoring_force_gap([10.0, 20.0], [15.0, 40.0]) == 0.0  # overlapping
+    assert restoring_force_gap([10.0, 20.0], [20.0, 40.0]) == 0.0  # touching
+    assert restoring_force_gap([10.0, 20.0], [40.0, 80.0]) == pytest.approx(np.log(2.0))
+    assert restoring_force_gap([40.0, 80.0], [10.0, 20.0]) == pytest.approx(np.log(2.0))
+    assert (
+        restoring_force_gap(None, [1.0, 2.0]) is None
+        and restoring_force_gap([1.0, 2.0], None) is None
+    )
     # a poor contact-law fit contradicts nothing; a good one does
-    assert physical_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.8) is None
-    assert physical_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.99) == pytest.approx(np.log(2.0))
+    assert restoring_force_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.8) is None
+    assert restoring_force_gap([10.0, 20.0], [40.0, 80.0], contact_r2=0.99) == pytest.approx(
+        np.log(2.0)
+    )
 
 
-def test_physical_check_joins_the_alarm():
+def test_restoring_force_check_joins_the_alarm():
     quiet = {
         "flag": False,
         "fired": [],
         "scores": {"embedding": 0.5},
         "thresholds": {"embedding": 1.0},
     }
-    assert with_physical_check(quiet, None) is quiet  # the cross-check refused: nothing to say
-    agree = with_physical_check(quiet, 0.0)
-    assert not agree["flag"] and agree["scores"]["physical"] == 0.0
-    clash = with_physical_check(quiet, 0.7)
     assert (
-        clash["flag"] and clash["fired"] == ["physical"] and "restoring-force" in clash["message"]
+        with_restoring_force_check(quiet, None) is quiet
+    )  # the cross-check refused: nothing to say
+    agree = with_restoring_force_check(quiet, 0.0)
+    assert not agree["flag"] and agree["scores"]["restoring_force"] == 0.0
+    clash = with_restoring_force_check(quiet, 0.7)
+    assert (
+        clash["flag"]
+        and clash["fired"] == ["restoring_force"]
+        and "restoring-force" in clash["message"]
     )
-    assert quiet["fired"] == [] and "physical" not in quiet["scores"]  # the input is not changed
-    alone = with_physical_check(None, 0.7)  # a model without an alarm reference
-    assert alone["flag"] and alone["fired"] == ["physical"]
+    assert (
+        quiet["fired"] == [] and "restoring_force" not in quiet["scores"]
+    )  # the input is not changed
+    alone = with_restoring_force_check(None, 0.7)  # a model without an alarm reference
+    assert alone["flag"] and alone["fired"] == ["restoring_force"]
 
 
 def test_a_poor_contact_law_fit_is_called_weak_evidence():
-    assert weak_physical_fit({"beta": 30.0, "contact_r2": 0.99}) is None
-    assert weak_physical_fit({"beta": None, "contact_r2": 0.5}) is None  # refused: said already
-    words = weak_physical_fit({"beta": 30.0, "contact_r2": 0.93})
+    assert weak_restoring_force_fit({"beta": 30.0, "contact_r2": 0.99}) is None
+    assert (
+        weak_restoring_force_fit({"beta": None, "contact_r2": 0.5}) is None
+    )  # refused: said already
+    words = weak_restoring_force_fit({"beta": 30.0, "contact_r2": 0.93})
     assert "93 %" in words and "weak evidence" in words
 
 
@@ -185,7 +210,7 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
 
     accel, fs = example.accel, example.fs_hz
     r = cnn.predict(accel, fs, natural_frequency_hz=FN)
-    assert not r["ood_flag"] and r["alarm"]["scores"]["physical"] == 0.0
+    assert not r["ood_flag"] and r["alarm"]["scores"]["restoring_force"] == 0.0
     lo, hi = r["beta_interval"]
 
     def far(*args, **kwargs):
@@ -198,10 +223,10 @@ def test_a_contradicting_cross_check_raises_the_alarm(cnn, example, monkeypatch)
             "reason": "a contradicting reading (test)",
         }
 
-    monkeypatch.setattr(predictor_module, "physical_check", far)
+    monkeypatch.setattr(predictor_module, "restoring_force_check", far)
     r = cnn.predict(accel, fs, natural_frequency_hz=FN)
-    assert r["ood_flag"] and "physical" in r["alarm"]["fired"]
-    assert r["alarm"]["scores"]["physical"] == pytest.approx(np.log(2.7 * hi / hi))
+    assert r["ood_flag"] and "restoring_force" in r["alarm"]["fired"]
+    assert r["alarm"]["scores"]["restoring_force"] == pytest.approx(np.log(2.7 * hi / hi))
     assert any("restoring-force" in w for w in r["warnings"])
     assert r["class"] == "hard"  # the model's answer stands; it now carries the warning
 
@@ -461,3 +486,79 @@ def test_metadata_hash_of_digits_stays_a_string():
     assert decode_metadata_value("training_data_sha256", "1234") == "1234"
     assert decode_metadata_value("window_length", "512") == 512
     assert decode_metadata_value("class_names", '["a", "b"]') == ["a", "b"]
+
+
+def _model_copy(tmp_path: Path, edit) -> Path:
+    """A copy of the shipped CNN whose ONNX metadata and card `edit(meta, card)` changed,
+    re-hashed so that only the edit can make the loader refuse it."""
+    import onnx
+
+    from stiffnet.io_utils import sha256_file
+
+    m = onnx.load(ROOT / "models" / "cnn.onnx")
+    meta = {p.key: p.value for p in m.metadata_props}
+    card = json.loads((ROOT / "models" / "cnn.card.json").read_text())
+    edit(meta, card)
+    del m.metadata_props[:]
+    for k, v in meta.items():
+        m.metadata_props.add(key=k, value=v)
+    path = tmp_path / "cnn.onnx"
+    onnx.save(m, path)
+    card["sha256"] = sha256_file(path)
+    path.with_suffix(".card.json").write_text(json.dumps(card))
+    shutil.copy(ROOT / "models" / "cnn.alarm.npz", tmp_path / "cnn.alarm.npz")
+    return path
+
+
+def test_deeply_nested_model_metadata_is_refused_in_one_line(tmp_path):
+    """In the library (HTTP and Python users too), not only by the CLI's catch-all."""
+    from serving.model import decode_metadata_value
+
+    deep = "[" * 100_000 + "]" * 100_000
+    with pytest.raises(StiffnetError, match=r"metadata 'extra' is nested deeper than 64 levels"):
+        decode_metadata_value("extra", deep)
+    assert decode_metadata_value("extra", "[" * 64 + "]" * 64) is not None  # at the bound
+    path = _model_copy(tmp_path, lambda meta, card: meta.update(extra=deep))
+    with pytest.raises(StiffnetError, match=r"cnn\.onnx: metadata 'extra' is nested deeper"):
+        Predictor.load(path)
+    (tmp_path / "huge").mkdir()
+    huge = _model_copy(tmp_path / "huge", lambda meta, card: meta.update(extra="x" * 17_000_000))
+    with pytest.raises(StiffnetError, match="metadata is larger than 16 MB"):
+        Predictor.load(huge)
+
+
+def test_a_card_pointing_at_a_nested_json_is_passed_over(tmp_path, example):
+    """The training f_n is looked up in the data card the model card names: a deeply nested
+    one is read bounded (no RecursionError) and passed over like a missing one."""
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "card.json").write_text("[" * 100_000 + "]" * 100_000)
+
+    def edit(meta, card):
+        meta.pop("natural_frequency_hz")
+        card["metadata"].pop("natural_frequency_hz", None)
+        card["data"].pop("natural_frequency_hz", None)
+        card["data"]["path"] = str(data)
+
+    p = Predictor.load(_model_copy(tmp_path, edit), ood_reference=None)
+    assert p.training_natural_frequency is None or p.training_natural_frequency_from != str(
+        data / "card.json"
+    )
+    assert p.predict(example.accel, example.fs_hz, natural_frequency_hz=FN)["class"] == "hard"
+
+
+def test_one_model_pass_gives_the_logs_layers(cnn, monkeypatch):
+    """predict runs the model once over the log's windows; its layers are stiffnet log's."""
+    from serving.log import stiffness_log
+
+    a = [read_recording(p) for p in EXAMPLE_FILES]  # soft (beta 12), then hard (beta 45)
+    x = np.concatenate([r.accel for r in a])
+    log = stiffness_log(cnn, x, a[0].fs_hz, FN, restoring_force_every_s=None)
+    calls = []
+    run = Predictor._run_model
+    monkeypatch.setattr(Predictor, "_run_model", lambda *p, **k: calls.append(1) or run(*p, **k))
+    r = cnn.predict(x, a[0].fs_hz, natural_frequency_hz=FN)
+    assert len(calls) == 1 and r["n_windows"] == log["n_points"]
+    assert len(r["layers"]) == len(log["layers"]) == 2
+    for mine, theirs in zip(r["layers"], log["layers"], strict=True):
+        assert mine == {k: theirs[k] for k in mine}

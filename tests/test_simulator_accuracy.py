@@ -24,6 +24,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 from reference_closed_form import closed_form_reference
+from reference_solve_ivp import reference_trajectory
 from scipy.optimize import brentq
 
 from stiffnet.effects.contact_damping import ContactDamping
@@ -31,7 +32,6 @@ from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.gap_drift import GapDrift
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.compiled import simulate_closed_form
-from stiffnet.simulator.reference import reference_trajectory
 from stiffnet.simulator.result import EngineResult
 from stiffnet.simulator.simulator import Simulator
 

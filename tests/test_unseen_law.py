@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import unknown_contact_laws as laws
 
-from serving.physical import physical_check
+from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
@@ -44,7 +44,7 @@ def test_hunt_crossley_dissipation_is_found_and_kelvin_voigt_is_not():
 
 
 @pytest.mark.parametrize(
-    "physical, fires",
+    "restoring_force, fires",
     [
         ({"exponent": 2.0, "contact_r2": 0.99}, True),
         ({"exponent": 1.5, "contact_r2": 0.99}, False),  # Hertz: in the training world
@@ -65,9 +65,9 @@ def test_hunt_crossley_dissipation_is_found_and_kelvin_voigt_is_not():
         ),  # fmt: skip
     ],
 )
-def test_reasons_follow_the_training_world_laws(physical, fires):
-    assert bool(unseen_law_reasons(physical)) is fires
-    alarm = with_unseen_law_check(None, physical)
+def test_reasons_follow_the_training_world_laws(restoring_force, fires):
+    assert bool(unseen_law_reasons(restoring_force)) is fires
+    alarm = with_unseen_law_check(None, restoring_force)
     assert alarm["flag"] is fires and ("contact_law" in alarm["fired"]) is fires
 
 
@@ -98,6 +98,6 @@ def _recording(effects, beta: float, seed: int) -> tuple[np.ndarray, float]:
 )
 def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
     accel, fs = _recording(effects, beta=30.0, seed=1)
-    physical = physical_check(accel, fs, FN)
-    assert physical["beta"] is not None, physical["reason"]
-    assert bool(unseen_law_reasons(physical)) is fires, physical
+    restoring_force = restoring_force_check(accel, fs, FN)
+    assert restoring_force["beta"] is not None, restoring_force["reason"]
+    assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force

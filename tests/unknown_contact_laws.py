@@ -1,10 +1,16 @@
 """Contact laws the effect library lacks, written as user effects (``module:Class``).
 
-The contact-law discovery (:mod:`stiffnet.discovery`) is tested on them: nothing
-here is library code, and their parametrisations are their own (a Hunt-Crossley
-law written with its restitution-like coefficient, a two-stage restraint with
-its own knee and ratio), so the discovery must find the terms and convert the
-coefficients, not read them back.
+Their one home: the contact-law discovery (:mod:`stiffnet.discovery`), the
+unseen-law alarm and the learned law are tested on them, and the robustness
+benchmark (``benchmarks/bench_robustness.py``) hides them in test rigs to see what
+the models and the alarm do on physics they were never trained on (loaded there as
+the plugin file ``unknown_contact_laws``). Nothing here is library code, and their
+parametrisations are their own (a Hunt-Crossley law written with its
+restitution-like coefficient, a two-stage restraint with its own knee and ratio),
+so the discovery must find the terms and convert the coefficients, not read them
+back. They are also the worked example of a user effect: a ``DynamicsEffect``
+subclass that overrides ``elastic_contact`` (the simulator then integrates
+numerically with event location).
 """
 
 from __future__ import annotations
@@ -17,9 +23,14 @@ from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, Par
 
 
 class PowerLawContact(DynamicsEffect):
-    """``F = k_p delta**n`` with ``k_p = beta / d0**(n - 1)`` (secant ``beta`` at ``d0``)."""
+    """``F = k_p delta**n`` with ``k_p = beta / d0**(n - 1)`` (secant ``beta`` at ``d0``).
 
-    name = "test_power_law"
+    ``n = 1`` is the paper's linear restraint, ``n = 1.5`` Hertz's sphere on a flat (the
+    library's ``hertz_contact``); rough or conforming contacts and layered rock show
+    other exponents.
+    """
+
+    name = "unknown_power_law"
 
     class Params(EffectParams):
         exponent: ParamValue = param(2.0, 1.0, 3.0, "exponent n")
@@ -33,7 +44,7 @@ class TwoStageContact(DynamicsEffect):
     """A soft first stage of stiffness ``beta`` up to ``knee``, then ``beta + k2`` beyond,
     with ``k2 = (ratio - 1) beta`` (a layer over a stiffer body)."""
 
-    name = "test_two_stage"
+    name = "unknown_two_stage"
 
     class Params(EffectParams):
         knee: ParamValue = param(0.1, 1e-3, 1.0, "penetration of the second stage", "model")
@@ -50,9 +61,14 @@ class TwoStageContact(DynamicsEffect):
 
 class HuntCrossleyContact(DynamicsEffect):
     """Hunt & Crossley (1975): ``F = beta delta (1 + 1.5 c v)``, ``c`` the law's own
-    coefficient (restitution ``e ~ 1 - c v_in`` at low impact speed)."""
+    coefficient (restitution ``e ~ 1 - c v_in`` at low impact speed).
 
-    name = "test_hunt_crossley"
+    The damping force grows with the penetration (zero at first touch, so no force jump
+    at onset), unlike the library's Kelvin-Voigt ``contact_damping`` (``c v``); wet or
+    crushing rock, rubber pads.
+    """
+
+    name = "unknown_hunt_crossley"
 
     class Params(EffectParams):
         c: ParamValue = param(0.3, 0.0, 5.0, "Hunt-Crossley coefficient", "model time/length")

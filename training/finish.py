@@ -8,7 +8,7 @@ family fit; the family's :class:`~training.families.base.TrainedModel` goes to
 1. :func:`calibrate`: the per-window split-conformal log-beta half-width on the
    calibration trajectories' contact windows, and the recording-level interval
    and alarm on whole calibration trajectories
-   (:func:`training.calibration.calibrate_recording_level`);
+   (:func:`training.uncertainty_calibration.calibrate_recording_level`);
 2. :func:`evaluate_test`: the model on the test windows (``accuracy``, ...,
    and ``recording/...`` on the test trajectories) and the geometric method on
    the same windows (``geometric/...``, :mod:`training.geometric_baseline`). The
@@ -37,13 +37,13 @@ from stiffnet.dataset.store import CARD
 from stiffnet.io_utils import sha256_file, write_json_atomic
 from stiffnet.uncertainty import conformal_quantile
 from stiffnet.uncertainty.alarm import AlarmReference, save_alarm
-from training.calibration import calibrate_recording_level
 from training.config import TrainConfig
 from training.families.base import TrainedModel
 from training.geometric_baseline import geometric_baseline
 from training.metrics import NO_CONTACT_LABEL, confusion, evaluate
 from training.split import Split
 from training.training_data import alarm_info, data_summary
+from training.uncertainty_calibration import calibrate_recording_level
 
 #: The alarm reference sits beside its model: ``cnn.onnx`` -> ``cnn.alarm.npz``.
 ALARM_SUFFIX = ".alarm.npz"

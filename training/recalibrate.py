@@ -3,7 +3,7 @@
 Runs the exported ONNX model over the dataset it was trained on, splits the
 trajectories exactly as training did (same seed and fractions), refits the
 recording-level conformal quantile and the alarm
-(:func:`training.calibration.calibrate_recording_level`), writes the new
+(:func:`training.uncertainty_calibration.calibrate_recording_level`), writes the new
 ``NAME.alarm.npz`` and updates the model's metadata and card (SHA-256s
 included). Use it when the alarm's checks or its false-alarm target change.
 
@@ -26,13 +26,13 @@ from stiffnet.inputs import read_json
 from stiffnet.io_utils import sha256_file
 from stiffnet.shipped import default_config
 from stiffnet.uncertainty.alarm import save_alarm
-from training.calibration import calibrate_recording_level
 from training.config import TrainConfig
 from training.families import family_for_model
 from training.finish import ALARM_SUFFIX, INTERVAL_METHOD
 from training.onnx_export import onnx_session, rewrite_metadata
 from training.split import trajectory_split
 from training.training_data import alarm_info
+from training.uncertainty_calibration import calibrate_recording_level
 
 
 def model_outputs(path: Path, ds: Any, meta: dict[str, Any]) -> dict[str, np.ndarray]:

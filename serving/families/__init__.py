@@ -9,13 +9,10 @@ model's family here and holds no branch per family.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from serving.families.base import ModelFamily
+from stiffnet.plugins import discover, once
 
 _FAMILIES: dict[str, type[ModelFamily]] = {}
-_discovered = False
 
 
 def register(cls: type[ModelFamily]) -> type[ModelFamily]:
@@ -27,23 +24,11 @@ def register(cls: type[ModelFamily]) -> type[ModelFamily]:
     return cls
 
 
+@once
 def _discover() -> None:
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
-        if info.name == "base":
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        for obj in vars(module).values():
-            if (
-                isinstance(obj, type)
-                and issubclass(obj, ModelFamily)
-                and obj.__module__ == module.__name__
-                and "model_kind" in vars(obj)
-            ):
-                register(obj)
+    for cls in discover(__name__, ModelFamily):
+        if "model_kind" in vars(cls):  # a family names its own kind (a helper subclass may not)
+            register(cls)
 
 
 def families() -> dict[str, type[ModelFamily]]:

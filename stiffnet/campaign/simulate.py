@@ -40,11 +40,11 @@ from stiffnet.campaign.manifest import (
     STANDARD_GRAVITY,
     ManifestRow,
 )
-from stiffnet.effects.base import Effect
+from stiffnet.effects.base import Effect, MeasurementEffect
 from stiffnet.errors import StiffnetError
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ, OscillatorBatch
 from stiffnet.simulator.settings import SolverSettings
-from stiffnet.simulator.simulator import Simulator
+from stiffnet.simulator.simulator import WHITE_NOISE_ORDER, Simulator
 
 #: Columns a row needs to be simulated.
 SIMULATION_COLUMNS = ("beta", "gap", "amplitude", "frequency_ratio", "damping_ratio")
@@ -226,6 +226,7 @@ def simulate_rows(
     settings: CampaignSolverSettings = CampaignSolverSettings(),
     starts: Sequence[int] | None = None,
     effect_params: dict[str, dict[str, np.ndarray]] | None = None,
+    oversample: bool = True,
 ) -> list[np.ndarray]:
     """Simulate the rows as one batch; returns each row's acceleration in g.
 
@@ -247,6 +248,9 @@ def simulate_rows(
     effect_params : dict, optional
         Per-row parameter arrays by effect name (:meth:`Simulator.simulate`), e.g. the
         points of a fit's design stacked into one batch.
+    oversample : bool
+        False: analog effects filter at the logger's rate (:func:`oversampling`), a cheaper
+        and slightly biased simulation, for screening only.
 
     Returns
     -------
@@ -261,19 +265,28 @@ def simulate_rows(
         n = np.minimum(n, np.ceil(settings.periods * fs_ratio).astype(np.int64))
     noise = np.array([row_noise(r) for r in rows])
     x0, v0 = initial_states(rows, batch, seed, starts)
+    k = oversampling(effects) if oversample else 1
+    if k > 1:  # RK4 steps of an oversampled record: the sample step is already k times shorter
+        settings = settings.model_copy(update={"substeps": max(1, -(-settings.substeps // k))})
     sim = Simulator(list(effects), settings)
-    k = oversampling(effects)
+    # white noise at the end of the chain, drawn for the logger's samples only (not for the
+    # k - 1 dropped between them: the same law, k times fewer draws)
+    late = k > 1 and all(
+        e.order < WHITE_NOISE_ORDER for e in effects if isinstance(e, MeasurementEffect)
+    )
+    rng = np.random.default_rng([int(seed), 1])
     # the analog chain had been running before the record began: its start-up transient
     # (a charge amplifier's high-pass rings down over ~1/f_h) falls in a dropped lead-in
-    lead = np.ceil(lead_in_seconds(effects) * np.array([r.fs_hz for r in rows]) * k)
+    lead_s = lead_in_seconds(effects, LONGEST_COMPARISON_LEAD_IN_S)
+    lead = np.ceil(lead_s * np.array([r.fs_hz for r in rows]) * k)
     lead = lead.astype(np.int64)
     try:
         res = sim.simulate(
             batch,
             fs_ratio * k,
             int((n * k + lead).max()),
-            noise=noise,
-            rng=np.random.default_rng([int(seed), 1]),
+            noise=0.0 if late else noise,
+            rng=rng,
             x0=x0,
             v0=v0,
             effect_params=effect_params,
@@ -282,7 +295,12 @@ def simulate_rows(
     except StiffnetError as exc:
         raise StiffnetError(f"simulating the campaign: {exc}") from None
     gains = np.array([sensor_gain(natural_frequency(r)) for r in rows])
-    return [res.accel[i, lead[i] : lead[i] + n[i] * k : k] * gains[i] for i in range(len(rows))]
+    out = [res.accel[i, lead[i] : lead[i] + n[i] * k : k] for i in range(len(rows))]
+    if late and np.any(noise):
+        white = rng.standard_normal((len(rows), int(n.max())))
+        std = noise * batch.forcing_scale
+        out = [a + white[i, : a.size] * std[i] for i, a in enumerate(out)]
+    return [a * gains[i] for i, a in enumerate(out)]
 
 
 #: The motion is simulated this many times faster than the logger's rate when an effect
@@ -306,10 +324,19 @@ ANALOG_OVERSAMPLING = 8
 ANALOG_LEAD_IN_S = 1.5
 
 
-def lead_in_seconds(effects: Sequence[Effect]) -> float:
+#: The longest lead-in of the comparison simulations (:func:`simulate_rows`): a fit sweeps
+#: the sensor's high-pass corner down to 0, and seven time constants of a 0.05 Hz corner
+#: (22 s at 8x oversampling) would cost several evaluations; below 0.37 Hz the start-up
+#: drift that is left is a slow offset a fit of the corner avoids, and such a corner
+#: hardly touches a forcing near 10 Hz (a 0.6 degree lead at 0.1 Hz).
+LONGEST_COMPARISON_LEAD_IN_S = 3.0
+
+
+def lead_in_seconds(effects: Sequence[Effect], longest: float = 20.0) -> float:
     """Seconds simulated and dropped before each row: :data:`ANALOG_LEAD_IN_S` for an analog
     effect with a high-pass (``highpass_hz`` > 0: seven of its time constants, at least that
-    long), a tenth of a second for one without (a resonance rings in within ms), else 0."""
+    long, at most ``longest``), a tenth of a second for one without (a resonance rings in
+    within ms), else 0."""
     out = 0.0
     for e in effects:
         if not getattr(e, "analog", False):
@@ -317,7 +344,7 @@ def lead_in_seconds(effects: Sequence[Effect]) -> float:
         hp = getattr(getattr(e, "params", None), "highpass_hz", 0.0)
         hp = min(hp) if isinstance(hp, list | tuple) else float(hp or 0.0)
         lead = max(ANALOG_LEAD_IN_S, 7.0 / (2 * math.pi * hp)) if hp > 0 else 0.1
-        out = max(out, min(lead, 20.0))
+        out = max(out, min(lead, longest))
     return out
 
 

@@ -70,9 +70,33 @@ _RESULT_KEYS: dict[str, dict[str, type | tuple[type, ...]]] = {
 _OPTIONAL_KEYS: dict[str, dict[str, tuple[type, ...]]] = {
     "diagnosis": {"noise_floor": (int, float, type(None)), "verdict": (str, type(None)),
                   "summary": (str,), "missing_effects": (list, str),
-                  "restoring_force_evidence": (dict, type(None))},
+                  "restoring_force": (dict, type(None))},
 }  # fmt: skip
 _COMMAND = {"diagnosis": "diagnose", "loop": "loop"}
+#: Keys that results written by earlier versions carry under another name (old: new): the
+#: restoring-force estimate was also called "physical" (``physical_beta``, ...) and its
+#: campaign summary "evidence".
+_EARLIER_KEYS = {"restoring_force_evidence": "restoring_force"}
+_EARLIER_PREFIX = ("physical_", "restoring_force_")
+
+
+def _with_current_keys(data: Any, depth: int = 4) -> Any:
+    """A saved result with the keys of earlier versions renamed to today's down to `depth`
+    levels (a loop's iterations' rows lie at 3; where both names stand, today's wins)."""
+    if depth < 0:
+        return data
+    if isinstance(data, list):
+        return [_with_current_keys(v, depth - 1) for v in data]
+    if not isinstance(data, dict):
+        return data
+    out: dict[str, Any] = {}
+    for k, v in data.items():
+        new = _EARLIER_KEYS.get(k, k)
+        if new.startswith(_EARLIER_PREFIX[0]):
+            new = _EARLIER_PREFIX[1] + new.removeprefix(_EARLIER_PREFIX[0])
+        if new == k or new not in data:
+            out[new] = _with_current_keys(v, depth - 1)
+    return out
 
 
 def _read_json(path: Path | None, what: str) -> Any:
@@ -82,7 +106,7 @@ def _read_json(path: Path | None, what: str) -> Any:
 
     if path is None:
         return None
-    data = read_json_object(path, f"{what} JSON")
+    data = _with_current_keys(read_json_object(path, f"{what} JSON"))
     for key, kind in _RESULT_KEYS.get(what, {}).items():
         if not isinstance(data.get(key), kind) or isinstance(data.get(key), bool):
             raise StiffnetError(
@@ -91,8 +115,8 @@ def _read_json(path: Path | None, what: str) -> Any:
     check_fields(data, _OPTIONAL_KEYS.get(what, {}), f"{path}: not a `{_COMMAND[what]} --json` "
                  "result")  # fmt: skip
     if what == "diagnosis":
-        evidence = data.get("restoring_force_evidence") or {}
-        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force_evidence")
+        evidence = data.get("restoring_force") or {}
+        check_fields(evidence, {"summary": (str, type(None))}, f"{path}: restoring_force")
         for i, r in enumerate(data["ranking"]):
             if isinstance(r, dict):
                 check_fields(r, {"reasons": (list, str)}, f"{path}: ranking[{i}]")
@@ -197,24 +221,12 @@ def compare(
         f"{f['beta_class']}, recording {f['recording']})"
     )
     if plots is not None:
-        from stiffnet.measurement import plots as figs
+        from stiffnet.measurement.report_figures import comparison_figures
 
         plots.mkdir(parents=True, exist_ok=True)
-        names = [r["recording"] for r in res["recordings"]]
-        res["plots"] = [
-            str(
-                figs.waveform_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_waveform.png"
-                )
-            ),
-            str(
-                figs.spectrum_figure(
-                    names, cmp.measured, cmp.simulated, plots / "compare_spectrum.png"
-                )
-            ),
-            str(figs.components_figure(res, plots / "compare_components.png")),
-        ]
-        out.print(f"figures written to {plots}")
+        figures, said = comparison_figures(cmp, plots, "compare_")
+        res["plots"] = [str(f.path) for f in figures]
+        out.print(f"figures written to {plots}. {' '.join(said)}")
     write_json(json_path, res)
 
 
@@ -341,7 +353,7 @@ def diagnosis_lines(res: dict[str, Any]) -> list[str]:
         if isinstance(explained, int | float)
         else f"verdict: {res['verdict']}: {res.get('summary', '')}"
     ]
-    evidence = res.get("restoring_force_evidence") or {}
+    evidence = res.get("restoring_force") or {}
     if evidence.get("summary"):
         lines.append(str(evidence["summary"]))
     if (res.get("learned_law") or {}).get("ran"):  # the library lacked the contact law
@@ -409,28 +421,31 @@ def loop(
     tracking_uri: Annotated[str, typer.Option(help="MLflow tracking URI.")] = "sqlite:///mlflow.db",
     tracking: Annotated[bool, typer.Option(help="Log the iterations to MLflow.")] = True,
     json_path: JsonOption = None,
+    envelope: Annotated[
+        bool,
+        typer.Option(
+            help="Train on the campaign's operating envelope (the manifest's gap, amplitude, "
+            "frequency ratio, damping, fs/f_n and noise, widened 10 %) instead of the "
+            "config's whole sweep (a new loop only)."
+        ),
+    ] = False,
 ) -> None:
     """Iterate: diagnose, add the missing effects to the simulator, retrain, re-evaluate."""
-    from rich.table import Table
-
     from stiffnet.effects.registry import parse_effect_option
-    from stiffnet.errors import StiffnetError
     from stiffnet.inputs import bounded_count
-    from stiffnet.measurement.loop import check_family, check_n_trajectories, run_loop
+    from stiffnet.measurement.loop import check_n_trajectories, run_loop
 
-    if model_family is not None:  # --model is a file everywhere else
-        if family is not None and family != model_family:
-            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
-        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
-        family = model_family
-    if family is not None:
-        check_family(family)
+    family = _loop_family(family, model_family)
     check_n_trajectories(n_trajectories)
     bounded_count(max_epochs, "--max-epochs", 1, 1000)
     given = [parse_effect_option(t) for t in add_effect or []]
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
     camp, cfg = _load(campaign, config)
+    if envelope:
+        from stiffnet.measurement.envelope import campaign_envelope
+
+        cfg = campaign_envelope(cfg, camp.rows)
     overrides = {"max_epochs": max_epochs} if max_epochs else None
     console.print(f"loop on {campaign}: {iterations} new iteration(s)")
     with _progress():
@@ -449,6 +464,35 @@ def loop(
             seed=seed,
             candidates=list(effect) if effect else None,
         )
+    out.print(loop_table(res, campaign))
+    if res["stopped"]:
+        out.print(res["stopped"])
+    out.print(f"state in {res['out']}; chart {res['chart']}")
+    if res["iterations"]:
+        out.print(f"latest model: {res['iterations'][-1]['model']} (stiffnet predict --model)")
+    write_json(json_path, res)
+
+
+def _loop_family(family: str | None, model_family: str | None) -> str | None:
+    """The family `loop` trains: --family, or the deprecated --model (a file everywhere
+    else: a note says so), checked against the registry."""
+    from stiffnet.errors import StiffnetError
+    from stiffnet.measurement.loop import check_family
+
+    if model_family is not None:
+        if family is not None and family != model_family:
+            raise StiffnetError(f"--model {model_family} and --family {family} disagree")
+        _io()[1].print("note: `loop --model` is deprecated (it is a file elsewhere): use --family")
+        family = model_family
+    if family is not None:
+        check_family(family)
+    return family
+
+
+def loop_table(res: dict[str, Any], campaign: Any) -> Any:
+    """The loop's iterations as a table: effects added, the metrics, model version, time."""
+    from rich.table import Table
+
     table = Table(title=f"loop on {campaign} ({res['family']}, {res['seconds']:.0f} s this run)")
     cols = ("discrepancy", "accuracy", "beta_mape", "restoring_force_agreement")
     for col in ("iteration", "effects added", "discrepancy", "accuracy", "beta MAPE",
@@ -472,13 +516,7 @@ def loop(
             str(it.get("model_version") or "–"),
             f"{it['seconds']['total']:.0f}",
         )  # fmt: skip
-    out.print(table)
-    if res["stopped"]:
-        out.print(res["stopped"])
-    out.print(f"state in {res['out']}; chart {res['chart']}")
-    if res["iterations"]:
-        out.print(f"latest model: {res['iterations'][-1]['model']} (stiffnet predict --model)")
-    write_json(json_path, res)
+    return table
 
 
 def report(
@@ -503,7 +541,8 @@ def report(
     from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
     from stiffnet.measurement.diagnose import diagnose_campaign
     from stiffnet.measurement.evaluate import evaluate_campaign
-    from stiffnet.measurement.report import render_report, write_report
+    from stiffnet.measurement.report import render_report, report_provenance, write_report
+    from stiffnet.measurement.report_words import Units
 
     out, _, write_json = _io()
     diag = _read_json(diagnosis, "diagnosis")  # the given results are checked before any work
@@ -522,12 +561,18 @@ def report(
             bar.advance(note="diagnose")
             diag = diagnose_campaign(camp, effects)
         bar.advance()
+    read = DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None
+    prov = report_provenance(
+        camp, out_path, model, config, diagnosis, loop_json, run_diagnose, json_path, read
+    )
     page = render_report(
         f"stiffnet: model versus measurement, {camp.folder.name}",
         ev,
         cmp,
         diag,
         loop_result,
+        prov,
+        Units.of(camp.rows),
     )
     write_report(out_path, page)
     out.print(f"report written to {out_path}")
@@ -537,6 +582,7 @@ def report(
             "report": str(out_path),
             "discrepancy": cmp.result["discrepancy"],
             "missing_effect": diag["missing_effect"] if diag else None,
+            "provenance": prov,
         },
     )
 

@@ -70,6 +70,15 @@ def _num(v: float | None, fmt: str = ".3g") -> str:
     return "-" if v is None else format(v, fmt)
 
 
+def _source_text(result: dict[str, Any]) -> str:
+    """Where f_n came from, short enough for a table cell: a sidecar by its file name (it
+    sits beside the recording; the JSON keeps the whole path)."""
+    source = str(result["natural_frequency_source"])
+    if source.startswith("sidecar:"):
+        return "sidecar " + Path(source.removeprefix("sidecar:")).name
+    return source
+
+
 def result_tables(result: dict[str, Any], title: str) -> list[Any]:
     """Rich renderables of a prediction: summary with the cross-check, probabilities, segments."""
     from rich.table import Table
@@ -103,11 +112,11 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
-    ph = result["physical"]
+    ph = result["restoring_force"]
     if ph["beta"] is not None:
         lo, hi = ph["beta_interval"]
         rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
-        rf += "  agrees" if result["physical_agreement"] else "  [red]disagrees[/]"
+        rf += "  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]"
     else:
         rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
     t.add_row("restoring force", rf, "")
@@ -117,19 +126,23 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
             "[green]none[/]")  # fmt: skip
         t.add_row("alarm", verdict, "")
         scores = ", ".join(
-            # the physical check's score is a log-gap that fires above 0: "0/0" would read
+            # the restoring_force check's score is a log-gap that fires above 0: "0/0" would read
             # as a ratio
             f"{k} log-gap {_num(v)} (fires > 0)"
-            if k == "physical"
+            if k == "restoring_force"
             else f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
             for k, v in alarm["scores"].items()
             if k in alarm["thresholds"]
         )
         t.add_row("alarm checks (score/threshold)", scores, "")
-    t.add_row("windows", f"{result['n_windows']} x {result['window_s']:.3g} s", "")
+    t.add_row(
+        "windows",
+        f"{result['n_windows']} x {result['window_s']:.3g} s, hop {result['hop_s']:.3g} s",
+        "",
+    )
     t.add_row(
         "natural frequency",
-        f"{result['natural_frequency_hz']:.4g} Hz ({result['natural_frequency_source']})",
+        f"{result['natural_frequency_hz']:.4g} Hz ({_source_text(result)})",
         "",
     )
     t.add_row("model sha256", m["sha256"][:16] + "...", "")
@@ -175,36 +188,29 @@ TOKEN_ENVVAR = "STIFFNET_TOKEN"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 
 
+def _opt(kind: type, help_text: str) -> Any:
+    """A plain option of `kind` with its help (serve's limits: one line each)."""
+    return Annotated[kind, typer.Option(help=help_text)]
+
+
 def serve(
-    host: Annotated[str, typer.Option(help="Interface to listen on.")] = "127.0.0.1",
-    port: Annotated[int, typer.Option(help="TCP port.")] = 8000,
+    host: _opt(str, "Interface to listen on.") = "127.0.0.1",
+    port: _opt(int, "TCP port.") = 8000,
     model: ModelOption = None,
-    max_upload_mb: Annotated[float, typer.Option(help="Largest request body in MB (413).")] = 20.0,
-    timeout_s: Annotated[float, typer.Option(help="Per-request time limit (504).")] = 30.0,
-    max_concurrency: Annotated[
-        int, typer.Option(help="Small predictions running at once (worker threads).")
-    ] = 2,
-    max_queue: Annotated[
-        int, typer.Option(help="Requests waiting for a worker beyond which 429 is returned.")
-    ] = 64,
-    max_samples: Annotated[
-        int, typer.Option(help="Most samples in one recording (413): bounds compute and memory.")
-    ] = 2_000_000,
-    small_upload_mb: Annotated[
-        float, typer.Option(help="Bodies above this are large: their own lane (1 at a time).")
-    ] = 1.0,
-    max_large_queue: Annotated[
-        int, typer.Option(help="Large requests admitted to wait; more get 429 unread.")
-    ] = 2,
-    body_timeout_s: Annotated[
-        float, typer.Option(help="Whole request body within this time, else 408.")
-    ] = 20.0,
-    body_idle_s: Annotated[
-        float, typer.Option(help="A body silent this long gets 408 (a stalled upload).")
-    ] = 5.0,
-    header_timeout_s: Annotated[
-        float, typer.Option(help="Whole request head (line and headers) within this time.")
-    ] = 10.0,
+    max_upload_mb: _opt(float, "Largest request body in MB (413).") = 20.0,
+    timeout_s: _opt(float, "Per-request time limit (504).") = 30.0,
+    max_concurrency: _opt(int, "Small predictions running at once (worker threads).") = 2,
+    max_queue: _opt(int, "Requests waiting for a worker beyond which 429 is returned.") = 64,
+    max_samples: _opt(
+        int, "Most samples in one recording (413): bounds compute and memory."
+    ) = 2_000_000,
+    small_upload_mb: _opt(
+        float, "Bodies above this are large: their own lane (1 at a time)."
+    ) = 1.0,
+    max_large_queue: _opt(int, "Large requests admitted to wait; more get 429 unread.") = 2,
+    body_timeout_s: _opt(float, "Whole request body within this time, else 408.") = 20.0,
+    body_idle_s: _opt(float, "A body silent this long gets 408 (a stalled upload).") = 5.0,
+    header_timeout_s: _opt(float, "Whole request head (line and headers) within this time.") = 10.0,
     token: Annotated[
         str | None,
         typer.Option(
@@ -224,7 +230,7 @@ def serve(
         list[str] | None,
         typer.Option(help="Browser origin allowed to call the API (repeatable; default none)."),
     ] = None,
-    threads: Annotated[int, typer.Option(help="ONNX Runtime threads per prediction.")] = 1,
+    threads: _opt(int, "ONNX Runtime threads per prediction.") = 1,
 ) -> None:
     """Serve the predictor over HTTP (FastAPI): POST /predict, GET /health, GET /model."""
     import uvicorn
@@ -343,7 +349,7 @@ def predict_batch_cmd(
     """
     from rich.table import Table
 
-    from serving.batch import predict_batch
+    from serving.batch_prediction import predict_batch
     from stiffnet import progress
     from stiffnet.cli.console import out, show_progress, write_json
 
@@ -421,8 +427,14 @@ def log_cmd(
     channel: ChannelOption = None,
     model: ModelOption = None,
     hop: Annotated[float, typer.Option(help="Seconds between points (<= 0.5).")] = 0.5,
-    physical_every: Annotated[
-        float, typer.Option(help="Seconds between restoring-force cross-checks (0: none).")
+    restoring_force_every: Annotated[
+        float,
+        typer.Option(
+            "--restoring-force-every",
+            # the option's earlier name, kept so that scripts written before still run
+            "--physical-every",
+            help="Seconds between restoring-force cross-checks (0: none).",
+        ),
     ] = 10.0,
     stream_format: Annotated[
         str, typer.Option(help="--follow: csv (one sample per line) or f32 (raw float32).")
@@ -446,76 +458,21 @@ def log_cmd(
     ] = None,
 ) -> None:
     """Stiffness log along a record: beta(t) with intervals, layers and their change times."""
-    from serving.log import StiffnessLogger, log_result, stiffness_log
-    from serving.predictor import Predictor, record_natural_frequency
-    from stiffnet import inputs, progress
-    from stiffnet.cli.console import console, out, show_progress, write_json
-    from stiffnet.errors import StiffnetError
+    from serving.predictor import Predictor
+    from stiffnet.cli.console import console, out, write_json
 
-    for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
-        inputs.output_file(path, what)
-    if rows_path is not None and rows_path.suffix.lower() not in (".csv", ".parquet"):
-        raise StiffnetError(f"--rows {rows_path}: use a .csv or .parquet file name")
-    if plot_path is not None and plot_path.suffix.lower() != ".png":
-        raise StiffnetError(f"--plot {plot_path}: use a .png file name")
+    _check_log_outputs(rows_path, plot_path)
     predictor = Predictor.load(model, threads=threads)
-    every = physical_every if physical_every > 0 else None
+    every = restoring_force_every if restoring_force_every > 0 else None
     if follow:
-        from serving.stream import sample_chunks
-
-        if fs is None:
-            raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
-        if columns is not None or time_unit is not None or channel is not None:
-            raise StiffnetError(
-                "--columns, --time-unit and --channel read files; a --follow stream takes "
-                "--stream-format and --stream-column"
-            )
-        fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
-        logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
-                                 hop_s=hop, physical_every_s=every)  # fmt: skip
-        console.print(
-            f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
-            f"f_n {fn_value:.4g} Hz ({fn_source})",
-            highlight=False,
-        )
-        from collections import deque
-
-        # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
-        # per hour) for the final --json/--rows/--plot: memory stays bounded
-        points: deque = deque(maxlen=FOLLOW_POINTS)
-        layers: list = []
-        chunks = sample_chunks(recording, stream_format, column=stream_column,
-                               idle_timeout_s=idle_timeout)  # fmt: skip
-        for chunk in chunks:
-            for kind, item in logger.feed(chunk):
-                _emit(kind, item, points, layers)
-        for kind, item in logger.finish():
-            _emit(kind, item, points, layers)
-        result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
-        if logger.segmenter.n_seen > len(points):
-            result["warnings"].append(
-                f"--json/--rows/--plot hold the last {len(points)} of "
-                f"{logger.segmenter.n_seen} points (stdout had them all)"
-            )
+        stream = (stream_format, stream_column, idle_timeout)
+        result = _followed_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
+                               every, stream)  # fmt: skip
     else:
-        from stiffnet.recordings import read_recording
-
-        rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
-                             time_unit=time_unit)  # fmt: skip
-        fn_value, fn_source = record_natural_frequency(recording, fn)
-        with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
-            result = stiffness_log(
-                predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, physical_every_s=every,
-                source=rec.source,
-                progress=lambda done, total: bar.update(completed=done, total=total),
-            )  # fmt: skip
-    result["natural_frequency_source"] = fn_source
-    if not follow:
-        for renderable in log_tables(result):
-            out.print(renderable)
-    else:
-        for renderable in log_tables(result):
-            console.print(renderable)
+        result = _recorded_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
+                               every)  # fmt: skip
+    for renderable in log_tables(result):
+        (console if follow else out).print(renderable)  # a stream's stdout is its NDJSON
     write_json(json_path, result)
     if rows_path is not None:
         write_log_rows(result, rows_path)
@@ -528,6 +485,98 @@ def log_cmd(
 
 #: Points ``log --follow`` keeps for its final outputs (two hours at a 0.5 s hop).
 FOLLOW_POINTS = 14_400
+
+
+def _check_log_outputs(rows_path: Path | None, plot_path: Path | None) -> None:
+    """Refuse, before any work, a --rows that is not .csv/.parquet or a --plot not .png."""
+    from stiffnet import inputs
+    from stiffnet.errors import StiffnetError
+
+    for path, what in ((rows_path, "--rows"), (plot_path, "--plot")):
+        inputs.output_file(path, what)
+    if rows_path is not None and rows_path.suffix.lower() not in (".csv", ".parquet"):
+        raise StiffnetError(f"--rows {rows_path}: use a .csv or .parquet file name")
+    if plot_path is not None and plot_path.suffix.lower() != ".png":
+        raise StiffnetError(f"--plot {plot_path}: use a .png file name")
+
+
+def _recorded_log(
+    predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
+    hop: float, every: float | None,
+) -> dict[str, Any]:  # fmt: skip
+    """The log of a recording file, with a progress bar (`reading`: columns, time unit,
+    channel)."""
+    from serving.log import stiffness_log
+    from serving.predictor import record_natural_frequency
+    from stiffnet import progress
+    from stiffnet.cli.console import show_progress
+    from stiffnet.recordings import read_recording
+
+    columns, time_unit, channel = reading
+    rec = read_recording(recording, fs_hz=fs, channel=channel, columns=columns,
+                         time_unit=time_unit)  # fmt: skip
+    fn_value, fn_source = record_natural_frequency(recording, fn)
+    with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
+        result = stiffness_log(
+            predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, restoring_force_every_s=every,
+            source=rec.source,
+            progress=lambda done, total: bar.update(completed=done, total=total),
+        )  # fmt: skip
+    result["natural_frequency_source"] = fn_source
+    return result
+
+
+def _followed_log(
+    predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
+    hop: float, every: float | None, stream: tuple,
+) -> dict[str, Any]:  # fmt: skip
+    """The log of a growing file or stdin (`stream`: format, column, idle timeout): each
+    point and closed layer printed as it comes, the last FOLLOW_POINTS kept for the
+    final outputs."""
+    from collections import deque
+
+    from serving.log import StiffnessLogger, log_result
+    from serving.predictor import record_natural_frequency
+    from serving.stream import sample_chunks
+    from stiffnet import inputs
+    from stiffnet.cli.console import console
+    from stiffnet.errors import StiffnetError
+
+    if fs is None:
+        raise StiffnetError("--follow needs --fs HZ (a stream carries no sampling rate)")
+    if any(v is not None for v in reading):
+        raise StiffnetError(
+            "--columns, --time-unit and --channel read files; a --follow stream takes "
+            "--stream-format and --stream-column"
+        )
+    fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
+    logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
+                             hop_s=hop, restoring_force_every_s=every)  # fmt: skip
+    console.print(
+        f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
+        f"f_n {fn_value:.4g} Hz ({fn_source})",
+        highlight=False,
+    )
+    # an endless stream keeps the last FOLLOW_POINTS points (and every layer, a few
+    # per hour) for the final --json/--rows/--plot: memory stays bounded
+    points: deque = deque(maxlen=FOLLOW_POINTS)
+    layers: list = []
+    stream_format, stream_column, idle_timeout = stream
+    chunks = sample_chunks(recording, stream_format, column=stream_column,
+                           idle_timeout_s=idle_timeout)  # fmt: skip
+    for chunk in chunks:
+        for kind, item in logger.feed(chunk):
+            _emit(kind, item, points, layers)
+    for kind, item in logger.finish():
+        _emit(kind, item, points, layers)
+    result = log_result(logger, list(points), layers, recording, logger.n_total / logger.fs)
+    if logger.segmenter.n_seen > len(points):
+        result["warnings"].append(
+            f"--json/--rows/--plot hold the last {len(points)} of "
+            f"{logger.segmenter.n_seen} points (stdout had them all)"
+        )
+    result["natural_frequency_source"] = fn_source
+    return result
 
 
 def _emit(kind: str, item: dict[str, Any], points: Any, layers: list) -> None:
@@ -555,7 +604,7 @@ def log_tables(result: dict[str, Any]) -> list[Any]:
         beta = _num(la["beta"])
         if la["beta_interval"]:
             beta += f" [{la['beta_interval'][0]:.3g}, {la['beta_interval'][1]:.3g}]"
-        ph = la["physical"]
+        ph = la["restoring_force"]
         if ph["beta"] is not None:
             rf = f"{ph['beta']:.3g} " + ("agrees" if ph["agreement"] else "[red]disagrees[/]")
         else:
@@ -606,7 +655,7 @@ def write_log_rows(result: dict[str, Any], path: Path) -> None:
         "alarm": [p["alarm"] for p in pts],
         "alarm_fired": [",".join(p["alarm_fired"]) for p in pts],
         "layer": layer_of,
-        "physical_beta": [p.get("physical", {}).get("beta") for p in pts],
+        "restoring_force_beta": [p.get("restoring_force", {}).get("beta") for p in pts],
     })  # fmt: skip
     buf = io.BytesIO()
     if path.suffix.lower() == ".parquet":

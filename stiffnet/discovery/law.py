@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -63,6 +64,9 @@ class DiscoveredLaw:
         Terms outside the library's laws (empty: nothing new).
     n_impacts : int
     coverage : float
+    reference : str
+        What fixes ``d_r``, the penetration of a power law's secant beta: the campaign's
+        median peak penetration, or the manifest's beta (:meth:`referred_to`).
     """
 
     terms: tuple[str, ...]
@@ -82,6 +86,7 @@ class DiscoveredLaw:
     library_params: dict[str, float] = field(default_factory=dict)
     library_betas: tuple[float, ...] = ()
     library_onsets: tuple[float, ...] = ()
+    reference: str = "median peak penetration"
 
     @property
     def new(self) -> bool:
@@ -109,6 +114,55 @@ class DiscoveredLaw:
         if term == "face":
             return p["face_stiffness"]
         raise KeyError(term)
+
+    def referred_to(self, betas: Sequence[float | None]) -> DiscoveredLaw:
+        """The same law with ``d_r`` chosen so that its betas are the given ones.
+
+        A power law's beta is its secant stiffness at ``d_r`` (docs/crosscheck.md, "Beta
+        for a nonlinear contact law"), so it is a convention: a manifest whose beta is
+        the secant at another penetration labels the same rig differently, by
+        ``(d_r' / d_r)^(p - 1)``. Where the manifest gives beta, the law is referred to
+        the manifest's penetration, ``d_r' = d_r s^(1/(p-1))`` with ``s`` the geometric
+        mean of manifest over law betas, so the learned law, the datasets generated with
+        it (the models' labels) and the campaign's truth are one quantity. The force is
+        unchanged: betas, the second stage's ``(r - 1)``, the preload and ``zeta^2`` are
+        rescaled by ``1/s``, ``alpha`` and the exponent stay. A law whose leading term is
+        linear (beta is its slope at first contact, no convention) comes back unchanged,
+        as does one without any given beta.
+
+        Parameters
+        ----------
+        betas : sequence of float or None
+            The manifest's beta per recording, in the order of :attr:`recordings`.
+        """
+        p = self.params
+        given = np.array([np.nan if b is None else float(b) for b in betas])
+        ok = np.isfinite(given) & (given > 0) & (np.asarray(self.betas) > 0)
+        if abs(p["exponent"] - 1.0) < 1e-9 or not ok.any():
+            return self
+        s = float(np.exp(np.mean(np.log(given[ok] / np.asarray(self.betas)[ok]))))
+        dr = float(f"{p['reference_penetration'] * s ** (1.0 / (p['exponent'] - 1.0)):.3g}")
+        if not 1e-3 <= dr <= 10.0:  # outside learned_contact's range: keep the campaign's
+            return self
+        s = (dr / p["reference_penetration"]) ** (p["exponent"] - 1.0)  # d_r as rounded
+        scale = {"knee_ratio": lambda v: 1.0 + (v - 1.0) / s, "preload": lambda v: v / s,
+                 "damping_ratio": lambda v: v / np.sqrt(s)}  # fmt: skip
+        params = {k: float(scale[k](v)) if k in scale else v for k, v in p.items()}
+        params["reference_penetration"] = dr
+        intervals = {
+            k: tuple(sorted(float(scale[k](v)) for v in iv)) if k in scale else iv
+            for k, iv in self.intervals.items()
+        }
+        return replace(
+            self,
+            params=params,
+            intervals=intervals,
+            betas=tuple(b * s for b in self.betas),
+            beta_intervals=tuple(
+                None if iv is None else (iv[0] * s, iv[1] * s) for iv in self.beta_intervals
+            ),  # fmt: skip
+            reference="the manifest's beta",
+        )
 
     @property
     def equation(self) -> str:
@@ -182,6 +236,7 @@ class DiscoveredLaw:
                 for s in self.path
             ],
             "n_impacts": self.n_impacts,
+            "beta_reference": self.reference,
             "per_recording": [
                 {"recording": n, "beta": b, "beta_interval": list(iv) if iv else None, "onset": e}
                 for n, b, iv, e in zip(

@@ -1,7 +1,7 @@
 """Running independent tasks in-process, on a LocalCluster, or on an existing Dask
 cluster (``dask.distributed``). Dask is optional (the ``dask`` extra): nothing here
 imports it at module level. This package knows nothing of what the tasks compute: the
-callers (dataset generation, campaign simulation, diagnosis, ``serving.batch``) bring
+callers (dataset generation, campaign simulation, diagnosis, ``serving.batch_prediction``) bring
 their task functions and, for compiled kernels, their thread limit.
 
 - :mod:`stiffnet.distributed.cluster`: where work runs (``scheduler`` / ``workers``).

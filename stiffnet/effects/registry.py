@@ -28,6 +28,7 @@ from typing import Any
 
 from stiffnet.effects.base import Effect
 from stiffnet.errors import ConfigError
+from stiffnet.plugins import defined_subclasses
 
 #: Canonical names of the shipped effects and where they live.
 CANONICAL: dict[str, str] = {
@@ -215,9 +216,7 @@ def user_effects() -> list[tuple[str, type[Effect]]]:
     found = [(name, effect_class(name)) for name in _entry_points()]
     for module_name in _PLUGINS:
         module = sys.modules.get(module_name)
-        for attr, obj in sorted(vars(module).items()) if module else ():
-            if (isinstance(obj, type) and issubclass(obj, Effect) and not attr.startswith("_")
-                    and obj.__module__ == module_name
-                    and getattr(obj, "kind", None) in ("dynamics", "measurement")):  # fmt: skip
-                found.append((f"{module_name}:{attr}", obj))
+        for obj in defined_subclasses(module, Effect) if module else ():
+            if getattr(obj, "kind", None) in ("dynamics", "measurement"):
+                found.append((f"{module_name}:{obj.__name__}", obj))
     return found

@@ -155,26 +155,27 @@ class SensorDynamics(MeasurementEffect):
             integer=True,
         )
 
-    #: The mounted resonance; the high-pass stays at 1 Hz and the low-pass is off (they
-    #: shape the band the resonance rings in far less than the resonance itself).
+    #: The mounted resonance and the charge amplifier's high-pass corner (0: none); the
+    #: low-pass is off (it shapes the band the resonance rings in far less than the
+    #: resonance itself).
     fit_space = FitSpace(
         (
             FitParam("resonance_hz", 50.0, 1000.0, log=True),
             FitParam("resonance_damping", 0.01, 0.3, log=True),
+            # linear down to 0: a rig with no high-pass (an assumed 1 Hz one left the
+            # impact-aligned waveform of a rig without one 0.4-0.9 tolerances off)
+            FitParam("highpass_hz", 0.0, 2.0),
         ),
-        # the mount's resonance is fitted; the charge amplifier's high-pass is assumed at
-        # 1 Hz (on a rig without one it leaves the impact-aligned waveform 0.4-0.9
-        # tolerances off: fitting it needs a lead-in of 7 / (2 pi f_h), seconds at 0.1 Hz)
-        fixed={"highpass_hz": 1.0, "lowpass_hz": 0.0, "lowpass_order": 2.0},
+        fixed={"lowpass_hz": 0.0, "lowpass_order": 2.0},
         multimodal=("resonance_hz",),
     )
 
     @classmethod
     def campaign_fit_space(cls, fs_hz_min: float) -> FitSpace:
         """The resonance searched up to the campaign's lowest ``0.45 fs`` (above, it is skipped)."""
-        res, damp = cls.fit_space.free
+        res, *others = cls.fit_space.free
         top = max(60.0, _MAX_CORNER_FRACTION * fs_hz_min)
-        return replace(cls.fit_space, free=(replace(res, high=top), damp))
+        return replace(cls.fit_space, free=(replace(res, high=top), *others))
 
     @classmethod
     def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
@@ -183,15 +184,19 @@ class SensorDynamics(MeasurementEffect):
         f = observed.get("ringing_hz")
         if f is None or not np.isfinite(f):
             return []
-        res, damp = space.free
+        res, damp = space.free[:2]
+        # with and without a charge-amplifier high-pass (when the space fits its corner)
+        corners = (0.0, 1.0) if "highpass_hz" in space.names else (None,)
         return [
             {
                 **space.fixed,
                 "resonance_hz": float(np.clip(f * scale, res.low, res.high)),
                 "resonance_damping": float(np.clip(zeta, damp.low, damp.high)),
+                **({} if hp is None else {"highpass_hz": hp}),
             }
             for scale in (0.98, 1.0, 1.02)
             for zeta in (0.01, 0.03, 0.1)
+            for hp in corners
         ]
 
     def apply(

@@ -4,7 +4,7 @@ Never import torch, sklearn or mlflow here: the light ONNX predictor imports
 this package to turn a recording into the feature vector its model expects.
 """
 
-from stiffnet.features.inclination import (
+from stiffnet.features.inclination_features import (
     FEATURE_NAMES,
     FEATURE_VERSION,
     FILL_VALUES,

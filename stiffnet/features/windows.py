@@ -25,7 +25,7 @@ the sampling rate, the sensor gain and the sensor polarity do not matter:
    a shorter one is zero-padded at the end (after normalisation zero is the
    mean, so padding is neutral).
 3. **Polarity.** Flipped so that impact spikes point up - the rule of
-   :mod:`stiffnet.features.inclination`: impacts are detected on the
+   :mod:`stiffnet.features.inclination_features`: impacts are detected on the
    Savitzky-Golay-smoothed, standardised window at its own rate
    (:func:`stiffnet.nlts.detect_impacts`, at most one per quarter natural
    period) and their sign taken by the geometric method's polarity rule
@@ -163,7 +163,7 @@ def _antialias(ratio: float) -> np.ndarray:
 def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
     """Row-wise sign that makes the impact spikes of standardised windows point up.
 
-    The rule of :mod:`stiffnet.features.inclination`: Savitzky-Golay smoothing
+    The rule of :mod:`stiffnet.features.inclination_features`: Savitzky-Golay smoothing
     (order 2, :func:`stiffnet.geometry.estimate.smoothing_window`), impacts as
     :func:`stiffnet.nlts.preprocess.detect_impacts` finds them (``|gradient|``
     above median + 8 * 1.4826 * MAD, at most one per quarter natural period),

@@ -390,6 +390,86 @@ def _both_inclinations(
     return grad, poly, True, reason
 
 
+def _smoothed(a: np.ndarray) -> tuple[np.ndarray, float, int]:
+    """The standardised record (every later step is then independent of the gain),
+    smoothed: ``(smoothed, dominant period in samples, smoothing window)``."""
+    a = (a - a.mean()) / a.std()
+    period = dominant_period(a)
+    if a.size < MIN_PERIODS * period:
+        raise SignalError(
+            f"acceleration is too short: its dominant period is {period:.1f} samples, so "
+            f"{a.size} samples hold {a.size / period:.1f} cycles; at least {MIN_PERIODS:g} needed"
+        )
+    win = smoothing_window(period)
+    return savgol_smooth(a, win, 2), period, win
+
+
+def _embedded(
+    s: np.ndarray, period: float, delay: int | str, dimension: int | str
+) -> tuple[np.ndarray, int, str, int, str]:
+    """The delay embedding the inclinations are read in: ``(points, delay, its rule,
+    dimension used (at least 3: the x-z projection), its rule)``."""
+    tau, delay_rule = embedding_delay(s, period, delay)
+    m, dim_rule = embedding_dimension(s, tau, dimension)
+    m_used = max(3, m)
+    if s.size < (m_used - 1) * tau + 3 * period:
+        raise SignalError(
+            f"acceleration is too short to embed with dim={m_used}, delay={tau} and keep "
+            f"three periods of {period:.1f} samples"
+        )
+    return embed_unchecked(s, m_used, tau), tau, delay_rule, m_used, dim_rule
+
+
+def _calibrated(
+    chosen: OrbitInclinations | None,
+    cal: GeometricCalibration | None,
+    pattern: Any,
+) -> tuple[float | None, str | None, str | None]:
+    """``(beta, class, calibration orbit)`` of the chosen inclinations: no contact is
+    ``no_contact``; no calibration gives no beta; a period-n orbit its own calibration."""
+    if chosen is None:
+        return None, NO_CONTACT, None
+    if cal is None:
+        return None, None, None
+    used = cal.for_orbit(pattern)
+    b, c = used.predict((chosen.mean_before, chosen.mean_after))
+    return float(b), str(c), "period1" if used is cal else "period_n"
+
+
+def _chosen_inclinations(
+    chosen: OrbitInclinations | None, impacts: np.ndarray, tau: int, period: float
+) -> dict[str, Any]:
+    """The result's fields of the chosen inclinations: means, per orbit, the orbits'
+    flight periods (NaN and empty without contact)."""
+    if chosen is None:
+        empty = np.empty(0)
+        return dict(inclination_before_deg=float("nan"), inclination_after_deg=float("nan"),
+                    orbit_before_deg=empty, orbit_after_deg=empty, n_orbits=0,
+                    orbit_flight_periods=np.empty(0))  # fmt: skip
+    return dict(
+        inclination_before_deg=chosen.mean_before,
+        inclination_after_deg=chosen.mean_after,
+        orbit_before_deg=chosen.before,
+        orbit_after_deg=chosen.after,
+        n_orbits=chosen.n_orbits,
+        # tangent k's z-coordinate is sample k + 2 tau: where the impact region starts
+        orbit_flight_periods=flight_periods(chosen.starts + 2 * tau, impacts, period),
+    )
+
+
+def _both_means(
+    grad: OrbitInclinations | None, poly: OrbitInclinations | None, contact: bool
+) -> dict[str, float]:
+    """Mean inclinations of both approaches (NaN where one has none or there is no contact)."""
+    nan = float("nan")
+    return dict(
+        gradient_before_deg=grad.mean_before if contact and grad else nan,
+        gradient_after_deg=grad.mean_after if contact and grad else nan,
+        polynomial_before_deg=poly.mean_before if contact and poly else nan,
+        polynomial_after_deg=poly.mean_after if contact and poly else nan,
+    )
+
+
 def geometric_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -449,36 +529,13 @@ def geometric_estimate(
         raise ConfigError(
             f"calibration was fitted on {cal.method} inclinations, method is {method}"
         )
-
-    # Standardise: every later step is then independent of the gain.
-    a = (a - a.mean()) / a.std()
-    period = dominant_period(a)
-    if a.size < MIN_PERIODS * period:
-        raise SignalError(
-            f"acceleration is too short: its dominant period is {period:.1f} samples, so "
-            f"{a.size} samples hold {a.size / period:.1f} cycles; at least {MIN_PERIODS:g} needed"
-        )
-    win = smoothing_window(period)
-    s = savgol_smooth(a, win, 2)
-
-    tau, delay_rule = embedding_delay(s, period, delay)
-    m, dim_rule = embedding_dimension(s, tau, dimension)
-    m_used = max(3, m)
-    if s.size < (m_used - 1) * tau + 3 * period:
-        raise SignalError(
-            f"acceleration is too short to embed with dim={m_used}, delay={tau} and keep "
-            f"three periods of {period:.1f} samples"
-        )
-
-    y = embed_unchecked(s, m_used, tau)
+    s, period, win = _smoothed(a)
+    y, tau, delay_rule, m_used, dim_rule = _embedded(s, period, delay, dimension)
     lag = tangent_lag(period)
     v = tangent_vectors(y[:, :3], lag)
-    mag = tangent_magnitudes(v)
-    sep = separate_contact(mag, min_mode_ratio=min_mode_ratio)
+    sep = separate_contact(tangent_magnitudes(v), min_mode_ratio=min_mode_ratio)
     # One impact per quarter period at most: both flanks of a soft spike are one impact.
     impacts = detect_impacts(s, fs=float(fs_hz), min_separation=max(1, int(0.25 * period)))
-
-    nan = float("nan")
     grad, poly, contact, reason = _both_inclinations(
         y, v, sep, impacts, tau, lag, polynomial_degree
     )
@@ -487,37 +544,13 @@ def geometric_estimate(
     if contact and not is_period1(pattern):
         reason = f"{reason}; {_period_n_caveat(pattern, cal)}"
 
-    flights = np.empty(0)
-    cal_orbit = None
-    if chosen is None:
-        beta, cls = None, NO_CONTACT
-        before = after = nan
-        orbit_b = orbit_a = np.empty(0)
-    else:
-        before, after = chosen.mean_before, chosen.mean_after
-        orbit_b, orbit_a = chosen.before, chosen.after
-        # tangent k's z-coordinate is sample k + 2 tau: where the impact region starts
-        flights = flight_periods(chosen.starts + 2 * tau, impacts, period)
-        if cal is not None:
-            used = cal.for_orbit(pattern)
-            cal_orbit = "period1" if used is cal else "period_n"
-            b, c = used.predict((before, after))
-            beta, cls = float(b), str(c)
-        else:
-            beta, cls = None, None
-
+    beta, cls, cal_orbit = _calibrated(chosen, cal, pattern)
     return GeometricResult(
         contact_detected=bool(contact),
         geometric_class=cls,
         geometric_beta=beta,
-        inclination_before_deg=before,
-        inclination_after_deg=after,
-        orbit_before_deg=orbit_b,
-        orbit_after_deg=orbit_a,
-        gradient_before_deg=grad.mean_before if contact and grad else nan,
-        gradient_after_deg=grad.mean_after if contact and grad else nan,
-        polynomial_before_deg=poly.mean_before if contact and poly else nan,
-        polynomial_after_deg=poly.mean_after if contact and poly else nan,
+        **_chosen_inclinations(chosen, impacts, tau, period),
+        **_both_means(grad, poly, contact),
         method=method,
         delay=tau,
         delay_rule=delay_rule,
@@ -528,13 +561,11 @@ def geometric_estimate(
         smoothing_window=win,
         tangent_lag=lag,
         impacts=impacts,
-        n_orbits=chosen.n_orbits if chosen is not None else 0,
         threshold=sep.threshold if contact else float("inf"),
         contact_fraction=sep.contact_fraction if contact else 0.0,
         polarity=impact_polarity(s, impacts) if contact else 0,
         separation=sep,
         reason=reason,
         impact_pattern=pattern,
-        orbit_flight_periods=flights,
         calibration_orbit=cal_orbit,
     )

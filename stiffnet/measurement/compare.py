@@ -90,48 +90,63 @@ def compare_campaign(
     check_rows(rows, str(campaign.manifest_path))
     measured, lengths, _ = measured_statistics(campaign, rows)  # shared with diagnose
     sims = simulate_rows(rows, effects, lengths, seed, settings)
-    simulated: list[SignalStatistics | None] = []
-    for row, a in zip(rows, sims, strict=True):
-        try:
-            simulated.append(
-                signal_statistics(a, row.fs_hz, natural_frequency(row), row.frequency_ratio)
-            )
-        except SignalError:
-            simulated.append(None)
-
+    simulated = [_simulated_statistics(row, a) for row, a in zip(rows, sims, strict=True)]
     recs = []
     sq = {c: [] for c in COMPONENTS}
     for row, m, s in zip(rows, measured, simulated, strict=True):
-        if s is None:
-            recs.append(
-                {
-                    "recording": row.recording,
-                    "beta": row.beta,
-                    "discrepancy": None,
-                    "error": "simulation could not be analysed",
-                }
-            )
-            continue
-        nd = normalised_differences(m, s)
-        for c, v in nd.items():
-            if np.isfinite(v):
-                sq[c].append(v * v)
-        present = {c: v for c, v in nd.items() if np.isfinite(v)}
-        recs.append(
-            {
-                "recording": row.recording,
-                "beta": row.beta,
-                "beta_class": beta_class_name(row.beta),
-                "discrepancy": recording_discrepancy(nd),
-                "components": {c: (v if np.isfinite(v) else None) for c, v in nd.items()},
-                "groups": group_discrepancies(nd),
-                "worst_component": max(present, key=lambda c: abs(present[c])) if present else None,
-                "measured": m.scalars(),
-                "simulated": s.scalars(),
-                "measured_impacts": int(m.impacts.size),
-                "simulated_impacts": int(s.impacts.size),
-            }
-        )
+        recs.append(_recording_comparison(row, m, s, sq))
+    result = {
+        "campaign": str(campaign.folder),
+        "effects": [repr(e) for e in effects],
+        "seed": seed,
+        **_campaign_summary(recs, sq),
+    }
+    return Comparison(measured, simulated, result)
+
+
+def _simulated_statistics(row: Any, accel: np.ndarray) -> SignalStatistics | None:
+    """The statistics of a row's simulation (None where the simulation cannot be read)."""
+    try:
+        return signal_statistics(accel, row.fs_hz, natural_frequency(row), row.frequency_ratio)
+    except SignalError:
+        return None
+
+
+def _recording_comparison(
+    row: Any, m: SignalStatistics, s: SignalStatistics | None, sq: dict[str, list[float]]
+) -> dict[str, Any]:
+    """One recording's measured-versus-simulated entry; its squared normalised
+    differences are added to `sq` (per component, for the campaign's means)."""
+    if s is None:
+        return {
+            "recording": row.recording,
+            "beta": row.beta,
+            "discrepancy": None,
+            "error": "simulation could not be analysed",
+        }
+    nd = normalised_differences(m, s)
+    for c, v in nd.items():
+        if np.isfinite(v):
+            sq[c].append(v * v)
+    present = {c: v for c, v in nd.items() if np.isfinite(v)}
+    return {
+        "recording": row.recording,
+        "beta": row.beta,
+        "beta_class": beta_class_name(row.beta),
+        "discrepancy": recording_discrepancy(nd),
+        "components": {c: (v if np.isfinite(v) else None) for c, v in nd.items()},
+        "groups": group_discrepancies(nd),
+        "worst_component": max(present, key=lambda c: abs(present[c])) if present else None,
+        "measured": m.scalars(),
+        "simulated": s.scalars(),
+        "measured_impacts": int(m.impacts.size),
+        "simulated_impacts": int(s.impacts.size),
+    }
+
+
+def _campaign_summary(recs: list[dict[str, Any]], sq: dict[str, list[float]]) -> dict[str, Any]:
+    """The campaign's discrepancy, its recordings, and where it fails most: by component,
+    by group of components, by beta class, and the worst recording."""
     per = [r["discrepancy"] for r in recs if r.get("discrepancy") is not None]
     by_component = {c: (float(np.mean(v)) if v else None) for c, v in sq.items()}
     totals = {g: float(sum(r["groups"][g] for r in recs if "groups" in r)) for g in GROUPS}
@@ -148,10 +163,7 @@ def compare_campaign(
     )
     worst_group = max(by_group, key=by_group.get) if total > 0 else None
     worst_class = max(by_class, key=lambda k: np.mean(by_class[k])) if by_class else None
-    result = {
-        "campaign": str(campaign.folder),
-        "effects": [repr(e) for e in effects],
-        "seed": seed,
+    return {
         "discrepancy": campaign_discrepancy(per),
         "recordings": recs,
         "by_component": by_component,
@@ -168,4 +180,3 @@ def compare_campaign(
             ).get("recording"),
         },
     }
-    return Comparison(measured, simulated, result)

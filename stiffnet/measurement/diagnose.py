@@ -33,11 +33,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from stiffnet.campaign import Campaign
+from stiffnet.campaign import Campaign, ManifestRow
 from stiffnet.campaign.loaded import LoadedCampaign, memo
 from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.base import Effect
@@ -207,34 +208,106 @@ def diagnose_campaign(
     ):
         bar = _Progress(progress, line, plan)
         bar.to(0, "reading the recordings")
-        return _diagnose(
-            campaign, base_effects, effects, user_effects, budget, budget_numerical, seed,
-            inclination, client, bar, model_path, t0,
+        options = {"budget": budget, "budget_numerical": budget_numerical, "seed": seed,
+                   "inclination": inclination, "model_path": model_path}  # fmt: skip
+        candidates = candidate_effects(base_effects, user_effects, effects)
+        return _diagnose(campaign, base_effects, candidates, options, client, bar, t0)
+
+
+@dataclass
+class _Run:
+    """What the parts of one diagnosis share: the target, the floors, where fits run."""
+
+    campaign: Campaign
+    base_effects: list[Effect]
+    #: The rows as resolved (the target's move with the nuisances).
+    rows: list[ManifestRow]
+    target: CampaignTarget
+    names: list[str]
+    nuisance_info: dict[str, Any]
+    floor_info: dict[str, Any]
+    floors: dict[Any, Floors]
+    budget: int | None
+    budget_numerical: int | None
+    client: Any
+    bar: _Progress
+    stage: str = "single fits"
+
+    def fits(self, cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
+        """Fit each candidate on top of ``fixed`` (parallel tasks), in the order given."""
+        from stiffnet.distributed.tasks import run_tasks
+        from stiffnet.simulator.compiled import limited_threads
+
+        # numerical-engine fits (the long ones) first, so parallel workers finish together
+        order = sorted(cands, key=lambda n: not needs_numerical(n))
+        items = [
+            (self.target, n, fixed, self.budget_numerical if needs_numerical(n) else self.budget)
+            for n in order
+        ]
+        start = self.bar.done
+
+        def show(done: int, _total: int) -> None:
+            nxt = f": fitting {order[done]}" if done < len(order) else ""
+            self.bar.to(start + done, f"{self.stage}{nxt}")
+
+        show(0, len(order))
+        report = run_tasks(
+            _fit_task, items, client=self.client, names=order, progress=show,
+            thread_limit=limited_threads,
         )  # fmt: skip
+        report.raise_failures()
+        by_name = dict(zip(order, report.results, strict=True))
+        return [by_name[n] for n in cands]
+
+    def judge(self, fit: dict[str, Any], before: np.ndarray, kept: list[str]) -> dict[str, Any]:
+        """The ranking entry of a fit tested against the model it was fitted on top of."""
+        sig = significance(
+            before,
+            np.array(fit["per_recording"]),
+            len(fit["fitted"]),
+            self.floors[settings_for([*kept, fit["effect"]])],
+            self.names,
+        )
+        return _entry(fit, sig)
+
+    def current(
+        self, current: dict[Any, np.ndarray], kept: list[str], params: list[dict[str, float]],
+        new: str,
+    ) -> np.ndarray:  # fmt: skip
+        return _current(self.target, current, kept, params, new)
 
 
 def _diagnose(
     campaign: Campaign,
     base_effects: Sequence[Effect],
-    effects: Sequence[str] | None,
-    user_effects: Sequence[str],
-    budget: int | None,
-    budget_numerical: int | None,
-    seed: int,
-    inclination: bool,
+    candidates: list[str],
+    options: dict[str, Any],
     client: Any,
     bar: _Progress,
-    model_path: str | None,
     t0: float,
 ) -> dict[str, Any]:
-    """The body of :func:`diagnose_campaign` (``client``: Dask client or None, in-process)."""
-    from stiffnet.distributed.tasks import run_tasks
-    from stiffnet.simulator.compiled import limited_threads
+    """The body of :func:`diagnose_campaign` (``client``: Dask client or None, in-process;
+    ``options``: ``budget``, ``budget_numerical``, ``seed``, ``inclination``, ``model_path``)."""
+    run, nuisances, baseline = _prepare(campaign, list(base_effects), options, client, bar)
+    entries, searched = _fit_alone(run, candidates, baseline)
+    bar.end_of(1, "selection")
+    kept, kept_params, steps, nuisances = _select(run, searched, entries, baseline, nuisances)
+    return _conclude(run, kept, kept_params, entries, steps, baseline, nuisances, options, t0)
 
-    rows, nuisance_info = resolve_rows(campaign, model_path)
+
+def _prepare(
+    campaign: Campaign,
+    base_effects: list[Effect],
+    options: dict[str, Any],
+    client: Any,
+    bar: _Progress,
+) -> tuple[_Run, dict[str, Any], np.ndarray]:
+    """Rows and nuisances resolved, measured statistics, the recordings' floors, the
+    nuisances profiled against the base model and its per-recording discrepancies."""
+    inclination = options["inclination"]
+    rows, nuisance_info = resolve_rows(campaign, options["model_path"])
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
-    target = CampaignTarget(rows, measured, lengths, list(base_effects), seed, inclination)
-    names = [r.recording for r in rows]
+    target = CampaignTarget(rows, measured, lengths, base_effects, options["seed"], inclination)
     bar.step("noise floor (split halves)")
     floor_info = memo(
         campaign, ("noise_floor", inclination, rows_key(rows)),
@@ -250,52 +323,40 @@ def _diagnose(
     target.weights = floors[FIT_SETTINGS].weights().tolist()
     bar.step("nuisances and initial states")
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
-    baseline = target.per_recording(list(base_effects), FIT_SETTINGS)
-    candidates = candidate_effects(base_effects, user_effects, effects)
-    stage = ["single fits"]
+    baseline = target.per_recording(base_effects, FIT_SETTINGS)
+    run = _Run(
+        campaign, base_effects, rows, target, [r.recording for r in rows], nuisance_info,
+        floor_info, floors, options["budget"], options["budget_numerical"], client, bar,
+    )  # fmt: skip
+    return run, nuisances, baseline
 
-    def run_fits(cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
-        # numerical-engine fits (the long ones) first, so parallel workers finish together
-        order = sorted(cands, key=lambda n: not needs_numerical(n))
-        items = [
-            (target, n, fixed, budget_numerical if needs_numerical(n) else budget) for n in order
-        ]
-        start = bar.done
 
-        def show(done: int, _total: int) -> None:
-            nxt = f": fitting {order[done]}" if done < len(order) else ""
-            bar.to(start + done, f"{stage[0]}{nxt}")
-
-        show(0, len(order))
-        report = run_tasks(
-            _fit_task, items, client=client, names=order, progress=show,
-            thread_limit=limited_threads,
-        )  # fmt: skip
-        report.raise_failures()
-        by_name = dict(zip(order, report.results, strict=True))
-        return [by_name[n] for n in cands]
-
-    # ---- step 0: every candidate alone against the base model
+def _fit_alone(
+    run: _Run, candidates: list[str], baseline: np.ndarray
+) -> tuple[dict[str, dict[str, Any]], list[str]]:
+    """Step 0: every candidate alone against the base model. Returns the ranking entries and
+    the candidates the selection searches (none when the base model is at the floor)."""
     entries: dict[str, dict[str, Any]] = {}
-    if floors[FIT_SETTINGS].at_floor(baseline):
+    if run.floors[FIT_SETTINGS].at_floor(baseline):
         # nothing to explain, so no effect could pass the tests: no fits (a clean campaign
         # is diagnosed in seconds), every candidate says why
-        candidates = []
-        for n in candidate_effects(base_effects, user_effects, effects):
-            entries[n] = _unfitted(n, baseline, floors[FIT_SETTINGS])
-    for fit in run_fits(candidates, []):
-        settings = settings_for([fit["effect"]])
-        sig = significance(
-            np.array(fit["off_per_recording"]),
-            np.array(fit["per_recording"]),
-            len(fit["fitted"]),
-            floors[settings],
-            names,
-        )
-        entries[fit["effect"]] = _entry(fit, sig)
-    bar.end_of(1, "selection")
+        for n in candidates:
+            entries[n] = _unfitted(n, baseline, run.floors[FIT_SETTINGS])
+        return entries, []
+    for fit in run.fits(candidates, []):
+        entries[fit["effect"]] = run.judge(fit, np.array(fit["off_per_recording"]), [])
+    return entries, list(candidates)
 
-    # ---- forward selection with joint refits
+
+def _select(
+    run: _Run,
+    candidates: list[str],
+    entries: dict[str, dict[str, Any]],
+    baseline: np.ndarray,
+    nuisances: dict[str, Any],
+) -> tuple[list[str], list[dict[str, float]], list[dict[str, Any]], dict[str, Any]]:
+    """Forward selection with joint refits (see the module notes): the selected effects,
+    their joint values, the steps tried and the nuisances as last profiled."""
     kept: list[str] = []
     kept_params: list[dict[str, float]] = []
     current = {FIT_SETTINGS: baseline}
@@ -305,128 +366,167 @@ def _diagnose(
         if not remaining:
             break
         cur_settings, cur_per = next(iter(current.items()))
-        if kept and floors[cur_settings].at_floor(cur_per):
+        if kept and run.floors[cur_settings].at_floor(cur_per):
             for n in remaining:  # the model is at the noise floor: nothing left to explain
                 entries[n]["reasons"] = [
                     f"nothing left to explain: {', '.join(kept)} bring the model to the "
                     "campaign's noise floor"
                 ]
             break
-        if not kept:
-            conditional = {n: entries[n] for n in remaining}
-        else:
-            cands = [
-                n
-                for n in remaining
-                if not needs_numerical(n) or entries[n]["excess_reduction"] >= SCREEN_EXCESS
-            ]
-            stage[0] = f"step {len(kept) + 1}, on top of {', '.join(kept)}"
-            fixed = _effects(kept, kept_params)
-            conditional = {}
-            for fit in run_fits(cands, fixed):
-                before = _current(target, current, kept, kept_params, fit["effect"])
-                sig = significance(
-                    before,
-                    np.array(fit["per_recording"]),
-                    len(fit["fitted"]),
-                    floors[settings_for([*kept, fit["effect"]])],
-                    names,
-                )
-                conditional[fit["effect"]] = _entry(fit, sig)
-        order = sorted(conditional, key=lambda n: conditional[n]["bic_delta"])
-        accepted = None
-        tries = [n for n in order if conditional[n]["improves"]][:JOINT_TRIES]
-        for n in tries:
-            bar.step(f"step {len(kept) + 1}: joint refit of {', '.join([*kept, n])}")
-            c = conditional[n]
-            names_new = [*kept, n]
-            settings = settings_for(names_new)
-            before = _current(target, current, kept, kept_params, n)
-            joint = fit_joint(
-                target,
-                names_new,
-                [*kept_params, c["params"]],
-                settings,
-                start=np.array(c["per_recording"]),
-                rounds=2 if kept else 0,  # alone, it was just fitted from its own design
-            )
-            after, params_new = joint["per_recording"], joint["params"]
-            sig = significance(before, after, len(c["fitted"]), floors[settings], names)
-            prefix = f"on top of {', '.join(kept)} (joint refit): " if kept else ""
-            record = {
-                "step": len(kept),
-                "effect": n,
-                "params": params_new,
-                "discrepancy_before": campaign_discrepancy(before),
-                "discrepancy_after": campaign_discrepancy(after),
-                **{k: sig[k] for k in ("excess_reduction", "bootstrap_positive", "bic_delta")},
-                "significant": sig["significant"],
-                "reasons": [prefix + r for r in sig["reasons"]],
-            }
-            steps.append(record)
-            if sig["significant"]:
-                accepted = (n, params_new, before, after, settings, sig)
-                break
-            if kept:  # its last word: rejected on top of the selected effects
-                entries[n]["reasons"] = record["reasons"]
-                entries[n]["redundant_with"] = list(kept)
+        conditional = _conditional_fits(run, remaining, kept, kept_params, current, entries)
+        accepted = _joint_step(run, conditional, kept, kept_params, current, entries, steps)
         if accepted is None:
-            for n in remaining:  # not tried jointly: say why
-                if kept and n in conditional and n not in tries and conditional[n]["reasons"]:
-                    entries[n]["reasons"] = [
-                        f"on top of {', '.join(kept)}: {r}" for r in conditional[n]["reasons"]
-                    ]
             break
-        n, params_new, before, after, settings, sig = accepted
-        kept.append(n)
-        kept_params = [dict(p) for p in params_new]
-        current = {settings: after}
-        entries[n].update(
-            selected=True,
-            significant=True,
-            reasons=[],
-            selected_at_step=len(kept) - 1,
-            params=kept_params[-1],
-            discrepancy_reduction=campaign_discrepancy(before) - campaign_discrepancy(after),
-            relative_reduction=sig["relative_reduction"],
-            excess_reduction=sig["excess_reduction"],
-            bootstrap_positive=sig["bootstrap_positive"],
-            bic_delta=sig["bic_delta"],
-        )
-        for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
-            entries[name_k]["params"] = p
-        bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
-        before_profile = (list(target.rows), list(target.starts or []))
-        nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, nuisance_info)
-        if (list(target.rows), list(target.starts or [])) != before_profile:
-            # the nuisances moved (another orbit, another gap): refit the effects on them
-            joint = fit_joint(target, kept, kept_params, settings)
-            kept_params = [dict(p) for p in joint["params"]]
-            for name_k, p in zip(kept, kept_params, strict=True):
-                entries[name_k]["params"] = p
-        current = {
-            settings: target.per_recording(
-                [*target.base_effects, *_effects(kept, kept_params)], settings
-            )
-        }
+        kept_params, current, nuisances = _accept(run, accepted, kept, entries)
+    return kept, kept_params, steps, nuisances
 
-    # ---- the final model and the verdict
+
+def _conditional_fits(
+    run: _Run,
+    remaining: list[str],
+    kept: list[str],
+    kept_params: list[dict[str, float]],
+    current: dict[Any, np.ndarray],
+    entries: dict[str, dict[str, Any]],
+) -> dict[str, dict[str, Any]]:
+    """Each remaining candidate fitted on top of the selected effects (alone: the single
+    fits); a numerical-engine one only when alone it removed :data:`SCREEN_EXCESS`."""
+    if not kept:
+        return {n: entries[n] for n in remaining}
+    cands = [
+        n
+        for n in remaining
+        if not needs_numerical(n) or entries[n]["excess_reduction"] >= SCREEN_EXCESS
+    ]
+    run.stage = f"step {len(kept) + 1}, on top of {', '.join(kept)}"
+    conditional = {}
+    for fit in run.fits(cands, _effects(kept, kept_params)):
+        before = run.current(current, kept, kept_params, fit["effect"])
+        conditional[fit["effect"]] = run.judge(fit, before, kept)
+    return conditional
+
+
+def _joint_step(
+    run: _Run,
+    conditional: dict[str, dict[str, Any]],
+    kept: list[str],
+    kept_params: list[dict[str, float]],
+    current: dict[Any, np.ndarray],
+    entries: dict[str, dict[str, Any]],
+    steps: list[dict[str, Any]],
+) -> tuple | None:
+    """The best conditional candidates (at most :data:`JOINT_TRIES`) refitted jointly with
+    the selected effects; the first whose joint model passes every test is accepted
+    (returned with its values, discrepancies, settings and tests), else None."""
+    order = sorted(conditional, key=lambda n: conditional[n]["bic_delta"])
+    tries = [n for n in order if conditional[n]["improves"]][:JOINT_TRIES]
+    for n in tries:
+        run.bar.step(f"step {len(kept) + 1}: joint refit of {', '.join([*kept, n])}")
+        c = conditional[n]
+        names_new = [*kept, n]
+        settings = settings_for(names_new)
+        before = run.current(current, kept, kept_params, n)
+        joint = fit_joint(
+            run.target,
+            names_new,
+            [*kept_params, c["params"]],
+            settings,
+            start=np.array(c["per_recording"]),
+            rounds=2 if kept else 0,  # alone, it was just fitted from its own design
+        )
+        after, params_new = joint["per_recording"], joint["params"]
+        sig = significance(before, after, len(c["fitted"]), run.floors[settings], run.names)
+        prefix = f"on top of {', '.join(kept)} (joint refit): " if kept else ""
+        record = {
+            "step": len(kept),
+            "effect": n,
+            "params": params_new,
+            "discrepancy_before": campaign_discrepancy(before),
+            "discrepancy_after": campaign_discrepancy(after),
+            **{k: sig[k] for k in ("excess_reduction", "bootstrap_positive", "bic_delta")},
+            "significant": sig["significant"],
+            "reasons": [prefix + r for r in sig["reasons"]],
+        }
+        steps.append(record)
+        if sig["significant"]:
+            return n, params_new, before, after, settings, sig
+        if kept:  # its last word: rejected on top of the selected effects
+            entries[n]["reasons"] = record["reasons"]
+            entries[n]["redundant_with"] = list(kept)
+    for n in entries:  # not tried jointly: say why
+        if kept and n in conditional and n not in tries and conditional[n]["reasons"]:
+            entries[n]["reasons"] = [
+                f"on top of {', '.join(kept)}: {r}" for r in conditional[n]["reasons"]
+            ]
+    return None
+
+
+def _accept(
+    run: _Run, accepted: tuple, kept: list[str], entries: dict[str, dict[str, Any]]
+) -> tuple[list[dict[str, float]], dict[Any, np.ndarray], dict[str, Any]]:
+    """Select the accepted effect (``kept`` grows), profile the nuisances again and, when
+    they moved, refit the selected effects on them. Returns the selected effects' values,
+    the model's per-recording discrepancies (by settings) and the nuisances."""
+    n, params_new, before, after, settings, sig = accepted
+    kept.append(n)
+    kept_params = [dict(p) for p in params_new]
+    entries[n].update(
+        selected=True,
+        significant=True,
+        reasons=[],
+        selected_at_step=len(kept) - 1,
+        params=kept_params[-1],
+        discrepancy_reduction=campaign_discrepancy(before) - campaign_discrepancy(after),
+        relative_reduction=sig["relative_reduction"],
+        excess_reduction=sig["excess_reduction"],
+        bootstrap_positive=sig["bootstrap_positive"],
+        bic_delta=sig["bic_delta"],
+    )
+    for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
+        entries[name_k]["params"] = p
+    run.bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
+    target = run.target
+    before_profile = (list(target.rows), list(target.starts or []))
+    nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, run.nuisance_info)
+    if (list(target.rows), list(target.starts or [])) != before_profile:
+        # the nuisances moved (another orbit, another gap): refit the effects on them
+        joint = fit_joint(target, kept, kept_params, settings)
+        kept_params = [dict(p) for p in joint["params"]]
+        for name_k, p in zip(kept, kept_params, strict=True):
+            entries[name_k]["params"] = p
+    model = [*target.base_effects, *_effects(kept, kept_params)]
+    return kept_params, {settings: target.per_recording(model, settings)}, nuisances
+
+
+def _conclude(
+    run: _Run,
+    kept: list[str],
+    kept_params: list[dict[str, float]],
+    entries: dict[str, dict[str, Any]],
+    steps: list[dict[str, Any]],
+    baseline: np.ndarray,
+    nuisances: dict[str, Any],
+    options: dict[str, Any],
+    t0: float,
+) -> dict[str, Any]:
+    """The final model against every recording, the verdict, the learned-law proposal and
+    the result (see :func:`diagnose_campaign`)."""
+    bar, target, campaign, names = run.bar, run.target, run.campaign, run.names
+    base_effects = run.base_effects
     bar.to(bar.total - 1, "the final model against every recording")
     settings = settings_for(kept)
     final_effects = [*base_effects, *_effects(kept, kept_params)]
-    base_at = (
-        baseline if settings is FIT_SETTINGS else target.per_recording(list(base_effects), settings)
-    )
+    base_at = baseline if settings is FIT_SETTINGS else target.per_recording(base_effects, settings)
     final_stats = target.simulated_statistics(final_effects, settings)
     residual = target.discrepancies_of(final_stats)
     residual_where = [
         None if s is None else where_sums(m, s)
         for m, s in zip(target.measured, final_stats, strict=True)
     ]
-    v = verdict(base_at, residual, floors[settings], kept, residual_where)
+    v = verdict(base_at, residual, run.floors[settings], kept, residual_where)
     bar.to(bar.total, "done")
     recordings = recording_verdicts(
-        names, base_at, residual, floors[settings], target.measured, final_stats,
+        names, base_at, residual, run.floors[settings], target.measured, final_stats,
         nuisances.get("orbits"),
     )  # fmt: skip
     v["summary"] += (
@@ -434,22 +534,16 @@ def _diagnose(
     )
     # the library lacks the physics: learn the contact law from the maps and score it
     learned = learned_law_proposal(
-        campaign, rows, target, v, final_effects, residual, floors[FIT_SETTINGS_NUMERICAL], seed
-    )
-    for n in kept:
-        entries[n]["selected"] = True
-    ranking = [entries[n] for n in kept] + sorted(
-        (e for n, e in entries.items() if n not in kept),
-        key=lambda e: (e["bic_delta"], -e["discrepancy_reduction"]),
-    )
-    for e in ranking:
-        if not e.get("selected"):
-            e["significant"] = False  # the only significant effects are the selected ones
+        campaign, run.rows, target, v, final_effects, residual,
+        run.floors[FIT_SETTINGS_NUMERICAL], options["seed"],
+    )  # fmt: skip
+    ranking = _ranking(kept, entries)
+    rows = run.rows
     return {
         "baseline_discrepancy": campaign_discrepancy(baseline),
         "baseline_per_recording": baseline.tolist(),
-        "noise_floor": floor_info["floor"],
-        "noise_floor_per_recording": floor_info["per_recording"],
+        "noise_floor": run.floor_info["floor"],
+        "noise_floor_per_recording": run.floor_info["per_recording"],
         "recordings": names,
         "base_effects": [e.name for e in base_effects],
         "ranking": ranking,
@@ -461,24 +555,43 @@ def _diagnose(
         "per_recording": recordings,
         **v,
         # the contact law read off each force-displacement map: evidence without simulation
-        "restoring_force_evidence": memo(
+        "restoring_force": memo(
             campaign,
-            ("restoring_force_evidence", rows_key(rows)),
+            ("restoring_force", rows_key(rows)),
             lambda: restoring_force_evidence(campaign, rows),
         ),  # fmt: skip
         "learned_law": learned,
         "nuisances": nuisances,
-        "settings": {
-            "seed": seed,
-            "budget": budget,
-            "budget_numerical": budget_numerical or DEFAULT_BUDGET_NUMERICAL,
-            "periods": FIT_SETTINGS.periods,
-            "periods_numerical": FIT_SETTINGS_NUMERICAL.periods,
-            "inclination": inclination,
-            "objective": "campaign discrepancy (mean over recordings); effect off included",
-            "rank_score": "N ln(D_effect / D_before) + k ln N",
-        },
+        "settings": _settings_record(options),
         "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+def _ranking(kept: list[str], entries: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """The selected effects in order, then the others by score; only selected ones are
+    significant."""
+    for n in kept:
+        entries[n]["selected"] = True
+    ranking = [entries[n] for n in kept] + sorted(
+        (e for n, e in entries.items() if n not in kept),
+        key=lambda e: (e["bic_delta"], -e["discrepancy_reduction"]),
+    )
+    for e in ranking:
+        if not e.get("selected"):
+            e["significant"] = False  # the only significant effects are the selected ones
+    return ranking
+
+
+def _settings_record(options: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "seed": options["seed"],
+        "budget": options["budget"],
+        "budget_numerical": options["budget_numerical"] or DEFAULT_BUDGET_NUMERICAL,
+        "periods": FIT_SETTINGS.periods,
+        "periods_numerical": FIT_SETTINGS_NUMERICAL.periods,
+        "inclination": options["inclination"],
+        "objective": "campaign discrepancy (mean over recordings); effect off included",
+        "rank_score": "N ln(D_effect / D_before) + k ln N",
     }
 
 

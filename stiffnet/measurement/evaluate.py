@@ -3,7 +3,7 @@
 Every recording goes through the ONNX predictor (:class:`serving.predictor.Predictor`,
 with the manifest's ``natural_frequency_hz``); its result holds the learned class
 and beta, the geometric method's class and beta and the restoring-force
-estimate's (``physical_*``; a refusal counts as a wrong class). Metrics per method:
+estimate's (``restoring_force_*``; a refusal counts as a wrong class). Metrics per method:
 accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
 known beta and an estimate), sliced by beta class, gap, frequency ratio,
 amplitude and impact regime, with the worst recordings listed.
@@ -133,7 +133,9 @@ def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
             g: {
                 "learned": method_metrics(rs, "class", "beta_estimate"),
                 "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
-                "restoring_force": method_metrics(rs, "physical_class", "physical_beta"),
+                "restoring_force": method_metrics(
+                    rs, "restoring_force_class", "restoring_force_beta"
+                ),
             }
             for g, rs in sorted(groups.items())
         }
@@ -182,48 +184,7 @@ def evaluate_campaign(
     rows: list[dict[str, Any]] = []
     for i, row in enumerate(campaign.rows):
         res = predicted(campaign, i, row, model_path)  # once per model and recording
-        geo = res.get("geometric") or {}
-        if contact is not None:
-            regime = impact_regime(contact[i])
-        else:
-            regime = "impacting" if geo.get("contact_detected") else NO_CONTACT
-        has_contact = regime != NO_CONTACT
-        rows.append(
-            {
-                "recording": row.recording,
-                "beta": row.beta,
-                "class": res.get("class"),
-                "beta_estimate": res.get("beta"),
-                "beta_interval": res.get("beta_interval"),
-                "geometric_class": geo.get("class"),
-                "geometric_beta": geo.get("beta"),
-                "agreement": res.get("agreement"),
-                # the alarm (issue 11): did it fire, how far past its threshold, which checks
-                "ood": bool(res.get("ood_flag")),
-                "physical_class": res.get("physical_class"),
-                "physical_beta": res.get("physical_beta"),
-                "physical_beta_interval": res.get("physical_beta_interval"),
-                "physical_agreement": res.get("physical_agreement"),
-                "physical_reason": (res.get("physical") or {}).get("reason"),
-                "sensor": (res.get("physical") or {}).get("sensor"),
-                "ood_score": res.get("ood_score"),
-                "ood_threshold": res.get("ood_threshold"),
-                "ood_checks": list((res.get("alarm") or {}).get("fired") or []),
-                "alarm": res.get("alarm"),
-                "true_class": true_class(row.beta, has_contact),
-                "impact_regime": regime,
-                "gap": row.gap,
-                "frequency_ratio": row.frequency_ratio,
-                "amplitude": row.amplitude,
-            }
-        )
-    for r in rows:  # error of a recording: wrong class counts 1, plus the beta error
-        err = 0.0
-        if r["true_class"] is not None and r["class"] != r["true_class"]:
-            err += 1.0
-        if r["beta"] and r["beta_estimate"] is not None:
-            err += abs(r["beta_estimate"] - r["beta"]) / r["beta"]
-        r["error"] = err
+        rows.append(_evaluated_row(row, res, None if contact is None else contact[i]))
     worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
     return {
         "campaign": str(campaign.folder),
@@ -233,9 +194,9 @@ def evaluate_campaign(
             "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},
             "geometric": method_metrics(rows, "geometric_class", "geometric_beta"),
             "restoring_force": {
-                **method_metrics(rows, "physical_class", "physical_beta"),
-                "interval_coverage": interval_coverage(rows, "physical_beta_interval"),
-                "agreement_with_learned": _share(r["physical_agreement"] for r in rows),
+                **method_metrics(rows, "restoring_force_class", "restoring_force_beta"),
+                "interval_coverage": interval_coverage(rows, "restoring_force_beta_interval"),
+                "agreement_with_learned": _share(r["restoring_force_agreement"] for r in rows),
             },
         },
         "slices": sliced_metrics(rows),
@@ -244,3 +205,49 @@ def evaluate_campaign(
             for r in worst
         ],
     }
+
+
+def _evaluated_row(row: Any, res: dict[str, Any], contact: Any) -> dict[str, Any]:
+    """One recording's row: the three methods' readings beside the truth, the alarm, the
+    impact regime (by simulation where `contact` is given, else the geometric method's
+    contact), and its error (a wrong class counts 1, plus the relative beta error)."""
+    geo = res.get("geometric") or {}
+    if contact is not None:
+        regime = impact_regime(contact)
+    else:
+        regime = "impacting" if geo.get("contact_detected") else NO_CONTACT
+    has_contact = regime != NO_CONTACT
+    r = {
+        "recording": row.recording,
+        "beta": row.beta,
+        "class": res.get("class"),
+        "beta_estimate": res.get("beta"),
+        "beta_interval": res.get("beta_interval"),
+        "geometric_class": geo.get("class"),
+        "geometric_beta": geo.get("beta"),
+        "agreement": res.get("agreement"),
+        # the alarm: did it fire, how far past its threshold, which checks
+        "ood": bool(res.get("ood_flag")),
+        "restoring_force_class": res.get("restoring_force_class"),
+        "restoring_force_beta": res.get("restoring_force_beta"),
+        "restoring_force_beta_interval": res.get("restoring_force_beta_interval"),
+        "restoring_force_agreement": res.get("restoring_force_agreement"),
+        "restoring_force_reason": (res.get("restoring_force") or {}).get("reason"),
+        "sensor": (res.get("restoring_force") or {}).get("sensor"),
+        "ood_score": res.get("ood_score"),
+        "ood_threshold": res.get("ood_threshold"),
+        "ood_checks": list((res.get("alarm") or {}).get("fired") or []),
+        "alarm": res.get("alarm"),
+        "true_class": true_class(row.beta, has_contact),
+        "impact_regime": regime,
+        "gap": row.gap,
+        "frequency_ratio": row.frequency_ratio,
+        "amplitude": row.amplitude,
+    }
+    err = 0.0
+    if r["true_class"] is not None and r["class"] != r["true_class"]:
+        err += 1.0
+    if r["beta"] and r["beta_estimate"] is not None:
+        err += abs(r["beta_estimate"] - r["beta"]) / r["beta"]
+    r["error"] = err
+    return r

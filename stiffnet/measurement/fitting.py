@@ -30,8 +30,9 @@ Search, in the unit cube of the effect's fit space
   rows: the integrator's cost is per time step) get only a design spread over the
   budget, simulated as one batch holding :data:`SUBSET_NUMERICAL` recordings
   (spread over the campaign) once per point
-  (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`); the
-  best point is then scored alone on every recording.
+  (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`; an analog
+  sensor in the model filters at the logger's rate there, a screen at a quarter of the
+  integration steps); the best point is then scored alone on every recording, oversampled.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
   keep a share of the discrepancy that belongs to one found later.
@@ -49,11 +50,13 @@ from scipy import optimize
 from scipy.stats import qmc
 
 from stiffnet.campaign.simulate import CampaignSolverSettings as SolverSettings
+from stiffnet.campaign.simulate import oversampling
 from stiffnet.effects.base import Effect
 from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
+from stiffnet.simulator.motion_cache import reuse_motion
 
 #: Evaluations of a one-effect fit (closed form) after its initial design.
 REFINE_EVALUATIONS = {1: 8, 2: 12}
@@ -233,6 +236,20 @@ def fit_effect(
         ``effect``, ``params`` (fitted and fixed), ``fitted``, ``per_recording``,
         ``off_per_recording``, ``improves``, ``evaluations``, ``seconds``, ``engine``.
     """
+    # a measurement effect's evaluations share one motion (only its chain moves)
+    with reuse_motion():
+        return _fit_effect(target, name, fixed, settings, budget, off, seeds)
+
+
+def _fit_effect(
+    target: CampaignTarget,
+    name: str,
+    fixed: Sequence[Effect],
+    settings: SolverSettings | None,
+    budget: int | None,
+    off: np.ndarray | None,
+    seeds: Sequence[dict[str, float]],
+) -> dict[str, Any]:
     from stiffnet.measurement.target import settings_for
 
     t0 = time.perf_counter()
@@ -334,13 +351,22 @@ def _fit_design(
     n = len(target.rows)
     idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
-    pers = searched.per_recording_points(model, name, points, settings, inclination=False)
+    # the design screens: an analog sensor in the model filters at the logger's rate there
+    # (the numerical engine's cost is per step: 8x oversampled, 4x the steps), the best
+    # point is then scored with it oversampled
+    pers = searched.per_recording_points(
+        model, name, points, settings, inclination=False, oversample=False
+    )
     values = [objective_value(p, searched.weights) for p in pers]
     j = int(np.argmin(values))
     # "effect off" on the same recordings, scored like the design: when no point beats it
     # there, the effect is off (the best point would need a full evaluation to say so)
-    same = idx.size == n and not target.inclination
-    off_searched = off if same else searched.per_recording(model, settings, inclination=False)
+    same = idx.size == n and not target.inclination and oversampling(model) == 1
+    off_searched = (
+        off
+        if same
+        else searched.per_recording(model, settings, inclination=False, oversample=False)
+    )
     if values[j] >= objective_value(off_searched, searched.weights):
         per, rescored = off, False
     else:

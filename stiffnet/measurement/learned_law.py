@@ -122,6 +122,9 @@ def propose_learned_law(
         # a fit that breaks numerically is a missing proposal, never a failed diagnosis
         why = f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
         return {"proposed": False, "summary": why, "skipped": skipped}
+    # a power law's beta is a secant at d_r: referred to the manifest's where it gives beta
+    given = {g.recording: g.beta for g in campaign.rows}
+    law = law.referred_to([given.get(name) for name in law.recordings])
     out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
     if not law.new:
         out.update(proposed=False, summary=(
@@ -212,6 +215,7 @@ def law_map(samples: Sequence[ContactSamples], law: Any) -> list[dict[str, Any]]
 
 def learned_law_figure(proposal: dict[str, Any], path: str | Path) -> Path:
     """The force-penetration map of :func:`law_map`: measured samples, library law, learned law."""
+    from stiffnet.inputs import mpl_text
     from stiffnet.measurement.plots import _plt, _save
 
     plt = _plt()
@@ -226,7 +230,7 @@ def learned_law_figure(proposal: dict[str, Any], path: str | Path) -> Path:
                 label="library's best law")  # fmt: skip
         ax.plot(d[i], np.asarray(m["learned"])[i], "o", ms=2, mfc="none", color="tab:red",
                 label="learned law")  # fmt: skip
-        ax.set_title(f"{m['recording']} (law's beta {m['beta']:.3g})", fontsize=8)
+        ax.set_title(f"{mpl_text(m['recording'])} (law's beta {m['beta']:.3g})", fontsize=8)
         ax.set_xlabel("penetration delta [model length]")
         ax.set_ylabel("contact force [model units]")
         ax.axvline(0, color="k", lw=0.5)
@@ -254,7 +258,11 @@ def learned_law_html(proposal: dict[str, Any] | None, png: Path) -> list[str]:
             for s in law["path"]
         )
         parts.append(f"<p>Term path: {path}.</p>")
-        parts.append(_img(learned_law_figure(proposal, png)))
+        recs = ", ".join(str(m.get("recording")) for m in proposal.get("map") or [])
+        alt = (f"Contact force against penetration for {recs or 'no recording'}: the measured "
+               f"restoring force (grey dots), the library's best law (blue crosses) and the "
+               f"learned law {law.get('equation', '')} (red circles).")  # fmt: skip
+        parts.append(_img(learned_law_figure(proposal, png), alt))
     return parts
 
 

@@ -418,8 +418,8 @@ def _iteration(
                     "beta",
                     "class",
                     "beta_estimate",
-                    "physical_beta",
-                    "physical_agreement",
+                    "restoring_force_beta",
+                    "restoring_force_agreement",
                     "error",
                 )
             }

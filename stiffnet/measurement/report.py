@@ -3,6 +3,14 @@
 Figures are inline base64 PNGs and the CSS is inline, so the page can be mailed
 or archived alone. It is written atomically.
 
+:func:`render_report` assembles one function per section, each deciding what its
+part shows: :func:`provenance_section` (what made the page), :func:`evaluate_section`
+(metrics, every recording with both beta intervals and its operating point in the
+manifest's units, :func:`alarm_section`, :func:`slices_section`),
+:func:`compare_section` (with :mod:`~stiffnet.measurement.report_figures`: every
+recording drawn within a stated bound), :func:`diagnose_section` and
+:func:`loop_section`. The words come from :mod:`~stiffnet.measurement.report_words`.
+
 A **field campaign** (no recording has a known beta) has no accuracy to show: its
 page puts the three readings of beta side by side per recording (the learned
 model with its interval and alarm, the restoring-force estimate with its
@@ -20,6 +28,16 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.io_utils import write_bytes_atomic
+from stiffnet.measurement.report_figures import comparison_figures, loop_alt, ranking_alt
+from stiffnet.measurement.report_words import (
+    Units,
+    check_sentences,
+    command_line,
+    discrepancy_note,
+    profiled_nuisances,
+    provenance,
+    provenance_rows,
+)
 
 _CSS = """
 body{font-family:system-ui,sans-serif;margin:1.5em auto;max-width:1240px;padding:0 1em;color:#222}
@@ -111,9 +129,10 @@ def loop_chart(loop: dict[str, Any]) -> tuple[Path | None, str]:
     return path, ""
 
 
-def _img(path: Path) -> str:
+def _img(path: Path, alt: str) -> str:
+    """The figure inline, with an alt text that says what it shows and for which recordings."""
     data = base64.b64encode(path.read_bytes()).decode()
-    return f'<p><img alt="{html.escape(path.stem)}" src="data:image/png;base64,{data}"></p>'
+    return f'<p><img alt="{html.escape(alt, quote=True)}" src="data:image/png;base64,{data}"></p>'
 
 
 #: How diagnose reaches its beta (stiffnet.measurement.nuisance): a grid of this many
@@ -147,7 +166,7 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
         The other nuisances diagnose profiled with it (e.g. ``gap``).
     """
     learned, iv = row.get("beta_estimate"), row.get("beta_interval")
-    phys, piv = row.get("physical_beta"), row.get("physical_beta_interval")
+    phys, piv = _rf(row, "beta"), _rf(row, "beta_interval")
     reasons = []
     fired = row.get("ood_checks") or []
     if "layers" in fired:
@@ -155,9 +174,9 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
     if learned is None:
         reasons.append(f"the model reads no contact ({row.get('class')})")
     if phys is None:
-        reasons.append(f"no restoring-force beta: {row.get('physical_reason') or 'refused'}")
+        reasons.append(f"no restoring-force beta: {_rf(row, 'reason') or 'refused'}")
     elif _disjoint(iv, piv):
-        why = row.get("physical_reason") or ""
+        why = _rf(row, "reason") or ""
         weak = " (its contact law fits poorly: weak evidence)" if "explains only" in why else ""
         reasons.append(
             f"the restoring force reads the contact law itself and its interval misses the "
@@ -181,12 +200,16 @@ def why_betas_differ(row: dict[str, Any], diagnose_beta: float | None, profiled:
     return "; ".join(reasons)
 
 
-def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) -> list[str]:
-    """HTML of a field campaign: the three betas side by side, agreement, reasons."""
+def field_section(
+    evaluation: dict[str, Any], diagnosis: dict[str, Any] | None, coverage: float | None = None
+) -> list[str]:
+    """HTML of a field campaign: the three betas side by side, agreement, reasons
+    (``coverage``: the nominal coverage of the model's interval, from its card)."""
+    level = f"{100 * coverage:.0f} % " if coverage else ""
     rows = evaluation["recordings"]
     nuis = (diagnosis or {}).get("nuisances") or {}
     dbeta = nuis.get("beta") if isinstance(nuis.get("beta"), list) else None
-    profiled = [k for k, v in nuis.items() if isinstance(v, list) and k not in ("start",)]
+    profiled = profiled_nuisances(diagnosis)
     table = []
     for i, r in enumerate(rows):
         db = dbeta[i] if dbeta is not None and i < len(dbeta) else None
@@ -195,22 +218,24 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                 "recording": r["recording"],
                 "class": r.get("class"),
                 "beta (learned)": r.get("beta_estimate"),
-                "learned interval": _interval(r.get("beta_interval")),
+                f"learned {level}interval": _interval(r.get("beta_interval")),
                 "alarm": ", ".join(r.get("ood_checks") or []) or "none",
-                "beta (restoring force)": r.get("physical_beta"),
-                "restoring-force interval": _interval(r.get("physical_beta_interval")),
+                "beta (restoring force)": _rf(r, "beta"),
+                "restoring-force interval": _interval(_rf(r, "beta_interval")),
                 "beta (diagnose fit)": db,
                 "why they differ": why_betas_differ(r, db, profiled),
             }
         )
     n = len(rows)
-    share = lambda key: sum(1 for r in rows if r.get(key) is True) / n if n else None  # noqa: E731
-    checked = [r for r in rows if r.get("physical_agreement") is not None]
+    share = lambda flags: sum(1 for f in flags if f is True) / n if n else None  # noqa: E731
+    geometric = share(r.get("agreement") for r in rows)
+    restoring = share(_rf(r, "agreement") for r in rows)
+    checked = [r for r in rows if _rf(r, "agreement") is not None]
     parts = [
         "<h2>Field campaign: no beta is known, the readings side by side</h2>",
         f"<p>model {_fmt(evaluation['model'])}. Cross-check agreement with the model's class: "
-        f"geometric <b>{_fmt(share('agreement'))}</b> of {n} recordings, restoring force "
-        f"<b>{_fmt(share('physical_agreement'))}</b> ({len(checked)} with an estimate). "
+        f"geometric <b>{_fmt(geometric)}</b> of {n} recordings, restoring force "
+        f"<b>{_fmt(restoring)}</b> ({len(checked)} with an estimate). "
         f"Alarm on {sum(1 for r in rows if r.get('ood'))} of {n}."
         + ("" if dbeta is not None else " No diagnose result: its fitted beta is not shown.")
         + "</p>",
@@ -218,6 +243,12 @@ def field_section(evaluation: dict[str, Any], diagnosis: dict[str, Any] | None) 
                lambda r: "" if r["why they differ"].startswith("the readings agree") else "bad"),
     ]  # fmt: skip
     return parts
+
+
+def _rf(row: dict[str, Any], what: str) -> Any:
+    """A restoring-force reading of an evaluated row (``restoring_force_*``; results saved
+    under earlier key names are renamed where they are read back)."""
+    return row.get(f"restoring_force_{what}")
 
 
 def _interval(iv: list[float] | None) -> str | None:
@@ -230,192 +261,262 @@ def render_report(
     comparison: Any | None,
     diagnosis: dict[str, Any] | None,
     loop: dict[str, Any] | None = None,
+    provenance: dict[str, Any] | None = None,
+    units: Units | None = None,
 ) -> str:
-    """The HTML page (``comparison`` is a :class:`~stiffnet.measurement.compare.Comparison`)."""
-    from stiffnet.measurement import plots
-    from stiffnet.measurement.learned_law import learned_law_html
+    """The HTML page (``comparison`` is a :class:`~stiffnet.measurement.compare.Comparison`).
 
+    ``provenance`` (:func:`stiffnet.measurement.report_words.provenance`) heads the
+    page; ``units`` (:class:`~stiffnet.measurement.report_words.Units`) says how the
+    operating points read (mm and Hz for a physical-unit manifest).
+    """
+    units = units or Units()
+    coverage = (provenance or {}).get("interval_coverage")
     parts = [
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
         f"</title><style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"
     ]
+    parts += provenance_section(provenance, (evaluation or {}).get("model"))
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         if evaluation is not None and is_field_campaign(evaluation):
-            parts.extend(field_section(evaluation, diagnosis))
+            parts += field_section(evaluation, diagnosis, coverage)
+            parts += alarm_section(evaluation["recordings"])
         elif evaluation is not None:
-            m = evaluation["metrics"]
-            parts.append("<h2>Evaluate: learned model and the two cross-checks</h2>")
-            parts.append(f"<p class='note'>model {_fmt(evaluation['model'])}</p>")
-            parts.append(
-                _table(
-                    [{"method": k, **v} for k, v in m.items()],
-                    [
-                        "method",
-                        "n",
-                        "accuracy",
-                        "macro_f1",
-                        "beta_mape",
-                        "interval_coverage",
-                        "alarm_rate",
-                        "alarm_rate_wrong",
-                    ],  # fmt: skip
-                )
-            )
-            parts.append(
-                _table(
-                    evaluation["recordings"],
-                    [
-                        "recording",
-                        "beta",
-                        "true_class",
-                        "class",
-                        "beta_estimate",
-                        "geometric_class",
-                        "geometric_beta",
-                        "physical_class",
-                        "physical_beta",
-                        "impact_regime",
-                        "ood",
-                        "ood_checks",
-                        "error",
-                    ],
-                    lambda r: "bad" if r.get("class") != r.get("true_class") else "",
-                )
-            )
-            for name, groups in evaluation["slices"].items():
-                rows = [
-                    {
-                        "slice": f"{name} {g}",
-                        "n": v["learned"]["n"],
-                        "learned accuracy": v["learned"]["accuracy"],
-                        "learned beta MAPE": v["learned"]["beta_mape"],
-                        "geometric accuracy": v["geometric"]["accuracy"],
-                        "geometric beta MAPE": v["geometric"]["beta_mape"],
-                        "restoring-force accuracy": v.get("restoring_force", {}).get("accuracy"),
-                        "restoring-force beta MAPE": v.get("restoring_force", {}).get("beta_mape"),
-                    }
-                    for g, v in groups.items()
-                ]
-                parts.append(_table(rows, list(rows[0]) if rows else ["slice"]))
+            parts += evaluate_section(evaluation, units, coverage)
         if comparison is not None:
-            res = comparison.result
-            names = [r["recording"] for r in res["recordings"]]
-            parts.append("<h2>Compare: simulator versus measurement</h2>")
-            f = res["failure"]
-            parts.append(
-                f"<p>Campaign discrepancy <b>{res['discrepancy']:.3g}</b>. It fails mostly in "
-                f"<b>{_fmt(f['group'])}</b> (shares: {_fmt(res['by_group'])}), statistic "
-                f"<b>{_fmt(f['component'])}</b>, beta class <b>{_fmt(f['beta_class'])}</b>, "
-                f"recording <b>{_fmt(f['recording'])}</b>.</p>"
-            )
-            parts.append(
-                _table(
-                    [
-                        {
-                            "recording": r["recording"],
-                            "beta": r["beta"],
-                            "discrepancy": r["discrepancy"],
-                            "worst": r.get("worst_component"),
-                            **(r.get("groups") or {}),
-                        }
-                        for r in res["recordings"]
-                    ],
-                    [
-                        "recording",
-                        "beta",
-                        "discrepancy",
-                        "worst",
-                        "contact",
-                        "free_flight",
-                        "global",
-                    ],
-                )
-            )
-            parts.append(
-                _img(
-                    plots.waveform_figure(
-                        names, comparison.measured, comparison.simulated, t / "w.png"
-                    )
-                )
-            )
-            parts.append(
-                _img(
-                    plots.spectrum_figure(
-                        names, comparison.measured, comparison.simulated, t / "s.png"
-                    )
-                )
-            )
-            parts.append(_img(plots.components_figure(res, t / "c.png")))
+            parts += compare_section(comparison, diagnosis, t)
         if diagnosis is not None:
-            parts.append("<h2>Diagnose: which effect is missing</h2>")
-            verdict = diagnosis.get("verdict")
-            first = diagnosis.get("missing_effect")
-            selected = diagnosis.get("missing_effects") or ([first] if first else [])
-            parts.append(
-                f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}, the "
-                f"campaign's noise floor {diagnosis.get('noise_floor', float('nan')):.3g}. "
-                f"Selected: <b>{html.escape(', '.join(map(str, selected)) or 'none')}"
-                f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
-                f"({html.escape(str(diagnosis.get('summary', '')))}).</p>"
-            )
-            evidence = (diagnosis.get("restoring_force_evidence") or {}).get("summary")
-            if evidence:
-                parts.append(f"<p>{html.escape(evidence)}.</p>")
-            parts.append(
-                _table(
-                    [
-                        {
-                            **r,
-                            "params": {
-                                k: v
-                                for k, v in r.get("params", {}).items()
-                                if k in (r.get("fitted") or r.get("params", {}))
-                            },
-                            "why not": "; ".join(r.get("reasons", [])),
-                        }
-                        for r in diagnosis["ranking"]
-                    ],
-                    [
-                        "effect",
-                        "selected",
-                        "params",
-                        "discrepancy_reduction",
-                        "excess_reduction",
-                        "bootstrap_positive",
-                        "leave_one_out_excess_reduction",
-                        "bic_delta",
-                        "why not",
-                    ],
-                    lambda r: "sig" if r.get("selected") is True else "",
-                )
-            )
-            parts.append(_img(plots.ranking_figure(diagnosis, t / "r.png")))
-            if diagnosis.get("per_recording"):
-                parts.append("<h3>Per recording: the final model against its own floor</h3>")
-                cols = ["recording", "floor", "residual", "ratio", "above_floor",
-                        "non_repeatable", "measured_orbit", "simulated_orbit",
-                        "starts_on_measured_orbit", "distinct_orbits", "note"]  # fmt: skip
-                parts.append(_table(diagnosis["per_recording"], cols))
-            parts += learned_law_html(diagnosis.get("learned_law"), t / "law.png")
+            parts += diagnose_section(diagnosis, t)
         if loop is not None:
-            parts.append("<h2>Loop</h2>")
-            cols = ["accuracy", "beta_mape", "restoring_force_agreement", "discrepancy"]
-            rows = [
-                {"iteration": f"{it.get('index')}: {it.get('label')}",
-                 **{c: (it.get("metrics") or {}).get(c) for c in cols},
-                 "model_version": it.get("model_version"), "run_id": it.get("run_id")}
-                for it in loop.get("iterations") or [] if isinstance(it, dict)
-            ] or [{"iteration": k, **{c: loop[k].get(c) for c in cols},
-                   "run_id": loop[k].get("run_id")} for k in ("before", "after")]  # fmt: skip
-            parts.append(_table(rows, ["iteration", *cols, "model_version", "run_id"]))
-            chart, why = loop_chart(loop)
-            if chart is not None:
-                parts.append(_img(chart))
-            else:
-                parts.append(f"<p class='note'>loop chart not embedded: {html.escape(why)}</p>")
+            parts += loop_section(loop)
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+def provenance_section(prov: dict[str, Any] | None, model: dict[str, Any] | None) -> list[str]:
+    """Where the page comes from: date, version, command line, input files and their hashes."""
+    if prov is None:
+        return ["<p class='note'>No provenance: this page was rendered outside "
+                "<code>stiffnet report</code>.</p>"]  # fmt: skip
+    lines = "".join(
+        f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
+        for k, v in provenance_rows(prov, model)
+    )
+    return [f"<h2>Provenance</h2><div class='wrap'><table class='prov'>{lines}</table></div>"]
+
+
+def evaluate_section(
+    evaluation: dict[str, Any], units: Units, coverage: float | None = None
+) -> list[str]:
+    """Metrics per method, every recording with its intervals and alarm, the slices
+    (``coverage``: the nominal coverage of the model's interval, from its card)."""
+    m = evaluation["metrics"]
+    parts = [
+        "<h2>Evaluate: learned model and the two cross-checks</h2>",
+        f"<p class='note'>model {_fmt(evaluation['model'])}</p>",
+        _table([{"method": k, **v} for k, v in m.items()],
+               ["method", "n", "accuracy", "macro_f1", "beta_mape", "interval_coverage",
+                "alarm_rate", "alarm_rate_wrong"]),
+    ]  # fmt: skip
+    level = f"{100 * coverage:.0f} % " if coverage else ""
+    rows = [_evaluated_row(r, units, level) for r in evaluation["recordings"]]
+    parts.append(
+        _table(rows, list(rows[0]) if rows else ["recording"],
+               lambda r: "bad" if r["class"] != r["true class"] else "")
+    )  # fmt: skip
+    parts += alarm_section(evaluation["recordings"])
+    parts += slices_section(evaluation, units)
+    return parts
+
+
+def _evaluated_row(r: dict[str, Any], units: Units, level: str) -> dict[str, Any]:
+    """One recording of the evaluate table: readings with their intervals (``level``: the
+    model interval's nominal coverage, "90 % "), operating point."""
+    fired = r.get("ood_checks") or []
+    return {
+        "recording": r["recording"],
+        "beta": r.get("beta"),
+        **units.operating_point(r),
+        "true class": r.get("true_class"),
+        "class": r.get("class"),
+        "beta (learned)": r.get("beta_estimate"),
+        f"learned {level}interval": _interval(r.get("beta_interval")),
+        "geometric class": r.get("geometric_class"),
+        "beta (geometric)": r.get("geometric_beta"),
+        "restoring-force class": _rf(r, "class"),
+        "beta (restoring force)": _rf(r, "beta"),
+        "restoring-force interval": _interval(_rf(r, "beta_interval")),
+        "impact regime": r.get("impact_regime"),
+        "alarm": ("fired: " + ", ".join(map(str, fired))) if fired else "none",
+        _HEADERS["error"]: r.get("error"),
+    }
+
+
+def alarm_section(recordings: list[dict[str, Any]]) -> list[str]:
+    """Each recording's alarm checks, one sentence a check (what, score, threshold, verdict)."""
+    items = []
+    for r in recordings:
+        said = check_sentences(r.get("alarm"), r.get("ood_checks") or [])
+        if not said:
+            continue
+        lis = "".join(f"<li>{html.escape(s)}</li>" for s in said)
+        state = "fired" if r.get("ood") else "quiet"
+        items.append(f"<details><summary>{html.escape(str(r['recording']))}: alarm {state}"
+                     f"</summary><ul>{lis}</ul></details>")  # fmt: skip
+    if not items:
+        return ["<p class='note'>The model reported no alarm checks.</p>"]
+    return ["<h3>Alarm checks per recording</h3>", *items]
+
+
+def slices_section(evaluation: dict[str, Any], units: Units) -> list[str]:
+    """The metrics by beta class, impact regime and operating point (in ``units``)."""
+    from stiffnet.measurement.evaluate import SLICE_EDGES, _bin_label
+
+    parts = []
+    recs = evaluation["recordings"]
+    for name, groups in evaluation["slices"].items():
+        rows = []
+        for g, v in groups.items():
+            if name in SLICE_EDGES:
+                members = [r for r in recs if _bin_label(r.get(name), SLICE_EDGES[name]) == g]
+                label = units.slice_label(name, g, members)
+            else:
+                label = f"{name.replace('_', ' ')} {g}"
+            rows.append({
+                "slice": label,
+                "n": v["learned"]["n"],
+                "learned accuracy": v["learned"]["accuracy"],
+                "learned beta MAPE": v["learned"]["beta_mape"],
+                "geometric accuracy": v["geometric"]["accuracy"],
+                "geometric beta MAPE": v["geometric"]["beta_mape"],
+                "restoring-force accuracy": v.get("restoring_force", {}).get("accuracy"),
+                "restoring-force beta MAPE": v.get("restoring_force", {}).get("beta_mape"),
+            })  # fmt: skip
+        parts.append(_table(rows, list(rows[0]) if rows else ["slice"]))
+    return parts
+
+
+def compare_section(comparison: Any, diagnosis: dict[str, Any] | None, t: Path) -> list[str]:
+    """Where the simulator fails, every recording's discrepancy and the figures."""
+    res = comparison.result
+    f = res["failure"]
+    parts = [
+        "<h2>Compare: simulator versus measurement</h2>",
+        f"<p>Campaign discrepancy <b>{res['discrepancy']:.3g}</b>. It fails mostly in "
+        f"<b>{_fmt(f['group'])}</b> (shares: {_fmt(res['by_group'])}), statistic "
+        f"<b>{_fmt(f['component'])}</b>, beta class <b>{_fmt(f['beta_class'])}</b>, "
+        f"recording <b>{_fmt(f['recording'])}</b>.</p>",
+    ]
+    if diagnosis is not None:
+        note = discrepancy_note(res, diagnosis)
+        if note:
+            parts.append(f"<p class='note'>{html.escape(note)}</p>")
+    rows = [{"recording": r["recording"], "beta": r["beta"], "discrepancy": r["discrepancy"],
+             "worst": r.get("worst_component"), **(r.get("groups") or {})}
+            for r in res["recordings"]]  # fmt: skip
+    cols = ["recording", "beta", "discrepancy", "worst", "contact", "free_flight", "global"]
+    parts.append(_table(rows, cols))
+    figures, said = comparison_figures(comparison, t)
+    parts.append(f"<p class='note'>{html.escape(' '.join(said))}</p>")
+    parts += [_img(fig.path, fig.alt) for fig in figures]
+    return parts
+
+
+def diagnose_section(diagnosis: dict[str, Any], t: Path) -> list[str]:
+    """The verdict, the ranking with its chart, each recording against its floor, the law."""
+    from stiffnet.measurement import plots
+    from stiffnet.measurement.learned_law import learned_law_html
+
+    verdict = diagnosis.get("verdict")
+    first = diagnosis.get("missing_effect")
+    selected = diagnosis.get("missing_effects") or ([first] if first else [])
+    parts = [
+        "<h2>Diagnose: which effect is missing</h2>",
+        f"<p>Baseline discrepancy {diagnosis['baseline_discrepancy']:.3g}, the "
+        f"campaign's noise floor {diagnosis.get('noise_floor', float('nan')):.3g}. "
+        f"Selected: <b>{html.escape(', '.join(map(str, selected)) or 'none')}"
+        f"</b>. Verdict: <b>{html.escape(str(verdict))}</b> "
+        f"({html.escape(str(diagnosis.get('summary', '')))}).</p>",
+    ]
+    evidence = _evidence(diagnosis).get("summary")
+    if evidence:
+        parts.append(f"<p>{html.escape(str(evidence))}.</p>")
+    ranking = [
+        {**r,
+         "params": {k: v for k, v in r.get("params", {}).items()
+                    if k in (r.get("fitted") or r.get("params", {}))},
+         "why not": "; ".join(r.get("reasons", []))}
+        for r in diagnosis["ranking"]
+    ]  # fmt: skip
+    cols = ["effect", "selected", "params", "discrepancy_reduction", "excess_reduction",
+            "bootstrap_positive", "leave_one_out_excess_reduction", "bic_delta",
+            "why not"]  # fmt: skip
+    parts.append(_table(ranking, cols, lambda r: "sig" if r.get("selected") is True else ""))
+    parts.append(_img(plots.ranking_figure(diagnosis, t / "ranking.png"), ranking_alt(diagnosis)))
+    if diagnosis.get("per_recording"):
+        parts.append("<h3>Per recording: the final model against its own floor</h3>")
+        cols = ["recording", "floor", "residual", "ratio", "above_floor",
+                "non_repeatable", "measured_orbit", "simulated_orbit",
+                "starts_on_measured_orbit", "distinct_orbits", "note"]  # fmt: skip
+        parts.append(_table(diagnosis["per_recording"], cols))
+    parts += learned_law_html(diagnosis.get("learned_law"), t / "law.png")
+    return parts
+
+
+def _evidence(diagnosis: dict[str, Any]) -> dict[str, Any]:
+    """The restoring-force evidence of a diagnosis (earlier key names are renamed where a
+    saved diagnosis is read back)."""
+    v = diagnosis.get("restoring_force")
+    return v if isinstance(v, dict) else {}
+
+
+def loop_section(loop: dict[str, Any]) -> list[str]:
+    """The loop's iterations (or its before/after) and its chart when it may be embedded."""
+    cols = ["accuracy", "beta_mape", "restoring_force_agreement", "discrepancy"]
+    rows = [
+        {"iteration": f"{it.get('index')}: {it.get('label')}",
+         **{c: (it.get("metrics") or {}).get(c) for c in cols},
+         "model_version": it.get("model_version"), "run_id": it.get("run_id")}
+        for it in loop.get("iterations") or [] if isinstance(it, dict)
+    ] or [{"iteration": k, **{c: loop[k].get(c) for c in cols},
+           "run_id": loop[k].get("run_id")} for k in ("before", "after")]  # fmt: skip
+    parts = ["<h2>Loop</h2>", _table(rows, ["iteration", *cols, "model_version", "run_id"])]
+    chart, why = loop_chart(loop)
+    if chart is not None:
+        parts.append(_img(chart, loop_alt(loop)))
+    else:
+        parts.append(f"<p class='note'>loop chart not embedded: {html.escape(why)}</p>")
+    return parts
+
+
+def report_provenance(
+    campaign: Any,
+    out: Path,
+    model: Path | None,
+    config: Path | None,
+    diagnosis: Path | None,
+    loop: Path | None,
+    run_diagnose: bool,
+    json_path: Path | None,
+    config_used: Path | None = None,
+) -> dict[str, Any]:
+    """The provenance of a ``stiffnet report`` page from its options (the command line is
+    written back from them, with absolute paths, so it can be pasted and rerun;
+    ``config_used``: the config file read when ``config`` is not given)."""
+    from serving.model import default_model_path
+
+    args: list[Any] = [Path(campaign.folder).resolve(), "--out", Path(out).resolve()]
+    for flag, value in (("--model", model), ("--config", config), ("--diagnosis", diagnosis),
+                        ("--loop", loop), ("--json", json_path)):  # fmt: skip
+        if value is not None:
+            args += [flag, value if str(value) == "-" else Path(value).resolve()]
+    if not run_diagnose:
+        args.append("--no-diagnose")
+    how = "run by this report" if run_diagnose else "not run (--no-diagnose)"
+    return provenance(campaign, command_line("report", args), config or config_used, diagnosis,
+                      "" if diagnosis else how, loop,
+                      model=model if model is not None else default_model_path())  # fmt: skip
 
 
 def write_report(path: str | Path, page: str) -> Path:

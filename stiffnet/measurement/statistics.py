@@ -19,7 +19,7 @@ spectrum                    Welch PSD averaged in 1/5-octave bands of f / f_n (l
 impact rate                 impacts per forcing period (spikes found on the low-passed
                             copy by a level rule, see :func:`spike_peaks`)
 inclination statistics      the geometric method's mean angles before / after impact
-                            (:func:`stiffnet.features.inclination.features_and_estimate`)
+                            (:func:`stiffnet.features.inclination_features.features_and_estimate`)
 ==========================  ===============================================================
 
 Conventions. Every statistic is gain-free: the record is centred on its median
@@ -551,7 +551,7 @@ def _statistics(
         impacts_per_period=impact_rate(peaks, y.size, p_f),
     )
     if inclination and peaks.size:
-        from stiffnet.features.inclination import features_and_estimate
+        from stiffnet.features.inclination_features import features_and_estimate
 
         _, est = features_and_estimate(accel, fs_hz, natural_frequency_hz)
         if est is not None and est.contact_detected:

@@ -73,12 +73,16 @@ class CampaignTarget:
         rows: Sequence[ManifestRow] | None = None,
         starts: Sequence[int] | None = None,
         inclination: bool | None = None,
+        oversample: bool = True,
     ) -> list[SignalStatistics | None]:
         """Statistics of the campaign simulated with ``effects`` (one batch; ``inclination``:
-        override the target's choice, e.g. False while a fit searches)."""
+        override the target's choice, e.g. False while a fit searches; ``oversample``: see
+        :func:`~stiffnet.campaign.simulate.simulate_rows`)."""
         rows = self.rows if rows is None else list(rows)
         starts = self.starts if starts is None else starts
-        sims = simulate_rows(rows, effects, self.lengths, self.seed, settings, starts)
+        sims = simulate_rows(
+            rows, effects, self.lengths, self.seed, settings, starts, oversample=oversample
+        )
         return self._statistics(sims, rows, inclination)
 
     def _statistics(
@@ -110,12 +114,13 @@ class CampaignTarget:
         rows: Sequence[ManifestRow] | None = None,
         starts: Sequence[int] | None = None,
         inclination: bool | None = None,
+        oversample: bool = True,
     ) -> np.ndarray:
         """Per-recording discrepancies of the campaign simulated with ``effects``
-        (``rows``, ``starts``: other nuisance values than the target's; ``inclination``: see
-        :meth:`simulated_statistics`)."""
+        (``rows``, ``starts``: other nuisance values than the target's; ``inclination``,
+        ``oversample``: see :meth:`simulated_statistics`)."""
         return self.discrepancies_of(
-            self.simulated_statistics(effects, settings, rows, starts, inclination)
+            self.simulated_statistics(effects, settings, rows, starts, inclination, oversample)
         )
 
     def per_recording_points(
@@ -125,6 +130,7 @@ class CampaignTarget:
         points: Sequence[dict[str, float]],
         settings: SolverSettings,
         inclination: bool | None = None,
+        oversample: bool = True,
     ) -> list[np.ndarray]:
         """Per-recording discrepancies of ``effects`` plus effect ``name`` at each of ``points``,
         simulated as **one** batch (the campaign's rows once per point).
@@ -147,7 +153,7 @@ class CampaignTarget:
         starts = None if self.starts is None else list(self.starts) * k
         sims = simulate_rows(
             self.rows * k, [*effects, first], self.lengths * k, self.seed, settings, starts,
-            effect_params=stacked,
+            effect_params=stacked, oversample=oversample,
         )  # fmt: skip
         return [
             self.discrepancies_of(

@@ -13,14 +13,12 @@ npTDMS only when a file is read: the help texts cost no heavy import.
 
 from __future__ import annotations
 
-import importlib
-import inspect
 import os
-import pkgutil
 import threading
 from pathlib import Path
 
 from stiffnet.errors import StiffnetError
+from stiffnet.plugins import discover
 from stiffnet.recordings.base import RecordingReader
 
 _LOCK = threading.RLock()
@@ -32,28 +30,12 @@ _FIRST = ("csv",)
 
 
 def discover_readers(package: str = "stiffnet.recordings") -> list[RecordingReader]:
-    """One instance of every concrete reader class defined in a module of `package`.
-
-    A module whose name starts with ``_`` is skipped; so is a reader class that a
-    module merely imports (each is found in the module that defines it).
+    """One instance of every concrete reader class defined in a module of `package`
+    (:func:`stiffnet.plugins.discover`: ``_private`` modules and imported classes skipped).
     """
-    pkg = importlib.import_module(package)
-    names = sorted(
-        (info.name for info in pkgutil.iter_modules(pkg.__path__) if not info.name.startswith("_")),
-        key=lambda n: (n not in _FIRST, n),
-    )
-    found = []
-    for name in names:
-        module = importlib.import_module(f"{package}.{name}")
-        for obj in vars(module).values():
-            if (
-                isinstance(obj, type)
-                and issubclass(obj, RecordingReader)
-                and not inspect.isabstract(obj)
-                and obj.__module__ == module.__name__
-            ):
-                found.append(obj())
-    return found
+    return [
+        cls() for cls in discover(package, RecordingReader, order=lambda n: (n not in _FIRST, n))
+    ]
 
 
 def _ensure() -> dict[str, RecordingReader]:

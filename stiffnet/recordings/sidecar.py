@@ -26,7 +26,7 @@ def sidecar_entry(recording: str | os.PathLike[str], key: str) -> object | None:
     """One entry of the recording's sidecar (None without a sidecar or without the key).
 
     Read here, bounded and depth-checked like every user JSON, so that every part of
-    the sidecar (f_n here, the sensor chain's data sheet in the physical check) comes
+    the sidecar (f_n here, the sensor chain's data sheet in the restoring-force check) comes
     from one reader.
     """
     p = sidecar_path(recording)
@@ -53,12 +53,10 @@ def read_sidecar(recording: str | os.PathLike[str]) -> tuple[float | None, Path]
         If the sidecar exists but is not valid JSON or the value is not a number > 0.
     """
     p = sidecar_path(recording)
-    if not p.is_file():
+    value = sidecar_entry(recording, "natural_frequency_hz")
+    if value is None:
         return None, p
-    d = read_json(p, "sidecar")  # bounded, finite, depth-checked
-    if not isinstance(d, dict) or d.get("natural_frequency_hz") is None:
-        return None, p
-    return natural_frequency(d["natural_frequency_hz"], f"{p}: natural_frequency_hz"), p
+    return natural_frequency(value, f"{p}: natural_frequency_hz"), p
 
 
 def natural_frequency_of(

@@ -133,7 +133,7 @@ class RestoringForceResult:
         ``K / k``, the contact stiffness over the free-flight stiffness.
     beta_interval : tuple of float or None
         Bootstrap interval over impacts at `coverage`.
-    physical_class : str
+    restoring_force_class : str
         Class of `beta` by the configured edges, ``"no_contact"`` without contact,
         None when refused for another reason.
     contact_damping_ratio : float or None
@@ -177,7 +177,7 @@ class RestoringForceResult:
     ok: bool
     beta: float | None
     beta_interval: tuple[float, float] | None
-    physical_class: str | None
+    restoring_force_class: str | None
     contact_damping_ratio: float | None
     exponent: float | None
     free_damping_ratio: float
@@ -213,7 +213,7 @@ class RestoringForceResult:
             "beta": num(self.beta),
             "beta_interval": list(self.beta_interval) if self.beta_interval else None,
             "coverage": self.coverage,
-            "physical_class": self.physical_class,
+            "restoring_force_class": self.restoring_force_class,
             "contact_damping_ratio": num(self.contact_damping_ratio),
             "exponent": num(self.exponent),
             "free_damping_ratio": num(self.free_damping_ratio),
@@ -318,7 +318,7 @@ def _refuse(reason: str, **kw: Any) -> RestoringForceResult:
         ok=False,
         beta=None,
         beta_interval=None,
-        physical_class=None,
+        restoring_force_class=None,
         contact_damping_ratio=None,
         exponent=None,
         free_damping_ratio=float("nan"),
@@ -426,7 +426,7 @@ def _fit_map(
     info["n_impacts"] = n_imp
     peak = float(fit.force[use].max()) / max(fit.sigma, 1e-300)
     if n_imp < MIN_IMPACTS:
-        info["physical_class"] = NO_CONTACT
+        info["restoring_force_class"] = NO_CONTACT
         why = (
             f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
             f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
@@ -558,7 +558,10 @@ def _undo_chain(
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
     refusal = identifiability(chain)
     fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
-    if m2.info.get("physical_class") == NO_CONTACT and (chain.lowpass_hz or np.inf) < fastest:
+    if (
+        m2.info.get("restoring_force_class") == NO_CONTACT
+        and (chain.lowpass_hz or np.inf) < fastest
+    ):
         refusal = (
             f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
             f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
@@ -800,7 +803,7 @@ def _estimate_at(
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
-        return _refuse(refusal, **{**info, "physical_class": None})
+        return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
     law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
@@ -838,7 +841,7 @@ def _estimate_at(
         ok=True,
         beta=float(beta),
         beta_interval=(lo, hi),
-        physical_class=cls,
+        restoring_force_class=cls,
         contact_damping_ratio=damping_ratio,
         exponent=fitted_exponent,
         fitted_natural_frequency_hz=fitted_fn,

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -18,6 +19,7 @@ from stiffnet.effects.base import (
 from stiffnet.errors import ConfigError
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.linear import LinearModel
+from stiffnet.simulator.motion_cache import motion, motion_key
 from stiffnet.simulator.numerical import simulate_numerical
 from stiffnet.simulator.settings import SolverSettings
 
@@ -25,6 +27,8 @@ from stiffnet.simulator.settings import SolverSettings
 #: so the switching function has at most one extremum per step.
 _CONTACT_STEP_FACTOR = 1.5
 _WHITE_NOISE_ORDER = 20
+#: The measurement chain's white noise comes after the effects of lower ``order``.
+WHITE_NOISE_ORDER = _WHITE_NOISE_ORDER
 
 
 @dataclass
@@ -164,26 +168,53 @@ class Simulator:
 
         h = 2 * np.pi / fs_ratio
         t_tr = self.transient_time(batch)
-        if self.engine == "closed_form":
-            # imported here: numba's import (~0.25 s) is paid by simulating, not by
-            # every module that builds a Simulator or reads its results
-            from stiffnet.simulator.compiled import simulate_closed_form
-
-            out = simulate_closed_form(self.linear_model(batch, params), x0, v0, t_tr, h, n_samples)
-        else:
-            # RK4 marches on a uniform grid: transient steps as short as the contact's.
-            h_cap = np.minimum(2 * np.pi / 40, _CONTACT_STEP_FACTOR / np.sqrt(1 + batch.beta))
-            n_tr = int(np.ceil(np.max(t_tr / h_cap)))
-            out = simulate_numerical(
-                batch, self.dynamics, [params[e.name] for e in self.dynamics],
-                x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
-                row_samples=row_samples,
-            )  # fmt: skip
+        out = motion(
+            lambda: self._motion_key(batch, params, x0, v0, t_tr, h, row_samples),
+            lambda: self._motion(batch, params, x0, v0, t_tr, h, n_samples, row_samples),
+            n_samples,
+            _first_samples,
+        )
         measured = self._measure(out.accel, batch, fs_ratio, noise, params, rng, masks)
         return SimulationResult(
             batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out.accel,
             x=out.x, v=out.v, contact_force=out.contact_force, impacts=out.impacts,
             t0=out.t0, noise=noise, engine=self.engine, effect_params=params,
+        )  # fmt: skip
+
+    def _motion(self, batch, params, x0, v0, t_tr, h, n_samples, row_samples=None) -> Any:
+        """The engine's output: the motion sampled, before the measurement chain."""
+        if self.engine == "closed_form":
+            # imported here: numba's import (~0.25 s) is paid by simulating, not by
+            # every module that builds a Simulator or reads its results
+            from stiffnet.simulator.compiled import simulate_closed_form
+
+            return simulate_closed_form(
+                self.linear_model(batch, params), x0, v0, t_tr, h, n_samples
+            )
+        # RK4 marches on a uniform grid: transient steps as short as the contact's.
+        h_cap = np.minimum(2 * np.pi / 40, _CONTACT_STEP_FACTOR / np.sqrt(1 + batch.beta))
+        n_tr = int(np.ceil(np.max(t_tr / h_cap)))
+        return simulate_numerical(
+            batch, self.dynamics, [params[e.name] for e in self.dynamics],
+            x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
+            row_samples=row_samples,
+        )  # fmt: skip
+
+    def _motion_key(self, batch, params, x0, v0, t_tr, h, row_samples=None) -> bytes:
+        """What the motion depends on (:mod:`stiffnet.simulator.motion_cache`)."""
+        dyn = [
+            (
+                type(e).__module__,
+                type(e).__qualname__,
+                repr(getattr(e, "params", None)),
+                params[e.name],
+            )
+            for e in self.dynamics
+        ]
+        fields = [getattr(batch, f) for f in ("beta", "gap", "amplitude", "omega", "damping")]
+        return motion_key(
+            self.engine, dyn, fields, batch.natural_frequency_hz, x0, v0, t_tr, h, self.substeps,
+            row_samples,  # rows stop at their own length, each at its own substeps
         )  # fmt: skip
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
@@ -260,3 +291,9 @@ class Simulator:
             return signal
         std = noise * batch.forcing_scale
         return signal + rng.standard_normal(signal.shape) * std[:, None]
+
+
+def _first_samples(out: Any, n: int) -> Any:
+    """The first ``n`` samples of an engine's output (``EngineResult``)."""
+    fields = ("x", "v", "accel", "contact_force", "impacts")
+    return replace(out, **{f: getattr(out, f)[:, :n] for f in fields})

@@ -12,7 +12,7 @@ numpy/scipy only: training fits here, the predictor applies from here, side by s
   ambiguity, beta uncertainty, class edge), each with a threshold calibrated on
   in-distribution trajectories; saved beside the model (``NAME.alarm.npz``).
 * :mod:`~stiffnet.uncertainty.alarm_verdict`: the alarm applied to one recording, in
-  words (with the restoring-force cross-check's physical check).
+  words (with the restoring-force check).
 * :mod:`~stiffnet.uncertainty.ood`: the inclination-feature OOD reference (fitted by
   ``training/fit_ood_reference.py``, the fallback alarm of older models).
 """

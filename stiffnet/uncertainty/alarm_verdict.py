@@ -38,22 +38,22 @@ ALARM_WORDS = {
     "expects a large error)",
     "class_edge": "beta sits on a class edge within its uncertainty (the class is a guess)",
     "features": "the recording's inclination features are unlike the training data",
-    "physical": "the restoring-force cross-check reads a beta outside the model's interval "
+    "restoring_force": "the restoring-force cross-check reads a beta outside the model's interval "
     "(the physics of this rig may be missing from the training data)",
     "sensor": "the recording's sensor chain lies outside the chains the model was trained on",
     "contact_law": "the restoring-force map reads a contact law the training data lack "
     "(an exponent neither linear nor Hertz, or dissipation growing with penetration)",
 }
 
-#: The physical check fires when the two beta intervals are disjoint: its score is the
+#: The restoring_force check fires when the two beta intervals are disjoint: its score is the
 #: log-gap between them (0 when they overlap), so its threshold is 0 by construction.
-PHYSICAL_THRESHOLD = 0.0
+RESTORING_FORCE_THRESHOLD = 0.0
 #: A contradiction counts only from a contact law that explains at least this share of
 #: the contact force (R2): through a sensor chain near the contact's band the
 #: restoring-force reading is biased low with a poorer fit, and there the check raised
 #: false alarms on right answers (bench_robustness's sensor set: alarm rate 26 -> 11 %
 #: with this gate, silent failures 11 -> 12 %; chosen on that benchmark).
-PHYSICAL_MIN_R2 = 0.95
+RESTORING_FORCE_MIN_R2 = 0.95
 
 
 def alarm_message(fired: list[str]) -> str:
@@ -100,9 +100,9 @@ def alarm_verdict(
     return result
 
 
-def physical_gap(
+def restoring_force_gap(
     model_interval: list[float] | None,
-    physical_interval: list[float] | None,
+    restoring_force_interval: list[float] | None,
     contact_r2: float | None = None,
 ) -> float | None:
     """Log-gap between the model's and the restoring-force beta intervals (0 if they overlap).
@@ -112,39 +112,41 @@ def physical_gap(
     law itself, so a gap says the model meets a rig it was not trained on (a
     contact law or sensor chain outside its priors). None when either interval
     is missing (the cross-check refused) or the contact law explains less than
-    :data:`PHYSICAL_MIN_R2` of the contact force (`contact_r2`).
+    :data:`RESTORING_FORCE_MIN_R2` of the contact force (`contact_r2`).
     """
-    if not model_interval or not physical_interval:
+    if not model_interval or not restoring_force_interval:
         return None
-    if contact_r2 is not None and not contact_r2 >= PHYSICAL_MIN_R2:
+    if contact_r2 is not None and not contact_r2 >= RESTORING_FORCE_MIN_R2:
         return None
     lo_m, hi_m = (float(v) for v in model_interval)
-    lo_p, hi_p = (float(v) for v in physical_interval)
+    lo_p, hi_p = (float(v) for v in restoring_force_interval)
     if min(lo_m, hi_m, lo_p, hi_p) <= 0:
         return None
     return max(0.0, float(np.log(lo_p / hi_m)), float(np.log(lo_m / hi_p)))
 
 
-def weak_physical_fit(physical: dict[str, Any]) -> str | None:
+def weak_restoring_force_fit(restoring_force: dict[str, Any]) -> str | None:
     """A warning when the restoring-force estimate answered from a poor contact-law fit.
 
-    Below :data:`PHYSICAL_MIN_R2` its agreement with the model is weak evidence
+    Below :data:`RESTORING_FORCE_MIN_R2` its agreement with the model is weak evidence
     (and its disagreement raises no alarm): the contact may follow a law the
     fitted one lacks (a Hunt-Crossley or layered contact), or a sensor chain near
     the contact's band distorts it. Saying so keeps an agreement from reading as
     a confirmation.
     """
-    r2 = physical.get("contact_r2")
-    if physical.get("beta") is None or r2 is None or r2 >= PHYSICAL_MIN_R2:
+    r2 = restoring_force.get("contact_r2")
+    if restoring_force.get("beta") is None or r2 is None or r2 >= RESTORING_FORCE_MIN_R2:
         return None
     return (
         f"the restoring-force contact law explains only {100 * r2:.0f} % of the contact force "
-        f"(< {100 * PHYSICAL_MIN_R2:.0f} %): its beta and its agreement with the model are "
+        f"(< {100 * RESTORING_FORCE_MIN_R2:.0f} %): its beta and its agreement with the model are "
         "weak evidence (the contact law or the sensor chain may be outside what it fits)"
     )
 
 
-def with_physical_check(alarm: dict[str, Any] | None, gap: float | None) -> dict[str, Any] | None:
+def with_restoring_force_check(
+    alarm: dict[str, Any] | None, gap: float | None
+) -> dict[str, Any] | None:
     """The alarm with the restoring-force check added (fires when the intervals are disjoint).
 
     Uncalibrated on purpose: it needs no threshold fitted to the model, it only
@@ -156,10 +158,10 @@ def with_physical_check(alarm: dict[str, Any] | None, gap: float | None) -> dict
     if alarm is None:
         alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
     alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
-    alarm["scores"]["physical"] = gap
-    alarm["thresholds"]["physical"] = PHYSICAL_THRESHOLD
-    if gap > PHYSICAL_THRESHOLD:
-        alarm["fired"] = [*alarm["fired"], "physical"]
+    alarm["scores"]["restoring_force"] = gap
+    alarm["thresholds"]["restoring_force"] = RESTORING_FORCE_THRESHOLD
+    if gap > RESTORING_FORCE_THRESHOLD:
+        alarm["fired"] = [*alarm["fired"], "restoring_force"]
         alarm["flag"] = True
     alarm["message"] = alarm_message(alarm["fired"])
     return alarm

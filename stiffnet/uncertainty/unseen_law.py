@@ -83,21 +83,22 @@ def penetration_dissipation(
     return 1.0 - sse[1] / sse[0], h / (abs(c) + abs(h) + 1e-300)
 
 
-def unseen_law_reasons(physical: dict[str, Any]) -> list[str]:
+def unseen_law_reasons(restoring_force: dict[str, Any]) -> list[str]:
     """Why the restoring-force map reads a contact law the training world lacks (empty: none).
 
-    ``physical`` holds the cross-check's fields (:func:`serving.physical.physical_check`):
+    ``restoring_force`` holds the cross-check's fields
+    (:func:`serving.restoring_force_check.restoring_force_check`):
     ``exponent``, ``contact_r2`` and ``dissipation_gain`` / ``dissipation_share``.
     """
     reasons = []
-    p, r2 = physical.get("exponent"), physical.get("contact_r2")
+    p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= EXPONENT_MIN_R2:
         if not any(lo <= p <= hi for lo, hi in TRAINING_EXPONENT_BANDS):
             reasons.append(
                 f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
                 "contacts read"
             )
-    gain, share = physical.get("dissipation_gain"), physical.get("dissipation_share")
+    gain, share = restoring_force.get("dissipation_gain"), restoring_force.get("dissipation_share")
     if gain is not None and share is not None:
         if gain >= DISSIPATION_MIN_GAIN and share >= DISSIPATION_MIN_SHARE:
             reasons.append(
@@ -108,15 +109,15 @@ def unseen_law_reasons(physical: dict[str, Any]) -> list[str]:
 
 
 def with_unseen_law_check(
-    alarm: dict[str, Any] | None, physical: dict[str, Any]
+    alarm: dict[str, Any] | None, restoring_force: dict[str, Any]
 ) -> dict[str, Any] | None:
     """The alarm with the ``contact_law`` check added (fires on any :func:`unseen_law_reasons`).
 
     Its score is the number of reasons and its threshold 0; the reasons go to
     ``alarm["contact_law"]``. A model without an alarm gets one made of this check.
     """
-    reasons = unseen_law_reasons(physical)
-    if physical.get("exponent") is None and physical.get("dissipation_gain") is None:
+    reasons = unseen_law_reasons(restoring_force)
+    if restoring_force.get("exponent") is None and restoring_force.get("dissipation_gain") is None:
         return alarm  # the cross-check refused: nothing to judge
     if alarm is None:
         alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}

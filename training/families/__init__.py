@@ -10,15 +10,12 @@ command, the measurement loop and recalibration list families from here.
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
-
 from serving.families import register as register_serving
 from stiffnet.errors import StiffnetError
+from stiffnet.plugins import discover, once
 from training.families.base import TrainedModel, TrainingFamily
 
 _FAMILIES: dict[str, type[TrainingFamily]] = {}
-_discovered = False
 
 
 def register_family(cls: type[TrainingFamily]) -> type[TrainingFamily]:
@@ -32,22 +29,10 @@ def register_family(cls: type[TrainingFamily]) -> type[TrainingFamily]:
     return cls
 
 
+@once
 def _discover() -> None:
-    global _discovered
-    if _discovered:
-        return
-    _discovered = True
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda i: i.name):
-        if not info.ispkg:
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        for obj in vars(module).values():
-            if (
-                isinstance(obj, type)
-                and issubclass(obj, TrainingFamily)
-                and obj.__module__ == module.__name__
-            ):
-                register_family(obj)
+    for cls in discover(__name__, TrainingFamily, packages_only=True):  # a family is a folder
+        register_family(cls)
 
 
 def families() -> dict[str, type[TrainingFamily]]:

@@ -67,30 +67,19 @@ def _export_proto(net: StiffnessCNN, n_channels: int, length: int) -> onnx.Model
         path = Path(tmp) / "model.onnx"
         with warnings.catch_warnings(), _quiet_exporter_logs():
             warnings.simplefilter("ignore")
+            common = dict(input_names=[INPUT_NAME], output_names=OUTPUT_NAMES,
+                          opset_version=TARGET_OPSET)  # fmt: skip
             try:
                 torch.onnx.export(
-                    wrapper,
-                    (example,),
-                    str(path),
-                    input_names=[INPUT_NAME],
-                    output_names=OUTPUT_NAMES,
-                    opset_version=TARGET_OPSET,
-                    dynamo=True,
+                    wrapper, (example,), str(path), **common, dynamo=True,
                     dynamic_shapes={"windows": {0: torch.export.Dim("N")}},
-                    external_data=False,
-                    verbose=False,
-                )
+                    external_data=False, verbose=False,
+                )  # fmt: skip
             except Exception:  # noqa: BLE001 - fall back to the TorchScript exporter
                 torch.onnx.export(
-                    wrapper,
-                    (example,),
-                    str(path),
-                    input_names=[INPUT_NAME],
-                    output_names=OUTPUT_NAMES,
-                    opset_version=TARGET_OPSET,
-                    dynamo=False,
+                    wrapper, (example,), str(path), **common, dynamo=False,
                     dynamic_axes={INPUT_NAME: {0: "N"}, **{o: {0: "N"} for o in OUTPUT_NAMES}},
-                )
+                )  # fmt: skip
         model = onnx.load(str(path), load_external_data=True)
     for vi in [*model.graph.input, *model.graph.output]:  # name the dynamic batch axis
         dims = vi.type.tensor_type.shape.dim

@@ -1,9 +1,9 @@
 """The restoring-force cross-check of the predictor (numpy/scipy only).
 
 One call of :func:`stiffnet.restoring_force.restoring_force_estimate` on at most
-:data:`PHYSICAL_PERIODS` forcing periods from the middle of the recording (the
+:data:`RESTORING_FORCE_PERIODS` forcing periods from the middle of the recording (the
 cost stays bounded on long recordings), turned into the JSON fields of
-:class:`serving.schemas.PhysicalCheck`. A recording the method cannot read
+:class:`serving.schemas.RestoringForceCheck`. A recording the method cannot read
 (no contact, no forcing line, a meaningless fit) gives ``class`` null or
 ``no_contact`` and the reason, never an error: the cross-check must not stop a
 prediction. The sensor chain (mounted resonance, anti-alias low-pass, charge
@@ -28,13 +28,13 @@ from stiffnet.uncertainty.unseen_law import penetration_dissipation
 
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~15 ms
 #: without a sensor chain to fit, ~1-3 s with one).
-PHYSICAL_PERIODS = 24.0
+RESTORING_FORCE_PERIODS = 24.0
 #: A fitted stage counts as outside the training priors only beyond this factor of their
 #: range (the fit's own scatter: 2-10 % in frequency on simulated chains).
 PRIOR_SLACK = 1.15
 
 
-def physical_check(
+def restoring_force_check(
     accel: Any, fs_hz: float, natural_frequency_hz: float, sensor: dict | None = None
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
@@ -44,7 +44,7 @@ def physical_check(
             accel,
             fs_hz,
             natural_frequency_hz=natural_frequency_hz,
-            max_periods=PHYSICAL_PERIODS,
+            max_periods=RESTORING_FORCE_PERIODS,
             sensor=sensor,
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction
@@ -64,7 +64,7 @@ def physical_check(
         hc = penetration_dissipation(r.displacement, r.velocity, r.force, law.onset,
                                      law.exponent, law.reference_penetration)  # fmt: skip
     return {
-        "class": d["physical_class"],
+        "class": d["restoring_force_class"],
         "beta": d["beta"],
         "beta_interval": d["beta_interval"],
         "beta_interval_coverage": d["coverage"] if r.ok else None,

@@ -9,7 +9,7 @@ part exists, they are concatenated into ``OUT`` (atomically) and the parts folde
 removed. An interrupted run resumes: parts whose record matches are kept.
 
 Each row holds the model's answer and both cross-checks of :func:`serving.predictor.
-predict_recording`: the geometric one and the restoring-force one (``physical_*``).
+predict_recording`: the geometric one and the restoring-force one (``restoring_force_*``).
 A recording that cannot be predicted (unreadable, too short, constant...) gets a row
 with its ``error`` and nulls elsewhere: one bad file never stops the batch, and the
 summary names every failed recording (``failed``; the command then exits 1).
@@ -134,11 +134,11 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("geometric_class", pa.string()),
             ("geometric_beta", pa.float64()),
             ("agreement", pa.bool_()),
-            ("physical_class", pa.string()),
-            ("physical_beta", pa.float64()),
-            ("physical_beta_low", pa.float64()),
-            ("physical_beta_high", pa.float64()),
-            ("physical_agreement", pa.bool_()),
+            ("restoring_force_class", pa.string()),
+            ("restoring_force_beta", pa.float64()),
+            ("restoring_force_beta_low", pa.float64()),
+            ("restoring_force_beta_high", pa.float64()),
+            ("restoring_force_agreement", pa.bool_()),
             ("ood_score", pa.float64()),
             ("ood_flag", pa.bool_()),
             ("n_windows", pa.int64()),
@@ -163,7 +163,7 @@ def result_row(
     if result is None:
         return row
     interval = result.get("beta_interval") or [None, None]
-    physical_interval = result.get("physical_beta_interval") or [None, None]
+    restoring_force_interval = result.get("restoring_force_beta_interval") or [None, None]
     geometric = result.get("geometric") or {}
     row.update(
         {
@@ -175,11 +175,11 @@ def result_row(
             "geometric_class": geometric.get("class"),
             "geometric_beta": geometric.get("beta"),
             "agreement": result.get("agreement"),
-            "physical_class": result.get("physical_class"),
-            "physical_beta": result.get("physical_beta"),
-            "physical_beta_low": physical_interval[0],
-            "physical_beta_high": physical_interval[1],
-            "physical_agreement": result.get("physical_agreement"),
+            "restoring_force_class": result.get("restoring_force_class"),
+            "restoring_force_beta": result.get("restoring_force_beta"),
+            "restoring_force_beta_low": restoring_force_interval[0],
+            "restoring_force_beta_high": restoring_force_interval[1],
+            "restoring_force_agreement": result.get("restoring_force_agreement"),
             "ood_score": result.get("ood_score"),
             "ood_flag": result.get("ood_flag"),
             "n_windows": result.get("n_windows"),
@@ -362,23 +362,10 @@ def predict_batch(
         A summary: counts per class, errors, parts kept and run, re-run parts.
     """
     check_target(scheduler, workers)
-    if part_size < 1:
-        raise StiffnetError(f"part size must be at least 1, got {part_size}")
-    out = Path(out)
-    if out.exists() and not overwrite:
-        raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
-    if out.is_dir():
-        raise StiffnetError(f"{out} is a folder: give a .parquet file name")
-    campaign = campaign_inputs(recordings, fs_hz, natural_frequency_hz, columns, time_unit,
-                               channel)  # fmt: skip
-    if campaign is not None:
-        paths, settings, manifest = campaign
-    else:
-        paths, manifest = [str(p) for p in find_recordings(recordings)], None
-        settings = [(fs_hz, natural_frequency_hz, columns, time_unit, channel)] * len(paths)
+    out = _checked_output(out, overwrite, part_size)
+    reading = (fs_hz, natural_frequency_hz, columns, time_unit, channel)
+    paths, settings, manifest = _recordings_and_settings(recordings, reading)
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
-    model_file = str(Path(predictor.model.path).resolve())
-    class_names = tuple(predictor.class_names)
     parts_dir = out.parent / f"{out.name}.parts"
     run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
                        (columns, time_unit, part_size))  # fmt: skip
@@ -386,21 +373,8 @@ def predict_batch(
     t0 = time.perf_counter()
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
-        jobs, records = [], {}
-        for index, lo in enumerate(range(0, len(paths), part_size)):
-            chunk = tuple(paths[lo : lo + part_size])
-            chunk_settings = tuple(settings[lo : lo + part_size])
-            fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
-                              (columns, time_unit), chunk_settings)  # fmt: skip
-            record = _finished_part(parts_dir, index, fp) if resume else None
-            if record is not None:
-                records[index] = record
-                continue
-            files = tuple(str(Path(p).resolve()) for p in chunk)
-            jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
-                                predictor.sha256, class_names, fs_hz, natural_frequency_hz, fp,
-                                columns, time_unit, settings=chunk_settings,
-                                before=before_part))  # fmt: skip
+        jobs, records = _plan_parts(paths, settings, part_size, predictor, parts_dir, reading,
+                                    resume, before_part)  # fmt: skip
         n_parts = len(records) + len(jobs)
         kept = len(records)
         if progress and kept:
@@ -416,27 +390,101 @@ def predict_batch(
     report.raise_failures()
     for job, record in zip(jobs, report.results, strict=True):
         records[job.index] = record
+    table = _joined_parts(parts_dir, records, predictor, out)
+    return {
+        "out": str(out),
+        "manifest": None if manifest is None else str(manifest),
+        **_table_summary(table, predictor),
+        "parts": n_parts,
+        "parts_kept": kept,
+        "rerun": report.rerun,
+        "backend": report.backend,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
+    """The result table's path, refused before any work: an existing file without
+    `overwrite`, a folder, or parts of fewer than one recording."""
+    if part_size < 1:
+        raise StiffnetError(f"part size must be at least 1, got {part_size}")
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
+    if out.is_dir():
+        raise StiffnetError(f"{out} is a folder: give a .parquet file name")
+    return out
+
+
+def _recordings_and_settings(
+    recordings: str | Path, reading: tuple
+) -> tuple[list[str], list[tuple], Path | None]:
+    """The recordings to predict, how to read each ``(fs, f_n, columns, time unit,
+    channel)``, and the manifest they came from: a campaign's manifest rows where there
+    is one (:func:`campaign_inputs`), else every recording found, each read alike."""
+    campaign = campaign_inputs(recordings, *reading)
+    if campaign is not None:
+        return campaign
+    paths = [str(p) for p in find_recordings(recordings)]
+    return paths, [reading] * len(paths), None
+
+
+def _plan_parts(
+    paths: list[str],
+    settings: list[tuple],
+    part_size: int,
+    predictor: Predictor,
+    parts_dir: Path,
+    reading: tuple,
+    resume: bool,
+    before_part: Callable[[int], None] | None,
+) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
+    """The parts still to run (jobs) and the records of those an interrupted run with the
+    same inputs finished (kept when `resume`), by part index."""
+    fs_hz, natural_frequency_hz, columns, time_unit, _ = reading
+    model_file = str(Path(predictor.model.path).resolve())
+    jobs, records = [], {}
+    for index, lo in enumerate(range(0, len(paths), part_size)):
+        chunk = tuple(paths[lo : lo + part_size])
+        chunk_settings = tuple(settings[lo : lo + part_size])
+        fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
+                          (columns, time_unit), chunk_settings)  # fmt: skip
+        record = _finished_part(parts_dir, index, fp) if resume else None
+        if record is not None:
+            records[index] = record
+            continue
+        files = tuple(str(Path(p).resolve()) for p in chunk)
+        jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
+                            predictor.sha256, tuple(predictor.class_names), fs_hz,
+                            natural_frequency_hz, fp, columns, time_unit,
+                            settings=chunk_settings, before=before_part))  # fmt: skip
+    return jobs, records
+
+
+def _joined_parts(
+    parts_dir: Path, records: dict[int, dict[str, Any]], predictor: Predictor, out: Path
+) -> pa.Table:
+    """The parts' tables in order, written to `out` (atomically) with the model in the
+    schema metadata; the run's own part files are then removed."""
     table = pa.concat_tables(
-        pq.read_table(parts_dir / records[i]["file"]) for i in range(n_parts)
+        pq.read_table(parts_dir / records[i]["file"]) for i in range(len(records))
     ).replace_schema_metadata(
         {"stiffnet.model": predictor.name, "stiffnet.model_sha256": predictor.sha256}
     )
     out.parent.mkdir(parents=True, exist_ok=True)
     write_bytes_atomic(out, _parquet_bytes(table))
     remove_parts_folder(parts_dir)  # only the run's own files
+    return table
+
+
+def _table_summary(table: pa.Table, predictor: Predictor) -> dict[str, Any]:
+    """Rows, failures (path and reason), counts per class and the model of a result table."""
     classes = table.column("class").drop_null().to_pylist()
     errors = table.select(["path", "error"]).to_pylist()
     return {
-        "out": str(out),
-        "manifest": None if manifest is None else str(manifest),
         "recordings": table.num_rows,
         "failed": [r for r in errors if r["error"] is not None],
         "errors": int(table.column("error").is_valid().to_numpy(zero_copy_only=False).sum()),
-        "class_counts": {name: classes.count(name) for name in class_names},
+        "class_counts": {name: classes.count(name) for name in predictor.class_names},
         "model": {"name": predictor.name, "sha256": predictor.sha256},
-        "parts": n_parts,
-        "parts_kept": kept,
-        "rerun": report.rerun,
-        "backend": report.backend,
-        "seconds": round(time.perf_counter() - t0, 3),
     }

@@ -33,5 +33,10 @@ def test_evaluate_reports_the_restoring_force_cross_check(damped):
     assert res["metrics"]["learned"]["beta_mape"] < 0.25
     assert rf["interval_coverage"] is not None and rf["agreement_with_learned"] is not None
     for r in res["recordings"]:
-        assert {"physical_class", "physical_beta", "physical_reason", "sensor"} <= set(r)
+        assert {
+            "restoring_force_class",
+            "restoring_force_beta",
+            "restoring_force_reason",
+            "sensor",
+        } <= set(r)
     assert "restoring_force" in next(iter(res["slices"]["beta_class"].values()))
