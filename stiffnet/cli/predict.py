@@ -83,6 +83,24 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
     """Rich renderables of a prediction: summary with the cross-check, probabilities, segments."""
     from rich.table import Table
 
+    p = Table(title="class probabilities (mean over windows)")
+    for name in result["probabilities"]:
+        p.add_column(name, justify="right")
+    p.add_row(*(f"{v:.3f}" for v in result["probabilities"].values()))
+    parts: list[Any] = [_summary_table(result, title), p]
+    if len(result.get("layers") or []) > 1:
+        parts.append(_layers_table(result["layers"]))
+    if len(result["segments"]) > 1:
+        parts.append(_segments_table(result["segments"]))
+    for w in result["warnings"]:
+        parts.append(f"[yellow]warning:[/] {w}")
+    return parts
+
+
+def _summary_table(result: dict[str, Any], title: str) -> Any:
+    """The model beside the geometric method, the restoring force, the alarm, the inputs."""
+    from rich.table import Table
+
     g = result["geometric"]
     m = result["model"]
     t = Table(title=f"prediction for {title}")
@@ -112,29 +130,9 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         f"{g['contact_detected']} ({g['n_windows_with_contact']}/{g['n_windows']} windows)",
     )
     t.add_row("agreement", "[green]yes[/]" if result["agreement"] else "[red]no[/]", "")
-    ph = result["restoring_force"]
-    if ph["beta"] is not None:
-        lo, hi = ph["beta_interval"]
-        rf = f"{ph['class']}, beta {ph['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
-        rf += "  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]"
-    else:
-        rf = f"{ph['class'] or 'no estimate'}: {ph['reason']}"
-    t.add_row("restoring force", rf, "")
-    alarm = result.get("alarm")
-    if alarm is not None:
-        verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (
-            "[green]none[/]")  # fmt: skip
-        t.add_row("alarm", verdict, "")
-        scores = ", ".join(
-            # the restoring_force check's score is a log-gap that fires above 0: "0/0" would read
-            # as a ratio
-            f"{k} log-gap {_num(v)} (fires > 0)"
-            if k == "restoring_force"
-            else f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
-            for k, v in alarm["scores"].items()
-            if k in alarm["thresholds"]
-        )
-        t.add_row("alarm checks (score/threshold)", scores, "")
+    t.add_row("restoring force", _restoring_force_text(result), "")
+    for name, text in _alarm_rows(result.get("alarm")):
+        t.add_row(name, text, "")
     t.add_row(
         "windows",
         f"{result['n_windows']} x {result['window_s']:.3g} s, hop {result['hop_s']:.3g} s",
@@ -146,41 +144,72 @@ def result_tables(result: dict[str, Any], title: str) -> list[Any]:
         "",
     )
     t.add_row("model sha256", m["sha256"][:16] + "...", "")
-    p = Table(title="class probabilities (mean over windows)")
-    for name in result["probabilities"]:
-        p.add_column(name, justify="right")
-    p.add_row(*(f"{v:.3f}" for v in result["probabilities"].values()))
-    parts: list[Any] = [t, p]
-    if len(result.get("layers") or []) > 1:
-        la_t = Table(title="layers: beta changes along this record (the overall beta is a blend)")
-        for col in ("from s", "to s", "class", "beta [interval]", "windows"):
-            la_t.add_column(col, justify="right")
-        for la in result["layers"]:
-            iv = la["beta_interval"]
-            la_t.add_row(
-                f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
-                f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
-                la["class"],
-                _num(la["beta"]) + (f" [{iv[0]:.3g}, {iv[1]:.3g}]" if iv else ""),
-                str(la["n_points"]),
-            )
-        parts.append(la_t)
-    if len(result["segments"]) > 1:
-        s = Table(title="segments")
-        for col in ("from s", "to s", "windows", "class", "beta"):
-            s.add_column(col, justify="right")
-        for seg in result["segments"]:
-            s.add_row(
-                f"{seg['start_s']:.1f}",
-                f"{seg['end_s']:.1f}",
-                str(seg["n_windows"]),
-                seg["class"],
-                _num(seg["beta"]),
-            )
-        parts.append(s)
-    for w in result["warnings"]:
-        parts.append(f"[yellow]warning:[/] {w}")
-    return parts
+    return t
+
+
+def _restoring_force_text(result: dict[str, Any]) -> str:
+    """The restoring-force reading and whether it agrees with the model, or why it refused."""
+    rf = result["restoring_force"]
+    if rf["beta"] is None:
+        return f"{rf['class'] or 'no estimate'}: {rf['reason']}"
+    lo, hi = rf["beta_interval"]
+    text = f"{rf['class']}, beta {rf['beta']:.3g} [{lo:.3g}, {hi:.3g}]"
+    return text + ("  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]")
+
+
+def _alarm_rows(alarm: dict[str, Any] | None) -> list[tuple[str, str]]:
+    """The alarm's verdict and each check's score against its threshold."""
+    if alarm is None:
+        return []
+    verdict = "[red]UNRELIABLE[/]: " + ", ".join(alarm["fired"]) if alarm["flag"] else (
+        "[green]none[/]")  # fmt: skip
+    scores = ", ".join(
+        # the restoring_force check's score is a log-gap that fires above 0: "0/0" would read
+        # as a ratio
+        f"{k} log-gap {_num(v)} (fires > 0)"
+        if k == "restoring_force"
+        else f"{k} {_num(v)}/{_num(alarm['thresholds'][k])}"
+        for k, v in alarm["scores"].items()
+        if k in alarm["thresholds"]
+    )
+    return [("alarm", verdict), ("alarm checks (score/threshold)", scores)]
+
+
+def _layers_table(layers: list[dict[str, Any]]) -> Any:
+    """Where beta changes along the record, each layer with its interval."""
+    from rich.table import Table
+
+    t = Table(title="layers: beta changes along this record (the overall beta is a blend)")
+    for col in ("from s", "to s", "class", "beta [interval]", "windows"):
+        t.add_column(col, justify="right")
+    for la in layers:
+        iv = la["beta_interval"]
+        t.add_row(
+            f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
+            f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
+            la["class"],
+            _num(la["beta"]) + (f" [{iv[0]:.3g}, {iv[1]:.3g}]" if iv else ""),
+            str(la["n_points"]),
+        )
+    return t
+
+
+def _segments_table(segments: list[dict[str, Any]]) -> Any:
+    """The model's reading over consecutive stretches of windows."""
+    from rich.table import Table
+
+    t = Table(title="segments")
+    for col in ("from s", "to s", "windows", "class", "beta"):
+        t.add_column(col, justify="right")
+    for seg in segments:
+        t.add_row(
+            f"{seg['start_s']:.1f}",
+            f"{seg['end_s']:.1f}",
+            str(seg["n_windows"]),
+            seg["class"],
+            _num(seg["beta"]),
+        )
+    return t
 
 
 #: Environment variable holding the bearer token of ``stiffnet serve`` (``--token``).
