@@ -147,30 +147,45 @@ class SensorChain:
 SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
 
 
-def parse_sensor_option(text: str) -> dict[str, float]:
-    """``KEY=VALUE,...`` (the CLI's ``--sensor``) as a mapping; the keys are checked by
-    :func:`sensor_from_mapping`.
+def parse_sensor_option(text: str, what: str = "--sensor") -> dict[str, float]:
+    """``KEY=VALUE,...`` (the CLI's ``--sensor``; ``;`` also separates, for a manifest's cell)
+    as a mapping; the keys are checked by :func:`sensor_from_mapping`.
 
     Raises
     ------
     ConfigError
-        One line, for an item without ``=`` or a value that is not a number.
+        One line starting with `what`, for an item without ``=`` or a value that is not a
+        number.
     """
     from stiffnet.errors import ConfigError
 
     keys = ", ".join(SENSOR_KEYS)
     out: dict[str, float] = {}
-    for item in (p.strip() for p in text.split(",") if p.strip()):
+    for item in (p.strip() for p in text.replace(";", ",").split(",") if p.strip()):
         key, sep, value = item.partition("=")
         if not sep:
-            raise ConfigError(f"--sensor: {item!r} is not KEY=VALUE (keys: {keys})")
+            raise ConfigError(f"{what}: {item!r} is not KEY=VALUE (keys: {keys})")
         try:
             out[key.strip()] = float(value)
         except ValueError:
-            raise ConfigError(f"--sensor: {key.strip()} = {value!r} is not a number") from None
+            raise ConfigError(f"{what}: {key.strip()} = {value!r} is not a number") from None
     if not out:
-        raise ConfigError(f"--sensor: empty (give KEY=VALUE,... with keys {keys})")
+        raise ConfigError(f"{what}: empty (give KEY=VALUE,... with keys {keys})")
     return out
+
+
+def sensor_sheet(text: str, fs_hz: float, what: str = "sensor") -> dict[str, float]:
+    """A data sheet written as text (``--sensor``, a manifest's ``sensor`` cell) read and
+    checked: the mapping :func:`sensor_from_mapping` accepts, or one :class:`ConfigError` line
+    starting with `what` that names the bad item or key."""
+    from stiffnet.errors import ConfigError
+
+    sheet = parse_sensor_option(text, what)
+    try:
+        sensor_from_mapping(sheet, fs_hz)
+    except ValueError as exc:
+        raise ConfigError(f"{what}: {exc}") from None
+    return sheet
 
 
 def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
