@@ -398,12 +398,11 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     repeat with the forcing, and the table's harmonics absorb them: the start-up transient
     is what identifies it), yet a missed 2-5 Hz corner halves beta. The corner is profiled
     by the contact law's R2 over :data:`HIGHPASS_GRID` (forcing frequencies) and refined by
-    a bounded search, where the regression kept no corner; the profiled corner replaces the
-    map's where it leaves at most :data:`HIGHPASS_PROFILE_GAIN` of its unexplained contact
-    force.
+    a bounded search; the profiled corner replaces the map's where it leaves at most
+    :data:`HIGHPASS_PROFILE_GAIN` of its unexplained contact force.
     """
-    if corner > 0 or m.law is None or m.labels is None:
-        return m, corner  # the regression saw the corner (a start-up transient): it is exact
+    if m.law is None or m.labels is None:
+        return m, corner
     maps = {c: _fit_map(*args, float(c), exponent) for c in HIGHPASS_GRID}
     best = max(maps, key=lambda c: _contact_r2(maps[c]))
     i = int(np.flatnonzero(HIGHPASS_GRID == best)[0])
