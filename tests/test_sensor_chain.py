@@ -283,3 +283,38 @@ def test_identify_sensor_chain_gives_the_chain_alone():
     assert got is not None and got.source == "fitted"
     assert got.resonance_hz == pytest.approx(60 * FN, rel=0.1)
     assert identify_sensor_chain(np.zeros(5000), fs, FN) is None  # unreadable: nothing
+
+
+# --- lab chains (all three stages) through the independent rig ---------------------------
+
+
+@pytest.mark.slow
+def test_a_steep_lowpass_near_the_contact_is_not_read_as_a_resonance():
+    """A lab chain: 4th-order low-pass at 0.068 fs (3 contact frequencies), a 4 Hz high-pass
+    and a mount above Nyquist. A lightly damped resonance mimics the low-pass's overshoot
+    within the pulse's window; the low-pass structure must win, and beta is right or
+    refused (never a silent half of it)."""
+    sensor = {"resonance_hz": 1035.8, "resonance_damping": 0.042, "lowpass_hz": 100.94,
+              "lowpass_order": 4, "highpass_hz": 3.96, "oversample": 8}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=22.38, fs_hz=1490.9, duration_s=3.0,
+                 forcing_frequency_hz=9.803, base_acceleration_g=0.81, gap_mm=2.078,
+                 sensor=sensor)  # fmt: skip
+    accel = record(run, seed=11)[1]
+    r = restoring_force_estimate(accel, run.fs_hz, natural_frequency_hz=FN, max_periods=24)
+    assert r.sensor.resonance_hz is None
+    assert r.sensor.lowpass_hz == pytest.approx(100.94, rel=0.1)
+    assert (not r.ok and "\n" not in r.reason) or r.beta == pytest.approx(22.38, rel=0.1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("highpass_hz", [0.0, 3.0])
+def test_a_charge_amplifier_highpass_is_found_and_none_is_invented(highpass_hz):
+    """Independent rig, elastic contact, beta 30: a 3 Hz high-pass (the analog chain in its
+    steady state) is found within 10 % and beta within 10 %; without one, none is reported."""
+    sensor = {"highpass_hz": highpass_hz, "oversample": 4} if highpass_hz else None
+    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1000.0, duration_s=3.0, sensor=sensor)
+    accel = record(run, seed=3)[1]
+    r = restoring_force_estimate(accel, run.fs_hz, natural_frequency_hz=FN, max_periods=24)
+    assert r.ok, r.reason
+    assert r.highpass_hz == pytest.approx(highpass_hz, rel=0.1, abs=0.05)
+    assert r.beta == pytest.approx(30.0, rel=0.1)

@@ -9,6 +9,8 @@ included). Use it when the alarm's checks or its false-alarm target change.
 
 Library use: ``recalibrate(model, data, recalibration_config(model))``; the
 command line is ``stiffnet recalibrate MODEL.onnx --data DATA_DIR [--config FILE]``.
+With ``--calibration-set`` the data is an independent set simulated from the current
+priors instead (:func:`recalibrate_interval`): only the interval's quantile is refitted.
 """
 
 from __future__ import annotations
@@ -94,6 +96,63 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
     metrics.update({f"recording/{k}": v for k, v in m_rec.items()})
     rewrite_metadata(path, update, {"metrics": metrics})
     return {"conformal_quantile_recording": q_rec, "thresholds": alarm.thresholds, **m_rec}
+
+
+def recalibrate_interval(
+    model_path: str | Path, data_dir: str | Path, coverage: float | None = None
+) -> dict[str, Any]:
+    """Refit only the recording-level conformal quantile on an independent calibration set.
+
+    Every trajectory of `data_dir` (simulated from the current priors, none of them seen in
+    training) calibrates the interval; the alarm is kept (refitting it needs the training
+    windows' embeddings). The quantile is the split-conformal one of
+    :func:`training.uncertainty_calibration.recording_quantile` over the set's contact trajectories, so
+    the interval covers at the nominal rate on the world the set was drawn from.
+
+    Returns
+    -------
+    dict
+        ``conformal_quantile_recording`` (new) and ``previous``, the set's
+        ``n_trajectories``, and its accuracy, beta MAPE, coverage with the previous and the
+        new quantile (in-sample for the new one, by construction near `coverage`).
+    """
+    from stiffnet.uncertainty.alarm import load_alarm
+    from training.uncertainty_calibration import (
+        recording_quantile,
+        trajectory_metrics,
+        trajectory_table,
+    )
+
+    path, data_dir = Path(model_path), Path(data_dir)
+    card = json.loads(path.with_suffix(".card.json").read_text())
+    meta = dict(card.get("metadata") or {})
+    ds = load_dataset(data_dir)
+    card_sha = sha256_file(data_dir / CARD)
+    if meta.get("training_data_sha256") == card_sha:
+        raise StiffnetError(
+            f"{data_dir} is the data {path.name} was trained on: a calibration set must be "
+            "independent (recalibrate without --calibration-set)"
+        )
+    level = float(coverage or meta.get("conformal_coverage") or 0.9)
+    alarm_path = path.with_suffix(ALARM_SUFFIX)
+    alarm = load_alarm(alarm_path) if alarm_path.is_file() else None
+    outputs = model_outputs(path, ds, meta)
+    table = trajectory_table(ds.column("trajectory"), ds.column("label"), ds.column("beta"),
+                             outputs, alarm)  # fmt: skip
+    previous = float(meta.get("conformal_quantile_recording") or np.nan)
+    q = recording_quantile(table, level)
+    before, after = trajectory_metrics(table, previous), trajectory_metrics(table, q, alarm)
+    rewrite_metadata(path, {"conformal_quantile_recording": q,
+                            "calibration_data_sha256": card_sha})  # fmt: skip
+    return {
+        "conformal_quantile_recording": q,
+        "previous": previous,
+        "n_trajectories": int(len(table.label)),
+        "accuracy": after["accuracy"],
+        "beta_mape": after.get("beta_mape"),
+        "coverage_previous": before.get("coverage"),
+        "coverage": after.get("coverage"),
+    }
 
 
 def recalibration_config(model_path: str | Path, config: str | Path | None = None) -> TrainConfig:

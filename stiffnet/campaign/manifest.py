@@ -25,6 +25,7 @@ from pydantic import (
     Field,
     PrivateAttr,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -85,6 +86,11 @@ class ManifestRow(BaseModel):
         header names or 0-based indices, when the header is not ``t,accel``.
     time_unit : {"s", "ms", "us"}, optional
         CSV recordings: unit of the time column (default s).
+    sensor : str, optional
+        The accelerometer chain's data sheet, ``KEY=VALUE`` items separated by ``;`` (or
+        ``,`` in a quoted cell) with the keys of ``--sensor`` (``resonance_hz``,
+        ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the
+        restoring-force estimate undoes it as given instead of fitting the chain.
     """
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False, str_strip_whitespace=True)
@@ -102,6 +108,7 @@ class ManifestRow(BaseModel):
     channel: str | None = None
     columns: str | None = None
     time_unit: Literal["s", "ms", "us"] | None = None
+    sensor: str | None = None
     # physical units (converted to the model columns above, see docs/campaign.md)
     forcing_frequency_hz: float | None = Field(None, gt=0)
     base_acceleration_ms2: float | None = Field(None, gt=0)
@@ -137,6 +144,27 @@ class ManifestRow(BaseModel):
         if "\x00" in norm or any(len(part.encode()) > 255 for part in norm.split("/")):
             raise ValueError("must be a usable file name (no NUL byte, names <= 255 bytes)")
         return norm
+
+    @field_validator("sensor")
+    @classmethod
+    def _sensor_sheet(cls, value: str | None, info: ValidationInfo) -> str | None:
+        # the CLI's --sensor reader, so that a cell and the option say the same
+        from stiffnet.restoring_force.chain import sensor_sheet
+
+        if value is None:
+            return None
+        try:
+            sensor_sheet(value, info.data.get("fs_hz") or math.inf, what="data sheet")
+        except StiffnetError as exc:
+            raise ValueError(str(exc)) from None
+        return value
+
+    def sensor_sheet(self) -> dict[str, float] | None:
+        """The ``sensor`` cell as the data-sheet mapping the estimates take (None: not given,
+        the chain is fitted)."""
+        from stiffnet.restoring_force.chain import parse_sensor_option
+
+        return None if self.sensor is None else parse_sensor_option(self.sensor, "sensor")
 
     @model_validator(mode="after")
     def _physical_units(self) -> ManifestRow:

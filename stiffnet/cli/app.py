@@ -357,15 +357,26 @@ def recalibrate(
         typer.Option(help="Training config (YAML); default: stiffnet's configs/train/FAMILY.yaml."),
     ] = None,
     json_path: JsonOption = None,
+    calibration_set: Annotated[
+        bool,
+        typer.Option(
+            "--calibration-set",
+            help="DATA is an independent set simulated from the current priors: refit only "
+            "the interval's conformal quantile on all of it (the alarm is kept).",
+        ),
+    ] = False,
 ) -> None:
     """Refit a trained model's interval and alarm (its ONNX metadata and card updated in place)."""
     from stiffnet.io_utils import output_lock
     from training.recalibrate import recalibrate as run_recalibration
-    from training.recalibrate import recalibration_config
+    from training.recalibrate import recalibrate_interval, recalibration_config
 
     cfg = recalibration_config(model, config)
     with output_lock(model.parent):
-        result = run_recalibration(model, data, cfg)
+        if calibration_set:
+            result = recalibrate_interval(model, data, cfg.coverage)
+        else:
+            result = run_recalibration(model, data, cfg)
     out.print(f"recalibrated {model}: " + ", ".join(f"{k} {v}" for k, v in result.items()))
     write_json(json_path, result)
 

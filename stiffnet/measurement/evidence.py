@@ -51,7 +51,7 @@ def contact_law_per_recording(campaign: Campaign, rows: list[ManifestRow]) -> li
             rec = campaign.recording(i)
             r = restoring_force_estimate(
                 rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
-                max_periods=PERIODS,
+                max_periods=PERIODS, sensor=row.sensor_sheet(),
             )  # fmt: skip
         except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             out.append({"recording": row.recording, "ok": False, "reason": str(exc)})

@@ -114,7 +114,7 @@ def predicted(
         rec = campaign.recording(i)
         return predictor.predict(
             rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
-            source=row.recording,
+            source=row.recording, sensor=row.sensor_sheet(),
         )  # fmt: skip
 
     return memo(campaign, ("predicted", model_path, i, natural_frequency(row)), run)

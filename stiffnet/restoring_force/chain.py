@@ -59,6 +59,9 @@ GRID = 12
 #: A mount's resonance is lightly damped (0.01-0.1 on sensors): a better damped pair is a
 #: low-pass's (a Butterworth's lightest: 0.38 at order 4), which a free resonance would mimic.
 MAX_RESONANCE_DAMPING = 0.15
+#: ... and not undamped: below this a fitted "resonance" rings on through the window only to
+#: mimic a steep low-pass's overshoot (a sensor's Q of +36 dB is 0.008).
+MIN_RESONANCE_DAMPING = 0.008
 #: Function evaluations per least-squares start.
 MAX_NFEV = 40
 #: Low-pass orders tried.
@@ -147,30 +150,45 @@ class SensorChain:
 SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
 
 
-def parse_sensor_option(text: str) -> dict[str, float]:
-    """``KEY=VALUE,...`` (the CLI's ``--sensor``) as a mapping; the keys are checked by
-    :func:`sensor_from_mapping`.
+def parse_sensor_option(text: str, what: str = "--sensor") -> dict[str, float]:
+    """``KEY=VALUE,...`` (the CLI's ``--sensor``; ``;`` also separates, for a manifest's cell)
+    as a mapping; the keys are checked by :func:`sensor_from_mapping`.
 
     Raises
     ------
     ConfigError
-        One line, for an item without ``=`` or a value that is not a number.
+        One line starting with `what`, for an item without ``=`` or a value that is not a
+        number.
     """
     from stiffnet.errors import ConfigError
 
     keys = ", ".join(SENSOR_KEYS)
     out: dict[str, float] = {}
-    for item in (p.strip() for p in text.split(",") if p.strip()):
+    for item in (p.strip() for p in text.replace(";", ",").split(",") if p.strip()):
         key, sep, value = item.partition("=")
         if not sep:
-            raise ConfigError(f"--sensor: {item!r} is not KEY=VALUE (keys: {keys})")
+            raise ConfigError(f"{what}: {item!r} is not KEY=VALUE (keys: {keys})")
         try:
             out[key.strip()] = float(value)
         except ValueError:
-            raise ConfigError(f"--sensor: {key.strip()} = {value!r} is not a number") from None
+            raise ConfigError(f"{what}: {key.strip()} = {value!r} is not a number") from None
     if not out:
-        raise ConfigError(f"--sensor: empty (give KEY=VALUE,... with keys {keys})")
+        raise ConfigError(f"{what}: empty (give KEY=VALUE,... with keys {keys})")
     return out
+
+
+def sensor_sheet(text: str, fs_hz: float, what: str = "sensor") -> dict[str, float]:
+    """A data sheet written as text (``--sensor``, a manifest's ``sensor`` cell) read and
+    checked: the mapping :func:`sensor_from_mapping` accepts, or one :class:`ConfigError` line
+    starting with `what` that names the bad item or key."""
+    from stiffnet.errors import ConfigError
+
+    sheet = parse_sensor_option(text, what)
+    try:
+        sensor_from_mapping(sheet, fs_hz)
+    except ValueError as exc:
+        raise ConfigError(f"{what}: {exc}") from None
+    return sheet
 
 
 def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
@@ -418,7 +436,7 @@ def _bounds(win: _Windows, fs_hz: float, fn_hz: float, structure):
     lo = [np.log(_slowest_contact(win, fs_hz, fn_hz)), np.log(1e-3), -0.9]
     hi = [np.log(nyq), np.log(0.95), 0.5]
     if structure[0]:
-        lo += [np.log(MIN_RESONANCE_RATIO), np.log(3e-3)]
+        lo += [np.log(MIN_RESONANCE_RATIO), np.log(MIN_RESONANCE_DAMPING)]
         hi += [np.log(nyq / fn_hz), np.log(MAX_RESONANCE_DAMPING)]
     if structure[1]:
         lo += [np.log(0.5 * fn_hz)]
@@ -492,10 +510,11 @@ def fit_chain(
 ) -> SensorChain | None:
     """The sensor chain and the contact's poles, fitted jointly to every impact's pulse.
 
-    Stage by stage, each from the last one's contact: no chain; the resonance (from the
-    post-impact ring, or a few multiples of the contact frequency); the second-order
-    low-pass (from 1.5 and 4 contact frequencies); both where the resonance paid; the
-    other orders from the best low-pass.
+    Stage by stage (:class:`_ChainSearch`), each from the last one's contact: no chain; the
+    resonance (from the post-impact ring, or a grid over contact and resonance); the
+    second-order low-pass (from a grid over contact and corner: a low-pass near the contact's
+    own frequency reads as a slower contact to the chain-free fit); both where the resonance
+    paid; the other orders where a low-pass paid. :func:`_chosen_chain` picks.
 
     Parameters
     ----------
@@ -522,6 +541,33 @@ def fit_chain(
         The structure of least BIC, its parameters and intervals (a stage kept only where it
         lowers the BIC by :data:`MIN_BIC_GAIN`); None with fewer than 3 usable impacts.
     """
+    win = _chain_windows(force, core, fs_hz, natural_frequency_hz, samples_per_contact,
+                         ring_hz, contact_hz)  # fmt: skip
+    if win is None:
+        return None
+    search = _ChainSearch(win, fs_hz, natural_frequency_hz)
+    none = search.no_chain(contact_hz)
+    if noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2:
+        return _chosen_chain(search.fits, fs_hz, highpass_hz)  # nothing left for a chain
+    res = search.resonance(ring_hz)
+    lp = search.lowpass()
+    if res.bic < none.bic - MIN_BIC_GAIN:
+        search.both(res, lp)
+    search.other_orders(none)
+    return _chosen_chain(search.fits, fs_hz, highpass_hz)
+
+
+def _chain_windows(
+    force: np.ndarray,
+    core: np.ndarray,
+    fs_hz: float,
+    fn_hz: float,
+    samples_per_contact: float,
+    ring_hz: float | None,
+    contact_hz: float | None,
+) -> _Windows | None:
+    """Rule: the impact windows the fit reads (half a contact before, the contact and a tail of
+    1.5 contacts or 3 rings after), or None with fewer than 3 impacts."""
     labels, n_core = ndimage.label(core)
     if n_core < 3:
         return None
@@ -535,54 +581,97 @@ def fit_chain(
     win = impact_windows(force, core, pre, int(np.ceil(spc)) + tail)
     if win.n < 3:
         return None
-    win.free_hz = natural_frequency_hz
+    win.free_hz = fn_hz
     win.plain_contact_hz = float(contact_hz or 0.0)
-    fn, cap = natural_frequency_hz, 0.45 * fs_hz
-    timing = np.full(win.n, pre - 0.5)
+    return win
 
-    def run(structure, starts):
-        fits[structure] = _fit_structure(win, fs_hz, fn, structure, starts)
-        return fits[structure]
 
-    fits: dict[tuple[bool, int], _StructureFit] = {}
-    hint = [float(np.clip(contact_hz, 1.2 * fn, 0.4 * fs_hz))] if contact_hz else []
-    grid = np.geomspace(1.01 * _slowest_contact(win, fs_hz, fn), 0.4 * fs_hz, GRID)
-    st = (False, 0)
-    c_best = _grid_best(win, fs_hz, st, [_theta(st, (c, 0.1, 0.0), None, None, timing)
-                                          for c in grid], 0)  # fmt: skip
-    none = run(st, [_theta(st, (c, 0.1, 0.0), None, None, timing) for c in {c_best, *hint}])
-    contact, _, _, tm = _shape_of(none, fs_hz)
-    if noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2:
-        return _chosen_chain(fits, fs_hz, highpass_hz)  # the pulses leave nothing for a chain
-    st = (True, 0)
-    # a ring that dominates the pulse misleads the contact of the chain-free fit: the
-    # resonance's start is a grid over both
-    pairs = [(c, f) for c in {*grid, contact[0]} for f in np.geomspace(2 * fn, cap, GRID)
-             if f >= 1.05 * MIN_RESONANCE_RATIO * c]  # fmt: skip
-    sse = [float(np.sum(_residuals(_theta(st, (c, 0.1, 0.0), (f, 0.05), None, timing), win,
-                                   fs_hz, st) ** 2)) for c, f in pairs]  # fmt: skip
-    c_best, r_best = pairs[int(np.argmin(sse))]
-    res_starts = {r_best} | ({ring_hz} if ring_hz and ring_hz < cap else set())
-    res = run(st, [_theta(st, (c, 0.1, 0.0), (f, z), None, t) for c, f, t in
-                   [(c_best, r_best, timing), *[(contact[0], f, tm) for f in res_starts]]
-                   for z in (0.02, 0.08) if f >= 1.05 * MIN_RESONANCE_RATIO * c])  # fmt: skip
-    st = (False, 2)
-    corners = np.geomspace(0.5 * contact[0], cap, GRID)
-    l_best = _grid_best(win, fs_hz, st, [_theta(st, contact, None, f, tm) for f in corners], 3)
-    lp = run(st, [_theta(st, contact, None, l_best, tm)])
-    if res.bic < none.bic - MIN_BIC_GAIN:
-        c_r, r_r, _, t_r = _shape_of(res, fs_hz)
-        corner = _shape_of(lp, fs_hz)[2]
+class _ChainSearch:
+    """The stages of :func:`fit_chain`: each fits one chain structure from starts its own
+    grid picks, and keeps it in :attr:`fits`."""
+
+    def __init__(self, win: _Windows, fs_hz: float, fn_hz: float):
+        self.win, self.fs, self.fn = win, fs_hz, fn_hz
+        self.cap = 0.45 * fs_hz
+        self.timing = np.full(win.n, win.pre - 0.5)
+        self.grid = np.geomspace(1.01 * _slowest_contact(win, fs_hz, fn_hz), 0.4 * fs_hz, GRID)
+        self.fits: dict[tuple[bool, int], _StructureFit] = {}
+        self.contact: tuple = ()
+        self.tm = self.timing
+
+    def run(self, structure, starts) -> _StructureFit:
+        self.fits[structure] = _fit_structure(self.win, self.fs, self.fn, structure, starts)
+        return self.fits[structure]
+
+    def _sse(self, structure, theta) -> float:
+        return float(np.sum(_residuals(theta, self.win, self.fs, structure) ** 2))
+
+    def no_chain(self, contact_hz: float | None) -> _StructureFit:
+        """The contact alone, from the best of a grid of contact frequencies (and the plain
+        map's); its contact and timing start the later stages."""
+        st = (False, 0)
+        hint = [float(np.clip(contact_hz, 1.2 * self.fn, 0.4 * self.fs))] if contact_hz else []
+        thetas = [_theta(st, (c, 0.1, 0.0), None, None, self.timing) for c in self.grid]
+        c_best = _grid_best(self.win, self.fs, st, thetas, 0)
+        fit = self.run(st, [_theta(st, (c, 0.1, 0.0), None, None, self.timing)
+                            for c in {c_best, *hint}])  # fmt: skip
+        self.contact, _, _, self.tm = _shape_of(fit, self.fs)
+        return fit
+
+    def resonance(self, ring_hz: float | None) -> _StructureFit:
+        """The mount's resonance: a ring that dominates the pulse misleads the chain-free
+        contact, so the start is a grid over both (and the post-impact ring)."""
+        st, fn, cap, contact = (True, 0), self.fn, self.cap, self.contact
+        pairs = [(c, f) for c in {*self.grid, contact[0]} for f in np.geomspace(2 * fn, cap, GRID)
+                 if f >= 1.05 * MIN_RESONANCE_RATIO * c]  # fmt: skip
+        sse = [self._sse(st, _theta(st, (c, 0.1, 0.0), (f, 0.05), None, self.timing))
+               for c, f in pairs]  # fmt: skip
+        c_best, r_best = pairs[int(np.argmin(sse))]
+        res_starts = {r_best} | ({ring_hz} if ring_hz and ring_hz < cap else set())
+        starts = [(c_best, r_best, self.timing), *[(contact[0], f, self.tm) for f in res_starts]]
+        thetas = [_theta(st, (c, 0.1, 0.0), (f, z), None, t) for c, f, t in starts
+                  for z in (0.02, 0.08) if f >= 1.05 * MIN_RESONANCE_RATIO * c]  # fmt: skip
+        return self.run(st, thetas)
+
+    def lowpass(self) -> _StructureFit:
+        """The second-order low-pass: from the chain-free contact with a grid of corners, and
+        from the best of a grid over contact and corner (a corner near the contact's frequency
+        makes the chain-free fit read a slower contact, which a corner grid alone keeps)."""
+        st, contact, cap = (False, 2), self.contact, self.cap
+        corners = np.geomspace(0.5 * contact[0], cap, GRID)
+        thetas = [_theta(st, contact, None, f, self.tm) for f in corners]
+        l_best = _grid_best(self.win, self.fs, st, thetas, 3)
+        pairs = [(c, f) for c in {*self.grid, contact[0]}
+                 for f in np.geomspace(max(0.5 * c, 0.5 * self.fn), cap, GRID)]  # fmt: skip
+        sse = [self._sse(st, _theta(st, (c, 0.1, 0.0), None, f, self.timing)) for c, f in pairs]
+        c_best, f_best = pairs[int(np.argmin(sse))]
+        starts = [_theta(st, contact, None, l_best, self.tm),
+                  _theta(st, (c_best, 0.1, 0.0), None, f_best, self.timing)]  # fmt: skip
+        return self.run(st, starts)
+
+    def both(self, res: _StructureFit, lp: _StructureFit) -> _StructureFit:
+        """Resonance and second-order low-pass, from the resonance's fit and the low-pass's
+        corner (or the best of a grid of corners)."""
         st = (True, 2)
-        l_best = _grid_best(win, fs_hz, st, [_theta(st, c_r, r_r, f, t_r) for f in corners], 5)
-        run(st, [_theta(st, c_r, r_r, c, t_r) for c in {l_best, corner}])
-    best = min((f for f in fits.values() if f.structure[1]), key=lambda f: f.bic)
-    if best.bic < min(none.bic, res.bic) - MIN_BIC_GAIN:
-        c_b, r_b, corner, t_b = _shape_of(best, fs_hz)
-        for order in (o for o in ORDERS if o != 2):
-            st = (best.structure[0], order)
-            run(st, [_theta(st, c_b, r_b, min(f * corner, cap), t_b) for f in (0.85, 1.2)])
-    return _chosen_chain(fits, fs_hz, highpass_hz)
+        c_r, r_r, _, t_r = _shape_of(res, self.fs)
+        corner = _shape_of(lp, self.fs)[2]
+        corners = np.geomspace(0.5 * self.contact[0], self.cap, GRID)
+        thetas = [_theta(st, c_r, r_r, f, t_r) for f in corners]
+        l_best = _grid_best(self.win, self.fs, st, thetas, 5)
+        return self.run(st, [_theta(st, c_r, r_r, c, t_r) for c in {l_best, corner}])
+
+    def other_orders(self, none: _StructureFit) -> None:
+        """Orders 1, 3 and 4 of each second-order low-pass structure (with and without the
+        resonance) that paid over the chain-free fit: a steeper low-pass may beat a resonance
+        the second order did not (a resonance mimics a low-pass's ring within the window)."""
+        for second in [f for f in self.fits.values() if f.structure[1] == 2]:
+            if not second.bic < none.bic - MIN_BIC_GAIN:
+                continue
+            c_b, r_b, corner, t_b = _shape_of(second, self.fs)
+            for order in (o for o in ORDERS if o != 2):
+                st = (second.structure[0], order)
+                self.run(st, [_theta(st, c_b, r_b, min(f * corner, self.cap), t_b)
+                              for f in (0.85, 1.2)])  # fmt: skip
 
 
 def _chosen_chain(fits, fs_hz: float, highpass_hz: float) -> SensorChain:

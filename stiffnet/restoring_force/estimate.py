@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import ndimage, stats
+from scipy import ndimage, optimize, stats
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
@@ -82,6 +82,12 @@ MIN_FORCING_RATIO = 0.25
 MIN_IMPACTS = 3
 #: Refuse when the contact law explains less of the contact force than this.
 MIN_CONTACT_R2 = 0.5
+#: High-pass corners profiled by the contact law (forcing frequencies: 0.1-5 Hz under a 10 Hz
+#: forcing, what charge amplifiers offer) ...
+HIGHPASS_GRID = np.geomspace(0.01, 0.5, 10)
+#: ... and the share of the map's unexplained contact force the profiled corner may leave
+#: (a real 2-5 Hz corner: 0.02-0.2; a spurious one on a record without: > 0.7).
+HIGHPASS_PROFILE_GAIN = 0.5
 #: Below this many samples per contact beta comes from the contact's oscillation
 #: (:mod:`.contact_poles`) rather than the force-displacement map, whose displacement
 #: inherits the quadrature error of spikes sampled with a few points (and of a damped
@@ -379,8 +385,39 @@ def _auto_map(
     if corner > 0:
         corrected = _fit_map(*args, corner, exponent)
         if _contact_r2(corrected) >= _contact_r2(m):
-            return corrected, corner
-    return m, 0.0
+            m = corrected
+        else:
+            corner = 0.0
+    return _profiled_corner(m, corner, args, exponent)
+
+
+def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None):
+    """Rule: the high-pass corner that makes the contact force a function of the state.
+
+    In a steady state the free-flight regression cannot see a high-pass (its impulse tails
+    repeat with the forcing, and the table's harmonics absorb them: the start-up transient
+    is what identifies it), yet a missed 2-5 Hz corner halves beta. The corner is profiled
+    by the contact law's R2 over :data:`HIGHPASS_GRID` (forcing frequencies) and refined by
+    a bounded search; the profiled corner replaces the map's where it leaves at most
+    :data:`HIGHPASS_PROFILE_GAIN` of its unexplained contact force.
+    """
+    if m.law is None or m.labels is None:
+        return m, corner
+    maps = {c: _fit_map(*args, float(c), exponent) for c in HIGHPASS_GRID}
+    best = max(maps, key=lambda c: _contact_r2(maps[c]))
+    i = int(np.flatnonzero(HIGHPASS_GRID == best)[0])
+    lo, hi = HIGHPASS_GRID[max(i - 1, 0)], HIGHPASS_GRID[min(i + 1, HIGHPASS_GRID.size - 1)]
+    sol = optimize.minimize_scalar(
+        lambda u: -max(_contact_r2(_fit_map(*args, float(np.exp(u)), exponent)), -1.0),
+        bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 0.02, "maxiter": 12},
+    )  # fmt: skip
+    c_best = float(np.exp(sol.x))
+    profiled = _fit_map(*args, c_best, exponent)
+    if _contact_r2(maps[best]) > _contact_r2(profiled):
+        c_best, profiled = float(best), maps[best]
+    if 1.0 - _contact_r2(profiled) <= HIGHPASS_PROFILE_GAIN * (1.0 - _contact_r2(m)):
+        return profiled, c_best
+    return m, corner
 
 
 def _contact_r2(m: _Map) -> float:
@@ -558,10 +595,8 @@ def _undo_chain(
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
     refusal = identifiability(chain)
     fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
-    if (
-        m2.info.get("restoring_force_class") == NO_CONTACT
-        and (chain.lowpass_hz or np.inf) < fastest
-    ):
+    no_contact = m2.info.get("restoring_force_class") == NO_CONTACT
+    if no_contact and (chain.lowpass_hz or np.inf) < fastest:
         refusal = (
             f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
             f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
@@ -572,7 +607,8 @@ def _undo_chain(
     # the chain that makes the contact force a function of the state: a fitted chain whose
     # inverse leaves the contact law worse than the record as recorded (or with only its
     # ringing divided out) is not the record's (it is still reported) and refuses nothing -
-    # a contact law the library lacks also bends the pulse a chain would
+    # a contact law the library lacks also bends the pulse a chain would - unless its
+    # low-pass lies below the contact's frequency: then no reading of the map is beta's
     other = max(candidates, key=lambda c: _contact_r2(c[0]))
     applied = _contact_r2(m2) >= _contact_r2(other[0]) - R2_SLACK
     if applied and refusal:
@@ -584,6 +620,8 @@ def _undo_chain(
     )
     if not applied:
         chain = dataclasses.replace(chain, applied=False)
+        if refusal:  # the pulses show a low-pass cutting into the contact: no map reads beta
+            return other[0], chain, other[1], refusal, []
         return other[0], chain, other[1], "", _readings(rivals)
     return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
 
@@ -683,8 +721,31 @@ def restoring_force_estimate(
     SignalError
         If the record is not a finite 1-D signal with an oscillation, or too short.
     """
-    from stiffnet.nlts._validate import as_signal
+    sensor, highpass_hz = _checked_options(fs_hz, natural_frequency_hz, forcing_frequency_hz,
+                                           coverage, sensor, highpass_hz)  # fmt: skip
+    a, lines = _record_and_lines(accel, fs_hz, natural_frequency_hz, forcing_frequency_hz,
+                                 max_periods)  # fmt: skip
+    options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
+                   classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
+                   highpass_hz=highpass_hz, sensor=sensor,
+                   chain_fit_below_r2=chain_fit_below_r2)  # fmt: skip
+    results = []
+    for i, ff in enumerate(lines):
+        try:
+            results.append(_estimate_at(a, fs_hz, ff, **options))
+        except SignalError:
+            if i == 0 and len(lines) == 1:
+                raise
+    if not results:
+        raise SignalError("no forcing line leaves four forcing periods in the record")
+    return max(results, key=lambda r: r.free_r2 if np.isfinite(r.free_r2) else -np.inf)
 
+
+def _checked_options(
+    fs_hz, natural_frequency_hz, forcing_frequency_hz, coverage, sensor, highpass_hz
+) -> tuple[SensorChain | None, float | str]:
+    """Rule: the options checked (a :class:`ConfigError` naming the bad one), the data sheet
+    as a chain, and the high-pass to undo (the data sheet's where one is given)."""
     for name, value in (("fs_hz", fs_hz), ("natural_frequency_hz", natural_frequency_hz),
                         ("forcing_frequency_hz", forcing_frequency_hz)):  # fmt: skip
         if value is None and name != "fs_hz":
@@ -700,6 +761,21 @@ def restoring_force_estimate(
             raise ConfigError(str(exc)) from None
     if sensor is not None:  # the data sheet's high-pass is the one undone
         highpass_hz = float(sensor.highpass_hz)
+    return sensor, highpass_hz
+
+
+def _record_and_lines(
+    accel: ArrayLike,
+    fs_hz: float,
+    natural_frequency_hz: float | None,
+    forcing_frequency_hz: float | None,
+    max_periods: float | None,
+) -> tuple[np.ndarray, list[float]]:
+    """The record (cropped to about `max_periods` forcing periods around its middle) and the
+    forcing lines to try: the given one, else the spectrum's rival lines (period-n orbits;
+    the free-flight law picks among them)."""
+    from stiffnet.nlts._validate import as_signal
+
     a = as_signal(accel, 32, "acceleration")
     if float(np.std(a)) == 0.0:
         raise SignalError("acceleration is constant")
@@ -717,25 +793,8 @@ def restoring_force_estimate(
         if a.size > keep:
             a = a[(a.size - keep) // 2 :][:keep]
     if forcing_frequency_hz:
-        lines = [float(forcing_frequency_hz)]
-    else:  # rival lines (period-n orbits): the free-flight law picks the forcing
-        lines = [
-            forcing_frequency(a, fs_hz, coarse=c) for c in forcing_candidates(a, fs_hz, min_hz)
-        ]
-    options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
-                   classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
-                   highpass_hz=highpass_hz, sensor=sensor,
-                   chain_fit_below_r2=chain_fit_below_r2)  # fmt: skip
-    results = []
-    for i, ff in enumerate(lines):
-        try:
-            results.append(_estimate_at(a, fs_hz, ff, **options))
-        except SignalError:
-            if i == 0 and len(lines) == 1:
-                raise
-    if not results:
-        raise SignalError("no forcing line leaves four forcing periods in the record")
-    return max(results, key=lambda r: r.free_r2 if np.isfinite(r.free_r2) else -np.inf)
+        return a, [float(forcing_frequency_hz)]
+    return a, [forcing_frequency(a, fs_hz, coarse=c) for c in forcing_candidates(a, fs_hz, min_hz)]
 
 
 def _estimate_at(
@@ -756,24 +815,8 @@ def _estimate_at(
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
     if not ff < 0.5 * fs_hz:
         raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
-    period = fs_hz / ff
-    a = check_record(a, period, MIN_PERIODS)
-    if max_periods is not None and a.size > max_periods * period:
-        keep = int(max_periods * period)
-        start = (a.size - keep) // 2
-        a = a[start : start + keep]
-    polarity = _polarity(a)
-    y = a * -polarity  # contact forces push -y up
-    length = periodic_length(y, period)
-    y = y[:length]
-    dtau = 2 * np.pi * ff / fs_hz
-    tau = np.arange(length) * dtau
-    # the wrap-around of a non-periodic record spoils the integrals at the ends
-    use = np.ones(length, dtype=bool)
-    edge = max(1, int(0.25 * period))
-    use[:edge] = use[-edge:] = False
-    k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
-    args = (y, dtau, tau, use, period, k_given)
+    args, polarity = _periodic_record(a, fs_hz, ff, natural_frequency_hz, max_periods)
+    y, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
         m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent)
     else:
@@ -806,10 +849,69 @@ def _estimate_at(
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
-    law, labels, n_imp, spc, fitted_exponent = m.law, m.labels, m.n_impacts, m.spc, m.exponent
-    k = fit.stiffness
-    beta = law.stiffness / k
-    damping_ratio = float(law.damping / (2 * np.sqrt(law.stiffness)))
+    beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed)
+    if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
+        lo, hi = min(lo, *rivals), max(hi, *rivals)
+    fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
+    cls = str(beta_class(np.array([beta]), classes)[0])
+    law, n_imp, spc = m.law, m.n_impacts, m.spc
+    return RestoringForceResult(
+        ok=True,
+        beta=float(beta),
+        beta_interval=(lo, hi),
+        restoring_force_class=cls,
+        contact_damping_ratio=damping_ratio,
+        exponent=m.exponent,
+        fitted_natural_frequency_hz=fitted_fn,
+        reason=(
+            f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
+            "of the contact force"
+            + (
+                f"; beta from the contact's oscillation (< {POLE_MAX_SAMPLES} samples per "
+                f"contact; its recursion explains {poles.r2:.0%})"
+                if poles is not None
+                else ""
+            )
+        ),
+        **info,
+    )
+
+
+def _periodic_record(
+    a: np.ndarray,
+    fs_hz: float,
+    ff: float,
+    natural_frequency_hz: float | None,
+    max_periods: float | None,
+) -> tuple[tuple, int]:
+    """The record as the map reads it: ``(y, dtau, tau, use, period, k_given)`` (polarity
+    such that contact forces push ``-y`` up, cut to whole forcing periods, its ends unused:
+    the wrap-around of a non-periodic record spoils the integrals there) and the polarity."""
+    period = fs_hz / ff
+    a = check_record(a, period, MIN_PERIODS)
+    if max_periods is not None and a.size > max_periods * period:
+        keep = int(max_periods * period)
+        start = (a.size - keep) // 2
+        a = a[start : start + keep]
+    polarity = _polarity(a)
+    y = a * -polarity  # contact forces push -y up
+    length = periodic_length(y, period)
+    y = y[:length]
+    dtau = 2 * np.pi * ff / fs_hz
+    tau = np.arange(length) * dtau
+    use = np.ones(length, dtype=bool)
+    edge = max(1, int(0.25 * period))
+    use[:edge] = use[-edge:] = False
+    k_given = None if natural_frequency_hz is None else (natural_frequency_hz / ff) ** 2
+    return (y, dtau, tau, use, period, k_given), polarity
+
+
+def _beta_of_map(m: _Map, use: np.ndarray, dtau: float, coverage: float, seed: int):
+    """Rule: beta, its interval, the contact damping ratio and the contact poles used (None:
+    the contact law's). With few samples per contact the contact's own oscillation (its
+    poles) gives beta where it fits and spans at most a half period; otherwise the contact
+    law, with a bootstrap interval over impacts."""
+    law, fit, spc, k = m.law, m.fit, m.spc, m.fit.stiffness
     poles = None
     if spc < POLE_MAX_SAMPLES:
         core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
@@ -827,33 +929,12 @@ def _estimate_at(
         damping_ratio = float(max(2 * poles.decay - fit.damping, 0.0) / (2 * np.sqrt(stiff)))
         half = float(stats.norm.ppf(0.5 + coverage / 2)) * poles.log_se * (1 + beta) / beta
         lo, hi = widen_interval(beta, beta * np.exp(-half), beta * np.exp(half), poles.r2, spc)
-    else:
-        rng = np.random.default_rng(seed)
-        lo, hi = bootstrap_beta(
-            law, fit.force, fit.displacement, fit.velocity, labels, n_imp, k, coverage, rng
-        )
-        lo, hi = widen_interval(beta, lo, hi, law.r2, spc)
-    if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
-        lo, hi = min(lo, *rivals), max(hi, *rivals)
-    fitted_fn = None if k_given is not None else ff * float(np.sqrt(k))
-    cls = str(beta_class(np.array([beta]), classes)[0])
-    return RestoringForceResult(
-        ok=True,
-        beta=float(beta),
-        beta_interval=(lo, hi),
-        restoring_force_class=cls,
-        contact_damping_ratio=damping_ratio,
-        exponent=fitted_exponent,
-        fitted_natural_frequency_hz=fitted_fn,
-        reason=(
-            f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
-            "of the contact force"
-            + (
-                f"; beta from the contact's oscillation (< {POLE_MAX_SAMPLES} samples per "
-                f"contact; its recursion explains {poles.r2:.0%})"
-                if poles is not None
-                else ""
-            )
-        ),
-        **info,
+        return beta, (lo, hi), damping_ratio, poles
+    beta = law.stiffness / k
+    damping_ratio = float(law.damping / (2 * np.sqrt(law.stiffness)))
+    rng = np.random.default_rng(seed)
+    lo, hi = bootstrap_beta(
+        law, fit.force, fit.displacement, fit.velocity, m.labels, m.n_impacts, k, coverage, rng
     )
+    lo, hi = widen_interval(beta, lo, hi, law.r2, spc)
+    return beta, (lo, hi), damping_ratio, None
