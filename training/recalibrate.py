@@ -106,8 +106,8 @@ def recalibrate_interval(
     Every trajectory of `data_dir` (simulated from the current priors, none of them seen in
     training) calibrates the interval; the alarm is kept (refitting it needs the training
     windows' embeddings). The quantile is the split-conformal one of
-    :func:`training.uncertainty_calibration.recording_quantile` over the set's contact trajectories, so
-    the interval covers at the nominal rate on the world the set was drawn from.
+    :func:`training.uncertainty_calibration.recording_quantile` over the set's contact
+    trajectories, so the interval covers at the nominal rate on the world the set was drawn from.
 
     Returns
     -------
