@@ -369,6 +369,7 @@ def _auto_map(
     period: float,
     k_given: float | None,
     exponent: float | None,
+    profile_below_r2: float = np.inf,
 ) -> tuple[_Map, float]:
     """The map with the high-pass corner fitted (:mod:`.sensor`), and that corner.
 
@@ -376,6 +377,9 @@ def _auto_map(
     (:func:`~.sensor.highpass_rule`), and a kept corner must not worsen the
     contact law's fit (on strongly damped contacts without any high-pass, the
     corner's terms absorb some free-flight misfit and pass the first tests).
+    The corner is then profiled by the contact law (:func:`_profiled_corner`, about
+    20 maps) only where the contact law explains less than `profile_below_r2`: the
+    rule of a chain identified only where needed (:data:`CHAIN_FIT_WHEN_NEEDED`).
     """
     args = (y, dtau, tau, use, period, k_given)
     m = _fit_map(*args, 0.0, exponent)
@@ -388,6 +392,8 @@ def _auto_map(
             m = corrected
         else:
             corner = 0.0
+    if _contact_r2(m) >= profile_below_r2:
+        return m, corner
     return _profiled_corner(m, corner, args, exponent)
 
 
@@ -606,9 +612,8 @@ def _undo_chain(
         return m2, chain, chain.resonance_hz, refusal, []
     # the chain that makes the contact force a function of the state: a fitted chain whose
     # inverse leaves the contact law worse than the record as recorded (or with only its
-    # ringing divided out) is not the record's (it is still reported) and refuses nothing -
-    # a contact law the library lacks also bends the pulse a chain would - unless its
-    # low-pass lies below the contact's frequency: then no reading of the map is beta's
+    # ringing divided out) is not the record's (it is still reported) and refuses nothing:
+    # a contact law the library lacks also bends the pulse a chain would
     other = max(candidates, key=lambda c: _contact_r2(c[0]))
     applied = _contact_r2(m2) >= _contact_r2(other[0]) - R2_SLACK
     if applied and refusal:
@@ -619,9 +624,11 @@ def _undo_chain(
         + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
     )
     if not applied:
+        # a rejected chain refuses nothing, even with its low-pass below the contact: a
+        # contact law the library lacks (Hunt-Crossley) is fitted as such a low-pass. The
+        # interval spans the chain-undone reading instead, so a low-pass that was real
+        # still leaves an interval that covers.
         chain = dataclasses.replace(chain, applied=False)
-        if refusal:  # the pulses show a low-pass cutting into the contact: no map reads beta
-            return other[0], chain, other[1], refusal, []
         return other[0], chain, other[1], "", _readings(rivals)
     return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
 
@@ -708,6 +715,8 @@ def restoring_force_estimate(
         explaining less than this (R2; default: always). A chain that distorts the
         contact shows as a law that no longer fits, and the identification costs
         0.1-2 s against the estimate's ~10 ms: the predictor fits it only when needed.
+        The same gate holds for profiling the high-pass corner by the contact law
+        (``"auto"``; ~20 maps, ~0.2 s).
 
     Returns
     -------
@@ -818,7 +827,7 @@ def _estimate_at(
     args, polarity = _periodic_record(a, fs_hz, ff, natural_frequency_hz, max_periods)
     y, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
-        m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent)
+        m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent, chain_fit_below_r2)
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
