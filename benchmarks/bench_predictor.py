@@ -20,7 +20,8 @@ process to one CPU, and times, in process:
 * its steps: the model over the sliding windows (family input + ONNX Runtime),
   the CNN's canonical windows (input before the delay channels) and their polarity rule
   batched and row by row, the geometric cross-check's features, the restoring-force
-  cross-check, the layers from the shared outputs, the alarm's embedding distances.
+  cross-check (and, for information, the same with its high-pass profile patched out),
+  the layers from the shared outputs, the alarm's embedding distances.
 
 Prints the median wall and CPU (process) times - on a busy machine the CPU time
 is the better guide to the quiet-machine wall time - the load average before and
@@ -90,6 +91,7 @@ def main() -> None:
     from serving.restoring_force_check import restoring_force_check
     from stiffnet.features import features_and_estimate, windows
     from stiffnet.features.windows import window_length, window_starts
+    from stiffnet.restoring_force import estimate as rf_estimate
     from stiffnet.uncertainty.alarm_verdict import alarm_verdict
 
     load_before = os.getloadavg()
@@ -127,6 +129,12 @@ def main() -> None:
         ):
             return full()
 
+    def without_profile(fn):
+        """What the check costs without its high-pass profile (information, not a result:
+        on this record the profile keeps no corner, docs/serving.md)."""
+        with mock.patch.object(rf_estimate, "_profiled_corner", lambda m, c, *_: (m, c)):
+            return fn()
+
     out, _, _ = p._run_model(a, sliding, n, FS_HZ, FN_HZ, geometric_windows=0)
     emb = window_embedding_scores(p.alarm, out)
     ok = np.ones(len(sliding), dtype=bool)
@@ -155,6 +163,9 @@ def main() -> None:
          timed(lambda: features(sliding, geo_idx), repeats)),
         ("restoring-force cross-check",
          timed(lambda: restoring_force_check(a, FS_HZ, FN_HZ), repeats)),
+        ("  the same, its high-pass profile patched out",
+         timed(lambda: without_profile(lambda: restoring_force_check(a, FS_HZ, FN_HZ)),
+               repeats)),
         ("layers from the shared outputs",
          timed(lambda: record_layers(p, a, FS_HZ, FN_HZ, windows=(ok, out, emb)), repeats)),
         ("alarm: embedding distances (once now)",
