@@ -142,6 +142,7 @@ class WindowReading:
     hop_s: float
     segments: list[dict[str, Any]]
     layers: list[dict[str, Any]]
+    embedding_scores: np.ndarray | None = None
 
 
 class Predictor:
@@ -388,6 +389,7 @@ class Predictor:
             ),  # fmt: skip
             # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
             layers=record_layers(self, a, fs, fn, windows=(ok, out, emb)),
+            embedding_scores=emb,  # the alarm reads them too: computed once
         )
 
     def _alarm(
@@ -401,7 +403,7 @@ class Predictor:
         """How far to trust the answer: the model's checks, then the restoring-force gap,
         the unseen contact law, the layers and the sensor chain."""
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
-                              reading.features)  # fmt: skip
+                              reading.features, reading.embedding_scores)  # fmt: skip
         gap = restoring_force_gap(
             interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
         )

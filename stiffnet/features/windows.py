@@ -41,7 +41,8 @@ the sampling rate, the sensor gain and the sensor polarity do not matter:
 One implementation, batched: :func:`canonical_windows` normalises many windows
 of one length and rate at once (the Butterworth design is cached per rate; the
 standardisation, smoothing, zero-phase filtering and linear interpolation run on
-a 2-D array; only the peak search behind the polarity rule loops over rows).
+a 2-D array, and the polarity rule's peak search runs once over the rows joined
+(:func:`canonical_polarities`, equal to the per-row rule to the last bit: tested)).
 :func:`canonical_window` is its one-window case with argument checks, and
 :func:`window_tensor` feeds the training data (windows of varied rates) through
 it window by window and a recording's equal windows (the predictor) in one call.
@@ -160,6 +161,75 @@ def _antialias(ratio: float) -> np.ndarray:
     return butter(8, CUTOFF_FRACTION * 2.0 / ratio, output="sos")
 
 
+def _smoothed_indicator(
+    a: np.ndarray, period: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The polarity rule's smoothed windows, impact indicator, its thresholds and separation."""
+    n = a.shape[1]
+    win = min(smoothing_window(period), n - (1 - n % 2))
+    s = savgol_filter(a, win, 2, mode="interp", axis=1) if win >= 3 else a
+    sep = max(1, int(0.25 * period))
+    # the indicator and its robust threshold for all rows at once (detect_impacts' numbers)
+    ind = np.abs(np.gradient(s, axis=1))
+    med = np.median(ind, axis=1)
+    thr = med + IMPACT_K * MAD_TO_SIGMA * np.median(np.abs(ind - med[:, None]), axis=1)
+    return s, ind, thr, sep
+
+
+def _row_polarity(a: np.ndarray, s: np.ndarray, ind: np.ndarray, thr: float, sep: int) -> float:
+    """The polarity rule on one row (the reference the batched rule reproduces)."""
+    peaks, _ = find_peaks(ind, height=float(thr), distance=sep)
+    pol = impact_polarity(s, peaks.astype(np.int64))
+    if pol == 0:
+        pol = 1 if float(np.mean(a**3)) >= 0 else -1
+    return float(pol)
+
+
+def _first_medians(x: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """``np.median(x[i, :count[i]])`` of every row at once (counts >= 1), to the last bit.
+
+    ``np.median`` is the mean of the two middle elements, ``(a + b) / 2`` (one element
+    when the count is odd: ``(a + a) / 2 == a``).
+    """
+    col = np.arange(x.shape[1])[None, :]
+    ordered = np.sort(np.where(col < count[:, None], x, np.inf), axis=1)
+    rows = np.arange(x.shape[0])
+    return (ordered[rows, (count - 1) // 2] + ordered[rows, count // 2]) / 2
+
+
+def _rows_peaks(
+    ind: np.ndarray, thr: np.ndarray, sep: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``find_peaks(ind[i], height=thr[i], distance=sep)`` of every row, in one call.
+
+    Samples below their row's threshold become -inf (a peak at or above it stays a local
+    maximum, and nothing below it can be one), and the rows are joined with ``2 sep + 3``
+    samples of +inf between them: a row's first and last samples stay non-peaks (as at a
+    row's own edges), and the separator's own peak lies more than `sep` from any row
+    sample, so no row's peaks suppress another's. Returns the rows and in-row positions of
+    the peaks (sorted), and the rows whose candidates have tied heights: there the
+    distance rule's choice depends on the sort's order of ties, so those rows take the
+    per-row call.
+    """
+    rows, n = ind.shape
+    gap = 2 * sep + 3
+    stride = n + gap
+    joined = np.full((rows, stride), np.inf)
+    joined[:, :n] = np.where(ind >= thr[:, None], ind, -np.inf)
+    joined = joined.reshape(-1)[: rows * stride - gap]
+    cand, _ = find_peaks(joined)
+    row, pos = np.divmod(cand, stride)
+    inside = pos < n
+    row, h = row[inside], joined[cand[inside]]
+    key = np.lexsort((h, row))
+    r, h = row[key], h[key]
+    tied = np.unique(r[1:][(r[1:] == r[:-1]) & (h[1:] == h[:-1])])
+    peaks, _ = find_peaks(joined, distance=sep)
+    row, pos = np.divmod(peaks, stride)
+    inside = pos < n
+    return row[inside], pos[inside], tied
+
+
 def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
     """Row-wise sign that makes the impact spikes of standardised windows point up.
 
@@ -169,6 +239,10 @@ def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
     above median + 8 * 1.4826 * MAD, at most one per quarter natural period),
     their sign by :func:`stiffnet.geometry.estimate.impact_polarity`; without
     impacts the sign of the skewness decides.
+
+    Batched over rows with the per-row rule's exact numbers: one peak search over the
+    joined rows (:func:`_rows_peaks`), the medians of :func:`impact_polarity` over each
+    row's span and impacts with ``np.median``'s arithmetic (:func:`_first_medians`).
 
     Parameters
     ----------
@@ -182,22 +256,39 @@ def canonical_polarities(a: np.ndarray, period: float) -> np.ndarray:
     numpy.ndarray
         ``(N,)`` of +1.0 / -1.0 (never 0).
     """
-    n = a.shape[1]
-    win = min(smoothing_window(period), n - (1 - n % 2))
-    s = savgol_filter(a, win, 2, mode="interp", axis=1) if win >= 3 else a
-    sep = max(1, int(0.25 * period))
-    # the indicator and its robust threshold for all rows at once (detect_impacts' numbers)
-    ind = np.abs(np.gradient(s, axis=1))
-    med = np.median(ind, axis=1)
-    thr = med + IMPACT_K * MAD_TO_SIGMA * np.median(np.abs(ind - med[:, None]), axis=1)
-    out = np.empty(a.shape[0])
-    for i in range(a.shape[0]):
-        peaks, _ = find_peaks(ind[i], height=float(thr[i]), distance=sep)
-        pol = impact_polarity(s[i], peaks.astype(np.int64))
-        if pol == 0:
-            pol = 1 if float(np.mean(a[i] ** 3)) >= 0 else -1
-        out[i] = pol
+    s, ind, thr, sep = _smoothed_indicator(a, period)
+    rows, n = a.shape
+    row, pos, tied = _rows_peaks(ind, thr, sep)
+    count = np.bincount(row, minlength=rows)
+    out = np.empty(rows)
+    has = count > 0
+    if has.any():
+        # impact_polarity: the extreme deviation within +-2 samples of each impact from
+        # the median over the impacts' span, then the median of those extremes
+        first = np.searchsorted(row, np.arange(rows))
+        lo = np.maximum(0, pos[np.minimum(first, row.size - 1)] - 1)
+        hi = pos[np.maximum(first + count - 1, 0)] + 2
+        centre = np.zeros(rows)
+        for i in np.flatnonzero(has):  # the span differs per row (a loop costs no more)
+            centre[i] = np.median(s[i, lo[i] : hi[i]])
+        win = np.clip(pos[:, None] + np.arange(-2, 3)[None, :], 0, n - 1)
+        dev = s[row[:, None], win] - centre[row, None]
+        ext = dev[np.arange(dev.shape[0]), np.argmax(np.abs(dev), axis=1)]
+        slot = np.arange(row.size) - first[row]
+        table = np.zeros((rows, int(count.max())))
+        table[row, slot] = ext
+        out[has] = np.where(_first_medians(table[has], count[has]) > 0, 1.0, -1.0)
+    for i in np.flatnonzero(~has):  # no impacts: the skewness
+        out[i] = 1.0 if float(np.mean(a[i] ** 3)) >= 0 else -1.0
+    for i in tied:
+        out[i] = _row_polarity(a[i], s[i], ind[i], thr[i], sep)
     return out
+
+
+def _polarities_per_row(a: np.ndarray, period: float) -> np.ndarray:
+    """:func:`canonical_polarities` row by row (the reference its tests compare with)."""
+    s, ind, thr, sep = _smoothed_indicator(a, period)
+    return np.array([_row_polarity(a[i], s[i], ind[i], thr[i], sep) for i in range(len(a))])
 
 
 def canonical_windows(

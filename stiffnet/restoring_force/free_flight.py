@@ -156,18 +156,17 @@ def _impulse_corrections(
     level = (coef[1 : 1 + n] - c * slope) / stiffness
     r2 = 1.0 - float(np.var(target[rows] - a @ coef)) / max(float(np.var(-accel[rows])), 1e-300)
 
-    def line(i: int, t: np.ndarray) -> np.ndarray:
+    def line(i: int | np.ndarray, t: np.ndarray) -> np.ndarray:
         return level[i] + slope[i] * (t - centre[i])
 
-    for i in range(n):
-        on = flights == i + 1
-        corr[on] = line(i, tau[on])
-        dcorr[on] = slope[i]
+    on = flights > 0
+    corr[on] = line(flights[on] - 1, tau[on])  # each flight on its own line
+    dcorr[on] = slope[flights[on] - 1]
     # between flights: blend the neighbouring lines by the impulse received so far
     gaps, m = ndimage.label(~free)
     force = np.maximum(target - c * vel, 0.0)
-    for g in range(1, m + 1):
-        pos = np.flatnonzero(gaps == g)
+    for span in ndimage.find_objects(gaps):  # a gap is one run of samples
+        pos = np.arange(span[0].start, span[0].stop)
         before = flights[pos[0] - 1] - 1 if pos[0] > 0 else -1
         after = flights[pos[-1] + 1] - 1 if pos[-1] + 1 < tau.size else -1
         if before < 0 and after < 0:
@@ -286,9 +285,10 @@ def fit_free_flight(
         offset = float(coef[2]) / k
     s = np.zeros_like(tau)
     ds = np.zeros_like(tau)
-    for (ca, sa), m in zip(table, harmonics, strict=True):
-        s += ca * np.cos(m * tau) + sa * np.sin(m * tau)
-        ds += m * (sa * np.cos(m * tau) - ca * np.sin(m * tau))
+    for i, ((ca, sa), m) in enumerate(zip(table, harmonics, strict=True)):
+        cos, sin = design[:, 3 + 2 * i], design[:, 4 + 2 * i]  # cos m tau, sin m tau
+        s += ca * cos + sa * sin
+        ds += m * (sa * cos - ca * sin)
     x = disp + s + offset
     v = vel + ds
     if stiffness is not None and k > 0:

@@ -83,13 +83,20 @@ def alarm_verdict(
     est: RecordingEstimate,
     out: dict[str, np.ndarray],
     feats: np.ndarray,
+    embedding_scores: np.ndarray | None = None,
 ) -> dict[str, Any] | None:
-    """The alarm's checks on one recording: flag, fired checks, scores, thresholds, message."""
+    """The alarm's checks on one recording: flag, fired checks, scores, thresholds, message.
+
+    `embedding_scores`: the windows' embedding distances when the caller already has them
+    (``alarm.embedding_scores(out["embedding"])``; the predictor's layers read them too).
+    """
     if alarm is None:
         return None
     emb = None
     if "embedding" in out and "embedding" in alarm.thresholds:
-        emb = alarm.embedding_scores(out["embedding"])
+        emb = embedding_scores
+        if emb is None:
+            emb = alarm.embedding_scores(out["embedding"])
     feat = None
     if ood is not None and len(feats) and "features" in alarm.thresholds:
         feat = float(np.median(ood.scores(feats)))
