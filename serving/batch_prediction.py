@@ -17,7 +17,9 @@ summary names every failed recording (``failed``; the command then exits 1).
 A campaign folder (one holding ``manifest.csv``, or the manifest itself) is read
 through its manifest: its recordings, and per recording the columns that say how to
 read it (``fs_hz``, ``natural_frequency_hz``, ``columns``, ``time_unit``,
-``channel``); an option fills only what the manifest leaves empty. A record whose
+``channel``) and the sensor chain's data sheet (``sensor``: undone as given, as
+``--sensor`` or a sidecar would; ``sensor_source`` in the table); an option fills only
+what the manifest leaves empty. A record whose
 beta changes along it (several layers, :func:`serving.log.record_layers`) has them
 in ``layers`` (JSON) and the alarm fired.
 Workers must see the recordings and the model at the same paths (a shared file
@@ -91,8 +93,9 @@ def campaign_inputs(
     """A campaign folder's recordings and per-recording read settings, from its manifest.
 
     None when ``spec`` is not a campaign (no ``manifest.csv`` in the folder, and not a
-    manifest file). The manifest's columns win; the options fill the empty ones.
-    Recording files that do not exist stay in the list (their rows get the error).
+    manifest file). The manifest's columns win; the options fill the empty ones. A row's
+    settings end with its ``sensor`` data sheet (None: none in the manifest). Recording
+    files that do not exist stay in the list (their rows get the error).
     """
     from stiffnet.campaign import MANIFEST_NAME
     from stiffnet.campaign.manifest import read_manifest
@@ -117,6 +120,7 @@ def campaign_inputs(
             row.columns.replace(";", ",") if row.columns else columns,
             row.time_unit or time_unit,
             row.channel or channel,
+            row.sensor_sheet(),  # the data sheet (None: the sidecar's, else fitted)
         ))  # fmt: skip
     return paths, settings, manifest
 
@@ -147,6 +151,7 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("duration_s", pa.float64()),
             ("natural_frequency_source", pa.string()),
             ("channel", pa.string()),
+            ("sensor_source", pa.string()),
             ("n_layers", pa.int64()),
             ("layers", pa.string()),
             ("warnings", pa.string()),
@@ -165,6 +170,7 @@ def result_row(
     interval = result.get("beta_interval") or [None, None]
     restoring_force_interval = result.get("restoring_force_beta_interval") or [None, None]
     geometric = result.get("geometric") or {}
+    sensor = (result.get("restoring_force") or {}).get("sensor") or {}
     row.update(
         {
             "class": result["class"],
@@ -187,6 +193,8 @@ def result_row(
             "natural_frequency_hz": result.get("natural_frequency_hz"),
             "duration_s": result.get("duration_s"),
             "natural_frequency_source": result.get("natural_frequency_source"),
+            # where the chain undone came from: "data sheet" or "fitted" (None: none undone)
+            "sensor_source": sensor.get("source"),
             "n_layers": len(result.get("layers") or []) or None,
             "layers": json.dumps(result["layers"]) if len(result.get("layers") or []) > 1 else None,
             "warnings": "; ".join(result.get("warnings") or []) or None,
@@ -217,7 +225,7 @@ class PartJob:
     columns: str | None = None
     time_unit: str | None = None
     #: per recording (a campaign's manifest): (fs_hz, natural_frequency_hz, columns,
-    #: time_unit, channel), replacing the part's shared settings
+    #: time_unit, channel, sensor data sheet), replacing the part's shared settings
     settings: tuple[tuple[Any, ...], ...] | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
@@ -240,15 +248,16 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     t0 = time.perf_counter()
     predictor = _predictor(job.model_path, job.model_sha256)
     rows = []
-    shared = (job.fs_hz, job.natural_frequency_hz, job.columns, job.time_unit, None)
+    shared = (job.fs_hz, job.natural_frequency_hz, job.columns, job.time_unit, None, None)
     settings = job.settings or (shared,) * len(job.paths)
-    for path, file, (fs, fn, columns, time_unit, channel) in zip(
+    for path, file, (fs, fn, columns, time_unit, channel, sensor) in zip(
         job.paths, job.files, settings, strict=True
     ):
         try:
             result = predict_recording(file, fs_hz=fs, predictor=predictor,
                                        natural_frequency_hz=fn, columns=columns,
-                                       time_unit=time_unit, channel=channel)  # fmt: skip
+                                       time_unit=time_unit, channel=channel,
+                                       sensor=sensor)  # fmt: skip
             rows.append(result_row(path, result, None, channel))
         except StiffnetError as exc:
             rows.append(result_row(path, None, str(exc), channel))
@@ -420,13 +429,14 @@ def _recordings_and_settings(
     recordings: str | Path, reading: tuple
 ) -> tuple[list[str], list[tuple], Path | None]:
     """The recordings to predict, how to read each ``(fs, f_n, columns, time unit,
-    channel)``, and the manifest they came from: a campaign's manifest rows where there
-    is one (:func:`campaign_inputs`), else every recording found, each read alike."""
+    channel, sensor data sheet)``, and the manifest they came from: a campaign's manifest
+    rows where there is one (:func:`campaign_inputs`), else every recording found, each read
+    alike (its data sheet from its sidecar, if any)."""
     campaign = campaign_inputs(recordings, *reading)
     if campaign is not None:
         return campaign
     paths = [str(p) for p in find_recordings(recordings)]
-    return paths, [reading] * len(paths), None
+    return paths, [(*reading, None)] * len(paths), None
 
 
 def _plan_parts(

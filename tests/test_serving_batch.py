@@ -242,3 +242,36 @@ def test_campaign_folder_is_read_through_its_manifest(recordings, tmp_path):
     res = CliRunner().invoke(app, ["predict-batch", str(camp), "--out",
                                    str(tmp_path / "g.parquet"), "--model", str(MODEL)])  # fmt: skip
     assert res.exit_code == 1 and "nofn.csv" in res.output and "gone.csv" in res.output
+
+
+def test_campaign_manifest_sensor_sheet_reaches_the_predictor(tmp_path):
+    """A manifest's ``sensor`` cell is undone as given, exactly as ``sensor=`` (the CLI's
+    ``--sensor``) would; a row without one is not read with another row's sheet."""
+    import shutil
+
+    chain = "sensor_dynamics:resonance_hz=50000,highpass_hz=0,lowpass_hz=160,lowpass_order=4"
+    plan = tmp_path / "plan.csv"
+    plan.write_text(HEADER + "\nr.csv,1600,1.05,1.9,2.8,0.02,30,4\n")
+    camp = simulate_campaign(plan, tmp_path / "sim", [chain], seed=3)
+    field = tmp_path / "field"
+    field.mkdir()
+    shutil.copy(camp / "r.csv", field / "sheet.csv")
+    shutil.copy(camp / "r.csv", field / "bare.csv")
+    (field / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz,sensor\n"
+        'sheet.csv,1600,9.48,"lowpass_hz=160,lowpass_order=4"\n'
+        "bare.csv,1600,9.48,\n"
+    )
+    summary = predict_batch(field, tmp_path / "s.parquet", model_path=MODEL)
+    assert not summary["failed"], summary["failed"]
+    table = pq.read_table(tmp_path / "s.parquet").to_pandas().set_index("path")
+    row = table.loc[str(field / "sheet.csv")]
+    sheet = {"lowpass_hz": 160.0, "lowpass_order": 4.0}
+    ref = predict_recording(field / "sheet.csv", natural_frequency_hz=FN, model_path=MODEL,
+                            sensor=sheet)  # fmt: skip
+    assert row["sensor_source"] == "data sheet" == ref["restoring_force"]["sensor"]["source"]
+    assert row["restoring_force_beta"] == pytest.approx(ref["restoring_force_beta"], rel=1e-9)
+    assert row["restoring_force_beta"] == pytest.approx(30.0, rel=0.1)
+    bare = table.loc[str(field / "bare.csv")]
+    assert bare["sensor_source"] != "data sheet"
+    assert bare["restoring_force_beta"] != pytest.approx(row["restoring_force_beta"], rel=1e-3)

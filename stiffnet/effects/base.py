@@ -153,6 +153,13 @@ class Effect:
         )
 
     @classmethod
+    def observed_fit_space(cls, space: FitSpace, observed: dict[str, float]) -> FitSpace:
+        """The campaign's fit space adjusted to what the measurement shows (``observed``, as
+        in :meth:`fit_seeds`: an identified sensor stage becomes a searched one). Default:
+        unchanged."""
+        return space
+
+    @classmethod
     def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
         """Data-driven starting points of a fit (effect parameters), from what the
         measurement shows (``observed``: e.g. ``ringing_hz``, the median post-impact ringing

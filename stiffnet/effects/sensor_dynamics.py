@@ -178,18 +178,50 @@ class SensorDynamics(MeasurementEffect):
         return replace(cls.fit_space, free=(replace(res, high=top), *others))
 
     @classmethod
+    def observed_fit_space(cls, space: FitSpace, observed: dict[str, float]) -> FitSpace:
+        """With an identified low-pass (``sensor_lowpass_hz``, ``sensor_lowpass_order``), its
+        corner is searched from half of it up to the resonance's top (where the stage is
+        skipped: no low-pass) at its identified order; without one, the space is unchanged."""
+        f_l = observed.get("sensor_lowpass_hz")
+        res, *_ = space.free
+        if not f_l or not 0.5 * f_l < res.high:
+            return space
+        order = float(np.clip(np.rint(observed.get("sensor_lowpass_order", 2.0)), 1, 8))
+        corner = FitParam("lowpass_hz", 0.5 * f_l, res.high, log=True)
+        fixed = {k: v for k, v in space.fixed.items() if k != "lowpass_hz"}
+        return replace(space, free=(*space.free, corner), fixed={**fixed, "lowpass_order": order})
+
+    @classmethod
     def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:
-        """Start at the measured post-impact ringing frequency: the resonance's basin is a
-        few per cent wide (the ringing is a few samples per cycle), a grid alone misses it."""
+        """Start at the chain identified from the contact pulses (``sensor_<parameter>``; a
+        stage it lacks: no high-pass, a resonance at the top of the search, i.e. none), then
+        at the measured post-impact ringing frequency: the resonance's basin is a few per
+        cent wide (the ringing is a few samples per cycle), a grid alone misses it."""
+        res, damp = space.free[:2]
+        # an identified low-pass (a free corner, :meth:`observed_fit_space`) in every seed
+        lowpass = (
+            {"lowpass_hz": observed["sensor_lowpass_hz"]} if "lowpass_hz" in space.names else {}
+        )
+        seeds = []
+        if any(k.startswith("sensor_") for k in observed):
+            f_r = observed.get("sensor_resonance_hz", res.high)
+            seeds.append({
+                **space.fixed, **lowpass,
+                "resonance_hz": float(np.clip(f_r, res.low, res.high)),
+                "resonance_damping": float(np.clip(observed.get("sensor_resonance_damping", 0.03),
+                                                   damp.low, damp.high)),
+                **({"highpass_hz": observed.get("sensor_highpass_hz", 0.0)}
+                   if "highpass_hz" in space.names else {}),
+            })  # fmt: skip
         f = observed.get("ringing_hz")
         if f is None or not np.isfinite(f):
-            return []
-        res, damp = space.free[:2]
+            return seeds
         # with and without a charge-amplifier high-pass (when the space fits its corner)
         corners = (0.0, 1.0) if "highpass_hz" in space.names else (None,)
-        return [
+        return seeds + [
             {
                 **space.fixed,
+                **lowpass,
                 "resonance_hz": float(np.clip(f * scale, res.low, res.high)),
                 "resonance_damping": float(np.clip(zeta, damp.low, damp.high)),
                 **({} if hp is None else {"highpass_hz": hp}),

@@ -232,6 +232,8 @@ class _Run:
     client: Any
     bar: _Progress
     stage: str = "single fits"
+    #: The restoring-force evidence (contact law and shared sensor chain per recording).
+    evidence: dict[str, Any] | None = None
 
     def fits(self, cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
         """Fit each candidate on top of ``fixed`` (parallel tasks), in the order given."""
@@ -321,12 +323,20 @@ def _prepare(
     }
     # a non-repeatable recording (halves far apart) weighs less in every fit's objective
     target.weights = floors[FIT_SETTINGS].weights().tolist()
+    # the contact law read off each force-displacement map (evidence without simulation);
+    # its shared sensor chain is where sensor_dynamics' fit starts
+    evidence = memo(
+        campaign, ("restoring_force", rows_key(rows)),
+        lambda: restoring_force_evidence(campaign, rows),
+    )  # fmt: skip
+    target.sensor = evidence.get("sensor")
     bar.step("nuisances and initial states")
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(base_effects, FIT_SETTINGS)
     run = _Run(
         campaign, base_effects, rows, target, [r.recording for r in rows], nuisance_info,
         floor_info, floors, options["budget"], options["budget_numerical"], client, bar,
+        evidence=evidence,
     )  # fmt: skip
     return run, nuisances, baseline
 
@@ -538,7 +548,6 @@ def _conclude(
         run.floors[FIT_SETTINGS_NUMERICAL], options["seed"],
     )  # fmt: skip
     ranking = _ranking(kept, entries)
-    rows = run.rows
     return {
         "baseline_discrepancy": campaign_discrepancy(baseline),
         "baseline_per_recording": baseline.tolist(),
@@ -554,12 +563,7 @@ def _conclude(
         "residual_per_recording": residual.tolist(),
         "per_recording": recordings,
         **v,
-        # the contact law read off each force-displacement map: evidence without simulation
-        "restoring_force": memo(
-            campaign,
-            ("restoring_force", rows_key(rows)),
-            lambda: restoring_force_evidence(campaign, rows),
-        ),  # fmt: skip
+        "restoring_force": run.evidence,
         "learned_law": learned,
         "nuisances": nuisances,
         "settings": _settings_record(options),

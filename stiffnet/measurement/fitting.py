@@ -84,9 +84,14 @@ def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None =
     return campaign_discrepancy(per_recording, weights)
 
 
-def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
-    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance)."""
-    return effect_class(name).campaign_fit_space(min(r.fs_hz for r in rows))
+def effect_space(
+    name: str, rows: Sequence[Any], observed: dict[str, float] | None = None
+) -> FitSpace:
+    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance;
+    ``observed``: what the measurement shows, e.g. an identified sensor stage to search)."""
+    cls = effect_class(name)
+    space = cls.campaign_fit_space(min(r.fs_hz for r in rows))
+    return space if observed is None else cls.observed_fit_space(space, observed)
 
 
 def off_params(name: str, space: FitSpace) -> list[dict[str, float]] | None:
@@ -254,7 +259,8 @@ def _fit_effect(
 
     t0 = time.perf_counter()
     fixed = list(fixed)
-    space = effect_space(name, target.rows)
+    observed = target.observed()
+    space = effect_space(name, target.rows, observed)
     numerical = needs_numerical(name)
     if settings is None:
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
@@ -262,7 +268,7 @@ def _fit_effect(
         off = target.per_recording([*target.base_effects, *fixed], settings)
     design = initial_design(space)
     n_seeds = len(seeds)
-    seeds = [*seeds, *effect_class(name).fit_seeds(target.observed(), space)]
+    seeds = [*seeds, *effect_class(name).fit_seeds(observed, space)]
     if seeds:
         design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
     k = len(space.free)
@@ -433,7 +439,8 @@ def fit_joint(
     """
     t0 = time.perf_counter()
     names = list(names)
-    spaces = [effect_space(n, target.rows) for n in names]
+    observed = target.observed()
+    spaces = [effect_space(n, target.rows, observed) for n in names]
     k = sum(len(s.free) for s in spaces)
     params = [{**s.fixed, **p} for s, p in zip(spaces, params, strict=True)]
     numerical = any(needs_numerical(n) for n in names)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -34,6 +35,9 @@ from stiffnet.measurement.statistics import (
     batch_signal_statistics,
     signal_statistics,
 )
+
+#: The identified chain's entries that seed ``sensor_dynamics`` (its parameter names).
+SENSOR_STAGES = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
 
 #: Discrepancy scored by a recording whose simulation cannot be analysed.
 FAILED_DISCREPANCY = 100.0
@@ -65,6 +69,11 @@ class CampaignTarget:
     #: Per-recording weights of the objective (non-repeatable recordings weigh less;
     #: :meth:`stiffnet.measurement.noise_floor.Floors.weights`); None: equal.
     weights: list[float] | None = None
+    #: The campaign's shared sensor chain identified from its contact pulses
+    #: (:func:`stiffnet.restoring_force.chain.shared_chain`: ``resonance_hz``,
+    #: ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; None for a
+    #: stage not seen); None: not identified. A fit starts from it (:meth:`observed`).
+    sensor: dict[str, Any] | None = None
 
     def simulated_statistics(
         self,
@@ -174,17 +183,24 @@ class CampaignTarget:
             self.inclination,
             None if self.starts is None else [self.starts[i] for i in idx],
             None if self.weights is None else [self.weights[i] for i in idx],
+            self.sensor,
         )
 
     def observed(self) -> dict[str, float]:
         """What the measurement shows that seeds a fit: ``ringing_hz``, the median post-impact
-        ringing frequency (Hz) of the recordings that ring (ringing above 0.2 decades)."""
+        ringing frequency (Hz) of the recordings that ring (ringing above 0.2 decades), and
+        the identified chain's stages as ``sensor_<parameter>`` (effect units: Hz, ratio,
+        order; a stage the chain lacks is absent)."""
         f = [
             m.ringing_frequency * m.natural_frequency_hz
             for m in self.measured
             if np.isfinite(m.ringing) and m.ringing > 0.2 and np.isfinite(m.ringing_frequency)
         ]
-        return {"ringing_hz": float(np.median(f))} if f else {}
+        out = {"ringing_hz": float(np.median(f))} if f else {}
+        for key, value in (self.sensor or {}).items():
+            if key in SENSOR_STAGES and value is not None and np.isfinite(value):
+                out[f"sensor_{key}"] = float(value)
+        return out
 
 
 def measured_statistics(
