@@ -190,3 +190,34 @@ def test_report_section_shows_the_law_its_path_and_the_map(tmp_path):
     assert "Learned contact law" in page and "hinge (in" in page and "<img" in page
     assert "max(0, beta [delta" in page  # the equation, escaped but whole
     assert learned_law_html({"ran": False, "summary": "x"}, tmp_path / "n.png") == []
+
+
+def test_loop_refit_keeps_every_discovered_value_it_does_not_fit(monkeypatch, tmp_path):
+    """A later iteration: the law in the model is not refitted blind from its class defaults
+    (the discovery proposes it again), and a refit that sets only some values keeps the
+    previous iteration's others (d_r, the face), never the class defaults."""
+    import stiffnet.measurement.diagnose as diagnose_module
+    from stiffnet.measurement import loop
+
+    law = {"exponent": 1.0, "reference_penetration": 0.64, "face_mass": 0.29,
+           "face_stiffness": 43.0, "face_damping": 0.1}  # fmt: skip
+    seen = {}
+
+    def fake_diagnose(campaign, base, effects=None, user_effects=(), **kw):
+        seen["effects"] = effects
+        return {"ranking": [{"effect": "contact_damping", "fitted": ["damping_ratio"]}],
+                "missing_effects": ["contact_damping"],
+                "fitted_params": {"contact_damping": {"damping_ratio": 0.1}},
+                "learned_law": {"proposed": False}}  # fmt: skip
+
+    monkeypatch.setattr(diagnose_module, "diagnose_campaign", fake_diagnose)
+    start = load_config(SimulationConfig, default_config("sim/ideal.yaml"))
+    added, _ = loop._effects_to_add(None, start, ["learned_contact"], [], "m.onnx", 0,
+                                    ["contact_damping"], False)  # fmt: skip
+    assert seen["effects"] == ["contact_damping"]  # not learned_contact from its defaults
+    assert [a["name"] for a in added] == ["contact_damping"]
+    prev = [{"name": "learned_contact", "params": law, "fitted": ["face_stiffness"]}]
+    refit = {"name": "learned_contact", "params": {"exponent": 1.1, "knee": 0.1}, "fitted": []}
+    got = loop.refit_params(prev, refit)
+    assert got == {**law, "exponent": 1.1, "knee": 0.1}
+    assert loop.refit_params([], refit) == refit["params"]

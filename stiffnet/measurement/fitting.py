@@ -84,9 +84,13 @@ def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None =
     return campaign_discrepancy(per_recording, weights)
 
 
-def effect_space(name: str, rows: Sequence[Any]) -> FitSpace:
-    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance)."""
-    return effect_class(name).campaign_fit_space(min(r.fs_hz for r in rows))
+def effect_space(name: str, rows: Sequence[Any], at: dict[str, float] | None = None) -> FitSpace:
+    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance);
+    for a refit from values ``at``, the effect's space around them, every value it does not
+    fit held (:meth:`~stiffnet.effects.base.Effect.fit_space_at`)."""
+    fs = min(r.fs_hz for r in rows)
+    cls = effect_class(name)
+    return cls.campaign_fit_space(fs) if at is None else cls.fit_space_at(at, fs)
 
 
 def off_params(name: str, space: FitSpace) -> list[dict[str, float]] | None:
@@ -254,7 +258,7 @@ def _fit_effect(
 
     t0 = time.perf_counter()
     fixed = list(fixed)
-    space = effect_space(name, target.rows)
+    space = effect_space(name, target.rows, dict(seeds[0]) if seeds else None)
     numerical = needs_numerical(name)
     if settings is None:
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
@@ -433,7 +437,7 @@ def fit_joint(
     """
     t0 = time.perf_counter()
     names = list(names)
-    spaces = [effect_space(n, target.rows) for n in names]
+    spaces = [effect_space(n, target.rows, dict(p)) for n, p in zip(names, params, strict=True)]
     k = sum(len(s.free) for s in spaces)
     params = [{**s.fixed, **p} for s, p in zip(spaces, params, strict=True)]
     numerical = any(needs_numerical(n) for n in names)
