@@ -41,11 +41,12 @@ REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
 #: Recordings (low, middle and high beta) and points per recording kept for the map figure.
 MAP_RECORDINGS = 3
 MAP_POINTS = 300
-#: The face's parameters the refit of a law with a face moves, and its rounds: each a design
-#: simulated as one batch, the best point so far and each parameter times and over its
-#: factor (the damping, weakly identified, moves further).
+#: The face's parameters the refit of a law with a face sweeps, one after the other, each
+#: across its box (:meth:`LearnedContact.fit_space_at`) on a grid simulated as one batch
+#: with the best point so far (the objective is rough: the face's ringing locks the impacts
+#: onto one orbit or another, so a local step misses what a sweep finds).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
-FACE_REFIT_STEPS = ((1.2, 1.2, 1.5), (1.08, 1.08, 1.25))
+FACE_REFIT_GRID = 7
 
 
 def should_propose(verdict_info: dict[str, Any]) -> tuple[bool, str]:
@@ -195,9 +196,10 @@ def refine_face(
     The discovery reads the face's mode through the measured force (its damping weakly); the
     campaign's statistics see the face ringing between impacts too. The refit searches
     ``learned_contact``'s space around the law (:meth:`LearnedContact.fit_space_at`: the face
-    within a factor 1.5, its damping 2.25): rounds of designs simulated as one batch each
-    (:data:`FACE_REFIT_STEPS`), the best point so far among its points, a point taken only
-    where, scored again alone, it lowers the discrepancy.
+    within a factor 1.5, its damping 2.25): each of the face's parameters swept across its
+    box on a grid simulated as one batch (:data:`FACE_REFIT_GRID`), the best point so far
+    among its points, a point taken only where, scored again alone, it lowers the
+    discrepancy.
 
     Returns
     -------
@@ -211,11 +213,12 @@ def refine_face(
     best, per = dict(params), np.asarray(at_discovered, float)
     fitted: list[str] = []
     t0 = time.perf_counter()
-    for step in FACE_REFIT_STEPS:
-        star = [{**best, k: best[k] * f} for k, s in zip(FACE_KEYS, step, strict=True)
-                for f in (s, 1.0 / s)]  # fmt: skip
-        fit = fit_effect(tgt, LearnedContact.name, [], settings, budget=1 + len(star),
-                         off=per, seeds=[best, *star])  # fmt: skip
+    space = LearnedContact.fit_space_at(params, min(r.fs_hz for r in rows))
+    box = {fp.name: fp for fp in space.free}
+    for key in FACE_KEYS:  # a sweep of each across its box, the others at the best so far
+        grid = [{**best, key: box[key].value(u)} for u in np.linspace(0, 1, FACE_REFIT_GRID)]
+        fit = fit_effect(tgt, LearnedContact.name, [], settings, budget=1 + len(grid),
+                         off=per, seeds=[best, *grid])  # fmt: skip
         fitted = list(fit["fitted"])
         if fit["improves"]:
             best, per = {**best, **fit["params"]}, np.asarray(fit["per_recording"], float)
