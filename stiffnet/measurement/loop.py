@@ -371,8 +371,7 @@ def _iteration(
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
     gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
     effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
-        {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]}
-        for a in added
+        {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]} for a in added
     ]
     n = state["n_trajectories"]
     base = start_cfg.model_copy(update={"n_trajectories": n})
