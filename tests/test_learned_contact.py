@@ -104,3 +104,39 @@ def test_a_face_in_the_config_yaml(tmp_path):
     assert eff.n_states == 2 and eff.params.face_stiffness == 43.0
     with pytest.raises(Exception, match="face_mass"):
         LearnedContact(face_mass=-0.1)
+
+
+def test_refit_space_of_a_law_with_a_face_holds_every_discovered_value():
+    law = {"face_mass": 0.3, "face_stiffness": 43.0, "face_damping": 0.1,
+           "reference_penetration": 0.2, "preload": 0.01, "damping_ratio": 0.05}  # fmt: skip
+    space = LearnedContact.fit_space_at(law, 2000.0)
+    assert space.names == ["face_mass", "face_stiffness", "face_damping"]
+    assert space.multimodal == ("face_stiffness",)  # the face's ringing frequency
+    lows = {fp.name: (fp.low, fp.high) for fp in space.free}
+    assert lows["face_mass"] == pytest.approx((0.2, 0.45))
+    assert lows["face_stiffness"] == pytest.approx((43.0 / 1.5, 43.0 * 1.5))
+    assert lows["face_damping"] == pytest.approx((0.1 / 2.25, 0.1 * 2.25))
+    # nothing the refit does not move goes back to the class defaults
+    back = space.params(space.unit(law))
+    assert back == pytest.approx({**LearnedContact().params.model_dump(), **law})
+    assert back["reference_penetration"] == 0.2 and back["preload"] == 0.01
+
+
+def test_refit_space_without_a_face_frees_only_the_terms_the_law_has():
+    space = LearnedContact.fit_space_at({"knee": 0.2, "knee_ratio": 3.0, "exponent": 1.0}, 2e3)
+    assert space.names == ["knee", "knee_ratio"] and space.multimodal == ()
+    assert space.fixed["face_mass"] == 0.0 and space.fixed["hunt_crossley"] == 0.0
+    # the blind space (diagnose --only learned_contact) is the class's shape terms
+    assert LearnedContact.campaign_fit_space(2e3).names == [
+        "exponent", "knee", "knee_ratio", "hunt_crossley"]  # fmt: skip
+
+
+def test_a_library_effect_refit_keeps_values_its_space_does_not_fit():
+    from stiffnet.effects.base import Effect
+    from stiffnet.effects.registry import effect_class
+
+    cls = effect_class("contact_damping")
+    assert cls.fit_space_at({"damping_ratio": 0.2}, 2e3) == cls.campaign_fit_space(2e3)
+    # the base rule (what any effect inherits): the class space, a given value it lacks held
+    space = Effect.fit_space_at.__func__(LearnedContact, {"face_mass": 0.3}, 2e3)
+    assert space.fixed["face_mass"] == 0.3 and "face_mass" not in space.names

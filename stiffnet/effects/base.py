@@ -39,7 +39,8 @@ A user effect is any subclass found at ``"package.module:ClassName"``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -158,6 +159,20 @@ class Effect:
         in :meth:`fit_seeds`: an identified sensor stage becomes a searched one). Default:
         unchanged."""
         return space
+
+    @classmethod
+    def fit_space_at(cls, params: Mapping[str, Any], fs_hz_min: float) -> FitSpace:
+        """The fit space for a refit from ``params`` (a model's current values): the campaign
+        space with every given parameter it does not fit held at its given value (never put
+        back to the class default). Override to search around the given values."""
+        space = cls.campaign_fit_space(fs_hz_min)
+        fitted = set(space.fitted) | set(space.names)
+        keep = {
+            k: float(v)
+            for k, v in params.items()
+            if k not in fitted and isinstance(v, int | float) and not isinstance(v, bool)
+        }
+        return replace(space, fixed={**keep, **space.fixed}) if keep else space
 
     @classmethod
     def fit_seeds(cls, observed: dict[str, float], space: FitSpace) -> list[dict[str, float]]:

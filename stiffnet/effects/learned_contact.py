@@ -42,6 +42,7 @@ penetration; onset and release are located exactly (``G = min(delta, F_c)``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -109,6 +110,19 @@ def learned_contact_force(
     return np.where(delta > 0, np.maximum(force, 0.0), 0.0)
 
 
+#: A refit from a discovered face searches its mass and stiffness within this factor of the
+#: discovered values (the discovery reads them within 15 %; the box leaves room for more).
+FACE_REFIT_FACTOR = 1.5
+
+
+def _around(cls: Any, name: str, value: float, factor: float) -> FitParam:
+    """A log-scale coordinate from ``value / factor`` to ``value * factor``, within the
+    parameter's declared range."""
+    extra = cls.Params.model_fields[name].json_schema_extra
+    low = max(value / factor, float(extra["ge"]), 1e-6)
+    return FitParam(name, low, min(value * factor, float(extra["le"])), log=True)
+
+
 class LearnedContact(DynamicsEffect):
     """A contact law discovered from a campaign (see the module notes for the equation)."""
 
@@ -155,6 +169,34 @@ class LearnedContact(DynamicsEffect):
             FitParam("hunt_crossley", 0.0, 5.0),
         ),
     )
+
+    @classmethod
+    def fit_space_at(cls, params: Mapping[str, Any], fs_hz_min: float) -> FitSpace:
+        """The space of a refit from a discovered law (``params``): the shape terms the law
+        has (its non-neutral ones, within their class ranges), and, when the law has a face,
+        the face's mass, stiffness and damping within :data:`FACE_REFIT_FACTOR` of their
+        discovered values (the damping, weakly identified, within its square); everything
+        else held at its value (d_r, the preload, the terms the law lacks). The face's
+        ringing frequency ``sqrt(kappa / mu)`` has one basin per mode the impacts can lock
+        onto: its stiffness is declared multimodal (swept at the mass held)."""
+        full = {**cls().params.model_dump(), **dict(params)}
+        shape = [fp for fp in cls.fit_space.free
+                 if fp.name == "knee" and full["knee_ratio"] != 1.0
+                 or fp.name in NEUTRAL and full[fp.name] != NEUTRAL[fp.name]]  # fmt: skip
+        free = list(shape)
+        multimodal: tuple[str, ...] = ()
+        if float(full["face_mass"]) > 0:
+            f = FACE_REFIT_FACTOR
+            zeta = max(float(full["face_damping"]), 1e-3)
+            free += [
+                _around(cls, "face_mass", float(full["face_mass"]), f),
+                _around(cls, "face_stiffness", float(full["face_stiffness"]), f),
+                _around(cls, "face_damping", zeta, f * f),
+            ]
+            multimodal = ("face_stiffness",)
+        names = {fp.name for fp in free}
+        fixed = {k: float(v) for k, v in full.items() if k not in names}
+        return FitSpace(tuple(free), fixed, multimodal=multimodal)
 
     def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
         """Upper bound of the contact mode's rate, (B,): the stiffest slope the law reaches up

@@ -85,12 +85,18 @@ def objective_value(per_recording: np.ndarray, weights: Sequence[float] | None =
 
 
 def effect_space(
-    name: str, rows: Sequence[Any], observed: dict[str, float] | None = None
+    name: str,
+    rows: Sequence[Any],
+    observed: dict[str, float] | None = None,
+    at: dict[str, float] | None = None,
 ) -> FitSpace:
-    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance;
-    ``observed``: what the measurement shows, e.g. an identified sensor stage to search)."""
+    """The effect's fit space for a campaign (its lowest sampling rate bounds a resonance);
+    for a refit from values ``at``, the effect's space around them, every value it does not
+    fit held (:meth:`~stiffnet.effects.base.Effect.fit_space_at`); ``observed``: what the
+    measurement shows, e.g. an identified sensor stage to search."""
+    fs = min(r.fs_hz for r in rows)
     cls = effect_class(name)
-    space = cls.campaign_fit_space(min(r.fs_hz for r in rows))
+    space = cls.campaign_fit_space(fs) if at is None else cls.fit_space_at(at, fs)
     return space if observed is None else cls.observed_fit_space(space, observed)
 
 
@@ -260,7 +266,7 @@ def _fit_effect(
     t0 = time.perf_counter()
     fixed = list(fixed)
     observed = target.observed()
-    space = effect_space(name, target.rows, observed)
+    space = effect_space(name, target.rows, observed, dict(seeds[0]) if seeds else None)
     numerical = needs_numerical(name)
     if settings is None:
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
@@ -440,7 +446,9 @@ def fit_joint(
     t0 = time.perf_counter()
     names = list(names)
     observed = target.observed()
-    spaces = [effect_space(n, target.rows, observed) for n in names]
+    spaces = [
+        effect_space(n, target.rows, observed, dict(p)) for n, p in zip(names, params, strict=True)
+    ]
     k = sum(len(s.free) for s in spaces)
     params = [{**s.fixed, **p} for s, p in zip(spaces, params, strict=True)]
     numerical = any(needs_numerical(n) for n in names)

@@ -300,13 +300,18 @@ def _effects_to_add(
     ones (a value fitted alone in an earlier iteration, biased by an effect not yet in
     the model, never blocks the next one), and the iteration takes every joint value.
     """
-    from stiffnet.measurement.diagnose import diagnose_campaign
+    from stiffnet.measurement.diagnose import PROPOSED_ONLY, diagnose_campaign
 
     base = config_effects(start_cfg)
     if given and all(params for _, params in given):
         return [{"name": n, "params": p, "fitted": [], "source": "given"} for n, p in given], None
+    # a learned law in the model is not refitted blind from its class defaults: the
+    # diagnosis's discovery proposes it again, refined around its discovered values
+    proposed = [n for n in current if n in PROPOSED_ONLY and n not in (candidates or [])]
     names = [n for n, _ in given] or (
-        None if candidates is None else list(dict.fromkeys([*candidates, *current]))
+        None
+        if candidates is None
+        else list(dict.fromkeys([*candidates, *(n for n in current if n not in proposed)]))
     )
     shipped = None if names is None else [n for n in names if ":" not in n]
     users = [n for n in (names or current) if ":" in n]
@@ -366,7 +371,7 @@ def _iteration(
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
     gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
     effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
-        {"name": a["name"], "params": a["params"], "fitted": a["fitted"]} for a in added
+        {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]} for a in added
     ]
     n = state["n_trajectories"]
     base = start_cfg.model_copy(update={"n_trajectories": n})
@@ -427,6 +432,15 @@ def _iteration(
         ],
         "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
     }
+
+
+def refit_params(prev: list[dict[str, Any]], added: dict[str, Any]) -> dict[str, Any]:
+    """An added effect's values: a refit of an effect already in the model keeps every value
+    of the previous iteration that the refit does not set (a learned law's reference
+    penetration, preload and face are discovered, not fitted: never the class defaults)."""
+    cls = effect_class(added["name"]).name
+    old = next((e["params"] for e in prev if effect_class(e["name"]).name == cls), {})
+    return {**old, **added["params"]}
 
 
 def _label(k: int, added: list[dict[str, Any]], prev: list[dict[str, Any]]) -> str:
