@@ -26,7 +26,7 @@ from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.estimate import CHAIN_FIT_WHEN_NEEDED
 from stiffnet.uncertainty.unseen_law import penetration_dissipation
 
-#: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~15 ms
+#: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~20 ms
 #: without a sensor chain to fit, ~1-3 s with one).
 RESTORING_FORCE_PERIODS = 24.0
 #: A fitted stage counts as outside the training priors only beyond this factor of their
