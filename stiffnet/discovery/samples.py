@@ -119,6 +119,7 @@ def record_contact_samples(
         accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
         forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
         chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,  # a chain fitted to a law it lacks bends it
+        profile_highpass_below_r2=-np.inf,  # so does a corner profiled until the library fits
     )  # fmt: skip
     margin = max(2, int(MARGIN * fs_hz / r.forcing_frequency_hz))
     return contact_samples(r, gain, recording, margin), r

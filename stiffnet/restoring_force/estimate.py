@@ -68,7 +68,8 @@ from stiffnet.restoring_force.sensor import (
     undo_resonance,
 )
 
-#: A fitted chain's inverse is kept unless the contact law explains this much less after it.
+#: A fitted chain's inverse is kept unless the contact law explains this much less after it
+#: (where a chain is always identified; where it is identified only when needed, no less).
 R2_SLACK = 0.005
 #: ``chain_fit_below_r2`` when the chain is identified only where needed: where the record
 #: as recorded leaves the contact law explaining less than this. On a clean record the
@@ -615,7 +616,12 @@ def _undo_chain(
     # ringing divided out) is not the record's (it is still reported) and refuses nothing:
     # a contact law the library lacks also bends the pulse a chain would
     other = max(candidates, key=lambda c: _contact_r2(c[0]))
-    applied = _contact_r2(m2) >= _contact_r2(other[0]) - R2_SLACK
+    # where the chain is identified only when needed (the predictor, the discovery) the
+    # record's law already fits poorly, as an unseen law does too: there the inverse must
+    # explain more, not about as much (a Hunt-Crossley pulse is fitted as a low-pass whose
+    # inverse ties, and undoing it halves beta)
+    slack = R2_SLACK if np.isinf(chain_fit_below_r2) else 0.0
+    applied = _contact_r2(m2) >= _contact_r2(other[0]) - slack
     if applied and refusal:
         return m2, chain, chain.resonance_hz, refusal, []
     rivals = (
@@ -674,6 +680,7 @@ def restoring_force_estimate(
     highpass_hz: float | str = "auto",
     sensor: SensorChain | dict | None = None,
     chain_fit_below_r2: float = np.inf,
+    profile_highpass_below_r2: float | None = None,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -716,7 +723,12 @@ def restoring_force_estimate(
         contact shows as a law that no longer fits, and the identification costs
         0.1-2 s against the estimate's ~10 ms: the predictor fits it only when needed.
         The same gate holds for profiling the high-pass corner by the contact law
-        (``"auto"``; ~20 maps, ~0.2 s).
+        (``"auto"``; ~20 maps, ~0.2 s) unless `profile_highpass_below_r2` is given.
+    profile_highpass_below_r2 : float, optional
+        Profile the high-pass corner by the contact law only where the record's law
+        explains less than this (default: `chain_fit_below_r2`). ``-inf`` never profiles:
+        what a contact-law discovery needs, since the profile tunes the corner until the
+        library's law fits and so bends a law the library lacks.
 
     Returns
     -------
@@ -737,7 +749,9 @@ def restoring_force_estimate(
     options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
                    classes=classes, coverage=coverage, seed=seed, max_periods=max_periods,
                    highpass_hz=highpass_hz, sensor=sensor,
-                   chain_fit_below_r2=chain_fit_below_r2)  # fmt: skip
+                   chain_fit_below_r2=chain_fit_below_r2,
+                   profile_highpass_below_r2=chain_fit_below_r2
+                   if profile_highpass_below_r2 is None else profile_highpass_below_r2)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -820,6 +834,7 @@ def _estimate_at(
     highpass_hz: float | str,
     sensor: SensorChain | None,
     chain_fit_below_r2: float,
+    profile_highpass_below_r2: float,
 ) -> RestoringForceResult:
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
     if not ff < 0.5 * fs_hz:
@@ -827,7 +842,9 @@ def _estimate_at(
     args, polarity = _periodic_record(a, fs_hz, ff, natural_frequency_hz, max_periods)
     y, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
-        m, corner = _auto_map(y, dtau, tau, use, period, k_given, exponent, chain_fit_below_r2)
+        m, corner = _auto_map(
+            y, dtau, tau, use, period, k_given, exponent, profile_highpass_below_r2
+        )
     else:
         if not (
             isinstance(highpass_hz, int | float) and np.isfinite(highpass_hz) and highpass_hz >= 0
