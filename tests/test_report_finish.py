@@ -278,6 +278,26 @@ def test_provenance_names_date_version_command_and_hashes(tmp_path):
                                       None, None, provenance=prov)  # fmt: skip
 
 
+def test_provenance_names_the_plugin_files_and_puts_them_in_the_command(tmp_path, monkeypatch):
+    """A plugin's code shaped the result: its file and hash are on the page, and the pasted
+    command loads it again (``--plugin`` before the command, as ``stiffnet`` wants it)."""
+    from stiffnet.effects import registry
+    from stiffnet.measurement.report_words import command_line
+
+    monkeypatch.setattr(registry, "_PLUGINS", dict(registry._PLUGINS))  # undone after the test
+    plugin = tmp_path / "provenance_probe_effects.py"
+    plugin.write_text("X = 1\n")
+    registry.register_plugin(plugin)
+    c = load_campaign(_campaign(tmp_path, 1, physical=False))
+    prov = provenance(c, command_line("report", ["C"], plugins=[plugin.resolve()]))
+    assert {"path": str(plugin.resolve()),
+            "sha256": hashlib.sha256(b"X = 1\n").hexdigest()} in prov["plugins"]  # fmt: skip
+    assert prov["command"] == f"stiffnet --plugin {plugin.resolve()} report C"
+    assert ("plugin file", f"{plugin.resolve()} (SHA-256 {prov['plugins'][-1]['sha256']})") in (
+        provenance_rows(prov, None)
+    )
+
+
 def test_an_unreadable_input_is_named_not_fatal(tmp_path, monkeypatch):
     from stiffnet import io_utils
     from stiffnet.measurement.report_words import file_identity
@@ -382,7 +402,8 @@ def test_report_command_writes_the_finished_page(tmp_path):
     page = out.read_text()
     today = datetime.now(UTC).strftime("%Y-%m-%d")
     assert f"<th>made</th><td>{today}" in page and f"<td>{__version__}</td>" in page
-    assert f"stiffnet report {camp.resolve()} --out {out.resolve()} --diagnosis" in page
+    # after `stiffnet` come the plugin files the suite loaded, then the command
+    assert f" report {camp.resolve()} --out {out.resolve()} --diagnosis" in page
     assert f"--json {(tmp_path / 'r.json').resolve()}" in page
     assert hashlib.sha256(dj.read_bytes()).hexdigest() in page
     from serving.model import default_model_path

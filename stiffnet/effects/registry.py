@@ -89,6 +89,12 @@ def register_plugin(path: str | os.PathLike[str], module: str | None = None) -> 
     return name
 
 
+def plugin_files() -> dict[str, Path]:
+    """The plugin files loaded so far: module name -> resolved file (what a page that
+    records its provenance must name, since their code shaped the result)."""
+    return dict(_PLUGINS)
+
+
 def _by_value(module: Any) -> None:
     """Dask workers get the plugin's classes by value (they cannot import the file's name)."""
     try:

@@ -514,7 +514,10 @@ def report_provenance(
     if not run_diagnose:
         args.append("--no-diagnose")
     how = "run by this report" if run_diagnose else "not run (--no-diagnose)"
-    return provenance(campaign, command_line("report", args), config or config_used, diagnosis,
+    from stiffnet.effects.registry import plugin_files
+
+    command = command_line("report", args, plugins=list(plugin_files().values()))
+    return provenance(campaign, command, config or config_used, diagnosis,
                       "" if diagnosis else how, loop,
                       model=model if model is not None else default_model_path())  # fmt: skip
 

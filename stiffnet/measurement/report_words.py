@@ -42,9 +42,11 @@ def file_identity(path: str | Path | None) -> dict[str, Any] | None:
     return {"path": str(p), "sha256": digest}
 
 
-def command_line(command: str, arguments: Sequence[Any]) -> str:
-    """``stiffnet COMMAND ARG ...`` quoted so that it can be pasted into a shell."""
-    return shlex.join(["stiffnet", command, *(str(a) for a in arguments)])
+def command_line(command: str, arguments: Sequence[Any], plugins: Sequence[Any] = ()) -> str:
+    """``stiffnet [--plugin FILE ...] COMMAND ARG ...`` quoted so that it can be pasted into a
+    shell (the plugin files come first: they are options of ``stiffnet`` itself)."""
+    loaded = [part for path in plugins for part in ("--plugin", str(path))]
+    return shlex.join(["stiffnet", *loaded, command, *(str(a) for a in arguments)])
 
 
 def provenance(
@@ -74,6 +76,7 @@ def provenance(
         "not run").
     """
     from stiffnet import __version__
+    from stiffnet.effects.registry import plugin_files
 
     when = (now or datetime.now(UTC)).astimezone(UTC)
     return {
@@ -89,6 +92,7 @@ def provenance(
         "model_file": file_identity(model),
         "model_card": file_identity(Path(model).with_suffix(".card.json")) if model else None,
         "interval_coverage": card_coverage(model),
+        "plugins": [file_identity(path) for path in plugin_files().values()],
     }
 
 
@@ -133,6 +137,8 @@ def provenance_rows(prov: dict[str, Any], model: dict[str, Any] | None) -> list[
     rows.append(("simulator config", ident(prov.get("config"), "the default config")))
     rows.append(("diagnosis", ident(prov.get("diagnosis"), prov.get("diagnosis_how") or "none")))
     rows.append(("loop result", ident(prov.get("loop"), "none")))
+    for plugin in prov.get("plugins") or []:
+        rows.append(("plugin file", ident(plugin, "–")))
     return rows
 
 
