@@ -251,3 +251,25 @@ def test_rows_at_their_own_rate_and_record_length():
 def _rm(n: int) -> ParamArrays:
     return {"mass_ratio": np.full(n, 0.1), "stiffness_ratio": np.full(n, 100.0),
             "damping_ratio": np.full(n, 0.05)}  # fmt: skip
+
+
+@pytest.mark.parametrize("terms", [0, 1, 3])
+def test_engine_sinusoids_and_row_subsets_are_the_general_ones_exactly(terms: int) -> None:
+    """The engine's cheaper forcing/gap evaluation and its unvalidated batch subsets give the
+    very numbers of ``Sinusoids`` and ``OscillatorBatch.subset`` (results bitwise unchanged)."""
+    from stiffnet.simulator.numerical import _batch_subset, _Sines
+
+    rng = np.random.default_rng(5)
+    n = 7
+    sines = Sinusoids(
+        rng.normal(size=(n, terms)), rng.uniform(0.5, 3, (n, terms)), rng.normal(size=(n, terms))
+    )
+    t = rng.uniform(0, 500, n)
+    fast = _Sines(sines)
+    assert np.array_equal(fast.value(t), sines.value(t))
+    assert np.array_equal(fast.rate(t), sines.rate(t))
+    batch = OscillatorBatch(*(rng.uniform(0.1, 0.9, n) for _ in range(5)))
+    idx = np.array([4, 0, 6])
+    ref, sub = batch.subset(idx), _batch_subset(batch, idx)
+    for name in ("beta", "gap", "amplitude", "omega", "damping", "natural_frequency_hz"):
+        assert np.array_equal(getattr(sub, name), getattr(ref, name))

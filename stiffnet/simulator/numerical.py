@@ -71,6 +71,7 @@ time, e.g. a light restraint's ringing). A run that still diverges raises
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
@@ -92,6 +93,45 @@ _CHECK_EVERY = 64  # steps between divergence checks
 
 def _overrides(effect: DynamicsEffect, hook: str) -> bool:
     return getattr(type(effect), hook) is not getattr(DynamicsEffect, hook)
+
+
+class _Sines:
+    """A :class:`~stiffnet.effects.base.Sinusoids` evaluated many times per substep: the same
+    values, without the general sum's overhead where it holds one sinusoid (the forcing
+    alone) or none (the gap of most models); the engine's Python overhead per call is most
+    of its cost on batches of a few rows (event location marches one or two rows)."""
+
+    def __init__(self, sines: Sinusoids) -> None:
+        self.sines = sines
+        self.n_terms = sines.amp.shape[1]
+        if self.n_terms == 1:
+            self.amp = np.ascontiguousarray(sines.amp[:, 0])
+            self.freq = np.ascontiguousarray(sines.freq[:, 0])
+            self.phase = np.ascontiguousarray(sines.phase[:, 0])
+
+    def value(self, t: np.ndarray) -> np.ndarray:
+        """Value at times ``t`` (B,), as ``Sinusoids.value``."""
+        if self.n_terms == 1:
+            return self.amp * np.sin(self.freq * t + self.phase)
+        s = self.sines
+        return (s.amp * np.sin(s.freq * t[:, None] + s.phase)).sum(axis=1)
+
+    def rate(self, t: np.ndarray) -> np.ndarray:
+        """Time derivative at times ``t`` (B,), as ``Sinusoids.rate``."""
+        if self.n_terms == 1:
+            return self.amp * self.freq * np.cos(self.freq * t + self.phase)
+        s = self.sines
+        return (s.amp * s.freq * np.cos(s.freq * t[:, None] + s.phase)).sum(axis=1)
+
+
+def _batch_subset(batch: OscillatorBatch, idx: np.ndarray) -> OscillatorBatch:
+    """Rows ``idx`` of a batch already validated (``OscillatorBatch.subset`` checks every
+    field again, a cost paid at every located event)."""
+    out = object.__new__(OscillatorBatch)
+    for f in dataclasses.fields(batch):
+        value = getattr(batch, f.name)
+        setattr(out, f.name, None if value is None else value[idx])
+    return out
 
 
 class _Model:
@@ -126,6 +166,7 @@ class _Model:
     ) -> None:
         self.batch, self.effects, self.params = batch, effects, params
         self.forcing, self.gap, self.cc = forcing, gap, cc
+        self._forcing, self._gap = _Sines(forcing), _Sines(gap)
         self.n = len(batch)
         self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
         self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
@@ -156,7 +197,7 @@ class _Model:
         """The same model restricted to rows ``idx`` (hooks are not called again)."""
         new = object.__new__(_Model)
         new._setup(
-            self.batch.subset(idx),
+            _batch_subset(self.batch, idx),
             self.effects,
             [{k: v[idx] for k, v in p.items()} for p in self.params],
             self.forcing.subset(idx),
@@ -184,7 +225,7 @@ class _Model:
         return rate
 
     def forcing_at(self, t: np.ndarray) -> np.ndarray:
-        return self.forcing.value(t)
+        return self._forcing.value(t)
 
     def rhs(
         self,
@@ -207,7 +248,7 @@ class _Model:
         x, v = y[:, 0], y[:, 1]
         f_t = self.forcing_at(t) if forcing is None else forcing
         if self.has_gap:
-            e, de = self.e0 + self.gap.value(t), self.gap.rate(t)
+            e, de = self.e0 + self._gap.value(t), self._gap.rate(t)
         else:
             e, de = self.e0, 0.0
         yr: Any = 0.0
@@ -328,7 +369,7 @@ def _illinois(
     sgn = np.sign(glo)
     for _ in range(_ROOT_ITERS):
         live = (hi - lo > tol) & (ghi != 0)
-        if not np.any(live):
+        if not live.any():
             break
         with np.errstate(divide="ignore", invalid="ignore"):
             s = lo - glo * (hi - lo) / (ghi - glo)
@@ -433,7 +474,7 @@ class _Stepper:
                     continue
                 done = cols
             else:
-                done = np.flatnonzero(q % per == 0)
+                done = (q % per == 0).nonzero()[0]
             step = q // per[done] - 1
             keep = step < need[done]
             done, step = done[keep], step[keep]
@@ -460,14 +501,14 @@ class _Stepper:
         a0 = self.aux
         crossed = (aux1["G"] > 0) != self.contact
         if aux1["g"].shape[1]:
-            crossed |= np.any(aux1["g"] <= 0, axis=1)
+            crossed |= (aux1["g"] <= 0).any(axis=1)
         # A hidden double crossing of the restraint needs an extremum of the
         # penetration inside the substep, close enough to the restraint.
         d0, d1, dd0, dd1 = a0["delta"], aux1["delta"], a0["dd"], aux1["dd"]
         span = (np.abs(dd0) + np.abs(dd1)) * hs
         turn_free = ~self.contact & (dd0 > 0) & (dd1 <= 0) & (np.maximum(d0, d1) + span > 0)
         turn_con = self.contact & (dd0 < 0) & (dd1 >= 0) & (np.minimum(d0, d1) - span < 0)
-        return np.flatnonzero(crossed | turn_free | turn_con)
+        return (crossed | turn_free | turn_con).nonzero()[0]
 
     def _resolve(self, idx: np.ndarray, hs: np.ndarray, trial: tuple) -> dict[str, Any]:
         """March rows ``idx`` through their substep, locating and switching at events.
@@ -501,11 +542,11 @@ class _Stepper:
                 _finish(st, a, np.ones(a.size, bool), y1, f1, aux1)
                 break
             s_hi, g_hi = _brackets(st, ma, a, y1, aux1, hs)
-            any_ev = np.any(np.isfinite(s_hi), axis=1)
+            any_ev = np.isfinite(s_hi).any(axis=1)
             _finish(st, a, ~any_ev, y1, f1, aux1)
-            if not np.any(any_ev):
+            if not any_ev.any():
                 break
-            ev = np.flatnonzero(any_ev)
+            ev = any_ev.nonzero()[0]
             s_root = _first_roots(st, ma, a, s_hi, g_hi, hs)
             e_rows = _switch(st, ma, a, ev, s_root[ev])
             active = e_rows[st["left"][e_rows] > 0]
@@ -517,7 +558,7 @@ def _finish(
     st: dict[str, Any], a: np.ndarray, sel: np.ndarray, y1: np.ndarray, f1: np.ndarray, aux1: dict
 ) -> None:
     """Rows ``a[sel]`` end their substep at the trial step (no event left in it)."""
-    if not np.any(sel):
+    if not sel.any():
         return
     q = a[sel]
     st["t"][q] = st["t"][q] + st["left"][q]
@@ -554,8 +595,8 @@ def _brackets(
     s_hi[out_c, 0], g_hi[out_c, 0] = la[out_c], aux1["Gr"][out_c]
     dd0, dd1 = st["aux"]["dd"][a], aux1["dd"]
     turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
-    if np.any(turning):
-        sel = np.flatnonzero(turning)
+    if turning.any():
+        sel = turning.nonzero()[0]
         at = _partial(st, ma, a, sel)
         s_ext = _illinois(
             lambda s, _at=at: _at(s)["dd"], la[sel], dd0[sel], dd1[sel],
@@ -584,7 +625,7 @@ def _first_roots(
     sign_in = np.where(st["contact"][a], 1.0, -1.0)
     s_root = np.full(s_hi.shape, np.inf)
     for col in range(s_hi.shape[1]):
-        sel = np.flatnonzero(np.isfinite(s_hi[:, col]))
+        sel = np.isfinite(s_hi[:, col]).nonzero()[0]
         if sel.size == 0:
             continue
         at = _partial(st, ma, a, sel)
@@ -625,7 +666,7 @@ def _switch(
     ce = np.where(flip, ~ce, ce)
     for j, k in enumerate(me.event_fx):
         fj = fired[:, 1 + j]
-        if np.any(fj):
+        if fj.any():
             new = me.effects[k].next_mode(
                 ye[:, 0], ye[:, 1], aux_e["other"][:, k], moe[k], me.params[k]
             )
