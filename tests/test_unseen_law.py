@@ -15,9 +15,13 @@ from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
+from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains
 from stiffnet.uncertainty.unseen_law import (
+    UnseenLawThresholds,
+    law_shape_reasons,
     penetration_dissipation,
     unseen_law_reasons,
+    unseen_law_thresholds,
     with_unseen_law_check,
 )
 
@@ -41,6 +45,65 @@ def test_hunt_crossley_dissipation_is_found_and_kelvin_voigt_is_not():
     gain, share = penetration_dissipation(d, v, d + 0.3 * v + noise, 0.0, 1.0, 1.0)
     assert gain < 0.1 and abs(share) < 0.2
     assert penetration_dissipation(d[:5], v[:5], d[:5], 0.0, 1.0, 1.0) is None
+
+
+def _impacts_with_gaps(n_impacts: int = 20, per: int = 12, seed: int = 0):
+    """Half-sine impacts of nearly one depth (CV 2 %, as on a steady record), each followed
+    by free-flight samples (penetration < 0), with the onset at 0."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, np.pi, per + 2)[1:-1]
+    peaks = 1.0 + 0.02 * rng.standard_normal(n_impacts)
+    d = np.concatenate([np.r_[np.sin(t) * a, -np.ones(5)] for a in peaks])
+    v = np.concatenate([np.r_[np.cos(t) * a, np.zeros(5)] for a in peaks])
+    return d, v
+
+
+@pytest.mark.parametrize(
+    "law, term",
+    [
+        (lambda d, v: d + 0.3 * v, None),  # linear spring + Kelvin-Voigt damper
+        (lambda d, v: np.maximum(d, 0) ** 1.5 + 0.2 * v, None),  # Hertz: the training world
+        (lambda d, v: d + 3.0 * np.maximum(d - 0.4, 0), "curvature"),  # two-stage restraint
+        (lambda d, v: np.maximum(d, 0) ** 2.5, "curvature"),  # power law beyond Hertz
+        (lambda d, v: d * (1 + 0.8 * v), "penetration_dissipation"),  # Hunt-Crossley
+    ],
+)
+def test_law_shape_finds_the_term_within_impacts_of_one_depth(law, term):
+    d, v = _impacts_with_gaps()
+    rng = np.random.default_rng(1)
+    f = np.where(d > 0, law(d, v), 0.0)
+    f = f + rng.normal(0, 0.02 * f.max(), d.size)
+    exponent = 1.5 if term is None and "1.5" in str(law.__code__.co_consts) else 1.0
+    g = law_shape_gains(d, v, f, 0.0, 1.0, exponent)
+    assert g["n_impacts"] == 20 and g["misfit"] >= 0
+    for name in ("curvature", "penetration_dissipation"):
+        if name == term:
+            assert g[name] > 0.5, g
+        else:
+            assert g[name] < 0.15, g
+    thresholds = UnseenLawThresholds(curvature_min_gain=0.3, penetration_dissipation_min_gain=0.3)
+    assert bool(law_shape_reasons(g, thresholds)) is (term is not None)
+
+
+def test_impact_runs_and_too_few_impacts():
+    d = np.array([-1, 0.1, 0.2, 0.1, -1, 0.3, -1, 0.1, 0.2, 0.3, 0.1])
+    assert [r.tolist() for r in impact_runs(d, 3)] == [[1, 2, 3], [7, 8, 9, 10]]
+    d, v = _impacts_with_gaps(n_impacts=3)
+    assert law_shape_gains(d, v, np.maximum(d, 0), 0.0, 1.0) is None
+    assert law_shape_gains(d, v, np.maximum(d, 0), 0.0, 0.0) is None
+
+
+def test_the_shipped_thresholds_are_read_from_the_config():
+    t = unseen_law_thresholds()
+    from stiffnet.config import load_yaml
+    from stiffnet.shipped import default_config
+
+    shipped = load_yaml(default_config("alarm/unseen_law.yaml"))
+    assert t.curvature_min_gain == shipped["curvature_min_gain"]
+    assert t.penetration_dissipation_min_gain == shipped["penetration_dissipation_min_gain"]
+    assert [list(b) for b in t.training_exponent_bands] == shipped["training_exponent_bands"]
+    with pytest.raises(Exception, match="unknown_key"):
+        UnseenLawThresholds.model_validate({"unknown_key": 1.0})
 
 
 @pytest.mark.parametrize(
