@@ -83,6 +83,34 @@ def test_law_shape_finds_the_term_within_impacts_of_one_depth(law, term):
             assert g[name] < 0.15, g
     thresholds = UnseenLawThresholds(curvature_min_gain=0.3, penetration_dissipation_min_gain=0.3)
     assert bool(law_shape_reasons(g, thresholds)) is (term is not None)
+    if term is not None:  # stiffening, dissipation growing with penetration: positive shares
+        assert g[term + "_share"] > 0.3, g
+
+
+@pytest.mark.parametrize(
+    "shape, fires",
+    [
+        ({"curvature": 0.5, "curvature_share": 0.4}, True),
+        ({"curvature": 0.5, "curvature_share": -0.3}, False),  # softening: not a stiffening law
+        ({"curvature": 0.1, "curvature_share": 0.4}, False),
+        ({"penetration_dissipation": 0.6, "penetration_dissipation_share": 0.8}, True),
+        # a low-pass delays the force: a delta*v term of the wrong sign
+        ({"penetration_dissipation": 0.6, "penetration_dissipation_share": -0.9}, False),
+        (None, False),
+    ],
+)
+def test_the_law_shape_rule_needs_the_gain_and_the_physical_sign(shape, fires):
+    t = UnseenLawThresholds(curvature_min_gain=0.3, curvature_min_share=0.1,
+                            penetration_dissipation_min_gain=0.3,
+                            penetration_dissipation_min_share=0.3)  # fmt: skip
+    assert bool(law_shape_reasons(shape, t)) is fires
+
+
+def test_the_law_shape_alone_fires_the_alarm_with_the_shipped_thresholds():
+    shape = {"curvature": 0.95, "curvature_share": 0.9}
+    alarm = with_unseen_law_check(None, {"exponent": None, "law_shape": shape})
+    assert alarm["flag"] and alarm["fired"] == ["contact_law"]
+    assert "stiffens within each impact" in alarm["contact_law"][0]
 
 
 def test_impact_runs_and_too_few_impacts():

@@ -100,9 +100,13 @@ def law_shape_gains(
     Returns
     -------
     dict or None
-        ``{term: gain}`` for every :data:`RICHER_TERMS` entry, plus ``misfit`` (the base
-        law's held-out SSE over the force's variance) and ``n_impacts``; None with too
-        few impacts or no positive reference penetration.
+        ``{term: gain}`` for every :data:`RICHER_TERMS` entry, ``{term}_share`` (the
+        term's coefficient over the sum of its and the base law's matching coefficient in
+        magnitude at ``d_r``: the elastic one for ``curvature``, the ``v`` one for
+        ``penetration_dissipation``; positive for a stiffening law, a dissipation growing
+        with penetration), ``misfit`` (the base law's held-out SSE over the force's
+        variance) and ``n_impacts``; None with too few impacts or no positive reference
+        penetration.
     """
     if not reference_penetration > 0:
         return None
@@ -128,11 +132,16 @@ def law_shape_gains(
     sse_base = held_out_impact_sse(base, f, groups)
     if not sse_base > 0:
         return None
-    out = {
-        name: 1.0
-        - held_out_impact_sse(np.column_stack([base, term(dn, vn, q)]), f, groups) / sse_base
-        for name, term in RICHER_TERMS.items()
-    }
+    out: dict[str, float] = {}
+    for name, term in RICHER_TERMS.items():
+        design = np.column_stack([base, term(dn, vn, q)])
+        out[name] = 1.0 - held_out_impact_sse(design, f, groups) / sse_base
+        # the term's coefficient against the base law's own (elastic for the curvature,
+        # dissipative for delta v) at the reference penetration: its sign says stiffening
+        # or softening, dissipation growing or shrinking with penetration
+        coef = np.linalg.lstsq(design, f, rcond=None)[0]
+        own = coef[0] if name == "curvature" else coef[2]
+        out[name + "_share"] = float(coef[3] / (abs(own) + abs(coef[3]) + 1e-300))
     out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     out["n_impacts"] = float(int(groups.max()) + 1)
     return out

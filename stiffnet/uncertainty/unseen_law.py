@@ -62,6 +62,12 @@ MIN_CONTACT_SAMPLES = 10
 CURVATURE_MIN_GAIN = 0.3
 #: Held-out-impact gain of a ``delta v`` term (:mod:`.law_shape`) that fires.
 PENETRATION_DISSIPATION_MIN_GAIN = 0.3
+#: Least share of the elastic force the curvature term carries (positive: stiffening; a
+#: sensor chain's or a damped contact's distortion bends the law either way).
+CURVATURE_MIN_SHARE = 0.1
+#: Least share of the dissipation the within-impact ``delta v`` term carries (a low-pass
+#: delays the force, which reads as a ``delta v`` term of the wrong sign).
+PENETRATION_DISSIPATION_MIN_SHARE = 0.3
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -76,7 +82,9 @@ class UnseenLawThresholds(BaseModel):
     dissipation_min_gain: float = DISSIPATION_MIN_GAIN
     dissipation_min_share: float = DISSIPATION_MIN_SHARE
     curvature_min_gain: float = CURVATURE_MIN_GAIN
+    curvature_min_share: float = CURVATURE_MIN_SHARE
     penetration_dissipation_min_gain: float = PENETRATION_DISSIPATION_MIN_GAIN
+    penetration_dissipation_min_share: float = PENETRATION_DISSIPATION_MIN_SHARE
 
 
 @lru_cache(maxsize=1)
@@ -157,22 +165,29 @@ def unseen_law_reasons(
 
 
 def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:
-    """Rule: a richer term's held-out-impact gain (:mod:`.law_shape`) at or over its threshold."""
+    """Rule: a richer term (:mod:`.law_shape`) predicts held-out impacts better by at least
+    its gain threshold, with the sign of the physics it stands for (its share at least the
+    share threshold: a stiffening law, a dissipation growing with penetration)."""
     if not shape:
         return []
     reasons = []
-    curvature = shape.get("curvature")
+    curvature, share = shape.get("curvature"), shape.get("curvature_share", 1.0)
     if curvature is not None and curvature >= t.curvature_min_gain:
-        reasons.append(
-            f"the contact stiffens within each impact (a curvature term predicts held-out "
-            f"impacts {curvature:.0%} better than the linear or Hertz law)"
-        )
-    hc = shape.get("penetration_dissipation")
+        if share >= t.curvature_min_share:
+            reasons.append(
+                f"the contact stiffens within each impact (a curvature term predicts held-out "
+                f"impacts {curvature:.0%} better than the linear or Hertz law)"
+            )
+    hc, share = (
+        shape.get("penetration_dissipation"),
+        shape.get("penetration_dissipation_share", 1.0),
+    )
     if hc is not None and hc >= t.penetration_dissipation_min_gain:
-        reasons.append(
-            f"the contact's dissipation grows with penetration within each impact (a "
-            f"delta*v term predicts held-out impacts {hc:.0%} better than Kelvin-Voigt)"
-        )
+        if share >= t.penetration_dissipation_min_share:
+            reasons.append(
+                f"the contact's dissipation grows with penetration within each impact (a "
+                f"delta*v term predicts held-out impacts {hc:.0%} better than Kelvin-Voigt)"
+            )
     return reasons
 
 
