@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
+from independent_rig import RigRun, record
 
 from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
@@ -192,3 +193,30 @@ def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
     restoring_force = restoring_force_check(accel, fs, FN)
     assert restoring_force["beta"] is not None, restoring_force["reason"]
     assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
+
+
+@pytest.mark.parametrize(
+    "name, contact, fires",
+    [
+        # a two-stage restraint whose map reads exponent 1.16: inside the linear band, so
+        # neither the exponent nor the whole-map delta*v test fired before; the curvature
+        # within each impact does
+        ("two_stage_8.csv", dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0), True),
+        ("kv_8.csv", dict(contact="kelvin_voigt", contact_zeta=0.36943), False),  # trained on
+    ],
+)
+def test_the_independent_rigs_stiffening_law_is_read_within_its_impacts(name, contact, fires):
+    """One independent-rig recording (tests/independent_rig.py, SI units, solve_ivp) of the
+    benchmark's draw (docs/crosscheck.md): beta 15.3, forcing 1.082 f_n, 2 % noise."""
+    run = RigRun(recording=name, beta=15.28895, forcing_frequency_hz=9.48 * 1.08205,
+                 noise=0.0201958, duration_s=8.0, **contact)  # fmt: skip
+    _, accel = record(run, seed=7)
+    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
+    shape = restoring_force["law_shape"]
+    assert shape is not None, restoring_force["reason"]
+    reasons = law_shape_reasons(shape, unseen_law_thresholds())
+    assert bool(reasons) is fires, shape
+    assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
+    if fires:
+        assert "stiffens within each impact" in reasons[0]
+        assert shape["curvature_share"] > 0
