@@ -12,7 +12,9 @@ the user's data sheet (``sensor``), undone before the map and reported
 (``sensor``); :func:`sensor_outside_priors` says when it lies outside the sensor
 chains the model was trained on, which the predictor's alarm counts.
 ``dissipation_gain`` / ``dissipation_share`` say whether the contact's dissipation
-grows with penetration (:mod:`stiffnet.uncertainty.unseen_law`).
+grows with penetration (:mod:`stiffnet.uncertainty.unseen_law`); ``law_shape`` what a
+richer law than the training world's explains on held-out impacts
+(:mod:`stiffnet.uncertainty.law_shape`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.estimate import CHAIN_FIT_WHEN_NEEDED
+from stiffnet.uncertainty.law_shape import law_shape_gains
 from stiffnet.uncertainty.unseen_law import penetration_dissipation
 
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~20 ms
@@ -58,11 +61,13 @@ def restoring_force_check(
         reason = f"the restoring-force fit failed numerically ({type(exc).__name__})"
         return {"class": None, "beta": None, "beta_interval": None, "reason": reason}
     d = r.to_dict()
-    hc = None
-    if r.ok and r.law is not None:  # the map's own test for a Hunt-Crossley-like dissipation
+    hc = shape = None
+    if r.ok and r.law is not None:  # the map's own tests for a law the training world lacks
         law = r.law
         hc = penetration_dissipation(r.displacement, r.velocity, r.force, law.onset,
                                      law.exponent, law.reference_penetration)  # fmt: skip
+        shape = law_shape_gains(r.displacement, r.velocity, r.force, law.onset,
+                                law.reference_penetration, law.exponent)  # fmt: skip
     return {
         "class": d["restoring_force_class"],
         "beta": d["beta"],
@@ -77,6 +82,7 @@ def restoring_force_check(
         "sensor": d["sensor"],
         "dissipation_gain": None if hc is None else hc[0],
         "dissipation_share": None if hc is None else hc[1],
+        "law_shape": shape,
         "reason": d["reason"],
     }
 

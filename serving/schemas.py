@@ -69,6 +69,11 @@ class RestoringForceCheck(BaseModel):
     dissipation_share: float | None = Field(
         default=None, description="Share of the contact's dissipation that delta*v term carries."
     )
+    law_shape: dict[str, float] | None = Field(
+        default=None,
+        description="Held-out-impact gain of a richer contact law's terms over the linear/Hertz "
+        "Kelvin-Voigt law: curvature, penetration_dissipation; misfit, n_impacts.",
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 

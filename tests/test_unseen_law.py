@@ -10,14 +10,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
+from independent_rig import RigRun, record
 
 from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
+from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains
 from stiffnet.uncertainty.unseen_law import (
+    UnseenLawThresholds,
+    law_shape_reasons,
     penetration_dissipation,
     unseen_law_reasons,
+    unseen_law_thresholds,
     with_unseen_law_check,
 )
 
@@ -41,6 +46,93 @@ def test_hunt_crossley_dissipation_is_found_and_kelvin_voigt_is_not():
     gain, share = penetration_dissipation(d, v, d + 0.3 * v + noise, 0.0, 1.0, 1.0)
     assert gain < 0.1 and abs(share) < 0.2
     assert penetration_dissipation(d[:5], v[:5], d[:5], 0.0, 1.0, 1.0) is None
+
+
+def _impacts_with_gaps(n_impacts: int = 20, per: int = 12, seed: int = 0):
+    """Half-sine impacts of nearly one depth (CV 2 %, as on a steady record), each followed
+    by free-flight samples (penetration < 0), with the onset at 0."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0, np.pi, per + 2)[1:-1]
+    peaks = 1.0 + 0.02 * rng.standard_normal(n_impacts)
+    d = np.concatenate([np.r_[np.sin(t) * a, -np.ones(5)] for a in peaks])
+    v = np.concatenate([np.r_[np.cos(t) * a, np.zeros(5)] for a in peaks])
+    return d, v
+
+
+@pytest.mark.parametrize(
+    "law, term",
+    [
+        (lambda d, v: d + 0.3 * v, None),  # linear spring + Kelvin-Voigt damper
+        (lambda d, v: np.maximum(d, 0) ** 1.5 + 0.2 * v, None),  # Hertz: the training world
+        (lambda d, v: d + 3.0 * np.maximum(d - 0.4, 0), "curvature"),  # two-stage restraint
+        (lambda d, v: np.maximum(d, 0) ** 2.5, "curvature"),  # power law beyond Hertz
+        (lambda d, v: d * (1 + 0.8 * v), "penetration_dissipation"),  # Hunt-Crossley
+    ],
+)
+def test_law_shape_finds_the_term_within_impacts_of_one_depth(law, term):
+    d, v = _impacts_with_gaps()
+    rng = np.random.default_rng(1)
+    f = np.where(d > 0, law(d, v), 0.0)
+    f = f + rng.normal(0, 0.02 * f.max(), d.size)
+    exponent = 1.5 if term is None and "1.5" in str(law.__code__.co_consts) else 1.0
+    g = law_shape_gains(d, v, f, 0.0, 1.0, exponent)
+    assert g["n_impacts"] == 20 and g["misfit"] >= 0
+    for name in ("curvature", "penetration_dissipation"):
+        if name == term:
+            assert g[name] > 0.5, g
+        else:
+            assert g[name] < 0.15, g
+    thresholds = UnseenLawThresholds(curvature_min_gain=0.3, penetration_dissipation_min_gain=0.3)
+    assert bool(law_shape_reasons(g, thresholds)) is (term is not None)
+    if term is not None:  # stiffening, dissipation growing with penetration: positive shares
+        assert g[term + "_share"] > 0.3, g
+
+
+@pytest.mark.parametrize(
+    "shape, fires",
+    [
+        ({"curvature": 0.5, "curvature_share": 0.4}, True),
+        ({"curvature": 0.5, "curvature_share": -0.3}, False),  # softening: not a stiffening law
+        ({"curvature": 0.1, "curvature_share": 0.4}, False),
+        ({"penetration_dissipation": 0.6, "penetration_dissipation_share": 0.8}, True),
+        # a low-pass delays the force: a delta*v term of the wrong sign
+        ({"penetration_dissipation": 0.6, "penetration_dissipation_share": -0.9}, False),
+        (None, False),
+    ],
+)
+def test_the_law_shape_rule_needs_the_gain_and_the_physical_sign(shape, fires):
+    t = UnseenLawThresholds(curvature_min_gain=0.3, curvature_min_share=0.1,
+                            penetration_dissipation_min_gain=0.3,
+                            penetration_dissipation_min_share=0.3)  # fmt: skip
+    assert bool(law_shape_reasons(shape, t)) is fires
+
+
+def test_the_law_shape_alone_fires_the_alarm_with_the_shipped_thresholds():
+    shape = {"curvature": 0.95, "curvature_share": 0.9}
+    alarm = with_unseen_law_check(None, {"exponent": None, "law_shape": shape})
+    assert alarm["flag"] and alarm["fired"] == ["contact_law"]
+    assert "stiffens within each impact" in alarm["contact_law"][0]
+
+
+def test_impact_runs_and_too_few_impacts():
+    d = np.array([-1, 0.1, 0.2, 0.1, -1, 0.3, -1, 0.1, 0.2, 0.3, 0.1])
+    assert [r.tolist() for r in impact_runs(d, 3)] == [[1, 2, 3], [7, 8, 9, 10]]
+    d, v = _impacts_with_gaps(n_impacts=3)
+    assert law_shape_gains(d, v, np.maximum(d, 0), 0.0, 1.0) is None
+    assert law_shape_gains(d, v, np.maximum(d, 0), 0.0, 0.0) is None
+
+
+def test_the_shipped_thresholds_are_read_from_the_config():
+    t = unseen_law_thresholds()
+    from stiffnet.config import load_yaml
+    from stiffnet.shipped import default_config
+
+    shipped = load_yaml(default_config("alarm/unseen_law.yaml"))
+    assert t.curvature_min_gain == shipped["curvature_min_gain"]
+    assert t.penetration_dissipation_min_gain == shipped["penetration_dissipation_min_gain"]
+    assert [list(b) for b in t.training_exponent_bands] == shipped["training_exponent_bands"]
+    with pytest.raises(Exception, match="unknown_key"):
+        UnseenLawThresholds.model_validate({"unknown_key": 1.0})
 
 
 @pytest.mark.parametrize(
@@ -101,3 +193,30 @@ def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
     restoring_force = restoring_force_check(accel, fs, FN)
     assert restoring_force["beta"] is not None, restoring_force["reason"]
     assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
+
+
+@pytest.mark.parametrize(
+    "name, contact, fires",
+    [
+        # a two-stage restraint whose map reads exponent 1.16: inside the linear band, so
+        # neither the exponent nor the whole-map delta*v test fired before; the curvature
+        # within each impact does
+        ("two_stage_8.csv", dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0), True),
+        ("kv_8.csv", dict(contact="kelvin_voigt", contact_zeta=0.36943), False),  # trained on
+    ],
+)
+def test_the_independent_rigs_stiffening_law_is_read_within_its_impacts(name, contact, fires):
+    """One independent-rig recording (tests/independent_rig.py, SI units, solve_ivp) of the
+    benchmark's draw (docs/crosscheck.md): beta 15.3, forcing 1.082 f_n, 2 % noise."""
+    run = RigRun(recording=name, beta=15.28895, forcing_frequency_hz=9.48 * 1.08205,
+                 noise=0.0201958, duration_s=8.0, **contact)  # fmt: skip
+    _, accel = record(run, seed=7)
+    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
+    shape = restoring_force["law_shape"]
+    assert shape is not None, restoring_force["reason"]
+    reasons = law_shape_reasons(shape, unseen_law_thresholds())
+    assert bool(reasons) is fires, shape
+    assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
+    if fires:
+        assert "stiffens within each impact" in reasons[0]
+        assert shape["curvature_share"] > 0

@@ -14,7 +14,17 @@ them on rigs whose law the training world lacks, and neither needs the model:
   ``F = k delta (1 + lambda v)``): a ``delta v`` term added to the fitted law
   removes at least :data:`DISSIPATION_MIN_GAIN` of its misfit and carries most of
   the dissipation (:data:`DISSIPATION_MIN_SHARE`); a Kelvin-Voigt contact's
-  dissipation is ``c v`` alone.
+  dissipation is ``c v`` alone;
+* **the law's shape within the impacts** (:mod:`stiffnet.uncertainty.law_shape`): a
+  term the training world's laws lack (a curvature of the loading branch, a dissipation
+  growing with penetration) predicts held-out impacts better than the library's law by
+  at least :attr:`UnseenLawThresholds.curvature_min_gain` /
+  :attr:`UnseenLawThresholds.penetration_dissipation_min_gain`; within one impact the
+  penetration spans ``0 .. delta_max``, so this reads stiffening on steady records whose
+  impacts all reach one depth.
+
+The thresholds are read from ``configs/alarm/unseen_law.yaml``
+(:func:`unseen_law_thresholds`; the defaults here where the file is missing).
 
 Thresholds were chosen on in-distribution rigs only (``bench_robustness``'s ideal,
 damped, Hertz, sensor and damped-with-sensor sets, 64-96 recordings each: at most
@@ -24,9 +34,11 @@ independent rig (docs/crosscheck.md). numpy only: the predictor imports it.
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict
 
 from stiffnet.uncertainty.alarm_verdict import alarm_message
 
@@ -46,6 +58,48 @@ DISSIPATION_MIN_GAIN = 0.8
 DISSIPATION_MIN_SHARE = 0.3
 #: Fewest in-contact samples for the ``delta v`` regression.
 MIN_CONTACT_SAMPLES = 10
+#: Held-out-impact gain of a stiffening curvature term (:mod:`.law_shape`) that fires
+#: (in-distribution robustness sets, 24 recordings each, unalarmed: at most 0.07).
+CURVATURE_MIN_GAIN = 0.15
+#: Held-out-impact gain of a ``delta v`` term (:mod:`.law_shape`) that fires (a
+#: Kelvin-Voigt contact through an anti-alias low-pass, whose onset jump the filter
+#: smooths as Hunt-Crossley's law starts at zero, reaches 0.59; alone 0.20).
+PENETRATION_DISSIPATION_MIN_GAIN = 0.65
+#: Least share of the elastic force the curvature term carries (positive: stiffening; a
+#: sensor chain's or a damped contact's distortion bends the law either way).
+CURVATURE_MIN_SHARE = 0.1
+#: Least share of the dissipation the within-impact ``delta v`` term carries (a low-pass
+#: delays the force, which reads as a ``delta v`` term of the wrong sign).
+PENETRATION_DISSIPATION_MIN_SHARE = 0.3
+#: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
+THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
+
+
+class UnseenLawThresholds(BaseModel):
+    """Thresholds of the ``contact_law`` check (``configs/alarm/unseen_law.yaml``)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    training_exponent_bands: list[tuple[float, float]] = list(TRAINING_EXPONENT_BANDS)
+    exponent_min_r2: float = EXPONENT_MIN_R2
+    dissipation_min_gain: float = DISSIPATION_MIN_GAIN
+    dissipation_min_share: float = DISSIPATION_MIN_SHARE
+    curvature_min_gain: float = CURVATURE_MIN_GAIN
+    curvature_min_share: float = CURVATURE_MIN_SHARE
+    penetration_dissipation_min_gain: float = PENETRATION_DISSIPATION_MIN_GAIN
+    penetration_dissipation_min_share: float = PENETRATION_DISSIPATION_MIN_SHARE
+
+
+@lru_cache(maxsize=1)
+def unseen_law_thresholds() -> UnseenLawThresholds:
+    """The shipped thresholds: ``configs/alarm/unseen_law.yaml``, else the defaults above."""
+    from stiffnet.config import load_yaml, validate_config
+    from stiffnet.shipped import default_config
+
+    path = default_config(THRESHOLDS_CONFIG)
+    if not path.is_file():
+        return UnseenLawThresholds()
+    return validate_config(UnseenLawThresholds, load_yaml(path), str(path))
 
 
 def penetration_dissipation(
@@ -83,27 +137,59 @@ def penetration_dissipation(
     return 1.0 - sse[1] / sse[0], h / (abs(c) + abs(h) + 1e-300)
 
 
-def unseen_law_reasons(restoring_force: dict[str, Any]) -> list[str]:
+def unseen_law_reasons(
+    restoring_force: dict[str, Any], thresholds: UnseenLawThresholds | None = None
+) -> list[str]:
     """Why the restoring-force map reads a contact law the training world lacks (empty: none).
 
     ``restoring_force`` holds the cross-check's fields
     (:func:`serving.restoring_force_check.restoring_force_check`):
-    ``exponent``, ``contact_r2`` and ``dissipation_gain`` / ``dissipation_share``.
+    ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share`` and
+    ``law_shape`` (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
+    `thresholds` default to :func:`unseen_law_thresholds`.
     """
+    t = thresholds or unseen_law_thresholds()
     reasons = []
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
-    if p is not None and r2 is not None and r2 >= EXPONENT_MIN_R2:
-        if not any(lo <= p <= hi for lo, hi in TRAINING_EXPONENT_BANDS):
+    if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
+        if not any(lo <= p <= hi for lo, hi in t.training_exponent_bands):
             reasons.append(
                 f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
                 "contacts read"
             )
     gain, share = restoring_force.get("dissipation_gain"), restoring_force.get("dissipation_share")
     if gain is not None and share is not None:
-        if gain >= DISSIPATION_MIN_GAIN and share >= DISSIPATION_MIN_SHARE:
+        if gain >= t.dissipation_min_gain and share >= t.dissipation_min_share:
             reasons.append(
                 f"the contact's dissipation grows with penetration (a delta*v term removes "
                 f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
+            )
+    return reasons + law_shape_reasons(restoring_force.get("law_shape"), t)
+
+
+def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:
+    """Rule: a richer term (:mod:`.law_shape`) predicts held-out impacts better by at least
+    its gain threshold, with the sign of the physics it stands for (its share at least the
+    share threshold: a stiffening law, a dissipation growing with penetration)."""
+    if not shape:
+        return []
+    reasons = []
+    curvature, share = shape.get("curvature"), shape.get("curvature_share", 1.0)
+    if curvature is not None and curvature >= t.curvature_min_gain:
+        if share >= t.curvature_min_share:
+            reasons.append(
+                f"the contact stiffens within each impact (a curvature term predicts held-out "
+                f"impacts {curvature:.0%} better than the linear or Hertz law)"
+            )
+    hc, share = (
+        shape.get("penetration_dissipation"),
+        shape.get("penetration_dissipation_share", 1.0),
+    )
+    if hc is not None and hc >= t.penetration_dissipation_min_gain:
+        if share >= t.penetration_dissipation_min_share:
+            reasons.append(
+                f"the contact's dissipation grows with penetration within each impact (a "
+                f"delta*v term predicts held-out impacts {hc:.0%} better than Kelvin-Voigt)"
             )
     return reasons
 
@@ -117,7 +203,8 @@ def with_unseen_law_check(
     ``alarm["contact_law"]``. A model without an alarm gets one made of this check.
     """
     reasons = unseen_law_reasons(restoring_force)
-    if restoring_force.get("exponent") is None and restoring_force.get("dissipation_gain") is None:
+    judged = ("exponent", "dissipation_gain", "law_shape")
+    if all(restoring_force.get(k) is None for k in judged):
         return alarm  # the cross-check refused: nothing to judge
     if alarm is None:
         alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}

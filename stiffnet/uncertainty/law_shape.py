@@ -1,0 +1,147 @@
+r"""The contact law's shape within each impact: what a richer law explains on held-out impacts.
+
+The restoring-force map (:mod:`stiffnet.restoring_force`) samples, within every impact,
+the contact force against penetration ``delta`` and velocity ``v`` from first touch
+(``delta = 0``) through the deepest point back to release. Across the impacts of one
+steady record the peak penetration hardly varies (0.7-4.2 %, docs/crosscheck.md), but
+within one impact it spans ``0 .. delta_max``: the curvature of the elastic law and the
+way the dissipation scales are visible there even when every impact is alike.
+
+The training world's laws (paper eqs 11-12 with Kelvin-Voigt ``contact_damping``, or
+Hertz's exponent 3/2 via ``hertz_contact``) are linear in their parameters::
+
+    F = a (delta/d_r)^q + b + c v          q = 1 (linear) or 1.5 (Hertz)
+
+A richer law adds one term:
+
+* ``curvature``: ``(delta/d_r)^(q+1)``: a stiffening law (two-stage restraint, a layer
+  over a stiffer body, a power law above Hertz's) bends the loading branch;
+* ``penetration_dissipation``: ``(delta/d_r) v``: Hunt & Crossley's (1975) dissipation,
+  zero at first touch, growing with penetration.
+
+Each is scored by leave-one-impact-out cross-validation (whole impacts held out, so the
+reconstruction's smooth errors within an impact cannot be fitted by the extra term):
+``gain = 1 - SSE_cv(richer) / SSE_cv(base)``. Samples where the base law pulls and the
+restraint gives no force (both below a small fraction of the peak: a damped contact's
+early release, where the restraint's ``max(0, .)`` clips) are left out, so the clip is
+not read as a term. This
+module is the curve (the gains); the rule that turns them into an alarm is
+:mod:`stiffnet.uncertainty.unseen_law`. numpy only: the predictor imports it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+#: Terms a richer law adds to the training world's, as functions of the normalised
+#: penetration ``delta/d_r``, velocity ``v / std(v)`` and the base exponent ``q``.
+RICHER_TERMS: dict[str, Callable[[np.ndarray, np.ndarray, float], np.ndarray]] = {
+    "curvature": lambda d, v, q: d ** (q + 1.0),
+    "penetration_dissipation": lambda d, v, q: d * v,
+}
+#: Fitted exponents at or above this are read as Hertz's (q = 1.5), below as linear.
+HERTZ_FROM_EXPONENT = 1.25
+#: Samples of the base law's force below this fraction of the peak force are left out.
+CLIP_FRACTION = 0.05
+
+
+def impact_runs(delta: np.ndarray, min_samples: int = 3) -> list[np.ndarray]:
+    """Indices of each impact: runs of consecutive samples with ``delta > 0`` (at least
+    `min_samples` long)."""
+    idx = np.flatnonzero(np.asarray(delta) > 0)
+    if idx.size == 0:
+        return []
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+    return [r for r in runs if r.size >= min_samples]
+
+
+def held_out_impact_sse(design: np.ndarray, force: np.ndarray, groups: np.ndarray) -> float:
+    """Sum over impacts of the squared error of the least-squares law fitted on the others.
+
+    The normal equations of all samples minus one impact's give each held-out fit, so
+    the cost is one small solve per impact.
+    """
+    n_groups = int(groups.max()) + 1
+    gram_all, rhs_all = design.T @ design, design.T @ force
+    sse = 0.0
+    for g in range(n_groups):
+        te = groups == g
+        a, f = design[te], force[te]
+        coef = np.linalg.lstsq(gram_all - a.T @ a, rhs_all - a.T @ f, rcond=None)[0]
+        sse += float(np.sum((f - a @ coef) ** 2))
+    return sse
+
+
+def law_shape_gains(
+    disp: np.ndarray,
+    vel: np.ndarray,
+    force: np.ndarray,
+    onset: float,
+    reference_penetration: float,
+    exponent: float = 1.0,
+    min_samples: int = 3,
+    min_impacts: int = 4,
+) -> dict[str, float] | None:
+    """Held-out-impact gain of each richer term over the training world's law.
+
+    Parameters
+    ----------
+    disp, vel, force : numpy.ndarray
+        The restoring-force map's displacement, velocity and contact force.
+    onset, reference_penetration, exponent : float
+        The fitted contact law's ``e``, ``d_r`` and ``p``
+        (:class:`~stiffnet.restoring_force.contact_law.ContactLaw`); ``p`` picks the
+        base exponent (Hertz's 1.5 from :data:`HERTZ_FROM_EXPONENT`, else 1).
+    min_samples, min_impacts : int
+        Fewest in-contact samples per impact, and impacts, to judge.
+
+    Returns
+    -------
+    dict or None
+        ``{term: gain}`` for every :data:`RICHER_TERMS` entry, ``{term}_share`` (the
+        term's coefficient over the sum of its and the base law's matching coefficient in
+        magnitude at ``d_r``: the elastic one for ``curvature``, the ``v`` one for
+        ``penetration_dissipation``; positive for a stiffening law, a dissipation growing
+        with penetration), ``misfit`` (the base law's held-out SSE over the force's
+        variance) and ``n_impacts``; None with too few impacts or no positive reference
+        penetration.
+    """
+    if not reference_penetration > 0:
+        return None
+    d = np.asarray(disp, float) - onset
+    runs = impact_runs(d, min_samples)
+    if len(runs) < min_impacts:
+        return None
+    idx = np.concatenate(runs)
+    groups = np.repeat(np.arange(len(runs)), [r.size for r in runs])
+    q = 1.5 if exponent >= HERTZ_FROM_EXPONENT else 1.0
+    dn, f = d[idx] / reference_penetration, np.asarray(force, float)[idx]
+    v = np.asarray(vel, float)[idx]
+    vn = v / (float(np.std(v)) or 1.0)
+    base = np.column_stack([dn**q, np.ones_like(dn), vn])
+    # where the law would pull and the restraint gives nothing, its max(0, .) clipped: the
+    # clip is not a term (a first stage the linear law cuts off, with force, is kept)
+    pulls = base @ np.linalg.lstsq(base, f, rcond=None)[0]
+    keep = np.maximum(pulls, f) > CLIP_FRACTION * float(np.max(f))
+    groups = np.unique(groups[keep], return_inverse=True)[1]
+    if int(groups.max(initial=-1)) + 1 < min_impacts:
+        return None
+    base, dn, vn, f = base[keep], dn[keep], vn[keep], f[keep]
+    sse_base = held_out_impact_sse(base, f, groups)
+    if not sse_base > 0:
+        return None
+    out: dict[str, float] = {}
+    for name, term in RICHER_TERMS.items():
+        design = np.column_stack([base, term(dn, vn, q)])
+        out[name] = 1.0 - held_out_impact_sse(design, f, groups) / sse_base
+        # the term's coefficient against the base law's own (elastic for the curvature,
+        # dissipative for delta v) at the reference penetration: its sign says stiffening
+        # or softening, dissipation growing or shrinking with penetration
+        coef = np.linalg.lstsq(design, f, rcond=None)[0]
+        own = coef[0] if name == "curvature" else coef[2]
+        out[name + "_share"] = float(coef[3] / (abs(own) + abs(coef[3]) + 1e-300))
+    out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
+    out["n_impacts"] = float(int(groups.max()) + 1)
+    return out
