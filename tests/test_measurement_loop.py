@@ -206,6 +206,7 @@ def test_default_state_folder_is_never_inside_shipped_files(tmp):
         (["--family", "svm"], "model family 'svm'"),
         (["--spread", "1.5"], "--spread must be"),
         (["--add-effect", "contact_damping:damping_ratio=abc"], "is not a number"),
+        (["--envelope", "--operating-points"], "give one of --envelope and --operating-points"),
     ],
 )
 def test_bad_loop_options_are_one_line(two_effects, tmp, args, needle):
@@ -240,6 +241,27 @@ def test_field_campaign_without_beta(two_effects, tmp):
     assert {"restoring_force_agreement", "geometric_agreement"} <= set(m1)
     assert res["iterations"][1]["label"] == "+contact_damping+sensor_dynamics"
     assert Path(res["chart"]).is_file()
+
+
+def test_loop_trains_at_the_campaigns_operating_points(two_effects, tmp):
+    """``world="operating_points"``: every dataset is drawn at the manifest's rows, the
+    state keeps it, and a resume in another world is refused."""
+    state = tmp / "ops-state"
+    kw = dict(family="gbm", n_trajectories=TINY, tracking_uri=None)
+    res = loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=0,
+                            world="operating_points", **kw)  # fmt: skip
+    assert res["world"] == "operating_points"
+    card = json.loads((state / "iter-000" / "data_card.json").read_text())
+    points = card["operating_points"]["points"]
+    rows = load_campaign(two_effects).rows
+    assert [p["gap"] for p in points] == [r.gap for r in rows] and len(points) == 5
+    assert card["n_trajectories"] == TINY and len(card["shards"]) == 5
+    assert res["after"]["accuracy"] is not None
+    with pytest.raises(StiffnetError, match="world 'operating_points'"):
+        loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=1,
+                          world="sweep", **kw)  # fmt: skip
+    with pytest.raises(StiffnetError, match="training world must be one of"):
+        loop_mod.run_loop(load_campaign(two_effects), _ideal(), tmp / "x", world="grid", **kw)
 
 
 @pytest.mark.slow

@@ -57,6 +57,9 @@ DEFAULT_SPREAD = 0.25
 DEFAULT_TRAJECTORIES = 1000
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
+#: Where the datasets' trajectories are drawn: over the starting config's sweep, or at the
+#: campaign's own operating points (:mod:`stiffnet.measurement.operating_points`).
+WORLDS = ("sweep", "operating_points")
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -162,7 +165,7 @@ def _open_state(folder: Path, campaign: Campaign, settings: dict[str, Any]) -> d
                 f"{folder}: the state belongs to another campaign ({state.get('campaign')}); "
                 "choose another --state folder"
             )
-        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides"):
+        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides", "world"):
             if settings.get(key) is not None and settings[key] != state.get(key):
                 raise StiffnetError(
                     f"{folder}: the loop was started with {key} {state.get(key)!r}, not "
@@ -224,15 +227,22 @@ def _train(
     family: str,
     overrides: dict[str, Any] | None,
     keep_data: bool,
+    rows: list[Any] | None = None,
 ) -> dict[str, Any]:
+    """Generate the iteration's dataset (over ``cfg``'s sweep, or at the ``rows``'
+    operating points) and train the family on it."""
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
+    from stiffnet.measurement.operating_points import operating_point_dataset
     from training.train import train
 
     tcfg = _train_config(family, overrides)
     t0 = time.perf_counter()
     data = work / "data"
-    with progress_task("simulating shards", len(shard_sizes(cfg))) as bar:
-        generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
+    with progress_task("simulating shards", len(rows) if rows else len(shard_sizes(cfg))) as bar:
+        if rows:
+            operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done))
+        else:
+            generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
     t_data = time.perf_counter() - t0
     summary = train(data, tcfg, work / "model", progress=None)
     t_train = time.perf_counter() - t0 - t_data
@@ -374,6 +384,7 @@ def _iteration(
         {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]} for a in added
     ]
     n = state["n_trajectories"]
+    ops = state.get("world", "sweep") == "operating_points"
     base = start_cfg.model_copy(update={"n_trajectories": n})
     train_cfg = config_with_effects(
         base,
@@ -389,10 +400,15 @@ def _iteration(
         work / "config.yaml",
         f"stiffnet loop on {campaign.folder.name}, iteration {k}: added {names}\n"
         f"fitted values +-{state['spread']:.0%} (prior centred on the fit); "
-        "stiffnet simulate --config this file",
-    )
+        "stiffnet simulate --config this file"
+        + ("\ntrained at the campaign's operating points (the sweep's columns per manifest row)"
+           if ops else ""),
+    )  # fmt: skip
     bar.update(note=f"iteration {k}: dataset + {state['family']} training")
-    trained = _train(train_cfg, work, state["family"], state["train_overrides"], keep_data)
+    trained = _train(
+        train_cfg, work, state["family"], state["train_overrides"], keep_data,
+        list(campaign.rows) if ops else None,
+    )  # fmt: skip
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     evaluation = evaluate_campaign(
         campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
@@ -470,6 +486,7 @@ def _track(state: dict[str, Any], it: dict[str, Any], chart: Path) -> None:
         "family": state["family"],
         "n_trajectories": state["n_trajectories"],
         "spread": state["spread"],
+        "world": state.get("world", "sweep"),
         "added": ",".join(a["name"] for a in it["added"]) or "none",
         "effects": ",".join(e["name"] for e in it["effects"]) or "none",
     }
@@ -523,6 +540,7 @@ def run_loop(
     candidates: list[str] | None = None,
     inclination: bool = False,
     keep_data: bool = False,
+    world: str | None = None,
 ) -> dict[str, Any]:
     """Run ``iterations`` more loop iterations on the state in ``state_dir`` (see the module notes).
 
@@ -562,6 +580,12 @@ def run_loop(
         Include the inclination statistics in the diagnosis (slower).
     keep_data : bool
         Keep each iteration's dataset (by default only its card).
+    world : {"sweep", "operating_points"}, optional
+        Where every iteration's dataset is drawn (kept in the state): over the starting
+        config's sweep (the default for a new loop), or at the campaign's operating points
+        (:func:`~stiffnet.measurement.operating_points.operating_point_dataset`: each
+        manifest row's gap, forcing, damping, fs/f_n and noise, jittered, β over the
+        sweep), where a contact law that is not a linear spring needs it.
 
     Returns
     -------
@@ -574,7 +598,7 @@ def run_loop(
     # the recordings, their statistics and predictions are read and computed once for all
     # iterations (a LoadedCampaign is shared by diagnose, evaluate and compare)
     campaign = LoadedCampaign.of(campaign)
-    _check_arguments(family, n_trajectories, iterations, spread)
+    _check_arguments(family, n_trajectories, iterations, spread, world)
     folder = Path(state_dir) if state_dir is not None else default_state_dir(campaign.folder)
     settings = {
         "family": family,
@@ -582,6 +606,7 @@ def run_loop(
         "spread": spread,
         "seed": seed,
         "train_overrides": train_overrides,
+        "world": world,
         "manifest_sha256": sha256_file(campaign.manifest_path),
     }
     t0 = time.perf_counter()
@@ -618,7 +643,11 @@ def run_loop(
 
 
 def _check_arguments(
-    family: str | None, n_trajectories: int | None, iterations: int, spread: float | None
+    family: str | None,
+    n_trajectories: int | None,
+    iterations: int,
+    spread: float | None,
+    world: str | None = None,
 ) -> None:
     """One clear line for a loop argument out of range, before any work."""
     if family is not None:
@@ -628,6 +657,8 @@ def _check_arguments(
         raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
     if spread is not None and not 0 <= spread < 1:
         raise StiffnetError(f"--spread must be in [0, 1), got {spread}")
+    if world is not None and world not in WORLDS:
+        raise StiffnetError(f"the training world must be one of {', '.join(WORLDS)}, got {world}")
 
 
 def _start_state(
@@ -645,6 +676,7 @@ def _start_state(
             n_trajectories=settings["n_trajectories"] or DEFAULT_TRAJECTORIES,
             spread=DEFAULT_SPREAD if settings["spread"] is None else settings["spread"],
             seed=DEFAULT_SEED if settings["seed"] is None else settings["seed"],
+            world=settings["world"] or "sweep",
             start_config=cfg.model_dump(mode="json"),
             tracking_uri=tracking_uri,
             experiment=f"campaign-{campaign.folder.name}",
@@ -718,6 +750,7 @@ def _loop_result(
         "family": state["family"],
         "n_trajectories": state["n_trajectories"],
         "spread": state["spread"],
+        "world": state.get("world", "sweep"),
         "iterations": its,
         "before": {**its[0]["metrics"], "run_id": its[0].get("run_id")} if its else {},
         "after": {**its[-1]["metrics"], "run_id": its[-1].get("run_id")} if its else {},
