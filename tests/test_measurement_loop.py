@@ -139,6 +139,26 @@ def test_spread_is_a_prior_centred_on_the_fit():
     assert p["resonance_hz"] == pytest.approx([120.0, 360.0]) and p["resonance_damping"] == 0.03
 
 
+def test_a_learned_laws_prior_is_no_wider_than_its_discovered_interval():
+    law = {"exponent": 1.0, "knee": 0.2, "knee_ratio": 2.8}
+    diag = {"learned_law": {"law": {"intervals": {"knee": [0.19, 0.22], "knee_ratio": [2.0, 2.7]}}}}
+    added = [{"name": "learned_contact", "params": law, "fitted": ["knee", "knee_ratio"],
+              "source": "diagnosis"},
+             {"name": "contact_damping", "params": {"damping_ratio": 0.2},
+              "fitted": ["damping_ratio"], "source": "diagnosis"}]  # fmt: skip
+    out, same = loop_mod.with_law_intervals(added, diag)
+    assert same is diag and "intervals" not in out[1]
+    ivs = out[0]["intervals"]
+    p = loop_mod.spread_params("learned_contact", law, ["knee", "knee_ratio"], 0.25, ivs)
+    assert p["knee"] == pytest.approx([0.19, 0.22])  # inside +-25 %: the interval
+    # an interval that misses the value (a refit moved it) still holds it
+    assert p["knee_ratio"] == pytest.approx([2.1, 2.8])  # and never wider than the spread
+    assert p["exponent"] == 1.0
+    given = [{**added[0], "source": "given"}]
+    given[0].pop("intervals")
+    assert "intervals" not in loop_mod.with_law_intervals(given, diag)[0][0]
+
+
 def test_mlflow_runs_nested_and_models_registered(looped):
     import mlflow
 

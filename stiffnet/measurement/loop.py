@@ -39,6 +39,7 @@ from typing import Any
 from stiffnet.campaign import Campaign, LoadedCampaign
 from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
+from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import RUN_MARKER, output_lock, sha256_file, write_json_atomic
@@ -95,9 +96,15 @@ def default_state_dir(campaign_folder: str | Path) -> Path:
 
 
 def spread_params(
-    name: str, params: dict[str, float], fitted: list[str], spread: float
+    name: str,
+    params: dict[str, float],
+    fitted: list[str],
+    spread: float,
+    intervals: dict[str, list[float]] | None = None,
 ) -> dict[str, float | list[float]]:
-    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges."""
+    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges,
+    and inside a parameter's measured interval where ``intervals`` gives one (the range
+    always holds ``p``)."""
     table = {r["name"]: r for r in effect_class(name).parameter_table()}
     out: dict[str, float | list[float]] = {}
     for k, v in params.items():
@@ -107,6 +114,8 @@ def spread_params(
             lo, hi = table[k]["range"]
             a, b = sorted((v * (1 - spread), v * (1 + spread)))
             a, b = max(a, lo), min(b, hi)
+            if k in (intervals or {}):
+                a, b = min(max(a, intervals[k][0]), v), max(min(b, intervals[k][1]), v)
             out[k] = [a, b] if a < b else float(v)
         else:
             out[k] = float(v)
@@ -381,7 +390,13 @@ def _iteration(
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
     gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
     effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
-        {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]} for a in added
+        {
+            "name": a["name"],
+            "params": refit_params(prev, a),
+            "fitted": a["fitted"],
+            **({"intervals": a["intervals"]} if a.get("intervals") else {}),
+        }
+        for a in added
     ]
     n = state["n_trajectories"]
     ops = state.get("world", "sweep") == "operating_points"
@@ -389,7 +404,12 @@ def _iteration(
     train_cfg = config_with_effects(
         base,
         [
-            (e["name"], spread_params(e["name"], e["params"], e["fitted"], state["spread"]))
+            (
+                e["name"],
+                spread_params(
+                    e["name"], e["params"], e["fitted"], state["spread"], e.get("intervals")
+                ),
+            )
             for e in effects
         ],
     )
@@ -701,11 +721,31 @@ def _next_effects(
     last = state["iterations"][-1]
     current = [e["name"] for e in last["effects"]]
     if diagnosis is not None and not add_effects:
-        return _from_diagnosis(diagnosis)
-    return _effects_to_add(
+        return with_law_intervals(*_from_diagnosis(diagnosis))
+    return with_law_intervals(*_effects_to_add(
         campaign, start_cfg, current, add_effects, last["model"], state["seed"], candidates,
         inclination,
-    )  # fmt: skip
+    ))  # fmt: skip
+
+
+def with_law_intervals(
+    added: list[dict[str, Any]], diag: dict[str, Any] | None
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """A discovered law's prior no wider than the discovery's intervals (bootstrap over
+    impacts, widened by its misfit): ``intervals`` on the law's entry, for its fitted values.
+
+    Measured (docs/measurement_loop.md, "Training at the campaign's operating points"): the
+    blanket ±25 % on a two-stage law's knee and stage ratio blurs the classes more than the
+    campaign's data allow; at its discovered values the retrained model classes every
+    recording of the campaign."""
+    law = ((diag or {}).get("learned_law") or {}).get("law") or {}
+    measured = law.get("intervals") or {}
+    for a in added:
+        if a["name"] == LearnedContact.name and a.get("source") == "diagnosis" and measured:
+            a["intervals"] = {
+                k: [float(x) for x in measured[k]] for k in a["fitted"] if k in measured
+            }
+    return added, diag
 
 
 def _stop_when_nothing_new(
