@@ -24,6 +24,10 @@ kept in the state), with the ONNX model and card as its logged model, registered
 in the Model Registry under the campaign's name (one version per iteration). The
 error-versus-iteration chart (``loop_error.png``) covers all iterations.
 
+Every dataset is drawn over the starting config's sweep, or (``world="operating_points"``,
+``loop --operating-points``) at the campaign's own operating points, where a contact law
+that is not a linear spring needs it (:mod:`stiffnet.measurement.operating_points`).
+
 The error of an iteration: the discrepancy and the agreement of the learned model
 with the restoring-force cross-check always; with β in the manifest, also the
 accuracy and the β MAPE.
