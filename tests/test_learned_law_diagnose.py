@@ -141,14 +141,18 @@ def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
     d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])  # bounded cost: the numerical engine
     d["solver"].update(settle_tolerance=0.05, min_transient_periods=10, substeps=4)
     d["windows"]["per_trajectory"] = 2
+    # trained at the campaign's operating points, the law's prior inside its discovered
+    # intervals (docs/measurement_loop.md, "Training at the campaign's operating points")
     res = run_loop(camp, SimulationConfig.model_validate(d), tmp_path / "state", iterations=1,
-                   family="gbm", n_trajectories=60, tracking_uri=None,
-                   candidates=["contact_damping"])  # fmt: skip
+                   family="gbm", n_trajectories=400, tracking_uri=None,
+                   candidates=["contact_damping"], world="operating_points")  # fmt: skip
     first, second = res["iterations"]
     assert second["label"] == "+learned_contact"
     assert second["metrics"]["discrepancy"] <= 0.5 * first["metrics"]["discrepancy"]
+    # the retrained model reads the campaign: the targets
+    assert second["metrics"]["accuracy"] >= 0.9, second["recordings"]
+    assert second["metrics"]["beta_mape"] <= 0.15, second["recordings"]
     # the law's beta (the first stage's slope) is the manifest's: every recording in its class
-    # (the retrained GBM is not yet: docs/measurement_loop.md, "Why the retrained model")
     diag = json.loads((tmp_path / "state" / "iter-001" / "diagnosis.json").read_text())
     law = diag["learned_law"]["law"]
     assert law["beta_reference"] == "median peak penetration"  # a linear leading term

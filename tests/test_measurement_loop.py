@@ -139,6 +139,26 @@ def test_spread_is_a_prior_centred_on_the_fit():
     assert p["resonance_hz"] == pytest.approx([120.0, 360.0]) and p["resonance_damping"] == 0.03
 
 
+def test_a_learned_laws_prior_is_no_wider_than_its_discovered_interval():
+    law = {"exponent": 1.0, "knee": 0.2, "knee_ratio": 2.8}
+    diag = {"learned_law": {"law": {"intervals": {"knee": [0.19, 0.22], "knee_ratio": [2.0, 2.7]}}}}
+    added = [{"name": "learned_contact", "params": law, "fitted": ["knee", "knee_ratio"],
+              "source": "diagnosis"},
+             {"name": "contact_damping", "params": {"damping_ratio": 0.2},
+              "fitted": ["damping_ratio"], "source": "diagnosis"}]  # fmt: skip
+    out, same = loop_mod.with_law_intervals(added, diag)
+    assert same is diag and "intervals" not in out[1]
+    ivs = out[0]["intervals"]
+    p = loop_mod.spread_params("learned_contact", law, ["knee", "knee_ratio"], 0.25, ivs)
+    assert p["knee"] == pytest.approx([0.19, 0.22])  # inside +-25 %: the interval
+    # an interval that misses the value (a refit moved it) still holds it
+    assert p["knee_ratio"] == pytest.approx([2.1, 2.8])  # and never wider than the spread
+    assert p["exponent"] == 1.0
+    given = [{**added[0], "source": "given"}]
+    given[0].pop("intervals")
+    assert "intervals" not in loop_mod.with_law_intervals(given, diag)[0][0]
+
+
 def test_mlflow_runs_nested_and_models_registered(looped):
     import mlflow
 
@@ -206,6 +226,7 @@ def test_default_state_folder_is_never_inside_shipped_files(tmp):
         (["--family", "svm"], "model family 'svm'"),
         (["--spread", "1.5"], "--spread must be"),
         (["--add-effect", "contact_damping:damping_ratio=abc"], "is not a number"),
+        (["--envelope", "--operating-points"], "give one of --envelope and --operating-points"),
     ],
 )
 def test_bad_loop_options_are_one_line(two_effects, tmp, args, needle):
@@ -240,6 +261,27 @@ def test_field_campaign_without_beta(two_effects, tmp):
     assert {"restoring_force_agreement", "geometric_agreement"} <= set(m1)
     assert res["iterations"][1]["label"] == "+contact_damping+sensor_dynamics"
     assert Path(res["chart"]).is_file()
+
+
+def test_loop_trains_at_the_campaigns_operating_points(two_effects, tmp):
+    """``world="operating_points"``: every dataset is drawn at the manifest's rows, the
+    state keeps it, and a resume in another world is refused."""
+    state = tmp / "ops-state"
+    kw = dict(family="gbm", n_trajectories=TINY, tracking_uri=None)
+    res = loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=0,
+                            world="operating_points", **kw)  # fmt: skip
+    assert res["world"] == "operating_points"
+    card = json.loads((state / "iter-000" / "data_card.json").read_text())
+    points = card["operating_points"]["points"]
+    rows = load_campaign(two_effects).rows
+    assert [p["gap"] for p in points] == [r.gap for r in rows] and len(points) == 5
+    assert card["n_trajectories"] == TINY and len(card["shards"]) == 5
+    assert res["after"]["accuracy"] is not None
+    with pytest.raises(StiffnetError, match="world 'operating_points'"):
+        loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=1,
+                          world="sweep", **kw)  # fmt: skip
+    with pytest.raises(StiffnetError, match="training world must be one of"):
+        loop_mod.run_loop(load_campaign(two_effects), _ideal(), tmp / "x", world="grid", **kw)
 
 
 @pytest.mark.slow

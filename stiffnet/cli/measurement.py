@@ -429,6 +429,14 @@ def loop(
             "config's whole sweep (a new loop only)."
         ),
     ] = False,
+    operating_points: Annotated[
+        bool,
+        typer.Option(
+            help="Train at the campaign's own operating points (each manifest row's gap, "
+            "amplitude, frequency ratio, damping, fs/f_n and noise, jittered 5 %; beta over "
+            "the sweep): for a contact law that is not a linear spring (a new loop only)."
+        ),
+    ] = False,
 ) -> None:
     """Iterate: diagnose, add the missing effects to the simulator, retrain, re-evaluate."""
     from stiffnet.effects.registry import parse_effect_option
@@ -441,6 +449,11 @@ def loop(
     given = [parse_effect_option(t) for t in add_effect or []]
     diag = _read_json(diagnosis, "diagnosis")
     out, console, write_json = _io()
+    if envelope and operating_points:
+        from stiffnet.errors import StiffnetError
+
+        raise StiffnetError("give one of --envelope and --operating-points (the operating "
+                            "points already lie inside the envelope)")  # fmt: skip
     camp, cfg = _load(campaign, config)
     if envelope:
         from stiffnet.measurement.envelope import campaign_envelope
@@ -463,6 +476,7 @@ def loop(
             train_overrides=overrides,
             seed=seed,
             candidates=list(effect) if effect else None,
+            world="operating_points" if operating_points else None,
         )
     out.print(loop_table(res, campaign))
     if res["stopped"]:

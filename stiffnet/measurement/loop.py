@@ -24,6 +24,10 @@ kept in the state), with the ONNX model and card as its logged model, registered
 in the Model Registry under the campaign's name (one version per iteration). The
 error-versus-iteration chart (``loop_error.png``) covers all iterations.
 
+Every dataset is drawn over the starting config's sweep, or (``world="operating_points"``,
+``loop --operating-points``) at the campaign's own operating points, where a contact law
+that is not a linear spring needs it (:mod:`stiffnet.measurement.operating_points`).
+
 The error of an iteration: the discrepancy and the agreement of the learned model
 with the restoring-force cross-check always; with β in the manifest, also the
 accuracy and the β MAPE.
@@ -39,6 +43,7 @@ from typing import Any
 from stiffnet.campaign import Campaign, LoadedCampaign
 from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
+from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import RUN_MARKER, output_lock, sha256_file, write_json_atomic
@@ -57,6 +62,9 @@ DEFAULT_SPREAD = 0.25
 DEFAULT_TRAJECTORIES = 1000
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
+#: Where the datasets' trajectories are drawn: over the starting config's sweep, or at the
+#: campaign's own operating points (:mod:`stiffnet.measurement.operating_points`).
+WORLDS = ("sweep", "operating_points")
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -92,9 +100,15 @@ def default_state_dir(campaign_folder: str | Path) -> Path:
 
 
 def spread_params(
-    name: str, params: dict[str, float], fitted: list[str], spread: float
+    name: str,
+    params: dict[str, float],
+    fitted: list[str],
+    spread: float,
+    intervals: dict[str, list[float]] | None = None,
 ) -> dict[str, float | list[float]]:
-    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges."""
+    """Fitted parameters as ``[p (1 - s), p (1 + s)]`` ranges inside the declared ranges,
+    and inside a parameter's measured interval where ``intervals`` gives one (the range
+    always holds ``p``)."""
     table = {r["name"]: r for r in effect_class(name).parameter_table()}
     out: dict[str, float | list[float]] = {}
     for k, v in params.items():
@@ -104,6 +118,8 @@ def spread_params(
             lo, hi = table[k]["range"]
             a, b = sorted((v * (1 - spread), v * (1 + spread)))
             a, b = max(a, lo), min(b, hi)
+            if k in (intervals or {}):
+                a, b = min(max(a, intervals[k][0]), v), max(min(b, intervals[k][1]), v)
             out[k] = [a, b] if a < b else float(v)
         else:
             out[k] = float(v)
@@ -162,7 +178,7 @@ def _open_state(folder: Path, campaign: Campaign, settings: dict[str, Any]) -> d
                 f"{folder}: the state belongs to another campaign ({state.get('campaign')}); "
                 "choose another --state folder"
             )
-        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides"):
+        for key in ("family", "n_trajectories", "spread", "seed", "train_overrides", "world"):
             if settings.get(key) is not None and settings[key] != state.get(key):
                 raise StiffnetError(
                     f"{folder}: the loop was started with {key} {state.get(key)!r}, not "
@@ -224,15 +240,22 @@ def _train(
     family: str,
     overrides: dict[str, Any] | None,
     keep_data: bool,
+    rows: list[Any] | None = None,
 ) -> dict[str, Any]:
+    """Generate the iteration's dataset (over ``cfg``'s sweep, or at the ``rows``'
+    operating points) and train the family on it."""
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
+    from stiffnet.measurement.operating_points import operating_point_dataset
     from training.train import train
 
     tcfg = _train_config(family, overrides)
     t0 = time.perf_counter()
     data = work / "data"
-    with progress_task("simulating shards", len(shard_sizes(cfg))) as bar:
-        generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
+    with progress_task("simulating shards", len(rows) if rows else len(shard_sizes(cfg))) as bar:
+        if rows:
+            operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done))
+        else:
+            generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
     t_data = time.perf_counter() - t0
     summary = train(data, tcfg, work / "model", progress=None)
     t_train = time.perf_counter() - t0 - t_data
@@ -371,14 +394,26 @@ def _iteration(
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
     gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
     effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
-        {"name": a["name"], "params": refit_params(prev, a), "fitted": a["fitted"]} for a in added
+        {
+            "name": a["name"],
+            "params": refit_params(prev, a),
+            "fitted": a["fitted"],
+            **({"intervals": a["intervals"]} if a.get("intervals") else {}),
+        }
+        for a in added
     ]
     n = state["n_trajectories"]
+    ops = state.get("world", "sweep") == "operating_points"
     base = start_cfg.model_copy(update={"n_trajectories": n})
     train_cfg = config_with_effects(
         base,
         [
-            (e["name"], spread_params(e["name"], e["params"], e["fitted"], state["spread"]))
+            (
+                e["name"],
+                spread_params(
+                    e["name"], e["params"], e["fitted"], state["spread"], e.get("intervals")
+                ),
+            )
             for e in effects
         ],
     )
@@ -389,10 +424,15 @@ def _iteration(
         work / "config.yaml",
         f"stiffnet loop on {campaign.folder.name}, iteration {k}: added {names}\n"
         f"fitted values +-{state['spread']:.0%} (prior centred on the fit); "
-        "stiffnet simulate --config this file",
-    )
+        "stiffnet simulate --config this file"
+        + ("\ntrained at the campaign's operating points (the sweep's columns per manifest row)"
+           if ops else ""),
+    )  # fmt: skip
     bar.update(note=f"iteration {k}: dataset + {state['family']} training")
-    trained = _train(train_cfg, work, state["family"], state["train_overrides"], keep_data)
+    trained = _train(
+        train_cfg, work, state["family"], state["train_overrides"], keep_data,
+        list(campaign.rows) if ops else None,
+    )  # fmt: skip
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     evaluation = evaluate_campaign(
         campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
@@ -470,6 +510,7 @@ def _track(state: dict[str, Any], it: dict[str, Any], chart: Path) -> None:
         "family": state["family"],
         "n_trajectories": state["n_trajectories"],
         "spread": state["spread"],
+        "world": state.get("world", "sweep"),
         "added": ",".join(a["name"] for a in it["added"]) or "none",
         "effects": ",".join(e["name"] for e in it["effects"]) or "none",
     }
@@ -523,6 +564,7 @@ def run_loop(
     candidates: list[str] | None = None,
     inclination: bool = False,
     keep_data: bool = False,
+    world: str | None = None,
 ) -> dict[str, Any]:
     """Run ``iterations`` more loop iterations on the state in ``state_dir`` (see the module notes).
 
@@ -562,6 +604,12 @@ def run_loop(
         Include the inclination statistics in the diagnosis (slower).
     keep_data : bool
         Keep each iteration's dataset (by default only its card).
+    world : {"sweep", "operating_points"}, optional
+        Where every iteration's dataset is drawn (kept in the state): over the starting
+        config's sweep (the default for a new loop), or at the campaign's operating points
+        (:func:`~stiffnet.measurement.operating_points.operating_point_dataset`: each
+        manifest row's gap, forcing, damping, fs/f_n and noise, jittered, β over the
+        sweep), where a contact law that is not a linear spring needs it.
 
     Returns
     -------
@@ -574,7 +622,7 @@ def run_loop(
     # the recordings, their statistics and predictions are read and computed once for all
     # iterations (a LoadedCampaign is shared by diagnose, evaluate and compare)
     campaign = LoadedCampaign.of(campaign)
-    _check_arguments(family, n_trajectories, iterations, spread)
+    _check_arguments(family, n_trajectories, iterations, spread, world)
     folder = Path(state_dir) if state_dir is not None else default_state_dir(campaign.folder)
     settings = {
         "family": family,
@@ -582,6 +630,7 @@ def run_loop(
         "spread": spread,
         "seed": seed,
         "train_overrides": train_overrides,
+        "world": world,
         "manifest_sha256": sha256_file(campaign.manifest_path),
     }
     t0 = time.perf_counter()
@@ -618,7 +667,11 @@ def run_loop(
 
 
 def _check_arguments(
-    family: str | None, n_trajectories: int | None, iterations: int, spread: float | None
+    family: str | None,
+    n_trajectories: int | None,
+    iterations: int,
+    spread: float | None,
+    world: str | None = None,
 ) -> None:
     """One clear line for a loop argument out of range, before any work."""
     if family is not None:
@@ -628,6 +681,8 @@ def _check_arguments(
         raise StiffnetError(f"--iterations must be 0..100, got {iterations}")
     if spread is not None and not 0 <= spread < 1:
         raise StiffnetError(f"--spread must be in [0, 1), got {spread}")
+    if world is not None and world not in WORLDS:
+        raise StiffnetError(f"the training world must be one of {', '.join(WORLDS)}, got {world}")
 
 
 def _start_state(
@@ -645,6 +700,7 @@ def _start_state(
             n_trajectories=settings["n_trajectories"] or DEFAULT_TRAJECTORIES,
             spread=DEFAULT_SPREAD if settings["spread"] is None else settings["spread"],
             seed=DEFAULT_SEED if settings["seed"] is None else settings["seed"],
+            world=settings["world"] or "sweep",
             start_config=cfg.model_dump(mode="json"),
             tracking_uri=tracking_uri,
             experiment=f"campaign-{campaign.folder.name}",
@@ -669,11 +725,31 @@ def _next_effects(
     last = state["iterations"][-1]
     current = [e["name"] for e in last["effects"]]
     if diagnosis is not None and not add_effects:
-        return _from_diagnosis(diagnosis)
-    return _effects_to_add(
+        return with_law_intervals(*_from_diagnosis(diagnosis))
+    return with_law_intervals(*_effects_to_add(
         campaign, start_cfg, current, add_effects, last["model"], state["seed"], candidates,
         inclination,
-    )  # fmt: skip
+    ))  # fmt: skip
+
+
+def with_law_intervals(
+    added: list[dict[str, Any]], diag: dict[str, Any] | None
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """A discovered law's prior no wider than the discovery's intervals (bootstrap over
+    impacts, widened by its misfit): ``intervals`` on the law's entry, for its fitted values.
+
+    Measured (docs/measurement_loop.md, "Training at the campaign's operating points"): the
+    blanket ±25 % on a two-stage law's knee and stage ratio blurs the classes more than the
+    campaign's data allow; at its discovered values the retrained model classes every
+    recording of the campaign."""
+    law = ((diag or {}).get("learned_law") or {}).get("law") or {}
+    measured = law.get("intervals") or {}
+    for a in added:
+        if a["name"] == LearnedContact.name and a.get("source") == "diagnosis" and measured:
+            a["intervals"] = {
+                k: [float(x) for x in measured[k]] for k in a["fitted"] if k in measured
+            }
+    return added, diag
 
 
 def _stop_when_nothing_new(
@@ -718,6 +794,7 @@ def _loop_result(
         "family": state["family"],
         "n_trajectories": state["n_trajectories"],
         "spread": state["spread"],
+        "world": state.get("world", "sweep"),
         "iterations": its,
         "before": {**its[0]["metrics"], "run_id": its[0].get("run_id")} if its else {},
         "after": {**its[-1]["metrics"], "run_id": its[-1].get("run_id")} if its else {},
