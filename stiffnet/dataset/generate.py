@@ -314,7 +314,7 @@ def _generate_locked(
     report.raise_failures()
     for i, record in zip(todo, report.results, strict=True):
         records[i] = record
-    card = _card(cfg, records, time.perf_counter() - t_start)
+    card = dataset_card(cfg, records, time.perf_counter() - t_start)
     card["run"] = {"backend": report.backend, "shards_kept": kept, "shards_run": len(todo),
                    "rerun": report.rerun}  # fmt: skip
     write_card(out, card)
@@ -376,7 +376,11 @@ def _move_aside_and_delete(out: Path) -> None:
     shutil.rmtree(trash, ignore_errors=True)
 
 
-def _card(cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: float) -> dict:
+def dataset_card(
+    cfg: SimulationConfig, records: list[dict[str, Any] | None], seconds: float
+) -> dict[str, Any]:
+    """The data card of a dataset simulated from ``cfg``: class counts, priors, timing
+    (what a trained model's card cites as its training data)."""
     counts: dict[str, int] = dict.fromkeys(cfg.class_names(), 0)
     for record in records:
         assert record is not None

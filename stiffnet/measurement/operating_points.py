@@ -108,7 +108,7 @@ def operating_point_dataset(
     dict
         The data card.
     """
-    from stiffnet.dataset.generate import ShardJob, _card, config_fingerprint, run_shard_job
+    from stiffnet.dataset.generate import ShardJob, config_fingerprint, dataset_card, run_shard_job
     from stiffnet.dataset.store import write_card
     from stiffnet.io_utils import output_lock
 
@@ -126,7 +126,7 @@ def operating_point_dataset(
             if progress:
                 progress(i + 1, len(configs))
         box = campaign_envelope(cfg, rows, jitter)
-        card = _card(box, records, time.perf_counter() - t0)
+        card = dataset_card(box, records, time.perf_counter() - t0)
         card["operating_points"] = {"jitter": jitter, "points": [operating_point(r) for r in rows]}
         write_card(out, card)
     return card
