@@ -73,9 +73,11 @@ from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
     alarm_ratio,
     alarm_verdict,
+    class_beta_gap,
     load_model_alarm,
     restoring_force_gap,
     weak_restoring_force_fit,
+    with_class_beta_check,
     with_restoring_force_check,
 )
 from stiffnet.uncertainty.ood import OODReference, load_reference
@@ -400,10 +402,13 @@ class Predictor:
         fs: float,
         fn: float,
     ) -> dict[str, Any] | None:
-        """How far to trust the answer: the model's checks, then the restoring-force gap,
-        the unseen contact law, the layers and the sensor chain."""
+        """How far to trust the answer: the model's checks, its class against its own beta,
+        then the restoring-force gap, the unseen contact law, the layers and the sensor chain."""
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
                               reading.features, reading.embedding_scores)  # fmt: skip
+        answered = self.class_names[reading.estimate.label]
+        alarm = with_class_beta_check(alarm, class_beta_gap(
+            answered, interval, self.class_names, self.metadata.get("class_edges")))  # fmt: skip
         gap = restoring_force_gap(
             interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
         )

@@ -18,8 +18,10 @@ from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length, window_tensor
 from stiffnet.recordings import read_recording, write_recording_csv
 from stiffnet.uncertainty.alarm_verdict import (
+    class_beta_gap,
     restoring_force_gap,
     weak_restoring_force_fit,
+    with_class_beta_check,
     with_restoring_force_check,
 )
 
@@ -193,6 +195,41 @@ def test_restoring_force_check_joins_the_alarm():
     )  # the input is not changed
     alone = with_restoring_force_check(None, 0.7)  # a model without an alarm reference
     assert alone["flag"] and alone["fired"] == ["restoring_force"]
+
+
+NAMES = ["no_contact", "soft", "medium", "hard", "very_hard"]
+EDGES = [5.0, 15.0, 35.0, 60.0, 100.0]
+
+
+def test_class_beta_gap_is_the_log_gap_between_the_interval_and_the_class_range():
+    assert class_beta_gap("hard", [50.0, 70.0], NAMES, EDGES) == 0.0  # overlaps 35-60
+    assert class_beta_gap("hard", [64.0, 78.0], NAMES, EDGES) == pytest.approx(np.log(64 / 60))
+    assert class_beta_gap("medium", [5.0, 14.0], NAMES, EDGES) == pytest.approx(np.log(15 / 14))
+    # the outer classes are open-ended: beyond the training range is another check's business
+    assert class_beta_gap("soft", [1.0, 3.0], NAMES, EDGES) == 0.0
+    assert class_beta_gap("very_hard", [200.0, 300.0], NAMES, EDGES) == 0.0
+    assert class_beta_gap("soft", [40.0, 50.0], NAMES, EDGES) == pytest.approx(np.log(40 / 15))
+    # nothing to compare: no contact, no interval, edges that do not fit the classes
+    assert class_beta_gap("no_contact", [1.0, 2.0], NAMES, EDGES) is None
+    assert class_beta_gap("hard", None, NAMES, EDGES) is None
+    assert class_beta_gap("hard", [64.0, 78.0], NAMES, EDGES[:-1]) is None
+
+
+def test_a_class_its_own_beta_contradicts_fires_the_alarm():
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    clash = with_class_beta_check(quiet, class_beta_gap("hard", [64.0, 78.0], NAMES, EDGES))
+    assert clash["flag"] and clash["fired"] == ["class_beta"]
+    assert "class and its own beta disagree" in clash["message"]
+    fine = with_class_beta_check(quiet, class_beta_gap("hard", [50.0, 70.0], NAMES, EDGES))
+    assert not fine["flag"] and fine["scores"]["class_beta"] == 0.0
+
+
+def test_the_shipped_models_class_and_beta_agree_on_the_examples(cnn):
+    """Each example's class contains its beta interval's reading: no class_beta alarm."""
+    for path in EXAMPLE_FILES:
+        rec = read_recording(path)
+        r = cnn.predict(rec.accel, rec.fs_hz, natural_frequency_hz=FN)
+        assert r["alarm"]["scores"]["class_beta"] == 0.0, path.name
 
 
 def test_a_poor_contact_law_fit_is_called_weak_evidence():

@@ -150,6 +150,7 @@ CHECK_MEASURES = {
     "ambiguity": "1 minus the largest mean class probability",
     "beta_uncertainty": "scale of the log-beta error (model's own plus window spread)",
     "class_edge": "closeness of beta to a class edge, in units of its error",
+    "class_beta": "log-gap between the beta interval and the answered class's beta range",
     "features": "inclination-feature distance to the training data",
     "restoring_force": "log-gap between the model's and the restoring-force beta intervals",
     "sensor": "identified sensor chain against the chains in the training data",

@@ -11,6 +11,7 @@ are fitted beside it (:mod:`stiffnet.uncertainty.alarm`, :mod:`stiffnet.uncertai
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -41,10 +42,15 @@ ALARM_WORDS = {
     "restoring_force": "the restoring-force cross-check reads a beta outside the model's interval "
     "(the physics of this rig may be missing from the training data)",
     "sensor": "the recording's sensor chain lies outside the chains the model was trained on",
+    "class_beta": "the model's class and its own beta disagree: the beta interval lies outside "
+    "the class's range (one of the two answers is wrong)",
     "contact_law": "the restoring-force map reads a contact law the training data lack "
     "(an exponent neither linear nor Hertz, or dissipation growing with penetration)",
 }
 
+#: The class_beta check fires when the beta interval misses the class's range: its score is
+#: the log-gap between them, so, like the restoring-force check, its threshold is 0.
+CLASS_BETA_THRESHOLD = 0.0
 #: The restoring_force check fires when the two beta intervals are disjoint: its score is the
 #: log-gap between them (0 when they overlap), so its threshold is 0 by construction.
 RESTORING_FORCE_THRESHOLD = 0.0
@@ -160,15 +166,69 @@ def with_restoring_force_check(
     says that two physical readings contradict each other. A model without an
     alarm reference gets an alarm made of this check alone.
     """
-    if gap is None:
+    return with_rule_check(alarm, "restoring_force", gap, RESTORING_FORCE_THRESHOLD)
+
+
+def class_beta_gap(
+    class_name: str, interval: list[float] | None, class_names: list[str], edges: Any
+) -> float | None:
+    """Log-gap between the model's beta interval and the beta range of its own class
+    (0 when they overlap).
+
+    The class head and the beta head read the same windows; an interval that does
+    not even touch the class's range means one of them is wrong (e.g. beta
+    [64, 78] classed "hard", 35-60). The outer classes are open-ended: a beta beyond
+    the training range is the other checks' business. None without an interval,
+    for ``no_contact`` or when the edges do not match the contact classes.
+
+    Parameters
+    ----------
+    class_name : str
+        The class the model answered.
+    interval : list of float, optional
+        The model's beta interval ``[lo, hi]``.
+    class_names : list of str
+        The model's classes, ``no_contact`` (if any) then the contact classes in beta order.
+    edges : list of float
+        The contact classes' beta edges ``[lo, e1, ..., hi]`` (one more than the classes).
+    """
+    contact = [c for c in class_names if c != "no_contact"]
+    if not interval or class_name not in contact or not isinstance(edges, list | tuple):
+        return None
+    if len(edges) != len(contact) + 1:
+        return None
+    i = contact.index(class_name)
+    low = float(edges[i]) if i > 0 else 0.0
+    high = float(edges[i + 1]) if i < len(contact) - 1 else math.inf
+    lo, hi = (float(v) for v in interval)
+    if not 0 < lo <= hi:
+        return None
+    below = math.log(low / hi) if low > 0 else 0.0
+    above = math.log(lo / high) if math.isfinite(high) else 0.0
+    return max(0.0, below, above)
+
+
+def with_class_beta_check(alarm: dict[str, Any] | None, gap: float | None) -> dict[str, Any] | None:
+    """The alarm with the class_beta check added (fires when the model's class and its beta
+    interval contradict each other, :func:`class_beta_gap`)."""
+    return with_rule_check(alarm, "class_beta", gap, CLASS_BETA_THRESHOLD)
+
+
+def with_rule_check(
+    alarm: dict[str, Any] | None, name: str, score: float | None, threshold: float
+) -> dict[str, Any] | None:
+    """The alarm with one rule check added: it fires when ``score`` exceeds ``threshold``
+    (None: the check does not apply and the alarm is unchanged). A model without an alarm
+    reference gets an alarm made of its rule checks alone."""
+    if score is None:
         return alarm
     if alarm is None:
         alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
     alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
-    alarm["scores"]["restoring_force"] = gap
-    alarm["thresholds"]["restoring_force"] = RESTORING_FORCE_THRESHOLD
-    if gap > RESTORING_FORCE_THRESHOLD:
-        alarm["fired"] = [*alarm["fired"], "restoring_force"]
+    alarm["scores"][name] = score
+    alarm["thresholds"][name] = threshold
+    if score > threshold:
+        alarm["fired"] = [*alarm["fired"], name]
         alarm["flag"] = True
     alarm["message"] = alarm_message(alarm["fired"])
     return alarm
