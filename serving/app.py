@@ -12,7 +12,15 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   beyond that the answer is 429 with ``Retry-After``. A request that timed out
   keeps its slot until its thread finishes, so abandoned work cannot pile up.
 * **Time** - a request not answered within ``timeout_s`` (queueing included)
-  gets 504.
+  gets 504: the last guard, since load shedding refuses first what would pass it.
+* **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
+  samples times the lane's seconds per sample, a running mean of the lane's finished
+  predictions, seeded conservatively) is added to the expected wait for a worker (the
+  estimates of what the lane runs and holds queued); a job that would not finish
+  within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
+  seconds until it would fit) before any work. A job that finds a worker free is
+  always started: its size is bounded by ``max_samples``, and it keeps the lane's
+  cost measured.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
@@ -59,6 +67,8 @@ from __future__ import annotations
 import asyncio
 import copy
 import csv
+import heapq
+import itertools
 import json
 import logging
 import math
@@ -67,6 +77,7 @@ import secrets
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -114,6 +125,19 @@ HEADER_TIMEOUT_S = 10.0
 FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
 #: One line per request: client, method, path, status, bytes, milliseconds.
 access_log = logging.getLogger("stiffnet.access")
+#: Seconds per sample a lane assumes until its first prediction is measured: about three
+#: times a quiet core's cost (a 5 s JSON of 5,000 samples ~0.15 s; a 2 M-sample upload at
+#: 50 kHz ~6 s), so that the first queued jobs are refused early rather than late.
+SEED_S_PER_SAMPLE = {"small": 1e-4, "large": 1e-5}
+#: Weight of the newest measurement in a lane's running mean of seconds per sample: a few
+#: jobs follow a change of the machine's load, one slow job does not take over.
+COST_EWMA = 0.3
+#: Fraction of ``timeout_s`` a job's expected finish may reach: the costs are means, and a
+#: job that overruns is a 504 after all its work while a refusal is a 429 before any.
+SHED_MARGIN = 0.9
+#: Share of a running job's estimate still expected once it has overrun the estimate (it
+#: is running: something remains).
+OVERRUN_LEFT = 0.1
 
 
 class BodyTooLarge(Exception):
@@ -513,6 +537,28 @@ def _lines_over(path: Path, limit: int) -> bool:
     return False
 
 
+def _lines(path: Path) -> int:
+    n = 0
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            n += chunk.count(b"\n")
+    return n
+
+
+def estimated_samples(path: Path) -> int:
+    """Samples of a spooled upload as far as known before it is read, for its cost.
+
+    An ``.npy`` header's values, a CSV's lines (a sample a line); another format by its
+    bytes, at 2 a sample (16-bit audio; wider samples make it an over-estimate, never an
+    under-estimate).
+    """
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _lines(path)
+    values = _npy_values(path) if suffix == ".npy" else 0
+    return values or path.stat().st_size // 2
+
+
 def check_upload_size(path: Path, max_samples: int) -> None:
     """Refuse a file over `max_samples` by what it says before it is read (a CSV's lines,
     an ``.npy`` header's shape); other formats are counted once read."""
@@ -708,6 +754,7 @@ def create_app(
         lifespan=lifespan,
     )
     app.state.load = admission.state  # requests in flight per lane (read by /health and tests)
+    app.state.admission = admission  # its lanes' costs and backlogs (tests)
     _add_guards(app, limits, token, allowed_hosts, cors_origins, access)
     _add_error_handlers(app, limits)
     _add_routes(app, predictor, limits, admission)
@@ -786,6 +833,74 @@ def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
         return _error(422, f"invalid request: {exc.errors()[:1]}")
 
 
+class LaneCost:
+    """What one lane's predictions cost, and what it holds now: the basis of load shedding.
+
+    The cost is seconds per sample: a running mean (weight :data:`COST_EWMA`) of each
+    finished prediction's wall time over its samples, ``seed`` until the first one is
+    measured. Wall time, not CPU time: on a shared machine the wall time is what the
+    timeout counts. ``jobs`` holds every job submitted to the lane's ``workers`` and not
+    yet ended (a job answered 504 included: it still holds its worker), as ticket ->
+    ``[expected seconds, start time or None]`` in submission order. Worker threads
+    report starts and measurements, the event loop reads: one lock.
+    """
+
+    def __init__(self, workers: int, seed: float) -> None:
+        self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
+        self.jobs: dict[int, list[float | None]] = {}
+        self._lock = threading.Lock()
+        self._tickets = itertools.count()
+
+    def expected_s(self, samples: int) -> float:
+        """Seconds a prediction of `samples` samples is expected to take once started."""
+        return samples * self.s_per_sample
+
+    def expected_start_s(self, now: float) -> float:
+        """Seconds until a worker would take a job submitted at `now`.
+
+        List scheduling of the estimates: each running job frees its worker when its
+        estimate is spent (at least :data:`OVERRUN_LEFT` of it ahead, while it runs),
+        the queued ones take the first free worker in their order, as the pool does.
+        """
+        with self._lock:
+            jobs = [tuple(j) for j in self.jobs.values()]
+        free = [max(est - (now - start), OVERRUN_LEFT * est)
+                for est, start in jobs if start is not None]  # fmt: skip
+        free += [0.0] * max(0, self.workers - len(free))
+        heapq.heapify(free)
+        for est, start in jobs:
+            if start is None:
+                heapq.heappush(free, heapq.heappop(free) + est)
+        return free[0]
+
+    def submitted(self, samples: int) -> int:
+        """Record a job of `samples` samples handed to the pool; its ticket."""
+        ticket = next(self._tickets)
+        with self._lock:
+            self.jobs[ticket] = [self.expected_s(samples), None]
+        return ticket
+
+    def started(self, ticket: int, now: float) -> None:
+        with self._lock:
+            if ticket in self.jobs:
+                self.jobs[ticket][1] = now
+
+    def ended(self, ticket: int) -> None:
+        """The job left its worker (finished, failed or cancelled before it ran)."""
+        with self._lock:
+            self.jobs.pop(ticket, None)
+
+    def measure(self, samples: int, seconds: float) -> None:
+        """A prediction of `samples` samples took `seconds` of wall time: update the mean."""
+        if samples <= 0 or not math.isfinite(seconds) or seconds < 0:
+            return
+        rate = seconds / samples
+        with self._lock:
+            mean = (1 - COST_EWMA) * self.s_per_sample + COST_EWMA * rate
+            self.s_per_sample = mean if self.measured else rate
+            self.measured += 1
+
+
 class Admission:
     """Who gets a place, and where the work runs.
 
@@ -804,6 +919,10 @@ class Admission:
                                         thread_name_prefix="predict-large")  # fmt: skip
         self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
         self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
+        self.cost = {
+            "small": LaneCost(limits.max_concurrency, SEED_S_PER_SAMPLE["small"]),
+            "large": LaneCost(limits.max_large, SEED_S_PER_SAMPLE["large"]),
+        }
 
     def shutdown(self) -> None:
         for pool in (self.small, self.large):
@@ -828,7 +947,12 @@ class Admission:
         predictor, n = self.predictor, self.limits.max_samples
         if ctype == "application/json":
             body = await request.body()
-            return partial(_predict_json, predictor, body, n, what)
+            job = partial(_predict_json, predictor, body, n, what)
+            # a sample a comma, as the parser will find them (a large body's scan in a thread)
+            commas = (await asyncio.to_thread(body.count, b",")
+                      if len(body) > self.limits.small_bytes else body.count(b","))  # fmt: skip
+            job.samples = commas + 1  # type: ignore[attr-defined]
+            return job
         async with request.form(max_files=1, max_fields=8) as form:
             upload = form.get("file")
             if upload is None or isinstance(upload, str):
@@ -841,6 +965,7 @@ class Admission:
             spooled = await asyncio.to_thread(spool_upload, upload.file, name)
             try:  # an upload over the limit is refused now, not after its wait for a worker
                 await asyncio.to_thread(check_upload_size, spooled, n)
+                samples = await asyncio.to_thread(estimated_samples, spooled)
             except BaseException:
                 shutil.rmtree(spooled.parent, ignore_errors=True)
                 raise
@@ -848,6 +973,7 @@ class Admission:
                           form.get("natural_frequency_hz"), n, form.get("columns"),
                           form.get("time_unit"), form.get("channel"), what)  # fmt: skip
             job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
+            job.samples = samples  # type: ignore[attr-defined]
             return job
 
     async def answer(self, request: Request, what: str) -> JSONResponse:
@@ -884,20 +1010,60 @@ class Admission:
             if is_large:
                 done()
             return job
+        if not is_large and state["in_flight"] >= limits.max_concurrency + limits.max_queue:
+            _drop(job)
+            return _error(429, "too many requests in flight; retry later", {"Retry-After": "1"})
+        refusal = self.shed("large" if is_large else "small", job)
+        if refusal is not None:
+            _drop(job)
+            if is_large:
+                done()
+            return refusal
         if not is_large:
-            if state["in_flight"] >= limits.max_concurrency + limits.max_queue:
-                spooled = getattr(job, "spooled", None)
-                if spooled is not None:  # the job never runs: its upload goes now
-                    shutil.rmtree(spooled.parent, ignore_errors=True)
-                return _error(429, "too many requests in flight; retry later",
-                              {"Retry-After": "1"})  # fmt: skip
             state["in_flight"] += 1
             done = self.release("in_flight")
-        return await self._run(job, self.large if is_large else self.small, done)
+        return await self._run(job, "large" if is_large else "small", done)
 
-    async def _run(self, job: Callable[[], dict], pool: Any, done: Callable) -> JSONResponse:
+    def shed(self, lane: str, job: Callable[[], dict]) -> JSONResponse | None:
+        """429 with ``Retry-After`` if `job` queued now would not finish in time, else None.
+
+        Its expected finish is the wait for a worker plus its own cost
+        (:class:`LaneCost`); the budget is :data:`SHED_MARGIN` of the timeout. A job that
+        finds a worker free is never refused. ``Retry-After``: the seconds until the
+        lane's backlog has drained enough for it to fit (until the lane is idle, for a
+        job that alone exceeds the budget).
+        """
+        cost, samples = self.cost[lane], getattr(job, "samples", 0)
+        wait = cost.expected_start_s(time.monotonic())
+        own = cost.expected_s(samples)
+        budget = SHED_MARGIN * self.limits.timeout_s
+        if wait <= 0 or wait + own <= budget:
+            return None
+        retry = max(1, math.ceil(wait if own >= budget else wait + own - budget))
+        measured = "measured" if cost.measured else "assumed (none measured yet)"
+        message = (
+            f"server busy: the {lane} predictions ahead need about {wait:.1f} s and this one "
+            f"({samples} samples) about {own:.1f} s at the {measured} "
+            f"{cost.s_per_sample * 1e6:.3g} us per sample, so it would not finish within the "
+            f"{self.limits.timeout_s:g} s timeout; retry after {retry} s"
+        )
+        log.info("429 (load shed): %s", message)
+        return _error(429, message, {"Retry-After": str(retry)})
+
+    async def _run(self, job: Callable[[], dict], lane: str, done: Callable) -> JSONResponse:
         loop = asyncio.get_running_loop()
-        fut = loop.run_in_executor(pool, job)
+        cost, samples = self.cost[lane], getattr(job, "samples", 0)
+        ticket = cost.submitted(samples)
+
+        def timed() -> dict:
+            t0 = time.monotonic()
+            cost.started(ticket, t0)
+            result = job()  # a failed job is not measured: a refusal costs nothing
+            cost.measure(samples, time.monotonic() - t0)
+            return result
+
+        fut = loop.run_in_executor(self.large if lane == "large" else self.small, timed)
+        fut.add_done_callback(lambda _f: cost.ended(ticket))
         fut.add_done_callback(done)  # a timed-out job keeps its slot until its thread ends
         try:
             result = await asyncio.wait_for(asyncio.shield(fut), self.limits.timeout_s)
@@ -906,6 +1072,13 @@ class Admission:
             return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
         self.state["served"] += 1
         return JSONResponse(result)
+
+
+def _drop(job: Callable[[], dict]) -> None:
+    """A job that will never run: its spooled upload goes now."""
+    spooled = getattr(job, "spooled", None)
+    if spooled is not None:
+        shutil.rmtree(spooled.parent, ignore_errors=True)
 
 
 def _outcome_unheard(fut: Any) -> None:

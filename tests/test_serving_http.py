@@ -362,3 +362,93 @@ def test_a_job_that_fails_after_its_504_logs_one_line():
         served.setLevel(level)
     (line,) = [r.getMessage() for r in heard]
     assert line.startswith("a request answered 504 failed afterwards: late") and "\n" not in line
+
+
+def test_lane_cost_schedules_its_backlog_and_averages_what_it_measured():
+    """Expected wait by list scheduling of the estimates; the mean starts at the first
+    measurement, then moves by COST_EWMA."""
+    from serving.app import COST_EWMA, OVERRUN_LEFT, LaneCost
+
+    lane = LaneCost(workers=2, seed=1e-3)
+    assert lane.expected_start_s(0.0) == 0.0  # idle: a worker is free now
+    a = lane.submitted(5000)  # 5 s
+    lane.started(a, 100.0)
+    assert lane.expected_start_s(101.0) == 0.0  # one worker still free
+    b = lane.submitted(3000)  # 3 s, takes the second worker
+    lane.started(b, 101.0)
+    lane.submitted(2000)  # queued: the first free worker (b's, at t = 104) takes it
+    assert lane.expected_start_s(102.0) == pytest.approx(3.0)  # a's worker frees at 105
+    # both overran: each still holds OVERRUN_LEFT of its estimate (0.5 s, 0.3 s); the queued
+    # one follows b (0.3 + 2 s), so a's worker is the next free one
+    assert lane.expected_start_s(110.0) == pytest.approx(OVERRUN_LEFT * 5.0)
+    lane.ended(a)
+    lane.ended(b)
+    assert lane.expected_start_s(110.0) == 0.0  # the queued one runs, a worker is free
+    lane.measure(1000, 2.0)
+    assert (lane.s_per_sample, lane.measured) == (2e-3, 1)  # the seed is replaced
+    lane.measure(1000, 4.0)
+    assert lane.s_per_sample == pytest.approx((1 - COST_EWMA) * 2e-3 + COST_EWMA * 4e-3)
+    lane.measure(0, 1.0)  # nothing to learn from
+    assert lane.measured == 2
+
+
+class _Held:
+    """Stand-in predictor: the first prediction lasts `first_s`; later ones wait for
+    `release`. Records the samples of every prediction it started."""
+
+    name, sha256, kind = "held", "0" * 64, "cnn"
+
+    def __init__(self, first_s: float) -> None:
+        import threading
+
+        self.first_s, self.seen = first_s, []
+        self.entered, self.release = threading.Event(), threading.Event()
+
+    def predict(self, accel, *args, **kwargs):
+        self.seen.append(len(accel))
+        if len(self.seen) == 1:
+            time.sleep(self.first_s)
+        else:
+            self.entered.set()
+            assert self.release.wait(20)
+        return {"class": "soft"}
+
+    def info(self):
+        return {"name": self.name}
+
+
+def test_a_job_that_would_pass_the_timeout_is_shed_before_any_work():
+    """With a measured cost of >= 2 ms a sample, a queued 20,000-sample job (>= 40 s) cannot
+    finish within the 20 s timeout: 429 with Retry-After and the reason, never started; a
+    100-sample job queued behind the same work fits and is served. Deterministic: sleeps
+    only bound the cost from below, and a slower machine measures more, not less."""
+    held = _Held(first_s=0.2)
+    app = create_app(held, Limits(max_concurrency=1, max_queue=8, timeout_s=20))
+    lane = app.state.admission.cost["small"]
+
+    def body(n: int) -> dict:
+        return {"samples": [0.5] * n, "fs_hz": 1000.0}
+
+    async def scenario() -> tuple:
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+            first = await c.post("/predict", json=body(100))  # measures the lane's cost
+            assert lane.measured == 1 and lane.s_per_sample >= 0.2 / 101
+            running = asyncio.ensure_future(c.post("/predict", json=body(100)))
+            assert await asyncio.to_thread(held.entered.wait, 10)  # it holds the one worker
+            queued = asyncio.ensure_future(c.post("/predict", json=body(100)))
+            for _ in range(500):  # until it waits in the lane
+                if len(lane.jobs) == 2:
+                    break
+                await asyncio.sleep(0.01)
+            shed = await c.post("/predict", json=body(20_000))
+            held.release.set()
+            return first, await running, await queued, shed
+
+    first, running, queued, shed = asyncio.run(scenario())
+    assert [first.status_code, running.status_code, queued.status_code] == [200, 200, 200]
+    _is_error(shed, 429, "would not finish within the 20 s timeout")
+    assert "20001 samples" in shed.json()["error"] and "measured" in shed.json()["error"]
+    assert int(shed.headers["retry-after"]) >= 1
+    assert 20_000 not in held.seen and held.seen == [100, 100, 100]  # never started
+    assert not lane.jobs  # everything ended
