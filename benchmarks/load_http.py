@@ -133,6 +133,14 @@ def peak_rss_mb(pid: int) -> float:
     return float("nan")
 
 
+def _code(r: httpx.Response) -> int | str:
+    """The status, or "429 shed" for a load-shedding refusal (a job that would not finish
+    in time, refused before any work) apart from a full lane's 429."""
+    if r.status_code == 429 and "would not finish within" in r.text:
+        return f"429 shed (Retry-After {r.headers.get('retry-after', '?')} s)"
+    return r.status_code
+
+
 async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[list, Counter]:
     """``n`` small JSON predictions from ``clients`` concurrent clients: latencies, codes."""
     latencies: list[float] = []
@@ -147,7 +155,7 @@ async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[
             try:
                 r = await c.post("/predict", content=body,
                                  headers={"content-type": "application/json"})  # fmt: skip
-                codes[r.status_code] += 1
+                codes[_code(r)] += 1
             except httpx.HTTPError as exc:
                 codes[f"transport error {type(exc).__name__}"] += 1
             latencies.append(time.perf_counter() - t)
@@ -167,7 +175,7 @@ async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter
                 try:
                     form = {"fs_hz": "50000", "natural_frequency_hz": FN_HZ}
                     r = await c.post("/predict", files={"file": ("big.npy", data)}, data=form)
-                    codes[r.status_code] += 1
+                    codes[_code(r)] += 1
                     if r.status_code == 429:
                         await asyncio.sleep(float(r.headers.get("retry-after", "1")))
                 except httpx.HTTPError as exc:

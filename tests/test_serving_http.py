@@ -452,3 +452,39 @@ def test_a_job_that_would_pass_the_timeout_is_shed_before_any_work():
     assert int(shed.headers["retry-after"]) >= 1
     assert 20_000 not in held.seen and held.seen == [100, 100, 100]  # never started
     assert not lane.jobs  # everything ended
+
+
+def test_a_large_upload_that_would_pass_the_timeout_is_shed_and_its_file_removed(
+    tmp_path, monkeypatch
+):
+    """The large lane: a cost of 10 ms a sample (as measured), a 2,000-sample .npy running
+    (20 s expected) and another queued behind it (20 s more) cannot finish within 27 s of
+    the 30 s timeout: 429 with the seconds until it would fit, its spooled file gone."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where uploads are spooled
+    held = _Held(first_s=0.0)
+    held.seen.append(0)  # every prediction waits for `release`
+    app = create_app(held, Limits(small_upload_mb=0.001, timeout_s=30))  # 1 kB: all large
+    lane = app.state.admission.cost["large"]
+    lane.measure(1000, 10.0)
+    buf = __import__("io").BytesIO()
+    np.save(buf, np.full(2000, 0.5))
+    form = {"fs_hz": "1000", "natural_frequency_hz": "9.48"}
+
+    async def scenario() -> tuple:
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+            files = {"file": ("run.npy", buf.getvalue())}
+            running = asyncio.ensure_future(c.post("/predict", files=files, data=form))
+            assert await asyncio.to_thread(held.entered.wait, 10)
+            spooled = sorted(p.name for p in tmp_path.iterdir())
+            shed = await c.post("/predict", files=files, data=form)
+            after_shed = sorted(p.name for p in tmp_path.iterdir())
+            held.release.set()
+            return await running, shed, spooled, after_shed
+
+    running, shed, spooled, after_shed = asyncio.run(scenario())
+    assert running.status_code == 200, running.text
+    _is_error(shed, 429, "(2000 samples) about 20.0 s at the measured 1e+04 us per sample")
+    assert 1 <= int(shed.headers["retry-after"]) <= 13  # 20 + 20 - 27 s, less what has run
+    assert len(spooled) == 1 and after_shed == spooled  # only the running job's upload
+    assert held.seen == [0, 2000] and not list(tmp_path.iterdir()) and not lane.jobs
