@@ -125,16 +125,18 @@ HEADER_TIMEOUT_S = 10.0
 FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
 #: One line per request: client, method, path, status, bytes, milliseconds.
 access_log = logging.getLogger("stiffnet.access")
-#: Seconds per sample a lane assumes until its first prediction is measured: about three
-#: times a quiet core's cost (a 5 s JSON of 5,000 samples ~0.15 s; a 2 M-sample upload at
-#: 50 kHz ~6 s), so that the first queued jobs are refused early rather than late.
-SEED_S_PER_SAMPLE = {"small": 1e-4, "large": 1e-5}
+#: Seconds per sample a lane assumes until its first prediction is measured: three to
+#: seven times a quiet core's cost (a 5 s JSON of 5,000 samples ~0.15 s; a 2 M-sample upload
+#: at 50 kHz ~6 s, 25 s at load 10 on 2 cores), so that the first queued jobs are refused
+#: early rather than late.
+SEED_S_PER_SAMPLE = {"small": 1e-4, "large": 2e-5}
 #: Weight of the newest measurement in a lane's running mean of seconds per sample: a few
 #: jobs follow a change of the machine's load, one slow job does not take over.
 COST_EWMA = 0.3
-#: Fraction of ``timeout_s`` a job's expected finish may reach: the costs are means, and a
-#: job that overruns is a 504 after all its work while a refusal is a 429 before any.
-SHED_MARGIN = 0.9
+#: Fraction of ``timeout_s`` a job's expected finish may reach: the costs are estimates (the
+#: same 2 M-sample upload took 14.6-16.4 s at load 6.5), and a job that overruns is a 504
+#: after all its work while a refusal is a 429 before any.
+SHED_MARGIN = 0.8
 #: Share of a running job's estimate still expected once it has overrun the estimate (it
 #: is running: something remains).
 OVERRUN_LEFT = 0.1
@@ -836,24 +838,39 @@ def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
 class LaneCost:
     """What one lane's predictions cost, and what it holds now: the basis of load shedding.
 
-    The cost is seconds per sample: a running mean (weight :data:`COST_EWMA`) of each
-    finished prediction's wall time over its samples, ``seed`` until the first one is
-    measured. Wall time, not CPU time: on a shared machine the wall time is what the
-    timeout counts. ``jobs`` holds every job submitted to the lane's ``workers`` and not
-    yet ended (a job answered 504 included: it still holds its worker), as ticket ->
-    ``[expected seconds, start time or None]`` in submission order. Worker threads
-    report starts and measurements, the event loop reads: one lock.
+    The cost is seconds per sample. ``s_per_sample`` is a running mean (weight
+    :data:`COST_EWMA`) of each finished prediction's wall time over its samples, ``seed``
+    until the first one is measured; :meth:`s_per_sample_now` prices jobs at the highest of
+    that mean, the latest measurement and what every running job has already spent per
+    sample (a lower bound of its own cost), so that a rise of the machine's load counts at
+    once and a fall only as the mean follows it. Wall time, not CPU time: on a shared
+    machine the wall time is what the timeout counts. ``jobs`` holds every job submitted
+    to the lane's ``workers`` and not yet ended (a job answered 504 included: it still
+    holds its worker), as ticket -> ``[samples, start time or None]`` in submission order.
+    Worker threads report starts and measurements, the event loop reads: one lock.
     """
 
     def __init__(self, workers: int, seed: float) -> None:
         self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
+        self.latest = 0.0
         self.jobs: dict[int, list[float | None]] = {}
         self._lock = threading.Lock()
         self._tickets = itertools.count()
 
-    def expected_s(self, samples: int) -> float:
+    def _snapshot(self, now: float) -> tuple[float, list[tuple[float, float | None]]]:
+        with self._lock:
+            jobs = [(float(n), t) for n, t in self.jobs.values()]
+            rate = max(self.s_per_sample, self.latest)
+        spent = [(now - t) / n for n, t in jobs if t is not None and n > 0]
+        return max([rate, *spent]), jobs
+
+    def s_per_sample_now(self, now: float) -> float:
+        """Seconds per sample a job is priced at, at time `now` (see the class notes)."""
+        return self._snapshot(now)[0]
+
+    def expected_s(self, samples: int, now: float) -> float:
         """Seconds a prediction of `samples` samples is expected to take once started."""
-        return samples * self.s_per_sample
+        return samples * self.s_per_sample_now(now)
 
     def expected_start_s(self, now: float) -> float:
         """Seconds until a worker would take a job submitted at `now`.
@@ -862,22 +879,21 @@ class LaneCost:
         estimate is spent (at least :data:`OVERRUN_LEFT` of it ahead, while it runs),
         the queued ones take the first free worker in their order, as the pool does.
         """
-        with self._lock:
-            jobs = [tuple(j) for j in self.jobs.values()]
-        free = [max(est - (now - start), OVERRUN_LEFT * est)
-                for est, start in jobs if start is not None]  # fmt: skip
+        rate, jobs = self._snapshot(now)
+        free = [max(n * rate - (now - t), OVERRUN_LEFT * n * rate)
+                for n, t in jobs if t is not None]  # fmt: skip
         free += [0.0] * max(0, self.workers - len(free))
         heapq.heapify(free)
-        for est, start in jobs:
-            if start is None:
-                heapq.heappush(free, heapq.heappop(free) + est)
+        for n, t in jobs:
+            if t is None:
+                heapq.heappush(free, heapq.heappop(free) + n * rate)
         return free[0]
 
     def submitted(self, samples: int) -> int:
         """Record a job of `samples` samples handed to the pool; its ticket."""
         ticket = next(self._tickets)
         with self._lock:
-            self.jobs[ticket] = [self.expected_s(samples), None]
+            self.jobs[ticket] = [samples, None]
         return ticket
 
     def started(self, ticket: int, now: float) -> None:
@@ -898,6 +914,7 @@ class LaneCost:
         with self._lock:
             mean = (1 - COST_EWMA) * self.s_per_sample + COST_EWMA * rate
             self.s_per_sample = mean if self.measured else rate
+            self.latest = rate
             self.measured += 1
 
 
@@ -1033,19 +1050,20 @@ class Admission:
         lane's backlog has drained enough for it to fit (until the lane is idle, for a
         job that alone exceeds the budget).
         """
-        cost, samples = self.cost[lane], getattr(job, "samples", 0)
-        wait = cost.expected_start_s(time.monotonic())
-        own = cost.expected_s(samples)
+        cost, samples, now = self.cost[lane], getattr(job, "samples", 0), time.monotonic()
+        wait = cost.expected_start_s(now)
+        own = cost.expected_s(samples, now)
         budget = SHED_MARGIN * self.limits.timeout_s
         if wait <= 0 or wait + own <= budget:
             return None
         retry = max(1, math.ceil(wait if own >= budget else wait + own - budget))
-        measured = "measured" if cost.measured else "assumed (none measured yet)"
+        rate = cost.s_per_sample_now(now)
+        basis = f"from {cost.measured} measured" if cost.measured else "assumed: none measured yet"
         message = (
             f"server busy: the {lane} predictions ahead need about {wait:.1f} s and this one "
-            f"({samples} samples) about {own:.1f} s at the {measured} "
-            f"{cost.s_per_sample * 1e6:.3g} us per sample, so it would not finish within the "
-            f"{self.limits.timeout_s:g} s timeout; retry after {retry} s"
+            f"({samples} samples) about {own:.1f} s at {rate * 1e6:.3g} us per sample ({basis}), "
+            f"so it would not finish within the {self.limits.timeout_s:g} s timeout; retry "
+            f"after {retry} s"
         )
         log.info("429 (load shed): %s", message)
         return _error(429, message, {"Retry-After": str(retry)})

@@ -364,23 +364,26 @@ def test_a_job_that_fails_after_its_504_logs_one_line():
     assert line.startswith("a request answered 504 failed afterwards: late") and "\n" not in line
 
 
-def test_lane_cost_schedules_its_backlog_and_averages_what_it_measured():
-    """Expected wait by list scheduling of the estimates; the mean starts at the first
-    measurement, then moves by COST_EWMA."""
+def test_lane_cost_schedules_its_backlog_and_prices_at_what_it_measured():
+    """Expected wait by list scheduling of the estimates; the price per sample is the
+    highest of the mean (the seed until a measurement), the latest measurement and what a
+    running job has spent already."""
     from serving.app import COST_EWMA, OVERRUN_LEFT, LaneCost
 
     lane = LaneCost(workers=2, seed=1e-3)
     assert lane.expected_start_s(0.0) == 0.0  # idle: a worker is free now
-    a = lane.submitted(5000)  # 5 s
+    a = lane.submitted(5000)  # 5 s at the seed
     lane.started(a, 100.0)
     assert lane.expected_start_s(101.0) == 0.0  # one worker still free
     b = lane.submitted(3000)  # 3 s, takes the second worker
     lane.started(b, 101.0)
     lane.submitted(2000)  # queued: the first free worker (b's, at t = 104) takes it
     assert lane.expected_start_s(102.0) == pytest.approx(3.0)  # a's worker frees at 105
-    # both overran: each still holds OVERRUN_LEFT of its estimate (0.5 s, 0.3 s); the queued
-    # one follows b (0.3 + 2 s), so a's worker is the next free one
-    assert lane.expected_start_s(110.0) == pytest.approx(OVERRUN_LEFT * 5.0)
+    # at t = 110 b has spent 9 s on 3000 samples: 3 ms a sample at least, for every job:
+    # a 15 s (5 left), b 9 s (overran: OVERRUN_LEFT of it left), the queued one 6 s after b
+    assert lane.s_per_sample_now(110.0) == pytest.approx(3e-3)
+    assert lane.expected_start_s(110.0) == pytest.approx(min(5.0, OVERRUN_LEFT * 9.0 + 6.0))
+    assert lane.expected_s(1000, 110.0) == pytest.approx(3.0)
     lane.ended(a)
     lane.ended(b)
     assert lane.expected_start_s(110.0) == 0.0  # the queued one runs, a worker is free
@@ -388,8 +391,11 @@ def test_lane_cost_schedules_its_backlog_and_averages_what_it_measured():
     assert (lane.s_per_sample, lane.measured) == (2e-3, 1)  # the seed is replaced
     lane.measure(1000, 4.0)
     assert lane.s_per_sample == pytest.approx((1 - COST_EWMA) * 2e-3 + COST_EWMA * 4e-3)
+    assert lane.s_per_sample_now(200.0) == pytest.approx(4e-3)  # the latest, higher
+    lane.measure(1000, 1.0)
+    assert lane.s_per_sample_now(200.0) == pytest.approx(lane.s_per_sample)  # the mean, higher
     lane.measure(0, 1.0)  # nothing to learn from
-    assert lane.measured == 2
+    assert lane.measured == 3
 
 
 class _Held:
@@ -419,7 +425,7 @@ class _Held:
 
 def test_a_job_that_would_pass_the_timeout_is_shed_before_any_work():
     """With a measured cost of >= 2 ms a sample, a queued 20,000-sample job (>= 40 s) cannot
-    finish within the 20 s timeout: 429 with Retry-After and the reason, never started; a
+    finish within 16 s of the 20 s timeout: 429 with Retry-After and the reason, never started; a
     100-sample job queued behind the same work fits and is served. Deterministic: sleeps
     only bound the cost from below, and a slower machine measures more, not less."""
     held = _Held(first_s=0.2)
@@ -448,7 +454,7 @@ def test_a_job_that_would_pass_the_timeout_is_shed_before_any_work():
     first, running, queued, shed = asyncio.run(scenario())
     assert [first.status_code, running.status_code, queued.status_code] == [200, 200, 200]
     _is_error(shed, 429, "would not finish within the 20 s timeout")
-    assert "20001 samples" in shed.json()["error"] and "measured" in shed.json()["error"]
+    assert "(20001 samples)" in shed.json()["error"] and "(from 1 measured)" in shed.json()["error"]
     assert int(shed.headers["retry-after"]) >= 1
     assert 20_000 not in held.seen and held.seen == [100, 100, 100]  # never started
     assert not lane.jobs  # everything ended
@@ -458,7 +464,7 @@ def test_a_large_upload_that_would_pass_the_timeout_is_shed_and_its_file_removed
     tmp_path, monkeypatch
 ):
     """The large lane: a cost of 10 ms a sample (as measured), a 2,000-sample .npy running
-    (20 s expected) and another queued behind it (20 s more) cannot finish within 27 s of
+    (20 s expected) and another queued behind it (20 s more) cannot finish within 24 s of
     the 30 s timeout: 429 with the seconds until it would fit, its spooled file gone."""
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where uploads are spooled
     held = _Held(first_s=0.0)
@@ -484,7 +490,7 @@ def test_a_large_upload_that_would_pass_the_timeout_is_shed_and_its_file_removed
 
     running, shed, spooled, after_shed = asyncio.run(scenario())
     assert running.status_code == 200, running.text
-    _is_error(shed, 429, "(2000 samples) about 20.0 s at the measured 1e+04 us per sample")
-    assert 1 <= int(shed.headers["retry-after"]) <= 13  # 20 + 20 - 27 s, less what has run
+    _is_error(shed, 429, "(2000 samples) about 20.0 s at 1e+04 us per sample (from 1 measured)")
+    assert 1 <= int(shed.headers["retry-after"]) <= 16  # 20 + 20 - 24 s, less what has run
     assert len(spooled) == 1 and after_shed == spooled  # only the running job's upload
     assert held.seen == [0, 2000] and not list(tmp_path.iterdir()) and not lane.jobs
