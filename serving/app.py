@@ -14,13 +14,14 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
 * **Time** - a request not answered within ``timeout_s`` (queueing included)
   gets 504: the last guard, since load shedding refuses first what would pass it.
 * **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
-  samples times the lane's seconds per sample, a running mean of the lane's finished
-  predictions, seeded conservatively) is added to the expected wait for a worker (the
-  estimates of what the lane runs and holds queued); a job that would not finish
-  within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
+  samples times the lane's seconds per sample, measured online from the lane's
+  finished predictions, seeded conservatively) is added to the expected wait for a
+  worker (the estimates of what the lane runs and holds queued); a job that would not
+  finish within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
   seconds until it would fit) before any work. A job that finds a worker free is
-  always started: its size is bounded by ``max_samples``, and it keeps the lane's
-  cost measured.
+  refused only if its CPU cost times the machine's slow-down now (:class:`Contention`:
+  wall over CPU time of recent jobs, else the load average per core) passes that
+  budget; ``Retry-After`` is then the timeout.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
@@ -72,6 +73,7 @@ import itertools
 import json
 import logging
 import math
+import os
 import re
 import secrets
 import shutil
@@ -140,6 +142,13 @@ SHED_MARGIN = 0.8
 #: Share of a running job's estimate still expected once it has overrun the estimate (it
 #: is running: something remains).
 OVERRUN_LEFT = 0.1
+#: CPU seconds per sample a lane assumes until one is measured (a quiet core's cost).
+SEED_CPU_S_PER_SAMPLE = {"small": 3e-5, "large": 3e-6}
+#: Seconds a measured slow-down (wall over CPU time) stays the machine's; older, the load
+#: average per core stands in for it.
+CONTENTION_FRESH_S = 60.0
+#: CPU seconds below which a job's wall/CPU ratio says nothing (a sleep, a refusal).
+CONTENTION_MIN_CPU_S = 0.05
 
 
 class BodyTooLarge(Exception):
@@ -835,6 +844,38 @@ def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
         return _error(422, f"invalid request: {exc.errors()[:1]}")
 
 
+class Contention:
+    """How many times its CPU time a job takes in wall time now: the machine's slow-down.
+
+    A running mean (weight :data:`COST_EWMA`) of wall over CPU seconds of the server's
+    finished jobs, every lane's (the small lane's steady traffic keeps it current); when
+    none was measured within :data:`CONTENTION_FRESH_S`, the load average per core (at
+    least 1). The load average is what lets a lane refused for the machine's load open
+    again when the load falls, though none of its jobs ran meanwhile.
+    """
+
+    def __init__(self) -> None:
+        self.mean, self.at = 1.0, -math.inf
+        self._lock = threading.Lock()
+
+    def measure(self, wall_s: float, cpu_s: float, now: float) -> None:
+        if not (cpu_s >= CONTENTION_MIN_CPU_S and math.isfinite(wall_s)):
+            return
+        ratio = max(1.0, wall_s / cpu_s)
+        with self._lock:
+            fresh = now - self.at <= CONTENTION_FRESH_S
+            self.mean = (1 - COST_EWMA) * self.mean + COST_EWMA * ratio if fresh else ratio
+            self.at = now
+
+    def factor(self, now: float) -> float:
+        with self._lock:
+            if now - self.at <= CONTENTION_FRESH_S:
+                return self.mean
+        from stiffnet.inputs import available_cores
+
+        return max(1.0, os.getloadavg()[0] / available_cores())
+
+
 class LaneCost:
     """What one lane's predictions cost, and what it holds now: the basis of load shedding.
 
@@ -842,17 +883,26 @@ class LaneCost:
     :data:`COST_EWMA`) of each finished prediction's wall time over its samples, ``seed``
     until the first one is measured; :meth:`s_per_sample_now` prices jobs at the highest of
     that mean, the latest measurement and what every running job has already spent per
-    sample (a lower bound of its own cost), so that a rise of the machine's load counts at
-    once and a fall only as the mean follows it. Wall time, not CPU time: on a shared
+    sample (a lower bound of its own cost) and the lane's CPU seconds per sample times
+    the machine's slow-down (:meth:`alone_s`), so that a rise of the machine's load counts
+    at once and a fall only as the mean follows it. Wall time, not CPU time: on a shared
     machine the wall time is what the timeout counts. ``jobs`` holds every job submitted
     to the lane's ``workers`` and not yet ended (a job answered 504 included: it still
     holds its worker), as ticket -> ``[samples, start time or None]`` in submission order.
     Worker threads report starts and measurements, the event loop reads: one lock.
     """
 
-    def __init__(self, workers: int, seed: float) -> None:
+    def __init__(
+        self,
+        workers: int,
+        seed: float,
+        cpu_seed: float = 0.0,
+        contention: Contention | None = None,
+    ) -> None:
         self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
         self.latest = 0.0
+        self.cpu_s_per_sample, self.cpu_measured = float(cpu_seed), 0
+        self.contention = contention or Contention()
         self.jobs: dict[int, list[float | None]] = {}
         self._lock = threading.Lock()
         self._tickets = itertools.count()
@@ -862,7 +912,12 @@ class LaneCost:
             jobs = [(float(n), t) for n, t in self.jobs.values()]
             rate = max(self.s_per_sample, self.latest)
         spent = [(now - t) / n for n, t in jobs if t is not None and n > 0]
-        return max([rate, *spent]), jobs
+        return max([rate, *spent, self.alone_s(1, now)]), jobs
+
+    def alone_s(self, samples: int, now: float) -> float:
+        """Seconds a job would take started now on a free worker: its CPU seconds (the lane's
+        mean per sample) times the machine's slow-down now (:class:`Contention`)."""
+        return samples * self.cpu_s_per_sample * self.contention.factor(now)
 
     def s_per_sample_now(self, now: float) -> float:
         """Seconds per sample a job is priced at, at time `now` (see the class notes)."""
@@ -906,8 +961,9 @@ class LaneCost:
         with self._lock:
             self.jobs.pop(ticket, None)
 
-    def measure(self, samples: int, seconds: float) -> None:
-        """A prediction of `samples` samples took `seconds` of wall time: update the mean."""
+    def measure(self, samples: int, seconds: float, cpu_s: float | None = None) -> None:
+        """A prediction of `samples` samples took `seconds` of wall time (and `cpu_s` of its
+        thread's CPU time): update the means and the machine's slow-down."""
         if samples <= 0 or not math.isfinite(seconds) or seconds < 0:
             return
         rate = seconds / samples
@@ -916,6 +972,13 @@ class LaneCost:
             self.s_per_sample = mean if self.measured else rate
             self.latest = rate
             self.measured += 1
+            if cpu_s is not None and cpu_s >= CONTENTION_MIN_CPU_S:
+                cpu = cpu_s / samples
+                mean = (1 - COST_EWMA) * self.cpu_s_per_sample + COST_EWMA * cpu
+                self.cpu_s_per_sample = mean if self.cpu_measured else cpu
+                self.cpu_measured += 1
+        if cpu_s is not None:
+            self.contention.measure(seconds, cpu_s, time.monotonic())
 
 
 class Admission:
@@ -936,9 +999,10 @@ class Admission:
                                         thread_name_prefix="predict-large")  # fmt: skip
         self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
         self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
+        machine = Contention()  # one machine: every lane's jobs measure its slow-down
         self.cost = {
-            "small": LaneCost(limits.max_concurrency, SEED_S_PER_SAMPLE["small"]),
-            "large": LaneCost(limits.max_large, SEED_S_PER_SAMPLE["large"]),
+            lane: LaneCost(workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane], machine)
+            for lane, workers in (("small", limits.max_concurrency), ("large", limits.max_large))
         }
 
     def shutdown(self) -> None:
@@ -1054,7 +1118,9 @@ class Admission:
         wait = cost.expected_start_s(now)
         own = cost.expected_s(samples, now)
         budget = SHED_MARGIN * self.limits.timeout_s
-        if wait <= 0 or wait + own <= budget:
+        if wait <= 0:
+            return self._too_slow_alone(lane, samples, now, budget)
+        if wait + own <= budget:
             return None
         retry = max(1, math.ceil(wait if own >= budget else wait + own - budget))
         rate = cost.s_per_sample_now(now)
@@ -1065,7 +1131,28 @@ class Admission:
             f"so it would not finish within the {self.limits.timeout_s:g} s timeout; retry "
             f"after {retry} s"
         )
-        log.info("429 (load shed): %s", message)
+        log.warning("429 (load shed): %s", message)
+        return _error(429, message, {"Retry-After": str(retry)})
+
+    def _too_slow_alone(
+        self, lane: str, samples: int, now: float, budget: float
+    ) -> JSONResponse | None:
+        """429 for a job that, on a free worker, would not finish in time at the machine's
+        load now: its CPU cost times the slow-down (not the lane's memory of past jobs, so a
+        fall of the load opens the lane again), else None."""
+        cost = self.cost[lane]
+        alone = cost.alone_s(samples, now)
+        if alone <= budget:
+            return None
+        slow = cost.contention.factor(now)
+        retry = math.ceil(self.limits.timeout_s)  # the load, not a queue, has to change
+        message = (
+            f"server busy: this {lane} prediction ({samples} samples) needs about "
+            f"{samples * cost.cpu_s_per_sample:.1f} s of CPU, about {alone:.1f} s at the "
+            f"machine's load now ({slow:.1f} times its CPU time), so it would not finish within "
+            f"the {self.limits.timeout_s:g} s timeout; retry after {retry} s"
+        )
+        log.warning("429 (load shed): %s", message)
         return _error(429, message, {"Retry-After": str(retry)})
 
     async def _run(self, job: Callable[[], dict], lane: str, done: Callable) -> JSONResponse:
@@ -1074,10 +1161,10 @@ class Admission:
         ticket = cost.submitted(samples)
 
         def timed() -> dict:
-            t0 = time.monotonic()
+            t0, cpu0 = time.monotonic(), time.thread_time()
             cost.started(ticket, t0)
             result = job()  # a failed job is not measured: a refusal costs nothing
-            cost.measure(samples, time.monotonic() - t0)
+            cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
             return result
 
         fut = loop.run_in_executor(self.large if lane == "large" else self.small, timed)
