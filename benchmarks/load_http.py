@@ -368,7 +368,9 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     print(f"disconnects ({args.disconnects}): {dict(codes_gone)}")
     lines = text.splitlines()
     n_gone = sum("disconnected before its request body" in ln for ln in lines)
-    print(f"server log: {sum('(load shed)' in ln for ln in lines)} load-shedding lines")
+    shed = [ln for ln in lines if "(load shed)" in ln]
+    print(f"server log: {len(shed)} load-shedding lines" + "".join(
+        f"\n  {ln.split('(load shed): ', 1)[1][:260]}" for ln in shed[:4]))  # fmt: skip
     print(f"abuse phase wall {wall:.1f} s; /health after: {health}")
     print(f"server RSS MB: start {rss_start:.0f}, peak (VmHWM) {peak:.0f}")
     print(f"server log: {len(lines)} lines, {n_gone} disconnect lines, "

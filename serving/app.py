@@ -1032,6 +1032,8 @@ class Admission:
             # a sample a comma, as the parser will find them (a large body's scan in a thread)
             commas = (await asyncio.to_thread(body.count, b",")
                       if len(body) > self.limits.small_bytes else body.count(b","))  # fmt: skip
+            if commas > n + len(PredictRequest.model_fields):  # 413 before a 429 for its cost
+                _check_samples(n + 1, n, "over")
             job.samples = commas + 1  # type: ignore[attr-defined]
             return job
         async with request.form(max_files=1, max_fields=8) as form:

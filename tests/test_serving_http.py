@@ -524,3 +524,13 @@ def test_a_job_too_slow_alone_at_the_machines_load_is_shed_until_the_load_falls(
     assert shed.headers["retry-after"] == "20"
     assert (served.status_code, reopened.status_code) == (200, 200)
     assert held.seen == [499, 1999]
+
+
+def test_too_many_samples_is_413_before_any_load_shedding():
+    """A JSON body over max_samples is refused for its size (413, permanent), not for the
+    server's load (429, retried), though its cost would also be shed."""
+    app = create_app(_Held(0.0), Limits(max_samples=1000, timeout_s=10))
+    app.state.admission.cost["small"].measure(1000, 10.0, cpu_s=1.0)  # 1,500 samples: 15 s
+    with TestClient(app) as c:
+        r = c.post("/predict", json={"samples": [0.5] * 1500, "fs_hz": 1000.0})
+    _is_error(r, 413, "over 1000 samples")
