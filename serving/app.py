@@ -19,9 +19,9 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   worker (the estimates of what the lane runs and holds queued); a job that would not
   finish within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
   seconds until it would fit) before any work. A job that finds a worker free is
-  refused only if its CPU cost times the machine's slow-down now (:class:`Contention`:
-  wall over CPU time of recent jobs, else the load average per core) passes that
-  budget; ``Retry-After`` is then the timeout.
+  refused only if its CPU cost times the lane's slow-down now (:class:`Contention`:
+  wall over CPU time of the lane's jobs of the last minute) passes that budget
+  (``Retry-After`` is then the timeout); with none measured lately it is started.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
@@ -73,7 +73,6 @@ import itertools
 import json
 import logging
 import math
-import os
 import re
 import secrets
 import shutil
@@ -144,8 +143,7 @@ SHED_MARGIN = 0.8
 OVERRUN_LEFT = 0.1
 #: CPU seconds per sample a lane assumes until one is measured (a quiet core's cost).
 SEED_CPU_S_PER_SAMPLE = {"small": 3e-5, "large": 3e-6}
-#: Seconds a measured slow-down (wall over CPU time) stays the machine's; older, the load
-#: average per core stands in for it.
+#: Seconds a lane's measured slow-down (wall over CPU time) stays current.
 CONTENTION_FRESH_S = 60.0
 #: CPU seconds below which a job's wall/CPU ratio says nothing (a sleep, a refusal).
 CONTENTION_MIN_CPU_S = 0.05
@@ -718,7 +716,7 @@ _ERRORS = {
         413: "body too large, or too many samples",
         415: "unsupported content type",
         422: "unusable recording",
-        429: "too many requests waiting",
+        429: "too many requests waiting, or too busy to finish this one in time (Retry-After)",
         504: "timed out",
     }.items()
 }
@@ -845,13 +843,13 @@ def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
 
 
 class Contention:
-    """How many times its CPU time a job takes in wall time now: the machine's slow-down.
+    """How many times its CPU time a lane's job takes in wall time now: its slow-down.
 
-    A running mean (weight :data:`COST_EWMA`) of wall over CPU seconds of the server's
-    finished jobs, every lane's (the small lane's steady traffic keeps it current); when
-    none was measured within :data:`CONTENTION_FRESH_S`, the load average per core (at
-    least 1). The load average is what lets a lane refused for the machine's load open
-    again when the load falls, though none of its jobs ran meanwhile.
+    A running mean (weight :data:`COST_EWMA`) of wall over CPU seconds of the lane's
+    finished jobs; None when none finished within :data:`CONTENTION_FRESH_S`. Per lane:
+    the small lane's short Python-heavy jobs wait on each other for the interpreter lock
+    and ran 5.3-5.7 times their CPU time at load 10-11 while a 2 M-sample upload,
+    mostly in numpy and ONNX Runtime, took 15.7-18.4 s for its ~6 s of CPU.
     """
 
     def __init__(self) -> None:
@@ -867,13 +865,9 @@ class Contention:
             self.mean = (1 - COST_EWMA) * self.mean + COST_EWMA * ratio if fresh else ratio
             self.at = now
 
-    def factor(self, now: float) -> float:
+    def factor(self, now: float) -> float | None:
         with self._lock:
-            if now - self.at <= CONTENTION_FRESH_S:
-                return self.mean
-        from stiffnet.inputs import available_cores
-
-        return max(1.0, os.getloadavg()[0] / available_cores())
+            return self.mean if now - self.at <= CONTENTION_FRESH_S else None
 
 
 class LaneCost:
@@ -884,7 +878,7 @@ class LaneCost:
     until the first one is measured; :meth:`s_per_sample_now` prices jobs at the highest of
     that mean, the latest measurement and what every running job has already spent per
     sample (a lower bound of its own cost) and the lane's CPU seconds per sample times
-    the machine's slow-down (:meth:`alone_s`), so that a rise of the machine's load counts
+    its slow-down (:meth:`alone_s`), so that a rise of the machine's load counts
     at once and a fall only as the mean follows it. Wall time, not CPU time: on a shared
     machine the wall time is what the timeout counts. ``jobs`` holds every job submitted
     to the lane's ``workers`` and not yet ended (a job answered 504 included: it still
@@ -892,17 +886,11 @@ class LaneCost:
     Worker threads report starts and measurements, the event loop reads: one lock.
     """
 
-    def __init__(
-        self,
-        workers: int,
-        seed: float,
-        cpu_seed: float = 0.0,
-        contention: Contention | None = None,
-    ) -> None:
+    def __init__(self, workers: int, seed: float, cpu_seed: float = 0.0) -> None:
         self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
         self.latest = 0.0
         self.cpu_s_per_sample, self.cpu_measured = float(cpu_seed), 0
-        self.contention = contention or Contention()
+        self.contention = Contention()
         self.jobs: dict[int, list[float | None]] = {}
         self._lock = threading.Lock()
         self._tickets = itertools.count()
@@ -912,12 +900,14 @@ class LaneCost:
             jobs = [(float(n), t) for n, t in self.jobs.values()]
             rate = max(self.s_per_sample, self.latest)
         spent = [(now - t) / n for n, t in jobs if t is not None and n > 0]
-        return max([rate, *spent, self.alone_s(1, now)]), jobs
+        return max([rate, *spent, self.alone_s(1, now) or 0.0]), jobs
 
-    def alone_s(self, samples: int, now: float) -> float:
+    def alone_s(self, samples: int, now: float) -> float | None:
         """Seconds a job would take started now on a free worker: its CPU seconds (the lane's
-        mean per sample) times the machine's slow-down now (:class:`Contention`)."""
-        return samples * self.cpu_s_per_sample * self.contention.factor(now)
+        mean per sample) times the lane's slow-down now (:class:`Contention`); None when the
+        lane has measured none lately."""
+        factor = self.contention.factor(now)
+        return None if factor is None else samples * self.cpu_s_per_sample * factor
 
     def s_per_sample_now(self, now: float) -> float:
         """Seconds per sample a job is priced at, at time `now` (see the class notes)."""
@@ -963,7 +953,7 @@ class LaneCost:
 
     def measure(self, samples: int, seconds: float, cpu_s: float | None = None) -> None:
         """A prediction of `samples` samples took `seconds` of wall time (and `cpu_s` of its
-        thread's CPU time): update the means and the machine's slow-down."""
+        thread's CPU time): update the means and the lane's slow-down."""
         if samples <= 0 or not math.isfinite(seconds) or seconds < 0:
             return
         rate = seconds / samples
@@ -999,9 +989,8 @@ class Admission:
                                         thread_name_prefix="predict-large")  # fmt: skip
         self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
         self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
-        machine = Contention()  # one machine: every lane's jobs measure its slow-down
         self.cost = {
-            lane: LaneCost(workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane], machine)
+            lane: LaneCost(workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane])
             for lane, workers in (("small", limits.max_concurrency), ("large", limits.max_large))
         }
 
@@ -1139,19 +1128,20 @@ class Admission:
     def _too_slow_alone(
         self, lane: str, samples: int, now: float, budget: float
     ) -> JSONResponse | None:
-        """429 for a job that, on a free worker, would not finish in time at the machine's
-        load now: its CPU cost times the slow-down (not the lane's memory of past jobs, so a
-        fall of the load opens the lane again), else None."""
+        """429 for a job that, on a free worker, would not finish in time at the lane's
+        slow-down now (its CPU cost times wall over CPU time of the lane's jobs of the last
+        minute), else None. A lane with none measured lately starts the job: it measures
+        the load again, so a lane refused for a load that has fallen opens again."""
         cost = self.cost[lane]
         alone = cost.alone_s(samples, now)
-        if alone <= budget:
+        if alone is None or alone <= budget:
             return None
-        slow = cost.contention.factor(now)
+        slow = cost.contention.factor(now) or 1.0
         retry = math.ceil(self.limits.timeout_s)  # the load, not a queue, has to change
         message = (
             f"server busy: this {lane} prediction ({samples} samples) needs about "
             f"{samples * cost.cpu_s_per_sample:.1f} s of CPU, about {alone:.1f} s at the "
-            f"machine's load now ({slow:.1f} times its CPU time), so it would not finish within "
+            f"lane's slow-down now ({slow:.1f} times its CPU time), so it would not finish within "
             f"the {self.limits.timeout_s:g} s timeout; retry after {retry} s"
         )
         log.warning("429 (load shed): %s", message)
