@@ -21,7 +21,8 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   seconds until it would fit) before any work. A job that finds a worker free is
   refused only if its CPU cost times the lane's slow-down now (:class:`Contention`:
   wall over CPU time of the lane's jobs of the last minute) passes that budget
-  (``Retry-After`` is then the timeout); with none measured lately it is started.
+  (``Retry-After`` is then the timeout; the other lane's slow-down stands in for one not
+  measured lately); with none measured lately in any lane it is started.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
@@ -1101,9 +1102,9 @@ class Admission:
 
         Its expected finish is the wait for a worker plus its own cost
         (:class:`LaneCost`); the budget is :data:`SHED_MARGIN` of the timeout. A job that
-        finds a worker free is never refused. ``Retry-After``: the seconds until the
-        lane's backlog has drained enough for it to fit (until the lane is idle, for a
-        job that alone exceeds the budget).
+        finds a worker free is weighed alone (:meth:`_too_slow_alone`). ``Retry-After``:
+        the seconds until the lane's backlog has drained enough for it to fit (until the
+        lane is idle, for a job that alone exceeds the budget).
         """
         cost, samples, now = self.cost[lane], getattr(job, "samples", 0), time.monotonic()
         wait = cost.expected_start_s(now)
@@ -1130,18 +1131,25 @@ class Admission:
     ) -> JSONResponse | None:
         """429 for a job that, on a free worker, would not finish in time at the lane's
         slow-down now (its CPU cost times wall over CPU time of the lane's jobs of the last
-        minute), else None. A lane with none measured lately starts the job: it measures
-        the load again, so a lane refused for a load that has fallen opens again."""
+        minute; the other lane's, the more pessimistic, when this one has none), else None.
+        With none measured lately in any lane the job is started: it measures the load
+        again, so a lane refused for a load that has fallen opens again."""
         cost = self.cost[lane]
-        alone = cost.alone_s(samples, now)
-        if alone is None or alone <= budget:
+        slow, whose = cost.contention.factor(now), "this lane's"
+        if slow is None:  # the other lane's jobs run on the same machine now
+            others = [c.contention.factor(now) for k, c in self.cost.items() if k != lane]
+            slow, whose = (
+                max((f for f in others if f is not None), default=None),
+                "the other lane's",
+            )
+        if slow is None or samples * cost.cpu_s_per_sample * slow <= budget:
             return None
-        slow = cost.contention.factor(now) or 1.0
+        alone = samples * cost.cpu_s_per_sample * slow
         retry = math.ceil(self.limits.timeout_s)  # the load, not a queue, has to change
         message = (
             f"server busy: this {lane} prediction ({samples} samples) needs about "
-            f"{samples * cost.cpu_s_per_sample:.1f} s of CPU, about {alone:.1f} s at the "
-            f"lane's slow-down now ({slow:.1f} times its CPU time), so it would not finish within "
+            f"{samples * cost.cpu_s_per_sample:.1f} s of CPU, about {alone:.1f} s at {whose} "
+            f"slow-down now ({slow:.1f} times its CPU time), so it would not finish within "
             f"the {self.limits.timeout_s:g} s timeout; retry after {retry} s"
         )
         log.warning("429 (load shed): %s", message)

@@ -518,7 +518,7 @@ def test_a_job_too_slow_alone_at_the_lanes_load_is_shed_until_its_measure_is_sta
         served = c.post("/predict", json=body(500))
         lane.contention.at -= 61.0  # measured over a minute ago
         reopened = c.post("/predict", json=body(2000))
-    _is_error(shed, 429, "(2000 samples) needs about 2.0 s of CPU, about 20.0 s at the lane")
+    _is_error(shed, 429, "(2000 samples) needs about 2.0 s of CPU, about 20.0 s at this lane's")
     assert shed.headers["retry-after"] == "20"
     assert (served.status_code, reopened.status_code) == (200, 200)
     assert held.seen == [499, 1999]
@@ -532,3 +532,15 @@ def test_too_many_samples_is_413_before_any_load_shedding():
     with TestClient(app) as c:
         r = c.post("/predict", json={"samples": [0.5] * 1500, "fs_hz": 1000.0})
     _is_error(r, 413, "over 1000 samples")
+
+
+def test_a_lane_with_no_recent_measure_borrows_the_other_lanes_slow_down():
+    """A large job on a free worker, its lane unmeasured lately: priced at the small lane's
+    slow-down (10 times CPU time), 4,000 samples at 1 ms of CPU are 40 s: 429."""
+    app = create_app(_Held(0.0), Limits(small_upload_mb=0.005, timeout_s=20))  # 5 kB: large
+    cost = app.state.admission.cost
+    cost["small"].measure(1000, 10.0, cpu_s=1.0)
+    cost["large"].cpu_s_per_sample = 1e-3
+    with TestClient(app) as c:
+        r = c.post("/predict", json={"samples": [0.5] * 4000, "fs_hz": 1000.0})
+    _is_error(r, 429, "about 40.0 s at the other lane's slow-down now (10.0 times")
