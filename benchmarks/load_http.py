@@ -133,6 +133,14 @@ def peak_rss_mb(pid: int) -> float:
     return float("nan")
 
 
+def _code(r: httpx.Response) -> int | str:
+    """The status, or "429 shed" for a load-shedding refusal (a job that would not finish
+    in time, refused before any work) apart from a full lane's 429."""
+    if r.status_code == 429 and "would not finish within" in r.text:
+        return f"429 shed (Retry-After {r.headers.get('retry-after', '?')} s)"
+    return r.status_code
+
+
 async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[list, Counter]:
     """``n`` small JSON predictions from ``clients`` concurrent clients: latencies, codes."""
     latencies: list[float] = []
@@ -147,7 +155,7 @@ async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[
             try:
                 r = await c.post("/predict", content=body,
                                  headers={"content-type": "application/json"})  # fmt: skip
-                codes[r.status_code] += 1
+                codes[_code(r)] += 1
             except httpx.HTTPError as exc:
                 codes[f"transport error {type(exc).__name__}"] += 1
             latencies.append(time.perf_counter() - t)
@@ -159,15 +167,18 @@ async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[
 
 async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter:
     """Each file's client uploads it ``per_client`` times (waiting Retry-After on 429)."""
-    codes: Counter = Counter()
+    codes: Counter = Counter({"200 s": [], "504 s": []})  # type: ignore[dict-item]
 
     async def one(data: bytes) -> None:
         async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
             for _ in range(per_client):
                 try:
                     form = {"fs_hz": "50000", "natural_frequency_hz": FN_HZ}
+                    t = time.perf_counter()
                     r = await c.post("/predict", files={"file": ("big.npy", data)}, data=form)
-                    codes[r.status_code] += 1
+                    codes[_code(r)] += 1
+                    if r.status_code in (200, 504):  # how long the predicted ones took
+                        codes[f"{r.status_code} s"] += [round(time.perf_counter() - t, 1)]
                     if r.status_code == 429:
                         await asyncio.sleep(float(r.headers.get("retry-after", "1")))
                 except httpx.HTTPError as exc:
@@ -357,6 +368,9 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     print(f"disconnects ({args.disconnects}): {dict(codes_gone)}")
     lines = text.splitlines()
     n_gone = sum("disconnected before its request body" in ln for ln in lines)
+    shed = [ln for ln in lines if "(load shed)" in ln]
+    print(f"server log: {len(shed)} load-shedding lines" + "".join(
+        f"\n  {ln.split('(load shed): ', 1)[1][:260]}" for ln in shed[:4]))  # fmt: skip
     print(f"abuse phase wall {wall:.1f} s; /health after: {health}")
     print(f"server RSS MB: start {rss_start:.0f}, peak (VmHWM) {peak:.0f}")
     print(f"server log: {len(lines)} lines, {n_gone} disconnect lines, "

@@ -12,7 +12,17 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   beyond that the answer is 429 with ``Retry-After``. A request that timed out
   keeps its slot until its thread finishes, so abandoned work cannot pile up.
 * **Time** - a request not answered within ``timeout_s`` (queueing included)
-  gets 504.
+  gets 504: the last guard, since load shedding refuses first what would pass it.
+* **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
+  samples times the lane's seconds per sample, measured online from the lane's
+  finished predictions, seeded conservatively) is added to the expected wait for a
+  worker (the estimates of what the lane runs and holds queued); a job that would not
+  finish within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
+  seconds until it would fit) before any work. A job that finds a worker free is
+  refused only if its CPU cost times the lane's slow-down now (:class:`Contention`:
+  wall over CPU time of the lane's jobs of the last minute) passes that budget
+  (``Retry-After`` is then the timeout; the other lane's slow-down stands in for one not
+  measured lately); with none measured lately in any lane it is started.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
@@ -59,6 +69,8 @@ from __future__ import annotations
 import asyncio
 import copy
 import csv
+import heapq
+import itertools
 import json
 import logging
 import math
@@ -67,6 +79,7 @@ import secrets
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -114,6 +127,27 @@ HEADER_TIMEOUT_S = 10.0
 FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
 #: One line per request: client, method, path, status, bytes, milliseconds.
 access_log = logging.getLogger("stiffnet.access")
+#: Seconds per sample a lane assumes until its first prediction is measured: three to
+#: seven times a quiet core's cost (a 5 s JSON of 5,000 samples ~0.15 s; a 2 M-sample upload
+#: at 50 kHz ~6 s, 25 s at load 10 on 2 cores), so that the first queued jobs are refused
+#: early rather than late.
+SEED_S_PER_SAMPLE = {"small": 1e-4, "large": 2e-5}
+#: Weight of the newest measurement in a lane's running mean of seconds per sample: a few
+#: jobs follow a change of the machine's load, one slow job does not take over.
+COST_EWMA = 0.3
+#: Fraction of ``timeout_s`` a job's expected finish may reach: the costs are estimates (the
+#: same 2 M-sample upload took 14.6-16.4 s at load 6.5), and a job that overruns is a 504
+#: after all its work while a refusal is a 429 before any.
+SHED_MARGIN = 0.8
+#: Share of a running job's estimate still expected once it has overrun the estimate (it
+#: is running: something remains).
+OVERRUN_LEFT = 0.1
+#: CPU seconds per sample a lane assumes until one is measured (a quiet core's cost).
+SEED_CPU_S_PER_SAMPLE = {"small": 3e-5, "large": 3e-6}
+#: Seconds a lane's measured slow-down (wall over CPU time) stays current.
+CONTENTION_FRESH_S = 60.0
+#: CPU seconds below which a job's wall/CPU ratio says nothing (a sleep, a refusal).
+CONTENTION_MIN_CPU_S = 0.05
 
 
 class BodyTooLarge(Exception):
@@ -513,6 +547,28 @@ def _lines_over(path: Path, limit: int) -> bool:
     return False
 
 
+def _lines(path: Path) -> int:
+    n = 0
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            n += chunk.count(b"\n")
+    return n
+
+
+def estimated_samples(path: Path) -> int:
+    """Samples of a spooled upload as far as known before it is read, for its cost.
+
+    An ``.npy`` header's values, a CSV's lines (a sample a line); another format by its
+    bytes, at 2 a sample (16-bit audio; wider samples make it an over-estimate, never an
+    under-estimate).
+    """
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _lines(path)
+    values = _npy_values(path) if suffix == ".npy" else 0
+    return values or path.stat().st_size // 2
+
+
 def check_upload_size(path: Path, max_samples: int) -> None:
     """Refuse a file over `max_samples` by what it says before it is read (a CSV's lines,
     an ``.npy`` header's shape); other formats are counted once read."""
@@ -661,7 +717,7 @@ _ERRORS = {
         413: "body too large, or too many samples",
         415: "unsupported content type",
         422: "unusable recording",
-        429: "too many requests waiting",
+        429: "too many requests waiting, or too busy to finish this one in time (Retry-After)",
         504: "timed out",
     }.items()
 }
@@ -708,6 +764,7 @@ def create_app(
         lifespan=lifespan,
     )
     app.state.load = admission.state  # requests in flight per lane (read by /health and tests)
+    app.state.admission = admission  # its lanes' costs and backlogs (tests)
     _add_guards(app, limits, token, allowed_hosts, cors_origins, access)
     _add_error_handlers(app, limits)
     _add_routes(app, predictor, limits, admission)
@@ -786,6 +843,135 @@ def _add_error_handlers(app: FastAPI, limits: Limits) -> None:
         return _error(422, f"invalid request: {exc.errors()[:1]}")
 
 
+class Contention:
+    """How many times its CPU time a lane's job takes in wall time now: its slow-down.
+
+    A running mean (weight :data:`COST_EWMA`) of wall over CPU seconds of the lane's
+    finished jobs; None when none finished within :data:`CONTENTION_FRESH_S`. Per lane:
+    the small lane's short Python-heavy jobs wait on each other for the interpreter lock
+    and ran 5.3-5.7 times their CPU time at load 10-11 while a 2 M-sample upload,
+    mostly in numpy and ONNX Runtime, took 15.7-18.4 s for its ~6 s of CPU.
+    """
+
+    def __init__(self) -> None:
+        self.mean, self.at = 1.0, -math.inf
+        self._lock = threading.Lock()
+
+    def measure(self, wall_s: float, cpu_s: float, now: float) -> None:
+        if not (cpu_s >= CONTENTION_MIN_CPU_S and math.isfinite(wall_s)):
+            return
+        ratio = max(1.0, wall_s / cpu_s)
+        with self._lock:
+            fresh = now - self.at <= CONTENTION_FRESH_S
+            self.mean = (1 - COST_EWMA) * self.mean + COST_EWMA * ratio if fresh else ratio
+            self.at = now
+
+    def factor(self, now: float) -> float | None:
+        with self._lock:
+            return self.mean if now - self.at <= CONTENTION_FRESH_S else None
+
+
+class LaneCost:
+    """What one lane's predictions cost, and what it holds now: the basis of load shedding.
+
+    The cost is seconds per sample. ``s_per_sample`` is a running mean (weight
+    :data:`COST_EWMA`) of each finished prediction's wall time over its samples, ``seed``
+    until the first one is measured; :meth:`s_per_sample_now` prices jobs at the highest of
+    that mean, the latest measurement and what every running job has already spent per
+    sample (a lower bound of its own cost) and the lane's CPU seconds per sample times
+    its slow-down (:meth:`alone_s`), so that a rise of the machine's load counts
+    at once and a fall only as the mean follows it. Wall time, not CPU time: on a shared
+    machine the wall time is what the timeout counts. ``jobs`` holds every job submitted
+    to the lane's ``workers`` and not yet ended (a job answered 504 included: it still
+    holds its worker), as ticket -> ``[samples, start time or None]`` in submission order.
+    Worker threads report starts and measurements, the event loop reads: one lock.
+    """
+
+    def __init__(self, workers: int, seed: float, cpu_seed: float = 0.0) -> None:
+        self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
+        self.latest = 0.0
+        self.cpu_s_per_sample, self.cpu_measured = float(cpu_seed), 0
+        self.contention = Contention()
+        self.jobs: dict[int, list[float | None]] = {}
+        self._lock = threading.Lock()
+        self._tickets = itertools.count()
+
+    def _snapshot(self, now: float) -> tuple[float, list[tuple[float, float | None]]]:
+        with self._lock:
+            jobs = [(float(n), t) for n, t in self.jobs.values()]
+            rate = max(self.s_per_sample, self.latest)
+        spent = [(now - t) / n for n, t in jobs if t is not None and n > 0]
+        return max([rate, *spent, self.alone_s(1, now) or 0.0]), jobs
+
+    def alone_s(self, samples: int, now: float) -> float | None:
+        """Seconds a job would take started now on a free worker: its CPU seconds (the lane's
+        mean per sample) times the lane's slow-down now (:class:`Contention`); None when the
+        lane has measured none lately."""
+        factor = self.contention.factor(now)
+        return None if factor is None else samples * self.cpu_s_per_sample * factor
+
+    def s_per_sample_now(self, now: float) -> float:
+        """Seconds per sample a job is priced at, at time `now` (see the class notes)."""
+        return self._snapshot(now)[0]
+
+    def expected_s(self, samples: int, now: float) -> float:
+        """Seconds a prediction of `samples` samples is expected to take once started."""
+        return samples * self.s_per_sample_now(now)
+
+    def expected_start_s(self, now: float) -> float:
+        """Seconds until a worker would take a job submitted at `now`.
+
+        List scheduling of the estimates: each running job frees its worker when its
+        estimate is spent (at least :data:`OVERRUN_LEFT` of it ahead, while it runs),
+        the queued ones take the first free worker in their order, as the pool does.
+        """
+        rate, jobs = self._snapshot(now)
+        free = [max(n * rate - (now - t), OVERRUN_LEFT * n * rate)
+                for n, t in jobs if t is not None]  # fmt: skip
+        free += [0.0] * max(0, self.workers - len(free))
+        heapq.heapify(free)
+        for n, t in jobs:
+            if t is None:
+                heapq.heappush(free, heapq.heappop(free) + n * rate)
+        return free[0]
+
+    def submitted(self, samples: int) -> int:
+        """Record a job of `samples` samples handed to the pool; its ticket."""
+        ticket = next(self._tickets)
+        with self._lock:
+            self.jobs[ticket] = [samples, None]
+        return ticket
+
+    def started(self, ticket: int, now: float) -> None:
+        with self._lock:
+            if ticket in self.jobs:
+                self.jobs[ticket][1] = now
+
+    def ended(self, ticket: int) -> None:
+        """The job left its worker (finished, failed or cancelled before it ran)."""
+        with self._lock:
+            self.jobs.pop(ticket, None)
+
+    def measure(self, samples: int, seconds: float, cpu_s: float | None = None) -> None:
+        """A prediction of `samples` samples took `seconds` of wall time (and `cpu_s` of its
+        thread's CPU time): update the means and the lane's slow-down."""
+        if samples <= 0 or not math.isfinite(seconds) or seconds < 0:
+            return
+        rate = seconds / samples
+        with self._lock:
+            mean = (1 - COST_EWMA) * self.s_per_sample + COST_EWMA * rate
+            self.s_per_sample = mean if self.measured else rate
+            self.latest = rate
+            self.measured += 1
+            if cpu_s is not None and cpu_s >= CONTENTION_MIN_CPU_S:
+                cpu = cpu_s / samples
+                mean = (1 - COST_EWMA) * self.cpu_s_per_sample + COST_EWMA * cpu
+                self.cpu_s_per_sample = mean if self.cpu_measured else cpu
+                self.cpu_measured += 1
+        if cpu_s is not None:
+            self.contention.measure(seconds, cpu_s, time.monotonic())
+
+
 class Admission:
     """Who gets a place, and where the work runs.
 
@@ -804,6 +990,10 @@ class Admission:
                                         thread_name_prefix="predict-large")  # fmt: skip
         self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
         self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
+        self.cost = {
+            lane: LaneCost(workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane])
+            for lane, workers in (("small", limits.max_concurrency), ("large", limits.max_large))
+        }
 
     def shutdown(self) -> None:
         for pool in (self.small, self.large):
@@ -828,7 +1018,14 @@ class Admission:
         predictor, n = self.predictor, self.limits.max_samples
         if ctype == "application/json":
             body = await request.body()
-            return partial(_predict_json, predictor, body, n, what)
+            job = partial(_predict_json, predictor, body, n, what)
+            # a sample a comma, as the parser will find them (a large body's scan in a thread)
+            commas = (await asyncio.to_thread(body.count, b",")
+                      if len(body) > self.limits.small_bytes else body.count(b","))  # fmt: skip
+            if commas > n + len(PredictRequest.model_fields):  # 413 before a 429 for its cost
+                _check_samples(n + 1, n, "over")
+            job.samples = commas + 1  # type: ignore[attr-defined]
+            return job
         async with request.form(max_files=1, max_fields=8) as form:
             upload = form.get("file")
             if upload is None or isinstance(upload, str):
@@ -841,6 +1038,7 @@ class Admission:
             spooled = await asyncio.to_thread(spool_upload, upload.file, name)
             try:  # an upload over the limit is refused now, not after its wait for a worker
                 await asyncio.to_thread(check_upload_size, spooled, n)
+                samples = await asyncio.to_thread(estimated_samples, spooled)
             except BaseException:
                 shutil.rmtree(spooled.parent, ignore_errors=True)
                 raise
@@ -848,6 +1046,7 @@ class Admission:
                           form.get("natural_frequency_hz"), n, form.get("columns"),
                           form.get("time_unit"), form.get("channel"), what)  # fmt: skip
             job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
+            job.samples = samples  # type: ignore[attr-defined]
             return job
 
     async def answer(self, request: Request, what: str) -> JSONResponse:
@@ -884,20 +1083,92 @@ class Admission:
             if is_large:
                 done()
             return job
+        if not is_large and state["in_flight"] >= limits.max_concurrency + limits.max_queue:
+            _drop(job)
+            return _error(429, "too many requests in flight; retry later", {"Retry-After": "1"})
+        refusal = self.shed("large" if is_large else "small", job)
+        if refusal is not None:
+            _drop(job)
+            if is_large:
+                done()
+            return refusal
         if not is_large:
-            if state["in_flight"] >= limits.max_concurrency + limits.max_queue:
-                spooled = getattr(job, "spooled", None)
-                if spooled is not None:  # the job never runs: its upload goes now
-                    shutil.rmtree(spooled.parent, ignore_errors=True)
-                return _error(429, "too many requests in flight; retry later",
-                              {"Retry-After": "1"})  # fmt: skip
             state["in_flight"] += 1
             done = self.release("in_flight")
-        return await self._run(job, self.large if is_large else self.small, done)
+        return await self._run(job, "large" if is_large else "small", done)
 
-    async def _run(self, job: Callable[[], dict], pool: Any, done: Callable) -> JSONResponse:
+    def shed(self, lane: str, job: Callable[[], dict]) -> JSONResponse | None:
+        """429 with ``Retry-After`` if `job` queued now would not finish in time, else None.
+
+        Its expected finish is the wait for a worker plus its own cost
+        (:class:`LaneCost`); the budget is :data:`SHED_MARGIN` of the timeout. A job that
+        finds a worker free is weighed alone (:meth:`_too_slow_alone`). ``Retry-After``:
+        the seconds until the lane's backlog has drained enough for it to fit (until the
+        lane is idle, for a job that alone exceeds the budget).
+        """
+        cost, samples, now = self.cost[lane], getattr(job, "samples", 0), time.monotonic()
+        wait = cost.expected_start_s(now)
+        own = cost.expected_s(samples, now)
+        budget = SHED_MARGIN * self.limits.timeout_s
+        if wait <= 0:
+            return self._too_slow_alone(lane, samples, now, budget)
+        if wait + own <= budget:
+            return None
+        retry = max(1, math.ceil(wait if own >= budget else wait + own - budget))
+        rate = cost.s_per_sample_now(now)
+        basis = f"from {cost.measured} measured" if cost.measured else "assumed: none measured yet"
+        message = (
+            f"server busy: the {lane} predictions ahead need about {wait:.1f} s and this one "
+            f"({samples} samples) about {own:.1f} s at {rate * 1e6:.3g} us per sample ({basis}), "
+            f"so it would not finish within the {self.limits.timeout_s:g} s timeout; retry "
+            f"after {retry} s"
+        )
+        log.warning("429 (load shed): %s", message)
+        return _error(429, message, {"Retry-After": str(retry)})
+
+    def _too_slow_alone(
+        self, lane: str, samples: int, now: float, budget: float
+    ) -> JSONResponse | None:
+        """429 for a job that, on a free worker, would not finish in time at the lane's
+        slow-down now (its CPU cost times wall over CPU time of the lane's jobs of the last
+        minute; the other lane's, the more pessimistic, when this one has none), else None.
+        With none measured lately in any lane the job is started: it measures the load
+        again, so a lane refused for a load that has fallen opens again."""
+        cost = self.cost[lane]
+        slow, whose = cost.contention.factor(now), "this lane's"
+        if slow is None:  # the other lane's jobs run on the same machine now
+            others = [c.contention.factor(now) for k, c in self.cost.items() if k != lane]
+            slow, whose = (
+                max((f for f in others if f is not None), default=None),
+                "the other lane's",
+            )
+        if slow is None or samples * cost.cpu_s_per_sample * slow <= budget:
+            return None
+        alone = samples * cost.cpu_s_per_sample * slow
+        retry = math.ceil(self.limits.timeout_s)  # the load, not a queue, has to change
+        message = (
+            f"server busy: this {lane} prediction ({samples} samples) needs about "
+            f"{samples * cost.cpu_s_per_sample:.1f} s of CPU, about {alone:.1f} s at {whose} "
+            f"slow-down now ({slow:.1f} times its CPU time), so it would not finish within "
+            f"the {self.limits.timeout_s:g} s timeout; retry after {retry} s"
+        )
+        log.warning("429 (load shed): %s", message)
+        return _error(429, message, {"Retry-After": str(retry)})
+
+    async def _run(self, job: Callable[[], dict], lane: str, done: Callable) -> JSONResponse:
         loop = asyncio.get_running_loop()
-        fut = loop.run_in_executor(pool, job)
+        cost, samples = self.cost[lane], getattr(job, "samples", 0)
+        ticket = cost.submitted(samples)
+
+        def timed() -> dict:
+            t0, cpu0 = time.monotonic(), time.thread_time()
+            cost.started(ticket, t0)
+            result = job()  # a failed job is not measured: a refusal costs nothing
+            cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
+            return result
+
+        fut = loop.run_in_executor(self.large if lane == "large" else self.small, timed)
+        fut.add_done_callback(lambda _f: cost.ended(ticket))
         fut.add_done_callback(done)  # a timed-out job keeps its slot until its thread ends
         try:
             result = await asyncio.wait_for(asyncio.shield(fut), self.limits.timeout_s)
@@ -906,6 +1177,13 @@ class Admission:
             return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
         self.state["served"] += 1
         return JSONResponse(result)
+
+
+def _drop(job: Callable[[], dict]) -> None:
+    """A job that will never run: its spooled upload goes now."""
+    spooled = getattr(job, "spooled", None)
+    if spooled is not None:
+        shutil.rmtree(spooled.parent, ignore_errors=True)
 
 
 def _outcome_unheard(fut: Any) -> None:

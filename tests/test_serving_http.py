@@ -362,3 +362,185 @@ def test_a_job_that_fails_after_its_504_logs_one_line():
         served.setLevel(level)
     (line,) = [r.getMessage() for r in heard]
     assert line.startswith("a request answered 504 failed afterwards: late") and "\n" not in line
+
+
+def test_lane_cost_schedules_its_backlog_and_prices_at_what_it_measured():
+    """Expected wait by list scheduling of the estimates; the price per sample is the
+    highest of the mean (the seed until a measurement), the latest measurement and what a
+    running job has spent already."""
+    from serving.app import COST_EWMA, OVERRUN_LEFT, LaneCost
+
+    lane = LaneCost(workers=2, seed=1e-3)
+    assert lane.expected_start_s(0.0) == 0.0  # idle: a worker is free now
+    a = lane.submitted(5000)  # 5 s at the seed
+    lane.started(a, 100.0)
+    assert lane.expected_start_s(101.0) == 0.0  # one worker still free
+    b = lane.submitted(3000)  # 3 s, takes the second worker
+    lane.started(b, 101.0)
+    lane.submitted(2000)  # queued: the first free worker (b's, at t = 104) takes it
+    assert lane.expected_start_s(102.0) == pytest.approx(3.0)  # a's worker frees at 105
+    # at t = 110 b has spent 9 s on 3000 samples: 3 ms a sample at least, for every job:
+    # a 15 s (5 left), b 9 s (overran: OVERRUN_LEFT of it left), the queued one 6 s after b
+    assert lane.s_per_sample_now(110.0) == pytest.approx(3e-3)
+    assert lane.expected_start_s(110.0) == pytest.approx(min(5.0, OVERRUN_LEFT * 9.0 + 6.0))
+    assert lane.expected_s(1000, 110.0) == pytest.approx(3.0)
+    lane.ended(a)
+    lane.ended(b)
+    assert lane.expected_start_s(110.0) == 0.0  # the queued one runs, a worker is free
+    lane.measure(1000, 2.0)
+    assert (lane.s_per_sample, lane.measured) == (2e-3, 1)  # the seed is replaced
+    lane.measure(1000, 4.0)
+    assert lane.s_per_sample == pytest.approx((1 - COST_EWMA) * 2e-3 + COST_EWMA * 4e-3)
+    assert lane.s_per_sample_now(200.0) == pytest.approx(4e-3)  # the latest, higher
+    lane.measure(1000, 1.0)
+    assert lane.s_per_sample_now(200.0) == pytest.approx(lane.s_per_sample)  # the mean, higher
+    lane.measure(0, 1.0)  # nothing to learn from
+    assert lane.measured == 3
+
+
+class _Held:
+    """Stand-in predictor: the first prediction lasts `first_s`; later ones wait for
+    `release`. Records the samples of every prediction it started."""
+
+    name, sha256, kind = "held", "0" * 64, "cnn"
+
+    def __init__(self, first_s: float) -> None:
+        import threading
+
+        self.first_s, self.seen = first_s, []
+        self.entered, self.release = threading.Event(), threading.Event()
+
+    def predict(self, accel, *args, **kwargs):
+        self.seen.append(len(accel))
+        if len(self.seen) == 1:
+            time.sleep(self.first_s)
+        else:
+            self.entered.set()
+            assert self.release.wait(20)
+        return {"class": "soft"}
+
+    def info(self):
+        return {"name": self.name}
+
+
+def test_a_job_that_would_pass_the_timeout_is_shed_before_any_work():
+    """With a measured cost of >= 2 ms a sample, a queued 20,000-sample job (>= 40 s) cannot
+    finish within 16 s of the 20 s timeout: 429 with Retry-After and the reason, never started; a
+    100-sample job queued behind the same work fits and is served. Deterministic: sleeps
+    only bound the cost from below, and a slower machine measures more, not less."""
+    held = _Held(first_s=0.2)
+    app = create_app(held, Limits(max_concurrency=1, max_queue=8, timeout_s=20))
+    lane = app.state.admission.cost["small"]
+
+    def body(n: int) -> dict:
+        return {"samples": [0.5] * n, "fs_hz": 1000.0}
+
+    async def scenario() -> tuple:
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+            first = await c.post("/predict", json=body(100))  # measures the lane's cost
+            assert lane.measured == 1 and lane.s_per_sample >= 0.2 / 101
+            running = asyncio.ensure_future(c.post("/predict", json=body(100)))
+            assert await asyncio.to_thread(held.entered.wait, 10)  # it holds the one worker
+            queued = asyncio.ensure_future(c.post("/predict", json=body(100)))
+            for _ in range(500):  # until it waits in the lane
+                if len(lane.jobs) == 2:
+                    break
+                await asyncio.sleep(0.01)
+            shed = await c.post("/predict", json=body(20_000))
+            held.release.set()
+            return first, await running, await queued, shed
+
+    first, running, queued, shed = asyncio.run(scenario())
+    assert [first.status_code, running.status_code, queued.status_code] == [200, 200, 200]
+    _is_error(shed, 429, "would not finish within the 20 s timeout")
+    assert "(20001 samples)" in shed.json()["error"] and "(from 1 measured)" in shed.json()["error"]
+    assert int(shed.headers["retry-after"]) >= 1
+    assert 20_000 not in held.seen and held.seen == [100, 100, 100]  # never started
+    assert not lane.jobs  # everything ended
+
+
+def test_a_large_upload_that_would_pass_the_timeout_is_shed_and_its_file_removed(
+    tmp_path, monkeypatch
+):
+    """The large lane: a cost of 10 ms a sample (as measured), a 2,000-sample .npy running
+    (20 s expected) and another queued behind it (20 s more) cannot finish within 24 s of
+    the 30 s timeout: 429 with the seconds until it would fit, its spooled file gone."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where uploads are spooled
+    held = _Held(first_s=0.0)
+    held.seen.append(0)  # every prediction waits for `release`
+    app = create_app(held, Limits(small_upload_mb=0.001, timeout_s=30))  # 1 kB: all large
+    lane = app.state.admission.cost["large"]
+    lane.measure(1000, 10.0)
+    buf = __import__("io").BytesIO()
+    np.save(buf, np.full(2000, 0.5))
+    form = {"fs_hz": "1000", "natural_frequency_hz": "9.48"}
+
+    async def scenario() -> tuple:
+        transport = httpx.ASGITransport(app=app)
+        async with httpx.AsyncClient(transport=transport, base_url="http://t") as c:
+            files = {"file": ("run.npy", buf.getvalue())}
+            running = asyncio.ensure_future(c.post("/predict", files=files, data=form))
+            assert await asyncio.to_thread(held.entered.wait, 10)
+            spooled = sorted(p.name for p in tmp_path.iterdir())
+            shed = await c.post("/predict", files=files, data=form)
+            after_shed = sorted(p.name for p in tmp_path.iterdir())
+            held.release.set()
+            return await running, shed, spooled, after_shed
+
+    running, shed, spooled, after_shed = asyncio.run(scenario())
+    assert running.status_code == 200, running.text
+    _is_error(shed, 429, "(2000 samples) about 20.0 s at 1e+04 us per sample (from 1 measured)")
+    assert 1 <= int(shed.headers["retry-after"]) <= 16  # 20 + 20 - 24 s, less what has run
+    assert len(spooled) == 1 and after_shed == spooled  # only the running job's upload
+    assert held.seen == [0, 2000] and not list(tmp_path.iterdir()) and not lane.jobs
+
+
+def test_a_job_too_slow_alone_at_the_lanes_load_is_shed_until_its_measure_is_stale():
+    """On a free worker a job is priced at its CPU cost times the lane's slow-down: 1 ms of
+    CPU a sample at 10 times its CPU time makes 2,000 samples 20 s, over 16 s of the 20 s
+    timeout (429, Retry-After the timeout, never started), 500 samples 5 s (served). With
+    no slow-down measured in the last minute the job is started: it measures the lane again
+    (a lane refused for a load that has fallen opens again)."""
+    held = _Held(first_s=0.0)
+    held.release.set()
+    app = create_app(held, Limits(max_concurrency=1, timeout_s=20))
+    lane = app.state.admission.cost["small"]
+    lane.measure(1000, 10.0, cpu_s=1.0)
+    assert lane.cpu_s_per_sample == 1e-3 and lane.contention.factor(time.monotonic()) == 10
+    assert app.state.admission.cost["large"].contention.factor(time.monotonic()) is None
+
+    def body(n: int) -> dict:
+        return {"samples": [0.5] * (n - 1), "fs_hz": 1000.0}  # n - 1 numbers, n - 1 commas
+
+    with TestClient(app) as c:
+        shed = c.post("/predict", json=body(2000))
+        served = c.post("/predict", json=body(500))
+        lane.contention.at -= 61.0  # measured over a minute ago
+        reopened = c.post("/predict", json=body(2000))
+    _is_error(shed, 429, "(2000 samples) needs about 2.0 s of CPU, about 20.0 s at this lane's")
+    assert shed.headers["retry-after"] == "20"
+    assert (served.status_code, reopened.status_code) == (200, 200)
+    assert held.seen == [499, 1999]
+
+
+def test_too_many_samples_is_413_before_any_load_shedding():
+    """A JSON body over max_samples is refused for its size (413, permanent), not for the
+    server's load (429, retried), though its cost would also be shed."""
+    app = create_app(_Held(0.0), Limits(max_samples=1000, timeout_s=10))
+    app.state.admission.cost["small"].measure(1000, 10.0, cpu_s=1.0)  # 1,500 samples: 15 s
+    with TestClient(app) as c:
+        r = c.post("/predict", json={"samples": [0.5] * 1500, "fs_hz": 1000.0})
+    _is_error(r, 413, "over 1000 samples")
+
+
+def test_a_lane_with_no_recent_measure_borrows_the_other_lanes_slow_down():
+    """A large job on a free worker, its lane unmeasured lately: priced at the small lane's
+    slow-down (10 times CPU time), 4,000 samples at 1 ms of CPU are 40 s: 429."""
+    app = create_app(_Held(0.0), Limits(small_upload_mb=0.005, timeout_s=20))  # 5 kB: large
+    cost = app.state.admission.cost
+    cost["small"].measure(1000, 10.0, cpu_s=1.0)
+    cost["large"].cpu_s_per_sample = 1e-3
+    with TestClient(app) as c:
+        r = c.post("/predict", json={"samples": [0.5] * 4000, "fs_hz": 1000.0})
+    _is_error(r, 429, "about 40.0 s at the other lane's slow-down now (10.0 times")
