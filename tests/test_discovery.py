@@ -199,3 +199,31 @@ def test_sprung_face_user_effect(noise):
     close = np.abs(np.asarray(law.betas) / BETA - 1) < 0.15
     assert close.sum() >= 6, law.betas
     assert "own mass" in law.words and "y'' " in law.equation
+
+
+def _ringing(s: ContactSamples, level: float, seed: int = 0) -> ContactSamples:
+    """The same impacts with a ring at 2.7 contact frequencies, of `level` times the peak
+    force and a phase of its own at each impact: what a wrong chain's inverse leaves (the
+    force no longer a function of the state)."""
+    rng = np.random.default_rng(seed)
+    f = s.force.copy()
+    for i in np.unique(s.impact):
+        sel = np.flatnonzero(s.impact == i)
+        t = np.arange(sel.size) / sel.size * 1.8 * np.pi  # the impact's half-sine phase
+        f[sel] += level * s.force.max() * np.sin(2.7 * t + rng.uniform(0, 2 * np.pi))
+    return ContactSamples(s.recording, s.displacement, s.velocity, f, s.impact, s.onset, s.beta)
+
+
+def test_discovery_keeps_the_reading_whose_force_is_a_function_of_the_state():
+    """A Hunt-Crossley force is nearly a cubic in (x, v) (held-out R2 > 0.99 at 2 % noise);
+    the same force with a ring whose phase differs between impacts is not. The chain-undone
+    reading is kept only where it is the static one."""
+    from stiffnet.discovery.chain_choice import keeps_chain, state_function_r2
+
+    static = synthetic_samples({"hunt_crossley": 0.5}, 0.02)[1]
+    ringing = _ringing(static, 0.05)
+    assert state_function_r2(static) > 0.99
+    assert 1 - state_function_r2(ringing) > 2 * (1 - state_function_r2(static))
+    assert keeps_chain(plain=ringing, undone=static)
+    assert not keeps_chain(plain=static, undone=ringing)
+    assert not keeps_chain(plain=static, undone=None) and keeps_chain(plain=None, undone=static)
