@@ -248,3 +248,20 @@ def test_a_recording_whose_impacts_disagree_does_not_flatten_the_power_law():
     data = stack(samples)
     factors = recording_factors(data, fit_law(data, frozenset({"power"}), 0.3))
     assert factors[0] < 0.5 and np.all(factors[1:] > 0.7), factors
+
+
+def test_a_hinge_knot_must_be_passed_in_most_recordings():
+    """The synthetic two-stage law's knot (0.12) is passed by the impacts of all four
+    recordings; a knot at 0.55 only by the softest one's (peaks 0.42-0.78; the next reach
+    0.49 at most): not a shared second stage."""
+    import dataclasses
+
+    from stiffnet.discovery.select import knot_is_shared
+    from stiffnet.discovery.terms import fit_law, stack
+
+    data = stack(synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03))
+    fit = fit_law(data, frozenset({"hinge"}), 0.3, {"knee": 0.1})
+    assert fit.shared["knee"] == pytest.approx(0.12, rel=0.15) and knot_is_shared(data, fit)
+    theta = fit.theta.copy()
+    theta[2 * fit.n_rec] = 0.55  # the knee, the first shared parameter of a hinge
+    assert not knot_is_shared(data, dataclasses.replace(fit, theta=theta))

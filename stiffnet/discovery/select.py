@@ -46,6 +46,9 @@ N_FOLDS = 4
 N_BOOTSTRAP = 30
 #: Knots tried as starts of a hinge, as quantiles of the peak penetrations.
 KNOT_QUANTILES = (0.15, 0.4, 0.7)
+#: Impacts of a recording that must pass a hinge's knot for the recording to count as
+#: reaching it (:func:`knot_is_shared`).
+KNOT_MIN_IMPACTS = 2
 #: Residual evaluations of the short fits that screen the face term's starts.
 FACE_SCREEN_NFEV = 12
 #: Systematic part of the intervals (relative): a floor and a term growing with the law's
@@ -129,8 +132,30 @@ def _candidates(data: Data, current: Fit, dr: float) -> list[Fit]:
                 continue
             starts = [best.shared]
         fits = [fit_law(data, terms, dr, s, per) for s in starts]
-        out.append(min(fits, key=lambda f: f.sse))
+        best_fit = min(fits, key=lambda f: f.sse)
+        if term == "hinge" and not knot_is_shared(data, best_fit):
+            continue
+        out.append(best_fit)
     return out
+
+
+def knot_is_shared(data: Data, fit: Fit) -> bool:
+    """Rule: a hinge's knot must be passed by at least :data:`KNOT_MIN_IMPACTS` impacts in at
+    least half of the recordings (a shared term acts on the median recording).
+
+    A knot beyond most recordings' reach is one recording's misfit absorbed, not a second
+    stage: on the independent rig's Hunt-Crossley campaign, with one recording's map bent by
+    a spurious sensor chain, a softening "hinge" at 1.06 (ratio 0.05) passed by the impacts
+    of 2 of 8 recordings lowered the median held-out error by 18 %; the true two-stage
+    campaigns have their knot passed in 7 of 8.
+    """
+    delta = data.x - fit.onsets[data.rec]
+    peaks = np.full(int(data.impact.max()) + 1, -np.inf)
+    np.maximum.at(peaks, data.impact, delta)
+    rec_of = np.zeros(peaks.size, dtype=int)
+    rec_of[data.impact] = data.rec
+    passed = np.bincount(rec_of[peaks > fit.shared["knee"]], minlength=data.n_rec)
+    return int(np.sum(passed >= KNOT_MIN_IMPACTS)) >= 0.5 * data.n_rec
 
 
 def forward_path(data: Data, dr: float, rng: np.random.Generator) -> tuple[Fit, list[dict]]:
