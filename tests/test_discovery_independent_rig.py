@@ -28,12 +28,11 @@ def _law(tmp, name, **kw):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="since the sensor-chain search of this session, the rig's Hunt-Crossley campaign "
-    "also yields a spurious hinge term (93.6 % explained); open in issue 21",
-)
 def test_hunt_crossley_rig(tmp_path):
+    """Measured: the chain search fits a 154 Hz low-pass to the beta-12 recording and the
+    library's law keeps its inverse (beta read 0.36); its samples turned the law into
+    hinge + hunt_crossley (93.6 %). Discovery keeps the record as recorded, whose force is
+    the better function of the state (held-out cubic R2 0.998 against 0.975)."""
     law = _law(tmp_path, "hc", contact="hunt_crossley", hc_lambda_s_per_m=8.0)
     assert law.terms == ("hunt_crossley",), law.words
     # F = beta delta (1 + lambda v): alpha = lambda omega_n / 1000 in model units (mm)

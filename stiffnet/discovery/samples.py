@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.discovery.chain_choice import keeps_chain
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.estimate import (
@@ -114,15 +115,33 @@ def record_contact_samples(
     recording: str = "",
     periods: float = PERIODS,
 ) -> tuple[ContactSamples | None, RestoringForceResult]:
-    """Run the restoring-force estimate on one record and return its samples (and the estimate)."""
-    r = restoring_force_estimate(
-        accel, fs_hz, natural_frequency_hz=natural_frequency_hz,
-        forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
-        chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,  # a chain fitted to a law it lacks bends it
-        profile_highpass_below_r2=-np.inf,  # so does a corner profiled until the library fits
-    )  # fmt: skip
+    """Run the restoring-force estimate on one record and return its samples (and the estimate).
+
+    The sensor chain is fitted only where the record's contact law explains too little,
+    and its inverse kept only where it makes the force a function of the state
+    (:func:`~.chain_choice.keeps_chain`; a chain's refusal stands); the high-pass is never
+    profiled by the library's law (that tunes the corner until the library's law fits,
+    bending a law it lacks).
+    """
+    options = dict(natural_frequency_hz=natural_frequency_hz,
+                   forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
+                   profile_highpass_below_r2=-np.inf)  # fmt: skip
+    r = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED, **options)
+    s = _samples_of(r, fs_hz, gain, recording)
+    chain = r.sensor
+    if s is not None and chain is not None and chain.applied and chain.source == "fitted":
+        plain = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=-np.inf, **options)
+        s_plain = _samples_of(plain, fs_hz, gain, recording)
+        if not keeps_chain(s_plain, s):
+            return s_plain, plain
+    return s, r
+
+
+def _samples_of(
+    r: RestoringForceResult, fs_hz: float, gain: float, recording: str
+) -> ContactSamples | None:
     margin = max(2, int(MARGIN * fs_hz / r.forcing_frequency_hz))
-    return contact_samples(r, gain, recording, margin), r
+    return contact_samples(r, gain, recording, margin)
 
 
 def campaign_contact_samples(

@@ -1,0 +1,93 @@
+"""Which reading of a record the discovery keeps: with its fitted sensor chain undone, or not.
+
+The restoring-force estimate, where the contact law explains too little, fits a
+sensor chain to the impacts' pulses and keeps its inverse where the *library's*
+contact law then explains more. A law the library lacks bends the pulse as a
+chain would (a Hunt-Crossley contact reads as a low-pass near the contact's
+frequency), so that test can keep a spurious chain, and its inverse (with a
+high-pass re-fitted after it) bends the force-state samples into terms the rig
+does not have: on the independent rig's Hunt-Crossley campaign, one of eight
+recordings (beta 12 read as 0.36) turned the law into ``hinge + hunt_crossley``.
+
+The discovery asks the question without a law: a chain is the record's where
+undoing it makes the contact force a *function of the state*, i.e. where a
+smooth static function of penetration and velocity (a full cubic in ``x`` and
+``v``, which holds the linear spring, Kelvin-Voigt, Hunt-Crossley and any mild
+curvature) predicts the force of held-out impacts better. A real low-pass left
+in the record delays the force against the state (loops no static function
+fits); a spurious one's inverse adds ringing and loops of its own.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # samples.py asks this module which reading to keep
+    from stiffnet.discovery.samples import ContactSamples
+
+#: Folds of whole impacts for the held-out R2.
+N_FOLDS = 4
+#: The chain-undone reading is kept only where it leaves at most this share of the
+#: unexplained force of the record as recorded (a real chain's inverse removes most of it).
+MAX_UNEXPLAINED_RATIO = 0.9
+
+
+def _cubic_design(x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Every monomial ``x**i v**j`` with ``i + j <= 3`` of the standardised state."""
+    xs = (x - x.mean()) / max(float(x.std()), 1e-300)
+    vs = (v - v.mean()) / max(float(v.std()), 1e-300)
+    return np.column_stack([xs**i * vs**j for i in range(4) for j in range(4 - i)])
+
+
+def state_function_r2(samples: ContactSamples, n_folds: int = N_FOLDS) -> float:
+    """Held-out R2 of the contact force as a static cubic function of ``(x, v)``.
+
+    Parameters
+    ----------
+    samples : ContactSamples
+        One recording's impacts (any units: the R2 is scale-free).
+    n_folds : int
+        Folds of whole impacts (impact ``i`` is in fold ``i mod n_folds``).
+
+    Returns
+    -------
+    float
+        ``1 - SSE_held_out / SST`` over the samples beyond the onset of every fold (``-inf``
+        with fewer impacts than folds).
+    """
+    # beyond the law's onset: the clip at release (zero force before the onset) is a kink
+    # no polynomial follows
+    inside = samples.displacement > samples.onset
+    f = np.asarray(samples.force, float)[inside]
+    if samples.n_impacts < n_folds or f.size < 20:
+        return -np.inf
+    design = _cubic_design(samples.displacement[inside], samples.velocity[inside])
+    fold = samples.impact[inside] % n_folds
+    sse = 0.0
+    for k in range(n_folds):
+        test = fold == k
+        coef = np.linalg.lstsq(design[~test], f[~test], rcond=None)[0]
+        sse += float(np.sum((design[test] @ coef - f[test]) ** 2))
+    sst = float(np.sum((f - f.mean()) ** 2))
+    return 1.0 - sse / max(sst, 1e-300)
+
+
+def keeps_chain(plain: ContactSamples | None, undone: ContactSamples | None) -> bool:
+    """Rule: keep the chain-undone reading where it makes the force a function of the state.
+
+    True where the record as recorded has no samples, or where the undone reading's
+    held-out unexplained force (:func:`state_function_r2`) is at most
+    :data:`MAX_UNEXPLAINED_RATIO` of the plain one's.
+    """
+    if undone is None:
+        return False
+    if plain is None:
+        return True
+    r2_plain, r2_undone = state_function_r2(plain), state_function_r2(undone)
+    if not np.isfinite(r2_undone):
+        return False
+    if not np.isfinite(r2_plain):
+        return True
+    return 1.0 - r2_undone <= MAX_UNEXPLAINED_RATIO * (1.0 - r2_plain)
