@@ -20,7 +20,10 @@ ones at 2 % noise: ``damped`` (contact_damping 0-0.3), ``sensor``
 ``module:Class`` contact, F ~ d**1.3, see ``crosscheck_effects.py``),
 ``sensor_priors`` (contact_damping 0-0.5 and a sensor chain drawn per recording
 from the training prior: mount resonance 15-300 f_n, high-pass 0-2 Hz,
-anti-alias 0.15-0.45 fs of order 1-4). No method is told the sensor's corners.
+anti-alias 0.15-0.45 fs of order 1-4), ``sensor_chains`` and ``sensor_chains_damped``
+(lab chains: resonance 15-300 f_n, low-pass 0.05-0.45 fs of order 2-4, high-pass
+0.1-5 Hz), and ``rig_chains``/``rig_chains_damped`` (the same chains on the independent
+rig, analog; not run by default). No method is told the sensor's corners.
 
 Per method and set: class accuracy over the recordings with contact (a
 refusal counts as wrong), answered fraction, accuracy on the answered ones,
@@ -156,6 +159,32 @@ def simulate_set(name: str, n: int, seed: int):
     fs = list(fs_ratio * FN_HZ)
     contact = [bool(np.any(res.contact_force[i, : lengths[i]] > 0)) for i in range(n)]
     return rows, np.array(fs), beta, np.array(contact), chains
+
+
+#: Sets of the independent rig (tests/independent_rig.py: solve_ivp in SI units, the chain
+#: analog on an 8x oversampled motion, then sampled): lab chains (LAB_SENSOR_PRIOR), an elastic
+#: or a damped (zeta 0-0.3) Kelvin-Voigt contact; 3 s at 1-4 kHz, 2 % noise.
+RIG_SETS = {"rig_chains": None, "rig_chains_damped": "kelvin_voigt"}
+
+
+def simulate_rig_set(name: str, n: int, seed: int):
+    """``n`` recordings of rig set `name`, as :func:`simulate_set` returns them."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from independent_rig import RigRun, record
+
+    rng = np.random.default_rng(seed)
+    edges = [(lo, hi) for _, lo, hi in CLASSES]
+    beta = np.array([rng.uniform(*edges[i % len(edges)]) for i in range(n)])
+    fs = np.exp(rng.uniform(np.log(1000.0), np.log(4000.0), n))
+    _, chains = prior_sensor_chain(np.zeros((n, 1)), fs, rng, LAB_SENSOR_PRIOR)
+    rows = []
+    for i in range(n):
+        run = RigRun(recording=f"{name}_{i}.csv", beta=float(beta[i]), fs_hz=float(fs[i]),
+                     duration_s=3.0, gap_mm=float(rng.uniform(1.0, 2.5)),
+                     contact=RIG_SETS[name], contact_zeta=float(rng.uniform(0.0, 0.3)),
+                     sensor=chains[i])  # fmt: skip
+        rows.append(record(run, seed=seed)[1])
+    return rows, fs, beta, np.ones(n, dtype=bool), chains
 
 
 def prior_sensor_chain(accel: np.ndarray, fs_hz: np.ndarray, rng, prior: dict) -> np.ndarray:
@@ -363,10 +392,13 @@ def main(argv: list[str] | None = None) -> int:
     table: dict[str, dict[str, dict]] = {}
     recovery: dict[str, dict] = {}
     t0 = time.perf_counter()
-    for k, name in enumerate(args.sets):
-        if name not in SETS:
-            ap.error(f"unknown set {name!r}; choose from {', '.join(SETS)}")
-        rows, fs, beta, contact, chains = simulate_set(name, args.n, args.seed + k)
+    for name in args.sets:
+        if name not in SETS and name not in RIG_SETS:
+            ap.error(f"unknown set {name!r}; choose from {', '.join([*SETS, *RIG_SETS])}")
+        # a set's seed is its own, whatever other sets run with it
+        seed = args.seed + [*SETS, *RIG_SETS].index(name)
+        simulate = simulate_rig_set if name in RIG_SETS else simulate_set
+        rows, fs, beta, contact, chains = simulate(name, args.n, seed)
         res = run_methods(rows, fs, not args.no_model)
         table[name] = {m: score(r, beta, contact) for m, r in res.items()}
         if any(chains):

@@ -318,3 +318,74 @@ def test_a_charge_amplifier_highpass_is_found_and_none_is_invented(highpass_hz):
     assert r.ok, r.reason
     assert r.highpass_hz == pytest.approx(highpass_hz, rel=0.1, abs=0.05)
     assert r.beta == pytest.approx(30.0, rel=0.1)
+
+
+# --- "no contact" behind a low-pass ------------------------------------------------------
+
+
+@pytest.mark.parametrize("contact", [None, "kelvin_voigt"])
+def test_contacts_a_lowpass_smooths_away_are_refused_not_read_as_no_contact(contact):
+    """Independent rig, beta 30 (contact 53 Hz) behind a 4th-order low-pass at 30 Hz and no
+    data sheet: no impact stands out of the free flight, yet the impacts' harmonics 4-8
+    do (a free flight has none beyond the shaker's 3rd): refused in one line, not "no
+    contact" (which would be a silent wrong answer)."""
+    accel, fs = rig({"lowpass_hz": 30.0, "lowpass_order": 4}, contact)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24)
+    assert not r.ok and r.restoring_force_class is None
+    assert "low-pass below the contact's frequency" in r.reason
+    assert "beta is not identifiable from this sensor" in r.reason and "\n" not in r.reason
+
+
+@pytest.mark.parametrize("effect", ["forcing_harmonics", "sensor_dynamics"])
+def test_a_free_flight_with_harmonics_of_its_own_is_still_no_contact(effect):
+    """No contact (gap 30): the shaker's 2nd and 3rd harmonics (the free-flight law's) or the
+    default sensor chain leave "no contact" as it was."""
+    from tests.test_restoring_force import simulate
+
+    accel, fs = simulate(30.0, [(effect, {})], gap=30.0, noise=0.02)
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN)
+    assert r.restoring_force_class == "no_contact" and r.reason.startswith("no contact")
+
+
+def test_excess_harmonics_reads_a_pulse_train_and_not_a_sinusoid():
+    """Analytic: 20 periods of a sinusoid at harmonic 1 plus its 3rd carry no harmonic beyond
+    the 3rd; a train of half-sine pulses (one per period) carries every one up to its band
+    and refuses; a symmetric force (a rounded square wave, dry friction's odd harmonics
+    only) does not."""
+    from stiffnet.restoring_force.band import excess_harmonics, smoothed_contact_refusal
+
+    period, n = 200, 4000
+    t = np.arange(n) / period
+    rng = np.random.default_rng(0)
+    smooth = np.sin(2 * np.pi * t) + 0.1 * np.sin(6 * np.pi * t) + 0.01 * rng.standard_normal(n)
+    assert excess_harmonics(smooth, period).size == 0
+    phase = (t % 1.0) * period
+    pulses = np.where(phase < 10, np.sin(np.pi * phase / 10), 0.0) + 0.01 * rng.standard_normal(n)
+    found = excess_harmonics(pulses, period)
+    assert {4, 5, 6, 7} <= set(found.tolist())
+    assert "not identifiable" in smoothed_contact_refusal(pulses, period, 2000.0, 10.0, 5.0)
+    square = np.tanh(5 * np.sin(2 * np.pi * t)) + 0.01 * rng.standard_normal(n)
+    odd = excess_harmonics(square, period)
+    assert odd.size >= 2 and np.all(odd % 2 == 1)
+    assert smoothed_contact_refusal(square, period, 2000.0, 10.0, 5.0) == ""
+
+
+@pytest.mark.parametrize("engine", ["stiffnet", "rig"])
+def test_a_data_sheet_lowpass_at_three_contact_frequencies_reads_beta(engine):
+    """A 4th-order low-pass at 160 Hz (3 contact frequencies, 0.056 fs) from its data sheet:
+    the inverse's ripple around each pulse split one or two free samples off the contact,
+    each flight's own displacement line then rested on them and beta was refused ("the
+    contact force does not grow with the displacement"); within 10 % now, on stiffnet's
+    chain and on the independent rig's analog one."""
+    from tests.test_restoring_force import simulate
+
+    sheet = {"lowpass_hz": 160.0, "lowpass_order": 4}
+    if engine == "rig":
+        accel, fs = rig(sheet, None, fs=300 * FN)
+    else:
+        accel, fs = simulate(30.0, [("sensor_dynamics", {**sheet, "resonance_hz": 5e4,
+                                                         "highpass_hz": 0.0})],
+                             fs_ratio=300.0, noise=0.02, periods=24, omega=1.05)  # fmt: skip
+    r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24, sensor=sheet)
+    assert r.ok, r.reason
+    assert r.beta == pytest.approx(30.0, rel=0.1)

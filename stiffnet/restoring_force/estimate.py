@@ -35,6 +35,7 @@ from scipy import ndimage, optimize, stats
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
+from stiffnet.restoring_force.band import smoothed_contact_refusal
 from stiffnet.restoring_force.chain import (
     SensorChain,
     deconvolve,
@@ -871,6 +872,11 @@ def _estimate_at(
         highpass_hz=corner * ff,
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
+    if not refusal and info.get("restoring_force_class") == NO_CONTACT:
+        # no impact stands out: unless a low-pass smoothed them away (their harmonics remain)
+        beta_min = min(float(lo) for _, lo, _ in classes)
+        refusal = smoothed_contact_refusal(y, period, fs_hz, info["natural_frequency_hz"],
+                                           beta_min)  # fmt: skip
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:

@@ -32,6 +32,11 @@ from scipy import linalg, ndimage
 HARMONICS = (1, 2, 3)
 #: A sample is in contact when its residual force exceeds this many robust sigmas.
 CONTACT_SIGMAS = 5.0
+#: A run of at most this many free samples is no flight of its own (a line fitted to so
+#: few samples is arbitrary, and the contact on either side blends into it): a deconvolved
+#: pulse's ripple split off such runs and wrecked beta. Longer runs (between a mount's
+#: ringing lobes) stay flights.
+MIN_FLIGHT_SAMPLES = 3
 
 
 @dataclass(frozen=True)
@@ -138,6 +143,13 @@ def _impulse_corrections(
     dcorr = np.zeros_like(tau)
     if n < 2:
         return None
+    sizes = np.asarray(ndimage.sum(free, flights, np.arange(1, n + 1)))
+    short = np.flatnonzero(sizes <= MIN_FLIGHT_SAMPLES) + 1
+    if short.size:  # too short for a line: part of the contact around it
+        free = free & ~np.isin(flights, short)
+        flights, n = ndimage.label(free)
+        if n < 2:
+            return None
     target = -accel - stiffness * disp
     idx = np.arange(1, n + 1)
     centre = ndimage.mean(tau, flights, idx)

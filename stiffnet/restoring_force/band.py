@@ -1,0 +1,96 @@
+"""Whether "no contact" can be read: contacts a low-pass smoothed away still leave harmonics.
+
+A linear free flight driven by the table (eq. 12 with ``H = 0``, the table's motion at the
+forcing harmonics :data:`~.free_flight.HARMONICS`) answers at those harmonics only. Impacts
+add every harmonic of the forcing up to about the contact's frequency; a low-pass below the
+contact's frequency rounds the pulses until none stands above the free-flight scatter (the
+map finds no excursion), yet the harmonics it passes remain, periodic and far above the
+record's noise. Such harmonics on a record the map reads as free flight mean the band does
+not carry the contact: "no contact" would be a silent wrong answer. A one-sided force (a
+contact) gives even and odd harmonics alike; a symmetric nonlinearity of the free flight
+(dry friction) gives odd ones only, and is no sign of a contact.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from stiffnet.restoring_force.free_flight import HARMONICS
+
+#: A harmonic stands out when its power exceeds this many times the median of its
+#: neighbouring bins (white noise: the median is 0.69 of the mean, so the chance of a noise
+#: bin above it is about exp(-0.69 * 100)). Low-passed impact records: 1e2-1e7 at harmonics
+#: 4-10; free flights, with or without the shaker's 2nd and 3rd: 0-5.
+HARMONIC_RATIO = 100.0
+#: ... and at least this many harmonics beyond the free-flight law's must, even and odd
+#: ones among them (one could be an interfering line, such as the mains, that happens to
+#: fall on a harmonic).
+MIN_HARMONICS = 2
+#: Neighbour bins on each side that set a harmonic's noise floor, beyond the Hann window's
+#: main lobe (+-2 bins: a start-up transient or a forcing frequency read a little off
+#: leaks into it).
+NEIGHBOURS = 11
+LOBE = 2
+
+
+def excess_harmonics(y: np.ndarray, period: float) -> np.ndarray:
+    """The forcing harmonics beyond the free-flight law's that stand out of the noise.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        The record over whole forcing periods (as :func:`~.reconstruct.periodic_length`
+        cuts it).
+    period : float
+        Samples per forcing period.
+
+    Returns
+    -------
+    numpy.ndarray
+        The harmonic numbers (beyond ``max(HARMONICS)``) whose power exceeds
+        :data:`HARMONIC_RATIO` times their neighbours' median; empty where the record spans
+        too few periods for neighbours between the harmonics (8).
+    """
+    n = y.size
+    periods = n / period
+    reach = min(NEIGHBOURS, int(np.floor(periods / 2)))
+    if reach < LOBE + 3:
+        return np.array([], dtype=int)
+    power = np.abs(np.fft.rfft((y - np.mean(y)) * np.hanning(n))) ** 2
+    offsets = np.r_[-reach:-LOBE, LOBE + 1 : reach + 1]
+    out = []
+    for m in range(max(HARMONICS) + 1, int((power.size - 1 - reach) / periods) + 1):
+        k = int(round(m * periods))
+        floor = float(np.median(power[k + offsets]))
+        if power[k] > HARMONIC_RATIO * max(floor, 1e-300):
+            out.append(m)
+    return np.array(out, dtype=int)
+
+
+def smoothed_contact_refusal(
+    y: np.ndarray, period: float, fs_hz: float, natural_hz: float, beta_min: float
+) -> str:
+    """Rule: the one-line refusal for a record read as free flight whose harmonics beyond the
+    free-flight law's stand out (at least :data:`MIN_HARMONICS`, even and odd), else ''.
+
+    Parameters
+    ----------
+    y, period
+        As :func:`excess_harmonics`.
+    fs_hz, natural_hz : float
+        Sampling rate and the free flight's natural frequency (Hz).
+    beta_min : float
+        The least beta of a contact (the classes' lowest edge): the contact's frequency is at
+        least ``f_n sqrt(1 + beta_min)``.
+    """
+    found = excess_harmonics(y, period)
+    if found.size < MIN_HARMONICS or not (np.any(found % 2 == 0) and np.any(found % 2 == 1)):
+        return ""
+    ff = fs_hz / period
+    contact_hz = natural_hz * np.sqrt(1.0 + beta_min)
+    return (
+        f"no impact stands out, yet harmonics {found.min()}-{found.max()} of the forcing "
+        f"(up to {found.max() * ff:.0f} Hz) do, which a free flight lacks: a low-pass below "
+        f"the contact's frequency (at least {contact_hz:.0f} Hz) smooths the contacts away, "
+        "so beta is not identifiable from this sensor"
+    )
