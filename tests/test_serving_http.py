@@ -368,7 +368,7 @@ def test_lane_cost_schedules_its_backlog_and_prices_at_what_it_measured():
     """Expected wait by list scheduling of the estimates; the price per sample is the
     highest of the mean (the seed until a measurement), the latest measurement and what a
     running job has spent already."""
-    from serving.app import COST_EWMA, OVERRUN_LEFT, LaneCost
+    from serving.load_shedding import COST_EWMA, OVERRUN_LEFT, LaneCost
 
     lane = LaneCost(workers=2, seed=1e-3)
     assert lane.expected_start_s(0.0) == 0.0  # idle: a worker is free now
