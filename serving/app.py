@@ -976,8 +976,7 @@ class Admission:
             f"so it would not finish within the {self.limits.timeout_s:g} s timeout; retry "
             f"after {retry} s"
         )
-        log.warning("429 (load shed): %s", message)
-        return _error(429, message, {"Retry-After": str(retry)})
+        return _shed(message, retry)
 
     def _too_slow_alone(
         self, lane: str, samples: int, now: float, budget: float
@@ -1005,8 +1004,7 @@ class Admission:
             f"slow-down now ({slow:.1f} times its CPU time), so it would not finish within "
             f"the {self.limits.timeout_s:g} s timeout; retry after {retry} s"
         )
-        log.warning("429 (load shed): %s", message)
-        return _error(429, message, {"Retry-After": str(retry)})
+        return _shed(message, retry)
 
     async def _run(self, job: Callable[[], dict], lane: str, done: Callable) -> JSONResponse:
         loop = asyncio.get_running_loop()
@@ -1030,6 +1028,12 @@ class Admission:
             return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
         self.state["served"] += 1
         return JSONResponse(result)
+
+
+def _shed(message: str, retry_after_s: int) -> JSONResponse:
+    """A job refused before any work (load shedding): 429 with ``Retry-After``, one log line."""
+    log.warning("429 (load shed): %s", message)
+    return _error(429, message, {"Retry-After": str(retry_after_s)})
 
 
 def _drop(job: Callable[[], dict]) -> None:
