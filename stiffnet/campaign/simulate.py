@@ -266,8 +266,8 @@ def simulate_rows(
     noise = np.array([row_noise(r) for r in rows])
     x0, v0 = initial_states(rows, batch, seed, starts)
     k = oversampling(effects) if oversample else 1
-    if k > 1:  # RK4 steps of an oversampled record: the sample step is already k times shorter
-        settings = settings.model_copy(update={"substeps": max(1, -(-settings.substeps // k))})
+    if k > 1:  # the motion needs the logger's rate; the numerical engine fills the rest
+        settings = settings.model_copy(update={"oversampled": k})
     sim = Simulator(list(effects), settings)
     # white noise at the end of the chain, drawn for the logger's samples only (not for the
     # k - 1 dropped between them: the same law, k times fewer draws)

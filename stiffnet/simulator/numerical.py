@@ -333,6 +333,46 @@ def _rk4(
     return y + (s / 6.0)[:, None] * (k1 + 2.0 * (k2 + k3) + k4)
 
 
+def _rk4_dense(
+    model: _Model,
+    t: np.ndarray,
+    y: np.ndarray,
+    k1: np.ndarray,
+    s: np.ndarray,
+    contact: np.ndarray,
+    modes: np.ndarray,
+) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """:func:`_rk4` (the same arithmetic) and its stages ``(k1, k2, k3, k4)``, for
+    :func:`_dense_states`."""
+    half = 0.5 * s
+    tm = t + half
+    fm = model.forcing_at(tm)
+    k2, _ = model.rhs(tm, y + half[:, None] * k1, contact, modes, forcing=fm)
+    k3, _ = model.rhs(tm, y + half[:, None] * k2, contact, modes, forcing=fm)
+    k4, _ = model.rhs(t + s, y + s[:, None] * k3, contact, modes)
+    return y + (s / 6.0)[:, None] * (k1 + 2.0 * (k2 + k3) + k4), (k1, k2, k3, k4)
+
+
+def _dense_states(
+    y: np.ndarray,
+    s: np.ndarray,
+    stages: tuple[np.ndarray, ...],
+    rows: np.ndarray,
+    theta: np.ndarray,
+) -> np.ndarray:
+    """States at fractions ``theta`` of an RK4 step of length ``s`` from ``y``, for rows
+    ``rows`` (one entry per point): the classical RK4 continuous extension (third order,
+    Hairer, Norsett & Wanner, *Solving ODEs I*, II.6), whose weights reach RK4's at
+    ``theta = 1``; it needs no further evaluation of the right-hand side."""
+    th2, th3 = theta * theta, theta * theta * theta
+    b1 = theta - 1.5 * th2 + (2.0 / 3.0) * th3
+    b23 = th2 - (2.0 / 3.0) * th3
+    b4 = -0.5 * th2 + (2.0 / 3.0) * th3
+    k1, k2, k3, k4 = (k[rows] for k in stages)
+    inc = b1[:, None] * k1 + b23[:, None] * (k2 + k3) + b4[:, None] * k4
+    return y[rows] + s[rows][:, None] * inc
+
+
 def _partial_step(
     model: _Model,
     t: np.ndarray,
@@ -486,6 +526,133 @@ class _Stepper:
         if total:
             self.check_bounded()
 
+    def march_dense(self, h: np.ndarray, per_step: np.ndarray, out: dict, need: np.ndarray) -> None:
+        """Record ``need[i]`` steps of ``h[i]`` per row, integrating one RK4 substep per
+        ``per_step[i]`` of them (B,) and filling the steps in between by dense output.
+
+        For records sampled finer than the motion needs (an analog sensor's oversampled
+        chain): the states between substep ends come from the step's own stages
+        (:func:`_dense_states`), or, in a substep with an event, from an RK4 partial step
+        from the start of the smooth piece that holds them; the acceleration and contact
+        force are the right-hand side's at those states. Impacts are counted at the step
+        in which the contact begins. The integration is the one :meth:`march` does with
+        steps of ``h * per_step`` (bitwise the same states at substep ends).
+        """
+        m = self.m
+        per = np.asarray(per_step, dtype=np.int64)
+        need = np.asarray(need, dtype=np.int64)
+        hs = h * per
+        t_start = self.t.copy()
+        # the points between substep ends: row, and fraction of the substep
+        rows_d = np.repeat(np.arange(m.n), per - 1)
+        j_d = np.arange(rows_d.size) - np.repeat(np.cumsum(per - 1) - (per - 1), per - 1) + 1
+        theta_d = j_d / per[rows_d]
+        md = m.subset(rows_d) if rows_d.size else None
+        total = int(np.max(-(-need // per))) if m.n else 0
+        cols = np.arange(m.n)
+        for q in range(1, total + 1):
+            t0, y0, f0 = self.t, self.y, self.f
+            c0, mo0 = self.contact, self.modes
+            y1, stages = _rk4_dense(m, t0, y0, f0, hs, c0, mo0)
+            t1 = t_start + q * hs
+            f1, aux1 = m.rhs(t1, y1, c0, mo0, full=True)
+            sus = self._suspects(aux1, hs)
+            entry_step = None
+            if rows_d.size:
+                yd = _dense_states(y0, hs, stages, rows_d, theta_d)
+                cd, mod = c0[rows_d], mo0[:, rows_d]
+            if sus.size:
+                segs: list = []
+                trial = (y1[sus], f1[sus], {k: v[sus] for k, v in aux1.items()})
+                res = self._resolve(sus, hs[sus], trial, segs)
+                y1[sus], f1[sus] = res["y"], res["f"]
+                for key, val in res["aux"].items():
+                    aux1[key][sus] = val
+                self.contact[sus] = res["contact"]
+                self.modes[:, sus] = res["modes"]
+                entry_step = self._entry_steps(sus, segs, t0, h, per, q)
+                if rows_d.size:
+                    self._dense_in_events(sus, segs, t0, h, rows_d, j_d, yd, cd, mod)
+            self.t, self.y, self.f, self.aux = t1, y1, f1, aux1
+            if rows_d.size:
+                _, auxd = md.rhs(t0[rows_d] + j_d * h[rows_d], yd, cd, mod, full=True)
+                step = (q - 1) * per[rows_d] + j_d - 1
+                keep = step < need[rows_d]
+                self._record_points(out, step[keep], rows_d[keep], yd[keep], auxd, keep)
+            step = q * per - 1
+            keep = step < need
+            done = cols[keep]
+            if done.size:
+                self._record_points(out, step[keep], done, y1[done], aux1, done)
+                if entry_step is not None:
+                    r, k = entry_step
+                    ok = k < need[r]
+                    np.add.at(out["impacts"], (k[ok], r[ok]), 1)
+            if q % _CHECK_EVERY == 0:
+                self.check_bounded()
+        if total:
+            self.check_bounded()
+
+    def _entry_steps(
+        self, sus: np.ndarray, segs: list, t0: np.ndarray, h: np.ndarray, per: np.ndarray, q: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(row, recorded step) of each contact entry in substep ``q`` of rows ``sus``: a
+        smooth piece that begins in contact after one that did not."""
+        prev = np.zeros(sus.size, dtype=bool)  # set by the first piece (the substep's start)
+        rows, steps = [], []
+        for k, (a, t, _, _, c, _) in enumerate(segs):
+            if k:
+                new = c & ~prev[a]
+                j = np.ceil((t[new] - t0[sus[a[new]]]) / h[sus[a[new]]] - 1e-9)
+                j = np.clip(j, 1, per[sus[a[new]]]).astype(np.int64)
+                rows.append(sus[a[new]])
+                steps.append((q - 1) * per[sus[a[new]]] + j - 1)
+            prev[a] = c
+        if not rows:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(rows), np.concatenate(steps)
+
+    def _dense_in_events(self, sus, segs, t0, h, rows_d, j_d, yd, cd, mod) -> None:
+        """Replace the dense points of rows ``sus`` (a substep with an event) by RK4 partial
+        steps from the start of the smooth piece that holds each point."""
+        pos = np.full(self.m.n, -1)
+        pos[sus] = np.arange(sus.size)
+        pts = (pos[rows_d] >= 0).nonzero()[0]
+        if pts.size == 0:
+            return
+        local = pos[rows_d[pts]]
+        tau = t0[rows_d[pts]] + j_d[pts] * h[rows_d[pts]]
+        which = np.full(pts.size, -1)
+        at = np.full(pts.size, -1)
+        where = np.full(sus.size, -1)
+        for k, (a, t, *_) in enumerate(segs):  # passes in time order: the last piece wins
+            where[:] = -1
+            where[a] = np.arange(a.size)
+            w = where[local]
+            ok = w >= 0
+            ok[ok] = t[w[ok]] <= tau[ok] + 1e-12 * np.abs(tau[ok])
+            which[ok], at[ok] = k, w[ok]
+        for k, (_a, t, y, f, c, mo) in enumerate(segs):
+            sel = (which == k).nonzero()[0]
+            if sel.size == 0:
+                continue
+            i = at[sel]
+            ms = self.m.subset(rows_d[pts[sel]])
+            s = tau[sel] - t[i]
+            yd[pts[sel]] = _rk4(ms, t[i], y[i], f[i], s, c[i], mo[:, i])
+            cd[pts[sel]] = c[i]
+            mod[:, pts[sel]] = mo[:, i]
+
+    def _record_points(
+        self, out: dict, step: np.ndarray, rows: np.ndarray, y: np.ndarray, aux: dict, sel
+    ) -> None:
+        """Write states ``y`` (one per point) of rows ``rows`` as their step ``step``;
+        ``aux[...][sel]`` is the right-hand side's data at those states."""
+        x, v, fc = y[:, 0], y[:, 1], aux["fc"][sel]
+        out["x"][step, rows], out["v"][step, rows] = x, v
+        out["contact_force"][step, rows] = fc
+        out["accel"][step, rows] = aux["extra"][sel] - (self.m.xi2[rows] * v + x + fc)
+
     def _record(self, out: dict, step: np.ndarray, rows: np.ndarray, entries: np.ndarray) -> None:
         """Write rows ``rows``'s state as their step ``step`` into ``out``."""
         m, y, aux = self.m, self.y, self.aux
@@ -510,13 +677,17 @@ class _Stepper:
         turn_con = self.contact & (dd0 < 0) & (dd1 >= 0) & (np.minimum(d0, d1) - span < 0)
         return (crossed | turn_free | turn_con).nonzero()[0]
 
-    def _resolve(self, idx: np.ndarray, hs: np.ndarray, trial: tuple) -> dict[str, Any]:
+    def _resolve(
+        self, idx: np.ndarray, hs: np.ndarray, trial: tuple, segments: list | None = None
+    ) -> dict[str, Any]:
         """March rows ``idx`` through their substep, locating and switching at events.
 
         ``trial``: the full-substep RK4 result ``(y, f, aux)`` of these rows. Each pass
         brackets every switching function's first crossing (:func:`_brackets`), locates
         them (:func:`_first_roots`) and switches at the earliest (:func:`_switch`); rows
-        with nothing left to cross finish the substep.
+        with nothing left to cross finish the substep. ``segments``: a list that gets, per
+        pass, where its rows' smooth pieces begin ``(rows (positions in idx), t, y, f,
+        contact, modes)``, for :meth:`march_dense`.
         """
         model = self.m.subset(idx)
         st = {
@@ -530,6 +701,11 @@ class _Stepper:
             if active.size == 0:
                 break
             a = active
+            if segments is not None:
+                segments.append(
+                    (a, st["t"][a].copy(), st["y"][a].copy(), st["f"][a].copy(),
+                     st["contact"][a].copy(), st["modes"][:, a].copy())
+                )  # fmt: skip
             ma = model if a.size == idx.size else model.subset(a)
             ta, la = st["t"][a], st["left"][a]
             if it == 0:  # nothing has moved yet: the main loop's trial step is this one
@@ -709,6 +885,7 @@ def simulate_numerical(
     n_samples: int,
     substeps: int = 8,
     row_samples: np.ndarray | None = None,
+    oversampled: int = 1,
 ) -> EngineResult:
     """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
 
@@ -739,6 +916,12 @@ def simulate_numerical(
         are left at 0): rows sampled at different rates then take
         :func:`recording_substeps` each, so a finely sampled row is not integrated
         ``substeps`` times per sample, and the batch stops when every row has its own.
+    oversampled : int
+        The samples are this many times finer than the motion needs (an analog sensor's
+        chain filters the oversampled signal): the motion is integrated with the substeps
+        a record sampled ``oversampled`` times coarser would get (``substeps`` per sample,
+        as above), and the samples between substep ends are filled by RK4's dense output
+        (:meth:`_Stepper.march_dense`), not integrated one by one.
 
     Returns
     -------
@@ -779,6 +962,23 @@ def simulate_numerical(
     }
     out["impacts"] = np.zeros((n_samples, n), dtype=np.int8)
     t0 = st.t + h
+    need = np.minimum(
+        np.broadcast_to(np.asarray(n_samples if row_samples is None else row_samples), (n,)),
+        n_samples,
+    ).astype(np.int64)
+    if oversampled > 1:
+        coarse = h * oversampled
+        per_coarse = (
+            np.full(n, n_sub(coarse), np.int64)
+            if row_samples is None
+            else recording_substeps(coarse, rate, substeps)
+        )
+        per_step = oversampled // per_coarse  # samples per RK4 substep
+        if np.all(per_step >= 1):
+            st.march_dense(h, per_step, out, need)
+            return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})
+        # a mode too fast for a substep of even one sample: integrate every sample
+        substeps = -(-substeps // oversampled)
     if row_samples is None:
         st.march(h, n_samples, n_sub(h), out)
     else:

@@ -197,7 +197,7 @@ class Simulator:
         return simulate_numerical(
             batch, self.dynamics, [params[e.name] for e in self.dynamics],
             x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
-            row_samples=row_samples,
+            row_samples=row_samples, oversampled=self.settings.oversampled,
         )  # fmt: skip
 
     def _motion_key(self, batch, params, x0, v0, t_tr, h, row_samples=None) -> bytes:
@@ -215,6 +215,7 @@ class Simulator:
         return motion_key(
             self.engine, dyn, fields, batch.natural_frequency_hz, x0, v0, t_tr, h, self.substeps,
             row_samples,  # rows stop at their own length, each at its own substeps
+            *([self.settings.oversampled] if self.engine == "numerical" else []),
         )  # fmt: skip
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
