@@ -584,10 +584,10 @@ class _Stepper:
             done = cols[keep]
             if done.size:
                 self._record_points(out, step[keep], done, y1[done], aux1, done)
-                if entry_step is not None:
-                    r, k = entry_step
-                    ok = k < need[r]
-                    np.add.at(out["impacts"], (k[ok], r[ok]), 1)
+            if entry_step is not None:  # a row's last substep may end past its length
+                r, k = entry_step
+                ok = k < need[r]
+                np.add.at(out["impacts"], (k[ok], r[ok]), 1)
             if q % _CHECK_EVERY == 0:
                 self.check_bounded()
         if total:
