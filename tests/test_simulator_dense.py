@@ -106,3 +106,33 @@ def test_dense_samples_match_integrating_every_sample(effects) -> None:
         dp = dense.impacts[i, : n - n % K].reshape(-1, K).sum(axis=1)
         assert ip.sum() >= 2
         assert np.abs(ip - dp).sum() <= 2  # an entry within a hair of a logger sample's end
+
+
+def test_campaign_simulations_with_an_analog_sensor_use_the_dense_output(monkeypatch) -> None:
+    """``simulate_rows`` with a numerical effect and the sensor chain asks the engine for the
+    logger's substeps (2) and 8x oversampled samples, not 1 substep per oversampled sample."""
+    from pathlib import Path
+
+    from stiffnet.campaign import simulate as cs
+    from stiffnet.campaign.manifest import read_manifest
+    from stiffnet.effects.registry import effect_class
+    from stiffnet.simulator import simulator
+
+    seen = []
+    engine = simulator.simulate_numerical
+
+    def spy(*a, **k):
+        seen.append((k["substeps"], k["oversampled"]))
+        return engine(*a, **k)
+
+    monkeypatch.setattr(simulator, "simulate_numerical", spy)
+    rows = read_manifest(Path(__file__).parents[1] / "examples" / "hidden_effect_manifest.csv")
+    rows = [rows[0], rows[-1]]  # 1 and 2 kHz
+    sensor = effect_class("sensor_dynamics")(resonance_hz=237, lowpass_hz=0, highpass_hz=0)
+    settings = cs.FIT_SETTINGS_NUMERICAL.model_copy(update={"periods": 3.0})
+    out = cs.simulate_rows(rows, [HertzContact(), sensor], [4000, 8000], settings=settings)
+    assert seen == [(2, cs.ANALOG_OVERSAMPLING)]
+    assert [a.size for a in out] == [int(np.ceil(3.0 * r.fs_hz / 9.48)) for r in rows]
+    assert all(np.isfinite(a).all() and np.std(a) > 0 for a in out)
+    cs.simulate_rows(rows, [HertzContact()], [4000, 8000], settings=settings)
+    assert seen[-1] == (2, 1)  # no analog effect: the logger's samples, as before
