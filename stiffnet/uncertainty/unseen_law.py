@@ -3,7 +3,7 @@
 The restoring-force estimate (:mod:`stiffnet.restoring_force`) fits a Kelvin-Voigt
 power law ``F = K d_r (delta/d_r)^p + c v`` to every recording the predictor reads.
 The training world's contact laws are the linear spring (paper eqs 11-12), its
-Kelvin-Voigt damping and Hertz's ``p = 1.5``; two readings of the map fall outside
+Kelvin-Voigt damping and Hertz's ``p = 1.5``; these readings of the map fall outside
 them on rigs whose law the training world lacks, and neither needs the model:
 
 * **the exponent**: a well-fitted law (R2 >= :data:`EXPONENT_MIN_R2`) whose exponent
@@ -21,7 +21,15 @@ them on rigs whose law the training world lacks, and neither needs the model:
   at least :attr:`UnseenLawThresholds.curvature_min_gain` /
   :attr:`UnseenLawThresholds.penetration_dissipation_min_gain`; within one impact the
   penetration spans ``0 .. delta_max``, so this reads stiffening on steady records whose
-  impacts all reach one depth.
+  impacts all reach one depth;
+* **a dissipation beyond the training world's** (``contact_damping_ratio_max``): the
+  map's Kelvin-Voigt damping ratio ``c_c / (2 sqrt(K))`` above the top of the
+  ``contact_damping`` prior the models were trained on (0.5, ``configs/sim/default.yaml``)
+  by more than the fit's scatter. A Hunt-Crossley contact,
+  whose dissipation ``lambda delta v`` grows with the impact's depth, is read as a strong
+  Kelvin-Voigt damper (0.56-2.0 on the independent rig); through a low-pass the
+  within-impact ``delta v`` term cannot tell it from a damped contact, but the damping
+  it needs is one no training contact had.
 
 The thresholds are read from ``configs/alarm/unseen_law.yaml``
 (:func:`unseen_law_thresholds`; the defaults here where the file is missing).
@@ -71,6 +79,10 @@ CURVATURE_MIN_SHARE = 0.1
 #: Least share of the dissipation the within-impact ``delta v`` term carries (a low-pass
 #: delays the force, which reads as a ``delta v`` term of the wrong sign).
 PENETRATION_DISSIPATION_MIN_SHARE = 0.3
+#: Fitted Kelvin-Voigt contact damping ratio above which the contact dissipates more than
+#: any training contact: the prior's top, 0.5, times 1.15 (a damped contact of 0.25-0.5
+#: reads up to 0.53 on 24 robustness recordings, 0.48 on the independent rig).
+CONTACT_DAMPING_RATIO_MAX = 0.575
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -88,6 +100,7 @@ class UnseenLawThresholds(BaseModel):
     curvature_min_share: float = CURVATURE_MIN_SHARE
     penetration_dissipation_min_gain: float = PENETRATION_DISSIPATION_MIN_GAIN
     penetration_dissipation_min_share: float = PENETRATION_DISSIPATION_MIN_SHARE
+    contact_damping_ratio_max: float = CONTACT_DAMPING_RATIO_MAX
 
 
 @lru_cache(maxsize=1)
@@ -144,8 +157,9 @@ def unseen_law_reasons(
 
     ``restoring_force`` holds the cross-check's fields
     (:func:`serving.restoring_force_check.restoring_force_check`):
-    ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share`` and
-    ``law_shape`` (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
+    ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share``,
+    ``contact_damping_ratio`` and ``law_shape``
+    (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
     `thresholds` default to :func:`unseen_law_thresholds`.
     """
     t = thresholds or unseen_law_thresholds()
@@ -164,6 +178,13 @@ def unseen_law_reasons(
                 f"the contact's dissipation grows with penetration (a delta*v term removes "
                 f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
             )
+    zeta = restoring_force.get("contact_damping_ratio")
+    if zeta is not None and zeta > t.contact_damping_ratio_max:
+        reasons.append(
+            f"the contact dissipates more than any the model was trained on (Kelvin-Voigt "
+            f"damping ratio {zeta:.2f} fitted, above {t.contact_damping_ratio_max:.2f}): a "
+            "dissipation growing with penetration (Hunt-Crossley) or a damper beyond the priors"
+        )
     return reasons + law_shape_reasons(restoring_force.get("law_shape"), t)
 
 
