@@ -132,6 +132,8 @@ def test_the_shipped_thresholds_are_read_from_the_config():
     assert t.penetration_dissipation_min_gain == shipped["penetration_dissipation_min_gain"]
     assert [list(b) for b in t.training_exponent_bands] == shipped["training_exponent_bands"]
     assert t.contact_damping_ratio_max == shipped["contact_damping_ratio_max"]
+    assert t.excess_damping_min_gain == shipped["excess_damping_min_gain"]
+    assert t.excess_damping_min_r2 == shipped["excess_damping_min_r2"]
     with pytest.raises(Exception, match="unknown_key"):
         UnseenLawThresholds.model_validate({"unknown_key": 1.0})
 
@@ -223,16 +225,26 @@ def test_the_independent_rigs_stiffening_law_is_read_within_its_impacts(name, co
         assert shape["curvature_share"] > 0
 
 
+def _rf(zeta, gain, share):
+    shape = {"penetration_dissipation": gain, "penetration_dissipation_share": share}
+    return {"exponent": 1.0, "contact_r2": 0.9, "contact_damping_ratio": zeta, "law_shape": shape}
+
+
 @pytest.mark.parametrize(
     "rf, fires",
     [
-        ({"exponent": 1.0, "contact_r2": 0.9, "contact_damping_ratio": 0.72}, True),
-        ({"exponent": 1.0, "contact_r2": 0.9, "contact_damping_ratio": 0.5}, False),  # prior's top
-        ({"exponent": 1.0, "contact_r2": 0.9, "contact_damping_ratio": None}, False),
+        (_rf(0.72, 0.43, 0.54), True),  # Hunt-Crossley: beyond the prior, growing with depth
+        (_rf(0.5, 0.43, 0.54), False),  # the prior's top
+        (_rf(0.72, 0.05, 0.77), False),  # a poor Kelvin-Voigt fit: no delta*v gain
+        (_rf(0.72, 0.43, -0.9), False),  # a low-pass's delay: the wrong sign
+        (_rf(None, 0.43, 0.54), False),
+        ({**_rf(0.79, 0.33, 0.31), "contact_r2": 0.53}, False),  # a law that explains little
     ],
 )
-def test_a_damping_beyond_the_training_prior_fires(rf, fires):
-    t = UnseenLawThresholds(contact_damping_ratio_max=0.575)
+def test_a_damping_beyond_the_training_prior_growing_with_depth_fires(rf, fires):
+    t = UnseenLawThresholds(contact_damping_ratio_max=0.575, excess_damping_min_gain=0.1,
+                            excess_damping_min_r2=0.7,
+                            penetration_dissipation_min_gain=0.65)  # fmt: skip
     reasons = unseen_law_reasons(rf, t)
     assert bool(reasons) is fires
     if fires:
@@ -246,7 +258,7 @@ def test_a_damping_beyond_the_training_prior_fires(rf, fires):
         # Hunt-Crossley through no sensor at all: the chain fit reads its pulse as a 2nd-order
         # low-pass, the within-impact delta*v gain (0.43) stays below what a damped contact
         # behind a low-pass reaches, but the Kelvin-Voigt damping it needs (0.72) is beyond
-        # the training prior's 0.5
+        # the training prior's 0.5, and grows with depth
         ("hc_6.csv", (26.63053, 0.98713, 0.01024), dict(contact="hunt_crossley",
                                                         hc_lambda_s_per_m=19.76455), True),
         # the most damped Kelvin-Voigt contact of the benchmark's draw (zeta 0.39, reads 0.48)
