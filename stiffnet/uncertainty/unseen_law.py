@@ -85,7 +85,7 @@ CURVATURE_MIN_SHARE = 0.1
 PENETRATION_DISSIPATION_MIN_SHARE = 0.3
 #: Fitted Kelvin-Voigt contact damping ratio above which the contact dissipates more than
 #: any training contact: the prior's top, 0.5, times 1.15 (a damped contact of 0.25-0.5
-#: reads up to 0.53 on 24 robustness recordings, 0.48 on the independent rig).
+#: reads up to 0.569 on 96 robustness recordings, 0.48 on 24 of the independent rig).
 CONTACT_DAMPING_RATIO_MAX = 0.575
 #: Within-impact ``delta v`` gain (:mod:`.law_shape`, with its physical sign) that must come
 #: with a damping above :data:`CONTACT_DAMPING_RATIO_MAX` (Kelvin-Voigt contacts of zeta
