@@ -131,6 +131,9 @@ def test_the_shipped_thresholds_are_read_from_the_config():
     assert t.curvature_min_gain == shipped["curvature_min_gain"]
     assert t.penetration_dissipation_min_gain == shipped["penetration_dissipation_min_gain"]
     assert [list(b) for b in t.training_exponent_bands] == shipped["training_exponent_bands"]
+    assert t.contact_damping_ratio_max == shipped["contact_damping_ratio_max"]
+    assert t.excess_damping_min_gain == shipped["excess_damping_min_gain"]
+    assert t.excess_damping_min_r2 == shipped["excess_damping_min_r2"]
     with pytest.raises(Exception, match="unknown_key"):
         UnseenLawThresholds.model_validate({"unknown_key": 1.0})
 
@@ -220,3 +223,62 @@ def test_the_independent_rigs_stiffening_law_is_read_within_its_impacts(name, co
     if fires:
         assert "stiffens within each impact" in reasons[0]
         assert shape["curvature_share"] > 0
+
+
+def _rf(zeta, gain, share):
+    shape = {"penetration_dissipation": gain, "penetration_dissipation_share": share}
+    return {"exponent": 1.0, "contact_r2": 0.9, "contact_damping_ratio": zeta, "law_shape": shape}
+
+
+@pytest.mark.parametrize(
+    "rf, fires",
+    [
+        (_rf(0.72, 0.43, 0.54), True),  # Hunt-Crossley: beyond the prior, growing with depth
+        (_rf(0.5, 0.43, 0.54), False),  # the prior's top
+        (_rf(0.72, 0.05, 0.77), False),  # a poor Kelvin-Voigt fit: no delta*v gain
+        (_rf(0.72, 0.43, -0.9), False),  # a low-pass's delay: the wrong sign
+        (_rf(None, 0.43, 0.54), False),
+        ({**_rf(0.79, 0.33, 0.31), "contact_r2": 0.53}, False),  # a law that explains little
+    ],
+)
+def test_a_damping_beyond_the_training_prior_growing_with_depth_fires(rf, fires):
+    t = UnseenLawThresholds(contact_damping_ratio_max=0.575, excess_damping_min_gain=0.1,
+                            excess_damping_min_r2=0.7,
+                            penetration_dissipation_min_gain=0.65)  # fmt: skip
+    reasons = unseen_law_reasons(rf, t)
+    assert bool(reasons) is fires
+    if fires:
+        assert "dissipates more than any" in reasons[0] and "0.72" in reasons[0]
+
+
+@pytest.mark.slow  # two 8-s solve_ivp recordings, ~6 s CPU each
+@pytest.mark.parametrize(
+    "name, draw, contact, fires",
+    [
+        # Hunt-Crossley through no sensor at all: the chain fit reads its pulse as a 2nd-order
+        # low-pass, the within-impact delta*v gain (0.43) stays below what a damped contact
+        # behind a low-pass reaches, but the Kelvin-Voigt damping it needs (0.72) is beyond
+        # the training prior's 0.5, and grows with depth
+        ("hc_6.csv", (26.63053, 0.98713, 0.01024), dict(contact="hunt_crossley",
+                                                        hc_lambda_s_per_m=19.76455), True),
+        # the most damped Kelvin-Voigt contact of the benchmark's draw (zeta 0.39, reads 0.48)
+        ("kv_13.csv", (14.28592, 1.01037, 0.01193), dict(contact="kelvin_voigt",
+                                                         contact_zeta=0.39357), False),
+    ],
+)  # fmt: skip
+def test_the_independent_rigs_hunt_crossley_contact_is_beyond_the_damping_prior(
+    name, draw, contact, fires
+):
+    """Independent-rig recordings (tests/independent_rig.py) of the benchmark's draw
+    (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz)."""
+    beta, ratio, noise = draw
+    run = RigRun(recording=name, beta=beta, forcing_frequency_hz=9.48 * ratio, noise=noise,
+                 duration_s=8.0, **contact)  # fmt: skip
+    _, accel = record(run, seed=7)
+    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
+    zeta = restoring_force["contact_damping_ratio"]
+    assert zeta is not None, restoring_force["reason"]
+    t = unseen_law_thresholds()
+    assert (zeta > t.contact_damping_ratio_max) is fires, zeta
+    reasons = unseen_law_reasons(restoring_force, t)
+    assert any("dissipates more than any" in r for r in reasons) is fires, reasons

@@ -3,7 +3,7 @@
 The restoring-force estimate (:mod:`stiffnet.restoring_force`) fits a Kelvin-Voigt
 power law ``F = K d_r (delta/d_r)^p + c v`` to every recording the predictor reads.
 The training world's contact laws are the linear spring (paper eqs 11-12), its
-Kelvin-Voigt damping and Hertz's ``p = 1.5``; two readings of the map fall outside
+Kelvin-Voigt damping and Hertz's ``p = 1.5``; these readings of the map fall outside
 them on rigs whose law the training world lacks, and neither needs the model:
 
 * **the exponent**: a well-fitted law (R2 >= :data:`EXPONENT_MIN_R2`) whose exponent
@@ -21,7 +21,19 @@ them on rigs whose law the training world lacks, and neither needs the model:
   at least :attr:`UnseenLawThresholds.curvature_min_gain` /
   :attr:`UnseenLawThresholds.penetration_dissipation_min_gain`; within one impact the
   penetration spans ``0 .. delta_max``, so this reads stiffening on steady records whose
-  impacts all reach one depth.
+  impacts all reach one depth;
+* **a dissipation beyond the training world's, growing with penetration**
+  (``contact_damping_ratio_max``, ``excess_damping_min_gain``): the map's Kelvin-Voigt
+  damping ratio ``c_c / (2 sqrt(K))`` above the top of the ``contact_damping`` prior the
+  models were trained on (0.5, ``configs/sim/default.yaml``) by more than the fit's
+  scatter, *and* a within-impact ``delta v`` term of the physical sign that predicts
+  held-out impacts at least a little better. A Hunt-Crossley contact, whose dissipation
+  ``lambda delta v`` grows with the impact's depth, is read as a strong Kelvin-Voigt
+  damper (0.56-2.0 on the independent rig); through a low-pass the ``delta v`` gain alone
+  cannot tell it from a damped contact, which never needs such damping. A Kelvin-Voigt
+  contact at the prior's top can read above the ceiling on a poor fit, with a ``delta v``
+  gain near nil, or on a law that explains little of the force
+  (``excess_damping_min_r2``).
 
 The thresholds are read from ``configs/alarm/unseen_law.yaml``
 (:func:`unseen_law_thresholds`; the defaults here where the file is missing).
@@ -71,6 +83,18 @@ CURVATURE_MIN_SHARE = 0.1
 #: Least share of the dissipation the within-impact ``delta v`` term carries (a low-pass
 #: delays the force, which reads as a ``delta v`` term of the wrong sign).
 PENETRATION_DISSIPATION_MIN_SHARE = 0.3
+#: Fitted Kelvin-Voigt contact damping ratio above which the contact dissipates more than
+#: any training contact: the prior's top, 0.5, times 1.15 (a damped contact of 0.25-0.5
+#: reads up to 0.569 on 96 robustness recordings, 0.48 on 24 of the independent rig).
+CONTACT_DAMPING_RATIO_MAX = 0.575
+#: Within-impact ``delta v`` gain (:mod:`.law_shape`, with its physical sign) that must come
+#: with a damping above :data:`CONTACT_DAMPING_RATIO_MAX` (Kelvin-Voigt contacts of zeta
+#: 0.45-0.5 on the independent rig that read above it: 0.06 and 0.23 with share 0.24).
+EXCESS_DAMPING_MIN_GAIN = 0.1
+#: The damping counts only from a law that explains this share of the contact force (a
+#: Kelvin-Voigt contact of zeta 0.49 on the independent rig read 0.79 with R2 0.53 and a
+#: ``delta v`` gain of 0.33; the rig's Hunt-Crossley contacts that fire: R2 0.83-0.93).
+EXCESS_DAMPING_MIN_R2 = 0.7
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -88,6 +112,9 @@ class UnseenLawThresholds(BaseModel):
     curvature_min_share: float = CURVATURE_MIN_SHARE
     penetration_dissipation_min_gain: float = PENETRATION_DISSIPATION_MIN_GAIN
     penetration_dissipation_min_share: float = PENETRATION_DISSIPATION_MIN_SHARE
+    contact_damping_ratio_max: float = CONTACT_DAMPING_RATIO_MAX
+    excess_damping_min_gain: float = EXCESS_DAMPING_MIN_GAIN
+    excess_damping_min_r2: float = EXCESS_DAMPING_MIN_R2
 
 
 @lru_cache(maxsize=1)
@@ -144,8 +171,9 @@ def unseen_law_reasons(
 
     ``restoring_force`` holds the cross-check's fields
     (:func:`serving.restoring_force_check.restoring_force_check`):
-    ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share`` and
-    ``law_shape`` (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
+    ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share``,
+    ``contact_damping_ratio`` and ``law_shape``
+    (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
     `thresholds` default to :func:`unseen_law_thresholds`.
     """
     t = thresholds or unseen_law_thresholds()
@@ -164,7 +192,35 @@ def unseen_law_reasons(
                 f"the contact's dissipation grows with penetration (a delta*v term removes "
                 f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
             )
+    if r2 is not None and r2 >= t.excess_damping_min_r2:
+        reasons += excess_damping_reasons(
+            restoring_force.get("contact_damping_ratio"), restoring_force.get("law_shape"), t
+        )
     return reasons + law_shape_reasons(restoring_force.get("law_shape"), t)
+
+
+def excess_damping_reasons(
+    zeta: float | None, shape: dict[str, float] | None, t: UnseenLawThresholds
+) -> list[str]:
+    """Rule: a Kelvin-Voigt damping ratio `zeta` above the training prior's ceiling, with a
+    within-impact ``delta v`` term (:mod:`.law_shape`) of the physical sign (its share at
+    least :attr:`UnseenLawThresholds.penetration_dissipation_min_share`) and gain at least
+    :attr:`UnseenLawThresholds.excess_damping_min_gain`: a dissipation growing with
+    penetration that the model never saw (Hunt-Crossley)."""
+    if zeta is None or not zeta > t.contact_damping_ratio_max or not shape:
+        return []
+    gain = shape.get("penetration_dissipation")
+    share = shape.get("penetration_dissipation_share", 0.0)
+    if gain is None or gain < t.excess_damping_min_gain:
+        return []
+    if share < t.penetration_dissipation_min_share:
+        return []
+    return [
+        f"the contact dissipates more than any the model was trained on (Kelvin-Voigt "
+        f"damping ratio {zeta:.2f} fitted, above {t.contact_damping_ratio_max:.2f}), and "
+        f"more the deeper it is pressed (a delta*v term predicts held-out impacts "
+        f"{gain:.0%} better): a dissipation law like Hunt-Crossley's"
+    ]
 
 
 def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:

@@ -1,0 +1,163 @@
+"""The unseen-contact-law alarm of the shipped model, before and after a threshold change.
+
+Sets of 24 recordings (``--n``) go through the real predictor
+(:class:`serving.predictor.Predictor`: windows, ONNX model, restoring-force cross-check,
+alarm):
+
+* the robustness sets of ``benchmarks/configs/robustness_sets.yaml``
+  (:mod:`bench_robustness`: the training world's laws, sensor chains, and the laws of
+  ``tests/unknown_contact_laws.py``);
+* the independent rig (``tests/independent_rig.py``: solve_ivp in SI units), 8 s at 1 kHz,
+  beta log-uniform 8-90, forcing 0.95-1.1 f_n, noise 1-3 %, seed 7: no contact law
+  (``rig_ideal``), Kelvin-Voigt zeta 0.2-0.4 (``rig_kv``), Hunt-Crossley lambda 8-25 s/m
+  (``rig_hc``), two-stage knee 0.2 mm ratio 3 (``rig_two_stage``), power law n = 2
+  (``rig_power``).
+
+Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
+after. "After" is the predictor as shipped; "before" is the same prediction with the
+``contact_law`` check's reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.
+unseen_law_reasons`) under the thresholds of ``--before KEY=VALUE`` (default: the damping
+ceiling off, ``contact_damping_ratio_max=inf``), every other check as it fired.
+
+Run::
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_alarm.py --data /tmp/bench_alarm \\
+        --out /tmp/bench_alarm.json
+
+``--data`` caches the simulated recordings (the independent rig's take ~10 s each).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "tests"))
+
+import bench_robustness as br  # noqa: E402  (the robustness sets and their recordings)
+import independent_rig as rig  # noqa: E402
+
+from serving.predictor import Predictor  # noqa: E402
+from stiffnet.io_utils import write_json_atomic  # noqa: E402
+from stiffnet.measurement.evaluate import true_class  # noqa: E402
+from stiffnet.uncertainty.unseen_law import unseen_law_reasons, unseen_law_thresholds  # noqa: E402
+
+ROBUSTNESS_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
+                   "damping_and_sensor", "bilinear_contact", "hunt_crossley_contact",
+                   "power_law_contact"]  # fmt: skip
+#: The independent rig's contact laws (RigRun keywords; a draw's zeta / lambda where named).
+RIG_SETS: dict[str, dict[str, Any]] = {
+    "rig_ideal": {},
+    "rig_kv": {"contact": "kelvin_voigt"},
+    "rig_hc": {"contact": "hunt_crossley"},
+    "rig_two_stage": {"contact": "two_stage", "knee_mm": 0.2, "stage_ratio": 3.0},
+    "rig_power": {"contact": "power_law", "power_exponent": 2.0},
+}
+RIG_SEED = 7
+
+
+def rig_draws(n: int) -> list[dict[str, float]]:
+    """The independent rig's operating points (the same for every law)."""
+    rng = np.random.default_rng(RIG_SEED)
+    return [
+        dict(
+            beta=float(np.exp(rng.uniform(np.log(8), np.log(90)))),
+            ratio=float(rng.uniform(0.95, 1.1)),
+            noise=float(rng.uniform(0.01, 0.03)),
+            zeta=float(rng.uniform(0.2, 0.4)),
+            lam=float(rng.uniform(8, 25)),
+        )  # fmt: skip
+        for _ in range(n)
+    ]
+
+
+def rig_recordings(name: str, n: int, folder: Path) -> list[dict[str, Any]]:
+    """The independent rig's recordings of one law (cached as ``folder/<name>_<i>.npy``)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for i, d in enumerate(rig_draws(n)):
+        kw = dict(RIG_SETS[name])
+        if kw.get("contact") == "kelvin_voigt":
+            kw["contact_zeta"] = d["zeta"]
+        if kw.get("contact") == "hunt_crossley":
+            kw["hc_lambda_s_per_m"] = d["lam"]
+        run = rig.RigRun(recording=f"{name}_{i}.csv", beta=d["beta"], noise=d["noise"],
+                         forcing_frequency_hz=9.48 * d["ratio"], duration_s=8.0, **kw)  # fmt: skip
+        cache = folder / f"{name}_{i}.npy"
+        if cache.is_file():
+            accel = np.load(cache)
+        else:
+            accel = rig.record(run, seed=RIG_SEED)[1]
+            np.save(cache, accel)
+        out.append(dict(accel=accel, fs_hz=run.fs_hz, fn_hz=run.natural_frequency_hz,
+                        beta=run.beta, **{"class": true_class(run.beta, True)}))  # fmt: skip
+    return out
+
+
+def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str, Any]:
+    """Wrong, wrong and silent, alarms: before (thresholds `before`) and after (as shipped)."""
+    wrong, after, prior, t0 = [], [], [], time.process_time()
+    for r in recs:
+        res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
+        fired = (res["alarm"] or {}).get("fired", [])
+        others = any(f != "contact_law" for f in fired)
+        rf = res.get("restoring_force") or {}
+        judged = any(rf.get(k) is not None for k in ("exponent", "dissipation_gain", "law_shape"))
+        wrong.append(res["class"] != r["class"])
+        after.append(bool(res["ood_flag"]))
+        prior.append(others or (judged and bool(unseen_law_reasons(rf, before))))
+    w, a, b = np.array(wrong), np.array(after), np.array(prior)
+    return {
+        "n": len(recs),
+        "wrong": int(w.sum()),
+        "silent_before": int((w & ~b).sum()),
+        "silent_after": int((w & ~a).sum()),
+        "alarms_before": int(b.sum()),
+        "alarms_after": int(a.sum()),
+        "cpu_s_per_recording": (time.process_time() - t0) / max(1, len(recs)),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", type=Path, default=ROOT / "models" / "cnn.onnx")
+    ap.add_argument("--sets", nargs="*", default=ROBUSTNESS_SETS + list(RIG_SETS))
+    ap.add_argument("--n", type=int, default=24)
+    ap.add_argument("--before", action="append", default=[], metavar="KEY=VALUE",
+                    help="a threshold of configs/alarm/unseen_law.yaml for 'before'")  # fmt: skip
+    ap.add_argument("--data", type=Path, default=Path("/tmp/stiffnet_bench_alarm"))
+    ap.add_argument("--out", type=Path, default=None, help="JSON result")
+    args = ap.parse_args(argv)
+    shipped = unseen_law_thresholds()
+    changes = dict(kv.split("=", 1) for kv in args.before) or {"contact_damping_ratio_max": "inf"}
+    before = shipped.model_copy(update={k: float(v) for k, v in changes.items()})
+    pred = Predictor.load(str(args.model))
+    configs = br.set_configs(br.DEFAULT_SETS)
+    rows = {}
+    print("| set | n | wrong | wrong & silent, before -> after | alarms, before -> after |")
+    print("| --- | ---: | ---: | ---: | ---: |")
+    for name in args.sets:
+        if name in RIG_SETS:
+            recs = rig_recordings(name, args.n, args.data / "rig")
+        else:
+            cfg = configs[name][0].model_copy(update={"n_trajectories": args.n,
+                                                      "shard_size": args.n})  # fmt: skip
+            recs = br.recordings(cfg, args.data / f"{name}-{args.n}")
+        s = rows[name] = score(pred, recs, before)
+        print(f"| {name} | {s['n']} | {s['wrong']} | {s['silent_before']} -> {s['silent_after']}"
+              f" | {s['alarms_before']} -> {s['alarms_after']} |", flush=True)  # fmt: skip
+    if args.out:
+        write_json_atomic(args.out, {"before": changes, "sets": rows})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
