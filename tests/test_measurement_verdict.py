@@ -156,14 +156,6 @@ def test_a_measured_orbit_no_start_reached_is_said_plainly():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="borderline since it first passed (p = 0.052): since the restoring force joins free "
-    "runs of <= 3 samples to the contact, the identified chain seeds sensor_dynamics at "
-    "damping 0.0281 (was 0.0313) and the fit stops at 0.0300 with no high-pass corner: "
-    "op0's residuals 0.085/0.100 against floors 0.04, partially_explained (p = 0.0037); "
-    "open in issue 22",
-)
 def test_damped_contact_and_sensor_resonance_at_three_operating_points_is_explained(tmp_path):
     """Contact damping 0.25 and a mounted resonance at 237 Hz (25 f_n) on the independent
     rig, whose sensor chain is analog, at three operating points logged at 2 kHz. One
