@@ -156,14 +156,6 @@ def test_a_measured_orbit_no_start_reached_is_said_plainly():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="borderline since it first passed (p = 0.052): since the restoring force joins free "
-    "runs of <= 3 samples to the contact, the identified chain seeds sensor_dynamics at "
-    "damping 0.0281 (was 0.0313) and the fit stops at 0.0300 with no high-pass corner: "
-    "op0's residuals 0.085/0.100 against floors 0.04, partially_explained (p = 0.0037); "
-    "open in issue 22",
-)
 def test_damped_contact_and_sensor_resonance_at_three_operating_points_is_explained(tmp_path):
     """Contact damping 0.25 and a mounted resonance at 237 Hz (25 f_n) on the independent
     rig, whose sensor chain is analog, at three operating points logged at 2 kHz. One
@@ -190,7 +182,12 @@ def test_damped_contact_and_sensor_resonance_at_three_operating_points_is_explai
     # measured: explained (2 of 4 repeatable recordings above 2x their floors, p = 0.052),
     # the sensor's high-pass corner fitted at 0.14 Hz (the rig has none: a 0.8 degree lead
     # at the forcing); with a 1-Hz high-pass assumed in the fit the verdict was
-    # partially_explained (median 0.21)
+    # partially_explained (median 0.21). Borderline for a reason outside the sensor: the
+    # corner mostly buys the comparisons' longer lead-in (3 s against 0.1 s at no corner),
+    # and op0/op1's simulated orbits depend on where the record starts (truth model, no
+    # corner: op0 0.196/0.172 at a 0.1 s lead-in, 0.077/0.073 at 3 s; one op1 recording
+    # 0.036 at 3.0 s, 3.5 at 3.3 s). With the free-run rule on every map the mount damping
+    # read 0.0281, the fit ended at no corner and the verdict partially_explained.
     assert d["verdict"] == "explained", d["summary"]
     assert d["explained_fraction"] > 0.9, d["summary"]
     assert d["residual_summary"]["median"] < 0.15, d["summary"]  # measured 0.072

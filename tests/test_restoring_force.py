@@ -5,6 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.signal as sps
+from scipy import ndimage
 
 from stiffnet.effects.registry import build_effect
 from stiffnet.effects.sensor_dynamics import resonance_sos
@@ -317,3 +318,35 @@ def test_negative_free_damping_is_profiled(monkeypatch):
     assert r.ok, r.reason
     assert r.free_damping_ratio >= 0
     assert r.restoring_force_class == "soft" and r.beta == pytest.approx(beta[8], rel=0.2)
+
+
+@pytest.mark.parametrize("min_flight", [0, 3])
+def test_a_short_free_run_is_its_own_flight_only_outside_a_chains_inverse(min_flight):
+    """Free flight ``-y = k x`` with each flight's displacement off by its own line (the
+    impulses' quadrature errors): the per-flight corrections undo every line exactly, a
+    2-sample free run's too, unless short runs join the contact (a chain's inverse)."""
+    from stiffnet.restoring_force.free_flight import MIN_FLIGHT_SAMPLES, _impulse_corrections
+
+    k, n = 1.3, 200
+    tau = np.arange(n) * 0.05
+    x_true = np.cos(tau) + 0.3 * np.sin(2.1 * tau)
+    free = np.ones(n, bool)
+    free[60:70] = free[72:90] = free[140:150] = False  # contacts; 70-71: a 2-sample run
+    flights, _ = ndimage.label(free)
+    lines = {1: (0.02, -0.01), 2: (-0.05, 0.3), 3: (0.04, 0.02), 4: (-0.03, 0.01)}
+    drift = np.zeros(n)
+    for j, (a, b) in lines.items():
+        on = flights == j
+        drift[on] = a + b * (tau[on] - tau[on].mean())
+    accel = -k * x_true  # the free-flight law exactly; the contacts carry no force here
+    out = _impulse_corrections(accel, np.zeros(n), x_true + drift, tau, np.ones(n, bool), free,
+                               ~free, k, damping=0.0, min_flight=min_flight)  # fmt: skip
+    corr = out[0]
+    long_runs = np.isin(flights, [1, 3, 4])
+    np.testing.assert_allclose(corr[long_runs], -drift[long_runs], atol=1e-9)
+    short = flights == 2
+    if min_flight == 0:  # its own line, exactly
+        np.testing.assert_allclose(corr[short], -drift[short], atol=1e-9)
+    else:  # joined to the contact: blended between its neighbours' lines, not its own
+        assert min_flight == MIN_FLIGHT_SAMPLES
+        assert np.max(np.abs(corr[short] + drift[short])) > 0.01

@@ -51,7 +51,11 @@ from stiffnet.restoring_force.contact_law import (
     profile_contact_start,
 )
 from stiffnet.restoring_force.contact_poles import fit_contact_poles
-from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS, fit_free_flight
+from stiffnet.restoring_force.free_flight import (
+    CONTACT_SIGMAS,
+    MIN_FLIGHT_SAMPLES,
+    fit_free_flight,
+)
 from stiffnet.restoring_force.reconstruct import (
     check_record,
     forcing_candidates,
@@ -361,6 +365,9 @@ class _Map:
     spc: float = 0.0
     exponent: float | None = None
     source: np.ndarray | None = None
+    #: A map of a chain's inverse (:func:`~.chain.deconvolve`): its short free runs join the
+    #: contact (:data:`~.free_flight.MIN_FLIGHT_SAMPLES`)
+    inverse: bool = False
 
 
 def _auto_map(
@@ -372,6 +379,7 @@ def _auto_map(
     k_given: float | None,
     exponent: float | None,
     profile_below_r2: float = np.inf,
+    inverse: bool = False,
 ) -> tuple[_Map, float]:
     """The map with the high-pass corner fitted (:mod:`.sensor`), and that corner.
 
@@ -382,14 +390,15 @@ def _auto_map(
     The corner is then profiled by the contact law (:func:`_profiled_corner`, about
     20 maps) only where the contact law explains less than `profile_below_r2`: the
     rule of a chain identified only where needed (:data:`CHAIN_FIT_WHEN_NEEDED`).
+    `inverse`: `y` is a chain's inverse (:class:`_Map`).
     """
     args = (y, dtau, tau, use, period, k_given)
-    m = _fit_map(*args, 0.0, exponent)
+    m = _fit_map(*args, 0.0, exponent, inverse=inverse)
     corner = highpass_rule(
         *fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
     )
     if corner > 0:
-        corrected = _fit_map(*args, corner, exponent)
+        corrected = _fit_map(*args, corner, exponent, inverse=inverse)
         if _contact_r2(corrected) >= _contact_r2(m):
             m = corrected
         else:
@@ -411,16 +420,18 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     """
     if m.law is None or m.labels is None:
         return m, corner
-    maps = {c: _fit_map(*args, float(c), exponent) for c in HIGHPASS_GRID}
+    maps = {c: _fit_map(*args, float(c), exponent, inverse=m.inverse) for c in HIGHPASS_GRID}
     best = max(maps, key=lambda c: _contact_r2(maps[c]))
     i = int(np.flatnonzero(HIGHPASS_GRID == best)[0])
     lo, hi = HIGHPASS_GRID[max(i - 1, 0)], HIGHPASS_GRID[min(i + 1, HIGHPASS_GRID.size - 1)]
     sol = optimize.minimize_scalar(
-        lambda u: -max(_contact_r2(_fit_map(*args, float(np.exp(u)), exponent)), -1.0),
+        lambda u: -max(
+            _contact_r2(_fit_map(*args, float(np.exp(u)), exponent, inverse=m.inverse)), -1.0
+        ),
         bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 0.02, "maxiter": 12},
     )  # fmt: skip
     c_best = float(np.exp(sol.x))
-    profiled = _fit_map(*args, c_best, exponent)
+    profiled = _fit_map(*args, c_best, exponent, inverse=m.inverse)
     if _contact_r2(maps[best]) > _contact_r2(profiled):
         c_best, profiled = float(best), maps[best]
     if 1.0 - _contact_r2(profiled) <= HIGHPASS_PROFILE_GAIN * (1.0 - _contact_r2(m)):
@@ -443,12 +454,15 @@ def _fit_map(
     corner: float,
     exponent: float | None,
     damping: float | None = None,
+    inverse: bool = False,
 ) -> _Map:
-    """Integrate, fit the free flight and the contact law (see the module notes)."""
+    """Integrate, fit the free flight and the contact law (see the module notes); `inverse`:
+    `y` is a chain's inverse (:class:`_Map`)."""
     source = y
     y = undo_highpass(y, dtau, corner)
     vel_i, disp_i = integrate_spectral(y, dtau)
-    fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given, damping=damping)
+    fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given, damping=damping,
+                          min_flight=MIN_FLIGHT_SAMPLES if inverse else 0)  # fmt: skip
     root_k = float(np.sqrt(max(fit.stiffness, 0.0)))
     info: dict[str, Any] = dict(
         free_r2=fit.r2,
@@ -461,10 +475,10 @@ def _fit_map(
     )
     if fit.stiffness <= 0:
         why = "the free-flight law has no positive stiffness: not an oscillator"
-        return _Map(fit, info, corner, refusal=why)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse)
     if fit.r2 < MIN_FREE_R2:
         why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
-        return _Map(fit, info, corner, refusal=why)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse)
     core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
     labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
     labels[~use] = 0
@@ -476,14 +490,14 @@ def _fit_map(
             f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
             f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
         )
-        return _Map(fit, info, corner, refusal=why)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse)
     near = labels > 0
     spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
     info["samples_per_contact"] = spc
     kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
     if not np.isfinite(kc0) or int(core.sum()) < 4:
         why = "the contact force does not grow with the displacement"
-        return _Map(fit, info, corner, refusal=why)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse)
     peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
     dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
     state = (fit.force, fit.displacement, fit.velocity, near)
@@ -505,7 +519,7 @@ def _fit_map(
     # stiffer than its contacts' duration allows is fitting something else
     duration = spc * dtau / (np.pi / np.sqrt(law.stiffness + fit.stiffness))
     info.update(law=law, contact_r2=law.r2, duration_ratio=duration)
-    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source)
+    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source, inverse)
     if law.r2 < MIN_CONTACT_R2:
         out.refusal = (
             f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
@@ -547,7 +561,7 @@ def _profile_free_damping(
     best, best_r2 = m, -np.inf
     for xi in FREE_DAMPING_GRID:
         other = _fit_map(m.source, dtau, tau, use, period, k_given, m.corner, exponent,
-                         damping=2.0 * xi * np.sqrt(k_given))  # fmt: skip
+                         damping=2.0 * xi * np.sqrt(k_given), inverse=m.inverse)  # fmt: skip
         if not other.refusal and _contact_r2(other) > best_r2:
             best, best_r2 = other, _contact_r2(other)
     return best
@@ -597,7 +611,7 @@ def _undo_chain(
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
         return best[0], chain, best[1], "", []
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
-    m2 = _remap(flat, args, highpass_hz, m.corner, exponent)
+    m2 = _remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
@@ -647,7 +661,7 @@ def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, expon
         return []
     return [
         _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
-                          m.fit.sigma), args, highpass_hz, m.corner, exponent)
+                          m.fit.sigma), args, highpass_hz, m.corner, exponent, inverse=True)
         for f in ends if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
 
@@ -659,12 +673,13 @@ def _readings(maps: list[_Map]) -> list[float]:
             and x.fit.stiffness > 0]  # fmt: skip
 
 
-def _remap(y, args, highpass_hz, corner, exponent) -> _Map:
-    """The map of `y` with the high-pass fitted again (``"auto"``) or at `corner`."""
+def _remap(y, args, highpass_hz, corner, exponent, inverse: bool = False) -> _Map:
+    """The map of `y` with the high-pass fitted again (``"auto"``) or at `corner`; `inverse`:
+    `y` is a chain's inverse (:class:`_Map`)."""
     _, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
-        return _auto_map(y, dtau, tau, use, period, k_given, exponent)[0]
-    return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent)
+        return _auto_map(y, dtau, tau, use, period, k_given, exponent, inverse=inverse)[0]
+    return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent, inverse=inverse)
 
 
 def restoring_force_estimate(
