@@ -303,7 +303,7 @@ def _fit_effect(
         design = design[keep.astype(int)[:budget]]
     if numerical:
         return _fit_design(target, name, fixed, space, design, settings, off, t0)
-    if seeded and not numerical:  # the orbit moves with the effect: starts profiled at it
+    if seeded:  # the orbit moves with the effect: starts profiled at it
         model = [*target.base_effects, *fixed, effect_class(name)(**read[0])]
         target = starts_at(target, model, settings)
     ev = _Evaluator(target, fixed, [name], [space], settings, budget)
@@ -323,6 +323,7 @@ def _fit_effect(
     elif len(ev.cache) < budget and k > 1:
         _nelder_mead(ev, best, step, budget - len(ev.cache))
     res = _result(ev, off, t0, off_params(name, space))
+    profiled = N_STARTS if seeded else 0  # the starts profiled at the reading
     return {
         "effect": name,
         "params": res["params"][0],
@@ -330,7 +331,7 @@ def _fit_effect(
         "per_recording": res["per_recording"].tolist(),
         "off_per_recording": off.tolist(),
         "improves": res["improves"],
-        "evaluations": res["evaluations"],
+        "evaluations": res["evaluations"] + profiled,
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
