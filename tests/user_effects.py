@@ -79,4 +79,6 @@ class PhasedHarmonics(ForcingHarmonics):
     tests: a user effect that widens a library effect's fit space)."""
 
     name = "phased_harmonics"
-    fit_space = replace(ForcingHarmonics.fit_space, multimodal=("phase_second", "phase_third"))
+    fit_space = replace(
+        ForcingHarmonics.fit_space, multimodal=("phase_second", "phase_third"), global_seeds=False
+    )

@@ -15,8 +15,11 @@ to the effect's parameters, :meth:`FitSpace.unit` back.
 An effect also declares which of its parameters make the objective
 *multimodal* (``multimodal``: phases, resonance or drift frequencies, knots):
 a local search started in the wrong basin of one of them stops short of the
-truth, so the fit sweeps a grid over each of them (:meth:`FitSpace.global_blocks`)
-before its local search.
+truth, so the fit sweeps a grid over each of them (:func:`global_blocks`)
+before its local search. An effect whose multimodal parameters can be read off the
+measurement in closed form (a harmonic's phase: :mod:`stiffnet.measurement.forcing_lines`)
+declares ``global_seeds``: its data-driven seeds are the global stage, and the
+local search starts from the best of them, with a small first step.
 """
 
 from __future__ import annotations
@@ -88,6 +91,9 @@ class FitSpace:
         Amplitude/phase pairs fitted in Cartesian coordinates.
     multimodal : tuple of str
         Parameters swept on a grid before the local search (see the module notes).
+    global_seeds : bool
+        The effect's data-driven seeds replace the grid over the multimodal parameters
+        (see the module notes).
     """
 
     free: tuple[FitParam, ...]
@@ -96,6 +102,9 @@ class FitSpace:
     #: Parameters whose objective has several basins (a free parameter, or the phase of a
     #: :class:`Polar` pair): each is swept on a grid before the local search.
     multimodal: tuple[str, ...] = ()
+    #: The multimodal parameters are read off the measurement (the effect's ``fit_seeds``):
+    #: the seeds are the global stage, no grid is swept.
+    global_seeds: bool = False
 
     @property
     def names(self) -> list[str]:
@@ -143,9 +152,12 @@ def global_blocks(space: FitSpace) -> list[tuple[list[int], np.ndarray]]:
 
     A free coordinate gets :data:`AXIS_GRID` points across its interval; the phase of a
     polar pair gets :data:`PHASE_GRID` angles at each of :data:`AMPLITUDE_LEVELS`
-    (the pair's two Cartesian coordinates move together)."""
+    (the pair's two Cartesian coordinates move together). None for a space whose
+    ``global_seeds`` stand for the grid."""
     names = space.names
     out = []
+    if space.global_seeds:  # the effect's seeds stand for the grid
+        return out
     for m in space.multimodal:
         pair = next((p for p in space.polar if m in (p.phase, p.amplitude)), None)
         if pair is not None:

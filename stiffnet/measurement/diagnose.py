@@ -46,6 +46,7 @@ from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
+from stiffnet.measurement.forcing_lines import campaign_forcing_lines
 from stiffnet.measurement.learned_law import learned_law_proposal
 from stiffnet.measurement.noise_floor import (
     AT_FLOOR_FACTOR,
@@ -330,6 +331,7 @@ def _prepare(
         lambda: restoring_force_evidence(campaign, rows),
     )  # fmt: skip
     target.sensor = evidence.get("sensor")
+    target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit
     bar.step("nuisances and initial states")
     nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(base_effects, FIT_SETTINGS)

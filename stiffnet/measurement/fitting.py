@@ -23,7 +23,10 @@ Search, in the unit cube of the effect's fit space
   stage** over the parameters the effect declares multimodal
   (:attr:`~stiffnet.effects.fit_space.FitSpace.multimodal`: each phase swept over
   8 angles at 3 amplitudes, each frequency over 9 points, block after block, two
-  rounds; :func:`global_stage`), then a bounded
+  rounds; :func:`global_stage`; an effect whose multimodal parameters are read off the
+  measurement in closed form declares ``global_seeds``: its seeds and the centre are the
+  whole design, e.g. the harmonics read off the free flights,
+  :mod:`stiffnet.measurement.forcing_lines`), then a bounded
   Brent search between the best design point's neighbours (one coordinate) or a
   bounded Nelder-Mead from it, within ``budget`` evaluations.
   Numerical-engine effects (seconds per simulated batch, whatever its number of
@@ -42,7 +45,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -55,6 +58,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.nuisance import N_STARTS
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
 from stiffnet.simulator.motion_cache import reuse_motion
 
@@ -274,7 +278,13 @@ def _fit_effect(
         off = target.per_recording([*target.base_effects, *fixed], settings)
     design = initial_design(space)
     n_seeds = len(seeds)
-    seeds = [*seeds, *effect_class(name).fit_seeds(observed, space)]
+    read = effect_class(name).fit_seeds(observed, space)
+    seeds = [*seeds, *read]
+    # seeds read off the measurement that stand for the global stage replace the design
+    # (but the centre): the basin is known, a design would only find orbit jumps elsewhere
+    seeded = bool(space.global_seeds and read)
+    if seeded:
+        design = design[:1]
     if seeds:
         design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
     k = len(space.free)
@@ -293,6 +303,9 @@ def _fit_effect(
         design = design[keep.astype(int)[:budget]]
     if numerical:
         return _fit_design(target, name, fixed, space, design, settings, off, t0)
+    if seeded:  # the orbit moves with the effect: starts profiled at it
+        model = [*target.base_effects, *fixed, effect_class(name)(**read[0])]
+        target = starts_at(target, model, settings)
     ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
@@ -310,6 +323,7 @@ def _fit_effect(
     elif len(ev.cache) < budget and k > 1:
         _nelder_mead(ev, best, step, budget - len(ev.cache))
     res = _result(ev, off, t0, off_params(name, space))
+    profiled = N_STARTS if seeded else 0  # the starts profiled at the reading
     return {
         "effect": name,
         "params": res["params"][0],
@@ -317,10 +331,36 @@ def _fit_effect(
         "per_recording": res["per_recording"].tolist(),
         "off_per_recording": off.tolist(),
         "improves": res["improves"],
-        "evaluations": res["evaluations"],
+        "evaluations": res["evaluations"] + profiled,
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
+
+
+def starts_at(
+    target: CampaignTarget, model: Sequence[Effect], settings: SolverSettings
+) -> CampaignTarget:
+    """The target with each recording's initial state profiled for ``model``: of the
+    :data:`~stiffnet.measurement.nuisance.N_STARTS` starts, the one whose simulation matches
+    the recording best (the target's own start where it ties).
+
+    The starts are profiled for the model without the effect; an effect that moves the
+    orbit (a harmonic's phase) can send a recording from its start to another orbit than
+    the measured one at the truth (measured: 4.3 against 0.04-0.5 without the harmonics),
+    so a fit whose global stage reads the effect off the measurement profiles them again
+    there, once."""
+    n = len(target.rows)
+    held = list(target.starts) if target.starts is not None else [0] * n
+    pers = np.vstack(
+        [
+            target.per_recording(model, settings, starts=[k] * n, inclination=False)
+            for k in range(N_STARTS)
+        ]
+    )
+    cols = np.arange(n)
+    best = np.argmin(pers, axis=0)
+    starts = np.where(pers[best, cols] < pers[held, cols], best, held)
+    return replace(target, starts=[int(k) for k in starts])
 
 
 def global_stage(

@@ -74,6 +74,10 @@ class CampaignTarget:
     #: ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; None for a
     #: stage not seen); None: not identified. A fit starts from it (:meth:`observed`).
     sensor: dict[str, Any] | None = None
+    #: The shaker's harmonics read off the free flights
+    #: (:func:`stiffnet.measurement.forcing_lines.campaign_forcing_lines`: ``second``,
+    #: ``phase_second``, ``third``, ``phase_third``); None: not read. Seeds their fit.
+    forcing: dict[str, float] | None = None
 
     def simulated_statistics(
         self,
@@ -184,13 +188,15 @@ class CampaignTarget:
             None if self.starts is None else [self.starts[i] for i in idx],
             None if self.weights is None else [self.weights[i] for i in idx],
             self.sensor,
+            self.forcing,
         )
 
     def observed(self) -> dict[str, float]:
         """What the measurement shows that seeds a fit: ``ringing_hz``, the median post-impact
         ringing frequency (Hz) of the recordings that ring (ringing above 0.2 decades), and
         the identified chain's stages as ``sensor_<parameter>`` (effect units: Hz, ratio,
-        order; a stage the chain lacks is absent)."""
+        order; a stage the chain lacks is absent) and the shaker's harmonics read off the
+        free flights as ``forcing_<parameter>`` (:attr:`forcing`)."""
         f = [
             m.ringing_frequency * m.natural_frequency_hz
             for m in self.measured
@@ -200,6 +206,9 @@ class CampaignTarget:
         for key, value in (self.sensor or {}).items():
             if key in SENSOR_STAGES and value is not None and np.isfinite(value):
                 out[f"sensor_{key}"] = float(value)
+        for key, value in (self.forcing or {}).items():
+            if np.isfinite(value):
+                out[f"forcing_{key}"] = float(value)
         return out
 
 
