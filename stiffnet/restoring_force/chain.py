@@ -704,8 +704,8 @@ class _ChainSearch:
 
     def lowpass_profile(self, best: _StructureFit) -> tuple[tuple[int, float], ...]:
         """Per order of :data:`PROFILE_ORDERS`, the lowest corner (of :data:`PROFILE_CORNERS`
-        times the contact frequency) at which the chosen structure with that low-pass fits
-        the impacts as well as the chosen one: its squared residual within the
+        times the contact frequency, walking down) at which the chosen structure with that
+        low-pass fits the impacts as well as the chosen one: its squared residual within the
         :data:`COVERAGE` quantile of chi-square (1 degree) times the residual variance.
 
         A low-pass at a few contact frequencies barely changes the pulse's shape (its delay
@@ -722,7 +722,10 @@ class _ChainSearch:
         for order in PROFILE_ORDERS:
             st = (best.structure[0], order)
             lowest = None
-            for f in PROFILE_CORNERS * contact[0]:
+            # from the fastest corner down, to the first that fits worse: without a fitted
+            # low-pass a faster corner changes the pulse less, so the corners that fit form a
+            # run from the top (and a record that excludes the fastest costs one fit)
+            for f in PROFILE_CORNERS[::-1] * contact[0]:
                 if f >= self.cap or (corner and order == best.structure[1] and f >= corner):
                     continue
                 fit = _fit_structure(self.win, self.fs, self.fn, st,
@@ -730,6 +733,7 @@ class _ChainSearch:
                                      corner_hz=f)  # fmt: skip
                 if fit.sse <= allowed:
                     lowest = float(f)
+                elif lowest is not None or not corner:
                     break
             if lowest is not None:
                 out.append((order, lowest))
