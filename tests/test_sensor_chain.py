@@ -448,3 +448,25 @@ def test_noise_leaves_lower_lowpass_corners_open():
     for order in (2, 4):
         assert lowest[2][order] < lowest[1][order]
     assert lowest[1][2] < lowest[1][4] and lowest[2][2] < lowest[2][4]
+
+
+@pytest.mark.slow
+def test_a_lowpass_the_fit_cannot_see_still_bounds_beta():
+    """Independent rig (bench_crosscheck's rig_chains #8): beta 7.78 behind a 3rd-order
+    145 Hz low-pass (5 contact frequencies), a 0.37 Hz high-pass and a mount above Nyquist.
+    The chain-free pulses fit within the noise floor, so no chain is fitted, and the map
+    reads 8.4; the interval used to be the bootstrap's alone (8.0-8.8). The low-passes the
+    impacts cannot exclude (2nd order near 107 Hz, 4th order near 207 Hz) now bound it."""
+    sensor = {"resonance_hz": 1597.73, "resonance_damping": 0.0832, "lowpass_hz": 144.685,
+              "lowpass_order": 3, "highpass_hz": 0.3724}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=7.780985785073243, fs_hz=2078.9479613976932,
+                 duration_s=3.0, gap_mm=2.1053183865925034, sensor=sensor)  # fmt: skip
+    accel = record(run, seed=20261135)[1]
+    r = restoring_force_estimate(accel, run.fs_hz, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert not r.sensor.has_dynamics
+    corners = dict(r.sensor.lowpass_not_excluded)
+    assert set(corners) == {2, 4}
+    assert corners[2] < corners[4] < 2 * 144.685
+    assert r.beta > 7.78 * 1.05  # still read high: the interval, not beta, tells
+    assert r.beta_interval[0] <= 7.78 <= r.beta_interval[1]
