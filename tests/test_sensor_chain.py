@@ -389,3 +389,84 @@ def test_a_data_sheet_lowpass_at_three_contact_frequencies_reads_beta(engine):
     r = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24, sensor=sheet)
     assert r.ok, r.reason
     assert r.beta == pytest.approx(30.0, rel=0.1)
+
+
+# --- the low-pass the impacts cannot exclude -----------------------------------------------
+
+
+def _pulse_train(noise_sigma: float, lowpass_order: int | None = None, fs: float = 2000.0):
+    """Residual force of 56 elastic 50 Hz contacts (unit impact velocity, peak ~300) at
+    sub-sample onsets, optionally through a Butterworth low-pass at 2 contact frequencies,
+    plus white noise: what :func:`fit_chain` reads."""
+    from scipy import signal
+
+    from stiffnet.restoring_force.chain import OVERSAMPLE, chain_sos
+
+    fine = fs * OVERSAMPLE
+    pulse = contact_pulse(np.arange(int(0.1 * fine)) / fine, 50.0, 0.0, 0.0, FN)
+    if lowpass_order:
+        sos = chain_sos(SensorChain(lowpass_hz=100.0, lowpass_order=lowpass_order), fine)
+        pulse = signal.sosfilt(sos, pulse)
+    force = np.zeros(12000)
+    for k, t0 in enumerate(np.arange(0.2, 5.8, 0.1)):
+        i0 = int(t0 * fs)
+        force[i0 : i0 + 200] += np.interp(np.arange(200) + (0.37 * k) % 1,
+                                          np.arange(pulse.size) / OVERSAMPLE, pulse)  # fmt: skip
+    force += noise_sigma * np.random.default_rng(0).standard_normal(force.size)
+    return force, force > 4 * max(noise_sigma, 0.025), fs
+
+
+@pytest.mark.slow
+def test_an_identified_lowpass_leaves_no_lower_one_open():
+    """A 4th-order low-pass at 2 contact frequencies, nearly noise-free: identified within
+    10 % (order 4), and no lower corner of either profiled order fits as well."""
+    from stiffnet.restoring_force.chain import fit_chain
+
+    force, core, fs = _pulse_train(0.02, lowpass_order=4)
+    c = fit_chain(force, core, fs, FN, fs / 100.0, noise_sigma=0.02)
+    assert c.lowpass_hz == pytest.approx(100.0, rel=0.1) and c.lowpass_order == 4
+    assert c.lowpass_not_excluded == ()
+
+
+def test_noise_leaves_lower_lowpass_corners_open():
+    """Chain-free pulses: nearly noise-free, no low-pass up to 12 contact frequencies fits as
+    well as none; the noisier the record, the lower the corner (per order) it cannot exclude,
+    and a 2nd-order one always lower than a 4th-order one (gentler, so less visible)."""
+    from stiffnet.restoring_force.chain import fit_chain
+
+    lowest = []
+    for sigma in (0.02, 3.0, 40.0):
+        force, core, fs = _pulse_train(sigma)
+        c = fit_chain(force, core, fs, FN, fs / 100.0, noise_sigma=sigma)
+        assert not c.has_dynamics
+        lowest.append(dict(c.lowpass_not_excluded))
+        assert c.to_dict()["lowpass_not_excluded"] == [
+            {"order": o, "hz": f} for o, f in c.lowpass_not_excluded
+        ]
+    assert lowest[0] == {}
+    assert set(lowest[1]) == set(lowest[2]) == {2, 4}
+    for order in (2, 4):
+        assert lowest[2][order] < lowest[1][order]
+    assert lowest[1][2] < lowest[1][4] and lowest[2][2] < lowest[2][4]
+
+
+@pytest.mark.slow
+def test_a_lowpass_the_fit_cannot_see_still_bounds_beta():
+    """Independent rig (bench_crosscheck's rig_chains #8): beta 7.78 behind a 3rd-order
+    145 Hz low-pass (5 contact frequencies), a 0.37 Hz high-pass and a mount above Nyquist.
+    The chain-free pulses fit within the noise floor, so no chain is fitted, and the map
+    reads 8.4; the interval used to be the bootstrap's alone (8.0-8.8). The low-passes the
+    impacts cannot exclude (2nd order near 107 Hz, 4th order near 207 Hz) now bound it."""
+    sensor = {"resonance_hz": 1597.73, "resonance_damping": 0.0832, "lowpass_hz": 144.685,
+              "lowpass_order": 3, "highpass_hz": 0.3724}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=7.780985785073243, fs_hz=2078.9479613976932,
+                 duration_s=3.0, gap_mm=2.1053183865925034, sensor=sensor)  # fmt: skip
+    accel = record(run, seed=20261135)[1]
+    r = restoring_force_estimate(accel, run.fs_hz, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert not r.sensor.has_dynamics
+    corners = dict(r.sensor.lowpass_not_excluded)
+    assert set(corners) == {2, 4}
+    assert corners[2] < corners[4] < 2 * 144.685
+    assert r.beta > 7.78 * 1.05  # still read high: the interval, not beta, tells
+    assert r.beta_interval[0] <= 7.78 <= r.beta_interval[1]

@@ -609,7 +609,8 @@ def _undo_chain(
         candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
     if chain is None or not chain.has_dynamics:
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
-        return best[0], chain, best[1], "", []
+        unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
     m2 = _remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
@@ -643,6 +644,7 @@ def _undo_chain(
         [c[0] for c in candidates]
         + [m2]
         + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        + _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
     )
     if not applied:
         # a rejected chain refuses nothing, even with its low-pass below the contact: a
@@ -663,6 +665,20 @@ def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, expon
         _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
                           m.fit.sigma), args, highpass_hz, m.corner, exponent, inverse=True)
         for f in ends if 0 < f < 0.5 * fs_hz
+    ]  # fmt: skip
+
+
+def _unexcluded_maps(chain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
+    """The maps through each low-pass the impacts cannot exclude (a fitted chain's
+    ``lowpass_not_excluded``): a low-pass the fit does not see may still bend beta. The
+    high-pass stays at the record's corner: profiled again, it is tuned until the contact law
+    fits and takes the low-pass's effect back."""
+    if chain is None or chain.source != "fitted":
+        return []
+    return [
+        _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=f, lowpass_order=o),
+                          m.fit.sigma), args, m.corner, m.corner, exponent)
+        for o, f in chain.lowpass_not_excluded if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
 
 
