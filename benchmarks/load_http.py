@@ -362,7 +362,7 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
         log.close()
         out.close()
     text = Path(log.name).read_text(errors="replace")
-    started = [ln for ln in Path(out.name).read_text(errors="replace").splitlines()
+    started = [ln for ln in (Path(out.name).read_text(errors="replace") + text).splitlines()
                if ln.startswith("warm-up")]  # fmt: skip
     Path(log.name).unlink()
     Path(out.name).unlink()
@@ -393,6 +393,9 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     shed = [ln for ln in lines if "(load shed)" in ln]
     print(f"server log: {len(shed)} load-shedding lines" + "".join(
         f"\n  {ln.split('(load shed): ', 1)[1][:260]}" for ln in shed[:4]))  # fmt: skip
+    overrun = [ln.split("503 (overrun): ", 1)[1] for ln in lines if "503 (overrun)" in ln]
+    print(f"server log: {len(overrun)} overrun (503) lines" + "".join(
+        f"\n  {ln[:260]}" for ln in overrun[:4]))  # fmt: skip
     print(f"abuse phase wall {wall:.1f} s; /health after: {health}")
     print(f"server RSS MB: start {rss_start:.0f}, peak (VmHWM) {peak:.0f}")
     print(f"server log: {len(lines)} lines, {n_gone} disconnect lines, "
