@@ -45,10 +45,10 @@ WARM_UP_BETA, WARM_UP_ZETA, WARM_UP_GAP, WARM_UP_FORCE, WARM_UP_RATIO = 40.0, 0.
 #: Integration sub-steps per sample (semi-implicit Euler: stable for omega h << 1 with
 #: the contact's sqrt(1 + beta) = 6.4 times the free frequency: 0.025 rad a step).
 SUBSTEPS = 8
-#: Warm-up seconds allowed at most, as a fraction of ``--timeout-s``: a server that cannot
-#: predict a small recording in a good part of its own timeout would refuse or time out
-#: every request.
-WARM_UP_SHARE = 1.0
+#: Warm-up seconds allowed at most, in units of ``--timeout-s``: its three predictions took
+#: 16.3 s in all at load 17 (2 cores; 2.8 s at load 7), and a server that cannot make them
+#: in twice the time it gives one request would refuse or time out every request.
+WARM_UP_SHARE = 2.0
 
 
 class WarmUpFailed(EnvironmentFailure):
@@ -135,7 +135,8 @@ def warm_up(admission: Admission, timeout_s: float | None = None) -> str:
         except FutureTimeout:
             raise WarmUpFailed(
                 f"warm-up: the {name} of a {WARM_UP_SECONDS:g} s recording did not finish "
-                f"within {budget:g} s (--timeout-s): this server could not answer in time"
+                f"within {budget:g} s ({WARM_UP_SHARE:g} x --timeout-s): this server could not "
+                "answer in time"
             ) from None
         except Exception as exc:  # any failure: the server must not start
             raise WarmUpFailed(
