@@ -135,9 +135,13 @@ def peak_rss_mb(pid: int) -> float:
 
 def _code(r: httpx.Response) -> int | str:
     """The status, or "429 shed" for a load-shedding refusal (a job that would not finish
-    in time, refused before any work) apart from a full lane's 429."""
+    in time, refused before any work; "at start" when its worker refused it) apart from a
+    full lane's 429."""
     if r.status_code == 429 and "would not finish within" in r.text:
-        return f"429 shed (Retry-After {r.headers.get('retry-after', '?')} s)"
+        when = " at start" if "refused before any work" in r.text else ""
+        return f"429 shed{when} (Retry-After {r.headers.get('retry-after', '?')} s)"
+    if r.status_code == 429 and "found no free worker" in r.text:
+        return "429 no worker in time"
     return r.status_code
 
 
@@ -167,7 +171,7 @@ async def small_requests(base: str, body: bytes, n: int, clients: int) -> tuple[
 
 async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter:
     """Each file's client uploads it ``per_client`` times (waiting Retry-After on 429)."""
-    codes: Counter = Counter({"200 s": [], "504 s": []})  # type: ignore[dict-item]
+    codes: Counter = Counter({"200 s": [], "5xx s": []})  # type: ignore[dict-item]
 
     async def one(data: bytes) -> None:
         async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
@@ -177,9 +181,10 @@ async def big_uploads(base: str, files: list[bytes], per_client: int) -> Counter
                     t = time.perf_counter()
                     r = await c.post("/predict", files={"file": ("big.npy", data)}, data=form)
                     codes[_code(r)] += 1
-                    if r.status_code in (200, 504):  # how long the predicted ones took
-                        codes[f"{r.status_code} s"] += [round(time.perf_counter() - t, 1)]
-                    if r.status_code == 429:
+                    if r.status_code == 200 or r.status_code >= 500:  # how long they took
+                        key = "200 s" if r.status_code == 200 else "5xx s"
+                        codes[key] += [round(time.perf_counter() - t, 1)]
+                    if r.status_code in (429, 503):
                         await asyncio.sleep(float(r.headers.get("retry-after", "1")))
                 except httpx.HTTPError as exc:
                     codes[f"transport error {type(exc).__name__}"] += 1
@@ -275,6 +280,11 @@ async def zeros_json(base: str, megabytes: float) -> Counter:
             return Counter([f"transport error {type(exc).__name__}"])
 
 
+def burners(n: int) -> list[subprocess.Popen]:
+    """``n`` processes spinning a core each (``--burn``): a loaded machine on demand."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
 def load_average() -> str:
     return " ".join(Path("/proc/loadavg").read_text().split()[:3])
 
@@ -304,9 +314,13 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
         np.save(buf, arr)
         npy.append(buf.getvalue())
     log = tempfile.NamedTemporaryFile(prefix="stiffnet-serve-", suffix=".log", delete=False)
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=log)
+    out = tempfile.NamedTemporaryFile(prefix="stiffnet-serve-", suffix=".out", delete=False)
+    burning = burners(args.burn)
+    proc = subprocess.Popen(cmd, env=env, stdout=out, stderr=log)
     try:
-        wait_healthy(base, proc)
+        if burning:  # the load average follows in about a minute
+            time.sleep(args.burn_lead_s)
+        wait_healthy(base, proc, timeout=120.0)
         for _ in range(3):  # warm-up
             httpx.post(f"{base}/predict", content=body, timeout=60,
                        headers={"content-type": "application/json"})  # fmt: skip
@@ -343,9 +357,15 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
         peak = peak_rss_mb(proc.pid)
     finally:
         stop(proc)
+        for b in burning:
+            stop(b)
         log.close()
+        out.close()
     text = Path(log.name).read_text(errors="replace")
+    started = [ln for ln in (Path(out.name).read_text(errors="replace") + text).splitlines()
+               if ln.startswith("warm-up")]  # fmt: skip
     Path(log.name).unlink()
+    Path(out.name).unlink()
     all_codes = [codes_alone, codes_up, codes_big_only, codes_small, codes_big, codes_stall,
                  codes_stall_large, codes_zeros]  # fmt: skip
     n5xx = sum(v for c in all_codes for k, v in c.items() if isinstance(k, int) and k >= 500)
@@ -354,7 +374,9 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     )
     print(f"server: stiffnet serve ({opts}); small request = {len(body) / 1e3:.0f} kB JSON, "
           f"{args.small_clients} clients")  # fmt: skip
-    print(f"load average (uptime) at start: {load_start}; at the end: {load_average()}")
+    print(f"load average (uptime) at start: {load_start}; at the end: {load_average()}"
+          + (f" ({args.burn} CPU burners)" if args.burn else ""))  # fmt: skip
+    print(f"server start: {started[0] if started else 'no warm-up line'}")
     print(f"small requests alone:       {percentiles(alone)}; codes {dict(codes_alone)}")
     print(f"small requests, {args.uploaders} uploaders: {percentiles(uploading)}; codes "
           f"{dict(codes_up)}; uploads {dict(sorted(codes_big_only.items(), key=str))}")  # fmt: skip
@@ -371,6 +393,9 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     shed = [ln for ln in lines if "(load shed)" in ln]
     print(f"server log: {len(shed)} load-shedding lines" + "".join(
         f"\n  {ln.split('(load shed): ', 1)[1][:260]}" for ln in shed[:4]))  # fmt: skip
+    overrun = [ln.split("503 (overrun): ", 1)[1] for ln in lines if "503 (overrun)" in ln]
+    print(f"server log: {len(overrun)} overrun (503) lines" + "".join(
+        f"\n  {ln[:260]}" for ln in overrun[:4]))  # fmt: skip
     print(f"abuse phase wall {wall:.1f} s; /health after: {health}")
     print(f"server RSS MB: start {rss_start:.0f}, peak (VmHWM) {peak:.0f}")
     print(f"server log: {len(lines)} lines, {n_gone} disconnect lines, "
@@ -407,6 +432,14 @@ def main() -> int:
     ab.add_argument("--disconnects", type=int, default=200)
     ab.add_argument("--body-timeout-s", type=float, default=5.0)
     ab.add_argument("--deadline", type=float, default=300.0, help="abuse phase limit, s")
+    ab.add_argument(
+        "--burn",
+        type=int,
+        default=0,
+        help="CPU burner processes running beside the server (a loaded machine)",
+    )
+    ab.add_argument("--burn-lead-s", type=float, default=45.0,
+                    help="seconds the burners run before the first request")  # fmt: skip
     ab.add_argument("--legacy-server", action="store_true",
                     help="the server has no --body-timeout-s (older code; run this "
                     "script from such a checkout to compare)")  # fmt: skip

@@ -11,8 +11,11 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   happen in the pool). At most ``max_queue`` more requests wait for a worker;
   beyond that the answer is 429 with ``Retry-After``. A request that timed out
   keeps its slot until its thread finishes, so abandoned work cannot pile up.
-* **Time** - a request not answered within ``timeout_s`` (queueing included)
-  gets 504: the last guard, since load shedding refuses first what would pass it.
+* **Time** - a request not answered within ``timeout_s`` (queueing included) gets 503
+  with ``Retry-After`` if its prediction had started (the machine slowed beyond its
+  price: overloaded, not broken), 429 if it was still queued: the last guard, since load
+  shedding refuses first what would pass it. A worker that takes a job too late for it
+  to finish in time refuses it (429) before any work.
 * **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
   samples times the lane's seconds per sample, measured online from the lane's
   finished predictions, seeded conservatively) is added to the expected wait for a
@@ -61,7 +64,8 @@ malformed request or host,
 401 missing token, 404/405, 408 body too slow, 413 too large (bytes or
 samples), 415 wrong content type, 422 unusable recording
 (:class:`~stiffnet.errors.StiffnetError`, a CSV the parser refuses, an unknown form
-field), 429 saturated, 503 the server's disk or memory failed, 504 timeout.
+field), 429 saturated or too busy to finish in time, 503 the server's disk or memory
+failed, or a started prediction overran the timeout (with ``Retry-After``).
 """
 
 from __future__ import annotations
@@ -700,7 +704,8 @@ _ERRORS = {
         415: "unsupported content type",
         422: "unusable recording",
         429: "too many requests waiting, or too busy to finish this one in time (Retry-After)",
-        504: "timed out",
+        503: "overloaded: a started prediction did not finish within the timeout "
+        "(Retry-After), or the server's disk or memory failed",
     }.items()
 }
 
@@ -987,16 +992,9 @@ class Admission:
         With none measured lately in any lane the job is started: it measures the load
         again, so a lane refused for a load that has fallen opens again."""
         cost = self.cost[lane]
-        slow, whose = cost.contention.factor(now), "this lane's"
-        if slow is None:  # the other lane's jobs run on the same machine now
-            others = [c.contention.factor(now) for k, c in self.cost.items() if k != lane]
-            slow, whose = (
-                max((f for f in others if f is not None), default=None),
-                "the other lane's",
-            )
-        if slow is None or samples * cost.cpu_s_per_sample * slow <= budget:
+        alone, slow, whose = self._alone_s(lane, samples, now)
+        if alone is None or alone <= budget:
             return None
-        alone = samples * cost.cpu_s_per_sample * slow
         retry = math.ceil(self.limits.timeout_s)  # the load, not a queue, has to change
         message = (
             f"server busy: this {lane} prediction ({samples} samples) needs about "
@@ -1006,13 +1004,35 @@ class Admission:
         )
         return _shed(message, retry)
 
+    def _alone_s(self, lane: str, samples: int, now: float) -> tuple[float | None, float, str]:
+        """Seconds a job would take on a free worker now: its CPU cost times the lane's
+        slow-down (the other lane's, the more pessimistic, when this one has none measured
+        lately); None when none is. With the slow-down and whose it is."""
+        cost = self.cost[lane]
+        slow, whose = cost.contention.factor(now), "this lane's"
+        if slow is None:  # the other lane's jobs run on the same machine now
+            others = [c.contention.factor(now) for k, c in self.cost.items() if k != lane]
+            slow, whose = (
+                max((f for f in others if f is not None), default=None),
+                "the other lane's",
+            )
+        if slow is None:
+            return None, 1.0, whose
+        return samples * cost.cpu_s_per_sample * slow, slow, whose
+
     async def _run(self, job: Callable[[], dict], lane: str, done: Callable) -> JSONResponse:
         loop = asyncio.get_running_loop()
         cost, samples = self.cost[lane], getattr(job, "samples", 0)
-        ticket = cost.submitted(samples)
+        ticket, queued = cost.submitted(samples), time.monotonic()
+        ran: dict[str, float] = {}
 
         def timed() -> dict:
             t0, cpu0 = time.monotonic(), time.thread_time()
+            late = self._late_start(lane, samples, t0 - queued, t0)
+            if late is not None:  # refused by its worker before any work
+                _drop(job)
+                raise late
+            ran["start"] = t0
             cost.started(ticket, t0)
             result = job()  # a failed job is not measured: a refusal costs nothing
             cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
@@ -1023,11 +1043,71 @@ class Admission:
         fut.add_done_callback(done)  # a timed-out job keeps its slot until its thread ends
         try:
             result = await asyncio.wait_for(asyncio.shield(fut), self.limits.timeout_s)
+        except ShedAtStart as late:
+            return _shed(late.message, late.retry_after_s)
         except TimeoutError:
             fut.add_done_callback(_outcome_unheard)
-            return _error(504, f"prediction did not finish within {self.limits.timeout_s:g} s")
+            return self._overrun(lane, samples, queued, ran.get("start"))
         self.state["served"] += 1
         return JSONResponse(result)
+
+    def _late_start(self, lane: str, samples: int, waited: float, now: float) -> ShedAtStart | None:
+        """A job whose worker takes it too late to finish in time: refused before any work.
+
+        Admission priced its wait; a rise of the load or a slower job ahead makes the real
+        wait longer. Here it is known, and the worker is free: the job runs only if the
+        wait plus its cost alone (:meth:`_alone_s`, as admission prices a job that finds
+        a worker free; nothing when no slow-down is measured) fits the same budget,
+        :data:`SHED_MARGIN` of the timeout.
+        """
+        budget = SHED_MARGIN * self.limits.timeout_s
+        own = self._alone_s(lane, samples, now)[0] or 0.0
+        if waited + own <= budget:
+            return None
+        retry = max(1, math.ceil(own))
+        return ShedAtStart(
+            f"server busy: this {lane} prediction ({samples} samples) waited {waited:.1f} s for "
+            f"a worker and needs about {own:.1f} s more, so it would not finish within the "
+            f"{self.limits.timeout_s:g} s timeout; refused before any work; retry after "
+            f"{retry} s",
+            retry,
+        )
+
+    def _overrun(
+        self, lane: str, samples: int, queued: float, started: float | None
+    ) -> JSONResponse:
+        """The answer to a job not finished within the timeout: 429 (:func:`_shed`) if it is
+        still queued (refused before any work: its worker will not start it), else 503 with
+        ``Retry-After``: a started job passed the timeout, the machine slowed beyond its
+        price. The server is overloaded, not broken (504 is a gateway's status): a refusal
+        to retry, and the work goes on to its end on its worker, holding it."""
+        now, timeout = time.monotonic(), self.limits.timeout_s
+        if started is None:  # still queued: its worker will refuse it (_late_start)
+            retry = max(1, math.ceil(self.cost[lane].expected_start_s(now)))
+            return _shed(
+                f"server busy: this {lane} prediction ({samples} samples) found no free "
+                f"worker within the {timeout:g} s timeout; refused before any work; retry "
+                f"after {retry} s",
+                retry,
+            )
+        waited, running = started - queued, now - started
+        left = self.cost[lane].expected_s(samples, now) - running
+        retry = max(1, math.ceil(max(left, 0.0) + self.cost[lane].expected_start_s(now)))
+        message = (
+            f"server overloaded: this {lane} prediction ({samples} samples) did not finish "
+            f"within the {timeout:g} s timeout (it waited {waited:.1f} s for a worker and ran "
+            f"{running:.1f} s); retry after {retry} s"
+        )
+        log.warning("503 (overrun): %s", message)
+        return _error(503, message, {"Retry-After": str(retry)})
+
+
+class ShedAtStart(Exception):
+    """A queued job its worker refuses before any work (answered 429, :func:`_shed`)."""
+
+    def __init__(self, message: str, retry_after_s: int) -> None:
+        super().__init__(message)
+        self.message, self.retry_after_s = message, retry_after_s
 
 
 def _shed(message: str, retry_after_s: int) -> JSONResponse:
@@ -1044,11 +1124,11 @@ def _drop(job: Callable[[], dict]) -> None:
 
 
 def _outcome_unheard(fut: Any) -> None:
-    """A job whose request was answered 504 ends later: one log line, never a traceback of an
-    unretrieved exception."""
+    """A job whose request was answered 503 (overrun) ends later: one log line, never a
+    traceback of an unretrieved exception."""
     exc = None if fut.cancelled() else fut.exception()
-    if exc is not None:
-        log.warning("a request answered 504 failed afterwards: %s", one_line(exc, 200))
+    if exc is not None and not isinstance(exc, ShedAtStart):  # that one was never started
+        log.warning("a request answered 503 failed afterwards: %s", one_line(exc, 200))
 
 
 def _add_routes(app: FastAPI, predictor: Predictor, limits: Limits, admission: Admission) -> None:

@@ -35,7 +35,8 @@ OVERRUN_LEFT = 0.1
 SEED_CPU_S_PER_SAMPLE = {"small": 3e-5, "large": 3e-6}
 #: Seconds a lane's measured slow-down (wall over CPU time) stays current.
 CONTENTION_FRESH_S = 60.0
-#: CPU seconds below which a job's wall/CPU ratio says nothing (a sleep, a refusal).
+#: CPU seconds below which a job's wall/CPU ratio says nothing alone (a sleep, a refusal, a
+#: short request): such jobs are summed until their CPU time reaches it.
 CONTENTION_MIN_CPU_S = 0.05
 
 
@@ -51,13 +52,28 @@ class Contention:
 
     def __init__(self) -> None:
         self.mean, self.at = 1.0, -math.inf
+        self._pending = [0.0, 0.0, -math.inf]  # wall, CPU seconds of short jobs; since
         self._lock = threading.Lock()
 
     def measure(self, wall_s: float, cpu_s: float, now: float) -> None:
-        if not (cpu_s >= CONTENTION_MIN_CPU_S and math.isfinite(wall_s)):
+        """A finished job's wall and CPU seconds. Jobs shorter than
+        :data:`CONTENTION_MIN_CPU_S` of CPU are summed until their CPU time reaches it (the
+        small lane's requests of a few thousand samples take 0.03 s each on a quiet core:
+        one alone says nothing, together they say the lane's slow-down)."""
+        if not (math.isfinite(wall_s) and math.isfinite(cpu_s) and wall_s >= 0 and cpu_s >= 0):
             return
-        ratio = max(1.0, wall_s / cpu_s)
         with self._lock:
+            if cpu_s < CONTENTION_MIN_CPU_S:
+                pending = self._pending
+                if now - pending[2] > CONTENTION_FRESH_S:  # old short jobs: start again
+                    pending[:] = [0.0, 0.0, now]
+                pending[0] += wall_s
+                pending[1] += cpu_s
+                if pending[1] < CONTENTION_MIN_CPU_S:
+                    return
+                wall_s, cpu_s = pending[0], pending[1]
+                pending[:] = [0.0, 0.0, -math.inf]
+            ratio = max(1.0, wall_s / cpu_s)
             fresh = now - self.at <= CONTENTION_FRESH_S
             self.mean = (1 - COST_EWMA) * self.mean + COST_EWMA * ratio if fresh else ratio
             self.at = now

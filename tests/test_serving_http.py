@@ -1,4 +1,4 @@
-"""The HTTP predictor: endpoints, JSON errors, limits (413, 429, 504), fuzzing, a live server."""
+"""The HTTP predictor: endpoints, JSON errors, limits (413, 429, 503), fuzzing, a live server."""
 
 from __future__ import annotations
 
@@ -172,13 +172,14 @@ async def _concurrent(app, n: int) -> list[httpx.Response]:
         return await asyncio.gather(*(c.post("/predict", json=body) for _ in range(n)))
 
 
-def test_saturation_gives_429_and_timeout_504():
+def test_saturation_gives_429_and_an_overrun_503_with_retry_after():
     app = create_app(_Slow(0.5), Limits(max_concurrency=1, max_queue=1, timeout_s=5))
     codes = sorted(r.status_code for r in asyncio.run(_concurrent(app, 4)))
     assert codes == [200, 200, 429, 429]
     app = create_app(_Slow(1.0), Limits(max_concurrency=1, timeout_s=0.2))
     (r,) = asyncio.run(_concurrent(app, 1))
-    _is_error(r, 504, "0.2 s")
+    _is_error(r, 503, "did not finish within the 0.2 s timeout")
+    assert int(r.headers["retry-after"]) >= 1
 
 
 _floats = st.floats(allow_nan=False, allow_infinity=False, width=32)
@@ -276,10 +277,10 @@ def test_every_route_has_a_typed_response_and_lists_its_errors(client):
     schema = client.get("/openapi.json").json()
     comps = schema["components"]["schemas"]
     expected = {
-        ("/predict", "post"): ("PredictionResult", {"400", "413", "415", "422", "429", "504"}),
+        ("/predict", "post"): ("PredictionResult", {"400", "413", "415", "422", "429", "503"}),
         ("/health", "get"): ("HealthResponse", {"405", "413"}),
         ("/model", "get"): ("ModelResponse", {"405", "413"}),
-        ("/log", "post"): ("LogResult", {"400", "413", "415", "422", "429", "504"}),
+        ("/log", "post"): ("LogResult", {"400", "413", "415", "422", "429", "503"}),
     }
     for (path, method), (model, errors) in expected.items():
         responses = schema["paths"][path][method]["responses"]
@@ -338,7 +339,7 @@ def test_an_upload_over_the_limit_is_refused_before_it_queues(tmp_path):
         check_upload_size(path, 100)
 
 
-def test_a_job_that_fails_after_its_504_logs_one_line():
+def test_a_job_that_fails_after_its_503_logs_one_line():
     """Its exception has no request to go to: one warning, no 'exception never retrieved'."""
     from concurrent.futures import Future
 
@@ -361,7 +362,7 @@ def test_a_job_that_fails_after_its_504_logs_one_line():
         served.removeHandler(listener)
         served.setLevel(level)
     (line,) = [r.getMessage() for r in heard]
-    assert line.startswith("a request answered 504 failed afterwards: late") and "\n" not in line
+    assert line.startswith("a request answered 503 failed afterwards: late") and "\n" not in line
 
 
 def test_lane_cost_schedules_its_backlog_and_prices_at_what_it_measured():

@@ -266,6 +266,7 @@ def serve(
 
     from serving.app import Limits, create_app, enable_access_log, guarded_protocol
     from serving.predictor import Predictor
+    from serving.warm_up import warm_up
     from stiffnet.cli.console import console
     from stiffnet.errors import StiffnetError
 
@@ -294,6 +295,9 @@ def serve(
         f"(docs at /docs)"
     )
     app = create_app(predictor, limits, token=token, allowed_hosts=hosts, cors_origins=cors_origin)
+    # before the port is served: the first client pays no start-up cost, and a server that
+    # cannot predict refuses to start (one line, exit 1)
+    console.print(warm_up(app.state.admission), highlight=False, soft_wrap=True)
     enable_access_log()
     config = uvicorn.Config(
         app,
