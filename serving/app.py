@@ -11,9 +11,10 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   happen in the pool). At most ``max_queue`` more requests wait for a worker;
   beyond that the answer is 429 with ``Retry-After``. A request that timed out
   keeps its slot until its thread finishes, so abandoned work cannot pile up.
-* **Time** - a request not answered within ``timeout_s`` (queueing included) gets 503
-  with ``Retry-After`` if its prediction had started (the machine slowed beyond its
-  price: overloaded, not broken), 429 if it was still queued: the last guard, since load
+* **Time** - a request not answered within ``timeout_s`` (queueing included) gets 429
+  if it was still queued; a started prediction is given :data:`OVERRUN_GRACE` of the
+  timeout more (its worker is held to its end anyway), then 503 with ``Retry-After``
+  (the machine slowed beyond its price: overloaded, not broken): the last guard, since load
   shedding refuses first what would pass it. A worker that takes a job too late for it
   to finish in time refuses it (429) before any work.
 * **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
@@ -130,6 +131,10 @@ MAX_READERS_PER_CLIENT = 16
 MAX_LARGE_PER_CLIENT = 2
 #: Seconds a connection may take to send a whole request head (line and headers).
 HEADER_TIMEOUT_S = 10.0
+#: Time a prediction that started before the timeout is given beyond it, as a fraction of
+#: the timeout: a started prediction holds its worker to its end anyway, so its result is
+#: still worth answering; only past this is it refused (503).
+OVERRUN_GRACE = 1.0
 #: Form fields of a multipart request; any other is refused, as unknown JSON keys are.
 FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
 #: One line per request: client, method, path, status, bytes, milliseconds.
@@ -704,7 +709,7 @@ _ERRORS = {
         415: "unsupported content type",
         422: "unusable recording",
         429: "too many requests waiting, or too busy to finish this one in time (Retry-After)",
-        503: "overloaded: a started prediction did not finish within the timeout "
+        503: "overloaded: a started prediction did not finish within twice the timeout "
         "(Retry-After), or the server's disk or memory failed",
     }.items()
 }
@@ -1046,8 +1051,10 @@ class Admission:
         except ShedAtStart as late:
             return _shed(late.message, late.retry_after_s)
         except TimeoutError:
-            fut.add_done_callback(_outcome_unheard)
-            return self._overrun(lane, samples, queued, ran.get("start"))
+            result = await self._grace(fut, ran)
+            if result is None:
+                fut.add_done_callback(_outcome_unheard)
+                return self._overrun(lane, samples, queued, ran.get("start"))
         self.state["served"] += 1
         return JSONResponse(result)
 
@@ -1073,14 +1080,29 @@ class Admission:
             retry,
         )
 
+    async def _grace(self, fut: Any, ran: dict) -> dict | None:
+        """A started job's result if it ends within :data:`OVERRUN_GRACE` of the timeout
+        more, else None. Its worker is held until it ends whatever the answer, and a
+        refusal would make the client run it again: waiting costs nothing the answer saves.
+        A job still queued gets no grace (its worker refuses it before any work)."""
+        if ran.get("start") is None:
+            return None
+        try:
+            return await asyncio.wait_for(
+                asyncio.shield(fut), OVERRUN_GRACE * self.limits.timeout_s
+            )
+        except TimeoutError:
+            return None
+
     def _overrun(
         self, lane: str, samples: int, queued: float, started: float | None
     ) -> JSONResponse:
         """The answer to a job not finished within the timeout: 429 (:func:`_shed`) if it is
         still queued (refused before any work: its worker will not start it), else 503 with
-        ``Retry-After``: a started job passed the timeout, the machine slowed beyond its
-        price. The server is overloaded, not broken (504 is a gateway's status): a refusal
-        to retry, and the work goes on to its end on its worker, holding it."""
+        ``Retry-After``: a started job passed the timeout and its grace (:meth:`_grace`),
+        the machine slowed beyond its price. The server is overloaded, not broken (504 is
+        a gateway's status): a refusal to retry, and the work goes on to its end on its
+        worker, holding it."""
         now, timeout = time.monotonic(), self.limits.timeout_s
         if started is None:  # still queued: its worker will refuse it (_late_start)
             retry = max(1, math.ceil(self.cost[lane].expected_start_s(now)))
@@ -1095,7 +1117,8 @@ class Admission:
         retry = max(1, math.ceil(max(left, 0.0) + self.cost[lane].expected_start_s(now)))
         message = (
             f"server overloaded: this {lane} prediction ({samples} samples) did not finish "
-            f"within the {timeout:g} s timeout (it waited {waited:.1f} s for a worker and ran "
+            f"within the {timeout:g} s timeout and the {OVERRUN_GRACE * timeout:g} s more a "
+            f"started prediction is given (it waited {waited:.1f} s for a worker and ran "
             f"{running:.1f} s); retry after {retry} s"
         )
         log.warning("503 (overrun): %s", message)

@@ -182,6 +182,14 @@ def test_saturation_gives_429_and_an_overrun_503_with_retry_after():
     assert int(r.headers["retry-after"]) >= 1
 
 
+def test_a_started_prediction_that_ends_within_its_grace_is_answered():
+    """Past the timeout a started prediction holds its worker to its end anyway: one that
+    ends within the grace (another timeout) gets its result, not a refusal to run it again."""
+    app = create_app(_Slow(0.35), Limits(max_concurrency=1, timeout_s=0.25))
+    (r,) = asyncio.run(_concurrent(app, 1))
+    assert r.status_code == 200 and r.json() == {"class": "soft"}
+
+
 _floats = st.floats(allow_nan=False, allow_infinity=False, width=32)
 _json_bodies = st.one_of(
     st.fixed_dictionaries(
