@@ -14,7 +14,8 @@ post-impact ringing         high-passed (> 10 f_n) RMS after the spike over the 
                             restraint modes)
 free-flight harmonics       amplitudes of the 2nd and 3rd forcing harmonics over the
                             fundamental, least squares on the free-flight samples of a
-                            copy low-passed at 8 f_n (a ringing sensor would leak in)
+                            copy low-passed at 8 f_n (a ringing sensor would leak in),
+                            weighted 0 near the spikes, 1 away, tapered between
 spectrum                    Welch PSD averaged in 1/5-octave bands of f / f_n (log10)
 impact rate                 impacts per forcing period (spikes found on the low-passed
                             copy by a level rule, see :func:`spike_peaks`)
@@ -27,6 +28,11 @@ and divided by a robust scale (1.4826 MAD, dominated by free flight, which an
 effect on the contact barely moves). Polarity is made canonical (spikes up,
 ``y = polarity * z``) from the sign of the skewness, so a sensor mounted the
 other way compares as well. Times are in natural periods ``1 / f_n``.
+
+Every statistic moves continuously with the record: widths between interpolated
+half-height crossings, windows and masks with fractional edges (a fit walks the
+model's parameters; a statistic counted in whole samples steps, and the local
+search stalls on the plateaus between the steps).
 
 Low-level functions return whole curves or per-impact vectors; the rules that
 reduce them to one number (medians, means) live in :func:`signal_statistics`.
