@@ -131,3 +131,27 @@ def test_contact_damping_keeps_the_full_root_function() -> None:
     batch = paper_batch()
     model = nm._Model(batch, [LinearHooks()], [{}])
     assert not model.reads_state("Gr") and model.reads_state("dd")
+
+
+def test_one_row_root_finder_is_the_batch_one_bit_for_bit() -> None:
+    """The Python-float Illinois for one row returns the very root the numpy one finds for
+    that row inside a batch, and the root to the tolerance: smooth roots, a root on the
+    bracket's end, a step (bisection only), a start on the boundary (just after an event)."""
+    rng = np.random.default_rng(11)
+    cases = []
+    for _ in range(40):
+        r, c, hi = rng.uniform(0.05, 0.95), rng.uniform(-0.2, 3), rng.uniform(0.1, 2.0)
+        cases.append((lambda s, r=r, c=c, hi=hi: (s - r * hi) * (1 + c * s * s), hi, r * hi))
+    cases.append((lambda s: s - 0.3, 0.3, 0.3))
+    cases.append((lambda s: np.where(s < 0.6, -1.0, 1.0), 1.0, 0.6))
+    cases.append((lambda s: np.where(s < 0.4, -1e-300, s - 0.4), 1.0, 0.4))
+    for fun, hi, root in cases:
+        h = np.array([hi, hi])
+        g0, g1 = fun(np.zeros(1))[0], fun(np.array([hi]))[0]
+        glo, ghi = np.full(2, g0), np.full(2, g1)
+        tol = np.full(2, 1e-13 * hi)
+        both = nm._illinois(fun, h, glo, ghi, tol)
+        one = nm._illinois(fun, h[:1], glo[:1], ghi[:1], tol[:1])
+        assert one.shape == (1,)
+        assert both[0] == both[1] == one[0]
+        assert abs(one[0] - root) <= 2e-13 * hi

@@ -72,6 +72,7 @@ time, e.g. a light restraint's ringing). A run that still diverges raises
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -408,6 +409,8 @@ def _illinois(
     secant leaves the bracket. Returns the end of the final bracket on the far
     side of the root (where ``fun`` has left the sign of ``glo``).
     """
+    if hi.size == 1:  # most events: one row, where numpy's per-call cost dominates
+        return np.array([_illinois_one(fun, float(hi[0]), float(glo[0]), float(ghi[0]), tol)])
     lo = np.zeros_like(hi)
     last = np.zeros(hi.shape, dtype=np.int8)  # -1: lo moved last, +1: hi moved last
     sgn = np.sign(glo)
@@ -430,6 +433,33 @@ def _illinois(
         lo, glo = np.where(inside, s, lo), np.where(inside, g, glo)
         hi, ghi = np.where(outside, s, hi), np.where(outside, g, ghi)
         last = np.where(inside, -1, np.where(outside, 1, last)).astype(np.int8)
+    return hi
+
+
+def _illinois_one(
+    fun: Callable[[np.ndarray], np.ndarray], hi: float, glo: float, ghi: float, tol: np.ndarray
+) -> float:
+    """:func:`_illinois` for one row, in Python floats: the same IEEE operations in the same
+    order (bitwise the same root), without numpy's overhead on one-element arrays."""
+    tol_ = float(tol[0])
+    lo, last = 0.0, 0
+    sgn = float(np.sign(glo))
+    for _ in range(_ROOT_ITERS):
+        if not (hi - lo > tol_ and ghi != 0):
+            break
+        den = ghi - glo
+        s = lo - glo * (hi - lo) / den if den != 0 else math.nan
+        if not math.isfinite(s) or s <= lo or s >= hi or abs(glo) <= _TINY:
+            s = 0.5 * (lo + hi)
+        g = float(fun(np.array([s]))[0])
+        if g * sgn > 0:
+            if last == -1:
+                ghi = 0.5 * ghi
+            lo, glo, last = s, g, -1
+        else:
+            if last == 1:
+                glo = 0.5 * glo
+            hi, ghi, last = s, g, 1
     return hi
 
 
@@ -766,8 +796,12 @@ class _Partial:
         return y
 
     def aux(self, s: np.ndarray) -> dict[str, np.ndarray]:
-        """The right-hand side's ``aux`` after a partial step of length ``s``."""
-        return self.m.rhs(self.t + s, self.state(s), self.c, self.mo, full=True)[1]
+        """The right-hand side's ``aux`` after a partial step of length ``s`` (from a state
+        already computed at that length where there is one)."""
+        found, y = self.state_at(s) if self.seen else (np.zeros(s.size, dtype=bool), None)
+        if not found.all():
+            y = self.state(s)
+        return self.m.rhs(self.t + s, y, self.c, self.mo, full=True)[1]
 
     def value(self, key: str) -> Callable[[np.ndarray], np.ndarray]:
         """``s -> aux[key]``: read off the state where :meth:`_Model.reads_state` allows
@@ -809,11 +843,11 @@ def _brackets(
     turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
     if turning.any():
         sel = turning.nonzero()[0]
+        part = _Partial(st, ma, a, sel)
         s_ext = _illinois(
-            _Partial(st, ma, a, sel).value("dd"), la[sel], dd0[sel], dd1[sel],
-            _EXTREMUM_TOL * hs[a[sel]],
+            part.value("dd"), la[sel], dd0[sel], dd1[sel], _EXTREMUM_TOL * hs[a[sel]]
         )  # fmt: skip
-        a_ext = _Partial(st, ma, a, sel).aux(s_ext)
+        a_ext = part.aux(s_ext)
         hit = a_ext["G"] * sign_in[sel] <= 0
         s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
     for j in range(n_ev):
