@@ -165,13 +165,8 @@ class _Model:
         gap: Sinusoids,
         cc: np.ndarray,
     ) -> None:
-        self.batch, self.effects, self.params = batch, effects, params
-        self.forcing, self.gap, self.cc = forcing, gap, cc
-        self._forcing, self._gap = _Sines(forcing), _Sines(gap)
-        self.n = len(batch)
-        self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
-        self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
-        self.has_cc = bool(np.any(cc != 0))
+        self.effects = effects
+        self._set_rows(batch, params, forcing, gap, cc)
         elastic = [k for k, e in enumerate(effects) if _overrides(e, "elastic_contact")]
         if len(elastic) > 1:
             names = ", ".join(effects[k].name for k in elastic)
@@ -192,14 +187,33 @@ class _Model:
         self.restraints = [
             (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
         ]
+
+    def _set_rows(
+        self,
+        batch: OscillatorBatch,
+        params: list[ParamArrays],
+        forcing: Sinusoids,
+        gap: Sinusoids,
+        cc: np.ndarray,
+    ) -> None:
+        """The per-row part of the model (the rest depends on the effects alone)."""
+        self.batch, self.params = batch, params
+        self.forcing, self.gap, self.cc = forcing, gap, cc
+        self._forcing, self._gap = _Sines(forcing), _Sines(gap)
+        self.n = len(batch)
+        self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
+        self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
+        self.has_cc = bool(np.any(cc != 0))
         self.zero = np.zeros(self.n)
 
     def subset(self, idx: np.ndarray) -> _Model:
         """The same model restricted to rows ``idx`` (hooks are not called again)."""
         new = object.__new__(_Model)
-        new._setup(
+        # the effects' hook lists and state layout do not depend on the rows: copied, not
+        # derived again (a subset is made at every event)
+        new.__dict__.update(self.__dict__)
+        new._set_rows(
             _batch_subset(self.batch, idx),
-            self.effects,
             [{k: v[idx] for k, v in p.items()} for p in self.params],
             self.forcing.subset(idx),
             self.gap.subset(idx),
