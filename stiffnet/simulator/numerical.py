@@ -72,6 +72,7 @@ time, e.g. a light restraint's ringing). A run that still diverges raises
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from typing import Any
 
@@ -164,13 +165,8 @@ class _Model:
         gap: Sinusoids,
         cc: np.ndarray,
     ) -> None:
-        self.batch, self.effects, self.params = batch, effects, params
-        self.forcing, self.gap, self.cc = forcing, gap, cc
-        self._forcing, self._gap = _Sines(forcing), _Sines(gap)
-        self.n = len(batch)
-        self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
-        self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
-        self.has_cc = bool(np.any(cc != 0))
+        self.effects = effects
+        self._set_rows(batch, params, forcing, gap, cc)
         elastic = [k for k, e in enumerate(effects) if _overrides(e, "elastic_contact")]
         if len(elastic) > 1:
             names = ", ".join(effects[k].name for k in elastic)
@@ -191,14 +187,33 @@ class _Model:
         self.restraints = [
             (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
         ]
+
+    def _set_rows(
+        self,
+        batch: OscillatorBatch,
+        params: list[ParamArrays],
+        forcing: Sinusoids,
+        gap: Sinusoids,
+        cc: np.ndarray,
+    ) -> None:
+        """The per-row part of the model (the rest depends on the effects alone)."""
+        self.batch, self.params = batch, params
+        self.forcing, self.gap, self.cc = forcing, gap, cc
+        self._forcing, self._gap = _Sines(forcing), _Sines(gap)
+        self.n = len(batch)
+        self.xi2, self.beta, self.e0 = 2.0 * batch.damping, batch.beta, batch.gap
+        self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
+        self.has_cc = bool(np.any(cc != 0))
         self.zero = np.zeros(self.n)
 
     def subset(self, idx: np.ndarray) -> _Model:
         """The same model restricted to rows ``idx`` (hooks are not called again)."""
         new = object.__new__(_Model)
-        new._setup(
+        # the effects' hook lists and state layout do not depend on the rows: copied, not
+        # derived again (a subset is made at every event)
+        new.__dict__.update(self.__dict__)
+        new._set_rows(
             _batch_subset(self.batch, idx),
-            self.effects,
             [{k: v[idx] for k, v in p.items()} for p in self.params],
             self.forcing.subset(idx),
             self.gap.subset(idx),
@@ -226,6 +241,27 @@ class _Model:
 
     def forcing_at(self, t: np.ndarray) -> np.ndarray:
         return self._forcing.value(t)
+
+    def reads_state(self, key: str) -> bool:
+        """Whether ``aux[key]`` is a function of time and state alone (:meth:`state_value`):
+        the penetration rate, and the contact's root function where it is the penetration
+        (no contact damping, no penetration-dependent dissipation), without a moving
+        restraint (whose position needs its effect's hooks)."""
+        if self.restraints:
+            return False
+        if key == "dd":
+            return True
+        return key == "Gr" and not self.has_cc and not self.dissipative
+
+    def state_value(self, t: np.ndarray, y: np.ndarray, key: str) -> np.ndarray:
+        """``aux[key]`` of :meth:`rhs` at ``(t, y)`` without the forces (bitwise the same
+        numbers), for a ``key`` where :meth:`reads_state` holds. The root finder evaluates
+        only this function, 4-6 times per event; the right-hand side's forces are not
+        needed for it."""
+        if key == "dd":
+            return y[:, 1] - self._gap.rate(t) if self.has_gap else y[:, 1]
+        e = self.e0 + self._gap.value(t) if self.has_gap else self.e0
+        return y[:, 0] - e
 
     def rhs(
         self,
@@ -373,23 +409,6 @@ def _dense_states(
     return y[rows] + s[rows][:, None] * inc
 
 
-def _partial_step(
-    model: _Model,
-    t: np.ndarray,
-    y: np.ndarray,
-    f: np.ndarray,
-    contact: np.ndarray,
-    modes: np.ndarray,
-) -> Callable[[np.ndarray], dict[str, np.ndarray]]:
-    """``s -> aux`` at the end of an RK4 partial step of length ``s`` from ``(t, y)``."""
-
-    def aux_at(s: np.ndarray) -> dict[str, np.ndarray]:
-        ys = _rk4(model, t, y, f, s, contact, modes)
-        return model.rhs(t + s, ys, contact, modes, full=True)[1]
-
-    return aux_at
-
-
 def _illinois(
     fun: Callable[[np.ndarray], np.ndarray],
     hi: np.ndarray,
@@ -404,6 +423,8 @@ def _illinois(
     secant leaves the bracket. Returns the end of the final bracket on the far
     side of the root (where ``fun`` has left the sign of ``glo``).
     """
+    if hi.size == 1:  # most events: one row, where numpy's per-call cost dominates
+        return np.array([_illinois_one(fun, float(hi[0]), float(glo[0]), float(ghi[0]), tol)])
     lo = np.zeros_like(hi)
     last = np.zeros(hi.shape, dtype=np.int8)  # -1: lo moved last, +1: hi moved last
     sgn = np.sign(glo)
@@ -426,6 +447,33 @@ def _illinois(
         lo, glo = np.where(inside, s, lo), np.where(inside, g, glo)
         hi, ghi = np.where(outside, s, hi), np.where(outside, g, ghi)
         last = np.where(inside, -1, np.where(outside, 1, last)).astype(np.int8)
+    return hi
+
+
+def _illinois_one(
+    fun: Callable[[np.ndarray], np.ndarray], hi: float, glo: float, ghi: float, tol: np.ndarray
+) -> float:
+    """:func:`_illinois` for one row, in Python floats: the same IEEE operations in the same
+    order (bitwise the same root), without numpy's overhead on one-element arrays."""
+    tol_ = float(tol[0])
+    lo, last = 0.0, 0
+    sgn = float(np.sign(glo))
+    for _ in range(_ROOT_ITERS):
+        if not (hi - lo > tol_ and ghi != 0):
+            break
+        den = ghi - glo
+        s = lo - glo * (hi - lo) / den if den != 0 else math.nan
+        if not math.isfinite(s) or s <= lo or s >= hi or abs(glo) <= _TINY:
+            s = 0.5 * (lo + hi)
+        g = float(fun(np.array([s]))[0])
+        if g * sgn > 0:
+            if last == -1:
+                ghi = 0.5 * ghi
+            lo, glo, last = s, g, -1
+        else:
+            if last == 1:
+                glo = 0.5 * glo
+            hi, ghi, last = s, g, 1
     return hi
 
 
@@ -723,8 +771,8 @@ class _Stepper:
             if not any_ev.any():
                 break
             ev = any_ev.nonzero()[0]
-            s_root = _first_roots(st, ma, a, s_hi, g_hi, hs)
-            e_rows = _switch(st, ma, a, ev, s_root[ev])
+            s_root, known, y_known = _first_roots(st, ma, a, s_hi, g_hi, hs)
+            e_rows = _switch(st, ma, a, ev, (s_root[ev], known[ev], y_known[ev]))
             active = e_rows[st["left"][e_rows] > 0]
         out = {k: st[k] for k in ("y", "f", "aux", "contact", "modes", "entries")}
         return out
@@ -743,13 +791,49 @@ def _finish(
         st["aux"][key][q] = aux1[key][sel]
 
 
-def _partial(st: dict[str, Any], ma: _Model, a: np.ndarray, sel: np.ndarray) -> Callable:
-    """``s -> aux`` after a partial RK4 step of rows ``a[sel]`` from their current state."""
-    rows = a[sel]
-    ms = ma if sel.size == a.size else ma.subset(sel)
-    return _partial_step(
-        ms, st["t"][rows], st["y"][rows], st["f"][rows], st["contact"][rows], st["modes"][:, rows]
-    )
+class _Partial:
+    """RK4 partial steps of rows ``a[sel]`` from their current state, for the root finders;
+    it keeps the states it computed, so the step to the located event reuses its own
+    (:meth:`state_at`) instead of recomputing it (bitwise the same numbers)."""
+
+    def __init__(self, st: dict[str, Any], ma: _Model, a: np.ndarray, sel: np.ndarray) -> None:
+        rows = a[sel]
+        self.m = ma if sel.size == a.size else ma.subset(sel)
+        self.t, self.y, self.f = st["t"][rows], st["y"][rows], st["f"][rows]
+        self.c, self.mo = st["contact"][rows], st["modes"][:, rows]
+        self.seen: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def state(self, s: np.ndarray) -> np.ndarray:
+        """The state after a partial step of length ``s`` (per row)."""
+        y = _rk4(self.m, self.t, self.y, self.f, s, self.c, self.mo)
+        self.seen.append((s, y))
+        return y
+
+    def aux(self, s: np.ndarray) -> dict[str, np.ndarray]:
+        """The right-hand side's ``aux`` after a partial step of length ``s`` (from a state
+        already computed at that length where there is one)."""
+        found, y = self.state_at(s) if self.seen else (np.zeros(s.size, dtype=bool), None)
+        if not found.all():
+            y = self.state(s)
+        return self.m.rhs(self.t + s, y, self.c, self.mo, full=True)[1]
+
+    def value(self, key: str) -> Callable[[np.ndarray], np.ndarray]:
+        """``s -> aux[key]``: read off the state where :meth:`_Model.reads_state` allows
+        (one right-hand side fewer per evaluation of the root finder)."""
+        if self.m.reads_state(key):
+            return lambda s: self.m.state_value(self.t + s, self.state(s), key)
+        return lambda s: self.aux(s)[key]
+
+    def state_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(found (R,), states (R, n_y)): the states already computed at exactly ``s``."""
+        found = np.zeros(s.size, dtype=bool)
+        out = np.empty_like(self.y)
+        for s_k, y_k in reversed(self.seen):
+            hit = ~found & (s_k == s)
+            out[hit], found[hit] = y_k[hit], True
+            if found.all():
+                break
+        return found, out
 
 
 def _brackets(
@@ -773,12 +857,11 @@ def _brackets(
     turning = ~out_c & np.where(ca, (dd0 < 0) & (dd1 >= 0), (dd0 > 0) & (dd1 <= 0))
     if turning.any():
         sel = turning.nonzero()[0]
-        at = _partial(st, ma, a, sel)
+        part = _Partial(st, ma, a, sel)
         s_ext = _illinois(
-            lambda s, _at=at: _at(s)["dd"], la[sel], dd0[sel], dd1[sel],
-            _EXTREMUM_TOL * hs[a[sel]],
+            part.value("dd"), la[sel], dd0[sel], dd1[sel], _EXTREMUM_TOL * hs[a[sel]]
         )  # fmt: skip
-        a_ext = at(s_ext)
+        a_ext = part.aux(s_ext)
         hit = a_ext["G"] * sign_in[sel] <= 0
         s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
     for j in range(n_ev):
@@ -794,40 +877,54 @@ def _first_roots(
     s_hi: np.ndarray,
     g_hi: np.ndarray,
     hs: np.ndarray,
-) -> np.ndarray:
-    """Each bracketed function's first crossing (Illinois), (A, 1 + n_events); inf where
-    none."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each bracketed function's first crossing (Illinois), (A, 1 + n_events), inf where
+    none; and per row whether the root finders already computed the state at the earliest
+    crossing (A,), and that state (A, n_y)."""
     a0 = {k: v[a] for k, v in st["aux"].items()}
     sign_in = np.where(st["contact"][a], 1.0, -1.0)
     s_root = np.full(s_hi.shape, np.inf)
+    finders: list[tuple[np.ndarray, _Partial]] = []
     for col in range(s_hi.shape[1]):
         sel = np.isfinite(s_hi[:, col]).nonzero()[0]
         if sel.size == 0:
             continue
-        at = _partial(st, ma, a, sel)
+        part = _Partial(st, ma, a, sel)
         if col == 0:
             # right after an event G(0) is ~0 with either sign: use the region's
             glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
-
-            def fun(s, _at=at):
-                return _at(s)["Gr"]
+            fun = part.value("Gr")
         else:
             glo = np.maximum(np.abs(a0["g"][sel, col - 1]), _TINY)
 
-            def fun(s, _at=at, _j=col - 1):
+            def fun(s, _at=part.aux, _j=col - 1):
                 return _at(s)["g"][:, _j]
 
         s_root[sel, col] = _illinois(
             fun, s_hi[sel, col], glo, g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
         )
-    return s_root
+        finders.append((sel, part))
+    s_star = np.min(s_root, axis=1)
+    found = np.zeros(a.size, dtype=bool)
+    y_star = np.empty((a.size, st["y"].shape[1]))
+    for sel, part in finders:
+        ok, ys = part.state_at(s_star[sel])
+        ok &= ~found[sel]
+        y_star[sel[ok]], found[sel[ok]] = ys[ok], True
+    return s_root, found, y_star
 
 
 def _switch(
-    st: dict[str, Any], ma: _Model, a: np.ndarray, ev: np.ndarray, s_root: np.ndarray
+    st: dict[str, Any],
+    ma: _Model,
+    a: np.ndarray,
+    ev: np.ndarray,
+    roots: tuple[np.ndarray, np.ndarray, np.ndarray],
 ) -> np.ndarray:
     """Step rows ``a[ev]`` to their earliest event and switch there: the restraint region,
-    then the effects' modes at the event state. Returns the rows moved."""
+    then the effects' modes at the event state. ``roots``: :func:`_first_roots`' output
+    for these rows (the event states it computed are reused). Returns the rows moved."""
+    s_root, known, y_known = roots
     s_star = np.min(s_root, axis=1)
     fired = s_root <= s_star[:, None] * (1 + 1e-12) + _TINY
     e_rows = a[ev]
@@ -835,11 +932,16 @@ def _switch(
     ce, moe = st["contact"][e_rows].copy(), st["modes"][:, e_rows].copy()
     t0 = st["t"][e_rows]
     te = t0 + s_star
-    ye = _rk4(me, t0, st["y"][e_rows], st["f"][e_rows], s_star, ce, moe)
-    _, aux_e = me.rhs(te, ye, ce, moe, full=True)
+    ye = y_known.copy()
+    if not known.all():
+        u = (~known).nonzero()[0]
+        mu = me if u.size == ev.size else me.subset(u)
+        ye[u] = _rk4(mu, t0[u], st["y"][e_rows[u]], st["f"][e_rows[u]], s_star[u], ce[u], moe[:, u])
     flip = fired[:, 0]
     st["entries"][e_rows[flip & ~ce]] += 1
     ce = np.where(flip, ~ce, ce)
+    if fired[:, 1:].any():  # the modes' rule reads the forces at the event, before the switch
+        _, aux_e = me.rhs(te, ye, st["contact"][e_rows], moe, full=True)
     for j, k in enumerate(me.event_fx):
         fj = fired[:, 1 + j]
         if fj.any():
