@@ -26,6 +26,7 @@ a gain cancels.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -585,6 +586,7 @@ def _undo_chain(
     sensor: SensorChain | None,
     beta_max: float = 100.0,
     chain_fit_below_r2: float = np.inf,
+    profile_below_r2: float = np.inf,
 ) -> tuple[_Map, SensorChain | None, float | None, str, list[float]]:
     """The map of the record with its sensor chain undone, the chain, the resonance divided
     out (Hz), a refusal where the chain's band does not carry the contact, and the beta the
@@ -595,9 +597,11 @@ def _undo_chain(
     (:func:`~.chain.fit_chain`); a resonance or low-pass in the band is divided out within the
     band the record supports (:func:`~.chain.deconvolve`) and the map fitted again. Without
     impacts to fit, the post-impact ringing alone is divided out where it dominates (the
-    older rule of :mod:`.sensor`).
+    older rule of :mod:`.sensor`). Each map after an inverse profiles its high-pass only
+    where its contact law explains less than `profile_below_r2`, as the record's map does.
     """
     use, k_given = args[3], args[5]
+    remap = functools.partial(_remap, profile_below_r2=profile_below_r2)
     natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
     ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
     chain = sensor
@@ -611,14 +615,14 @@ def _undo_chain(
     candidates = [(m, None)]  # (map, resonance divided out)
     mode = resonance_rule(ring, m.spc, natural) if sensor is None else None
     if mode is not None:  # the post-impact ringing dominates: divide that mode out
-        m_ring = _remap(undo_resonance(y, *mode), args, highpass_hz, m.corner, exponent)
+        m_ring = remap(undo_resonance(y, *mode), args, highpass_hz, m.corner, exponent)
         candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
     if chain is None or not chain.has_dynamics:
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
         unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
         return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
-    m2 = _remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
+    m2 = remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
@@ -649,7 +653,7 @@ def _undo_chain(
     rivals = (
         [c[0] for c in candidates]
         + [m2]
-        + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent, profile_below_r2)
         + _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
     )
     if not applied:
@@ -662,14 +666,17 @@ def _undo_chain(
     return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
 
 
-def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
+def _corner_maps(
+    chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent, profile_below_r2=np.inf
+) -> list:
     """The maps with the fitted low-pass at the ends of its interval (its uncertainty)."""
     ends = chain.intervals.get("lowpass_hz") if chain.lowpass_hz else None
     if not ends or not all(np.isfinite(ends)):
         return []
     return [
         _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
-                          m.fit.sigma), args, highpass_hz, m.corner, exponent, inverse=True)
+                          m.fit.sigma), args, highpass_hz, m.corner, exponent, inverse=True,
+               profile_below_r2=profile_below_r2)
         for f in ends if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
 
@@ -695,12 +702,17 @@ def _readings(maps: list[_Map]) -> list[float]:
             and x.fit.stiffness > 0]  # fmt: skip
 
 
-def _remap(y, args, highpass_hz, corner, exponent, inverse: bool = False) -> _Map:
-    """The map of `y` with the high-pass fitted again (``"auto"``) or at `corner`; `inverse`:
-    `y` is a chain's inverse (:class:`_Map`)."""
+def _remap(
+    y, args, highpass_hz, corner, exponent, inverse: bool = False, profile_below_r2=np.inf
+) -> _Map:
+    """The map of `y` with the high-pass fitted again (``"auto"``, profiled by the contact law
+    where it explains less than `profile_below_r2`: :func:`_auto_map`) or at `corner`;
+    `inverse`: `y` is a chain's inverse (:class:`_Map`)."""
     _, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
-        return _auto_map(y, dtau, tau, use, period, k_given, exponent, inverse=inverse)[0]
+        return _auto_map(
+            y, dtau, tau, use, period, k_given, exponent, profile_below_r2, inverse=inverse
+        )[0]
     return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent, inverse=inverse)
 
 
@@ -892,8 +904,9 @@ def _estimate_at(
         m = _fit_map(*args, corner, exponent)
     beta_max = max(float(hi) for _, _, hi in classes)
     m, chain, resonance, refusal, rivals = _undo_chain(
-        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max, chain_fit_below_r2
-    )
+        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
+        chain_fit_below_r2, profile_highpass_below_r2,
+    )  # fmt: skip
     corner = m.corner
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
