@@ -83,11 +83,6 @@ R2_SLACK = 0.005
 CHAIN_FIT_WHEN_NEEDED = 0.98
 #: Shortest record, forcing periods.
 MIN_PERIODS = 4.0
-#: A free-flight corner that shrinks the free flight's scatter this much is the record's
-#: (a start-up transient seen; spurious corners: <= 1.2x, :data:`~.sensor.CORNER_GAIN`): the
-#: contact law neither vetoes nor profiles it. Behind a low-pass the contact law prefers a
-#: corner 15-20 % low (the low-pass bends the pulse it fits), and vetoed a right one.
-DECISIVE_CORNER_GAIN = 2.5
 #: With f_n given, forcing lines below this fraction of it are not searched.
 MIN_FORCING_RATIO = 0.25
 #: Impacts needed for an estimate (and for the bootstrap).
@@ -393,24 +388,23 @@ def _auto_map(
     (:func:`~.sensor.highpass_rule`), and a kept corner must not worsen the
     contact law's fit (on strongly damped contacts without any high-pass, the
     corner's terms absorb some free-flight misfit and pass the first tests).
-    A decisive corner (:data:`DECISIVE_CORNER_GAIN`) is kept as fitted. Otherwise the
-    corner is profiled by the contact law (:func:`_profiled_corner`, about
+    The corner is then profiled by the contact law (:func:`_profiled_corner`, about
     20 maps) only where the contact law explains less than `profile_below_r2`: the
     rule of a chain identified only where needed (:data:`CHAIN_FIT_WHEN_NEEDED`).
     `inverse`: `y` is a chain's inverse (:class:`_Map`).
     """
     args = (y, dtau, tau, use, period, k_given)
     m = _fit_map(*args, 0.0, exponent, inverse=inverse)
-    fit = fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
-    corner = highpass_rule(*fit)
-    decisive = corner > 0 and fit[2] >= DECISIVE_CORNER_GAIN
+    corner = highpass_rule(
+        *fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
+    )
     if corner > 0:
         corrected = _fit_map(*args, corner, exponent, inverse=inverse)
-        if decisive or _contact_r2(corrected) >= _contact_r2(m):
+        if _contact_r2(corrected) >= _contact_r2(m):
             m = corrected
         else:
             corner = 0.0
-    if decisive or _contact_r2(m) >= profile_below_r2:
+    if _contact_r2(m) >= profile_below_r2:
         return m, corner
     return _profiled_corner(m, corner, args, exponent)
 
