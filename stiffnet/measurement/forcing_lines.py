@@ -40,13 +40,12 @@ import numpy as np
 
 from stiffnet.campaign import ManifestRow
 from stiffnet.campaign.simulate import natural_frequency
+from stiffnet.measurement.nuisance import DEFAULT_DAMPING  # a row that names none
 from stiffnet.restoring_force.free_flight import robust_split, table_motion
 from stiffnet.restoring_force.reconstruct import integrate_spectral, periodic_length
 
 #: Forcing lines read (1 = the fundamental; the shaker's 2nd and 3rd).
 ORDERS = (1, 2, 3)
-#: Damping ratio assumed for a row that names none (the nuisance profile's default).
-DEFAULT_DAMPING = 0.02
 #: Whole forcing periods a record must hold to be read (the integration needs several).
 MIN_PERIODS = 4
 #: A recording's reading is kept when its fundamental carries at least this share of the
