@@ -20,7 +20,6 @@ from stiffnet.effects.sensor_dynamics import SensorDynamics
 from stiffnet.measurement import fitting
 from stiffnet.measurement.evidence import contact_evidence, contact_law_per_recording
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
-from stiffnet.simulator.motion_cache import reuse_motion
 
 CHAIN = {"resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
          "lowpass_order": 2, "highpass_hz": 0.0}  # fmt: skip
@@ -96,35 +95,14 @@ def test_a_campaign_through_a_known_chain_is_fitted_from_it(chained, monkeypatch
 
 
 @pytest.mark.slow
-def test_the_objective_is_continuous_around_the_chain(chained):
-    """Holding the rest at the chain, the campaign discrepancy grows smoothly as the low-pass
-    or the resonance leaves it (counted in whole samples, the spike width and the mask of the
-    free-flight harmonics stepped: a 150.5 Hz low-pass scored 0.39 against 0.021 at 150 Hz)."""
-    rows = list(chained.rows)
-    measured, lengths, _ = measured_statistics(chained, rows, False)
-    target = CampaignTarget(rows, measured, lengths, [], 0, False)
-
-    def objective(**change: float) -> float:
-        model = [SensorDynamics(**{**CHAIN, **change})]
-        return fitting.objective_value(target.per_recording(model, FIT_SETTINGS, inclination=False))
-
-    with reuse_motion():
-        at = objective()
-        lows = [objective(lowpass_hz=f) for f in (148.0, 149.0, 150.5, 151.0, 152.0, 153.0)]
-        res = [objective(resonance_hz=f) for f in (236.0, 236.5, 237.5, 238.0)]
-    assert at < 0.012
-    assert min(lows + res) > at - 0.001 and max(lows + res) < 2.0 * at, (at, lows, res)
-
-
-@pytest.mark.slow
 @pytest.mark.xfail(
     strict=True,
-    reason="the objective is smooth now (spike width, ringing window and free-flight mask "
-    "continuous), but the search's default budget (93 evaluations, 33 of them Nelder-Mead in 4 "
-    "coordinates) ends at 238.4 Hz, zeta 0.0324, low-pass 155.9 Hz (objective 0.018 against "
-    "0.0073 at the chain): the damping 8 % off. With 130 evaluations the same search reaches "
-    "237.2 Hz, zeta 0.0300, 150.1 Hz (before the statistics were continuous, 130 ended at "
-    "164.8 Hz, objective 0.366). The budget is the search's (fitting.py); open in issue 22",
+    reason="the objective steps, so the local search stops near its seed: from this seed the "
+    "fit ends at 237.4 Hz, zeta 0.0312, low-pass 161.3 Hz (objective 0.371 against 0.021 at "
+    "the chain; 48 more evaluations end at 165 Hz). Holding the rest at the chain, a low-pass "
+    "of 153 Hz scores 0.381 and 150 Hz 0.021: the 1500 Hz recording's harmonic_2 moves "
+    "-0.003 -> -3.72 tolerances and its spike_width 0 -> -0.46 (statistics of the spikes a "
+    "level rule finds, and of the free flight masked around them); open in issue 22",
 )
 def test_a_seed_ten_percent_off_still_reaches_the_chain(chained):
     """The identified chain only starts the fit: from a damping and a low-pass 10 % off (a

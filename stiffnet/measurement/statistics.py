@@ -14,8 +14,7 @@ post-impact ringing         high-passed (> 10 f_n) RMS after the spike over the 
                             restraint modes)
 free-flight harmonics       amplitudes of the 2nd and 3rd forcing harmonics over the
                             fundamental, least squares on the free-flight samples of a
-                            copy low-passed at 8 f_n (a ringing sensor would leak in),
-                            weighted 0 near the spikes, 1 away, tapered between
+                            copy low-passed at 8 f_n (a ringing sensor would leak in)
 spectrum                    Welch PSD averaged in 1/5-octave bands of f / f_n (log10)
 impact rate                 impacts per forcing period (spikes found on the low-passed
                             copy by a level rule, see :func:`spike_peaks`)
@@ -28,11 +27,6 @@ and divided by a robust scale (1.4826 MAD, dominated by free flight, which an
 effect on the contact barely moves). Polarity is made canonical (spikes up,
 ``y = polarity * z``) from the sign of the skewness, so a sensor mounted the
 other way compares as well. Times are in natural periods ``1 / f_n``.
-
-Every statistic moves continuously with the record: widths between interpolated
-half-height crossings, windows and masks with fractional edges (a fit walks the
-model's parameters; a statistic counted in whole samples steps, and the local
-search stalls on the plateaus between the steps).
 
 Low-level functions return whole curves or per-impact vectors; the rules that
 reduce them to one number (medians, means) live in :func:`signal_statistics`.
@@ -251,10 +245,7 @@ def spike_heights_widths(t: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     """Height above the pre-impact baseline and full width at half height of each spike.
 
     The baseline is the median of the segment from 0.25 to 0.1 natural periods
-    before the extremum (free flight); widths are in natural periods, between
-    the half-height crossings interpolated linearly between grid points, so a
-    width moves continuously with the record (counted in whole grid steps, a
-    fit's objective steps with it and its local search stalls).
+    before the extremum (free flight); widths are in natural periods.
     """
     if segments.shape[0] == 0:
         return np.empty(0), np.empty(0)
@@ -264,30 +255,14 @@ def spike_heights_widths(t: np.ndarray, segments: np.ndarray) -> tuple[np.ndarra
     height = segments[:, i0] - base
     level = base + 0.5 * height
     dt = t[1] - t[0]
-    rows = np.arange(segments.shape[0])
     below = segments <= level[:, None]
     left_any = below[:, :i0].any(axis=1)
     right_any = below[:, i0:].any(axis=1)
-    # last grid point at or below half height before the extremum, first one after it
-    j = np.where(left_any, i0 - 1 - np.argmax(below[:, :i0][:, ::-1], axis=1), 0)
-    k = np.where(right_any, i0 + np.argmax(below[:, i0:], axis=1), segments.shape[1] - 1)
-    left = np.where(
-        left_any, j + _crossing(segments[rows, j], segments[rows, np.minimum(j + 1, i0)], level), j
-    )
-    right = np.where(
-        right_any, k - _crossing(segments[rows, k], segments[rows, np.maximum(k - 1, i0)], level), k
-    )
-    widths = np.where(height > 0, (right - left) * dt, np.nan)
+    # last sample at or below half height before the extremum, first one after it
+    left = np.where(left_any, 1 + np.argmax(below[:, :i0][:, ::-1], axis=1), i0)
+    right = np.where(right_any, np.argmax(below[:, i0:], axis=1), segments.shape[1] - i0)
+    widths = np.where(height > 0, (left + right) * dt, np.nan)
     return height, widths
-
-
-def _crossing(low: np.ndarray, high: np.ndarray, level: np.ndarray) -> np.ndarray:
-    """Fraction of the step from a point at or below ``level`` (``low``) to its neighbour
-    above it (``high``) where the straight line between them crosses ``level``."""
-    step = high - low
-    with np.errstate(divide="ignore", invalid="ignore"):
-        frac = np.where(step > 0, (level - low) / step, 0.0)
-    return np.clip(frac, 0.0, 1.0)
 
 
 def highpass(y: np.ndarray, fs_hz: float, cutoff_hz: float) -> np.ndarray:
@@ -304,23 +279,17 @@ def ringing_curves(
     """Per-impact high-passed RMS after and before the spike.
 
     After: from ``start`` to ``start + 0.25`` natural periods past the
-    extremum; before: the mirror window ``-start - 0.25 .. -start``. Each
-    sample weighs by its overlap with the window, so the RMS moves
-    continuously with ``start`` (which follows the spike's width).
+    extremum; before: the mirror window ``-start - 0.25 .. -start``.
     """
     p_n = samples_per_natural_period
-    s0, s1 = start * p_n, (start + 0.25) * p_n
-    k = np.arange(int(np.floor(s0 - 0.5)), int(np.ceil(s1 + 0.5)) + 1)
-    w = np.clip(np.minimum(k + 0.5, s1) - np.maximum(k - 0.5, s0), 0.0, 1.0)
-    k, w = k[w > 0], w[w > 0]
+    a0, a1 = int(round(start * p_n)), int(round((start + 0.25) * p_n)) + 1
     p = np.asarray(peaks, dtype=np.int64)
-    if k.size == 0:
+    p = p[(p - a1 >= 0) & (p + a1 <= r.size)]
+    if p.size == 0 or a1 <= a0:
         return np.empty(0), np.empty(0)
-    p = p[(p - k[-1] >= 0) & (p + k[-1] < r.size)]
-    if p.size == 0:
-        return np.empty(0), np.empty(0)
-    post = np.sqrt(r[p[:, None] + k[None, :]] ** 2 @ w / w.sum())
-    pre = np.sqrt(r[p[:, None] - k[None, :]] ** 2 @ w / w.sum())
+    k = np.arange(a0, a1)
+    post = np.sqrt(np.mean(r[p[:, None] + k[None, :]] ** 2, axis=1))
+    pre = np.sqrt(np.mean(r[p[:, None] - a1 + (k - a0)[None, :]] ** 2, axis=1))
     return post, pre
 
 
@@ -340,61 +309,24 @@ def ringing_spectrum(
     return np.fft.rfftfreq(nfft), spec
 
 
-def free_flight_mask(n: int, peaks: np.ndarray, half_width: float) -> np.ndarray:
+def free_flight_mask(n: int, peaks: np.ndarray, half_width: int) -> np.ndarray:
     """True away from the spikes (``+-half_width`` samples around every extremum)."""
-    return free_flight_weights(n, peaks, half_width) >= 0.5
-
-
-def free_flight_weights(
-    n: int, centres: np.ndarray, half_width: float, taper: float | None = None
-) -> np.ndarray:
-    """Weights of the free-flight samples: 0 within ``half_width`` samples of a spike
-    centre, 1 beyond, a linear ramp of ``taper`` samples (default a quarter of the half
-    width, at least 2) across the edge. Fractional half widths and centres move the
-    weights continuously: a hard mask gains or loses whole samples as the spike's width
-    crosses a rounding, and the harmonics fitted on it step.
-    """
-    c = np.sort(np.asarray(centres, dtype=np.float64))
-    if c.size == 0:
-        return np.ones(n)
-    taper = max(2.0, 0.25 * half_width) if taper is None else max(float(taper), 1e-9)
-    i = np.arange(n, dtype=np.float64)
-    j = np.clip(np.searchsorted(c, i), 1, c.size) if c.size > 1 else np.ones(n, dtype=np.int64)
-    d = np.abs(i - c[j - 1])
-    if c.size > 1:
-        d = np.minimum(d, np.abs(i - c[np.minimum(j, c.size - 1)]))
-    return np.clip((d - half_width) / taper + 0.5, 0.0, 1.0)
-
-
-def refined_peaks(y: np.ndarray, peaks: np.ndarray) -> np.ndarray:
-    """Sub-sample positions of the extrema ``peaks`` of ``y`` (vertex of the parabola
-    through each and its two neighbours)."""
-    p = np.asarray(peaks, dtype=np.int64)
-    inner = (p > 0) & (p < y.size - 1)
-    out = p.astype(np.float64)
-    q = p[inner]
-    a, b, c = y[q - 1], y[q], y[q + 1]
-    curv = a - 2 * b + c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        delta = np.where(curv < 0, 0.5 * (a - c) / curv, 0.0)
-    out[inner] = q + np.clip(delta, -0.5, 0.5)
-    return out
+    mask = np.ones(n, dtype=bool)
+    for p in peaks:
+        mask[max(0, p - half_width) : p + half_width + 1] = False
+    return mask
 
 
 def harmonic_amplitudes(
     y: np.ndarray, frequency_cycles_per_sample: float, mask: np.ndarray, n_harmonics: int
 ) -> np.ndarray:
-    """Least-squares amplitudes of harmonics 1..N of a known frequency on the masked samples
-    (``mask``: booleans, or weights in 0..1 for a weighted fit)."""
-    w = np.asarray(mask, dtype=np.float64)
-    t = np.flatnonzero(w > 0).astype(np.float64)
-    sw = np.sqrt(w[w > 0])
+    """Least-squares amplitudes of harmonics 1..N of a known frequency on the masked samples."""
+    t = np.flatnonzero(mask).astype(np.float64)
     cols = [np.ones_like(t)]
     for k in range(1, n_harmonics + 1):
         ph = 2 * np.pi * k * frequency_cycles_per_sample * t
         cols += [np.cos(ph), np.sin(ph)]
-    design = np.column_stack(cols) * sw[:, None]
-    coef, *_ = np.linalg.lstsq(design, y[w > 0] * sw, rcond=None)
+    coef, *_ = np.linalg.lstsq(np.column_stack(cols), y[mask], rcond=None)
     return np.hypot(coef[1::2], coef[2::2])
 
 
@@ -590,10 +522,10 @@ def _statistics(
         if spec.size:
             ring_f = float(fr[int(np.argmax(spec))] * p_n)
 
-    half = max(0.05, 2 * width if np.isfinite(width) else 0.05) * p_n
-    mask = free_flight_weights(y.size, refined_peaks(y, peaks), half)
-    if np.count_nonzero(mask) < 2 * N_HARMONICS + 8:
-        mask[:] = 1.0
+    half = int(round(max(0.05, 2 * width if np.isfinite(width) else 0.05) * p_n))
+    mask = free_flight_mask(y.size, peaks, half)
+    if mask.sum() < 2 * N_HARMONICS + 8:
+        mask[:] = True
     # on the low-passed copy: a sensor's ringing leaks into a least-squares fit on raw samples
     amps = harmonic_amplitudes(smooth, 1.0 / p_f, mask, N_HARMONICS)
     harmonics = np.maximum(amps / max(amps[0], 1e-12), HARMONIC_FLOOR)
