@@ -31,6 +31,26 @@ TINY_DATASET = {
 }
 
 
+@pytest.fixture
+def server_log():
+    """The warnings the HTTP server writes (``uvicorn.error``), as records, for one test.
+
+    Listened to on that logger itself: a server started in-process earlier configures
+    uvicorn's loggers not to propagate to the root logger, where caplog would listen."""
+    import logging
+
+    heard: list[logging.LogRecord] = []
+    listener = logging.Handler(logging.WARNING)
+    listener.emit = heard.append  # type: ignore[method-assign]
+    served = logging.getLogger("uvicorn.error")
+    level = served.level
+    served.addHandler(listener)
+    served.setLevel(logging.WARNING)
+    yield heard
+    served.removeHandler(listener)
+    served.setLevel(level)
+
+
 @pytest.fixture(scope="session")
 def tiny_dir(tmp_path_factory):
     from stiffnet.config import validate_config

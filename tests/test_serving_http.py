@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import json
-import logging
 import tempfile
 import time
 import warnings
@@ -347,7 +346,7 @@ def test_an_upload_over_the_limit_is_refused_before_it_queues(tmp_path):
         check_upload_size(path, 100)
 
 
-def test_a_job_that_fails_after_its_503_logs_one_line():
+def test_a_job_that_fails_after_its_503_logs_one_line(server_log):
     """Its exception has no request to go to: one warning, no 'exception never retrieved'."""
     from concurrent.futures import Future
 
@@ -355,21 +354,8 @@ def test_a_job_that_fails_after_its_503_logs_one_line():
 
     fut: Future = Future()
     fut.set_exception(ValueError("late\nfailure"))
-    # listen on the logger the app writes to: a server started in-process earlier configures
-    # uvicorn's loggers not to propagate to the root logger, where caplog would listen
-    heard: list[logging.LogRecord] = []
-    listener = logging.Handler(logging.WARNING)
-    listener.emit = heard.append  # type: ignore[method-assign]
-    served = logging.getLogger("uvicorn.error")
-    level = served.level
-    served.addHandler(listener)
-    served.setLevel(logging.WARNING)
-    try:
-        _outcome_unheard(fut)
-    finally:
-        served.removeHandler(listener)
-        served.setLevel(level)
-    (line,) = [r.getMessage() for r in heard]
+    _outcome_unheard(fut)
+    (line,) = [r.getMessage() for r in server_log]
     assert line.startswith("a request answered 503 failed afterwards: late") and "\n" not in line
 
 

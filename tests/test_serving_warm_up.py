@@ -6,7 +6,6 @@ past the timeout; never a 504)."""
 from __future__ import annotations
 
 import asyncio
-import logging
 import math
 import threading
 import time
@@ -197,19 +196,12 @@ class _Held:
         return {"name": self.name}
 
 
-def test_past_the_timeout_a_running_job_is_503_and_a_queued_one_429_never_started():
+def test_past_the_timeout_a_running_job_is_503_and_a_queued_one_429_never_started(server_log):
     """A running job past the timeout: 503 with Retry-After and a one-line log (overloaded,
     not broken); the job queued behind it: 429, and its worker never starts it."""
     held = _Held()
     app = create_app(held, Limits(max_concurrency=1, max_queue=8, timeout_s=1.0))
     lane = app.state.admission.cost["small"]
-    heard: list[logging.LogRecord] = []
-    listener = logging.Handler(logging.WARNING)
-    listener.emit = heard.append  # type: ignore[method-assign]
-    served = logging.getLogger("uvicorn.error")
-    level = served.level
-    served.addHandler(listener)
-    served.setLevel(logging.WARNING)
 
     async def scenario() -> tuple:
         transport = httpx.ASGITransport(app=app)
@@ -229,18 +221,14 @@ def test_past_the_timeout_a_running_job_is_503_and_a_queued_one_429_never_starte
             await asyncio.sleep(0.01)
         return answered, queued
 
-    try:
-        running, queued = asyncio.run(scenario())
-    finally:
-        served.removeHandler(listener)
-        served.setLevel(level)
+    running, queued = asyncio.run(scenario())
     assert running.status_code == 503 and set(running.json()) == {"error"}
     assert "did not finish within the 1 s timeout" in running.json()["error"]
     assert int(running.headers["retry-after"]) >= 1
     assert queued.status_code == 429 and "refused before any work" in queued.json()["error"]
     assert int(queued.headers["retry-after"]) >= 1
     assert held.seen == [100] and not lane.jobs  # the queued one never started
-    lines = [r.getMessage() for r in heard]
+    lines = [r.getMessage() for r in server_log]
     assert any(
         ln.startswith("503 (overrun): server overloaded: this small prediction") for ln in lines
     ), lines
