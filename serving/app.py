@@ -104,6 +104,8 @@ from serving.load_shedding import (
     SEED_S_PER_SAMPLE,
     SHED_MARGIN,
     LaneCost,
+    machine_slow_down,
+    thread_cpu_clock,
 )
 from serving.predictor import Predictor
 from serving.schemas import (
@@ -132,9 +134,12 @@ MAX_LARGE_PER_CLIENT = 2
 #: Seconds a connection may take to send a whole request head (line and headers).
 HEADER_TIMEOUT_S = 10.0
 #: Time a prediction that started before the timeout is given beyond it, as a fraction of
-#: the timeout: a started prediction holds its worker to its end anyway, so its result is
-#: still worth answering; only past this is it refused (503).
-OVERRUN_GRACE = 1.0
+#: the timeout: a started prediction holds its worker to its end anyway and its client is
+#: waiting, so its result is answered when it ends, up to ``(1 + OVERRUN_GRACE) * timeout_s``
+#: after its body was read (90 s by default): the hard ceiling, past which it is refused
+#: (503). Admission prices a job to end within :data:`SHED_MARGIN` of the timeout, so a 503
+#: needs the machine to slow it 3.75 times more than measured when it was admitted.
+OVERRUN_GRACE = 2.0
 #: Form fields of a multipart request; any other is refused, as unknown JSON keys are.
 FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
 #: One line per request: client, method, path, status, bytes, milliseconds.
@@ -1010,13 +1015,22 @@ class Admission:
         return _shed(message, retry)
 
     def _alone_s(self, lane: str, samples: int, now: float) -> tuple[float | None, float, str]:
-        """Seconds a job would take on a free worker now: its CPU cost times the lane's
-        slow-down (the other lane's, the more pessimistic, when this one has none measured
-        lately); None when none is. With the slow-down and whose it is."""
+        """Seconds a job would take on a free worker now: its CPU cost times the lane's own
+        slow-down (:meth:`LaneCost.slow_down`: its finished jobs of the last minute and its
+        running ones); None when none is. With the slow-down and whose it is.
+
+        A large job whose lane has none is priced at the machine's load
+        (:func:`machine_slow_down`), never at the small lane's: small requests are short and
+        Python-bound, they wait on each other for the interpreter lock (17-29 times their
+        CPU time at load 15-17) where an upload, mostly numpy and ONNX Runtime, waits for a
+        core only. A small job whose lane has none takes the large lane's (the more
+        pessimistic), and with none at all it is started: it measures the lane again."""
         cost = self.cost[lane]
-        slow, whose = cost.contention.factor(now), "this lane's"
+        slow, whose = cost.slow_down(now), "this lane's"
+        if slow is None and lane == "large":
+            slow, whose = machine_slow_down(), "the machine's load"
         if slow is None:  # the other lane's jobs run on the same machine now
-            others = [c.contention.factor(now) for k, c in self.cost.items() if k != lane]
+            others = [c.slow_down(now) for k, c in self.cost.items() if k != lane]
             slow, whose = (
                 max((f for f in others if f is not None), default=None),
                 "the other lane's",
@@ -1038,7 +1052,7 @@ class Admission:
                 _drop(job)
                 raise late
             ran["start"] = t0
-            cost.started(ticket, t0)
+            cost.started(ticket, t0, *thread_cpu_clock())
             result = job()  # a failed job is not measured: a refusal costs nothing
             cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
             return result
@@ -1051,6 +1065,7 @@ class Admission:
         except ShedAtStart as late:
             return _shed(late.message, late.retry_after_s)
         except TimeoutError:
+            self._overran(lane, ticket, samples, ran.get("start"))
             result = await self._grace(fut, ran)
             if result is None:
                 fut.add_done_callback(_outcome_unheard)
@@ -1093,6 +1108,23 @@ class Admission:
             )
         except TimeoutError:
             return None
+
+    def _overran(self, lane: str, ticket: int, samples: int, started: float | None) -> None:
+        """One log line for a started job at its timeout: what it ran and, from its own
+        progress (CPU seconds done of its expected CPU cost, at its own slow-down so far),
+        when it should end; it is then given up to the ceiling (:data:`OVERRUN_GRACE`)."""
+        cost, now = self.cost[lane], time.monotonic()
+        done = cost.progress(ticket, now)
+        if started is None or done is None:
+            return
+        wall, cpu = done
+        left = max(samples * cost.cpu_s_per_sample - cpu, 0.0) * wall / max(cpu, 1e-3)
+        ceiling = (1 + OVERRUN_GRACE) * self.limits.timeout_s
+        log.warning(
+            "overran (given up to the %g s ceiling): this %s prediction (%d samples) ran %.1f s "
+            "for %.1f s of CPU; about %.1f s more at its own slow-down",
+            ceiling, lane, samples, wall, cpu, left,
+        )  # fmt: skip
 
     def _overrun(
         self, lane: str, samples: int, queued: float, started: float | None

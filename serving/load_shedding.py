@@ -13,6 +13,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import math
+import os
 import threading
 import time
 
@@ -83,6 +84,34 @@ class Contention:
             return self.mean if now - self.at <= CONTENTION_FRESH_S else None
 
 
+def machine_slow_down(cores: int | None = None) -> float:
+    """How many times its CPU time a CPU-bound thread started now takes, from the machine's
+    load: ``(load + 1) / cores`` (the 1-minute load average of runnable threads, this one
+    added, shared by the cores this process may use), at least 1.
+
+    The stand-in for a lane with no slow-down of its own measured lately. At load 6.5 on 2
+    cores it reads 3.75, and a 2 M-sample upload (~4-6 s of CPU) took 14.6-16.4 s there.
+    The load average lags a change of load by about a minute; a started job is given its
+    time up to the server's ceiling (``serving.app.OVERRUN_GRACE``).
+    """
+    try:
+        load = os.getloadavg()[0]
+        cores = cores or len(os.sched_getaffinity(0)) or 1
+    except (OSError, AttributeError):  # pragma: no cover - no load average on this system
+        return 1.0
+    return max(1.0, (load + 1.0) / cores)
+
+
+def thread_cpu_clock() -> tuple[int | None, float]:
+    """The calling thread's CPU clock (readable from other threads) and its reading now:
+    a running job's progress (:meth:`LaneCost.progress`)."""
+    try:
+        clock = time.pthread_getcpuclockid(threading.get_ident())
+        return clock, time.clock_gettime(clock)
+    except (AttributeError, OSError):  # pragma: no cover - not on Linux
+        return None, 0.0
+
+
 class LaneCost:
     """What one lane's predictions cost, and what it holds now: the basis of load shedding.
 
@@ -104,23 +133,49 @@ class LaneCost:
         self.latest = 0.0
         self.cpu_s_per_sample, self.cpu_measured = float(cpu_seed), 0
         self.contention = Contention()
-        self.jobs: dict[int, list[float | None]] = {}
+        self.jobs: dict[int, list] = {}  # ticket -> [samples, start, CPU clock, its start]
         self._lock = threading.Lock()
         self._tickets = itertools.count()
 
     def _snapshot(self, now: float) -> tuple[float, list[tuple[float, float | None]]]:
         with self._lock:
-            jobs = [(float(n), t) for n, t in self.jobs.values()]
+            jobs = [(float(j[0]), j[1]) for j in self.jobs.values()]
             rate = max(self.s_per_sample, self.latest)
         spent = [(now - t) / n for n, t in jobs if t is not None and n > 0]
         return max([rate, *spent, self.alone_s(1, now) or 0.0]), jobs
 
     def alone_s(self, samples: int, now: float) -> float | None:
         """Seconds a job would take started now on a free worker: its CPU seconds (the lane's
-        mean per sample) times the lane's slow-down now (:class:`Contention`); None when the
+        mean per sample) times the lane's slow-down now (:meth:`slow_down`); None when the
         lane has measured none lately."""
-        factor = self.contention.factor(now)
+        factor = self.slow_down(now)
         return None if factor is None else samples * self.cpu_s_per_sample * factor
+
+    def slow_down(self, now: float) -> float | None:
+        """The lane's own slow-down now: the highest of its finished jobs' (:class:`Contention`,
+        the last minute) and its running jobs' so far (:meth:`progress`: what slows a job now
+        slows it, whatever the cause); None when it has neither."""
+        with self._lock:
+            running = [t for t in self.jobs if self.jobs[t][2] is not None]
+        live = [self.progress(t, now) for t in running]
+        ratios = [w / c for w, c in filter(None, live) if c >= CONTENTION_MIN_CPU_S]
+        finished = self.contention.factor(now)
+        found = ratios + ([finished] if finished is not None else [])
+        return max(1.0, *found) if found else None
+
+    def progress(self, ticket: int, now: float) -> tuple[float, float] | None:
+        """A running job's wall and CPU seconds so far (its thread's CPU clock); None if it is
+        not running or its clock cannot be read."""
+        with self._lock:
+            job = self.jobs.get(ticket)
+            if job is None or job[1] is None or job[2] is None:
+                return None
+            start, clock, cpu0 = job[1], job[2], job[3]
+            try:
+                cpu = time.clock_gettime(clock) - cpu0
+            except OSError:  # its thread is gone
+                return None
+        return now - start, max(cpu, 0.0)
 
     def s_per_sample_now(self, now: float) -> float:
         """Seconds per sample a job is priced at, at time `now` (see the class notes)."""
@@ -151,13 +206,15 @@ class LaneCost:
         """Record a job of `samples` samples handed to the pool; its ticket."""
         ticket = next(self._tickets)
         with self._lock:
-            self.jobs[ticket] = [samples, None]
+            self.jobs[ticket] = [samples, None, None, 0.0]
         return ticket
 
-    def started(self, ticket: int, now: float) -> None:
+    def started(self, ticket: int, now: float, clock: int | None = None, cpu0: float = 0.0) -> None:
+        """The job's worker started it at `now`; `clock` is that thread's CPU clock, which
+        read `cpu0` then (:func:`thread_cpu_clock`), so that its progress can be read."""
         with self._lock:
             if ticket in self.jobs:
-                self.jobs[ticket][1] = now
+                self.jobs[ticket][1:] = [now, clock, cpu0]
 
     def ended(self, ticket: int) -> None:
         """The job left its worker (finished, failed or cancelled before it ran)."""
