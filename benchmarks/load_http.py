@@ -16,7 +16,7 @@ and at the end; then stops the server. Exit code 1 if any 5xx or transport error
 ``--uploaders`` clients upload big files (nothing else), and while the server is
 abused by big uploads (``--uploaders`` clients each sending ``--uploads``
 multipart ``.npy`` files of 2,000,000 float64 samples (16 MB, at the
-``--max-samples`` limit) or 5,000,000 float32 samples (20 MB, over it) at
+``--max-samples`` limit; ``--upload-samples``) or 5,000,000 float32 samples (20 MB, over it) at
 fs = 50 kHz), stalled bodies (``--stalled`` connections from one other client
 address, 127.0.0.2, that send half a body and then nothing), stalled large uploads
 (``--stalled-large`` from 127.0.0.3), connections trickling header lines
@@ -280,16 +280,35 @@ async def trickle_heads(port: int, n: int, seconds: float) -> Counter:
     return codes
 
 
-async def zeros_json(base: str, megabytes: float) -> Counter:
-    """One JSON body of ``megabytes`` of zeros (``"0,"`` repeated): 413 before parsing."""
+async def zeros_json(port: int, megabytes: float) -> Counter:
+    """One JSON body of ``megabytes`` of zeros (``"0,"`` repeated): 413 before parsing.
+
+    Sent on a raw connection that waits 2 s for an answer to its head before sending the
+    body (as ``Expect: 100-continue`` would): the server answers 413 from the
+    Content-Length and closes, and a client still sending 20 MB then sees only a reset
+    ("transport error ReadError"), the answer unread.
+    """
     body = b'{"fs_hz": 1000, "samples": [' + b"0," * int(megabytes * 5e5) + b"0]}"
-    async with httpx.AsyncClient(base_url=base, timeout=120.0) as c:
+    head = (b"POST /predict HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json"
+            b"\r\nContent-Length: %d\r\n\r\n" % len(body))  # fmt: skip
+    try:
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+    except OSError as exc:
+        return Counter([f"connect error {type(exc).__name__}"])
+    try:
+        writer.write(head)
+        await writer.drain()
         try:
-            r = await c.post("/predict", content=body,
-                             headers={"content-type": "application/json"})  # fmt: skip
-            return Counter([r.status_code])
-        except httpx.HTTPError as exc:
-            return Counter([f"transport error {type(exc).__name__}"])
+            line = await asyncio.wait_for(reader.readline(), 2.0)
+        except TimeoutError:  # no answer to the head: send the body
+            writer.write(body)
+            await writer.drain()
+            line = await asyncio.wait_for(reader.readline(), 120.0)
+        return Counter([int(line.split()[1]) if line else "closed without answer"])
+    except (OSError, TimeoutError) as exc:
+        return Counter([f"transport error {type(exc).__name__}"])
+    finally:
+        writer.close()
 
 
 def burners(n: int) -> list[subprocess.Popen]:
@@ -320,7 +339,7 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     rng = np.random.default_rng(0)
     npy = []
     for i in range(args.uploaders):  # half at the samples limit, half over it
-        arr = (rng.standard_normal(2_000_000) if i % 2 == 0
+        arr = (rng.standard_normal(args.upload_samples) if i % 2 == 0
                else rng.standard_normal(5_000_000).astype(np.float32))  # fmt: skip
         buf = __import__("io").BytesIO()
         np.save(buf, arr)
@@ -357,7 +376,7 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
                 half_bodies(port, args.stalled_large, close=False, wait_s=wait,
                             source="127.0.0.3", large=True),
                 trickle_heads(port, args.trickle, args.trickle_s),
-                zeros_json(base, 20.0) if args.zeros else asyncio.sleep(0, Counter()),
+                zeros_json(port, 20.0) if args.zeros else asyncio.sleep(0, Counter()),
                 half_bodies(port, args.disconnects, close=True, wait_s=0, source="127.0.0.5"),
             ), args.deadline)  # fmt: skip
 
@@ -394,7 +413,8 @@ def run_abuse(args: argparse.Namespace, body: bytes) -> int:
     print(f"small requests, {args.uploaders} uploaders: {percentiles(uploading)}; codes "
           f"{dict(codes_up)}; uploads {dict(sorted(codes_big_only.items(), key=str))}")  # fmt: skip
     print(f"small requests under abuse: {percentiles(under)}; codes {dict(codes_small)}")
-    print(f"big uploads ({args.uploaders} clients x {args.uploads}, 16-20 MB .npy): "
+    print(f"big uploads ({args.uploaders} clients x {args.uploads}, .npy of "
+          f"{args.upload_samples:,} and 5 M samples): "
           f"codes {dict(sorted(codes_big.items(), key=str))}")  # fmt: skip
     print(f"stalled bodies ({args.stalled}, one client): {dict(codes_stall)}")
     print(f"stalled large uploads ({args.stalled_large}, one client): {dict(codes_stall_large)}")
@@ -440,6 +460,9 @@ def main() -> int:
     ab.add_argument("--small-clients", type=int, default=4)
     ab.add_argument("--uploaders", type=int, default=4)
     ab.add_argument("--uploads", type=int, default=3, help="uploads per uploader")
+    ab.add_argument("--upload-samples", type=int, default=2_000_000,
+                    help="samples of the even uploaders' float64 .npy (the odd ones send "
+                    "5 M, over the limit): fewer are admitted at a higher load")  # fmt: skip
     ab.add_argument("--stalled", type=int, default=300)
     ab.add_argument("--stalled-large", type=int, default=3)
     ab.add_argument("--trickle", type=int, default=200, help="connections trickling headers")

@@ -12,10 +12,12 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   beyond that the answer is 429 with ``Retry-After``. A request that timed out
   keeps its slot until its thread finishes, so abandoned work cannot pile up.
 * **Time** - a request not answered within ``timeout_s`` (queueing included) gets 429
-  if it was still queued; a started prediction is given :data:`OVERRUN_GRACE` of the
-  timeout more (its worker is held to its end anyway), then 503 with ``Retry-After``
-  (the machine slowed beyond its price: overloaded, not broken): the last guard, since load
-  shedding refuses first what would pass it. A worker that takes a job too late for it
+  if it was still queued; a started prediction is answered when it ends, up to a hard
+  ceiling of ``(1 + OVERRUN_GRACE)`` times the timeout (90 s by default; its worker is held
+  to its end anyway and its client is waiting; one log line at the timeout gives its
+  progress), then 503 with ``Retry-After`` (the machine slowed beyond its price 3.75
+  times: overloaded, not broken): the last guard, since load shedding refuses first what
+  would pass it. A worker that takes a job too late for it
   to finish in time refuses it (429) before any work.
 * **Load shedding** - :class:`LaneCost`: before a job is queued, its cost (its
   samples times the lane's seconds per sample, measured online from the lane's
@@ -24,9 +26,10 @@ Limits (``stiffnet serve`` options, :class:`Limits`):
   finish within :data:`SHED_MARGIN` of ``timeout_s`` gets 429 and ``Retry-After`` (the
   seconds until it would fit) before any work. A job that finds a worker free is
   refused only if its CPU cost times the lane's slow-down now (:class:`Contention`:
-  wall over CPU time of the lane's jobs of the last minute) passes that budget
-  (``Retry-After`` is then the timeout; the other lane's slow-down stands in for one not
-  measured lately); with none measured lately in any lane it is started.
+  wall over CPU time of the lane's jobs of the last minute, and of its running jobs so
+  far) passes that budget (``Retry-After`` is then the timeout). A large lane with none
+  measured lately is priced at the machine's load (``(load + 1) / cores``); a small one
+  at the large lane's, and with none at all it is started.
 * **Two lanes** - a body over ``small_upload_mb`` (or of unknown length) is
   *large*: at most ``max_large`` large predictions run (their own thread) and
   ``max_large_queue`` more are admitted to upload and wait; beyond that a large
