@@ -717,7 +717,7 @@ _ERRORS = {
         415: "unsupported content type",
         422: "unusable recording",
         429: "too many requests waiting, or too busy to finish this one in time (Retry-After)",
-        503: "overloaded: a started prediction did not finish within twice the timeout "
+        503: "overloaded: a started prediction did not finish within three times the timeout "
         "(Retry-After), or the server's disk or memory failed",
     }.items()
 }
@@ -1000,10 +1000,9 @@ class Admission:
         self, lane: str, samples: int, now: float, budget: float
     ) -> JSONResponse | None:
         """429 for a job that, on a free worker, would not finish in time at the lane's
-        slow-down now (its CPU cost times wall over CPU time of the lane's jobs of the last
-        minute; the other lane's, the more pessimistic, when this one has none), else None.
-        With none measured lately in any lane the job is started: it measures the load
-        again, so a lane refused for a load that has fallen opens again."""
+        slow-down now (its CPU cost times :meth:`_alone_s`'s slow-down), else None. With
+        none measured lately (a small job) the job is started: it measures the load again,
+        so a lane refused for a load that has fallen opens again."""
         cost = self.cost[lane]
         alone, slow, whose = self._alone_s(lane, samples, now)
         if alone is None or alone <= budget:
