@@ -862,7 +862,9 @@ class Admission:
         self.state = {"in_flight": 0, "large": 0, "reading": 0, "served": 0}
         self.per_client: dict[tuple[str, str], int] = {}  # (lane, client address) -> requests
         self.cost = {
-            lane: LaneCost(workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane])
+            lane: LaneCost(
+                workers, SEED_S_PER_SAMPLE[lane], SEED_CPU_S_PER_SAMPLE[lane], live=lane == "large"
+            )  # fmt: skip
             for lane, workers in (("small", limits.max_concurrency), ("large", limits.max_large))
         }
 

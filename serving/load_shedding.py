@@ -128,8 +128,9 @@ class LaneCost:
     Worker threads report starts and measurements, the event loop reads: one lock.
     """
 
-    def __init__(self, workers: int, seed: float, cpu_seed: float = 0.0) -> None:
+    def __init__(self, workers: int, seed: float, cpu_seed: float = 0.0, live: bool = True) -> None:
         self.workers, self.s_per_sample, self.measured = workers, float(seed), 0
+        self.live = live  # running jobs' progress counts in the slow-down (slow_down)
         self.latest = 0.0
         self.cpu_s_per_sample, self.cpu_measured = float(cpu_seed), 0
         self.contention = Contention()
@@ -153,10 +154,13 @@ class LaneCost:
 
     def slow_down(self, now: float) -> float | None:
         """The lane's own slow-down now: the highest of its finished jobs' (:class:`Contention`,
-        the last minute) and its running jobs' so far (:meth:`progress`: what slows a job now
-        slows it, whatever the cause); None when it has neither."""
+        the last minute) and, if ``live``, its running jobs' so far (:meth:`progress`: what
+        slows a job now slows it, whatever the cause); None when it has neither. ``live``
+        is for a lane of long jobs (uploads: one may run tens of seconds with no job ending
+        to measure the load); a lane of short jobs measures a finished one every fraction
+        of a second, and a running one's reading, early in its life, is mostly noise."""
         with self._lock:
-            running = [t for t in self.jobs if self.jobs[t][2] is not None]
+            running = [t for t in self.jobs if self.live and self.jobs[t][2] is not None]
         live = [self.progress(t, now) for t in running]
         ratios = [w / c for w, c in filter(None, live) if c >= CONTENTION_MIN_CPU_S]
         finished = self.contention.factor(now)
