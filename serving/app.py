@@ -103,6 +103,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.requests import ClientDisconnect
 
 from serving.load_shedding import (
+    OVERRUN_LEFT,
     SEED_CPU_S_PER_SAMPLE,
     SEED_S_PER_SAMPLE,
     SHED_MARGIN,
@@ -1122,7 +1123,8 @@ class Admission:
         if started is None or done is None:
             return
         wall, cpu = done
-        left = max(samples * cost.cpu_s_per_sample - cpu, 0.0) * wall / max(cpu, 1e-3)
+        expected = samples * cost.cpu_s_per_sample  # it runs: something remains
+        left = max(expected - cpu, OVERRUN_LEFT * expected) * wall / max(cpu, 1e-3)
         ceiling = (1 + OVERRUN_GRACE) * self.limits.timeout_s
         log.warning(
             "overran (given up to the %g s ceiling): this %s prediction (%d samples) ran %.1f s "
