@@ -95,16 +95,6 @@ def test_a_campaign_through_a_known_chain_is_fitted_from_it(chained, monkeypatch
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="the objective is smooth now (free-flight harmonics on bridged spikes, widths "
-    "interpolated): holding the rest at the chain, a low-pass of 150 / 150.25 / 153 / 165 Hz "
-    "scores 0.0068 / 0.0068 / 0.0079 / 0.031. The default search (93 evaluations) ends at its "
-    "best design point, a ringing seed (238.97 Hz, zeta 0.030, low-pass 165 Hz, 0.030): "
-    "Nelder-Mead's first step (1/6 of the unit cube) never improves on it. With a first step "
-    "of 0.04 the same budget reaches 238.05 Hz / 0.0302 / 150.6 Hz (0.011); with 130 "
-    "evaluations 238.69 Hz / 0.0294 / 152.3 Hz. The step is the search's (fitting.py)",
-)
 def test_a_seed_ten_percent_off_still_reaches_the_chain(chained):
     """The identified chain only starts the fit: from a damping and a low-pass 10 % off (a
     resonance 2 % off) the fit should reach the chain, and invent no high-pass."""
