@@ -95,15 +95,6 @@ def test_a_campaign_through_a_known_chain_is_fitted_from_it(chained, monkeypatch
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=True,
-    reason="the objective steps, so the local search stops near its seed: from this seed the "
-    "fit ends at 237.4 Hz, zeta 0.0312, low-pass 161.3 Hz (objective 0.371 against 0.021 at "
-    "the chain; 48 more evaluations end at 165 Hz). Holding the rest at the chain, a low-pass "
-    "of 153 Hz scores 0.381 and 150 Hz 0.021: the 1500 Hz recording's harmonic_2 moves "
-    "-0.003 -> -3.72 tolerances and its spike_width 0 -> -0.46 (statistics of the spikes a "
-    "level rule finds, and of the free flight masked around them); open in issue 22",
-)
 def test_a_seed_ten_percent_off_still_reaches_the_chain(chained):
     """The identified chain only starts the fit: from a damping and a low-pass 10 % off (a
     resonance 2 % off) the fit should reach the chain, and invent no high-pass."""
