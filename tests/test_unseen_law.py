@@ -21,6 +21,7 @@ from stiffnet.uncertainty.unseen_law import (
     UnseenLawThresholds,
     law_shape_reasons,
     penetration_dissipation,
+    stage_reasons,
     unseen_law_reasons,
     unseen_law_thresholds,
     with_unseen_law_check,
@@ -114,6 +115,51 @@ def test_the_law_shape_alone_fires_the_alarm_with_the_shipped_thresholds():
     assert "stiffens within each impact" in alarm["contact_law"][0]
 
 
+@pytest.mark.parametrize(
+    "law, ratio",
+    [
+        (lambda d, v: d + 2.0 * np.maximum(d - 0.5, 0), 3.0),  # two-stage: 3x beyond 0.5
+        (lambda d, v: d + 0.3 * v, None),  # linear spring + Kelvin-Voigt damper
+        (lambda d, v: np.maximum(d, 0) ** 1.5 + 0.2 * v, None),  # Hertz
+        (lambda d, v: np.maximum(d, 0) ** 2.2, None),  # a power law: smooth, no knee
+    ],
+)
+def test_a_two_stage_law_reads_apart_from_any_single_power_law(law, ratio):
+    d, v = _impacts_with_gaps()
+    rng = np.random.default_rng(2)
+    f = np.where(d > 0, law(d, v), 0.0)
+    f = f + rng.normal(0, 0.01 * f.max(), d.size)
+    g = law_shape_gains(d, v, f, 0.0, 1.0, 1.0)
+    t = UnseenLawThresholds(stage_min_gain=0.15, stage_min_ratio=2.0)
+    if ratio is None:
+        assert g["stage"] < 0.05, g
+        assert stage_reasons(g, t) == []
+    else:  # the hinge at the true knee, with the true stiffness ratio
+        assert g["stage"] > 0.5, g
+        assert g["stage_knee"] == pytest.approx(0.5, abs=0.051)
+        assert g["stage_ratio"] == pytest.approx(ratio, rel=0.15)
+        reasons = stage_reasons(g, t)
+        assert len(reasons) == 1 and "depends on the depth" in reasons[0]
+
+
+@pytest.mark.parametrize(
+    "shape, fires",
+    [
+        ({"stage": 0.3, "stage_ratio": 3.0, "stage_knee": 0.3}, True),
+        # a sensor chain's smooth bend: a large gain, a small stiffness ratio
+        ({"stage": 0.65, "stage_ratio": 1.3, "stage_knee": 0.2}, False),
+        ({"stage": 0.06, "stage_ratio": 3.9, "stage_knee": 0.5}, False),  # a damped contact
+        ({"curvature": 0.0}, False),  # a map read before the stage term existed
+        (None, False),
+    ],
+)
+def test_the_stage_rule_needs_the_gain_and_the_stiffness_ratio(shape, fires):
+    t = UnseenLawThresholds(stage_min_gain=0.15, stage_min_ratio=2.0)
+    assert bool(stage_reasons(shape, t)) is fires
+    rf = {"exponent": 1.35, "contact_r2": 0.999, "law_shape": shape}
+    assert bool(unseen_law_reasons(rf, t)) is fires
+
+
 def test_impact_runs_and_too_few_impacts():
     d = np.array([-1, 0.1, 0.2, 0.1, -1, 0.3, -1, 0.1, 0.2, 0.3, 0.1])
     assert [r.tolist() for r in impact_runs(d, 3)] == [[1, 2, 3], [7, 8, 9, 10]]
@@ -134,6 +180,8 @@ def test_the_shipped_thresholds_are_read_from_the_config():
     assert t.contact_damping_ratio_max == shipped["contact_damping_ratio_max"]
     assert t.excess_damping_min_gain == shipped["excess_damping_min_gain"]
     assert t.excess_damping_min_r2 == shipped["excess_damping_min_r2"]
+    assert t.stage_min_gain == shipped["stage_min_gain"]
+    assert t.stage_min_ratio == shipped["stage_min_ratio"]
     with pytest.raises(Exception, match="unknown_key"):
         UnseenLawThresholds.model_validate({"unknown_key": 1.0})
 
@@ -282,3 +330,32 @@ def test_the_independent_rigs_hunt_crossley_contact_is_beyond_the_damping_prior(
     assert (zeta > t.contact_damping_ratio_max) is fires, zeta
     reasons = unseen_law_reasons(restoring_force, t)
     assert any("dissipates more than any" in r for r in reasons) is fires, reasons
+
+
+@pytest.mark.slow  # two 8-s solve_ivp recordings, ~6 s CPU each
+@pytest.mark.parametrize(
+    "name, contact, fires",
+    [
+        # a two-stage restraint read as Hertz (exponent 1.35): no earlier check fired and
+        # the shipped model read "hard" for "medium"; its stiffness depends on the depth
+        ("two_stage_2.csv", dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0), True),
+        ("ideal_2.csv", {}, False),  # the same draw with the paper's linear contact
+    ],
+)
+def test_the_independent_rigs_two_stage_restraint_reads_a_depth_dependent_stiffness(
+    name, contact, fires
+):
+    """Independent-rig recordings (tests/independent_rig.py) of draw 2 of the benchmark
+    (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz): beta 16.7, forcing 0.992 f_n."""
+    run = RigRun(recording=name, beta=16.65802, forcing_frequency_hz=9.48 * 0.99176,
+                 noise=0.01510, duration_s=8.0, **contact)  # fmt: skip
+    _, accel = record(run, seed=7)
+    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
+    shape = restoring_force["law_shape"]
+    assert shape is not None, restoring_force["reason"]
+    reasons = stage_reasons(shape, unseen_law_thresholds())
+    assert bool(reasons) is fires, shape
+    if fires:
+        assert shape["stage_ratio"] > 2.0 and 0.1 <= shape["stage_knee"] <= 0.8, shape
+    else:
+        assert shape["stage"] < 0.05, shape
