@@ -72,7 +72,9 @@ class RestoringForceCheck(BaseModel):
     law_shape: dict[str, float] | None = Field(
         default=None,
         description="Held-out-impact gain of a richer contact law's terms over the linear/Hertz "
-        "Kelvin-Voigt law: curvature, penetration_dissipation; misfit, n_impacts.",
+        "Kelvin-Voigt law: curvature, penetration_dissipation (each with its _share); stage "
+        "(a two-stage law's gain), stage_ratio (its stiffness ratio across the knee), "
+        "stage_knee (the knee over the reference penetration); misfit, n_impacts.",
     )
     reason: str = Field(description="What was estimated, or why not.")
 
