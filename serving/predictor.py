@@ -79,6 +79,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     weak_restoring_force_fit,
     with_class_beta_check,
     with_restoring_force_check,
+    with_restoring_force_checks,
 )
 from stiffnet.uncertainty.ood import OODReference, load_reference
 from stiffnet.uncertainty.unseen_law import with_unseen_law_check
@@ -413,6 +414,10 @@ class Predictor:
             interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
         )
         alarm = with_restoring_force_check(alarm, gap)
+        beta = (
+            math.exp(reading.estimate.log_beta) if reading.estimate.log_beta is not None else None
+        )
+        alarm = with_restoring_force_checks(alarm, answered, beta, restoring_force)
         alarm = with_unseen_law_check(alarm, restoring_force)
         alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")

@@ -108,3 +108,51 @@ def test_embedding_alarm_flags_far_recordings_and_round_trips(tmp_path):
     with pytest.raises(StiffnetError, match="not a readable alarm reference") as info:
         load_alarm(tmp_path / "x.npz")
     assert "\n" not in str(info.value)
+
+
+def test_restoring_force_class_gap_reads_the_distance_outside_the_physical_interval():
+    from stiffnet.uncertainty.alarm_verdict import restoring_force_class_gap
+
+    rf = {"class": "medium", "beta_interval": [31.6, 35.3], "contact_r2": 0.997}
+    # a hard 36.1 against a medium [31.6, 35.3]: log(36.1 / 35.3) outside
+    assert restoring_force_class_gap("hard", 36.1, rf) == pytest.approx(np.log(36.1 / 35.3))
+    assert restoring_force_class_gap("soft", 20.0, rf) == pytest.approx(np.log(31.6 / 20.0))
+    assert restoring_force_class_gap("medium", 36.1, rf) == 0.0  # same class
+    assert restoring_force_class_gap("hard", 34.0, rf) == 0.0  # the beta inside
+    # no evidence: a loose fit, a refusal, no contact either side
+    assert restoring_force_class_gap("hard", 36.1, {**rf, "contact_r2": 0.9}) is None
+    assert restoring_force_class_gap("hard", 36.1, {**rf, "class": None}) is None
+    assert restoring_force_class_gap("no_contact", None, rf) is None
+    assert restoring_force_class_gap("hard", 36.1, {**rf, "class": "no_contact"}) is None
+
+
+def test_contact_duration_excess_fires_beyond_twice_the_half_period():
+    from stiffnet.uncertainty.alarm_verdict import (
+        ALARM_WORDS,
+        contact_duration_excess,
+        with_restoring_force_checks,
+    )
+
+    assert contact_duration_excess({"duration_ratio": 2.2, "contact_r2": 0.988}) == (
+        pytest.approx(np.log(1.1))
+    )
+    assert contact_duration_excess({"duration_ratio": 1.2, "contact_r2": 0.99}) < 0
+    assert contact_duration_excess({"duration_ratio": 3.0, "contact_r2": 0.6}) is None
+    assert contact_duration_excess({"duration_ratio": None, "contact_r2": 0.99}) is None
+    quiet = {
+        "flag": False,
+        "fired": [],
+        "scores": {"embedding": 1.0},
+        "thresholds": {"embedding": 3.0},
+    }
+    refused = {"class": None, "beta_interval": None, "contact_r2": 0.988, "duration_ratio": 2.2}
+    out = with_restoring_force_checks(quiet, "hard", 61.3, refused)
+    assert out["flag"] and out["fired"] == ["contact_duration"]
+    assert ALARM_WORDS["contact_duration"] in out["message"]
+    assert quiet["fired"] == [] and "contact_duration" not in quiet["scores"]  # not mutated
+    agree = {"class": "hard", "beta_interval": [40.0, 50.0], "contact_r2": 0.99,
+             "duration_ratio": 1.1}  # fmt: skip
+    calm = with_restoring_force_checks(quiet, "hard", 45.0, agree)
+    assert not calm["flag"] and calm["scores"]["restoring_force_class"] == 0.0
+    wrong = with_restoring_force_checks(quiet, "very_hard", 61.3, agree)
+    assert wrong["fired"] == ["restoring_force_class"]

@@ -19,6 +19,7 @@ import numpy as np
 
 from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import sha256_file
+from stiffnet.restoring_force.estimate import MAX_DURATION_RATIO
 from stiffnet.uncertainty.aggregate import RecordingEstimate
 from stiffnet.uncertainty.alarm import AlarmReference, load_alarm, recording_checks
 from stiffnet.uncertainty.ood import OODReference
@@ -46,6 +47,11 @@ ALARM_WORDS = {
     "the class's range (one of the two answers is wrong)",
     "contact_law": "the restoring-force map reads a contact law the training data lack "
     "(an exponent neither linear nor Hertz, or dissipation growing with penetration)",
+    "restoring_force_class": "the restoring-force cross-check (a close contact-law fit) names "
+    "another class and the model's beta lies outside its interval (the class is likely wrong)",
+    "contact_duration": "the impacts last over twice the half period of the contact law they "
+    "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
+    "trained on) or a contact the training data lack stretches them",
 }
 
 #: The class_beta check fires when the beta interval misses the class's range: its score is
@@ -60,6 +66,14 @@ RESTORING_FORCE_THRESHOLD = 0.0
 #: false alarms on right answers (bench_robustness's sensor set: alarm rate 26 -> 11 %
 #: with this gate, silent failures 11 -> 12 %; chosen on that benchmark).
 RESTORING_FORCE_MIN_R2 = 0.95
+
+
+#: The restoring_force_class check's score is how far (log) the model's beta lies outside the
+#: restoring-force interval when the two classes differ: it fires on any distance.
+RESTORING_FORCE_CLASS_THRESHOLD = 0.0
+#: The contact_duration check's score is the log of the impacts' duration over
+#: MAX_DURATION_RATIO half periods of the fitted law: it fires beyond that ratio.
+CONTACT_DURATION_THRESHOLD = 0.0
 
 
 def alarm_message(fired: list[str]) -> str:
@@ -167,6 +181,67 @@ def with_restoring_force_check(
     alarm reference gets an alarm made of this check alone.
     """
     return with_rule_check(alarm, "restoring_force", gap, RESTORING_FORCE_THRESHOLD)
+
+
+def restoring_force_class_gap(
+    class_name: str, beta: float | None, restoring_force: dict[str, Any]
+) -> float | None:
+    """Log-distance of the model's beta outside the restoring-force interval when the two
+    readings name different classes (0 when they agree or the beta lies inside).
+
+    Near a class edge the model's own interval straddles the edge and its class is a guess
+    (`class_edge`); a restoring-force map that fits the contacts closely reads beta from
+    the contact law itself, so a class it names with an interval that excludes the model's
+    beta says which side of the edge the model missed. None when the cross-check refused,
+    saw no contact, or its contact law explains less than :data:`RESTORING_FORCE_MIN_R2`.
+
+    Parameters
+    ----------
+    class_name : str
+        The model's class.
+    beta : float or None
+        The model's beta.
+    restoring_force : dict
+        The cross-check (:func:`serving.restoring_force_check.restoring_force_check`):
+        ``class``, ``beta_interval``, ``contact_r2``.
+    """
+    other, interval = restoring_force.get("class"), restoring_force.get("beta_interval")
+    r2 = restoring_force.get("contact_r2")
+    if beta is None or not interval or other in (None, "no_contact") or class_name == "no_contact":
+        return None
+    if r2 is None or not r2 >= RESTORING_FORCE_MIN_R2:
+        return None
+    lo, hi = (float(v) for v in interval)
+    if other == class_name or not 0 < lo <= hi or not beta > 0:
+        return 0.0
+    return max(0.0, math.log(lo / beta), math.log(beta / hi))
+
+
+def contact_duration_excess(restoring_force: dict[str, Any]) -> float | None:
+    """Log of how much longer the impacts last than :data:`MAX_DURATION_RATIO` half periods of
+    the contact law they fit (positive: the cross-check refused for it).
+
+    A pulse whose shape the law fits closely (R2 >= :data:`RESTORING_FORCE_MIN_R2`) but that
+    lasts over twice the law's half period has been stretched: by a low-pass at the contact's
+    own frequency (a charge amplifier's or an anti-alias corner far below those the model saw)
+    or by a contact law the training world lacks. Either way the record lies outside what the
+    model was calibrated on. None without a duration or with a looser fit.
+    """
+    ratio, r2 = restoring_force.get("duration_ratio"), restoring_force.get("contact_r2")
+    if ratio is None or not ratio > 0 or r2 is None or not r2 >= RESTORING_FORCE_MIN_R2:
+        return None
+    return math.log(float(ratio) / MAX_DURATION_RATIO)
+
+
+def with_restoring_force_checks(
+    alarm: dict[str, Any] | None, class_name: str, beta: float | None, restoring_force: dict
+) -> dict[str, Any] | None:
+    """The alarm with the restoring_force_class and contact_duration checks added
+    (:func:`restoring_force_class_gap`, :func:`contact_duration_excess`)."""
+    gap = restoring_force_class_gap(class_name, beta, restoring_force)
+    alarm = with_rule_check(alarm, "restoring_force_class", gap, RESTORING_FORCE_CLASS_THRESHOLD)
+    excess = contact_duration_excess(restoring_force)
+    return with_rule_check(alarm, "contact_duration", excess, CONTACT_DURATION_THRESHOLD)
 
 
 def class_beta_gap(
