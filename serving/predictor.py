@@ -414,10 +414,9 @@ class Predictor:
             interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
         )
         alarm = with_restoring_force_check(alarm, gap)
-        beta = (
-            math.exp(reading.estimate.log_beta) if reading.estimate.log_beta is not None else None
+        alarm = with_restoring_force_checks(
+            alarm, answered, restoring_force, self.class_names, self.metadata.get("class_edges")
         )
-        alarm = with_restoring_force_checks(alarm, answered, beta, restoring_force)
         alarm = with_unseen_law_check(alarm, restoring_force)
         alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")

@@ -110,20 +110,27 @@ def test_embedding_alarm_flags_far_recordings_and_round_trips(tmp_path):
     assert "\n" not in str(info.value)
 
 
-def test_restoring_force_class_gap_reads_the_distance_outside_the_physical_interval():
-    from stiffnet.uncertainty.alarm_verdict import restoring_force_class_gap
+NAMES, EDGES = ["no_contact", "soft", "medium", "hard", "very_hard"], [5, 15, 35, 60, 100]
+
+
+def test_restoring_force_class_share_is_the_log_share_outside_the_models_class():
+    from stiffnet.uncertainty.alarm_verdict import restoring_force_class_share as share
 
     rf = {"class": "medium", "beta_interval": [31.6, 35.3], "contact_r2": 0.997}
-    # a hard 36.1 against a medium [31.6, 35.3]: log(36.1 / 35.3) outside
-    assert restoring_force_class_gap("hard", 36.1, rf) == pytest.approx(np.log(36.1 / 35.3))
-    assert restoring_force_class_gap("soft", 20.0, rf) == pytest.approx(np.log(31.6 / 20.0))
-    assert restoring_force_class_gap("medium", 36.1, rf) == 0.0  # same class
-    assert restoring_force_class_gap("hard", 34.0, rf) == 0.0  # the beta inside
-    # no evidence: a loose fit, a refusal, no contact either side
-    assert restoring_force_class_gap("hard", 36.1, {**rf, "contact_r2": 0.9}) is None
-    assert restoring_force_class_gap("hard", 36.1, {**rf, "class": None}) is None
-    assert restoring_force_class_gap("no_contact", None, rf) is None
-    assert restoring_force_class_gap("hard", 36.1, {**rf, "class": "no_contact"}) is None
+    # hard (35-60) against [31.6, 35.3]: only log(35.3 / 35) of log(35.3 / 31.6) inside
+    outside = 1 - np.log(35.3 / 35) / np.log(35.3 / 31.6)
+    assert share("hard", rf, NAMES, EDGES) == pytest.approx(outside)
+    assert share("medium", rf, NAMES, EDGES) == pytest.approx(1 - outside)  # the sliver above 35
+    assert share("very_hard", rf, NAMES, EDGES) == 1.0
+    # the outer classes are open-ended: an interval beyond 100 is inside very_hard
+    assert share("very_hard", {**rf, "beta_interval": [90.0, 130.0]}, NAMES, EDGES) == 0.0
+    assert share("soft", {**rf, "beta_interval": [3.0, 12.0]}, NAMES, EDGES) == 0.0
+    # no evidence: a loose fit, a refusal, no contact either side, edges of other classes
+    assert share("hard", {**rf, "contact_r2": 0.9}, NAMES, EDGES) is None
+    assert share("hard", {**rf, "class": None}, NAMES, EDGES) is None
+    assert share("no_contact", rf, NAMES, EDGES) is None
+    assert share("hard", {**rf, "class": "no_contact"}, NAMES, EDGES) is None
+    assert share("hard", rf, NAMES, EDGES[:-1]) is None
 
 
 def test_contact_duration_excess_fires_beyond_twice_the_half_period():
@@ -146,13 +153,13 @@ def test_contact_duration_excess_fires_beyond_twice_the_half_period():
         "thresholds": {"embedding": 3.0},
     }
     refused = {"class": None, "beta_interval": None, "contact_r2": 0.988, "duration_ratio": 2.2}
-    out = with_restoring_force_checks(quiet, "hard", 61.3, refused)
+    out = with_restoring_force_checks(quiet, "hard", refused, NAMES, EDGES)
     assert out["flag"] and out["fired"] == ["contact_duration"]
     assert ALARM_WORDS["contact_duration"] in out["message"]
     assert quiet["fired"] == [] and "contact_duration" not in quiet["scores"]  # not mutated
     agree = {"class": "hard", "beta_interval": [40.0, 50.0], "contact_r2": 0.99,
              "duration_ratio": 1.1}  # fmt: skip
-    calm = with_restoring_force_checks(quiet, "hard", 45.0, agree)
+    calm = with_restoring_force_checks(quiet, "hard", agree, NAMES, EDGES)
     assert not calm["flag"] and calm["scores"]["restoring_force_class"] == 0.0
-    wrong = with_restoring_force_checks(quiet, "very_hard", 61.3, agree)
+    wrong = with_restoring_force_checks(quiet, "very_hard", agree, NAMES, EDGES)
     assert wrong["fired"] == ["restoring_force_class"]
