@@ -163,3 +163,15 @@ def test_contact_duration_excess_fires_beyond_twice_the_half_period():
     assert not calm["flag"] and calm["scores"]["restoring_force_class"] == 0.0
     wrong = with_restoring_force_checks(quiet, "very_hard", agree, NAMES, EDGES)
     assert wrong["fired"] == ["restoring_force_class"]
+
+
+def test_interval_behind_alarm_spans_a_close_restoring_force_interval():
+    from stiffnet.uncertainty.conformal import interval_behind_alarm
+
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.99, 0.95) == [28.0, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 90.0], 0.99, 0.95) == [44.8, 90.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 60.0], 0.99, 0.95) == [44.8, 84.0]
+    # a loose contact-law fit, a refusal or no model interval: the model's interval stands
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.9, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], None, None, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm(None, [28.0, 33.0], 0.99, 0.95) is None
