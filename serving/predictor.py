@@ -81,6 +81,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     with_class_beta_check,
     with_restoring_force_check,
     with_restoring_force_checks,
+    with_sensor_fit_check,
 )
 from stiffnet.uncertainty.conformal import interval_behind_alarm
 from stiffnet.uncertainty.ood import OODReference, load_reference
@@ -424,6 +425,7 @@ class Predictor:
         alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")
         outside = sensor_outside_priors(restoring_force.get("sensor"), priors, fs, fn)
+        alarm = with_sensor_fit_check(alarm, restoring_force.get("sensor"), priors, fs)
         return with_sensor_check(alarm, outside)
 
     @staticmethod

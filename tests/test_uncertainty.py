@@ -175,3 +175,21 @@ def test_interval_behind_alarm_spans_a_close_restoring_force_interval():
     assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.9, 0.95) == [44.8, 84.0]
     assert interval_behind_alarm([44.8, 84.0], None, None, 0.95) == [44.8, 84.0]
     assert interval_behind_alarm(None, [28.0, 33.0], 0.99, 0.95) is None
+
+
+def test_an_unapplied_lowpass_far_below_the_prior_fires_the_sensor_fit_check():
+    from stiffnet.uncertainty.alarm_verdict import unapplied_lowpass_excess, with_sensor_fit_check
+
+    priors = {"effects": [{"name": "sensor_dynamics", "relative": {
+        "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]}}}]}  # fmt: skip
+    fit = {"lowpass_hz": 57.7, "lowpass_order": 3, "applied": False}
+    # 0.10 fs of a 718 Hz recording is 71.8 Hz: log(71.8 / 57.7) beyond it
+    assert unapplied_lowpass_excess(fit, priors, 718.0) == pytest.approx(np.log(71.8 / 57.7))
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": 80.0}, priors, 718.0) < 0
+    assert unapplied_lowpass_excess({**fit, "applied": True}, priors, 718.0) is None
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": None}, priors, 718.0) is None
+    assert unapplied_lowpass_excess(fit, {"effects": []}, 718.0) is None
+    assert unapplied_lowpass_excess(None, priors, 718.0) is None
+    out = with_sensor_fit_check(None, fit, priors, 718.0)
+    assert out["flag"] and out["fired"] == ["sensor_fit"]
+    assert with_sensor_fit_check(None, {**fit, "applied": True}, priors, 718.0) is None
