@@ -71,6 +71,7 @@ from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
+    RESTORING_FORCE_MIN_R2,
     alarm_ratio,
     alarm_verdict,
     class_beta_gap,
@@ -79,7 +80,10 @@ from stiffnet.uncertainty.alarm_verdict import (
     weak_restoring_force_fit,
     with_class_beta_check,
     with_restoring_force_check,
+    with_restoring_force_checks,
+    with_sensor_fit_check,
 )
+from stiffnet.uncertainty.conformal import interval_behind_alarm
 from stiffnet.uncertainty.ood import OODReference, load_reference
 from stiffnet.uncertainty.unseen_law import with_unseen_law_check
 
@@ -335,6 +339,7 @@ class Predictor:
         alarm = self._alarm(reading, interval, restoring_force, fs, fn)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
+            interval = self._interval_behind_alarm(interval, restoring_force, warnings)
         if weak := weak_restoring_force_fit(restoring_force):
             warnings.append(weak)
         result = self._result(reading, interval, restoring_force, alarm)
@@ -413,11 +418,35 @@ class Predictor:
             interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
         )
         alarm = with_restoring_force_check(alarm, gap)
+        alarm = with_restoring_force_checks(
+            alarm, answered, restoring_force, self.class_names, self.metadata.get("class_edges")
+        )
         alarm = with_unseen_law_check(alarm, restoring_force)
         alarm = with_layers_alarm(alarm, reading.layers)
         priors = (self.model.card.get("data") or {}).get("priors")
         outside = sensor_outside_priors(restoring_force.get("sensor"), priors, fs, fn)
+        alarm = with_sensor_fit_check(alarm, restoring_force.get("sensor"), priors, fs)
         return with_sensor_check(alarm, outside)
+
+    @staticmethod
+    def _interval_behind_alarm(
+        interval: list[float] | None, restoring_force: dict[str, Any], warnings: list[str]
+    ) -> list[float] | None:
+        """A flagged recording's beta interval spans the restoring-force one too
+        (:func:`stiffnet.uncertainty.conformal.interval_behind_alarm`), said in a warning."""
+        wide = interval_behind_alarm(
+            interval,
+            restoring_force["beta_interval"],
+            restoring_force.get("contact_r2"),
+            RESTORING_FORCE_MIN_R2,
+        )
+        if wide and interval and wide != list(interval):
+            warnings.append(
+                f"the beta interval [{interval[0]:.3g}, {interval[1]:.3g}] is widened to "
+                f"[{wide[0]:.3g}, {wide[1]:.3g}] to span the restoring-force interval: the alarm "
+                "says the model's calibration does not hold for this recording"
+            )
+        return wide
 
     def _result(
         self,

@@ -77,6 +77,7 @@ def restoring_force_check(
         "exponent": d["exponent"],
         "n_impacts": d["n_impacts"],
         "contact_r2": d["contact_r2"],
+        "duration_ratio": d["duration_ratio"],
         "highpass_hz": d["highpass_hz"],
         "resonance_hz": d["resonance_hz"],
         "sensor": d["sensor"],

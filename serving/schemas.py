@@ -51,6 +51,9 @@ class RestoringForceCheck(BaseModel):
     exponent: float | None = Field(default=None, description="Contact exponent (1 linear).")
     n_impacts: int | None = None
     contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
+    duration_ratio: float | None = Field(
+        default=None, description="Impact duration over the fitted law's half period."
+    )
     highpass_hz: float | None = Field(
         default=None, description="Sensor high-pass corner fitted and undone (0: none)."
     )

@@ -54,3 +54,21 @@ def test_alarm_fires_outside_the_priors(predictor, case):
     assert res["ood_flag"] and res["alarm"]["fired"]
     assert res["ood_score"] > res["ood_threshold"] == 1.0
     assert any(w.startswith("UNRELIABLE") for w in res["warnings"])
+
+
+def test_a_flagged_recording_interval_spans_the_restoring_force_one(predictor, monkeypatch):
+    """Behind an alarm the conformal guarantee is void: the answer's interval reaches the
+    restoring-force one (a close contact-law fit), and a warning says so."""
+    import serving.predictor as predictor_module
+
+    accel = _record(45.0)
+    lo, hi = predictor.predict(accel, FS, natural_frequency_hz=FN)["beta_interval"]
+    far = {"class": "soft", "beta": 0.3 * lo, "beta_interval": [0.25 * lo, 0.35 * lo],
+           "contact_r2": 0.99, "duration_ratio": 1.1, "reason": "contradicting (test)"}  # fmt: skip
+    monkeypatch.setattr(predictor_module, "restoring_force_check", lambda *a, **k: far)
+    res = predictor.predict(accel, FS, natural_frequency_hz=FN)
+    assert res["ood_flag"] and {"restoring_force", "restoring_force_class"} <= set(
+        res["alarm"]["fired"]
+    )
+    assert res["beta_interval"] == pytest.approx([0.25 * lo, hi])
+    assert any("widened" in w for w in res["warnings"])

@@ -108,3 +108,88 @@ def test_embedding_alarm_flags_far_recordings_and_round_trips(tmp_path):
     with pytest.raises(StiffnetError, match="not a readable alarm reference") as info:
         load_alarm(tmp_path / "x.npz")
     assert "\n" not in str(info.value)
+
+
+NAMES, EDGES = ["no_contact", "soft", "medium", "hard", "very_hard"], [5, 15, 35, 60, 100]
+
+
+def test_restoring_force_class_share_is_the_log_share_outside_the_models_class():
+    from stiffnet.uncertainty.alarm_verdict import restoring_force_class_share as share
+
+    rf = {"class": "medium", "beta_interval": [31.6, 35.3], "contact_r2": 0.997}
+    # hard (35-60) against [31.6, 35.3]: only log(35.3 / 35) of log(35.3 / 31.6) inside
+    outside = 1 - np.log(35.3 / 35) / np.log(35.3 / 31.6)
+    assert share("hard", rf, NAMES, EDGES) == pytest.approx(outside)
+    assert share("medium", rf, NAMES, EDGES) == pytest.approx(1 - outside)  # the sliver above 35
+    assert share("very_hard", rf, NAMES, EDGES) == 1.0
+    # the outer classes are open-ended: an interval beyond 100 is inside very_hard
+    assert share("very_hard", {**rf, "beta_interval": [90.0, 130.0]}, NAMES, EDGES) == 0.0
+    assert share("soft", {**rf, "beta_interval": [3.0, 12.0]}, NAMES, EDGES) == 0.0
+    # no evidence: a loose fit, a refusal, no contact either side, edges of other classes
+    assert share("hard", {**rf, "contact_r2": 0.9}, NAMES, EDGES) is None
+    assert share("hard", {**rf, "class": None}, NAMES, EDGES) is None
+    assert share("no_contact", rf, NAMES, EDGES) is None
+    assert share("hard", {**rf, "class": "no_contact"}, NAMES, EDGES) is None
+    assert share("hard", rf, NAMES, EDGES[:-1]) is None
+
+
+def test_contact_duration_excess_fires_beyond_twice_the_half_period():
+    from stiffnet.uncertainty.alarm_verdict import (
+        ALARM_WORDS,
+        contact_duration_excess,
+        with_restoring_force_checks,
+    )
+
+    assert contact_duration_excess({"duration_ratio": 2.2, "contact_r2": 0.988}) == (
+        pytest.approx(np.log(1.1))
+    )
+    assert contact_duration_excess({"duration_ratio": 1.2, "contact_r2": 0.99}) < 0
+    assert contact_duration_excess({"duration_ratio": 3.0, "contact_r2": 0.6}) is None
+    assert contact_duration_excess({"duration_ratio": None, "contact_r2": 0.99}) is None
+    quiet = {
+        "flag": False,
+        "fired": [],
+        "scores": {"embedding": 1.0},
+        "thresholds": {"embedding": 3.0},
+    }
+    refused = {"class": None, "beta_interval": None, "contact_r2": 0.988, "duration_ratio": 2.2}
+    out = with_restoring_force_checks(quiet, "hard", refused, NAMES, EDGES)
+    assert out["flag"] and out["fired"] == ["contact_duration"]
+    assert ALARM_WORDS["contact_duration"] in out["message"]
+    assert quiet["fired"] == [] and "contact_duration" not in quiet["scores"]  # not mutated
+    agree = {"class": "hard", "beta_interval": [40.0, 50.0], "contact_r2": 0.99,
+             "duration_ratio": 1.1}  # fmt: skip
+    calm = with_restoring_force_checks(quiet, "hard", agree, NAMES, EDGES)
+    assert not calm["flag"] and calm["scores"]["restoring_force_class"] == 0.0
+    wrong = with_restoring_force_checks(quiet, "very_hard", agree, NAMES, EDGES)
+    assert wrong["fired"] == ["restoring_force_class"]
+
+
+def test_interval_behind_alarm_spans_a_close_restoring_force_interval():
+    from stiffnet.uncertainty.conformal import interval_behind_alarm
+
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.99, 0.95) == [28.0, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 90.0], 0.99, 0.95) == [44.8, 90.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 60.0], 0.99, 0.95) == [44.8, 84.0]
+    # a loose contact-law fit, a refusal or no model interval: the model's interval stands
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.9, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], None, None, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm(None, [28.0, 33.0], 0.99, 0.95) is None
+
+
+def test_an_unapplied_lowpass_far_below_the_prior_fires_the_sensor_fit_check():
+    from stiffnet.uncertainty.alarm_verdict import unapplied_lowpass_excess, with_sensor_fit_check
+
+    priors = {"effects": [{"name": "sensor_dynamics", "relative": {
+        "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]}}}]}  # fmt: skip
+    fit = {"lowpass_hz": 57.7, "lowpass_order": 3, "applied": False}
+    # 0.10 fs of a 718 Hz recording is 71.8 Hz: log(71.8 / 57.7) beyond it
+    assert unapplied_lowpass_excess(fit, priors, 718.0) == pytest.approx(np.log(71.8 / 57.7))
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": 80.0}, priors, 718.0) < 0
+    assert unapplied_lowpass_excess({**fit, "applied": True}, priors, 718.0) is None
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": None}, priors, 718.0) is None
+    assert unapplied_lowpass_excess(fit, {"effects": []}, 718.0) is None
+    assert unapplied_lowpass_excess(None, priors, 718.0) is None
+    out = with_sensor_fit_check(None, fit, priors, 718.0)
+    assert out["flag"] and out["fired"] == ["sensor_fit"]
+    assert with_sensor_fit_check(None, {**fit, "applied": True}, priors, 718.0) is None

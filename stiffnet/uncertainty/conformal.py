@@ -75,3 +75,30 @@ def beta_interval(
     else:
         return None
     return [math.exp(est.log_beta - half), math.exp(est.log_beta + half)]
+
+
+def interval_behind_alarm(
+    interval: list[float] | None,
+    restoring_force_interval: list[float] | None,
+    contact_r2: float | None,
+    min_r2: float,
+) -> list[float] | None:
+    """The model's interval joined with the restoring-force one, for a recording the alarm flags.
+
+    The conformal guarantee holds for recordings exchangeable with the calibration
+    trajectories; a flagged one is not (a sensor chain or a contact the training world
+    lacks), and there the model's interval covered 0.83-0.86 of lab-chain recordings
+    (bench_crosscheck's rig_chains / sensor_chains). The restoring-force estimate reads
+    beta from the contact law itself, so where its law fits closely (``contact_r2 >=
+    min_r2``) the span of both intervals keeps the answer honest: it is never narrower
+    than the model's. The caller applies it only when the alarm fired. None without
+    the model's interval; the model's own when the cross-check has none or fits loosely.
+    """
+    if not interval:
+        return interval
+    if not restoring_force_interval or contact_r2 is None or not contact_r2 >= min_r2:
+        return list(interval)
+    lo, hi = (float(v) for v in restoring_force_interval)
+    if not 0 < lo <= hi:
+        return list(interval)
+    return [min(float(interval[0]), lo), max(float(interval[1]), hi)]
