@@ -136,6 +136,7 @@ def evaluation_ratio(camp, repeats: int = 5) -> tuple[float, float]:
             recording_discrepancy(normalised_differences(m, s))
 
     def now() -> None:
+        target.known.clear()  # a real evaluation each time, not the target's kept result
         target.per_recording(model, FIT_SETTINGS, inclination=False)
 
     out = []

@@ -247,6 +247,11 @@ class _Run:
             (self.target, n, fixed, self.budget_numerical if needs_numerical(n) else self.budget)
             for n in order
         ]
+        # "effect off", every fit's reference, scored here once per settings: it travels with
+        # the target (CampaignTarget.known) instead of being simulated again by every task
+        dynamics = [e.name for e in fixed if e.kind == "dynamics"]
+        for settings in {settings_for([n, *dynamics]) for n in order}:
+            self.target.per_recording([*self.target.base_effects, *fixed], settings)
         start = self.bar.done
 
         def show(done: int, _total: int) -> None:

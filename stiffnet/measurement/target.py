@@ -10,6 +10,8 @@ It is picklable, so a fit can run on a Dask worker.
 
 from __future__ import annotations
 
+import hashlib
+import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -41,6 +43,8 @@ SENSOR_STAGES = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_ord
 
 #: Discrepancy scored by a recording whose simulation cannot be analysed.
 FAILED_DISCREPANCY = 100.0
+#: At most this many per-recording results are kept by a target (:attr:`CampaignTarget.known`).
+MEMO_ENTRIES = 4096
 
 
 def needs_numerical(name: str) -> bool:
@@ -78,6 +82,48 @@ class CampaignTarget:
     #: (:func:`stiffnet.measurement.forcing_lines.campaign_forcing_lines`: ``second``,
     #: ``phase_second``, ``third``, ``phase_third``); None: not read. Seeds their fit.
     forcing: dict[str, float] | None = None
+    #: Per-recording discrepancies already computed, by a digest of everything they depend on
+    #: (:meth:`memo_key`). A diagnosis asks for the same model again and again: each
+    #: candidate's fit scores "effect off", the nuisances' fine grid holds the coarse grid's
+    #: best point, a joint refit starts from the conditional fit. Not shared by
+    #: :meth:`subset` or :func:`dataclasses.replace`; travels with the target to a worker.
+    known: dict[bytes, np.ndarray] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+
+    def memo_key(
+        self,
+        effects: Sequence[Effect],
+        settings: SolverSettings,
+        rows: Sequence[ManifestRow],
+        starts: Sequence[int] | None,
+        inclination: bool,
+        oversample: bool,
+    ) -> bytes | None:
+        """A digest of what :meth:`per_recording` depends on besides the measured statistics
+        (the target's own): rows (values), effects (class and values), lengths, seed,
+        settings, starts, statistics and oversampling; None when an effect cannot be pickled
+        (its result is then never reused)."""
+        h = hashlib.blake2b(digest_size=20)
+        for r in rows:
+            h.update(r.model_dump_json().encode())
+        try:
+            for e in effects:
+                cls = type(e)
+                extra = {k: v for k, v in vars(e).items() if k != "params"}
+                h.update(f"|{cls.__module__}.{cls.__qualname__}|".encode())
+                h.update(e.params.model_dump_json().encode())
+                h.update(pickle.dumps(extra, protocol=5))
+        except Exception:  # noqa: BLE001 - a user effect holding what pickle cannot: no reuse
+            return None
+        starts_ = None if starts is None else [int(k) for k in starts]
+        h.update(
+            repr(
+                ([int(n) for n in self.lengths], int(self.seed), starts_, inclination, oversample)
+            ).encode()
+        )
+        h.update(settings.model_dump_json().encode())
+        return h.digest()
 
     def simulated_statistics(
         self,
@@ -131,10 +177,20 @@ class CampaignTarget:
     ) -> np.ndarray:
         """Per-recording discrepancies of the campaign simulated with ``effects``
         (``rows``, ``starts``: other nuisance values than the target's; ``inclination``,
-        ``oversample``: see :meth:`simulated_statistics`)."""
-        return self.discrepancies_of(
-            self.simulated_statistics(effects, settings, rows, starts, inclination, oversample)
+        ``oversample``: see :meth:`simulated_statistics`). Computed once per inputs
+        (:attr:`known`)."""
+        rows_ = self.rows if rows is None else list(rows)
+        starts_ = self.starts if starts is None else starts
+        incl = self.inclination if inclination is None else self.inclination and inclination
+        key = self.memo_key(effects, settings, rows_, starts_, incl, oversample)
+        if key is not None and key in self.known:
+            return self.known[key].copy()
+        out = self.discrepancies_of(
+            self.simulated_statistics(effects, settings, rows_, starts_, inclination, oversample)
         )
+        if key is not None and len(self.known) < MEMO_ENTRIES:
+            self.known[key] = out.copy()
+        return out
 
     def per_recording_points(
         self,
