@@ -233,6 +233,25 @@ def test_campaign_is_the_same_on_the_cluster(cluster, tmp_path):
     assert not (tmp_path / "bad").exists()
 
 
+def test_restoring_force_evidence_is_the_same_on_the_cluster(cluster, tmp_path):
+    """diagnose reads each recording's force map on its workers: same evidence as in-process."""
+    from distributed import Client
+
+    from stiffnet.campaign import load_campaign, simulate_campaign
+    from stiffnet.measurement.evidence import restoring_force_evidence
+
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(MANIFEST.replace(",0.4\n", ",2.0\n").replace(",0.3\n", ",2.0\n"))
+    effects = ["contact_damping:damping_ratio=0.2"]
+    camp = load_campaign(simulate_campaign(manifest, tmp_path / "c", effects, seed=3))
+    local = restoring_force_evidence(camp, camp.rows)
+    with Client(cluster.scheduler_address) as client:
+        remote = restoring_force_evidence(camp, camp.rows, client)
+    assert [p["recording"] for p in remote["per_recording"]] == ["a.csv", "sub/b.csv", "c.npy"]
+    assert remote == local
+    assert local["answered"] >= 1
+
+
 # ------------------------------------------------------------------------------ CLI
 
 

@@ -333,7 +333,7 @@ def _prepare(
     # its shared sensor chain is where sensor_dynamics' fit starts
     evidence = memo(
         campaign, ("restoring_force", rows_key(rows)),
-        lambda: restoring_force_evidence(campaign, rows),
+        lambda: restoring_force_evidence(campaign, rows, client),
     )  # fmt: skip
     target.sensor = evidence.get("sensor")
     target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit

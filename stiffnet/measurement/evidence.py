@@ -7,8 +7,9 @@ damping ratio ``zeta_c``; a restitution ``e = exp(-pi zeta_c / sqrt(1 - zeta_c**
 and its **curvature** is stiffening (the exponent ``p``: 1 linear, 1.5 Hertz).
 Summarised over a campaign, they say which contact effects the data themselves
 show, independently of the simulation fits that ``diagnose`` ranks
-(``contact_damping``, ``hertz_contact``). Cheap: one estimate per recording,
-~10 ms each on 24 forcing periods.
+(``contact_damping``, ``hertz_contact``). One estimate per recording: a few
+seconds each where the sensor chain is fitted, so they run as parallel tasks on
+diagnose's workers (:func:`stiffnet.distributed.tasks.run_tasks`).
 """
 
 from __future__ import annotations
@@ -37,32 +38,42 @@ def restitution(zeta: float) -> float:
     return float(np.exp(-np.pi * zeta / np.sqrt(1.0 - zeta**2))) if zeta < 1 else 0.0
 
 
-def contact_law_per_recording(campaign: Campaign, rows: list[ManifestRow]) -> list[dict[str, Any]]:
+def contact_law_per_recording(
+    campaign: Campaign, rows: list[ManifestRow], client: Any = None
+) -> list[dict[str, Any]]:
     """The restoring-force contact law of each recording (or why there is none).
 
     ``rows`` are diagnose's resolved rows (natural frequency and forcing ratio
-    filled in where the manifest had none).
+    filled in where the manifest had none). ``client``: a Dask client whose workers
+    read the recordings in parallel (in-process without one); the results do not
+    depend on where they ran.
     """
-    out = []
-    for i, row in enumerate(rows):
-        fn = row.natural_frequency_hz
-        ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
-        try:
-            rec = campaign.recording(i)
-            r = restoring_force_estimate(
-                rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
-                max_periods=PERIODS, sensor=row.sensor_sheet(),
-            )  # fmt: skip
-        except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            out.append({"recording": row.recording, "ok": False, "reason": str(exc)})
-            continue
-        out.append({
-            "recording": row.recording, "ok": r.ok, "beta": r.beta,
-            "contact_damping_ratio": r.contact_damping_ratio, "exponent": r.exponent,
-            "contact_r2": r.contact_r2 if r.ok else None, "reason": r.reason,
-            "sensor": r.sensor.to_dict() if r.sensor is not None else None,
-        })  # fmt: skip
-    return out
+    from stiffnet.distributed.tasks import run_tasks
+
+    items = [(campaign.recording(i), row) for i, row in enumerate(rows)]
+    report = run_tasks(_contact_law_task, items, client=client, names=[r.recording for r in rows])
+    report.raise_failures()
+    return report.results
+
+
+def _contact_law_task(item: tuple[Any, ManifestRow]) -> dict[str, Any]:
+    """One recording's restoring-force estimate as evidence (a picklable task)."""
+    rec, row = item
+    fn = row.natural_frequency_hz
+    ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
+    try:
+        r = restoring_force_estimate(
+            rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
+            max_periods=PERIODS, sensor=row.sensor_sheet(),
+        )  # fmt: skip
+    except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        return {"recording": row.recording, "ok": False, "reason": str(exc)}
+    return {
+        "recording": row.recording, "ok": r.ok, "beta": r.beta,
+        "contact_damping_ratio": r.contact_damping_ratio, "exponent": r.exponent,
+        "contact_r2": r.contact_r2 if r.ok else None, "reason": r.reason,
+        "sensor": r.sensor.to_dict() if r.sensor is not None else None,
+    }  # fmt: skip
 
 
 def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
@@ -113,6 +124,8 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     return res
 
 
-def restoring_force_evidence(campaign: Campaign, rows: list[ManifestRow]) -> dict[str, Any]:
+def restoring_force_evidence(
+    campaign: Campaign, rows: list[ManifestRow], client: Any = None
+) -> dict[str, Any]:
     """:func:`contact_evidence` of :func:`contact_law_per_recording` (diagnose's JSON key)."""
-    return contact_evidence(contact_law_per_recording(campaign, rows))
+    return contact_evidence(contact_law_per_recording(campaign, rows, client))
