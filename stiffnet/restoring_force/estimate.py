@@ -804,10 +804,14 @@ def _estimate_settled(a: np.ndarray, fs_hz: float, ff: float, options: dict):
     (:func:`~.chain.settling_samples`) the record is no filtered copy of the motion, and
     those samples bias the fitted high-pass corner low (the inverse's integral starts
     there). Where a low-pass is identified (or given) and the corner is fitted, the record
-    is read again without them; records with no low-pass are read as they are.
+    is read again without them; records with no low-pass, and records read from their middle
+    (`max_periods`), are read as they are.
     """
     first = _estimate_at(a, fs_hz, ff, **options)
-    skip = settling_samples(first.sensor, fs_hz) if options["highpass_hz"] == "auto" else 0
+    most = options["max_periods"]
+    if options["highpass_hz"] != "auto" or (most is not None and a.size > most * fs_hz / ff):
+        return first  # a corner given, or a record cut from its middle: no start-up in it
+    skip = settling_samples(first.sensor, fs_hz)
     if skip == 0:
         return first
     try:
