@@ -803,15 +803,15 @@ def _estimate_settled(a: np.ndarray, fs_hz: float, ff: float, options: dict):
     A lab chain starts from rest with its logger: until its low-pass has settled
     (:func:`~.chain.settling_samples`) the record is no filtered copy of the motion, and
     those samples bias the fitted high-pass corner low (the inverse's integral starts
-    there). Where a low-pass is identified (or given) and the corner is fitted, the record
-    is read again without them; records with no low-pass, and records read from their middle
-    (`max_periods`), are read as they are.
+    there). Where a low-pass is identified, given or not excluded, and a high-pass corner was
+    fitted, the record is read again without them; records with no low-pass or no high-pass,
+    and records read from their middle (`max_periods`), are read as they are.
     """
     first = _estimate_at(a, fs_hz, ff, **options)
     most = options["max_periods"]
     if options["highpass_hz"] != "auto" or (most is not None and a.size > most * fs_hz / ff):
         return first  # a corner given, or a record cut from its middle: no start-up in it
-    skip = settling_samples(first.sensor, fs_hz)
+    skip = settling_samples(first.sensor, fs_hz) if first.highpass_hz > 0 else 0
     if skip == 0:
         return first
     try:
