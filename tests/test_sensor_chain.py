@@ -470,3 +470,44 @@ def test_a_lowpass_the_fit_cannot_see_still_bounds_beta():
     assert corners[2] < corners[4] < 2 * 144.685
     assert r.beta > 7.78 * 1.05  # still read high: the interval, not beta, tells
     assert r.beta_interval[0] <= 7.78 <= r.beta_interval[1]
+
+
+# --- a chain that starts from rest with the logger -----------------------------------------
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_settling_samples_are_a_few_group_delays_of_the_lowpass(order):
+    """A Butterworth low-pass's DC group delay is sum_k sin((2k-1) pi / 2N) / w_c (analog;
+    sqrt(2)/w_c for N = 2); the record is read from SETTLE_DELAYS of them on. A resonance
+    alone (its start-up ring carries almost no area) and no chain skip nothing."""
+    from stiffnet.restoring_force.chain import SETTLE_DELAYS, settling_samples
+
+    fs, fc = 2000.0, 100.0
+    k = np.arange(1, order + 1)
+    delay = np.sum(np.sin((2 * k - 1) * np.pi / (2 * order))) / (2 * np.pi * fc / fs)
+    chain = SensorChain(lowpass_hz=fc, lowpass_order=order)
+    assert settling_samples(chain, fs) == pytest.approx(SETTLE_DELAYS * delay, abs=1.5)
+    # a slower low-pass the impacts cannot exclude sets the skip
+    slower = SensorChain(lowpass_hz=fc, lowpass_order=order, lowpass_not_excluded=((2, fc / 2),))
+    assert settling_samples(slower, fs) > settling_samples(chain, fs)
+    assert settling_samples(SensorChain(resonance_hz=300.0, resonance_damping=0.05), fs) == 0
+    assert settling_samples(None, fs) == 0
+
+
+@pytest.mark.slow
+def test_a_highpass_behind_a_lowpass_from_rest_is_read_where_the_chain_has_settled():
+    """Independent rig (bench_crosscheck's rig_chains #4): a 4.98 Hz high-pass, a 2nd-order
+    212 Hz low-pass and a 187 Hz mount, all starting from rest with the logger. Read from the
+    first sample, the low-pass's rise made the corner 4.34 Hz (0.87) and beta 7.47 [6.64,
+    8.41] for 6.27: a silent miss. Read from where the low-pass has settled, both are right."""
+    sensor = {"resonance_hz": 187.31787666406078, "resonance_damping": 0.03444806091186811,
+              "lowpass_hz": 212.0826588011561, "lowpass_order": 2,
+              "highpass_hz": 4.977502016046865}  # fmt: skip
+    run = RigRun(recording="rig_chains_4.csv", beta=6.266298871802806, fs_hz=1008.6533219375192,
+                 duration_s=3.0, gap_mm=1.3766664110123255, sensor=sensor)  # fmt: skip
+    accel = record(run, seed=20261135)[1]
+    r = restoring_force_estimate(accel, run.fs_hz, natural_frequency_hz=FN)
+    assert r.ok, r.reason
+    assert r.highpass_hz == pytest.approx(4.98, rel=0.1)
+    assert r.beta == pytest.approx(6.27, rel=0.1)
+    assert r.beta_interval[0] <= 6.27 <= r.beta_interval[1]

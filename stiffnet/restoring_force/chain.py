@@ -259,6 +259,34 @@ def chain_sos(chain: SensorChain, fs_hz: float) -> np.ndarray | None:
     return np.vstack(stages) if stages else None
 
 
+#: The record is read from where the low-pass has settled: this many of its DC group delays.
+SETTLE_DELAYS = 3.0
+
+
+def settling_samples(chain: SensorChain | None, fs_hz: float) -> int:
+    """Samples a chain's low-pass needs to settle when it starts from rest with the logger.
+
+    An analog chain switched on with the record starts its fast stages from zero: for about
+    their group delay the record is no filtered copy of the motion, and the acceleration's
+    area it lacks there becomes a velocity step that the periodic integrals spread over the
+    whole record (the high-pass corner then reads 0.8-0.9 of the truth). The low-pass's step
+    response has delivered its area after a few DC group delays (:data:`SETTLE_DELAYS`); a
+    resonance's start-up ring carries almost none (``2 zeta / w_r``) and is not counted.
+    0 without a low-pass in the band.
+    """
+    if chain is None:
+        return 0
+    stages = [*chain.lowpass_not_excluded]
+    if chain.lowpass_hz:
+        stages.append((chain.lowpass_order or 2, chain.lowpass_hz))
+    delay = 0.0
+    for order, hz in stages:
+        if hz < 0.5 * fs_hz:
+            sos = signal.butter(int(order), hz, fs=fs_hz, output="sos")
+            delay = max(delay, float(signal.group_delay(signal.sos2tf(sos), w=[1e-4])[1][0]))
+    return int(np.ceil(SETTLE_DELAYS * delay))
+
+
 def chain_response(chain: SensorChain, freqs_hz: np.ndarray) -> np.ndarray:
     """The analog chain's complex response (resonance x low-pass) at `freqs_hz`."""
     s = 2j * np.pi * np.asarray(freqs_hz, dtype=float)

@@ -42,6 +42,7 @@ from stiffnet.restoring_force.chain import (
     fit_chain,
     identifiability,
     sensor_from_mapping,
+    settling_samples,
 )
 from stiffnet.restoring_force.contact_law import (
     ContactLaw,
@@ -787,13 +788,36 @@ def restoring_force_estimate(
     results = []
     for i, ff in enumerate(lines):
         try:
-            results.append(_estimate_at(a, fs_hz, ff, **options))
+            results.append(_estimate_settled(a, fs_hz, ff, options))
         except SignalError:
             if i == 0 and len(lines) == 1:
                 raise
     if not results:
         raise SignalError("no forcing line leaves four forcing periods in the record")
     return max(results, key=lambda r: r.free_r2 if np.isfinite(r.free_r2) else -np.inf)
+
+
+def _estimate_settled(a: np.ndarray, fs_hz: float, ff: float, options: dict):
+    """:func:`_estimate_at`, read again from where the chain's low-pass has settled.
+
+    A lab chain starts from rest with its logger: until its low-pass has settled
+    (:func:`~.chain.settling_samples`) the record is no filtered copy of the motion, and
+    those samples bias the fitted high-pass corner low (the inverse's integral starts
+    there). Where a low-pass is identified, given or not excluded, and a high-pass corner was
+    fitted, the record is read again without them; records with no low-pass or no high-pass,
+    and records read from their middle (`max_periods`), are read as they are.
+    """
+    first = _estimate_at(a, fs_hz, ff, **options)
+    most = options["max_periods"]
+    if options["highpass_hz"] != "auto" or (most is not None and a.size > most * fs_hz / ff):
+        return first  # a corner given, or a record cut from its middle: no start-up in it
+    skip = settling_samples(first.sensor, fs_hz) if first.highpass_hz > 0 else 0
+    if skip == 0:
+        return first
+    try:
+        return _estimate_at(a[skip:], fs_hz, ff, **options)
+    except SignalError:  # the record is too short without them: read it whole
+        return first
 
 
 def _checked_options(
