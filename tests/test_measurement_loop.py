@@ -275,8 +275,7 @@ def test_loop_trains_at_the_campaigns_operating_points(two_effects, tmp):
     points = card["operating_points"]["points"]
     rows = load_campaign(two_effects).rows
     assert [p["gap"] for p in points] == [r.gap for r in rows] and len(points) == 5
-    # each point's shard over the sweep, then its shards near the three class edges
-    assert card["n_trajectories"] == TINY and len(card["shards"]) == 5 * 4
+    assert card["n_trajectories"] == TINY and len(card["shards"]) == 5
     assert res["after"]["accuracy"] is not None
     with pytest.raises(StiffnetError, match="world 'operating_points'"):
         loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=1,

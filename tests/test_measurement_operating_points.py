@@ -44,6 +44,9 @@ def test_trajectories_are_split_evenly_over_the_points():
 
 def test_each_config_is_its_rows_point_with_the_sweeps_beta():
     rows = _rows()
+    assert operating_point_configs(_cfg(20), rows) == operating_point_configs(
+        _cfg(20), rows, edge_share=0.0
+    )  # no edge draws unless asked for
     cfgs = operating_point_configs(_cfg(20), rows, jitter=0.05, edge_share=0.0)
     assert [c.n_trajectories for c in cfgs] == split_evenly(20, 8)
     assert {c.shard_size for c in cfgs} == {3}  # one shard size: trajectory numbers unique
@@ -123,7 +126,7 @@ def test_dataset_draws_every_trajectory_at_its_rows_point(tmp_path):
 
 def test_edge_trajectories_straddle_the_edges_at_their_rows_point(tmp_path):
     rows = _rows()[:2]
-    card = operating_point_dataset(_cfg(12), rows, tmp_path / "data", jitter=0.05)
+    card = operating_point_dataset(_cfg(12), rows, tmp_path / "data", jitter=0.05, edge_share=0.5)
     ds = load_dataset(tmp_path / "data")
     ops = card["operating_points"]
     assert ops["edge_share"] == 0.5 and ops["class_edges"] == [15.0, 35.0, 60.0]

@@ -17,11 +17,13 @@ and the effects over their priors: the model learns the law at the amplitudes th
 campaign has. The model's inputs are unchanged, so the predictor reads it as any other;
 it is a model *of this campaign* and says so in its data card (``operating_points``).
 
-A share of each point's trajectories (:data:`EDGE_SHARE`) is drawn near the class edges
-(:func:`class_edges`, β within ±:data:`EDGE_WIDTH` of each, as many on either side):
-a campaign's recording a few per cent from an edge is classed by where the model puts
-that edge at that operating point, and a stratified sweep gives that place a handful of
-trajectories. The manifest's β is never read (it is the truth being scored).
+On request (``edge_share``) a share of each point's trajectories is drawn near the class
+edges (:func:`class_edges`, β within ±:data:`EDGE_WIDTH` of each, as many on either
+side): a campaign's recording a few per cent from an edge is classed by where the model
+puts that edge at that operating point, and a stratified sweep gives that place a handful
+of trajectories. The manifest's β is never read (it is the truth being scored). It is off
+by default: each edge is a shard of its own, and the numerical engine's small batches
+cost more than twice the dataset's CPU for a gain in accuracy not yet measured.
 Numbers: docs/measurement_loop.md, "Training at the campaign's operating points".
 """
 
@@ -39,8 +41,9 @@ from stiffnet.measurement.envelope import COLUMNS, campaign_envelope
 #: Relative jitter of each row's values (of the value itself; a zero gap stays zero), so
 #: the model does not learn one exact point and a manifest's small errors stay inside.
 JITTER = 0.05
-#: Share of each point's trajectories drawn near the class edges, the rest over the sweep.
-EDGE_SHARE = 0.5
+#: Share of each point's trajectories drawn near the class edges, the rest over the sweep
+#: (off by default: see the module's docstring).
+EDGE_SHARE = 0.0
 #: Relative half-width of the band around a class edge ``e``: β in ``[e / (1 + w), e (1 + w)]``.
 EDGE_WIDTH = 0.2
 
