@@ -12,12 +12,12 @@ manifest's eight points simulated with a two-stage user law, with its phases' se
 Part 3 (``--seeds``): how much the retrained model's campaign accuracy hangs on the
 dataset's seed. The loop test's iteration (``--operating-points``, the law as discovered,
 its prior inside the discovery's intervals) is run once; its dataset and GBM are then
-drawn again at each seed, with and without the share of trajectories near the class
-edges (:data:`stiffnet.measurement.operating_points.EDGE_SHARE`); each row lists the
+drawn again at each seed, without and with a share of trajectories near the class edges
+(``--edge-share``, :func:`stiffnet.measurement.operating_points.edge_configs`); each row lists the
 recordings classed wrong with their β read. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
-        --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400]
+        --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
 """
 
 from __future__ import annotations
@@ -159,12 +159,11 @@ def _retrained(camp, cfg, work: Path, edge_share: float) -> tuple[dict, float, f
     return ev, time.perf_counter() - t0, time.process_time() - c0
 
 
-def seed_spread(seeds: list[int], n: int) -> None:
+def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
     import unknown_contact_laws as laws
     from test_learned_law_diagnose import batch_campaign
 
     from stiffnet.measurement.loop import run_loop
-    from stiffnet.measurement.operating_points import EDGE_SHARE
 
     print("\n| dataset seed | near-edge share | accuracy | beta MAPE | wrong (beta: read) "
           "| wall s | CPU s | load |")  # fmt: skip
@@ -180,7 +179,7 @@ def seed_spread(seeds: list[int], n: int) -> None:
                  candidates=["contact_damping"], world="operating_points")  # fmt: skip
         law = load_config(SimulationConfig, Path(tmp) / "state" / "iter-001" / "config.yaml")
         for seed in seeds:
-            for share in (0.0, EDGE_SHARE):
+            for share in (0.0, edge_share):
                 cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
                 work = Path(tmp) / f"seed{seed}-{share}"
                 ev, wall, cpu = _retrained(camp, cfg, work, share)
@@ -198,9 +197,11 @@ def main() -> None:
     ap.add_argument("--loop", type=int, default=0, help="one GBM loop iteration, N trajectories")
     ap.add_argument("--seeds", default="", help="dataset seeds of part 3, e.g. 0,1,7")
     ap.add_argument("--seed-trajectories", type=int, default=400)
+    ap.add_argument("--edge-share", type=float, default=0.5)
     args = ap.parse_args()
     if args.seeds:
-        seed_spread([int(s) for s in args.seeds.split(",")], args.seed_trajectories)
+        seeds = [int(s) for s in args.seeds.split(",")]
+        seed_spread(seeds, args.seed_trajectories, args.edge_share)
         return
     print("| what | old path s | new path s | speed-up | max difference / peak | load |")
     print("|---|---|---|---|---|---|")
