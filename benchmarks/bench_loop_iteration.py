@@ -9,10 +9,15 @@ trajectory) plus ``learned_contact`` with a two-stage prior (knee 0.2 +-25 %, ra
 rate up to its own record (``row_samples``, :func:`stiffnet.simulator.numerical.
 recording_substeps`). Part 2 (``--loop``): one whole GBM loop iteration on the example
 manifest's eight points simulated with a two-stage user law, with its phases' seconds.
-Prints Markdown with the machine's load.
+Part 3 (``--seeds``): how much the retrained model's campaign accuracy hangs on the
+dataset's seed. The loop test's iteration (``--operating-points``, the law as discovered,
+its prior inside the discovery's intervals) is run once; its dataset and GBM are then
+drawn again at each seed, without and with a share of trajectories near the class edges
+(``--edge-share``, :func:`stiffnet.measurement.operating_points.edge_configs`); each row lists the
+recordings classed wrong with their β read. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
-        --trajectories 48 [--loop 120]
+        --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
 """
 
 from __future__ import annotations
@@ -139,11 +144,65 @@ def loop_iteration(n: int) -> None:
           f"{cpu:.0f} s CPU (one process)")  # fmt: skip
 
 
+def _retrained(camp, cfg, work: Path, edge_share: float) -> tuple[dict, float, float]:
+    """The iteration's dataset at the campaign's points and its GBM, at ``cfg``'s seed."""
+    from stiffnet.measurement import operating_points as ops
+    from stiffnet.measurement.compare import config_effects
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.loop import _train_config
+    from training.train import train
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    ops.operating_point_dataset(cfg, camp.rows, work / "data", edge_share=edge_share)
+    model = train(work / "data", _train_config("gbm", None), work / "model", progress=None)
+    ev = evaluate_campaign(camp, model["paths"]["onnx"], config_effects(cfg), require_beta=False)
+    return ev, time.perf_counter() - t0, time.process_time() - c0
+
+
+def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
+    import unknown_contact_laws as laws
+    from test_learned_law_diagnose import batch_campaign
+
+    from stiffnet.measurement.loop import run_loop
+
+    print("\n| dataset seed | near-edge share | accuracy | beta MAPE | wrong (beta: read) "
+          "| wall s | CPU s | load |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = batch_campaign(Path(tmp) / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+        d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+        d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])  # the loop test's settings
+        d["solver"].update(settle_tolerance=0.05, min_transient_periods=10, substeps=4)
+        d["windows"]["per_trajectory"] = 2
+        run_loop(camp, SimulationConfig.model_validate(d), Path(tmp) / "state", iterations=1,
+                 family="gbm", n_trajectories=50, tracking_uri=None,
+                 candidates=["contact_damping"], world="operating_points")  # fmt: skip
+        law = load_config(SimulationConfig, Path(tmp) / "state" / "iter-001" / "config.yaml")
+        for seed in seeds:
+            for share in (0.0, edge_share):
+                cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
+                work = Path(tmp) / f"seed{seed}-{share}"
+                ev, wall, cpu = _retrained(camp, cfg, work, share)
+                m = ev["metrics"]["learned"]
+                bad = [r for r in ev["recordings"] if r["class"] != r["true_class"]]
+                wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f}" for r in bad)
+                print(f"| {seed} | {share} | {m['accuracy']:.3f} | {m['beta_mape']:.3f} | "
+                      f"{wrong or '-'} | {wall:.0f} | {cpu:.0f} | {os.getloadavg()[0]:.1f} |",
+                      flush=True)  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--trajectories", type=int, default=48)
     ap.add_argument("--loop", type=int, default=0, help="one GBM loop iteration, N trajectories")
+    ap.add_argument("--seeds", default="", help="dataset seeds of part 3, e.g. 0,1,7")
+    ap.add_argument("--seed-trajectories", type=int, default=400)
+    ap.add_argument("--edge-share", type=float, default=0.5)
     args = ap.parse_args()
+    if args.seeds:
+        seeds = [int(s) for s in args.seeds.split(",")]
+        seed_spread(seeds, args.seed_trajectories, args.edge_share)
+        return
     print("| what | old path s | new path s | speed-up | max difference / peak | load |")
     print("|---|---|---|---|---|---|")
     campaign_ratio()

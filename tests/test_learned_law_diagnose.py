@@ -29,10 +29,14 @@ from stiffnet.measurement.learned_law import (
     should_propose,
     with_learned_law,
 )
-from stiffnet.measurement.loop import run_loop
+from stiffnet.measurement.loop import MIN_TRAJECTORIES, run_loop
 from stiffnet.shipped import default_config
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
+
+#: Trajectories of the retrained model's dataset at the eight operating points: at 400 the
+#: test's seed reads 8/8 (MAPE 0.085); other dataset seeds gave 7/8 (docs/measurement_loop.md).
+RETRAIN_TRAJECTORIES = 400
 
 
 def batch_campaign(folder, effects, noise=0.02, duration_s=3.0, seed=0):
@@ -134,29 +138,40 @@ def test_loop_adds_a_law_with_its_own_face_in_place_of_the_library_restraint():
     assert "restraint_mass" in replaced_by(out)
 
 
-@pytest.mark.slow
-def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
-    camp = batch_campaign(tmp_path / "two", [laws.TwoStageContact(knee=0.2, ratio=3.0)])
+def loop_start() -> SimulationConfig:
+    """The ideal world at a bounded cost: the numerical engine runs every learned law."""
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
-    d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])  # bounded cost: the numerical engine
+    d["sweep"].update(fs_ratio=[60, 120], noise=[0.0, 0.05])
     d["solver"].update(settle_tolerance=0.05, min_transient_periods=10, substeps=4)
     d["windows"]["per_trajectory"] = 2
-    # trained at the campaign's operating points, the law's prior inside its discovered
-    # intervals (docs/measurement_loop.md, "Training at the campaign's operating points")
-    res = run_loop(camp, SimulationConfig.model_validate(d), tmp_path / "state", iterations=1,
-                   family="gbm", n_trajectories=400, tracking_uri=None,
+    return SimulationConfig.model_validate(d)
+
+
+@pytest.fixture(scope="module")
+def two_stage_loop(two_stage, tmp_path_factory):
+    """One loop iteration on the two-stage campaign, trained at its operating points with
+    the law's prior inside its discovered intervals (docs/measurement_loop.md, "Training at
+    the campaign's operating points"). Its datasets have the fewest trajectories: the
+    diagnosis, the law and the discrepancy do not depend on them, and the retrained
+    model's accuracy is scored at a useful size below."""
+    state = tmp_path_factory.mktemp("loop") / "state"
+    res = run_loop(two_stage, loop_start(), state, iterations=1, family="gbm",
+                   n_trajectories=MIN_TRAJECTORIES, tracking_uri=None,
                    candidates=["contact_damping"], world="operating_points")  # fmt: skip
+    return res, state
+
+
+@pytest.mark.slow
+def test_loop_with_the_learned_law_cuts_the_discrepancy(two_stage, two_stage_loop):
+    res, state = two_stage_loop
     first, second = res["iterations"]
     assert second["label"] == "+learned_contact"
     assert second["metrics"]["discrepancy"] <= 0.5 * first["metrics"]["discrepancy"]
-    # the retrained model reads the campaign: the issue's targets
-    assert second["metrics"]["accuracy"] >= 0.9, second["recordings"]
-    assert second["metrics"]["beta_mape"] <= 0.15, second["recordings"]
     # the law's beta (the first stage's slope) is the manifest's: every recording in its class
-    diag = json.loads((tmp_path / "state" / "iter-001" / "diagnosis.json").read_text())
+    diag = json.loads((state / "iter-001" / "diagnosis.json").read_text())
     law = diag["learned_law"]["law"]
     assert law["beta_reference"] == "median peak penetration"  # a linear leading term
-    truth = {r.recording: r.beta for r in camp.rows}
+    truth = {r.recording: r.beta for r in two_stage.rows}
     rec = law["per_recording"]
     read = beta_class([p["beta"] for p in rec])
     given = beta_class([truth[p["recording"]] for p in rec])
@@ -165,6 +180,30 @@ def test_loop_with_the_learned_law_cuts_the_discrepancy(tmp_path):
     (spec,) = cfg.effects
     knee = spec.params["knee"]
     assert spec.name == "learned_contact" and isinstance(knee, list) and knee[0] < 0.2 < knee[1]
+
+
+@pytest.mark.slow
+def test_the_model_retrained_with_the_learned_law_reads_the_campaign(
+    two_stage, two_stage_loop, tmp_path
+):
+    """The iteration's training world (its config.yaml: the law's prior, the operating
+    points) at RETRAIN_TRAJECTORIES, trained and scored as the loop does: the issue's
+    targets, accuracy >= 0.9 and beta MAPE <= 0.15."""
+    from stiffnet.measurement.compare import config_effects
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.loop import _train, config_with_effects
+
+    res, _ = two_stage_loop
+    second = res["iterations"][1]
+    world = load_config(SimulationConfig, second["config"])
+    world = world.model_copy(update={"n_trajectories": RETRAIN_TRAJECTORIES})
+    trained = _train(world, tmp_path, "gbm", None, False, list(two_stage.rows))
+    fixed = config_with_effects(world, [(e["name"], e["params"]) for e in second["effects"]])
+    ev = evaluate_campaign(two_stage, trained["onnx"], config_effects(fixed), require_beta=False)
+    m = ev["metrics"]["learned"]
+    rows = [(r["beta"], r["beta_estimate"], r["class"]) for r in ev["recordings"]]
+    assert m["accuracy"] >= 0.9, rows
+    assert m["beta_mape"] <= 0.15, rows
 
 
 @pytest.mark.slow

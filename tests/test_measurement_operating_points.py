@@ -14,6 +14,9 @@ from stiffnet.config.sim import SimulationConfig
 from stiffnet.dataset.store import load_dataset
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.operating_points import (
+    EDGE_WIDTH,
+    class_edges,
+    edge_configs,
     operating_point_configs,
     operating_point_dataset,
     split_evenly,
@@ -41,7 +44,10 @@ def test_trajectories_are_split_evenly_over_the_points():
 
 def test_each_config_is_its_rows_point_with_the_sweeps_beta():
     rows = _rows()
-    cfgs = operating_point_configs(_cfg(20), rows, jitter=0.05)
+    assert operating_point_configs(_cfg(20), rows) == operating_point_configs(
+        _cfg(20), rows, edge_share=0.0
+    )  # no edge draws unless asked for
+    cfgs = operating_point_configs(_cfg(20), rows, jitter=0.05, edge_share=0.0)
     assert [c.n_trajectories for c in cfgs] == split_evenly(20, 8)
     assert {c.shard_size for c in cfgs} == {3}  # one shard size: trajectory numbers unique
     for c, r in zip(cfgs, rows, strict=True):
@@ -62,11 +68,41 @@ def test_bad_requests_are_one_line():
         operating_point_configs(_cfg(16), _rows(), jitter=1.5)
     with pytest.raises(StiffnetError, match="no operating points"):
         operating_point_configs(_cfg(16), [])
+    with pytest.raises(StiffnetError, match="near class edges must be in"):
+        operating_point_configs(_cfg(16), _rows(), edge_share=1.0)
+
+
+def test_a_share_of_each_point_is_drawn_near_the_class_edges():
+    rows = _rows()
+    cfg = _cfg(48)
+    assert class_edges(cfg) == [15.0, 35.0, 60.0]  # the shipped classes' inner edges
+    cfgs = operating_point_configs(cfg, rows, jitter=0.05, edge_share=0.5)
+    # per row: its point over the sweep (3 trajectories), then one config per edge (1 each)
+    assert [c.n_trajectories for c in cfgs] == [3, 1, 1, 1] * 8
+    assert {c.shard_size for c in cfgs} == {3}
+    for k in range(len(rows)):
+        main, *edges = cfgs[4 * k : 4 * k + 4]
+        assert main.sweep.beta == (5.0, 100.0)
+        for c, e in zip(edges, [15.0, 35.0, 60.0], strict=True):
+            # the row's point, beta in a band around the edge, as many either side
+            assert c.sweep.gap == main.sweep.gap and c.sweep.amplitude == main.sweep.amplitude
+            assert c.sweep.beta == pytest.approx((e / (1 + EDGE_WIDTH), e * (1 + EDGE_WIDTH)))
+            assert c.sweep.beta_sampling == "stratified"
+    # a band is clipped to the sweep; an edge outside the sweep gets none
+    d = cfg.model_dump(mode="json")
+    d["sweep"]["beta"] = [20.0, 65.0]
+    narrow = SimulationConfig.model_validate(d)
+    assert class_edges(narrow) == [35.0, 60.0]
+    assert [c.sweep.beta for c in edge_configs(narrow, 3)] == pytest.approx(
+        [(35 / 1.2, 42.0), (50.0, 65.0)]
+    )
+    assert [c.n_trajectories for c in edge_configs(narrow, 3)] == [2, 1]
+    assert edge_configs(narrow, 0) == []
 
 
 def test_dataset_draws_every_trajectory_at_its_rows_point(tmp_path):
     rows = _rows()[:4]
-    card = operating_point_dataset(_cfg(12), rows, tmp_path / "data", jitter=0.05)
+    card = operating_point_dataset(_cfg(12), rows, tmp_path / "data", jitter=0.05, edge_share=0)
     ds = load_dataset(tmp_path / "data")
     assert card["n_trajectories"] == 12 and len(card["shards"]) == 4
     assert [p["gap"] for p in card["operating_points"]["points"]] == [r.gap for r in rows]
@@ -86,3 +122,18 @@ def test_dataset_draws_every_trajectory_at_its_rows_point(tmp_path):
     assert sweep["gap"][0] < min(r.gap for r in rows) < max(r.gap for r in rows) < sweep["gap"][1]
     with pytest.raises(StiffnetError, match="not empty"):
         operating_point_dataset(_cfg(12), rows, tmp_path / "data")
+
+
+def test_edge_trajectories_straddle_the_edges_at_their_rows_point(tmp_path):
+    rows = _rows()[:2]
+    card = operating_point_dataset(_cfg(12), rows, tmp_path / "data", jitter=0.05, edge_share=0.5)
+    ds = load_dataset(tmp_path / "data")
+    ops = card["operating_points"]
+    assert ops["edge_share"] == 0.5 and ops["class_edges"] == [15.0, 35.0, 60.0]
+    assert len(card["shards"]) == 8 and len(np.unique(ds.column("trajectory"))) == 12
+    shard, beta, gap = ds.column("shard"), ds.column("beta"), ds.column("gap")
+    for k, r in enumerate(rows):
+        assert np.all(np.abs(gap[(shard >= 4 * k) & (shard < 4 * k + 4)] - r.gap) <= 0.05 * r.gap)
+        for j, e in enumerate([15.0, 35.0, 60.0]):
+            b = beta[shard == 4 * k + 1 + j]
+            assert len(b) and np.all((b >= e / 1.2) & (b <= e * 1.2)), (e, b)

@@ -245,13 +245,17 @@ def _train(
     """Generate the iteration's dataset (over ``cfg``'s sweep, or at the ``rows``'
     operating points) and train the family on it."""
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
-    from stiffnet.measurement.operating_points import operating_point_dataset
+    from stiffnet.measurement.operating_points import (
+        operating_point_configs,
+        operating_point_dataset,
+    )
     from training.train import train
 
     tcfg = _train_config(family, overrides)
     t0 = time.perf_counter()
     data = work / "data"
-    with progress_task("simulating shards", len(rows) if rows else len(shard_sizes(cfg))) as bar:
+    shards = len(operating_point_configs(cfg, rows)) if rows else len(shard_sizes(cfg))
+    with progress_task("simulating shards", shards) as bar:
         if rows:
             operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done))
         else:

@@ -16,6 +16,14 @@ each jittered by :data:`JITTER`), β over the whole sweep (every class at every 
 and the effects over their priors: the model learns the law at the amplitudes the
 campaign has. The model's inputs are unchanged, so the predictor reads it as any other;
 it is a model *of this campaign* and says so in its data card (``operating_points``).
+
+On request (``edge_share``) a share of each point's trajectories is drawn near the class
+edges (:func:`class_edges`, β within ±:data:`EDGE_WIDTH` of each, as many on either
+side): a campaign's recording a few per cent from an edge is classed by where the model
+puts that edge at that operating point, and a stratified sweep gives that place a handful
+of trajectories. The manifest's β is never read (it is the truth being scored). It is off
+by default: each edge is a shard of its own, and the numerical engine's small batches
+cost more than twice the dataset's CPU for a gain in accuracy not yet measured.
 Numbers: docs/measurement_loop.md, "Training at the campaign's operating points".
 """
 
@@ -33,6 +41,11 @@ from stiffnet.measurement.envelope import COLUMNS, campaign_envelope
 #: Relative jitter of each row's values (of the value itself; a zero gap stays zero), so
 #: the model does not learn one exact point and a manifest's small errors stay inside.
 JITTER = 0.05
+#: Share of each point's trajectories drawn near the class edges, the rest over the sweep
+#: (off by default: see the module's docstring).
+EDGE_SHARE = 0.0
+#: Relative half-width of the band around a class edge ``e``: β in ``[e / (1 + w), e (1 + w)]``.
+EDGE_WIDTH = 0.2
 
 
 def split_evenly(n: int, k: int) -> list[int]:
@@ -40,33 +53,71 @@ def split_evenly(n: int, k: int) -> list[int]:
     return [n // k + (i < n % k) for i in range(k)]
 
 
-def operating_point_configs(
-    cfg: SimulationConfig, rows: Sequence[Any], jitter: float = JITTER
-) -> list[SimulationConfig]:
-    """One config per manifest row: ``cfg`` with its sweep at the row's point, ±``jitter``.
+def class_edges(cfg: SimulationConfig) -> list[float]:
+    """The edges between ``cfg``'s consecutive classes that lie inside its β sweep."""
+    lo, hi = cfg.sweep.beta
+    return [c.beta[1] for c in cfg.classes[:-1] if lo < c.beta[1] < hi]
 
-    β, the classes, the effects and the windows are ``cfg``'s; each config's
-    ``n_trajectories`` is its share of ``cfg.n_trajectories`` (:func:`split_evenly`) and
-    all share one ``shard_size`` (the largest share), so that the trajectory numbers of
-    the shards never collide.
+
+def edge_configs(
+    point_cfg: SimulationConfig, n: int, width: float = EDGE_WIDTH
+) -> list[SimulationConfig]:
+    """``n`` trajectories of one point near its class edges: one config per edge (the first
+    ``n mod k`` one more), β stratified over ``[e / (1 + width), e (1 + width)]`` (clipped to
+    the sweep), so half fall on either side; an edge left without trajectories is dropped."""
+    edges = class_edges(point_cfg)
+    if n < 1 or not edges:
+        return []
+    lo, hi = point_cfg.sweep.beta
+    out = []
+    for e, k in zip(edges, split_evenly(n, len(edges)), strict=True):
+        if k < 1:
+            continue
+        sweep = point_cfg.sweep.model_copy(
+            update={
+                "beta": (max(lo, e / (1 + width)), min(hi, e * (1 + width))),
+                "beta_sampling": "stratified",
+            }  # fmt: skip
+        )
+        out.append(point_cfg.model_copy(update={"sweep": sweep, "n_trajectories": k}))
+    return out
+
+
+def operating_point_configs(
+    cfg: SimulationConfig,
+    rows: Sequence[Any],
+    jitter: float = JITTER,
+    edge_share: float = EDGE_SHARE,
+) -> list[SimulationConfig]:
+    """The configs of the rows' points: ``cfg`` with its sweep at each row's point, ±``jitter``.
+
+    β, the classes, the effects and the windows are ``cfg``'s. Each row's share of
+    ``cfg.n_trajectories`` (:func:`split_evenly`) is split: ``edge_share`` of it near the
+    class edges (:func:`edge_configs`, listed after the row's own config), the rest over
+    ``cfg``'s β sweep. All configs share one ``shard_size`` (the largest count), so that
+    the trajectory numbers of their shards never collide.
     """
     if not rows:
         raise StiffnetError("the campaign has no rows: no operating points to train at")
     if not 0.0 <= jitter < 1.0:
         raise StiffnetError(f"operating-point jitter must be in [0, 1), got {jitter}")
+    if not 0.0 <= edge_share < 1.0:
+        raise StiffnetError(f"share of trajectories near class edges must be in [0, 1), "
+                            f"got {edge_share}")  # fmt: skip
     sizes = split_evenly(cfg.n_trajectories, len(rows))
     if min(sizes) < 1:
         raise StiffnetError(
             f"{cfg.n_trajectories} trajectories cannot cover {len(rows)} operating points "
             "(at least one each)"
         )
-    size = max(sizes)
-    return [
-        campaign_envelope(cfg, [row], jitter).model_copy(
-            update={"n_trajectories": n, "shard_size": size}
-        )
-        for row, n in zip(rows, sizes, strict=True)
-    ]
+    configs = []
+    for row, n in zip(rows, sizes, strict=True):
+        point = campaign_envelope(cfg, [row], jitter)
+        n_edge = int(edge_share * n)
+        configs.append(point.model_copy(update={"n_trajectories": n - n_edge}))
+        configs.extend(edge_configs(point, n_edge))
+    size = max(c.n_trajectories for c in configs)
+    return [c.model_copy(update={"shard_size": size}) for c in configs]
 
 
 def operating_point(row: Any) -> dict[str, Any]:
@@ -80,15 +131,16 @@ def operating_point_dataset(
     rows: Sequence[Any],
     out: str | Path,
     jitter: float = JITTER,
+    edge_share: float = EDGE_SHARE,
     progress: Callable[[int, int], None] | None = None,
 ) -> dict[str, Any]:
     """Simulate ``cfg.n_trajectories`` trajectories at the rows' operating points into ``out``.
 
-    Shard ``i`` holds the trajectories of row ``i`` (:func:`operating_point_configs`),
-    each simulated and written as :func:`stiffnet.dataset.generate.generate_dataset`
-    does; the data card, written last, is that of the rows' envelope (the box around
-    every point, widened by ``jitter``) with the list of points under
-    ``operating_points``.
+    Each config of :func:`operating_point_configs` is one shard (a row's point over the
+    sweep, then its trajectories near the class edges), each simulated and written as
+    :func:`stiffnet.dataset.generate.generate_dataset` does; the data card, written last,
+    is that of the rows' envelope (the box around every point, widened by ``jitter``)
+    with the points and the edge draws under ``operating_points``.
 
     Parameters
     ----------
@@ -100,6 +152,8 @@ def operating_point_dataset(
         A new or empty folder.
     jitter : float
         Relative jitter of each row's values.
+    edge_share : float
+        Share of each point's trajectories drawn near the class edges.
     progress : callable, optional
         ``progress(done, total)`` in shards.
 
@@ -115,7 +169,7 @@ def operating_point_dataset(
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise StiffnetError(f"output folder {out} exists and is not empty")
-    configs = operating_point_configs(cfg, rows, jitter)
+    configs = operating_point_configs(cfg, rows, jitter, edge_share)
     t0 = time.perf_counter()
     records = []
     with output_lock(out):
@@ -127,6 +181,12 @@ def operating_point_dataset(
                 progress(i + 1, len(configs))
         box = campaign_envelope(cfg, rows, jitter)
         card = dataset_card(box, records, time.perf_counter() - t0)
-        card["operating_points"] = {"jitter": jitter, "points": [operating_point(r) for r in rows]}
+        card["operating_points"] = {
+            "jitter": jitter,
+            "edge_share": edge_share,
+            "edge_width": EDGE_WIDTH,
+            "class_edges": class_edges(cfg),
+            "points": [operating_point(r) for r in rows],
+        }
         write_card(out, card)
     return card
