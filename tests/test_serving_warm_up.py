@@ -154,7 +154,7 @@ def test_short_jobs_measure_the_slow_down_together():
     assert c.factor(104.0 + CONTENTION_FRESH_S) == pytest.approx(1.0)  # stale mean replaced
 
 
-def test_a_job_its_worker_takes_too_late_is_refused_before_any_work():
+def test_a_job_its_worker_takes_too_late_is_refused_before_any_work(monkeypatch):
     """At its start a job's wait is known: it runs only if that wait plus its cost on a
     free worker (CPU seconds per sample times the lane's slow-down) fits the budget."""
     limits = Limits(timeout_s=10.0)
@@ -172,9 +172,14 @@ def test_a_job_its_worker_takes_too_late_is_refused_before_any_work():
         assert admission._late_start("small", 1000, budget - 2.1, now) is None  # 2 s fits
         late = admission._late_start("small", 1000, budget - 1.9, now)
         assert late is not None and late.retry_after_s == math.ceil(2.0)
-        # the large lane has no slow-down of its own: it borrows the small lane's
+        # the large lane has no slow-down of its own: it is priced at the machine's load,
+        # never at the small lane's (patched: 1x, then 2x, whatever this machine's load)
         admission.cost["large"].cpu_s_per_sample = 1e-3
-        assert admission._late_start("large", 1000, budget - 1.9, now) is not None
+        monkeypatch.setattr("serving.app.machine_slow_down", lambda: 1.0)
+        assert admission._late_start("large", 1000, budget - 1.9, now) is None  # 1 s fits
+        monkeypatch.setattr("serving.app.machine_slow_down", lambda: 2.0)
+        late = admission._late_start("large", 1000, budget - 1.9, now)
+        assert late is not None and late.retry_after_s == 2
     finally:
         admission.shutdown()
 
