@@ -246,6 +246,17 @@ def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
     assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
 
 
+def _rig_law_shape(name: str, beta: float, ratio: float, noise: float, contact: dict):
+    """The predictor's restoring-force check on one 8 s independent-rig recording (seed 7,
+    forcing ``ratio`` f_n): the check and its law shape."""
+    run = RigRun(recording=name, beta=beta, forcing_frequency_hz=9.48 * ratio, noise=noise,
+                 duration_s=8.0, **contact)  # fmt: skip
+    _, accel = record(run, seed=7)
+    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
+    assert restoring_force["law_shape"] is not None, restoring_force["reason"]
+    return restoring_force, restoring_force["law_shape"]
+
+
 @pytest.mark.parametrize(
     "name, contact, fires",
     [
@@ -259,12 +270,7 @@ def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
 def test_the_independent_rigs_stiffening_law_is_read_within_its_impacts(name, contact, fires):
     """One independent-rig recording (tests/independent_rig.py, SI units, solve_ivp) of the
     benchmark's draw (docs/crosscheck.md): beta 15.3, forcing 1.082 f_n, 2 % noise."""
-    run = RigRun(recording=name, beta=15.28895, forcing_frequency_hz=9.48 * 1.08205,
-                 noise=0.0201958, duration_s=8.0, **contact)  # fmt: skip
-    _, accel = record(run, seed=7)
-    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
-    shape = restoring_force["law_shape"]
-    assert shape is not None, restoring_force["reason"]
+    restoring_force, shape = _rig_law_shape(name, 15.28895, 1.08205, 0.0201958, contact)
     reasons = law_shape_reasons(shape, unseen_law_thresholds())
     assert bool(reasons) is fires, shape
     assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
@@ -347,12 +353,7 @@ def test_the_independent_rigs_two_stage_restraint_reads_a_depth_dependent_stiffn
 ):
     """Independent-rig recordings (tests/independent_rig.py) of draw 2 of the benchmark
     (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz): beta 16.7, forcing 0.992 f_n."""
-    run = RigRun(recording=name, beta=16.65802, forcing_frequency_hz=9.48 * 0.99176,
-                 noise=0.01510, duration_s=8.0, **contact)  # fmt: skip
-    _, accel = record(run, seed=7)
-    restoring_force = restoring_force_check(accel, run.fs_hz, run.natural_frequency_hz)
-    shape = restoring_force["law_shape"]
-    assert shape is not None, restoring_force["reason"]
+    _, shape = _rig_law_shape(name, 16.65802, 0.99176, 0.01510, contact)
     reasons = stage_reasons(shape, unseen_law_thresholds())
     assert bool(reasons) is fires, shape
     if fires:
