@@ -101,7 +101,10 @@ def test_plugin_after_the_command_says_where_it_goes():
     assert res.exit_code == 2 and "stiffnet --plugin FILE.py COMMAND" in res.stderr
 
 
-def test_version_and_completion():
+def test_version_and_completion(monkeypatch):
+    # Typer asks the parent process which shell it is unless told not to; pytest run
+    # detached from any shell (a background job, some CI runners) has none to find.
+    monkeypatch.setenv("_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION", "1")
     res = runner.invoke(app, ["--version"])
     assert res.exit_code == 0 and res.stdout.strip() == f"stiffnet {__version__}"
     res = runner.invoke(app, ["--show-completion", "bash"], prog_name="stiffnet")
