@@ -22,6 +22,7 @@ from stiffnet.effects.base import (
     param,
 )
 from stiffnet.effects.forcing_harmonics import ForcingHarmonics
+from stiffnet.effects.learned_contact import elastic_shape
 
 
 class ConstantPreload(DynamicsEffect):
@@ -58,20 +59,24 @@ class Gain(MeasurementEffect):
 
 
 class StiffeningContact(DynamicsEffect):
-    """A two-stage restraint (a contact law the library lacks): the spring ``beta`` until the
-    penetration reaches ``knee``, then ``ratio`` times stiffer (a beam that bottoms out on a
-    stop). Elastic, so it needs the numerical engine."""
+    """A two-stage restraint (a contact law the diagnosed library lacks): the spring ``beta``
+    until the penetration reaches ``knee``, then ``ratio`` times stiffer (a beam that bottoms
+    out on a stop). Elastic, so it needs the numerical engine.
+
+    The law is the library's one two-stage shape
+    (:func:`stiffnet.effects.learned_contact.elastic_shape` with a linear first stage), as a
+    user effect of two parameters: the diagnosis does not search ``learned_contact``."""
 
     name = "stiffening_contact"
 
     class Params(EffectParams):
-        knee: ParamValue = param(0.05, 1e-3, 1.0, "penetration of the second stage", "model")
+        knee: ParamValue = param(0.05, 1e-3, 1.0, "penetration of the second stage", "model length")
         ratio: ParamValue = param(4.0, 1.0, 20.0, "stiffness of the second stage over beta")
 
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
-        beta = np.asarray(batch.beta, float)
-        knee, ratio = p["knee"], p["ratio"]
-        return beta * (delta + (ratio - 1.0) * np.maximum(delta - knee, 0.0))
+        law = {"exponent": 1.0, "reference_penetration": 1.0, "preload": 0.0,
+               "knee": p["knee"], "knee_ratio": p["ratio"]}  # fmt: skip
+        return np.asarray(batch.beta, float) * elastic_shape(delta, law)
 
 
 class PhasedHarmonics(ForcingHarmonics):

@@ -277,7 +277,11 @@ def diagnose(
             scheduler=scheduler,
             workers=workers,
         )
-    # the result is saved before anything is printed: a display problem never loses it
+    from stiffnet.measurement.report_units import with_physical_units
+
+    # the fitted values in the manifest's units beside the model's (one conversion for the
+    # table, the JSON and the report); saved before anything is printed
+    res = with_physical_units(res, camp.rows)
     write_json(json_path, res)
     out.print(diagnosis_table(res, f"diagnosis of {campaign}"))
     if res.get("per_recording"):
@@ -291,9 +295,18 @@ def _number(v: Any) -> str:
 
 
 def fitted_values(entry: dict[str, Any]) -> str:
-    """``k=v`` for the parameters a ranking entry fitted (those it has; never a KeyError)."""
+    """``k=v unit`` for the parameters a ranking entry fitted (those it has; never a KeyError):
+    in the campaign's units where :func:`~stiffnet.measurement.report_units.with_physical_units`
+    gave them, the model's value beside them."""
+    from stiffnet.measurement.report_units import reading_of
+
     params = entry.get("params") or {}
-    return ", ".join(f"{k}={_number(params[k])}" for k in entry.get("fitted") or [] if k in params)
+    said = entry.get("params_physical") or {}
+    return ", ".join(
+        f"{k}={reading_of(said[k]) if isinstance(said.get(k), dict) else _number(params[k])}"
+        for k in entry.get("fitted") or []
+        if k in params
+    )
 
 
 def diagnosis_table(res: dict[str, Any], title: str) -> Any:
@@ -353,6 +366,12 @@ def diagnosis_lines(res: dict[str, Any]) -> list[str]:
         if isinstance(explained, int | float)
         else f"verdict: {res['verdict']}: {res.get('summary', '')}"
     ]
+    from stiffnet.measurement.report_units import nuisance_lines
+
+    units = res.get("units")
+    if isinstance(units, dict) and units.get("said"):  # how the fitted values above read
+        lines.append(str(units["said"]))
+    lines += nuisance_lines(res)
     evidence = res.get("restoring_force") or {}
     if evidence.get("summary"):
         lines.append(str(evidence["summary"]))
@@ -575,6 +594,10 @@ def report(
             bar.advance(note="diagnose")
             diag = diagnose_campaign(camp, effects)
         bar.advance()
+    if diag is not None:  # its values in this campaign's units (docs/campaign.md)
+        from stiffnet.measurement.report_units import with_physical_units
+
+        diag = with_physical_units(diag, camp.rows)
     read = DEFAULT_SIM_CONFIG if DEFAULT_SIM_CONFIG.is_file() else None
     prov = report_provenance(
         camp, out_path, model, config, diagnosis, loop_json, run_diagnose, json_path, read

@@ -52,7 +52,11 @@ class DryFriction(DynamicsEffect):
 
     class Params(EffectParams):
         coefficient: ParamValue = param(
-            0.05, 0.0, 10.0, "kinetic friction force (model force units, cf. a w^2)", ""
+            0.05,
+            0.0,
+            10.0,
+            "kinetic friction force (model force units, cf. a w^2)",
+            "model acceleration",
         )
         static_ratio: ParamValue = param(
             1.2, 1.0, 5.0, "static over kinetic friction force (breakaway level)", ""

@@ -44,7 +44,11 @@ class GapDrift(DynamicsEffect):
             0.2, 0.0, 2.0, "amplitude of the gap variation", "model length"
         )
         period: ParamValue = param(
-            200.0, 10.0, 1e5, "drift period in natural periods (2 pi model time)"
+            200.0,
+            10.0,
+            1e5,
+            "drift period in natural periods (2 pi model time)",
+            "natural periods",
         )
         phase: ParamValue = param(0.0, -np.pi, np.pi, "phase of the drift at t = 0", "rad")
 

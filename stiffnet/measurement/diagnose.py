@@ -189,7 +189,9 @@ def diagnose_campaign(
         evidence and ``reasons``), ``missing_effects`` (selected, in order),
         ``missing_effect`` (the first or None), ``selection`` (the steps),
         ``residual_discrepancy``, ``explained_fraction``, ``verdict``,
-        ``unexplained_where``, ``summary``, ``nuisances``, ``settings``, ``seconds``.
+        ``unexplained_where``, ``summary``, ``nuisances`` (per recording, profiled with the
+        selected effects, named in its ``profiled_with``), ``nuisances_effect_free`` (profiled
+        with no effect: the baseline's), ``settings``, ``seconds``.
     """
     from stiffnet.distributed.cluster import check_target
     from stiffnet.inputs import bounded_count
@@ -297,10 +299,15 @@ def _diagnose(
     """The body of :func:`diagnose_campaign` (``client``: Dask client or None, in-process;
     ``options``: ``budget``, ``budget_numerical``, ``seed``, ``inclination``, ``model_path``)."""
     run, nuisances, baseline = _prepare(campaign, list(base_effects), options, client, bar)
+    # the baseline's nuisances (no effect) stay in the result beside the final model's
+    effect_free = {**nuisances, "profiled_with": []}
     entries, searched = _fit_alone(run, candidates, baseline)
     bar.end_of(1, "selection")
     kept, kept_params, steps, nuisances = _select(run, searched, entries, baseline, nuisances)
-    return _conclude(run, kept, kept_params, entries, steps, baseline, nuisances, options, t0)
+    res = _conclude(run, kept, kept_params, entries, steps, baseline, nuisances, options, t0)
+    res["nuisances"] = {**nuisances, "profiled_with": list(kept)}
+    res["nuisances_effect_free"] = effect_free
+    return res
 
 
 def _prepare(

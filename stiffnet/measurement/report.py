@@ -29,6 +29,7 @@ from typing import Any
 
 from stiffnet.io_utils import write_bytes_atomic
 from stiffnet.measurement.report_figures import comparison_figures, loop_alt, ranking_alt
+from stiffnet.measurement.report_units import nuisance_lines, reading_of
 from stiffnet.measurement.report_words import (
     Units,
     check_sentences,
@@ -443,16 +444,16 @@ def diagnose_section(diagnosis: dict[str, Any], t: Path) -> list[str]:
     if evidence:
         parts.append(f"<p>{html.escape(str(evidence))}.</p>")
     ranking = [
-        {**r,
-         "params": {k: v for k, v in r.get("params", {}).items()
-                    if k in (r.get("fitted") or r.get("params", {}))},
-         "why not": "; ".join(r.get("reasons", []))}
+        {**r, "params": _fitted_text(r), "why not": "; ".join(r.get("reasons", []))}
         for r in diagnosis["ranking"]
-    ]  # fmt: skip
+    ]
     cols = ["effect", "selected", "params", "discrepancy_reduction", "excess_reduction",
             "bootstrap_positive", "leave_one_out_excess_reduction", "bic_delta",
             "why not"]  # fmt: skip
     parts.append(_table(ranking, cols, lambda r: "sig" if r.get("selected") is True else ""))
+    said = (diagnosis.get("units") or {}).get("said")
+    if said:
+        parts.append(f"<p class='note'>{html.escape(str(said))}.</p>")
     parts.append(_img(plots.ranking_figure(diagnosis, t / "ranking.png"), ranking_alt(diagnosis)))
     if diagnosis.get("per_recording"):
         parts.append("<h3>Per recording: the final model against its own floor</h3>")
@@ -460,8 +461,47 @@ def diagnose_section(diagnosis: dict[str, Any], t: Path) -> list[str]:
                 "non_repeatable", "measured_orbit", "simulated_orbit",
                 "starts_on_measured_orbit", "distinct_orbits", "note"]  # fmt: skip
         parts.append(_table(diagnosis["per_recording"], cols))
+    parts += nuisances_section(diagnosis)
     parts += learned_law_html(diagnosis.get("learned_law"), t / "law.png")
     return parts
+
+
+def _fitted_text(entry: dict[str, Any]) -> str:
+    """A ranking entry's fitted parameters, ``k=v unit``: in the campaign's units where
+    :func:`~stiffnet.measurement.report_units.with_physical_units` gave them."""
+    params = entry.get("params") or {}
+    said = entry.get("params_physical") or {}
+    names = [k for k in (entry.get("fitted") or params) if k in params]
+    return ", ".join(
+        f"{k}={reading_of(said[k]) if isinstance(said.get(k), dict) else _fmt(params[k])}"
+        for k in names
+    )
+
+
+def nuisances_section(diagnosis: dict[str, Any]) -> list[str]:
+    """The profiled nuisances per recording, in the campaign's units: with the final model's
+    effects and, when an effect was selected, with none (the baseline's)."""
+    lines = nuisance_lines(diagnosis)
+    names = diagnosis.get("recordings") or []
+    selected = ", ".join(map(str, (diagnosis.get("nuisances") or {}).get("profiled_with") or []))
+    rows = []
+    for key, label in (("nuisances", selected or "no effect"),
+                       ("nuisances_effect_free", "no effect")):  # fmt: skip
+        said = diagnosis.get(f"{key}_physical")
+        if not isinstance(said, dict) or (key != "nuisances" and not selected):
+            continue  # nothing selected: the final model's nuisances are the baseline's
+        for i, name in enumerate(names):
+            rows.append({"recording": name, "profiled with": label,
+                         **{k: reading_of(v[i]) if i < len(v) else "–"
+                            for k, v in said.items() if isinstance(v, list)}})  # fmt: skip
+    if not rows:
+        return []
+    cols = list(dict.fromkeys(k for r in rows for k in r))
+    return [
+        "<h3>Nuisances: what diagnose fitted besides the effects</h3>",
+        "".join(f"<p class='note'>{html.escape(line)}.</p>" for line in lines),
+        _table(rows, cols),
+    ]
 
 
 def _evidence(diagnosis: dict[str, Any]) -> dict[str, Any]:
