@@ -207,3 +207,58 @@ def test_stiffening_contact_is_the_two_stage_law():
     expected = 20.0 * (delta + 5.0 * np.maximum(delta - 0.02, 0.0))
     assert force == pytest.approx(expected, abs=1e-12)
     assert force[-1] == pytest.approx(20.0 * (0.05 + 5 * 0.03))
+
+
+@pytest.mark.slow  # a real diagnosis: 5 recordings x 3 s, one candidate (~10 s of CPU)
+def test_a_real_diagnosis_in_mm_and_hz_with_both_nuisance_profiles(tmp_path):
+    """Contact damping hidden in a campaign written in mm and Hz with tolerances: the JSON's
+    nuisances say what they were profiled with, and every value reads in the manifest's
+    units as the model value times its scale."""
+    from stiffnet.campaign import simulate_campaign, write_manifest
+
+    plan = [ManifestRow(recording=f"recordings/r{i}.csv", fs_hz=1000, natural_frequency_hz=F_N,
+                        frequency_ratio=w, amplitude=a, gap=e, damping_ratio=0.02, beta=b,
+                        duration_s=3, noise=0.02)
+            for i, (w, a, e, b) in enumerate([(1.05, 1.9, 2.8, 8), (1.0, 1.2, 1.2, 14),
+                                               (1.1, 1.9, 2.0, 22), (0.98, 1.5, 1.6, 30),
+                                               (1.02, 1.5, 1.0, 45)])]  # fmt: skip
+    write_manifest(tmp_path / "plan.csv", plan)
+    model = simulate_campaign(tmp_path / "plan.csv", tmp_path / "model",
+                              ["contact_damping:damping_ratio=0.25"], seed=0)  # fmt: skip
+    lab = tmp_path / "lab"
+    (lab / "recordings").mkdir(parents=True)
+    for r in plan:
+        (lab / r.recording).write_bytes((model / r.recording).read_bytes())
+    write_manifest(lab / "manifest.csv", [
+        ManifestRow(recording=r.recording, fs_hz=1000, natural_frequency_hz=F_N,
+                    forcing_frequency_hz=r.frequency_ratio * F_N, forcing_frequency_hz_tol=0.3,
+                    base_displacement_mm=r.amplitude, gap_mm=r.gap, gap_mm_tol=0.1 * r.gap,
+                    damping_ratio=0.02, beta=r.beta)
+        for r in plan
+    ])  # fmt: skip
+    out = tmp_path / "d.json"
+    res = CliRunner().invoke(app, ["diagnose", str(lab), "--only", "contact_damping",
+                                   "--no-inclination", "--json", str(out)],
+                             env={"COLUMNS": "200"})  # fmt: skip
+    assert res.exit_code == 0, res.output
+    d = json.loads(out.read_text())
+    assert d["missing_effects"] == ["contact_damping"]
+    assert d["nuisances"]["profiled_with"] == ["contact_damping"]
+    assert d["nuisances_effect_free"]["profiled_with"] == []
+    assert d["units"]["natural_frequency_hz"] == F_N and d["units"]["length_unit"] == "mm"
+    for key in ("nuisances", "nuisances_effect_free"):
+        gaps, said = d[key]["gap"], d[f"{key}_physical"]["gap"]
+        assert [g["unit"] for g in said] == ["mm"] * 5
+        assert [g["value"] for g in said] == pytest.approx(gaps)  # the model's unit is 1 mm
+        assert all(abs(g - r.gap) <= 0.1 * r.gap + 1e-9 for g, r in zip(gaps, plan, strict=True))
+    freq = d["nuisances_physical"]["frequency_ratio"]
+    ratios = d["nuisances"]["frequency_ratio"]
+    assert [f["value"] for f in freq] == pytest.approx([w * F_N for w in ratios])
+    assert [f["value"] for f in freq] == pytest.approx([r.frequency_ratio * F_N for r in plan],
+                                                       abs=0.3)  # fmt: skip
+    damping = d["ranking"][0]["params_physical"]["damping_ratio"]
+    assert damping["unit"] == "dimensionless"
+    assert damping["value"] == d["fitted_params"]["contact_damping"]["damping_ratio"]
+    text = " ".join(res.output.split())
+    assert "nuisances profiled with contact_damping (the final model)" in text
+    assert "Hz (model" in text and " mm" in text
