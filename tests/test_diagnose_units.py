@@ -262,3 +262,24 @@ def test_a_real_diagnosis_in_mm_and_hz_with_both_nuisance_profiles(tmp_path):
     text = " ".join(res.output.split())
     assert "nuisances profiled with contact_damping (the final model)" in text
     assert "Hz (model" in text and " mm" in text
+
+
+def test_operating_points_in_hz_and_mm_only_where_the_manifest_gives_the_scale():
+    """The report's operating points: a ratio without f_n stays a ratio (never times the
+    paper's 9.48 Hz in silence), a forcing given in Hz reads back exactly, lengths are in mm
+    only when the manifest gives one in mm or g."""
+    from stiffnet.measurement.report_words import Units
+
+    row = {"recording": "a.csv", "frequency_ratio": 1.05, "gap": 2.0, "amplitude": 1.5}
+    ratio_mm = [ManifestRow(recording="a.csv", fs_hz=1000, frequency_ratio=1.05,
+                            base_displacement_mm=1.5, gap_mm=2.0)]  # fmt: skip
+    u = Units.of(ratio_mm)
+    assert u.operating_point(row) == {"gap [mm]": 2.0, "forcing f/f_n": 1.05,
+                                      "base displacement amplitude [mm]": 1.5}  # fmt: skip
+    hz_model = [ManifestRow(recording="a.csv", fs_hz=1000, forcing_frequency_hz=9.954,
+                            amplitude=1.5, gap=2.0)]  # fmt: skip
+    u = Units.of(hz_model)
+    ratio = hz_model[0].frequency_ratio  # 9.954 / 9.48, as the manifest reader made it
+    point = u.operating_point({**row, "frequency_ratio": ratio})
+    assert point["forcing frequency [Hz]"] == pytest.approx(9.954, rel=1e-12)
+    assert point["gap [model length]"] == 2.0 and "base amplitude [model length]" in point

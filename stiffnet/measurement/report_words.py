@@ -208,50 +208,76 @@ PHYSICAL_COLUMNS = (
 class Units:
     """How the report writes a campaign's operating points (gap, forcing, amplitude).
 
-    A physical-unit manifest (any of :data:`PHYSICAL_COLUMNS`) reads in mm and Hz:
-    the model's length unit is 1 mm (:data:`stiffnet.campaign.manifest.MODEL_LENGTH_MM`)
-    and the forcing frequency is ``frequency_ratio * f_n``. Otherwise the model's own
-    units (paper eqs 11-12): lengths in the model's length unit, frequency as ``f/f_n``.
+    A physical-unit manifest (any of :data:`PHYSICAL_COLUMNS`) reads in mm and Hz where it
+    gives the scale: lengths in mm when every row has a length in mm or g (the model's
+    length unit is then 1 mm, :data:`stiffnet.campaign.manifest.MODEL_LENGTH_MM`), the
+    forcing frequency ``frequency_ratio * f_n`` in Hz when every row gives
+    ``natural_frequency_hz`` or ``forcing_frequency_hz``. Otherwise the model's own units
+    (paper eqs 11-12): lengths in the model's length unit, frequency as ``f/f_n``. The
+    values go through :func:`stiffnet.measurement.report_units.physical_reading`.
     """
 
     physical: bool = False
-    #: f_n (Hz) per recording name.
+    #: f_n (Hz) per recording name, for the rows whose forcing is known in Hz.
     natural_frequency_hz: dict[str, float] = field(default_factory=dict)
+    #: Lengths in mm (None: as ``physical``, for callers that give only that).
+    length_mm: bool | None = None
+    #: Every row's forcing is known in Hz (None: as ``physical``).
+    forcing_hz: bool | None = None
 
     @classmethod
     def of(cls, rows: Sequence[Any]) -> Units:
         """From a campaign's manifest rows."""
         from stiffnet.campaign.simulate import natural_frequency
+        from stiffnet.measurement.report_units import Scale
 
         physical = any(getattr(r, c, None) is not None for r in rows for c in PHYSICAL_COLUMNS)
-        return cls(physical, {r.recording: natural_frequency(r) for r in rows})
+        # a forcing given in Hz became its ratio to f_n (the paper's 9.48 Hz when the manifest
+        # gives none): back in Hz it is exact; a ratio without f_n has no Hz
+        given = ("natural_frequency_hz", "forcing_frequency_hz")
+        known = {
+            r.recording: natural_frequency(r)
+            for r in rows
+            if any(getattr(r, c, None) is not None for c in given)
+        }
+        hz = physical and bool(rows) and len(known) == len(rows)
+        return cls(physical, known, physical and Scale.of(rows).length_mm, hz)
+
+    @property
+    def lengths_mm(self) -> bool:
+        return self.physical if self.length_mm is None else self.length_mm
+
+    @property
+    def hz(self) -> bool:
+        return self.physical if self.forcing_hz is None else self.forcing_hz
 
     @property
     def length(self) -> str:
-        return "mm" if self.physical else "model length"
+        return "mm" if self.lengths_mm else "model length"
 
     def headers(self) -> dict[str, str]:
         """Column headers of the operating point, with their units."""
-        if self.physical:
-            return {"gap": "gap [mm]", "forcing": "forcing frequency [Hz]",
-                    "amplitude": "base displacement amplitude [mm]"}  # fmt: skip
-        return {"gap": "gap [model length]", "forcing": "forcing f/f_n",
-                "amplitude": "base amplitude [model length]"}  # fmt: skip
+        return {"gap": f"gap [{self.length}]",
+                "forcing": "forcing frequency [Hz]" if self.hz else "forcing f/f_n",
+                "amplitude": "base displacement amplitude [mm]" if self.lengths_mm
+                else "base amplitude [model length]"}  # fmt: skip
 
     def operating_point(self, row: dict[str, Any]) -> dict[str, Any]:
         """One evaluated recording's gap, forcing and amplitude under :meth:`headers`."""
-        from stiffnet.campaign.manifest import MODEL_LENGTH_MM
+        from stiffnet.measurement.report_units import Scale, physical_reading
 
         h = self.headers()
         ratio, f_n = row.get("frequency_ratio"), self.natural_frequency_hz.get(row["recording"])
-        scale = MODEL_LENGTH_MM if self.physical else 1.0
-        forcing = ratio
-        if self.physical:
-            forcing = None if ratio is None or f_n is None else ratio * f_n
+        scale = Scale(f_n if self.hz else None, self.lengths_mm)
+
+        def read(v: Any, unit: str) -> float | None:
+            return None if v is None else physical_reading(v, unit, scale).value
+
+        forcing = None if self.hz and f_n is None else read(ratio, "f/f_n")
         return {
-            h["gap"]: None if row.get("gap") is None else row["gap"] * scale,
+            h["gap"]: read(row.get("gap"), "model length"),
             h["forcing"]: forcing,
-            h["amplitude"]: None if row.get("amplitude") is None else row["amplitude"] * scale,
+            h["amplitude"]: read(row.get("amplitude"), "model length"),
         }
 
     def slice_label(self, name: str, group: str, members: Sequence[dict[str, Any]]) -> str:
@@ -260,7 +286,7 @@ class Units:
             what = self.headers()[name]
             return f"{what} in {group}"
         if name == "frequency_ratio":
-            if not self.physical:
+            if not self.hz:
                 return f"forcing f/f_n in {group}"
             hz = [
                 r["frequency_ratio"] * self.natural_frequency_hz[r["recording"]]
