@@ -283,3 +283,14 @@ def test_operating_points_in_hz_and_mm_only_where_the_manifest_gives_the_scale()
     point = u.operating_point({**row, "frequency_ratio": ratio})
     assert point["forcing frequency [Hz]"] == pytest.approx(9.954, rel=1e-12)
     assert point["gap [model length]"] == 2.0 and "base amplitude [model length]" in point
+
+
+def test_the_field_report_says_which_model_its_diagnose_beta_was_profiled_with():
+    from stiffnet.measurement.report import field_section
+
+    ev = {"model": {"name": "m"}, "recordings": [{"recording": "a.csv", "beta": None}]}
+    nuis = {"beta": [46.0], "profiled_with": ["contact_damping"]}
+    page = "".join(field_section(ev, {"nuisances": nuis}))
+    assert "profiled with the base model with contact_damping" in page
+    page = "".join(field_section(ev, {"nuisances": {**nuis, "profiled_with": []}}))
+    assert "profiled with the base model (the diagnosis' final model)" in page

@@ -243,6 +243,11 @@ def field_section(
         _table(table, list(table[0]) if table else ["recording"],
                lambda r: "" if r["why they differ"].startswith("the readings agree") else "bad"),
     ]  # fmt: skip
+    with_ = nuis.get("profiled_with")
+    if dbeta is not None and isinstance(with_, list):  # which model's nuisance it is
+        model = f"the base model with {', '.join(map(str, with_))}" if with_ else "the base model"
+        parts.append(f"<p class='note'>beta (diagnose fit): profiled with {html.escape(model)}"
+                     " (the diagnosis' final model).</p>")  # fmt: skip
     return parts
 
 
