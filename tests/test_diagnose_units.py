@@ -294,3 +294,12 @@ def test_the_field_report_says_which_model_its_diagnose_beta_was_profiled_with()
     assert "profiled with the base model with contact_damping" in page
     page = "".join(field_section(ev, {"nuisances": {**nuis, "profiled_with": []}}))
     assert "profiled with the base model (the diagnosis' final model)" in page
+
+
+def test_every_library_parameter_declares_a_unit_the_conversion_knows():
+    """A new effect parameter in a unit the conversion lacks would print without one."""
+    from stiffnet.effects.registry import CANONICAL
+
+    for name in CANONICAL:
+        for row in effect_class(name).parameter_table():
+            assert row["unit"] in MODEL_UNITS, (name, row["name"], row["unit"])
