@@ -88,10 +88,12 @@ class Scale:
                 f_note = f"natural_frequency_hz differs between recordings ({lo:g}-{hi:g} Hz)"
         elif any(v is not None for v in given):
             f_note = "natural_frequency_hz is missing on some rows"
-        mm = bool(rows) and all(
-            any(getattr(r, c, None) is not None for c in LENGTH_COLUMNS) for r in rows
-        )
-        return cls(f_n, mm, f_note, "" if mm else cls.length_note)
+        has = [any(getattr(r, c, None) is not None for c in LENGTH_COLUMNS) for r in rows]
+        mm = bool(has) and all(has)
+        l_note = "" if mm else cls.length_note
+        if any(has) and not mm:
+            l_note = "only some rows give a length in mm or g"
+        return cls(f_n, mm, f_note, l_note)
 
     def model_time_s(self) -> float | None:
         """One model time unit in seconds, ``1 / (2 pi f_n)`` (None without ``f_n``)."""
