@@ -265,7 +265,9 @@ def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
             try:
                 p = predictor.predict(a, f, natural_frequency_hz=FN_HZ)
                 pd = dict(cls=p["class"], beta=p["beta"], interval=p["beta_interval"],
-                          ok=p["class"] != "no_contact", flag=bool(p["ood_flag"]))  # fmt: skip
+                          ok=p["class"] != "no_contact", flag=bool(p["ood_flag"]),
+                          fired=(p["alarm"] or {}).get("fired", []),
+                          check=p["restoring_force"])  # fmt: skip
             except StiffnetError:
                 pd = dict(cls="refused", beta=None, interval=None, ok=False, flag=False)
             out["learned"].append({**pd, "cost": time.process_time() - t})
@@ -388,9 +390,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sets", nargs="*", default=list(SETS), help="subset of the sets")
     ap.add_argument("--no-model", action="store_true", help="skip the shipped learned model")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument("--no-campaign", action="store_true",
+                    help="skip the ideal 24-recording campaign's agreement")  # fmt: skip
+    ap.add_argument("--per-recording", type=Path,
+                    help="also write each recording's truth and answers here (JSON)")  # fmt: skip
     args = ap.parse_args(argv)
     table: dict[str, dict[str, dict]] = {}
     recovery: dict[str, dict] = {}
+    per_recording: dict[str, dict] = {}
     t0 = time.perf_counter()
     for name in args.sets:
         if name not in SETS and name not in RIG_SETS:
@@ -401,6 +408,8 @@ def main(argv: list[str] | None = None) -> int:
         rows, fs, beta, contact, chains = simulate(name, args.n, seed)
         res = run_methods(rows, fs, not args.no_model)
         table[name] = {m: score(r, beta, contact) for m, r in res.items()}
+        per_recording[name] = {"beta": beta.tolist(), "contact": contact.tolist(),
+                               "fs_hz": fs.tolist(), "chains": chains, "methods": res}  # fmt: skip
         if any(chains):
             recovery[name] = chain_recovery(res["restoring_force"], chains, fs)
         print(f"{name}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
@@ -410,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{k} within 10 % on {v['within_10']}/{v['n']} (median error {v['median_error']})"
             for k, v in rec.items()))  # fmt: skip
     out: dict[str, Any] = {"sets": table, "chain_recovery": recovery}
-    if not args.no_model:
+    if not args.no_model and not args.no_campaign:
         agree = campaign_agreement()
         out["campaign"] = agree
         n, c = agree["n"], agree["correct"]
@@ -423,10 +432,13 @@ def main(argv: list[str] | None = None) -> int:
         for r in agree["disagreements"]:
             print(f"  disagree: {r}")
     print(f"\nwall time: {time.perf_counter() - t0:.0f} s")
-    if args.json:
+    if args.json or args.per_recording:
         from stiffnet.io_utils import write_json_atomic
 
-        write_json_atomic(args.json, out)
+        if args.json:
+            write_json_atomic(args.json, out)
+        if args.per_recording:
+            write_json_atomic(args.per_recording, per_recording)
     return 0
 
 
