@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from serving.restoring_force_check import restoring_force_check
+from serving.verdict import model_facts, rule_checks, widened_interval
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
@@ -121,6 +122,8 @@ class StiffnessLogger:
         edges = predictor.alarm.info.get("class_edges") if predictor.alarm is not None else None
         self.edges = edges
         self.classes = _classes(edges)
+        self.facts = model_facts(predictor)
+        self.n_widened = 0  # points whose interval the alarm widened (said once, in warnings)
 
     @property
     def window_s(self) -> float:
@@ -213,6 +216,7 @@ class StiffnessLogger:
                 continue  # a constant window (a dropped-out sensor) gives no point
             point = self._point(j, out, k, None if emb is None else emb[k])
             k += 1
+            ph = None
             if self.restoring_force_every and end // self.restoring_force_every > (
                 end - self.hop
             ) // (self.restoring_force_every):
@@ -221,6 +225,7 @@ class StiffnessLogger:
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded
+            self._verdict(point, ph)
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
@@ -243,7 +248,7 @@ class StiffnessLogger:
         alarm = None
         if self.p.alarm is not None:
             est = RecordingEstimate(proba, label, lb if contact else None, math.exp(s), 1)
-            alarm = self.p.alarm.evaluate(recording_checks(est, emb, None, self.edges))["fired"]
+            alarm = self.p.alarm.evaluate(recording_checks(est, emb, None, self.edges))
         q = self.q_window
         return {
             "index": j,
@@ -256,8 +261,22 @@ class StiffnessLogger:
             "beta_interval": [math.exp(lb - q), math.exp(lb + q)] if contact and q else None,
             "class": cls,
             "near_edge": near,
-            "alarm": alarm or [],
+            "alarm": alarm,
         }
+
+    def _verdict(self, point: dict[str, Any], restoring_force: dict[str, Any] | None) -> None:
+        """The point's alarm with the predictor's rule checks (:func:`serving.verdict.rule_checks`,
+        the restoring-force ones where the point carries a cross-check) and, when it fires, its
+        interval widened as the predictor widens a flagged recording's
+        (:func:`serving.verdict.widened_interval`). Its ``alarm`` becomes the fired checks."""
+        alarm = rule_checks(point["alarm"], point["class"], point["beta_interval"],
+                            restoring_force, self.facts, self.fs, self.fn)  # fmt: skip
+        point["alarm"] = list(alarm["fired"]) if alarm is not None else []
+        if alarm is not None and alarm["flag"] and point["contact"]:
+            wide, said = widened_interval(point["beta_interval"], restoring_force)
+            if said:
+                point["beta_interval"] = wide
+                self.n_widened += 1
 
     def _layer(self, raw: dict[str, Any]) -> dict[str, Any]:
         names = self.p.class_names
@@ -469,6 +488,11 @@ def log_result(
         for i, la in enumerate(layers) if i > 0
     ]  # fmt: skip
     warnings = list(log.warnings)
+    if log.n_widened:
+        warnings.append(
+            f"the alarm widened the beta interval of {log.n_widened} point(s) to span the "
+            "restoring-force interval: the model's calibration does not hold there"
+        )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")
     flagged = [la["index"] for la in layers if la["alarm"]]
