@@ -229,37 +229,30 @@ def class_of(beta: float | None) -> str:
     return CLASSES[-1][0]
 
 
-def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
+#: The methods a set is read with (``--methods``).
+METHODS = ("restoring_force", "geometric", "learned")
+
+
+def run_methods(
+    rows, fs, use_model: bool, methods: tuple[str, ...] = METHODS
+) -> dict[str, list[dict[str, Any]]]:
     from stiffnet.errors import StiffnetError
     from stiffnet.geometry import geometric_estimate
     from stiffnet.restoring_force import restoring_force_estimate
 
     predictor = None
-    if use_model:
+    if use_model and "learned" in methods:
         from serving.predictor import Predictor
 
         predictor = Predictor.load()
-    out: dict[str, list[dict[str, Any]]] = {"restoring_force": [], "geometric": []}
+    out: dict[str, list[dict[str, Any]]] = {m: [] for m in methods if m != "learned"}
     if predictor is not None:
         out["learned"] = []
     for a, f in zip(rows, fs, strict=True):
-        t = time.process_time()
-        r = restoring_force_estimate(a, f, natural_frequency_hz=FN_HZ)
-        cost = time.process_time() - t
-        chain = getattr(r, "sensor", None)  # the code before the chain fit has none
-        out["restoring_force"].append(
-            dict(cls=r.restoring_force_class if r.ok else "refused", beta=r.beta, flag=False,
-                 interval=r.beta_interval, cost=cost, ok=r.ok,
-                 sensor=chain.to_dict() if chain is not None else None)
-        )  # fmt: skip
-        t = time.process_time()
-        try:
-            g = geometric_estimate(a, f)
-            gd = dict(cls=g.geometric_class, beta=g.geometric_beta, ok=g.contact_detected)
-        except StiffnetError:
-            gd = dict(cls="refused", beta=None, ok=False)
-        gd.update(interval=None, flag=False, cost=time.process_time() - t)
-        out["geometric"].append(gd)
+        if "restoring_force" in out:
+            _read_restoring_force(out["restoring_force"], a, f, restoring_force_estimate)
+        if "geometric" in out:
+            _read_geometric(out["geometric"], a, f, geometric_estimate, StiffnetError)
         if predictor is not None:
             t = time.process_time()
             try:
@@ -272,6 +265,29 @@ def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
                 pd = dict(cls="refused", beta=None, interval=None, ok=False, flag=False)
             out["learned"].append({**pd, "cost": time.process_time() - t})
     return out
+
+
+def _read_restoring_force(out: list, a: np.ndarray, f: float, estimate) -> None:
+    t = time.process_time()
+    r = estimate(a, f, natural_frequency_hz=FN_HZ)
+    cost = time.process_time() - t
+    chain = getattr(r, "sensor", None)  # the code before the chain fit has none
+    out.append(
+        dict(cls=r.restoring_force_class if r.ok else "refused", beta=r.beta, flag=False,
+             interval=r.beta_interval, cost=cost, ok=r.ok,
+             sensor=chain.to_dict() if chain is not None else None)
+    )  # fmt: skip
+
+
+def _read_geometric(out: list, a: np.ndarray, f: float, estimate, error: type) -> None:
+    t = time.process_time()
+    try:
+        g = estimate(a, f)
+        gd = dict(cls=g.geometric_class, beta=g.geometric_beta, ok=g.contact_detected)
+    except error:
+        gd = dict(cls="refused", beta=None, ok=False)
+    gd.update(interval=None, flag=False, cost=time.process_time() - t)
+    out.append(gd)
 
 
 def score(results: list[dict[str, Any]], beta: np.ndarray, contact: np.ndarray) -> dict:
@@ -390,11 +406,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sets", nargs="*", default=list(SETS), help="subset of the sets")
     ap.add_argument("--no-model", action="store_true", help="skip the shipped learned model")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS,
+                    help="the methods to run (default: all)")  # fmt: skip
     ap.add_argument("--no-campaign", action="store_true",
                     help="skip the ideal 24-recording campaign's agreement")  # fmt: skip
     ap.add_argument("--per-recording", type=Path,
                     help="also write each recording's truth and answers here (JSON)")  # fmt: skip
     args = ap.parse_args(argv)
+    from stiffnet.io_utils import write_json_atomic
+
     table: dict[str, dict[str, dict]] = {}
     recovery: dict[str, dict] = {}
     per_recording: dict[str, dict] = {}
@@ -406,11 +426,13 @@ def main(argv: list[str] | None = None) -> int:
         seed = args.seed + [*SETS, *RIG_SETS].index(name)
         simulate = simulate_rig_set if name in RIG_SETS else simulate_set
         rows, fs, beta, contact, chains = simulate(name, args.n, seed)
-        res = run_methods(rows, fs, not args.no_model)
+        res = run_methods(rows, fs, not args.no_model, tuple(args.methods))
         table[name] = {m: score(r, beta, contact) for m, r in res.items()}
         per_recording[name] = {"beta": beta.tolist(), "contact": contact.tolist(),
                                "fs_hz": fs.tolist(), "chains": chains, "methods": res}  # fmt: skip
-        if any(chains):
+        if args.per_recording:  # after each set: a long run keeps what it has read
+            write_json_atomic(args.per_recording, per_recording)
+        if any(chains) and "restoring_force" in res:
             recovery[name] = chain_recovery(res["restoring_force"], chains, fs)
         print(f"{name}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     print(markdown(table))
@@ -432,13 +454,8 @@ def main(argv: list[str] | None = None) -> int:
         for r in agree["disagreements"]:
             print(f"  disagree: {r}")
     print(f"\nwall time: {time.perf_counter() - t0:.0f} s")
-    if args.json or args.per_recording:
-        from stiffnet.io_utils import write_json_atomic
-
-        if args.json:
-            write_json_atomic(args.json, out)
-        if args.per_recording:
-            write_json_atomic(args.per_recording, per_recording)
+    if args.json:
+        write_json_atomic(args.json, out)
     return 0
 
 
