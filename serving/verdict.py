@@ -5,7 +5,7 @@ The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
 :func:`stiffnet.uncertainty.alarm_verdict.alarm_verdict`) are evaluated by the caller on its
 windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
 against its own beta, the restoring-force cross-check against the model (disjoint intervals,
-another class, stretched contacts), a contact
+another class, stretched contacts, a refusal behind a chain outside the priors), a contact
 law the training world lacks, and the identified sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
 (:func:`stiffnet.uncertainty.conformal.interval_behind_alarm`) and the warning saying so.
@@ -20,6 +20,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     RESTORING_FORCE_MIN_R2,
     class_beta_gap,
     restoring_force_gap,
+    with_chain_refusal_check,
     with_class_beta_check,
     with_restoring_force_check,
     with_restoring_force_checks,
@@ -79,6 +80,7 @@ def rule_checks(
     priors = model.get("priors")
     sensor = restoring_force.get("sensor")
     alarm = with_sensor_fit_check(alarm, sensor, priors, fs_hz)
+    alarm = with_chain_refusal_check(alarm, restoring_force, priors, fs_hz)
     outside = sensor_outside_priors(sensor, priors, fs_hz, natural_frequency_hz)
     return with_sensor_check(alarm, outside)
 
