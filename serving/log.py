@@ -124,6 +124,7 @@ class StiffnessLogger:
         self.classes = _classes(edges)
         self.facts = model_facts(predictor)
         self.n_widened = 0  # points whose interval the alarm widened (said once, in warnings)
+        self.widened_layers: list[int] = []  # flagged layers whose interval was widened
 
     @property
     def window_s(self) -> float:
@@ -320,6 +321,12 @@ class StiffnessLogger:
             "alarm": raw["alarm_fraction"] > LAYER_ALARM_SHARE,
             "restoring_force": _layer_restoring_force(inside, cls),
         }
+        if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
+            # a flagged layer is a flagged recording: its interval behind the alarm, as predict's
+            wide, said = widened_interval(interval, layer["restoring_force"])
+            if said:
+                layer["beta_interval"] = wide
+                self.widened_layers.append(layer["index"])
         self.layers.append(layer)
         return layer
 
@@ -380,6 +387,7 @@ def _layer_restoring_force(checks: list[dict[str, Any]], cls: str) -> dict[str, 
     beta = float(np.median([c["beta"] for c in got]))
     lo = float(np.median([c["beta_interval"][0] for c in got]))
     hi = float(np.median([c["beta_interval"][1] for c in got]))
+    r2 = [c["contact_r2"] for c in got if c.get("contact_r2") is not None]
     votes = [c["class"] for c in got]
     top = max(set(votes), key=votes.count)
     return {
@@ -388,6 +396,7 @@ def _layer_restoring_force(checks: list[dict[str, Any]], cls: str) -> dict[str, 
         "n_checks": len(checks),
         "class": top,
         "agreement": top == cls,
+        "contact_r2": float(np.median(r2)) if r2 else None,
         "reason": f"median of {len(got)} restoring-force check(s) inside the layer",
     }
 
@@ -492,6 +501,12 @@ def log_result(
         warnings.append(
             f"the alarm widened the beta interval of {log.n_widened} point(s) to span the "
             "restoring-force interval: the model's calibration does not hold there"
+        )
+    if log.widened_layers:
+        warnings.append(
+            "the beta interval of flagged layer(s) "
+            + ", ".join(map(str, log.widened_layers))
+            + " is widened to span their restoring-force interval"
         )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")

@@ -262,3 +262,30 @@ def test_a_log_point_gets_the_predictors_checks_and_its_wider_interval(predictor
             assert p["alarm_fired"] == by_t[p["t_s"]]["alarm_fired"]
     assert any(f"{len(checked)} point(s)" in w and "widened" in w for w in log["warnings"])
     assert not any("widened" in w for w in calm["warnings"])
+
+
+def test_a_flagged_layer_reports_the_wider_interval_behind_its_alarm(predictor, monkeypatch):
+    """A layer whose points mostly raised the alarm is a flagged recording: its interval spans
+    its close-fitting restoring-force interval too, as predict's does, and a warning says so."""
+    import serving.log as log_module
+
+    a, _ = layered_record([40.0], [30.0], noise=0.03, seed=11)
+    calm = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=None)
+    (layer,) = calm["layers"]
+    lo, hi = layer["beta_interval"]
+    far = {"class": "soft", "beta": 0.3 * lo, "beta_interval": [0.25 * lo, 0.35 * lo],
+           "contact_r2": 0.99, "duration_ratio": 1.1, "reason": "contradicting (test)"}  # fmt: skip
+    monkeypatch.setattr(log_module, "restoring_force_check", lambda *a, **k: far)
+    log = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=0.5)  # every point
+    (flagged,) = log["layers"]
+    assert flagged["alarm"] and flagged["alarm_fraction"] == 1.0
+    assert flagged["restoring_force"]["contact_r2"] == pytest.approx(0.99)
+    assert flagged["beta_interval"] == pytest.approx([0.25 * lo, hi])
+    assert any("flagged layer(s) 0 is widened" in w for w in log["warnings"])
+    # a loose contact-law fit is weak evidence: the layer keeps the model's interval
+    monkeypatch.setattr(
+        log_module, "restoring_force_check", lambda *a, **k: {**far, "contact_r2": 0.8}
+    )
+    loose = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=0.5)
+    assert loose["layers"][0]["beta_interval"] == pytest.approx([lo, hi])
+    assert not any("widened" in w for w in loose["warnings"])
