@@ -32,6 +32,14 @@ recording. Prints a Markdown table (docs/crosscheck.md) and JSON with ``--json``
 
     python benchmarks/bench_crosscheck.py [--n 24] [--no-model] [--json out.json]
 
+``--methods learned`` reads the sets with the learned model alone (its alarm and its own
+restoring-force check), ``--per-recording out.json`` keeps each recording's truth, answers,
+fired checks and check (to study an alarm rule offline), ``--no-campaign`` skips the ideal
+campaign below. For example, the lab chains of a second seed through the model alone::
+
+    python benchmarks/bench_crosscheck.py --methods learned --sets sensor_chains "ideal 2%" \
+        --seed 20262123 --no-campaign --per-recording /tmp/s2.json
+
 With the model it also measures, on an ideal 24-recording campaign written by
 ``simulate_campaign`` (:func:`campaign_agreement`), on how many recordings the
 learned model's class agrees with each cross-check's (target: >= 22 of 24
