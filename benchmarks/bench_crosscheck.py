@@ -32,6 +32,14 @@ recording. Prints a Markdown table (docs/crosscheck.md) and JSON with ``--json``
 
     python benchmarks/bench_crosscheck.py [--n 24] [--no-model] [--json out.json]
 
+``--methods learned`` reads the sets with the learned model alone (its alarm and its own
+restoring-force check), ``--per-recording out.json`` keeps each recording's truth, answers,
+fired checks and check (to study an alarm rule offline), ``--no-campaign`` skips the ideal
+campaign below. For example, the lab chains of a second seed through the model alone::
+
+    python benchmarks/bench_crosscheck.py --methods learned --sets sensor_chains "ideal 2%" \
+        --seed 20262123 --no-campaign --per-recording /tmp/s2.json
+
 With the model it also measures, on an ideal 24-recording campaign written by
 ``simulate_campaign`` (:func:`campaign_agreement`), on how many recordings the
 learned model's class agrees with each cross-check's (target: >= 22 of 24
@@ -229,47 +237,65 @@ def class_of(beta: float | None) -> str:
     return CLASSES[-1][0]
 
 
-def run_methods(rows, fs, use_model: bool) -> dict[str, list[dict[str, Any]]]:
+#: The methods a set is read with (``--methods``).
+METHODS = ("restoring_force", "geometric", "learned")
+
+
+def run_methods(
+    rows, fs, use_model: bool, methods: tuple[str, ...] = METHODS
+) -> dict[str, list[dict[str, Any]]]:
     from stiffnet.errors import StiffnetError
     from stiffnet.geometry import geometric_estimate
     from stiffnet.restoring_force import restoring_force_estimate
 
     predictor = None
-    if use_model:
+    if use_model and "learned" in methods:
         from serving.predictor import Predictor
 
         predictor = Predictor.load()
-    out: dict[str, list[dict[str, Any]]] = {"restoring_force": [], "geometric": []}
+    out: dict[str, list[dict[str, Any]]] = {m: [] for m in methods if m != "learned"}
     if predictor is not None:
         out["learned"] = []
     for a, f in zip(rows, fs, strict=True):
-        t = time.process_time()
-        r = restoring_force_estimate(a, f, natural_frequency_hz=FN_HZ)
-        cost = time.process_time() - t
-        chain = getattr(r, "sensor", None)  # the code before the chain fit has none
-        out["restoring_force"].append(
-            dict(cls=r.restoring_force_class if r.ok else "refused", beta=r.beta, flag=False,
-                 interval=r.beta_interval, cost=cost, ok=r.ok,
-                 sensor=chain.to_dict() if chain is not None else None)
-        )  # fmt: skip
-        t = time.process_time()
-        try:
-            g = geometric_estimate(a, f)
-            gd = dict(cls=g.geometric_class, beta=g.geometric_beta, ok=g.contact_detected)
-        except StiffnetError:
-            gd = dict(cls="refused", beta=None, ok=False)
-        gd.update(interval=None, flag=False, cost=time.process_time() - t)
-        out["geometric"].append(gd)
+        if "restoring_force" in out:
+            _read_restoring_force(out["restoring_force"], a, f, restoring_force_estimate)
+        if "geometric" in out:
+            _read_geometric(out["geometric"], a, f, geometric_estimate, StiffnetError)
         if predictor is not None:
             t = time.process_time()
             try:
                 p = predictor.predict(a, f, natural_frequency_hz=FN_HZ)
                 pd = dict(cls=p["class"], beta=p["beta"], interval=p["beta_interval"],
-                          ok=p["class"] != "no_contact", flag=bool(p["ood_flag"]))  # fmt: skip
+                          ok=p["class"] != "no_contact", flag=bool(p["ood_flag"]),
+                          fired=(p["alarm"] or {}).get("fired", []),
+                          check=p["restoring_force"])  # fmt: skip
             except StiffnetError:
                 pd = dict(cls="refused", beta=None, interval=None, ok=False, flag=False)
             out["learned"].append({**pd, "cost": time.process_time() - t})
     return out
+
+
+def _read_restoring_force(out: list, a: np.ndarray, f: float, estimate) -> None:
+    t = time.process_time()
+    r = estimate(a, f, natural_frequency_hz=FN_HZ)
+    cost = time.process_time() - t
+    chain = getattr(r, "sensor", None)  # the code before the chain fit has none
+    out.append(
+        dict(cls=r.restoring_force_class if r.ok else "refused", beta=r.beta, flag=False,
+             interval=r.beta_interval, cost=cost, ok=r.ok,
+             sensor=chain.to_dict() if chain is not None else None)
+    )  # fmt: skip
+
+
+def _read_geometric(out: list, a: np.ndarray, f: float, estimate, error: type) -> None:
+    t = time.process_time()
+    try:
+        g = estimate(a, f)
+        gd = dict(cls=g.geometric_class, beta=g.geometric_beta, ok=g.contact_detected)
+    except error:
+        gd = dict(cls="refused", beta=None, ok=False)
+    gd.update(interval=None, flag=False, cost=time.process_time() - t)
+    out.append(gd)
 
 
 def score(results: list[dict[str, Any]], beta: np.ndarray, contact: np.ndarray) -> dict:
@@ -388,9 +414,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sets", nargs="*", default=list(SETS), help="subset of the sets")
     ap.add_argument("--no-model", action="store_true", help="skip the shipped learned model")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS,
+                    help="the methods to run (default: all)")  # fmt: skip
+    ap.add_argument("--no-campaign", action="store_true",
+                    help="skip the ideal 24-recording campaign's agreement")  # fmt: skip
+    ap.add_argument("--per-recording", type=Path,
+                    help="also write each recording's truth and answers here (JSON)")  # fmt: skip
     args = ap.parse_args(argv)
+    from stiffnet.io_utils import write_json_atomic
+
     table: dict[str, dict[str, dict]] = {}
     recovery: dict[str, dict] = {}
+    per_recording: dict[str, dict] = {}
     t0 = time.perf_counter()
     for name in args.sets:
         if name not in SETS and name not in RIG_SETS:
@@ -399,9 +434,13 @@ def main(argv: list[str] | None = None) -> int:
         seed = args.seed + [*SETS, *RIG_SETS].index(name)
         simulate = simulate_rig_set if name in RIG_SETS else simulate_set
         rows, fs, beta, contact, chains = simulate(name, args.n, seed)
-        res = run_methods(rows, fs, not args.no_model)
+        res = run_methods(rows, fs, not args.no_model, tuple(args.methods))
         table[name] = {m: score(r, beta, contact) for m, r in res.items()}
-        if any(chains):
+        per_recording[name] = {"beta": beta.tolist(), "contact": contact.tolist(),
+                               "fs_hz": fs.tolist(), "chains": chains, "methods": res}  # fmt: skip
+        if args.per_recording:  # after each set: a long run keeps what it has read
+            write_json_atomic(args.per_recording, per_recording)
+        if any(chains) and "restoring_force" in res:
             recovery[name] = chain_recovery(res["restoring_force"], chains, fs)
         print(f"{name}: done ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     print(markdown(table))
@@ -410,7 +449,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{k} within 10 % on {v['within_10']}/{v['n']} (median error {v['median_error']})"
             for k, v in rec.items()))  # fmt: skip
     out: dict[str, Any] = {"sets": table, "chain_recovery": recovery}
-    if not args.no_model:
+    if not args.no_model and not args.no_campaign:
         agree = campaign_agreement()
         out["campaign"] = agree
         n, c = agree["n"], agree["correct"]
@@ -424,8 +463,6 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  disagree: {r}")
     print(f"\nwall time: {time.perf_counter() - t0:.0f} s")
     if args.json:
-        from stiffnet.io_utils import write_json_atomic
-
         write_json_atomic(args.json, out)
     return 0
 

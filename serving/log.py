@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from serving.restoring_force_check import restoring_force_check
+from serving.verdict import model_facts, rule_checks, widened_interval
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
@@ -121,6 +122,9 @@ class StiffnessLogger:
         edges = predictor.alarm.info.get("class_edges") if predictor.alarm is not None else None
         self.edges = edges
         self.classes = _classes(edges)
+        self.facts = model_facts(predictor)
+        self.n_widened = 0  # points whose interval the alarm widened (said once, in warnings)
+        self.widened_layers: list[int] = []  # flagged layers whose interval was widened
 
     @property
     def window_s(self) -> float:
@@ -213,6 +217,7 @@ class StiffnessLogger:
                 continue  # a constant window (a dropped-out sensor) gives no point
             point = self._point(j, out, k, None if emb is None else emb[k])
             k += 1
+            ph = None
             if self.restoring_force_every and end // self.restoring_force_every > (
                 end - self.hop
             ) // (self.restoring_force_every):
@@ -221,6 +226,7 @@ class StiffnessLogger:
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded
+            self._verdict(point, ph)
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
@@ -243,7 +249,7 @@ class StiffnessLogger:
         alarm = None
         if self.p.alarm is not None:
             est = RecordingEstimate(proba, label, lb if contact else None, math.exp(s), 1)
-            alarm = self.p.alarm.evaluate(recording_checks(est, emb, None, self.edges))["fired"]
+            alarm = self.p.alarm.evaluate(recording_checks(est, emb, None, self.edges))
         q = self.q_window
         return {
             "index": j,
@@ -256,8 +262,22 @@ class StiffnessLogger:
             "beta_interval": [math.exp(lb - q), math.exp(lb + q)] if contact and q else None,
             "class": cls,
             "near_edge": near,
-            "alarm": alarm or [],
+            "alarm": alarm,
         }
+
+    def _verdict(self, point: dict[str, Any], restoring_force: dict[str, Any] | None) -> None:
+        """The point's alarm with the predictor's rule checks (:func:`serving.verdict.rule_checks`,
+        the restoring-force ones where the point carries a cross-check) and, when it fires, its
+        interval widened as the predictor widens a flagged recording's
+        (:func:`serving.verdict.widened_interval`). Its ``alarm`` becomes the fired checks."""
+        alarm = rule_checks(point["alarm"], point["class"], point["beta_interval"],
+                            restoring_force, self.facts, self.fs, self.fn)  # fmt: skip
+        point["alarm"] = list(alarm["fired"]) if alarm is not None else []
+        if alarm is not None and alarm["flag"] and point["contact"]:
+            wide, said = widened_interval(point["beta_interval"], restoring_force)
+            if said:
+                point["beta_interval"] = wide
+                self.n_widened += 1
 
     def _layer(self, raw: dict[str, Any]) -> dict[str, Any]:
         names = self.p.class_names
@@ -301,6 +321,12 @@ class StiffnessLogger:
             "alarm": raw["alarm_fraction"] > LAYER_ALARM_SHARE,
             "restoring_force": _layer_restoring_force(inside, cls),
         }
+        if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
+            # a flagged layer is a flagged recording: its interval behind the alarm, as predict's
+            wide, said = widened_interval(interval, layer["restoring_force"])
+            if said:
+                layer["beta_interval"] = wide
+                self.widened_layers.append(layer["index"])
         self.layers.append(layer)
         return layer
 
@@ -361,6 +387,7 @@ def _layer_restoring_force(checks: list[dict[str, Any]], cls: str) -> dict[str, 
     beta = float(np.median([c["beta"] for c in got]))
     lo = float(np.median([c["beta_interval"][0] for c in got]))
     hi = float(np.median([c["beta_interval"][1] for c in got]))
+    r2 = [c["contact_r2"] for c in got if c.get("contact_r2") is not None]
     votes = [c["class"] for c in got]
     top = max(set(votes), key=votes.count)
     return {
@@ -369,6 +396,7 @@ def _layer_restoring_force(checks: list[dict[str, Any]], cls: str) -> dict[str, 
         "n_checks": len(checks),
         "class": top,
         "agreement": top == cls,
+        "contact_r2": float(np.median(r2)) if r2 else None,
         "reason": f"median of {len(got)} restoring-force check(s) inside the layer",
     }
 
@@ -469,6 +497,17 @@ def log_result(
         for i, la in enumerate(layers) if i > 0
     ]  # fmt: skip
     warnings = list(log.warnings)
+    if log.n_widened:
+        warnings.append(
+            f"the alarm widened the beta interval of {log.n_widened} point(s) to span the "
+            "restoring-force interval: the model's calibration does not hold there"
+        )
+    if log.widened_layers:
+        warnings.append(
+            "the beta interval of flagged layer(s) "
+            + ", ".join(map(str, log.widened_layers))
+            + " is widened to span their restoring-force interval"
+        )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")
     flagged = [la["index"] for la in layers if la["alarm"]]

@@ -57,11 +57,10 @@ from serving.model import LoadedModel, load_model
 from serving.restoring_force_check import (
     check_sensor_sheet,
     restoring_force_check,
-    sensor_outside_priors,
     sidecar_sensor,
-    with_sensor_check,
 )
 from serving.schemas import PredictionResult
+from serving.verdict import model_facts, rule_checks, widened_interval
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
@@ -71,21 +70,12 @@ from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
-    RESTORING_FORCE_MIN_R2,
     alarm_ratio,
     alarm_verdict,
-    class_beta_gap,
     load_model_alarm,
-    restoring_force_gap,
     weak_restoring_force_fit,
-    with_class_beta_check,
-    with_restoring_force_check,
-    with_restoring_force_checks,
-    with_sensor_fit_check,
 )
-from stiffnet.uncertainty.conformal import interval_behind_alarm
 from stiffnet.uncertainty.ood import OODReference, load_reference
-from stiffnet.uncertainty.unseen_law import with_unseen_law_check
 
 #: Default number of consecutive windows aggregated into one segment.
 SEGMENT_WINDOWS = 4
@@ -412,40 +402,18 @@ class Predictor:
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
                               reading.features, reading.embedding_scores)  # fmt: skip
         answered = self.class_names[reading.estimate.label]
-        alarm = with_class_beta_check(alarm, class_beta_gap(
-            answered, interval, self.class_names, self.metadata.get("class_edges")))  # fmt: skip
-        gap = restoring_force_gap(
-            interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
-        )
-        alarm = with_restoring_force_check(alarm, gap)
-        alarm = with_restoring_force_checks(
-            alarm, answered, restoring_force, self.class_names, self.metadata.get("class_edges")
-        )
-        alarm = with_unseen_law_check(alarm, restoring_force)
-        alarm = with_layers_alarm(alarm, reading.layers)
-        priors = (self.model.card.get("data") or {}).get("priors")
-        outside = sensor_outside_priors(restoring_force.get("sensor"), priors, fs, fn)
-        alarm = with_sensor_fit_check(alarm, restoring_force.get("sensor"), priors, fs)
-        return with_sensor_check(alarm, outside)
+        alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn)
+        return with_layers_alarm(alarm, reading.layers)
 
     @staticmethod
     def _interval_behind_alarm(
         interval: list[float] | None, restoring_force: dict[str, Any], warnings: list[str]
     ) -> list[float] | None:
         """A flagged recording's beta interval spans the restoring-force one too
-        (:func:`stiffnet.uncertainty.conformal.interval_behind_alarm`), said in a warning."""
-        wide = interval_behind_alarm(
-            interval,
-            restoring_force["beta_interval"],
-            restoring_force.get("contact_r2"),
-            RESTORING_FORCE_MIN_R2,
-        )
-        if wide and interval and wide != list(interval):
-            warnings.append(
-                f"the beta interval [{interval[0]:.3g}, {interval[1]:.3g}] is widened to "
-                f"[{wide[0]:.3g}, {wide[1]:.3g}] to span the restoring-force interval: the alarm "
-                "says the model's calibration does not hold for this recording"
-            )
+        (:func:`serving.verdict.widened_interval`), said in a warning."""
+        wide, said = widened_interval(interval, restoring_force)
+        if said:
+            warnings.append(said)
         return wide
 
     def _result(

@@ -72,3 +72,24 @@ def test_a_flagged_recording_interval_spans_the_restoring_force_one(predictor, m
     )
     assert res["beta_interval"] == pytest.approx([0.25 * lo, hi])
     assert any("widened" in w for w in res["warnings"])
+
+
+def test_a_refusal_for_the_sensor_band_flags_the_answer(predictor, monkeypatch):
+    """Where the cross-check refuses because the sensor's low-pass smooths the contacts away,
+    nothing checks the model's answer (a very hard contact read soft behind such a low-pass):
+    the chain_refusal check fires, and the interval stays the model's (no physical one)."""
+    import serving.predictor as predictor_module
+
+    accel = _record(45.0)
+    calm = predictor.predict(accel, FS, natural_frequency_hz=FN)
+    reason = (
+        "no impact stands out, yet harmonics 4-11 of the forcing (up to 110 Hz) do, which a "
+        "free flight lacks: a low-pass below the contact's frequency (at least 23 Hz) smooths "
+        "the contacts away, so beta is not identifiable from this sensor"
+    )
+    refused = {"class": None, "beta": None, "beta_interval": None, "reason": reason}
+    monkeypatch.setattr(predictor_module, "restoring_force_check", lambda *a, **k: refused)
+    res = predictor.predict(accel, FS, natural_frequency_hz=FN)
+    assert res["ood_flag"] and res["alarm"]["fired"] == ["chain_refusal"]
+    assert res["beta_interval"] == calm["beta_interval"]
+    assert any(w.startswith("UNRELIABLE") and "smooths the contact" in w for w in res["warnings"])

@@ -228,3 +228,64 @@ def test_log_on_an_independent_rig_whose_motion_carries_across_the_change():
             assert abs(found["t_s"] - true) <= 1.0
         for layer, beta in zip(log["layers"], betas, strict=True):
             assert abs(layer["beta"] / beta - 1) <= 0.10, (layer["beta"], beta)
+
+
+def test_a_log_point_gets_the_predictors_checks_and_its_wider_interval(predictor, monkeypatch):
+    """A point whose restoring-force check contradicts the model fires the predictor's rule
+    checks and reports the wider interval behind an alarm (one verdict for both commands);
+    the points without a check keep the model's conformal interval."""
+    import serving.log as log_module
+    from serving.verdict import model_facts, rule_checks
+
+    a, _ = layered_record([40.0], [30.0], noise=0.03, seed=11)
+    calm = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=None)
+    lo = min(p["beta_interval"][0] for p in calm["points"])
+    far = {"class": "soft", "beta": 0.3 * lo, "beta_interval": [0.25 * lo, 0.35 * lo],
+           "contact_r2": 0.99, "duration_ratio": 1.1, "reason": "contradicting (test)"}  # fmt: skip
+    monkeypatch.setattr(log_module, "restoring_force_check", lambda *a, **k: far)
+    log = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=5.0)
+    checked = [p for p in log["points"] if "restoring_force" in p]
+    assert len(checked) >= 4
+    by_t = {p["t_s"]: p for p in calm["points"]}
+    for p in checked:
+        assert {"restoring_force", "restoring_force_class"} <= set(p["alarm_fired"])
+        assert p["alarm"]
+        assert p["beta_interval"] == pytest.approx([0.25 * lo, by_t[p["t_s"]]["beta_interval"][1]])
+        # the predictor's verdict on the same answer and cross-check fires the same rule checks
+        quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+        same = rule_checks(quiet, p["class"], by_t[p["t_s"]]["beta_interval"], far,
+                           model_facts(predictor), FS, FN_HZ)  # fmt: skip
+        assert set(same["fired"]) <= set(p["alarm_fired"])
+    for p in log["points"]:
+        if "restoring_force" not in p:
+            assert p["beta_interval"] == by_t[p["t_s"]]["beta_interval"]
+            assert p["alarm_fired"] == by_t[p["t_s"]]["alarm_fired"]
+    assert any(f"{len(checked)} point(s)" in w and "widened" in w for w in log["warnings"])
+    assert not any("widened" in w for w in calm["warnings"])
+
+
+def test_a_flagged_layer_reports_the_wider_interval_behind_its_alarm(predictor, monkeypatch):
+    """A layer whose points mostly raised the alarm is a flagged recording: its interval spans
+    its close-fitting restoring-force interval too, as predict's does, and a warning says so."""
+    import serving.log as log_module
+
+    a, _ = layered_record([40.0], [30.0], noise=0.03, seed=11)
+    calm = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=None)
+    (layer,) = calm["layers"]
+    lo, hi = layer["beta_interval"]
+    far = {"class": "soft", "beta": 0.3 * lo, "beta_interval": [0.25 * lo, 0.35 * lo],
+           "contact_r2": 0.99, "duration_ratio": 1.1, "reason": "contradicting (test)"}  # fmt: skip
+    monkeypatch.setattr(log_module, "restoring_force_check", lambda *a, **k: far)
+    log = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=0.5)  # every point
+    (flagged,) = log["layers"]
+    assert flagged["alarm"] and flagged["alarm_fraction"] == 1.0
+    assert flagged["restoring_force"]["contact_r2"] == pytest.approx(0.99)
+    assert flagged["beta_interval"] == pytest.approx([0.25 * lo, hi])
+    assert any("flagged layer(s) 0 is widened" in w for w in log["warnings"])
+    # a loose contact-law fit is weak evidence: the layer keeps the model's interval
+    monkeypatch.setattr(
+        log_module, "restoring_force_check", lambda *a, **k: {**far, "contact_r2": 0.8}
+    )
+    loose = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=0.5)
+    assert loose["layers"][0]["beta_interval"] == pytest.approx([lo, hi])
+    assert not any("widened" in w for w in loose["warnings"])

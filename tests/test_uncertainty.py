@@ -193,3 +193,41 @@ def test_an_unapplied_lowpass_far_below_the_prior_fires_the_sensor_fit_check():
     out = with_sensor_fit_check(None, fit, priors, 718.0)
     assert out["flag"] and out["fired"] == ["sensor_fit"]
     assert with_sensor_fit_check(None, {**fit, "applied": True}, priors, 718.0) is None
+
+
+def test_a_refusal_for_the_sensor_fires_the_chain_refusal_check_outside_the_prior():
+    from stiffnet.restoring_force.band import smoothed_contact_refusal
+    from stiffnet.restoring_force.chain import SensorChain, identifiability
+    from stiffnet.uncertainty.alarm_verdict import (
+        SENSOR_REFUSAL_WORDS,
+        UNFITTED_LOWPASS_SCORE,
+        chain_refusal_excess,
+        with_chain_refusal_check,
+    )
+
+    priors = {"effects": [{"name": "sensor_dynamics", "relative": {
+        "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]}}}]}  # fmt: skip
+    # the refusals the cross-check writes for its sensor's band carry the words the rule reads
+    said = identifiability(SensorChain(lowpass_hz=54.0, lowpass_order=3, contact_hz=93.0))
+    assert SENSOR_REFUSAL_WORDS in said
+    # a rounded pulse per period (even and odd harmonics) and no impact: smoothed away
+    w = 2 * np.pi * np.arange(64 * 60) / 64
+    noise = 1e-4 * np.random.default_rng(0).standard_normal(w.size)
+    smooth = np.sin(w) + 0.3 * np.maximum(np.sin(w), 0) ** 4 + noise
+    assert SENSOR_REFUSAL_WORDS in smoothed_contact_refusal(smooth, 64.0, 576.0, 9.48, 5.0)
+    fitted = {"beta": None, "reason": said, "sensor": {"lowpass_hz": 54.0, "applied": True}}
+    # 0.15 fs of a 1812 Hz recording is 271.8 Hz: the fitted 54 Hz lies log(271.8 / 54) below
+    assert chain_refusal_excess(fitted, priors, 1812.0) == pytest.approx(np.log(271.8 / 54.0))
+    # a low-pass inside the prior: the model was calibrated behind such chains
+    assert chain_refusal_excess(fitted, priors, 300.0) < 0
+    unfitted = {"beta": None, "reason": "... so beta is not identifiable from this sensor"}
+    assert chain_refusal_excess(unfitted, priors, 578.0) == UNFITTED_LOWPASS_SCORE > 0
+    # not a refusal for the sensor, an answer, or no prior to judge by: the check does not apply
+    assert chain_refusal_excess({**fitted, "reason": "no contact"}, priors, 1812.0) is None
+    assert chain_refusal_excess({**fitted, "beta": 40.0}, priors, 1812.0) is None
+    assert chain_refusal_excess(fitted, {"effects": []}, 1812.0) is None
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    out = with_chain_refusal_check(quiet, unfitted, priors, 578.0)
+    assert out["flag"] and out["fired"] == ["chain_refusal"] and "UNRELIABLE" in out["message"]
+    assert not with_chain_refusal_check(quiet, fitted, priors, 300.0)["flag"]
+    assert quiet["fired"] == []  # not mutated

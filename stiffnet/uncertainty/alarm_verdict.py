@@ -51,6 +51,10 @@ ALARM_WORDS = {
     "its beta interval (almost) wholly in another class (the model's class is likely wrong)",
     "sensor_fit": "the impacts fit a sensor low-pass far below the chains the model was trained "
     "on (the restoring-force map did not undo it, yet it reshapes what the model reads)",
+    "chain_refusal": "the restoring-force cross-check refused because the sensor's low-pass "
+    "does not pass the contact, and nothing places that low-pass among the chains the model "
+    "was trained on (what smooths the contact away from the physics also rounds the spikes "
+    "the model reads, and makes a contact look softer)",
     "contact_duration": "the impacts last over twice the half period of the contact law they "
     "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
     "trained on) or a contact the training data lack stretches them",
@@ -268,12 +272,7 @@ def unapplied_lowpass_excess(
     """
     if not sensor or sensor.get("applied") is not False or not sensor.get("lowpass_hz"):
         return None
-    low = None
-    for effect in (priors or {}).get("effects") or []:
-        if isinstance(effect, dict) and effect.get("name") == "sensor_dynamics":
-            rel = (effect.get("relative") or {}).get("lowpass_hz") or {}
-            if rel.get("per") == "sampling_rate" and rel.get("range"):
-                low = float(rel["range"][0]) * fs_hz
+    low = _prior_lowest_lowpass(priors, fs_hz)
     if low is None:
         return None
     return math.log(UNAPPLIED_LOWPASS_FRACTION * low / float(sensor["lowpass_hz"]))
@@ -289,6 +288,63 @@ def with_sensor_fit_check(
     return with_rule_check(
         alarm, "sensor_fit", unapplied_lowpass_excess(sensor, priors, fs_hz), 0.0
     )
+
+
+#: Words every refusal of the restoring-force cross-check for the sensor's band carries
+#: (:func:`stiffnet.restoring_force.chain.identifiability`, the smoothed-contact refusal of
+#: :mod:`stiffnet.restoring_force.band` and the no-contact one of the chain undo).
+SENSOR_REFUSAL_WORDS = "this sensor"
+#: The chain_refusal check's score where no low-pass could be fitted (the contacts are
+#: smoothed away whole): nothing places that low-pass inside the prior, so the check fires.
+UNFITTED_LOWPASS_SCORE = 1.0
+
+
+def _prior_lowest_lowpass(priors: dict[str, Any] | None, fs_hz: float) -> float | None:
+    """The lowest low-pass corner (Hz) of the model's sensor prior, None without one."""
+    for effect in (priors or {}).get("effects") or []:
+        if isinstance(effect, dict) and effect.get("name") == "sensor_dynamics":
+            rel = (effect.get("relative") or {}).get("lowpass_hz") or {}
+            if rel.get("per") == "sampling_rate" and rel.get("range"):
+                return float(rel["range"][0]) * fs_hz
+    return None
+
+
+def chain_refusal_excess(
+    restoring_force: dict[str, Any], priors: dict[str, Any] | None, fs_hz: float
+) -> float | None:
+    """How far the low-pass behind a refusal of the cross-check lies below the model's sensor
+    prior (log ratio; positive fires), None when the cross-check did not refuse for its sensor.
+
+    A refusal "beta is not identifiable from this sensor" leaves the comparing checks nothing
+    to compare, yet it is evidence in itself: a low-pass at the contact's own band also rounds
+    the spikes the model reads, and makes a contact look softer. Where the chain fit placed
+    the low-pass inside the model's prior, the model was calibrated behind such chains and the
+    check stays quiet; below it (log of the prior's lowest corner over the fitted one), or
+    where no low-pass could be fitted because the contacts are smoothed away whole
+    (:data:`UNFITTED_LOWPASS_SCORE`), the answer is unchecked and the check fires.
+    """
+    if restoring_force.get("beta") is not None:
+        return None
+    if SENSOR_REFUSAL_WORDS not in str(restoring_force.get("reason") or ""):
+        return None
+    low = _prior_lowest_lowpass(priors, fs_hz)
+    if low is None:
+        return None
+    corner = (restoring_force.get("sensor") or {}).get("lowpass_hz")
+    if not corner or not corner > 0:
+        return UNFITTED_LOWPASS_SCORE
+    return math.log(low / float(corner))
+
+
+def with_chain_refusal_check(
+    alarm: dict[str, Any] | None,
+    restoring_force: dict[str, Any],
+    priors: dict[str, Any] | None,
+    fs_hz: float,
+) -> dict[str, Any] | None:
+    """The alarm with the chain_refusal check added (:func:`chain_refusal_excess`)."""
+    excess = chain_refusal_excess(restoring_force, priors, fs_hz)
+    return with_rule_check(alarm, "chain_refusal", excess, 0.0)
 
 
 def with_restoring_force_checks(

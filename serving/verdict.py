@@ -1,0 +1,107 @@
+"""The verdict behind one answer: the rule checks on the model's answer and the interval behind
+an alarm, in one place for ``predict`` and the stiffness log.
+
+The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
+:func:`stiffnet.uncertainty.alarm_verdict.alarm_verdict`) are evaluated by the caller on its
+windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
+against its own beta, the restoring-force cross-check against the model (disjoint intervals,
+another class, stretched contacts, a refusal behind a chain outside the priors), a contact
+law the training world lacks, and the identified sensor chain against the training priors.
+:func:`widened_interval` is the interval a flagged answer reports
+(:func:`stiffnet.uncertainty.conformal.interval_behind_alarm`) and the warning saying so.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from serving.restoring_force_check import sensor_outside_priors, with_sensor_check
+from stiffnet.uncertainty.alarm_verdict import (
+    RESTORING_FORCE_MIN_R2,
+    class_beta_gap,
+    restoring_force_gap,
+    with_chain_refusal_check,
+    with_class_beta_check,
+    with_restoring_force_check,
+    with_restoring_force_checks,
+    with_sensor_fit_check,
+)
+from stiffnet.uncertainty.conformal import interval_behind_alarm
+from stiffnet.uncertainty.unseen_law import with_unseen_law_check
+
+
+def model_facts(predictor: Any) -> dict[str, Any]:
+    """What the rule checks read of a loaded model: its classes, class edges and the training
+    world's priors (the card's ``data.priors``)."""
+    return {
+        "class_names": predictor.class_names,
+        "class_edges": predictor.metadata.get("class_edges"),
+        "priors": (predictor.model.card.get("data") or {}).get("priors"),
+    }
+
+
+def rule_checks(
+    alarm: dict[str, Any] | None,
+    class_name: str,
+    interval: list[float] | None,
+    restoring_force: dict[str, Any] | None,
+    model: dict[str, Any],
+    fs_hz: float,
+    natural_frequency_hz: float,
+) -> dict[str, Any] | None:
+    """The alarm with the rule checks added to the model's own (`alarm`, None without one).
+
+    Parameters
+    ----------
+    alarm : dict or None
+        The model's checks on these windows (``flag``, ``fired``, ``scores``, ``thresholds``).
+    class_name : str
+        The class answered.
+    interval : list of float or None
+        The beta interval answered.
+    restoring_force : dict or None
+        The restoring-force cross-check on the same samples
+        (:func:`serving.restoring_force_check.restoring_force_check`); None when none ran.
+    model : dict
+        ``class_names``, ``class_edges`` and ``priors`` (the card's ``data.priors``).
+    fs_hz, natural_frequency_hz : float
+    """
+    names, edges = model["class_names"], model.get("class_edges")
+    gap = class_beta_gap(class_name, interval, names, edges)
+    alarm = with_class_beta_check(alarm, gap)
+    if restoring_force is None:
+        return alarm
+    gap = restoring_force_gap(
+        interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
+    )
+    alarm = with_restoring_force_check(alarm, gap)
+    alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
+    alarm = with_unseen_law_check(alarm, restoring_force)
+    priors = model.get("priors")
+    sensor = restoring_force.get("sensor")
+    alarm = with_sensor_fit_check(alarm, sensor, priors, fs_hz)
+    alarm = with_chain_refusal_check(alarm, restoring_force, priors, fs_hz)
+    outside = sensor_outside_priors(sensor, priors, fs_hz, natural_frequency_hz)
+    return with_sensor_check(alarm, outside)
+
+
+def widened_interval(
+    interval: list[float] | None, restoring_force: dict[str, Any] | None
+) -> tuple[list[float] | None, str | None]:
+    """A flagged answer's beta interval, spanning a close-fitting restoring-force interval too,
+    and the warning that says so (None when it is not wider)."""
+    if restoring_force is None:
+        return interval, None
+    wide = interval_behind_alarm(
+        interval,
+        restoring_force["beta_interval"],
+        restoring_force.get("contact_r2"),
+        RESTORING_FORCE_MIN_R2,
+    )
+    if not (wide and interval and wide != list(interval)):
+        return wide, None
+    return wide, (
+        f"the beta interval [{interval[0]:.3g}, {interval[1]:.3g}] is widened to "
+        f"[{wide[0]:.3g}, {wide[1]:.3g}] to span the restoring-force interval: the alarm "
+        "says the model's calibration does not hold for this recording"
+    )
