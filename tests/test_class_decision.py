@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path
 
@@ -137,6 +138,7 @@ def test_the_predictor_reports_the_beta_heads_class_and_the_probabilities_as_the
     r = pred.predict(np.sin(2 * np.pi * fn * t), fs, natural_frequency_hz=fn)
     assert r["class"] == "medium" and r["class_decided_by"] == BETA_HEAD
     assert r["probabilities"]["hard"] == pytest.approx(0.6)
+    assert "medium (from beta)" in _terminal(r)  # predict's table says which head decided
     assert r["beta"] == pytest.approx(33.0)
     assert all(s["class"] == "medium" for s in r["segments"])
     assert r["restoring_force_agreement"] is None
@@ -147,3 +149,14 @@ def test_the_predictor_reports_the_beta_heads_class_and_the_probabilities_as_the
     monkeypatch.setattr(sp, "family_rule", lambda kind: None)
     r = pred.predict(np.sin(2 * np.pi * fn * t), fs, natural_frequency_hz=fn)
     assert r["class"] == "hard" and r["class_decided_by"] == CLASS_HEAD
+    assert "from beta" not in _terminal(r)
+
+
+def _terminal(result: dict) -> str:
+    from rich.console import Console
+
+    from stiffnet.cli.predict import result_tables
+
+    console = Console(record=True, width=200, file=io.StringIO())
+    console.print(*result_tables(result, "r"))
+    return console.export_text()
