@@ -15,12 +15,14 @@ the calibration's map for that orbit give beta and class.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from stiffnet.geometry.orbit import is_period1
-from stiffnet.uncertainty import aggregate_windows
+from stiffnet.uncertainty import RecordingEstimate, aggregate_windows
+from stiffnet.uncertainty.class_decision import ClassDecision
 
 
 def named(class_names: list[str], p: np.ndarray) -> dict[str, float]:
@@ -37,12 +39,15 @@ def segments(
     per_segment: int,
     class_names: list[str],
     no_contact: int | None,
+    decide: Callable[[RecordingEstimate], ClassDecision] | None = None,
 ) -> list[dict[str, Any]]:
     """The record in tiles of `per_segment` window lengths, each aggregated like the recording.
 
     A window belongs to the tile holding its centre (the windows slide, so each
     tile gets the windows centred in it and none is counted twice); a tile
-    without a window is left out; the last tile ends with the record.
+    without a window is left out; the last tile ends with the record. `decide` gives a
+    tile's class as the recording's (:meth:`serving.predictor.Predictor.decide_class`);
+    without it the class head's arg-max.
     """
     span = per_segment * window
     tile = (np.asarray(starts) + window // 2) // span
@@ -52,13 +57,18 @@ def segments(
         seg = aggregate_windows(
             run["probabilities"], run["log_beta"], run.get("log_beta_scale"), no_contact
         )
+        label, by = seg.label, "class_head"
+        if decide is not None:
+            decision = decide(seg)
+            label, by = decision.label, decision.decided_by
         found.append(
             {
                 "index": len(found),
                 "start_s": float(k * span / fs),
                 "end_s": float(min(n_samples, (k + 1) * span) / fs),
                 "n_windows": int((tile == k).sum()),
-                "class": class_names[seg.label],
+                "class": class_names[label],
+                "class_decided_by": by,
                 "probabilities": named(class_names, seg.probabilities),
                 "beta": math.exp(seg.log_beta) if seg.log_beta is not None else None,
             }

@@ -75,6 +75,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     load_model_alarm,
     weak_restoring_force_fit,
 )
+from stiffnet.uncertainty.class_decision import ClassDecision, decide_class, family_rule
 from stiffnet.uncertainty.ood import OODReference, load_reference
 
 #: Default number of consecutive windows aggregated into one segment.
@@ -130,6 +131,7 @@ class WindowReading:
     """What the model read from a recording's windows (one pass), aggregated."""
 
     estimate: RecordingEstimate
+    decision: ClassDecision
     outputs: dict[str, np.ndarray]
     features: np.ndarray
     geometric: dict[str, Any]
@@ -373,21 +375,28 @@ class Predictor:
         est = aggregate_windows(
             out["probabilities"], out["log_beta"], out.get("log_beta_scale"), nc
         )
+        segs = segments(out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc,
+                        self.decide_class)  # fmt: skip
         return WindowReading(
             estimate=est,
+            decision=self.decide_class(est),
             outputs=out,
             features=feats,
             geometric=geometric_verdict(geo, self.calibration),
             n_windows=int(ok.sum()),
             window_s=n_win / fs,
             hop_s=hop / fs,
-            segments=segments(
-                out, starts[ok], n_win, a.size, fs, self.segment_windows, names, nc
-            ),  # fmt: skip
+            segments=segs,
             # > 1 layer: the alarm says so (warnings too); the model's outputs are shared
             layers=record_layers(self, a, fs, fn, windows=(ok, out, emb)),
             embedding_scores=emb,  # the alarm reads them too: computed once
         )
+
+    def decide_class(self, estimate: RecordingEstimate) -> ClassDecision:
+        """The class of aggregated windows: the class head's, or the beta head's near an edge
+        (:func:`stiffnet.uncertainty.class_decision.decide_class`, this model family's rule)."""
+        return decide_class(estimate, self.class_names, self.metadata.get("class_edges"),
+                            family_rule(self.kind))  # fmt: skip
 
     def _alarm(
         self,
@@ -401,8 +410,10 @@ class Predictor:
         then the restoring-force gap, the unseen contact law, the layers and the sensor chain."""
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
                               reading.features, reading.embedding_scores)  # fmt: skip
-        answered = self.class_names[reading.estimate.label]
-        alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn)
+        head = self.class_names[reading.estimate.label]  # class_beta: the heads against each other
+        answered = self.class_names[reading.decision.label]
+        alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn,
+                            head_class=head)  # fmt: skip
         return with_layers_alarm(alarm, reading.layers)
 
     @staticmethod
@@ -425,10 +436,11 @@ class Predictor:
     ) -> dict[str, Any]:
         """The answer's fields (the caller adds the recording's own)."""
         est, geometric = reading.estimate, reading.geometric
-        cls = self.class_names[est.label]
+        cls = self.class_names[reading.decision.label]
         score = alarm_ratio(alarm)
         return {
             "class": cls,
+            "class_decided_by": reading.decision.decided_by,
             "probabilities": named(self.class_names, est.probabilities),
             "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
             "beta_interval": interval,

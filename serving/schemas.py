@@ -92,6 +92,12 @@ class Segment(BaseModel):
     end_s: float
     n_windows: int
     class_: str = Field(alias="class")
+    class_decided_by: Literal["class_head", "beta_head"] = Field(
+        default="class_head",
+        description="Which head named the class: class_head (arg-max of probabilities) or "
+        "beta_head (beta lies in a neighbouring class near their edge and the class head's top "
+        "probability is not decisive; configs/class_decision.yaml, per model family).",
+    )
     probabilities: dict[str, float]
     beta: float | None
 
@@ -139,6 +145,12 @@ class PredictionResult(BaseModel):
 
     source: str = Field(description="Where the samples came from.")
     class_: str = Field(alias="class", description="Predicted stiffness class.")
+    class_decided_by: Literal["class_head", "beta_head"] = Field(
+        default="class_head",
+        description="Which head named the class: class_head (arg-max of probabilities) or "
+        "beta_head (beta lies in a neighbouring class near their edge and the class head's top "
+        "probability is not decisive; configs/class_decision.yaml, per model family).",
+    )
     probabilities: dict[str, float] = Field(description="Mean of the per-window probabilities.")
     beta: float | None = Field(description="exp(mean per-window log beta); null for no_contact.")
     beta_interval: list[float] | None = Field(

@@ -48,6 +48,7 @@ def rule_checks(
     model: dict[str, Any],
     fs_hz: float,
     natural_frequency_hz: float,
+    head_class: str | None = None,
 ) -> dict[str, Any] | None:
     """The alarm with the rule checks added to the model's own (`alarm`, None without one).
 
@@ -65,9 +66,12 @@ def rule_checks(
     model : dict
         ``class_names``, ``class_edges`` and ``priors`` (the card's ``data.priors``).
     fs_hz, natural_frequency_hz : float
+    head_class : str, optional
+        The class head's own class where another rule answered (``class_beta`` compares the
+        two heads); the class answered by default.
     """
     names, edges = model["class_names"], model.get("class_edges")
-    gap = class_beta_gap(class_name, interval, names, edges)
+    gap = class_beta_gap(head_class or class_name, interval, names, edges)
     alarm = with_class_beta_check(alarm, gap)
     if restoring_force is None:
         return alarm

@@ -116,7 +116,9 @@ def _summary_table(result: dict[str, Any], title: str) -> Any:
         cov = result.get("beta_interval_coverage")
         beta += f"  [{interval[0]:.3g}, {interval[1]:.3g}]"
         beta += f" ({cov:.0%})" if cov else ""
-    t.add_row("class", f"[bold]{result['class']}[/]", g["class"])
+    by_beta = result.get("class_decided_by") == "beta_head"  # near an edge: beta's class
+    t.add_row("class", f"[bold]{result['class']}[/]" + (" (from beta)" if by_beta else ""),
+              g["class"])  # fmt: skip
     t.add_row("beta", beta, _num(g["beta"]))
     t.add_row(
         "inclination before / after",
