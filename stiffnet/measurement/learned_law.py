@@ -202,8 +202,8 @@ def excess_shares(
     A campaign's mean discrepancy is led by a few recordings: non-repeatable ones (their
     halves differ more than any model does) and ones whose orbit no start reached. On the
     independent rig's two-stage campaign (24 recordings, docs/measurement_loop.md) the law
-    put 20 recordings at their floors while the mean fell by only 69 %: four recordings
-    (two non-repeatable, two on an orbit no start reached) held most of what was left.
+    put 19 recordings within twice their floors while the mean fell by only 69 %: four
+    recordings (two non-repeatable, two on an orbit no start reached) held most of the rest.
 
     Returns
     -------
