@@ -14,10 +14,17 @@ dataset's seed. The loop test's iteration (``--operating-points``, the law as di
 its prior inside the discovery's intervals) is run once; its dataset and GBM are then
 drawn again at each seed, without and with a share of trajectories near the class edges
 (``--edge-share``, :func:`stiffnet.measurement.operating_points.edge_configs`); each row lists the
-recordings classed wrong with their β read. Prints Markdown with the machine's load.
+recordings classed wrong with their β read. Part 4 (``--rig``): the issue's held-out test as
+a user runs it, on campaigns of the independent rig (``tests/independent_rig.py``: 24
+recordings, the eight operating points of ``tests/test_independent_rig.POINTS`` with three
+betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks:
+``stiffnet diagnose`` (the rig candidates of the tests) and, where it proposes a law,
+``stiffnet loop --diagnosis --operating-points`` (GBM, or ``--rig-family``); the CLI's
+CPU seconds are its processes'. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
+    ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
 """
 
 from __future__ import annotations
@@ -191,6 +198,97 @@ def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
                       flush=True)  # fmt: skip
 
 
+#: Part 4's laws: the rig's own parametrisation, at levels the tests do not use.
+RIG_LAWS: dict[str, dict] = {
+    "ideal": {},
+    "two_stage": {"contact": "two_stage", "knee_mm": 0.25, "stage_ratio": 2.5},
+    "hunt_crossley": {"contact": "hunt_crossley", "hc_lambda_s_per_m": 6.0},
+    "power_law": {"contact": "power_law", "power_exponent": 1.8, "power_d0_mm": 0.4},
+}
+#: Beta ranges the three recordings of each operating point are drawn from, in turn.
+RIG_BETAS = [(8.0, 15.0), (15.0, 35.0), (35.0, 60.0), (60.0, 90.0)]
+RIG_CANDIDATES = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics"]
+
+
+def rig_runs(law: str, seed: int = 11) -> list:
+    """The 24 recordings of part 4: three betas (integers, classes in turn) per point."""
+    from test_independent_rig import POINTS, _runs
+
+    rng = np.random.default_rng(seed)
+    points = []
+    for j, (_, ratio, disp, gap, fs) in enumerate(POINTS):
+        for k in range(3):
+            lo, hi = RIG_BETAS[(3 * j + k) % len(RIG_BETAS)]
+            points.append((int(round(rng.uniform(lo, hi))), ratio, disp, gap, fs))
+    runs = _runs(points, 3.0, **RIG_LAWS[law])
+    for i, r in enumerate(runs):
+        r.recording = f"rec/p{i // 3}_{i % 3}_b{r.beta:03d}.csv"
+    return runs
+
+
+def _cli(args: list[str]) -> tuple[float, float]:
+    """``python -m stiffnet ARGS``: wall and CPU seconds (its processes and their children)."""
+    import resource
+    import subprocess
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "stiffnet", *args], check=True, cwd=ROOT,
+                   stdout=subprocess.DEVNULL)  # fmt: skip
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+    return time.perf_counter() - t0, cpu
+
+
+def rig_row(law: str, folder: Path, family: str, n: int) -> str:
+    """One law: write the campaign, diagnose it, loop on it where a law is proposed."""
+    import json
+
+    from independent_rig import write_campaign
+
+    camp = write_campaign(folder / law, rig_runs(law))
+    only = [a for c in RIG_CANDIDATES for a in ("--only", c)]
+    d_json = folder / f"{law}-diagnose.json"
+    load0 = os.getloadavg()[0]
+    wall, cpu = _cli(["diagnose", str(camp), *only, "--no-inclination", "--json", str(d_json)])
+    d = json.loads(d_json.read_text())
+    ll = d.get("learned_law") or {}
+    after = ll.get("discrepancy_after") if ll.get("proposed") else None
+    of_base = 1 - after / d["baseline_discrepancy"] if after is not None else None
+    cells = [law, d["verdict"], f"{d['baseline_discrepancy']:.3g}",
+             ", ".join(d.get("missing_effects") or []) or "-",
+             (ll.get("law") or {}).get("equation", "-") if ll.get("proposed") else "none",
+             f"{ll['removed_fraction']:.0%} / {of_base:.0%}" if after is not None else "-",
+             f"{wall:.0f} / {cpu:.0f}"]  # fmt: skip
+    if ll.get("proposed"):
+        l_json = folder / f"{law}-loop.json"
+        state = str(folder / f"{law}-loop")
+        wall, cpu = _cli(["loop", str(camp), "--state", state, "--diagnosis", str(d_json),
+                          "--family", family, "--n-trajectories", str(n), "--operating-points",
+                          "--no-tracking", "--json", str(l_json)])  # fmt: skip
+        its = json.loads(l_json.read_text())["iterations"]
+        m0, m1 = its[0]["metrics"], its[-1]["metrics"]
+        cells += [f"{m0['accuracy']:.3f} → {m1['accuracy']:.3f}",
+                  f"{m0['beta_mape']:.3f} → {m1['beta_mape']:.3f}",
+                  f"{m0['discrepancy']:.3g} → {m1['discrepancy']:.3g}",
+                  f"{wall:.0f} / {cpu:.0f}"]  # fmt: skip
+    else:
+        cells += ["-"] * 4
+    cells.append(f"{load0:.1f} → {os.getloadavg()[0]:.1f}")
+    return "| " + " | ".join(cells) + " |"
+
+
+def rig_table(laws: list[str], folder: Path | None, family: str, n: int) -> None:
+    """Part 4's table, one row per law (see the module's notes)."""
+    print(f"| rig law | verdict | baseline | library selects | learned law | removed (of the "
+          f"selection's / of the baseline) | diagnose wall / CPU s | {family} accuracy | "
+          f"β MAPE | discrepancy | loop wall / CPU s | load |")  # fmt: skip
+    print("|---" * 12 + "|")
+    with tempfile.TemporaryDirectory() as tmp:
+        for law in laws:
+            print(rig_row(law, Path(folder or tmp), family, n), flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--trajectories", type=int, default=48)
@@ -198,7 +296,14 @@ def main() -> None:
     ap.add_argument("--seeds", default="", help="dataset seeds of part 3, e.g. 0,1,7")
     ap.add_argument("--seed-trajectories", type=int, default=400)
     ap.add_argument("--edge-share", type=float, default=0.5)
+    ap.add_argument("--rig", default="", help=f"part 4: laws among {', '.join(RIG_LAWS)}")
+    ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
+    ap.add_argument("--rig-family", default="gbm")
+    ap.add_argument("--rig-trajectories", type=int, default=400)
     args = ap.parse_args()
+    if args.rig:
+        rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)
+        return
     if args.seeds:
         seeds = [int(s) for s in args.seeds.split(",")]
         seed_spread(seeds, args.seed_trajectories, args.edge_share)

@@ -23,6 +23,7 @@ from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.geometry.calibration import beta_class
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.learned_law import (
+    excess_shares,
     learned_law_figure,
     propose_learned_law,
     replaced_by,
@@ -30,6 +31,7 @@ from stiffnet.measurement.learned_law import (
     with_learned_law,
 )
 from stiffnet.measurement.loop import MIN_TRAJECTORIES, run_loop
+from stiffnet.measurement.noise_floor import Floors
 from stiffnet.shipped import default_config
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
@@ -74,6 +76,25 @@ def test_rule_runs_only_on_a_partial_verdict():
     assert run and why.startswith("20%")
 
 
+def test_the_laws_share_is_counted_over_the_recordings_floors():
+    """Analytic: floors 0.1 (the campaign's median) and one recording's halves differing by
+    10 (non-repeatable: its weight 4 x 0.1 / 10 = 0.04). The law puts the three repeatable
+    recordings at their floors and leaves the wandering one worse; the mean rises, the
+    excess the verdict counts falls."""
+    floor = Floors(np.array([0.1, 0.1, 0.1, 10.0]))
+    baseline = np.array([1.1, 2.1, 3.1, 20.0])
+    before = np.array([1.1, 1.1, 1.1, 20.0])  # the library's selection
+    after = np.array([0.1, 0.1, 0.1, 30.0])
+    assert after.mean() > before.mean()
+    # weighted excesses (1 + 2 + 3 + 10 w), (3 + 10 w), 20 w, each over (3 + w)
+    w = 0.04
+    out = excess_shares(floor, baseline, before, after)
+    assert out["explained_fraction"] == pytest.approx(1 - 20 * w / (6 + 10 * w))
+    assert out["removed_excess_fraction"] == pytest.approx(1 - 20 * w / (3 + 10 * w))
+    # a law that changes nothing explains nothing of the selection's excess
+    assert excess_shares(floor, baseline, before, before)["removed_excess_fraction"] == 0.0
+
+
 def test_kelvin_voigt_campaign_gets_no_new_law(tmp_path):
     camp = batch_campaign(tmp_path / "kv", [ContactDamping(damping_ratio=0.25)])
     out = propose_learned_law(camp, camp.rows, None, [], np.zeros(8), 0.05)
@@ -97,6 +118,10 @@ def test_two_stage_campaign_is_partially_explained_then_learned(two_stage, tmp_p
     assert ll["law"]["terms"] == ["hinge"] and ll["law"]["new_terms"] == ["hinge"]
     assert ll["law"]["params"]["knee"] == pytest.approx(0.2, rel=0.15)
     assert ll["removed_fraction"] >= 0.8
+    # counted over the recordings' floors as the verdict counts: the law explains at least
+    # what the library's selection left (measured: 0.912 and 0.912: the selection is empty)
+    assert ll["explained_fraction"] >= 0.8
+    assert ll["explained_fraction"] >= ll["removed_excess_fraction"] - 1e-9
     assert ll["discrepancy_after"] < ll["discrepancy_before"]
     assert ll["effect"] == {"name": "learned_contact", "params": ll["law"]["params"]}
     json.dumps(d)  # the whole diagnosis stays JSON
