@@ -16,10 +16,11 @@ from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
-from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains
+from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains, onset_toe
 from stiffnet.uncertainty.unseen_law import (
     UnseenLawThresholds,
     law_shape_reasons,
+    onset_toe_reasons,
     penetration_dissipation,
     stage_reasons,
     unseen_law_reasons,
@@ -158,6 +159,34 @@ def test_the_stage_rule_needs_the_gain_and_the_stiffness_ratio(shape, fires):
     assert bool(stage_reasons(shape, t)) is fires
     rf = {"exponent": 1.35, "contact_r2": 0.999, "law_shape": shape}
     assert bool(unseen_law_reasons(rf, t)) is fires
+
+
+@pytest.mark.parametrize("first_stage", [0.0, 0.6])
+def test_a_soft_first_stage_cut_off_by_the_onset_shows_as_force_outside_the_impacts(
+    first_stage,
+):
+    """A two-stage law (stiffness 1 up to ``first_stage``, 4 beyond) read with the onset where
+    the stiff stage starts from zero force, ``0.75 first_stage``: the first stage's force lies
+    on the samples next to each impact; a linear law (no first stage) leaves only noise."""
+    t = np.pi * np.arange(1, 15) / 15
+    d = np.tile(np.r_[np.sin(t), -np.ones(20)], 24)  # 24 impacts, 20 free samples after each
+    f = np.maximum(d, 0) + 3.0 * np.maximum(d - first_stage, 0)
+    sigma = 0.005 * f.max()
+    f = f + np.random.default_rng(4).normal(0, sigma, d.size)
+    onset = 0.75 * first_stage
+    toe, least_side = onset_toe(d, f, onset)
+    # the two samples on each side at or below the onset: sin(pi/15), sin(2 pi/15) with the
+    # first stage's force, free-flight samples without; both sides alike
+    expected = np.mean(np.sin(t[:2])) / sigma if first_stage else 0.0
+    assert toe == pytest.approx(expected, abs=1.0)
+    assert least_side == pytest.approx(expected, abs=1.0)
+    thresholds = UnseenLawThresholds(onset_toe_min=5.0, onset_toe_min_r2=0.95)
+    shape = {"toe": toe, "toe_least_side": least_side}
+    assert bool(onset_toe_reasons(shape, 0.99, thresholds)) is bool(first_stage)
+    assert onset_toe_reasons(shape, 0.8, thresholds) == []  # a poor fit's onset lands anywhere
+    # a sensor chain's ringing: force before the impact, a pull after the release
+    assert onset_toe_reasons({"toe": 9.0, "toe_least_side": -8.0}, 0.99, thresholds) == []
+    assert onset_toe(d[:100], f[:100], onset) is None  # too few impacts
 
 
 def test_impact_runs_and_too_few_impacts():
