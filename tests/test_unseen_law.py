@@ -389,3 +389,20 @@ def test_the_independent_rigs_two_stage_restraint_reads_a_depth_dependent_stiffn
         assert shape["stage_ratio"] > 2.0 and 0.1 <= shape["stage_knee"] <= 0.8, shape
     else:
         assert shape["stage"] < 0.05, shape
+
+
+@pytest.mark.slow  # one 8-s solve_ivp recording, ~6 s CPU
+def test_the_independent_rigs_short_first_stage_pushes_before_the_fitted_onset():
+    """Draw 6 of the benchmark (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz): beta 26.6,
+    forcing 0.987 f_n, a two-stage restraint whose contacts span 7 samples. The law reads
+    exponent 1.12 and no hinge (stage gain 0.02): the shipped model read "very_hard" for
+    "medium" with no alarm. The first stage's force lies just outside the fitted impacts."""
+    restoring_force, shape = _rig_law_shape(
+        "two_stage_6.csv", 26.63053, 0.98713, 0.01024,
+        dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0),
+    )  # fmt: skip
+    t = unseen_law_thresholds()
+    assert stage_reasons(shape, t) == [], shape
+    assert shape["toe"] > t.onset_toe_min and shape["toe_least_side"] > 0, shape
+    reasons = unseen_law_reasons(restoring_force, t)
+    assert any("pushes before the fitted law's onset" in r for r in reasons), reasons
