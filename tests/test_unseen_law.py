@@ -109,6 +109,30 @@ def test_the_law_shape_rule_needs_the_gain_and_the_physical_sign(shape, fires):
     assert bool(law_shape_reasons(shape, t)) is fires
 
 
+@pytest.mark.parametrize(
+    "shape, fires",
+    [
+        # a Hunt-Crossley pulse read through a fitted low-pass it barely needed (rig draw 10):
+        # the term is gone from the chain-undone map, not from the record as recorded
+        ({"penetration_dissipation": 0.61, "penetration_dissipation_share": 0.8,
+          "recorded_penetration_dissipation": 0.85,
+          "recorded_penetration_dissipation_share": 0.48}, True),
+        ({"penetration_dissipation": 0.61, "penetration_dissipation_share": 0.8,
+          "recorded_penetration_dissipation": 0.04,
+          "recorded_penetration_dissipation_share": 0.39}, False),  # an in-prior chain
+        ({"recorded_penetration_dissipation": 0.9,
+          "recorded_penetration_dissipation_share": -0.7}, False),  # a delay: wrong sign
+    ],
+)  # fmt: skip
+def test_the_record_as_recorded_is_read_where_its_low_pass_is_unsupported(shape, fires):
+    t = UnseenLawThresholds(penetration_dissipation_min_gain=0.65,
+                            penetration_dissipation_min_share=0.3)  # fmt: skip
+    reasons = law_shape_reasons(shape, t)
+    assert bool(reasons) is fires
+    if fires:
+        assert "as recorded" in reasons[0] and "85%" in reasons[0]
+
+
 def test_the_law_shape_alone_fires_the_alarm_with_the_shipped_thresholds():
     shape = {"curvature": 0.95, "curvature_share": 0.9}
     alarm = with_unseen_law_check(None, {"exponent": None, "law_shape": shape})

@@ -312,16 +312,22 @@ def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) ->
                 f"the contact stiffens within each impact (a curvature term predicts held-out "
                 f"impacts {curvature:.0%} better than the linear or Hertz law)"
             )
-    hc, share = (
-        shape.get("penetration_dissipation"),
-        shape.get("penetration_dissipation_share", 1.0),
-    )
-    if hc is not None and hc >= t.penetration_dissipation_min_gain:
-        if share >= t.penetration_dissipation_min_share:
-            reasons.append(
-                f"the contact's dissipation grows with penetration within each impact (a "
-                f"delta*v term predicts held-out impacts {hc:.0%} better than Kelvin-Voigt)"
-            )
+    for key, where in (("", ""), ("recorded_", " of the record as recorded")):
+        hc = shape.get(key + "penetration_dissipation")
+        share = shape.get(key + "penetration_dissipation_share", 1.0)
+        if hc is not None and hc >= t.penetration_dissipation_min_gain:
+            if share >= t.penetration_dissipation_min_share:
+                reasons.append(
+                    f"the contact's dissipation grows with penetration within each impact{where} "
+                    f"(a delta*v term predicts held-out impacts {hc:.0%} better than "
+                    "Kelvin-Voigt)"
+                    + (
+                        ", which a fitted low-pass the law barely needs had taken away"
+                        if key
+                        else ""
+                    )  # fmt: skip
+                )
+                break
     return reasons
 
 
