@@ -16,9 +16,9 @@ alarm):
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
 after. "After" is the predictor as shipped; "before" is the same prediction with the
 ``contact_law`` check's reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.
-unseen_law_reasons`) under the thresholds of ``--before KEY=VALUE`` (default: the stage
-rule off, ``stage_min_gain=inf``; ``contact_damping_ratio_max=inf`` turns the damping
-ceiling off), every other check as it fired.
+unseen_law_reasons`) under the thresholds of ``--before KEY=VALUE`` (default: the soft
+first stage rule off, ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule
+off, ``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired.
 
 Run::
 
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="JSON result")
     args = ap.parse_args(argv)
     shipped = unseen_law_thresholds()
-    changes = dict(kv.split("=", 1) for kv in args.before) or {"stage_min_gain": "inf"}
+    changes = dict(kv.split("=", 1) for kv in args.before) or {"onset_toe_min": "inf"}
     before = shipped.model_copy(update={k: float(v) for k, v in changes.items()})
     pred = Predictor.load(str(args.model))
     configs = br.set_configs(br.DEFAULT_SETS)

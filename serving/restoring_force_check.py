@@ -32,6 +32,11 @@ from stiffnet.uncertainty.unseen_law import penetration_dissipation
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~20 ms
 #: without a sensor chain to fit, ~1-3 s with one).
 RESTORING_FORCE_PERIODS = 24.0
+#: A fitted chain's low-pass counts as unsupported where the contact law explains at most
+#: this much more of the contact force through its inverse (R2): there the map as recorded
+#: is read too (:func:`as_recorded_law_shape`). A Hunt-Crossley pulse is fitted as a
+#: low-pass whose inverse ties (rig: 0.02-0.05 more); in-prior chains 0.01-0.03 more.
+UNSUPPORTED_CHAIN_R2 = 0.05
 #: A fitted stage counts as outside the training priors only beyond this factor of their
 #: range (the fit's own scatter: 2-10 % in frequency on simulated chains).
 PRIOR_SLACK = 1.15
@@ -68,6 +73,8 @@ def restoring_force_check(
                                      law.exponent, law.reference_penetration)  # fmt: skip
         shape = law_shape_gains(r.displacement, r.velocity, r.force, law.onset,
                                 law.reference_penetration, law.exponent)  # fmt: skip
+        if shape is not None and r.sensor is not None:
+            shape.update(as_recorded_law_shape(accel, fs_hz, natural_frequency_hz, r))
     return {
         "class": d["restoring_force_class"],
         "beta": d["beta"],
@@ -85,6 +92,46 @@ def restoring_force_check(
         "dissipation_share": None if hc is None else hc[1],
         "law_shape": shape,
         "reason": d["reason"],
+    }
+
+
+def as_recorded_law_shape(
+    accel: Any, fs_hz: float, natural_frequency_hz: float, r: Any
+) -> dict[str, float]:
+    """The within-impact ``delta v`` gain of the map as recorded, where a fitted chain with a
+    low-pass was applied but is not supported (the law explains at most
+    :data:`UNSUPPORTED_CHAIN_R2` more through its inverse): ``recorded_penetration_dissipation``
+    and its ``_share`` (:func:`~stiffnet.uncertainty.law_shape.law_shape_gains`) and
+    ``recorded_r2_loss``; empty otherwise. A dissipation growing with penetration shapes the
+    pulse as a low-pass would, and its inverse then takes the term away from the map."""
+    chain = r.sensor
+    if chain.source != "fitted" or not chain.applied or not chain.lowpass_hz:
+        return {}
+    try:
+        plain = restoring_force_estimate(
+            accel,
+            fs_hz,
+            natural_frequency_hz=natural_frequency_hz,
+            max_periods=RESTORING_FORCE_PERIODS,
+            chain_fit_below_r2=-np.inf,
+            profile_highpass_below_r2=CHAIN_FIT_WHEN_NEEDED,
+        )
+    except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return {}
+    if not plain.ok or plain.law is None:
+        return {}
+    loss = float(r.law.r2 - plain.law.r2)
+    if loss > UNSUPPORTED_CHAIN_R2:
+        return {}
+    law = plain.law
+    shape = law_shape_gains(plain.displacement, plain.velocity, plain.force, law.onset,
+                            law.reference_penetration, law.exponent)  # fmt: skip
+    if shape is None:
+        return {}
+    return {
+        "recorded_penetration_dissipation": shape["penetration_dissipation"],
+        "recorded_penetration_dissipation_share": shape["penetration_dissipation_share"],
+        "recorded_r2_loss": loss,
     }
 
 

@@ -77,7 +77,11 @@ class RestoringForceCheck(BaseModel):
         description="Held-out-impact gain of a richer contact law's terms over the linear/Hertz "
         "Kelvin-Voigt law: curvature, penetration_dissipation (each with its _share); stage "
         "(a two-stage law's gain), stage_ratio (its stiffness ratio across the knee), "
-        "stage_knee (the knee over the reference penetration); misfit, n_impacts.",
+        "stage_knee (the knee over the reference penetration); toe (the median force on the "
+        "samples just outside each impact over the free flight's scatter: a soft first stage) "
+        "and toe_least_side; where a fitted low-pass barely helped the law, the record as "
+        "recorded: recorded_penetration_dissipation (with its _share) and recorded_r2_loss; "
+        "misfit, n_impacts.",
     )
     reason: str = Field(description="What was estimated, or why not.")
 

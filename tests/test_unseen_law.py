@@ -16,10 +16,11 @@ from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
-from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains
+from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains, onset_toe
 from stiffnet.uncertainty.unseen_law import (
     UnseenLawThresholds,
     law_shape_reasons,
+    onset_toe_reasons,
     penetration_dissipation,
     stage_reasons,
     unseen_law_reasons,
@@ -108,6 +109,30 @@ def test_the_law_shape_rule_needs_the_gain_and_the_physical_sign(shape, fires):
     assert bool(law_shape_reasons(shape, t)) is fires
 
 
+@pytest.mark.parametrize(
+    "shape, fires",
+    [
+        # a Hunt-Crossley pulse read through a fitted low-pass it barely needed (rig draw 10):
+        # the term is gone from the chain-undone map, not from the record as recorded
+        ({"penetration_dissipation": 0.61, "penetration_dissipation_share": 0.8,
+          "recorded_penetration_dissipation": 0.85,
+          "recorded_penetration_dissipation_share": 0.48}, True),
+        ({"penetration_dissipation": 0.61, "penetration_dissipation_share": 0.8,
+          "recorded_penetration_dissipation": 0.04,
+          "recorded_penetration_dissipation_share": 0.39}, False),  # an in-prior chain
+        ({"recorded_penetration_dissipation": 0.9,
+          "recorded_penetration_dissipation_share": -0.7}, False),  # a delay: wrong sign
+    ],
+)  # fmt: skip
+def test_the_record_as_recorded_is_read_where_its_low_pass_is_unsupported(shape, fires):
+    t = UnseenLawThresholds(penetration_dissipation_min_gain=0.65,
+                            penetration_dissipation_min_share=0.3)  # fmt: skip
+    reasons = law_shape_reasons(shape, t)
+    assert bool(reasons) is fires
+    if fires:
+        assert "as recorded" in reasons[0] and "85%" in reasons[0]
+
+
 def test_the_law_shape_alone_fires_the_alarm_with_the_shipped_thresholds():
     shape = {"curvature": 0.95, "curvature_share": 0.9}
     alarm = with_unseen_law_check(None, {"exponent": None, "law_shape": shape})
@@ -158,6 +183,34 @@ def test_the_stage_rule_needs_the_gain_and_the_stiffness_ratio(shape, fires):
     assert bool(stage_reasons(shape, t)) is fires
     rf = {"exponent": 1.35, "contact_r2": 0.999, "law_shape": shape}
     assert bool(unseen_law_reasons(rf, t)) is fires
+
+
+@pytest.mark.parametrize("first_stage", [0.0, 0.6])
+def test_a_soft_first_stage_cut_off_by_the_onset_shows_as_force_outside_the_impacts(
+    first_stage,
+):
+    """A two-stage law (stiffness 1 up to ``first_stage``, 4 beyond) read with the onset where
+    the stiff stage starts from zero force, ``0.75 first_stage``: the first stage's force lies
+    on the samples next to each impact; a linear law (no first stage) leaves only noise."""
+    t = np.pi * np.arange(1, 15) / 15
+    d = np.tile(np.r_[np.sin(t), -np.ones(20)], 24)  # 24 impacts, 20 free samples after each
+    f = np.maximum(d, 0) + 3.0 * np.maximum(d - first_stage, 0)
+    sigma = 0.005 * f.max()
+    f = f + np.random.default_rng(4).normal(0, sigma, d.size)
+    onset = 0.75 * first_stage
+    toe, least_side = onset_toe(d, f, onset)
+    # the two samples on each side at or below the onset: sin(pi/15), sin(2 pi/15) with the
+    # first stage's force, free-flight samples without; both sides alike
+    expected = np.mean(np.sin(t[:2])) / sigma if first_stage else 0.0
+    assert toe == pytest.approx(expected, abs=1.0)
+    assert least_side == pytest.approx(expected, abs=1.0)
+    thresholds = UnseenLawThresholds(onset_toe_min=5.0, onset_toe_min_r2=0.95)
+    shape = {"toe": toe, "toe_least_side": least_side}
+    assert bool(onset_toe_reasons(shape, 0.99, thresholds)) is bool(first_stage)
+    assert onset_toe_reasons(shape, 0.8, thresholds) == []  # a poor fit's onset lands anywhere
+    # a sensor chain's ringing: force before the impact, a pull after the release
+    assert onset_toe_reasons({"toe": 9.0, "toe_least_side": -8.0}, 0.99, thresholds) == []
+    assert onset_toe(d[:100], f[:100], onset) is None  # too few impacts
 
 
 def test_impact_runs_and_too_few_impacts():
@@ -360,3 +413,20 @@ def test_the_independent_rigs_two_stage_restraint_reads_a_depth_dependent_stiffn
         assert shape["stage_ratio"] > 2.0 and 0.1 <= shape["stage_knee"] <= 0.8, shape
     else:
         assert shape["stage"] < 0.05, shape
+
+
+@pytest.mark.slow  # one 8-s solve_ivp recording, ~6 s CPU
+def test_the_independent_rigs_short_first_stage_pushes_before_the_fitted_onset():
+    """Draw 6 of the benchmark (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz): beta 26.6,
+    forcing 0.987 f_n, a two-stage restraint whose contacts span 7 samples. The law reads
+    exponent 1.12 and no hinge (stage gain 0.02): the shipped model read "very_hard" for
+    "medium" with no alarm. The first stage's force lies just outside the fitted impacts."""
+    restoring_force, shape = _rig_law_shape(
+        "two_stage_6.csv", 26.63053, 0.98713, 0.01024,
+        dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0),
+    )  # fmt: skip
+    t = unseen_law_thresholds()
+    assert stage_reasons(shape, t) == [], shape
+    assert shape["toe"] > t.onset_toe_min and shape["toe_least_side"] > 0, shape
+    reasons = unseen_law_reasons(restoring_force, t)
+    assert any("pushes before the fitted law's onset" in r for r in reasons), reasons

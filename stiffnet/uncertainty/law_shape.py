@@ -58,6 +58,10 @@ CLIP_FRACTION = 0.05
 STAGE_KNEES = tuple(np.linspace(0.2, 0.8, 7))
 #: Exponents of the single power law the two-stage law must beat (linear, Hertz, beyond).
 POWER_EXPONENTS = tuple(np.linspace(1.0, 2.6, 17))
+#: Samples on each side of an impact read for a force before the fitted onset
+#: (:func:`onset_toe`), and the margin beyond them taken as free flight for its scatter.
+TOE_SAMPLES = 2
+TOE_MARGIN = 6
 
 
 def impact_runs(delta: np.ndarray, min_samples: int = 3) -> list[np.ndarray]:
@@ -126,6 +130,57 @@ def stage_gain(
     return 1.0 - best[0] / power, best[1], best[2]
 
 
+def onset_toe(
+    disp: np.ndarray, force: np.ndarray, onset: float, min_impacts: int = 4
+) -> tuple[float, float] | None:
+    """Contact force just outside the fitted law's contact, in units of the free flight's
+    force scatter: a soft first stage the law's onset cuts off.
+
+    A law fitted with a free onset ``e`` to a two-stage restraint whose first stage is short
+    or soft puts its onset where the stiff stage would start from zero force: the first
+    stage's samples then lie at ``delta <= 0`` (outside the impact's run, so no within-impact
+    term sees them) yet carry force. On a law the library has, the force there is the
+    free flight's residual, zero on average.
+
+    Parameters
+    ----------
+    disp, force : numpy.ndarray
+        The restoring-force map's displacement and contact force (consecutive samples).
+    onset : float
+        The fitted contact law's ``e``.
+    min_impacts : int
+        Fewest impacts, with :data:`TOE_SAMPLES` samples on each side, to judge.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(toe, least_side)``: the median over impacts of the mean force on the
+        :data:`TOE_SAMPLES` samples before and after each impact's run (``delta > 0``), and
+        the lesser of the medians of each side alone, both over the standard deviation of
+        the force on samples at least :data:`TOE_MARGIN` samples from any impact (a sensor
+        chain's ringing leaves a negative force after the release, a first stage none);
+        None with too few impacts or no free-flight samples.
+    """
+    d = np.asarray(disp, float) - onset
+    f = np.asarray(force, float)
+    runs = [r for r in impact_runs(d) if r[0] >= TOE_SAMPLES and r[-1] + TOE_SAMPLES < d.size]
+    if len(runs) < min_impacts:
+        return None
+    free = d <= 0
+    for r in runs:
+        free[max(r[0] - TOE_MARGIN, 0) : r[-1] + TOE_MARGIN + 1] = False
+    if int(free.sum()) < 2 * min_impacts:
+        return None
+    scatter = float(np.std(f[free])) or 1e-300
+    side = np.arange(1, TOE_SAMPLES + 1)
+    before = np.array([f[r[0] - side].mean() for r in runs])
+    after = np.array([f[r[-1] + side].mean() for r in runs])
+    # which side of an impact a short first stage's samples fall on depends on the sampling
+    # phase: the two sides are read together, and apart for a sign
+    toe = float(np.median(0.5 * (before + after))) / scatter
+    return toe, float(min(np.median(before), np.median(after))) / scatter
+
+
 def law_shape_gains(
     disp: np.ndarray,
     vel: np.ndarray,
@@ -158,7 +213,8 @@ def law_shape_gains(
         ``penetration_dissipation``; positive for a stiffening law, a dissipation growing
         with penetration), ``stage`` / ``stage_ratio`` / ``stage_knee``
         (:func:`stage_gain`), ``misfit`` (the base law's held-out SSE over the force's
-        variance) and ``n_impacts``; None with too few impacts or no positive reference
+        variance), ``n_impacts`` and ``toe`` / ``toe_least_side`` (:func:`onset_toe`,
+        where it can be read); None with too few impacts or no positive reference
         penetration.
     """
     if not reference_penetration > 0:
@@ -198,4 +254,7 @@ def law_shape_gains(
     out["stage"], out["stage_ratio"], out["stage_knee"] = stage_gain(dn, vn, f, groups)
     out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     out["n_impacts"] = float(int(groups.max()) + 1)
+    toe = onset_toe(disp, force, onset, min_impacts)
+    if toe is not None:
+        out["toe"], out["toe_least_side"] = toe
     return out

@@ -35,6 +35,11 @@ them on rigs whose law the training world lacks, and neither needs the model:
   gain near nil, or on a law that explains little of the force
   (``excess_damping_min_r2``).
 
+* **a soft first stage** (``onset_toe_min``, ``onset_toe_min_r2``): the law, fitted with a
+  free onset, starts where the stiff stage would start from zero force, and the force of a
+  short soft first stage lies just outside its impacts
+  (:func:`stiffnet.uncertainty.law_shape.onset_toe`): within-impact terms never see it,
+  and at 1 kHz a two-stage contact of 6-7 samples leaves the hinge 2-3 of them.
 * **a stiffness that depends on depth** (``stage_min_gain``, ``stage_min_ratio``): a
   two-stage law, straight on both sides of a knee with a stiffness at least
   ``stage_min_ratio`` times higher beyond it, predicts held-out impacts better than any
@@ -109,6 +114,15 @@ EXCESS_DAMPING_MIN_R2 = 0.7
 STAGE_MIN_GAIN = 0.15
 #: Least stiffness ratio across the knee (a Hertz contact's hinge reads 1.5-1.7).
 STAGE_MIN_RATIO = 2.0
+#: Force just outside the fitted law's contact (:func:`stiffnet.uncertainty.law_shape.
+#: onset_toe`), in units of the free flight's force scatter, that fires (see the YAML).
+ONSET_TOE_MIN = 8.0
+#: ... counted only from a law explaining this share of the contact force (a poorly fitted
+#: Kelvin-Voigt contact's onset lands inside its impacts: 68-117 at R2 0.68-0.79).
+ONSET_TOE_MIN_R2 = 0.95
+#: ... and on neither side of the impacts a force below this (a sensor chain's ringing or
+#: low-pass leaves the force after the release negative: -4 to -48 on robustness sets).
+ONSET_TOE_MIN_SIDE = -1.0
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -131,6 +145,9 @@ class UnseenLawThresholds(BaseModel):
     excess_damping_min_r2: float = EXCESS_DAMPING_MIN_R2
     stage_min_gain: float = STAGE_MIN_GAIN
     stage_min_ratio: float = STAGE_MIN_RATIO
+    onset_toe_min: float = ONSET_TOE_MIN
+    onset_toe_min_r2: float = ONSET_TOE_MIN_R2
+    onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
 
 
 @lru_cache(maxsize=1)
@@ -213,7 +230,30 @@ def unseen_law_reasons(
             restoring_force.get("contact_damping_ratio"), restoring_force.get("law_shape"), t
         )
     shape = restoring_force.get("law_shape")
-    return reasons + law_shape_reasons(shape, t) + stage_reasons(shape, t)
+    reasons += law_shape_reasons(shape, t) + stage_reasons(shape, t)
+    return reasons + onset_toe_reasons(shape, r2, t)
+
+
+def onset_toe_reasons(
+    shape: dict[str, float] | None, r2: float | None, t: UnseenLawThresholds
+) -> list[str]:
+    """Rule: the contact force just outside the fitted law's contact
+    (:func:`stiffnet.uncertainty.law_shape.onset_toe`) reaches
+    :attr:`UnseenLawThresholds.onset_toe_min` times the free flight's scatter, on a law
+    explaining at least :attr:`UnseenLawThresholds.onset_toe_min_r2` of the contact force,
+    with neither side of the impacts below :attr:`UnseenLawThresholds.onset_toe_min_side`
+    (a sensor chain's ringing pulls after the release): the restraint pushes before the law
+    starts, a soft first stage the law cuts off."""
+    if not shape or shape.get("toe") is None or r2 is None or r2 < t.onset_toe_min_r2:
+        return []
+    toe = shape["toe"]
+    if toe < t.onset_toe_min or shape.get("toe_least_side", 0.0) < t.onset_toe_min_side:
+        return []
+    return [
+        f"the contact pushes before the fitted law's onset (the force just outside each "
+        f"impact is {toe:.0f} times the free flight's scatter): a soft first stage that the "
+        "law cuts off, as a two-stage restraint has, and the model reads the stiff stage"
+    ]
 
 
 def stage_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:
@@ -272,16 +312,22 @@ def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) ->
                 f"the contact stiffens within each impact (a curvature term predicts held-out "
                 f"impacts {curvature:.0%} better than the linear or Hertz law)"
             )
-    hc, share = (
-        shape.get("penetration_dissipation"),
-        shape.get("penetration_dissipation_share", 1.0),
-    )
-    if hc is not None and hc >= t.penetration_dissipation_min_gain:
-        if share >= t.penetration_dissipation_min_share:
-            reasons.append(
-                f"the contact's dissipation grows with penetration within each impact (a "
-                f"delta*v term predicts held-out impacts {hc:.0%} better than Kelvin-Voigt)"
-            )
+    for key, where in (("", ""), ("recorded_", " of the record as recorded")):
+        hc = shape.get(key + "penetration_dissipation")
+        share = shape.get(key + "penetration_dissipation_share", 1.0)
+        if hc is not None and hc >= t.penetration_dissipation_min_gain:
+            if share >= t.penetration_dissipation_min_share:
+                reasons.append(
+                    f"the contact's dissipation grows with penetration within each impact{where} "
+                    f"(a delta*v term predicts held-out impacts {hc:.0%} better than "
+                    "Kelvin-Voigt)"
+                    + (
+                        ", which a fitted low-pass the law barely needs had taken away"
+                        if key
+                        else ""
+                    )  # fmt: skip
+                )
+                break
     return reasons
 
 
