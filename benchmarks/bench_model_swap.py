@@ -1,0 +1,272 @@
+"""The shipped learned model against a candidate, through the real predictor, set by set.
+
+The question before a retrained model replaces ``models/cnn.onnx``: is it better behind
+sensor chains, and no worse on the ideal and in-prior sets? Two parts:
+
+* **Recordings** (24 per set, ``--n``), each model through
+  :meth:`serving.predictor.Predictor.predict` (windows, ONNX model, restoring-force
+  cross-check, alarm): ``benchmarks/bench_crosscheck.py``'s sets at its seeds (``ideal 2%``,
+  ``sensor_chains``, ``sensor_chains+1000`` = its seed + 1000, ``rig_chains``,
+  ``rig_chains_damped``) and ``benchmarks/bench_alarm.py``'s (the robustness sets ``ideal``,
+  ``contact_damping``, ``hertz_contact``, ``sensor_dynamics``, ``damping_and_sensor``; the
+  independent rig's ``rig_ideal``, ``rig_kv``, ``rig_two_stage``, ``rig_hc``). Per set:
+  accuracy over the contact recordings, beta MAPE, 90 % interval coverage, alarms, wrong and
+  silent (wrong class, no alarm), silent (wrong class or beta outside the interval, no
+  alarm: bench_crosscheck's count), alarms on right answers.
+* **A simulated dataset** (``--dataset DIR``, e.g. the independent calibration set of
+  models/README.md): every window through each model, aggregated per trajectory as the
+  predictor does (:func:`training.uncertainty_calibration.trajectory_table`), by where the
+  trajectory's sensor chain lies: none, inside the narrow prior the models before issue 24
+  trained on (resonance >= 15 f_n, low-pass >= 0.15 fs, high-pass <= 2 Hz), or only in the
+  widened one. Coverage there uses each model's own recording quantile.
+
+The restoring-force check does not depend on the model and costs most of a prediction: it
+runs once per recording and is kept under ``--cache`` (with the simulated recordings), so a
+second model, or a second run, reuses it. Run::
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_model_swap.py --model shipped=models/cnn.onnx \\
+        --model new=RUN/cnn.onnx --cache /tmp/stiffnet_swap --json swap.json \\
+        [--dataset CALIBRATION_SET]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import hashlib
+import json
+import pickle
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+for _p in (ROOT, ROOT / "benchmarks", ROOT / "tests"):
+    sys.path.insert(0, str(_p))
+
+import bench_alarm as ba  # noqa: E402  (its sets; imports bench_robustness)
+import bench_crosscheck as bc  # noqa: E402
+
+import serving.predictor as sp  # noqa: E402
+from stiffnet.io_utils import write_json_atomic  # noqa: E402
+
+CROSSCHECK_SETS = ["ideal 2%", "sensor_chains", "sensor_chains+1000", "rig_chains",
+                   "rig_chains_damped"]  # fmt: skip
+ALARM_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
+              "damping_and_sensor", "rig_ideal", "rig_kv", "rig_two_stage", "rig_hc"]  # fmt: skip
+
+#: The per-trajectory fields of a TrajectoryTable a stratum selects.
+ROW_FIELDS = ("trajectory", "label", "beta", "pred", "log_beta", "scale")
+SET_COLUMNS = [("accuracy", "accuracy"), ("beta MAPE", "beta_mape"), ("coverage", "coverage"),
+               ("alarms", "alarms"), ("wrong & silent", "wrong_silent"), ("silent", "silent"),
+               ("alarms on right", "alarms_on_right")]  # fmt: skip
+DATASET_COLUMNS = [("n", "n"), ("accuracy", "accuracy"), ("beta MAPE", "beta_mape"),
+                   ("median APE", "median_ape"), ("coverage", "coverage"),
+                   ("alarm rate", "alarm_rate")]  # fmt: skip
+
+
+class CachedRestoringForce:
+    """The predictor's restoring-force check, computed once per recording (its samples'
+    bytes, rates and sensor sheet) and copied out, so every model reads the same check."""
+
+    def __init__(self, check: Any) -> None:
+        self.check = check
+        self.results: dict[tuple, dict] = {}
+
+    def __call__(self, a: np.ndarray, fs: float, fn: float, sensor: dict | None) -> dict:
+        digest = hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest()
+        key = (digest, float(fs), float(fn), json.dumps(sensor, sort_keys=True))
+        if key not in self.results:
+            self.results[key] = self.check(a, fs, fn, sensor)
+        return copy.deepcopy(self.results[key])
+
+
+def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
+    """The set's recordings (``accel``, ``fs_hz``, ``fn_hz``, ``beta``, ``class``), cached."""
+    path = cache / "data" / f"{name.replace(' ', '_')}-{n}.pkl"
+    if path.is_file():
+        return pickle.loads(path.read_bytes())
+    if name in CROSSCHECK_SETS:
+        base = name.split("+")[0]
+        seed = 20261123 + [*bc.SETS, *bc.RIG_SETS].index(base) + (1000 if "+" in name else 0)
+        simulate = bc.simulate_rig_set if base in bc.RIG_SETS else bc.simulate_set
+        rows, fs, beta, contact, _ = simulate(base, n, seed)
+        recs = [dict(accel=np.asarray(a), fs_hz=float(f), fn_hz=bc.FN_HZ, beta=float(b),
+                     **{"class": bc.class_of(float(b)) if c else "no_contact"})
+                for a, f, b, c in zip(rows, fs, beta, contact, strict=True)]  # fmt: skip
+    elif name in ba.RIG_SETS:
+        recs = ba.rig_recordings(name, n, cache / "data" / "rig")
+    else:
+        cfg = ba.br.set_configs(ba.br.DEFAULT_SETS)[name][0]
+        cfg = cfg.model_copy(update={"n_trajectories": n, "shard_size": n})
+        recs = ba.br.recordings(cfg, cache / "data" / f"{name}-{n}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(recs))
+    return recs
+
+
+def predict_set(pred: sp.Predictor, recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Each recording's class, beta, interval, alarm (and CPU seconds) from `pred`."""
+    out = []
+    for r in recs:
+        t = time.process_time()
+        res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
+        out.append(dict(cls=res["class"], beta=res["beta"], interval=res["beta_interval"],
+                        flag=bool(res["ood_flag"]), fired=(res["alarm"] or {}).get("fired", []),
+                        cpu_s=time.process_time() - t))  # fmt: skip
+    return out
+
+
+def score(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> dict[str, Any]:
+    """Accuracy, MAPE, coverage (contact recordings), alarms and silent failures of a set."""
+    truth = np.array([r["class"] for r in recs])
+    contact = truth != "no_contact"
+    wrong = np.array([g["cls"] for g in got]) != truth
+    flag = np.array([g["flag"] for g in got], dtype=bool)
+    inside = np.ones(len(recs), dtype=bool)
+    ape = []
+    for i, (r, g) in enumerate(zip(recs, got, strict=True)):
+        if contact[i]:
+            iv = g["interval"]
+            inside[i] = bool(iv and iv[0] <= r["beta"] <= iv[1])
+            if g["beta"] is not None:
+                ape.append(abs(g["beta"] / r["beta"] - 1))
+    return {
+        "n": len(recs),
+        "n_contact": int(contact.sum()),
+        "accuracy": float((~wrong[contact]).mean()) if contact.any() else float("nan"),
+        "beta_mape": float(np.mean(ape)) if ape else float("nan"),
+        "coverage": float(inside[contact].mean()) if contact.any() else float("nan"),
+        "alarms": int(flag.sum()),
+        "wrong": int(wrong.sum()),
+        "wrong_silent": int((wrong & ~flag).sum()),
+        "silent": int(((wrong | ~inside) & ~flag).sum()),
+        "alarms_on_right": int((flag & ~wrong & inside).sum()),
+        "cpu_s_per_recording": float(np.mean([g["cpu_s"] for g in got])),
+    }
+
+
+def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, cache: Path,
+                    say: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Every set through every model (the restoring-force check cached per set on disk)."""
+    cached = CachedRestoringForce(sp.restoring_force_check)
+    sp.restoring_force_check = cached  # the predictor module calls it by this name
+    table: dict[str, dict[str, Any]] = {}
+    try:
+        for name in sets:
+            recs = set_recordings(name, n, cache)
+            rf_path = cache / "restoring_force" / f"{name.replace(' ', '_')}-{n}.pkl"
+            cached.results = pickle.loads(rf_path.read_bytes()) if rf_path.is_file() else {}
+            for m, pred in models.items():
+                s = table.setdefault(name, {})[m] = score(recs, predict_set(pred, recs))
+                say(f"{name} / {m}: accuracy {s['accuracy']:.2f}, MAPE {s['beta_mape']:.3f}, "
+                    f"coverage {s['coverage']:.2f}, alarms {s['alarms']}, wrong and silent "
+                    f"{s['wrong_silent']}, silent {s['silent']}")  # fmt: skip
+            rf_path.parent.mkdir(parents=True, exist_ok=True)
+            rf_path.write_bytes(pickle.dumps(cached.results))
+    finally:
+        sp.restoring_force_check = cached.check
+    return table
+
+
+def chain_strata(ds: Any, trajectories: np.ndarray) -> dict[str, np.ndarray]:
+    """Masks over `trajectories`: no sensor, a chain in the narrow prior, a widened one."""
+    traj = ds.column("trajectory")
+    first = np.array([np.flatnonzero(traj == t)[0] for t in trajectories])
+
+    def col(key: str) -> np.ndarray:
+        return np.asarray(ds.column(key), dtype=np.float64)[first]
+
+    active = col("effect.sensor_dynamics.active").astype(bool)
+    res = col("effect.sensor_dynamics.resonance_hz") / col("natural_frequency_hz")
+    lowpass = col("effect.sensor_dynamics.lowpass_hz") / col("fs_hz")
+    highpass = col("effect.sensor_dynamics.highpass_hz")
+    narrow = (res >= 15) & (lowpass >= 0.15) & (highpass <= 2.0)
+    return {
+        "all": np.ones(len(first), dtype=bool),
+        "no sensor": ~active,
+        "chain in the narrow prior": active & narrow,
+        "chain widened": active & ~narrow,
+        "low-pass < 0.15 fs": active & (lowpass < 0.15),
+        "resonance < 15 f_n": active & (res < 15),
+        "high-pass > 2 Hz": active & (highpass > 2.0),
+    }
+
+
+def dataset_part(paths: dict[str, Path], data: Path) -> dict[str, dict[str, Any]]:
+    """Each model on the dataset's trajectories, by stratum (accuracy, MAPE, median APE,
+    coverage with the model's own quantile, alarm rate)."""
+    from dataclasses import replace
+
+    from stiffnet.dataset.store import load_dataset
+    from stiffnet.uncertainty.alarm import load_alarm
+    from training.recalibrate import model_outputs
+    from training.uncertainty_calibration import trajectory_metrics, trajectory_table
+
+    ds = load_dataset(data)
+    out: dict[str, dict[str, Any]] = {}
+    for m, path in paths.items():
+        meta = json.loads(path.with_suffix(".card.json").read_text())["metadata"]
+        alarm = load_alarm(path.with_suffix(".alarm.npz"))
+        table = trajectory_table(ds.column("trajectory"), ds.column("label"), ds.column("beta"),
+                                 model_outputs(path, ds, meta), alarm)  # fmt: skip
+        q = float(meta["conformal_quantile_recording"])
+        for name, mask in chain_strata(ds, table.trajectory).items():
+            rows = {k: getattr(table, k)[mask] for k in ROW_FIELDS}
+            checks = {k: np.asarray(v)[mask] for k, v in table.checks.items()}
+            sub = replace(table, **rows, checks=checks)
+            r = trajectory_metrics(sub, q, alarm)
+            ok = (sub.label != 0) & np.isfinite(sub.log_beta)
+            r["median_ape"] = float(np.median(np.abs(np.exp(sub.log_beta[ok]) / sub.beta[ok] - 1)))
+            out.setdefault(name, {})[m] = r
+    return out
+
+
+def markdown(table: dict[str, dict[str, Any]], columns: list[tuple[str, str]]) -> str:
+    """One row per set and model."""
+    lines = ["| set | model | " + " | ".join(c for c, _ in columns) + " |",
+             "| --- | --- |" + " ---: |" * len(columns)]  # fmt: skip
+    for name, models in table.items():
+        for m, s in models.items():
+            cells = [f"{s.get(k, float('nan')):.3g}" if isinstance(s.get(k), float)
+                     else str(s.get(k)) for _, k in columns]  # fmt: skip
+            lines.append(f"| {name} | {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--model", action="append", required=True, metavar="NAME=PATH.onnx")
+    ap.add_argument("--sets", nargs="*", default=CROSSCHECK_SETS + ALARM_SETS)
+    ap.add_argument("--n", type=int, default=24, help="recordings per set")
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/stiffnet_model_swap"))
+    ap.add_argument("--dataset", type=Path, help="also score a simulated dataset by stratum")
+    ap.add_argument("--json", type=Path, help="also write the numbers here")
+    args = ap.parse_args(argv)
+    paths = {k: Path(v) for k, v in (m.split("=", 1) for m in args.model)}
+    unknown = set(args.sets) - set(CROSSCHECK_SETS + ALARM_SETS)
+    if unknown:
+        ap.error(f"unknown sets {sorted(unknown)}; choose from {CROSSCHECK_SETS + ALARM_SETS}")
+    models = {k: sp.Predictor.load(v) for k, v in paths.items()}
+    t0 = time.perf_counter()
+
+    def say(msg: str) -> None:
+        print(f"[{time.perf_counter() - t0:.0f} s] {msg}", file=sys.stderr, flush=True)
+
+    result: dict[str, Any] = {"models": {k: str(v) for k, v in paths.items()}}
+    result["sets"] = recordings_part(models, args.sets, args.n, args.cache, say)
+    print(markdown(result["sets"], SET_COLUMNS))
+    if args.dataset:
+        result["dataset"] = dataset_part(paths, args.dataset)
+        print()
+        print(markdown(result["dataset"], DATASET_COLUMNS))
+    if args.json:
+        write_json_atomic(args.json, result)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
