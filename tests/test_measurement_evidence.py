@@ -51,3 +51,52 @@ def test_evidence_on_a_simulated_campaign(tmp_path, zeta):
     else:
         assert "contact_damping" not in ev["supports"]
         assert ev["contact_damping_ratio"] < 0.05
+
+
+def test_the_chain_is_fitted_on_a_few_recordings_spread_over_the_campaign():
+    from stiffnet.measurement.evidence import _as_sheet, _spread
+
+    assert _spread(list(range(24)), 3) == [0, 12, 23]
+    assert _spread([1, 4, 6, 9], 3) == [1, 6, 9]
+    assert _spread([2, 5], 3) == [2, 5]
+    # a shared chain becomes a data sheet with a whole low-pass order; no stage to undo: none
+    shared = {"n": 3, "resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
+              "lowpass_order": 1.5, "highpass_hz": None}  # fmt: skip
+    sheet = {"resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
+             "lowpass_order": 2.0, "highpass_hz": 0.0}  # fmt: skip
+    assert _as_sheet(shared) == sheet
+    assert _as_sheet({"n": 3, "resonance_hz": None, "lowpass_hz": None, "highpass_hz": 1.0}) is None
+    assert _as_sheet(None) is None
+
+
+@pytest.mark.slow
+def test_one_accelerometer_chain_fitted_on_three_recordings_is_undone_on_the_rest(tmp_path):
+    """5 recordings through a 237 Hz accelerometer resonance and a damped contact: the chain
+    is fitted on 3 of them, the other 2 are read through the chain those share, and the
+    evidence says so; the contact damping and the chain are still read."""
+    from campaign_helpers import short_manifest
+
+    from stiffnet.measurement.evidence import contact_law_per_recording
+
+    hidden = ["contact_damping:damping_ratio=0.25",
+              "sensor_dynamics:resonance_hz=237,resonance_damping=0.03,lowpass_hz=0"]  # fmt: skip
+    camp = load_campaign(simulate_campaign(short_manifest(tmp_path, 5, "2"), tmp_path / "c",
+                                           hidden, seed=0))  # fmt: skip
+    per = contact_law_per_recording(camp, camp.rows)
+    shared = [p for p in per if p.get("chain_shared")]
+    names = [r.recording for r in camp.rows]
+    assert [p["recording"] for p in shared] == [names[1], names[3]]
+    assert all(p["chain_fitted_on"] == [names[0], names[2], names[4]] for p in shared)
+    assert all(p["sensor"]["source"] == "data sheet" for p in shared)
+    assert all(p["sensor"]["source"] == "fitted" for p in per if not p.get("chain_shared"))
+    assert shared[0]["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
+    ev = contact_evidence(per)
+    assert ev["sensor"]["n"] == 3  # the fitted chains only, not the copies undone
+    assert ev["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
+    assert ev["chain_fitted_on"] == [names[0], names[2], names[4]]
+    assert (
+        "fitted on 3 of them" in ev["summary"]
+        and "undone as shared on the other 2" in ev["summary"]
+    )
+    assert ev["supports"] == ["contact_damping"] and ev["answered"] >= 4
+    assert ev["contact_damping_ratio"] == pytest.approx(0.25, abs=0.08)
