@@ -12,9 +12,11 @@ tasks on diagnose's workers (:func:`stiffnet.distributed.tasks.run_tasks`).
 
 A campaign has one accelerometer, so its sensor chain is fitted
 (:func:`~stiffnet.restoring_force.chain.fit_chain`, a few seconds per recording) on
-:data:`CHAIN_RECORDINGS` recordings spread over the campaign, and the chain they share
+:data:`CHAIN_RECORDINGS` recordings spread over the campaign (as many more while they
+share no stage), and the chain they share
 (:func:`~stiffnet.restoring_force.chain.shared_chain`) is undone on the others as a
-data sheet would be (a few hundredths of a second each). The evidence says so
+data sheet would be (a few hundredths of a second each); a recording whose contact law
+it leaves poorly explained has its own chain fitted. The evidence says so
 (``chain_fitted_on``). A row with its own data sheet is read with it; where the fitted
 recordings share no chain stage, every recording is fitted.
 """
@@ -41,6 +43,10 @@ MIN_ANSWERED = 2
 #: Recordings whose sensor chain is fitted; the others are read through the chain they share.
 #: Three: the shared chain's median then outvotes one recording's odd stage.
 CHAIN_RECORDINGS = 3
+#: A recording read through the shared chain whose contact law explains less than this (or
+#: that is refused) has its own chain fitted: a chain undone as a data sheet is never
+#: rejected, where a fitted one is when the record as recorded reads better.
+SHARED_CHAIN_MIN_R2 = 0.9
 
 
 def restitution(zeta: float) -> float:
@@ -60,22 +66,31 @@ def contact_law_per_recording(
     filled in where the manifest had none). ``client``: a Dask client whose workers
     read the recordings in parallel (in-process without one); the results do not
     depend on where they ran. ``chain_recordings``: the sensor chain is fitted on
-    that many recordings (spread over the rows without a data sheet) and the chain
-    they share is undone on the others (their ``chain_shared`` is True); None, or no
-    more rows than that: fitted on every recording.
+    that many recordings (spread over the rows without a data sheet; that many more
+    while they share no stage) and the chain they share is undone on the others (their
+    ``chain_shared`` is True), except where the law then explains less than
+    :data:`SHARED_CHAIN_MIN_R2` (fitted there too); None, or no more rows than that:
+    fitted on every recording.
     """
     sheets = [row.sensor_sheet() for row in rows]
     fit = [i for i, sheet in enumerate(sheets) if sheet is None]
     found: dict[int, dict[str, Any]] = {}
     rest: list[int] = []
-    if chain_recordings is not None and len(fit) > chain_recordings > 0:
-        first = _spread(fit, chain_recordings)
-        found = _read(campaign, rows, first, sheets, client)
-        sheet = _as_sheet(shared_chain([found[i].get("sensor") for i in first]))
-        if sheet is not None:  # the others are read through the chain the first ones share
-            rest = [i for i in fit if i not in found]
-            sheets = [sheet if i in rest else s for i, s in enumerate(sheets)]
+    left, sheet = list(fit), None
+    # rounds of `chain_recordings` until the fitted chains share a stage (a fast contact
+    # or a rejected chain shows none), the rest read through it
+    while chain_recordings and sheet is None and len(left) > chain_recordings > 0:
+        found |= _read(campaign, rows, _spread(left, chain_recordings), sheets, client)
+        left = [i for i in left if i not in found]
+        sheet = _as_sheet(shared_chain([found[i].get("sensor") for i in fit if i in found]))
+    if sheet is not None:
+        rest = left
+        sheets = [sheet if i in rest else s for i, s in enumerate(sheets)]
     found |= _read(campaign, rows, [i for i in range(len(rows)) if i not in found], sheets, client)
+    # where the shared chain does not describe a recording's pulses, its own chain is fitted
+    poor = [i for i in rest if (found[i].get("contact_r2") or 0.0) < SHARED_CHAIN_MIN_R2]
+    found |= _read(campaign, rows, poor, [None] * len(rows), client)
+    rest = [i for i in rest if i not in poor]
     for i in rest:
         found[i]["chain_shared"] = True
         found[i]["chain_fitted_on"] = [rows[j].recording for j in sorted(set(fit) - set(rest))]
