@@ -91,7 +91,7 @@ def test_one_accelerometer_chain_fitted_on_three_recordings_is_undone_on_the_res
     assert all(p["sensor"]["source"] == "fitted" for p in per if not p.get("chain_shared"))
     assert shared[0]["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
     ev = contact_evidence(per)
-    assert ev["sensor"]["n"] == 3  # the fitted chains only, not the copies undone
+    assert ev["sensor"]["n"] == 5  # one vote per recording
     assert ev["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
     assert ev["chain_fitted_on"] == [names[0], names[2], names[4]]
     assert (
@@ -141,7 +141,7 @@ def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain
     assert (6, True) in calls and per[6]["sensor"]["resonance_hz"] == 300.0
     assert all(per[i]["contact_r2"] == 0.97 for i in (0, 3, 4, 5))
     ev = evidence.contact_evidence(per)
-    assert ev["sensor"]["n"] == 6  # five fitted chains and the row's own sheet, not the copy
+    assert ev["sensor"]["n"] == 7  # one vote per recording, the shared chain's copy included
 
 
 def test_a_second_round_of_chain_fits_where_the_first_three_share_no_stage(monkeypatch):

@@ -169,10 +169,10 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(per_recording)
     res: dict[str, Any] = {"n": n, "answered": len(ok), "per_recording": per_recording,
                            "supports": []}  # fmt: skip
-    # sensor_dynamics' start: the chains read off the recordings, not the shared one undone
-    res["sensor"] = shared_chain(
-        [p.get("sensor") for p in per_recording if not p.get("chain_shared")]
-    )
+    # sensor_dynamics' start, one vote per recording: one read well through the shared
+    # chain (its law explains >= SHARED_CHAIN_MIN_R2) votes for that chain, as a recording
+    # whose own chain was fitted votes for its own
+    res["sensor"] = shared_chain([p.get("sensor") for p in per_recording])
     shared = [p for p in per_recording if p.get("chain_shared")]
     chain_words = ""
     if shared:
