@@ -51,3 +51,123 @@ def test_evidence_on_a_simulated_campaign(tmp_path, zeta):
     else:
         assert "contact_damping" not in ev["supports"]
         assert ev["contact_damping_ratio"] < 0.05
+
+
+def test_the_chain_is_fitted_on_a_few_recordings_spread_over_the_campaign():
+    from stiffnet.measurement.evidence import _as_sheet, _spread
+
+    assert _spread(list(range(24)), 3) == [0, 12, 23]
+    assert _spread([1, 4, 6, 9], 3) == [1, 6, 9]
+    assert _spread([2, 5], 3) == [2, 5]
+    # a shared chain becomes a data sheet with a whole low-pass order; no stage to undo: none
+    shared = {"n": 3, "resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
+              "lowpass_order": 1.5, "highpass_hz": None}  # fmt: skip
+    sheet = {"resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
+             "lowpass_order": 2.0, "highpass_hz": 0.0}  # fmt: skip
+    assert _as_sheet(shared) == sheet
+    assert _as_sheet({"n": 3, "resonance_hz": None, "lowpass_hz": None, "highpass_hz": 1.0}) is None
+    assert _as_sheet(None) is None
+
+
+@pytest.mark.slow
+def test_one_accelerometer_chain_fitted_on_three_recordings_is_undone_on_the_rest(tmp_path):
+    """5 recordings through a 237 Hz accelerometer resonance and a damped contact: the chain
+    is fitted on 3 of them, the other 2 are read through the chain those share, and the
+    evidence says so; the contact damping and the chain are still read."""
+    from campaign_helpers import short_manifest
+
+    from stiffnet.measurement.evidence import contact_law_per_recording
+
+    hidden = ["contact_damping:damping_ratio=0.25",
+              "sensor_dynamics:resonance_hz=237,resonance_damping=0.03,lowpass_hz=0"]  # fmt: skip
+    camp = load_campaign(simulate_campaign(short_manifest(tmp_path, 5, "2"), tmp_path / "c",
+                                           hidden, seed=0))  # fmt: skip
+    per = contact_law_per_recording(camp, camp.rows)
+    shared = [p for p in per if p.get("chain_shared")]
+    names = [r.recording for r in camp.rows]
+    assert [p["recording"] for p in shared] == [names[1], names[3]]
+    assert all(p["chain_fitted_on"] == [names[0], names[2], names[4]] for p in shared)
+    assert all(p["sensor"]["source"] == "data sheet" for p in shared)
+    assert all(p["sensor"]["source"] == "fitted" for p in per if not p.get("chain_shared"))
+    assert shared[0]["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
+    ev = contact_evidence(per)
+    assert ev["sensor"]["n"] == 5  # one vote per recording
+    assert ev["sensor"]["resonance_hz"] == pytest.approx(237.0, rel=0.01)
+    assert ev["chain_fitted_on"] == [names[0], names[2], names[4]]
+    assert (
+        "fitted on 3 of them" in ev["summary"]
+        and "undone as shared on the other 2" in ev["summary"]
+    )
+    assert ev["supports"] == ["contact_damping"] and ev["answered"] >= 4
+    assert ev["contact_damping_ratio"] == pytest.approx(0.25, abs=0.08)
+
+
+def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain(monkeypatch):
+    """The rule on stand-in readings: 6 rows, the chain fitted on rows 0, 2 and 5; of the
+    others read through their shared chain, the one whose law explains 0.6 and the refused
+    one are read again with their own chain fitted; a row with its own sheet keeps it."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    chain = {"resonance_hz": 237.0, "resonance_damping": 0.03, "source": "fitted"}
+    shared_r2 = {1: 0.98, 3: 0.6, 4: None}  # row 4: refused through the shared chain
+    calls = []
+
+    def reading(item):
+        rec, row, sheet = item
+        calls.append((rec, sheet is not None))
+        if sheet is None:  # the chain fitted on this recording
+            return {"recording": row.recording, "ok": True, "contact_r2": 0.97, "exponent": 1.0,
+                    "contact_damping_ratio": 0.2, "sensor": dict(chain)}  # fmt: skip
+        r2 = shared_r2.get(rec, 0.99)
+        return {"recording": row.recording, "ok": r2 is not None, "contact_r2": r2,
+                "contact_damping_ratio": 0.2, "exponent": 1.0,
+                "sensor": {**sheet, "source": "data sheet"}}  # fmt: skip
+
+    monkeypatch.setattr(evidence, "_contact_law_task", reading)
+    rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(6)]
+    rows.append(
+        SimpleNamespace(
+            recording="own", sensor_sheet=lambda: {"resonance_hz": 300.0, "resonance_damping": 0.05}
+        )
+    )
+    camp = SimpleNamespace(recording=lambda i: i)
+    per = evidence.contact_law_per_recording(camp, rows)
+    shared = [p["recording"] for p in per if p.get("chain_shared")]
+    assert shared == ["r1"]  # r3 (law explains 0.6) and r4 (refused) read again
+    assert per[1]["chain_fitted_on"] == ["r0", "r2", "r3", "r4", "r5"]
+    assert [rec for rec, with_sheet in calls if not with_sheet] == [0, 2, 5, 3, 4]
+    assert (6, True) in calls and per[6]["sensor"]["resonance_hz"] == 300.0
+    assert all(per[i]["contact_r2"] == 0.97 for i in (0, 3, 4, 5))
+    ev = evidence.contact_evidence(per)
+    assert ev["sensor"]["n"] == 7  # one vote per recording, the shared chain's copy included
+
+
+def test_a_second_round_of_chain_fits_where_the_first_three_share_no_stage(monkeypatch):
+    """8 rows; the first round (rows 0, 4, 7) reads a resonance, a low-pass and nothing (as
+    fast contacts do): no stage shared, so 3 more are fitted (rows 1, 3, 6, all with the
+    resonance: 4 of 6 share it) and the last 2 are read through it."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    resonance = {"resonance_hz": 237.0, "resonance_damping": 0.03, "source": "fitted"}
+    own = {0: resonance, 4: {"lowpass_hz": 280.0, "lowpass_order": 4, "source": "fitted"},
+           7: {"source": "fitted"}}  # fmt: skip
+    fitted = []
+
+    def reading(item):
+        rec, row, sheet = item
+        if sheet is None:
+            fitted.append(rec)
+        chain = own.get(rec, resonance) if sheet is None else {**sheet, "source": "data sheet"}
+        return {"recording": row.recording, "ok": True, "contact_r2": 0.97, "exponent": 1.0,
+                "contact_damping_ratio": 0.2, "sensor": chain}  # fmt: skip
+
+    monkeypatch.setattr(evidence, "_contact_law_task", reading)
+    rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(8)]
+    per = evidence.contact_law_per_recording(SimpleNamespace(recording=lambda i: i), rows)
+    assert fitted == [0, 4, 7, 1, 3, 6]
+    assert [p["recording"] for p in per if p.get("chain_shared")] == ["r2", "r5"]
+    assert per[2]["sensor"]["resonance_hz"] == 237.0 and not per[2]["sensor"]["lowpass_hz"]

@@ -7,9 +7,18 @@ damping ratio ``zeta_c``; a restitution ``e = exp(-pi zeta_c / sqrt(1 - zeta_c**
 and its **curvature** is stiffening (the exponent ``p``: 1 linear, 1.5 Hertz).
 Summarised over a campaign, they say which contact effects the data themselves
 show, independently of the simulation fits that ``diagnose`` ranks
-(``contact_damping``, ``hertz_contact``). One estimate per recording: a few
-seconds each where the sensor chain is fitted, so they run as parallel tasks on
-diagnose's workers (:func:`stiffnet.distributed.tasks.run_tasks`).
+(``contact_damping``, ``hertz_contact``). One estimate per recording, as parallel
+tasks on diagnose's workers (:func:`stiffnet.distributed.tasks.run_tasks`).
+
+A campaign has one accelerometer, so its sensor chain is fitted
+(:func:`~stiffnet.restoring_force.chain.fit_chain`, a few seconds per recording) on
+:data:`CHAIN_RECORDINGS` recordings spread over the campaign (as many more while they
+share no stage), and the chain they share
+(:func:`~stiffnet.restoring_force.chain.shared_chain`) is undone on the others as a
+data sheet would be (a few hundredths of a second each); a recording whose contact law
+it leaves poorly explained has its own chain fitted. The evidence says so
+(``chain_fitted_on``). A row with its own data sheet is read with it; where the fitted
+recordings share no chain stage, every recording is fitted.
 """
 
 from __future__ import annotations
@@ -21,7 +30,7 @@ import numpy as np
 from stiffnet.campaign import Campaign, ManifestRow
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
-from stiffnet.restoring_force.chain import shared_chain
+from stiffnet.restoring_force.chain import SENSOR_KEYS, shared_chain
 
 #: Forcing periods read per recording (the predictor's cross-check reads as many).
 PERIODS = 24.0
@@ -31,6 +40,13 @@ DISSIPATION_ZETA = 0.05
 STIFFENING_EXPONENT = 1.15
 #: Evidence needs the contact law of at least this many recordings.
 MIN_ANSWERED = 2
+#: Recordings whose sensor chain is fitted; the others are read through the chain they share.
+#: Three: the shared chain's median then outvotes one recording's odd stage.
+CHAIN_RECORDINGS = 3
+#: A recording read through the shared chain whose contact law explains less than this (or
+#: that is refused) has its own chain fitted: a chain undone as a data sheet is never
+#: rejected, where a fitted one is when the record as recorded reads better.
+SHARED_CHAIN_MIN_R2 = 0.9
 
 
 def restitution(zeta: float) -> float:
@@ -39,32 +55,94 @@ def restitution(zeta: float) -> float:
 
 
 def contact_law_per_recording(
-    campaign: Campaign, rows: list[ManifestRow], client: Any = None
+    campaign: Campaign,
+    rows: list[ManifestRow],
+    client: Any = None,
+    chain_recordings: int | None = CHAIN_RECORDINGS,
 ) -> list[dict[str, Any]]:
     """The restoring-force contact law of each recording (or why there is none).
 
     ``rows`` are diagnose's resolved rows (natural frequency and forcing ratio
     filled in where the manifest had none). ``client``: a Dask client whose workers
     read the recordings in parallel (in-process without one); the results do not
-    depend on where they ran.
+    depend on where they ran. ``chain_recordings``: the sensor chain is fitted on
+    that many recordings (spread over the rows without a data sheet; that many more
+    while they share no stage) and the chain they share is undone on the others (their
+    ``chain_shared`` is True), except where the law then explains less than
+    :data:`SHARED_CHAIN_MIN_R2` (fitted there too); None, or no more rows than that:
+    fitted on every recording.
     """
+    sheets = [row.sensor_sheet() for row in rows]
+    fit = [i for i, sheet in enumerate(sheets) if sheet is None]
+    found: dict[int, dict[str, Any]] = {}
+    rest: list[int] = []
+    left, sheet = list(fit), None
+    # rounds of `chain_recordings` until the fitted chains share a stage (a fast contact
+    # or a rejected chain shows none), the rest read through it
+    while chain_recordings and sheet is None and len(left) > chain_recordings > 0:
+        found |= _read(campaign, rows, _spread(left, chain_recordings), sheets, client)
+        left = [i for i in left if i not in found]
+        sheet = _as_sheet(shared_chain([found[i].get("sensor") for i in fit if i in found]))
+    if sheet is not None:
+        rest = left
+        sheets = [sheet if i in rest else s for i, s in enumerate(sheets)]
+    found |= _read(campaign, rows, [i for i in range(len(rows)) if i not in found], sheets, client)
+    # where the shared chain does not describe a recording's pulses, its own chain is fitted
+    poor = [i for i in rest if (found[i].get("contact_r2") or 0.0) < SHARED_CHAIN_MIN_R2]
+    found |= _read(campaign, rows, poor, [None] * len(rows), client)
+    rest = [i for i in rest if i not in poor]
+    for i in rest:
+        found[i]["chain_shared"] = True
+        found[i]["chain_fitted_on"] = [rows[j].recording for j in sorted(set(fit) - set(rest))]
+    return [found[i] for i in range(len(rows))]
+
+
+def _spread(indices: list[int], n: int) -> list[int]:
+    """`n` of `indices` evenly spread (first and last included)."""
+    picks = {indices[round(j * (len(indices) - 1) / max(n - 1, 1))] for j in range(n)}
+    return sorted(picks)
+
+
+def _as_sheet(shared: dict[str, Any] | None) -> dict[str, float] | None:
+    """The chain a campaign's recordings share as a data sheet; None without a resonance or
+    low-pass (nothing to undo that the per-recording high-pass fit would not find)."""
+    if not shared or not (shared.get("resonance_hz") or shared.get("lowpass_hz")):
+        return None
+    sheet = {k: float(shared.get(k) or 0.0) for k in SENSOR_KEYS}
+    if sheet["lowpass_order"]:
+        sheet["lowpass_order"] = float(max(1, round(sheet["lowpass_order"])))
+    return sheet
+
+
+def _read(
+    campaign: Campaign,
+    rows: list[ManifestRow],
+    which: list[int],
+    sheets: list[dict[str, float] | None],
+    client: Any,
+) -> dict[int, dict[str, Any]]:
+    """:func:`_contact_law_task` of the rows `which` (each with its sheet), by row index."""
     from stiffnet.distributed.tasks import run_tasks
 
-    items = [(campaign.recording(i), row) for i, row in enumerate(rows)]
-    report = run_tasks(_contact_law_task, items, client=client, names=[r.recording for r in rows])
+    if not which:
+        return {}
+    items = [(campaign.recording(i), rows[i], sheets[i]) for i in which]
+    report = run_tasks(_contact_law_task, items, client=client,
+                       names=[rows[i].recording for i in which])  # fmt: skip
     report.raise_failures()
-    return report.results
+    return dict(zip(which, report.results, strict=True))
 
 
-def _contact_law_task(item: tuple[Any, ManifestRow]) -> dict[str, Any]:
-    """One recording's restoring-force estimate as evidence (a picklable task)."""
-    rec, row = item
+def _contact_law_task(item: tuple[Any, ManifestRow, dict[str, float] | None]) -> dict[str, Any]:
+    """One recording's restoring-force estimate as evidence (a picklable task); the third
+    item is the data sheet undone (None: the chain is fitted)."""
+    rec, row, sheet = item
     fn = row.natural_frequency_hz
     ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
     try:
         r = restoring_force_estimate(
             rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
-            max_periods=PERIODS, sensor=row.sensor_sheet(),
+            max_periods=PERIODS, sensor=sheet,
         )  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return {"recording": row.recording, "ok": False, "reason": str(exc)}
@@ -91,11 +169,23 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     n = len(per_recording)
     res: dict[str, Any] = {"n": n, "answered": len(ok), "per_recording": per_recording,
                            "supports": []}  # fmt: skip
-    res["sensor"] = shared_chain([p.get("sensor") for p in per_recording])  # sensor_dynamics' start
+    # sensor_dynamics' start, one vote per recording: one read well through the shared
+    # chain (its law explains >= SHARED_CHAIN_MIN_R2) votes for that chain, as a recording
+    # whose own chain was fitted votes for its own
+    res["sensor"] = shared_chain([p.get("sensor") for p in per_recording])
+    shared = [p for p in per_recording if p.get("chain_shared")]
+    chain_words = ""
+    if shared:
+        res["chain_fitted_on"] = shared[0]["chain_fitted_on"]
+        chain_words = (
+            f" (the sensor chain fitted on {len(res['chain_fitted_on'])} of them, "
+            f"{', '.join(res['chain_fitted_on'])}, and undone as shared on the other "
+            f"{len(shared)})"
+        )
     if len(ok) < MIN_ANSWERED:
         res["summary"] = (
             f"restoring-force evidence: the contact law was read on {len(ok)} of {n} "
-            "recordings, too few to say anything about the contact"
+            f"recordings{chain_words}, too few to say anything about the contact"
         )
         return res
     zeta = np.array([p["contact_damping_ratio"] for p in ok], dtype=float)
@@ -120,7 +210,9 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
         words.append(f"the contact stiffens (exponent {p_med:.2f}): supports hertz_contact")
     else:
         words.append(f"a linear contact (exponent {p_med:.2f})")
-    res["summary"] = f"restoring-force evidence on {len(ok)} of {n} recordings: " + "; ".join(words)
+    res["summary"] = (
+        f"restoring-force evidence on {len(ok)} of {n} recordings{chain_words}: " + "; ".join(words)
+    )
     return res
 
 
