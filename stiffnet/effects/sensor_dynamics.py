@@ -8,6 +8,7 @@ this effect adds its linear dynamics to the sampled acceleration.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 from typing import ClassVar
 
@@ -54,6 +55,19 @@ def resonance_sos(resonance_hz: float, damping: float, fs_hz: float) -> np.ndarr
     poles = np.roots([1.0, 2.0 * damping * w, w * w])
     z, p, k = sps.bilinear_zpk([], poles, w * w, fs_hz)
     return sps.zpk2sos(z, p, k)
+
+
+def _steady_state(sos: np.ndarray) -> np.ndarray:
+    """``scipy.signal.sosfilt_zi`` of a read-only design from :meth:`SensorDynamics._design`,
+    kept with it (the same design, the same numbers)."""
+    return _steady_state_of(sos.tobytes(), sos.shape)
+
+
+@functools.lru_cache(maxsize=4096)
+def _steady_state_of(data: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    zi = sps.sosfilt_zi(np.frombuffer(data).reshape(shape))
+    zi.setflags(write=False)
+    return zi
 
 
 class SensorDynamics(MeasurementEffect):
@@ -266,19 +280,24 @@ class SensorDynamics(MeasurementEffect):
         # rows sharing a design (the common case: fixed parameters, one fs) filter together
         designs, which = np.unique(table, axis=0, return_inverse=True)
         for i, row in enumerate(designs):
-            sos = self._design(*row)
-            if sos is None:
+            kept = self._design(*row)
+            if kept is None:
                 continue
+            sos = kept.copy()  # scipy's sosfilt takes a writable design only
             rows = np.flatnonzero(which.ravel() == i)
-            zi = sps.sosfilt_zi(sos)[:, None, :] * x[rows, 0][None, :, None]
+            zi = _steady_state(kept)[:, None, :] * x[rows, 0][None, :, None]
             out[rows], _ = sps.sosfilt(sos, x[rows], axis=-1, zi=zi)
         return out
 
     @staticmethod
+    @functools.lru_cache(maxsize=4096)
     def _design(
         fs: float, f_r: float, zeta: float, f_h: float, f_l: float, order: float
     ) -> np.ndarray | None:
-        """SOS of the whole chain at rate ``fs``, or None when every stage is skipped."""
+        """SOS of the whole chain at rate ``fs``, or None when every stage is skipped.
+
+        Kept per parameters (read-only): a fit filters every evaluation's rows with the
+        same few designs, and designing them (scipy's zpk2sos) cost as much as filtering."""
         if not fs > 0:
             raise ValueError(f"sampling rate must be positive, got {fs}")
         limit = _MAX_CORNER_FRACTION * fs
@@ -289,4 +308,8 @@ class SensorDynamics(MeasurementEffect):
             stages.append(sps.butter(1, f_h, "highpass", fs=fs, output="sos"))
         if 0 < f_l < limit:
             stages.append(sps.butter(int(order), f_l, "lowpass", fs=fs, output="sos"))
-        return np.vstack(stages) if stages else None
+        if not stages:
+            return None
+        sos = np.vstack(stages)
+        sos.setflags(write=False)
+        return sos

@@ -35,6 +35,7 @@ restoring force); the paper's eqs 11-12 (the contact law).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -251,12 +252,29 @@ def chain_sos(chain: SensorChain, fs_hz: float) -> np.ndarray | None:
     prewarped: the corners land where the analog ones are), or None without either."""
     stages = []
     if chain.resonance_hz and chain.resonance_hz < 0.5 * fs_hz:
-        w = 2.0 * fs_hz * np.tan(np.pi * chain.resonance_hz / fs_hz)
-        poles = np.roots([1.0, 2.0 * chain.resonance_damping * w, w * w])
-        stages.append(signal.zpk2sos(*signal.bilinear_zpk([], poles, w * w, fs_hz)))
+        stages.append(_resonance_stage(chain.resonance_hz, chain.resonance_damping, fs_hz))
     if chain.lowpass_hz and chain.lowpass_hz < 0.5 * fs_hz:
-        stages.append(signal.butter(chain.lowpass_order, chain.lowpass_hz, fs=fs_hz, output="sos"))
+        stages.append(_lowpass_stage(chain.lowpass_order, chain.lowpass_hz, fs_hz))
     return np.vstack(stages) if stages else None
+
+
+# Each stage is kept per its values (read-only; chain_sos stacks a copy): a chain fit's
+# finite-difference Jacobian moves one parameter at a time, so most of its evaluations
+# design stages already designed, and scipy's design cost as much as the filtering.
+@functools.lru_cache(maxsize=4096)
+def _resonance_stage(resonance_hz: float, damping: float, fs_hz: float) -> np.ndarray:
+    w = 2.0 * fs_hz * np.tan(np.pi * resonance_hz / fs_hz)
+    poles = np.roots([1.0, 2.0 * damping * w, w * w])
+    sos = signal.zpk2sos(*signal.bilinear_zpk([], poles, w * w, fs_hz))
+    sos.setflags(write=False)
+    return sos
+
+
+@functools.lru_cache(maxsize=4096)
+def _lowpass_stage(order: int, lowpass_hz: float, fs_hz: float) -> np.ndarray:
+    sos = signal.butter(order, lowpass_hz, fs=fs_hz, output="sos")
+    sos.setflags(write=False)
+    return sos
 
 
 #: The record is read from where the low-pass has settled: this many of its DC group delays.
