@@ -17,7 +17,7 @@ scale, which is why the samples must be in model units.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -142,7 +142,8 @@ def record_contact_samples(
         plain = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=-np.inf, **options)
         s_plain = _samples_of(plain, fs_hz, gain, recording)
         if not keeps_chain(s_plain, s):
-            return s_plain, plain
+            # the record as recorded; its estimate reports the chain as fitted, not applied
+            return s_plain, replace(plain, sensor=replace(chain, applied=False))
     return s, r
 
 
