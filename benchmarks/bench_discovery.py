@@ -4,7 +4,7 @@ Stiffnet's simulator: the example manifest's eight operating points at three for
 ratios (x0.98, x1, x1.02), 24 forcing periods each after the transient, simulated in
 one batch per law (the numerical engine) with 3 % white noise; each law is a user
 effect of ``tests/unknown_contact_laws.py`` (or the library's linear / Kelvin-Voigt
-contact). The independent rig (``--rig``): the 24-recording campaigns of
+contact). The independent rig (cases "rig ..."): the 24-recording campaigns of
 ``benchmarks/bench_loop_iteration.py --rig`` (``tests/independent_rig.py``, solve_ivp in
 SI units, CSV in g, 3 s at 2 % noise; two-stage knee 0.25 mm ratio 2.5, Hunt-Crossley
 lambda 6 s/m), written once to ``--rig-dir`` and read back as ``diagnose`` reads them.
@@ -12,10 +12,15 @@ lambda 6 s/m), written once to ``--rig-dir`` and read back as ``diagnose`` reads
 Timed apart, wall and CPU seconds: the restoring-force maps of the 24 recordings
 (:func:`stiffnet.discovery.campaign_contact_samples`: what the discovery reads) and
 the discovery on their samples (forward path with held-out impacts and the
-30-replicate bootstrap). Prints a Markdown table with the machine's load per row.
+30-replicate bootstrap). ``--compare`` also times the maps with every recording's own
+sensor chain fitted (the path before the campaign's chain decision,
+:func:`stiffnet.discovery.samples.campaign_readings`) and counts the recordings whose
+samples differ (with the law they give where any do). Prints a Markdown table with the
+machine's load per row (measured before -> after: docs/measurement_loop.md, "What the
+discovery costs on 24 recordings").
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_discovery.py \
-        [--law linear ...] [--rig two_stage,hunt_crossley --rig-dir /tmp/rig]
+        [--law linear ...] [--rig-dir /tmp/rig] [--compare]
 """
 
 from __future__ import annotations
