@@ -1,15 +1,26 @@
 """Speed and accuracy of the contact-law discovery on 24 recordings (target: <= 10 s).
 
-The example manifest's eight operating points at three forcing ratios (x0.98, x1,
-x1.02), 24 forcing periods each after the transient, simulated in one batch per law
-(the numerical engine) with 3 % white noise; each law is a user effect of
-``tests/unknown_contact_laws.py`` (or the library's linear / Kelvin-Voigt contact).
-Timed: the restoring-force maps of the 24 recordings (the baseline, what
-``diagnose``'s evidence already runs) and the discovery on their samples (forward
-path with held-out impacts and the 30-replicate bootstrap). Prints a Markdown
-table with the machine's load.
+Stiffnet's simulator: the example manifest's eight operating points at three forcing
+ratios (x0.98, x1, x1.02), 24 forcing periods each after the transient, simulated in
+one batch per law (the numerical engine) with 3 % white noise; each law is a user
+effect of ``tests/unknown_contact_laws.py`` (or the library's linear / Kelvin-Voigt
+contact). The independent rig (cases "rig ..."): the 24-recording campaigns of
+``benchmarks/bench_loop_iteration.py --rig`` (``tests/independent_rig.py``, solve_ivp in
+SI units, CSV in g, 3 s at 2 % noise; two-stage knee 0.25 mm ratio 2.5, Hunt-Crossley
+lambda 6 s/m), written once to ``--rig-dir`` and read back as ``diagnose`` reads them.
 
-    OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_discovery.py
+Timed apart, wall and CPU seconds: the restoring-force maps of the 24 recordings
+(:func:`stiffnet.discovery.campaign_contact_samples`: what the discovery reads) and
+the discovery on their samples (forward path with held-out impacts and the
+30-replicate bootstrap). ``--compare`` also times the maps with every recording's own
+sensor chain fitted (the path before the campaign's chain decision,
+:func:`stiffnet.discovery.samples.campaign_readings`) and counts the recordings whose
+samples differ (with the law they give where any do). Prints a Markdown table with the
+machine's load per row (measured before -> after: docs/measurement_loop.md, "What the
+discovery costs on 24 recordings").
+
+    OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_discovery.py \
+        [--law linear ...] [--rig-dir /tmp/rig] [--compare]
 """
 
 from __future__ import annotations
@@ -17,6 +28,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -27,8 +39,12 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
 import unknown_contact_laws as laws  # noqa: E402
 
-from stiffnet.discovery import discover_contact_law  # noqa: E402
-from stiffnet.discovery.samples import record_contact_samples  # noqa: E402
+from stiffnet.discovery import campaign_contact_samples, discover_contact_law  # noqa: E402
+from stiffnet.discovery.samples import (  # noqa: E402
+    CHAIN_RECORDINGS,
+    campaign_readings,
+    record_contact_samples,
+)
 from stiffnet.effects.contact_damping import ContactDamping  # noqa: E402
 from stiffnet.simulator.batch import OscillatorBatch  # noqa: E402
 from stiffnet.simulator.simulator import Simulator  # noqa: E402
@@ -63,41 +79,139 @@ def recordings(effects, noise: float, periods: float, seed: int):
     ], beta
 
 
+#: The independent rig's 24-recording campaigns (``bench_loop_iteration.py --rig``'s laws).
+RIG = {"rig two_stage 0.25 / 2.5": "two_stage", "rig hunt_crossley 6": "hunt_crossley"}
+RIG_TRUTH = {"two_stage": ("hinge",), "hunt_crossley": ("hunt_crossley",)}
+
+
+def rig_campaign(law: str, folder: Path):
+    """The rig's campaign of ``bench_loop_iteration.rig_runs`` (written once, then reused)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_loop_iteration import rig_runs
+    from independent_rig import write_campaign
+
+    from stiffnet.campaign import load_campaign
+
+    if not (folder / law / "manifest.csv").exists():
+        write_campaign(folder / law, rig_runs(law))
+    return load_campaign(folder / law)
+
+
+def sim_maps(recs: list, beta: np.ndarray, chain_recordings) -> tuple[list, np.ndarray]:
+    """The simulator's records (:func:`recordings`) through the restoring-force maps: samples
+    and true betas."""
+    fn = 9.48
+
+    def read(i: int, fit_chain: bool):
+        acc, fsr, w = recs[i]
+        return record_contact_samples(acc, fsr * fn, fn, w * fn, 1.0, str(i), fit_chain=fit_chain)
+
+    got = campaign_readings(read, len(recs), chain_recordings)
+    kept = [i for i in range(len(recs)) if not isinstance(got[i], Exception) and got[i][0]]
+    return [got[i][0] for i in kept], beta[kept]
+
+
+def rig_maps(campaign, chain_recordings) -> tuple[list, np.ndarray]:
+    """The rig campaign's recordings through the restoring-force maps, as ``diagnose`` reads
+    them: samples and true betas."""
+    samples, _ = campaign_contact_samples(campaign, campaign.rows,
+                                          chain_recordings=chain_recordings)  # fmt: skip
+    given = {r.recording: r.beta for r in campaign.rows}
+    return samples, np.array([given[s.recording] for s in samples], float)
+
+
+def clocks() -> tuple[float, float]:
+    return time.perf_counter(), time.process_time()
+
+
+def same_samples(a: list, b: list) -> int:
+    """Recordings whose samples differ between two readings of a campaign (by name)."""
+    fields = ("displacement", "velocity", "force", "impact")
+    old = {s.recording: s for s in b}
+    diff = {s.recording for s in a} ^ set(old)
+    for s in a:
+        o = old.get(s.recording)
+        if o is not None and not (
+            all(np.array_equal(getattr(s, f), getattr(o, f)) for f in fields)
+            and (s.onset, s.beta) == (o.onset, o.beta)
+        ):
+            diff.add(s.recording)
+    return len(diff)
+
+
+def row(name: str, truth: tuple, maps, seed: int, compare: bool) -> None:
+    """Time the maps (``maps(chain_recordings)`` returns samples and betas) and the
+    discovery; one row. ``compare``: the maps with every recording's own chain fit too (the
+    path before the campaign's chain decision), timed, and the recordings that differ."""
+    load0 = os.getloadavg()[0]
+    t0, c0 = clocks()
+    samples, truth_beta = maps(CHAIN_RECORDINGS)
+    t1, c1 = clocks()
+    law = discover_contact_law(samples, seed=seed)
+    t2, c2 = clocks()
+    mape = float(np.mean(np.abs(np.array(law.betas) / truth_beta - 1)))
+    print(f"| {name} | {len(samples)} | {', '.join(law.terms) or '-'} "
+          f"({', '.join(truth) or '-'}) | "
+          f"{law.explained_fraction:.3f} ({law.library_explained_fraction:.3f}) | "
+          f"{c1 - c0:.2f} / {t1 - t0:.2f} | {c2 - c1:.2f} / {t2 - t1:.2f} | "
+          f"{c2 - c0:.2f} / {t2 - t0:.2f} | {mape:.3f} | {_coefs(law)} | "
+          f"{load0:.1f} → {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+    if compare:
+        t3, c3 = clocks()
+        every, _ = maps(None)
+        t4, c4 = clocks()
+        n_diff = same_samples(samples, every)
+        words = f"{n_diff} of {len(every)} recordings' samples differ"
+        if n_diff:
+            old = discover_contact_law(every, seed=seed)
+            words += f"; law with them: {', '.join(old.terms) or '-'}, {_coefs(old)}"
+        print(f"|  | every recording's chain fitted: maps CPU {c4 - c3:.2f} / wall {t4 - t3:.2f} "
+              f"s; {words} | | | | | | | | {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+
+
+def _coefs(law) -> str:
+    p = law.params
+    if "face" in law.terms:
+        return (f"mu {p['face_mass']:.3g}, kappa {p['face_stiffness']:.4g}, zeta "
+                f"{p['face_damping']:.3g} (truth 0.3, 43.2, 0.1)")  # fmt: skip
+    words = {"hinge": f"knee {p['knee']:.3g}, ratio {p['knee_ratio']:.3g}",
+             "power": f"exponent {p['exponent']:.3g}",
+             "hunt_crossley": f"alpha {p['hunt_crossley']:.3g}",
+             "damping": f"zeta {p['damping_ratio']:.3g}"}  # fmt: skip
+    return "; ".join(words[t] for t in law.terms if t in words) or "-"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--noise", type=float, default=0.03)
     ap.add_argument("--periods", type=float, default=26.0)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--law", action="append", choices=list(LAWS), help="only these laws")
+    ap.add_argument("--law", action="append", choices=[*LAWS, *RIG], help="only these cases")
+    ap.add_argument("--rig-dir", type=Path, default=None,
+                    help="where the rig's campaigns are written (kept and reused)")  # fmt: skip
+    ap.add_argument(
+        "--compare",
+        action="store_true",
+        help="also every recording's own chain fitted (the earlier path), timed",
+    )
     args = ap.parse_args()
     print(f"load average at start: {os.getloadavg()}")
-    print("| law | terms found (truth) | explained (library) | maps s | discovery s | total s "
-          "| discovery / maps | beta MAPE |")  # fmt: skip
-    print("|---|---|---|---:|---:|---:|---:|---:|")
+    print(
+        "| case | recordings | terms found (truth) | explained (library) | maps CPU / wall s "
+        "| discovery CPU / wall s | total CPU / wall s | beta MAPE | coefficients | load |"
+    )
+    print("|---|---:|---|---|---:|---:|---:|---:|---|---|")
     for name, effects in LAWS.items():
-        if args.law and name not in args.law:
-            continue
-        recs, beta = recordings(effects, args.noise, args.periods, args.seed)
-        fn = 9.48
-        t0 = time.perf_counter()
-        samples = []
-        for i, (acc, fsr, w) in enumerate(recs):
-            s, _ = record_contact_samples(acc, fsr * fn, fn, w * fn, 1.0, str(i))
-            if s is not None:
-                samples.append((i, s))
-        t1, c1 = time.perf_counter(), time.process_time()
-        law = discover_contact_law([s for _, s in samples], seed=args.seed)
-        t2, cpu = time.perf_counter(), time.process_time() - c1
-        truth = beta[[i for i, _ in samples]]
-        mape = float(np.mean(np.abs(np.array(law.betas) / truth - 1)))
-        print(f"| {name} | {', '.join(law.terms) or '-'} ({', '.join(TRUTH[name]) or '-'}) | "
-              f"{law.explained_fraction:.3f} ({law.library_explained_fraction:.3f}) | "
-              f"{t1 - t0:.2f} | {t2 - t1:.2f} (CPU {cpu:.2f}) | {t2 - t0:.2f} | "
-              f"{(t2 - t1) / (t1 - t0):.1f} | {mape:.3f} |")  # fmt: skip
-        if "face" in law.terms:
-            p = law.params
-            print(f"|  | mu {p['face_mass']:.3g}, kappa {p['face_stiffness']:.4g}, zeta "
-                  f"{p['face_damping']:.3g} (truth 0.3, 43.2, 0.1) | | | | | | |")  # fmt: skip
+        if not args.law or name in args.law:
+            recs, beta = recordings(effects, args.noise, args.periods, args.seed)
+            maps = lambda c, r=recs, b=beta: sim_maps(r, b, c)  # noqa: E731
+            row(name, TRUTH[name], maps, args.seed, args.compare)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, law in RIG.items():
+            if args.law and name not in args.law:
+                continue
+            camp = rig_campaign(law, Path(args.rig_dir or tmp))
+            row(name, RIG_TRUTH[law], lambda c, k=camp: rig_maps(k, c), args.seed, args.compare)
     print(f"load average at end: {os.getloadavg()}")
 
 

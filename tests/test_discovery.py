@@ -14,7 +14,7 @@ import pytest
 import unknown_contact_laws as laws
 
 from stiffnet.discovery import ContactSamples, discover_contact_law
-from stiffnet.discovery.samples import record_contact_samples
+from stiffnet.discovery.samples import campaign_readings, chain_outcome, record_contact_samples
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.learned_contact import learned_contact_force
 from stiffnet.errors import StiffnetError
@@ -29,17 +29,30 @@ ROWS = [(8, 1.05, 1.9, 2.8, 100), (14, 1.0, 1.2, 1.2, 105), (22, 1.1, 1.9, 2.0, 
 BETA = np.array([r[0] for r in ROWS], float)
 
 
-def campaign_samples(effects, noise: float, periods: float = 26.0, seed: int = 0):
-    """Eight recordings with the given effects, through the restoring-force map."""
+def simulated_records(effects, noise: float, periods: float = 26.0, seed: int = 0):
+    """Eight records with the given effects: ``read(i, fit_chain)`` of each, as the discovery
+    reads a campaign (:func:`~stiffnet.discovery.samples.campaign_readings`)."""
     beta, w, a, e, fsr = (np.array(c, float) for c in zip(*ROWS, strict=True))
     batch = OscillatorBatch(beta=beta, gap=e, amplitude=a, omega=w, damping=np.full(8, 0.02))
     n = int(periods * fsr.max() / w.min())
     res = Simulator(effects).simulate(batch, fsr, n, noise=noise, rng=seed)
+    fn = 9.48
+
+    def read(i: int, fit_chain: bool = True):
+        m = int(periods * fsr[i] / w[i])
+        return record_contact_samples(res.accel[i, :m], fsr[i] * fn, fn, w[i] * fn, 1.0, str(i),
+                                      fit_chain=fit_chain)  # fmt: skip
+
+    return read
+
+
+def campaign_samples(effects, noise: float, periods: float = 26.0, seed: int = 0):
+    """Eight recordings with the given effects, through the restoring-force map."""
+    read = simulated_records(effects, noise, periods, seed)
+    readings = campaign_readings(read, 8)
     out = []
     for i in range(8):
-        m = int(periods * fsr[i] / w[i])
-        fn = 9.48
-        s, _ = record_contact_samples(res.accel[i, :m], fsr[i] * fn, fn, w[i] * fn, 1.0, str(i))
+        s, _ = readings[i]
         assert s is not None
         out.append(s)
     return out
@@ -152,11 +165,67 @@ def test_two_stage_user_effect():
 
 @pytest.mark.slow
 def test_hunt_crossley_user_effect():
-    law = discover_contact_law(campaign_samples([laws.HuntCrossleyContact(c=0.3)], 0.03))
+    """Every record calls for a sensor chain (the law bends the pulse as a low-pass would) and
+    every fitted chain is rejected: the campaign's chain is fitted on three recordings and the
+    other five are read as recorded, with the samples their own chain fits give."""
+    read = simulated_records([laws.HuntCrossleyContact(c=0.3)], 0.03)
+    own = {i: read(i, True) for i in range(8)}  # each record's own chain fit (the old path)
+    calls = []
+
+    def cached(i, fit_chain):
+        calls.append((i, fit_chain))
+        return own[i] if fit_chain else read(i, False)
+
+    readings = campaign_readings(cached, 8)
+    assert [chain_outcome(own[i][1]) for i in range(8)] == ["rejected"] * 8
+    assert sum(fit for _, fit in calls) == 3 and len(calls) == 8
+    for i in range(8):
+        s, s_own = readings[i][0], own[i][0]
+        for f in ("displacement", "velocity", "force", "impact"):
+            np.testing.assert_array_equal(getattr(s, f), getattr(s_own, f))
+        assert (s.onset, s.beta) == (s_own.onset, s_own.beta)
+    law = discover_contact_law([readings[i][0] for i in range(8)])
     assert law.terms == ("hunt_crossley",) and law.new_terms == ("hunt_crossley",)
     assert law.params["hunt_crossley"] == pytest.approx(1.5 * 0.3, rel=0.15)
     np.testing.assert_allclose(law.betas, BETA, rtol=0.15)
     assert law.library_explained_fraction < law.explained_fraction - 0.03
+
+
+def _fake_reading(outcome: str):
+    """A reading whose estimate did ``outcome`` with a sensor chain (:func:`chain_outcome`)."""
+    from types import SimpleNamespace
+
+    chain = None if outcome == "none" else SimpleNamespace(
+        source="fitted", applied=outcome == "kept", has_dynamics=True)  # fmt: skip
+    return None, SimpleNamespace(sensor=chain)
+
+
+@pytest.mark.parametrize("kept", [False, True])
+def test_the_campaigns_chain_is_fitted_on_three_recordings_that_call_for_one(kept):
+    """Ten recordings; the first round (spread: 0, 4, 9) has one record that needs no chain,
+    so a second round fits one more. None keeps its chain: the other six are read as recorded.
+    One keeps it (recording 9): every recording gets its own chain fitted, as before."""
+    needs = {0: "none", 4: "rejected", 9: "kept" if kept else "rejected", 1: "rejected"}
+    calls = []
+
+    def read(i, fit_chain):
+        calls.append((i, fit_chain))
+        if i == 7:
+            raise StiffnetError("no oscillation")
+        return _fake_reading(needs.get(i, "rejected") if fit_chain else "none")
+
+    out = campaign_readings(read, 10)
+    assert isinstance(out[7], StiffnetError) and sorted(out) == list(range(10))
+    fitted = sorted(i for i, fit in calls if fit)
+    if kept:
+        assert fitted == list(range(10))
+    else:
+        assert fitted == [0, 1, 4, 9] and len(calls) == 10
+    assert sorted(i for i, _ in calls) == list(range(10))
+    # None: every recording fitted (the path before the campaign's decision)
+    calls.clear()
+    campaign_readings(read, 10, chain_recordings=None)
+    assert all(fit for _, fit in calls) and len(calls) == 10
 
 
 @pytest.mark.parametrize("effects", [[], [ContactDamping(damping_ratio=0.2)]])

@@ -16,8 +16,8 @@ scale, which is why the samples must be in model units.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -36,6 +36,11 @@ from stiffnet.restoring_force.free_flight import CONTACT_SIGMAS
 PERIODS = 24.0
 #: Samples kept around each contact, as a fraction of the forcing period (the estimate's).
 MARGIN = 0.03
+#: Recordings of a campaign that get their sensor chain fitted (where their record calls for
+#: one) before the others are read: where none of them keeps its chain, the others are read as
+#: recorded (:func:`campaign_readings`). Three, as the evidence's shared chain
+#: (:data:`stiffnet.measurement.evidence.CHAIN_RECORDINGS`).
+CHAIN_RECORDINGS = 3
 
 
 @dataclass(frozen=True)
@@ -114,6 +119,7 @@ def record_contact_samples(
     gain: float,
     recording: str = "",
     periods: float = PERIODS,
+    fit_chain: bool = True,
 ) -> tuple[ContactSamples | None, RestoringForceResult]:
     """Run the restoring-force estimate on one record and return its samples (and the estimate).
 
@@ -121,20 +127,95 @@ def record_contact_samples(
     and its inverse kept only where it makes the force a function of the state
     (:func:`~.chain_choice.keeps_chain`; a chain's refusal stands); the high-pass is never
     profiled by the library's law (that tunes the corner until the library's law fits,
-    bending a law it lacks).
+    bending a law it lacks). ``fit_chain`` False reads the record as recorded (no chain
+    fitted): what the discovery keeps on a campaign whose accelerometer showed no chain
+    (:func:`campaign_readings`).
     """
     options = dict(natural_frequency_hz=natural_frequency_hz,
                    forcing_frequency_hz=forcing_frequency_hz, max_periods=periods,
                    profile_highpass_below_r2=-np.inf)  # fmt: skip
-    r = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED, **options)
+    when = CHAIN_FIT_WHEN_NEEDED if fit_chain else -np.inf
+    r = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=when, **options)
     s = _samples_of(r, fs_hz, gain, recording)
     chain = r.sensor
     if s is not None and chain is not None and chain.applied and chain.source == "fitted":
         plain = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=-np.inf, **options)
         s_plain = _samples_of(plain, fs_hz, gain, recording)
         if not keeps_chain(s_plain, s):
-            return s_plain, plain
+            # the record as recorded; its estimate reports the chain as fitted, not applied
+            return s_plain, replace(plain, sensor=replace(chain, applied=False))
     return s, r
+
+
+def chain_outcome(result: RestoringForceResult) -> str:
+    """What :func:`record_contact_samples` did with a sensor chain: ``"kept"`` (fitted and
+    its inverse read), ``"rejected"`` (fitted, the record read as recorded) or ``"none"``
+    (no chain fitted: the record's law explained enough, or it had no contact)."""
+    chain = result.sensor
+    if chain is None or chain.source != "fitted":
+        return "none"
+    return "kept" if chain.applied and chain.has_dynamics else "rejected"
+
+
+def campaign_readings(
+    read: Callable[[int, bool], tuple[ContactSamples | None, RestoringForceResult]],
+    n: int,
+    chain_recordings: int | None = CHAIN_RECORDINGS,
+) -> dict[int, tuple[ContactSamples | None, RestoringForceResult] | Exception]:
+    """Every recording's reading, the sensor chain fitted on a few where none keeps it.
+
+    A campaign has one accelerometer, so whether a chain's inverse belongs to its records
+    is one question: the chain is fitted (where the record calls for one) on recordings
+    spread over the campaign, in rounds, until ``chain_recordings`` of them have had one
+    fitted. Where none of them keeps its chain (its inverse does not make the force a
+    better function of the state, :func:`~.chain_choice.keeps_chain`), the others are read
+    as recorded, which is what their own fits would almost always give (a law the library
+    lacks, Hunt-Crossley, calls for a chain on every record and each fit is rejected) at
+    a few seconds of CPU less per recording. Where one keeps it, every recording gets its
+    own chain fitted, as with ``chain_recordings`` None.
+
+    Parameters
+    ----------
+    read : callable
+        ``read(i, fit_chain)``: recording ``i``'s :func:`record_contact_samples`.
+    n : int
+        Recordings.
+    chain_recordings : int or None
+        Recordings with a fitted chain that decide (None: every recording fitted).
+
+    Returns
+    -------
+    dict
+        Recording index to its ``(samples, estimate)``, or the exception its reading raised.
+    """
+    out: dict[int, tuple[ContactSamples | None, RestoringForceResult] | Exception] = {}
+
+    def take(i: int, fit_chain: bool) -> None:
+        try:
+            out[i] = read(i, fit_chain)
+        except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            out[i] = exc
+
+    def outcomes() -> list[str]:
+        return [chain_outcome(v[1]) for v in out.values() if not isinstance(v, Exception)]
+
+    left = list(range(n))
+    while chain_recordings and left and "kept" not in outcomes():
+        fitted = sum(o == "rejected" for o in outcomes())
+        if fitted >= chain_recordings:
+            break
+        for i in _spread(left, chain_recordings - fitted):
+            take(i, True)
+        left = [i for i in left if i not in out]
+    as_recorded = bool(chain_recordings) and "kept" not in outcomes()
+    for i in left:
+        take(i, not as_recorded)
+    return out
+
+
+def _spread(indices: list[int], k: int) -> list[int]:
+    """``k`` of ``indices`` evenly spread (first and last included)."""
+    return sorted({indices[round(j * (len(indices) - 1) / max(k - 1, 1))] for j in range(k)})
 
 
 def _samples_of(
@@ -145,30 +226,37 @@ def _samples_of(
 
 
 def campaign_contact_samples(
-    campaign: Any, rows: Sequence[Any], periods: float = PERIODS
+    campaign: Any,
+    rows: Sequence[Any],
+    periods: float = PERIODS,
+    chain_recordings: int | None = CHAIN_RECORDINGS,
 ) -> tuple[list[ContactSamples], list[dict[str, Any]]]:
     """Samples of every recording of a campaign whose map has a contact law, and why not others.
 
     ``rows`` are the campaign's rows with the natural frequency and forcing ratio
     resolved (diagnose's); recordings are in g for a model length of 1 mm
-    (:func:`stiffnet.campaign.sensor_gain`).
+    (:func:`stiffnet.campaign.sensor_gain`). The sensor chain is fitted as
+    :func:`campaign_readings` says (``chain_recordings``).
     """
     from stiffnet.campaign import sensor_gain
 
-    out, skipped = [], []
-    for i, row in enumerate(rows):
+    def read(i: int, fit_chain: bool) -> tuple[ContactSamples | None, RestoringForceResult]:
+        row = rows[i]
         fn = row.natural_frequency_hz
         ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
-        try:
-            rec = campaign.recording(i)
-            s, r = record_contact_samples(
-                rec.accel, rec.fs_hz, fn, ff, sensor_gain(fn), row.recording, periods
-            )
-        except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            skipped.append({"recording": row.recording, "reason": str(exc)})
-            continue
-        if s is None:
-            skipped.append({"recording": row.recording, "reason": r.reason})
+        rec = campaign.recording(i)
+        return record_contact_samples(
+            rec.accel, rec.fs_hz, fn, ff, sensor_gain(fn), row.recording, periods, fit_chain
+        )
+
+    readings = campaign_readings(read, len(rows), chain_recordings)
+    out, skipped = [], []
+    for i, row in enumerate(rows):
+        got = readings[i]
+        if isinstance(got, Exception):
+            skipped.append({"recording": row.recording, "reason": str(got)})
+        elif got[0] is None:
+            skipped.append({"recording": row.recording, "reason": got[1].reason})
         else:
-            out.append(s)
+            out.append(got[0])
     return out, skipped
