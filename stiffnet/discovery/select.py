@@ -227,7 +227,7 @@ def reweighted(data: Data, fit: Fit) -> tuple[Data, Fit]:
     weighted least squares, one step) and the selected law refitted on them."""
     w = data.weight * recording_factors(data, fit)[data.rec]
     wdata = Data(data.x, data.v, data.f, w, data.rec, data.impact, data.beta0, data.onset0,
-                 data.names, data.dt)  # fmt: skip
+                 data.names, data.dt, data.index)  # fmt: skip
     return wdata, fit_law(wdata, fit.terms, fit.dr, fit.shared, fit.theta[: 2 * fit.n_rec])
 
 
@@ -250,7 +250,7 @@ def bootstrap(
         w = counts[data.impact].astype(float)
         sel = w > 0
         boot = Data(data.x, data.v, data.f, data.weight * np.sqrt(w), data.rec, data.impact,
-                    data.beta0, data.onset0, data.names, data.dt)  # fmt: skip
+                    data.beta0, data.onset0, data.names, data.dt, data.index)  # fmt: skip
         f = fit_law(boot, fit.terms, fit.dr, fit.shared, per, mask=sel, max_nfev=40)
         shared.append(f.theta[2 * fit.n_rec :])
         betas.append(f.betas)

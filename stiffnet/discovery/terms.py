@@ -93,6 +93,10 @@ class Data:
     names: tuple[str, ...]
     #: Each recording's sampling interval in model time (the ``face`` term's filter).
     dt: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: Each sample's index in its record (empty: unknown; the face's ringing carried over).
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    #: The samples this is a subset of, and which: a face's ringing runs through all of them.
+    parent: tuple[Data, np.ndarray] | None = None
 
     @property
     def n_rec(self) -> int:
@@ -109,12 +113,17 @@ class Data:
         """:func:`~.face.face_response` to the samples' force, the last faces' kept: it
         depends on the face alone, and a Jacobian's finite differences in the recordings'
         betas and onsets (half the residual evaluations of a fit) leave the face as it is."""
+        if self.parent is not None:  # the held-out impacts' force still drives the face
+            full, idx = self.parent
+            y, yd = full.face_recoil(mass, stiffness, damping)
+            return y[idx], yd[idx]
         key = (float(mass), float(stiffness), float(damping))
         cache = self._face_cache
         if key not in cache:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            cache[key] = face_response(self.f, self.layout, self.dt, *key)
+            index = self.index if self.index.size == self.f.size else None
+            cache[key] = face_response(self.f, self.layout, self.dt, *key, index=index)
         return cache[key]
 
     @cached_property
@@ -141,6 +150,8 @@ def stack(samples: Sequence[ContactSamples]) -> Data:
         np.array([max(s.beta, 1e-3) for s in samples]), np.array([s.onset for s in samples]),
         tuple(s.recording for s in samples),
         np.array([sample_interval(s.displacement, s.velocity, s.impact) for s in samples]),
+        cat([s.index for s in samples]) if all(s.index is not None for s in samples)
+        else np.zeros(0, dtype=int),
     )  # fmt: skip
 
 
@@ -272,6 +283,7 @@ def _subset(data: Data, idx: np.ndarray) -> Data:
     return Data(
         data.x[idx], data.v[idx], data.f[idx], data.weight[idx], data.rec[idx],
         data.impact[idx], data.beta0, data.onset0, data.names, data.dt,
+        parent=(data, idx),
     )  # fmt: skip
 
 
