@@ -22,6 +22,19 @@ linear spring: a two-stage restraint (``(r - 1) β ω_n² (δ - δ_k)₊`` added
 the knee) or a power law (``β ω_n² d0 (δ/d0)^n``). The accelerometer on the mass reads
 its absolute acceleration ``x'' - A sin(Ω t) = -(2 ζ ω_n x' + ω_n² x + F_c/m)``:
 impacts are negative spikes.
+
+The stop may also be the tip of a beam (``contact="beam"``) represented by its first
+modes at the tip, each a modal mass ``m_i``, frequency ``ω_i`` and damping ratio ``ζ_b``::
+
+    m_i y_i'' + 2 ζ_b ω_i m_i y_i' + m_i ω_i² y_i = F_c,   F_c = β m ω_n² (x - e - Σ y_i)_+
+
+the modes ringing freely between impacts (a tip still ringing at the next impact is part of
+the physics). For a uniform Euler-Bernoulli cantilever of mass ``M_b`` each mode's shape
+normalised to ``∫ φ_i² = L`` has ``|φ_i(L)| = 2``, so every mode's mass at the tip is
+``M_b / 4`` and the frequencies go as ``λ_i²``, ``λ L = 1.8751, 4.6941, 7.8548``:
+1 : 6.267 : 17.55 (:func:`cantilever_tip_modes`). The base's motion on the beam's modes is
+left out: its forcing sits at a tenth of their frequencies or less, a quasi-static tip
+deflection of ``(ω_n / ω_1)²`` of the mass's excursion at most.
 """
 
 from __future__ import annotations
@@ -69,6 +82,15 @@ class RigRun:
     #: Shaker distortion: ``(order, level, phase)`` terms added to the base acceleration,
     #: ``-A [sin Ωt + Σ level sin(order Ωt + phase)]``.
     harmonics: tuple = ()
+    #: ``contact="beam"``: the stop is the tip of a cantilever of mass ``beam_mass_ratio`` m
+    #: whose first mode rings at ``beam_f1_ratio`` natural frequencies, ``beam_modes`` modes
+    #: (Euler-Bernoulli, :func:`cantilever_tip_modes`), each of damping ratio ``beam_damping``;
+    #: ``beam_tip_modes``: ``(mass over m, frequency over f_n)`` per mode instead.
+    beam_mass_ratio: float = 0.3
+    beam_f1_ratio: float = 10.0
+    beam_modes: int = 2
+    beam_damping: float = 0.02
+    beam_tip_modes: tuple = ()
 
     @property
     def omega_n(self) -> float:
@@ -79,9 +101,30 @@ class RigRun:
         return self.base_acceleration_g * G
 
     @property
+    def tip_modes(self) -> list[tuple[float, float]]:
+        """``(modal mass over m, angular frequency in rad/s)`` of each beam mode at the tip."""
+        if self.contact != "beam":
+            return []
+        modes = self.beam_tip_modes or cantilever_tip_modes(
+            self.beam_modes, self.beam_mass_ratio, self.beam_f1_ratio
+        )
+        return [(float(mu), float(r) * self.omega_n) for mu, r in modes]
+
+    @property
     def base_displacement_mm(self) -> float:
         """The table's displacement amplitude, ``A / Ω²``, in mm."""
         return self.base_acceleration_ms2 / (2 * math.pi * self.forcing_frequency_hz) ** 2 * 1e3
+
+
+#: ``λ_i L`` of a uniform cantilever's first bending modes (``cos λL cosh λL = -1``).
+CANTILEVER_LAMBDA_L = (1.8751041, 4.6940911, 7.8547574)
+
+
+def cantilever_tip_modes(n: int, mass_ratio: float, f1_ratio: float) -> list[tuple[float, float]]:
+    """``(tip modal mass over m, frequency over f_n)`` of a uniform cantilever's first ``n``
+    modes: a quarter of the beam's mass each, frequencies as ``(λ_i / λ_1)²``."""
+    lam = CANTILEVER_LAMBDA_L[:n]
+    return [(0.25 * mass_ratio, f1_ratio * (li / lam[0]) ** 2) for li in lam]
 
 
 def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -118,8 +161,16 @@ def simulate(
     wn, zeta = run.omega_n, run.damping_ratio
     big_a, om = run.base_acceleration_ms2, 2 * math.pi * run.forcing_frequency_hz
     e = run.gap_mm * 1e-3
+    if run.contact == "beam" and transient_s is None:
+        # the impacts on a ringing tip damp the start within a few periods; the modes' steps
+        # make every second of transient cost what the record's do
+        transient_s = 30 / run.forcing_frequency_hz
     if transient_s is None:  # free oscillations down to 1e-4, at least 20 forcing periods
         transient_s = max(math.log(1e4) / (zeta * wn), 20 / run.forcing_frequency_hz)
+    if run.contact == "beam":
+        if beta_schedule:
+            raise ValueError("a beta schedule is not available with contact='beam'")
+        return _simulate_beam(run, transient_s)
     n = int(round(run.duration_s * run.fs_hz))
     t_rec = transient_s + np.arange(n) / run.fs_hz
     t_end = t_rec[-1]
@@ -192,6 +243,69 @@ def simulate(
         t0, contact = t1, not contact
     fc = np.where(in_contact, _contact_force(replace(run, beta=beta_out), x_out, v_out), 0.0)
     accel = -(2 * zeta * wn * v_out + wn**2 * x_out + fc)
+    return t_rec - t_rec[0], accel
+
+
+def _simulate_beam(run: RigRun, transient_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`simulate` with the stop at a beam's tip: state ``(x, x', y_1, y_1', ...)``,
+    phases ended by the penetration ``x - e - Σ y_i`` crossing zero (touch rising, release
+    falling), the modes integrated in both phases."""
+    wn, zeta = run.omega_n, run.damping_ratio
+    big_a, om = run.base_acceleration_ms2, 2 * math.pi * run.forcing_frequency_hz
+    e, k = run.gap_mm * 1e-3, run.beta * run.omega_n**2
+    modes = run.tip_modes
+    mu = np.array([m for m, _ in modes])
+    wb = np.array([w for _, w in modes])
+    cb = 2 * run.beam_damping * wb
+    n = int(round(run.duration_s * run.fs_hz))
+    t_rec = transient_s + np.arange(n) / run.fs_hz
+
+    mus, wbs, cbs = mu.tolist(), (wb**2).tolist(), cb.tolist()
+    nm = len(mus)
+
+    def penetration(y) -> float:
+        return y[0] - e - sum(y[2 + 2 * i] for i in range(nm))
+
+    def rhs(contact: bool):
+        def f(t, y):  # plain floats: the rhs runs ~10^6 times a record
+            fc = max(k * penetration(y), 0.0) if contact else 0.0
+            out = [y[1], big_a * math.sin(om * t) - 2 * zeta * wn * y[1] - wn * wn * y[0] - fc]
+            for i in range(nm):
+                yi, wi = y[2 + 2 * i], y[3 + 2 * i]
+                out += [wi, fc / mus[i] - cbs[i] * wi - wbs[i] * yi]
+            return out
+
+        return f
+
+    def touch(t, y):
+        return penetration(y)
+
+    def release(t, y):
+        return penetration(y)
+
+    touch.terminal, touch.direction = True, 1
+    release.terminal, release.direction = True, -1
+    states = np.empty((n, 2 + 2 * len(modes)))
+    in_contact = np.zeros(n, bool)
+    t0, y0, contact = 0.0, np.zeros(2 + 2 * len(modes)), False
+    # DOP853's error control keeps its steps within the fastest mode's ringing
+    max_step = 1 / (20 * max(run.natural_frequency_hz, run.forcing_frequency_hz))
+    while t0 < t_rec[-1]:
+        sol = solve_ivp(rhs(contact), (t0, t_rec[-1]), y0, method="DOP853", rtol=1e-8,
+                        atol=1e-12, max_step=max_step, events=release if contact else touch,
+                        dense_output=True)  # fmt: skip
+        t1 = sol.t[-1]
+        sel = (t_rec >= t0) & (t_rec <= t1)
+        if sel.any():
+            states[sel] = sol.sol(t_rec[sel]).T
+            in_contact[sel] = contact
+        if sol.status != 1:
+            break
+        y0 = sol.y[:, -1]
+        t0, contact = t1, not contact
+    pen = states[:, 0] - e - states[:, 2::2].sum(axis=1)
+    fc = np.where(in_contact, k * np.maximum(pen, 0.0), 0.0)
+    accel = -(2 * zeta * wn * states[:, 1] + wn**2 * states[:, 0] + fc)
     return t_rec - t_rec[0], accel
 
 

@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from independent_rig import write_campaign
+from independent_rig import CANTILEVER_LAMBDA_L, cantilever_tip_modes, write_campaign
 from test_independent_rig import DIAG_EFFECTS, DIAG_POINTS, F_N, POINTS, _runs
 
 from stiffnet.campaign import load_campaign
@@ -78,3 +78,17 @@ def test_diagnose_proposes_the_hunt_crossley_law_of_the_rig(tmp_path):
     assert ll["law"]["terms"] == ["hunt_crossley"]
     assert ll["law"]["params"]["hunt_crossley"] == pytest.approx(0.4765, rel=0.15)
     assert ll["removed_fraction"] >= 0.8
+
+
+def test_cantilever_tip_modes_are_euler_bernoulli():
+    """Each mode's tip mass is a quarter of the beam's, frequencies 1 : 6.267 : 17.55, and the
+    modes' compliances at the tip add up to the static ``L^3 / (3 EI)`` (first mode alone
+    2.9 % short, three modes 0.13 %): ``1 / (mu_i w_i^2)`` summed against ``lambda_1^4 / (3 M
+    w_1^2)`` with ``w_1^2 = lambda_1^4 EI / (M L^3)``."""
+    modes = cantilever_tip_modes(3, 0.4, 10.0)
+    np.testing.assert_allclose([m for m, _ in modes], [0.1, 0.1, 0.1])
+    np.testing.assert_allclose([f for _, f in modes], [10.0, 62.67, 175.5], rtol=1e-3)
+    static = CANTILEVER_LAMBDA_L[0] ** 4 / (3 * 0.4 * 10.0**2)
+    compliance = np.cumsum([1 / (m * f**2) for m, f in modes])
+    assert compliance[0] == pytest.approx(static * 0.971, rel=1e-3)
+    assert compliance[2] == pytest.approx(static, rel=2e-3)

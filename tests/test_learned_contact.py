@@ -140,3 +140,45 @@ def test_a_library_effect_refit_keeps_values_its_space_does_not_fit():
     # the base rule (what any effect inherits): the class space, a given value it lacks held
     space = Effect.fit_space_at.__func__(LearnedContact, {"face_mass": 0.3}, 2e3)
     assert space.fixed["face_mass"] == 0.3 and "face_mass" not in space.names
+
+
+#: A cantilever of mass 0.4 whose first mode rings at 10 natural frequencies: each mode's
+#: tip mass a quarter of the beam's, the second at (4.6941 / 1.8751)**2 = 6.267 times the first.
+TIP_MASS, W1, W2 = 0.1, 10.0, 10.0 * (4.6940911 / 1.8751041) ** 2
+TWO_MODES = {"face_mass": TIP_MASS, "face_stiffness": TIP_MASS * W1**2,
+             "face_damping": 0.05, "face2_mass": TIP_MASS,
+             "face2_stiffness": TIP_MASS * W2**2, "face2_damping": 0.05}  # fmt: skip
+
+
+def test_a_face_with_two_modes_moves_as_the_user_beam_tip():
+    a = run(laws.BeamTipContact(m_b=0.4, f_1=10.0, zeta=0.05)).accel
+    eff = LearnedContact(**TWO_MODES)
+    assert eff.n_states == 4
+    b = run(eff).accel
+    np.testing.assert_allclose(a, b, atol=1e-9 * np.abs(a).max())
+    # the second mode matters: the first alone moves the mass otherwise (23 % of the peak)
+    one = {k: v for k, v in TWO_MODES.items() if not k.startswith("face2")}
+    c = run(LearnedContact(**one)).accel
+    assert np.abs(c - b).max() > 0.1 * np.abs(b).max()
+
+
+def test_a_free_two_mode_face_rings_at_its_modal_frequencies():
+    """Released (no contact force), the face's states evolve by a linear map whose
+    eigenvalues are each mode's ``-zeta w +- i w sqrt(1 - zeta**2)``; its recoil is their sum."""
+    eff = LearnedContact(**TWO_MODES)
+    p = {k: np.asarray(v, float) for k, v in eff.params.model_dump().items()}
+    jac = np.stack([eff.state_derivative(0.0, e[None], np.zeros(1), p)[0] for e in np.eye(4)], 1)
+    lam = np.linalg.eigvals(jac)
+    np.testing.assert_allclose(np.sort(np.abs(lam.imag))[::2], [W1 * np.sqrt(1 - 0.05**2),
+                               W2 * np.sqrt(1 - 0.05**2)], rtol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(np.sort(-lam.real)[::2], [0.05 * W1, 0.05 * W2], rtol=1e-12)
+    s = np.array([[0.3, 0.0, -0.1, 0.0]])
+    assert eff.restraint_position(s, p)[0] == pytest.approx(0.2)
+
+
+def test_no_second_mode_is_the_one_mode_face_bit_for_bit():
+    one = {k: v for k, v in TWO_MODES.items() if not k.startswith("face2")}
+    a = run(LearnedContact(**one)).accel
+    b = run(LearnedContact(**one, face2_stiffness=500.0, face2_mass=0.0)).accel
+    assert LearnedContact(**one, face2_mass=0.0).n_states == 2
+    np.testing.assert_array_equal(a, b)

@@ -112,3 +112,45 @@ class SprungFaceContact(DynamicsEffect):
     ) -> np.ndarray:
         m, w, eta = p["m_f"], p["f_face"], p["eta"]
         return np.stack([s[:, 1], contact_force / m - eta * w * s[:, 1] - w * w * s[:, 0]], 1)
+
+
+class BeamTipContact(DynamicsEffect):
+    """A linear contact (stiffness ``beta``) on the tip of a cantilever, its first two bending
+    modes: the beam (mass ``m_b`` over the mass m) has each mode's tip mass a quarter of its
+    own (Euler-Bernoulli, tip-normalised shapes), the first ringing at ``f_1`` natural
+    frequencies and the second at ``(4.6941 / 1.8751)**2 f_1``, both with damping ratio
+    ``zeta``; the tip's recoil is the sum of the modes', each pushed by the contact force::
+
+        (m_b / 4) (y_i'' + 2 zeta w_i y_i' + w_i**2 y_i) = F_c,   F_c = beta (x - e - y_1 - y_2)_+
+    """
+
+    name = "test_beam_tip"
+    n_states = 4
+
+    class Params(EffectParams):
+        m_b: ParamValue = param(0.4, 1e-3, 10.0, "beam mass over the mass m")
+        f_1: ParamValue = param(10.0, 0.5, 100.0, "first mode over the natural frequency")
+        zeta: ParamValue = param(0.05, 0.0, 1.0, "damping ratio of each mode")
+
+    @staticmethod
+    def frequencies(p: ParamArrays) -> tuple[Any, Any]:
+        return p["f_1"], p["f_1"] * (4.6940911 / 1.8751041) ** 2
+
+    def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
+        w2 = self.frequencies(p)[1]
+        k = 1.0 + batch.beta + w2 * w2 + 8.0 * batch.beta / p["m_b"]
+        c = 2.0 * p["zeta"] * w2
+        return 0.5 * c + np.sqrt(0.25 * c * c + k)
+
+    def restraint_position(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
+        return s[:, 0] + s[:, 2]
+
+    def state_derivative(
+        self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
+    ) -> np.ndarray:
+        m = 0.25 * p["m_b"]
+        out = []
+        for i, w in enumerate(self.frequencies(p)):
+            y, v = s[:, 2 * i], s[:, 2 * i + 1]
+            out += [v, contact_force / m - 2.0 * p["zeta"] * w * v - w * w * y]
+        return np.stack(out, 1)

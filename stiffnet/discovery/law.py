@@ -23,6 +23,7 @@ WORDS = {
     "hunt_crossley": "dissipation growing with the penetration (Hunt-Crossley)",
     "preload": "a preload (a force step at first touch)",
     "face": "a restraint face with its own mass on a support spring (it recoils and rings)",
+    "face2": "a second mode of the face (a beam's tip: two modes in parallel, recoils summed)",
 }
 
 
@@ -34,6 +35,12 @@ def is_new_term(term: str, params: dict[str, float]) -> bool:
         p = params["exponent"]
         return min(abs(p - 1.0), abs(p - 1.5)) > EXPONENT_TOLERANCE
     return True
+
+
+def _mode(y: str, mass: float, stiffness: float, damping: float) -> str:
+    """One mode of the face as its equation, ``mu y'' + 2 zeta sqrt(kappa mu) y' + kappa y``."""
+    return (f"{mass:.3g} {y}'' + 2 ({damping:.3g}) sqrt({stiffness:.4g} ({mass:.3g})) {y}' "
+            f"+ {stiffness:.4g} {y} = F_c")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -113,6 +120,8 @@ class DiscoveredLaw:
             return beta * p["preload"]
         if term == "face":
             return p["face_stiffness"]
+        if term == "face2":
+            return p["face2_stiffness"]
         raise KeyError(term)
 
     def referred_to(self, betas: Sequence[float | None]) -> DiscoveredLaw:
@@ -181,6 +190,13 @@ class DiscoveredLaw:
         eq = "F_c = max(0, beta [" + " + ".join(parts) + "]"
         if "damping" in self.terms:
             eq += f" + 2 ({p['damping_ratio']:.3g}) sqrt(beta) v"
+        if "face2" in self.terms:
+            return eq + (
+                ")  for delta = x - e - y - y2 > 0, v = x' - y' - y2'; the face's modes: "
+                + _mode("y", p["face_mass"], p["face_stiffness"], p["face_damping"])
+                + ", "
+                + _mode("y2", p["face2_mass"], p["face2_stiffness"], p["face2_damping"])
+            )
         if "face" in self.terms:
             return eq + (
                 f")  for delta = x - e - y > 0, v = x' - y'; the face: {p['face_mass']:.3g} y'' "

@@ -55,6 +55,9 @@ class ContactSamples:
         velocity ``v`` and contact force ``F_c`` on the samples near impacts.
     impact : numpy.ndarray
         Impact number of each sample (1 ... n_impacts).
+    index : numpy.ndarray or None
+        Each sample's index in the record: the time between impacts, over which a face
+        still ringing from one impact rings freely into the next.
     onset : float
         The restoring-force law's contact onset (a start for the discovery's own).
     beta : float
@@ -68,6 +71,8 @@ class ContactSamples:
     impact: np.ndarray
     onset: float
     beta: float
+    #: Each sample's index in the record (None: unknown, every impact's face starts at rest).
+    index: np.ndarray | None = None
 
     @property
     def n_impacts(self) -> int:
@@ -108,6 +113,7 @@ def contact_samples(
         impact=labels[near].astype(int),
         onset=float(law.onset) * k / gain,
         beta=float(law.stiffness) / k,
+        index=np.flatnonzero(near),
     )
 
 

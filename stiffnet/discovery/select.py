@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from stiffnet.discovery.face import face_starts
+from stiffnet.discovery.face import face_starts, second_mode_starts
 from stiffnet.discovery.law import DiscoveredLaw, is_new_term
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.discovery.terms import (
@@ -115,6 +115,7 @@ def _candidates(data: Data, current: Fit, dr: float) -> list[Fit]:
     per = current.theta[: 2 * current.n_rec]
     peaks = np.maximum(data.x - current.onsets[data.rec], 0.0)
     top = np.quantile(peaks[peaks > 0], 0.95) if np.any(peaks > 0) else dr
+    first_face = None
     for term in TERMS:
         if term in current.terms:
             continue
@@ -122,10 +123,20 @@ def _candidates(data: Data, current: Fit, dr: float) -> list[Fit]:
         starts = [dict(current.shared)]
         if term == "hinge":
             starts = [{**current.shared, "knee": q * top} for q in KNOT_QUANTILES]
-        if term == "face":  # a short fit from every start, then the best one to the end
+        if term == "face2" and "face" not in current.terms:
+            if first_face is None:
+                continue
+            # both modes at once: one mode of a beam's tip may describe it worse than none
+            terms = terms | {"face"}
+            starts = [{**first_face.shared, **s} for s in second_mode_starts(first_face.shared)]
+        elif term == "face":
             starts = [{**current.shared, **s} for s in face_starts(current.betas)]
+        elif term == "face2":
+            starts = [{**current.shared, **s} for s in second_mode_starts(current.shared)]
+        if term in ("face", "face2"):  # a short fit from every start, then the best to the end
             short = [fit_law(data, terms, dr, s, per, max_nfev=FACE_SCREEN_NFEV) for s in starts]
             best = min(short, key=lambda f: f.sse)
+            first_face = best if term == "face" else first_face
             if best.sse > (1 - MIN_HELD_OUT_GAIN) * current.sse:
                 # no face lowers the error by what a term must: the screen is its candidate
                 out.append(best)
@@ -175,8 +186,15 @@ def forward_path(data: Data, dr: float, rng: np.random.Generator) -> tuple[Fit, 
     while len(current.terms) < len(TERMS):
         cands = _candidates(data, current, dr)
         best = min(cands, key=_bic)
-        term = next(iter(best.terms - current.terms))
         cv_new = held_out_error(data, best, tests)
+        one = [c for c in cands if c.terms == current.terms | {"face"}]
+        if len(best.terms - current.terms) == 2 and one:
+            # a face's two modes at once: the second must lower the held-out error of the
+            # first alone as a term must, else the first alone is the candidate
+            cv_one = held_out_error(data, one[0], tests)
+            if held_out_gain(cv_one, cv_new) < MIN_HELD_OUT_GAIN:
+                best, cv_new = one[0], cv_one
+        term = _ordered(best.terms - current.terms)[-1]  # a face's two modes: face2
         gain = held_out_gain(cv, cv_new)
         entered = bool(_bic(best) < _bic(current) and gain >= MIN_HELD_OUT_GAIN)
         path.append({"step": len(path), "term": term, "entered": entered, "bic": _bic(best),
@@ -209,7 +227,7 @@ def reweighted(data: Data, fit: Fit) -> tuple[Data, Fit]:
     weighted least squares, one step) and the selected law refitted on them."""
     w = data.weight * recording_factors(data, fit)[data.rec]
     wdata = Data(data.x, data.v, data.f, w, data.rec, data.impact, data.beta0, data.onset0,
-                 data.names, data.dt)  # fmt: skip
+                 data.names, data.dt, data.index)  # fmt: skip
     return wdata, fit_law(wdata, fit.terms, fit.dr, fit.shared, fit.theta[: 2 * fit.n_rec])
 
 
@@ -232,7 +250,7 @@ def bootstrap(
         w = counts[data.impact].astype(float)
         sel = w > 0
         boot = Data(data.x, data.v, data.f, data.weight * np.sqrt(w), data.rec, data.impact,
-                    data.beta0, data.onset0, data.names, data.dt)  # fmt: skip
+                    data.beta0, data.onset0, data.names, data.dt, data.index)  # fmt: skip
         f = fit_law(boot, fit.terms, fit.dr, fit.shared, per, mask=sel, max_nfev=40)
         shared.append(f.theta[2 * fit.n_rec :])
         betas.append(f.betas)

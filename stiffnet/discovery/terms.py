@@ -19,6 +19,9 @@ term                      force per unit beta                    shared paramete
 ``face``                  the law acts on ``delta - y``, ``y``   ``face_mass``,
                           the recoil of a face with its own      ``face_stiffness``,
                           mass (:mod:`.face`)                    ``face_damping``
+``face2``                 the face's second mode: ``y`` is the   ``face2_mass``,
+                          sum of both modes' recoils (only on    ``face2_stiffness``,
+                          top of ``face``)                       ``face2_damping``
 ========================  =====================================  =====================
 
 ``d_r`` is fixed (the campaign's median peak penetration, rounded), not fitted:
@@ -39,12 +42,19 @@ from functools import cached_property
 import numpy as np
 from scipy import optimize, sparse
 
-from stiffnet.discovery.face import FACE_PARAMS, Layout, face_response, layout, sample_interval
+from stiffnet.discovery.face import (
+    FACE2_PARAMS,
+    FACE_PARAMS,
+    Layout,
+    face_response,
+    layout,
+    sample_interval,
+)
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.learned_contact import NEUTRAL, learned_contact_force
 
 #: Candidate terms beyond the linear spring, in the order they are tried.
-TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face")
+TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face", "face2")
 #: Terms of the library's own laws (``contact_damping``); ``hertz`` is ``power`` at 3/2.
 LIBRARY_TERMS = frozenset({"damping", "hertz"})
 #: Shared parameters of each term, with their bounds and starting value.
@@ -55,13 +65,15 @@ TERM_PARAMS: dict[str, tuple[tuple[str, float, float, float], ...]] = {
     "hunt_crossley": (("hunt_crossley", 0.0, 50.0, 0.3),),
     "preload": (("preload", -0.5, 0.5, 0.0),),
     "face": FACE_PARAMS,
+    "face2": FACE2_PARAMS,
 }
 #: Loss of the fit (squared; a soft-l1 loss at the force scale changed beta by < 10 % on the
 #: two-stage test campaigns and read the first stage as outliers at smaller scales).
 LOSS = "linear"
 F_SCALE = 1.0
-#: Faces whose recoil a :class:`Data` keeps (the fit's point and its finite differences).
-FACE_CACHE = 4
+#: Faces whose recoil a :class:`Data` keeps (the fit's point and its finite differences, for
+#: each of two modes).
+FACE_CACHE = 8
 #: The library's Hertz exponent (``hertz_contact``).
 HERTZ_EXPONENT = 1.5
 
@@ -81,6 +93,10 @@ class Data:
     names: tuple[str, ...]
     #: Each recording's sampling interval in model time (the ``face`` term's filter).
     dt: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: Each sample's index in its record (empty: unknown; the face's ringing carried over).
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    #: The samples this is a subset of, and which: a face's ringing runs through all of them.
+    parent: tuple[Data, np.ndarray] | None = None
 
     @property
     def n_rec(self) -> int:
@@ -97,12 +113,17 @@ class Data:
         """:func:`~.face.face_response` to the samples' force, the last faces' kept: it
         depends on the face alone, and a Jacobian's finite differences in the recordings'
         betas and onsets (half the residual evaluations of a fit) leave the face as it is."""
+        if self.parent is not None:  # the held-out impacts' force still drives the face
+            full, idx = self.parent
+            y, yd = full.face_recoil(mass, stiffness, damping)
+            return y[idx], yd[idx]
         key = (float(mass), float(stiffness), float(damping))
         cache = self._face_cache
         if key not in cache:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            cache[key] = face_response(self.f, self.layout, self.dt, *key)
+            index = self.index if self.index.size == self.f.size else None
+            cache[key] = face_response(self.f, self.layout, self.dt, *key, index=index)
         return cache[key]
 
     @cached_property
@@ -129,6 +150,8 @@ def stack(samples: Sequence[ContactSamples]) -> Data:
         np.array([max(s.beta, 1e-3) for s in samples]), np.array([s.onset for s in samples]),
         tuple(s.recording for s in samples),
         np.array([sample_interval(s.displacement, s.velocity, s.impact) for s in samples]),
+        cat([s.index for s in samples]) if all(s.index is not None for s in samples)
+        else np.zeros(0, dtype=int),
     )  # fmt: skip
 
 
@@ -189,6 +212,10 @@ def predict(data: Data, terms: frozenset[str], theta: np.ndarray, dr: float) -> 
     if "face" in terms:  # the law acts on the face, which recoils under the measured force
         y, yd = data.face_recoil(shared["face_mass"], shared["face_stiffness"],
                                  shared["face_damping"])  # fmt: skip
+        delta, v = delta - y, v - yd
+    if "face2" in terms:  # the second mode recoils under the same force, in parallel at the tip
+        y, yd = data.face_recoil(shared["face2_mass"], shared["face2_stiffness"],
+                                 shared["face2_damping"])  # fmt: skip
         delta, v = delta - y, v - yd
     return learned_contact_force(delta, v, beta, law_params(terms, shared, dr))
 
@@ -256,6 +283,7 @@ def _subset(data: Data, idx: np.ndarray) -> Data:
     return Data(
         data.x[idx], data.v[idx], data.f[idx], data.weight[idx], data.rec[idx],
         data.impact[idx], data.beta0, data.onset0, data.names, data.dt,
+        parent=(data, idx),
     )  # fmt: skip
 
 

@@ -19,8 +19,16 @@ face a mass on its support (one mode, the library's ``restraint_mass`` physics):
 
 with ``kappa`` (``face_stiffness``) and ``zeta_f`` (``face_damping``) shared by the
 rigs (absolute, in the model's units: the face is the rig's, the contact the
-rock's). Beta is then the contact's own stiffness, in series with the face's
-support: the static stiffness is ``beta kappa / (beta + kappa)``.
+rock's). A face with a second mode (``face2_mass`` ``mu_2 > 0``; a beam's tip, whose
+bending modes act in parallel there) adds two more states, the mode driven by the same
+force, and the law acts on ``delta = x - e - y - y_2``::
+
+    mu_2 y_2'' + 2 zeta_2 sqrt(kappa_2 mu_2) y_2' + kappa_2 y_2 = F_c
+
+(``face2_stiffness``, ``face2_damping``); ``face2_mass: 0`` is no second mode, and a law
+without one runs with the one-mode face's two states, as before. Beta is then the
+contact's own stiffness, in series with the face's support: the static stiffness is
+``beta kappa / (beta + kappa)``.
 
 **What beta means** for such a law (docs/crosscheck.md, "beta for a nonlinear
 law"): the coefficient of the leading elastic term. For a law whose leading
@@ -62,10 +70,13 @@ LAW_PARAMS = (
     "face_mass",
     "face_stiffness",
     "face_damping",
+    "face2_mass",
+    "face2_stiffness",
+    "face2_damping",
 )
 #: "Effect off": the paper's linear restraint.
 NEUTRAL = {"exponent": 1.0, "knee_ratio": 1.0, "preload": 0.0, "hunt_crossley": 0.0,
-           "damping_ratio": 0.0, "face_mass": 0.0}  # fmt: skip
+           "damping_ratio": 0.0, "face_mass": 0.0, "face2_mass": 0.0}  # fmt: skip
 
 
 def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -> np.ndarray:
@@ -123,6 +134,22 @@ def _around(cls: Any, name: str, value: float, factor: float) -> FitParam:
     return FitParam(name, low, min(value * factor, float(extra["le"])), log=True)
 
 
+def _mode_derivative(
+    s: np.ndarray, contact_force: np.ndarray, mass: Any, stiffness: Any, damping: Any
+) -> np.ndarray:
+    """``(y', y'')`` of one mode of the face pushed by the contact force, (B, 2); rows whose
+    mode has no mass stay at rest."""
+    mu = np.asarray(mass, float)
+    has = mu > 0
+    m = np.where(has, mu, 1.0)
+    c = 2.0 * damping * np.sqrt(stiffness * m)
+    y, w = s[:, 0], s[:, 1]
+    out = np.empty_like(s)
+    out[:, 0] = np.where(has, w, 0.0)
+    out[:, 1] = np.where(has, (contact_force - stiffness * y - c * w) / m, 0.0)
+    return out
+
+
 class LearnedContact(DynamicsEffect):
     """A contact law discovered from a campaign (see the module notes for the equation)."""
 
@@ -157,6 +184,13 @@ class LearnedContact(DynamicsEffect):
             100.0, 0.1, 1e4, "kappa: the face's support stiffness over the primary spring"
         )
         face_damping: ParamValue = param(0.05, 0.0, 2.0, "damping ratio of the face's support")
+        face2_mass: ParamValue = param(
+            0.0, 0.0, 10.0, "mu_2: the face's second mode's mass over the mass m (0: none)"
+        )
+        face2_stiffness: ParamValue = param(
+            1000.0, 0.1, 1e5, "kappa_2: the second mode's stiffness over the primary spring"
+        )
+        face2_damping: ParamValue = param(0.05, 0.0, 2.0, "damping ratio of the second mode")
 
     #: The shape of the law (exponent, second stage, Hunt-Crossley dissipation) when fitted by
     #: ``diagnose --only learned_contact``; d_r, preload and the Kelvin-Voigt damping stay at
@@ -218,32 +252,40 @@ class LearnedContact(DynamicsEffect):
         k = (p["face_stiffness"] + beta * slope) / m
         cf = (2.0 * p["face_damping"] * np.sqrt(p["face_stiffness"] * m) + c) / m
         face = 0.5 * cf + np.sqrt(0.25 * cf * cf + k + 1.0 + beta * slope)
-        return np.where(mu > 0, np.maximum(rate, face), rate)
+        rate = np.where(mu > 0, np.maximum(rate, face), rate)
+        mu2 = np.asarray(p["face2_mass"], float)
+        if not np.any(mu2 > 0):
+            return rate
+        # the second mode in contact, bounded as the first (its support and the contact on it)
+        m2 = np.where(mu2 > 0, mu2, 1.0)
+        k2 = (p["face2_stiffness"] + beta * slope) / m2
+        c2 = (2.0 * p["face2_damping"] * np.sqrt(p["face2_stiffness"] * m2) + c) / m2
+        second = 0.5 * c2 + np.sqrt(0.25 * c2 * c2 + k2 + k + 1.0 + beta * slope)
+        return np.where(mu2 > 0, np.maximum(rate, second), rate)
 
     @property
     def n_states(self) -> int:  # type: ignore[override]
-        """The face's recoil and its rate when the law has a face (any row), else none."""
-        mu = self.params.face_mass
-        return 2 if np.any(np.asarray(mu, float) > 0) else 0
+        """The face's recoil and its rate when the law has a face (any row), two more when
+        it has a second mode (any row), else none."""
+        if np.any(np.asarray(self.params.face2_mass, float) > 0):
+            return 4
+        return 2 if np.any(np.asarray(self.params.face_mass, float) > 0) else 0
 
     def restraint_position(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
-        """The face's recoil ``y``, (B,) (0 on rows without a face)."""
-        return s[:, 0]
+        """The face's recoil ``y`` (plus the second mode's ``y_2``), (B,) (0 on rows without)."""
+        return s[:, 0] if s.shape[1] == 2 else s[:, 0] + s[:, 2]
 
     def state_derivative(
         self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
     ) -> np.ndarray:
-        """``(y', y'')`` of the face pushed by the contact force, (B, 2); rows without a face
-        (``face_mass`` 0) stay at rest."""
-        mu = np.asarray(p["face_mass"], float)
-        has = mu > 0
-        m = np.where(has, mu, 1.0)
-        kappa = p["face_stiffness"]
-        c = 2.0 * p["face_damping"] * np.sqrt(kappa * m)
-        y, w = s[:, 0], s[:, 1]
+        """``(y', y'')`` of the face pushed by the contact force (and ``(y_2', y_2'')`` of its
+        second mode), (B, 2) or (B, 4); rows without a mode (its mass 0) keep it at rest."""
         out = np.empty_like(s)
-        out[:, 0] = np.where(has, w, 0.0)
-        out[:, 1] = np.where(has, (contact_force - kappa * y - c * w) / m, 0.0)
+        out[:, :2] = _mode_derivative(s[:, :2], contact_force, p["face_mass"],
+                                      p["face_stiffness"], p["face_damping"])  # fmt: skip
+        if s.shape[1] == 4:
+            out[:, 2:] = _mode_derivative(s[:, 2:], contact_force, p["face2_mass"],
+                                          p["face2_stiffness"], p["face2_damping"])  # fmt: skip
         return out
 
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:

@@ -384,6 +384,7 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
               k for k in ("knee",) if "hinge" in learned["law"]["terms"]]  # fmt: skip
     face = "face" in learned["law"]["terms"]
     fitted += ["face_stiffness"] if face else []
+    fitted += ["face2_stiffness"] if "face2" in learned["law"]["terms"] else []
     # a law with its own face replaces a library restraint with a mass (two faces would add)
     gone = {*REPLACED, *learned.get("replaces", []), *(["restraint_mass"] if face else [])}
     keep = [a for a in added if a["name"] not in gone]
