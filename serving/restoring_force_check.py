@@ -85,6 +85,7 @@ def restoring_force_check(
         "n_impacts": d["n_impacts"],
         "contact_r2": d["contact_r2"],
         "duration_ratio": d["duration_ratio"],
+        "samples_per_contact": d["samples_per_contact"],
         "highpass_hz": d["highpass_hz"],
         "resonance_hz": d["resonance_hz"],
         "sensor": d["sensor"],

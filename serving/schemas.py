@@ -54,6 +54,9 @@ class RestoringForceCheck(BaseModel):
     duration_ratio: float | None = Field(
         default=None, description="Impact duration over the fitted law's half period."
     )
+    samples_per_contact: float | None = Field(
+        default=None, description="Median samples in contact per impact."
+    )
     highpass_hz: float | None = Field(
         default=None, description="Sensor high-pass corner fitted and undone (0: none)."
     )

@@ -35,6 +35,14 @@ them on rigs whose law the training world lacks, and neither needs the model:
   gain near nil, or on a law that explains little of the force
   (``excess_damping_min_r2``).
 
+* **a contact that lasts too long for the damping its law needs** (``long_contact_min_damping``,
+  ``long_contact_min_samples``): a Kelvin-Voigt contact of damping ratio ``zeta`` lets go
+  when its damper pulls harder than its spring pushes, after
+  :func:`kelvin_voigt_release_ratio` of the undamped half period (0.77 at 0.5), and the
+  map's ``duration_ratio`` reads that. A dissipation that vanishes at the contact's edges
+  (Hunt-Crossley's ``lambda delta v`` is nil at first touch and at release) is fitted as a
+  strong Kelvin-Voigt damper, yet its contacts last about the undamped half period: the
+  measured duration exceeds the fitted damper's release.
 * **a soft first stage** (``onset_toe_min``, ``onset_toe_min_r2``): the law, fitted with a
   free onset, starts where the stiff stage would start from zero force, and the force of a
   short soft first stage lies just outside its impacts
@@ -114,6 +122,13 @@ EXCESS_DAMPING_MIN_R2 = 0.7
 STAGE_MIN_GAIN = 0.15
 #: Least stiffness ratio across the knee (a Hertz contact's hinge reads 1.5-1.7).
 STAGE_MIN_RATIO = 2.0
+#: Fitted Kelvin-Voigt damping ratio from which the contact's duration is judged: the law
+#: then predicts a release at least 19 % before the undamped half period
+#: (:func:`kelvin_voigt_release_ratio`), more than the duration's sampling error.
+LONG_CONTACT_MIN_DAMPING = 0.4
+#: Measured duration beyond the fitted damper's release that fires, in samples: a duration is
+#: a median count of samples in contact, so one sample is its resolution (see the YAML).
+LONG_CONTACT_MIN_SAMPLES = 1.25
 #: Force just outside the fitted law's contact (:func:`stiffnet.uncertainty.law_shape.
 #: onset_toe`), in units of the free flight's force scatter, that fires (see the YAML).
 ONSET_TOE_MIN = 8.0
@@ -145,6 +160,8 @@ class UnseenLawThresholds(BaseModel):
     excess_damping_min_r2: float = EXCESS_DAMPING_MIN_R2
     stage_min_gain: float = STAGE_MIN_GAIN
     stage_min_ratio: float = STAGE_MIN_RATIO
+    long_contact_min_damping: float = LONG_CONTACT_MIN_DAMPING
+    long_contact_min_samples: float = LONG_CONTACT_MIN_SAMPLES
     onset_toe_min: float = ONSET_TOE_MIN
     onset_toe_min_r2: float = ONSET_TOE_MIN_R2
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
@@ -226,12 +243,72 @@ def unseen_law_reasons(
                 f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
             )
     if r2 is not None and r2 >= t.excess_damping_min_r2:
-        reasons += excess_damping_reasons(
-            restoring_force.get("contact_damping_ratio"), restoring_force.get("law_shape"), t
+        zeta = restoring_force.get("contact_damping_ratio")
+        reasons += excess_damping_reasons(zeta, restoring_force.get("law_shape"), t)
+        reasons += long_contact_reasons(
+            zeta,
+            restoring_force.get("duration_ratio"),
+            restoring_force.get("samples_per_contact"),
+            t,
         )
     shape = restoring_force.get("law_shape")
     reasons += law_shape_reasons(shape, t) + stage_reasons(shape, t)
     return reasons + onset_toe_reasons(shape, r2, t)
+
+
+def kelvin_voigt_release_ratio(zeta: float) -> float:
+    """Duration of a Kelvin-Voigt contact over the undamped half period ``pi / omega``.
+
+    In contact, ``delta'' + 2 zeta omega delta' + omega^2 delta = 0`` from first touch
+    (``delta = 0``, ``delta' > 0``); the restraint lets go where its force
+    ``omega^2 delta + 2 zeta omega delta'`` falls to zero, before ``delta`` does. That is at
+    ``omega_d t = pi - 2 arcsin(zeta)``, so the ratio is ``2 arccos(zeta) / (pi sqrt(1 -
+    zeta^2))`` (1 undamped, 0.77 at 0.5, 2/pi at critical damping; its ``arccosh`` form
+    beyond). The outer spring, small against the contact's, is left out.
+
+    Examples
+    --------
+    >>> round(kelvin_voigt_release_ratio(0.5), 3)
+    0.77
+    """
+    z = max(float(zeta), 0.0)
+    if abs(z - 1.0) < 1e-9:
+        return 2.0 / np.pi
+    if z < 1.0:
+        return 2.0 * float(np.arccos(z)) / (np.pi * np.sqrt(1.0 - z * z))
+    return 2.0 * float(np.arccosh(z)) / (np.pi * np.sqrt(z * z - 1.0))
+
+
+def long_contact_reasons(
+    zeta: float | None,
+    duration_ratio: float | None,
+    samples_per_contact: float | None,
+    t: UnseenLawThresholds,
+) -> list[str]:
+    """Rule: a fitted Kelvin-Voigt damping ratio `zeta` of at least
+    :attr:`UnseenLawThresholds.long_contact_min_damping`, whose contact should let go early
+    (:func:`kelvin_voigt_release_ratio`), while the measured contacts (`duration_ratio` of the
+    undamped half period, `samples_per_contact` samples) outlast that release by at least
+    :attr:`UnseenLawThresholds.long_contact_min_samples` samples: a dissipation that vanishes
+    at the contact's edges (Hunt-Crossley's grows with penetration), which the model never
+    saw. The caller requires a law explaining at least
+    :attr:`UnseenLawThresholds.excess_damping_min_r2` of the contact force."""
+    values = (zeta, duration_ratio, samples_per_contact)
+    if any(v is None or not np.isfinite(v) for v in values) or not duration_ratio > 0:
+        return []
+    if not zeta >= t.long_contact_min_damping:
+        return []
+    release = kelvin_voigt_release_ratio(zeta)
+    # the half period in samples is samples_per_contact / duration_ratio
+    excess = (duration_ratio - release) * samples_per_contact / duration_ratio
+    if excess < t.long_contact_min_samples:
+        return []
+    return [
+        f"the contacts last {duration_ratio:.2f} of an undamped half period ({excess:.1f} "
+        f"samples longer than the Kelvin-Voigt damping the law needs, {zeta:.2f}, would let "
+        f"them, releasing at {release:.2f}): a dissipation that vanishes at the contact's "
+        "edges, growing with penetration like Hunt-Crossley's"
+    ]
 
 
 def onset_toe_reasons(
