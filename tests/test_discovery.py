@@ -362,3 +362,51 @@ def test_a_face_carries_its_ringing_from_one_impact_into_the_next():
     at_rest, _ = face_response(force, lay, np.array([dt]), mu, kappa, zeta)
     assert np.abs(at_rest - sol.y[0]).max() > 0.05 * np.abs(y).max()
     np.testing.assert_array_equal(at_rest[:30], y[:30])  # the first impact starts at rest
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.02, 0.7, 1.0, 1.6])
+def test_the_free_face_map_is_the_matrix_exponential(zeta):
+    """The closed form of the free face over a gap is scipy's expm of its state matrix, from
+    undamped through critical to overdamped, for gaps up to a decay of e^-40."""
+    from scipy import linalg
+
+    from stiffnet.discovery.face import free_map
+
+    w2 = 100.0
+    gaps = np.array([0.0, 1e-4, 0.03, 0.5, 40.0 / (max(zeta, 0.05) * 10.0)])
+    a = np.array([[0.0, 1.0], [-w2, -2.0 * zeta * np.sqrt(w2)]])
+    np.testing.assert_allclose(free_map(gaps, w2, zeta), linalg.expm(gaps[:, None, None] * a),
+                               rtol=1e-9, atol=1e-12)  # fmt: skip
+
+
+def test_each_recording_carries_its_own_ringing_through_several_impacts():
+    """Two recordings of three impacts each, stacked: each recording's face rings from one
+    impact into the next by itself (the stacked recoil is each recording's alone, the second
+    recording's first impact from rest), and three impacts of one recording follow the face
+    integrated by solve_ivp through both gaps."""
+    from scipy.integrate import solve_ivp
+
+    from stiffnet.discovery.face import face_response, layout
+
+    mu, kappa, zeta = 0.1, 10.0, 0.02
+    t = np.arange(30)
+    pulse = np.where((t > 2) & (t < 22), np.sin(np.pi * (t - 2) / 20), 0.0)
+    starts = np.array([0, 400, 730])
+    index = np.concatenate([s + t for s in starts])
+    force = np.concatenate([pulse, 0.6 * pulse, 1.3 * pulse])
+    one = layout(np.zeros(90, int), np.repeat([1, 2, 3], 30), 1)
+    both = layout(np.repeat([0, 1], 90), np.tile(np.repeat([1, 2, 3], 30), 2), 2)
+    dts = np.array([0.02, 0.015])
+    y0, _ = face_response(force, one, dts[:1], mu, kappa, zeta, index=index)
+    y1, _ = face_response(1.5 * force, one, dts[1:], mu, kappa, zeta, index=index)
+    y, _ = face_response(np.r_[force, 1.5 * force], both, dts, mu, kappa, zeta,
+                         index=np.r_[index, index])  # fmt: skip
+    np.testing.assert_allclose(y, np.r_[y0, y1], rtol=1e-12, atol=1e-15)
+    tt = np.arange(760) * dts[0]
+    ff = np.zeros(760)
+    ff[index] = force
+    c = 2 * zeta * np.sqrt(kappa * mu)
+    sol = solve_ivp(lambda s, q: [q[1], (np.interp(s, tt, ff) - kappa * q[0] - c * q[1]) / mu],
+                    (0, tt[-1]), [0.0, 0.0], t_eval=tt[index], rtol=1e-10, atol=1e-13,
+                    max_step=dts[0] / 4)  # fmt: skip
+    np.testing.assert_allclose(y0, sol.y[0], atol=1e-6 * np.abs(y0).max())
