@@ -9,7 +9,8 @@ everything it depends on (the engine, the batch, every dynamics effect's
 per-row parameters, the initial state, the transient, the sampling, the
 substeps and the numerical engine's warm start) and returns the stored motion
 when the key repeats. The engines draw no random numbers, so the measurement
-chain that follows sees the same generator state either way: the signals are bitwise those of a fresh simulation.
+chain that follows sees the same generator state either way: the signals are
+bitwise those of a fresh simulation.
 
 Outside :func:`reuse_motion` nothing is stored (a caller that mutates a
 result in place cannot corrupt another's).
