@@ -3,8 +3,9 @@
 * The sensor chain's filter designs are kept per parameters: a filtered signal is bitwise
   the one a fresh design (scipy's ``butter``/``zpk2sos``/``sosfilt_zi``) gives.
 * A numerical-engine effect's design, when its best point is scored again anyway, screens
-  with a shorter transient (``fitting.SCREEN_SETTLE_TOLERANCE``): the point kept and every
-  number reported are those of the screen at the fits' own transient.
+  with a shorter transient (``fitting.SCREEN_SETTLE_TOLERANCE``) begun warm by the closed
+  form (``fitting.SCREEN_WARM_START``): the point kept and every number reported are those
+  of a cold screen at the fits' own transient.
 """
 
 from __future__ import annotations
@@ -66,18 +67,20 @@ def test_screen_settings_shorten_only_the_transient():
         == fitting.SCREEN_SETTLE_TOLERANCE
         > FIT_SETTINGS_NUMERICAL.settle_tolerance
     )
+    assert s.warm_start == fitting.SCREEN_WARM_START > FIT_SETTINGS_NUMERICAL.warm_start == 0
     assert s.model_dump() == {
         **FIT_SETTINGS_NUMERICAL.model_dump(),
         "settle_tolerance": s.settle_tolerance,
+        "warm_start": s.warm_start,
     }
-    loose = FIT_SETTINGS_NUMERICAL.model_copy(update={"settle_tolerance": 0.2})
+    loose = FIT_SETTINGS_NUMERICAL.model_copy(update={"settle_tolerance": 0.2, "warm_start": 1.0})
     assert screen_settings(loose) == loose  # never a longer transient than asked
 
 
 def test_numerical_fit_with_the_short_screen_reports_what_the_full_screen_does(monkeypatch):
     """Hertz contact on two recordings with the inclinations on (so the best point is scored
-    again in full): the shorter screen keeps the same point, and the fit's numbers are
-    bitwise those of a screen at the full transient."""
+    again in full): the shorter, warm-started screen keeps the same point, and the fit's
+    numbers are bitwise those of a cold screen at the full transient."""
     rows = [ROW, ROW.model_copy(update={"recording": "b.csv", "beta": 60.0, "fs_hz": 1500})]
     n = [2500, 3000]
     sims = simulate_rows(rows, [], n, seed=3, settings=FIT_SETTINGS)
@@ -92,6 +95,7 @@ def test_numerical_fit_with_the_short_screen_reports_what_the_full_screen_does(m
 
     short = fit()
     monkeypatch.setattr(fitting, "SCREEN_SETTLE_TOLERANCE", FIT_SETTINGS_NUMERICAL.settle_tolerance)
+    monkeypatch.setattr(fitting, "SCREEN_WARM_START", 0.0)
     full = fit()
     assert short["params"] == full["params"]
     assert short["per_recording"] == full["per_recording"]

@@ -77,6 +77,11 @@ SUBSET_NUMERICAL = 8
 #: was 63 % of the engine's time). "Effect off" is screened with the same transient, and the
 #: point kept is scored with the full one, the number reported and tested.
 SCREEN_SETTLE_TOLERANCE = 0.05
+#: A screen's warm start (:attr:`~stiffnet.simulator.settings.SolverSettings.warm_start`):
+#: the closed form settles the transient onto the linear orbit and the numerical engine
+#: integrates only the stretch that lets an orbit difference of this fraction decay to
+#: the screen's tolerance. The point kept is scored with a cold start.
+SCREEN_WARM_START = 0.1
 #: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
 JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
@@ -462,7 +467,8 @@ def screen_settings(settings: SolverSettings) -> SolverSettings:
     """The settings of a numerical-engine design that is only a screen (see
     :data:`SCREEN_SETTLE_TOLERANCE`): the same, with a transient no longer than that rule's."""
     tol = max(settings.settle_tolerance, SCREEN_SETTLE_TOLERANCE)
-    return settings.model_copy(update={"settle_tolerance": tol})
+    warm = max(settings.warm_start, SCREEN_WARM_START)
+    return settings.model_copy(update={"settle_tolerance": tol, "warm_start": warm})
 
 
 def _nelder_mead(ev: _Evaluator, start: np.ndarray, step: float, maxfev: int) -> None:

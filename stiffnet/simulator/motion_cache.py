@@ -6,10 +6,11 @@ the same motion and passes it through another measurement chain. Inside
 :func:`reuse_motion`, :class:`~stiffnet.simulator.simulator.Simulator` keys the
 engine's output (the motion sampled, before any measurement effect or noise) by
 everything it depends on (the engine, the batch, every dynamics effect's
-per-row parameters, the initial state, the transient, the sampling and the
-substeps) and returns the stored motion when the key repeats. The engines draw
-no random numbers, so the measurement chain that follows sees the same
-generator state either way: the signals are bitwise those of a fresh simulation.
+per-row parameters, the initial state, the transient, the sampling, the
+substeps and the numerical engine's warm start) and returns the stored motion
+when the key repeats. The engines draw no random numbers, so the measurement
+chain that follows sees the same generator state either way: the signals are
+bitwise those of a fresh simulation.
 
 Outside :func:`reuse_motion` nothing is stored (a caller that mutates a
 result in place cannot corrupt another's).

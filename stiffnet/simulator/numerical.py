@@ -356,10 +356,12 @@ class _Model:
 class _Stepper:
     """Marches the batch substep by substep, resolving events for the rows that need them."""
 
-    def __init__(self, model: _Model, x0: np.ndarray, v0: np.ndarray) -> None:
+    def __init__(
+        self, model: _Model, x0: np.ndarray, v0: np.ndarray, t_start: np.ndarray | float = 0.0
+    ) -> None:
         self.m = model
         n = model.n
-        self.t = np.zeros(n)
+        self.t = np.array(np.broadcast_to(np.asarray(t_start, float), (n,)))
         self.y = model.initial_state(np.asarray(x0, float), np.asarray(v0, float))
         self.modes = np.zeros((len(model.effects), n))
         self.contact = np.zeros(n, dtype=bool)
@@ -684,6 +686,7 @@ def simulate_numerical(
     substeps: int = 8,
     row_samples: np.ndarray | None = None,
     oversampled: int = 1,
+    t_start: np.ndarray | float = 0.0,
 ) -> EngineResult:
     """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
 
@@ -720,6 +723,11 @@ def simulate_numerical(
         a record sampled ``oversampled`` times coarser would get (``substeps`` per sample,
         as above), and the samples between substep ends are filled by RK4's dense output
         (:meth:`_Stepper.march_dense`), not integrated one by one.
+    t_start : numpy.ndarray or float
+        Model time of the initial state, (B,) or scalar (default 0): a transient begun by
+        another engine (the closed form's warm start,
+        :meth:`~stiffnet.simulator.simulator.Simulator.transient_split`) is continued here
+        from its state at that time; the forcing's phase is ``w t`` at absolute time.
 
     Returns
     -------
@@ -750,7 +758,7 @@ def simulate_numerical(
     def n_sub(step: np.ndarray) -> int:
         return max(substeps, int(np.ceil(np.max(step * rate) / _MAX_RATE_STEP)))
 
-    st = _Stepper(model, x0, v0)
+    st = _Stepper(model, x0, v0, t_start)
     if n_transient > 0:
         st.march(h_transient, n_transient, n_sub(h_transient), None)
     # (N, B) while recording: each sample writes one contiguous row

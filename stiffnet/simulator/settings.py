@@ -30,6 +30,19 @@ class SolverSettings(BaseModel):
         as for samples ``oversampled`` times coarser and fills the rest by RK4's dense
         output (:func:`~stiffnet.simulator.numerical.simulate_numerical`); the
         closed-form engine is exact at any sample and ignores it.
+    warm_start : float
+        0 (default): a cold start, the numerical engine integrates the whole transient.
+        In (0, 1]: a warm start. The closed-form engine integrates the transient with the
+        numerical effects at their piecewise-linear form (the linear contact ``beta delta``
+        they reduce to, their extra states at rest) and hands its state to the numerical
+        engine for the last stretch only: long enough for a difference of ``warm_start``
+        times the orbit between the two laws' orbits to decay to ``settle_tolerance``,
+        ``ln(warm_start / settle_tolerance) / xi``, and at least
+        :data:`~stiffnet.simulator.simulator.WARM_MIN_PERIODS` forcing periods
+        (:meth:`~stiffnet.simulator.simulator.Simulator.transient_split`). The value is the
+        effects' size bound: the random initial state's offset (the whole orbit, 1) is
+        settled by the closed form, what is left is how far the effects move the orbit.
+        The closed-form engine ignores it.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -39,6 +52,12 @@ class SolverSettings(BaseModel):
     substeps: int = Field(8, ge=1, le=256, description="RK4 steps per sample (numerical engine)")
     oversampled: int = Field(
         1, ge=1, le=64, description="samples per sample the motion needs (numerical engine)"
+    )
+    warm_start: float = Field(
+        0.0,
+        ge=0.0,
+        le=1.0,
+        description="0: cold start; else the orbit difference the numerical stretch settles",
     )
 
     def solver_settings(self) -> SolverSettings:

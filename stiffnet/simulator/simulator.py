@@ -29,6 +29,9 @@ _CONTACT_STEP_FACTOR = 1.5
 _WHITE_NOISE_ORDER = 20
 #: The measurement chain's white noise comes after the effects of lower ``order``.
 WHITE_NOISE_ORDER = _WHITE_NOISE_ORDER
+#: A warm start's numerical stretch lasts at least this many forcing periods: the effects'
+#: extra states start at rest and their discrete modes at the stretch's first event.
+WARM_MIN_PERIODS = 4.0
 
 
 @dataclass
@@ -114,6 +117,27 @@ class Simulator:
         settle = -np.log(self.settle_tolerance) / batch.damping
         return np.maximum(settle, self.min_transient_periods * 2 * np.pi / batch.omega)
 
+    def transient_split(self, batch: OscillatorBatch, t_tr: np.ndarray) -> np.ndarray:
+        """Where a warm start hands the transient to the numerical engine, per row (B,).
+
+        The closed form settles the random initial state onto the orbit of the
+        piecewise-linear model; what is left is the difference between that orbit and
+        the numerical effects' one, ``warm_start`` of the orbit at most (the effects'
+        size, not the initial state's), and free oscillations decay as ``exp(-xi t)``:
+        the numerical engine needs ``ln(warm_start / settle_tolerance) / xi`` of the
+        transient, and at least :data:`WARM_MIN_PERIODS` forcing periods. 0 for every
+        row on a cold start (``warm_start`` 0) or where that stretch is the whole
+        transient.
+        """
+        eps = self.settings.warm_start
+        if eps <= 0:
+            return np.zeros(len(batch))
+        stretch = np.maximum(
+            np.log(max(eps / self.settle_tolerance, 1.0)) / batch.damping,
+            WARM_MIN_PERIODS * 2 * np.pi / batch.omega,
+        )
+        return np.maximum(t_tr - stretch, 0.0)
+
     def simulate(
         self,
         batch: OscillatorBatch,
@@ -191,13 +215,20 @@ class Simulator:
             return simulate_closed_form(
                 self.linear_model(batch, params), x0, v0, t_tr, h, n_samples
             )
+        t_w = self.transient_split(batch, t_tr)
+        if np.any(t_w > 0):  # warm start: the closed form's state at t_w starts the RK4
+            from stiffnet.simulator.compiled import simulate_closed_form
+
+            warm = simulate_closed_form(self.linear_model(batch, params), x0, v0, t_w, h, 1)
+            x0 = np.where(t_w > 0, warm.x[:, 0], x0)
+            v0 = np.where(t_w > 0, warm.v[:, 0], v0)
         # RK4 marches on a uniform grid: transient steps as short as the contact's.
         h_cap = np.minimum(2 * np.pi / 40, _CONTACT_STEP_FACTOR / np.sqrt(1 + batch.beta))
-        n_tr = int(np.ceil(np.max(t_tr / h_cap)))
+        n_tr = int(np.ceil(np.max((t_tr - t_w) / h_cap)))
         return simulate_numerical(
             batch, self.dynamics, [params[e.name] for e in self.dynamics],
-            x0, v0, (t_tr - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
-            row_samples=row_samples, oversampled=self.settings.oversampled,
+            x0, v0, (t_tr - t_w - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
+            row_samples=row_samples, oversampled=self.settings.oversampled, t_start=t_w,
         )  # fmt: skip
 
     def _motion_key(self, batch, params, x0, v0, t_tr, h, row_samples=None) -> bytes:
@@ -216,7 +247,14 @@ class Simulator:
             self.engine, dyn, fields, batch.natural_frequency_hz, x0, v0, t_tr, h, self.substeps,
             row_samples,  # rows stop at their own length, each at its own substeps
             *([self.settings.oversampled] if self.engine == "numerical" else []),
+            # a warm start's motion differs from a cold one's (by the orbits' difference)
+            *([self.settings.warm_start] if self._warm else []),
         )  # fmt: skip
+
+    @property
+    def _warm(self) -> bool:
+        """Whether the numerical engine starts warm (the motion then depends on it)."""
+        return self.engine == "numerical" and self.settings.warm_start > 0
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
         """The piecewise-linear model (closed-form hooks of every dynamics effect)."""
