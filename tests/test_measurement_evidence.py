@@ -102,17 +102,10 @@ def test_one_accelerometer_chain_fitted_on_three_recordings_is_undone_on_the_res
     assert ev["contact_damping_ratio"] == pytest.approx(0.25, abs=0.08)
 
 
-def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain(monkeypatch):
-    """The rule on stand-in readings: 6 rows, the chain fitted on rows 0, 2 and 5; of the
-    others read through their shared chain, the one whose law explains 0.6 and the refused
-    one are read again with their own chain fitted; a row with its own sheet keeps it."""
-    from types import SimpleNamespace
-
-    from stiffnet.measurement import evidence
-
+def _stand_in_readings(evidence, monkeypatch, shared_r2: dict, calls: list):
+    """Stand-in readings: a fitted chain explains 0.97 of every recording's law; through the
+    shared chain, row `i` explains ``shared_r2.get(i, 0.99)`` (None: refused)."""
     chain = {"resonance_hz": 237.0, "resonance_damping": 0.03, "source": "fitted"}
-    shared_r2 = {1: 0.98, 3: 0.6, 4: None}  # row 4: refused through the shared chain
-    calls = []
 
     def reading(item):
         rec, row, sheet = item
@@ -126,6 +119,19 @@ def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain
                 "sensor": {**sheet, "source": "data sheet"}}  # fmt: skip
 
     monkeypatch.setattr(evidence, "_contact_law_task", reading)
+
+
+def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain(monkeypatch):
+    """The rule on stand-in readings: 6 rows, the chain fitted on rows 0, 2 and 5; the shared
+    chain reads those three at R² 0.5 (their own: 0.97), so it is not theirs: of the others
+    read through it, the one whose law explains 0.6 and the refused one are read again with
+    their own chain fitted; a row with its own sheet keeps it."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    calls = []
+    _stand_in_readings(evidence, monkeypatch, {0: 0.5, 2: 0.5, 5: 0.5, 3: 0.6, 4: None}, calls)
     rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(6)]
     rows.append(
         SimpleNamespace(
@@ -137,11 +143,36 @@ def test_a_recording_the_shared_chain_leaves_poorly_explained_gets_its_own_chain
     shared = [p["recording"] for p in per if p.get("chain_shared")]
     assert shared == ["r1"]  # r3 (law explains 0.6) and r4 (refused) read again
     assert per[1]["chain_fitted_on"] == ["r0", "r2", "r3", "r4", "r5"]
+    assert per[1]["chain_shortfall"] == pytest.approx(0.97 - 0.5)
     assert [rec for rec, with_sheet in calls if not with_sheet] == [0, 2, 5, 3, 4]
-    assert (6, True) in calls and per[6]["sensor"]["resonance_hz"] == 300.0
+    assert [rec for rec, with_sheet in calls if with_sheet] == [1, 3, 4, 6, 0, 2, 5]
+    assert per[6]["sensor"]["resonance_hz"] == 300.0
     assert all(per[i]["contact_r2"] == 0.97 for i in (0, 3, 4, 5))
     ev = evidence.contact_evidence(per)
     assert ev["sensor"]["n"] == 7  # one vote per recording, the shared chain's copy included
+
+
+def test_a_chain_confirmed_on_its_own_recordings_is_kept_where_a_recording_reads_poorly(
+    monkeypatch,
+):
+    """The same rows, the shared chain reading the three it was fitted on at 0.99 (their own
+    0.97; one of them refused through it does not outvote the other two): it is the
+    campaign's chain, so a recording it reads poorly (0.6, refused) is poor whatever chain is
+    undone, and no chain is fitted on it."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    calls = []
+    _stand_in_readings(evidence, monkeypatch, {5: None, 3: 0.6, 4: None}, calls)
+    rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(6)]
+    per = evidence.contact_law_per_recording(SimpleNamespace(recording=lambda i: i), rows)
+    assert [rec for rec, with_sheet in calls if not with_sheet] == [0, 2, 5]
+    assert [p["recording"] for p in per if p.get("chain_shared")] == ["r1", "r3", "r4"]
+    assert per[3]["contact_r2"] == 0.6 and not per[4]["ok"]
+    assert per[1]["chain_fitted_on"] == ["r0", "r2", "r5"]
+    assert per[1]["chain_shortfall"] == pytest.approx(0.97 - 0.99)
+    assert evidence.contact_evidence(per)["answered"] == 5
 
 
 def test_a_second_round_of_chain_fits_where_the_first_three_share_no_stage(monkeypatch):

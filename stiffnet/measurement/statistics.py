@@ -47,6 +47,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.fft as sps_fft
 import scipy.signal as sps
 from numpy.typing import ArrayLike
 
@@ -386,32 +387,55 @@ def bridged_free_flight(y: np.ndarray, spans: Sequence[tuple[float, float]]) -> 
     meets the record.
     """
     out = np.array(y, dtype=np.float64, copy=True)
-    for lo, hi in spans:
-        i = np.arange(int(np.floor(lo)) + 1, int(np.ceil(hi)))
-        if i.size == 0:
-            continue
-        a, b = _read_at(y, lo), _read_at(y, hi)
-        out[i] = a + (b - a) * (i - lo) / (hi - lo)
+    if not len(spans):
+        return out
+    lo, hi = np.asarray(spans, dtype=np.float64).T
+    # every span's inner samples at once (a loop per span cost as much as the fit it feeds)
+    first = np.floor(lo).astype(np.int64) + 1
+    count = np.maximum(np.ceil(hi).astype(np.int64) - first, 0)
+    which = np.repeat(np.arange(lo.size), count)
+    i = first[which] + (np.arange(which.size) - np.repeat(np.cumsum(count) - count, count))
+    a, b = _read_at(y, lo), _read_at(y, hi)
+    a, b, lo, hi = a[which], b[which], lo[which], hi[which]
+    out[i] = a + (b - a) * (i - lo) / (hi - lo)
     return out
 
 
-def _read_at(y: np.ndarray, x: float) -> float:
-    """``y`` read at a fractional index by linear interpolation."""
-    i = min(int(np.floor(x)), y.size - 2)
-    return float(y[i] + (x - i) * (y[i + 1] - y[i]))
+def _read_at(y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``y`` read at fractional indices ``x`` by linear interpolation."""
+    i = np.minimum(np.floor(x).astype(np.int64), y.size - 2)
+    return y[i] + (x - i) * (y[i + 1] - y[i])
 
 
 def harmonic_amplitudes(
     y: np.ndarray, frequency_cycles_per_sample: float, mask: np.ndarray, n_harmonics: int
 ) -> np.ndarray:
     """Least-squares amplitudes of harmonics 1..N of a known frequency on the masked samples."""
-    t = np.flatnonzero(mask).astype(np.float64)
+    if mask.all():  # the whole record: the design is the same at every evaluation of a fit
+        design = _harmonic_design(mask.size, float(frequency_cycles_per_sample), n_harmonics)
+    else:
+        design = _design_at(np.flatnonzero(mask).astype(np.float64), frequency_cycles_per_sample,
+                            n_harmonics)  # fmt: skip
+    coef, *_ = np.linalg.lstsq(design, y[mask], rcond=None)
+    return np.hypot(coef[1::2], coef[2::2])
+
+
+def _design_at(t: np.ndarray, frequency_cycles_per_sample: float, n_harmonics: int) -> np.ndarray:
+    """Columns 1, cos and sin of harmonics 1..N at the sample times ``t``."""
     cols = [np.ones_like(t)]
     for k in range(1, n_harmonics + 1):
         ph = 2 * np.pi * k * frequency_cycles_per_sample * t
         cols += [np.cos(ph), np.sin(ph)]
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), y[mask], rcond=None)
-    return np.hypot(coef[1::2], coef[2::2])
+    return np.column_stack(cols)
+
+
+@functools.lru_cache(maxsize=64)
+def _harmonic_design(n: int, frequency_cycles_per_sample: float, n_harmonics: int) -> np.ndarray:
+    """:func:`_design_at` of samples 0..n-1, kept per length and frequency (a campaign's
+    simulated rows keep both through a fit; read-only)."""
+    design = _design_at(np.arange(n, dtype=np.float64), frequency_cycles_per_sample, n_harmonics)
+    design.setflags(write=False)
+    return design
 
 
 def welch_log_psd(
@@ -434,7 +458,7 @@ def welch_log_psd(
     """
     y = np.asarray(y)
     nper = int(min(y.shape[-1], max(16, round(WELCH_PERIODS * fs_hz / natural_frequency_hz))))
-    f, p = sps.welch(y, fs=fs_hz, nperseg=nper, axis=-1)
+    f, p = _welch(y, fs_hz, nper)
     hi = min(SPECTRUM_HIGH, 0.45 * fs_hz / natural_frequency_hz)
     grid = np.geomspace(SPECTRUM_LOW, hi, SPECTRUM_POINTS)
     fr = f / natural_frequency_hz
@@ -448,6 +472,33 @@ def welch_log_psd(
         mean = np.where(count > 0, mean, np.array([np.interp(grid, fr, row) for row in p2]))
     log_psd = np.log10(np.maximum(mean, 1e-30))
     return grid, log_psd.reshape(*p.shape[:-1], grid.size)
+
+
+@functools.lru_cache(maxsize=64)
+def _welch_stft(nperseg: int, fs_hz: float) -> sps.ShortTimeFFT:
+    """The short-time transform :func:`scipy.signal.welch` builds for a Hann window of
+    ``nperseg`` samples, half overlap, one-sided PSD scaling (kept: its window design and
+    scaling cost as much as a short record's transforms)."""
+    win = sps.get_window("hann", nperseg)
+    return sps.ShortTimeFFT(win, nperseg - nperseg // 2, fs_hz, fft_mode="onesided",
+                            mfft=nperseg, scale_to="psd", phase_shift=None)  # fmt: skip
+
+
+def _welch(y: np.ndarray, fs_hz: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.signal.welch(y, fs_hz, nperseg=nperseg, axis=-1)``, bit for bit, with every
+    segment of every row transformed in one call (scipy transforms one segment at a time)."""
+    sft = _welch_stft(nperseg, float(fs_hz))
+    n, hop = y.shape[-1], sft.hop
+    count = (n - nperseg // 2) // hop
+    segs = np.lib.stride_tricks.sliding_window_view(y, nperseg, axis=-1)[..., ::hop, :][
+        ..., :count, :
+    ]
+    segs = segs - np.mean(segs, axis=-1, keepdims=True)  # the "constant" detrend
+    spec = sps_fft.rfft(segs * sft.win.conj(), n=sft.mfft, axis=-1)
+    # power as (..., frequency, segment), the layout scipy averages over
+    power = np.ascontiguousarray(np.swapaxes(spec.real**2 + spec.imag**2, -1, -2))
+    power[..., 1 : -1 if sft.mfft % 2 == 0 else None, :] *= 2
+    return sft.f, power.mean(axis=-1) if count > 1 else power[..., 0]
 
 
 # ---------------------------------------------------------------------------- rules
