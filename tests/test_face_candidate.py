@@ -107,3 +107,17 @@ def test_the_betas_behind_the_true_face_are_the_contacts_own():
     assert behind.params["face_stiffness"] == FACE["face_stiffness"]
     # the raw maps read the contact in series with the face's support, below its own
     assert all(b < t for b, t in zip(lin.betas, BETAS, strict=True))
+
+
+def test_the_unknowns_name_the_nyquist_frequency_and_the_series_betas():
+    """The slowest recording (1000 Hz at f_n 9.48 Hz) sees modes up to 52.7 natural
+    frequencies; the series betas of 10 and 90 behind a support of 10 are 5 and 9."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement.face_by_simulation import face_unknowns
+
+    rows = [SimpleNamespace(fs_hz=fs, natural_frequency_hz=9.48) for fs in (1000.0, 2000.0)]
+    law = replace(_law(0.71, None), betas=(10.0, 90.0))
+    words = face_unknowns(law, rows, FACE)
+    assert len(words) == 3 and "52.7 natural frequencies" in words[1]
+    assert "one mode at 10 natural frequencies" in words[1] and "= 5-9," in words[2]

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.campaign.simulate import natural_frequency
 from stiffnet.discovery.face_candidate import (
     betas_behind_face,
     face_grid,
@@ -92,6 +93,8 @@ def face_by_simulation(
     # so the best is scored again alone (the noise of per_recording)
     scored = []
     for i, m in enumerate(models):
+        if any(_same(m, o) for o in models[:i]):
+            continue  # the same model twice (the selection held only contact effects)
         pers = tgt.per_recording_points(list(m), LearnedContact.name, points, settings)
         scored += [(campaign_discrepancy(p), i, j) for j, p in enumerate(pers)]
     _, mi, pj = min(scored)
@@ -124,10 +127,14 @@ def face_by_simulation(
     }
 
 
+def _same(a: Sequence[Effect], b: Sequence[Effect]) -> bool:
+    return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
+
+
 def face_unknowns(law: DiscoveredLaw, rows: Sequence[Any], params: dict[str, float]) -> list[str]:
     """What a face chosen by simulation leaves unknown, in words (the proposal says so)."""
     w = float(np.sqrt(params["face_stiffness"] / params["face_mass"]))
-    nyq = min(np.pi * r.fs_hz / (2 * np.pi * r.natural_frequency_hz) for r in rows)
+    nyq = min(0.5 * r.fs_hz / natural_frequency(r) for r in rows)  # in natural frequencies
     series = series_betas(law.betas, params)
     return [
         "the face was chosen by simulating the campaign, not by the maps' held-out test "
