@@ -121,3 +121,24 @@ def test_the_unknowns_name_the_nyquist_frequency_and_the_series_betas():
     words = face_unknowns(law, rows, FACE)
     assert len(words) == 3 and "52.7 natural frequencies" in words[1]
     assert "one mode at 10 natural frequencies" in words[1] and "= 5-9," in words[2]
+
+
+def test_the_proposal_carries_the_face_with_its_series_betas_or_says_why_not():
+    from types import SimpleNamespace
+
+    from stiffnet.measurement.learned_law import _face_entries
+
+    samples = face_samples(FACE)
+    data = stack(samples)
+    lin = fit_law(data, frozenset(), 0.3)
+    plain = replace(law_from_fit(data, lin, [], lin), terms=("face",), new_terms=("face",))
+    chosen = betas_behind_face(samples, plain, FACE)
+    rows = [SimpleNamespace(fs_hz=1000.0, natural_frequency_hz=9.48)]
+    face = {"significant": True, "law": chosen, "params": chosen.params, "model": 1}
+    out = _face_entries(face, plain, samples, rows)
+    assert out["law"]["terms"] == ["face"] and len(out["unknowns"]) == 3
+    np.testing.assert_allclose(out["series_betas"], [1 / (1 / b + 0.1) for b in BETAS], rtol=0.02)
+    assert "law" not in out["face_by_simulation"] and "summary" not in out
+    refused = {"significant": False, "significance": {"reasons": ["it removes 5 %"]}}
+    out = _face_entries(refused, plain, samples, rows)
+    assert out["proposed"] is False and out["summary"].endswith("refused: it removes 5 %")

@@ -151,18 +151,11 @@ def propose_learned_law(
     rows_law = law_rows(campaign, target.rows, law)
     if not law.new:  # the maps saw a restraint with dynamics and could not decide its face
         face = face_by_simulation(samples, law, target, rows_law, models, before, floor, settings)
-        out["face_by_simulation"] = {k: v for k, v in face.items() if k != "law"}
+        out.update(_face_entries(face, law, samples, rows_law))
         if not face["significant"]:
-            why = "; ".join(face["significance"]["reasons"])
-            out.update(proposed=False, summary=(
-                f"the learned contact law has nothing the library lacks ({law.words}); a face "
-                f"simulated on the campaign was refused: {why}"))  # fmt: skip
             return out
         law, params, after = face["law"], face["params"], np.asarray(face["per_recording"])
         kept, refit = models[face["model"]], face["refit"]
-        out.update(law=law.to_dict(), map=law_map(samples, law),
-                   unknowns=face_unknowns(law, rows_law, params),
-                   series_betas=series_betas(law.betas, params))  # fmt: skip
     else:
         after, kept, params, refit = _law_scored(target, rows_law, models, law, settings)
     d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
@@ -199,6 +192,30 @@ def propose_learned_law(
         f"{shares['explained_fraction']:.0%} of the base model's excess over the recordings' "
         f"floors), the rest {floor_words}"
     )
+    if out.get("unknowns"):  # a face the maps refused, kept by the simulation
+        out["summary"] += (
+            ". The face was decided by simulating the campaign (the maps' held-out test refused "
+            f"it); not known: {'; '.join(out['unknowns'])}"
+        )
+    return out
+
+
+def _face_entries(
+    face: dict[str, Any], law: Any, samples: Sequence[ContactSamples], rows: Sequence[Any]
+) -> dict[str, Any]:
+    """The proposal's entries from a face decided by simulation: refused (``proposed`` False
+    and why), or the face law with its map, series betas and what it leaves unknown."""
+    out: dict[str, Any] = {"face_by_simulation": {k: v for k, v in face.items() if k != "law"}}
+    if not face["significant"]:
+        why = "; ".join(face["significance"]["reasons"])
+        out.update(proposed=False, summary=(
+            f"the learned contact law has nothing the library lacks ({law.words}); a face "
+            f"simulated on the campaign was refused: {why}"))  # fmt: skip
+        return out
+    chosen, params = face["law"], face["params"]
+    out.update(law=chosen.to_dict(), map=law_map(samples, chosen),
+               unknowns=face_unknowns(chosen, rows, params),
+               series_betas=series_betas(chosen.betas, params))  # fmt: skip
     return out
 
 
