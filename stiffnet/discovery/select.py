@@ -309,16 +309,29 @@ def discover_contact_law(
         for r in range(data.n_rec):
             lo, hi = np.quantile(betas[:, r], [a, 1 - a])
             beta_iv[r] = widened(float(fit.betas[r]), lo, hi, sys_rel)
+    return law_from_fit(data, fit, path, lib, intervals, beta_iv, coverage)
+
+
+def law_from_fit(
+    data: Data,
+    fit: Fit,
+    path: list[dict[str, Any]],
+    lib: Fit,
+    intervals: dict[str, Any] | None = None,
+    beta_intervals: Sequence[Any] | None = None,
+    coverage: float = 0.9,
+) -> DiscoveredLaw:
+    """The :class:`DiscoveredLaw` of a fit on the stacked samples, beside the library's best."""
     new = tuple(t for t in _ordered(fit.terms) if is_new_term(t, fit.params))
     return DiscoveredLaw(
         terms=_ordered(fit.terms),
         params=fit.params,
-        intervals=intervals,
+        intervals=dict(intervals or {}),
         recordings=data.names,
         betas=tuple(float(b) for b in fit.betas),
-        beta_intervals=tuple(beta_iv),
+        beta_intervals=tuple(beta_intervals or [None] * data.n_rec),
         onsets=tuple(float(e) for e in fit.onsets),
-        explained_fraction=explained,
+        explained_fraction=explained_fraction(data, fit),
         library_explained_fraction=explained_fraction(data, lib),
         library_terms=_ordered(lib.terms),
         path=path,

@@ -26,11 +26,13 @@ from typing import Any
 import numpy as np
 
 from stiffnet.discovery import campaign_contact_samples, discover_contact_law
+from stiffnet.discovery.face_candidate import face_in_question, series_betas
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unknowns
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
 
@@ -135,11 +137,10 @@ def propose_learned_law(
     given = {g.recording: g.beta for g in campaign.rows}
     law = law.referred_to([given.get(name) for name in law.recordings])
     out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
-    if not law.new:
+    if not law.new and not face_in_question(law):
         out.update(proposed=False, summary=(
             f"the learned contact law has nothing the library lacks ({law.words})"))  # fmt: skip
         return out
-    learned = LearnedContact(**law.effect_params)
     settings = FIT_SETTINGS_NUMERICAL
     before = residual if _numerical(effects) else target.per_recording(list(effects), settings)
     # the law in place of the library's contact effects, or of every selected effect (they
@@ -148,14 +149,15 @@ def propose_learned_law(
     models = [[e for e in effects if e.name not in REPLACED],
               [e for e in effects if id(e) in base and e.name not in REPLACED]]  # fmt: skip
     rows_law = law_rows(campaign, target.rows, law)
-    trials = [target.per_recording([*m, learned], settings, rows=rows_law) for m in models]
-    best = int(np.argmin([campaign_discrepancy(t) for t in trials]))
-    after, kept = trials[best], models[best]
-    refit, params = None, law.effect_params
-    if float(params.get("face_mass", 0.0)) > 0:
-        refit = refine_face(target, rows_law, kept, params, after, settings)
-        if refit["improves"]:
-            params, after = refit["params"], np.asarray(refit["per_recording"])
+    if not law.new:  # the maps saw a restraint with dynamics and could not decide its face
+        face = face_by_simulation(samples, law, target, rows_law, models, before, floor, settings)
+        out.update(_face_entries(face, law, samples, rows_law))
+        if not face["significant"]:
+            return out
+        law, params, after = face["law"], face["params"], np.asarray(face["per_recording"])
+        kept, refit = models[face["model"]], face["refit"]
+    else:
+        after, kept, params, refit = _law_scored(target, rows_law, models, law, settings)
     d0, d1 = campaign_discrepancy(before), campaign_discrepancy(after)
     removed = float((d0 - d1) / d0) if d0 > 0 else 0.0
     rest = floor.at_floor(np.asarray(after, dtype=float))
@@ -190,7 +192,48 @@ def propose_learned_law(
         f"{shares['explained_fraction']:.0%} of the base model's excess over the recordings' "
         f"floors), the rest {floor_words}"
     )
+    if out.get("unknowns"):  # a face the maps refused, kept by the simulation
+        out["summary"] += (
+            ". The face was decided by simulating the campaign (the maps' held-out test refused "
+            f"it); not known: {'; '.join(out['unknowns'])}"
+        )
     return out
+
+
+def _face_entries(
+    face: dict[str, Any], law: Any, samples: Sequence[ContactSamples], rows: Sequence[Any]
+) -> dict[str, Any]:
+    """The proposal's entries from a face decided by simulation: refused (``proposed`` False
+    and why), or the face law with its map, series betas and what it leaves unknown."""
+    out: dict[str, Any] = {"face_by_simulation": {k: v for k, v in face.items() if k != "law"}}
+    if not face["significant"]:
+        why = "; ".join(face["significance"]["reasons"])
+        out.update(proposed=False, summary=(
+            f"the learned contact law has nothing the library lacks ({law.words}); a face "
+            f"simulated on the campaign was refused: {why}"))  # fmt: skip
+        return out
+    chosen, params = face["law"], face["params"]
+    out.update(law=chosen.to_dict(), map=law_map(samples, chosen),
+               unknowns=face_unknowns(chosen, rows, params),
+               series_betas=series_betas(chosen.betas, params))  # fmt: skip
+    return out
+
+
+def _law_scored(
+    target: Any, rows_law: Sequence[Any], models: list[list[Effect]], law: Any, settings: Any
+) -> tuple[np.ndarray, list[Effect], dict[str, float], dict[str, Any] | None]:
+    """The discovered law simulated on each model (the better kept) and, with a face, refitted
+    by simulation (:func:`refine_face`): per-recording discrepancy, model, params, refit."""
+    learned = LearnedContact(**law.effect_params)
+    trials = [target.per_recording([*m, learned], settings, rows=rows_law) for m in models]
+    best = int(np.argmin([campaign_discrepancy(t) for t in trials]))
+    after, kept = trials[best], models[best]
+    refit, params = None, law.effect_params
+    if float(params.get("face_mass", 0.0)) > 0:
+        refit = refine_face(target, rows_law, kept, params, after, settings)
+        if refit["improves"]:
+            params, after = refit["params"], np.asarray(refit["per_recording"])
+    return after, kept, params, refit
 
 
 def excess_shares(

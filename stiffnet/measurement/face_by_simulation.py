@@ -1,0 +1,150 @@
+"""A face the maps cannot decide on, decided by simulating the campaign with it.
+
+Where the discovery sees a restraint with dynamics but refuses its face
+(:func:`stiffnet.discovery.face_candidate.face_in_question`: at the rig's rates a
+tip's second mode aliases into the measured force the face is driven by), the
+face becomes a candidate like any diagnosed effect: ``learned_contact`` with the
+face, started from the maps' own face fit and from a coarse grid of faces
+(:func:`~stiffnet.discovery.face_candidate.face_grid`), all simulated as one
+batch on the campaign; the best point is scored again alone, refitted by the
+face's sweep (:func:`~stiffnet.measurement.learned_law.refine_face`), and kept
+only where it passes the tests every diagnosed effect must
+(:func:`~stiffnet.measurement.significance.significance`: it lowers the
+discrepancy beyond the recordings' noise floors, for most recordings, and pays
+for its parameters). The betas are then read on the maps behind the chosen face
+(:func:`~stiffnet.discovery.face_candidate.betas_behind_face`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from stiffnet.campaign.simulate import natural_frequency
+from stiffnet.discovery.face_candidate import (
+    betas_behind_face,
+    face_grid,
+    maps_face_law,
+    series_betas,
+)
+from stiffnet.discovery.law import DiscoveredLaw
+from stiffnet.discovery.samples import ContactSamples
+from stiffnet.effects.base import Effect
+from stiffnet.effects.learned_contact import LearnedContact
+from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.noise_floor import Floors
+from stiffnet.measurement.significance import significance
+
+#: Parameters a one-mode face adds (mass, stiffness, damping).
+FACE_PARAMETERS = 3
+#: The face's keys the report gives.
+FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
+
+
+def face_by_simulation(
+    samples: Sequence[ContactSamples],
+    law: DiscoveredLaw,
+    target: Any,
+    rows: Sequence[Any],
+    models: Sequence[Sequence[Effect]],
+    before: np.ndarray,
+    floor: Floors,
+    settings: Any,
+) -> dict[str, Any]:
+    """Decide by simulation whether the campaign's restraint has a face (module notes).
+
+    Parameters
+    ----------
+    samples : sequence of ContactSamples
+        The campaign's restoring-force maps (the discovery's).
+    law : DiscoveredLaw
+        The discovery's law (nothing new, its face refused on the maps).
+    target : CampaignTarget
+        diagnose's target; ``rows``: its rows with the law's betas where the manifest has none.
+    models : sequence of sequences of Effect
+        The models the face may join (the diagnosed selection without the library's contact
+        effects, and the base model alone: the selection may have stood in for the face).
+    before : numpy.ndarray
+        Per-recording discrepancy of the diagnosed model (what the face must lower).
+    floor : Floors
+        The recordings' own floors at ``settings``.
+    settings : SolverSettings
+        The numerical engine's settings.
+
+    Returns
+    -------
+    dict
+        ``significant`` (bool), ``law`` (the face law with the betas behind the chosen face,
+        or None), ``params``, ``model`` (index into ``models``), ``per_recording``,
+        ``significance``, ``maps_face``, ``grid_best``, ``refit``, ``seconds``.
+    """
+    from stiffnet.measurement.learned_law import refine_face
+
+    t0 = time.perf_counter()
+    maps = maps_face_law(samples, law.path)
+    start = maps.effect_params
+    points = [start, *({**start, **g} for g in face_grid(law.betas))]
+    tgt = replace(target, rows=list(rows))
+    # every point on every model as one batch each; the batch draws other noise per point,
+    # so the best is scored again alone (the noise of per_recording)
+    scored = []
+    for i, m in enumerate(models):
+        if any(_same(m, o) for o in models[:i]):
+            continue  # the same model twice (the selection held only contact effects)
+        pers = tgt.per_recording_points(list(m), LearnedContact.name, points, settings)
+        scored += [(campaign_discrepancy(p), i, j) for j, p in enumerate(pers)]
+    _, mi, pj = min(scored)
+    model, point = list(models[mi]), points[pj]
+    alone = tgt.per_recording([*model, LearnedContact(**point)], settings)
+    refit = refine_face(tgt, rows, model, point, alone, settings)
+    params = refit["params"] if refit["improves"] else point
+    after = np.asarray(refit["per_recording"] if refit["improves"] else alone, float)
+    names = [r.recording for r in rows]
+    sig = significance(before, after, FACE_PARAMETERS, floor, names)
+    chosen = {k: float(params[k]) for k in FACE_KEYS}
+    face_law = betas_behind_face(samples, maps, chosen) if sig["significant"] else None
+    return {
+        "significant": bool(sig["significant"]),
+        "law": face_law,
+        "params": params,
+        "model": mi,
+        "per_recording": after.tolist(),
+        "discrepancy": campaign_discrepancy(after),
+        "significance": {k: sig[k] for k in ("excess_reduction", "bic_delta", "reasons")},
+        "maps_face": {k: float(start[k]) for k in FACE_KEYS}
+        | {"explained_fraction": maps.explained_fraction},
+        "grid_best": {k: float(point[k]) for k in FACE_KEYS},
+        "grid_discrepancies": [float(d) for d, i, _ in scored if i == mi],
+        "refit": {
+            k: refit[k]
+            for k in ("improves", "discrepancy_discovered", "discrepancy_refit", "seconds")
+        },  # fmt: skip
+        "seconds": round(time.perf_counter() - t0, 2),
+    }
+
+
+def _same(a: Sequence[Effect], b: Sequence[Effect]) -> bool:
+    return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
+
+
+def face_unknowns(law: DiscoveredLaw, rows: Sequence[Any], params: dict[str, float]) -> list[str]:
+    """What a face chosen by simulation leaves unknown, in words (the proposal says so)."""
+    w = float(np.sqrt(params["face_stiffness"] / params["face_mass"]))
+    nyq = min(0.5 * r.fs_hz / natural_frequency(r) for r in rows)  # in natural frequencies
+    series = series_betas(law.betas, params)
+    return [
+        "the face was chosen by simulating the campaign, not by the maps' held-out test "
+        "(it failed there): its values carry no bootstrap interval, only the refit's box "
+        "(mass and stiffness within a factor 1.5)",
+        f"modes of the restraint above {nyq:.3g} natural frequencies (the slowest recording's "
+        "Nyquist frequency) alias into the measured force and are not identified: the face "
+        f"is one mode at {w:.3g} natural frequencies standing for all of them",
+        "beta behind the face is the contact's own stiffness and moves with the face's "
+        "support stiffness; the contact in series with the support, "
+        f"1 / (1/beta + 1/kappa) = {min(series):.3g}-{max(series):.3g}, is what a static "
+        "test measures and is the better-determined of the two",
+    ]
