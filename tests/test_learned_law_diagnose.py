@@ -297,8 +297,8 @@ def test_refit_of_a_sprung_face_lands_near_the_truth_and_never_worse(tmp_path, m
     """The sprung face (mass 0.3, support 43.2, damping 0.1): refitted by simulation from
     the values the discovery reads at 2 % noise (mass 14 % low, its damping 24 % high), the
     face's mass and stiffness land within 15 % and the discrepancy does not grow."""
-    import stiffnet.measurement.learned_law as learned_law
-    from stiffnet.measurement.learned_law import refine_face
+    import stiffnet.measurement.face_by_simulation as face_by_simulation
+    from stiffnet.measurement.face_by_simulation import refine_face
     from stiffnet.measurement.target import (
         FIT_SETTINGS_NUMERICAL,
         CampaignTarget,
@@ -307,7 +307,7 @@ def test_refit_of_a_sprung_face_lands_near_the_truth_and_never_worse(tmp_path, m
 
     face = laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)
     camp = batch_campaign(tmp_path / "face", [face], duration_s=2.0)
-    monkeypatch.setattr(learned_law, "FACE_REFIT_GRID", 5)  # bounded cost: 3 batches of 6
+    monkeypatch.setattr(face_by_simulation, "FACE_REFIT_GRID", 5)  # bounded cost: 3 batches of 6
     rows = list(camp.rows)
     measured, lengths, _ = measured_statistics(camp, rows, False)
     target = CampaignTarget(rows, measured, lengths, [], 0, False)

@@ -37,7 +37,7 @@ from stiffnet.discovery.select import (
     library_fit,
     reference_penetration,
 )
-from stiffnet.discovery.terms import explained_fraction, fit_law, stack
+from stiffnet.discovery.terms import FACE_MODES, explained_fraction, fit_law, stack
 
 #: The face's masses (over the mass m) of the coarse grid.
 GRID_MASSES = (0.05, 0.15, 0.45)
@@ -103,13 +103,9 @@ def betas_behind_face(
     force taken off the penetration, the linear spring fitted on what is left)."""
     data = stack(samples)
     params = {**law.params, **face}
-    y, yd = data.face_recoil(params["face_mass"], params["face_stiffness"],
-                             params["face_damping"])  # fmt: skip
-    if float(params.get("face2_mass", 0.0)) > 0:
-        y2, yd2 = data.face_recoil(params["face2_mass"], params["face2_stiffness"],
-                                   params["face2_damping"])  # fmt: skip
-        y, yd = y + y2, yd + yd2
-    behind = replace(data, x=data.x - y, v=data.v - yd, parent=None)
+    modes = [m for m in FACE_MODES if float(params.get(f"{m}_mass", 0.0)) > 0]
+    x, v = data.behind_face(data.x, data.v, params, modes)
+    behind = replace(data, x=x, v=v, parent=None)
     dr = float(params["reference_penetration"])
     fit = fit_law(behind, frozenset(), dr)
     return replace(

@@ -55,6 +55,8 @@ from stiffnet.effects.learned_contact import NEUTRAL, learned_contact_force
 
 #: Candidate terms beyond the linear spring, in the order they are tried.
 TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face", "face2")
+#: The face's modes, each a term whose parameters are ``MODE_mass``/``_stiffness``/``_damping``.
+FACE_MODES = ("face", "face2")
 #: Terms of the library's own laws (``contact_damping``); ``hertz`` is ``power`` at 3/2.
 LIBRARY_TERMS = frozenset({"damping", "hertz"})
 #: Shared parameters of each term, with their bounds and starting value.
@@ -106,6 +108,17 @@ class Data:
     def layout(self) -> Layout:
         """The samples' impacts as padded arrays per recording (the ``face`` term's)."""
         return layout(self.rec, self.impact, self.n_rec)
+
+    def behind_face(
+        self, delta: np.ndarray, v: np.ndarray, params: dict[str, float], modes: Sequence[str]
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``delta`` and ``v`` less the recoil of each of the face's ``modes`` (``face``,
+        ``face2``: :meth:`face_recoil` at that mode's ``params``)."""
+        for mode in modes:
+            y, yd = self.face_recoil(params[f"{mode}_mass"], params[f"{mode}_stiffness"],
+                                     params[f"{mode}_damping"])  # fmt: skip
+            delta, v = delta - y, v - yd
+        return delta, v
 
     def face_recoil(
         self, mass: float, stiffness: float, damping: float
@@ -209,14 +222,9 @@ def predict(data: Data, terms: frozenset[str], theta: np.ndarray, dr: float) -> 
     delta = data.x - theta[r : 2 * r][data.rec]
     shared = dict(zip(shared_names(terms), theta[2 * r :], strict=True))
     v = data.v
-    if "face" in terms:  # the law acts on the face, which recoils under the measured force
-        y, yd = data.face_recoil(shared["face_mass"], shared["face_stiffness"],
-                                 shared["face_damping"])  # fmt: skip
-        delta, v = delta - y, v - yd
-    if "face2" in terms:  # the second mode recoils under the same force, in parallel at the tip
-        y, yd = data.face_recoil(shared["face2_mass"], shared["face2_stiffness"],
-                                 shared["face2_damping"])  # fmt: skip
-        delta, v = delta - y, v - yd
+    # the law acts on the face, which recoils under the measured force (a second mode
+    # recoils under the same force, in parallel at the tip)
+    delta, v = data.behind_face(delta, v, shared, [m for m in FACE_MODES if m in terms])
     return learned_contact_force(delta, v, beta, law_params(terms, shared, dr))
 
 

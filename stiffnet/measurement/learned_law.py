@@ -17,9 +17,7 @@ map (data, library law, learned law) as compact data for the figure
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +30,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.discrepancy import campaign_discrepancy
-from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unknowns
+from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unknowns, refine_face
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
 
@@ -43,12 +41,6 @@ REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
 #: Recordings (low, middle and high beta) and points per recording kept for the map figure.
 MAP_RECORDINGS = 3
 MAP_POINTS = 300
-#: The face's parameters the refit of a law with a face sweeps, one after the other, each
-#: across its box (:meth:`LearnedContact.fit_space_at`) on a grid simulated as one batch
-#: with the best point so far (the objective is rough: the face's ringing locks the impacts
-#: onto one orbit or another, so a local step misses what a sweep finds).
-FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
-FACE_REFIT_GRID = 7
 
 
 def should_propose(verdict_info: dict[str, Any]) -> tuple[bool, str]:
@@ -261,57 +253,6 @@ def excess_shares(
         return float(np.clip(1.0 - e_after / e_ref, 0.0, 1.0)) if e_ref > 0 else 0.0
 
     return {"explained_fraction": share(baseline), "removed_excess_fraction": share(before)}
-
-
-def refine_face(
-    target: Any,
-    rows: Sequence[Any],
-    model: Sequence[Effect],
-    params: dict[str, float],
-    at_discovered: np.ndarray,
-    settings: Any,
-) -> dict[str, Any]:
-    """The law refitted by simulation around its discovered values, the rest of the model held.
-
-    The discovery reads the face's mode through the measured force (its damping weakly); the
-    campaign's statistics see the face ringing between impacts too. The refit searches
-    ``learned_contact``'s space around the law (:meth:`LearnedContact.fit_space_at`: the face
-    within a factor 1.5, its damping 2.25): each of the face's parameters swept across its
-    box on a grid simulated as one batch (:data:`FACE_REFIT_GRID`), the best point so far
-    among its points, a point taken only where, scored again alone, it lowers the
-    discrepancy.
-
-    Returns
-    -------
-    dict
-        ``params`` (the law's, all of them), ``fitted``, ``per_recording``, ``improves`` (over
-        the discovered values), ``discrepancy_discovered``, ``discrepancy_refit``, ``seconds``.
-    """
-    from stiffnet.measurement.fitting import fit_effect
-
-    tgt = replace(target, rows=list(rows), base_effects=list(model))
-    best, per = dict(params), np.asarray(at_discovered, float)
-    fitted: list[str] = []
-    t0 = time.perf_counter()
-    space = LearnedContact.fit_space_at(params, min(r.fs_hz for r in rows))
-    box = {fp.name: fp for fp in space.free}
-    for key in FACE_KEYS:  # a sweep of each across its box, the others at the best so far
-        grid = [{**best, key: box[key].value(u)} for u in np.linspace(0, 1, FACE_REFIT_GRID)]
-        fit = fit_effect(tgt, LearnedContact.name, [], settings, budget=1 + len(grid),
-                         off=per, seeds=[best, *grid])  # fmt: skip
-        fitted = list(fit["fitted"])
-        if fit["improves"]:
-            best, per = {**best, **fit["params"]}, np.asarray(fit["per_recording"], float)
-    d0, d1 = campaign_discrepancy(at_discovered), campaign_discrepancy(per)
-    return {
-        "params": best,
-        "fitted": fitted,
-        "per_recording": per.tolist(),
-        "improves": bool(d1 < d0),
-        "discrepancy_discovered": d0,
-        "discrepancy_refit": d1,
-        "seconds": round(time.perf_counter() - t0, 2),
-    }
 
 
 def law_rows(campaign: Any, rows: Sequence[Any], law: Any) -> list[Any]:
