@@ -20,7 +20,9 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    BIC-like score is then refitted **jointly with all selected effects** and
    kept if the joint model passes every significance test against the
    previous one. The nuisances are profiled again after each accepted step.
-   Selection stops when no candidate passes.
+   Selection stops when no candidate passes. Closed-form fits search on
+   :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
+   operating points and are scored and tested on all of them.
 4. **Verdict.** The final model's ``residual_discrepancy`` against the
    campaign's noise floor: ``nothing_missing`` (the base model is at the
    floor), ``explained`` or ``partially_explained`` with
@@ -45,7 +47,12 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
-from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
+from stiffnet.measurement.fitting import (
+    DEFAULT_BUDGET_NUMERICAL,
+    SUBSET_SEARCH,
+    fit_effect,
+    fit_joint,
+)
 from stiffnet.measurement.forcing_lines import campaign_forcing_lines
 from stiffnet.measurement.learned_law import learned_law_proposal
 from stiffnet.measurement.noise_floor import (
@@ -93,7 +100,7 @@ def candidate_effects(
 
 def _fit_task(item: tuple[CampaignTarget, str, list[Effect], int | None]) -> dict[str, Any]:
     target, name, fixed, budget = item
-    return fit_effect(target, name, fixed, budget=budget)
+    return fit_effect(target, name, fixed, budget=budget, subset=SUBSET_SEARCH)
 
 
 def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[Effect]:
@@ -457,6 +464,7 @@ def _joint_step(
             settings,
             start=np.array(c["per_recording"]),
             rounds=2 if kept else 0,  # alone, it was just fitted from its own design
+            subset=SUBSET_SEARCH,
         )
         after, params_new = joint["per_recording"], joint["params"]
         sig = significance(before, after, len(c["fitted"]), run.floors[settings], run.names)
@@ -514,7 +522,7 @@ def _accept(
     nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, run.nuisance_info)
     if (list(target.rows), list(target.starts or [])) != before_profile:
         # the nuisances moved (another orbit, another gap): refit the effects on them
-        joint = fit_joint(target, kept, kept_params, settings)
+        joint = fit_joint(target, kept, kept_params, settings, subset=SUBSET_SEARCH)
         kept_params = [dict(p) for p in joint["params"]]
         for name_k, p in zip(kept, kept_params, strict=True):
             entries[name_k]["params"] = p
