@@ -19,7 +19,8 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    closed-form) is fitted on top of the selected effects; the best by the
    BIC-like score is then refitted **jointly with all selected effects** and
    kept if the joint model passes every significance test against the
-   previous one. The nuisances are profiled again after each accepted step.
+   previous one. The nuisances are profiled again after each accepted step (where they
+   moved, the selected effects are refitted locally, :data:`ACCEPT_ROUNDS`).
    Selection stops when no candidate passes. Closed-form fits search on
    :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
    operating points and are scored and tested on all of them.
@@ -79,6 +80,10 @@ from stiffnet.progress import task as progress_task
 SCREEN_EXCESS = 0.05
 #: Candidates given a joint refit per selection step (best conditional scores first).
 JOINT_TRIES = 2
+#: Rounds of block coordinate descent (:func:`~stiffnet.measurement.fitting.fit_joint`) in the
+#: refit of the selected effects after the nuisances moved: 0, a local refit only (each
+#: effect's design search costs as much as the step that ran it just before).
+ACCEPT_ROUNDS = 0
 #: At most this many effects are selected.
 MAX_EFFECTS = 4
 #: Effects never searched blind from their class defaults: a learned law is proposed by the
@@ -521,8 +526,12 @@ def _accept(
     before_profile = (list(target.rows), list(target.starts or []))
     nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, run.nuisance_info)
     if (list(target.rows), list(target.starts or [])) != before_profile:
-        # the nuisances moved (another orbit, another gap): refit the effects on them
-        joint = fit_joint(target, kept, kept_params, settings, subset=SUBSET_SEARCH)
+        # the nuisances moved (another orbit, another gap): refit the effects on them, locally
+        # (ACCEPT_ROUNDS: a Nelder-Mead over all their coordinates from where the step that
+        # selected them left them, after searching each from its own design)
+        joint = fit_joint(
+            target, kept, kept_params, settings, rounds=ACCEPT_ROUNDS, subset=SUBSET_SEARCH
+        )
         kept_params = [dict(p) for p in joint["params"]]
         for name_k, p in zip(kept, kept_params, strict=True):
             entries[name_k]["params"] = p
