@@ -19,8 +19,11 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    closed-form) is fitted on top of the selected effects; the best by the
    BIC-like score is then refitted **jointly with all selected effects** and
    kept if the joint model passes every significance test against the
-   previous one. The nuisances are profiled again after each accepted step.
-   Selection stops when no candidate passes.
+   previous one. The nuisances are profiled again after each accepted step (where they
+   moved, the selected effects are refitted locally, :data:`ACCEPT_ROUNDS`).
+   Selection stops when no candidate passes. Closed-form fits search on
+   :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
+   operating points and are scored and tested on all of them.
 4. **Verdict.** The final model's ``residual_discrepancy`` against the
    campaign's noise floor: ``nothing_missing`` (the base model is at the
    floor), ``explained`` or ``partially_explained`` with
@@ -45,7 +48,12 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
 from stiffnet.measurement.evidence import restoring_force_evidence
-from stiffnet.measurement.fitting import DEFAULT_BUDGET_NUMERICAL, fit_effect, fit_joint
+from stiffnet.measurement.fitting import (
+    DEFAULT_BUDGET_NUMERICAL,
+    SUBSET_SEARCH,
+    fit_effect,
+    fit_joint,
+)
 from stiffnet.measurement.forcing_lines import campaign_forcing_lines
 from stiffnet.measurement.learned_law import learned_law_proposal
 from stiffnet.measurement.noise_floor import (
@@ -72,6 +80,10 @@ from stiffnet.progress import task as progress_task
 SCREEN_EXCESS = 0.05
 #: Candidates given a joint refit per selection step (best conditional scores first).
 JOINT_TRIES = 2
+#: Rounds of block coordinate descent (:func:`~stiffnet.measurement.fitting.fit_joint`) in the
+#: refit of the selected effects after the nuisances moved: 0, a local refit only (each
+#: effect's design search costs as much as the step that ran it just before).
+ACCEPT_ROUNDS = 0
 #: At most this many effects are selected.
 MAX_EFFECTS = 4
 #: Effects never searched blind from their class defaults: a learned law is proposed by the
@@ -93,7 +105,7 @@ def candidate_effects(
 
 def _fit_task(item: tuple[CampaignTarget, str, list[Effect], int | None]) -> dict[str, Any]:
     target, name, fixed, budget = item
-    return fit_effect(target, name, fixed, budget=budget)
+    return fit_effect(target, name, fixed, budget=budget, subset=SUBSET_SEARCH)
 
 
 def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[Effect]:
@@ -457,6 +469,7 @@ def _joint_step(
             settings,
             start=np.array(c["per_recording"]),
             rounds=2 if kept else 0,  # alone, it was just fitted from its own design
+            subset=SUBSET_SEARCH,
         )
         after, params_new = joint["per_recording"], joint["params"]
         sig = significance(before, after, len(c["fitted"]), run.floors[settings], run.names)
@@ -513,8 +526,12 @@ def _accept(
     before_profile = (list(target.rows), list(target.starts or []))
     nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, run.nuisance_info)
     if (list(target.rows), list(target.starts or [])) != before_profile:
-        # the nuisances moved (another orbit, another gap): refit the effects on them
-        joint = fit_joint(target, kept, kept_params, settings)
+        # the nuisances moved (another orbit, another gap): refit the effects on them, locally
+        # (ACCEPT_ROUNDS: a Nelder-Mead over all their coordinates from where the step that
+        # selected them left them, after searching each from its own design)
+        joint = fit_joint(
+            target, kept, kept_params, settings, rounds=ACCEPT_ROUNDS, subset=SUBSET_SEARCH
+        )
         kept_params = [dict(p) for p in joint["params"]]
         for name_k, p in zip(kept, kept_params, strict=True):
             entries[name_k]["params"] = p

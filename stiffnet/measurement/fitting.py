@@ -28,7 +28,9 @@ Search, in the unit cube of the effect's fit space
   whole design, e.g. the harmonics read off the free flights,
   :mod:`stiffnet.measurement.forcing_lines`), then a bounded
   Brent search between the best design point's neighbours (one coordinate) or a
-  bounded Nelder-Mead from it, within ``budget`` evaluations.
+  bounded Nelder-Mead from it, within ``budget`` evaluations. A diagnosis searches on
+  :data:`SUBSET_SEARCH` recordings spread over the campaign's operating points
+  (:func:`spread_subset`) and scores the best point on all of them.
   Numerical-engine effects (seconds per simulated batch, whatever its number of
   rows: the integrator's cost is per time step) get only a design spread over the
   budget, simulated as one batch holding :data:`SUBSET_NUMERICAL` recordings
@@ -82,6 +84,12 @@ SCREEN_SETTLE_TOLERANCE = 0.05
 #: integrates only the stretch that lets an orbit difference of this fraction decay to
 #: the screen's tolerance. The point kept is scored with a cold start.
 SCREEN_WARM_START = 0.1
+#: A diagnosis searches a closed-form effect on at most this many recordings spread over the
+#: campaign's operating points (:func:`spread_subset`) and scores the point found on all of
+#: them, with every statistic: the fit's shared parameters are set by every operating point
+#: at least once, and what is reported and tested is the whole campaign's discrepancy (a
+#: campaign of 24 recordings is three shifts of 8 operating points: the search costs a third).
+SUBSET_SEARCH = 8
 #: Evaluations of a joint refit per fitted coordinate (closed form; numerical engine).
 JOINT_PER_COORDINATE = 8
 JOINT_PER_COORDINATE_NUMERICAL = 2
@@ -158,6 +166,10 @@ class _Evaluator:
     settings: SolverSettings
     budget: int
 
+    #: The whole campaign when the search runs on a subset of it (:data:`SUBSET_SEARCH`): the
+    #: best point is scored there.
+    whole: CampaignTarget | None = None
+
     def __post_init__(self) -> None:
         self.cache: dict[tuple[float, ...], np.ndarray] = {}
         self.sizes = [len(s.free) for s in self.spaces]
@@ -198,7 +210,8 @@ class _Evaluator:
         """The best point searched and its per-recording discrepancies with every statistic
         (scored again when the search left the inclinations out)."""
         key = min(self.cache, key=lambda k: objective_value(self.cache[k], self.target.weights))
-        if not self.target.inclination:
+        whole = self.target if self.whole is None else self.whole
+        if whole is self.target and not whole.inclination:
             return np.array(key), self.cache[key]
         if key in self.full:
             return np.array(key), self.full[key]
@@ -206,8 +219,8 @@ class _Evaluator:
             effect_class(n)(**p) for n, p in zip(self.names, self.split(np.array(key)), strict=True)
         ]
         self.scored += 1
-        return np.array(key), self.target.per_recording(
-            [*self.target.base_effects, *self.fixed, *effects], self.settings
+        return np.array(key), whole.per_recording(
+            [*whole.base_effects, *self.fixed, *effects], self.settings
         )
 
 
@@ -216,7 +229,7 @@ def _result(
 ) -> dict[str, Any]:
     """The best point, or the starting model ("off") when nothing beats it."""
     u, per = ev.best()
-    w = ev.target.weights
+    w = (ev.target if ev.whole is None else ev.whole).weights
     improves = objective_value(per, w) < objective_value(off, w)
     params = ev.split(u)
     if not improves:
@@ -241,6 +254,7 @@ def fit_effect(
     budget: int | None = None,
     off: np.ndarray | None = None,
     seeds: Sequence[dict[str, float]] = (),
+    subset: int | None = None,
 ) -> dict[str, Any]:
     """Fit one effect's parameters, shared by all recordings, on top of ``fixed`` effects.
 
@@ -260,6 +274,10 @@ def fit_effect(
         Per-recording discrepancies of the model without the effect, if known.
     seeds : sequence of dict
         Extra starting points (effect parameters), e.g. the current values in a joint refit.
+    subset : int, optional
+        A closed-form effect is searched on at most this many recordings
+        (:func:`spread_subset`, e.g. :data:`SUBSET_SEARCH`), its best point scored on all;
+        None: searched on all (a numerical-engine effect's design has its own subset).
 
     Returns
     -------
@@ -269,7 +287,7 @@ def fit_effect(
     """
     # a measurement effect's evaluations share one motion (only its chain moves)
     with reuse_motion():
-        return _fit_effect(target, name, fixed, settings, budget, off, seeds)
+        return _fit_effect(target, name, fixed, settings, budget, off, seeds, subset)
 
 
 def _fit_effect(
@@ -280,6 +298,7 @@ def _fit_effect(
     budget: int | None,
     off: np.ndarray | None,
     seeds: Sequence[dict[str, float]],
+    subset: int | None = None,
 ) -> dict[str, Any]:
     from stiffnet.measurement.target import settings_for
 
@@ -322,7 +341,11 @@ def _fit_effect(
     if seeded:  # the orbit moves with the effect: starts profiled at it
         model = [*target.base_effects, *fixed, effect_class(name)(**read[0])]
         target = starts_at(target, model, settings)
-    ev = _Evaluator(target, fixed, [name], [space], settings, budget)
+    idx = spread_subset(target.rows, subset or len(target.rows))
+    if idx.size < len(target.rows):  # searched on a subset, the best point scored on all
+        ev = _Evaluator(target.subset(idx), fixed, [name], [space], settings, budget, target)
+    else:
+        ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
     step = 0.5 / 3
@@ -354,6 +377,26 @@ def _fit_effect(
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
+
+
+def spread_subset(rows: Sequence[Any], k: int) -> np.ndarray:
+    """Indices of at most ``k`` recordings spread over the campaign's operating points: the
+    rows ordered by β, gap over amplitude, forcing frequency ratio and sampling rate, then
+    ``k`` evenly spaced in that order (sorted). A campaign that repeats its operating points
+    (shifted forcing, another day) keeps one recording of each where ``k`` allows; with more
+    operating points than ``k``, the subset spans their range."""
+    n = len(rows)
+    if k >= n:
+        return np.arange(n)
+
+    def order_key(i: int) -> tuple[float, ...]:
+        r = rows[i]
+        ratio = r.gap / r.amplitude if r.gap is not None and r.amplitude else 0.0
+        return (r.beta or 0.0, ratio, r.frequency_ratio or 0.0, r.fs_hz, i)
+
+    order = sorted(range(n), key=order_key)
+    picks = np.unique(np.round(np.linspace(0, n - 1, max(k, 1))).astype(int))
+    return np.sort(np.array([order[j] for j in picks], dtype=int))
 
 
 def starts_at(
@@ -497,12 +540,14 @@ def fit_joint(
     budget: int | None = None,
     start: np.ndarray | None = None,
     rounds: int = 2,
+    subset: int | None = None,
 ) -> dict[str, Any]:
     """Refit every effect of a model jointly, from ``params`` (a local Nelder-Mead).
 
     ``start`` is the per-recording discrepancy at ``params`` if known;
-    ``rounds`` of block coordinate descent come first (0 for a polish only). The
-    result never ends worse than the start.
+    ``rounds`` of block coordinate descent come first (0 for a polish only), each effect's
+    refit searched on ``subset`` recordings (:func:`fit_effect`); the Nelder-Mead runs on all
+    of them. The result never ends worse than the start.
 
     Returns
     -------
@@ -530,7 +575,7 @@ def fit_joint(
         round_start = objective_value(start, target.weights)
         for i, n in enumerate(names):
             others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
-            fit = fit_effect(target, n, others, settings, seeds=[params[i]])
+            fit = fit_effect(target, n, others, settings, seeds=[params[i]], subset=subset)
             evaluations += fit["evaluations"]
             w = target.weights
             if objective_value(np.asarray(fit["per_recording"]), w) < objective_value(start, w):
