@@ -242,6 +242,7 @@ def fit_law(
     per_rec: np.ndarray | None = None,
     mask: np.ndarray | None = None,
     max_nfev: int = 200,
+    ftol: float = 1e-8,
 ) -> Fit:
     """Bounded least squares of a law with the given terms on the samples of ``mask``.
 
@@ -260,6 +261,8 @@ def fit_law(
         Samples fitted (all by default): the training impacts of a fold.
     max_nfev : int
         Bound on residual evaluations.
+    ftol : float
+        Relative change of the cost that stops the fit (scipy's default, 1e-8).
     """
     r = data.n_rec
     names = shared_names(terms)
@@ -282,7 +285,7 @@ def fit_law(
 
     sol = optimize.least_squares(
         resid, theta0, bounds=(lo, hi), jac_sparsity=jac, x_scale="jac", max_nfev=max_nfev,
-        tr_solver="lsmr", loss=LOSS, f_scale=F_SCALE,
+        tr_solver="lsmr", loss=LOSS, f_scale=F_SCALE, ftol=ftol,
     )  # fmt: skip
     return Fit(terms, sol.x, dr, r, float(np.sum(sol.fun**2)), int(idx.size))
 

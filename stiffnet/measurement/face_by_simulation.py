@@ -6,7 +6,10 @@ tip's second mode aliases into the measured force the face is driven by), the
 face becomes a candidate like any diagnosed effect: ``learned_contact`` with the
 face, started from the maps' own face fit and from a coarse grid of faces
 (:func:`~stiffnet.discovery.face_candidate.face_grid`), all simulated as one
-batch on the campaign; the best point is scored again alone, refitted by the
+batch on the campaign as a screen (:func:`~stiffnet.measurement.fitting.screen_settings`:
+a numerical-engine design's shorter transient begun warm; on the beam campaign it picked
+the same grid point as the full transient); the best point is scored again alone in full,
+refitted by the
 face's sweep (:func:`refine_face`, which also refits a face the discovery kept), and kept
 only where it passes the tests every diagnosed effect must
 (:func:`~stiffnet.measurement.significance.significance`: it lowers the
@@ -36,6 +39,7 @@ from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.fitting import screen_settings
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.significance import significance
 
@@ -92,13 +96,16 @@ def face_by_simulation(
     start = maps.effect_params
     points = [start, *({**start, **g} for g in face_grid(law.betas))]
     tgt = replace(target, rows=list(rows))
-    # every point on every model as one batch each; the batch draws other noise per point,
-    # so the best is scored again alone (the noise of per_recording)
+    # every point on every model as one batch each, a screen: the batch draws other noise per
+    # point and runs the numerical-engine design's shorter transient begun warm, so the best
+    # is scored again alone, in full (the noise and transient of per_recording)
     scored = []
     for i, m in enumerate(models):
         if any(_same(m, o) for o in models[:i]):
             continue  # the same model twice (the selection held only contact effects)
-        pers = tgt.per_recording_points(list(m), LearnedContact.name, points, settings)
+        pers = tgt.per_recording_points(list(m), LearnedContact.name, points,
+                                        screen_settings(settings), inclination=False,
+                                        oversample=False)  # fmt: skip
         scored += [(campaign_discrepancy(p), i, j) for j, p in enumerate(pers)]
     _, mi, pj = min(scored)
     model, point = list(models[mi]), points[pj]
