@@ -95,6 +95,40 @@ def dataset_ratio(n: int) -> None:
           f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
 
 
+def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
+    """The loop's operating-point dataset, one batch per point (before) against shared
+    batches (:func:`stiffnet.dataset.generate.simulate_shards`), on the first ``points`` of
+    the rig's two-stage campaign (part 4), ``n`` trajectories; the loop's config with the
+    discovered law's prior (knee 0.249, ratio 2.436, +-5 %), warm start ``warm``."""
+    from independent_rig import write_campaign
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.operating_points import operating_point_configs
+
+    law = {"name": "learned_contact", "probability": 1.0,
+           "params": {"knee": [0.2366, 0.2615], "knee_ratio": [2.314, 2.558],
+                      "reference_penetration": 0.54}}  # fmt: skip
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d.update(n_trajectories=n, effects=[law])
+    d["solver"]["warm_start"] = warm
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
+        configs = operating_point_configs(SimulationConfig.model_validate(d), camp.rows)
+    c0 = time.process_time()
+    alone = [generate.simulate_shard(c, i, c.n_trajectories) for i, c in enumerate(configs)]
+    c1 = time.process_time()
+    shared = generate.simulate_shards(configs, list(range(len(configs))))
+    c2 = time.process_time()
+    rows = sum(t.num_rows for t in alone)
+    same = rows == sum(t.num_rows for t in shared) and all(
+        a.column("beta").equals(b.column("beta")) for a, b in zip(alone, shared, strict=True)
+    )
+    print(f"| operating-point dataset, {len(configs)} points, {n} trajectories, warm start "
+          f"{warm} | CPU {c1 - c0:.1f} | CPU {c2 - c1:.1f} | {(c1 - c0) / (c2 - c1):.1f}x CPU "
+          f"| same draws: {same} (windows differ by the initial states) | "
+          f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
+
+
 def time_campaign(camp, effects, old: bool) -> tuple[float, float, list[np.ndarray]]:
     """Wall and CPU seconds of one simulation of the campaign's rows (what compare, evaluate
     and every diagnose evaluation run), old or new path."""
@@ -296,6 +330,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="", help="dataset seeds of part 3, e.g. 0,1,7")
     ap.add_argument("--seed-trajectories", type=int, default=400)
     ap.add_argument("--edge-share", type=float, default=0.5)
+    ap.add_argument("--shared", default="", help="part 1b: POINTS,TRAJECTORIES[,WARM]")
     ap.add_argument("--rig", default="", help=f"part 4: laws among {', '.join(RIG_LAWS)}")
     ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
     ap.add_argument("--rig-family", default="gbm")
@@ -303,6 +338,12 @@ def main() -> None:
     args = ap.parse_args()
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)
+        return
+    if args.shared:
+        print("| what | one batch per point | shared batches | speed-up | labels | load |")
+        print("|---|---|---|---|---|---|")
+        k, n, *w = args.shared.split(",")
+        shared_batches_ratio(int(k), int(n), float(w[0]) if w else 0.0)
         return
     if args.seeds:
         seeds = [int(s) for s in args.seeds.split(",")]
