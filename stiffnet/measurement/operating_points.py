@@ -22,8 +22,12 @@ edges (:func:`class_edges`, β within ±:data:`EDGE_WIDTH` of each, as many on e
 side): a campaign's recording a few per cent from an edge is classed by where the model
 puts that edge at that operating point, and a stratified sweep gives that place a handful
 of trajectories. The manifest's β is never read (it is the truth being scored). It is off
-by default: each edge is a shard of its own, and the numerical engine's small batches
-cost more than twice the dataset's CPU for a gain in accuracy not yet measured.
+by default: on the eight-point campaign it moved the one miss to another edge.
+
+Every shard (a point, an edge at a point) is simulated in shared batches
+(:func:`stiffnet.dataset.generate.simulate_shards`): with the numerical engine a batch
+costs its steps, whatever its rows, and a campaign of 24 points split 400 trajectories
+into shards of about 17.
 Numbers: docs/measurement_loop.md, "Training at the campaign's operating points".
 """
 
@@ -137,7 +141,8 @@ def operating_point_dataset(
     """Simulate ``cfg.n_trajectories`` trajectories at the rows' operating points into ``out``.
 
     Each config of :func:`operating_point_configs` is one shard (a row's point over the
-    sweep, then its trajectories near the class edges), each simulated and written as
+    sweep, then its trajectories near the class edges), all simulated in shared batches
+    (each shard with its own draws) and each written as
     :func:`stiffnet.dataset.generate.generate_dataset` does; the data card, written last,
     is that of the rows' envelope (the box around every point, widened by ``jitter``)
     with the points and the edge draws under ``operating_points``.
