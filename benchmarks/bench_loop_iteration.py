@@ -1,6 +1,10 @@
 """Speed of a measurement-loop iteration with a learned contact law (target: GBM <= 3 min).
 
-Part 1 (ratio, same run): the iteration's dataset, the part that dominated (the
+Part 1b (``--shared``): the loop's operating-point dataset (the rig's two-stage campaign
+of part 4, its first points) one batch per point against shared batches. Part 1c
+(``--solvers``): the same dataset with other solver settings (substeps, warm start), CPU and
+how far the windows move against the noise. Part 1 (ratio, same run): the iteration's
+dataset, the part that dominated (the
 learned law needs the numerical engine). The config is the one ``loop`` writes: the
 ideal world (``configs/sim/ideal.yaml``: fs/f_n 50-500, four 16-period windows per
 trajectory) plus ``learned_contact`` with a two-stage prior (knee 0.2 +-25 %, ratio
@@ -24,6 +28,8 @@ CPU seconds are its processes'. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
+    ... benchmarks/bench_loop_iteration.py --shared 6,24
+    ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
 """
 
@@ -93,6 +99,78 @@ def dataset_ratio(n: int) -> None:
     print(f"| dataset, {n} trajectories, learned two-stage law | {old_s:.1f} (CPU {old_c:.1f}) "
           f"| {new_s:.1f} (CPU {new_c:.1f}) | {old_c / new_c:.1f}x CPU | {err:.2e} | "
           f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
+
+
+#: The rig two-stage campaign's law as discovered (part 4), its prior the discovery's +-5 %.
+RIG_LAW_PRIOR = {"name": "learned_contact", "probability": 1.0,
+                 "params": {"knee": [0.2366, 0.2615], "knee_ratio": [2.314, 2.558],
+                            "reference_penetration": 0.54}}  # fmt: skip
+
+
+def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
+    """The loop's operating-point dataset, one batch per point (before) against shared
+    batches (:func:`stiffnet.dataset.generate.simulate_shards`), on the first ``points`` of
+    the rig's two-stage campaign (part 4), ``n`` trajectories; the loop's config with the
+    discovered law's prior (knee 0.249, ratio 2.436, +-5 %), warm start ``warm``."""
+    from independent_rig import write_campaign
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.operating_points import operating_point_configs
+
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d.update(n_trajectories=n, effects=[RIG_LAW_PRIOR])
+    d["solver"]["warm_start"] = warm
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
+        configs = operating_point_configs(SimulationConfig.model_validate(d), camp.rows)
+    c0 = time.process_time()
+    alone = [generate.simulate_shard(c, i, c.n_trajectories) for i, c in enumerate(configs)]
+    c1 = time.process_time()
+    shared = generate.simulate_shards(configs, list(range(len(configs))))
+    c2 = time.process_time()
+    rows = sum(t.num_rows for t in alone)
+    same = rows == sum(t.num_rows for t in shared) and all(
+        a.column("beta").equals(b.column("beta")) for a, b in zip(alone, shared, strict=True)
+    )
+    print(f"| operating-point dataset, {len(configs)} points, {n} trajectories, warm start "
+          f"{warm} | CPU {c1 - c0:.1f} | CPU {c2 - c1:.1f} | {(c1 - c0) / (c2 - c1):.1f}x CPU "
+          f"| same draws: {same} (windows differ by the initial states) | "
+          f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
+
+
+def solver_ratio(points: int, n: int, solvers: list[dict]) -> None:
+    """The operating-point dataset of part 1b in shared batches with each solver setting
+    (``substeps``, ``warm_start``) against the first: CPU and how far the windows move, as
+    the RMS difference over the window's noise std (the same draws and noise either way)."""
+    import pyarrow as pa
+    from independent_rig import write_campaign
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.operating_points import operating_point_configs
+
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d.update(n_trajectories=n, effects=[RIG_LAW_PRIOR])
+    with tempfile.TemporaryDirectory() as tmp:
+        camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
+    runs = []
+    for solver in solvers:
+        dd = {**d, "solver": {**d["solver"], **solver}}
+        configs = operating_point_configs(SimulationConfig.model_validate(dd), camp.rows)
+        c0 = time.process_time()
+        table = pa.concat_tables(generate.simulate_shards(configs, list(range(len(configs)))))
+        runs.append((time.process_time() - c0, table))
+    cpu0, ref = runs[0]
+    noise = (ref.column("noise").to_numpy() * ref.column("amplitude").to_numpy()
+             * ref.column("omega").to_numpy() ** 2)  # fmt: skip
+    old = [np.asarray(a) for a in ref.column("accel").to_pylist()]
+    for solver, (cpu, t) in zip(solvers, runs, strict=True):
+        new = [np.asarray(a) for a in t.column("accel").to_pylist()]
+        rel = np.array([np.sqrt(np.mean((a - b) ** 2)) for a, b in zip(new, old, strict=True)])
+        rel /= noise
+        same = np.mean(t.column("n_impacts").to_numpy() == ref.column("n_impacts").to_numpy())
+        print(f"| {solver} | {cpu:.1f} | {cpu0 / cpu:.2f}x | {np.median(rel):.3f} / "
+              f"{np.quantile(rel, 0.9):.3f} / {rel.max():.2f} | {np.mean(rel > 1):.0%} | "
+              f"{same:.0%} | {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
 def time_campaign(camp, effects, old: bool) -> tuple[float, float, list[np.ndarray]]:
@@ -296,6 +374,13 @@ def main() -> None:
     ap.add_argument("--seeds", default="", help="dataset seeds of part 3, e.g. 0,1,7")
     ap.add_argument("--seed-trajectories", type=int, default=400)
     ap.add_argument("--edge-share", type=float, default=0.5)
+    ap.add_argument("--shared", default="", help="part 1b: POINTS,TRAJECTORIES[,WARM]")
+    ap.add_argument(
+        "--solvers",
+        default="",
+        help="part 1c: POINTS,TRAJECTORIES;JSON;JSON..., "
+        'e.g. \'6,24;{"substeps": 8};{"substeps": 4, "warm_start": 0.1}\'',
+    )
     ap.add_argument("--rig", default="", help=f"part 4: laws among {', '.join(RIG_LAWS)}")
     ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
     ap.add_argument("--rig-family", default="gbm")
@@ -303,6 +388,22 @@ def main() -> None:
     args = ap.parse_args()
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)
+        return
+    if args.shared:
+        print("| what | one batch per point | shared batches | speed-up | labels | load |")
+        print("|---|---|---|---|---|---|")
+        k, n, *w = args.shared.split(",")
+        shared_batches_ratio(int(k), int(n), float(w[0]) if w else 0.0)
+        return
+    if args.solvers:
+        import json
+
+        head, *solvers = args.solvers.split(";")
+        k, n = head.split(",")
+        print("| solver | CPU s | speed-up | RMS difference / noise std: median / 90 % / max "
+              "| windows above the noise | impact counts equal | load |")  # fmt: skip
+        print("|---|---|---|---|---|---|---|")
+        solver_ratio(int(k), int(n), [json.loads(x) for x in solvers])
         return
     if args.seeds:
         seeds = [int(s) for s in args.seeds.split(",")]

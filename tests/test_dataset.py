@@ -191,3 +191,26 @@ def test_atomic_writes_honour_the_umask(tmp_path):
         os.umask(old)
     assert (tmp_path / "f.bin").stat().st_mode & 0o777 == 0o644
     assert (tmp_path / "d").stat().st_mode & 0o777 == 0o755
+
+
+def test_shards_simulated_together_keep_their_own_draws():
+    # two configs that differ in their sweep only (two operating points), simulated in
+    # shared batches: each shard's trajectories are those its own generator draws
+    from stiffnet.dataset.generate import simulate_shards
+
+    a = small_config(n_trajectories=4, shard_size=4, sweep={"gap": [0.5, 0.6]})
+    b = small_config(n_trajectories=3, shard_size=4, sweep={"gap": [2.0, 2.2]})
+    ta, tb = simulate_shards([a, b], [0, 1])
+    for t, cfg, shard in ((ta, a, 0), (tb, b, 1)):
+        alone = simulate_shard(cfg, shard, cfg.n_trajectories)
+        for col in ("beta", "gap", "amplitude", "omega", "fs_ratio", "trajectory", "shard"):
+            assert t.column(col).equals(alone.column(col)), col
+        assert [len(w) for w in t.column("accel").to_pylist()] == [
+            len(w) for w in alone.column("accel").to_pylist()
+        ]
+    assert set(tb.column("trajectory").to_pylist()) == {4, 5, 6}
+    gap = tb.column("gap").to_numpy()
+    assert np.all((gap >= 2.0) & (gap <= 2.2))
+    with pytest.raises(StiffnetError, match="must share.*windows"):
+        simulate_shards([a, small_config(windows={"duration_periods": 8, "per_trajectory": 2})],
+                        [0, 1])  # fmt: skip

@@ -137,3 +137,13 @@ def test_edge_trajectories_straddle_the_edges_at_their_rows_point(tmp_path):
         for j, e in enumerate([15.0, 35.0, 60.0]):
             b = beta[shard == 4 * k + 1 + j]
             assert len(b) and np.all((b >= e / 1.2) & (b <= e * 1.2)), (e, b)
+
+
+def test_shared_batches_draw_each_points_trajectories_as_its_own_shard(tmp_path):
+    rows = _rows()[:3]
+    alone = operating_point_dataset(_cfg(9), rows, tmp_path / "a")
+    shared = operating_point_dataset(_cfg(9), rows, tmp_path / "b", shared_batches=True)
+    assert len(shared["shards"]) == len(alone["shards"]) == 3
+    a, b = load_dataset(tmp_path / "a"), load_dataset(tmp_path / "b")
+    for col in ("trajectory", "shard", "beta", "gap", "amplitude", "omega", "fs_ratio"):
+        assert np.array_equal(a.column(col), b.column(col)), col

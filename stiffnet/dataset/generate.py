@@ -68,9 +68,64 @@ def simulate_shard(cfg: SimulationConfig, shard: int, n: int) -> pa.Table:
     parts = []
     for start in range(0, n, cfg.solver.batch_size):
         rows = order[start : start + cfg.solver.batch_size]
-        parts.append(_simulate_rows(cfg, sim, plan.subset(rows), rows, shard, rng))
+        ids = shard * cfg.shard_size + rows
+        parts.append(_simulate_rows(cfg, sim, plan.subset(rows), ids, np.full(rows.size, shard),
+                                    rng))  # fmt: skip
     table = pa.concat_tables(parts)
     return table.sort_by([("trajectory", "ascending"), ("window", "ascending")])
+
+
+#: What the configs of :func:`simulate_shards` must share (one simulator, one labelling).
+SHARED_FIELDS = ("seed", "shard_size", "classes", "windows", "effects", "ideal_fraction",
+                 "solver")  # fmt: skip
+
+
+def simulate_shards(cfgs: list[SimulationConfig], shards: list[int]) -> list[pa.Table]:
+    """Simulate several shards whose configs differ only in their sweep, in shared batches.
+
+    The numerical engine's cost is mostly its steps, each a few dozen numpy operations
+    over the batch's rows, and a batch takes as many steps as its slowest row needs:
+    a batch of 16 trajectories costs well over half of one of 64 (docs/measurement_loop.md,
+    "The loop on the two-stage campaign"). Shards of a few trajectories each (one per
+    operating point of a campaign) therefore run together: each shard's trajectories are
+    drawn from its own generator (:func:`shard_rng`, as :func:`simulate_shard` draws them),
+    then all rows are simulated in batches of ``solver.batch_size`` (similar window lengths
+    together), with the initial states and noise from the first shard's generator. A shard
+    is thus a function of the seed and of the whole list, not of its own index alone.
+
+    Returns
+    -------
+    list of pyarrow.Table
+        One table per shard, in ``shards``' order, sorted by trajectory and window.
+
+    Raises
+    ------
+    StiffnetError
+        The configs differ in more than their sweep and counts (:data:`SHARED_FIELDS`).
+    """
+    if len(cfgs) != len(shards) or not cfgs:
+        raise StiffnetError("simulate_shards needs one shard index per config, at least one")
+    first = cfgs[0]
+    for c in cfgs[1:]:
+        differ = [f for f in SHARED_FIELDS if getattr(c, f) != getattr(first, f)]
+        if differ:
+            raise StiffnetError(f"shards simulated together must share {', '.join(differ)}")
+    rngs = [shard_rng(first.seed, s) for s in shards]
+    plans = [sample_plan(c, c.n_trajectories, r) for c, r in zip(cfgs, rngs, strict=True)]
+    plan = TrajectoryPlan.concatenate(plans)
+    shard = np.concatenate([np.full(len(p), s) for p, s in zip(plans, shards, strict=True)])
+    ids = np.concatenate([s * first.shard_size + np.arange(len(p))
+                          for p, s in zip(plans, shards, strict=True)])  # fmt: skip
+    sim = build_simulator(first)
+    order = np.argsort(plan.window_samples, kind="stable")
+    size = first.solver.batch_size
+    parts = [
+        _simulate_rows(first, sim, plan.subset(rows), ids[rows], shard[rows], rngs[0])
+        for rows in (order[i : i + size] for i in range(0, len(plan), size))
+    ]
+    table = pa.concat_tables(parts).sort_by([("trajectory", "ascending"), ("window", "ascending")])
+    col = table.column("shard").to_numpy()
+    return [table.filter(pa.array(col == s)) for s in shards]
 
 
 def _switchable(sim: Simulator) -> set[str]:
@@ -122,7 +177,9 @@ def _effect_columns(sim: Simulator, plan: TrajectoryPlan) -> dict[str, np.ndarra
     return cols
 
 
-def _simulate_rows(cfg, sim, plan: TrajectoryPlan, rows, shard, rng) -> pa.Table:
+def _simulate_rows(cfg, sim, plan: TrajectoryPlan, trajectory, shard, rng) -> pa.Table:
+    """Simulate ``plan``'s rows as one batch and cut them into labelled windows; each row's
+    ``trajectory`` number and ``shard`` are given (B,)."""
     per = cfg.windows.per_trajectory
     n_samples = int(per * plan.window_samples.max())
     res = _simulate_plan(cfg, sim, plan, n_samples, rng)
@@ -138,9 +195,9 @@ def _simulate_rows(cfg, sim, plan: TrajectoryPlan, rows, shard, rng) -> pa.Table
             impacts = int(res["impacts"][i, sl].sum())
             contact = float(np.mean(res["contact_force"][i, sl] > 0))
             cols["accel"].append(res["accel"][i, sl].astype(np.float32))
-            cols["trajectory"].append(shard * cfg.shard_size + int(rows[i]))
+            cols["trajectory"].append(int(trajectory[i]))
             cols["window"].append(j)
-            cols["shard"].append(shard)
+            cols["shard"].append(int(shard[i]))
             cols["n_impacts"].append(impacts)
             cols["contact_fraction"].append(contact)
             for name in ("beta", "gap", "amplitude", "omega", "damping", "natural_frequency_hz"):
@@ -190,6 +247,11 @@ def run_shard_job(job: ShardJob) -> dict[str, Any]:
         job.before(job.shard)
     t0 = time.perf_counter()
     table = simulate_shard(job.cfg, job.shard, job.n)
+    return write_shard_table(job, table, time.perf_counter() - t0)
+
+
+def write_shard_table(job: ShardJob, table: pa.Table, seconds: float) -> dict[str, Any]:
+    """Write a simulated shard's Parquet file, then its record; return the record."""
     entry = write_shard(Path(job.out), job.shard, table)
     names, counts = np.unique(table["class"].to_numpy(zero_copy_only=False), return_counts=True)
     record = {
@@ -197,7 +259,7 @@ def run_shard_job(job: ShardJob) -> dict[str, Any]:
         "shard": job.shard,
         "trajectories": job.n,
         "class_counts": {str(k): int(c) for k, c in zip(names, counts, strict=True)},
-        "seconds": round(time.perf_counter() - t0, 3),
+        "seconds": round(seconds, 3),
         "fingerprint": job.fingerprint,
     }
     write_shard_record(Path(job.out), job.shard, record)

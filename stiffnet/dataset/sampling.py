@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -36,6 +36,28 @@ class TrajectoryPlan:
             self.window_samples[idx],
             {e: {k: v[idx] for k, v in p.items()} for e, p in self.effect_params.items()},
             {e: m[idx] for e, m in self.active.items()},
+        )
+
+    @classmethod
+    def concatenate(cls, plans: list[TrajectoryPlan]) -> TrajectoryPlan:
+        """The plans' rows one after the other (plans of configs with the same effects)."""
+        first = plans[0]
+        cat = np.concatenate
+        return cls(
+            OscillatorBatch(
+                *(
+                    cat([np.broadcast_to(getattr(p.batch, f.name), (len(p),)) for p in plans])
+                    for f in fields(OscillatorBatch)
+                )
+            ),  # fmt: skip
+            cat([p.fs_ratio for p in plans]),
+            cat([p.noise for p in plans]),
+            cat([p.window_samples for p in plans]),
+            {
+                e: {k: cat([p.effect_params[e][k] for p in plans]) for k in v}
+                for e, v in first.effect_params.items()
+            },  # fmt: skip
+            {e: cat([p.active[e] for p in plans]) for e in first.active},
         )
 
 
