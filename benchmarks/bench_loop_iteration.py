@@ -107,11 +107,10 @@ RIG_LAW_PRIOR = {"name": "learned_contact", "probability": 1.0,
                             "reference_penetration": 0.54}}  # fmt: skip
 
 
-def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
-    """The loop's operating-point dataset, one batch per point (before) against shared
-    batches (:func:`stiffnet.dataset.generate.simulate_shards`), on the first ``points`` of
-    the rig's two-stage campaign (part 4), ``n`` trajectories; the loop's config with the
-    discovered law's prior (knee 0.249, ratio 2.436, +-5 %), warm start ``warm``."""
+def rig_point_configs(points: int, n: int, solvers: list[dict]) -> list[list[SimulationConfig]]:
+    """The loop's operating-point configs (``n`` trajectories, the discovered law's prior),
+    one list per ``solvers`` entry (settings over the ideal config's), at the first
+    ``points`` rows of the rig's two-stage campaign (part 4, simulated once)."""
     from independent_rig import write_campaign
 
     from stiffnet.campaign import load_campaign
@@ -119,10 +118,22 @@ def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
 
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
     d.update(n_trajectories=n, effects=[RIG_LAW_PRIOR])
-    d["solver"]["warm_start"] = warm
     with tempfile.TemporaryDirectory() as tmp:
         camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
-        configs = operating_point_configs(SimulationConfig.model_validate(d), camp.rows)
+    return [
+        operating_point_configs(
+            SimulationConfig.model_validate({**d, "solver": {**d["solver"], **solver}}), camp.rows
+        )
+        for solver in solvers
+    ]
+
+
+def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
+    """The loop's operating-point dataset, one batch per point (before) against shared
+    batches (:func:`stiffnet.dataset.generate.simulate_shards`), on the first ``points`` of
+    the rig's two-stage campaign (part 4), ``n`` trajectories; the loop's config with the
+    discovered law's prior (knee 0.249, ratio 2.436, +-5 %), warm start ``warm``."""
+    (configs,) = rig_point_configs(points, n, [{"warm_start": warm}])
     c0 = time.process_time()
     alone = [generate.simulate_shard(c, i, c.n_trajectories) for i, c in enumerate(configs)]
     c1 = time.process_time()
@@ -143,19 +154,9 @@ def solver_ratio(points: int, n: int, solvers: list[dict]) -> None:
     (``substeps``, ``warm_start``) against the first: CPU and how far the windows move, as
     the RMS difference over the window's noise std (the same draws and noise either way)."""
     import pyarrow as pa
-    from independent_rig import write_campaign
 
-    from stiffnet.campaign import load_campaign
-    from stiffnet.measurement.operating_points import operating_point_configs
-
-    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
-    d.update(n_trajectories=n, effects=[RIG_LAW_PRIOR])
-    with tempfile.TemporaryDirectory() as tmp:
-        camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
     runs = []
-    for solver in solvers:
-        dd = {**d, "solver": {**d["solver"], **solver}}
-        configs = operating_point_configs(SimulationConfig.model_validate(dd), camp.rows)
+    for configs in rig_point_configs(points, n, solvers):
         c0 = time.process_time()
         table = pa.concat_tables(generate.simulate_shards(configs, list(range(len(configs)))))
         runs.append((time.process_time() - c0, table))
