@@ -246,14 +246,25 @@ def test_a_law_that_explains_little_says_so():
     assert not discover_contact_law(samples, n_boot=0).poorly_explained
 
 
+_SPRUNG_FACE: dict[float, list] = {}
+
+
+def sprung_face_samples(noise: float) -> list:
+    """The eight recordings of the user's sprung face (mass 0.3, ringing at 12 natural
+    frequencies, loss factor 0.2) through their maps, kept for the module's other tests."""
+    if noise not in _SPRUNG_FACE:
+        face = laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)
+        _SPRUNG_FACE[noise] = campaign_samples([face], noise)
+    return _SPRUNG_FACE[noise]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("noise", [0.02, 0.04])
 def test_sprung_face_user_effect(noise):
     """A restraint with its own mass (the user's face: mass 0.3, ringing at 12 natural
     frequencies, loss factor 0.2): found as the ``face`` term, mu 0.3 and kappa 43.2 within
     15 %, zeta 0.1 within a factor 1.5."""
-    face = laws.SprungFaceContact(m_f=0.3, f_face=12.0, eta=0.2)
-    law = discover_contact_law(campaign_samples([face], noise), n_boot=10)
+    law = discover_contact_law(sprung_face_samples(noise), n_boot=10)
     assert law.terms == ("face",) and law.new_terms == ("face",), law.words
     assert law.params["face_mass"] == pytest.approx(0.3, rel=0.15)
     assert law.params["face_stiffness"] == pytest.approx(0.3 * 12.0**2, rel=0.15)
@@ -485,3 +496,54 @@ def test_the_bootstraps_replicates_stop_early_at_the_same_quantiles():
         q = [0.05, 0.95]
         np.testing.assert_allclose(np.quantile(a, q, axis=0), np.quantile(b, q, axis=0),
                                    rtol=1e-3)  # fmt: skip
+
+
+def test_a_subset_of_recordings_rings_its_face_through_the_same_samples():
+    """The face's recoil on a subset of whole recordings (the screens' campaign) equals its
+    recoil on the whole campaign restricted to them, ringing carried from impact to impact;
+    the screened recordings are spread over the betas, both ends kept."""
+    from stiffnet.discovery import select
+    from stiffnet.discovery.face import face_response
+    from stiffnet.discovery.terms import recordings_subset, stack
+
+    samples = []
+    for i, s in enumerate(synthetic_samples({}, 0.03) * 3):  # 12 recordings, 4 betas
+        idx = np.arange(s.force.size) + 4 * (s.impact - 1)  # 4 samples between impacts
+        samples.append(ContactSamples(f"{s.recording}-{i}", s.displacement, s.velocity,
+                                      s.force, s.impact, s.onset, s.beta * (1 + 0.01 * i),
+                                      index=idx))  # fmt: skip
+    data = stack(samples)
+    keep = select.screen_recordings(data, 5)
+    assert keep.size == 5 and set(data.beta0[keep]) >= {data.beta0.min(), data.beta0.max()}
+    sub = recordings_subset(data, keep)
+    assert sub.names == tuple(data.names[i] for i in keep) and sub.n_rec == 5
+    mode = (0.3, 40.0, 0.05)
+    y, yd = face_response(data.f, data.layout, data.dt, *mode, index=data.index)
+    ys, yds = face_response(sub.f, sub.layout, sub.dt, *mode, index=sub.index)
+    inside = np.isin(data.rec, keep)
+    assert np.abs(y[inside]).max() > 0
+    np.testing.assert_allclose(ys, y[inside], rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(yds, yd[inside], rtol=1e-12, atol=1e-15)
+    assert np.array_equal(select.screen_recordings(stack(samples[:4])), np.arange(4))
+
+
+@pytest.mark.slow
+def test_a_face_screened_on_part_of_the_campaign_is_the_same_face():
+    """With the face's starts screened on 4 of the 8 recordings (and its fit run there to the
+    end, then polished on all), the sprung face (mass 0.3, ringing at 12 natural
+    frequencies) is found as with every recording screened: mu and kappa within 2 % of
+    that, and both within 15 % of the truth."""
+    from stiffnet.discovery import select
+
+    samples = sprung_face_samples(0.04)  # the maps of the test above, at 4 % noise
+    every = discover_contact_law(samples, n_boot=0)
+    mp = pytest.MonkeyPatch()
+    mp.setattr(select, "SCREEN_RECORDINGS", 4)
+    try:
+        part = discover_contact_law(samples, n_boot=0)
+    finally:
+        mp.undo()
+    assert part.terms == every.terms == ("face",), part.words
+    for name, truth in (("face_mass", 0.3), ("face_stiffness", 43.2)):
+        assert part.params[name] == pytest.approx(every.params[name], rel=0.02)
+        assert part.params[name] == pytest.approx(truth, rel=0.15)

@@ -168,6 +168,23 @@ def stack(samples: Sequence[ContactSamples]) -> Data:
     )  # fmt: skip
 
 
+def recordings_subset(data: Data, keep: np.ndarray) -> Data:
+    """The samples of the recordings ``keep`` (whole recordings, renumbered ``0..K-1``), as a
+    campaign of their own: each keeps its weights, impacts and indices, so a face's ringing
+    runs through the same samples it does in ``data``."""
+    keep = np.unique(np.asarray(keep, dtype=int))
+    new_of = np.full(data.n_rec, -1)
+    new_of[keep] = np.arange(keep.size)
+    sel = new_of[data.rec] >= 0
+    return Data(
+        data.x[sel], data.v[sel], data.f[sel], data.weight[sel], new_of[data.rec[sel]],
+        data.impact[sel], data.beta0[keep], data.onset0[keep],
+        tuple(data.names[i] for i in keep),
+        data.dt[keep] if data.dt.size else data.dt,
+        data.index[sel] if data.index.size == data.f.size else data.index,
+    )  # fmt: skip
+
+
 def shared_names(terms: frozenset[str]) -> list[str]:
     """The shared parameters of a set of terms, in a fixed order."""
     return [p[0] for t in TERMS if t in terms for p in TERM_PARAMS[t]]
