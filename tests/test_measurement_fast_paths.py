@@ -172,3 +172,33 @@ def test_numerical_fit_with_the_short_screen_reports_what_the_full_screen_does(m
     assert short["per_recording"] == full["per_recording"]
     assert short["off_per_recording"] == full["off_per_recording"]
     assert short["improves"] == full["improves"] and short["evaluations"] == full["evaluations"]
+
+
+def test_numerical_fit_on_a_sensor_reports_what_the_standard_lead_in_does(monkeypatch):
+    """Hertz contact on top of a sensor chain (the model of a diagnosis's second step), two
+    recordings: the screen with the chain's short lead-in keeps the point the standard 1.5-s
+    lead-in keeps, and the fit's numbers (the kept point scored with the standard lead-in)
+    are bitwise the same."""
+    rows = [ROW, ROW.model_copy(update={"recording": "b.csv", "beta": 60.0, "fs_hz": 1500})]
+    n = [2500, 3000]
+    sensor = SensorDynamics(
+        resonance_hz=237.0, resonance_damping=0.03, highpass_hz=1.0, lowpass_hz=0
+    )
+    sims = simulate_rows(rows, [sensor], n, seed=3, settings=FIT_SETTINGS)
+    measured = [
+        signal_statistics(a, r.fs_hz, 9.48, 1.0, inclination=False)
+        for a, r in zip(sims, rows, strict=True)
+    ]
+
+    def fit() -> dict:
+        target = CampaignTarget(rows, measured, n, [], seed=11, inclination=False)
+        return fit_effect(target, "hertz_contact", fixed=[sensor], budget=3)
+
+    short = fit()
+    standard = fitting.screen_settings
+    monkeypatch.setattr(fitting, "screen_settings", lambda s, short_lead_in=False: standard(s))
+    full = fit()
+    assert short["params"] == full["params"]
+    assert short["per_recording"] == full["per_recording"]
+    assert short["off_per_recording"] == full["off_per_recording"]
+    assert short["improves"] == full["improves"] and short["evaluations"] == full["evaluations"]
