@@ -59,12 +59,18 @@ class CampaignSolverSettings(SolverSettings):
     and how long the comparison simulations of :func:`simulate_rows` are.
 
     ``periods``: natural periods simulated per row (None: the recording's length).
+    ``lead_in_tolerance``: see the field.
     Statistics need only a few tens of impacts, and the numerical engine (Hertz
     contact, friction, restraint mass) costs about 0.1 ms per RK4 step and row, so
     the fitting loop simulates short records.
     """
 
     periods: float | None = Field(None, gt=0.0)
+    #: None: the analog chain's standard lead-in (:func:`lead_in_seconds`). A fraction: the
+    #: lead-in of a simulation that only ranks candidates (a fit's screen), long enough for
+    #: the chain's slowest free mode to decay to this fraction of its start-up transient
+    #: (:func:`screen_lead_in_seconds`), never longer than the standard one.
+    lead_in_tolerance: float | None = Field(None, gt=0.0, lt=1.0)
 
 
 #: Settings of the fitting loop: 40 natural periods after the full transient (cheap in
@@ -269,15 +275,18 @@ def simulate_rows(
     if k > 1:  # the motion needs the logger's rate; the numerical engine fills the rest
         settings = settings.model_copy(update={"oversampled": k})
     sim = Simulator(list(effects), settings)
-    # white noise at the end of the chain, drawn for the logger's samples only (not for the
-    # k - 1 dropped between them: the same law, k times fewer draws)
-    late = k > 1 and all(
-        e.order < WHITE_NOISE_ORDER for e in effects if isinstance(e, MeasurementEffect)
-    )
     rng = np.random.default_rng([int(seed), 1])
     # the analog chain had been running before the record began: its start-up transient
     # (a charge amplifier's high-pass rings down over ~1/f_h) falls in a dropped lead-in
     lead_s = lead_in_seconds(effects, LONGEST_COMPARISON_LEAD_IN_S)
+    if settings.lead_in_tolerance is not None:
+        lead_s = min(lead_s, screen_lead_in_seconds(effects, settings.lead_in_tolerance))
+    # white noise at the end of the chain, drawn for the logger's samples only: not for the
+    # k - 1 dropped between them (the same law, k times fewer draws), nor for the dropped
+    # lead-in (the same noise whatever its length)
+    late = (k > 1 or lead_s > 0) and all(
+        e.order < WHITE_NOISE_ORDER for e in effects if isinstance(e, MeasurementEffect)
+    )
     lead = np.ceil(lead_s * np.array([r.fs_hz for r in rows]) * k)
     lead = lead.astype(np.int64)
     try:
@@ -345,6 +354,57 @@ def lead_in_seconds(effects: Sequence[Effect], longest: float = 20.0) -> float:
         hp = min(hp) if isinstance(hp, list | tuple) else float(hp or 0.0)
         lead = max(ANALOG_LEAD_IN_S, 7.0 / (2 * math.pi * hp)) if hp > 0 else 0.1
         out = max(out, min(lead, longest))
+    return out
+
+
+def chain_time_constant(effect: Effect) -> float | None:
+    """Seconds of the slowest free mode of an analog effect's stages, read off the parameters
+    a sensor chain names (``highpass_hz``: ``1 / w_h``; ``resonance_hz`` with
+    ``resonance_damping``: ``1 / (zeta_r w_r)``; ``lowpass_hz`` with ``lowpass_order``: the
+    Butterworth's slowest pole, ``1 / (w_l sin(pi / 2n))``); None when it names none of them.
+    A stage given as a range is taken at its slowest end."""
+    p = getattr(effect, "params", None)
+
+    def value(key: str, slowest: Any) -> float | None:
+        v = getattr(p, key, None)
+        if v is None:
+            return None
+        return float(slowest(v)) if isinstance(v, list | tuple) else float(v)
+
+    taus = []
+    f_h = value("highpass_hz", min)
+    if f_h is not None and f_h > 0:
+        taus.append(1.0 / (2 * math.pi * f_h))
+    f_r, zeta = value("resonance_hz", min), value("resonance_damping", min)
+    if f_r is not None and zeta is not None and f_r > 0 and zeta > 0:
+        taus.append(1.0 / (zeta * 2 * math.pi * f_r))
+    f_l, order = value("lowpass_hz", min), value("lowpass_order", max)
+    if f_l is not None and f_l > 0:
+        n = max(1, int(round(order or 1)))
+        taus.append(1.0 / (2 * math.pi * f_l * math.sin(math.pi / (2 * n))))
+    return max(taus) if taus else None
+
+
+def screen_lead_in_seconds(effects: Sequence[Effect], tolerance: float) -> float:
+    """The lead-in of a simulation that only ranks candidates: ``ln(1 / tolerance)`` times the
+    slowest time constant of the analog effects' chains (:func:`chain_time_constant`), the
+    start-up transient left at ``tolerance`` of its size; an analog effect whose chain is
+    unknown keeps its standard lead-in (:func:`lead_in_seconds`), 0 without analog effects.
+
+    Why this bound: the chain's state at the record's start depends on the motion before it
+    only through modes that decay as ``exp(-t / tau)``; the filters start in the steady state
+    for a constant input, so what is left to decay is a fraction of the signal's swing (a
+    1-Hz high-pass under a 10-Hz forcing: about a tenth), and a screen settles the motion's
+    own transient to the same tolerance
+    (:data:`stiffnet.measurement.fitting.SCREEN_SETTLE_TOLERANCE`).
+    """
+    out = 0.0
+    for e in effects:
+        if not getattr(e, "analog", False):
+            continue
+        tau = chain_time_constant(e)
+        lead = lead_in_seconds([e]) if tau is None else math.log(1.0 / tolerance) * tau
+        out = max(out, lead)
     return out
 
 

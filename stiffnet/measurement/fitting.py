@@ -37,7 +37,9 @@ Search, in the unit cube of the effect's fit space
   (spread over the campaign) once per point
   (:meth:`~stiffnet.measurement.target.CampaignTarget.per_recording_points`; an analog
   sensor in the model filters at the logger's rate there, a screen at a quarter of the
-  integration steps); the best point is then scored alone on every recording, oversampled.
+  integration steps, and runs in for ln 20 of the chain's slowest time constant instead of
+  the standard 1.5 s, :func:`screen_settings`); the best point is then scored alone on every
+  recording, oversampled, with the standard lead-in.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
   keep a share of the discrepancy that belongs to one found later.
@@ -470,7 +472,7 @@ def _fit_design(
     # else it screens: an analog sensor in the model filters at the logger's rate there
     # (the numerical engine's cost is per step: 8x oversampled, 4x the steps) and the
     # transient is shorter (SCREEN_SETTLE_TOLERANCE); the best point is then scored in full
-    screen = settings if same else screen_settings(settings)
+    screen = settings if same else screen_settings(settings, short_lead_in=True)
     pers = searched.per_recording_points(
         model, name, points, screen, inclination=False, oversample=False
     )
@@ -506,12 +508,20 @@ def _fit_design(
     }
 
 
-def screen_settings(settings: SolverSettings) -> SolverSettings:
+def screen_settings(settings: SolverSettings, short_lead_in: bool = False) -> SolverSettings:
     """The settings of a numerical-engine design that is only a screen (see
-    :data:`SCREEN_SETTLE_TOLERANCE`): the same, with a transient no longer than that rule's."""
+    :data:`SCREEN_SETTLE_TOLERANCE`): the same, with a transient no longer than that rule's,
+    begun warm (:data:`SCREEN_WARM_START`); with ``short_lead_in`` (an effect's design,
+    :func:`_fit_design`), an analog chain's lead-in run in to the same tolerance
+    (``lead_in_tolerance``, :func:`~stiffnet.campaign.simulate.screen_lead_in_seconds`: 0.48 s
+    for a 1-Hz high-pass instead of the standard 1.5 s, a third of the RK4 steps of a screen
+    whose model holds the sensor)."""
     tol = max(settings.settle_tolerance, SCREEN_SETTLE_TOLERANCE)
     warm = max(settings.warm_start, SCREEN_WARM_START)
-    return settings.model_copy(update={"settle_tolerance": tol, "warm_start": warm})
+    update: dict[str, float] = {"settle_tolerance": tol, "warm_start": warm}
+    if short_lead_in and "lead_in_tolerance" in type(settings).model_fields:
+        update["lead_in_tolerance"] = max(settings.lead_in_tolerance or 0.0, tol)
+    return settings.model_copy(update=update)
 
 
 def _nelder_mead(ev: _Evaluator, start: np.ndarray, step: float, maxfev: int) -> None:
