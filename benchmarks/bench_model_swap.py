@@ -20,6 +20,11 @@ sensor chains, and no worse on the ideal and in-prior sets? Two parts:
   trained on (resonance >= 15 f_n, low-pass >= 0.15 fs, high-pass <= 2 Hz), or only in the
   widened one. Coverage there uses each model's own recording quantile.
 
+``--undo chain`` (also ``resonance``, ``outside_priors``) adds each model reading the record
+with the chain the restoring-force check identified undone (:mod:`serving.chain_undo`);
+``--sheet`` adds the rig chain sets with each recording's true chain as its data sheet
+(:func:`rig_data_sheets`: what a lab that read its accelerometer's calibration sheet gives).
+
 The restoring-force check does not depend on the model and costs most of a prediction: it
 runs once per recording and is kept under ``--cache`` (with the simulated recordings), so a
 second model, or a second run, reuses it. Run::

@@ -26,13 +26,11 @@ from typing import Any
 
 import numpy as np
 
+from serving.restoring_force_check import PRIOR_SLACK  # the alarm's sensor check's slack
 from stiffnet.restoring_force.chain import MIN_LOWPASS_RATIO, SensorChain, deconvolve
 
 #: What the model may read (see the module's docstring).
 UNDO_MODES = ("off", "chain", "resonance", "outside_priors")
-#: A stage counts as outside the priors only beyond this factor of their range (the fit's
-#: own scatter, 2-10 % in frequency; the alarm's sensor check uses the same slack).
-PRIOR_SLACK = 1.15
 #: The top of the band whose periodogram gives the white-noise floor (fraction of Nyquist).
 NOISE_BAND = 0.75
 #: Samples reflected at each end before the inverse (the FFT treats the record as periodic:

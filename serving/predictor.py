@@ -10,6 +10,10 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
 1. **Check** (:mod:`serving.checks`): finite samples, sampling rate and natural
    frequency in range, at least one window, not constant; clipping and rates
    above the training data only warn.
+   The restoring-force cross-check (step 4) runs next: where it identified the sensor
+   chain, or was given its data sheet, the model reads the record with that chain's
+   resonance and low-pass divided out (:mod:`serving.chain_undo`, ``undo_chain``;
+   ``chain_undone`` in the result), and so do the interval and the alarm.
 2. **Windows** of ``window_periods`` natural periods (16) at the recording's
    rate, non-overlapping (:func:`stiffnet.features.windows.window_length`, the
    dataset's rule), windows constant on their own dropped with a warning.
@@ -91,7 +95,7 @@ CHUNK_SAMPLES = 2**19
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
 #: Which identified sensor chain the model reads undone (:mod:`serving.chain_undo`).
-UNDO_CHAIN = "off"
+UNDO_CHAIN = "chain"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
 MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
 
@@ -174,7 +178,6 @@ class Predictor:
         if undo_chain not in UNDO_MODES:
             raise StiffnetError(f"undo_chain must be one of {', '.join(UNDO_MODES)}")
         self.undo_chain = undo_chain
-        self.alarm_on_read_chain = True
 
         self.model = model
         self.ood = ood
@@ -431,8 +434,6 @@ class Predictor:
                               reading.features, reading.embedding_scores)  # fmt: skip
         head = self.class_names[reading.estimate.label]  # class_beta: the heads against each other
         answered = self.class_names[reading.decision.label]
-        if not self.alarm_on_read_chain:
-            sensor_read = None
         alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn,
                             head_class=head, sensor_read=sensor_read)  # fmt: skip
         return with_layers_alarm(alarm, reading.layers)

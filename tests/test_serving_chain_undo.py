@@ -150,3 +150,12 @@ def test_an_ideal_rig_record_reads_the_same_with_the_undo_on(predictors):
     assert undone["chain_undone"] is None
     assert undone["beta"] == raw["beta"] and undone["beta_interval"] == raw["beta_interval"]
     assert undone["class"] == raw["class"] == "hard"
+
+
+def test_the_default_undoes_the_chain_and_a_bad_mode_is_one_line():
+    from serving.predictor import UNDO_CHAIN, Predictor
+    from stiffnet.errors import StiffnetError
+
+    assert UNDO_CHAIN == "chain"
+    with pytest.raises(StiffnetError, match="^undo_chain must be one of off, chain,"):
+        Predictor.load(undo_chain="everything")
