@@ -20,6 +20,11 @@ sensor chains, and no worse on the ideal and in-prior sets? Two parts:
   trained on (resonance >= 15 f_n, low-pass >= 0.15 fs, high-pass <= 2 Hz), or only in the
   widened one. Coverage there uses each model's own recording quantile.
 
+``--undo chain`` (also ``resonance``, ``outside_priors``) adds each model reading the record
+with the chain the restoring-force check identified undone (:mod:`serving.chain_undo`);
+``--sheet`` adds the rig chain sets with each recording's true chain as its data sheet
+(:func:`rig_data_sheets`: what a lab that read its accelerometer's calibration sheet gives).
+
 The restoring-force check does not depend on the model and costs most of a prediction: it
 runs once per recording and is kept under ``--cache`` (with the simulated recordings), so a
 second model, or a second run, reuses it. Run::
@@ -108,12 +113,29 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
     return recs
 
 
-def predict_set(pred: sp.Predictor, recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Each recording's class, beta, interval, alarm (and CPU seconds) from `pred`."""
+def rig_data_sheets(name: str, n: int) -> list[dict[str, float]]:
+    """The true sensor chain of each recording of a bench_crosscheck rig set, as the data sheet
+    a lab would give (drawn again from the set's seed, as
+    :func:`bench_crosscheck.simulate_rig_set` draws it before simulating)."""
+    seed = 20261123 + [*bc.SETS, *bc.RIG_SETS].index(name)
+    rng = np.random.default_rng(seed)
+    rng.uniform(0.0, 1.0, n)  # beta (stratified by class: one uniform draw each)
+    fs = np.exp(rng.uniform(np.log(1000.0), np.log(4000.0), n))
+    _, chains = bc.prior_sensor_chain(np.zeros((n, 1)), fs, rng, bc.LAB_SENSOR_PRIOR)
+    keys = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
+    return [{k: float(c[k]) for k in keys} for c in chains]
+
+
+def predict_set(
+    pred: sp.Predictor, recs: list[dict[str, Any]], sheets: list[dict] | None = None
+) -> list[dict[str, Any]]:
+    """Each recording's class, beta, interval, alarm (and CPU seconds) from `pred` (with its
+    data sheet where `sheets` are given)."""
     out = []
-    for r in recs:
+    for i, r in enumerate(recs):
         t = time.process_time()
-        res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
+        res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"],
+                           sensor=sheets[i] if sheets else None)  # fmt: skip
         out.append(dict(cls=res["class"], beta=res["beta"], interval=res["beta_interval"],
                         flag=bool(res["ood_flag"]), fired=(res["alarm"] or {}).get("fired", []),
                         cpu_s=time.process_time() - t))  # fmt: skip
@@ -150,8 +172,9 @@ def score(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> dict[str, An
 
 
 def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, cache: Path,
-                    say: Any) -> dict[str, dict[str, Any]]:  # fmt: skip
-    """Every set through every model (the restoring-force check cached per set on disk)."""
+                    say: Any, sheet: bool = False) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """Every set through every model (the restoring-force check cached per set on disk); with
+    `sheet`, the rig chain sets also with each recording's true chain as its data sheet."""
     cached = CachedRestoringForce(sp.restoring_force_check)
     sp.restoring_force_check = cached  # the predictor module calls it by this name
     table: dict[str, dict[str, Any]] = {}
@@ -160,8 +183,11 @@ def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, ca
             recs = set_recordings(name, n, cache)
             rf_path = cache / "restoring_force" / f"{name.replace(' ', '_')}-{n}.pkl"
             cached.results = pickle.loads(rf_path.read_bytes()) if rf_path.is_file() else {}
-            for m, pred in models.items():
-                s = table.setdefault(name, {})[m] = score(recs, predict_set(pred, recs))
+            sheets = rig_data_sheets(name, n) if sheet and name in bc.RIG_SETS else None
+            runs = [(m, pred, None) for m, pred in models.items()]
+            runs += [(f"{m} + data sheet", pred, sheets) for m, pred in models.items() if sheets]
+            for m, pred, sheets_m in runs:
+                s = table.setdefault(name, {})[m] = score(recs, predict_set(pred, recs, sheets_m))
                 say(f"{name} / {m}: accuracy {s['accuracy']:.2f}, MAPE {s['beta_mape']:.3f}, "
                     f"coverage {s['coverage']:.2f}, alarms {s['alarms']}, wrong and silent "
                     f"{s['wrong_silent']}, silent {s['silent']}")  # fmt: skip
@@ -245,19 +271,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cache", type=Path, default=Path("/tmp/stiffnet_model_swap"))
     ap.add_argument("--dataset", type=Path, help="also score a simulated dataset by stratum")
     ap.add_argument("--json", type=Path, help="also write the numbers here")
+    ap.add_argument(
+        "--sheet",
+        action="store_true",
+        help="also the rig chain sets with each recording's true chain as its data "
+        "sheet (a column 'NAME + data sheet')",
+    )
+    ap.add_argument("--undo", nargs="*", default=[], choices=sp.UNDO_MODES[1:],
+                    help="also each model reading the record with its identified chain undone "
+                    "(serving.chain_undo), a column 'NAME undo=MODE' per mode")  # fmt: skip
     args = ap.parse_args(argv)
     paths = {k: Path(v) for k, v in (m.split("=", 1) for m in args.model)}
     unknown = set(args.sets) - set(CROSSCHECK_SETS + ALARM_SETS)
     if unknown:
         ap.error(f"unknown sets {sorted(unknown)}; choose from {CROSSCHECK_SETS + ALARM_SETS}")
-    models = {k: sp.Predictor.load(v) for k, v in paths.items()}
+    models = {k: sp.Predictor.load(v, undo_chain="off") for k, v in paths.items()}
+    for mode in args.undo:
+        models.update({f"{k} undo={mode}": sp.Predictor.load(v, undo_chain=mode)
+                       for k, v in paths.items()})  # fmt: skip
     t0 = time.perf_counter()
 
     def say(msg: str) -> None:
         print(f"[{time.perf_counter() - t0:.0f} s] {msg}", file=sys.stderr, flush=True)
 
     result: dict[str, Any] = {"models": {k: str(v) for k, v in paths.items()}}
-    result["sets"] = recordings_part(models, args.sets, args.n, args.cache, say)
+    result["sets"] = recordings_part(models, args.sets, args.n, args.cache, say, args.sheet)
     print(markdown(result["sets"], SET_COLUMNS))
     if args.dataset:
         result["dataset"] = dataset_part(paths, args.dataset)

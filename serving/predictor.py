@@ -10,6 +10,10 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
 1. **Check** (:mod:`serving.checks`): finite samples, sampling rate and natural
    frequency in range, at least one window, not constant; clipping and rates
    above the training data only warn.
+   The restoring-force cross-check (step 4) runs next: where it identified the sensor
+   chain, or was given its data sheet, the model reads the record with that chain's
+   resonance and low-pass divided out (:mod:`serving.chain_undo`, ``undo_chain``;
+   ``chain_undone`` in the result), and so do the interval and the alarm.
 2. **Windows** of ``window_periods`` natural periods (16) at the recording's
    rate, non-overlapping (:func:`stiffnet.features.windows.window_length`, the
    dataset's rule), windows constant on their own dropped with a warning.
@@ -43,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from serving.aggregate import geometric_verdict, named, segments
+from serving.chain_undo import UNDO_MODES, chain_as_read, model_record
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import (
     MAX_HOP_S,
@@ -89,6 +94,8 @@ BATCH = 256
 CHUNK_SAMPLES = 2**19
 #: Default OOD reference file name in ``models/``.
 OOD_REFERENCE_FILE = "ood_reference.json"
+#: Which identified sensor chain the model reads undone (:mod:`serving.chain_undo`).
+UNDO_CHAIN = "chain"
 #: Outputs the predictor reads, when the model has them (older models: the first two).
 MODEL_OUTPUTS = ("probabilities", "log_beta", "log_beta_scale", "embedding")
 
@@ -164,8 +171,13 @@ class Predictor:
         alarm: AlarmReference | None = None,
         segment_windows: int = SEGMENT_WINDOWS,
         geometric_windows: int = GEOMETRIC_WINDOWS,
+        undo_chain: str = UNDO_CHAIN,
     ) -> None:
         from stiffnet.geometry.calibration import load_calibration
+
+        if undo_chain not in UNDO_MODES:
+            raise StiffnetError(f"undo_chain must be one of {', '.join(UNDO_MODES)}")
+        self.undo_chain = undo_chain
 
         self.model = model
         self.ood = ood
@@ -202,6 +214,7 @@ class Predictor:
         *,
         threads: int = 1,
         ood_reference: str | Path | None = None,
+        undo_chain: str = UNDO_CHAIN,
     ) -> Predictor:
         """Verify and load a model (default ``models/cnn.onnx``) and its OOD reference.
 
@@ -215,6 +228,9 @@ class Predictor:
             Inclination-feature OOD reference JSON, for models without their own
             alarm reference; default ``ood_reference.json`` beside the model, else in
             the repository's ``models/`` (no alarm without one).
+        undo_chain : str, optional
+            Which identified sensor chain the model reads undone, one of
+            :data:`serving.chain_undo.UNDO_MODES` (default :data:`UNDO_CHAIN`).
 
         Raises
         ------
@@ -233,7 +249,7 @@ class Predictor:
                 if path.is_file():
                     ood = load_reference(path)
                     break
-        return cls(model, ood, alarm=alarm)
+        return cls(model, ood, alarm=alarm, undo_chain=undo_chain)
 
     def _training_fn(self) -> tuple[float | None, str]:
         """Training data f_n: from the metadata, model card, OOD reference or data card."""
@@ -325,10 +341,13 @@ class Predictor:
         a, fs, fn, fn_source, sensor, warnings = self._checked_input(
             accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
         )
-        reading = self._read_windows(a, fs, fn, what, warnings)
-        interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
         restoring_force = restoring_force_check(a, fs, fn, sensor)
-        alarm = self._alarm(reading, interval, restoring_force, fs, fn)
+        read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],
+                                    self.undo_chain)  # fmt: skip
+        reading = self._read_windows(read, fs, fn, what, warnings)
+        interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
+        sensor_read = chain_as_read(restoring_force.get("sensor"), undone)
+        alarm = self._alarm(reading, interval, restoring_force, fs, fn, sensor_read)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
             interval = self._interval_behind_alarm(interval, restoring_force, warnings)
@@ -336,7 +355,8 @@ class Predictor:
             warnings.append(weak)
         result = self._result(reading, interval, restoring_force, alarm)
         result.update(source=source, duration_s=a.size / fs, fs_hz=fs, natural_frequency_hz=fn,
-                      natural_frequency_source=fn_source, warnings=warnings)  # fmt: skip
+                      natural_frequency_source=fn_source, warnings=warnings,
+                      chain_undone=undone)  # fmt: skip
         return PredictionResult.model_validate(result).model_dump(by_alias=True)
 
     def _checked_input(
@@ -405,15 +425,17 @@ class Predictor:
         restoring_force: dict[str, Any],
         fs: float,
         fn: float,
+        sensor_read: dict | None = None,
     ) -> dict[str, Any] | None:
         """How far to trust the answer: the model's checks, its class against its own beta,
-        then the restoring-force gap, the unseen contact law, the layers and the sensor chain."""
+        then the restoring-force gap, the unseen contact law, the layers and the sensor chain
+        (as the model read it: `sensor_read`, the identified one less the stages undone)."""
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
                               reading.features, reading.embedding_scores)  # fmt: skip
         head = self.class_names[reading.estimate.label]  # class_beta: the heads against each other
         answered = self.class_names[reading.decision.label]
         alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn,
-                            head_class=head)  # fmt: skip
+                            head_class=head, sensor_read=sensor_read)  # fmt: skip
         return with_layers_alarm(alarm, reading.layers)
 
     @staticmethod

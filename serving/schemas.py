@@ -180,6 +180,13 @@ class PredictionResult(BaseModel):
     restoring_force_agreement: bool | None = Field(
         description="Model class == restoring-force class; null when that method refused."
     )
+    chain_undone: dict[str, Any] | None = Field(
+        default=None,
+        description="The sensor-chain stages the model read divided out of the record "
+        "(resonance_hz, resonance_damping, lowpass_hz, lowpass_order, source: fitted or data "
+        "sheet; serving.chain_undo); null where it read the record as recorded. The chain "
+        "itself is restoring_force.sensor.",
+    )
     contact_detected: bool = Field(description="The model's class is not no_contact.")
     ood_score: float | None = Field(
         description="The alarm's largest check score relative to its threshold "

@@ -49,6 +49,7 @@ def rule_checks(
     fs_hz: float,
     natural_frequency_hz: float,
     head_class: str | None = None,
+    sensor_read: dict | None = None,
 ) -> dict[str, Any] | None:
     """The alarm with the rule checks added to the model's own (`alarm`, None without one).
 
@@ -69,6 +70,10 @@ def rule_checks(
     head_class : str, optional
         The class head's own class where another rule answered (``class_beta`` compares the
         two heads); the class answered by default.
+    sensor_read : dict, optional
+        The chain as the model read it where the predictor undid stages of it
+        (:func:`serving.chain_undo.chain_as_read`): the ``sensor`` check judges that one
+        against the priors. Default: the identified chain.
     """
     names, edges = model["class_names"], model.get("class_edges")
     gap = class_beta_gap(head_class or class_name, interval, names, edges)
@@ -85,7 +90,8 @@ def rule_checks(
     sensor = restoring_force.get("sensor")
     alarm = with_sensor_fit_check(alarm, sensor, priors, fs_hz)
     alarm = with_chain_refusal_check(alarm, restoring_force, priors, fs_hz)
-    outside = sensor_outside_priors(sensor, priors, fs_hz, natural_frequency_hz)
+    read = sensor if sensor_read is None else sensor_read
+    outside = sensor_outside_priors(read, priors, fs_hz, natural_frequency_hz)
     return with_sensor_check(alarm, outside)
 
 

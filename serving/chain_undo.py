@@ -1,0 +1,186 @@
+"""The record the learned model reads: the identified sensor chain undone (numpy/scipy only).
+
+The restoring-force cross-check identifies the accelerometer's chain from the impacts, or
+takes the user's data sheet (:mod:`serving.restoring_force_check`, ``sensor``). The learned
+model was trained behind chains drawn from narrow priors (its card's ``data.priors``): a
+record behind a chain outside them is outside its world, while the same record with the
+chain divided out (:func:`stiffnet.restoring_force.chain.deconvolve`, within the band the
+record supports) is closer to it. :func:`model_record` gives the record the model reads:
+
+* ``"off"``: the record as recorded;
+* ``"chain"``: every resonance and low-pass the check applied, divided out;
+* ``"resonance"``: the mount resonance alone;
+* ``"outside_priors"``: only the stages that lie outside the model's sensor priors (a
+  resonance below its lowest multiple of f_n, a low-pass below its lowest fraction of fs);
+  a stage inside them is one the model has seen, and dividing it out only amplifies noise.
+
+A fitted chain the check did not apply (its inverse left the contact law worse) is no
+evidence of a chain and is never undone. The charge amplifier's high-pass is left as it is:
+the model was trained behind such corners, and its inverse integrates the whole record.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from serving.restoring_force_check import PRIOR_SLACK  # the alarm's sensor check's slack
+from stiffnet.restoring_force.chain import MIN_LOWPASS_RATIO, SensorChain, deconvolve
+
+#: What the model may read (see the module's docstring).
+UNDO_MODES = ("off", "chain", "resonance", "outside_priors")
+#: The top of the band whose periodogram gives the white-noise floor (fraction of Nyquist).
+NOISE_BAND = 0.75
+#: Samples reflected at each end before the inverse (the FFT treats the record as periodic:
+#: without them the end of the record leaks into its start through the inverse's response).
+PAD_FRACTION = 0.05
+
+
+def sensor_prior_lows(
+    priors: dict | None, fs_hz: float, natural_frequency_hz: float
+) -> dict[str, float]:
+    """The lowest mount resonance and low-pass corner (Hz) of the model's sensor priors.
+
+    Keys ``resonance_hz`` and ``lowpass_hz``, each present only where the card's
+    ``data.priors`` ``sensor_dynamics`` entry gives it (relative to f_n or fs, or absolute).
+    """
+    prior = None
+    for effect in (priors or {}).get("effects") or []:
+        if isinstance(effect, dict) and effect.get("name") == "sensor_dynamics":
+            prior = effect
+    if prior is None:
+        return {}
+    rel, params = prior.get("relative") or {}, prior.get("params") or {}
+    lows: dict[str, float] = {}
+    for key in ("resonance_hz", "lowpass_hz"):
+        relative, absolute = rel.get(key), params.get(key)
+        if relative:
+            per = natural_frequency_hz if relative.get("per") == "natural_frequency" else fs_hz
+            lows[key] = float(relative["range"][0]) * per
+        elif isinstance(absolute, list | tuple):
+            lows[key] = float(absolute[0])
+    return lows
+
+
+def chain_to_undo(
+    sensor: dict | None,
+    priors: dict | None,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    mode: str,
+) -> SensorChain | None:
+    """The resonance and low-pass to divide out of the record (None: nothing to undo).
+
+    Parameters
+    ----------
+    sensor : dict or None
+        The check's ``sensor`` (:meth:`~stiffnet.restoring_force.chain.SensorChain.to_dict`).
+    priors : dict or None
+        The model card's ``data.priors``.
+    fs_hz, natural_frequency_hz : float
+    mode : str
+        One of :data:`UNDO_MODES`.
+    """
+    if mode not in UNDO_MODES:
+        raise ValueError(f"undo mode must be one of {', '.join(UNDO_MODES)}, got {mode!r}")
+    if mode == "off" or not sensor or sensor.get("applied") is False:
+        return None
+    fr, zr = sensor.get("resonance_hz"), sensor.get("resonance_damping")
+    fl, order = sensor.get("lowpass_hz"), sensor.get("lowpass_order")
+    if mode == "outside_priors":
+        lows = sensor_prior_lows(priors, fs_hz, natural_frequency_hz)
+        if fr and fr * PRIOR_SLACK >= lows.get("resonance_hz", np.inf):
+            fr = None  # inside: the model has read such resonances
+        if fl and fl * PRIOR_SLACK >= lows.get("lowpass_hz", np.inf):
+            fl = None
+    if mode == "resonance":
+        fl = None
+    contact = sensor.get("contact_hz")
+    if fl and contact and fl < MIN_LOWPASS_RATIO * contact:
+        fl = None  # it smooths the contact itself away: its inverse would invent the spike
+    chain = SensorChain(
+        resonance_hz=float(fr) if fr and zr else None,
+        resonance_damping=float(zr) if fr and zr else None,
+        lowpass_hz=float(fl) if fl and order else None,
+        lowpass_order=int(order) if fl and order else None,
+        source=str(sensor.get("source") or "fitted"),
+    )
+    return chain if chain.has_dynamics else None
+
+
+def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
+    """The record's white-noise standard deviation from the top of its band.
+
+    The median periodogram bin above :data:`NOISE_BAND` of Nyquist, over ``n ln 2`` (the
+    median of a white-noise bin's exponential power): there the chain's low-pass or
+    resonance has cut the motion, so what is left is the logger's noise. Where the motion
+    still reaches up there the floor reads high, and the inverse only acts less.
+    """
+    y = np.asarray(accel, dtype=float) - float(np.mean(accel))
+    power = np.abs(np.fft.rfft(y)) ** 2
+    top = power[int(NOISE_BAND * (power.size - 1)) :]
+    return float(np.sqrt(np.median(top) / (y.size * np.log(2.0))))
+
+
+def undone_record(accel: np.ndarray, fs_hz: float, chain: SensorChain) -> np.ndarray:
+    """`accel` divided by the chain's resonance and low-pass within the band it passes
+    (:func:`~stiffnet.restoring_force.chain.deconvolve`), its ends reflected first."""
+    a = np.asarray(accel, dtype=float)
+    pad = min(a.size - 1, max(16, int(PAD_FRACTION * a.size)))
+    padded = np.pad(a, pad, mode="reflect")
+    flat = deconvolve(padded, fs_hz, chain, record_noise_sigma(a, fs_hz))
+    return flat[pad : pad + a.size]
+
+
+def model_record(
+    accel: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    restoring_force: dict[str, Any] | None,
+    priors: dict | None,
+    mode: str,
+) -> tuple[np.ndarray, dict[str, Any] | None]:
+    """The record the learned model reads, and what was undone (None: the record as is).
+
+    Parameters
+    ----------
+    accel : numpy.ndarray
+        The checked record.
+    fs_hz, natural_frequency_hz : float
+    restoring_force : dict or None
+        The restoring-force cross-check of the same record (its ``sensor``).
+    priors : dict or None
+        The model card's ``data.priors``.
+    mode : str
+        One of :data:`UNDO_MODES`.
+
+    Returns
+    -------
+    numpy.ndarray, dict or None
+        The record, and the undone stages (``resonance_hz``, ``resonance_damping``,
+        ``lowpass_hz``, ``lowpass_order``, ``source``) or None.
+    """
+    sensor = (restoring_force or {}).get("sensor")
+    chain = chain_to_undo(sensor, priors, fs_hz, natural_frequency_hz, mode)
+    if chain is None:
+        return accel, None
+    undone = {k: v for k, v in dataclasses.asdict(chain).items()
+              if k in ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order",
+                       "source")}  # fmt: skip
+    return undone_record(accel, fs_hz, chain), undone
+
+
+def chain_as_read(sensor: dict | None, undone: dict[str, Any] | None) -> dict | None:
+    """The identified chain as the model read it: the stages :func:`model_record` divided out
+    taken away (what the alarm's sensor check judges against the model's priors). `sensor`
+    itself where nothing was undone."""
+    if not sensor or not undone:
+        return sensor
+    left = dict(sensor)
+    if undone.get("resonance_hz"):
+        left.update(resonance_hz=None, resonance_damping=None)
+    if undone.get("lowpass_hz"):
+        left.update(lowpass_hz=None, lowpass_order=None)
+    return left

@@ -1,0 +1,161 @@
+"""The record the learned model reads with the identified sensor chain undone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from serving.chain_undo import (
+    chain_to_undo,
+    model_record,
+    record_noise_sigma,
+    sensor_prior_lows,
+    undone_record,
+)
+from stiffnet.restoring_force.chain import SensorChain, chain_sos
+
+FS = 2000.0
+FN = 9.48
+#: The shipped card's sensor prior (resonance 15-300 f_n, low-pass 0.15-0.45 fs).
+PRIORS = {
+    "effects": [
+        {
+            "name": "sensor_dynamics",
+            "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 2.0]},
+            "relative": {
+                "resonance_hz": {"per": "natural_frequency", "range": [15.0, 300.0]},
+                "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]},
+            },
+        }
+    ]
+}
+
+
+def pulse_train(n: int, fs: float, contact_hz: float, every_s: float) -> np.ndarray:
+    """Half-sine contact pulses (the shape of a linear contact's force) every `every_s`."""
+    t = np.arange(n) / fs
+    phase = np.mod(t, every_s)
+    half = 0.5 / contact_hz
+    return np.where(phase < half, np.sin(np.pi * phase / half), 0.0)
+
+
+def sensor(**stages) -> dict:
+    base = {"resonance_hz": None, "resonance_damping": None, "lowpass_hz": None,
+            "lowpass_order": None, "highpass_hz": 0.0, "source": "fitted", "applied": True,
+            "contact_hz": 60.0}  # fmt: skip
+    return {**base, **stages}
+
+
+def test_a_known_chain_is_undone_within_the_band_the_record_passes():
+    # contact pulses at 60 Hz behind a mount resonance at 10 f_n (below the prior) and a
+    # 3rd-order low-pass at 0.06 fs: the record's error against the pulses is most of their
+    # size; undone, what is left is the noise the inverse amplifies in the band it passes
+    rng = np.random.default_rng(3)
+    clean = pulse_train(8000, FS, 60.0, 0.105)
+    chain = SensorChain(resonance_hz=10 * FN, resonance_damping=0.05, lowpass_hz=0.06 * FS,
+                        lowpass_order=3)  # fmt: skip
+    recorded = signal.sosfilt(chain_sos(chain, FS), clean) + 0.005 * rng.standard_normal(8000)
+    mid = slice(1000, 7000)  # away from the filter's start-up from rest
+    before = np.sqrt(np.mean((recorded[mid] - clean[mid]) ** 2))
+    after = np.sqrt(np.mean((undone_record(recorded, FS, chain)[mid] - clean[mid]) ** 2))
+    assert before > 0.3
+    assert after < 0.1 * before  # measured 0.50 -> 0.022
+
+
+def test_the_noise_floor_is_read_from_the_top_of_the_band():
+    rng = np.random.default_rng(0)
+    t = np.arange(20000) / FS
+    y = np.sin(2 * np.pi * 10.0 * t) + 0.03 * rng.standard_normal(t.size)
+    assert record_noise_sigma(y, FS) == pytest.approx(0.03, rel=0.1)
+
+
+def test_prior_lows_are_the_cards_lowest_resonance_and_low_pass():
+    lows = sensor_prior_lows(PRIORS, FS, FN)
+    assert lows == {"resonance_hz": pytest.approx(15 * FN), "lowpass_hz": pytest.approx(0.15 * FS)}
+    assert sensor_prior_lows(None, FS, FN) == {}
+
+
+def test_which_stages_are_undone():
+    both = sensor(resonance_hz=10 * FN, resonance_damping=0.05, lowpass_hz=0.3 * FS,
+                  lowpass_order=2)  # fmt: skip
+    full = chain_to_undo(both, PRIORS, FS, FN, "chain")
+    assert (full.resonance_hz, full.lowpass_hz, full.lowpass_order) == (10 * FN, 0.3 * FS, 2)
+    # the low-pass at 0.3 fs is inside the prior (0.15 fs and up): only the resonance goes
+    outside = chain_to_undo(both, PRIORS, FS, FN, "outside_priors")
+    assert (outside.resonance_hz, outside.lowpass_hz) == (10 * FN, None)
+    assert chain_to_undo(both, PRIORS, FS, FN, "resonance").lowpass_hz is None
+    # a chain the check did not apply, an off switch, a chain with no dynamics: nothing
+    assert chain_to_undo({**both, "applied": False}, PRIORS, FS, FN, "chain") is None
+    assert chain_to_undo(both, PRIORS, FS, FN, "off") is None
+    assert chain_to_undo(sensor(highpass_hz=1.0), PRIORS, FS, FN, "chain") is None
+    # a low-pass below the contact's frequency has smoothed the contact away: not inverted
+    low = sensor(lowpass_hz=50.0, lowpass_order=2, contact_hz=90.0)
+    assert chain_to_undo(low, PRIORS, FS, FN, "chain") is None
+    with pytest.raises(ValueError, match="undo mode"):
+        chain_to_undo(both, PRIORS, FS, FN, "all")
+
+
+def test_an_ideal_record_is_read_as_recorded():
+    y = pulse_train(4000, FS, 60.0, 0.105)
+    for check in ({"sensor": None}, {"sensor": sensor()}, None):
+        read, undone = model_record(y, FS, FN, check, PRIORS, "chain")
+        assert read is y and undone is None
+    read, undone = model_record(y, FS, FN, {"sensor": sensor(resonance_hz=90.0,
+                                                             resonance_damping=0.05)},
+                                PRIORS, "chain")  # fmt: skip
+    assert read.shape == y.shape and undone["resonance_hz"] == 90.0
+
+
+@pytest.fixture(scope="module")
+def predictors():
+    from serving.predictor import Predictor
+
+    return {mode: Predictor.load(undo_chain=mode) for mode in ("off", "chain")}
+
+
+def rig_record(beta: float, sensor: dict | None) -> np.ndarray:
+    """3 s of the independent rig (solve_ivp, SI units, the analog chain), in g."""
+    from independent_rig import RigRun, record
+
+    run = RigRun(recording="chain.csv", beta=beta, fs_hz=FS, duration_s=3.0, gap_mm=1.5,
+                 sensor=sensor)  # fmt: skip
+    return record(run, seed=1)[1]
+
+
+def test_a_record_behind_a_known_chain_is_read_closer_to_the_truth_undone(predictors):
+    # a mount resonance at 12 f_n (the model saw 15 and up) and a 4th-order low-pass at 0.1 fs
+    # (it saw 0.15 fs and up): read as recorded, the CNN's beta blows up (measured 3e5);
+    # with the data sheet's chain undone it reads 43 for 40, inside its interval, no alarm
+    sheet = {"resonance_hz": 12 * FN, "resonance_damping": 0.05, "lowpass_hz": 0.1 * FS,
+             "lowpass_order": 4, "highpass_hz": 1.0}  # fmt: skip
+    a = rig_record(40.0, sheet)
+    raw = predictors["off"].predict(a, FS, natural_frequency_hz=FN, sensor=sheet)
+    undone = predictors["chain"].predict(a, FS, natural_frequency_hz=FN, sensor=sheet)
+    assert raw["chain_undone"] is None
+    assert undone["chain_undone"]["resonance_hz"] == pytest.approx(12 * FN)
+    assert undone["chain_undone"]["source"] == "data sheet"
+    assert abs(np.log(undone["beta"] / 40.0)) < 0.15 < abs(np.log(raw["beta"] / 40.0))
+    assert undone["class"] == "hard" != raw["class"]
+    lo, hi = undone["beta_interval"]
+    assert lo <= 40.0 <= hi
+    # the chain itself is reported as the cross-check identified (here: read) it
+    assert undone["restoring_force"]["sensor"] == raw["restoring_force"]["sensor"]
+
+
+def test_an_ideal_rig_record_reads_the_same_with_the_undo_on(predictors):
+    a = rig_record(40.0, None)
+    raw = predictors["off"].predict(a, FS, natural_frequency_hz=FN)
+    undone = predictors["chain"].predict(a, FS, natural_frequency_hz=FN)
+    assert undone["chain_undone"] is None
+    assert undone["beta"] == raw["beta"] and undone["beta_interval"] == raw["beta_interval"]
+    assert undone["class"] == raw["class"] == "hard"
+
+
+def test_the_default_undoes_the_chain_and_a_bad_mode_is_one_line():
+    from serving.predictor import UNDO_CHAIN, Predictor
+    from stiffnet.errors import StiffnetError
+
+    assert UNDO_CHAIN == "chain"
+    with pytest.raises(StiffnetError, match="^undo_chain must be one of off, chain,"):
+        Predictor.load(undo_chain="everything")
