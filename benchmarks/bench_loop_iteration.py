@@ -24,13 +24,17 @@ recordings, the eight operating points of ``tests/test_independent_rig.POINTS`` 
 betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks:
 ``stiffnet diagnose`` (the rig candidates of the tests) and, where it proposes a law,
 ``stiffnet loop --diagnosis --operating-points`` (GBM, or ``--rig-family``); the CLI's
-CPU seconds are its processes'. Prints Markdown with the machine's load.
+CPU seconds are its processes'. Part 4b (``--rig-seeds``): that loop's iteration 1 on the
+two-stage rig campaign without the diagnosis (the law's prior as discovered), drawn at each
+dataset seed and near-edge share, with the accuracy the class read from the beta head
+would give. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
     ... benchmarks/bench_loop_iteration.py --shared 6,24
     ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
 """
 
 from __future__ import annotations
