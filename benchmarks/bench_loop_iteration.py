@@ -24,13 +24,17 @@ recordings, the eight operating points of ``tests/test_independent_rig.POINTS`` 
 betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks:
 ``stiffnet diagnose`` (the rig candidates of the tests) and, where it proposes a law,
 ``stiffnet loop --diagnosis --operating-points`` (GBM, or ``--rig-family``); the CLI's
-CPU seconds are its processes'. Prints Markdown with the machine's load.
+CPU seconds are its processes'. Part 4b (``--rig-seeds``): that loop's iteration 1 on the
+two-stage rig campaign without the diagnosis (the law's prior as discovered), drawn at each
+dataset seed and near-edge share, with the accuracy the class read from the beta head
+would give. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
     ... benchmarks/bench_loop_iteration.py --shared 6,24
     ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
 """
 
 from __future__ import annotations
@@ -230,8 +234,11 @@ def loop_iteration(n: int) -> None:
           f"{cpu:.0f} s CPU (one process)")  # fmt: skip
 
 
-def _retrained(camp, cfg, work: Path, edge_share: float) -> tuple[dict, float, float]:
-    """The iteration's dataset at the campaign's points and its GBM, at ``cfg``'s seed."""
+def _retrained(
+    camp, cfg, work: Path, edge_share: float, shared: bool = False, effects=None
+) -> tuple[dict, float, float]:
+    """The iteration's dataset at the campaign's points and its GBM, at ``cfg``'s seed
+    (evaluated with ``effects``, default ``cfg``'s, as the campaign's dynamics)."""
     from stiffnet.measurement import operating_points as ops
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
@@ -239,9 +246,12 @@ def _retrained(camp, cfg, work: Path, edge_share: float) -> tuple[dict, float, f
     from training.train import train
 
     t0, c0 = time.perf_counter(), time.process_time()
-    ops.operating_point_dataset(cfg, camp.rows, work / "data", edge_share=edge_share)
+    ops.operating_point_dataset(
+        cfg, camp.rows, work / "data", edge_share=edge_share, shared_batches=shared
+    )
     model = train(work / "data", _train_config("gbm", None), work / "model", progress=None)
-    ev = evaluate_campaign(camp, model["paths"]["onnx"], config_effects(cfg), require_beta=False)
+    dyn = config_effects(cfg) if effects is None else effects
+    ev = evaluate_campaign(camp, model["paths"]["onnx"], dyn, require_beta=False)
     return ev, time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -303,6 +313,45 @@ def rig_runs(law: str, seed: int = 11) -> list:
     for i, r in enumerate(runs):
         r.recording = f"rec/p{i // 3}_{i % 3}_b{r.beta:03d}.csv"
     return runs
+
+
+def rig_seeds(folder: Path, seeds: list[int], shares: list[float], shared: bool, n: int) -> None:
+    """Part 4b (``--rig-seeds``): the loop's iteration 1 on the rig's two-stage campaign
+    without its diagnosis (the law's prior as discovered, :data:`RIG_LAW_PRIOR`; evaluated
+    with the law at its fit), the dataset and GBM drawn at each seed and near-edge share.
+    Besides the model's accuracy: what it would be with the class read from the beta head
+    (``from beta``), and the misses (β: read, class)."""
+    from independent_rig import write_campaign
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.effects.learned_contact import LearnedContact
+    from stiffnet.measurement.evaluate import true_class
+
+    camp_dir = folder / "two_stage"
+    if not (camp_dir / "manifest.csv").is_file():
+        write_campaign(camp_dir, rig_runs("two_stage"))
+    camp = load_campaign(camp_dir)
+    d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
+    d.update(effects=[RIG_LAW_PRIOR])
+    law = SimulationConfig.model_validate(d)
+    fit = [LearnedContact(knee=0.249, knee_ratio=2.436, reference_penetration=0.54)]
+    print("| dataset seed | near-edge share | shared batches | accuracy | from beta | β MAPE "
+          "| wrong (β: read, class) | wall s | CPU s | load |")  # fmt: skip
+    print("|---" * 10 + "|")
+    for seed in seeds:
+        for share in shares:
+            cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
+            with tempfile.TemporaryDirectory() as tmp:
+                ev, wall, cpu = _retrained(camp, cfg, Path(tmp), share, shared, fit)
+            rows, m = ev["recordings"], ev["metrics"]["learned"]
+            by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
+                               for r in rows])  # fmt: skip
+            bad = [r for r in rows if r["class"] != r["true_class"]]
+            wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']}"
+                              for r in bad)  # fmt: skip
+            print(f"| {seed} | {share} | {shared} | {m['accuracy']:.3f} | {by_beta:.3f} | "
+                  f"{m['beta_mape']:.3f} | {wrong or '-'} | {wall:.0f} | {cpu:.0f} | "
+                  f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
 def _cli(args: list[str]) -> tuple[float, float]:
@@ -386,7 +435,16 @@ def main() -> None:
     ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
     ap.add_argument("--rig-family", default="gbm")
     ap.add_argument("--rig-trajectories", type=int, default=400)
+    ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
+    ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
+    ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
     args = ap.parse_args()
+    if args.rig_seeds:
+        rig_seeds(args.rig_dir or Path(tempfile.mkdtemp()),
+                  [int(s) for s in args.rig_seeds.split(",")],
+                  [float(s) for s in args.rig_shares.split(",")],
+                  not args.rig_per_shard, args.rig_trajectories)  # fmt: skip
+        return
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)
         return
