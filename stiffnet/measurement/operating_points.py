@@ -23,16 +23,17 @@ side): a campaign's recording a few per cent from an edge is classed by where th
 puts that edge at that operating point, and a stratified sweep gives that place a handful
 of trajectories. The manifest's β is never read (it is the truth being scored). It is off
 by default: on the independent rig's 24-recording two-stage campaign (shared batches, three
-dataset seeds) it raised the accuracy from 0.847 to 0.875 on average, but on the loop
-test's 16 recordings it read 12 of 16 where the defaults read at least 14.
+dataset seeds) it raised the accuracy from 0.847 to 0.875 on average, but on 16 two-stage
+recordings (the example campaign's eight points, two betas each) it read 12 of 16 where the
+defaults read at least 14.
 
 On request (``shared_batches``) every shard (a point, an edge at a point) is simulated in
 shared batches (:func:`stiffnet.dataset.generate.simulate_shards`): with the numerical
 engine a batch costs its steps, whatever its rows, and a campaign of 24 points splits 400
 trajectories into shards of about 17 (4.2x less CPU on six of them). Off by default: its
-draws of the initial states differ, and with them the retrained GBM read the loop test's
-16 two-stage recordings (the example campaign's eight points, two betas each) 13 of 16 in
-class where the per-shard draws read at least 14 (the test's bound).
+draws of the initial states differ, and with them the retrained GBM read the loop test's 8
+two-stage recordings 7 of 8, and 16 (the example campaign's eight points, two betas each)
+13 of 16 in class where the per-shard draws read at least 14.
 Numbers: docs/measurement_loop.md, "Training at the campaign's operating points".
 """
 
