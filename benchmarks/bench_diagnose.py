@@ -59,6 +59,7 @@ from __future__ import annotations
 import argparse
 import cProfile
 import csv
+import json
 import math
 import os
 import pstats
@@ -241,6 +242,11 @@ def _named(res: dict, truth: dict[str, dict[str, float]]) -> str:
     return "; ".join(cells) or "-"
 
 
+def _plain(o: object) -> object:
+    """numpy values (and anything else) as JSON can write them."""
+    return o.tolist() if hasattr(o, "tolist") else str(o)
+
+
 def rig_table(args: argparse.Namespace) -> None:
     """``--rig``: each campaign diagnosed once per ``--subset`` value, in this process, one
     after the other (see the module notes)."""
@@ -251,9 +257,10 @@ def rig_table(args: argparse.Namespace) -> None:
     subsets = [int(k) for k in args.subset.split(",")]
     print(
         "| campaign | search subset | verdict | effects named (fitted vs truth) | residual "
-        "mean / median | explained | polish before -> after | wall s | CPU s | load |"
+        "mean / median | worst recording | explained | polish before -> after | wall s | CPU s | "
+        "load |"
     )
-    print("|---" * 10 + "|", flush=True)  # fmt: skip
+    print("|---" * 11 + "|", flush=True)  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.rig.split(","):
             folder = rig_campaign(name, Path(args.rig_dir or tmp), args.duration, args.rig_fs)
@@ -263,12 +270,17 @@ def rig_table(args: argparse.Namespace) -> None:
                 res = diagnose_campaign(load_campaign(folder), effects=RIG_CANDIDATES,
                                         inclination=False)  # fmt: skip
                 wall, cpu = time.perf_counter() - t, cpu_seconds() - cpu0
+                if args.rig_dir:  # the whole result beside the campaign, to read afterwards
+                    out = folder.with_name(f"{folder.name}_subset{k}_polish{args.polish}.json")
+                    out.write_text(json.dumps(res, default=_plain))
                 pol = res.get("polish") or {}
                 polish = (f"{pol['before']:.4g} -> {pol['after']:.4g} ({pol['cpu_seconds']:.1f}"
                           f" s CPU)" if pol else "-")  # fmt: skip
                 rs = res["residual_summary"]
+                worst = max(res["per_recording"], key=lambda r: r["residual"])
                 print(f"| {name} | {k} | {res['verdict']} | {_named(res, RIG_TRUTH[name])} | "
                       f"{res['residual_discrepancy']:.4g} / {rs['median']:.4g} | "
+                      f"{worst['recording']} {worst['residual']:.3g} | "
                       f"{res['explained_fraction']:.0%} | {polish} | {wall:.0f} | {cpu:.0f} | "
                       f"{load0:.1f} -> {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
@@ -295,7 +307,6 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 def baseline_run(code: str, folder: Path, args: argparse.Namespace) -> dict:
     """The same diagnosis with another checkout's code (``code``: its root), in a fresh
     process on the same campaign folder: the before of a before/after in one run."""
-    import json
     import subprocess
     import sys
 
