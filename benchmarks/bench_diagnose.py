@@ -31,10 +31,27 @@ Target: 24 recordings x 6 s in <= 60 s wall on a quiet 2-core machine: ``--worke
 then covers only this process: the joint refits, nuisances and verdict);
 ``--workers 0`` runs everything in-process.
 
+``--rig NAME[,NAME]``: held-out campaigns of the independent rig instead
+(``tests/independent_rig.py``, solve_ivp in SI units; nothing of stiffnet wrote them): the 24
+recordings of ``bench_loop_iteration.rig_runs`` (the eight operating points of
+``tests/test_independent_rig.POINTS``, three betas each), ``--duration`` seconds at
+``--rig-fs`` Hz, hiding what :data:`RIG` names: ``ideal`` (nothing: the control),
+``damped_sensor`` (contact damping 0.25 and a mounted resonance at 237 Hz, 25 f_n),
+``harmonics`` (shaker harmonics at random levels and phases, :data:`HARMONICS`),
+``hunt_crossley`` (a law the library lacks). Each is diagnosed in-process with the rig
+candidates of ``bench_loop_iteration`` (``RIG_CANDIDATES``), inclinations left out, once per
+value of ``--subset`` (``diagnose.SUBSET_SEARCH`` set for that run: 8 is the default
+search on 8 recordings, 24 searches all of them); the table gives the verdict, the effects
+named with their values against the truth, the residual, the explained fraction, wall and
+CPU seconds and the load. ``--polish N`` sets ``diagnose.POLISH_EVALUATIONS`` for every run
+(here and with ``--rig``).
+
 Run (from the repository root, so this checkout's package is imported)::
 
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
         [--workers N] [--fast-only] [--no-inclination] [--duration S] [--baseline DIR]
+    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py --workers 0 \
+        --rig ideal,damped_sensor,harmonics --subset 8,24 [--rig-dir /tmp/rig]
 """
 
 from __future__ import annotations
@@ -42,12 +59,18 @@ from __future__ import annotations
 import argparse
 import cProfile
 import csv
+import json
+import math
 import os
 import pstats
 import resource
+import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
@@ -65,6 +88,36 @@ HIDDEN = [
 ]
 FAST = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics",
         "colored_noise", "adc"]  # fmt: skip
+
+
+def _harmonics(seed: int = 7) -> dict[str, float]:
+    """Shaker harmonics drawn at random as tests/test_harmonic_phases_campaign.py draws them:
+    levels 0.15-0.3 and 0.06-0.15 of the forcing, phases anywhere."""
+    rng = np.random.default_rng(seed)
+    second, third = rng.uniform(0.15, 0.3), rng.uniform(0.06, 0.15)
+    phases = rng.uniform(-math.pi, math.pi, 2)
+    return {"second": float(second), "phase_second": float(phases[0]), "third": float(third),
+            "phase_third": float(phases[1])}  # fmt: skip
+
+
+HARMONICS = _harmonics()
+#: ``--rig`` campaigns: (``bench_loop_iteration.RIG_LAWS`` law, the rig's extra settings).
+RIG = {
+    "ideal": ("ideal", {}),
+    "damped_sensor": ("ideal", {"contact": "kelvin_voigt", "contact_zeta": 0.25,
+                                "sensor": {"resonance_hz": 237.0, "resonance_damping": 0.03}}),
+    "harmonics": ("ideal", {"harmonics": ((2, HARMONICS["second"], HARMONICS["phase_second"]),
+                                          (3, HARMONICS["third"], HARMONICS["phase_third"]))}),
+    "hunt_crossley": ("hunt_crossley", {}),
+}  # fmt: skip
+#: What each campaign hides, in the library's parameters (the hunt_crossley law has none).
+RIG_TRUTH = {
+    "ideal": {},
+    "damped_sensor": {"contact_damping": {"damping_ratio": 0.25},
+                      "sensor_dynamics": {"resonance_hz": 237.0, "resonance_damping": 0.03}},
+    "harmonics": {"forcing_harmonics": HARMONICS},
+    "hunt_crossley": {},
+}  # fmt: skip
 
 
 def campaign(tmp: Path, duration_s: float = 6.0, n_rows: int = 24) -> Path:
@@ -157,6 +210,81 @@ def evaluation_ratio(camp, repeats: int = 5) -> tuple[float, float]:
     return out[0], out[1]
 
 
+def rig_campaign(name: str, folder: Path, duration_s: float, fs_hz: float) -> Path:
+    """The ``--rig`` campaign ``name`` (:data:`RIG`) written under ``folder`` by the
+    independent rig, or read back when already there (``--rig-dir``)."""
+    sys.path[:0] = [str(ROOT / "benchmarks"), str(ROOT / "tests")]
+    from bench_loop_iteration import rig_runs
+    from independent_rig import write_campaign
+
+    out = folder / f"{name}_{duration_s:g}s_{fs_hz:g}hz"
+    if not (out / "manifest.csv").exists():
+        law, extra = RIG[name]
+        runs = [replace(r, duration_s=duration_s, fs_hz=fs_hz, **extra) for r in rig_runs(law)]
+        write_campaign(out, runs)
+    return out
+
+
+def _named(res: dict, truth: dict[str, dict[str, float]]) -> str:
+    """The selected effects with their fitted values against the truth (relative error;
+    phases in radians off)."""
+    cells = []
+    for eff, params in res["fitted_params"].items():
+        vals = []
+        for k, v in params.items():
+            t = truth.get(eff, {}).get(k)
+            if t is None:
+                continue
+            off = (f"{math.remainder(v - t, 2 * math.pi):+.2f} rad" if k.startswith("phase")
+                   else f"{v / t - 1:+.0%}")  # fmt: skip
+            vals.append(f"{k} {v:.4g} ({off})")
+        cells.append(f"{eff}: {', '.join(vals) or 'no truth'}")
+    return "; ".join(cells) or "-"
+
+
+def _plain(o: object) -> object:
+    """numpy values (and anything else) as JSON can write them."""
+    return o.tolist() if hasattr(o, "tolist") else str(o)
+
+
+def rig_table(args: argparse.Namespace) -> None:
+    """``--rig``: each campaign diagnosed once per ``--subset`` value, in this process, one
+    after the other (see the module notes)."""
+    from bench_loop_iteration import RIG_CANDIDATES
+
+    from stiffnet.measurement import diagnose
+
+    subsets = [int(k) for k in args.subset.split(",")]
+    print(
+        "| campaign | search subset | verdict | effects named (fitted vs truth) | residual "
+        "mean / median | worst recording | explained | polish before -> after | wall s | CPU s | "
+        "load |"
+    )
+    print("|---" * 11 + "|", flush=True)  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.rig.split(","):
+            folder = rig_campaign(name, Path(args.rig_dir or tmp), args.duration, args.rig_fs)
+            for k in subsets:
+                diagnose.SUBSET_SEARCH = k
+                load0, cpu0, t = os.getloadavg()[0], cpu_seconds(), time.perf_counter()
+                res = diagnose_campaign(load_campaign(folder), effects=RIG_CANDIDATES,
+                                        inclination=False)  # fmt: skip
+                wall, cpu = time.perf_counter() - t, cpu_seconds() - cpu0
+                if args.rig_dir:  # the whole result beside the campaign, to read afterwards
+                    out = folder.with_name(f"{folder.name}_subset{k}_polish{args.polish}.json")
+                    out.write_text(json.dumps(res, default=_plain))
+                pol = res.get("polish") or {}
+                polish = (f"{pol['before']:.4g} -> {pol['after']:.4g} ({pol['cpu_seconds']:.1f}"
+                          f" s CPU)" if pol else "-")  # fmt: skip
+                rs = res["residual_summary"]
+                worst = max(res["per_recording"], key=lambda r: r["residual"])
+                print(f"| {name} | {k} | {res['verdict']} | {_named(res, RIG_TRUTH[name])} | "
+                      f"{res['residual_discrepancy']:.4g} / {rs['median']:.4g} | "
+                      f"{worst['recording']} {worst['residual']:.3g} | "
+                      f"{res['explained_fraction']:.0%} | {polish} | {wall:.0f} | {cpu:.0f} | "
+                      f"{load0:.1f} -> {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+
+
 BASELINE = """
 import json, resource, sys, time
 from stiffnet.campaign import load_campaign
@@ -179,7 +307,6 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 def baseline_run(code: str, folder: Path, args: argparse.Namespace) -> dict:
     """The same diagnosis with another checkout's code (``code``: its root), in a fresh
     process on the same campaign folder: the before of a before/after in one run."""
-    import json
     import subprocess
     import sys
 
@@ -203,7 +330,30 @@ def main() -> None:
                     "the campaign's)")  # fmt: skip
     ap.add_argument("--baseline", help="root of another checkout (the code before): the same "
                     "diagnosis run with it after this one, on the same campaign")  # fmt: skip
+    ap.add_argument("--rig", default="", help=f"independent-rig campaigns among {', '.join(RIG)}")
+    ap.add_argument("--rig-dir", help="where the rig's campaigns are written (kept, reused)")
+    ap.add_argument("--rig-fs", type=float, default=2000.0, help="the rig's sampling rate, Hz")
+    ap.add_argument("--subset", default="8", help="--rig: diagnose.SUBSET_SEARCH per run, e.g. "
+                    "8,24 (24: the search on every recording)")  # fmt: skip
+    ap.add_argument(
+        "--polish",
+        type=int,
+        default=None,
+        help="diagnose.POLISH_EVALUATIONS for every run (0: no polish)",
+    )
     args = ap.parse_args()
+    unknown = [n for n in args.rig.split(",") if n and n not in RIG]
+    if unknown:
+        ap.error(f"--rig: unknown campaign {unknown[0]!r}; choose among {', '.join(RIG)}")
+    if args.workers and (args.polish is not None or args.rig):
+        ap.error("--rig and --polish set module constants: run them in-process (--workers 0)")
+    if args.polish is not None:
+        from stiffnet.measurement import diagnose
+
+        diagnose.POLISH_EVALUATIONS = args.polish
+    if args.rig:
+        rig_table(args)
+        return
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()
         folder = campaign(Path(d), args.duration, args.rows)
@@ -249,6 +399,10 @@ def main() -> None:
         print(f"| {name} | {v:.1f} | {v / wall:.0%} |")
     print(f"| CPU time (this process + workers) | {cpu:.1f} | {cpu / wall:.0%} |")
     print(f"\nselected {res['missing_effects']} {res['fitted_params']}")
+    if res.get("polish"):
+        p = res["polish"]
+        print(f"polish: residual {p['before']:.4g} -> {p['after']:.4g}, {p['evaluations']} "
+              f"evaluations, {p['cpu_seconds']:.1f} s CPU")  # fmt: skip
     print(f"verdict {res['verdict']}, residual {res['residual_discrepancy']:.3g}, "
           f"noise floor {res['noise_floor']:.3g}; target <= 60 s (quiet machine): "
           f"{'met' if wall <= 60 else 'NOT met'} ({wall:.0f} s)")  # fmt: skip
