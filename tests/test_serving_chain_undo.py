@@ -6,6 +6,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
+# the shipped card's sensor prior (resonance 15-300 f_n, low-pass 0.15-0.45 fs)
+from test_sensor_chain import PRIORS
+
 from serving.chain_undo import (
     chain_to_undo,
     model_record,
@@ -17,19 +20,6 @@ from stiffnet.restoring_force.chain import SensorChain, chain_sos
 
 FS = 2000.0
 FN = 9.48
-#: The shipped card's sensor prior (resonance 15-300 f_n, low-pass 0.15-0.45 fs).
-PRIORS = {
-    "effects": [
-        {
-            "name": "sensor_dynamics",
-            "params": {"resonance_damping": [0.01, 0.1], "highpass_hz": [0.0, 2.0]},
-            "relative": {
-                "resonance_hz": {"per": "natural_frequency", "range": [15.0, 300.0]},
-                "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]},
-            },
-        }
-    ]
-}
 
 
 def pulse_train(n: int, fs: float, contact_hz: float, every_s: float) -> np.ndarray:
