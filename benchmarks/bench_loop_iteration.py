@@ -254,7 +254,8 @@ def _retrained(
     ``cfg``'s seed (evaluated with ``effects``, default ``cfg``'s, as the campaign's
     dynamics; ``weights`` the per-point rule of
     :func:`stiffnet.measurement.operating_points.point_weights`). The dataset is drawn once:
-    each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row."""
+    each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row
+    (and apart under the key ``"dataset"``: wall s, CPU s)."""
     from stiffnet.measurement import operating_points as ops
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
@@ -268,7 +269,7 @@ def _retrained(
     )  # fmt: skip
     data_wall, data_cpu = time.perf_counter() - t0, time.process_time() - c0
     dyn = config_effects(cfg) if effects is None else effects
-    out = {}
+    out: dict = {"dataset": (data_wall, data_cpu)}
     for family in families:
         t1, c1 = time.perf_counter(), time.process_time()
         model = train(work / "data", _train_config(family, None), work / family, progress=None)
@@ -377,6 +378,9 @@ def rig_seeds(
                 cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
                 with tempfile.TemporaryDirectory() as tmp:
                     runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule)
+                data_wall, data_cpu = runs.pop("dataset")
+                print(f"| dataset | {seed} | {share} | {rule} | {shared} | | | | | "
+                      f"{data_wall:.0f} | {data_cpu:.0f} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
                 for family, (ev, wall, cpu) in runs.items():
                     rows, m = ev["recordings"], ev["metrics"]["learned"]
                     by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
