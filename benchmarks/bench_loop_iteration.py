@@ -249,7 +249,7 @@ def _retrained(
     effects=None,
     families: tuple[str, ...] = ("gbm",),
     weights: str = "none",
-) -> dict[str, tuple[dict, float, float]]:
+) -> dict[str, tuple]:
     """The iteration's dataset at the campaign's points and each family's model on it, at
     ``cfg``'s seed (evaluated with ``effects``, default ``cfg``'s, as the campaign's
     dynamics; ``weights`` the per-point rule of
