@@ -29,7 +29,7 @@ from stiffnet.campaign.simulate import impact_regime, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
-from stiffnet.measurement.nuisance import natural_frequency, predicted
+from stiffnet.measurement.nuisance import predicted
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
 SLICE_EDGES: dict[str, list[float]] = {
@@ -222,7 +222,6 @@ def campaign_predictions(
     (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
     from serving.campaign_chain import campaign_chain, campaign_sheets, confirmed, labelled
-    from serving.predictor import Predictor
 
     rows = campaign.rows
     first = [predicted(campaign, i, row, model_path) for i, row in enumerate(rows)]
@@ -231,22 +230,10 @@ def campaign_predictions(
                            [row.recording for row in rows], sheets)  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
-    again = []
-    for i, (row, sheet) in enumerate(zip(rows, campaign_sheets(chain, sheets), strict=True)):
-        if sheets[i] is not None:  # the user's own sheet wins
-            again.append(None)
-            continue
-
-        def run(i: int = i, row: Any = row, sheet: dict = sheet) -> dict[str, Any]:
-            predictor = memo(campaign, ("predictor", model_path),
-                             lambda: Predictor.load(model_path))  # fmt: skip
-            rec = campaign.recording(i)
-            return predictor.predict(rec.accel, rec.fs_hz, sensor=sheet, source=row.recording,
-                                     natural_frequency_hz=natural_frequency(row))  # fmt: skip
-
-        key = ("predicted with the campaign chain", model_path, i, natural_frequency(row),
-               tuple(sorted(sheet.items())))  # fmt: skip
-        again.append(memo(campaign, key, run))
+    again = [
+        None if sheets[i] is not None else predicted(campaign, i, row, model_path, sensor=sheet)
+        for i, (row, sheet) in enumerate(zip(rows, campaign_sheets(chain, sheets), strict=True))
+    ]  # the user's own sheet wins
     read = [i for i, r in enumerate(again) if r is not None]
     chain = confirmed(chain, [first[i].get("restoring_force") for i in read],
                       [again[i].get("restoring_force") for i in read])  # fmt: skip

@@ -102,22 +102,32 @@ def _operating_points(rows: Sequence[ManifestRow]) -> np.ndarray:
 
 
 def predicted(
-    campaign: Campaign, i: int, row: ManifestRow, model_path: str | None
+    campaign: Campaign,
+    i: int,
+    row: ManifestRow,
+    model_path: str | None,
+    sensor: dict[str, float] | None = None,
 ) -> dict[str, Any]:
-    """The predictor's result for recording ``i`` (once per model for a loaded campaign).
+    """The predictor's result for recording ``i`` (once per model for a loaded campaign;
+    ``sensor``: a data sheet in place of the row's own, e.g. the campaign's pooled chain).
 
     Raises what :meth:`serving.predictor.Predictor.predict` raises."""
     from serving.predictor import Predictor
+
+    sheet = row.sensor_sheet() if sensor is None else sensor
 
     def run() -> dict[str, Any]:
         predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
         rec = campaign.recording(i)
         return predictor.predict(
             rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
-            source=row.recording, sensor=row.sensor_sheet(),
+            source=row.recording, sensor=sheet,
         )  # fmt: skip
 
-    return memo(campaign, ("predicted", model_path, i, natural_frequency(row)), run)
+    key = ("predicted", model_path, i, natural_frequency(row))
+    if sensor is not None:
+        key += (tuple(sorted(sensor.items())),)
+    return memo(campaign, key, run)
 
 
 def _beta_starts(campaign: Campaign, rows: Sequence[ManifestRow], model_path: str | None) -> list:
