@@ -111,6 +111,25 @@ def test_a_recording_whose_own_law_the_pooled_chain_reads_much_worse_reads_alone
     assert not reads_alone(None, {"contact_r2": 0.9})
 
 
+def test_predict_batch_keeps_the_first_row_of_a_recording_that_reads_alone():
+    import pyarrow as pa
+
+    from serving.batch_prediction import _campaign_table
+
+    paths = ["a", "b", "c", "d"]
+    first = pa.table({"path": paths, "sensor_source": ["fitted", None, "data sheet", "fitted"],
+                      "restoring_force_contact_r2": [0.998, 0.97, 0.99, None]})  # fmt: skip
+    second = pa.table({"path": paths,
+                       "sensor_source": ["campaign", "campaign", "data sheet", "campaign"],
+                       "restoring_force_contact_r2": [0.541, 0.99, 0.99, 0.95]})  # fmt: skip
+    # a (R2 0.998 -> 0.541) keeps its first row; b and d read through the pooled chain; c has
+    # its own sheet (not flagged) and keeps its first row
+    table = _campaign_table(first, second, (True, True, False, True))
+    assert table.column("path").to_pylist() == ["a", "b", "c", "d"]
+    assert table.column("sensor_source").to_pylist() == ["fitted", "campaign", "data sheet",
+                                                         "campaign"]  # fmt: skip
+
+
 def test_the_result_names_the_chain_it_was_read_through():
     res = {"restoring_force": {"sensor": {"source": "data sheet", "resonance_hz": 300.0}},
            "chain_undone": {"source": "data sheet", "resonance_hz": 300.0}}  # fmt: skip
