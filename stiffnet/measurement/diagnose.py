@@ -536,8 +536,6 @@ def _joint_step(
             start=np.array(c["per_recording"]),
             rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             subset=SUBSET_SEARCH,
-            # the workers wait for this refit: they score its designs' points meanwhile
-            client=run.client,
         )
         if tried is not None:
             tried[n] = joint
@@ -600,9 +598,8 @@ def _accept(
         # (ACCEPT_ROUNDS: a Nelder-Mead over all their coordinates from where the step that
         # selected them left them, after searching each from its own design)
         joint = fit_joint(
-            target, kept, kept_params, settings, rounds=ACCEPT_ROUNDS, subset=SUBSET_SEARCH,
-            client=run.client,
-        )  # fmt: skip
+            target, kept, kept_params, settings, rounds=ACCEPT_ROUNDS, subset=SUBSET_SEARCH
+        )
         kept_params = [dict(p) for p in joint["params"]]
         for name_k, p in zip(kept, kept_params, strict=True):
             entries[name_k]["params"] = p

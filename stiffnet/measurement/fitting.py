@@ -171,9 +171,6 @@ class _Evaluator:
     #: The whole campaign when the search runs on a subset of it (:data:`SUBSET_SEARCH`): the
     #: best point is scored there.
     whole: CampaignTarget | None = None
-    #: A Dask client whose workers score a batch of points (:meth:`prefetch`) while this
-    #: process waits for them; None: every point is scored here when asked.
-    client: Any = None
 
     def __post_init__(self) -> None:
         self.cache: dict[tuple[float, ...], np.ndarray] = {}
@@ -207,44 +204,6 @@ class _Evaluator:
             )
         return self.cache[key]
 
-    def prefetch(self, points: np.ndarray) -> None:
-        """Score, on the client's workers, the points :meth:`per` would score next in this
-        order (the new ones, within the budget), so that asking for them afterwards finds
-        them known; without a client, nothing. The same numbers as one by one here: the
-        same simulations, elsewhere (a design's points do not depend on each other, so a
-        search that waits for them gains the workers' cores)."""
-        if self.client is None:
-            return
-        todo: list[tuple[float, ...]] = []
-        for u in points:
-            key = self.key(u)
-            if key not in self.cache and key not in todo:
-                if len(self.cache) + len(todo) >= self.budget:
-                    break
-                todo.append(key)
-        if len(todo) < 2:
-            return
-        from stiffnet.distributed.tasks import run_tasks
-        from stiffnet.simulator.compiled import limited_threads
-
-        chunks = [c for c in np.array_split(np.arange(len(todo)), _cores(self.client)) if c.size]
-        items = [
-            (self.target, self.fixed, self.names, [self.split(np.array(todo[i])) for i in c],
-             self.settings)
-            for c in chunks
-        ]  # fmt: skip
-        report = run_tasks(_score_points, items, client=self.client, thread_limit=limited_threads)
-        report.raise_failures()
-        for c, pers in zip(chunks, report.results, strict=True):
-            for i, per in zip(c, pers, strict=True):
-                self.cache[todo[i]] = per
-                effects = [
-                    effect_class(n)(**p)
-                    for n, p in zip(self.names, self.split(np.array(todo[i])), strict=True)
-                ]
-                self.target.remember([*self.target.base_effects, *self.fixed, *effects],
-                                     self.settings, per, inclination=False)  # fmt: skip
-
     def __call__(self, u: np.ndarray) -> float:
         per = self.per(u)
         return float("inf") if per is None else objective_value(per, self.target.weights)
@@ -265,28 +224,6 @@ class _Evaluator:
         return np.array(key), whole.per_recording(
             [*whole.base_effects, *self.fixed, *effects], self.settings
         )
-
-
-def _cores(client: Any) -> int:
-    """Worker threads of a Dask client (each scores one chunk of a batch of points)."""
-    return max(1, sum(client.nthreads().values()))
-
-
-def _score_points(
-    item: tuple[CampaignTarget, list[Effect], list[str], list[list[dict[str, float]]], Any],
-) -> list[np.ndarray]:
-    """A worker's chunk of :meth:`_Evaluator.prefetch`: each point's per-recording
-    discrepancies as :meth:`_Evaluator.per` computes them (one motion shared where only a
-    measurement effect moves, as in a fit)."""
-    target, fixed, names, points, settings = item
-    with reuse_motion():
-        return [
-            target.per_recording(
-                [*target.base_effects, *fixed, *_effects(names, params)], settings,
-                inclination=False,
-            )
-            for params in points
-        ]  # fmt: skip
 
 
 def _result(
@@ -320,7 +257,6 @@ def fit_effect(
     off: np.ndarray | None = None,
     seeds: Sequence[dict[str, float]] = (),
     subset: int | None = None,
-    client: Any = None,
 ) -> dict[str, Any]:
     """Fit one effect's parameters, shared by all recordings, on top of ``fixed`` effects.
 
@@ -344,9 +280,6 @@ def fit_effect(
         A closed-form effect is searched on at most this many recordings
         (:func:`spread_subset`, e.g. :data:`SUBSET_SEARCH`), its best point scored on all;
         None: searched on all (a numerical-engine effect's design has its own subset).
-    client : distributed.Client, optional
-        Idle workers that score the design's and the global stage's points, a batch at a
-        time (:meth:`_Evaluator.prefetch`; closed-form effects; the same result).
 
     Returns
     -------
@@ -356,7 +289,7 @@ def fit_effect(
     """
     # a measurement effect's evaluations share one motion (only its chain moves)
     with reuse_motion():
-        return _fit_effect(target, name, fixed, settings, budget, off, seeds, subset, client)
+        return _fit_effect(target, name, fixed, settings, budget, off, seeds, subset)
 
 
 def _fit_effect(
@@ -368,7 +301,6 @@ def _fit_effect(
     off: np.ndarray | None,
     seeds: Sequence[dict[str, float]],
     subset: int | None = None,
-    client: Any = None,
 ) -> dict[str, Any]:
     from stiffnet.measurement.target import settings_for
 
@@ -413,11 +345,9 @@ def _fit_effect(
         target = starts_at(target, model, settings)
     idx = spread_subset(target.rows, subset or len(target.rows))
     if idx.size < len(target.rows):  # searched on a subset, the best point scored on all
-        ev = _Evaluator(target.subset(idx), fixed, [name], [space], settings, budget, target,
-                        client)  # fmt: skip
+        ev = _Evaluator(target.subset(idx), fixed, [name], [space], settings, budget, target)
     else:
-        ev = _Evaluator(target, fixed, [name], [space], settings, budget, client=client)
-    ev.prefetch(design)
+        ev = _Evaluator(target, fixed, [name], [space], settings, budget)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
     step = 0.5 / 3
@@ -509,7 +439,6 @@ def global_stage(
         for idx, grid in blocks:
             pts = np.repeat(u[None, :], len(grid), axis=0)
             pts[:, idx] = grid
-            ev.prefetch(pts)
             values = [ev(p) for p in pts]
             j = int(np.argmin(values))
             if values[j] < ev(u):
@@ -622,15 +551,13 @@ def fit_joint(
     start: np.ndarray | None = None,
     rounds: int = 2,
     subset: int | None = None,
-    client: Any = None,
 ) -> dict[str, Any]:
     """Refit every effect of a model jointly, from ``params`` (a local Nelder-Mead).
 
     ``start`` is the per-recording discrepancy at ``params`` if known;
     ``rounds`` of block coordinate descent come first (0 for a polish only), each effect's
     refit searched on ``subset`` recordings (:func:`fit_effect`); the Nelder-Mead runs on all
-    of them. The result never ends worse than the start. ``client``: idle Dask workers that
-    score the block descent's designs (:func:`fit_effect`).
+    of them. The result never ends worse than the start.
 
     Returns
     -------
@@ -658,8 +585,7 @@ def fit_joint(
         round_start = objective_value(start, target.weights)
         for i, n in enumerate(names):
             others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
-            fit = fit_effect(target, n, others, settings, seeds=[params[i]], subset=subset,
-                             client=client)  # fmt: skip
+            fit = fit_effect(target, n, others, settings, seeds=[params[i]], subset=subset)
             evaluations += fit["evaluations"]
             w = target.weights
             if objective_value(np.asarray(fit["per_recording"]), w) < objective_value(start, w):

@@ -192,20 +192,6 @@ class CampaignTarget:
             self.known[key] = out.copy()
         return out
 
-    def remember(
-        self,
-        effects: Sequence[Effect],
-        settings: SolverSettings,
-        per: np.ndarray,
-        inclination: bool | None = None,
-    ) -> None:
-        """Keep ``per``, the per-recording discrepancies :meth:`per_recording` gives for these
-        arguments, computed elsewhere (a worker scoring a fit's points), as if computed here."""
-        incl = self.inclination if inclination is None else self.inclination and inclination
-        key = self.memo_key(effects, settings, self.rows, self.starts, incl, True)
-        if key is not None and len(self.known) < MEMO_ENTRIES:
-            self.known[key] = np.array(per, dtype=np.float64, copy=True)
-
     def per_recording_points(
         self,
         effects: Sequence[Effect],
