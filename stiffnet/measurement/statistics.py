@@ -413,7 +413,7 @@ def harmonic_amplitudes(
     """Least-squares amplitudes of harmonics 1..N of a known frequency on the masked samples."""
     if mask.all():  # the whole record: the design is the same at every evaluation of a fit
         # its pseudo-inverse is kept with it: one matrix product per record instead of an SVD
-        # (the SVD was a third of a simulated batch's statistics)
+        # (the SVD was about a sixth of a simulated batch's statistics)
         solver = _harmonic_solver(mask.size, float(frequency_cycles_per_sample), n_harmonics)
         coef = solver @ np.asarray(y, dtype=np.float64)
     else:
