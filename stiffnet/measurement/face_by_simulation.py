@@ -55,6 +55,10 @@ FACE_PARAMETERS = 3
 #: misses what a sweep finds).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
 FACE_REFIT_GRID = 7
+#: The order of the refit's sweeps: the damping before the stiffness, for the ringing's
+#: frequency the stiffness sets is read at the damping's best (swept at the grid's damping,
+#: the stiffness locked onto a neighbouring orbit on the beam campaign).
+SWEEP_ORDER = ("face_mass", "face_damping", "face_stiffness")
 
 
 def face_by_simulation(
@@ -222,9 +226,9 @@ def refine_face(
     first = []
     for start, per0 in starts:
         box = {fp.name: fp for fp in LearnedContact.fit_space_at(start, fs_min).free}
-        first.append((*_sweep(tgt, settings, box, FACE_KEYS[0], start, per0), box))
+        first.append((*_sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0), box))
     best, per, fitted, box = min(first, key=lambda f: campaign_discrepancy(f[1]))
-    for key in FACE_KEYS[1:]:  # the others across the chosen start's box, at the best so far
+    for key in SWEEP_ORDER[1:]:  # the others across the chosen start's box, at the best so far
         best, per, fitted = _sweep(tgt, settings, box, key, best, per)
     d0, d1 = campaign_discrepancy(at_discovered), campaign_discrepancy(per)
     return {
