@@ -14,7 +14,10 @@ and the rest (search, significance, nuisances, waiting for the workers), timed b
 wrappers (cProfile's own overhead on the numerical engine's Python loop would
 quadruple its share; ``--profile-out`` still writes a cProfile file), with the
 CPU time (this process and its worker processes) and the load average (the
-machine may be shared). The diagnosis itself is checked (both effects found).
+machine may be shared). The diagnosis itself is checked (both effects found). A second
+table splits this process's numerical-engine CPU by stage (the single fits, each selection
+step, outside the fits), the numerical-engine candidate whose design it simulated, and what:
+the design's screen or its kept point on every recording (``--workers 0`` sees every fit).
 
 Baseline in the same run: one objective evaluation (the 24 rows simulated once,
 their statistics and discrepancies) the way every evaluation ran before
@@ -170,6 +173,57 @@ def timed() -> dict[str, float]:
     for module, name in ((target, "batch_signal_statistics"), (target, "signal_statistics"),
                          (noise_floor, "signal_statistics")):  # fmt: skip
         wrap(module, name, "statistics")
+    return spent
+
+
+def numerical_by_stage() -> dict[str, float]:
+    """Wrap the numerical engine, the selection's fits and a numerical-engine design's scoring
+    with CPU timers (this process only: ``--workers 0`` sees every fit); returns the engine's
+    CPU seconds by the diagnosis' stage (single fits, each step; outside them: joint refits,
+    nuisances, verdict), the effect whose design it was, and what it simulated: ``screen``
+    (the design's points and "effect off" on the screen's subset) or ``kept point`` (the
+    point kept, on every recording); filled as it runs."""
+    from stiffnet.measurement import diagnose, fitting
+    from stiffnet.measurement.target import CampaignTarget
+    from stiffnet.simulator import simulator
+
+    spent: dict[str, float] = {}
+    stage, effect, what = ["outside the fits"], ["-"], ["-"]
+
+    def labelled(owner, name: str, stack: list[str], label) -> None:
+        fn = getattr(owner, name)
+
+        def inner(*a, **k):
+            stack.append(label(*a, **k))
+            try:
+                return fn(*a, **k)
+            finally:
+                stack.pop()
+
+        setattr(owner, name, inner)
+
+    engine = simulator.simulate_numerical
+
+    def timed_engine(*a, **k):
+        t = time.process_time()
+        try:
+            return engine(*a, **k)
+        finally:
+            key = f"{stage[-1]}: {effect[-1]}, {what[-1]}"
+            spent[key] = spent.get(key, 0.0) + time.process_time() - t
+
+    simulator.simulate_numerical = timed_engine
+    labelled(diagnose._Run, "fits", stage, lambda run, *a, **k: run.stage.split(",")[0])
+    labelled(fitting, "_fit_design", effect, lambda target, name, *a, **k: name)
+    labelled(CampaignTarget, "per_recording_points", what, lambda *a, **k: "screen")
+
+    # "effect off" scored like the design (not oversampled) is part of the screen
+    def scoring(*a, **k) -> str:
+        if effect[-1] == "-":
+            return "-"
+        return "screen" if k.get("oversample") is False else "kept point"
+
+    labelled(CampaignTarget, "per_recording", what, scoring)
     return spent
 
 
@@ -363,6 +417,7 @@ def main() -> None:
         load0 = os.getloadavg()[0]
         prof = cProfile.Profile() if args.profile_out else None
         spent = timed()
+        by_stage = numerical_by_stage()
         cpu0 = cpu_seconds()
         t = time.perf_counter()
         if prof is not None:
@@ -398,6 +453,10 @@ def main() -> None:
     for name, v in [*stages, ("total (wall)", wall)]:
         print(f"| {name} | {v:.1f} | {v / wall:.0%} |")
     print(f"| CPU time (this process + workers) | {cpu:.1f} | {cpu / wall:.0%} |")
+    if by_stage:
+        print("\n| the numerical engine in this process (stage: design, what) | CPU s |\n|---|---|")
+        for k, v in sorted(by_stage.items(), key=lambda kv: -kv[1]):
+            print(f"| {k} | {v:.1f} |")
     print(f"\nselected {res['missing_effects']} {res['fitted_params']}")
     if res.get("polish"):
         p = res["polish"]

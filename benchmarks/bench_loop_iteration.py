@@ -27,7 +27,11 @@ betas each across the classes, 3 s at 2 % noise) with contact laws the library l
 CPU seconds are its processes'. Part 4b (``--rig-seeds``): that loop's iteration 1 on the
 two-stage rig campaign without the diagnosis (the law's prior as discovered), drawn at each
 dataset seed and near-edge share, with the accuracy the class read from the beta head
-would give. Prints Markdown with the machine's load.
+would give; ``--rig-families gbm,cnn`` trains each family on the same dataset (the CNN is
+the loop's default family), ``--rig-weights none,small_gaps`` draws the dataset with each
+per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), and
+``--rig-per-shard`` simulates it one batch per shard, as the loop does. Prints Markdown
+with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
@@ -35,6 +39,8 @@ would give. Prints Markdown with the machine's load.
     ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
+        --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
 """
 
 from __future__ import annotations
@@ -235,10 +241,21 @@ def loop_iteration(n: int) -> None:
 
 
 def _retrained(
-    camp, cfg, work: Path, edge_share: float, shared: bool = False, effects=None
-) -> tuple[dict, float, float]:
-    """The iteration's dataset at the campaign's points and its GBM, at ``cfg``'s seed
-    (evaluated with ``effects``, default ``cfg``'s, as the campaign's dynamics)."""
+    camp,
+    cfg,
+    work: Path,
+    edge_share: float,
+    shared: bool = False,
+    effects=None,
+    families: tuple[str, ...] = ("gbm",),
+    weights: str = "none",
+) -> dict[str, tuple]:
+    """The iteration's dataset at the campaign's points and each family's model on it, at
+    ``cfg``'s seed (evaluated with ``effects``, default ``cfg``'s, as the campaign's
+    dynamics; ``weights`` the per-point rule of
+    :func:`stiffnet.measurement.operating_points.point_weights`). The dataset is drawn once:
+    each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row
+    (and apart under the key ``"dataset"``: wall s, CPU s)."""
     from stiffnet.measurement import operating_points as ops
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
@@ -247,12 +264,19 @@ def _retrained(
 
     t0, c0 = time.perf_counter(), time.process_time()
     ops.operating_point_dataset(
-        cfg, camp.rows, work / "data", edge_share=edge_share, shared_batches=shared
-    )
-    model = train(work / "data", _train_config("gbm", None), work / "model", progress=None)
+        cfg, camp.rows, work / "data", edge_share=edge_share, shared_batches=shared,
+        weights=weights,
+    )  # fmt: skip
+    data_wall, data_cpu = time.perf_counter() - t0, time.process_time() - c0
     dyn = config_effects(cfg) if effects is None else effects
-    ev = evaluate_campaign(camp, model["paths"]["onnx"], dyn, require_beta=False)
-    return ev, time.perf_counter() - t0, time.process_time() - c0
+    out: dict = {"dataset": (data_wall, data_cpu)}
+    for family in families:
+        t1, c1 = time.perf_counter(), time.process_time()
+        model = train(work / "data", _train_config(family, None), work / family, progress=None)
+        ev = evaluate_campaign(camp, model["paths"]["onnx"], dyn, require_beta=False)
+        out[family] = (ev, data_wall + time.perf_counter() - t1,
+                       data_cpu + time.process_time() - c1)  # fmt: skip
+    return out
 
 
 def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
@@ -278,7 +302,7 @@ def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
             for share in (0.0, edge_share):
                 cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
                 work = Path(tmp) / f"seed{seed}-{share}"
-                ev, wall, cpu = _retrained(camp, cfg, work, share)
+                ev, wall, cpu = _retrained(camp, cfg, work, share)["gbm"]
                 m = ev["metrics"]["learned"]
                 bad = [r for r in ev["recordings"] if r["class"] != r["true_class"]]
                 wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f}" for r in bad)
@@ -315,12 +339,22 @@ def rig_runs(law: str, seed: int = 11) -> list:
     return runs
 
 
-def rig_seeds(folder: Path, seeds: list[int], shares: list[float], shared: bool, n: int) -> None:
+def rig_seeds(
+    folder: Path,
+    seeds: list[int],
+    shares: list[float],
+    shared: bool,
+    n: int,
+    families: tuple[str, ...] = ("gbm",),
+    weights: tuple[str, ...] = ("none",),
+) -> None:
     """Part 4b (``--rig-seeds``): the loop's iteration 1 on the rig's two-stage campaign
     without its diagnosis (the law's prior as discovered, :data:`RIG_LAW_PRIOR`; evaluated
-    with the law at its fit), the dataset and GBM drawn at each seed and near-edge share.
+    with the law at its fit), the dataset drawn at each seed, near-edge share and per-point
+    weighting rule (``--rig-weights``), each family (``--rig-families``) trained on it.
     Besides the model's accuracy: what it would be with the class read from the beta head
-    (``from beta``), and the misses (β: read, class)."""
+    (``from beta``), and the misses (β: read, class). CPU and wall seconds: the dataset's
+    plus the family's training and evaluation."""
     from independent_rig import write_campaign
 
     from stiffnet.campaign import load_campaign
@@ -335,23 +369,30 @@ def rig_seeds(folder: Path, seeds: list[int], shares: list[float], shared: bool,
     d.update(effects=[RIG_LAW_PRIOR])
     law = SimulationConfig.model_validate(d)
     fit = [LearnedContact(knee=0.249, knee_ratio=2.436, reference_penetration=0.54)]
-    print("| dataset seed | near-edge share | shared batches | accuracy | from beta | β MAPE "
-          "| wrong (β: read, class) | wall s | CPU s | load |")  # fmt: skip
-    print("|---" * 10 + "|")
+    print("| family | dataset seed | near-edge share | point weights | shared batches | accuracy "
+          "| from beta | β MAPE | wrong (β: read, class) | wall s | CPU s | load |")  # fmt: skip
+    print("|---" * 12 + "|")
     for seed in seeds:
         for share in shares:
-            cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
-            with tempfile.TemporaryDirectory() as tmp:
-                ev, wall, cpu = _retrained(camp, cfg, Path(tmp), share, shared, fit)
-            rows, m = ev["recordings"], ev["metrics"]["learned"]
-            by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
-                               for r in rows])  # fmt: skip
-            bad = [r for r in rows if r["class"] != r["true_class"]]
-            wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']}"
-                              for r in bad)  # fmt: skip
-            print(f"| {seed} | {share} | {shared} | {m['accuracy']:.3f} | {by_beta:.3f} | "
-                  f"{m['beta_mape']:.3f} | {wrong or '-'} | {wall:.0f} | {cpu:.0f} | "
-                  f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+            for rule in weights:
+                cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
+                with tempfile.TemporaryDirectory() as tmp:
+                    runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule)
+                data_wall, data_cpu = runs.pop("dataset")
+                print(f"| dataset | {seed} | {share} | {rule} | {shared} | | | | | "
+                      f"{data_wall:.0f} | {data_cpu:.0f} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
+                for family, (ev, wall, cpu) in runs.items():
+                    rows, m = ev["recordings"], ev["metrics"]["learned"]
+                    by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
+                                       for r in rows])  # fmt: skip
+                    bad = [r for r in rows if r["class"] != r["true_class"]]
+                    wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']} "
+                                      f"({Path(r['recording']).stem.split('_b')[0]})"
+                                      for r in bad)  # fmt: skip
+                    print(f"| {family} | {seed} | {share} | {rule} | {shared} | "
+                          f"{m['accuracy']:.3f} | {by_beta:.3f} | {m['beta_mape']:.3f} | "
+                          f"{wrong or '-'} | {wall:.0f} | {cpu:.0f} | "
+                          f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
 def _cli(args: list[str]) -> tuple[float, float]:
@@ -438,12 +479,17 @@ def main() -> None:
     ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
     ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
     ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
+    ap.add_argument("--rig-families", default="gbm", help="part 4b: families, e.g. gbm,cnn")
+    ap.add_argument("--rig-weights", default="none", help="part 4b: per-point rules, e.g. "
+                    "none,small_gaps")  # fmt: skip
     args = ap.parse_args()
     if args.rig_seeds:
         rig_seeds(args.rig_dir or Path(tempfile.mkdtemp()),
                   [int(s) for s in args.rig_seeds.split(",")],
                   [float(s) for s in args.rig_shares.split(",")],
-                  not args.rig_per_shard, args.rig_trajectories)  # fmt: skip
+                  not args.rig_per_shard, args.rig_trajectories,
+                  tuple(args.rig_families.split(",")),
+                  tuple(args.rig_weights.split(",")))  # fmt: skip
         return
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)

@@ -24,6 +24,13 @@ sensor chains, and no worse on the ideal and in-prior sets? Two parts:
 with the chain the restoring-force check identified undone (:mod:`serving.chain_undo`);
 ``--sheet`` adds the rig chain sets with each recording's true chain as its data sheet
 (:func:`rig_data_sheets`: what a lab that read its accelerometer's calibration sheet gives).
+``--pooled`` adds each model reading every campaign through the chain pooled from its
+recordings' identified chains, as ``evaluate`` and ``predict-batch`` do
+(:mod:`serving.campaign_chain`; a set without campaigns counts as one, so the guard is
+measured on the sets whose chain is drawn per recording). Campaign sets: ``rig_campaigns``
+and ``rig_campaigns_damped`` (:func:`campaign_rig_set`: the independent rig, one lab chain
+and one rate per campaign of 6). Per set also the restoring-force accuracy (a refusal
+counts wrong) and its refusals.
 
 The restoring-force check does not depend on the model and costs most of a prediction: it
 runs once per recording and is kept under ``--cache`` (with the simulated recordings), so a
@@ -60,6 +67,11 @@ from stiffnet.io_utils import write_json_atomic  # noqa: E402
 
 CROSSCHECK_SETS = ["ideal 2%", "sensor_chains", "sensor_chains+1000", "rig_chains",
                    "rig_chains_damped"]  # fmt: skip
+#: Campaign sets: the independent rig as labs run it, one accelerometer (one chain drawn from
+#: bench_crosscheck's LAB_SENSOR_PRIOR) and one logger rate per campaign of CAMPAIGN_SIZE
+#: recordings (the rig_chains sets draw a chain and a rate per recording: no campaign there).
+CAMPAIGN_SETS = {"rig_campaigns": None, "rig_campaigns_damped": "kelvin_voigt"}
+CAMPAIGN_SIZE = 6
 ALARM_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
               "damping_and_sensor", "rig_ideal", "rig_kv", "rig_two_stage", "rig_hc"]  # fmt: skip
 
@@ -67,7 +79,8 @@ ALARM_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
 ROW_FIELDS = ("trajectory", "label", "beta", "pred", "log_beta", "scale")
 SET_COLUMNS = [("accuracy", "accuracy"), ("beta MAPE", "beta_mape"), ("coverage", "coverage"),
                ("alarms", "alarms"), ("wrong & silent", "wrong_silent"), ("silent", "silent"),
-               ("alarms on right", "alarms_on_right")]  # fmt: skip
+               ("alarms on right", "alarms_on_right"), ("RF accuracy", "rf_accuracy"),
+               ("RF refusals", "rf_refusals")]  # fmt: skip
 DATASET_COLUMNS = [("n", "n"), ("accuracy", "accuracy"), ("beta MAPE", "beta_mape"),
                    ("median APE", "median_ape"), ("coverage", "coverage"),
                    ("alarm rate", "alarm_rate")]  # fmt: skip
@@ -94,7 +107,9 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
     path = cache / "data" / f"{name.replace(' ', '_')}-{n}.pkl"
     if path.is_file():
         return pickle.loads(path.read_bytes())
-    if name in CROSSCHECK_SETS:
+    if name in CAMPAIGN_SETS:
+        recs = campaign_rig_set(name, n)
+    elif name in CROSSCHECK_SETS:
         base = name.split("+")[0]
         seed = 20261123 + [*bc.SETS, *bc.RIG_SETS].index(base) + (1000 if "+" in name else 0)
         simulate = bc.simulate_rig_set if base in bc.RIG_SETS else bc.simulate_set
@@ -113,6 +128,31 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
     return recs
 
 
+def campaign_rig_set(name: str, n: int, seed: int = 20261129) -> list[dict[str, Any]]:
+    """`n` recordings of the independent rig in campaigns of :data:`CAMPAIGN_SIZE`: per
+    campaign one lab chain and one rate (1-4 kHz), per recording beta (stratified by class),
+    gap 1-2.5 mm and, on the damped set, a Kelvin-Voigt contact of zeta 0-0.3; 3 s, 2 % noise.
+    Each recording carries its ``campaign`` index and true ``chain``."""
+    from independent_rig import RigRun, record
+
+    rng = np.random.default_rng(seed + list(CAMPAIGN_SETS).index(name))
+    edges = [(lo, hi) for _, lo, hi in bc.CLASSES]
+    n_campaigns = -(-n // CAMPAIGN_SIZE)
+    fs = np.exp(rng.uniform(np.log(1000.0), np.log(4000.0), n_campaigns))
+    _, chains = bc.prior_sensor_chain(np.zeros((n_campaigns, 1)), fs, rng, bc.LAB_SENSOR_PRIOR)
+    recs = []
+    for i in range(n):
+        k = i // CAMPAIGN_SIZE
+        beta = float(rng.uniform(*edges[i % len(edges)]))
+        run = RigRun(recording=f"{name}_{i}.csv", beta=beta, fs_hz=float(fs[k]), duration_s=3.0,
+                     gap_mm=float(rng.uniform(1.0, 2.5)), contact=CAMPAIGN_SETS[name],
+                     contact_zeta=float(rng.uniform(0.0, 0.3)), sensor=chains[k])  # fmt: skip
+        recs.append(dict(accel=np.asarray(record(run, seed=seed + i)[1]), fs_hz=float(fs[k]),
+                         fn_hz=bc.FN_HZ, beta=beta, campaign=k, chain=chains[k],
+                         **{"class": bc.class_of(beta)}))  # fmt: skip
+    return recs
+
+
 def rig_data_sheets(name: str, n: int) -> list[dict[str, float]]:
     """The true sensor chain of each recording of a bench_crosscheck rig set, as the data sheet
     a lab would give (drawn again from the set's seed, as
@@ -127,10 +167,10 @@ def rig_data_sheets(name: str, n: int) -> list[dict[str, float]]:
 
 
 def predict_set(
-    pred: sp.Predictor, recs: list[dict[str, Any]], sheets: list[dict] | None = None
+    pred: sp.Predictor, recs: list[dict[str, Any]], sheets: list[dict | None] | None = None
 ) -> list[dict[str, Any]]:
-    """Each recording's class, beta, interval, alarm (and CPU seconds) from `pred` (with its
-    data sheet where `sheets` are given)."""
+    """Each recording's class, beta, interval, alarm, restoring-force class and sensor chain
+    (and CPU seconds) from `pred` (with its data sheet where `sheets` are given)."""
     out = []
     for i, r in enumerate(recs):
         t = time.process_time()
@@ -138,8 +178,43 @@ def predict_set(
                            sensor=sheets[i] if sheets else None)  # fmt: skip
         out.append(dict(cls=res["class"], beta=res["beta"], interval=res["beta_interval"],
                         flag=bool(res["ood_flag"]), fired=(res["alarm"] or {}).get("fired", []),
+                        rf_cls=res.get("restoring_force_class"),
+                        rf=res.get("restoring_force"),
+                        sensor=(res.get("restoring_force") or {}).get("sensor"),
                         cpu_s=time.process_time() - t))  # fmt: skip
     return out
+
+
+def campaigns_of(recs: list[dict[str, Any]]) -> dict[int, list[int]]:
+    """Recording indices by campaign (a set without ``campaign`` keys is one campaign)."""
+    groups: dict[int, list[int]] = {}
+    for i, r in enumerate(recs):
+        groups.setdefault(int(r.get("campaign", 0)), []).append(i)
+    return groups
+
+
+def pooled_predictions(
+    pred: sp.Predictor, recs: list[dict[str, Any]], got: list[dict[str, Any]], say: Any
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Each campaign's recordings read through the chain pooled from `got`'s identified chains
+    and kept where confirmed (:mod:`serving.campaign_chain`, as ``evaluate`` and
+    ``predict-batch`` do), else `got`'s; and each campaign's decision with its true chain."""
+    from serving.campaign_chain import campaign_chain, confirmed
+
+    out = list(got)
+    decisions = []
+    for k, idx in campaigns_of(recs).items():
+        chain = campaign_chain([got[i]["sensor"] for i in idx], [str(i) for i in idx])
+        if chain["pooled"]:
+            again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx))
+            chain = confirmed(chain, [got[i]["rf"] for i in idx], [a["rf"] for a in again])
+            if chain["pooled"]:
+                for i, a in zip(idx, again, strict=True):
+                    out[i] = a
+        decisions.append({"campaign": k, "true": recs[idx[0]].get("chain"), **chain})
+        say(f"  campaign {k}: {chain['reason']}; pooled {chain['sensor']}; "
+            f"true {recs[idx[0]].get('chain')}")  # fmt: skip
+    return out, decisions
 
 
 def score(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> dict[str, Any]:
@@ -167,14 +242,30 @@ def score(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> dict[str, An
         "wrong_silent": int((wrong & ~flag).sum()),
         "silent": int(((wrong | ~inside) & ~flag).sum()),
         "alarms_on_right": int((flag & ~wrong & inside).sum()),
+        # the restoring-force cross-check: a refusal (no class) counts as wrong
+        "rf_accuracy": float(
+            np.mean(
+                [
+                    g["rf_cls"] == r["class"]
+                    for r, g in zip(recs, got, strict=True)
+                    if r["class"] != "no_contact"
+                ]
+            )
+        )
+        if contact.any()
+        else float("nan"),
+        "rf_refusals": int(sum(g["rf_cls"] is None for g in got)),
         "cpu_s_per_recording": float(np.mean([g["cpu_s"] for g in got])),
     }
 
 
 def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, cache: Path,
-                    say: Any, sheet: bool = False) -> dict[str, dict[str, Any]]:  # fmt: skip
+                    say: Any, sheet: bool = False,
+                    pooled: bool = False) -> dict[str, dict[str, Any]]:  # fmt: skip
     """Every set through every model (the restoring-force check cached per set on disk); with
-    `sheet`, the rig chain sets also with each recording's true chain as its data sheet."""
+    `sheet`, the rig chain sets also with each recording's true chain as its data sheet; with
+    `pooled`, every set also with each campaign's pooled chain as its recordings' data sheet
+    (a column 'NAME + campaign chain'; the decisions under ``_campaigns``)."""
     cached = CachedRestoringForce(sp.restoring_force_check)
     sp.restoring_force_check = cached  # the predictor module calls it by this name
     table: dict[str, dict[str, Any]] = {}
@@ -184,18 +275,30 @@ def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, ca
             rf_path = cache / "restoring_force" / f"{name.replace(' ', '_')}-{n}.pkl"
             cached.results = pickle.loads(rf_path.read_bytes()) if rf_path.is_file() else {}
             sheets = rig_data_sheets(name, n) if sheet and name in bc.RIG_SETS else None
+            if sheet and name in CAMPAIGN_SETS:
+                sheets = [{k: float(v) for k, v in r["chain"].items()} for r in recs]
             runs = [(m, pred, None) for m, pred in models.items()]
             runs += [(f"{m} + data sheet", pred, sheets) for m, pred in models.items() if sheets]
             for m, pred, sheets_m in runs:
-                s = table.setdefault(name, {})[m] = score(recs, predict_set(pred, recs, sheets_m))
-                say(f"{name} / {m}: accuracy {s['accuracy']:.2f}, MAPE {s['beta_mape']:.3f}, "
-                    f"coverage {s['coverage']:.2f}, alarms {s['alarms']}, wrong and silent "
-                    f"{s['wrong_silent']}, silent {s['silent']}")  # fmt: skip
+                got = predict_set(pred, recs, sheets_m)
+                _row(table, name, m, score(recs, got), say)
+                if pooled and sheets_m is None:
+                    again, decisions = pooled_predictions(pred, recs, got, say)
+                    table[name].setdefault("_campaigns", {})[m] = decisions
+                    _row(table, name, f"{m} + campaign chain", score(recs, again), say)
             rf_path.parent.mkdir(parents=True, exist_ok=True)
             rf_path.write_bytes(pickle.dumps(cached.results))
     finally:
         sp.restoring_force_check = cached.check
     return table
+
+
+def _row(table: dict, name: str, m: str, s: dict[str, Any], say: Any) -> None:
+    table.setdefault(name, {})[m] = s
+    say(f"{name} / {m}: accuracy {s['accuracy']:.2f}, MAPE {s['beta_mape']:.3f}, "
+        f"coverage {s['coverage']:.2f}, alarms {s['alarms']}, wrong and silent "
+        f"{s['wrong_silent']}, silent {s['silent']}; restoring force {s['rf_accuracy']:.2f}, "
+        f"refusals {s['rf_refusals']}")  # fmt: skip
 
 
 def chain_strata(ds: Any, trajectories: np.ndarray) -> dict[str, np.ndarray]:
@@ -257,6 +360,8 @@ def markdown(table: dict[str, dict[str, Any]], columns: list[tuple[str, str]]) -
              "| --- | --- |" + " ---: |" * len(columns)]  # fmt: skip
     for name, models in table.items():
         for m, s in models.items():
+            if m.startswith("_"):
+                continue
             cells = [f"{s.get(k, float('nan')):.3g}" if isinstance(s.get(k), float)
                      else str(s.get(k)) for _, k in columns]  # fmt: skip
             lines.append(f"| {name} | {m} | " + " | ".join(cells) + " |")
@@ -280,11 +385,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--undo", nargs="*", default=[], choices=sp.UNDO_MODES[1:],
                     help="also each model reading the record with its identified chain undone "
                     "(serving.chain_undo), a column 'NAME undo=MODE' per mode")  # fmt: skip
+    ap.add_argument("--pooled", action="store_true",
+                    help="also each model with every campaign's pooled chain as its recordings' "
+                    "data sheet (serving.campaign_chain; a set without campaigns is one), a "
+                    "column 'NAME + campaign chain'")  # fmt: skip
     args = ap.parse_args(argv)
     paths = {k: Path(v) for k, v in (m.split("=", 1) for m in args.model)}
-    unknown = set(args.sets) - set(CROSSCHECK_SETS + ALARM_SETS)
+    known = CROSSCHECK_SETS + ALARM_SETS + list(CAMPAIGN_SETS)
+    unknown = set(args.sets) - set(known)
     if unknown:
-        ap.error(f"unknown sets {sorted(unknown)}; choose from {CROSSCHECK_SETS + ALARM_SETS}")
+        ap.error(f"unknown sets {sorted(unknown)}; choose from {known}")
     models = {k: sp.Predictor.load(v, undo_chain="off") for k, v in paths.items()}
     for mode in args.undo:
         models.update({f"{k} undo={mode}": sp.Predictor.load(v, undo_chain=mode)
@@ -295,7 +405,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"[{time.perf_counter() - t0:.0f} s] {msg}", file=sys.stderr, flush=True)
 
     result: dict[str, Any] = {"models": {k: str(v) for k, v in paths.items()}}
-    result["sets"] = recordings_part(models, args.sets, args.n, args.cache, say, args.sheet)
+    result["sets"] = recordings_part(models, args.sets, args.n, args.cache, say, args.sheet,
+                                     args.pooled)  # fmt: skip
     print(markdown(result["sets"], SET_COLUMNS))
     if args.dataset:
         result["dataset"] = dataset_part(paths, args.dataset)

@@ -19,7 +19,13 @@ through its manifest: its recordings, and per recording the columns that say how
 read it (``fs_hz``, ``natural_frequency_hz``, ``columns``, ``time_unit``,
 ``channel``) and the sensor chain's data sheet (``sensor``: undone as given, as
 ``--sensor`` or a sidecar would; ``sensor_source`` in the table); an option fills only
-what the manifest leaves empty. A record whose
+what the manifest leaves empty. A campaign has one accelerometer: the chains the
+restoring-force check identified on its recordings (``sensor`` in the table) are pooled
+(:mod:`serving.campaign_chain`) and, where they agree, every recording without its own
+data sheet is predicted again in a second round of parts with the pooled chain as its
+sheet, kept where it reads their contact laws about as well as the first round did
+(``sensor_source`` ``campaign``; the summary's ``sensor`` says what was pooled, on
+how many recordings, or why nothing was). A record whose
 beta changes along it (several layers, :func:`serving.log.record_layers`) has them
 in ``layers`` (JSON) and the alarm fired.
 Workers must see the recordings and the model at the same paths (a shared file
@@ -40,6 +46,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from serving.campaign_chain import campaign_chain, confirmed, labelled
 from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
@@ -143,6 +150,7 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("restoring_force_beta_low", pa.float64()),
             ("restoring_force_beta_high", pa.float64()),
             ("restoring_force_agreement", pa.bool_()),
+            ("restoring_force_contact_r2", pa.float64()),
             ("ood_score", pa.float64()),
             ("ood_flag", pa.bool_()),
             ("n_windows", pa.int64()),
@@ -152,6 +160,7 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("natural_frequency_source", pa.string()),
             ("channel", pa.string()),
             ("sensor_source", pa.string()),
+            ("sensor", pa.string()),
             ("n_layers", pa.int64()),
             ("layers", pa.string()),
             ("warnings", pa.string()),
@@ -186,6 +195,7 @@ def result_row(
             "restoring_force_beta_low": restoring_force_interval[0],
             "restoring_force_beta_high": restoring_force_interval[1],
             "restoring_force_agreement": result.get("restoring_force_agreement"),
+            "restoring_force_contact_r2": (result.get("restoring_force") or {}).get("contact_r2"),
             "ood_score": result.get("ood_score"),
             "ood_flag": result.get("ood_flag"),
             "n_windows": result.get("n_windows"),
@@ -195,6 +205,8 @@ def result_row(
             "natural_frequency_source": result.get("natural_frequency_source"),
             # where the chain undone came from: "data sheet" or "fitted" (None: none undone)
             "sensor_source": sensor.get("source"),
+            # the chain itself (JSON): the campaign pools the identified ones
+            "sensor": json.dumps(sensor) if sensor else None,
             "n_layers": len(result.get("layers") or []) or None,
             "layers": json.dumps(result["layers"]) if len(result.get("layers") or []) > 1 else None,
             "warnings": "; ".join(result.get("warnings") or []) or None,
@@ -227,6 +239,8 @@ class PartJob:
     #: per recording (a campaign's manifest): (fs_hz, natural_frequency_hz, columns,
     #: time_unit, channel, sensor data sheet), replacing the part's shared settings
     settings: tuple[tuple[Any, ...], ...] | None = None
+    #: per recording: read through the campaign's pooled chain (its sheet in `settings`)
+    campaign_chain: tuple[bool, ...] | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
 
@@ -250,14 +264,16 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     rows = []
     shared = (job.fs_hz, job.natural_frequency_hz, job.columns, job.time_unit, None, None)
     settings = job.settings or (shared,) * len(job.paths)
-    for path, file, (fs, fn, columns, time_unit, channel, sensor) in zip(
-        job.paths, job.files, settings, strict=True
+    pooled = job.campaign_chain or (False,) * len(job.paths)
+    for path, file, (fs, fn, columns, time_unit, channel, sensor), from_campaign in zip(
+        job.paths, job.files, settings, pooled, strict=True
     ):
         try:
             result = predict_recording(file, fs_hz=fs, predictor=predictor,
                                        natural_frequency_hz=fn, columns=columns,
                                        time_unit=time_unit, channel=channel,
                                        sensor=sensor)  # fmt: skip
+            result = labelled(result, from_campaign)
             rows.append(result_row(path, result, None, channel))
         except StiffnetError as exc:
             rows.append(result_row(path, None, str(exc), channel))
@@ -385,31 +401,101 @@ def predict_batch(
         jobs, records = _plan_parts(paths, settings, part_size, predictor, parts_dir, reading,
                                     resume, before_part)  # fmt: skip
         n_parts = len(records) + len(jobs)
-        kept = len(records)
-        if progress and kept:
-            progress(kept, n_parts)
-        report = run_tasks(
-            predict_part,
-            jobs,
-            client=client,
-            retries=retries,
-            names=[f"part-{j.index:05d}" for j in jobs],
-            progress=(lambda done, _: progress(kept + done, n_parts)) if progress else None,
-        )
-    report.raise_failures()
-    for job, record in zip(jobs, report.results, strict=True):
-        records[job.index] = record
-    table = _joined_parts(parts_dir, records, predictor, out)
+        done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
+        first = _parts_table(parts_dir, records, range(n_parts))
+        chain = None if manifest is None else _campaign_chain(first, paths, settings)
+        if chain is not None and chain["pooled"]:
+            # the second round: every recording without its own sheet through the pooled chain
+            again, flags = _campaign_settings(first, settings, chain["sensor"])
+            jobs2, records2 = _plan_parts(paths, again, part_size, predictor, parts_dir,
+                                          reading, resume, before_part, first_index=n_parts,
+                                          campaign_chain=flags)  # fmt: skip
+            records |= records2
+            done = _add(done, _run_parts(jobs2, records, client, retries, progress,
+                                         2 * n_parts, n_parts))  # fmt: skip
+            second = _parts_table(parts_dir, records, range(n_parts, 2 * n_parts))
+            chain = _confirmed(chain, first, second, flags)
+            table = second if chain["pooled"] else first
+        else:
+            table = first
+    table = _joined_parts(parts_dir, table, predictor, out)
     return {
         "out": str(out),
         "manifest": None if manifest is None else str(manifest),
         **_table_summary(table, predictor),
-        "parts": n_parts,
-        "parts_kept": kept,
-        "rerun": report.rerun,
-        "backend": report.backend,
+        "sensor": chain,
+        "parts": len(records),
+        "parts_kept": done["kept"],
+        "rerun": done["rerun"],
+        "backend": done["backend"],
         "seconds": round(time.perf_counter() - t0, 3),
     }
+
+
+def _run_parts(
+    jobs: list[PartJob],
+    records: dict[int, dict[str, Any]],
+    client: Any,
+    retries: int,
+    progress: Callable[[int, int], None] | None,
+    total: int,
+    before: int,
+) -> dict[str, Any]:
+    """Run `jobs` (parts not kept from an earlier run) and add their records to `records`;
+    progress counts the `before` parts of earlier rounds and the kept ones as done."""
+    kept = sum(1 for i in records if i >= before)
+    if progress and kept:
+        progress(before + kept, total)
+    report = run_tasks(
+        predict_part,
+        jobs,
+        client=client,
+        retries=retries,
+        names=[f"part-{j.index:05d}" for j in jobs],
+        progress=(lambda d, _: progress(before + kept + d, total)) if progress else None,
+    )
+    report.raise_failures()
+    for job, record in zip(jobs, report.results, strict=True):
+        records[job.index] = record
+    return {"kept": kept, "rerun": list(report.rerun), "backend": report.backend}
+
+
+def _add(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
+    """Two rounds' counts as one."""
+    return {"kept": a["kept"] + b["kept"], "rerun": a["rerun"] + b["rerun"],
+            "backend": b["backend"]}  # fmt: skip
+
+
+def _campaign_chain(table: pa.Table, paths: list[str], settings: list[tuple]) -> dict[str, Any]:
+    """The campaign's pooled chain from the first round's identified chains
+    (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
+    (the manifest's or its sidecar's) does not vote."""
+    sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
+    return campaign_chain(sensors, paths, [sheet for *_, sheet in settings])
+
+
+def _confirmed(
+    chain: dict[str, Any], first: pa.Table, second: pa.Table, flags: tuple[bool, ...]
+) -> dict[str, Any]:
+    """The pooled chain kept where the recordings read through it (`flags`) lose little of
+    their contact laws' R² (:func:`serving.campaign_chain.confirmed`)."""
+    r2 = "restoring_force_contact_r2"
+    pick = [i for i, f in enumerate(flags) if f]
+    own = [{"contact_r2": first.column(r2)[i].as_py()} for i in pick]
+    pooled = [{"contact_r2": second.column(r2)[i].as_py()} for i in pick]
+    return confirmed(chain, own, pooled)
+
+
+def _campaign_settings(
+    table: pa.Table, settings: list[tuple], sheet: dict[str, float]
+) -> tuple[list[tuple], tuple[bool, ...]]:
+    """The second round's settings: the pooled `sheet` on every recording read without a
+    data sheet in the first (its own, the manifest's or the sidecar's, wins), and which."""
+    sources = table.column("sensor_source").to_pylist()
+    errors = table.column("error").to_pylist()
+    flags = tuple(src != "data sheet" and err is None and s[-1] is None
+                  for src, err, s in zip(sources, errors, settings, strict=True))  # fmt: skip
+    return [(*s[:-1], sheet) if f else s for s, f in zip(settings, flags, strict=True)], flags
 
 
 def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
@@ -448,15 +534,19 @@ def _plan_parts(
     reading: tuple,
     resume: bool,
     before_part: Callable[[int], None] | None,
+    first_index: int = 0,
+    campaign_chain: tuple[bool, ...] | None = None,
 ) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
     """The parts still to run (jobs) and the records of those an interrupted run with the
-    same inputs finished (kept when `resume`), by part index."""
+    same inputs finished (kept when `resume`), by part index (from `first_index`: a second
+    round's parts follow the first's)."""
     fs_hz, natural_frequency_hz, columns, time_unit, _ = reading
     model_file = str(Path(predictor.model.path).resolve())
     jobs, records = [], {}
-    for index, lo in enumerate(range(0, len(paths), part_size)):
+    for index, lo in enumerate(range(0, len(paths), part_size), start=first_index):
         chunk = tuple(paths[lo : lo + part_size])
         chunk_settings = tuple(settings[lo : lo + part_size])
+        flags = None if campaign_chain is None else tuple(campaign_chain[lo : lo + part_size])
         fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
                           (columns, time_unit), chunk_settings)  # fmt: skip
         record = _finished_part(parts_dir, index, fp) if resume else None
@@ -467,18 +557,20 @@ def _plan_parts(
         jobs.append(PartJob(index, chunk, files, str(parts_dir.resolve()), model_file,
                             predictor.sha256, tuple(predictor.class_names), fs_hz,
                             natural_frequency_hz, fp, columns, time_unit,
-                            settings=chunk_settings, before=before_part))  # fmt: skip
+                            settings=chunk_settings, campaign_chain=flags,
+                            before=before_part))  # fmt: skip
     return jobs, records
 
 
-def _joined_parts(
-    parts_dir: Path, records: dict[int, dict[str, Any]], predictor: Predictor, out: Path
-) -> pa.Table:
-    """The parts' tables in order, written to `out` (atomically) with the model in the
-    schema metadata; the run's own part files are then removed."""
-    table = pa.concat_tables(
-        pq.read_table(parts_dir / records[i]["file"]) for i in range(len(records))
-    ).replace_schema_metadata(
+def _parts_table(parts_dir: Path, records: dict[int, dict[str, Any]], indices: range) -> pa.Table:
+    """The parts `indices` concatenated in order."""
+    return pa.concat_tables(pq.read_table(parts_dir / records[i]["file"]) for i in indices)
+
+
+def _joined_parts(parts_dir: Path, table: pa.Table, predictor: Predictor, out: Path) -> pa.Table:
+    """The joined parts' `table` written to `out` (atomically) with the model in the schema
+    metadata; the run's own part files are then removed."""
+    table = table.replace_schema_metadata(
         {"stiffnet.model": predictor.name, "stiffnet.model_sha256": predictor.sha256}
     )
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from serving.restoring_force_check import PRIOR_SLACK  # the alarm's sensor check's slack
+from serving.restoring_force_check import PRIOR_SLACK, sensor_prior_lows
 from stiffnet.restoring_force.chain import MIN_LOWPASS_RATIO, SensorChain, deconvolve
 
 #: What the model may read (see the module's docstring).
@@ -36,32 +36,6 @@ NOISE_BAND = 0.75
 #: Samples reflected at each end before the inverse (the FFT treats the record as periodic:
 #: without them the end of the record leaks into its start through the inverse's response).
 PAD_FRACTION = 0.05
-
-
-def sensor_prior_lows(
-    priors: dict | None, fs_hz: float, natural_frequency_hz: float
-) -> dict[str, float]:
-    """The lowest mount resonance and low-pass corner (Hz) of the model's sensor priors.
-
-    Keys ``resonance_hz`` and ``lowpass_hz``, each present only where the card's
-    ``data.priors`` ``sensor_dynamics`` entry gives it (relative to f_n or fs, or absolute).
-    """
-    prior = None
-    for effect in (priors or {}).get("effects") or []:
-        if isinstance(effect, dict) and effect.get("name") == "sensor_dynamics":
-            prior = effect
-    if prior is None:
-        return {}
-    rel, params = prior.get("relative") or {}, prior.get("params") or {}
-    lows: dict[str, float] = {}
-    for key in ("resonance_hz", "lowpass_hz"):
-        relative, absolute = rel.get(key), params.get(key)
-        if relative:
-            per = natural_frequency_hz if relative.get("per") == "natural_frequency" else fs_hz
-            lows[key] = float(relative["range"][0]) * per
-        elif isinstance(absolute, list | tuple):
-            lows[key] = float(absolute[0])
-    return lows
 
 
 def chain_to_undo(

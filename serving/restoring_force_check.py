@@ -166,6 +166,29 @@ def _sensor_prior(priors: dict | None) -> dict | None:
     return None
 
 
+def sensor_prior_lows(
+    priors: dict | None, fs_hz: float, natural_frequency_hz: float
+) -> dict[str, float]:
+    """The lowest mount resonance and low-pass corner (Hz) of the model's sensor priors.
+
+    Keys ``resonance_hz`` and ``lowpass_hz``, each present only where the card's
+    ``data.priors`` ``sensor_dynamics`` entry gives it (relative to f_n or fs, or absolute).
+    """
+    prior = _sensor_prior(priors)
+    if prior is None:
+        return {}
+    rel, params = prior.get("relative") or {}, prior.get("params") or {}
+    lows: dict[str, float] = {}
+    for key in ("resonance_hz", "lowpass_hz"):
+        relative, absolute = rel.get(key), params.get(key)
+        if relative:
+            per = natural_frequency_hz if relative.get("per") == "natural_frequency" else fs_hz
+            lows[key] = float(relative["range"][0]) * per
+        elif isinstance(absolute, list | tuple):
+            lows[key] = float(absolute[0])
+    return lows
+
+
 def sensor_outside_priors(
     sensor: dict | None, priors: dict | None, fs_hz: float, natural_frequency_hz: float
 ) -> tuple[float, str] | None:
@@ -186,21 +209,13 @@ def sensor_outside_priors(
         if fr or fl or (fh or 0) > 0:
             return np.inf, "a sensor chain, and the model was trained without one"
         return None
-    rel, params = prior.get("relative") or {}, prior.get("params") or {}
+    params = prior.get("params") or {}
+    lows = sensor_prior_lows(priors, fs_hz, natural_frequency_hz)
     out: list[tuple[float, str]] = []
-    checks = (
-        (fr, rel.get("resonance_hz"), params.get("resonance_hz"), "mount resonance"),
-        (fl, rel.get("lowpass_hz"), params.get("lowpass_hz"), "anti-alias low-pass"),
-    )
-    for value, relative, absolute, words in checks:
-        if not value:
-            continue
-        if relative:
-            per = natural_frequency_hz if relative.get("per") == "natural_frequency" else fs_hz
-            low = float(relative["range"][0]) * per
-        elif isinstance(absolute, list | tuple):
-            low = float(absolute[0])
-        else:
+    checks = ((fr, "resonance_hz", "mount resonance"), (fl, "lowpass_hz", "anti-alias low-pass"))
+    for value, key, words in checks:
+        low = lows.get(key)
+        if not value or low is None:
             continue
         if value * PRIOR_SLACK < low:
             said = f"{words} at {value:.0f} Hz (the model saw {low:.0f} Hz and up)"

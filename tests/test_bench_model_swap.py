@@ -24,11 +24,15 @@ def test_score_counts_what_a_user_is_not_told(swap):
             [(10.0, "soft"), (20.0, "medium"), (40.0, "hard"), (70.0, "very_hard"),
              (50.0, "no_contact")]]  # fmt: skip
     got = [
-        dict(cls="soft", beta=11.0, interval=[8.0, 12.0], flag=False, cpu_s=1.0),
-        dict(cls="soft", beta=14.0, interval=[10.0, 18.0], flag=True, cpu_s=1.0),
-        dict(cls="medium", beta=30.0, interval=[25.0, 36.0], flag=False, cpu_s=1.0),
-        dict(cls="very_hard", beta=63.0, interval=[61.0, 66.0], flag=False, cpu_s=1.0),
-        dict(cls="no_contact", beta=None, interval=None, flag=False, cpu_s=3.0),
+        dict(cls="soft", beta=11.0, interval=[8.0, 12.0], flag=False, cpu_s=1.0, rf_cls="soft"),
+        dict(cls="soft", beta=14.0, interval=[10.0, 18.0], flag=True, cpu_s=1.0, rf_cls=None),
+        dict(cls="medium", beta=30.0, interval=[25.0, 36.0], flag=False, cpu_s=1.0, rf_cls="hard"),
+        dict(
+            cls="very_hard", beta=63.0, interval=[61.0, 66.0], flag=False, cpu_s=1.0, rf_cls="hard"
+        ),
+        dict(
+            cls="no_contact", beta=None, interval=None, flag=False, cpu_s=3.0, rf_cls="no_contact"
+        ),
     ]
     s = swap.score(recs, got)
     assert s["n"] == 5 and s["n_contact"] == 4
@@ -40,6 +44,8 @@ def test_score_counts_what_a_user_is_not_told(swap):
     assert s["silent"] == 2  # ... and the very hard one whose interval misses 70
     assert s["alarms_on_right"] == 0
     assert s["cpu_s_per_recording"] == pytest.approx(7 / 5)
+    # the restoring force over the contact recordings: a refusal (no class) counts wrong
+    assert s["rf_accuracy"] == pytest.approx(2 / 4) and s["rf_refusals"] == 1
 
 
 def test_the_restoring_force_check_runs_once_per_recording(swap):

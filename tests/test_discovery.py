@@ -547,3 +547,79 @@ def test_a_face_screened_on_part_of_the_campaign_is_the_same_face():
     for name, truth in (("face_mass", 0.3), ("face_stiffness", 43.2)):
         assert part.params[name] == pytest.approx(every.params[name], rel=0.02)
         assert part.params[name] == pytest.approx(truth, rel=0.15)
+
+
+def test_the_fits_jacobian_is_scipys_sparse_differences_and_the_laws_derivative():
+    """The fit's forward differences (all betas stepped at once, all onsets, each shared
+    parameter alone) are scipy's from the sparsity pattern to the bit, a step reversed at a
+    bound included; on the linear spring they are its analytic derivatives
+    ``dF/dlog beta = beta delta`` and ``dF/de = -beta`` where in contact."""
+    from scipy import sparse
+    from scipy.optimize._numdiff import approx_derivative
+
+    from stiffnet.discovery.terms import difference_jacobian, predict, stack
+
+    data = stack(synthetic_samples({"knee": 0.12, "knee_ratio": 3.0}, 0.03))
+    r, m = data.n_rec, data.f.size
+    for terms, shared, lo_s, hi_s in (
+        ((), [], [], []),
+        (("hinge",), [0.12, 50.0], [1e-3, 0.05], [10.0, 50.0]),
+    ):
+        terms = frozenset(terms)
+        theta = np.r_[np.log(data.beta0) + 0.05, data.onset0 - 0.01, shared]
+        lo = np.r_[np.full(r, -7.0), np.full(r, -np.inf), lo_s]
+        hi = np.r_[np.full(r, 9.0), np.full(r, np.inf), hi_s]
+
+        def resid(th, terms=terms):
+            return (predict(data, terms, th, 0.3) - data.f) * data.weight
+
+        f0 = resid(theta)
+        ours = difference_jacobian(resid, theta, f0, data.rec, r, (lo, hi))
+        rows = np.arange(m)
+        pattern = sparse.hstack(
+            [sparse.csr_matrix((np.ones(m), (rows, data.rec)), (m, r))] * 2
+            + [sparse.csr_matrix(np.ones((m, len(shared))))]
+        ).tocsr()
+        ref = approx_derivative(
+            resid, theta, method="2-point", f0=f0, bounds=(lo, hi), sparsity=pattern
+        )  # least_squares' own differences
+        np.testing.assert_array_equal(ours.toarray(), ref.toarray())
+    beta = np.exp(theta[:r])[data.rec]
+    delta = data.x - theta[r : 2 * r][data.rec]
+    touch = delta > 1e-3  # away from the kink at first touch
+    theta, lo, hi = theta[: 2 * r], lo[: 2 * r], hi[: 2 * r]
+
+    def spring(th):
+        return (predict(data, frozenset(), th, 0.3) - data.f) * data.weight
+
+    lin = difference_jacobian(spring, theta, spring(theta), data.rec, r, (lo, hi)).toarray()
+    got_b, got_e = lin[rows, data.rec], lin[rows, r + data.rec]
+    np.testing.assert_allclose(got_b[touch], (beta * delta * data.weight)[touch], rtol=1e-5)
+    np.testing.assert_allclose(got_e[touch], (-beta * data.weight)[touch], rtol=1e-5)
+
+
+def test_reweighted_samples_share_the_faces_recoil():
+    """A face's recoil is driven by the force, not the weights: the bootstrap's and the
+    reweighting's copies of the samples reuse the recoils already filtered (one filtering for
+    three readers) and read the same recoil as a fresh filtering."""
+    from stiffnet.discovery import terms as terms_mod
+    from stiffnet.discovery.face import face_response
+
+    data = terms_mod.stack(synthetic_samples({}, 0.03))
+    calls = []
+
+    def counting(*a, **kw):
+        calls.append(1)
+        return face_response(*a, **kw)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(terms_mod, "face_response", counting)
+    try:
+        y, _ = data.face_recoil(0.3, 40.0, 0.05)
+        boot = data.weighted(data.weight * 2.0)
+        yb, _ = boot.weighted(boot.weight * 0.5).face_recoil(0.3, 40.0, 0.05)
+    finally:
+        mp.undo()
+    assert len(calls) == 1 and yb is y and np.abs(y).max() > 0
+    fresh, _ = face_response(data.f, data.layout, data.dt, 0.3, 40.0, 0.05)
+    np.testing.assert_array_equal(yb, fresh)

@@ -54,7 +54,8 @@ def test_evidence_on_a_simulated_campaign(tmp_path, zeta):
 
 
 def test_the_chain_is_fitted_on_a_few_recordings_spread_over_the_campaign():
-    from stiffnet.measurement.evidence import _as_sheet, _spread
+    from stiffnet.measurement.evidence import _spread
+    from stiffnet.restoring_force.chain import shared_chain_sheet
 
     assert _spread(list(range(24)), 3) == [0, 12, 23]
     assert _spread([1, 4, 6, 9], 3) == [1, 6, 9]
@@ -64,9 +65,12 @@ def test_the_chain_is_fitted_on_a_few_recordings_spread_over_the_campaign():
               "lowpass_order": 1.5, "highpass_hz": None}  # fmt: skip
     sheet = {"resonance_hz": 237.0, "resonance_damping": 0.03, "lowpass_hz": 150.0,
              "lowpass_order": 2.0, "highpass_hz": 0.0}  # fmt: skip
-    assert _as_sheet(shared) == sheet
-    assert _as_sheet({"n": 3, "resonance_hz": None, "lowpass_hz": None, "highpass_hz": 1.0}) is None
-    assert _as_sheet(None) is None
+    assert shared_chain_sheet(shared) == sheet
+    assert (
+        shared_chain_sheet({"n": 3, "resonance_hz": None, "lowpass_hz": None, "highpass_hz": 1.0})
+        is None
+    )
+    assert shared_chain_sheet(None) is None
 
 
 @pytest.mark.slow

@@ -19,7 +19,9 @@ from stiffnet.measurement.operating_points import (
     edge_configs,
     operating_point_configs,
     operating_point_dataset,
+    point_weights,
     split_evenly,
+    split_weighted,
 )
 from stiffnet.shipped import default_config
 
@@ -40,6 +42,29 @@ def _cfg(n: int) -> SimulationConfig:
 def test_trajectories_are_split_evenly_over_the_points():
     assert split_evenly(10, 4) == [3, 3, 2, 2]
     assert sum(split_evenly(61, 8)) == 61 and max(split_evenly(61, 8)) == 8
+
+
+def test_weighted_split_gives_the_smaller_gaps_more_trajectories():
+    # equal weights are the even split; otherwise one each, the rest by largest remainder
+    assert split_weighted(61, [2.0] * 8) == split_evenly(61, 8)
+    assert split_weighted(10, [1.0, 3.0]) == [3, 7]
+    assert split_weighted(3, [1.0, 100.0, 1.0]) == [1, 1, 1]  # no point left without any
+    rows = _rows()  # gaps 2.8, 1.2, 2.0, 1.6, 2.4, 0.9, 2.8, 1.2: median 1.8
+    assert point_weights(rows, "none") == [1.0] * 8
+    w = point_weights(rows, "small_gaps")
+    assert w == pytest.approx([1.0, 1.5, 1.0, 1.125, 1.0, 2.0, 1.0, 1.5])  # 1.8 / gap in [1, 2]
+    # 32 after one each: quotas 3.16, 4.74, 3.16, 3.56, 3.16, 6.32, 3.16, 4.74
+    assert split_weighted(40, w) == [4, 6, 4, 5, 4, 7, 4, 6]
+    cfgs = operating_point_configs(_cfg(40), rows, weights="small_gaps")
+    assert [c.n_trajectories for c in cfgs] == [4, 6, 4, 5, 4, 7, 4, 6]
+    assert {c.shard_size for c in cfgs} == {7}
+    assert operating_point_configs(_cfg(40), rows) == operating_point_configs(
+        _cfg(40), rows, weights="none"
+    )  # equal shares unless asked for
+    with pytest.raises(StiffnetError, match="point weights must be one of"):
+        point_weights(rows, "large_gaps")
+    with pytest.raises(StiffnetError, match="positive and finite"):
+        split_weighted(10, [1.0, 0.0])
 
 
 def test_each_config_is_its_rows_point_with_the_sweeps_beta():

@@ -13,9 +13,9 @@ from serving.chain_undo import (
     chain_to_undo,
     model_record,
     record_noise_sigma,
-    sensor_prior_lows,
     undone_record,
 )
+from serving.restoring_force_check import sensor_prior_lows
 from stiffnet.restoring_force.chain import SensorChain, chain_sos
 
 FS = 2000.0

@@ -172,6 +172,7 @@ def evaluate(
         )  # fmt: skip
     else:
         out.print("alarm: no recording flagged as unreliable")
+    out.print(f"sensor chain: {res['sensor']['reason']}")  # the campaign's one accelerometer
     write_json(json_path, res)
 
 

@@ -418,6 +418,8 @@ def predict_batch_cmd(
     if summary["rerun"]:
         notes.append(f"run again by the cluster: {', '.join(summary['rerun'])}")
     out.print(f"{'; '.join(notes)}; {summary['seconds']:.1f} s ({summary['backend']})")
+    if summary.get("sensor"):  # a campaign: its one accelerometer's chain, pooled or why not
+        out.print(f"sensor chain: {summary['sensor']['reason']}")
     write_json(json_path, summary)
     if summary["failed"]:
         from stiffnet.cli.console import console

@@ -158,7 +158,7 @@ def face_response(
         s0, s1 = (p00 * s0 + p01 * s1 + g0 * uk + h0 * dk,
                   p10 * s0 + p11 * s1 + g1 * uk + h1 * dk)  # fmt: skip
     if index is not None and index.size == force.size:
-        free = ringing_from_before(y, yd, lay, e[:, :2, :2], index, dts, mass, stiffness, damping)
+        free = ringing_from_before(y, yd, lay, index, dts, mass, stiffness, damping)
         y, yd = y + free[..., 0], yd + free[..., 1]
     return y[lay.row, lay.col], yd[lay.row, lay.col]
 
@@ -173,7 +173,19 @@ def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
     with both exponents combined, so that nothing overflows where the product does not); at
     critical damping ``sin(wd t) / wd`` is ``t`` in the limit.
     """
-    t = np.asarray(gap, float)
+    dc, ds, sigma = free_parts(gap, w2, damping)
+    out = np.empty(dc.shape + (2, 2))
+    out[..., 0, 0] = dc + sigma * ds
+    out[..., 0, 1] = ds
+    out[..., 1, 0] = -w2 * ds
+    out[..., 1, 1] = dc - sigma * ds
+    return out
+
+
+def free_parts(t: np.ndarray, w2: float, damping: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`free_map`'s ingredients at the times ``t``: ``e^{-sigma t} cos(wd t)``,
+    ``e^{-sigma t} sin(wd t) / wd`` (hyperbolic when overdamped) and ``sigma``."""
+    t = np.asarray(t, float)
     w = np.sqrt(w2)
     sigma = damping * w
     a = w * np.sqrt(abs(1.0 - damping * damping))
@@ -186,19 +198,13 @@ def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
     else:
         slow, fast = np.exp((a - sigma) * t), np.exp(-(a + sigma) * t)
         dc, ds = 0.5 * (slow + fast), 0.5 * (slow - fast) / a
-    out = np.empty(t.shape + (2, 2))
-    out[..., 0, 0] = dc + sigma * ds
-    out[..., 0, 1] = ds
-    out[..., 1, 0] = -w2 * ds
-    out[..., 1, 1] = dc - sigma * ds
-    return out
+    return dc, ds, sigma
 
 
 def ringing_from_before(
     y: np.ndarray,
     yd: np.ndarray,
     lay: Layout,
-    step: np.ndarray,
     index: np.ndarray,
     dts: np.ndarray,
     mass: float,
@@ -212,34 +218,49 @@ def ringing_from_before(
     state rung freely across the samples between them (no contact force there). A tip at
     damping ratio 0.02 ringing at 10 natural frequencies keeps 28 % of its amplitude a
     forcing period later, which starting every impact from rest reads as misfit.
+    The free map over ``c`` samples is :func:`free_map` at ``c dt`` (the one-step map's
+    ``c``-th power, in closed form: the powers of a stack of 2 x 2 matrices, taken one
+    product at a time, were most of a face fit's time).
     """
     n_imp, n_col = lay.shape
     first = np.flatnonzero(lay.col == 0)
     last = np.r_[first[1:] - 1, index.size - 1]
     w2 = stiffness / mass
-    gap = (index[first[1:]] - index[last[:-1]]) * np.asarray(dts, float)[lay.rec[1:]]
+    dt = np.asarray(dts, float)[lay.rec]  # (I,) each impact's sampling interval
+    gap = (index[first[1:]] - index[last[:-1]]) * dt[1:]
     # (I - 1, 2, 2) the free map over each gap; a ringing decayed below e^-40 is gone
     across = np.zeros((gap.size, 2, 2))
     alive = (damping * np.sqrt(w2) * gap < 40.0) & (lay.rec[1:] == lay.rec[:-1])
     across[alive] = free_map(gap[alive], w2, damping)
-    powers = np.empty((n_imp, n_col, 2, 2))  # the free map over c samples of each impact
-    powers[:, 0] = np.eye(2)
-    for c in range(1, n_col):
-        powers[:, c] = step @ powers[:, c - 1]
     length = lay.col[last]
     rows = np.arange(n_imp)
     own_end = np.stack([y[rows, length], yd[rows, length]], axis=1)  # (I, 2) from rest
-    through = powers[rows, length]  # (I, 2, 2) the free map over each impact's own samples
-    # each impact's place among its recording's (the recordings' impacts are contiguous):
-    # the recursion runs along a recording, all recordings at once
+    through = free_map(length * dt, w2, damping)  # (I, 2, 2) over each impact's own samples
+    # impact i starts in  across_i-1 (own_end_i-1 + through_i-1 start_i-1): a linear
+    # recursion along each recording (its impacts are contiguous), all recordings at once
+    carry = np.einsum("ijk,ikl->ijl", across, through[:-1])  # (I - 1, 2, 2)
+    push = np.einsum("ijk,ik->ij", across, own_end[:-1])  # (I - 1, 2)
     new_rec = np.r_[True, lay.rec[1:] != lay.rec[:-1]]
     place = rows - np.maximum.accumulate(np.where(new_rec, rows, 0))
+    grid = np.full((int(new_rec.sum()), int(place.max(initial=0)) + 1), -1)
+    grid[np.cumsum(new_rec) - 1, place] = rows  # impacts by recording and place
+    on = grid > 0  # an impact after another of its recording
+    prev = np.where(on, grid - 1, 0)
+    m = carry[prev] * on[..., None, None]  # (R, P, 2, 2); nothing carried where none is
+    b = push[prev] * on[..., None]
+    states = np.zeros(grid.shape + (2,))
+    s0 = np.zeros(grid.shape[0])
+    s1 = np.zeros(grid.shape[0])
+    for k in range(1, grid.shape[1]):
+        s0, s1 = (m[:, k, 0, 0] * s0 + m[:, k, 0, 1] * s1 + b[:, k, 0],
+                  m[:, k, 1, 0] * s0 + m[:, k, 1, 1] * s1 + b[:, k, 1])  # fmt: skip
+        states[:, k, 0], states[:, k, 1] = s0, s1
     start = np.zeros((n_imp, 2))
-    for k in range(1, int(place.max(initial=0)) + 1):
-        r = np.flatnonzero(place == k)
-        end = own_end[r - 1] + np.einsum("ijk,ik->ij", through[r - 1], start[r - 1])
-        start[r] = np.einsum("ijk,ik->ij", across[r - 1], end)
-    return np.einsum("icjk,ik->icj", powers, start)
+    start[grid[on]] = states[on]
+    # the free map over c samples applied to each start, (I, C) each
+    dc, ds, sigma = free_parts(dt[:, None] * np.arange(n_col), w2, damping)
+    s0, s1 = start[:, :1], start[:, 1:]
+    return np.stack([(dc + sigma * ds) * s0 + ds * s1, -w2 * ds * s0 + (dc - sigma * ds) * s1], -1)
 
 
 def face_starts(betas: np.ndarray) -> list[dict[str, float]]:

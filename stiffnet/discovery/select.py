@@ -270,10 +270,13 @@ def knot_is_shared(data: Data, fit: Fit) -> bool:
     return int(np.sum(passed >= KNOT_MIN_IMPACTS)) >= 0.5 * data.n_rec
 
 
-def forward_path(data: Data, dr: float, rng: np.random.Generator) -> tuple[Fit, list[dict]]:
-    """The greedy path from the linear spring; returns the selected fit and the path."""
+def forward_path(
+    data: Data, dr: float, rng: np.random.Generator, linear: Fit | None = None
+) -> tuple[Fit, list[dict]]:
+    """The greedy path from the linear spring (``linear``, its fit where already made);
+    returns the selected fit and the path."""
     tests = fold_masks(data, N_FOLDS, rng)
-    current = fit_law(data, frozenset(), dr)
+    current = fit_law(data, frozenset(), dr) if linear is None else linear
     cv = held_out_error(data, current, tests)
     first = {
         "step": 0,
@@ -329,14 +332,15 @@ def reweighted(data: Data, fit: Fit) -> tuple[Data, Fit]:
     """The samples with each recording weighted by :func:`recording_factors` (a feasible
     weighted least squares, one step) and the selected law refitted on them."""
     w = data.weight * recording_factors(data, fit)[data.rec]
-    wdata = Data(data.x, data.v, data.f, w, data.rec, data.impact, data.beta0, data.onset0,
-                 data.names, data.dt, data.index)  # fmt: skip
+    wdata = data.weighted(w)
     return wdata, fit_law(wdata, fit.terms, fit.dr, fit.shared, fit.theta[: 2 * fit.n_rec])
 
 
-def library_fit(data: Data, dr: float) -> Fit:
-    """The best law of the library's own (linear, Kelvin-Voigt, Hertz with damping)."""
-    fits = [fit_law(data, frozenset(t), dr) for t in ((), ("damping",), ("hertz", "damping"))]
+def library_fit(data: Data, dr: float, linear: Fit | None = None) -> Fit:
+    """The best law of the library's own (linear, Kelvin-Voigt, Hertz with damping);
+    ``linear``: the linear spring's fit where already made (the forward path's start)."""
+    fits = [fit_law(data, frozenset(t), dr) for t in (("damping",), ("hertz", "damping"))]
+    fits.insert(0, fit_law(data, frozenset(), dr) if linear is None else linear)
     return min(fits, key=lambda f: f.sse)
 
 
@@ -352,8 +356,7 @@ def bootstrap(
         counts = np.bincount(draw, minlength=int(imps.max()) + 1)
         w = counts[data.impact].astype(float)
         sel = w > 0
-        boot = Data(data.x, data.v, data.f, data.weight * np.sqrt(w), data.rec, data.impact,
-                    data.beta0, data.onset0, data.names, data.dt, data.index)  # fmt: skip
+        boot = data.weighted(data.weight * np.sqrt(w))
         f = fit_law(
             boot, fit.terms, fit.dr, fit.shared, per, mask=sel, max_nfev=40, ftol=BOOTSTRAP_FTOL
         )
@@ -399,9 +402,10 @@ def discover_contact_law(
     rng = np.random.default_rng(seed)
     data = stack(samples)
     dr = reference_penetration(data)
-    fit, path = forward_path(data, dr, rng)
+    linear = fit_law(data, frozenset(), dr)  # the path's start and a law of the library's
+    fit, path = forward_path(data, dr, rng, linear)
     wdata, fit = reweighted(data, fit)
-    lib = library_fit(data, dr)
+    lib = library_fit(data, dr, linear)
     explained = explained_fraction(data, fit)
     intervals: dict[str, Any] = {}
     beta_iv: list[Any] = [None] * data.n_rec

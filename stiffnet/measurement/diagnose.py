@@ -16,7 +16,10 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    (parallel tasks, :func:`stiffnet.distributed.map_tasks`) and tested against it.
 3. **Forward selection with joint refits.** At each step every remaining
    candidate that showed something alone (:data:`SCREEN_EXCESS`, or is
-   closed-form) is fitted on top of the selected effects; the best by the
+   closed-form) is fitted on top of the selected effects, the closed-form ones first (with
+   their joint refits): the numerical-engine ones (most of a diagnosis' CPU) only when the
+   effect accepted among them leaves the model above the recordings' floors, or none is
+   accepted (at the floors nothing is left for them to explain); the best by the
    BIC-like score is then refitted **jointly with all selected effects** and
    kept if the joint model passes every significance test against the
    previous one. The nuisances are profiled again after each accepted step (where they
@@ -80,6 +83,8 @@ from stiffnet.progress import task as progress_task
 #: A candidate is refitted on top of selected effects when alone it removed at least this
 #: fraction of the excess discrepancy (closed-form candidates always are: they are cheap).
 SCREEN_EXCESS = 0.05
+#: How the reasons of a numerical-engine candidate left unfitted in a step begin.
+NOT_FITTED = "not fitted on top of"
 #: Candidates given a joint refit per selection step (best conditional scores first).
 JOINT_TRIES = 2
 #: Rounds of block coordinate descent (:func:`~stiffnet.measurement.fitting.fit_joint`) in the
@@ -415,39 +420,87 @@ def _select(
         cur_settings, cur_per = next(iter(current.items()))
         if kept and run.floors[cur_settings].at_floor(cur_per):
             for n in remaining:  # the model is at the noise floor: nothing left to explain
+                unfitted = [r for r in entries[n]["reasons"] if r.startswith(NOT_FITTED)]
                 entries[n]["reasons"] = [
                     f"nothing left to explain: {', '.join(kept)} bring the model to the "
-                    "campaign's noise floor"
+                    "campaign's noise floor",
+                    *unfitted,
                 ]
             break
-        conditional = _conditional_fits(run, remaining, kept, kept_params, current, entries)
-        accepted = _joint_step(run, conditional, kept, kept_params, current, entries, steps)
+        accepted = _step(run, remaining, kept, kept_params, current, entries, steps)
         if accepted is None:
             break
         kept_params, current, nuisances = _accept(run, accepted, kept, entries)
     return kept, kept_params, steps, nuisances
 
 
-def _conditional_fits(
+def _step(
     run: _Run,
     remaining: list[str],
     kept: list[str],
     kept_params: list[dict[str, float]],
     current: dict[Any, np.ndarray],
     entries: dict[str, dict[str, Any]],
+    steps: list[dict[str, Any]],
+) -> tuple | None:
+    """One selection step: the remaining candidates fitted on top of the selected effects
+    and the best refitted jointly (:func:`_joint_step`; returns what it returns).
+
+    After the first step the closed-form candidates go first, alone: when the effect their
+    joint refit accepts brings the model to the recordings' floors, the numerical-engine
+    candidates (most of a diagnosis' CPU) are not fitted, for nothing is left for them to
+    explain, and say so in their ``reasons``. Otherwise they are fitted too and the step is
+    the one over every candidate (the closed-form joint refits already run are reused)."""
+    deferred = [n for n in remaining if kept and needs_numerical(n)]
+    conditional = _conditional_fits(run, [n for n in remaining if n not in deferred], kept,
+                                     kept_params, current, entries)  # fmt: skip
+    numerical = [n for n in deferred if entries[n]["excess_reduction"] >= SCREEN_EXCESS]
+    if not numerical:
+        return _joint_step(run, conditional, kept, kept_params, current, entries, steps)
+    tried: dict[str, dict[str, Any]] = {}
+    said = {n: (list(e["reasons"]), e.get("redundant_with")) for n, e in entries.items()}
+    trial: list[dict[str, Any]] = []
+    accepted = _joint_step(run, conditional, kept, kept_params, current, entries, trial, tried)
+    if accepted is not None and run.floors[accepted[4]].at_floor(np.asarray(accepted[3])):
+        steps.extend(trial)
+        for n in numerical:
+            entries[n]["reasons"] = [
+                f"{NOT_FITTED} {', '.join(kept)}: {accepted[0]} (closed form) brings the "
+                "model to the recordings' own noise floors, so nothing is left for a "
+                "numerical-engine candidate to explain"
+            ]
+        return accepted
+    for n, (reasons, redundant) in said.items():  # the trial's words were not its last
+        entries[n]["reasons"] = reasons
+        if redundant is None:
+            entries[n].pop("redundant_with", None)
+        else:
+            entries[n]["redundant_with"] = redundant
+    conditional |= _conditional_fits(run, numerical, kept, kept_params, current, entries)
+    conditional = {n: conditional[n] for n in remaining if n in conditional}
+    return _joint_step(run, conditional, kept, kept_params, current, entries, steps, tried)
+
+
+def _conditional_fits(
+    run: _Run,
+    cands: list[str],
+    kept: list[str],
+    kept_params: list[dict[str, float]],
+    current: dict[Any, np.ndarray],
+    entries: dict[str, dict[str, Any]],
 ) -> dict[str, dict[str, Any]]:
-    """Each remaining candidate fitted on top of the selected effects (alone: the single
-    fits); a numerical-engine one only when alone it removed :data:`SCREEN_EXCESS`."""
+    """Each candidate fitted on top of the selected effects (alone: the single fits); a
+    numerical-engine one only when alone it removed :data:`SCREEN_EXCESS`."""
     if not kept:
-        return {n: entries[n] for n in remaining}
+        return {n: entries[n] for n in cands}
     cands = [
         n
-        for n in remaining
+        for n in cands
         if not needs_numerical(n) or entries[n]["excess_reduction"] >= SCREEN_EXCESS
     ]
     run.stage = f"step {len(kept) + 1}, on top of {', '.join(kept)}"
     conditional = {}
-    for fit in run.fits(cands, _effects(kept, kept_params)):
+    for fit in run.fits(cands, _effects(kept, kept_params)) if cands else []:
         before = run.current(current, kept, kept_params, fit["effect"])
         conditional[fit["effect"]] = run.judge(fit, before, kept)
     return conditional
@@ -461,10 +514,12 @@ def _joint_step(
     current: dict[Any, np.ndarray],
     entries: dict[str, dict[str, Any]],
     steps: list[dict[str, Any]],
+    tried: dict[str, dict[str, Any]] | None = None,
 ) -> tuple | None:
     """The best conditional candidates (at most :data:`JOINT_TRIES`) refitted jointly with
     the selected effects; the first whose joint model passes every test is accepted
-    (returned with its values, discrepancies, settings and tests), else None."""
+    (returned with its values, discrepancies, settings and tests), else None. ``tried``:
+    the joint refits of this step already run, by candidate (read and filled)."""
     order = sorted(conditional, key=lambda n: conditional[n]["bic_delta"])
     tries = [n for n in order if conditional[n]["improves"]][:JOINT_TRIES]
     for n in tries:
@@ -473,7 +528,7 @@ def _joint_step(
         names_new = [*kept, n]
         settings = settings_for(names_new)
         before = run.current(current, kept, kept_params, n)
-        joint = fit_joint(
+        joint = (tried or {}).get(n) or fit_joint(
             run.target,
             names_new,
             [*kept_params, c["params"]],
@@ -482,6 +537,8 @@ def _joint_step(
             rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             subset=SUBSET_SEARCH,
         )
+        if tried is not None:
+            tried[n] = joint
         after, params_new = joint["per_recording"], joint["params"]
         sig = significance(before, after, len(c["fitted"]), run.floors[settings], run.names)
         prefix = f"on top of {', '.join(kept)} (joint refit): " if kept else ""

@@ -29,7 +29,7 @@ from stiffnet.campaign.simulate import impact_regime, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
-from stiffnet.measurement.nuisance import predicted
+from stiffnet.measurement.nuisance import natural_frequency, predicted
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
 SLICE_EDGES: dict[str, list[float]] = {
@@ -164,9 +164,11 @@ def evaluate_campaign(
     Returns
     -------
     dict
-        ``model`` (name, sha256, kind), ``recordings`` (each ``recording``,
+        ``model`` (name, sha256, kind), ``sensor`` (the campaign's pooled sensor chain
+        and how many recordings identified it, or why none was pooled:
+        :func:`serving.campaign_chain.campaign_chain`), ``recordings`` (each ``recording``,
         ``beta``, ``class``, ``beta_estimate``, ``geometric_class``,
-        ``geometric_beta``, ``true_class``, ``impact_regime``, ...),
+        ``geometric_beta``, ``true_class``, ``impact_regime``, ``chain_source``, ...),
         ``metrics`` (``learned``, ``geometric`` and ``restoring_force``:
         ``accuracy``, ``macro_f1``, ``beta_mape``; the last also
         ``interval_coverage`` and ``agreement_with_learned``), ``slices``, ``worst``.
@@ -181,14 +183,14 @@ def evaluate_campaign(
     predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
     contact = simulated_contact(campaign.rows, dynamics) if simulable else None
-    rows: list[dict[str, Any]] = []
-    for i, row in enumerate(campaign.rows):
-        res = predicted(campaign, i, row, model_path)  # once per model and recording
-        rows.append(_evaluated_row(row, res, None if contact is None else contact[i]))
+    results, chain = campaign_predictions(campaign, model_path)
+    rows = [_evaluated_row(row, res, None if contact is None else contact[i])
+            for i, (row, res) in enumerate(zip(campaign.rows, results, strict=True))]  # fmt: skip
     worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
     return {
         "campaign": str(campaign.folder),
         "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
+        "sensor": chain,
         "recordings": rows,
         "metrics": {
             "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},
@@ -205,6 +207,53 @@ def evaluate_campaign(
             for r in worst
         ],
     }
+
+
+def campaign_predictions(
+    campaign: Campaign, model_path: str | None
+) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """The predictor's result per recording, read through the campaign's sensor chain.
+
+    A campaign has one accelerometer: the chains the restoring-force check identified on
+    some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
+    they agree, every recording without its own data sheet is predicted again with the
+    pooled chain as its sheet; kept where it reads the contact laws about as well as the
+    first reading (:func:`serving.campaign_chain.confirmed`). Returns the results
+    (``chain_source`` in each) and the campaign's ``sensor`` decision.
+    """
+    from serving.campaign_chain import campaign_chain, campaign_sheets, confirmed, labelled
+    from serving.predictor import Predictor
+
+    rows = campaign.rows
+    first = [predicted(campaign, i, row, model_path) for i, row in enumerate(rows)]
+    sheets = [row.sensor_sheet() for row in rows]
+    chain = campaign_chain([(r.get("restoring_force") or {}).get("sensor") for r in first],
+                           [row.recording for row in rows], sheets)  # fmt: skip
+    if not chain["pooled"]:
+        return [labelled(r, False) for r in first], chain
+    again = []
+    for i, (row, sheet) in enumerate(zip(rows, campaign_sheets(chain, sheets), strict=True)):
+        if sheets[i] is not None:  # the user's own sheet wins
+            again.append(None)
+            continue
+
+        def run(i: int = i, row: Any = row, sheet: dict = sheet) -> dict[str, Any]:
+            predictor = memo(campaign, ("predictor", model_path),
+                             lambda: Predictor.load(model_path))  # fmt: skip
+            rec = campaign.recording(i)
+            return predictor.predict(rec.accel, rec.fs_hz, sensor=sheet, source=row.recording,
+                                     natural_frequency_hz=natural_frequency(row))  # fmt: skip
+
+        key = ("predicted with the campaign chain", model_path, i, natural_frequency(row),
+               tuple(sorted(sheet.items())))  # fmt: skip
+        again.append(memo(campaign, key, run))
+    read = [i for i, r in enumerate(again) if r is not None]
+    chain = confirmed(chain, [first[i].get("restoring_force") for i in read],
+                      [again[i].get("restoring_force") for i in read])  # fmt: skip
+    if not chain["pooled"]:
+        return [labelled(r, False) for r in first], chain
+    return [labelled(first[i], False) if r is None else labelled(r, True)
+            for i, r in enumerate(again)], chain  # fmt: skip
 
 
 def _evaluated_row(row: Any, res: dict[str, Any], contact: Any) -> dict[str, Any]:
@@ -234,6 +283,9 @@ def _evaluated_row(row: Any, res: dict[str, Any], contact: Any) -> dict[str, Any
         "restoring_force_agreement": res.get("restoring_force_agreement"),
         "restoring_force_reason": (res.get("restoring_force") or {}).get("reason"),
         "sensor": (res.get("restoring_force") or {}).get("sensor"),
+        # the chain the recording was read through: "campaign" (pooled), "data sheet",
+        # "fitted" (its own) or None
+        "chain_source": res.get("chain_source"),
         "ood_score": res.get("ood_score"),
         "ood_threshold": res.get("ood_threshold"),
         "ood_checks": list((res.get("alarm") or {}).get("fired") or []),

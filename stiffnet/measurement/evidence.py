@@ -35,7 +35,12 @@ import numpy as np
 from stiffnet.campaign import Campaign, ManifestRow
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
-from stiffnet.restoring_force.chain import SENSOR_KEYS, shared_chain
+from stiffnet.restoring_force.chain import (
+    CHAIN_CONFIRMED_SHORTFALL,
+    shared_chain,
+    shared_chain_sheet,
+    shared_chain_shortfall,
+)
 
 #: Forcing periods read per recording (the predictor's cross-check reads as many).
 PERIODS = 24.0
@@ -53,14 +58,6 @@ CHAIN_RECORDINGS = 3
 #: (:data:`CHAIN_CONFIRMED_SHORTFALL`): a chain undone as a data sheet is never rejected,
 #: where a fitted one is when the record as recorded reads better.
 SHARED_CHAIN_MIN_R2 = 0.9
-#: The shared chain is the campaign's when, undone on the recordings it was fitted on, the
-#: median R² their contact laws lose against their own chains is at most this. Measured
-#: (contact laws of 6 s records): 0.000 and -0.001 on the bench campaign (one 237 Hz
-#: resonance; 24 and 8 recordings), 0.018 on an independent-rig campaign whose shared
-#: low-pass is 13 % off, 0.005 on a rig campaign at three sampling rates; 0.485 where the
-#: shared chain took a 45 Hz low-pass the sensor lacks (its recordings refused or read at
-#: R² 0.5 through it, 0.99 through their own).
-CHAIN_CONFIRMED_SHORTFALL = 0.05
 
 
 def restitution(zeta: float) -> float:
@@ -99,7 +96,9 @@ def contact_law_per_recording(
         found |= _read(campaign, rows, [(i, None) for i in _spread(left, chain_recordings)],
                        client)  # fmt: skip
         left = [i for i in left if i not in found]
-        sheet = _as_sheet(shared_chain([found[i].get("sensor") for i in fit if i in found]))
+        sheet = shared_chain_sheet(
+            shared_chain([found[i].get("sensor") for i in fit if i in found])
+        )
     if sheet is not None:
         rest = left
         sheets = [sheet if i in rest else s for i, s in enumerate(sheets)]
@@ -109,7 +108,7 @@ def contact_law_per_recording(
     checks = [(i, sheet) for i in fitted] if rest else []
     read = _read(campaign, rows, jobs + checks, client, keyed=False)
     found |= {i: r for (i, _), r in zip(jobs, read[: len(jobs)], strict=True)}
-    shortfall = _shortfall([found[i] for i, _ in checks], read[len(jobs) :])
+    shortfall = shared_chain_shortfall([found[i] for i, _ in checks], read[len(jobs) :])
     # where the shared chain is not the campaign's, a recording it reads poorly gets its own
     poor = [i for i in rest if (found[i].get("contact_r2") or 0.0) < SHARED_CHAIN_MIN_R2]
     if shortfall is not None and shortfall <= CHAIN_CONFIRMED_SHORTFALL:
@@ -123,31 +122,10 @@ def contact_law_per_recording(
     return [found[i] for i in range(len(rows))]
 
 
-def _shortfall(own: list[dict[str, Any]], shared: list[dict[str, Any]]) -> float | None:
-    """Median R² the contact laws of the fitted recordings lose when the shared chain is
-    undone instead of their own (a refused reading explains nothing); None without any."""
-    if not own:
-        return None
-    lost = [(o.get("contact_r2") or 0.0) - (s.get("contact_r2") or 0.0)
-            for o, s in zip(own, shared, strict=True)]  # fmt: skip
-    return float(np.median(lost))
-
-
 def _spread(indices: list[int], n: int) -> list[int]:
     """`n` of `indices` evenly spread (first and last included)."""
     picks = {indices[round(j * (len(indices) - 1) / max(n - 1, 1))] for j in range(n)}
     return sorted(picks)
-
-
-def _as_sheet(shared: dict[str, Any] | None) -> dict[str, float] | None:
-    """The chain a campaign's recordings share as a data sheet; None without a resonance or
-    low-pass (nothing to undo that the per-recording high-pass fit would not find)."""
-    if not shared or not (shared.get("resonance_hz") or shared.get("lowpass_hz")):
-        return None
-    sheet = {k: float(shared.get(k) or 0.0) for k in SENSOR_KEYS}
-    if sheet["lowpass_order"]:
-        sheet["lowpass_order"] = float(max(1, round(sheet["lowpass_order"])))
-    return sheet
 
 
 def _read(

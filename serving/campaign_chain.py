@@ -1,0 +1,187 @@
+"""A campaign's sensor chain: one accelerometer, identified on some recordings, used on all.
+
+The predictor's restoring-force check identifies the accelerometer's chain per recording,
+and only where the record's contact law needs one (R² below
+:data:`~stiffnet.restoring_force.estimate.CHAIN_FIT_WHEN_NEEDED`): behind one sensor, many
+recordings of a campaign identify none, and the model reads them as recorded. The
+recordings of a campaign share their accelerometer, so the chains identified on some of
+them are the chain of all. :func:`campaign_chain` pools them with the rule ``diagnose``'s
+evidence uses (:func:`~stiffnet.restoring_force.chain.shared_chain`: per stage the median
+over the recordings that show it, where at least half of them do), and the caller predicts
+every recording again with the pooled chain as its data sheet (the predictor's ``sensor``),
+which :func:`labelled` then marks ``source: "campaign"``.
+
+Pooled only where the identifications agree, stage by stage: a resonance or low-pass is
+pooled where its value on at least :data:`MIN_AGREEING_SHARE` of the recordings that show
+it lies within :data:`FIT_SCATTER` of the pooled one (or the pooled one within that
+recording's interval), and at least :data:`MIN_IDENTIFIED` recordings identified a chain.
+A stage they disagree on is left out and named; where no stage is left nothing is pooled
+and the reason says why: recordings behind different sensors (or a chain the fits cannot
+pin down) are each read with their own. The pooled chain is then kept only where it reads
+the campaign's contact laws about as well as the first reading did (:func:`confirmed`:
+the median R² lost at most
+:data:`~stiffnet.restoring_force.chain.CHAIN_CONFIRMED_SHORTFALL`, the rule diagnose's
+evidence confirms its shared chain by): recordings of different sensors whose fitted
+resonances happen to cluster (the bottom of a prior) agree in frequency, yet their clean
+recordings read through the pooled chain lose 0.16 of R² (median, the bench's
+``sensor_chains``), where a campaign's own chain loses 0.01-0.03. An ideal campaign
+identifies no resonance or low-pass and gets no pooled chain. A recording's own data sheet
+always wins. Numpy only (the predictor imports it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from stiffnet.restoring_force.chain import (
+    CHAIN_CONFIRMED_SHORTFALL,
+    shared_chain,
+    shared_chain_sheet,
+    shared_chain_shortfall,
+)
+
+#: A campaign chain needs at least this many recordings that identified one (a single fit
+#: is no campaign's evidence: on an ideal record it may be a spurious stage).
+MIN_IDENTIFIED = 2
+#: Relative scatter of a fitted corner or resonance that still counts as the same stage
+#: (the chain fit's own scatter: 2-10 % in frequency on simulated chains).
+FIT_SCATTER = 0.10
+#: Share of the recordings showing a stage whose value must agree with the pooled one.
+MIN_AGREEING_SHARE = 2 / 3
+#: The stages whose frequency the guard compares (the high-pass is read as pooled: its
+#: corner changes only the free flight's drift, which every recording's map refits).
+STAGES = ("resonance_hz", "lowpass_hz")
+#: The parameter each stage carries with it.
+PARTNER = {"resonance_hz": "resonance_damping", "lowpass_hz": "lowpass_order"}
+
+
+def identified(sensor: dict | None) -> dict | None:
+    """The chain a recording's check fitted and applied with a resonance or a low-pass
+    (None: a data sheet, a rejected fit, or no dynamics in the band)."""
+    if not sensor or sensor.get("source") != "fitted" or sensor.get("applied") is False:
+        return None
+    return sensor if sensor.get("resonance_hz") or sensor.get("lowpass_hz") else None
+
+
+def _agrees(sensor: dict, key: str, pooled: float) -> bool:
+    """Whether `sensor`'s stage `key` is the pooled one: within :data:`FIT_SCATTER` of it,
+    or its own interval (widened as much) holds it."""
+    value = float(sensor[key])
+    if abs(np.log(value / pooled)) <= np.log1p(FIT_SCATTER):
+        return True
+    low, high = (sensor.get("intervals") or {}).get(key) or (value, value)
+    return low / (1 + FIT_SCATTER) <= pooled <= high * (1 + FIT_SCATTER)
+
+
+def campaign_chain(
+    sensors: Sequence[dict | None],
+    names: Sequence[str],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """The chain a campaign's recordings share, or why none is pooled.
+
+    Parameters
+    ----------
+    sensors : sequence of dict or None
+        Each recording's restoring-force ``sensor`` (the check's, without a data sheet;
+        None where the recording could not be read).
+    names : sequence of str
+        The recordings' names, for the report.
+    sheets : sequence of dict or None, optional
+        Each recording's own data sheet (a recording with one is read with it and does not
+        vote).
+
+    Returns
+    -------
+    dict
+        ``pooled`` (bool), ``sensor`` (the pooled chain as a data sheet, None when not
+        pooled), ``identified_on`` (names of the recordings whose chains were pooled),
+        ``n_identified``, ``n`` (recordings), ``stages`` (per pooled stage: value, 10-90 %
+        range, recordings agreeing / showing it), ``reason`` (one line).
+    """
+    sheets = list(sheets) if sheets is not None else [None] * len(sensors)
+    votes = [(name, identified(s)) for name, s, sheet in zip(names, sensors, sheets, strict=True)
+             if sheet is None]  # fmt: skip
+    votes = [(name, s) for name, s in votes if s is not None]
+    out: dict[str, Any] = {"pooled": False, "sensor": None, "n": len(sensors),
+                           "n_identified": len(votes),
+                           "identified_on": [name for name, _ in votes], "stages": {}}  # fmt: skip
+    if len(votes) < MIN_IDENTIFIED:
+        out["reason"] = (f"a sensor chain identified on {len(votes)} recording(s): at least "
+                         f"{MIN_IDENTIFIED} are needed to pool one")  # fmt: skip
+        return out
+    shared = shared_chain([s for _, s in votes])
+    sheet = shared_chain_sheet(shared)
+    if sheet is None:
+        out["reason"] = "the identified chains share no resonance or low-pass"
+        return out
+    apart, kept = [], []
+    for key in STAGES:
+        if not shared.get(key):
+            continue
+        showing = [s for _, s in votes if s.get(key)]
+        agree = sum(_agrees(s, key, shared[key]) for s in showing)
+        out["stages"][key] = {"value": shared[key], "range": shared[f"{key}_range"],
+                              "agreeing": agree, "showing": len(showing)}  # fmt: skip
+        if agree >= MIN_AGREEING_SHARE * len(showing):
+            kept.append(key)
+            continue
+        low, high = shared[f"{key}_range"]
+        apart.append(f"{key} {low:.0f}-{high:.0f} Hz ({agree} of {len(showing)} within "
+                     f"{FIT_SCATTER:.0%} of {shared[key]:.0f} Hz)")  # fmt: skip
+        sheet.update({key: 0.0, PARTNER[key]: 0.0})  # a stage they disagree on is no one's
+    if not kept:
+        out["reason"] = ("the recordings' identified chains disagree, not pooled: "
+                         + "; ".join(apart))  # fmt: skip
+        return out
+    words = " and ".join(k.removesuffix("_hz").replace("lowpass", "low-pass") for k in kept)
+    out.update(pooled=True, sensor=sheet,
+               reason=f"one sensor chain ({words}) pooled over the {len(votes)} recordings "
+               f"that identified one, used on all {sum(s is None for s in sheets)} without a "
+               "data sheet")  # fmt: skip
+    if apart:
+        out["reason"] += "; left out, the recordings disagree: " + "; ".join(apart)
+    return out
+
+
+def confirmed(
+    chain: dict[str, Any], first: Sequence[dict | None], again: Sequence[dict | None]
+) -> dict[str, Any]:
+    """`chain` after its second reading: kept where the recordings read through it (their
+    restoring-force checks `first` alone and `again` through the pooled chain) lose a
+    median R² of at most :data:`~stiffnet.restoring_force.chain.CHAIN_CONFIRMED_SHORTFALL`,
+    else no longer pooled, with the reason. ``shortfall`` holds that median."""
+    shortfall = shared_chain_shortfall(list(first), list(again))
+    out = {**chain, "shortfall": shortfall}
+    if shortfall is not None and shortfall > CHAIN_CONFIRMED_SHORTFALL:
+        out.update(pooled=False, sensor=None,
+                   reason=f"the pooled chain read the recordings' contact laws worse than "
+                   f"they read alone (median R² lost {shortfall:.2f} > "
+                   f"{CHAIN_CONFIRMED_SHORTFALL:g}): not one sensor, not pooled")  # fmt: skip
+    return out
+
+
+def campaign_sheets(chain: dict[str, Any], sheets: Sequence[dict | None]) -> list[dict | None]:
+    """Each recording's data sheet for the second reading: its own, else the pooled chain
+    (None everywhere when nothing was pooled)."""
+    pooled = chain.get("sensor") if chain.get("pooled") else None
+    return [sheet if sheet is not None else pooled for sheet in sheets]
+
+
+def labelled(result: dict[str, Any], from_campaign: bool) -> dict[str, Any]:
+    """A copy of `result` with the chain it was read through named: ``source: "campaign"``
+    on its restoring-force ``sensor`` and ``chain_undone`` where the pooled chain was its
+    sheet, and ``chain_source`` (``"campaign"``, ``"data sheet"``, ``"fitted"`` or None)."""
+    out = dict(result)
+    check = dict(out.get("restoring_force") or {})
+    if from_campaign:
+        if check.get("sensor"):
+            check["sensor"] = {**check["sensor"], "source": "campaign"}
+            out["restoring_force"] = check
+        if out.get("chain_undone"):
+            out["chain_undone"] = {**out["chain_undone"], "source": "campaign"}
+    out["chain_source"] = (check.get("sensor") or {}).get("source")
+    return out

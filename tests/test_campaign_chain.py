@@ -1,0 +1,170 @@
+"""A campaign's one accelerometer: the chains identified on some recordings pooled and used
+on all (serving/campaign_chain.py, ``evaluate`` and ``predict-batch`` on a campaign)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from serving.campaign_chain import (
+    MIN_IDENTIFIED,
+    campaign_chain,
+    campaign_sheets,
+    identified,
+    labelled,
+)
+
+
+def fitted(resonance_hz=None, lowpass_hz=None, order=4, width=0.01, applied=True, highpass=1.0):
+    """A chain as the restoring-force check reports a fit (intervals +-`width`)."""
+    iv = {}
+    if resonance_hz:
+        iv["resonance_hz"] = [resonance_hz * (1 - width), resonance_hz * (1 + width)]
+    if lowpass_hz:
+        iv["lowpass_hz"] = [lowpass_hz * (1 - width), lowpass_hz * (1 + width)]
+    return {"resonance_hz": resonance_hz, "resonance_damping": 0.05 if resonance_hz else None,
+            "lowpass_hz": lowpass_hz, "lowpass_order": order if lowpass_hz else None,
+            "highpass_hz": highpass, "source": "fitted", "applied": applied,
+            "intervals": iv}  # fmt: skip
+
+
+def test_one_sensor_is_pooled_as_the_median_of_the_recordings_that_identified_it():
+    sensors = [fitted(300.0, 500.0), None, fitted(310.0, 480.0), fitted(290.0, 520.0), None,
+               fitted(lowpass_hz=505.0)]  # fmt: skip
+    names = [f"r{i}" for i in range(6)]
+    chain = campaign_chain(sensors, names)
+    assert chain["pooled"] and chain["n_identified"] == 4 and chain["n"] == 6
+    assert chain["identified_on"] == ["r0", "r2", "r3", "r5"]
+    # the median of the stage over the recordings showing it (3 resonances, 4 low-passes)
+    assert chain["sensor"]["resonance_hz"] == pytest.approx(300.0)
+    assert chain["sensor"]["lowpass_hz"] == pytest.approx(502.5)
+    assert chain["sensor"]["lowpass_order"] == 4.0
+    assert chain["stages"]["resonance_hz"]["agreeing"] == 3
+    # every recording without a sheet reads the pooled chain, whether it identified one or not
+    assert campaign_sheets(chain, [None] * 6) == [chain["sensor"]] * 6
+
+
+def test_chains_of_different_sensors_are_not_pooled_and_the_reason_says_so():
+    # rig_chains' recordings each have their own chain: resonances 157-420 Hz, 1 % intervals
+    sensors = [fitted(157.0), fitted(210.0), fitted(354.0), fitted(420.0), fitted(271.0)]
+    chain = campaign_chain(sensors, list("abcde"))
+    assert not chain["pooled"] and chain["sensor"] is None
+    assert "disagree" in chain["reason"] and "resonance_hz" in chain["reason"]
+    assert campaign_sheets(chain, [None] * 5) == [None] * 5
+
+
+def test_an_odd_fit_is_outvoted_but_a_wide_interval_counts_as_agreeing():
+    sensors = [fitted(300.0), fitted(305.0), fitted(296.0), fitted(150.0)]
+    assert campaign_chain(sensors, list("abcd"))["pooled"]  # 3 of 4 agree
+    # two apart, each pinned by its interval: 1 of 2 agree with their median... not pooled
+    assert not campaign_chain([fitted(200.0), fitted(300.0)], ["a", "b"])["pooled"]
+    # a resonance they agree on is pooled without the low-pass they disagree on
+    mixed = [fitted(195.0, 326.0), fitted(202.0, 40.0), fitted(197.0, 276.0), fitted(192.0)]
+    chain = campaign_chain(mixed, list("abcd"))
+    assert chain["pooled"] and chain["sensor"]["resonance_hz"] == pytest.approx(196.0)
+    assert chain["sensor"]["lowpass_hz"] == 0.0 and "lowpass_hz" in chain["reason"]
+    # the same two with intervals that cannot tell them apart: pooled
+    wide = [fitted(200.0, width=0.4), fitted(300.0, width=0.4)]
+    assert campaign_chain(wide, ["a", "b"])["pooled"]
+
+
+def test_an_ideal_campaign_or_a_single_fit_pools_nothing():
+    # no resonance or low-pass anywhere (a high-pass alone is each record's own fit)
+    ideal = [None, fitted(highpass=0.5), None, None]
+    chain = campaign_chain(ideal, list("abcd"))
+    assert not chain["pooled"] and chain["n_identified"] == 0
+    one = [None, fitted(300.0), None]
+    chain = campaign_chain(one, list("abc"))
+    assert not chain["pooled"] and f"at least {MIN_IDENTIFIED}" in chain["reason"]
+    # a rejected fit (applied False) or a data sheet is no identification
+    assert identified(fitted(300.0, applied=False)) is None
+    assert identified({**fitted(300.0), "source": "data sheet"}) is None
+
+
+def test_a_users_data_sheet_wins_and_does_not_vote():
+    sheet = {"resonance_hz": 800.0, "resonance_damping": 0.03}
+    sensors = [fitted(300.0), fitted(302.0), {**fitted(800.0), "source": "fitted"}]
+    chain = campaign_chain(sensors, list("abc"), [None, None, sheet])
+    assert chain["pooled"] and chain["n_identified"] == 2
+    assert chain["sensor"]["resonance_hz"] == pytest.approx(301.0)
+    assert campaign_sheets(chain, [None, None, sheet]) == [chain["sensor"], chain["sensor"], sheet]
+
+
+def test_the_result_names_the_chain_it_was_read_through():
+    res = {"restoring_force": {"sensor": {"source": "data sheet", "resonance_hz": 300.0}},
+           "chain_undone": {"source": "data sheet", "resonance_hz": 300.0}}  # fmt: skip
+    out = labelled(res, True)
+    assert out["chain_source"] == "campaign"
+    assert out["restoring_force"]["sensor"]["source"] == "campaign"
+    assert out["chain_undone"]["source"] == "campaign"
+    assert res["restoring_force"]["sensor"]["source"] == "data sheet"  # a copy
+    assert labelled(res, False)["chain_source"] == "data sheet"
+    assert labelled({"restoring_force": {"sensor": None}}, False)["chain_source"] is None
+
+
+#: One accelerometer for the whole campaign: a mount resonance at 20 f_n (in the band of a
+#: 2 kHz logger, near the bottom of the shipped CNN's prior) and a charge amplifier.
+SENSOR = {"resonance_hz": 190.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
+BETAS = (8.0, 20.0, 30.0, 45.0, 70.0, 90.0)
+
+
+def _rig_campaign(folder, sensor):
+    from independent_rig import RigRun, write_campaign
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.campaign.loaded import LoadedCampaign
+
+    runs = [RigRun(recording=f"r{i}.csv", beta=b, fs_hz=2000.0, duration_s=3.0, gap_mm=1.5,
+                   sensor=sensor) for i, b in enumerate(BETAS)]  # fmt: skip
+    write_campaign(folder, runs)
+    return LoadedCampaign.of(load_campaign(folder))
+
+
+def _mape(betas):
+    return float(np.mean([abs(b / t - 1) for b, t in zip(betas, BETAS, strict=True)]))
+
+
+@pytest.mark.slow
+def test_evaluate_pools_one_known_chain_on_an_independent_rig_campaign(tmp_path):
+    """Six recordings of the independent rig (solve_ivp, analog chain) behind one sensor:
+    the pooled resonance within 10 % of the truth, every recording read through it, and the
+    learned betas at least as close to the truth as each recording's own undo."""
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.nuisance import predicted
+
+    campaign = _rig_campaign(tmp_path / "camp", SENSOR)
+    res = evaluate_campaign(campaign)
+    chain = res["sensor"]
+    assert chain["pooled"], chain["reason"]
+    assert chain["n_identified"] >= 2
+    assert chain["sensor"]["resonance_hz"] == pytest.approx(SENSOR["resonance_hz"], rel=0.1)
+    assert [r["chain_source"] for r in res["recordings"]] == ["campaign"] * len(BETAS)
+    # the first reading (each recording's own chain, or none) is memoised on the campaign
+    own = [predicted(campaign, i, row, None) for i, row in enumerate(campaign.rows)]
+    pooled = [r["beta_estimate"] for r in res["recordings"]]
+    assert _mape(pooled) <= _mape([r["beta"] for r in own]) + 1e-9
+    # predict-batch on the campaign folder pools the same chain, in a second round of parts
+    import pyarrow.parquet as pq
+
+    from serving.batch_prediction import predict_batch
+
+    summary = predict_batch(tmp_path / "camp", tmp_path / "out.parquet", part_size=4)
+    assert summary["sensor"]["sensor"] == chain["sensor"] and summary["parts"] == 4
+    table = pq.read_table(tmp_path / "out.parquet").to_pylist()
+    assert [r["sensor_source"] for r in table] == ["campaign"] * len(BETAS)
+    assert [r["beta"] for r in table] == pytest.approx(pooled)
+
+
+@pytest.mark.slow
+def test_an_ideal_campaign_gets_no_pooled_chain_and_the_same_predictions(tmp_path):
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.nuisance import predicted
+
+    campaign = _rig_campaign(tmp_path / "ideal", None)
+    res = evaluate_campaign(campaign)
+    assert not res["sensor"]["pooled"] and res["sensor"]["sensor"] is None
+    own = [predicted(campaign, i, row, None) for i, row in enumerate(campaign.rows)]
+    for r, o in zip(res["recordings"], own, strict=True):
+        assert r["chain_source"] != "campaign"
+        assert (r["class"], r["beta_estimate"], r["beta_interval"]) == (
+            o["class"], o["beta"], o["beta_interval"])  # fmt: skip
