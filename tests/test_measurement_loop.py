@@ -306,7 +306,8 @@ def test_diagnosed_loop_with_the_shipped_family(two_effects, tmp):
     assert it["metrics"]["discrepancy"] < 0.5 * start["metrics"]["discrepancy"]
     assert Path(it["model"]).name == "cnn.onnx" and it["model_version"] == 2
     cfg = load_config(SimulationConfig, it["config"])
-    assert isinstance(cfg.effects[0].params["damping_ratio"], list)  # the prior around the fit
+    damping = next(e for e in cfg.effects if e.name == "contact_damping")
+    assert isinstance(damping.params["damping_ratio"], list)  # the prior around the fit
     again = loop_mod.run_loop(camp, _ideal(), tmp / "cnn-state", iterations=1, **kw)
     assert len(again["iterations"]) == 2 and "adds no effect" in again["stopped"]
 

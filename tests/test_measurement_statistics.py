@@ -10,6 +10,9 @@ far from orthogonal, and the fit amplifies what happens near its edge).
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -24,6 +27,8 @@ from stiffnet.measurement.statistics import (
 )
 
 FS, FN = 1500.0, 9.48
+
+sys.path.insert(0, str(Path(__file__).parent))
 
 
 def test_width_at_half_height_is_interpolated_between_grid_points():
@@ -105,3 +110,61 @@ def test_the_free_flight_harmonics_do_not_see_the_spikes():
                  for h in (6.0, 12.0))  # fmt: skip
     assert np.abs(high.harmonics - low.harmonics).max() < 0.005, (low.harmonics, high.harmonics)
     assert low.harmonics[1] == pytest.approx(0.2, abs=0.1)
+
+
+def _pulses_with_ringing(ring: float, duration: float = 0.125 / FN, fs: float = 2000.0):
+    """Half-sine contact pulses (a soft restraint, 0.125 natural periods of contact) on a
+    sine, each starting a 237-Hz sensor ringing (damping 0.03) of ``ring`` x the pulse."""
+    t = np.arange(int(6 * fs)) / fs
+    y = np.sin(2 * np.pi * FN * t) + 0.2 * np.sin(4 * np.pi * FN * t + 0.3)
+    wd = 2 * np.pi * 237.0
+    for c in (np.arange(60) + 0.37) / FN:
+        s = t - c
+        y += 6.0 * np.where((s > 0) & (s < duration), np.sin(np.pi * s / duration), 0.0)
+        y += ring * 6.0 * np.where(s > 0, np.exp(-0.03 * wd * s) * np.sin(wd * s), 0.0)
+    return y
+
+
+def test_a_ringing_trough_reaching_half_height_does_not_halve_the_width():
+    """As the ringing grows, its first trough after the crest reaches half height: the
+    width reads the pulse less the trough's short dip, moving by at most 0.0021 natural
+    periods a step (read between the first crossings on either side, it fell from 0.060
+    to 0.033 over two steps: the crest alone, 4 tolerances of ``spike_width``)."""
+    rings = np.linspace(0.38, 0.48, 11)
+    width = np.array([signal_statistics(_pulses_with_ringing(a), 2000.0, FN, 1.0, False)
+                      .spike_width for a in rings])  # fmt: skip
+    assert np.abs(np.diff(width)).max() < 0.003, width
+    fwhm = 2 / 3 * 0.125  # a half-sine's full width at half height, natural periods
+    assert np.all(width > 0.6 * fwhm) and np.all(width < fwhm), width
+
+
+def test_soft_contact_with_a_ringing_mount_matches_the_rig_at_the_truth(tmp_path):
+    """The independent rig (solve_ivp, analog sensor chain) at beta 9, contact damping 0.25,
+    a 237-Hz mount (damping 0.03), forcing at 1.05 f_n, 2 kHz, 3 s; stiffnet's simulation
+    at the same values scores near the floor: measured 0.12 (waveform 0.97 tolerances).
+    With the width read between the first half-height crossings it scored 4.0: the rig's
+    spikes read as the whole pulse, the simulation's as the ringing's crest (spike_width
+    -4.5 tolerances, harmonic_2 +3.2 through the bridges, ringing -0.7)."""
+    from independent_rig import write_campaign
+    from test_independent_rig import _runs
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
+    from stiffnet.effects.registry import effect_class
+    from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
+    from stiffnet.measurement.nuisance import resolve_rows
+
+    sensor = {"resonance_hz": 237.0, "resonance_damping": 0.03}
+    runs = _runs([(9, 1.05, 1.9, 2.8, 2000)], 3.0, contact="kelvin_voigt", contact_zeta=0.25,
+                 sensor=sensor)  # fmt: skip
+    camp = load_campaign(write_campaign(tmp_path / "soft", runs))
+    (row,), _ = resolve_rows(camp)
+    accel = next(iter(camp.recordings()))[1].accel
+    mount = effect_class("sensor_dynamics")(highpass_hz=0.0, lowpass_hz=0.0, **sensor)
+    truth = [effect_class("contact_damping")(damping_ratio=0.25), mount]
+    (sim,) = simulate_rows([row], truth, [accel.size], settings=FIT_SETTINGS)
+    stats = [signal_statistics(a, row.fs_hz, natural_frequency(row), row.frequency_ratio, False)
+             for a in (accel, sim)]  # fmt: skip
+    nd = normalised_differences(*stats)
+    assert recording_discrepancy(nd) < 0.5, nd
+    assert abs(nd["spike_width"]) < 1 and abs(nd["harmonic_2"]) < 1, nd

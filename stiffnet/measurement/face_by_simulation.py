@@ -10,7 +10,10 @@ batch on the campaign as a screen (:func:`~stiffnet.measurement.fitting.screen_s
 a numerical-engine design's shorter transient begun warm; on the beam campaign it picked
 the same grid point as the full transient); the best point is scored again alone in full,
 refitted by the
-face's sweep (:func:`refine_face`, which also refits a face the discovery kept), and kept
+face's sweep (:func:`refine_face`, which also refits a face the discovery kept; its first
+sweep also runs from the best point of another grid mass, which the best point's box cannot
+reach: on the beam campaign the screen's best mass, 0.05, lies a grid step from the tip's
+0.1), and kept
 only where it passes the tests every diagnosed effect must
 (:func:`~stiffnet.measurement.significance.significance`: it lowers the
 discrepancy beyond the recordings' noise floors, for most recordings, and pays
@@ -37,7 +40,7 @@ from stiffnet.discovery.face_candidate import (
 from stiffnet.discovery.law import DiscoveredLaw
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.base import Effect
-from stiffnet.effects.learned_contact import LearnedContact
+from stiffnet.effects.learned_contact import FACE_REFIT_FACTOR, LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.fitting import screen_settings
 from stiffnet.measurement.noise_floor import Floors
@@ -52,6 +55,10 @@ FACE_PARAMETERS = 3
 #: misses what a sweep finds).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
 FACE_REFIT_GRID = 7
+#: The order of the refit's sweeps: the damping before the stiffness, for the ringing's
+#: frequency the stiffness sets is read at the damping's best (swept at the grid's damping,
+#: the stiffness locked onto a neighbouring orbit on the beam campaign).
+SWEEP_ORDER = ("face_mass", "face_damping", "face_stiffness")
 
 
 def face_by_simulation(
@@ -110,7 +117,12 @@ def face_by_simulation(
     _, mi, pj = min(scored)
     model, point = list(models[mi]), points[pj]
     alone = tgt.per_recording([*model, LearnedContact(**point)], settings)
-    refit = refine_face(tgt, rows, model, point, alone, settings)
+    other = _other_start(scored, mi, pj, points)
+    other_at = None
+    if other is not None:
+        other_at = tgt.per_recording([*model, LearnedContact(**points[other])], settings)
+    refit = refine_face(tgt, rows, model, point, alone, settings,
+                        other=None if other is None else (points[other], other_at))  # fmt: skip
     params = refit["params"] if refit["improves"] else point
     after = np.asarray(refit["per_recording"] if refit["improves"] else alone, float)
     names = [r.recording for r in rows]
@@ -131,10 +143,25 @@ def face_by_simulation(
         "grid_discrepancies": [float(d) for d, i, _ in scored if i == mi],
         "refit": {
             k: refit[k]
-            for k in ("improves", "discrepancy_discovered", "discrepancy_refit", "seconds")
-        },  # fmt: skip
+            for k in ("improves", "discrepancy_discovered", "discrepancy_refit", "first_sweeps")
+        }
+        | {"seconds": refit["seconds"]},
+        "other_start": None if other is None else {k: float(points[other][k]) for k in FACE_KEYS},
         "seconds": round(time.perf_counter() - t0, 2),
     }
+
+
+def _other_start(
+    scored: Sequence[tuple[float, int, int]], model: int, best: int, points: Sequence[dict]
+) -> int | None:
+    """The best screened point on ``model`` whose face mass the best point's refit box
+    cannot reach (beyond :data:`~stiffnet.effects.learned_contact.FACE_REFIT_FACTOR`), or
+    None."""
+    m0 = float(points[best]["face_mass"])
+    reach = np.log(FACE_REFIT_FACTOR)
+    far = [(d, j) for d, i, j in scored
+           if i == model and abs(np.log(float(points[j]["face_mass"]) / m0)) > reach]  # fmt: skip
+    return min(far)[1] if far else None
 
 
 def _same(a: Sequence[Effect], b: Sequence[Effect]) -> bool:
@@ -167,6 +194,7 @@ def refine_face(
     params: dict[str, float],
     at_discovered: np.ndarray,
     settings: Any,
+    other: tuple[dict[str, float], np.ndarray] | None = None,
 ) -> dict[str, Any]:
     """The law refitted by simulation around its discovered values, the rest of the model held.
 
@@ -176,29 +204,32 @@ def refine_face(
     within a factor 1.5, its damping 2.25): each of the face's parameters swept across its
     box on a grid simulated as one batch (:data:`FACE_REFIT_GRID`), the best point so far
     among its points, a point taken only where, scored again alone, it lowers the
-    discrepancy.
+    discrepancy. ``other`` (a second start and its per-recording discrepancy) gets the first
+    sweep too, across its own box, and the refit goes on from the better of the two: a
+    coarse grid's masses lie a factor 3 apart, wider than a box, and the better grid point
+    need not be the one whose box holds the face.
 
     Returns
     -------
     dict
         ``params`` (the law's, all of them), ``fitted``, ``per_recording``, ``improves`` (over
-        the discovered values), ``discrepancy_discovered``, ``discrepancy_refit``, ``seconds``.
+        the discovered values), ``discrepancy_discovered``, ``discrepancy_refit``,
+        ``first_sweeps`` (the campaign discrepancy after the first sweep from each start),
+        ``seconds``.
     """
-    from stiffnet.measurement.fitting import fit_effect
-
     tgt = replace(target, rows=list(rows), base_effects=list(model))
-    best, per = dict(params), np.asarray(at_discovered, float)
-    fitted: list[str] = []
+    fs_min = min(r.fs_hz for r in rows)
     t0 = time.perf_counter()
-    space = LearnedContact.fit_space_at(params, min(r.fs_hz for r in rows))
-    box = {fp.name: fp for fp in space.free}
-    for key in FACE_KEYS:  # a sweep of each across its box, the others at the best so far
-        grid = [{**best, key: box[key].value(u)} for u in np.linspace(0, 1, FACE_REFIT_GRID)]
-        fit = fit_effect(tgt, LearnedContact.name, [], settings, budget=1 + len(grid),
-                         off=per, seeds=[best, *grid])  # fmt: skip
-        fitted = list(fit["fitted"])
-        if fit["improves"]:
-            best, per = {**best, **fit["params"]}, np.asarray(fit["per_recording"], float)
+    starts = [(dict(params), np.asarray(at_discovered, float))]
+    if other is not None:
+        starts.append((dict(other[0]), np.asarray(other[1], float)))
+    first = []
+    for start, per0 in starts:
+        box = {fp.name: fp for fp in LearnedContact.fit_space_at(start, fs_min).free}
+        first.append((*_sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0), box))
+    best, per, fitted, box = min(first, key=lambda f: campaign_discrepancy(f[1]))
+    for key in SWEEP_ORDER[1:]:  # the others across the chosen start's box, at the best so far
+        best, per, fitted = _sweep(tgt, settings, box, key, best, per)
     d0, d1 = campaign_discrepancy(at_discovered), campaign_discrepancy(per)
     return {
         "params": best,
@@ -207,5 +238,21 @@ def refine_face(
         "improves": bool(d1 < d0),
         "discrepancy_discovered": d0,
         "discrepancy_refit": d1,
+        "first_sweeps": [campaign_discrepancy(f[1]) for f in first],
         "seconds": round(time.perf_counter() - t0, 2),
     }
+
+
+def _sweep(
+    tgt: Any, settings: Any, box: dict[str, Any], key: str, best: dict[str, float], per: np.ndarray
+) -> tuple[dict[str, float], np.ndarray, list[str]]:
+    """One face parameter swept across its box (the others at ``best``): the best point and
+    its per-recording discrepancy (``best`` kept unless a point lowers it), the fitted names."""
+    from stiffnet.measurement.fitting import fit_effect
+
+    grid = [{**best, key: box[key].value(u)} for u in np.linspace(0, 1, FACE_REFIT_GRID)]
+    fit = fit_effect(tgt, LearnedContact.name, [], settings, budget=1 + len(grid),
+                     off=per, seeds=[best, *grid])  # fmt: skip
+    if fit["improves"]:
+        return {**best, **fit["params"]}, np.asarray(fit["per_recording"], float), fit["fitted"]
+    return best, per, list(fit["fitted"])
