@@ -295,8 +295,9 @@ def _lowpass_stage(order: int, lowpass_hz: float, fs_hz: float) -> np.ndarray:
 def _pair_section(poles_z: np.ndarray, gain: float) -> np.ndarray:
     """The section of a pair of complex digital poles and two zeros at Nyquist: scipy's
     ``zpk2sos`` of the bilinear transform's output, its own arithmetic step for step (the
-    same bits, tests/test_restoring_force_chain_design.py) without the general pairing's
-    Python, which cost ten times the design (a chain fit designs a stage per evaluation)."""
+    same bits, tests/test_restoring_force_chain_cost.py) without the general pairing's
+    Python, 5-15 times the arithmetic's cost (a chain fit designs a stage at most
+    evaluations: a step in the contact frequency moves the resonance too)."""
     p1 = poles_z[np.argmax(poles_z.imag)]
     den = np.convolve(np.convolve(np.ones(1, complex), np.array([1.0, -p1])),
                       np.array([1.0, -p1.conjugate()])).real  # fmt: skip
@@ -619,8 +620,8 @@ def _difference_jacobian(resid, x, f0, n_shape: int, win: _Windows, lo, hi) -> s
     stepped alone and all onsets in one evaluation (which reads the shape's pulse table again).
     scipy's ``least_squares`` does the same from a ``jac_sparsity`` pattern with the same
     steps (:data:`DIFF_STEP` ``|x|``, ``sqrt(eps) max(1, |x|)`` where that is no step, reversed
-    or shortened where a bound is in the way) and so builds the same matrix, but spent a third
-    of a chain fit finding and assembling the pattern's entries at every Jacobian.
+    or shortened where a bound is in the way) and so builds the same matrix, but spends about a
+    tenth of a chain fit finding and assembling the pattern's entries at every Jacobian.
     """
     sign = np.where(x >= 0, 1.0, -1.0)
     h = DIFF_STEP * sign * np.abs(x)
