@@ -197,9 +197,10 @@ def pooled_predictions(
     pred: sp.Predictor, recs: list[dict[str, Any]], got: list[dict[str, Any]], say: Any
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Each campaign's recordings read through the chain pooled from `got`'s identified chains
-    and kept where confirmed (:mod:`serving.campaign_chain`, as ``evaluate`` and
-    ``predict-batch`` do), else `got`'s; and each campaign's decision with its true chain."""
-    from serving.campaign_chain import campaign_chain, confirmed
+    and kept where confirmed, except on a recording whose own contact law it reads much worse
+    (:mod:`serving.campaign_chain`, as ``evaluate`` and ``predict-batch`` do), else `got`'s;
+    and each campaign's decision with its true chain."""
+    from serving.campaign_chain import campaign_chain, confirmed, reads_alone
 
     out = list(got)
     decisions = []
@@ -210,7 +211,7 @@ def pooled_predictions(
             chain = confirmed(chain, [got[i]["rf"] for i in idx], [a["rf"] for a in again])
             if chain["pooled"]:
                 for i, a in zip(idx, again, strict=True):
-                    out[i] = a
+                    out[i] = got[i] if reads_alone(got[i]["rf"], a["rf"]) else a
         decisions.append({"campaign": k, "true": recs[idx[0]].get("chain"), **chain})
         say(f"  campaign {k}: {chain['reason']}; pooled {chain['sensor']}; "
             f"true {recs[idx[0]].get('chain')}")  # fmt: skip

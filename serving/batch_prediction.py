@@ -23,7 +23,8 @@ what the manifest leaves empty. A campaign has one accelerometer: the chains the
 restoring-force check identified on its recordings (``sensor`` in the table) are pooled
 (:mod:`serving.campaign_chain`) and, where they agree, every recording without its own
 data sheet is predicted again in a second round of parts with the pooled chain as its
-sheet, kept where it reads their contact laws about as well as the first round did
+sheet, kept where it reads their contact laws about as well as the first round did (a
+recording whose own law it reads much worse keeps its first row)
 (``sensor_source`` ``campaign``; the summary's ``sensor`` says what was pooled, on
 how many recordings, or why nothing was). A record whose
 beta changes along it (several layers, :func:`serving.log.record_layers`) has them
@@ -46,7 +47,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from serving.campaign_chain import campaign_chain, confirmed, labelled
+from serving.campaign_chain import campaign_chain, confirmed, labelled, reads_alone
 from serving.predictor import Predictor, predict_recording
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
@@ -415,7 +416,7 @@ def predict_batch(
                                          2 * n_parts, n_parts))  # fmt: skip
             second = _parts_table(parts_dir, records, range(n_parts, 2 * n_parts))
             chain = _confirmed(chain, first, second, flags)
-            table = second if chain["pooled"] else first
+            table = _campaign_table(first, second, flags) if chain["pooled"] else first
         else:
             table = first
     table = _joined_parts(parts_dir, table, predictor, out)
@@ -484,6 +485,17 @@ def _confirmed(
     own = [{"contact_r2": first.column(r2)[i].as_py()} for i in pick]
     pooled = [{"contact_r2": second.column(r2)[i].as_py()} for i in pick]
     return confirmed(chain, own, pooled)
+
+
+def _campaign_table(first: pa.Table, second: pa.Table, flags: tuple[bool, ...]) -> pa.Table:
+    """The second round's rows, except where a recording's own contact law reads much worse
+    through the pooled chain (:func:`serving.campaign_chain.reads_alone`): its first row."""
+    r2 = "restoring_force_contact_r2"
+    own, pooled = first.column(r2).to_pylist(), second.column(r2).to_pylist()
+    pick = [i if f and not reads_alone({"contact_r2": a}, {"contact_r2": b}) else -1
+            for i, (f, a, b) in enumerate(zip(flags, own, pooled, strict=True))]  # fmt: skip
+    rows = [second.slice(i, 1) if i >= 0 else first.slice(j, 1) for j, i in enumerate(pick)]
+    return pa.concat_tables(rows) if rows else second
 
 
 def _campaign_settings(

@@ -136,10 +136,15 @@ def as_recorded_law_shape(
     }
 
 
-def check_sensor_sheet(sheet: Any, fs_hz: float, what: str = "sensor") -> dict[str, float]:
-    """A sensor data sheet (a mapping of :data:`SENSOR_KEYS` to numbers) checked before any
-    work, or a one-line :class:`StiffnetError` naming the bad key."""
-    from stiffnet.restoring_force.chain import SENSOR_KEYS, sensor_from_mapping
+def check_sensor_sheet(sheet: Any, fs_hz: float, what: str = "sensor") -> dict[str, Any]:
+    """A sensor data sheet (a mapping of :data:`SENSOR_KEYS` to numbers; ``highpass_hz`` may
+    be ``"auto"``, the record's own corner) checked before any work, or a one-line
+    :class:`StiffnetError` naming the bad key."""
+    from stiffnet.restoring_force.chain import (
+        HIGHPASS_FITTED,
+        SENSOR_KEYS,
+        sensor_from_mapping,
+    )
 
     if not isinstance(sheet, dict):
         raise StiffnetError(f"{what} must be an object with keys {', '.join(SENSOR_KEYS)}")
@@ -147,7 +152,8 @@ def check_sensor_sheet(sheet: Any, fs_hz: float, what: str = "sensor") -> dict[s
         sensor_from_mapping(sheet, fs_hz)
     except ValueError as exc:
         raise StiffnetError(f"{what}: {exc}") from None
-    return {k: float(v) for k, v in sheet.items()}
+    # a campaign's pooled chain leaves the high-pass to each record ("auto")
+    return {k: v if v == HIGHPASS_FITTED else float(v) for k, v in sheet.items()}
 
 
 def sidecar_sensor(recording: Any) -> Any:

@@ -12,7 +12,10 @@ from serving.campaign_chain import (
     campaign_sheets,
     identified,
     labelled,
+    reads_alone,
 )
+from serving.restoring_force_check import check_sensor_sheet
+from stiffnet.restoring_force.chain import HIGHPASS_FITTED
 
 
 def fitted(resonance_hz=None, lowpass_hz=None, order=4, width=0.01, applied=True, highpass=1.0):
@@ -40,6 +43,13 @@ def test_one_sensor_is_pooled_as_the_median_of_the_recordings_that_identified_it
     assert chain["sensor"]["lowpass_hz"] == pytest.approx(502.5)
     assert chain["sensor"]["lowpass_order"] == 4.0
     assert chain["stages"]["resonance_hz"]["agreeing"] == 3
+    assert chain["sensor"]["highpass_hz"] == pytest.approx(1.0)  # pooled as the others
+    # where fewer than half show a high-pass none is known, not "none": each recording fits
+    # its own corner behind the pooled chain ("auto"), which the predictor's sheet check keeps
+    bare = campaign_chain([fitted(300.0, highpass=0.0), fitted(305.0, highpass=0.0),
+                           fitted(298.0, highpass=2.0)], list("abc"))  # fmt: skip
+    assert bare["pooled"] and bare["sensor"]["highpass_hz"] == HIGHPASS_FITTED
+    assert check_sensor_sheet(bare["sensor"], 2000.0) == bare["sensor"]
     # every recording without a sheet reads the pooled chain, whether it identified one or not
     assert campaign_sheets(chain, [None] * 6) == [chain["sensor"]] * 6
 
@@ -88,6 +98,36 @@ def test_a_users_data_sheet_wins_and_does_not_vote():
     assert chain["pooled"] and chain["n_identified"] == 2
     assert chain["sensor"]["resonance_hz"] == pytest.approx(301.0)
     assert campaign_sheets(chain, [None, None, sheet]) == [chain["sensor"], chain["sensor"], sheet]
+
+
+def test_a_recording_whose_own_law_the_pooled_chain_reads_much_worse_reads_alone():
+    # the rig's campaign: R2 0.998 alone, 0.54 through the pooled chain (refused there)
+    assert reads_alone({"contact_r2": 0.998}, {"contact_r2": 0.541})
+    assert reads_alone({"contact_r2": 0.96}, {"contact_r2": None})  # refused: explains nothing
+    # within the confirmation's shortfall, or better, or a first reading that refused: pooled
+    assert not reads_alone({"contact_r2": 0.981}, {"contact_r2": 0.960})
+    assert not reads_alone({"contact_r2": 0.315}, {"contact_r2": 0.949})
+    assert not reads_alone({"contact_r2": None}, {"contact_r2": 0.9})
+    assert not reads_alone(None, {"contact_r2": 0.9})
+
+
+def test_predict_batch_keeps_the_first_row_of_a_recording_that_reads_alone():
+    import pyarrow as pa
+
+    from serving.batch_prediction import _campaign_table
+
+    paths = ["a", "b", "c", "d"]
+    first = pa.table({"path": paths, "sensor_source": ["fitted", None, "data sheet", "fitted"],
+                      "restoring_force_contact_r2": [0.998, 0.97, 0.99, None]})  # fmt: skip
+    second = pa.table({"path": paths,
+                       "sensor_source": ["campaign", "campaign", "data sheet", "campaign"],
+                       "restoring_force_contact_r2": [0.541, 0.99, 0.99, 0.95]})  # fmt: skip
+    # a (R2 0.998 -> 0.541) keeps its first row; b and d read through the pooled chain; c has
+    # its own sheet (not flagged) and keeps its first row
+    table = _campaign_table(first, second, (True, True, False, True))
+    assert table.column("path").to_pylist() == ["a", "b", "c", "d"]
+    assert table.column("sensor_source").to_pylist() == ["fitted", "campaign", "data sheet",
+                                                         "campaign"]  # fmt: skip
 
 
 def test_the_result_names_the_chain_it_was_read_through():

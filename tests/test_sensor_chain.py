@@ -320,6 +320,31 @@ def test_a_charge_amplifier_highpass_is_found_and_none_is_invented(highpass_hz):
     assert r.beta == pytest.approx(30.0, rel=0.1)
 
 
+@pytest.mark.slow
+def test_a_sheet_that_leaves_the_highpass_to_the_record_fits_its_corner():
+    """Independent rig, elastic contact, beta 30, a mount resonance at 20 f_n and a 3.5 Hz
+    charge amplifier: a sheet with the resonance and ``highpass_hz: "auto"`` (a campaign's
+    pooled chain) finds the corner within 10 % and beta within 10 %, as the true sheet does;
+    the same sheet with the high-pass held at 0 reads beta far off (the map's drift)."""
+    from serving.restoring_force_check import check_sensor_sheet
+    from stiffnet.restoring_force.chain import HIGHPASS_FITTED
+
+    chain = {"resonance_hz": 20 * FN, "resonance_damping": 0.06, "highpass_hz": 3.5}
+    accel, fs = rig(chain, None, fs=1500.0)
+    sheet = {**chain, "highpass_hz": HIGHPASS_FITTED}
+    assert check_sensor_sheet(sheet, fs) == sheet  # the predictor's check keeps "auto"
+    auto = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
+                                    sensor=sheet)  # fmt: skip
+    assert auto.ok, auto.reason
+    assert auto.sensor.source == "data sheet"
+    assert auto.sensor.highpass_hz == pytest.approx(3.5, rel=0.1) == auto.highpass_hz
+    assert auto.beta == pytest.approx(30.0, rel=0.1)
+    held = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
+                                    sensor={**chain, "highpass_hz": 0.0})  # fmt: skip
+    assert held.highpass_hz == 0.0
+    assert not held.ok or abs(held.beta / 30.0 - 1) > 0.3
+
+
 # --- "no contact" behind a low-pass ------------------------------------------------------
 
 

@@ -218,10 +218,18 @@ def campaign_predictions(
     some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
     they agree, every recording without its own data sheet is predicted again with the
     pooled chain as its sheet; kept where it reads the contact laws about as well as the
-    first reading (:func:`serving.campaign_chain.confirmed`). Returns the results
+    first reading (:func:`serving.campaign_chain.confirmed`), except on a recording whose
+    own contact law it reads much worse (:func:`serving.campaign_chain.reads_alone`: its first
+    reading is kept). Returns the results
     (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
-    from serving.campaign_chain import campaign_chain, campaign_sheets, confirmed, labelled
+    from serving.campaign_chain import (
+        campaign_chain,
+        campaign_sheets,
+        confirmed,
+        labelled,
+        reads_alone,
+    )
 
     rows = campaign.rows
     first = [predicted(campaign, i, row, model_path) for i, row in enumerate(rows)]
@@ -239,8 +247,10 @@ def campaign_predictions(
                       [again[i].get("restoring_force") for i in read])  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
-    return [labelled(first[i], False) if r is None else labelled(r, True)
-            for i, r in enumerate(again)], chain  # fmt: skip
+    alone = [r is None or reads_alone(first[i].get("restoring_force"), r.get("restoring_force"))
+             for i, r in enumerate(again)]  # fmt: skip
+    return [labelled(first[i], False) if keep else labelled(again[i], True)
+            for i, keep in enumerate(alone)], chain  # fmt: skip
 
 
 def _evaluated_row(row: Any, res: dict[str, Any], contact: Any) -> dict[str, Any]:

@@ -207,9 +207,22 @@ def sensor_sheet(text: str, fs_hz: float, what: str = "sensor") -> dict[str, flo
     return sheet
 
 
+#: A data sheet's ``highpass_hz`` that asks for the record's own corner (fitted as without a
+#: sheet): a campaign's pooled chain knows the shared resonance and low-pass, but the
+#: recordings' high-pass fits scatter too much to pool (0-4 Hz for a true 3.6 Hz), and a
+#: sheet's 0 would hold the map at no high-pass (beta 0.9 off on the rig).
+HIGHPASS_FITTED = "auto"
+
+
+def sheet_fits_highpass(data: dict[str, Any] | None) -> bool:
+    """Whether a data sheet leaves the high-pass corner to the record (:data:`HIGHPASS_FITTED`)."""
+    return bool(data) and data.get("highpass_hz") == HIGHPASS_FITTED
+
+
 def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
-    ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage).
+    ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage; ``highpass_hz``
+    :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here).
 
     Raises
     ------
@@ -235,7 +248,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     order = number("lowpass_order", 1, 8) or (2 if fl else 0)
     if order != int(order):
         raise ValueError(f"sensor lowpass_order must be an integer, got {order:g}")
-    fh = number("highpass_hz", 0.0, 1e3)
+    fh = 0.0 if sheet_fits_highpass(data) else number("highpass_hz", 0.0, 1e3)
     in_band = 0.5 * fs_hz
     return SensorChain(
         resonance_hz=fr if 0 < fr < in_band else None,

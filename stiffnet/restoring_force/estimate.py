@@ -43,6 +43,7 @@ from stiffnet.restoring_force.chain import (
     identifiability,
     sensor_from_mapping,
     settling_samples,
+    sheet_fits_highpass,
 )
 from stiffnet.restoring_force.contact_law import (
     ContactLaw,
@@ -754,8 +755,10 @@ def restoring_force_estimate(
     sensor : SensorChain or dict, optional
         The sensor chain from its data sheet (``resonance_hz``, ``resonance_damping``,
         ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; a stage left out is none): it is
-        undone as given and nothing is fitted. None (default) identifies the chain from the
-        impacts (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
+        undone as given and nothing is fitted, except a ``highpass_hz`` of ``"auto"`` (a
+        campaign's pooled chain), fitted as `highpass_hz` ``"auto"`` fits it and reported
+        in the chain. None (default) identifies the chain from the impacts
+        (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
     chain_fit_below_r2 : float, optional
         Identify the chain only where the record as recorded leaves the contact law
         explaining less than this (R2; default: always). A chain that distorts the
@@ -852,13 +855,14 @@ def _checked_options(
             raise ConfigError(f"{name} must be a positive number, got {value!r}")
     if not 0 < coverage < 1:
         raise ConfigError(f"coverage must be in (0, 1), got {coverage!r}")
+    fitted = isinstance(sensor, dict) and sheet_fits_highpass(sensor)
     if isinstance(sensor, dict):
         try:
             sensor = sensor_from_mapping(sensor, fs_hz)
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-    if sensor is not None:  # the data sheet's high-pass is the one undone
-        highpass_hz = float(sensor.highpass_hz)
+    if sensor is not None:  # the data sheet's high-pass is the one undone, unless it asks
+        highpass_hz = "auto" if fitted else float(sensor.highpass_hz)  # for the record's
     return sensor, highpass_hz
 
 
@@ -941,6 +945,8 @@ def _estimate_at(
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
         m = _profile_free_damping(m, dtau, tau, use, period, k_given, exponent)
     fit, info = m.fit, m.info
+    if sensor is not None and chain is not None and highpass_hz == "auto":
+        chain = dataclasses.replace(chain, highpass_hz=m.corner * ff)  # the record's own
     info["resonance_hz"] = resonance
     info["sensor"] = chain
     info.update(
