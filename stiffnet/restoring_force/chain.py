@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import ndimage, optimize, signal, stats
+from scipy import ndimage, optimize, signal, sparse, stats
 
 #: Fine-grid oversampling of the pulse model (the chain as the analog one it discretises).
 OVERSAMPLE = 16
@@ -278,16 +278,43 @@ def chain_sos(chain: SensorChain, fs_hz: float) -> np.ndarray | None:
 def _resonance_stage(resonance_hz: float, damping: float, fs_hz: float) -> np.ndarray:
     w = 2.0 * fs_hz * np.tan(np.pi * resonance_hz / fs_hz)
     poles = np.roots([1.0, 2.0 * damping * w, w * w])
-    sos = signal.zpk2sos(*signal.bilinear_zpk([], poles, w * w, fs_hz))
+    if 0.0 < damping < 1.0:  # one pair of complex poles
+        fs2 = 2.0 * fs_hz
+        gain = (w * w) * np.real(1.0 / np.prod(fs2 - poles))
+        sos = _pair_section((fs2 + poles) / (fs2 - poles), gain)
+    else:
+        sos = signal.zpk2sos(*signal.bilinear_zpk([], poles, w * w, fs_hz))
     sos.setflags(write=False)
     return sos
+
+
+#: The analog second-order Butterworth prototype's poles (scipy's ``buttap(2)``).
+_BUTTERWORTH2 = signal.buttap(2)[1]
 
 
 @functools.lru_cache(maxsize=4096)
 def _lowpass_stage(order: int, lowpass_hz: float, fs_hz: float) -> np.ndarray:
-    sos = signal.butter(order, lowpass_hz, fs=fs_hz, output="sos")
+    if order == 2 and 0.0 < lowpass_hz < 0.5 * fs_hz:  # the fit's own low-pass: one pair
+        wo = float(4.0 * np.tan(np.pi * (lowpass_hz / (fs_hz / 2)) / 2.0))
+        poles = wo * _BUTTERWORTH2
+        gain = wo**2 * np.real(1.0 / np.prod(4.0 - poles))
+        sos = _pair_section((4.0 + poles) / (4.0 - poles), gain)
+    else:
+        sos = signal.butter(order, lowpass_hz, fs=fs_hz, output="sos")
     sos.setflags(write=False)
     return sos
+
+
+def _pair_section(poles_z: np.ndarray, gain: float) -> np.ndarray:
+    """The section of a pair of complex digital poles and two zeros at Nyquist: scipy's
+    ``zpk2sos`` of the bilinear transform's output, its own arithmetic step for step (the
+    same bits, tests/test_restoring_force_chain_cost.py) without the general pairing's
+    Python, 5-15 times the arithmetic's cost (a chain fit designs a stage at most
+    evaluations: a step in the contact frequency moves the resonance too)."""
+    p1 = poles_z[np.argmax(poles_z.imag)]
+    den = np.convolve(np.convolve(np.ones(1, complex), np.array([1.0, -p1])),
+                      np.array([1.0, -p1.conjugate()])).real  # fmt: skip
+    return np.array([[gain * 1.0, gain * 2.0, gain * 1.0, den[0], den[1], den[2]]])
 
 
 #: The record is read from where the low-pass has settled: this many of its DC group delays.
@@ -467,15 +494,26 @@ def contact_pulse(
 def _residuals(theta, win: _Windows, fs_hz: float, structure) -> np.ndarray:
     """Residuals of the pulse model (onsets last in `theta`), each impact's size and linear
     baseline projected out (variable projection)."""
-    n, length = win.n, win.length
+    return _projected(_pulse_table(theta, win, fs_hz, structure), theta[-win.n :], win)
+
+
+def _pulse_table(theta, win: _Windows, fs_hz: float, structure) -> np.ndarray:
+    """The pulse through the chain at :data:`OVERSAMPLE` times the record's rate: the shape's
+    part of :func:`_residuals` (the onsets only shift where it is read)."""
     chain, contact_hz, zeta = _unpack(theta, structure, fs_hz)
     fine = fs_hz * OVERSAMPLE
-    t = np.arange((length + 2) * OVERSAMPLE) / fine
+    t = np.arange((win.length + 2) * OVERSAMPLE) / fine
     table = contact_pulse(t, contact_hz, zeta, theta[2], win.free_hz)
     sos = chain_sos(chain, fine)
     if sos is not None:
         table = signal.sosfilt(sos, table)
-    t0 = theta[-n:]
+    return table
+
+
+def _projected(table: np.ndarray, t0: np.ndarray, win: _Windows) -> np.ndarray:
+    """The windows' residuals with the pulse `table` read from onsets `t0`, each impact's size
+    and linear baseline projected out."""
+    n, length = win.n, win.length
     pos = (np.arange(length)[None, :] - t0[:, None]) * OVERSAMPLE
     pulse = np.interp(pos, np.arange(table.size), table, left=0.0, right=table[-1])
     u = np.broadcast_to(np.arange(length) / length - 0.5, (n, length))
@@ -536,9 +574,6 @@ def _fit_structure(
     free = np.ones(k + n, dtype=bool)
     if corner_hz is not None:
         free[k - 1] = False
-    sparsity = np.zeros((win.r.size, k + n), dtype=int)
-    sparsity[:, :k] = 1
-    sparsity[np.arange(win.r.size), k + np.repeat(np.arange(n), win.length)] = 1
 
     def full(x: np.ndarray) -> np.ndarray:
         th = np.empty(k + n)
@@ -547,15 +582,29 @@ def _fit_structure(
             th[k - 1] = np.log(corner_hz)
         return th
 
+    # the last pulse table and the last residuals: an onsets' step reads the table again, and
+    # the Jacobian is asked for where the last step was taken
+    table: list = [None, None]
+    last: list = [None, None]
+
     def resid(x: np.ndarray) -> np.ndarray:
-        return _residuals(full(x), win, fs_hz, structure)
+        th = full(x)
+        if table[0] is None or not np.array_equal(th[:k], table[0]):
+            table[:] = [th[:k].copy(), _pulse_table(th, win, fs_hz, structure)]
+        out = _projected(table[1], th[k:], win)
+        last[:] = [x.copy(), out]
+        return out
+
+    def jac(x: np.ndarray) -> sparse.csr_array:
+        f0 = last[1] if last[0] is not None and np.array_equal(x, last[0]) else resid(x)
+        return _difference_jacobian(resid, x, f0, int(free[:k].sum()), win, lower[free],
+                                    upper[free])  # fmt: skip
 
     best = None
     for start in starts:
         sol = optimize.least_squares(
             resid, np.clip(start, lower + 1e-9, upper - 1e-9)[free],
-            bounds=(lower[free], upper[free]), x_scale="jac", max_nfev=max_nfev,
-            diff_step=1e-4, jac_sparsity=sparsity[:, free],
+            bounds=(lower[free], upper[free]), x_scale="jac", max_nfev=max_nfev, jac=jac,
         )  # fmt: skip
         sol.x = full(sol.x)
         sse = float(np.sum(sol.fun**2))
@@ -570,6 +619,47 @@ def _fit_structure(
         None if corner_hz is not None else np.linalg.pinv(jac.T @ jac)[:k, :k] * sse / max(m - p, 1)
     )
     return _StructureFit(structure, sol.x, sse, float(bic), cov)
+
+
+#: Relative step of the chain fit's forward differences.
+DIFF_STEP = 1e-4
+
+
+def _difference_jacobian(resid, x, f0, n_shape: int, win: _Windows, lo, hi) -> sparse.csr_array:
+    """The forward-difference Jacobian of the pulse residuals at `x` (the free shape parameters,
+    then one onset per impact), sparse.
+
+    An impact's residuals depend on its own onset and on the shape, so each shape parameter is
+    stepped alone and all onsets in one evaluation (which reads the shape's pulse table again).
+    scipy's ``least_squares`` does the same from a ``jac_sparsity`` pattern with the same
+    steps (:data:`DIFF_STEP` ``|x|``, ``sqrt(eps) max(1, |x|)`` where that is no step, reversed
+    or shortened where a bound is in the way) and so builds the same matrix, but spends about a
+    tenth of a chain fit finding and assembling the pattern's entries at every Jacobian.
+    """
+    sign = np.where(x >= 0, 1.0, -1.0)
+    h = DIFF_STEP * sign * np.abs(x)
+    h = np.where(
+        (x + h) - x == 0, np.sqrt(np.finfo(float).eps) * sign * np.maximum(1.0, np.abs(x)), h
+    )
+    room_lo, room_hi = x - lo, hi - x
+    fits = np.abs(h) <= np.maximum(room_lo, room_hi)
+    h[((x + h < lo) | (x + h > hi)) & fits] *= -1
+    up, down = (room_hi >= room_lo) & ~fits, (room_hi < room_lo) & ~fits
+    h[up], h[down] = room_hi[up], -room_lo[down]
+    m = f0.size
+    vals = np.empty((m, n_shape + 1))
+    for g, cols in enumerate([*([j] for j in range(n_shape)), np.arange(n_shape, x.size)]):
+        step = x.copy()
+        step[cols] += h[cols]
+        dx = step - x
+        df = resid(step) - f0
+        # the onsets' column on each residual is its own impact's
+        vals[:, g] = df / (dx[cols] if g < n_shape else np.repeat(dx[cols], win.length))
+    indices = np.empty((m, n_shape + 1), dtype=np.int32)
+    indices[:, :n_shape] = np.arange(n_shape)
+    indices[:, n_shape] = n_shape + np.repeat(np.arange(win.n), win.length)
+    indptr = np.arange(0, m * (n_shape + 1) + 1, n_shape + 1, dtype=np.int32)
+    return sparse.csr_array((vals.ravel(), indices.ravel(), indptr), shape=(m, x.size))
 
 
 def _grid_best(win: _Windows, fs_hz: float, structure, thetas: list[np.ndarray], i: int) -> float:
@@ -607,6 +697,7 @@ def fit_chain(
     highpass_hz: float = 0.0,
     contact_hz: float | None = None,
     noise_sigma: float | None = None,
+    profile: bool = True,
 ) -> SensorChain | None:
     """The sensor chain and the contact's poles, fitted jointly to every impact's pulse.
 
@@ -634,6 +725,9 @@ def fit_chain(
     noise_sigma : float, optional
         The record's white-noise scatter: where the chain-free pulses fit down to
         :data:`NOISE_FLOOR` times its variance, no chain is fitted.
+    profile : bool
+        Profile the low-passes the impacts cannot exclude (``lowpass_not_excluded``, what
+        beta's interval reads); False leaves it empty and the chain as it is.
 
     Returns
     -------
@@ -655,6 +749,8 @@ def fit_chain(
         search.other_orders(none)
     best = _best_fit(search.fits)
     chain = _chosen_chain(best, fs_hz, highpass_hz)
+    if not profile:
+        return chain
     return dataclasses.replace(chain, lowpass_not_excluded=search.lowpass_profile(best))
 
 

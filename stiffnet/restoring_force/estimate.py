@@ -581,6 +581,8 @@ def _undo_chain(
     sensor: SensorChain | None,
     beta_max: float = 100.0,
     chain_fit_below_r2: float = np.inf,
+    rivals: bool = True,
+    profile: bool = True,
 ) -> tuple[_Map, SensorChain | None, float | None, str, list[float]]:
     """The map of the record with its sensor chain undone, the chain, the resonance divided
     out (Hz), a refusal where the chain's band does not carry the contact, and the beta the
@@ -591,7 +593,8 @@ def _undo_chain(
     (:func:`~.chain.fit_chain`); a resonance or low-pass in the band is divided out within the
     band the record supports (:func:`~.chain.deconvolve`) and the map fitted again. Without
     impacts to fit, the post-impact ringing alone is divided out where it dominates (the
-    older rule of :mod:`.sensor`).
+    older rule of :mod:`.sensor`). Without `rivals` the other readings are not mapped (none
+    returned); without `profile` a fitted chain's unexcluded low-passes are not profiled.
     """
     use, k_given = args[3], args[5]
     natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
@@ -603,7 +606,7 @@ def _undo_chain(
         ring_hz = ring[0] * fs_hz / (2 * np.pi) if ring is not None and ring[2] > 0.5 else None
         hint = ff * float(np.sqrt(m.law.stiffness + m.fit.stiffness)) if m.law else None
         chain = fit_chain(m.fit.force, core, fs_hz, fn_hz, m.spc, ring_hz, m.corner * ff, hint,
-                          m.fit.sigma)  # fmt: skip
+                          m.fit.sigma, profile=profile)  # fmt: skip
     candidates = [(m, None)]  # (map, resonance divided out)
     mode = resonance_rule(ring, m.spc, natural) if sensor is None else None
     if mode is not None:  # the post-impact ringing dominates: divide that mode out
@@ -611,7 +614,7 @@ def _undo_chain(
         candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
     if chain is None or not chain.has_dynamics:
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
-        unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent) if rivals else []
         return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
     m2 = _remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
@@ -642,11 +645,13 @@ def _undo_chain(
     applied = _contact_r2(m2) >= _contact_r2(other[0]) - slack
     if applied and refusal:
         return m2, chain, chain.resonance_hz, refusal, []
-    rivals = (
+    readings = (
         [c[0] for c in candidates]
         + [m2]
         + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
         + _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        if rivals
+        else []
     )
     if not applied:
         # a rejected chain refuses nothing, even with its low-pass below the contact: a
@@ -654,8 +659,8 @@ def _undo_chain(
         # interval spans the chain-undone reading instead, so a low-pass that was real
         # still leaves an interval that covers.
         chain = dataclasses.replace(chain, applied=False)
-        return other[0], chain, other[1], "", _readings(rivals)
-    return m2, chain, chain.resonance_hz, refusal, _readings(rivals)
+        return other[0], chain, other[1], "", _readings(readings)
+    return m2, chain, chain.resonance_hz, refusal, _readings(readings)
 
 
 def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
@@ -715,6 +720,7 @@ def restoring_force_estimate(
     sensor: SensorChain | dict | None = None,
     chain_fit_below_r2: float = np.inf,
     profile_highpass_below_r2: float | None = None,
+    interval: bool = True,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -765,6 +771,14 @@ def restoring_force_estimate(
         explains less than this (default: `chain_fit_below_r2`). ``-inf`` never profiles:
         what a contact-law discovery needs, since the profile tunes the corner until the
         library's law fits and so bends a law the library lacks.
+    interval : bool
+        False: the map, its contact law and beta without beta's interval (``beta_interval``
+        is ``(nan, nan)``): no bootstrap, and a fitted chain's other readings (its low-pass
+        at the ends of its interval, the low-passes the impacts cannot exclude) are neither
+        profiled nor mapped, unless the record's start-up is read through them
+        (:func:`_estimate_settled`). What a caller that reads only the map needs (the
+        contact-law discovery): the same map and the same choice of chain, for less CPU
+        where a chain is fitted.
 
     Returns
     -------
@@ -787,7 +801,8 @@ def restoring_force_estimate(
                    highpass_hz=highpass_hz, sensor=sensor,
                    chain_fit_below_r2=chain_fit_below_r2,
                    profile_highpass_below_r2=chain_fit_below_r2
-                   if profile_highpass_below_r2 is None else profile_highpass_below_r2)  # fmt: skip
+                   if profile_highpass_below_r2 is None else profile_highpass_below_r2,
+                   interval=interval)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -810,10 +825,14 @@ def _estimate_settled(a: np.ndarray, fs_hz: float, ff: float, options: dict):
     fitted, the record is read again without them; records with no low-pass or no high-pass,
     and records read from their middle (`max_periods`), are read as they are.
     """
-    first = _estimate_at(a, fs_hz, ff, **options)
     most = options["max_periods"]
     if options["highpass_hz"] != "auto" or (most is not None and a.size > most * fs_hz / ff):
-        return first  # a corner given, or a record cut from its middle: no start-up in it
+        # a corner given, or a record cut from its middle: no start-up in it, and the chain's
+        # unexcluded low-passes are read only for the interval
+        return _estimate_at(a, fs_hz, ff, **options)
+    # the settling reads the chain's unexcluded low-passes: profiled even without an interval
+    options = {**options, "chain_profile": True}
+    first = _estimate_at(a, fs_hz, ff, **options)
     skip = settling_samples(first.sensor, fs_hz) if first.highpass_hz > 0 else 0
     if skip == 0:
         return first
@@ -895,8 +914,12 @@ def _estimate_at(
     sensor: SensorChain | None,
     chain_fit_below_r2: float,
     profile_highpass_below_r2: float,
+    interval: bool = True,
+    chain_profile: bool = False,
 ) -> RestoringForceResult:
-    """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz)."""
+    """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz); without an
+    `interval`, a fitted chain's unexcluded low-passes are profiled only with
+    `chain_profile`."""
     if not ff < 0.5 * fs_hz:
         raise ConfigError(f"forcing frequency {ff:.3g} Hz is not below Nyquist ({fs_hz / 2:g} Hz)")
     args, polarity = _periodic_record(a, fs_hz, ff, natural_frequency_hz, max_periods)
@@ -914,8 +937,9 @@ def _estimate_at(
         m = _fit_map(*args, corner, exponent)
     beta_max = max(float(hi) for _, _, hi in classes)
     m, chain, resonance, refusal, rivals = _undo_chain(
-        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max, chain_fit_below_r2
-    )
+        m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
+        chain_fit_below_r2, rivals=interval, profile=interval or chain_profile,
+    )  # fmt: skip
     corner = m.corner
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
@@ -942,7 +966,7 @@ def _estimate_at(
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
-    beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed)
+    beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed, interval)
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
@@ -999,11 +1023,13 @@ def _periodic_record(
     return (y, dtau, tau, use, period, k_given), polarity
 
 
-def _beta_of_map(m: _Map, use: np.ndarray, dtau: float, coverage: float, seed: int):
+def _beta_of_map(
+    m: _Map, use: np.ndarray, dtau: float, coverage: float, seed: int, interval: bool = True
+):
     """Rule: beta, its interval, the contact damping ratio and the contact poles used (None:
     the contact law's). With few samples per contact the contact's own oscillation (its
     poles) gives beta where it fits and spans at most a half period; otherwise the contact
-    law, with a bootstrap interval over impacts."""
+    law, with a bootstrap interval over impacts (``(nan, nan)`` without `interval`)."""
     law, fit, spc, k = m.law, m.fit, m.spc, m.fit.stiffness
     poles = None
     if spc < POLE_MAX_SAMPLES:
@@ -1025,6 +1051,8 @@ def _beta_of_map(m: _Map, use: np.ndarray, dtau: float, coverage: float, seed: i
         return beta, (lo, hi), damping_ratio, poles
     beta = law.stiffness / k
     damping_ratio = float(law.damping / (2 * np.sqrt(law.stiffness)))
+    if not interval:
+        return beta, (np.nan, np.nan), damping_ratio, None
     rng = np.random.default_rng(seed)
     lo, hi = bootstrap_beta(
         law, fit.force, fit.displacement, fit.velocity, m.labels, m.n_impacts, k, coverage, rng
