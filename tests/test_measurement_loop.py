@@ -227,6 +227,7 @@ def test_default_state_folder_is_never_inside_shipped_files(tmp):
         (["--spread", "1.5"], "--spread must be"),
         (["--add-effect", "contact_damping:damping_ratio=abc"], "is not a number"),
         (["--envelope", "--operating-points"], "give one of --envelope and --operating-points"),
+        (["--sweep", "--operating-points"], "give one of --sweep and --operating-points"),
     ],
 )
 def test_bad_loop_options_are_one_line(two_effects, tmp, args, needle):
@@ -355,3 +356,78 @@ def test_given_diagnosis_and_an_interrupted_iteration(two_effects, tmp):
     assert sensor.params["resonance_hz"] == pytest.approx([177.75, 296.25])
     assert sensor.params["resonance_damping"] == 0.03  # not fitted: fixed
     assert it["metrics"]["discrepancy"] < 0.01 * res["before"]["discrepancy"]
+
+
+@pytest.mark.parametrize(
+    ("effects", "world"),
+    [
+        ([], "sweep"),
+        (
+            [("contact_damping", {"damping_ratio": 0.25}), ("sensor_dynamics", SENSOR_PARAMS)],
+            "sweep",
+        ),  # fmt: skip
+        ([("learned_contact", {"face_mass": 0.1, "face_stiffness": 10.0})], "sweep"),
+        ([("learned_contact", {"knee": 0.2, "knee_ratio": [2.7, 3.0]})], "operating_points"),
+        ([("learned_contact", {"hunt_crossley": 0.4})], "operating_points"),
+        ([("hertz_contact", {})], "operating_points"),
+        ([("restraint_mass", {})], "sweep"),
+    ],
+)
+def test_auto_world_follows_the_contact_law(effects, world):
+    """``auto``: the operating points once a contact law is not a linear spring and
+    dashpot (a knee, a power, Hunt-Crossley, a user's law with its own elastic force); a
+    face with its own mass, a damped contact and a sensor keep the sweep."""
+    given = [{"name": n, "params": p} for n, p in effects]
+    chosen, why = loop_mod.dataset_world("auto", given)
+    assert chosen == world
+    if world == "operating_points":
+        assert effects[0][0] in why and "not a linear spring" in why
+    # a world the user gave is kept whatever the law
+    assert loop_mod.dataset_world("sweep", given)[0] == "sweep"
+    assert loop_mod.dataset_world("operating_points", [])[0] == "operating_points"
+
+
+def test_a_user_law_with_its_own_elastic_force_is_nonlinear():
+    """The default rule reads the hooks a user's law overrides: its own elastic or
+    dissipative force is nonlinear, a face with its own mass (a linear restraint) is not."""
+    import unknown_contact_laws as laws
+
+    assert laws.TwoStageContact(knee=0.2, ratio=3.0).nonlinear_contact
+    assert laws.HuntCrossleyContact().nonlinear_contact
+    assert not laws.SprungFaceContact().nonlinear_contact
+    assert not laws.BeamTipContact().nonlinear_contact
+
+
+@pytest.mark.slow
+def test_auto_world_moves_to_the_operating_points_with_a_nonlinear_law(two_effects, tmp):
+    """A new loop without a world trains iteration 0 over the sweep and, once a Hertz
+    contact is added, iteration 1 at the manifest's rows (the data card lists them), with
+    the reason in the iteration and the table."""
+    state = tmp / "auto-state"
+    res = loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=1,
+                            add_effects=[("hertz_contact", {})], family="gbm",
+                            n_trajectories=TINY, tracking_uri=None)  # fmt: skip
+    assert res["world"] == "auto"
+    first, second = res["iterations"]
+    assert (first["world"], second["world"]) == ("sweep", "operating_points")
+    assert "hertz_contact" in second["world_reason"] and second["n_trajectories"] == TINY
+    card0 = json.loads((state / "iter-000" / "data_card.json").read_text())
+    card1 = json.loads((state / "iter-001" / "data_card.json").read_text())
+    assert "operating_points" not in card0 or not card0["operating_points"]
+    assert len(card1["operating_points"]["points"]) == len(load_campaign(two_effects).rows)
+    from stiffnet.cli.measurement import loop_table
+
+    rendered = [c._cells for c in loop_table(res, "c").columns if c.header == "trained on"]
+    assert rendered == [[f"sweep x{TINY}", f"points x{TINY}"]]
+
+
+def test_auto_world_reads_the_starting_configs_own_law():
+    """A starting config that already carries a nonlinear law trains iteration 0 at the
+    operating points too (the loop's world is read from every effect of the config)."""
+    from stiffnet.config.sim import EffectSpec
+
+    cfg = _ideal()
+    cfg = cfg.model_copy(update={"effects": [*cfg.effects, EffectSpec(name="hertz_contact")]})
+    every = loop_mod.config_with_effects(cfg, []).effects
+    given = [{"name": e.name, "params": e.params} for e in every]
+    assert loop_mod.dataset_world("auto", given)[0] == "operating_points"

@@ -420,7 +420,11 @@ def loop(
         typer.Option("--model", help="Deprecated: the old name of --family.", hidden=True),
     ] = None,
     n_trajectories: Annotated[
-        int | None, typer.Option(help="Trajectories per generated dataset (default 1000).")
+        int | None,
+        typer.Option(
+            help="Trajectories per generated dataset (default 1000 over the sweep, 400 at the "
+            "operating points)."
+        ),
     ] = None,
     spread: Annotated[
         float | None,
@@ -454,7 +458,15 @@ def loop(
         typer.Option(
             help="Train at the campaign's own operating points (each manifest row's gap, "
             "amplitude, frequency ratio, damping, fs/f_n and noise, jittered 5 %; beta over "
-            "the sweep): for a contact law that is not a linear spring (a new loop only)."
+            "the sweep) in every iteration (a new loop only; by default from the iteration "
+            "that adds a contact law that is not a linear spring)."
+        ),
+    ] = False,
+    sweep: Annotated[
+        bool,
+        typer.Option(
+            help="Train over the config's whole sweep in every iteration, even after a "
+            "contact law that is not a linear spring is added (a new loop only)."
         ),
     ] = False,
 ) -> None:
@@ -474,6 +486,10 @@ def loop(
 
         raise StiffnetError("give one of --envelope and --operating-points (the operating "
                             "points already lie inside the envelope)")  # fmt: skip
+    if sweep and operating_points:
+        from stiffnet.errors import StiffnetError
+
+        raise StiffnetError("give one of --sweep and --operating-points")
     camp, cfg = _load(campaign, config)
     if envelope:
         from stiffnet.measurement.envelope import campaign_envelope
@@ -496,7 +512,7 @@ def loop(
             train_overrides=overrides,
             seed=seed,
             candidates=list(effect) if effect else None,
-            world="operating_points" if operating_points else None,
+            world=_loop_world(operating_points, sweep or envelope),
         )
     out.print(loop_table(res, campaign))
     if res["stopped"]:
@@ -523,14 +539,22 @@ def _loop_family(family: str | None, model_family: str | None) -> str | None:
     return family
 
 
+def _loop_world(operating_points: bool, sweep: bool) -> str | None:
+    """The loop's ``world`` from the CLI's flags (None: a new loop's default, ``auto``;
+    the envelope is a sweep)."""
+    if operating_points:
+        return "operating_points"
+    return "sweep" if sweep else None
+
+
 def loop_table(res: dict[str, Any], campaign: Any) -> Any:
     """The loop's iterations as a table: effects added, the metrics, model version, time."""
     from rich.table import Table
 
     table = Table(title=f"loop on {campaign} ({res['family']}, {res['seconds']:.0f} s this run)")
     cols = ("discrepancy", "accuracy", "beta_mape", "restoring_force_agreement")
-    for col in ("iteration", "effects added", "discrepancy", "accuracy", "beta MAPE",
-                "agreement (restoring force)", "model version", "s"):  # fmt: skip
+    for col in ("iteration", "effects added", "trained on", "discrepancy", "accuracy",
+                "beta MAPE", "agreement (restoring force)", "model version", "s"):  # fmt: skip
         table.add_column(col)
     for it in res["iterations"]:
         vals = [it["metrics"].get(k) for k in cols]
@@ -546,11 +570,21 @@ def loop_table(res: dict[str, Any], campaign: Any) -> Any:
                 for a in it["added"]
             )
             or "–",
+            _trained_on(it, res),
             *("–" if v is None else f"{v:.3g}" for v in vals),
             str(it.get("model_version") or "–"),
             f"{it['seconds']['total']:.0f}",
         )  # fmt: skip
     return table
+
+
+def _trained_on(it: dict[str, Any], res: dict[str, Any]) -> str:
+    """An iteration's training world and size, e.g. ``points x400`` (older states kept
+    only the loop's world)."""
+    world = it.get("world") or res.get("world") or "sweep"
+    n = it.get("n_trajectories") or res.get("n_trajectories")
+    name = {"operating_points": "points", "sweep": "sweep"}.get(world, world)
+    return f"{name} x{n}" if n else name
 
 
 def report(

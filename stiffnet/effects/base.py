@@ -317,6 +317,20 @@ class DynamicsEffect(Effect):
         return mode
 
     @property
+    def nonlinear_contact(self) -> bool:
+        """True when the effect makes the contact force other than a linear spring plus a
+        linear dashpot in the penetration (its own elastic or dissipative law): then an
+        impact's shape depends on how hard the stop is hit, and a model must be trained at
+        the impact speeds of the campaign it reads (:mod:`stiffnet.measurement.operating_points`).
+        Default: whether the effect overrides :meth:`elastic_contact` or
+        :meth:`contact_dissipation`; override when its parameters can make the law linear."""
+        own = type(self)
+        return any(
+            getattr(own, h) is not getattr(DynamicsEffect, h)
+            for h in ("elastic_contact", "contact_dissipation")
+        )
+
+    @property
     def closed_form(self) -> bool:
         """True when the effect only uses the closed-form hooks."""
         numerical = (

@@ -288,6 +288,16 @@ class LearnedContact(DynamicsEffect):
                                           p["face2_stiffness"], p["face2_damping"])  # fmt: skip
         return out
 
+    @property
+    def nonlinear_contact(self) -> bool:
+        """True unless every value (or prior range) of the law's nonlinear terms is neutral:
+        a face with its own mass and a Kelvin-Voigt dashpot keep the contact linear."""
+        params = self.params.model_dump()
+        return any(
+            np.any(np.asarray(params[k], float) != NEUTRAL[k])
+            for k in ("exponent", "knee_ratio", "preload", "hunt_crossley")
+        )
+
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
         """``beta`` times the elastic shape, (B,)."""
         return np.asarray(batch.beta, float) * elastic_shape(delta, p)

@@ -24,9 +24,17 @@ kept in the state), with the ONNX model and card as its logged model, registered
 in the Model Registry under the campaign's name (one version per iteration). The
 error-versus-iteration chart (``loop_error.png``) covers all iterations.
 
-Every dataset is drawn over the starting config's sweep, or (``world="operating_points"``,
-``loop --operating-points``) at the campaign's own operating points, where a contact law
-that is not a linear spring needs it (:mod:`stiffnet.measurement.operating_points`).
+Where each dataset is drawn (``world``): by default (``"auto"``) over the starting
+config's sweep while every contact law of the iteration's config is a linear spring and
+dashpot, and at the campaign's own operating points
+(:mod:`stiffnet.measurement.operating_points`) from the iteration that adds a law that is
+not (a learned law with a knee, a power or Hunt-Crossley term; any effect's
+``nonlinear_contact``): an impact's shape then depends on how hard the stop is hit, and
+on the example two-stage campaign a GBM trained over the sweep read 0.625 of the
+recordings in class (β MAPE 0.21) where one trained at its points read 0.875-1.0
+(0.09-0.14; docs/measurement_loop.md, "Training at the campaign's operating points").
+``"sweep"`` (``loop --sweep``) and ``"operating_points"`` (``loop --operating-points``)
+fix the world for every iteration. Each iteration records the world it used and why.
 
 The error of an iteration: the discrepancy and the agreement of the learned model
 with the restoring-force cross-check always; with β in the manifest, also the
@@ -57,14 +65,21 @@ LOOP_KIND = "stiffnet-loop"
 STATE_FILE = "state.json"
 STATE_VERSION = 1
 DEFAULT_SPREAD = 0.25
-#: Trajectories per generated dataset (1000: one CNN iteration within 15 minutes on
-#: two cores, see docs/measurement_loop.md).
+#: Trajectories per generated dataset over the sweep (1000: one CNN iteration within 15
+#: minutes on two cores, see docs/measurement_loop.md).
 DEFAULT_TRAJECTORIES = 1000
+#: Trajectories per dataset at the operating points, unless the user gives a number: one
+#: batch per manifest row through the numerical engine costs about 1.7 s of CPU per
+#: trajectory with a learned law (the independent rig's 24 points: about 700 s for 400 at
+#: load 11), and 400 is what the loop was measured with (0.833 on that rig, 1.0 on the
+#: example campaign; docs/measurement_loop.md).
+OPERATING_POINT_TRAJECTORIES = 400
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
-#: Where the datasets' trajectories are drawn: over the starting config's sweep, or at the
-#: campaign's own operating points (:mod:`stiffnet.measurement.operating_points`).
-WORLDS = ("sweep", "operating_points")
+#: Where the datasets' trajectories are drawn: chosen per iteration by its contact law
+#: (``auto``, see the module notes), over the starting config's sweep, or at the campaign's
+#: own operating points (:mod:`stiffnet.measurement.operating_points`).
+WORLDS = ("auto", "sweep", "operating_points")
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -180,8 +195,9 @@ def _open_state(folder: Path, campaign: Campaign, settings: dict[str, Any]) -> d
             )
         for key in ("family", "n_trajectories", "spread", "seed", "train_overrides", "world"):
             if settings.get(key) is not None and settings[key] != state.get(key):
+                had = "the default" if state.get(key) is None else repr(state.get(key))
                 raise StiffnetError(
-                    f"{folder}: the loop was started with {key} {state.get(key)!r}, not "
+                    f"{folder}: the loop was started with {key} {had}, not "
                     f"{settings[key]!r}; resume with the same settings or choose another --state"
                 )
         return state
@@ -406,8 +422,15 @@ def _iteration(
         }
         for a in added
     ]
-    n = state["n_trajectories"]
-    ops = state.get("world", "sweep") == "operating_points"
+    # the starting config's own effects count too (a user's --config with a nonlinear law)
+    every = config_with_effects(start_cfg, [(e["name"], e["params"]) for e in effects]).effects
+    world, why = dataset_world(
+        state.get("world", "sweep"), [{"name": e.name, "params": e.params} for e in every]
+    )
+    n = state["n_trajectories"] or (
+        OPERATING_POINT_TRAJECTORIES if world == "operating_points" else DEFAULT_TRAJECTORIES
+    )
+    ops = world == "operating_points"
     base = start_cfg.model_copy(update={"n_trajectories": n})
     train_cfg = config_with_effects(
         base,
@@ -456,6 +479,9 @@ def _iteration(
         "config": str(work / "config.yaml"),
         "model": trained["onnx"],
         "card": trained["card"],
+        "world": world,
+        "world_reason": why,
+        "n_trajectories": n,
         "metrics": metrics,
         "train_metrics": trained["train_metrics"],
         "diagnosis": diagnosis_summary(diagnosis) if diagnosis is not None else None,
@@ -476,6 +502,31 @@ def _iteration(
         ],
         "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
     }
+
+
+def dataset_world(world: str, effects: list[dict[str, Any]]) -> tuple[str, str]:
+    """Where an iteration's dataset is drawn, ``"sweep"`` or ``"operating_points"``, and why.
+
+    Parameters
+    ----------
+    world : {"auto", "sweep", "operating_points"}
+        The loop's setting; ``"auto"`` picks the operating points when one of ``effects``
+        (the iteration's, each ``name`` and ``params``) makes the contact law nonlinear
+        (:attr:`~stiffnet.effects.base.DynamicsEffect.nonlinear_contact`).
+    """
+    if world != "auto":
+        return world, f"the loop's world is {world}"
+    nonlinear = [
+        e["name"]
+        for e in effects
+        if getattr(effect_class(e["name"])(**e["params"]), "nonlinear_contact", False)
+    ]
+    if nonlinear:
+        return "operating_points", (
+            f"{', '.join(nonlinear)}: a contact law that is not a linear spring (an impact's "
+            "shape depends on how hard it hits), trained at the campaign's operating points"
+        )
+    return "sweep", "every contact law is a linear spring and dashpot: the config's sweep"
 
 
 def refit_params(prev: list[dict[str, Any]], added: dict[str, Any]) -> dict[str, Any]:
@@ -512,9 +563,9 @@ def _track(state: dict[str, Any], it: dict[str, Any], chart: Path) -> None:
     params: dict[str, Any] = {
         "iteration": it["index"],
         "family": state["family"],
-        "n_trajectories": state["n_trajectories"],
+        "n_trajectories": it["n_trajectories"],
         "spread": state["spread"],
-        "world": state.get("world", "sweep"),
+        "world": it["world"],
         "added": ",".join(a["name"] for a in it["added"]) or "none",
         "effects": ",".join(e["name"] for e in it["effects"]) or "none",
     }
@@ -592,7 +643,8 @@ def run_loop(
         A registered model family (:mod:`training.families`). Default: the state's;
         for a new loop the family whose ``defaults`` name ``loop`` (the shipped one).
     n_trajectories : int, optional
-        Trajectories per dataset (default :data:`DEFAULT_TRAJECTORIES`).
+        Trajectories per dataset (default :data:`DEFAULT_TRAJECTORIES` over the sweep,
+        :data:`OPERATING_POINT_TRAJECTORIES` at the operating points).
     spread : float, optional
         Relative half-width of the prior around each fitted value (default 0.25).
     tracking_uri : str or None
@@ -608,12 +660,13 @@ def run_loop(
         Include the inclination statistics in the diagnosis (slower).
     keep_data : bool
         Keep each iteration's dataset (by default only its card).
-    world : {"sweep", "operating_points"}, optional
-        Where every iteration's dataset is drawn (kept in the state): over the starting
-        config's sweep (the default for a new loop), or at the campaign's operating points
+    world : {"auto", "sweep", "operating_points"}, optional
+        Where the iterations' datasets are drawn (kept in the state): ``"auto"`` (the
+        default for a new loop) per iteration by its contact law (:func:`dataset_world`),
+        over the starting config's sweep, or at the campaign's operating points
         (:func:`~stiffnet.measurement.operating_points.operating_point_dataset`: each
         manifest row's gap, forcing, damping, fs/f_n and noise, jittered, β over the
-        sweep), where a contact law that is not a linear spring needs it.
+        sweep).
 
     Returns
     -------
@@ -701,10 +754,11 @@ def _start_state(
     if not state["iterations"]:
         state.update(
             family=settings["family"] or _default_family(),
-            n_trajectories=settings["n_trajectories"] or DEFAULT_TRAJECTORIES,
+            # None: the world's default, per iteration (the world may change with the law)
+            n_trajectories=settings["n_trajectories"],
             spread=DEFAULT_SPREAD if settings["spread"] is None else settings["spread"],
             seed=DEFAULT_SEED if settings["seed"] is None else settings["seed"],
-            world=settings["world"] or "sweep",
+            world=settings["world"] or "auto",
             start_config=cfg.model_dump(mode="json"),
             tracking_uri=tracking_uri,
             experiment=f"campaign-{campaign.folder.name}",
