@@ -46,7 +46,7 @@ The points' configs integrate the record no finer than the transient
 hundred samples per natural period) would otherwise take 8 RK4 substeps per sample, 2.5-5
 times finer than the transient; the records start from the same state and move by RK4's
 error there (2 of 200 windows beyond the noise, at most 1.4 times its std; the same impact
-counts), 1.1-2.5x less CPU per point as its rate goes from 1 to 2 kHz.
+counts), 1.3-1.5x less CPU per point on a quiet machine (1 and 2 kHz).
 Numbers: docs/measurement_loop.md, "Training at the campaign's operating points",
 "The loop's default path on the rig's two-stage campaign" and "Where a loop iteration's
 dataset spends its CPU".
