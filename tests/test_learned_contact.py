@@ -182,3 +182,28 @@ def test_no_second_mode_is_the_one_mode_face_bit_for_bit():
     b = run(LearnedContact(**one, face2_stiffness=500.0, face2_mass=0.0)).accel
     assert LearnedContact(**one, face2_mass=0.0).n_states == 2
     np.testing.assert_array_equal(a, b)
+
+
+def test_shortcuts_of_a_law_without_power_preload_or_dissipation_are_the_same_numbers():
+    from stiffnet.effects.learned_contact import elastic_shape, leading_term
+
+    delta = np.array([-0.1, 0.0, 0.05, 0.3, 1.2])
+    linear = {"exponent": np.ones(5), "reference_penetration": np.full(5, 0.5),
+              "knee": np.full(5, 0.25), "knee_ratio": np.full(5, 2.5),
+              "preload": np.zeros(5), "hunt_crossley": np.zeros(5)}  # fmt: skip
+    # the general formula, written out: d_r (d / d_r)^p where p != 1, stage, preload
+    d = np.maximum(delta, 0.0)
+    stage = 1.5 * np.maximum(d - 0.25, 0.0)
+    np.testing.assert_array_equal(elastic_shape(delta, linear), d + stage)
+    law = LearnedContact(knee=0.25, knee_ratio=2.5)
+    beta = OscillatorBatch(beta=np.full(5, 30.0), gap=np.zeros(5), amplitude=np.ones(5),
+                           omega=np.ones(5), damping=np.full(5, 0.02))  # fmt: skip
+    np.testing.assert_array_equal(law.contact_dissipation(delta, -delta, linear, beta), 0.0)
+    # one row with a power or a preload takes the general path for every row
+    mixed = {**linear, "exponent": np.array([1.0, 1.0, 1.5, 1.5, 1.0]),
+             "preload": np.array([0.0, 0.0, 0.0, 0.1, 0.0])}  # fmt: skip
+    power = np.where(mixed["exponent"] == 1.0, d, 0.5 * (d / 0.5) ** mixed["exponent"])
+    np.testing.assert_array_equal(leading_term(delta, mixed["exponent"], 0.5), power)
+    np.testing.assert_array_equal(
+        elastic_shape(delta, mixed), power + stage + np.where(d > 0, mixed["preload"], 0.0)
+    )

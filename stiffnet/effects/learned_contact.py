@@ -84,6 +84,11 @@ def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -
     d = np.maximum(delta, 0.0)
     dr = np.asarray(reference_penetration, float)
     p = np.asarray(exponent, float)
+    # The numerical engine calls this several times per RK4 substep on a few rows, where
+    # the power and the selection cost more than the rest of the right-hand side; a law
+    # linear on every row (the usual two-stage one) needs neither: the same numbers.
+    if p.shape in ((), d.shape) and dr.shape in ((), d.shape) and not np.any(p != 1.0):
+        return d
     return np.where(p == 1.0, d, dr * (d / dr) ** p)
 
 
@@ -92,7 +97,11 @@ def elastic_shape(delta: np.ndarray, p: dict[str, Any]) -> np.ndarray:
     d = np.maximum(delta, 0.0)
     lead = leading_term(d, p["exponent"], p["reference_penetration"])
     stage = (np.asarray(p["knee_ratio"], float) - 1.0) * np.maximum(d - p["knee"], 0.0)
-    return lead + stage + np.where(d > 0, p["preload"], 0.0)
+    preload = np.asarray(p["preload"], float)
+    # without a preload on any row its term is zeros: skipped (see leading_term)
+    if preload.shape in ((), d.shape) and not np.any(preload):
+        return lead + stage
+    return lead + stage + np.where(d > 0, preload, 0.0)
 
 
 def learned_contact_force(
@@ -310,5 +319,10 @@ class LearnedContact(DynamicsEffect):
         self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
     ) -> np.ndarray:
         """Hunt-Crossley force ``beta alpha d_r (delta/d_r)^p delta'``, (B,)."""
+        alpha = np.asarray(p["hunt_crossley"], float)
+        # a law without the term on any row (the engine calls this hook at every
+        # right-hand side, once the law is in the batch): zeros, without the terms' work
+        if alpha.shape in ((), np.shape(delta)) and not np.any(alpha):
+            return np.zeros(np.shape(delta))
         lead = leading_term(delta, p["exponent"], p["reference_penetration"])
-        return np.asarray(batch.beta, float) * p["hunt_crossley"] * lead * rate
+        return np.asarray(batch.beta, float) * alpha * lead * rate

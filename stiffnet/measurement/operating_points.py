@@ -41,8 +41,15 @@ point whose gap is below the campaign's median gets ``median / gap`` times as ma
 two-stage campaign sit at its 0.5-1.2 mm gaps, where the stop is hit hardest and the
 impact reaches furthest into the law. Off by default (:data:`WEIGHTS`): not yet measured
 over two dataset seeds on the loop's default path.
-Numbers: docs/measurement_loop.md, "Training at the campaign's operating points" and
-"The loop's default path on the rig's two-stage campaign".
+The points' configs integrate the record no finer than the transient
+(:data:`RECORD_SUBSTEPS`, ``SolverSettings.record_substeps``): the campaign's rates (a few
+hundred samples per natural period) would otherwise take 8 RK4 substeps per sample, 2.5-5
+times finer than the transient; the records start from the same state and move by RK4's
+error there (2 of 200 windows beyond the noise, at most 1.4 times its std; the same impact
+counts), 1.3-1.5x less CPU per point on a quiet machine (1 and 2 kHz).
+Numbers: docs/measurement_loop.md, "Training at the campaign's operating points",
+"The loop's default path on the rig's two-stage campaign" and "Where a loop iteration's
+dataset spends its CPU".
 """
 
 from __future__ import annotations
@@ -72,6 +79,9 @@ WEIGHT_RULES = ("none", "small_gaps")
 WEIGHTS = "none"
 #: Largest share a point gets under ``small_gaps``, relative to a point at the median gap.
 MAX_WEIGHT = 2.0
+#: The record's RK4 substep at every point (``SolverSettings.record_substeps``; see the
+#: module's notes).
+RECORD_SUBSTEPS = "transient"
 
 
 def split_evenly(n: int, k: int) -> list[int]:
@@ -161,7 +171,8 @@ def operating_point_configs(
 ) -> list[SimulationConfig]:
     """The configs of the rows' points: ``cfg`` with its sweep at each row's point, ±``jitter``.
 
-    β, the classes, the effects and the windows are ``cfg``'s. Each row's share of
+    β, the classes, the effects and the windows are ``cfg``'s, its solver with the record
+    at the transient's substep (:data:`RECORD_SUBSTEPS`). Each row's share of
     ``cfg.n_trajectories`` (:func:`split_evenly`) is split: ``edge_share`` of it near the
     class edges (:func:`edge_configs`, listed after the row's own config), the rest over
     ``cfg``'s β sweep. All configs share one ``shard_size`` (the largest count), so that
@@ -181,8 +192,9 @@ def operating_point_configs(
             "(at least one each)"
         )
     configs = []
+    solver = cfg.solver.model_copy(update={"record_substeps": RECORD_SUBSTEPS})
     for row, n in zip(rows, sizes, strict=True):
-        point = campaign_envelope(cfg, [row], jitter)
+        point = campaign_envelope(cfg, [row], jitter).model_copy(update={"solver": solver})
         n_edge = int(edge_share * n)
         configs.append(point.model_copy(update={"n_trajectories": n - n_edge}))
         configs.extend(edge_configs(point, n_edge))

@@ -656,16 +656,20 @@ class _Stepper:
         return out
 
 
-def recording_substeps(h: np.ndarray, rate: np.ndarray, substeps: int) -> np.ndarray:
+def recording_substeps(
+    h: np.ndarray, rate: np.ndarray, substeps: int, longest: float = 0.0
+) -> np.ndarray:
     """RK4 substeps per sample of each row when rows are sampled at different rates, (B,).
 
     Rule: the most coarsely sampled row takes ``substeps`` per sample and no row a
     longer substep than that row's (``h_max / substeps``), nor one longer than its
     fastest mode allows (``_MAX_RATE_STEP / rate``): every row is integrated at least
     as finely as the coarsest one asked, and a row sampled ten times finer is not
-    integrated ten times finer (its samples are already short steps).
+    integrated ten times finer (its samples are already short steps). ``longest`` > 0
+    lets the substep grow to it where ``h_max / substeps`` is shorter (the transient's
+    substep, ``SolverSettings.record_substeps``), at least one substep per sample.
     """
-    h_sub = np.max(h) / substeps
+    h_sub = max(np.max(h) / substeps, longest)
     return (
         np.maximum(np.ceil(h / h_sub - 1e-9), np.ceil(h * rate / _MAX_RATE_STEP - 1e-9))
         .astype(np.int64)
@@ -687,6 +691,7 @@ def simulate_numerical(
     row_samples: np.ndarray | None = None,
     oversampled: int = 1,
     t_start: np.ndarray | float = 0.0,
+    record_as_transient: bool = False,
 ) -> EngineResult:
     """March ``n_transient`` steps of ``h_transient``, then record ``n_samples`` of ``h``.
 
@@ -728,6 +733,11 @@ def simulate_numerical(
         another engine (the closed form's warm start,
         :meth:`~stiffnet.simulator.simulator.Simulator.transient_split`) is continued here
         from its state at that time; the forcing's phase is ``w t`` at absolute time.
+    record_as_transient : bool
+        Integrate the record (not an oversampled one) with substeps no shorter than the
+        transient's finest, ``min(h_transient) / substeps`` (at least one per sample,
+        :func:`recording_substeps`' ``longest``), where ``substeps`` per sample would be
+        finer (:class:`~stiffnet.simulator.settings.SolverSettings`' ``record_substeps``).
 
     Returns
     -------
@@ -785,9 +795,12 @@ def simulate_numerical(
             return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})
         # a mode too fast for a substep of even one sample: integrate every sample
         substeps = -(-substeps // oversampled)
-    if row_samples is None:
+    longest = 0.0
+    if record_as_transient and n_transient > 0:
+        longest = float(np.min(h_transient)) / n_sub(h_transient)
+    if row_samples is None and not longest:
         st.march(h, n_samples, n_sub(h), out)
     else:
-        need = np.minimum(np.broadcast_to(np.asarray(row_samples, np.int64), (n,)), n_samples)
-        st.march(h, n_samples, recording_substeps(h, rate, substeps), out, need)
+        need = np.minimum(np.broadcast_to(np.asarray(need, np.int64), (n,)), n_samples)
+        st.march(h, n_samples, recording_substeps(h, rate, substeps, longest), out, need)
     return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})  # (B, N) views

@@ -8,6 +8,8 @@ with what only they need, so every default and range is written here once.
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -43,6 +45,18 @@ class SolverSettings(BaseModel):
         effects' size bound: the random initial state's offset (the whole orbit, 1) is
         settled by the closed form, what is left is how far the effects move the orbit.
         The closed-form engine ignores it.
+    record_substeps : {"sample", "transient"}
+        How finely the numerical engine integrates the recorded samples. ``"sample"``
+        (default): ``substeps`` RK4 substeps per sample of the most coarsely sampled row
+        (:func:`~stiffnet.simulator.numerical.recording_substeps`). ``"transient"``: no
+        substep shorter than the transient's (``substeps`` per step of the contact's step
+        cap, ``min(2 pi / 40, 1.5 / sqrt(1 + beta))``), at least one per sample: a record
+        sampled at a few hundred times ``f_n`` is otherwise integrated 3-5 times finer than
+        the transient that settled it. The state at the record's start is the same either
+        way; the samples move by RK4's error at the transient's step
+        (docs/measurement_loop.md, "Where a loop iteration's dataset spends its CPU"). Not
+        applied to an oversampled record (``oversampled > 1``). The loop's operating-point
+        datasets use ``transient`` (:mod:`stiffnet.measurement.operating_points`).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -58,6 +72,10 @@ class SolverSettings(BaseModel):
         ge=0.0,
         le=1.0,
         description="0: cold start; else the orbit difference the numerical stretch settles",
+    )
+    record_substeps: Literal["sample", "transient"] = Field(
+        "sample",
+        description="the record's RK4 substep: per sample, or no finer than the transient's",
     )
 
     def solver_settings(self) -> SolverSettings:

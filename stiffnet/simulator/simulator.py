@@ -229,6 +229,7 @@ class Simulator:
             batch, self.dynamics, [params[e.name] for e in self.dynamics],
             x0, v0, (t_tr - t_w - h) / n_tr, n_tr, h, n_samples, substeps=self.substeps,
             row_samples=row_samples, oversampled=self.settings.oversampled, t_start=t_w,
+            record_as_transient=self.settings.record_substeps == "transient",
         )  # fmt: skip
 
     def _motion_key(self, batch, params, x0, v0, t_tr, h, row_samples=None) -> bytes:
@@ -249,12 +250,19 @@ class Simulator:
             *([self.settings.oversampled] if self.engine == "numerical" else []),
             # a warm start's motion differs from a cold one's (by the orbits' difference)
             *([self.settings.warm_start] if self._warm else []),
+            # the record integrated at the transient's substep moves by RK4's error there
+            *(["record:transient"] if self._record_as_transient else []),
         )  # fmt: skip
 
     @property
     def _warm(self) -> bool:
         """Whether the numerical engine starts warm (the motion then depends on it)."""
         return self.engine == "numerical" and self.settings.warm_start > 0
+
+    @property
+    def _record_as_transient(self) -> bool:
+        """Whether the numerical engine integrates the record at the transient's substep."""
+        return self.engine == "numerical" and self.settings.record_substeps == "transient"
 
     def linear_model(self, batch: OscillatorBatch, params: dict[str, ParamArrays]) -> LinearModel:
         """The piecewise-linear model (closed-form hooks of every dynamics effect)."""
