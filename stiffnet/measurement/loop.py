@@ -69,10 +69,11 @@ DEFAULT_SPREAD = 0.25
 #: minutes on two cores, see docs/measurement_loop.md).
 DEFAULT_TRAJECTORIES = 1000
 #: Trajectories per dataset at the operating points, unless the user gives a number: one
-#: batch per manifest row through the numerical engine costs about 1.7 s of CPU per
-#: trajectory with a learned law (the independent rig's 24 points: about 700 s for 400 at
-#: load 11), and 400 is what the loop was measured with (0.833 on that rig, 1.0 on the
-#: example campaign; docs/measurement_loop.md).
+#: batch per manifest row through the numerical engine costs 1.3-1.8 s of CPU per
+#: trajectory with a learned law (the independent rig's 24 points, 400 trajectories at load
+#: 11: 700-740 s, an estimated 500-530 with the record at the transient's substep), and 400
+#: is what the loop was measured with (0.833 on that rig, 1.0 on the example campaign;
+#: docs/measurement_loop.md).
 OPERATING_POINT_TRAJECTORIES = 400
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50

@@ -801,6 +801,5 @@ def simulate_numerical(
     if row_samples is None and not longest:
         st.march(h, n_samples, n_sub(h), out)
     else:
-        need = np.minimum(np.broadcast_to(np.asarray(need, np.int64), (n,)), n_samples)
         st.march(h, n_samples, recording_substeps(h, rate, substeps, longest), out, need)
     return EngineResult(t0=t0, **{k: v.T for k, v in out.items()})  # (B, N) views
