@@ -399,12 +399,16 @@ def test_a_user_law_with_its_own_elastic_force_is_nonlinear():
 
 
 @pytest.mark.slow
-def test_auto_world_moves_to_the_operating_points_with_a_nonlinear_law(two_effects, tmp):
+def test_auto_world_moves_to_the_operating_points_with_a_nonlinear_law(tmp):
     """A new loop without a world trains iteration 0 over the sweep and, once a Hertz
     contact is added, iteration 1 at the manifest's rows (the data card lists them), with
     the reason in the iteration and the table."""
     state = tmp / "auto-state"
-    res = loop_mod.run_loop(load_campaign(two_effects), _ideal(), state, iterations=1,
+    # two recordings of 2 s: the numerical engine's shards cost their steps, one per row
+    (tmp / "auto").mkdir()
+    small = simulate_campaign(short_manifest(tmp / "auto", 2, "2"), tmp / "auto" / "c",
+                              [DAMPED], seed=0)  # fmt: skip
+    res = loop_mod.run_loop(load_campaign(small), _ideal(), state, iterations=1,
                             add_effects=[("hertz_contact", {})], family="gbm",
                             n_trajectories=TINY, tracking_uri=None)  # fmt: skip
     assert res["world"] == "auto"
@@ -414,7 +418,7 @@ def test_auto_world_moves_to_the_operating_points_with_a_nonlinear_law(two_effec
     card0 = json.loads((state / "iter-000" / "data_card.json").read_text())
     card1 = json.loads((state / "iter-001" / "data_card.json").read_text())
     assert "operating_points" not in card0 or not card0["operating_points"]
-    assert len(card1["operating_points"]["points"]) == len(load_campaign(two_effects).rows)
+    assert len(card1["operating_points"]["points"]) == len(load_campaign(small).rows) == 2
     from stiffnet.cli.measurement import loop_table
 
     rendered = [c._cells for c in loop_table(res, "c").columns if c.header == "trained on"]
