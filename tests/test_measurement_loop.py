@@ -377,7 +377,9 @@ def test_auto_world_follows_the_contact_law(effects, world):
     """``auto``: the operating points once a contact law is not a linear spring and
     dashpot (a knee, a power, Hunt-Crossley, a user's law with its own elastic force); a
     face with its own mass, a damped contact and a sensor keep the sweep."""
-    given = [{"name": n, "params": p} for n, p in effects]
+    from stiffnet.effects.registry import build_effect
+
+    given = [build_effect(n, p) for n, p in effects]
     chosen, why = loop_mod.dataset_world("auto", given)
     assert chosen == world
     if world == "operating_points":
@@ -429,9 +431,9 @@ def test_auto_world_reads_the_starting_configs_own_law():
     """A starting config that already carries a nonlinear law trains iteration 0 at the
     operating points too (the loop's world is read from every effect of the config)."""
     from stiffnet.config.sim import EffectSpec
+    from stiffnet.measurement.compare import config_effects
 
     cfg = _ideal()
     cfg = cfg.model_copy(update={"effects": [*cfg.effects, EffectSpec(name="hertz_contact")]})
-    every = loop_mod.config_with_effects(cfg, []).effects
-    given = [{"name": e.name, "params": e.params} for e in every]
-    assert loop_mod.dataset_world("auto", given)[0] == "operating_points"
+    every = config_effects(loop_mod.config_with_effects(cfg, []))
+    assert loop_mod.dataset_world("auto", every)[0] == "operating_points"

@@ -45,12 +45,14 @@ from __future__ import annotations
 
 import shutil
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from stiffnet.campaign import Campaign, LoadedCampaign
 from stiffnet.campaign.simulate import DEFAULT_SEED
 from stiffnet.config.sim import EffectSpec, SimulationConfig
+from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.registry import effect_class
 from stiffnet.errors import StiffnetError
@@ -423,11 +425,10 @@ def _iteration(
         }
         for a in added
     ]
-    # the starting config's own effects count too (a user's --config with a nonlinear law)
-    every = config_with_effects(start_cfg, [(e["name"], e["params"]) for e in effects]).effects
-    world, why = dataset_world(
-        state.get("world", "sweep"), [{"name": e.name, "params": e.params} for e in every]
-    )
+    # the model at the fitted values; its effects include the starting config's own (a
+    # user's --config with a nonlinear law decides the world too)
+    fixed_cfg = config_with_effects(start_cfg, [(e["name"], e["params"]) for e in effects])
+    world, why = dataset_world(state.get("world", "sweep"), config_effects(fixed_cfg))
     n = state["n_trajectories"] or (
         OPERATING_POINT_TRAJECTORIES if world == "operating_points" else DEFAULT_TRAJECTORIES
     )
@@ -445,7 +446,6 @@ def _iteration(
             for e in effects
         ],
     )
-    fixed_cfg = config_with_effects(base, [(e["name"], e["params"]) for e in effects])
     names = ", ".join(f"{e['name']}" for e in added) or "none (starting config)"
     train_cfg = write_config_yaml(
         train_cfg,
@@ -505,22 +505,20 @@ def _iteration(
     }
 
 
-def dataset_world(world: str, effects: list[dict[str, Any]]) -> tuple[str, str]:
+def dataset_world(world: str, effects: Sequence[Effect]) -> tuple[str, str]:
     """Where an iteration's dataset is drawn, ``"sweep"`` or ``"operating_points"``, and why.
 
     Parameters
     ----------
     world : {"auto", "sweep", "operating_points"}
         The loop's setting; ``"auto"`` picks the operating points when one of ``effects``
-        (the iteration's, each ``name`` and ``params``) makes the contact law nonlinear
+        (the iteration's config's, built) makes the contact law nonlinear
         (:attr:`~stiffnet.effects.base.DynamicsEffect.nonlinear_contact`).
     """
     if world != "auto":
         return world, f"the loop's world is {world}"
     nonlinear = [
-        e["name"]
-        for e in effects
-        if getattr(effect_class(e["name"])(**e["params"]), "nonlinear_contact", False)
+        e.name or type(e).__name__ for e in effects if getattr(e, "nonlinear_contact", False)
     ]
     if nonlinear:
         return "operating_points", (
