@@ -113,7 +113,7 @@ def smoothed_contact_refusal(
     if sheet_lowpass_hz is not None and sheet_lowpass_hz >= fastest:
         passes = "none in the band" if np.isinf(sheet_lowpass_hz) else f"{sheet_lowpass_hz:.0f} Hz"
         return (
-            f"{seen}: the known sensor's low-pass ({passes}) passes every contact up to "
+            f"{seen}: the given chain's low-pass ({passes}) passes every contact up to "
             f"beta {beta_max:g} ({fastest:.0f} Hz), so the contacts are too soft or shallow "
             "to stand out of the free flight: beta is not identifiable from this record"
         )
