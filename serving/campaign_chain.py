@@ -192,8 +192,10 @@ def reads_alone(first: dict | None, again: dict | None) -> bool:
     worse through the pooled chain (on the rig, a pooled 353 Hz order-3 low-pass for a true
     284 Hz order 4: one recording's law fell from R² 0.998 to 0.54 and refused, and the
     restoring_force_class alarm its own reading had raised on a wrong class went silent;
-    another fell from 0.96 to 0.82 and the model read it medium instead of very hard). A
-    recording whose first reading refused (no R²) loses nothing.
+    another fell from 0.96 to 0.82 and the model read it medium instead of very hard). The
+    R² are :func:`~stiffnet.restoring_force.chain.shared_chain_shortfall`'s: a first reading
+    refused after its contact law was fitted counts that law's R², one without a law (no
+    impact stands out, no reading) counts 0 and so loses nothing.
     """
     lost = shared_chain_shortfall([first], [again])
     return lost is not None and lost > CHAIN_CONFIRMED_SHORTFALL

@@ -395,6 +395,53 @@ def test_excess_harmonics_reads_a_pulse_train_and_not_a_sinusoid():
     assert smoothed_contact_refusal(square, period, 2000.0, 10.0, 5.0) == ""
 
 
+def test_the_smoothed_contact_refusal_names_the_low_pass_only_where_it_may_be_the_cause():
+    """Analytic pulse train (contacts at 100 Hz, f_n 10 Hz, 2 kHz): with no chain known the
+    reason names both causes, a low-pass or contacts too soft to stand out ("this sensor",
+    the chain_refusal alarm's words); a known chain whose low-pass passes every contact up
+    to beta 100 (100.5 Hz), or has none, leaves the contacts alone ("this record"); a known
+    low-pass below that is still named."""
+    from stiffnet.restoring_force.band import smoothed_contact_refusal
+
+    period, n = 200, 4000
+    phase = (np.arange(n) % period).astype(float)
+    rng = np.random.default_rng(0)
+    pulses = np.where(phase < 10, np.sin(np.pi * phase / 10), 0.0) + 0.01 * rng.standard_normal(n)
+    unknown = smoothed_contact_refusal(pulses, period, 2000.0, 10.0, 5.0, 100.0)
+    assert "too soft or shallow" in unknown and "low-pass below the contact's frequency" in unknown
+    assert unknown.endswith("from this sensor")
+    for corner, words in ((284.0, "(284 Hz)"), (np.inf, "(none in the band)")):
+        known = smoothed_contact_refusal(pulses, period, 2000.0, 10.0, 5.0, 100.0, corner)
+        assert words in known and "beta 100 (100 Hz)" in known
+        assert known.endswith("from this record") and "this sensor" not in known
+    low = smoothed_contact_refusal(pulses, period, 2000.0, 10.0, 5.0, 100.0, 60.0)
+    assert low == unknown
+
+
+def test_the_softest_contact_behind_a_known_sensor_is_refused_for_itself_not_the_sensor():
+    """Independent rig, beta 5.8 (contact 25 Hz) behind the rig campaign's 284 Hz order-4
+    low-pass and 610 Hz resonance, its data sheet given: no impact stands out of the free
+    flight (as on the ideal rig without noise), and the reason no longer blames a low-pass
+    below 23 Hz: it says the sheet's low-pass passes every contact, and the chain_refusal
+    alarm, which judges the sensor's band, stays quiet."""
+    from stiffnet.uncertainty.alarm_verdict import chain_refusal_excess
+
+    sheet = {"resonance_hz": 609.6, "resonance_damping": 0.062, "lowpass_hz": 283.8,
+             "lowpass_order": 4, "highpass_hz": 3.62}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=5.8, fs_hz=3257.0, duration_s=3.0, gap_mm=1.0,
+                 sensor=sheet)  # fmt: skip
+    accel = record(run, seed=1)[1]
+    r = restoring_force_estimate(accel, 3257.0, natural_frequency_hz=FN, max_periods=24,
+                                 sensor=sheet)  # fmt: skip
+    assert not r.ok and r.restoring_force_class is None
+    assert "low-pass (284 Hz) passes every contact" in r.reason and "\n" not in r.reason
+    assert "too soft or shallow" in r.reason and "below the contact's frequency" not in r.reason
+    priors = {"effects": [{"name": "sensor_dynamics",
+                           "relative": {"lowpass_hz": {"per": "sampling_rate",
+                                                       "range": [0.15, 0.45]}}}]}  # fmt: skip
+    assert chain_refusal_excess(r.to_dict(), priors, 3257.0) is None
+
+
 @pytest.mark.parametrize("engine", ["stiffnet", "rig"])
 def test_a_data_sheet_lowpass_at_three_contact_frequencies_reads_beta(engine):
     """A 4th-order low-pass at 160 Hz (3 contact frequencies, 0.056 fs) from its data sheet:

@@ -1034,7 +1034,12 @@ CHAIN_CONFIRMED_SHORTFALL = 0.05
 def shared_chain_shortfall(own: list[dict | None], shared: list[dict | None]) -> float | None:
     """Median R² the recordings' contact laws lose when read through a campaign's shared
     chain instead of as they were read alone (each a restoring-force result with
-    ``contact_r2``; a refused or missing reading explains nothing); None without any."""
+    ``contact_r2``); None without any.
+
+    A reading refused after its contact law was fitted (contacts longer than the law allows,
+    a law under half the force) still counts its law's R²: the chain that reads the pulse
+    closer to a contact law is the better one, refused or not. A reading without a contact
+    law (missing, no impact, a refusal before the law) explains nothing (R² 0)."""
     if not own:
         return None
     lost = [((o or {}).get("contact_r2") or 0.0) - ((s or {}).get("contact_r2") or 0.0)

@@ -960,8 +960,11 @@ def _estimate_at(
     if not refusal and info.get("restoring_force_class") == NO_CONTACT:
         # no impact stands out: unless a low-pass smoothed them away (their harmonics remain)
         beta_min = min(float(lo) for _, lo, _ in classes)
-        refusal = smoothed_contact_refusal(y, period, fs_hz, info["natural_frequency_hz"],
-                                           beta_min)  # fmt: skip
+        known = chain if chain is not None and chain.source != "fitted" else None
+        refusal = smoothed_contact_refusal(
+            y, period, fs_hz, info["natural_frequency_hz"], beta_min, beta_max,
+            None if known is None else (known.lowpass_hz or np.inf),
+        )  # fmt: skip
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
