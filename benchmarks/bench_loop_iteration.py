@@ -117,10 +117,13 @@ RIG_LAW_PRIOR = {"name": "learned_contact", "probability": 1.0,
                             "reference_penetration": 0.54}}  # fmt: skip
 
 
-def rig_point_configs(points: int, n: int, solvers: list[dict]) -> list[list[SimulationConfig]]:
+def rig_point_configs(
+    points: int, n: int, solvers: list[dict], folder: Path | None = None
+) -> list[list[SimulationConfig]]:
     """The loop's operating-point configs (``n`` trajectories, the discovered law's prior),
     one list per ``solvers`` entry (settings over the ideal config's), at the first
-    ``points`` rows of the rig's two-stage campaign (part 4, simulated once)."""
+    ``points`` rows of the rig's two-stage campaign (part 4, simulated once, kept in
+    ``folder`` when given)."""
     from independent_rig import write_campaign
 
     from stiffnet.campaign import load_campaign
@@ -129,34 +132,56 @@ def rig_point_configs(points: int, n: int, solvers: list[dict]) -> list[list[Sim
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
     d.update(n_trajectories=n, effects=[RIG_LAW_PRIOR])
     with tempfile.TemporaryDirectory() as tmp:
-        camp = load_campaign(write_campaign(Path(tmp) / "two", rig_runs("two_stage")[:points]))
+        camp_dir = (folder or Path(tmp)) / "two_stage"
+        if not (camp_dir / "manifest.csv").is_file():
+            write_campaign(camp_dir, rig_runs("two_stage"))
+        rows = load_campaign(camp_dir).rows[:points]
     return [
         operating_point_configs(
-            SimulationConfig.model_validate({**d, "solver": {**d["solver"], **solver}}), camp.rows
+            SimulationConfig.model_validate({**d, "solver": {**d["solver"], **solver}}), rows
         )
         for solver in solvers
     ]
 
 
-def shared_batches_ratio(points: int, n: int, warm: float = 0.0) -> None:
-    """The loop's operating-point dataset, one batch per point (before) against shared
-    batches (:func:`stiffnet.dataset.generate.simulate_shards`), on the first ``points`` of
-    the rig's two-stage campaign (part 4), ``n`` trajectories; the loop's config with the
-    discovered law's prior (knee 0.249, ratio 2.436, +-5 %), warm start ``warm``."""
-    (configs,) = rig_point_configs(points, n, [{"warm_start": warm}])
+def window_difference(new, ref) -> tuple[np.ndarray, float]:
+    """Each window's RMS difference over its noise std (the same draws either way), and the
+    share of windows whose impact counts are equal, between two tables of the same rows."""
+    noise = (ref.column("noise").to_numpy() * ref.column("amplitude").to_numpy()
+             * ref.column("omega").to_numpy() ** 2)  # fmt: skip
+    old = [np.asarray(a) for a in ref.column("accel").to_pylist()]
+    now = [np.asarray(a) for a in new.column("accel").to_pylist()]
+    rel = np.array([np.sqrt(np.mean((a - b) ** 2)) for a, b in zip(now, old, strict=True)])
+    same = np.mean(new.column("n_impacts").to_numpy() == ref.column("n_impacts").to_numpy())
+    return rel / noise, float(same)
+
+
+def shared_batches_ratio(points: int, n: int, warm: float = 0.0, folder: Path | None = None):
+    """The loop's operating-point dataset, one batch per point (:func:`stiffnet.dataset.
+    generate.simulate_shard`) against shared batches (:func:`stiffnet.dataset.generate.
+    simulate_shards`), back to back on the first ``points`` of the rig's two-stage campaign
+    (part 4), ``n`` trajectories; the loop's config with the discovered law's prior (knee
+    0.249, ratio 2.436, +-5 %), warm start ``warm``. Both draw the same trajectories,
+    initial states and noise: the windows differ by the integrator's error only (RMS over
+    the noise std: median / 90 % / max, the share above 1; impact counts equal)."""
+    import pyarrow as pa
+
+    (configs,) = rig_point_configs(points, n, [{"warm_start": warm}], folder)
     c0 = time.process_time()
     alone = [generate.simulate_shard(c, i, c.n_trajectories) for i, c in enumerate(configs)]
     c1 = time.process_time()
     shared = generate.simulate_shards(configs, list(range(len(configs))))
     c2 = time.process_time()
-    rows = sum(t.num_rows for t in alone)
-    same = rows == sum(t.num_rows for t in shared) and all(
-        a.column("beta").equals(b.column("beta")) for a, b in zip(alone, shared, strict=True)
+    a, b = pa.concat_tables(alone), pa.concat_tables(shared)
+    same = a.num_rows == b.num_rows and all(
+        a.column(c).equals(b.column(c)) for c in ("trajectory", "window", "beta", "gap", "noise")
     )
+    rel, impacts = window_difference(b, a)
     print(f"| operating-point dataset, {len(configs)} points, {n} trajectories, warm start "
           f"{warm} | CPU {c1 - c0:.1f} | CPU {c2 - c1:.1f} | {(c1 - c0) / (c2 - c1):.1f}x CPU "
-          f"| same draws: {same} (windows differ by the initial states) | "
-          f"{os.getloadavg()[0]:.1f} |")  # fmt: skip
+          f"| same rows: {same} | {np.median(rel):.3f} / {np.quantile(rel, 0.9):.3f} / "
+          f"{rel.max():.2f}, {np.mean(rel > 1):.1%} above | {impacts:.1%} | "
+          f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
 def solver_ratio(points: int, n: int, solvers: list[dict]) -> None:
@@ -171,14 +196,8 @@ def solver_ratio(points: int, n: int, solvers: list[dict]) -> None:
         table = pa.concat_tables(generate.simulate_shards(configs, list(range(len(configs)))))
         runs.append((time.process_time() - c0, table))
     cpu0, ref = runs[0]
-    noise = (ref.column("noise").to_numpy() * ref.column("amplitude").to_numpy()
-             * ref.column("omega").to_numpy() ** 2)  # fmt: skip
-    old = [np.asarray(a) for a in ref.column("accel").to_pylist()]
     for solver, (cpu, t) in zip(solvers, runs, strict=True):
-        new = [np.asarray(a) for a in t.column("accel").to_pylist()]
-        rel = np.array([np.sqrt(np.mean((a - b) ** 2)) for a, b in zip(new, old, strict=True)])
-        rel /= noise
-        same = np.mean(t.column("n_impacts").to_numpy() == ref.column("n_impacts").to_numpy())
+        rel, same = window_difference(t, ref)
         print(f"| {solver} | {cpu:.1f} | {cpu0 / cpu:.2f}x | {np.median(rel):.3f} / "
               f"{np.quantile(rel, 0.9):.3f} / {rel.max():.2f} | {np.mean(rel > 1):.0%} | "
               f"{same:.0%} | {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
@@ -495,10 +514,13 @@ def main() -> None:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)
         return
     if args.shared:
-        print("| what | one batch per point | shared batches | speed-up | labels | load |")
-        print("|---|---|---|---|---|---|")
+        print(
+            "| what | one batch per point | shared batches | speed-up | draws | RMS difference "
+            "/ noise std: median / 90 % / max, windows above | impact counts equal | load |"
+        )
+        print("|---" * 8 + "|")
         k, n, *w = args.shared.split(",")
-        shared_batches_ratio(int(k), int(n), float(w[0]) if w else 0.0)
+        shared_batches_ratio(int(k), int(n), float(w[0]) if w else 0.0, args.rig_dir)
         return
     if args.solvers:
         import json

@@ -202,15 +202,78 @@ def test_shards_simulated_together_keep_their_own_draws():
     b = small_config(n_trajectories=3, shard_size=4, sweep={"gap": [2.0, 2.2]})
     ta, tb = simulate_shards([a, b], [0, 1])
     for t, cfg, shard in ((ta, a, 0), (tb, b, 1)):
-        alone = simulate_shard(cfg, shard, cfg.n_trajectories)
-        for col in ("beta", "gap", "amplitude", "omega", "fs_ratio", "trajectory", "shard"):
-            assert t.column(col).equals(alone.column(col)), col
-        assert [len(w) for w in t.column("accel").to_pylist()] == [
-            len(w) for w in alone.column("accel").to_pylist()
-        ]
+        # the closed form's rows do not depend on their batch: the shard, bit for bit
+        assert t.equals(simulate_shard(cfg, shard, cfg.n_trajectories))
     assert set(tb.column("trajectory").to_pylist()) == {4, 5, 6}
     gap = tb.column("gap").to_numpy()
     assert np.all((gap >= 2.0) & (gap <= 2.2))
     with pytest.raises(StiffnetError, match="must share.*windows"):
         simulate_shards([a, small_config(windows={"duration_periods": 8, "per_trajectory": 2})],
                         [0, 1])  # fmt: skip
+
+
+def _shared_and_alone(effects: list[dict]) -> list[tuple]:
+    """Two operating points' shards in shared batches of 3 rows and each alone (batches of
+    4 + 3 rows compose otherwise): pairs of tables."""
+    from stiffnet.dataset.generate import simulate_shards
+
+    solver = {"settle_tolerance": 0.1, "min_transient_periods": 5, "batch_size": 3,
+              "substeps": 4, "record_substeps": "transient"}  # fmt: skip
+    sweep = {"noise": [0.02, 0.05], "damping": [0.04, 0.05]}
+    cfgs = [
+        small_config(
+            n_trajectories=n,
+            shard_size=4,
+            sweep={"gap": gap, **sweep},
+            effects=effects,
+            solver=solver,
+        )  # fmt: skip
+        for n, gap in ((4, [0.5, 0.6]), (3, [2.0, 2.2]))
+    ]
+    shared = simulate_shards(cfgs, [0, 1])
+    return [(t, simulate_shard(c, i, c.n_trajectories))
+            for i, (c, t) in enumerate(zip(cfgs, shared, strict=True))]  # fmt: skip
+
+
+def test_a_shard_in_shared_batches_has_its_own_initial_states_and_noise():
+    # a contact law for half the rigs (two groups, one on the numerical engine), measurement
+    # effects that draw their own noise, on for half the rigs: every draw is the shard's
+    effects = [{"name": "hertz_contact", "probability": 0.5},
+               {"name": "colored_noise", "probability": 0.5},
+               {"name": "adc", "probability": 0.5}]  # fmt: skip
+    numerical_rows = 0
+    for shared, alone in _shared_and_alone(effects):
+        for col in set(alone.column_names) - {"accel", "contact_fraction"}:
+            assert shared.column(col).equals(alone.column(col)), col  # impact counts included
+        noise_std = (shared.column("noise").to_numpy() * shared.column("amplitude").to_numpy()
+                     * shared.column("omega").to_numpy() ** 2)  # fmt: skip
+        numerical = shared.column("effect.hertz_contact.active").to_numpy() == 1
+        fraction = [t.column("contact_fraction").to_numpy() for t in (shared, alone)]
+        impacts = shared.column("n_impacts").to_numpy()
+        pairs = zip(shared.column("accel").to_pylist(), alone.column("accel").to_pylist(),
+                    strict=True)  # fmt: skip
+        for k, (a, b) in enumerate(pairs):
+            a, b = np.asarray(a), np.asarray(b)
+            if numerical[k]:  # the batch's steps: the integrator's error, within the noise
+                assert np.sqrt(np.mean((a - b) ** 2)) < 0.5 * noise_std[k]
+                # a contact's first or last sample may move: at most two per impact
+                assert abs(fraction[0][k] - fraction[1][k]) * a.size <= 2 * impacts[k] + 1e-9
+            else:  # the closed form: the same initial state and noise, bit for bit
+                np.testing.assert_array_equal(a, b)
+                assert fraction[0][k] == fraction[1][k]
+        numerical_rows += int(numerical.sum())
+    assert 0 < numerical_rows < 14
+
+
+def test_shared_batches_refuse_a_measurement_chain_that_draws_by_the_signal(monkeypatch):
+    from stiffnet.simulator.simulator import Simulator
+
+    measure = Simulator.measure
+
+    def drawing_by_value(self, accel, batch, fs_ratio, noise, draws, rng):
+        rng.standard_normal(int(np.any(accel != 0)))  # zeros draw nothing, motion one number
+        return measure(self, accel, batch, fs_ratio, noise, draws, rng)
+
+    monkeypatch.setattr(Simulator, "measure", drawing_by_value)
+    with pytest.raises(StiffnetError, match="drew by the signal's values"):
+        _shared_and_alone([])

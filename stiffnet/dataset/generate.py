@@ -38,7 +38,7 @@ from stiffnet.io_utils import (
     output_lock,
     write_json_atomic,
 )
-from stiffnet.simulator.simulator import Simulator
+from stiffnet.simulator.simulator import RowDraws, Simulator
 
 
 def shard_rng(seed: int, shard: int) -> np.random.Generator:
@@ -87,11 +87,17 @@ def simulate_shards(cfgs: list[SimulationConfig], shards: list[int]) -> list[pa.
     over the batch's rows, and a batch takes as many steps as its slowest row needs:
     a batch of 16 trajectories costs well over half of one of 64 (docs/measurement_loop.md,
     "The loop on the two-stage campaign"). Shards of a few trajectories each (one per
-    operating point of a campaign) therefore run together: each shard's trajectories are
-    drawn from its own generator (:func:`shard_rng`, as :func:`simulate_shard` draws them),
-    then all rows are simulated in batches of ``solver.batch_size`` (similar window lengths
-    together), with the initial states and noise from the first shard's generator. A shard
-    is thus a function of the seed and of the whole list, not of its own index alone.
+    operating point of a campaign) therefore run together. Every random draw is the one
+    :func:`simulate_shard` makes: each shard's plan, initial states, effect parameters,
+    measurement chain and noise come from its own generator (:func:`shard_rng`) in its own
+    batches (:func:`_shard_pieces`); only the motion, which draws nothing, is computed in
+    batches of ``solver.batch_size`` rows of all shards (similar window lengths together).
+    A shard is thus a function of the seed and its own index, as alone. With the numerical
+    engine its windows still differ from the shard simulated alone (the transient's step
+    count and the record's substep are a batch's): mostly by the integrator's error, but a
+    row near a change of orbit may reach another motion (5.1 % of the windows beyond the
+    noise at the rig's 24 points; docs/measurement_loop.md, "Shared batches: the per-shard
+    draws").
 
     Returns
     -------
@@ -101,7 +107,8 @@ def simulate_shards(cfgs: list[SimulationConfig], shards: list[int]) -> list[pa.
     Raises
     ------
     StiffnetError
-        The configs differ in more than their sweep and counts (:data:`SHARED_FIELDS`).
+        The configs differ in more than their sweep and counts (:data:`SHARED_FIELDS`), or
+        a measurement effect drew by the signal's values (the draws then are not a shard's).
     """
     if len(cfgs) != len(shards) or not cfgs:
         raise StiffnetError("simulate_shards needs one shard index per config, at least one")
@@ -110,27 +117,153 @@ def simulate_shards(cfgs: list[SimulationConfig], shards: list[int]) -> list[pa.
         differ = [f for f in SHARED_FIELDS if getattr(c, f) != getattr(first, f)]
         if differ:
             raise StiffnetError(f"shards simulated together must share {', '.join(differ)}")
-    rngs = [shard_rng(first.seed, s) for s in shards]
-    plans = [sample_plan(c, c.n_trajectories, r) for c, r in zip(cfgs, rngs, strict=True)]
-    plan = TrajectoryPlan.concatenate(plans)
-    shard = np.concatenate([np.full(len(p), s) for p, s in zip(plans, shards, strict=True)])
-    ids = np.concatenate([s * first.shard_size + np.arange(len(p))
-                          for p, s in zip(plans, shards, strict=True)])  # fmt: skip
     sim = build_simulator(first)
+    sims: dict[frozenset[str], Simulator] = {frozenset(): sim}
+    pieces = [p for c, s in zip(cfgs, shards, strict=True) for p in _shard_pieces(c, s, sim, sims)]
+    # every row of every piece: (piece, row in the piece), shared batches by window length
+    owner = np.concatenate([np.full(len(p.plan), k) for k, p in enumerate(pieces)])
+    local = np.concatenate([np.arange(len(p.plan)) for p in pieces])
+    width = np.concatenate([p.plan.window_samples for p in pieces])
+    left = [len(p.plan) for p in pieces]
+    motions: list[dict[str, np.ndarray]] = [{} for _ in pieces]
+    tables: dict[int, list[pa.Table]] = {s: [] for s in shards}
+    order = np.argsort(width, kind="stable")
+    for start in range(0, len(order), first.solver.batch_size):
+        chunk = order[start : start + first.solver.batch_size]
+        for off in dict.fromkeys(pieces[k].off for k in owner[chunk]):
+            rows = chunk[[pieces[k].off == off for k in owner[chunk]]]
+            _shared_motion(first, pieces, owner[rows], local[rows], motions)
+            for k in set(owner[rows].tolist()):
+                left[k] -= int(np.sum(owner[rows] == k))
+                if not left[k]:  # measured and windowed as soon as its rows are all moved
+                    tables[pieces[k].shard].append(_measured_piece(sim, pieces[k], motions[k]))
+                    motions[k] = {}
+    by = [("trajectory", "ascending"), ("window", "ascending")]
+    return [pa.concat_tables(tables[s]).sort_by(by) for s in shards]
+
+
+@dataclass
+class _Piece:
+    """One :meth:`Simulator.simulate` call of :func:`simulate_shard` (a group of rows of one
+    of a shard's batches): its rows, the draws made before its motion and where its
+    generator stood before and after its measurement chain."""
+
+    shard: int
+    cfg: SimulationConfig
+    plan: TrajectoryPlan
+    trajectory: np.ndarray
+    off: frozenset[str]
+    sim: Simulator
+    n_samples: int
+    draws: RowDraws
+    rng: np.random.Generator
+    before_measure: dict[str, Any]
+    after_measure: dict[str, Any]
+
+
+def _shard_pieces(
+    cfg: SimulationConfig, shard: int, sim: Simulator, sims: dict[frozenset[str], Simulator]
+) -> list[_Piece]:
+    """Every draw :func:`simulate_shard` makes for ``shard``, in its order, without the motion.
+
+    The measurement chain draws after the motion and by the signal's shape only, so it is
+    run on zeros to move the generator past it; :func:`_measured_piece` runs it again on
+    the motion from where it started and checks that it ends where this one did.
+    """
+    rng = shard_rng(cfg.seed, shard)
+    plan = sample_plan(cfg, cfg.n_trajectories, rng)
     order = np.argsort(plan.window_samples, kind="stable")
-    size = first.solver.batch_size
-    parts = [
-        _simulate_rows(first, sim, plan.subset(rows), ids[rows], shard[rows], rngs[0])
-        for rows in (order[i : i + size] for i in range(0, len(plan), size))
-    ]
-    table = pa.concat_tables(parts).sort_by([("trajectory", "ascending"), ("window", "ascending")])
-    col = table.column("shard").to_numpy()
-    return [table.filter(pa.array(col == s)) for s in shards]
+    per = cfg.windows.per_trajectory
+    pieces = []
+    for start in range(0, len(plan), cfg.solver.batch_size):
+        rows = order[start : start + cfg.solver.batch_size]
+        n_samples = int(per * plan.window_samples[rows].max())
+        for sub_rows, off in _groups(sim, plan.subset(rows)):
+            if off not in sims:
+                sims[off] = build_simulator(cfg, off)
+            gsim = sims[off]
+            idx = rows[sub_rows]
+            sub = plan.subset(idx)
+            draws = gsim.draw_inputs(sub.batch, rng, effect_params=_kept(sub.effect_params, off),
+                                     active=_kept(sub.active, off))  # fmt: skip
+            before = rng.bit_generator.state
+            gsim.measure(np.zeros((len(sub), n_samples)), sub.batch, sub.fs_ratio, sub.noise,
+                         draws, rng)  # fmt: skip
+            after = rng.bit_generator.state
+            trajectory = shard * cfg.shard_size + idx
+            pieces.append(_Piece(shard, cfg, sub, trajectory, off, gsim, n_samples, draws, rng,
+                                 before, after))  # fmt: skip
+    return pieces
+
+
+def _shared_motion(cfg, pieces: list[_Piece], owner, local, motions) -> None:
+    """The motion of rows of several pieces of one group (``owner``, row ``local`` in it) as
+    one batch, each row kept in ``motions[owner]`` for its piece's ``n_samples``."""
+    pairs = list(zip(owner, local, strict=True))
+    plan = TrajectoryPlan.concatenate([pieces[k].plan.subset(np.array([i])) for k, i in pairs])
+
+    def gather(get: Callable[[RowDraws], Any]) -> np.ndarray:
+        return np.array([_row(get(pieces[k].draws), i) for k, i in pairs])
+
+    params = {
+        name: {key: gather(lambda d, n=name, q=key: d.params[n][q]) for key in values}
+        for name, values in pieces[owner[0]].draws.params.items()
+    }
+    draws = RowDraws(gather(lambda d: d.x0), gather(lambda d: d.v0), params, {})
+    n_samples = max(pieces[k].n_samples for k in owner)
+    row_samples = cfg.windows.per_trajectory * plan.window_samples
+    res = pieces[owner[0]].sim.motion_of(plan.batch, plan.fs_ratio, n_samples, draws, row_samples)
+    for j, (k, i) in enumerate(zip(owner, local, strict=True)):
+        m, n = motions[k], pieces[k].n_samples
+        for key in ("accel", "contact_force", "impacts"):
+            row = getattr(res, key)[j, :n]
+            # impacts as simulate_shard keeps them (bool), the rest float64
+            dtype = bool if key == "impacts" else np.float64
+            m.setdefault(key, np.zeros((len(pieces[k].plan), n), dtype))[i] = row
+
+
+def _row(value: np.ndarray, i: int) -> float:
+    """Row ``i`` of a per-row parameter (a scalar is every row's)."""
+    v = np.asarray(value)
+    return v.item() if v.ndim == 0 else v[i]
+
+
+def _measured_piece(sim: Simulator, piece: _Piece, motion: dict) -> pa.Table:
+    """The piece's motion through its measurement chain, drawn from where its shard's
+    generator stood, cut into windows."""
+    gsim, rng = piece.sim, piece.rng
+    rng.bit_generator.state = piece.before_measure
+    sub = piece.plan
+    accel = gsim.measure(motion["accel"], sub.batch, sub.fs_ratio, sub.noise, piece.draws, rng)
+    if rng.bit_generator.state != piece.after_measure:
+        raise StiffnetError("a measurement effect drew by the signal's values: shards in "
+                            "shared batches would not keep their own draws")  # fmt: skip
+    res = {"accel": accel, "contact_force": motion["contact_force"],
+           "impacts": motion["impacts"]}  # fmt: skip
+    return _window_table(piece.cfg, sim, sub, res, piece.trajectory,
+                         np.full(len(sub), piece.shard))  # fmt: skip
 
 
 def _switchable(sim: Simulator) -> set[str]:
     """Effects that can be off row by row inside one batch (see ``Simulator.simulate``)."""
     return {e.name for e in sim.effects if e.kind == "measurement" or e.neutral is not None}
+
+
+def _groups(sim: Simulator, plan: TrajectoryPlan) -> list[tuple[np.ndarray, frozenset[str]]]:
+    """The plan's rows by the effects they lack that cannot be off inside a batch (a
+    non-piecewise-linear contact law, say): each group's rows and those effects."""
+    fixed = [name for name in plan.active if name not in _switchable(sim)]
+    key = np.array([[plan.active[name][i] for name in fixed] for i in range(len(plan))], bool)
+    key = key.reshape(len(plan), len(fixed))
+    out = []
+    for g in np.unique(key, axis=0):
+        rows = np.flatnonzero((key == g).all(axis=1))
+        out.append((rows, frozenset(name for name, on in zip(fixed, g, strict=True) if not on)))
+    return out
+
+
+def _kept(values: dict[str, Any], off: frozenset[str]) -> dict[str, Any]:
+    return {k: v for k, v in values.items() if k not in off}
 
 
 def _simulate_plan(cfg, sim, plan: TrajectoryPlan, n_samples: int, rng):
@@ -141,21 +274,14 @@ def _simulate_plan(cfg, sim, plan: TrajectoryPlan, n_samples: int, rng):
     the rest keep the fast closed-form engine. Returns accel, impacts and
     contact force ``(B, N)``.
     """
-    fixed = [name for name in plan.active if name not in _switchable(sim)]
-    key = np.array([[plan.active[name][i] for name in fixed] for i in range(len(plan))], bool)
-    key = key.reshape(len(plan), len(fixed))
-    groups = np.unique(key, axis=0)
     out = {k: np.zeros((len(plan), n_samples)) for k in ("accel", "contact_force")}
     out["impacts"] = np.zeros((len(plan), n_samples), dtype=bool)
-    for g in groups:
-        rows = np.flatnonzero((key == g).all(axis=1))
-        off = frozenset(name for name, on in zip(fixed, g, strict=True) if not on)
+    for rows, off in _groups(sim, plan):
         gsim = sim if not off else build_simulator(cfg, off)
         sub = plan.subset(rows)
         res = gsim.simulate(
             sub.batch, sub.fs_ratio, n_samples, noise=sub.noise, rng=rng,
-            effect_params={k: v for k, v in sub.effect_params.items() if k not in off},
-            active={k: v for k, v in sub.active.items() if k not in off},
+            effect_params=_kept(sub.effect_params, off), active=_kept(sub.active, off),
             row_samples=cfg.windows.per_trajectory * sub.window_samples,
         )  # fmt: skip
         for k in out:
@@ -180,9 +306,15 @@ def _effect_columns(sim: Simulator, plan: TrajectoryPlan) -> dict[str, np.ndarra
 def _simulate_rows(cfg, sim, plan: TrajectoryPlan, trajectory, shard, rng) -> pa.Table:
     """Simulate ``plan``'s rows as one batch and cut them into labelled windows; each row's
     ``trajectory`` number and ``shard`` are given (B,)."""
-    per = cfg.windows.per_trajectory
-    n_samples = int(per * plan.window_samples.max())
+    n_samples = int(cfg.windows.per_trajectory * plan.window_samples.max())
     res = _simulate_plan(cfg, sim, plan, n_samples, rng)
+    return _window_table(cfg, sim, plan, res, trajectory, shard)
+
+
+def _window_table(cfg, sim, plan: TrajectoryPlan, res: dict, trajectory, shard) -> pa.Table:
+    """``plan``'s simulated rows (``res``: accel, impacts, contact force (B, N)) cut into
+    labelled windows."""
+    per = cfg.windows.per_trajectory
     per_row_effects = _effect_columns(sim, plan)
     edges = [c.beta[0] for c in cfg.classes] + [cfg.classes[-1].beta[1]]
     cols: dict[str, list[Any]] = {k: [] for k in _COLUMNS}

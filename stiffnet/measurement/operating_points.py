@@ -30,10 +30,12 @@ defaults read at least 14.
 On request (``shared_batches``) every shard (a point, an edge at a point) is simulated in
 shared batches (:func:`stiffnet.dataset.generate.simulate_shards`): with the numerical
 engine a batch costs its steps, whatever its rows, and a campaign of 24 points splits 400
-trajectories into shards of about 17 (4.2x less CPU on six of them). Off by default: its
-draws of the initial states differ, and with them the retrained GBM read the loop test's 8
-two-stage recordings 7 of 8, and 16 (the example campaign's eight points, two betas each)
-13 of 16 in class where the per-shard draws read at least 14.
+trajectories into shards of about 17 (3.4x less CPU on the rig's two-stage campaign). Each
+shard draws its plan, initial states, effect parameters and noise from its own generator
+exactly as alone. Off by default all the same: the numerical engine ties a batch's rows
+(its transient's step count and the record's substep are the batch's), and at the rig's
+points 5.1 % of the windows moved by more than the noise std (up to 320 times it; 2.6 %
+with other impact counts) where the shared batch put a row on another step.
 On request (``weights="small_gaps"``) the points do not share the trajectories evenly: a
 point whose gap is below the campaign's median gets ``median / gap`` times as many (at most
 :data:`MAX_WEIGHT` times), the total unchanged (:func:`point_weights`,

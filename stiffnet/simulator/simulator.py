@@ -67,6 +67,17 @@ class SimulationResult:
         return self.contact_force > 0
 
 
+@dataclass
+class RowDraws:
+    """What a simulation draws before its motion: initial states (B,), every effect's
+    parameters (after the activity masks' neutral values) and the masks by effect name."""
+
+    x0: np.ndarray
+    v0: np.ndarray
+    params: dict[str, ParamArrays]
+    masks: dict[str, np.ndarray]
+
+
 class Simulator:
     """Impact oscillator with a list of effects (the parts it is given).
 
@@ -179,6 +190,31 @@ class Simulator:
         if np.any(noise < 0):
             raise ConfigError("noise must be >= 0")
         rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        draws = self.draw_inputs(batch, rng, x0, v0, effect_params, active)
+        out = self.motion_of(batch, fs_ratio, n_samples, draws, row_samples)
+        measured = self.measure(out.accel, batch, fs_ratio, noise, draws, rng)
+        return SimulationResult(
+            batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out.accel,
+            x=out.x, v=out.v, contact_force=out.contact_force, impacts=out.impacts,
+            t0=out.t0, noise=noise, engine=self.engine, effect_params=draws.params,
+        )  # fmt: skip
+
+    def draw_inputs(
+        self,
+        batch: OscillatorBatch,
+        rng: np.random.Generator,
+        x0: np.ndarray | None = None,
+        v0: np.ndarray | None = None,
+        effect_params: dict[str, ParamArrays] | None = None,
+        active: dict[str, np.ndarray] | None = None,
+    ) -> RowDraws:
+        """What :meth:`simulate` draws from ``rng`` before the motion (same order).
+
+        The motion (:meth:`motion_of`) draws nothing and the measurement chain
+        (:meth:`measure`) draws after it, so a caller may compute the motion of rows drawn
+        by several generators together and measure each group from its own generator.
+        """
+        b = len(batch)
         if x0 is None:
             x0 = rng.uniform(-1, 1, b) * batch.amplitude
         if v0 is None:
@@ -189,21 +225,43 @@ class Simulator:
                 raise ConfigError(f"parameters given for effect {name!r} that is not enabled")
             params[name].update({k: np.asarray(v, float) for k, v in given.items()})
         masks = self._activity(active, params, b)
+        return RowDraws(x0, v0, params, masks)
 
+    def motion_of(
+        self,
+        batch: OscillatorBatch,
+        fs_ratio: np.ndarray,
+        n_samples: int,
+        draws: RowDraws,
+        row_samples: np.ndarray | None = None,
+    ) -> Any:
+        """The engine's output for ``draws`` (``EngineResult``), before the measurement chain.
+
+        Deterministic; with the numerical engine a row's motion depends on the batch it
+        runs in by the integrator's error (the transient's step count and the substeps
+        are the batch's).
+        """
         h = 2 * np.pi / fs_ratio
         t_tr = self.transient_time(batch)
-        out = motion(
+        x0, v0, params = draws.x0, draws.v0, draws.params
+        return motion(
             lambda: self._motion_key(batch, params, x0, v0, t_tr, h, row_samples),
             lambda: self._motion(batch, params, x0, v0, t_tr, h, n_samples, row_samples),
             n_samples,
             _first_samples,
         )
-        measured = self._measure(out.accel, batch, fs_ratio, noise, params, rng, masks)
-        return SimulationResult(
-            batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out.accel,
-            x=out.x, v=out.v, contact_force=out.contact_force, impacts=out.impacts,
-            t0=out.t0, noise=noise, engine=self.engine, effect_params=params,
-        )  # fmt: skip
+
+    def measure(
+        self,
+        accel: np.ndarray,
+        batch: OscillatorBatch,
+        fs_ratio: np.ndarray,
+        noise: np.ndarray,
+        draws: RowDraws,
+        rng: np.random.Generator,
+    ) -> np.ndarray:
+        """The measurement chain and white noise on ``accel`` (B, N), drawn from ``rng``."""
+        return self._measure(accel, batch, fs_ratio, noise, draws.params, rng, draws.masks)
 
     def _motion(self, batch, params, x0, v0, t_tr, h, n_samples, row_samples=None) -> Any:
         """The engine's output: the motion sampled, before the measurement chain."""
