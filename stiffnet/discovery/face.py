@@ -164,8 +164,7 @@ def face_response(
 # at a time: each step's state is the last one's, so they cannot be vectorised along time.
 # Compiled, with the arithmetic written in numpy's order (``a * s0 + b * s1 + c * u + d * du``
 # summed left to right, no fused multiply-add): the same bits as the array expressions they
-# replaced, which looped in Python over every column (a fifth to two fifths of a face law's
-# discovery time).
+# replaced, which looped in Python over every column, so the fitted laws do not move.
 @numba.njit(cache=True, error_model="numpy")
 def response_from_rest(
     e: np.ndarray, u: np.ndarray, du: np.ndarray
@@ -255,7 +254,6 @@ class ImpactChain:
     """What the ringing carried between impacts needs of the samples alone (not of the face):
     built once per campaign (:func:`impact_chain`) and shared by every face it filters."""
 
-    lay: Layout
     dt: np.ndarray  # (I,) each impact's sampling interval
     gap: np.ndarray  # (I - 1,) time from each impact's last sample to the next one's first
     same_rec: np.ndarray  # (I - 1,) the next impact is of the same recording
@@ -281,7 +279,7 @@ def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain
     grid[np.cumsum(new_rec) - 1, place] = rows
     on = grid > 0
     return ImpactChain(
-        lay, dt, (index[first[1:]] - index[last[:-1]]) * dt[1:], lay.rec[1:] == lay.rec[:-1],
+        dt, (index[first[1:]] - index[last[:-1]]) * dt[1:], lay.rec[1:] == lay.rec[:-1],
         length, length * dt, grid, on, np.where(on, grid - 1, 0), dt[:, None] * np.arange(n_col),
     )  # fmt: skip
 
