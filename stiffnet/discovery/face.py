@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy import linalg
 
@@ -122,6 +123,7 @@ def face_response(
     stiffness: float,
     damping: float,
     index: np.ndarray | None = None,
+    chain: ImpactChain | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The face's recoil and its rate on every sample, driven by the measured force, (N,) each.
 
@@ -138,6 +140,9 @@ def face_response(
     index : numpy.ndarray, optional
         Each sample's index in its record: the face then carries its ringing from one
         impact into the next (:func:`ringing_from_before`); without, each starts at rest.
+    chain : ImpactChain, optional
+        :func:`impact_chain` of ``lay``, ``index`` and ``dts``, where already built (it
+        depends on the samples, not on the face; it stands for ``index``).
     """
     if force.size == 0:
         return np.zeros(0), np.zeros(0)
@@ -146,21 +151,64 @@ def face_response(
     u[lay.row, lay.col] = force
     du = np.zeros(lay.shape)
     du[:, :-1] = np.diff(u, axis=1) / np.asarray(dts, float)[lay.rec][:, None]
-    y = np.zeros(lay.shape)
-    yd = np.zeros(lay.shape)
-    s0 = np.zeros(lay.shape[0])
-    s1 = np.zeros(lay.shape[0])
-    p00, p01, p10, p11 = e[:, 0, 0], e[:, 0, 1], e[:, 1, 0], e[:, 1, 1]
-    g0, g1, h0, h1 = e[:, 0, 2], e[:, 1, 2], e[:, 0, 3], e[:, 1, 3]
-    for k in range(lay.shape[1]):  # from rest at each impact's first sample
-        y[:, k], yd[:, k] = s0, s1
-        uk, dk = u[:, k], du[:, k]
-        s0, s1 = (p00 * s0 + p01 * s1 + g0 * uk + h0 * dk,
-                  p10 * s0 + p11 * s1 + g1 * uk + h1 * dk)  # fmt: skip
-    if index is not None and index.size == force.size:
-        free = ringing_from_before(y, yd, lay, index, dts, mass, stiffness, damping)
+    y, yd = response_from_rest(np.ascontiguousarray(e), u, du)
+    if chain is None and index is not None and index.size == force.size:
+        chain = impact_chain(lay, index, dts)
+    if chain is not None:
+        free = ringing_from_before(y, yd, chain, mass, stiffness, damping)
         y, yd = y + free[..., 0], yd + free[..., 1]
     return y[lay.row, lay.col], yd[lay.row, lay.col]
+
+
+# The two recursions below are the face's exact discrete steps, one sample (or one impact)
+# at a time: each step's state is the last one's, so they cannot be vectorised along time.
+# Compiled, with the arithmetic written in numpy's order (``a * s0 + b * s1 + c * u + d * du``
+# summed left to right, no fused multiply-add): the same bits as the array expressions they
+# replaced, which looped in Python over every column, so the fitted laws do not move.
+@numba.njit(cache=True, error_model="numpy")
+def response_from_rest(
+    e: np.ndarray, u: np.ndarray, du: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - compiled
+    """The face's state on every padded sample from rest at each impact's first, (I, C) each.
+
+    ``e`` (I, 4, 4): each impact's one-step map (:func:`face_transition`); ``u``, ``du``
+    (I, C): the force and its slope per sample. State ``s_k`` before the step at ``k``,
+    ``s_{k+1} = E[:2, :2] s_k + E[:2, 2] u_k + E[:2, 3] du_k``.
+    """
+    n_imp, n_col = u.shape
+    y = np.zeros((n_imp, n_col))
+    yd = np.zeros((n_imp, n_col))
+    for i in range(n_imp):
+        p00, p01, p10, p11 = e[i, 0, 0], e[i, 0, 1], e[i, 1, 0], e[i, 1, 1]
+        g0, g1, h0, h1 = e[i, 0, 2], e[i, 1, 2], e[i, 0, 3], e[i, 1, 3]
+        s0 = 0.0
+        s1 = 0.0
+        for k in range(n_col):
+            y[i, k] = s0
+            yd[i, k] = s1
+            uk, dk = u[i, k], du[i, k]
+            n0 = p00 * s0 + p01 * s1 + g0 * uk + h0 * dk
+            n1 = p10 * s0 + p11 * s1 + g1 * uk + h1 * dk
+            s0, s1 = n0, n1
+    return y, yd
+
+
+@numba.njit(cache=True, error_model="numpy")
+def carried_states(m: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no cover - compiled
+    """The state each impact starts in, (R, P, 2): ``s_k = m_k s_{k-1} + b_k`` along each
+    recording's impacts (``m`` (R, P, 2, 2), ``b`` (R, P, 2)), from zero at the first."""
+    n_rec, n_place = b.shape[0], b.shape[1]
+    states = np.zeros((n_rec, n_place, 2))
+    for r in range(n_rec):
+        s0 = 0.0
+        s1 = 0.0
+        for k in range(1, n_place):
+            n0 = m[r, k, 0, 0] * s0 + m[r, k, 0, 1] * s1 + b[r, k, 0]
+            n1 = m[r, k, 1, 0] * s0 + m[r, k, 1, 1] * s1 + b[r, k, 1]
+            s0, s1 = n0, n1
+            states[r, k, 0] = s0
+            states[r, k, 1] = s1
+    return states
 
 
 def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
@@ -201,16 +249,45 @@ def free_parts(t: np.ndarray, w2: float, damping: float) -> tuple[np.ndarray, np
     return dc, ds, sigma
 
 
+@dataclass(frozen=True)
+class ImpactChain:
+    """What the ringing carried between impacts needs of the samples alone (not of the face):
+    built once per campaign (:func:`impact_chain`) and shared by every face it filters."""
+
+    dt: np.ndarray  # (I,) each impact's sampling interval
+    gap: np.ndarray  # (I - 1,) time from each impact's last sample to the next one's first
+    same_rec: np.ndarray  # (I - 1,) the next impact is of the same recording
+    length: np.ndarray  # (I,) each impact's last column
+    through_t: np.ndarray  # (I,) time over each impact's own samples
+    grid: np.ndarray  # (R, P) impacts by recording and place, -1 where none
+    on: np.ndarray  # (R, P) an impact after another of its recording
+    prev: np.ndarray  # (R, P) the impact before it (0 where none)
+    times: np.ndarray  # (I, C) each padded sample's time since its impact's first
+
+
+def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain:
+    """The :class:`ImpactChain` of samples laid out as ``lay`` with record indices ``index``."""
+    n_imp, n_col = lay.shape
+    first = np.flatnonzero(lay.col == 0)
+    last = np.r_[first[1:] - 1, index.size - 1]
+    dt = np.asarray(dts, float)[lay.rec]
+    length = lay.col[last]
+    rows = np.arange(n_imp)
+    new_rec = np.r_[True, lay.rec[1:] != lay.rec[:-1]]
+    place = rows - np.maximum.accumulate(np.where(new_rec, rows, 0))
+    grid = np.full((int(new_rec.sum()), int(place.max(initial=0)) + 1), -1)
+    grid[np.cumsum(new_rec) - 1, place] = rows
+    on = grid > 0
+    return ImpactChain(
+        dt, (index[first[1:]] - index[last[:-1]]) * dt[1:], lay.rec[1:] == lay.rec[:-1],
+        length, length * dt, grid, on, np.where(on, grid - 1, 0), dt[:, None] * np.arange(n_col),
+    )  # fmt: skip
+
+
 def ringing_from_before(
-    y: np.ndarray,
-    yd: np.ndarray,
-    lay: Layout,
-    index: np.ndarray,
-    dts: np.ndarray,
-    mass: float,
-    stiffness: float,
+    y: np.ndarray, yd: np.ndarray, chain: ImpactChain, mass: float, stiffness: float,
     damping: float,
-) -> np.ndarray:
+) -> np.ndarray:  # fmt: skip
     """The free ringing each impact inherits from the ones before it, (I, C, 2).
 
     The face's response is linear: each impact's recoil is its own from rest (``y``, ``yd``)
@@ -222,43 +299,27 @@ def ringing_from_before(
     ``c``-th power, in closed form: the powers of a stack of 2 x 2 matrices, taken one
     product at a time, were most of a face fit's time).
     """
-    n_imp, n_col = lay.shape
-    first = np.flatnonzero(lay.col == 0)
-    last = np.r_[first[1:] - 1, index.size - 1]
+    c = chain
     w2 = stiffness / mass
-    dt = np.asarray(dts, float)[lay.rec]  # (I,) each impact's sampling interval
-    gap = (index[first[1:]] - index[last[:-1]]) * dt[1:]
+    gap = c.gap
     # (I - 1, 2, 2) the free map over each gap; a ringing decayed below e^-40 is gone
     across = np.zeros((gap.size, 2, 2))
-    alive = (damping * np.sqrt(w2) * gap < 40.0) & (lay.rec[1:] == lay.rec[:-1])
+    alive = (damping * np.sqrt(w2) * gap < 40.0) & c.same_rec
     across[alive] = free_map(gap[alive], w2, damping)
-    length = lay.col[last]
-    rows = np.arange(n_imp)
-    own_end = np.stack([y[rows, length], yd[rows, length]], axis=1)  # (I, 2) from rest
-    through = free_map(length * dt, w2, damping)  # (I, 2, 2) over each impact's own samples
+    rows = np.arange(c.length.size)
+    own_end = np.stack([y[rows, c.length], yd[rows, c.length]], axis=1)  # (I, 2) from rest
+    through = free_map(c.through_t, w2, damping)  # (I, 2, 2) over each impact's own samples
     # impact i starts in  across_i-1 (own_end_i-1 + through_i-1 start_i-1): a linear
     # recursion along each recording (its impacts are contiguous), all recordings at once
     carry = np.einsum("ijk,ikl->ijl", across, through[:-1])  # (I - 1, 2, 2)
     push = np.einsum("ijk,ik->ij", across, own_end[:-1])  # (I - 1, 2)
-    new_rec = np.r_[True, lay.rec[1:] != lay.rec[:-1]]
-    place = rows - np.maximum.accumulate(np.where(new_rec, rows, 0))
-    grid = np.full((int(new_rec.sum()), int(place.max(initial=0)) + 1), -1)
-    grid[np.cumsum(new_rec) - 1, place] = rows  # impacts by recording and place
-    on = grid > 0  # an impact after another of its recording
-    prev = np.where(on, grid - 1, 0)
-    m = carry[prev] * on[..., None, None]  # (R, P, 2, 2); nothing carried where none is
-    b = push[prev] * on[..., None]
-    states = np.zeros(grid.shape + (2,))
-    s0 = np.zeros(grid.shape[0])
-    s1 = np.zeros(grid.shape[0])
-    for k in range(1, grid.shape[1]):
-        s0, s1 = (m[:, k, 0, 0] * s0 + m[:, k, 0, 1] * s1 + b[:, k, 0],
-                  m[:, k, 1, 0] * s0 + m[:, k, 1, 1] * s1 + b[:, k, 1])  # fmt: skip
-        states[:, k, 0], states[:, k, 1] = s0, s1
-    start = np.zeros((n_imp, 2))
-    start[grid[on]] = states[on]
+    m = carry[c.prev] * c.on[..., None, None]  # (R, P, 2, 2); nothing carried where none is
+    b = push[c.prev] * c.on[..., None]
+    states = carried_states(np.ascontiguousarray(m), np.ascontiguousarray(b))
+    start = np.zeros((rows.size, 2))
+    start[c.grid[c.on]] = states[c.on]
     # the free map over c samples applied to each start, (I, C) each
-    dc, ds, sigma = free_parts(dt[:, None] * np.arange(n_col), w2, damping)
+    dc, ds, sigma = free_parts(c.times, w2, damping)
     s0, s1 = start[:, :1], start[:, 1:]
     return np.stack([(dc + sigma * ds) * s0 + ds * s1, -w2 * ds * s0 + (dc - sigma * ds) * s1], -1)
 

@@ -45,8 +45,10 @@ from scipy import optimize, sparse
 from stiffnet.discovery.face import (
     FACE2_PARAMS,
     FACE_PARAMS,
+    ImpactChain,
     Layout,
     face_response,
+    impact_chain,
     layout,
     sample_interval,
 )
@@ -110,6 +112,13 @@ class Data:
         """The samples' impacts as padded arrays per recording (the ``face`` term's)."""
         return layout(self.rec, self.impact, self.n_rec)
 
+    @cached_property
+    def chain(self) -> ImpactChain | None:
+        """The impacts' succession the face's ringing runs through (none without indices)."""
+        if self.index.size != self.f.size or self.f.size == 0:
+            return None
+        return impact_chain(self.layout, self.index, self.dt)
+
     def behind_face(
         self, delta: np.ndarray, v: np.ndarray, params: dict[str, float], modes: Sequence[str]
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -138,8 +147,7 @@ class Data:
         else:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            index = self.index if self.index.size == self.f.size else None
-            cache[key] = face_response(self.f, self.layout, self.dt, *key, index=index)
+            cache[key] = face_response(self.f, self.layout, self.dt, *key, chain=self.chain)
         return cache[key]
 
     @cached_property
@@ -157,6 +165,7 @@ class Data:
                    self.onset0, self.names, self.dt, self.index, self.parent)  # fmt: skip
         out.__dict__["_face_cache"] = self._face_cache  # cached_property's own slot
         out.__dict__["layout"] = self.layout
+        out.__dict__["chain"] = self.chain
         return out
 
 
