@@ -23,8 +23,13 @@ a user runs it, on campaigns of the independent rig (``tests/independent_rig.py`
 recordings, the eight operating points of ``tests/test_independent_rig.POINTS`` with three
 betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks:
 ``stiffnet diagnose`` (the rig candidates of the tests) and, where it proposes a law,
-``stiffnet loop --diagnosis --operating-points`` (GBM, or ``--rig-family``); the CLI's
-CPU seconds are its processes'. Part 4b (``--rig-seeds``): that loop's iteration 1 on the
+the plain ``stiffnet loop CAMPAIGN --diagnosis D --family F --iterations 1`` (GBM, or
+``--rig-family``; no world option: the loop's ``auto`` world moves to the campaign's
+operating points when the learned law is added; ``--rig-trajectories`` passes
+``--n-trajectories``, default the loop's own; tracking into ``--rig-dir``'s
+``mlflow.db``); the CLI's CPU seconds are its processes'. After the table, each loop's
+last iteration: its world and why, trajectories, the misses (β: read, class, point and
+gap) and the CPU seconds of its phases. Part 4b (``--rig-seeds``): that loop's iteration 1 on the
 two-stage rig campaign without the diagnosis (the law's prior as discovered), drawn at each
 dataset seed and near-edge share, with the accuracy the class read from the beta head
 would give; ``--rig-families gbm,cnn`` trains each family on the same dataset (the CNN is
@@ -428,8 +433,28 @@ def _cli(args: list[str]) -> tuple[float, float]:
     return time.perf_counter() - t0, cpu
 
 
-def rig_row(law: str, folder: Path, family: str, n: int) -> str:
-    """One law: write the campaign, diagnose it, loop on it where a law is proposed."""
+def iteration_detail(law: str, it: dict, folder: Path) -> str:
+    """A loop iteration in one line: world (why), trajectories, accuracy, β MAPE, misses
+    (β: read, class; point, gap mm from the campaign ``folder``'s manifest) and the CPU
+    seconds of its phases."""
+    import csv
+
+    with open(folder / "manifest.csv", newline="") as f:
+        gaps = {r["recording"]: r.get("gap_mm", "?") for r in csv.DictReader(f)}
+    bad = [r for r in it["recordings"] if (r["error"] or 0) >= 1]  # a wrong class counts 1
+    wrong = "; ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']} "
+                      f"({Path(r['recording']).stem.split('_')[0]}, "
+                      f"{gaps.get(r['recording'], '?')} mm)" for r in bad)  # fmt: skip
+    m = it["metrics"]
+    phases = ", ".join(f"{k} {v:.0f}" for k, v in it.get("cpu_seconds", {}).items())
+    return (f"| {law} | {it['world']} ({it['world_reason']}) | {it['n_trajectories']} "
+            f"| {m['accuracy']:.3f} | {m['beta_mape']:.3f} | {wrong or '-'} "
+            f"| {phases} |")  # fmt: skip
+
+
+def rig_row(law: str, folder: Path, family: str, n: int | None, details: list[str]) -> str:
+    """One law: write the campaign, diagnose it, loop on it where a law is proposed (its
+    last iteration's line appended to ``details``)."""
     import json
 
     from independent_rig import write_campaign
@@ -451,10 +476,13 @@ def rig_row(law: str, folder: Path, family: str, n: int) -> str:
     if ll.get("proposed"):
         l_json = folder / f"{law}-loop.json"
         state = str(folder / f"{law}-loop")
+        size = ["--n-trajectories", str(n)] if n else []
         wall, cpu = _cli(["loop", str(camp), "--state", state, "--diagnosis", str(d_json),
-                          "--family", family, "--n-trajectories", str(n), "--operating-points",
-                          "--no-tracking", "--json", str(l_json)])  # fmt: skip
+                          "--family", family, "--iterations", "1", *size,
+                          "--tracking-uri", f"sqlite:///{folder.resolve()}/mlflow.db",
+                          "--json", str(l_json)])  # fmt: skip
         its = json.loads(l_json.read_text())["iterations"]
+        details.append(iteration_detail(law, its[-1], Path(camp)))
         m0, m1 = its[0]["metrics"], its[-1]["metrics"]
         cells += [f"{m0['accuracy']:.3f} → {m1['accuracy']:.3f}",
                   f"{m0['beta_mape']:.3f} → {m1['beta_mape']:.3f}",
@@ -466,15 +494,19 @@ def rig_row(law: str, folder: Path, family: str, n: int) -> str:
     return "| " + " | ".join(cells) + " |"
 
 
-def rig_table(laws: list[str], folder: Path | None, family: str, n: int) -> None:
-    """Part 4's table, one row per law (see the module's notes)."""
+def rig_table(laws: list[str], folder: Path | None, family: str, n: int | None) -> None:
+    """Part 4's table, one row per law, then each loop's last iteration (module notes)."""
     print(f"| rig law | verdict | baseline | library selects | learned law | removed (of the "
           f"selection's / of the baseline) | diagnose wall / CPU s | {family} accuracy | "
           f"β MAPE | discrepancy | loop wall / CPU s | load |")  # fmt: skip
     print("|---" * 12 + "|")
+    details: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         for law in laws:
-            print(rig_row(law, Path(folder or tmp), family, n), flush=True)
+            print(rig_row(law, Path(folder or tmp), family, n, details), flush=True)
+    print("\n| rig law | world (why) | trajectories | accuracy | β MAPE | misses (β: read, "
+          "class; point, gap) | CPU s by phase |\n|---|---|---|---|---|---|---|")  # fmt: skip
+    print("\n".join(details))
 
 
 def main() -> None:
@@ -494,7 +526,8 @@ def main() -> None:
     ap.add_argument("--rig", default="", help=f"part 4: laws among {', '.join(RIG_LAWS)}")
     ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
     ap.add_argument("--rig-family", default="gbm")
-    ap.add_argument("--rig-trajectories", type=int, default=400)
+    ap.add_argument("--rig-trajectories", type=int, default=None,
+                    help="part 4: --n-trajectories (default the loop's); 4b: 400")  # fmt: skip
     ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
     ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
     ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
@@ -506,7 +539,7 @@ def main() -> None:
         rig_seeds(args.rig_dir or Path(tempfile.mkdtemp()),
                   [int(s) for s in args.rig_seeds.split(",")],
                   [float(s) for s in args.rig_shares.split(",")],
-                  not args.rig_per_shard, args.rig_trajectories,
+                  not args.rig_per_shard, args.rig_trajectories or 400,
                   tuple(args.rig_families.split(",")),
                   tuple(args.rig_weights.split(",")))  # fmt: skip
         return

@@ -111,6 +111,10 @@ def test_two_iterations_with_resume(looped):
     assert d[1] < d[0] and d[2] < 0.01 * d[0], d
     assert all(it["metrics"]["accuracy"] is not None for it in second["iterations"])
     assert second["before"]["discrepancy"] == d[0] and second["after"]["discrepancy"] == d[2]
+    for it in second["iterations"]:  # each phase's CPU seconds, inside the iteration's
+        cpu = it["cpu_seconds"]
+        assert set(cpu) == {"dataset", "train", "evaluation", "total"} and min(cpu.values()) > 0
+        assert cpu["dataset"] + cpu["train"] + cpu["evaluation"] <= cpu["total"] + 0.03, cpu
 
 
 def test_config_yaml_per_iteration_is_a_valid_simulator_config(looped):

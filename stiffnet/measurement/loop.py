@@ -253,6 +253,18 @@ def _train_config(family: str, overrides: dict[str, Any] | None) -> Any:
     return validate_config(TrainConfig, raw, str(path))
 
 
+def cpu_seconds() -> float:
+    """CPU seconds of this process and its finished children (user + system): what an
+    iteration's phase costs on a shared machine, where its wall time is mostly waiting."""
+    import resource
+
+    own, kids = (
+        resource.getrusage(resource.RUSAGE_SELF),
+        resource.getrusage(resource.RUSAGE_CHILDREN),
+    )
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def _train(
     cfg: SimulationConfig,
     work: Path,
@@ -271,7 +283,7 @@ def _train(
     from training.train import train
 
     tcfg = _train_config(family, overrides)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_seconds()
     data = work / "data"
     shards = len(operating_point_configs(cfg, rows)) if rows else len(shard_sizes(cfg))
     with progress_task("simulating shards", shards) as bar:
@@ -279,9 +291,9 @@ def _train(
             operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done))
         else:
             generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
-    t_data = time.perf_counter() - t0
+    t_data, c_data = time.perf_counter() - t0, cpu_seconds() - c0
     summary = train(data, tcfg, work / "model", progress=None)
-    t_train = time.perf_counter() - t0 - t_data
+    t_train, c_train = time.perf_counter() - t0 - t_data, cpu_seconds() - c0 - c_data
     shutil.copyfile(data / "card.json", work / "data_card.json")
     if not keep_data:
         shutil.rmtree(data, ignore_errors=True)
@@ -296,6 +308,7 @@ def _train(
         },
         "epochs": summary.get("epochs"),
         "seconds": {"dataset": round(t_data, 2), "train": round(t_train, 2)},
+        "cpu_seconds": {"dataset": round(c_data, 2), "train": round(c_train, 2)},
     }
 
 
@@ -409,7 +422,7 @@ def _iteration(
 ) -> dict[str, Any]:
     from stiffnet.measurement.evaluate import evaluate_campaign
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), cpu_seconds()
     work = folder / f"iter-{k:03d}"
     if work.exists():  # an interrupted attempt: its files are not part of the state
         shutil.rmtree(work)
@@ -462,6 +475,7 @@ def _iteration(
         list(campaign.rows) if ops else None,
     )  # fmt: skip
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
+    c_eval = cpu_seconds()
     evaluation = evaluate_campaign(
         campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
     )
@@ -502,6 +516,12 @@ def _iteration(
             for r in evaluation["recordings"]
         ],
         "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
+        # the evaluation's restoring-force checks and the discrepancy's simulation
+        "cpu_seconds": {
+            **trained["cpu_seconds"],
+            "evaluation": round(cpu_seconds() - c_eval, 2),
+            "total": round(cpu_seconds() - c0, 2),
+        },
     }
 
 
