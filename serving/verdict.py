@@ -27,7 +27,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     with_sensor_fit_check,
 )
 from stiffnet.uncertainty.conformal import interval_behind_alarm
-from stiffnet.uncertainty.unseen_law import with_unseen_law_check
+from stiffnet.uncertainty.unseen_law import trained_law_kinds, with_unseen_law_check
 
 
 def model_facts(predictor: Any) -> dict[str, Any]:
@@ -85,8 +85,8 @@ def rule_checks(
     )
     alarm = with_restoring_force_check(alarm, gap)
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
-    alarm = with_unseen_law_check(alarm, restoring_force)
     priors = model.get("priors")
+    alarm = with_unseen_law_check(alarm, restoring_force, trained_law_kinds(priors))
     sensor = restoring_force.get("sensor")
     alarm = with_sensor_fit_check(alarm, sensor, priors, fs_hz)
     alarm = with_chain_refusal_check(alarm, restoring_force, priors, fs_hz)

@@ -18,6 +18,8 @@ from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
 from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains, onset_toe
 from stiffnet.uncertainty.unseen_law import (
+    PENETRATION_DISSIPATION,
+    STIFFENING,
     UnseenLawThresholds,
     kelvin_voigt_release_ratio,
     law_shape_reasons,
@@ -25,6 +27,7 @@ from stiffnet.uncertainty.unseen_law import (
     onset_toe_reasons,
     penetration_dissipation,
     stage_reasons,
+    trained_law_kinds,
     unseen_law_reasons,
     unseen_law_thresholds,
     with_unseen_law_check,
@@ -512,3 +515,43 @@ def test_the_independent_rigs_hunt_crossley_contacts_outlast_a_kelvin_voigt_rele
     assert bool(excess >= t.long_contact_min_samples) is fires, (zeta, duration, samples)
     reasons = unseen_law_reasons(restoring_force, t)
     assert any("samples longer than the Kelvin-Voigt" in r for r in reasons) is fires, reasons
+
+
+# The priors of a model the loop retrained with a learned two-stage law (a card's
+# data.priors["effects"], as `loop` writes it) and of one trained on the library's laws.
+_TWO_STAGE_PRIORS = {"effects": [{"name": "learned_contact", "probability": 1.0, "params": {
+    "exponent": 1.0, "knee_ratio": [2.31, 2.56], "knee": [0.236, 0.262], "hunt_crossley": 0.0,
+    "preload": 0.0}}]}  # fmt: skip
+_HUNT_CROSSLEY_PRIORS = {"effects": [{"name": "learned_contact", "probability": 1.0, "params": {
+    "exponent": 1.0, "knee_ratio": 1.0, "hunt_crossley": [4.0, 6.0]}}]}  # fmt: skip
+_LIBRARY_PRIORS = {"effects": [{"name": "contact_damping", "probability": 0.3, "params": {
+    "damping_ratio": [0.05, 0.5]}}, {"name": "hertz_contact", "probability": 0.2}]}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "priors, kinds",
+    [
+        (_TWO_STAGE_PRIORS, {STIFFENING}),
+        (_HUNT_CROSSLEY_PRIORS, {PENETRATION_DISSIPATION}),
+        (_LIBRARY_PRIORS, set()),  # the shipped models' world: every kind is unseen
+        (None, set()),
+    ],
+)
+def test_the_kinds_of_law_a_model_was_trained_on_come_from_its_cards_priors(priors, kinds):
+    assert trained_law_kinds(priors) == kinds
+
+
+def test_a_model_trained_on_a_stiffening_law_is_not_told_its_law_is_unseen():
+    """A two-stage map fires the stage rule for the shipped model; for a model the loop
+    retrained with that law it does not, and the alarm says which kinds were not judged,
+    while a dissipation growing with penetration, which that model never saw, still fires."""
+    stage = {"stage": 0.3, "stage_ratio": 3.0, "stage_knee": 0.3}
+    rf = {"exponent": 1.35, "contact_r2": 0.999, "law_shape": stage}
+    seen = trained_law_kinds(_TWO_STAGE_PRIORS)
+    assert with_unseen_law_check(None, rf)["flag"] is True
+    alarm = with_unseen_law_check(None, rf, seen)
+    assert alarm["flag"] is False and alarm["contact_law_trained_on"] == [STIFFENING]
+    hc = {**rf, "contact_r2": 0.9, "dissipation_gain": 0.9, "dissipation_share": 0.6}
+    alarm = with_unseen_law_check(None, hc, seen)
+    assert alarm["flag"] is True
+    assert all("dissipation" in r for r in alarm["contact_law"])

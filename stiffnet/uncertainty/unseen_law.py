@@ -214,8 +214,47 @@ def penetration_dissipation(
     return 1.0 - sse[1] / sse[0], h / (abs(c) + abs(h) + 1e-300)
 
 
+#: The kinds of law the ``contact_law`` check tells from the library's: a law stiffer the
+#: deeper it is pressed (an exponent, a curvature, stages, a soft first stage) and a
+#: dissipation growing with penetration (Hunt-Crossley's).
+STIFFENING = "stiffening"
+PENETRATION_DISSIPATION = "penetration_dissipation"
+
+
+def trained_law_kinds(priors: dict[str, Any] | None) -> frozenset[str]:
+    """The kinds of law beyond the library's that a model's training world had.
+
+    A model the loop retrained with a learned law (``learned_contact`` in its card's
+    ``data.priors["effects"]``) saw it: a knee with a stiffness ratio other than 1 or an
+    exponent other than 1 is :data:`STIFFENING`, a Hunt-Crossley term
+    :data:`PENETRATION_DISSIPATION`. The ``contact_law`` check then does not call those
+    kinds unseen (:func:`unseen_law_reasons`' ``seen``). The shipped models' worlds have
+    none: an empty set.
+    """
+    kinds: set[str] = set()
+    for effect in (priors or {}).get("effects") or []:
+        if effect.get("name") != "learned_contact" or not effect.get("probability", 1.0) > 0:
+            continue
+        params = effect.get("params") or {}
+        if _departs(params.get("knee_ratio"), 1.0) or _departs(params.get("exponent"), 1.0):
+            kinds.add(STIFFENING)
+        if _departs(params.get("hunt_crossley"), 0.0):
+            kinds.add(PENETRATION_DISSIPATION)
+    return frozenset(kinds)
+
+
+def _departs(value: Any, neutral: float) -> bool:
+    """A prior's value (a number or a ``[low, high]`` range) reaches beyond ``neutral``."""
+    if value is None:
+        return False
+    values = np.atleast_1d(np.asarray(value, dtype=float))
+    return bool(np.any(values != neutral))
+
+
 def unseen_law_reasons(
-    restoring_force: dict[str, Any], thresholds: UnseenLawThresholds | None = None
+    restoring_force: dict[str, Any],
+    thresholds: UnseenLawThresholds | None = None,
+    seen: frozenset[str] = frozenset(),
 ) -> list[str]:
     """Why the restoring-force map reads a contact law the training world lacks (empty: none).
 
@@ -224,9 +263,21 @@ def unseen_law_reasons(
     ``exponent``, ``contact_r2``, ``dissipation_gain`` / ``dissipation_share``,
     ``contact_damping_ratio`` and ``law_shape``
     (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
-    `thresholds` default to :func:`unseen_law_thresholds`.
+    `thresholds` default to :func:`unseen_law_thresholds`. `seen`: the kinds of law the
+    model was trained on (:func:`trained_law_kinds`), whose reasons are left out.
     """
     t = thresholds or unseen_law_thresholds()
+    reasons = []
+    if STIFFENING not in seen:
+        reasons += stiffening_reasons(restoring_force, t)
+    if PENETRATION_DISSIPATION not in seen:
+        reasons += dissipation_reasons(restoring_force, t)
+    return reasons
+
+
+def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
+    """The :data:`STIFFENING` rules: the exponent, a curvature within the impacts, stages and
+    a soft first stage."""
     reasons = []
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
@@ -235,6 +286,15 @@ def unseen_law_reasons(
                 f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
                 "contacts read"
             )
+    shape = restoring_force.get("law_shape")
+    reasons += curvature_reasons(shape, t) + stage_reasons(shape, t)
+    return reasons + onset_toe_reasons(shape, r2, t)
+
+
+def dissipation_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
+    """The :data:`PENETRATION_DISSIPATION` rules: a ``delta v`` term, a damping beyond the
+    prior's, contacts outlasting their damper, the within-impact ``delta v`` gain."""
+    reasons = []
     gain, share = restoring_force.get("dissipation_gain"), restoring_force.get("dissipation_share")
     if gain is not None and share is not None:
         if gain >= t.dissipation_min_gain and share >= t.dissipation_min_share:
@@ -242,6 +302,7 @@ def unseen_law_reasons(
                 f"the contact's dissipation grows with penetration (a delta*v term removes "
                 f"{gain:.0%} of the Kelvin-Voigt law's misfit)"
             )
+    r2 = restoring_force.get("contact_r2")
     if r2 is not None and r2 >= t.excess_damping_min_r2:
         zeta = restoring_force.get("contact_damping_ratio")
         reasons += excess_damping_reasons(zeta, restoring_force.get("law_shape"), t)
@@ -251,9 +312,7 @@ def unseen_law_reasons(
             restoring_force.get("samples_per_contact"),
             t,
         )
-    shape = restoring_force.get("law_shape")
-    reasons += law_shape_reasons(shape, t) + stage_reasons(shape, t)
-    return reasons + onset_toe_reasons(shape, r2, t)
+    return reasons + penetration_dissipation_reasons(restoring_force.get("law_shape"), t)
 
 
 def kelvin_voigt_release_ratio(zeta: float) -> float:
@@ -379,22 +438,35 @@ def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) ->
     """Rule: a richer term (:mod:`.law_shape`) predicts held-out impacts better by at least
     its gain threshold, with the sign of the physics it stands for (its share at least the
     share threshold: a stiffening law, a dissipation growing with penetration)."""
+    return curvature_reasons(shape, t) + penetration_dissipation_reasons(shape, t)
+
+
+def curvature_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:
+    """:func:`law_shape_reasons`' stiffening term: a curvature of the loading branch."""
     if not shape:
         return []
-    reasons = []
     curvature, share = shape.get("curvature"), shape.get("curvature_share", 1.0)
-    if curvature is not None and curvature >= t.curvature_min_gain:
-        if share >= t.curvature_min_share:
-            reasons.append(
-                f"the contact stiffens within each impact (a curvature term predicts held-out "
-                f"impacts {curvature:.0%} better than the linear or Hertz law)"
-            )
+    if curvature is None or curvature < t.curvature_min_gain or share < t.curvature_min_share:
+        return []
+    return [
+        f"the contact stiffens within each impact (a curvature term predicts held-out "
+        f"impacts {curvature:.0%} better than the linear or Hertz law)"
+    ]
+
+
+def penetration_dissipation_reasons(
+    shape: dict[str, float] | None, t: UnseenLawThresholds
+) -> list[str]:
+    """:func:`law_shape_reasons`' dissipation term: a ``delta v`` term within the impacts, on
+    the record as read or as recorded."""
+    if not shape:
+        return []
     for key, where in (("", ""), ("recorded_", " of the record as recorded")):
         hc = shape.get(key + "penetration_dissipation")
         share = shape.get(key + "penetration_dissipation_share", 1.0)
         if hc is not None and hc >= t.penetration_dissipation_min_gain:
             if share >= t.penetration_dissipation_min_share:
-                reasons.append(
+                return [
                     f"the contact's dissipation grows with penetration within each impact{where} "
                     f"(a delta*v term predicts held-out impacts {hc:.0%} better than "
                     "Kelvin-Voigt)"
@@ -403,20 +475,23 @@ def law_shape_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) ->
                         if key
                         else ""
                     )  # fmt: skip
-                )
-                break
-    return reasons
+                ]
+    return []
 
 
 def with_unseen_law_check(
-    alarm: dict[str, Any] | None, restoring_force: dict[str, Any]
+    alarm: dict[str, Any] | None,
+    restoring_force: dict[str, Any],
+    seen: frozenset[str] = frozenset(),
 ) -> dict[str, Any] | None:
     """The alarm with the ``contact_law`` check added (fires on any :func:`unseen_law_reasons`).
 
     Its score is the number of reasons and its threshold 0; the reasons go to
-    ``alarm["contact_law"]``. A model without an alarm gets one made of this check.
+    ``alarm["contact_law"]``. A model without an alarm gets one made of this check. `seen`:
+    the kinds of law the model was trained on (:func:`trained_law_kinds`), not judged; the
+    alarm names them (``contact_law_trained_on``) so a reader knows what was not checked.
     """
-    reasons = unseen_law_reasons(restoring_force)
+    reasons = unseen_law_reasons(restoring_force, seen=seen)
     judged = ("exponent", "dissipation_gain", "law_shape")
     if all(restoring_force.get(k) is None for k in judged):
         return alarm  # the cross-check refused: nothing to judge
@@ -425,6 +500,8 @@ def with_unseen_law_check(
     alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
     alarm["scores"]["contact_law"] = float(len(reasons))
     alarm["thresholds"]["contact_law"] = 0.0
+    if seen:
+        alarm["contact_law_trained_on"] = sorted(seen)
     if reasons:
         alarm["fired"] = [*alarm["fired"], "contact_law"]
         alarm["flag"] = True
