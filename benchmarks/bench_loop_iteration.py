@@ -35,7 +35,7 @@ dataset seed and near-edge share, with the accuracy the class read from the beta
 would give; ``--rig-families gbm,cnn`` trains each family on the same dataset (the CNN is
 the loop's default family), ``--rig-weights none,small_gaps`` draws the dataset with each
 per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), and
-``--rig-per-shard`` simulates it one batch per shard, as the loop does. Prints Markdown
+``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Prints Markdown
 with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \

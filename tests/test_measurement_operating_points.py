@@ -165,11 +165,11 @@ def test_edge_trajectories_straddle_the_edges_at_their_rows_point(tmp_path):
 
 
 def test_shared_batches_draw_each_points_trajectories_as_its_own_shard(tmp_path):
-    # shared batches against each shard alone (the default): the ideal world's closed form
+    # shared batches (the default) against each shard alone: the ideal world's closed form
     # does not depend on its batch, so the same draws give the same windows, bit for bit
     rows = _rows()[:3]
-    alone = operating_point_dataset(_cfg(9), rows, tmp_path / "a")
-    shared = operating_point_dataset(_cfg(9), rows, tmp_path / "b", shared_batches=True)
+    alone = operating_point_dataset(_cfg(9), rows, tmp_path / "a", shared_batches=False)
+    shared = operating_point_dataset(_cfg(9), rows, tmp_path / "b")
     assert len(shared["shards"]) == len(alone["shards"]) == 3
     a, b = load_dataset(tmp_path / "a"), load_dataset(tmp_path / "b")
     for col in ("trajectory", "shard", "beta", "gap", "amplitude", "omega", "fs_ratio", "noise"):
