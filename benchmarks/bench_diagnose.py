@@ -66,7 +66,6 @@ import json
 import math
 import os
 import pstats
-import resource
 import sys
 import tempfile
 import time
@@ -80,6 +79,7 @@ from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
+from stiffnet.measurement.loop import cpu_seconds
 from stiffnet.measurement.nuisance import resolve_rows
 from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
@@ -225,15 +225,6 @@ def numerical_by_stage() -> dict[str, float]:
 
     labelled(CampaignTarget, "per_recording", what, scoring)
     return spent
-
-
-def cpu_seconds() -> float:
-    """User + system CPU time of this process and its waited-for children (the workers)."""
-    own, kids = (
-        resource.getrusage(resource.RUSAGE_SELF),
-        resource.getrusage(resource.RUSAGE_CHILDREN),
-    )
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
 def evaluation_ratio(camp, repeats: int = 5) -> tuple[float, float]:
