@@ -10,6 +10,11 @@
   white noise of ``--noise`` times the base acceleration, as the independent rig's) at those
   betas, beside its read of the recording: a model that misreads its own training world at
   the point is short of data or of information there, not misled by the rig.
+* ``--estimate``: every recording's beta by simulation: its discrepancy against the learned
+  law at its manifest point over a log grid of betas (all rows and betas in one batch), the
+  least refined by a parabola in log beta; the class it gives and the least discrepancy
+  against the recording's noise floor (far above it: the law at that point cannot reproduce
+  the recording at any beta, an alarm).
 * ``penetration``: the independent rig (``tests/independent_rig.py``, its two-stage law)
   at the row's point, noiseless: the deepest penetration against the knee, and the impact
   spike over the base acceleration (the level the models' standardised windows drop).
@@ -17,6 +22,7 @@
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/probe_rig_points.py CAMPAIGN \\
         --diagnosis d.json --recordings p2_1 --betas 35,41,50,57,64,70 \\
         [--seeds 0,1] [--model iter-001/model/gbm.onnx] [--penetration]
+    ... benchmarks/probe_rig_points.py CAMPAIGN --diagnosis d.json --estimate [--seeds 0,1]
 
 The learned law is ``--knee``/``--ratio`` (the rig campaign's discovered ``0.249``/``2.436``);
 the rig's true law for ``--penetration`` is ``--rig-knee``/``--rig-ratio`` (0.25 mm, 2.5).
@@ -99,12 +105,47 @@ def rig_penetration(m: dict, betas: list[float], knee_mm: float, ratio: float) -
     return out
 
 
+def beta_by_simulation(camp, meas, rows, lengths, law, seed: int, floors: dict,
+                       grid: np.ndarray) -> None:  # fmt: skip
+    """``--estimate``: each recording's beta at the least discrepancy over ``grid`` (see the
+    module notes), its class against the manifest's, and the accuracy and MAPE."""
+    from stiffnet.measurement.evaluate import true_class
+
+    alt = [r.model_copy(update={"beta": float(b)}) for r in rows for b in grid]
+    n = len(grid)
+    sims = simulate_rows(alt, law, [lengths[i] for i in range(len(rows)) for _ in grid], seed,
+                         CampaignSolverSettings())  # fmt: skip
+    right, ape = [], []
+    for i, r in enumerate(rows):
+        d = np.full(n, np.inf)
+        for j in range(n):
+            s = _simulated_statistics(alt[i * n + j], sims[i * n + j])
+            if s is not None:
+                d[j] = recording_discrepancy(normalised_differences(meas[i], s))
+        k, lb = int(np.argmin(d)), np.log(grid)
+        est = float(grid[k])
+        if 0 < k < n - 1 and np.all(np.isfinite(d[k - 1 : k + 2])):
+            y0, y1, y2 = d[k - 1 : k + 2]
+            if y0 - 2 * y1 + y2 > 0:  # the parabola's vertex, within the bracket
+                est = float(np.exp(lb[k] + 0.5 * (lb[1] - lb[0]) * (y0 - y2) / (y0 - 2 * y1 + y2)))
+        ok = true_class(est, True) == true_class(r.beta, True)
+        right.append(ok)
+        ape.append(abs(est / r.beta - 1))
+        print(f"  {r.recording}: beta {r.beta:g}, by simulation {est:.1f} "
+              f"{true_class(est, True)}{'' if ok else ' (wrong)'}, least discrepancy "
+              f"{d[k]:.2f}, floor {floors[r.recording]:.2f}")  # fmt: skip
+    print(f"seed {seed}: accuracy {np.mean(right):.3f}, beta MAPE {np.mean(ape):.3f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("campaign", type=Path)
     ap.add_argument("--diagnosis", type=Path, required=True, help="diagnose --json (floors)")
-    ap.add_argument("--recordings", required=True, help="parts of the names, e.g. p2_1,p1_0")
-    ap.add_argument("--betas", required=True, help="e.g. 35,41,50,57,64,70")
+    ap.add_argument("--recordings", default="", help="parts of the names, e.g. p2_1,p1_0")
+    ap.add_argument("--betas", default="", help="e.g. 35,41,50,57,64,70")
+    ap.add_argument("--estimate", action="store_true", help="every recording's beta by "
+                    "simulation over --grid")  # fmt: skip
+    ap.add_argument("--grid", default="6,95,21", help="LOW,HIGH,N: log-spaced betas")
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--knee", type=float, default=0.249)
     ap.add_argument("--ratio", type=float, default=2.436)
@@ -120,18 +161,23 @@ def main() -> None:
     floors = dict(zip(d["recordings"], d["noise_floor_per_recording"], strict=True))
     with open(camp.folder / "manifest.csv", newline="") as f:
         manifest = {m["recording"]: m for m in csv.DictReader(f)}
-    betas = [float(b) for b in args.betas.split(",")]
+    betas = [float(b) for b in args.betas.split(",") if b]
     seeds = [int(s) for s in args.seeds.split(",")]
     law = [LearnedContact(knee=args.knee, knee_ratio=args.ratio, reference_penetration=0.54)]
     rows, _ = resolve_rows(camp)
     meas, lengths, samples = measured_statistics(camp, rows)
+    if args.estimate:
+        lo, hi, n = args.grid.split(",")
+        grid = np.exp(np.linspace(np.log(float(lo)), np.log(float(hi)), int(n)))
+        for seed in seeds:
+            beta_by_simulation(camp, meas, rows, lengths, law, seed, floors, grid)
     pred = None
     if args.model:
         from serving.predictor import Predictor
 
         pred = Predictor.load(args.model)
     for i, row in enumerate(rows):
-        if not any(w in row.recording for w in args.recordings.split(",")):
+        if not args.recordings or not any(w in row.recording for w in args.recordings.split(",")):
             continue
         m = manifest[row.recording]
         fn = float(m["natural_frequency_hz"])
