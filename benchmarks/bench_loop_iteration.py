@@ -3,12 +3,13 @@
 Part 1b (``--shared``): the loop's operating-point dataset (the rig's two-stage campaign
 of part 4, its first points) one batch per point against shared batches. Part 1c
 (``--solvers``): the same dataset with other solver settings (substeps, warm start), CPU and
-how far the windows move against the noise. Part 1 (ratio, same run): the iteration's
-dataset, the part that dominated (the
-learned law needs the numerical engine). The config is the one ``loop`` writes: the
-ideal world (``configs/sim/ideal.yaml``: fs/f_n 50-500, four 16-period windows per
-trajectory) plus ``learned_contact`` with a two-stage prior (knee 0.2 +-25 %, ratio
-3 +-25 %). Old path: every row of a batch integrated for the batch's longest record,
+how far the windows move against the noise. Part 1d (``--zero-chain``): what the shared
+batches' pass of the measurement chain on zeros (to move each shard's generator) costs.
+Part 1 (ratio, same run): the iteration's dataset, the part that dominated (the learned law
+needs the numerical engine). The config is the one ``loop`` writes: the ideal world
+(``configs/sim/ideal.yaml``: fs/f_n 50-500, four 16-period windows per trajectory) plus
+``learned_contact`` with a two-stage prior (knee 0.2 +-25 %, ratio 3 +-25 %). Old path:
+every row of a batch integrated for the batch's longest record,
 ``substeps`` RK4 steps per sample at any rate. New path: each row integrated at its own
 rate up to its own record (``row_samples``, :func:`stiffnet.simulator.numerical.
 recording_substeps`). Part 2 (``--loop``): one whole GBM loop iteration on the example
@@ -42,6 +43,7 @@ with the machine's load.
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
     ... benchmarks/bench_loop_iteration.py --shared 6,24
     ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
+    ... benchmarks/bench_loop_iteration.py --zero-chain 24,400 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
@@ -186,6 +188,42 @@ def shared_batches_ratio(points: int, n: int, warm: float = 0.0, folder: Path | 
           f"{warm} | CPU {c1 - c0:.1f} | CPU {c2 - c1:.1f} | {(c1 - c0) / (c2 - c1):.1f}x CPU "
           f"| same rows: {same} | {np.median(rel):.3f} / {np.quantile(rel, 0.9):.3f} / "
           f"{rel.max():.2f}, {np.mean(rel > 1):.1%} above | {impacts:.1%} | "
+          f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+
+
+def zero_chain(points: int, n: int, folder: Path | None = None, repeats: int = 3) -> None:
+    """Part 1d (``--zero-chain``): what the shared batches' first pass through each group's
+    measurement chain costs. :func:`stiffnet.dataset.generate.simulate_shards` draws every
+    shard's inputs first (``_shard_pieces``), running the chain on zeros to move the
+    shard's generator past its draws, and runs it again on the motion; here the draws'
+    CPU with the chain and with ``Simulator.measure`` replaced by a pass-through (the least
+    of ``repeats`` runs each, the motion not simulated), at the first ``points`` rows of the
+    rig's two-stage campaign, ``n`` trajectories, the discovered law's prior."""
+    (configs,) = rig_point_configs(points, n, [{}], folder)
+
+    def draws() -> list:
+        sim = generate.build_simulator(configs[0])
+        sims = {frozenset(): sim}
+        return [p for i, c in enumerate(configs) for p in generate._shard_pieces(c, i, sim, sims)]
+
+    def least_cpu() -> tuple[float, list]:
+        runs = []
+        for _ in range(repeats):
+            c0 = time.process_time()
+            out = draws()
+            runs.append(time.process_time() - c0)
+        return min(runs), out
+
+    real = Simulator.measure
+    with_chain, pieces = least_cpu()
+    Simulator.measure = lambda self, accel, *a, **k: accel
+    try:
+        without, _ = least_cpu()
+    finally:
+        Simulator.measure = real
+    samples = sum(len(p.plan) * p.n_samples for p in pieces)
+    print(f"| {len(configs)} points, {n} trajectories, {len(pieces)} groups | {samples:,} | "
+          f"{with_chain:.3f} | {without:.3f} | {with_chain - without:.3f} | "
           f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
@@ -523,6 +561,7 @@ def main() -> None:
         help="part 1c: POINTS,TRAJECTORIES;JSON;JSON..., "
         'e.g. \'6,24;{"substeps": 8};{"substeps": 4, "warm_start": 0.1}\'',
     )
+    ap.add_argument("--zero-chain", default="", help="part 1d: POINTS,TRAJECTORIES")
     ap.add_argument("--rig", default="", help=f"part 4: laws among {', '.join(RIG_LAWS)}")
     ap.add_argument("--rig-dir", type=Path, default=None, help="where the campaigns go (kept)")
     ap.add_argument("--rig-family", default="gbm")
@@ -554,6 +593,13 @@ def main() -> None:
         print("|---" * 8 + "|")
         k, n, *w = args.shared.split(",")
         shared_batches_ratio(int(k), int(n), float(w[0]) if w else 0.0, args.rig_dir)
+        return
+    if args.zero_chain:
+        print("| what | samples on zeros | draws CPU s, chain on zeros | without it | the chain "
+              "on zeros | load |")  # fmt: skip
+        print("|---" * 6 + "|")
+        k, n = args.zero_chain.split(",")
+        zero_chain(int(k), int(n), args.rig_dir)
         return
     if args.solvers:
         import json
