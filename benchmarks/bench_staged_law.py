@@ -103,7 +103,7 @@ def main() -> None:
         cells = [f"{readings[x]:.1f} ({100 * (readings[x] / beta - 1):+.0f} %)" for x in readings]
         print(
             f"| {row['recording']} | {beta:g} | {cells[0]} | {cells[1]} | [{lo:.1f}, {hi:.1f}]"
-            f"{' two-valued' if shipped.beta_intervals else ''} | {cells[2]} | {cells[3]} |"
+            f"{' no knee' if shipped.beyond_knee_interval else ''} | {cells[2]} | {cells[3]} |"
         )
     print()
     print("MAPE: " + ", ".join(f"{k} {np.mean(v):.3f}" for k, v in errors.items()))

@@ -88,7 +88,6 @@ def restoring_force_check(
         "class": d["restoring_force_class"],
         "beta": d["beta"],
         "beta_interval": d["beta_interval"],
-        "beta_intervals": d["beta_intervals"],
         "beta_interval_coverage": d["coverage"] if r.ok else None,
         "contact_damping_ratio": d["contact_damping_ratio"],
         "exponent": d["exponent"],

@@ -44,12 +44,6 @@ class RestoringForceCheck(BaseModel):
     )
     beta: float | None = Field(description="Contact over free-flight stiffness of the fitted map.")
     beta_interval: list[float] | None = Field(description="Bootstrap interval over impacts.")
-    beta_intervals: list[list[float]] | None = Field(
-        default=None,
-        description="Where the reading is two-valued (a learned two-stage law whose knee the "
-        "map does not show: every impact short of the knee, or beyond it), each reading's "
-        "interval; beta_interval spans them. Null: one reading.",
-    )
     beta_interval_coverage: float | None = None
     contact_damping_ratio: float | None = Field(
         default=None, description="Kelvin-Voigt damping ratio of the contact."
@@ -96,8 +90,10 @@ class RestoringForceCheck(BaseModel):
         default=None,
         description="Where the model was trained with a learned two-stage law: beta is that "
         "law's first-stage slope, fitted with its stage ratio held (ratio) and the knee free; "
-        "resolved (the map shows the knee; false: one slope, the interval reaching down to it "
-        "over the ratio), knee_fraction (the knee over the median peak penetration), r2.",
+        "resolved (the map shows the knee; false: one slope, read as impacts short of the "
+        "knee), knee_fraction (the knee over the median peak penetration), r2, "
+        "beyond_knee_interval (not resolved: beta's interval had every impact been beyond "
+        "the knee, the slope over the ratio, which the map cannot exclude).",
     )
     reason: str = Field(description="What was estimated, or why not.")
 

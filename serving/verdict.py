@@ -81,10 +81,7 @@ def rule_checks(
     if restoring_force is None:
         return alarm
     gap = restoring_force_gap(
-        interval,
-        restoring_force["beta_interval"],
-        restoring_force.get("contact_r2"),
-        restoring_force.get("beta_intervals"),
+        interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
     )
     alarm = with_restoring_force_check(alarm, gap)
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)

@@ -15,7 +15,7 @@ cross-check beside the paper's geometric method (:mod:`stiffnet.geometry`).
 ``contact_law``    Kelvin-Voigt power law with release at zero force:
                    onset, stiffness, damping, exponent
 ``staged_law``     a model's learned two-stage law on the map (ratio held, knee free):
-                   beta as its first-stage slope, two-valued where no knee shows
+                   beta as its first-stage slope (one slope where no knee shows)
 ``chain``          the sensor chain (mount resonance, low-pass, high-pass) fitted
                    jointly with the contact pulse, or a data sheet; its inverse
 ``estimate``       :func:`restoring_force_estimate`: the chain, bootstrap interval

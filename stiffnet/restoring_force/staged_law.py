@@ -16,8 +16,15 @@ predictor (its features are gain-invariant).
 
 Where the map shows no knee (the stage does not earn its parameter over one slope,
 :func:`stage_resolved`) the impacts are all in one stage and the map cannot say which:
-beta is the one slope ``S`` (every impact short of the knee) and its interval reaches down
-to ``S / r`` (every impact beyond it).
+beta is read as the one slope ``S`` (every impact short of the knee), and ``S / r`` (every
+impact beyond it) is reported beside, not as beta (see
+:func:`stiffnet.restoring_force.estimate._staged_beta` for why).
+
+The ratio is held, not fitted: on a rig whose ratio is the model's that reads beta best,
+and a rig with another ratio is outside the model's world. There the held ratio biases
+beta: on the independent rig with ratio 3 under a card of 2.31-2.56, +7 to +25 % on 21 of
+22 recordings (a free ratio read 13 of them within 7 %, but beat the held one significantly
+on 5 only), so the cross-check then agrees with a model that reads high.
 """
 
 from __future__ import annotations

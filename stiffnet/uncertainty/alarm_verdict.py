@@ -139,7 +139,6 @@ def restoring_force_gap(
     model_interval: list[float] | None,
     restoring_force_interval: list[float] | None,
     contact_r2: float | None = None,
-    readings: list[list[float]] | None = None,
 ) -> float | None:
     """Log-gap between the model's and the restoring-force beta intervals (0 if they overlap).
 
@@ -148,19 +147,12 @@ def restoring_force_gap(
     law itself, so a gap says the model meets a rig it was not trained on (a
     contact law or sensor chain outside its priors). None when either interval
     is missing (the cross-check refused) or the contact law explains less than
-    :data:`RESTORING_FORCE_MIN_R2` of the contact force (`contact_r2`). `readings`: where
-    the restoring-force reading is two-valued (``beta_intervals``: a two-stage law whose knee
-    the map does not show), each reading's interval; the gap is then to the nearest, so the
-    check fires only where the model's interval meets neither.
+    :data:`RESTORING_FORCE_MIN_R2` of the contact force (`contact_r2`).
     """
     if not model_interval or not restoring_force_interval:
         return None
     if contact_r2 is not None and not contact_r2 >= RESTORING_FORCE_MIN_R2:
         return None
-    if readings:
-        gaps = [restoring_force_gap(model_interval, r) for r in readings]
-        known = [g for g in gaps if g is not None]
-        return min(known) if len(known) == len(gaps) else None
     lo_m, hi_m = (float(v) for v in model_interval)
     lo_p, hi_p = (float(v) for v in restoring_force_interval)
     if min(lo_m, hi_m, lo_p, hi_p) <= 0:
