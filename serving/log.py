@@ -222,7 +222,7 @@ class StiffnessLogger:
                 end - self.hop
             ) // (self.restoring_force_every):
                 seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
-                ph = restoring_force_check(seg, self.fs, self.fn)
+                ph = restoring_force_check(seg, self.fs, self.fn, stage_ratio=self.p.stage_ratio)
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded

@@ -63,6 +63,7 @@ from serving.restoring_force_check import (
     check_sensor_sheet,
     restoring_force_check,
     sidecar_sensor,
+    trained_stage_ratio,
 )
 from serving.schemas import PredictionResult
 from serving.verdict import model_facts, rule_checks, widened_interval
@@ -198,6 +199,9 @@ class Predictor:
             periods = ood.info.get("window_periods")
         self.window_periods = float(periods or WINDOW_PERIODS)
         self.training_natural_frequency, self.training_natural_frequency_from = self._training_fn()
+        #: the learned two-stage law the model was trained with: the restoring-force check
+        #: reads beta in its sense (its first-stage slope)
+        self.stage_ratio = trained_stage_ratio(model_facts(self)["priors"])
         self.ood_warning = None
         if ood is not None:
             want = self.metadata.get("training_data_sha256")
@@ -341,7 +345,7 @@ class Predictor:
         a, fs, fn, fn_source, sensor, warnings = self._checked_input(
             accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
         )
-        restoring_force = restoring_force_check(a, fs, fn, sensor)
+        restoring_force = restoring_force_check(a, fs, fn, sensor, self.stage_ratio)
         read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],
                                     self.undo_chain)  # fmt: skip
         reading = self._read_windows(read, fs, fn, what, warnings)

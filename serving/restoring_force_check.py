@@ -14,7 +14,9 @@ chains the model was trained on, which the predictor's alarm counts.
 ``dissipation_gain`` / ``dissipation_share`` say whether the contact's dissipation
 grows with penetration (:mod:`stiffnet.uncertainty.unseen_law`); ``law_shape`` what a
 richer law than the training world's explains on held-out impacts
-(:mod:`stiffnet.uncertainty.law_shape`).
+(:mod:`stiffnet.uncertainty.law_shape`). A model trained with a learned two-stage law
+(:func:`trained_stage_ratio`) has beta read in that law's sense, its first-stage slope
+(``stage``; :mod:`stiffnet.restoring_force.staged_law`).
 """
 
 from __future__ import annotations
@@ -43,10 +45,16 @@ PRIOR_SLACK = 1.15
 
 
 def restoring_force_check(
-    accel: Any, fs_hz: float, natural_frequency_hz: float, sensor: dict | None = None
+    accel: Any,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    sensor: dict | None = None,
+    stage_ratio: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
-    there is none. `sensor` is the data sheet's chain (then nothing is fitted)."""
+    there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
+    the model's learned two-stage law's ratio range (:func:`trained_stage_ratio`): beta is
+    then that law's first-stage slope."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -57,6 +65,7 @@ def restoring_force_check(
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction
             chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,
+            stage_ratio=stage_ratio,
         )
     except StiffnetError as exc:
         return {"class": None, "beta": None, "beta_interval": None, "reason": str(exc)}
@@ -92,6 +101,7 @@ def restoring_force_check(
         "dissipation_gain": None if hc is None else hc[0],
         "dissipation_share": None if hc is None else hc[1],
         "law_shape": shape,
+        "stage": d["stage"],
         "reason": d["reason"],
     }
 
@@ -162,6 +172,32 @@ def sidecar_sensor(recording: Any) -> Any:
     from stiffnet.recordings import sidecar_entry
 
     return sidecar_entry(recording, "sensor")
+
+
+def trained_stage_ratio(priors: dict | None) -> tuple[float, float] | None:
+    """The stage ratio range ``(low, high)`` of the learned two-stage law a model was trained
+    with (``learned_contact`` in its card's ``data.priors``), or None.
+
+    Only a law whose beta is its first-stage slope: a linear leading term (``exponent`` 1) on
+    the mass's own penetration (no face mass). A power law's beta is its secant stiffness at
+    ``d_r``, a length in the model's units that a record of unknown gain cannot place, and a
+    face's law acts on a penetration the map does not see: those keep the library's reading.
+    """
+    for effect in (priors or {}).get("effects") or []:
+        if not isinstance(effect, dict) or effect.get("name") != "learned_contact":
+            continue
+        if not effect.get("probability", 1.0) > 0:
+            continue
+        params = effect.get("params") or {}
+        ratio = np.atleast_1d(np.asarray(params.get("knee_ratio", 1.0), dtype=float))
+        linear = np.all(np.atleast_1d(np.asarray(params.get("exponent", 1.0), float)) == 1.0)
+        faces = [np.asarray(params.get(k, 0.0), float) for k in ("face_mass", "face2_mass")]
+        if not linear or any(np.any(f > 0) for f in faces) or np.all(ratio == 1.0):
+            return None
+        if not np.all(np.isfinite(ratio)) or np.any(ratio <= 0):
+            return None
+        return float(ratio.min()), float(ratio.max())
+    return None
 
 
 def _sensor_prior(priors: dict | None) -> dict | None:

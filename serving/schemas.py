@@ -86,6 +86,15 @@ class RestoringForceCheck(BaseModel):
         "recorded: recorded_penetration_dissipation (with its _share) and recorded_r2_loss; "
         "misfit, n_impacts.",
     )
+    stage: dict[str, Any] | None = Field(
+        default=None,
+        description="Where the model was trained with a learned two-stage law: beta is that "
+        "law's first-stage slope, fitted with its stage ratio held (ratio) and the knee free; "
+        "resolved (the map shows the knee; false: one slope, read as impacts short of the "
+        "knee), knee_fraction (the knee over the median peak penetration), r2, "
+        "beyond_knee_interval (not resolved: beta's interval had every impact been beyond "
+        "the knee, the slope over the ratio, which the map cannot exclude).",
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 

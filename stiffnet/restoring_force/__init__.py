@@ -14,6 +14,8 @@ cross-check beside the paper's geometric method (:mod:`stiffnet.geometry`).
                    forcing harmonics; contact split; per-flight impulse corrections
 ``contact_law``    Kelvin-Voigt power law with release at zero force:
                    onset, stiffness, damping, exponent
+``staged_law``     a model's learned two-stage law on the map (ratio held, knee free):
+                   beta as its first-stage slope (one slope where no knee shows)
 ``chain``          the sensor chain (mount resonance, low-pass, high-pass) fitted
                    jointly with the contact pulse, or a data sheet; its inverse
 ``estimate``       :func:`restoring_force_estimate`: the chain, bootstrap interval
@@ -43,17 +45,20 @@ from stiffnet.restoring_force.reconstruct import (
     integrate_spectral,
     periodic_length,
 )
+from stiffnet.restoring_force.staged_law import StagedLaw, fit_staged_law
 
 __all__ = [
     "ContactLaw",
     "FreeFlightFit",
     "RestoringForceResult",
     "SensorChain",
+    "StagedLaw",
     "bootstrap_beta",
     "contact_force",
     "exponent_matters",
     "fit_contact_law",
     "fit_free_flight",
+    "fit_staged_law",
     "forcing_frequency",
     "identify_sensor_chain",
     "impact_regions",

@@ -74,6 +74,12 @@ from stiffnet.restoring_force.sensor import (
     undo_highpass,
     undo_resonance,
 )
+from stiffnet.restoring_force.staged_law import (
+    StagedLaw,
+    fit_staged_law,
+    refit_at_ratio,
+    staged_shape,
+)
 
 #: A fitted chain's inverse is kept unless the contact law explains this much less after it
 #: (where a chain is always identified; where it is identified only when needed, no less).
@@ -186,6 +192,13 @@ class RestoringForceResult:
         The force-displacement map (gain units) for the figure.
     law : ContactLaw or None
         The fitted contact law (gain units).
+    staged : StagedLaw or None
+        The two-stage law that gives beta where a stage ratio was given (``stage_ratio``;
+        :mod:`.staged_law`): beta is then its first-stage slope over ``k``.
+    beyond_knee_interval : tuple of (float, float) or None
+        Where a two-stage law's knee does not show on the map (`staged` not resolved): beta's
+        interval had every impact been beyond the knee (the one slope over the ratio), which
+        the map cannot exclude; `beta` and `beta_interval` read every impact short of it.
     """
 
     ok: bool
@@ -215,6 +228,8 @@ class RestoringForceResult:
     duration_ratio: float = float("nan")
     law: ContactLaw | None = field(repr=False, default=None)
     sensor: SensorChain | None = None
+    staged: StagedLaw | None = None
+    beyond_knee_interval: tuple[float, float] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -239,6 +254,7 @@ class RestoringForceResult:
             "resonance_hz": num(self.resonance_hz),
             "duration_ratio": num(self.duration_ratio),
             "sensor": self.sensor.to_dict() if self.sensor is not None else None,
+            "stage": _stage_dict(self.staged, self.beyond_knee_interval),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -246,6 +262,22 @@ class RestoringForceResult:
             "polarity": self.polarity,
             "reason": self.reason,
         }
+
+
+def _stage_dict(
+    staged: StagedLaw | None, beyond: tuple[float, float] | None
+) -> dict[str, Any] | None:
+    """The two-stage law's JSON fields (None without one)."""
+    if staged is None:
+        return None
+    knee = staged.knee_fraction
+    return {
+        "ratio": float(staged.ratio),
+        "resolved": bool(staged.resolved),
+        "knee_fraction": float(knee) if np.isfinite(knee) else None,
+        "r2": float(staged.r2),
+        "beyond_knee_interval": [float(v) for v in beyond] if beyond else None,
+    }
 
 
 def _polarity(a: np.ndarray) -> int:
@@ -284,14 +316,32 @@ def bootstrap_beta(
     """
     d = np.maximum(disp - law.onset, 0.0)
     g = law.reference_penetration * (d / law.reference_penetration) ** law.exponent
-    rhs = force - law.damping * vel
-    inside = (d > 0) & (labels > 0) & (force > 0)
+    return bootstrap_slope(g, force - law.damping * vel, (d > 0) & (force > 0), labels,
+                           n_impacts, law.stiffness / stiffness, stiffness, coverage, rng,
+                           n_boot)  # fmt: skip
+
+
+def bootstrap_slope(
+    g: np.ndarray,
+    rhs: np.ndarray,
+    inside: np.ndarray,
+    labels: np.ndarray,
+    n_impacts: int,
+    beta: float,
+    stiffness: float,
+    coverage: float,
+    rng: np.random.Generator,
+    n_boot: int = N_BOOTSTRAP,
+) -> tuple[float, float]:
+    """:func:`bootstrap_beta` for any law shape: each impact's ``K_j`` of ``rhs = K_j g`` on
+    its samples `inside` (the elastic force less the damping, the law's shape per unit
+    ``K``), resampled over impacts around the global `beta`."""
+    inside = inside & (labels > 0)
     idx = np.arange(1, n_impacts + 1)
     num = ndimage.sum(np.where(inside, g * rhs, 0.0), labels, idx)
     den = ndimage.sum(np.where(inside, g * g, 0.0), labels, idx)
     good = den > 0
     kj = num[good] / den[good] / stiffness
-    beta = law.stiffness / stiffness
     if kj.size < 2:
         return beta, beta
     draws = rng.integers(0, kj.size, (n_boot, kj.size))
@@ -721,6 +771,7 @@ def restoring_force_estimate(
     chain_fit_below_r2: float = np.inf,
     profile_highpass_below_r2: float | None = None,
     interval: bool = True,
+    stage_ratio: float | tuple[float, float] | None = None,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -779,6 +830,11 @@ def restoring_force_estimate(
         (:func:`_estimate_settled`). What a caller that reads only the map needs (the
         contact-law discovery): the same map and the same choice of chain, for less CPU
         where a chain is fitted.
+    stage_ratio : float or (float, float), optional
+        The stage ratio of a model's learned two-stage law (its ``knee_ratio``, a value or
+        its prior range): beta is then that law's first-stage slope over ``k``, fitted with
+        the ratio held and the knee free (:mod:`.staged_law`); a range's ends join the
+        interval. None (default): the library's law.
 
     Returns
     -------
@@ -802,7 +858,7 @@ def restoring_force_estimate(
                    chain_fit_below_r2=chain_fit_below_r2,
                    profile_highpass_below_r2=chain_fit_below_r2
                    if profile_highpass_below_r2 is None else profile_highpass_below_r2,
-                   interval=interval)  # fmt: skip
+                   interval=interval, stage_ratio=stage_ratio)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -916,6 +972,7 @@ def _estimate_at(
     profile_highpass_below_r2: float,
     interval: bool = True,
     chain_profile: bool = False,
+    stage_ratio: float | tuple[float, float] | None = None,
 ) -> RestoringForceResult:
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz); without an
     `interval`, a fitted chain's unexcluded low-passes are profiled only with
@@ -969,7 +1026,13 @@ def _estimate_at(
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
-    beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed, interval)
+    staged, poles, beyond = None, None, None
+    if stage_ratio is not None:
+        beta, (lo, hi), damping_ratio, staged, beyond = _staged_beta(m, stage_ratio, coverage,
+                                                                     seed, interval)  # fmt: skip
+    else:
+        beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
+                                                            interval)  # fmt: skip
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
@@ -983,18 +1046,75 @@ def _estimate_at(
         contact_damping_ratio=damping_ratio,
         exponent=m.exponent,
         fitted_natural_frequency_hz=fitted_fn,
-        reason=(
-            f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
-            "of the contact force"
-            + (
-                f"; beta from the contact's oscillation (< {POLE_MAX_SAMPLES} samples per "
-                f"contact; its recursion explains {poles.r2:.0%})"
-                if poles is not None
-                else ""
-            )
-        ),
+        reason=_reason(law, n_imp, spc, poles, staged),
+        staged=staged,
+        beyond_knee_interval=beyond,
         **info,
     )
+
+
+def _reason(law: ContactLaw, n_imp: int, spc: float, poles: Any, staged: StagedLaw | None) -> str:
+    """The estimate's one line: impacts, samples, the law that gave beta."""
+    words = f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
+    words += "of the contact force"
+    if poles is not None:
+        words += (f"; beta from the contact's oscillation (< {POLE_MAX_SAMPLES} samples per "
+                  f"contact; its recursion explains {poles.r2:.0%})")  # fmt: skip
+    if staged is not None and staged.resolved:
+        words += (f"; beta is the first-stage slope of the model's two-stage law (ratio "
+                  f"{staged.ratio:.2f} held; knee at {staged.knee_fraction:.0%} of the peak "
+                  f"penetration; it explains {staged.r2:.0%})")  # fmt: skip
+    elif staged is not None:
+        words += (f"; the map shows one slope, no knee of the model's two-stage law (ratio "
+                  f"{staged.ratio:.2f}): beta is that slope, every impact read as short of the "
+                  "knee (had every impact been beyond it, beta would be the slope over the "
+                  "ratio)")  # fmt: skip
+    return words
+
+
+def _staged_beta(
+    m: _Map,
+    stage_ratio: float | tuple[float, float],
+    coverage: float,
+    seed: int,
+    interval: bool = True,
+) -> tuple[float, tuple[float, float], float, StagedLaw, tuple[float, float] | None]:
+    """Rule: beta, its interval and the contact damping ratio of a two-stage law with the
+    model's ratio held (:mod:`.staged_law`), that law, and where its knee is not resolved
+    the interval had every impact been beyond the knee.
+
+    The interval: the bootstrap over impacts at the law's onset, knee and damping, widened
+    by the reconstruction's systematic error (:func:`widen_interval`) and spanning the
+    readings at the ends of the ratio's range. A map without a knee is read as impacts short
+    of it (the one slope): the model's world has a knee its campaign's impacts reached
+    (the discovery saw it there), and a map that shows none is either a shallow impact or a
+    law without that knee (a linear rig), not evidence for impacts all beyond it. Reading
+    the one slope over the ratio as a second reading of beta left 15 of 15 wrong answers of
+    a two-stage model on the independent rig's linear contacts without an alarm (the
+    library's reading: 1 of 15; benchmarks/bench_alarm.py, set rig_ideal).
+    """
+    law, fit, k = m.law, m.fit, m.fit.stiffness
+    ends = np.atleast_1d(np.asarray(stage_ratio, float))
+    ratio = float(np.exp(np.mean(np.log(ends))))
+    near = m.labels > 0
+    idx = np.arange(1, m.n_impacts + 1)
+    peak = float(np.median(ndimage.maximum(fit.displacement - law.onset, m.labels, idx)))
+    staged = fit_staged_law(fit.force, fit.displacement, fit.velocity, near, law, ratio, peak)
+    beta = staged.stiffness / k
+    damping_ratio = float(staged.damping / (2 * np.sqrt(staged.stiffness)))
+    if not interval:
+        return beta, (np.nan, np.nan), damping_ratio, staged, None
+    g = staged_shape(fit.displacement, staged.onset, staged.knee, ratio)
+    rhs = fit.force - staged.damping * fit.velocity
+    inside = (fit.displacement > staged.onset) & (fit.force > 0)
+    lo, hi = bootstrap_slope(g, rhs, inside, m.labels, m.n_impacts, beta, k, coverage,
+                             np.random.default_rng(seed))  # fmt: skip
+    lo, hi = widen_interval(beta, lo, hi, staged.r2, m.spc)
+    if not staged.resolved:
+        return beta, (lo, hi), damping_ratio, staged, (lo / ends.max(), hi / ends.min())
+    others = [refit_at_ratio(staged, fit.force, fit.displacement, fit.velocity, near, float(r)) / k
+              for r in ends if r != ratio]  # fmt: skip
+    return beta, (min(lo, *others), max(hi, *others)), damping_ratio, staged, None
 
 
 def _periodic_record(
