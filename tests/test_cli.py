@@ -1,6 +1,7 @@
 """The command line: subcommands, --json, exit code 2 with one line on bad input."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -81,3 +82,24 @@ def test_simulate_campaign_cli_round_trip(tmp_path):
     assert "contact_damping" in json.dumps(card)
     lines = (tmp_path / "c" / "r1.csv").read_text().splitlines()
     assert lines[0] == "t,accel" and len(lines) == 1 + 2 * 500
+
+
+def test_the_command_line_gives_openblas_one_thread_unless_the_user_chose():
+    from stiffnet.cli.app import single_threaded_blas
+
+    env: dict[str, str] = {}
+    assert single_threaded_blas(env) and env == {"OPENBLAS_NUM_THREADS": "1"}
+    chosen = {"OMP_NUM_THREADS": "2"}
+    assert not single_threaded_blas(chosen) and chosen == {"OMP_NUM_THREADS": "2"}
+    # the process a command runs in: numpy's and scipy's OpenBLAS report one thread
+    script = (
+        "from stiffnet.cli.app import single_threaded_blas; single_threaded_blas();"
+        "import numpy, scipy.linalg, threadpoolctl;"
+        "print(sorted({p['num_threads'] for p in threadpoolctl.threadpool_info()"
+        " if p['user_api'] == 'blas'}))"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS",
+           "GOTO_NUM_THREADS", "OMP_NUM_THREADS")}  # fmt: skip
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "[1]"

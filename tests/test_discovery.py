@@ -446,6 +446,17 @@ def test_a_face_is_screened_from_its_starts_once_then_from_its_best():
     assert both == [{**current.shared, **face, **s} for s in second_mode_starts(face)]
     screened["face"] = face
     assert select.face_term_starts("face", current, None, screened) == [{**current.shared, **face}]
+    # a second mode on a face the law holds: above that face until both modes were screened,
+    # then the screen's second mode alone, on the law's own face
+    holding = Fit(frozenset({"hinge", "face"}), np.r_[current.theta, 0.25, 25.0, 0.06], 0.3, 2,
+                  1.0, 10)  # fmt: skip
+    above = select.face_term_starts("face2", holding, None, {})
+    assert above == [{**holding.shared, **s} for s in second_mode_starts(holding.shared)]
+    second = {"face2_mass": 0.05, "face2_stiffness": 90.0, "face2_damping": 0.04}
+    screened["face+face2"] = {**face, **second}
+    assert select.face_term_starts("face2", holding, None, screened) == [
+        {**holding.shared, **second}
+    ]
 
     steps: list[int] = []  # one entry per step of the path
     counts: dict[int, int] = {}  # short face fits per step

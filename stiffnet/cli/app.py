@@ -7,6 +7,7 @@ nothing imports this module.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import Annotated, Any
@@ -457,8 +458,34 @@ for _commands in (serving_commands, measurement_commands):
     _commands.register(app)
 
 
+#: Variables OpenBLAS reads for its thread count, in its order of precedence; a user who set
+#: one has chosen, and keeps the choice.
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "GOTO_NUM_THREADS", "OMP_NUM_THREADS")
+
+
+def single_threaded_blas(environ: dict[str, str] | os._Environ = os.environ) -> bool:
+    """Give numpy's and scipy's OpenBLAS one thread, unless the user chose a count.
+
+    Stiffnet's numerics are many small problems (least squares over a campaign's impacts,
+    the sparse products of their solvers, filters of one record), too small for BLAS to
+    share, run beside the diagnosis's own worker processes. On 2 cores OpenBLAS's default
+    of a thread per core makes its threads wait on each other: the contact-law discovery
+    of a 24-recording campaign took over 300 s of CPU at a load of 8-13, and 12.6 s with
+    one thread. Set before numpy loads OpenBLAS (the command line imports it lazily), so
+    it holds for this process and the processes it starts; only ``OPENBLAS_NUM_THREADS``
+    is set, so torch's and scikit-learn's OpenMP threads keep their defaults.
+
+    Returns whether the variable was set.
+    """
+    if any(name in environ for name in BLAS_THREAD_VARIABLES):
+        return False
+    environ["OPENBLAS_NUM_THREADS"] = "1"
+    return True
+
+
 def main() -> None:
     """Entry point of the console script."""
+    single_threaded_blas()
     app(prog_name="stiffnet")
 
 

@@ -115,6 +115,16 @@ def face_transition(mass: float, stiffness: float, damping: float, dts: np.ndarr
     return linalg.expm(np.asarray(dts, float)[:, None, None] * m)
 
 
+def force_drive(force: np.ndarray, lay: Layout, dts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The force and its slope to the next sample on the padded impacts, (I, C) each: what
+    drives the face (:func:`face_transition`'s ``F`` and ``F'``)."""
+    u = np.zeros(lay.shape)
+    u[lay.row, lay.col] = force
+    du = np.zeros(lay.shape)
+    du[:, :-1] = np.diff(u, axis=1) / np.asarray(dts, float)[lay.rec][:, None]
+    return u, du
+
+
 def face_response(
     force: np.ndarray,
     lay: Layout,
@@ -124,6 +134,7 @@ def face_response(
     damping: float,
     index: np.ndarray | None = None,
     chain: ImpactChain | None = None,
+    drive: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The face's recoil and its rate on every sample, driven by the measured force, (N,) each.
 
@@ -143,14 +154,15 @@ def face_response(
     chain : ImpactChain, optional
         :func:`impact_chain` of ``lay``, ``index`` and ``dts``, where already built (it
         depends on the samples, not on the face; it stands for ``index``).
+    drive : tuple of numpy.ndarray, optional
+        :func:`force_drive` of ``force``, where already built (it depends on the force alone).
     """
     if force.size == 0:
         return np.zeros(0), np.zeros(0)
-    e = face_transition(mass, stiffness, damping, dts)[lay.rec]  # (I, 4, 4)
-    u = np.zeros(lay.shape)
-    u[lay.row, lay.col] = force
-    du = np.zeros(lay.shape)
-    du[:, :-1] = np.diff(u, axis=1) / np.asarray(dts, float)[lay.rec][:, None]
+    # one map per distinct interval (a campaign has few; scipy's expm was a third of a face)
+    steps, of_rec = np.unique(np.asarray(dts, float), return_inverse=True)
+    e = face_transition(mass, stiffness, damping, steps)[of_rec.reshape(-1)[lay.rec]]  # (I, 4, 4)
+    u, du = force_drive(force, lay, dts) if drive is None else drive
     y, yd = response_from_rest(np.ascontiguousarray(e), u, du)
     if chain is None and index is not None and index.size == force.size:
         chain = impact_chain(lay, index, dts)
@@ -262,7 +274,10 @@ class ImpactChain:
     grid: np.ndarray  # (R, P) impacts by recording and place, -1 where none
     on: np.ndarray  # (R, P) an impact after another of its recording
     prev: np.ndarray  # (R, P) the impact before it (0 where none)
-    times: np.ndarray  # (I, C) each padded sample's time since its impact's first
+    #: (U, C) a padded sample's time since its impact's first, per distinct sampling interval:
+    #: the free map at those times is the same for every impact of that interval
+    times: np.ndarray
+    interval: np.ndarray  # (I,) each impact's row of ``times``
 
 
 def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain:
@@ -271,6 +286,7 @@ def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain
     first = np.flatnonzero(lay.col == 0)
     last = np.r_[first[1:] - 1, index.size - 1]
     dt = np.asarray(dts, float)[lay.rec]
+    steps, interval = np.unique(dt, return_inverse=True)
     length = lay.col[last]
     rows = np.arange(n_imp)
     new_rec = np.r_[True, lay.rec[1:] != lay.rec[:-1]]
@@ -280,7 +296,8 @@ def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain
     on = grid > 0
     return ImpactChain(
         dt, (index[first[1:]] - index[last[:-1]]) * dt[1:], lay.rec[1:] == lay.rec[:-1],
-        length, length * dt, grid, on, np.where(on, grid - 1, 0), dt[:, None] * np.arange(n_col),
+        length, length * dt, grid, on, np.where(on, grid - 1, 0),
+        steps[:, None] * np.arange(n_col), interval.reshape(-1),
     )  # fmt: skip
 
 
@@ -318,10 +335,13 @@ def ringing_from_before(
     states = carried_states(np.ascontiguousarray(m), np.ascontiguousarray(b))
     start = np.zeros((rows.size, 2))
     start[c.grid[c.on]] = states[c.on]
-    # the free map over c samples applied to each start, (I, C) each
+    # the free map over c samples applied to each start, (I, C) each; the map's entries are
+    # those of the impact's sampling interval (a campaign has few: a fifth of a face's
+    # filter went to evaluating them on every impact's samples)
     dc, ds, sigma = free_parts(c.times, w2, damping)
+    a, b, d = (dc + sigma * ds)[c.interval], ds[c.interval], (dc - sigma * ds)[c.interval]
     s0, s1 = start[:, :1], start[:, 1:]
-    return np.stack([(dc + sigma * ds) * s0 + ds * s1, -w2 * ds * s0 + (dc - sigma * ds) * s1], -1)
+    return np.stack([a * s0 + b * s1, -w2 * b * s0 + d * s1], -1)
 
 
 def face_starts(betas: np.ndarray) -> list[dict[str, float]]:

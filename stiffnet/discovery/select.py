@@ -237,10 +237,15 @@ def face_term_starts(
     is the restraint's dynamics, which the law's other terms barely move, and the screens
     were three fifths of the discovery's time (cProfile of the two-stage campaign: the
     step after the hinge entered screened the same faces again). A second mode on a face
-    the law holds is screened at every step (its starts follow the face).
+    the law holds starts from the second mode of the screen of both modes, where one was
+    made, on the face the law holds; else it is screened from starts above that face.
     """
     if kind in screened:
         return [{**current.shared, **screened[kind]}]
+    if kind == "face2" and "face+face2" in screened:
+        # the second mode of the screen of both modes, on the face the law now holds
+        second = {k: v for k, v in screened["face+face2"].items() if k.startswith("face2")}
+        return [{**current.shared, **second}]
     if kind == "face":
         return [{**current.shared, **s} for s in face_starts(current.betas)]
     base = first_face.shared if kind == "face+face2" and first_face is not None else current.shared

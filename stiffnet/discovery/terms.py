@@ -48,6 +48,7 @@ from stiffnet.discovery.face import (
     ImpactChain,
     Layout,
     face_response,
+    force_drive,
     impact_chain,
     layout,
     sample_interval,
@@ -147,8 +148,13 @@ class Data:
         else:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            cache[key] = face_response(self.f, self.layout, self.dt, *key, chain=self.chain)
+            cache[key] = face_response(self.f, self.layout, self.dt, *key, chain=self.chain,
+                                       drive=self._face_drive)  # fmt: skip
         return cache[key]
+
+    @cached_property
+    def _face_drive(self) -> tuple[np.ndarray, np.ndarray]:
+        return force_drive(self.f, self.layout, self.dt)
 
     @cached_property
     def _face_cache(self) -> dict[tuple[float, float, float], tuple[np.ndarray, np.ndarray]]:
@@ -166,6 +172,7 @@ class Data:
         out.__dict__["_face_cache"] = self._face_cache  # cached_property's own slot
         out.__dict__["layout"] = self.layout
         out.__dict__["chain"] = self.chain
+        out.__dict__["_face_drive"] = self._face_drive
         return out
 
 
