@@ -257,7 +257,10 @@ class SensorDynamics(MeasurementEffect):
         fs_hz : numpy.ndarray
             Sampling rate of each row in Hz, shape ``(B,)``.
         p : dict of numpy.ndarray
-            Per-row parameters (see :class:`SensorDynamics.Params`), each ``(B,)``.
+            Per-row parameters (see :class:`SensorDynamics.Params`), each ``(B,)``; the
+            context ``"_row_samples"``, when given, is the samples each row needs: the chain
+            is causal, so it filters no further and a row's later samples are left as they
+            are (the samples it filters are the same, bit for bit).
         rng : numpy.random.Generator
             Unused (the chain is deterministic).
 
@@ -279,14 +282,17 @@ class SensorDynamics(MeasurementEffect):
         table[:, -1] = np.rint(table[:, -1])
         # rows sharing a design (the common case: fixed parameters, one fs) filter together
         designs, which = np.unique(table, axis=0, return_inverse=True)
+        need = p.get("_row_samples")
         for i, row in enumerate(designs):
             kept = self._design(*row)
             if kept is None:
                 continue
             sos = kept.copy()  # scipy's sosfilt takes a writable design only
             rows = np.flatnonzero(which.ravel() == i)
+            # rows of one design share their rate, so mostly their length too
+            m = n if need is None else int(min(n, np.max(np.asarray(need)[rows])))
             zi = _steady_state(kept)[:, None, :] * x[rows, 0][None, :, None]
-            out[rows], _ = sps.sosfilt(sos, x[rows], axis=-1, zi=zi)
+            out[rows, :m], _ = sps.sosfilt(sos, x[rows, :m], axis=-1, zi=zi)
         return out
 
     @staticmethod

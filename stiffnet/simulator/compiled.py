@@ -294,7 +294,8 @@ def _count_entry(row, te, t_first, h, n_samples, impacts):
 @_jit
 def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
          beta_a, cc_a, e0_a, xi_a, ga_a, gf_a, gp_a, gcp_a, gsp_a, has_gap, jf,
-         x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
+         x0, v0, t_first, h, n_rows, outs, impacts):  # fmt: skip
+    n_samples = n_rows[row]  # this row's own count: its later samples are left as they are
     fv = freq[row]
     nj = fv.size
     beta, cc, e0, xi = beta_a[row], cc_a[row], e0_a[row], xi_a[row]
@@ -533,20 +534,20 @@ def _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
 
 def _kernel_serial(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                    beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-                   x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
+                   x0, v0, t_first, h, n_rows, outs, impacts):  # fmt: skip
     for row in range(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-             x0, v0, t_first, h, n_samples, outs, impacts)  # fmt: skip
+             x0, v0, t_first, h, n_rows, outs, impacts)  # fmt: skip
 
 
 def _kernel_parallel(freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
                      beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-                     x0, v0, t_first, h, n_samples, outs, impacts):  # fmt: skip
+                     x0, v0, t_first, h, n_rows, outs, impacts):  # fmt: skip
     for row in numba.prange(x0.size):
         _row(row, freq, P, Q, X, K, C, phi, rotc, rots, hreg, phih, hcos, hsin,
              beta, cc, e0, xi, ga, gf, gp, gcp, gsp, has_gap, jf,
-             x0, v0, t_first, h, n_samples, outs, impacts)  # fmt: skip
+             x0, v0, t_first, h, n_rows, outs, impacts)  # fmt: skip
 
 
 _kernel_serial = numba.njit(cache=True, error_model="numpy")(_kernel_serial)
@@ -565,12 +566,17 @@ def simulate_closed_form(
     h: np.ndarray,
     n_samples: int,
     parallel: bool = True,
+    row_samples: np.ndarray | None = None,
 ) -> EngineResult:
     """Start at t=0 from (x0, v0) and sample ``n_samples`` at ``t_first + n h``.
 
     ``x0``, ``v0``, ``t_first`` and ``h`` are per row (or broadcast). The rows run
     in parallel over numba's threads (``NUMBA_NUM_THREADS``, see
-    :func:`limited_threads`) unless ``parallel`` is False.
+    :func:`limited_threads`) unless ``parallel`` is False. ``row_samples``: the samples
+    each row needs, (B,) (at most ``n_samples``); a row stops at its own count and its
+    later samples are left at 0. A row's samples do not depend on how many follow them
+    (its coarse steps and events are the same), so they equal the full-length ones bit
+    for bit: a campaign's rows sampled at 1 kHz need half the samples of those at 2 kHz.
     """
     reg = RegionCoefficients(model)
     b = len(model.batch)
@@ -588,15 +594,20 @@ def simulate_closed_form(
     hcos, hsin = np.cos(freq * h[:, None]), np.sin(freq * h[:, None])
     gv = model.gap_variation
     jf = model.forcing.freq.shape[1]
-    outs = np.empty((4, b, n_samples))  # x, v, contact force, accel: one block
+    # x, v, contact force, accel: one block (zeros: pages past a row's own count are
+    # never touched)
+    outs = (np.empty if row_samples is None else np.zeros)((4, b, n_samples))
     impacts = np.zeros((b, n_samples), dtype=np.int8)
+    n_rows = np.full(b, n_samples, dtype=np.int64)
+    if row_samples is not None:
+        n_rows = np.minimum(np.broadcast_to(np.asarray(row_samples, np.int64), (b,)), n_samples)
     kernel = _kernel_parallel if parallel else _kernel_serial
     kernel(
         _c(freq), _c(reg.P), _c(reg.Q), _c(reg.X), _c(reg.k), _c(reg.c), _c(phi), _c(rotc),
         _c(rots), _c(hreg), _c(phih), _c(hcos), _c(hsin), _c(reg.beta), _c(reg.cc),
         _c(reg.e0), _c(reg.xi), _c(gv.amp), _c(gv.freq), _c(gv.phase), _c(np.cos(gv.phase)),
         _c(np.sin(gv.phase)), bool(reg.has_gap_var), int(jf), _c(x0), _c(v0), _c(t_first),
-        _c(h), int(n_samples), outs, impacts,
+        _c(h), np.ascontiguousarray(n_rows), outs, impacts,
     )  # fmt: skip
     return EngineResult(
         x=outs[0], v=outs[1], contact_force=outs[2], accel=outs[3], impacts=impacts,

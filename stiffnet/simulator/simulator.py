@@ -192,7 +192,7 @@ class Simulator:
         rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
         draws = self.draw_inputs(batch, rng, x0, v0, effect_params, active)
         out = self.motion_of(batch, fs_ratio, n_samples, draws, row_samples)
-        measured = self.measure(out.accel, batch, fs_ratio, noise, draws, rng)
+        measured = self.measure(out.accel, batch, fs_ratio, noise, draws, rng, row_samples)
         return SimulationResult(
             batch=batch, fs_ratio=fs_ratio, accel=measured, clean_accel=out.accel,
             x=out.x, v=out.v, contact_force=out.contact_force, impacts=out.impacts,
@@ -259,9 +259,14 @@ class Simulator:
         noise: np.ndarray,
         draws: RowDraws,
         rng: np.random.Generator,
+        row_samples: np.ndarray | None = None,
     ) -> np.ndarray:
-        """The measurement chain and white noise on ``accel`` (B, N), drawn from ``rng``."""
-        return self._measure(accel, batch, fs_ratio, noise, draws.params, rng, draws.masks)
+        """The measurement chain and white noise on ``accel`` (B, N), drawn from ``rng``
+        (``row_samples``: the samples each row needs, as :meth:`simulate`'s; a filter may
+        leave a row's later samples unfiltered)."""
+        return self._measure(
+            accel, batch, fs_ratio, noise, draws.params, rng, draws.masks, row_samples
+        )
 
     def _motion(self, batch, params, x0, v0, t_tr, h, n_samples, row_samples=None) -> Any:
         """The engine's output: the motion sampled, before the measurement chain."""
@@ -270,9 +275,8 @@ class Simulator:
             # every module that builds a Simulator or reads its results
             from stiffnet.simulator.compiled import simulate_closed_form
 
-            return simulate_closed_form(
-                self.linear_model(batch, params), x0, v0, t_tr, h, n_samples
-            )
+            model = self.linear_model(batch, params)
+            return simulate_closed_form(model, x0, v0, t_tr, h, n_samples, row_samples=row_samples)
         t_w = self.transient_split(batch, t_tr)
         if np.any(t_w > 0):  # warm start: the closed form's state at t_w starts the RK4
             from stiffnet.simulator.compiled import simulate_closed_form
@@ -364,13 +368,17 @@ class Simulator:
             masks[name] = mask
         return masks
 
-    def _measure(self, accel, batch, fs_ratio, noise, params, rng, masks=None) -> np.ndarray:
+    def _measure(
+        self, accel, batch, fs_ratio, noise, params, rng, masks=None, row_samples=None
+    ) -> np.ndarray:
         """The measurement chain, in physical order, with the baseline white noise."""
         fs_hz = fs_ratio * batch.natural_frequency_hz
         context = {
             "_forcing_scale": batch.forcing_scale,
             "_natural_frequency_hz": batch.natural_frequency_hz,
         }
+        if row_samples is not None:  # a causal filter need not run past a row's own samples
+            context["_row_samples"] = np.broadcast_to(np.asarray(row_samples), (len(batch),))
         signal = accel
         white_done = False
         for eff in self.measurement:
