@@ -56,6 +56,11 @@ NOISE_FLOOR = 2.0
 MAX_HALF_PERIODS = 2.5
 #: The contact is at least this fraction of the plain map's contact frequency.
 PLAIN_CONTACT_FRACTION = 0.8
+#: ... unless the impacts last more than this many of that law's half periods: then the plain
+#: map read a mount's ring as the contact (a ring reads it stiffer, not softer). Measured on the
+#: independent rig: 1.0-2.6 behind low-passes of 70-120 Hz, a 417 Hz resonance or no chain;
+#: 11 and 20 behind a 187 Hz resonance (zeta 0.076) whose 62 Hz contact maps as 152-269 Hz.
+PLAIN_RING_HALF_PERIODS = 5.0
 #: Points of the coarse grid that starts each stage.
 GRID = 12
 #: A mount's resonance is lightly damped (0.01-0.1 on sensors): a better damped pair is a
@@ -537,7 +542,8 @@ def _slowest_contact(win: _Windows, fs_hz: float, fn_hz: float) -> float:
     its half period is at most :data:`MAX_HALF_PERIODS` times the core seen above the noise
     (a chain only lengthens it), and at least :data:`PLAIN_CONTACT_FRACTION` of the contact
     frequency the record as recorded gives (a low-pass smears the pulse, so that map reads the
-    contact softer, never much stiffer, than it is)."""
+    contact softer, never much stiffer, than it is; where it read a mount's ring instead, no
+    bound: :func:`_plain_contact_bound`)."""
     slowest = fs_hz / (2 * MAX_HALF_PERIODS * max(float(np.median(win.core)), 1.0))
     slowest = max(slowest, PLAIN_CONTACT_FRACTION * win.plain_contact_hz)
     return max(1.05 * fn_hz, min(slowest, 0.2 * fs_hz))
@@ -779,8 +785,17 @@ def _chain_windows(
     if win.n < 3:
         return None
     win.free_hz = fn_hz
-    win.plain_contact_hz = float(contact_hz or 0.0)
+    win.plain_contact_hz = _plain_contact_bound(contact_hz, samples_per_contact, fs_hz)
     return win
+
+
+def _plain_contact_bound(contact_hz: float | None, spc: float, fs_hz: float) -> float:
+    """Rule: the plain map's contact frequency where it bounds the contact from below, else 0:
+    a contact lasts about half its period, and an impact whose core lasts `spc` samples, more
+    than :data:`PLAIN_RING_HALF_PERIODS` half periods of the plain law, was not read by it."""
+    if not contact_hz or spc * 2.0 * contact_hz / fs_hz > PLAIN_RING_HALF_PERIODS:
+        return 0.0
+    return float(contact_hz)
 
 
 class _ChainSearch:
