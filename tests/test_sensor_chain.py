@@ -285,6 +285,21 @@ def test_identify_sensor_chain_gives_the_chain_alone():
     assert identify_sensor_chain(np.zeros(5000), fs, FN) is None  # unreadable: nothing
 
 
+def test_a_mount_resonance_at_three_contact_frequencies_is_not_read_as_a_lowpass():
+    """Independent rig, a 187 Hz mount (zeta 0.076) over a 62 Hz contact at 2 % noise: its ring
+    makes the record as recorded map a 152 Hz contact, which must not bound the fit's contact
+    (a low-pass of order 3 at 106 Hz was read instead)."""
+    from stiffnet.restoring_force import identify_sensor_chain
+
+    mount = {"resonance_hz": 187.0, "resonance_damping": 0.076}
+    run = RigRun(recording="r.csv", beta=41.6, fs_hz=1248.0, duration_s=3.0, gap_mm=1.7,
+                 sensor=mount, noise=0.02)  # fmt: skip
+    got = identify_sensor_chain(record(run, seed=3)[1], run.fs_hz, FN)
+    assert got is not None and got.lowpass_hz is None
+    assert got.resonance_hz == pytest.approx(187.0, rel=0.1)
+    assert got.resonance_damping == pytest.approx(0.076, rel=0.5)
+
+
 # --- lab chains (all three stages) through the independent rig ---------------------------
 
 
