@@ -539,7 +539,9 @@ class _StructureFit:
     cov: np.ndarray | None
 
 
-def _slowest_contact(win: _Windows, fs_hz: float, fn_hz: float, structure=(False, 0)) -> float:
+def _slowest_contact(
+    win: _Windows, fs_hz: float, fn_hz: float, structure: tuple[bool, int] = (False, 0)
+) -> float:
     """Lowest contact frequency: a contact lasts about half its period (less when damped), so
     its half period is at most :data:`MAX_HALF_PERIODS` times the core seen above the noise
     (a chain only lengthens it), and at least :data:`PLAIN_CONTACT_FRACTION` of the contact

@@ -90,9 +90,9 @@ def staged_force(
     ratio: float,
 ) -> np.ndarray:
     """``max(0, K (d + (r - 1) max(d - d_k, 0)) + c_c v)`` where ``d = x - e > 0``, else 0."""
-    d = np.asarray(disp) - onset
-    elastic = stiffness * (d + (ratio - 1.0) * np.maximum(d - knee, 0.0))
-    return np.where(d > 0, np.maximum(elastic + damping * np.asarray(vel), 0.0), 0.0)
+    elastic = stiffness * staged_shape(disp, onset, knee, ratio)
+    inside = np.asarray(disp) - onset > 0
+    return np.where(inside, np.maximum(elastic + damping * np.asarray(vel), 0.0), 0.0)
 
 
 def staged_shape(disp: np.ndarray, onset: float, knee: float, ratio: float) -> np.ndarray:
@@ -161,18 +161,13 @@ def _best_staged(
     if inside.size < 4:
         return None
 
-    def residual(t: np.ndarray) -> np.ndarray:
-        return staged_force(x, v, np.exp(t[0]), t[1], t[2], np.exp(t[3]), ratio) - f
-
-    lo, hi = [-np.inf, -np.inf, 0.0, -np.inf], [np.inf, np.inf, np.inf, np.inf]
     best: tuple[np.ndarray, float] | None = None
     for q in KNEE_STARTS:
         knee = float(np.quantile(inside, q))
         # below the knee the slope is K, beyond it r K: the one slope lies between
         k0 = linear.stiffness * 2.0 / (1.0 + ratio)
         theta0 = np.array([np.log(k0), linear.onset, max(linear.damping, 0.0), np.log(knee)])
-        res = optimize.least_squares(residual, theta0, bounds=(lo, hi), x_scale="jac",
-                                     max_nfev=MAX_NFEV)  # fmt: skip
+        res = _least_squares(f, x, v, ratio, theta0)
         sse = float(np.sum(res.fun**2))
         if best is None or sse < best[1]:
             best = (res.x, sse)
@@ -185,15 +180,23 @@ def refit_at_ratio(
 ) -> float:  # fmt: skip
     """The first-stage slope ``K`` of a resolved law refitted with another ratio held (the
     ends of the model's prior range: their readings join the interval)."""
-    f, x, v = force[near], disp[near], vel[near]
+    theta0 = np.array([np.log(law.stiffness), law.onset, law.damping, np.log(law.knee)])
+    res = _least_squares(force[near], disp[near], vel[near], ratio, theta0)
+    return float(np.exp(res.x[0]))
+
+
+def _least_squares(
+    f: np.ndarray, x: np.ndarray, v: np.ndarray, ratio: float, theta0: np.ndarray
+) -> optimize.OptimizeResult:
+    """The two-stage law with ``ratio`` held fitted from ``theta0`` = ``(log K, e, c_c,
+    log d_k)`` (the damping non-negative)."""
 
     def residual(t: np.ndarray) -> np.ndarray:
         return staged_force(x, v, np.exp(t[0]), t[1], t[2], np.exp(t[3]), ratio) - f
 
-    theta0 = [np.log(law.stiffness), law.onset, law.damping, np.log(law.knee)]
-    res = optimize.least_squares(residual, theta0, bounds=([-np.inf, -np.inf, 0.0, -np.inf],
-                                 np.inf), x_scale="jac", max_nfev=MAX_NFEV)  # fmt: skip
-    return float(np.exp(res.x[0]))
+    lo, hi = [-np.inf, -np.inf, 0.0, -np.inf], [np.inf, np.inf, np.inf, np.inf]
+    return optimize.least_squares(residual, theta0, bounds=(lo, hi), x_scale="jac",
+                                  max_nfev=MAX_NFEV)  # fmt: skip
 
 
 def stage_resolved(sse_one: float, sse_staged: float, n: int, level: float = STAGE_LEVEL) -> bool:
