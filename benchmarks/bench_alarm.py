@@ -11,7 +11,8 @@ alarm):
   beta log-uniform 8-90, forcing 0.95-1.1 f_n, noise 1-3 %, seed 7: no contact law
   (``rig_ideal``), Kelvin-Voigt zeta 0.2-0.4 (``rig_kv``), Hunt-Crossley lambda 8-25 s/m
   (``rig_hc``), two-stage knee 0.2 mm ratio 3 (``rig_two_stage``), power law n = 2
-  (``rig_power``).
+  (``rig_power``), the stop at the tip of a cantilever (mass 0.3 m, first mode 10 f_n, two
+  modes; ``rig_beam``).
 
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
@@ -66,6 +67,7 @@ RIG_SETS: dict[str, dict[str, Any]] = {
     "rig_hc": {"contact": "hunt_crossley"},
     "rig_two_stage": {"contact": "two_stage", "knee_mm": 0.2, "stage_ratio": 3.0},
     "rig_power": {"contact": "power_law", "power_exponent": 2.0},
+    "rig_beam": {"contact": "beam"},
 }
 RIG_SEED = 7
 
