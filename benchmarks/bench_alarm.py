@@ -11,14 +11,19 @@ alarm):
   beta log-uniform 8-90, forcing 0.95-1.1 f_n, noise 1-3 %, seed 7: no contact law
   (``rig_ideal``), Kelvin-Voigt zeta 0.2-0.4 (``rig_kv``), Hunt-Crossley lambda 8-25 s/m
   (``rig_hc``), two-stage knee 0.2 mm ratio 3 (``rig_two_stage``), power law n = 2
-  (``rig_power``).
+  (``rig_power``), the stop at the tip of a cantilever (mass 0.3 m, first mode 10 f_n, two
+  modes; ``rig_beam``).
 
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
-after. "After" is the predictor as shipped; "before" is the same prediction with the
-``contact_law`` check's reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.
-unseen_law_reasons`) under the thresholds of ``--before KEY=VALUE`` (default: the soft
-first stage rule off, ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule
-off, ``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired.
+after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
+campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): how many recordings the
+``contact_law`` check judged and fired on, whether the campaign is flagged (every recording
+then has ``campaign_law`` fired), wrong and silent and alarms after it. "After" is the
+predictor as shipped; "before" is the same prediction with the ``contact_law`` check's
+reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.unseen_law_reasons`) under the
+thresholds of ``--before KEY=VALUE`` (default: the soft first stage rule off,
+``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule off,
+``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired.
 
 Run::
 
@@ -49,6 +54,7 @@ import independent_rig as rig  # noqa: E402
 from serving.predictor import Predictor  # noqa: E402
 from stiffnet.io_utils import write_json_atomic  # noqa: E402
 from stiffnet.measurement.evaluate import true_class  # noqa: E402
+from stiffnet.uncertainty.campaign_law import campaign_law_alarms  # noqa: E402
 from stiffnet.uncertainty.unseen_law import unseen_law_reasons, unseen_law_thresholds  # noqa: E402
 
 ROBUSTNESS_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
@@ -61,6 +67,7 @@ RIG_SETS: dict[str, dict[str, Any]] = {
     "rig_hc": {"contact": "hunt_crossley"},
     "rig_two_stage": {"contact": "two_stage", "knee_mm": 0.2, "stage_ratio": 3.0},
     "rig_power": {"contact": "power_law", "power_exponent": 2.0},
+    "rig_beam": {"contact": "beam"},
 }
 RIG_SEED = 7
 
@@ -108,8 +115,10 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
     """Wrong, wrong and silent, alarms: before (thresholds `before`) and after (as shipped);
     ``recordings``: each recording's classes, β, alarm and restoring-force check."""
     wrong, after, prior, details, t0 = [], [], [], [], time.process_time()
+    results = []
     for r in recs:
         res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
+        results.append(res)
         fired = (res["alarm"] or {}).get("fired", [])
         others = any(f != "contact_law" for f in fired)
         rf = res.get("restoring_force") or {}
@@ -120,6 +129,8 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
         details.append({"class": res["class"], "true_class": r["class"], "beta": res["beta"],
                         "true_beta": r["beta"], "fired": fired, "restoring_force": rf})  # fmt: skip
     w, a, b = np.array(wrong), np.array(after), np.array(prior)
+    flagged, campaign = campaign_law_alarms(results)  # the set read as one rig's campaign
+    c = np.array([bool(res["ood_flag"]) for res in flagged])
     return {
         "n": len(recs),
         "wrong": int(w.sum()),
@@ -128,6 +139,9 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
         "alarms_before": int(b.sum()),
         "alarms_after": int(a.sum()),
         "alarms_on_right": int((a & ~w).sum()),
+        "campaign_law": campaign,
+        "silent_campaign": int((w & ~c).sum()),
+        "alarms_campaign": int(c.sum()),
         "cpu_s_per_recording": (time.process_time() - t0) / max(1, len(recs)),
         "recordings": details,
     }
@@ -152,8 +166,9 @@ def main(argv: list[str] | None = None) -> int:
     configs = br.set_configs(br.DEFAULT_SETS)
     rows = {}
     print("| set | n | wrong | wrong & silent, before -> after | alarms, before -> after "
-          "| alarms on right answers |")  # fmt: skip
-    print("| --- | ---: | ---: | ---: | ---: | ---: |")
+          "| alarms on right answers | as a campaign: contact_law fired / judged, wrong & "
+          "silent, alarms |")  # fmt: skip
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for name in args.sets:
         if name in RIG_SETS:
             seed, tag = (
@@ -168,8 +183,10 @@ def main(argv: list[str] | None = None) -> int:
             recs = br.recordings(cfg, args.data / f"{name}-{args.n}-s{cfg.seed}")
         s = rows[name] = score(pred, recs, before)
         print(f"| {name} | {s['n']} | {s['wrong']} | {s['silent_before']} -> {s['silent_after']}"
-              f" | {s['alarms_before']} -> {s['alarms_after']} | {s['alarms_on_right']} |",
-              flush=True)  # fmt: skip
+              f" | {s['alarms_before']} -> {s['alarms_after']} | {s['alarms_on_right']} | "
+              f"{s['campaign_law']['n_fired']} / {s['campaign_law']['n_judged']}"
+              f"{' (flagged)' * s['campaign_law']['flag']}, {s['silent_campaign']}, "
+              f"{s['alarms_campaign']} |", flush=True)  # fmt: skip
         if args.out:  # after every set: a long run's finished sets are kept
             write_json_atomic(args.out, {"before": changes, "sets": rows})
     return 0

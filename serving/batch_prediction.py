@@ -28,7 +28,11 @@ recording whose own law it reads much worse keeps its first row)
 (``sensor_source`` ``campaign``; the summary's ``sensor`` says what was pooled, on
 how many recordings, or why nothing was). A record whose
 beta changes along it (several layers, :func:`serving.log.record_layers`) has them
-in ``layers`` (JSON) and the alarm fired.
+in ``layers`` (JSON) and the alarm fired. A campaign has one rig: where its recordings
+read a contact law the training data lack more often than the training world's laws do
+(:mod:`stiffnet.uncertainty.campaign_law`), every row's alarm has ``campaign_law`` fired
+(``alarm_fired``; the summary's ``campaign_law`` says on how many recordings the law was
+judged and fired).
 Workers must see the recordings and the model at the same paths (a shared file
 system on a multi-machine cluster).
 """
@@ -59,6 +63,11 @@ from stiffnet.io_utils import (
     sha256_file,
     write_bytes_atomic,
     write_json_atomic,
+)
+from stiffnet.uncertainty.campaign_law import (
+    CAMPAIGN_LAW,
+    campaign_law_decision,
+    contact_law_fired,
 )
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
@@ -154,6 +163,8 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("restoring_force_contact_r2", pa.float64()),
             ("ood_score", pa.float64()),
             ("ood_flag", pa.bool_()),
+            ("alarm_fired", pa.string()),
+            ("contact_law_judged", pa.bool_()),
             ("n_windows", pa.int64()),
             ("fs_hz", pa.float64()),
             ("natural_frequency_hz", pa.float64()),
@@ -199,6 +210,10 @@ def result_row(
             "restoring_force_contact_r2": (result.get("restoring_force") or {}).get("contact_r2"),
             "ood_score": result.get("ood_score"),
             "ood_flag": result.get("ood_flag"),
+            # the alarm's checks that fired (comma-separated), and whether its contact-law
+            # check could judge the recording (the campaign's law is judged on all of them)
+            "alarm_fired": ",".join((result.get("alarm") or {}).get("fired") or []) or None,
+            "contact_law_judged": contact_law_fired(result.get("alarm"))[0],
             "n_windows": result.get("n_windows"),
             "fs_hz": result.get("fs_hz"),
             "natural_frequency_hz": result.get("natural_frequency_hz"),
@@ -419,12 +434,16 @@ def predict_batch(
             table = _campaign_table(first, second, flags) if chain["pooled"] else first
         else:
             table = first
+    law = None
+    if manifest is not None:
+        table, law = _campaign_law(table)
     table = _joined_parts(parts_dir, table, predictor, out)
     return {
         "out": str(out),
         "manifest": None if manifest is None else str(manifest),
         **_table_summary(table, predictor),
         "sensor": chain,
+        "campaign_law": law,
         "parts": len(records),
         "parts_kept": done["kept"],
         "rerun": done["rerun"],
@@ -485,6 +504,29 @@ def _confirmed(
     own = [{"contact_r2": first.column(r2)[i].as_py()} for i in pick]
     pooled = [{"contact_r2": second.column(r2)[i].as_py()} for i in pick]
     return confirmed(chain, own, pooled)
+
+
+def _campaign_law(table: pa.Table) -> tuple[pa.Table, dict[str, Any]]:
+    """The campaign's contact law judged on all its rows
+    (:func:`stiffnet.uncertainty.campaign_law.campaign_law_decision`) and, where it is
+    outside the model's world, every predicted row flagged with ``campaign_law``."""
+    judged = [bool(j) for j in table.column("contact_law_judged").to_pylist()]
+    fired = ["contact_law" in (f or "").split(",") for f in table.column("alarm_fired").to_pylist()]
+    decision = campaign_law_decision(judged, fired)
+    if not decision["flag"]:
+        return table, decision
+    predicted = [e is None for e in table.column("error").to_pylist()]
+    checks = [
+        ",".join([*(f.split(",") if f else []), CAMPAIGN_LAW]) if p else f
+        for f, p in zip(table.column("alarm_fired").to_pylist(), predicted, strict=True)
+    ]
+    flags = [p or o for o, p in zip(table.column("ood_flag").to_pylist(), predicted, strict=True)]
+    for name, values, kind in (
+        ("alarm_fired", checks, pa.string()),
+        ("ood_flag", flags, pa.bool_()),
+    ):
+        table = table.set_column(table.schema.get_field_index(name), name, pa.array(values, kind))
+    return table, decision
 
 
 def _campaign_table(first: pa.Table, second: pa.Table, flags: tuple[bool, ...]) -> pa.Table:

@@ -203,6 +203,7 @@ def test_an_ideal_campaign_gets_no_pooled_chain_and_the_same_predictions(tmp_pat
     campaign = _rig_campaign(tmp_path / "ideal", None)
     res = evaluate_campaign(campaign)
     assert not res["sensor"]["pooled"] and res["sensor"]["sensor"] is None
+    assert not res["campaign_law"]["flag"], res["campaign_law"]["message"]  # one rig's law
     own = [predicted(campaign, i, row, None) for i, row in enumerate(campaign.rows)]
     for r, o in zip(res["recordings"], own, strict=True):
         assert r["chain_source"] != "campaign"

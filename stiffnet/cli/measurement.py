@@ -173,6 +173,7 @@ def evaluate(
     else:
         out.print("alarm: no recording flagged as unreliable")
     out.print(f"sensor chain: {res['sensor']['reason']}")  # the campaign's one accelerometer
+    out.print(f"contact law: {res['campaign_law']['message']}")  # the campaign's one rig
     write_json(json_path, res)
 
 

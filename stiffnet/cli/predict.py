@@ -420,6 +420,8 @@ def predict_batch_cmd(
     out.print(f"{'; '.join(notes)}; {summary['seconds']:.1f} s ({summary['backend']})")
     if summary.get("sensor"):  # a campaign: its one accelerometer's chain, pooled or why not
         out.print(f"sensor chain: {summary['sensor']['reason']}")
+    if summary.get("campaign_law"):  # a campaign: its one rig's contact law, judged on all
+        out.print(f"contact law: {summary['campaign_law']['message']}")
     write_json(json_path, summary)
     if summary["failed"]:
         from stiffnet.cli.console import console

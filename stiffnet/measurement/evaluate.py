@@ -30,6 +30,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
 from stiffnet.measurement.nuisance import predicted
+from stiffnet.uncertainty.campaign_law import campaign_law_alarms
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
 SLICE_EDGES: dict[str, list[float]] = {
@@ -166,7 +167,10 @@ def evaluate_campaign(
     dict
         ``model`` (name, sha256, kind), ``sensor`` (the campaign's pooled sensor chain
         and how many recordings identified it, or why none was pooled:
-        :func:`serving.campaign_chain.campaign_chain`), ``recordings`` (each ``recording``,
+        :func:`serving.campaign_chain.campaign_chain`), ``campaign_law`` (whether the
+        campaign's contact law lies outside the model's world, judged on all its recordings:
+        :func:`stiffnet.uncertainty.campaign_law.campaign_law_decision`; where it does, every
+        recording's alarm has ``campaign_law`` fired), ``recordings`` (each ``recording``,
         ``beta``, ``class``, ``beta_estimate``, ``geometric_class``,
         ``geometric_beta``, ``true_class``, ``impact_regime``, ``chain_source``, ...),
         ``metrics`` (``learned``, ``geometric`` and ``restoring_force``:
@@ -184,6 +188,7 @@ def evaluate_campaign(
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
     contact = simulated_contact(campaign.rows, dynamics) if simulable else None
     results, chain = campaign_predictions(campaign, model_path)
+    results, law = campaign_law_alarms(results)
     rows = [_evaluated_row(row, res, None if contact is None else contact[i])
             for i, (row, res) in enumerate(zip(campaign.rows, results, strict=True))]  # fmt: skip
     worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
@@ -191,6 +196,7 @@ def evaluate_campaign(
         "campaign": str(campaign.folder),
         "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
         "sensor": chain,
+        "campaign_law": law,
         "recordings": rows,
         "metrics": {
             "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},

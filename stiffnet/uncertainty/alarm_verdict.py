@@ -58,6 +58,9 @@ ALARM_WORDS = {
     "contact_duration": "the impacts last over twice the half period of the contact law they "
     "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
     "trained on) or a contact the training data lack stretches them",
+    "campaign_law": "the campaign's recordings read a contact law the training data lack more "
+    "often than any law of the training world does: the rig is outside the model's world, "
+    "this recording included",
 }
 
 #: The class_beta check fires when the beta interval misses the class's range: its score is

@@ -1,0 +1,115 @@
+"""The campaign's contact law, judged on all its recordings (stiffnet.uncertainty.campaign_law)."""
+
+from __future__ import annotations
+
+import pyarrow as pa
+import pytest
+from pydantic import ValidationError
+from scipy import stats
+
+from stiffnet.uncertainty.campaign_law import (
+    CAMPAIGN_LAW,
+    CampaignLawThresholds,
+    campaign_law_alarms,
+    campaign_law_decision,
+    campaign_law_thresholds,
+    with_campaign_law,
+)
+
+
+def test_the_rule_is_a_binomial_tail_against_the_in_world_rate():
+    t = CampaignLawThresholds(in_world_rate=0.1, level=1e-3)
+    # 24 judged: 9 firing is rarer than 1e-3 under a 10 % rate (3.2e-4), 8 is not (1.7e-3)
+    nine = campaign_law_decision([True] * 24, [True] * 9 + [False] * 15, t)
+    eight = campaign_law_decision([True] * 24, [True] * 8 + [False] * 16, t)
+    assert nine["flag"] and not eight["flag"]
+    assert nine["p_value"] == pytest.approx(stats.binom.sf(8, 24, 0.1))
+    assert (nine["n_judged"], nine["n_fired"]) == (24, 9)
+    assert "9 of the 24" in nine["message"] and "outside the model's world" in nine["message"]
+    # recordings the check could not judge count for neither side
+    unread = campaign_law_decision([True] * 9 + [False] * 15, [True] * 24, t)
+    assert unread["n_judged"] == 9 and unread["n_fired"] == 9 and unread["flag"]
+    # a campaign of few recordings cannot reach the level, and nothing judged is no verdict
+    assert not campaign_law_decision([True] * 3, [True] * 3, t)["flag"]
+    empty = campaign_law_decision([False] * 4, [False] * 4, t)
+    assert not empty["flag"] and empty["p_value"] is None
+
+
+def test_a_flagged_campaign_fires_the_check_on_every_recording():
+    quiet = {"class": "soft", "ood_flag": False,
+             "alarm": {"flag": False, "fired": [], "scores": {"contact_law": 0.0},
+                       "thresholds": {"contact_law": 0.0}}}  # fmt: skip
+    loud = {"class": "hard", "ood_flag": True,
+            "alarm": {"flag": True, "fired": ["contact_law"], "scores": {"contact_law": 1.0},
+                      "thresholds": {"contact_law": 0.0}}}  # fmt: skip
+    refused = {"class": "soft", "ood_flag": False, "alarm": None}
+    results, decision = campaign_law_alarms([loud] * 6 + [quiet, refused])
+    assert decision["flag"] and decision["n_judged"] == 7 and decision["n_fired"] == 6
+    for r in results:
+        assert r["ood_flag"] and r["alarm"]["fired"][-1] == CAMPAIGN_LAW
+        assert "outside the model's world" in r["alarm"]["message"]
+    assert quiet["alarm"]["fired"] == [] and refused["alarm"] is None  # copies
+    # an unflagged campaign leaves its results as they are
+    results, decision = campaign_law_alarms([loud, quiet, quiet, quiet])
+    assert not decision["flag"] and results[1] is quiet
+    assert with_campaign_law(quiet, decision) is quiet
+
+
+def test_the_shipped_settings_validate():
+    t = campaign_law_thresholds()
+    assert 0 < t.in_world_rate < 0.5 and 0 < t.level < 0.05
+    with pytest.raises(ValidationError):
+        CampaignLawThresholds(in_world_rate=0.1, level=1e-3, rate=0.2)
+    with pytest.raises(ValidationError):
+        CampaignLawThresholds(in_world_rate=1.5)
+
+
+def test_predict_batch_flags_every_predicted_row_of_a_flagged_campaign():
+    from serving.batch_prediction import _campaign_law
+
+    fired = ["contact_law", "contact_law,sensor", None, "contact_law", "contact_law",
+             "contact_law", "embedding", None]  # fmt: skip
+    table = pa.table({
+        "path": list("abcdefgh"),
+        "ood_flag": [f is not None for f in fired],
+        "alarm_fired": fired,
+        "contact_law_judged": [True] * 7 + [False],
+        "error": [None] * 7 + ["unreadable"],
+    })  # fmt: skip
+    out, decision = _campaign_law(table)
+    assert decision["flag"] and (decision["n_judged"], decision["n_fired"]) == (7, 5)
+    assert out.column("ood_flag").to_pylist() == [True] * 7 + [False]
+    checks = out.column("alarm_fired").to_pylist()
+    assert checks[2] == CAMPAIGN_LAW and checks[1] == "contact_law,sensor," + CAMPAIGN_LAW
+    assert checks[7] is None  # the failed recording has no prediction to flag
+    calm = table.set_column(2, "alarm_fired", pa.array([None] * 8, pa.string()))
+    same, decision = _campaign_law(calm)
+    assert not decision["flag"] and same.equals(calm)
+
+
+@pytest.mark.slow
+def test_evaluate_flags_a_campaign_whose_rig_has_a_power_law(tmp_path):
+    """Six recordings of the independent rig (solve_ivp) with a power-law contact (n = 2,
+    a law the training world lacks): the campaign is flagged and every recording with it;
+    predict-batch on the folder reaches the same decision."""
+    import pyarrow.parquet as pq
+    from independent_rig import RigRun, write_campaign
+
+    from serving.batch_prediction import predict_batch
+    from stiffnet.campaign import load_campaign
+    from stiffnet.campaign.loaded import LoadedCampaign
+    from stiffnet.measurement.evaluate import evaluate_campaign
+
+    runs = [RigRun(recording=f"r{i}.csv", beta=b, fs_hz=2000.0, duration_s=3.0, gap_mm=1.5,
+                   contact="power_law", power_exponent=2.0)
+            for i, b in enumerate((8.0, 20.0, 30.0, 45.0, 70.0, 90.0))]  # fmt: skip
+    write_campaign(tmp_path / "camp", runs)
+    res = evaluate_campaign(LoadedCampaign.of(load_campaign(tmp_path / "camp")))
+    law = res["campaign_law"]
+    assert law["flag"], law["message"]
+    assert all(CAMPAIGN_LAW in r["ood_checks"] and r["ood"] for r in res["recordings"])
+    assert res["metrics"]["learned"]["alarm_rate"] == 1.0
+    summary = predict_batch(tmp_path / "camp", tmp_path / "out.parquet")
+    assert summary["campaign_law"] == law
+    rows = pq.read_table(tmp_path / "out.parquet").to_pylist()
+    assert all(r["ood_flag"] and CAMPAIGN_LAW in r["alarm_fired"] for r in rows)
