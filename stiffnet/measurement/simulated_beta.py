@@ -31,7 +31,11 @@ profile's tolerance; where the best beta does not bring the recording to its flo
 law is approximate and its misfit ``D_min`` scales the tolerance instead (a profile
 likelihood whose scale is estimated from the residual).
 
-**Reproduction**: the recording is *reproduced* when ``D_min <= reproduce_factor * f``;
+**Reproduction**: the recording is *reproduced* when ``D_min <= reproduce_factor * f_r``,
+``f_r`` its floor but at most the non-repeatable limit
+(:data:`~stiffnet.measurement.noise_floor.NON_REPEATABLE_FACTOR` times the campaign's median
+floor: a wandering recording's own floor is one draw, and a match within it does not pin
+beta);
 otherwise no beta of the given physics reproduces it (a non-repeatable orbit, physics the
 model lacks) and the reading says so instead of trusting its minimum.
 
@@ -55,7 +59,7 @@ from stiffnet.campaign.simulate import DEFAULT_SEED, CampaignSolverSettings, sim
 from stiffnet.effects.base import Effect
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
-from stiffnet.measurement.noise_floor import noise_floor
+from stiffnet.measurement.noise_floor import NON_REPEATABLE_FACTOR, noise_floor
 from stiffnet.measurement.statistics import SignalStatistics
 
 #: The shipped settings (under ``configs/``).
@@ -315,6 +319,10 @@ def beta_by_least_discrepancy(
         meas, lengths, samples = measured_statistics(campaign, rows, cfg.inclination)
         floors = noise_floor(samples, rows, settings.periods, cfg.inclination)["floors"]
         f = floors.effective()
+        # a non-repeatable recording's own floor is one draw of a wandering orbit: a match
+        # within it does not pin beta, so reproduction is judged at most against the
+        # non-repeatable limit (the interval keeps the recording's own floor)
+        f_rep = np.minimum(f, NON_REPEATABLE_FACTOR * floors.median)
         grid = coarse_grid(cfg)
         # rows without impacts have nothing for beta to act on: not simulated
         live = [j for j, m in enumerate(meas) if m.has_impacts]
@@ -337,7 +345,7 @@ def beta_by_least_discrepancy(
             b = np.concatenate([grid, e])
             order = np.argsort(b)
             d = np.concatenate([dc, dfine])[order]
-            result[idx[j]] = _read(rows[j], b[order], d, float(f[j]), cfg)
+            result[idx[j]] = _read(rows[j], b[order], d, float(f[j]), float(f_rep[j]), cfg)
     return {
         "recordings": result,
         "settings": cfg.model_dump(mode="json"),
@@ -351,17 +359,24 @@ def beta_by_least_discrepancy(
 
 
 def _read(
-    row: ManifestRow, betas: np.ndarray, d: np.ndarray, floor: float, cfg: SimulatedBetaConfig
+    row: ManifestRow,
+    betas: np.ndarray,
+    d: np.ndarray,
+    floor: float,
+    reproduction_floor: float,
+    cfg: SimulatedBetaConfig,
 ) -> dict[str, Any]:
-    """One recording's reading from its profile."""
+    """One recording's reading from its profile (``floor``: its own, for the interval;
+    ``reproduction_floor``: the floor its least discrepancy is judged against)."""
     if not np.isfinite(d).any():
         return {**_unread(row), "floor": floor, "reason": "no simulation could be analysed"}
     d_min = least_discrepancy(betas, d)
     beta, low, high, edge = beta_interval(betas, d, cfg.interval_rise * max(floor, d_min))
-    ratio = d_min / floor
+    ratio = d_min / reproduction_floor
     reproduced = bool(ratio <= cfg.reproduce_factor)
     reason = (
         f"least discrepancy {d_min:.3g} at beta {beta:.3g}, {ratio:.2g}x the recording's floor"
+        + ("" if reproduction_floor >= floor else " (the non-repeatable limit: its own is higher)")
         + ("" if reproduced else f": no beta reproduces it (over {cfg.reproduce_factor:g}x)")
         + ("; the interval reaches the grid's edge" if edge else "")
     )
@@ -373,6 +388,7 @@ def _read(
         "interval_open": edge,
         "least_discrepancy": d_min,
         "floor": floor,
+        "reproduction_floor": reproduction_floor,
         "floor_ratio": ratio,
         "reproduced": reproduced,
         "profile": [
@@ -399,6 +415,7 @@ def _unread(row: ManifestRow) -> dict[str, Any]:
         "interval_open": None,
         "least_discrepancy": None,
         "floor": None,
+        "reproduction_floor": None,
         "floor_ratio": None,
         "reproduced": None,
         "profile": [],
