@@ -278,6 +278,35 @@ def solver_settings(
     return (base or CampaignSolverSettings()).model_copy(update=update)
 
 
+def two_batch_profiles(
+    measured: Sequence[SignalStatistics],
+    rows: Sequence[ManifestRow],
+    lengths: Sequence[int],
+    effects: Sequence[Effect],
+    settings: CampaignSolverSettings,
+    cfg: SimulatedBetaConfig,
+) -> tuple[list[tuple[np.ndarray, np.ndarray]], dict[str, float]]:
+    """Each row's profile ``(betas, D)``, sorted by beta: the coarse grid in one batch, then
+    the betas around each row's coarse minimum in another; and each batch's CPU seconds."""
+    grid = coarse_grid(cfg)
+    args = (measured, rows, lengths)
+    c0 = time.process_time()
+    coarse = profile_discrepancies(*args, [grid] * len(rows), effects, settings, cfg.seed,
+                                   cfg.inclination)  # fmt: skip
+    c1 = time.process_time()
+    extra = [refined_betas(grid, int(np.argmin(np.where(np.isfinite(d), d, np.inf))),
+                           cfg.refine_per_side) for d in coarse]  # fmt: skip
+    fine = (profile_discrepancies(*args, extra, effects, settings, cfg.seed, cfg.inclination)
+            if cfg.refine_per_side else [np.empty(0)] * len(rows))  # fmt: skip
+    cpu = {"coarse": round(c1 - c0, 2), "refine": round(time.process_time() - c1, 2)}
+    out = []
+    for dc, e, dfine in zip(coarse, extra, fine, strict=True):
+        b = np.concatenate([grid, e])
+        order = np.argsort(b)
+        out.append((b[order], np.concatenate([dc, dfine])[order]))
+    return out, cpu
+
+
 def beta_by_least_discrepancy(
     campaign: Campaign,
     effects: Sequence[Effect],
@@ -301,7 +330,8 @@ def beta_by_least_discrepancy(
     dict
         ``recordings`` (per manifest row: ``recording``, ``class``, ``beta``,
         ``beta_interval``, ``interval_open``, ``least_discrepancy``, ``floor``,
-        ``floor_ratio``, ``reproduced``, ``profile`` ([beta, D] pairs), ``reason``;
+        ``reproduction_floor``, ``floor_ratio``, ``reproduced``, ``profile`` ([beta, D]
+        pairs), ``reason``;
         ``class`` and ``beta`` are None where the row has no operating point),
         ``settings``, ``rule`` (the interval and reproduction rules in words),
         ``simulated`` (trajectories) and ``cpu_seconds``.
@@ -323,29 +353,17 @@ def beta_by_least_discrepancy(
         # within it does not pin beta, so reproduction is judged at most against the
         # non-repeatable limit (the interval keeps the recording's own floor)
         f_rep = np.minimum(f, NON_REPEATABLE_FACTOR * floors.median)
-        grid = coarse_grid(cfg)
         # rows without impacts have nothing for beta to act on: not simulated
         live = [j for j, m in enumerate(meas) if m.has_impacts]
-        pick = [rows[j] for j in live]
-        args = ([meas[j] for j in live], pick, [lengths[j] for j in live])
-        c1 = time.process_time()
-        coarse = profile_discrepancies(*args, [grid] * len(live), effects, settings, cfg.seed,
-                                       cfg.inclination)  # fmt: skip
-        cpu["coarse"] = round(time.process_time() - c1, 2)
-        c1 = time.process_time()
-        extra = [refined_betas(grid, int(np.nanargmin(np.where(np.isfinite(d), d, np.inf))),
-                               cfg.refine_per_side) for d in coarse]  # fmt: skip
-        fine = (profile_discrepancies(*args, extra, effects, settings, cfg.seed, cfg.inclination)
-                if cfg.refine_per_side else [np.empty(0)] * len(live))  # fmt: skip
-        cpu["refine"] = round(time.process_time() - c1, 2)
-        n_sim = len(live) * grid.size + sum(e.size for e in extra)
         for j, row in enumerate(rows):
             result[idx[j]] = _no_impacts(row, float(f[j]))
-        for j, dc, e, dfine in zip(live, coarse, extra, fine, strict=True):
-            b = np.concatenate([grid, e])
-            order = np.argsort(b)
-            d = np.concatenate([dc, dfine])[order]
-            result[idx[j]] = _read(rows[j], b[order], d, float(f[j]), float(f_rep[j]), cfg)
+        profiles, cpu = two_batch_profiles(
+            [meas[j] for j in live], [rows[j] for j in live], [lengths[j] for j in live],
+            effects, settings, cfg,
+        )  # fmt: skip
+        n_sim = sum(b.size for b, _ in profiles)
+        for j, (b, d) in zip(live, profiles, strict=True):
+            result[idx[j]] = _read(rows[j], b, d, float(f[j]), float(f_rep[j]), cfg)
     return {
         "recordings": result,
         "settings": cfg.model_dump(mode="json"),
