@@ -6,7 +6,9 @@ and beta, the geometric method's class and beta and the restoring-force
 estimate's (``restoring_force_*``; a refusal counts as a wrong class). Metrics per method:
 accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
 known beta and an estimate), sliced by beta class, gap, frequency ratio,
-amplitude and impact regime, with the worst recordings listed.
+amplitude and impact regime, with the worst recordings listed. A fourth method, beta by
+simulation against the same dynamics, and the reading the loop reports are added by
+:mod:`stiffnet.measurement.simulation_reading` (``configs/simulated_beta.yaml``).
 
 Impact regime. From a simulation of the row with the manifest's parameters
 and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`):
