@@ -96,6 +96,10 @@ def test_evaluate_cli_on_the_lab_folder(ideal, tmp):
     metrics = json.loads(out.read_text())["metrics"]
     assert metrics["learned"]["accuracy"] >= 7 / 8
     assert metrics["restoring_force"]["accuracy"] == 1.0
+    # beta by simulation (the linear law of the default config) on an ideal rig: no
+    # disjoint-interval alarm, and the reading no worse than the model
+    assert metrics["simulation"]["alarms"] == 0
+    assert metrics["reading"]["accuracy"] >= metrics["learned"]["accuracy"]
 
 
 def test_gain_and_polarity_conventions(tmp):

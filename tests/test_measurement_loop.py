@@ -110,6 +110,17 @@ def test_two_iterations_with_resume(looped):
     d = [it["metrics"]["discrepancy"] for it in second["iterations"]]
     assert d[1] < d[0] and d[2] < 0.01 * d[0], d
     assert all(it["metrics"]["accuracy"] is not None for it in second["iterations"])
+    # beta by simulation beside the model in every iteration, and the reading per recording
+    for it in second["iterations"]:
+        assert {"simulation_accuracy", "simulation_beta_mape", "reading_accuracy"} <= set(
+            it["metrics"]
+        )
+        assert {r["reading_method"] for r in it["recordings"]} <= {"simulation", "learned"}
+    # without the campaign's effects no beta reproduces its recordings; with both at their
+    # true values every one is reproduced and read within a few per cent
+    sim = [it["metrics"] for it in second["iterations"]]
+    assert sim[0]["simulation_reproduced_share"] < 0.5
+    assert sim[2]["simulation_reproduced_share"] == 1.0 and sim[2]["simulation_beta_mape"] < 0.05
     assert second["before"]["discrepancy"] == d[0] and second["after"]["discrepancy"] == d[2]
     for it in second["iterations"]:  # each phase's CPU seconds, inside the iteration's
         cpu = it["cpu_seconds"]

@@ -152,14 +152,17 @@ def evaluate(
     config: ConfigOpt = None,
     json_path: JsonOption = None,
 ) -> None:
-    """Learned model, geometric and restoring-force cross-checks against the known betas."""
-    from stiffnet.measurement.compare import config_effects
+    """Learned model, geometric and restoring-force cross-checks and beta by simulation
+    against the known betas."""
+    from stiffnet.measurement.compare import config_effects, config_settings
     from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.simulation_reading import summary_lines
 
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
     with _progress(), progress_task("predicting recordings"):
-        res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg))
+        res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg),
+                                settings=config_settings(cfg))  # fmt: skip
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
     out.print(f"worst recordings by error (1 for a wrong class + relative beta error): {worst}")
@@ -172,6 +175,8 @@ def evaluate(
         )  # fmt: skip
     else:
         out.print("alarm: no recording flagged as unreliable")
+    for line in summary_lines(res):
+        out.print(line)
     out.print(f"sensor chain: {res['sensor']['reason']}")  # the campaign's one accelerometer
     out.print(f"contact law: {res['campaign_law']['message']}")  # the campaign's one rig
     write_json(json_path, res)
@@ -553,9 +558,12 @@ def loop_table(res: dict[str, Any], campaign: Any) -> Any:
     from rich.table import Table
 
     table = Table(title=f"loop on {campaign} ({res['family']}, {res['seconds']:.0f} s this run)")
-    cols = ("discrepancy", "accuracy", "beta_mape", "restoring_force_agreement")
+    cols = ("discrepancy", "accuracy", "beta_mape", "simulation_accuracy", "simulation_beta_mape",
+            "reading_accuracy", "restoring_force_agreement")  # fmt: skip
     for col in ("iteration", "effects added", "trained on", "discrepancy", "accuracy",
-                "beta MAPE", "agreement (restoring force)", "model version", "s"):  # fmt: skip
+                "beta MAPE", "accuracy by simulation", "beta MAPE by simulation",
+                "reading accuracy", "agreement (restoring force)", "model version",
+                "s"):  # fmt: skip
         table.add_column(col)
     for it in res["iterations"]:
         vals = [it["metrics"].get(k) for k in cols]

@@ -6,7 +6,9 @@ and beta, the geometric method's class and beta and the restoring-force
 estimate's (``restoring_force_*``; a refusal counts as a wrong class). Metrics per method:
 accuracy, macro-F1 over the classes present, beta MAPE (recordings with a
 known beta and an estimate), sliced by beta class, gap, frequency ratio,
-amplitude and impact regime, with the worst recordings listed.
+amplitude and impact regime, with the worst recordings listed. A fourth method, beta by
+simulation against the same dynamics, and the reading the loop reports are added by
+:mod:`stiffnet.measurement.simulation_reading` (``configs/simulated_beta.yaml``).
 
 Impact regime. From a simulation of the row with the manifest's parameters
 and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`):
@@ -25,11 +27,13 @@ import numpy as np
 
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
 from stiffnet.campaign.loaded import memo
-from stiffnet.campaign.simulate import impact_regime, simulated_contact
+from stiffnet.campaign.simulate import CampaignSolverSettings, impact_regime, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT, beta_class
 from stiffnet.measurement.nuisance import predicted
+from stiffnet.measurement.simulated_beta import SimulatedBetaConfig
+from stiffnet.measurement.simulation_reading import with_simulation
 from stiffnet.uncertainty.campaign_law import campaign_law_alarms
 
 #: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
@@ -148,6 +152,8 @@ def evaluate_campaign(
     model_path: str | None = None,
     dynamics: Sequence[Effect] = (),
     require_beta: bool = True,
+    simulation: SimulatedBetaConfig | None = None,
+    settings: CampaignSolverSettings | None = None,
 ) -> dict[str, Any]:
     """Predictions and metrics of the learned model and the geometric method on a campaign.
 
@@ -161,6 +167,10 @@ def evaluate_campaign(
     require_beta : bool
         Refuse a campaign without any β (the ``evaluate`` command); the loop
         evaluates field campaigns too, where only the agreements mean something.
+    simulation : SimulatedBetaConfig, optional
+        The reading by simulation (default: ``configs/simulated_beta.yaml``).
+    settings : CampaignSolverSettings, optional
+        The simulator config's solver settings, for the reading by simulation.
 
     Returns
     -------
@@ -175,7 +185,10 @@ def evaluate_campaign(
         ``geometric_beta``, ``true_class``, ``impact_regime``, ``chain_source``, ...),
         ``metrics`` (``learned``, ``geometric`` and ``restoring_force``:
         ``accuracy``, ``macro_f1``, ``beta_mape``; the last also
-        ``interval_coverage`` and ``agreement_with_learned``), ``slices``, ``worst``.
+        ``interval_coverage`` and ``agreement_with_learned``), ``slices``, ``worst``;
+        the reading by simulation adds ``metrics.simulation``, ``metrics.reading``,
+        ``simulation`` and fields per recording
+        (:mod:`stiffnet.measurement.simulation_reading`).
     """
     from serving.predictor import Predictor
 
@@ -192,7 +205,7 @@ def evaluate_campaign(
     rows = [_evaluated_row(row, res, None if contact is None else contact[i])
             for i, (row, res) in enumerate(zip(campaign.rows, results, strict=True))]  # fmt: skip
     worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
-    return {
+    evaluation = {
         "campaign": str(campaign.folder),
         "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
         "sensor": chain,
@@ -213,6 +226,8 @@ def evaluate_campaign(
             for r in worst
         ],
     }
+    # the fourth method: beta by simulation against the same dynamics, beside the others
+    return with_simulation(evaluation, campaign, dynamics, simulation, settings)
 
 
 def campaign_predictions(

@@ -328,6 +328,25 @@ def iteration_metrics(evaluation: dict[str, Any], discrepancy: float | None) -> 
         "geometric_accuracy": m["geometric"]["accuracy"],
         "geometric_beta_mape": m["geometric"]["beta_mape"],
         "alarm_rate": m["learned"].get("alarm_rate"),
+        **simulation_metrics(m),
+    }
+
+
+#: The reading by simulation's numbers an iteration keeps (``metrics.simulation`` and
+#: ``metrics.reading`` of the evaluation, :mod:`stiffnet.measurement.simulation_reading`).
+SIMULATION_METRICS = {
+    "simulation": ("accuracy", "beta_mape", "interval_coverage", "reproduced_share", "alarms"),
+    "reading": ("accuracy", "beta_mape", "from_simulation"),
+}
+
+
+def simulation_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """``simulation_accuracy``, ``reading_accuracy``, ... where the evaluation has them."""
+    return {
+        f"{method}_{k}": metrics[method].get(k)
+        for method, keys in SIMULATION_METRICS.items()
+        if method in metrics
+        for k in keys
     }
 
 
@@ -477,7 +496,11 @@ def _iteration(
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     c_eval = cpu_seconds()
     evaluation = evaluate_campaign(
-        campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False
+        campaign,
+        trained["onnx"],
+        config_effects(fixed_cfg),
+        require_beta=False,
+        settings=config_settings(fixed_cfg),
     )
     cmp = compare_campaign(
         campaign, config_effects(fixed_cfg), config_settings(fixed_cfg), state["seed"]
@@ -511,6 +534,13 @@ def _iteration(
                     "restoring_force_beta",
                     "restoring_force_agreement",
                     "error",
+                    "simulation_class",
+                    "simulation_beta",
+                    "simulation_reproduced",
+                    "simulation_alarm",
+                    "reading_method",
+                    "reading_class",
+                    "reading_beta",
                 )
             }
             for r in evaluation["recordings"]

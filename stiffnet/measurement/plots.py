@@ -176,7 +176,8 @@ def ranking_figure(diagnosis: dict[str, Any], path: str | Path) -> Path:
 def loop_figure(iterations: Sequence[dict[str, Any]], path: str | Path) -> Path:
     """Error and discrepancy against loop iteration (0 = the starting config, 1, 2, ...).
 
-    Left: ``1 - accuracy`` (learned, geometric), β MAPE and ``1 - agreement`` of the
+    Left: ``1 - accuracy`` (learned, geometric, by simulation), β MAPE (learned, by
+    simulation) and ``1 - agreement`` of the
     learned model with the restoring-force cross-check (the one error a field campaign
     without β has); right: the simulator-measurement discrepancy (log scale).
     """
@@ -193,6 +194,8 @@ def loop_figure(iterations: Sequence[dict[str, Any]], path: str | Path) -> Path:
         ("accuracy", "1 - learned accuracy", True, "o-"),
         ("beta_mape", "learned beta MAPE", False, "s-"),
         ("geometric_accuracy", "1 - geometric accuracy", True, "^--"),
+        ("simulation_accuracy", "1 - accuracy by simulation", True, "v-"),
+        ("simulation_beta_mape", "beta MAPE by simulation", False, "x-"),
         ("restoring_force_agreement", "1 - agreement with restoring force", True, "d:"),
     ):
         y = series(key, one_minus)

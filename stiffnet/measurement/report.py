@@ -319,7 +319,7 @@ def evaluate_section(
     (``coverage``: the nominal coverage of the model's interval, from its card)."""
     m = evaluation["metrics"]
     parts = [
-        "<h2>Evaluate: learned model and the two cross-checks</h2>",
+        "<h2>Evaluate: learned model, the cross-checks and beta by simulation</h2>",
         f"<p class='note'>model {_fmt(evaluation['model'])}</p>",
         _table([{"method": k, **v} for k, v in m.items()],
                ["method", "n", "accuracy", "macro_f1", "beta_mape", "interval_coverage",
