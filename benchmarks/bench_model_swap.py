@@ -94,11 +94,14 @@ class CachedRestoringForce:
         self.check = check
         self.results: dict[tuple, dict] = {}
 
-    def __call__(self, a: np.ndarray, fs: float, fn: float, sensor: dict | None) -> dict:
+    def __call__(self, a: np.ndarray, fs: float, fn: float, sensor: dict | None,
+                 *args: Any) -> dict:  # fmt: skip
+        # the rest (the card's stage ratio) is part of the key: a model with a learned
+        # two-stage law reads beta in its own sense
         digest = hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest()
-        key = (digest, float(fs), float(fn), json.dumps(sensor, sort_keys=True))
+        key = (digest, float(fs), float(fn), json.dumps(sensor, sort_keys=True), repr(args))
         if key not in self.results:
-            self.results[key] = self.check(a, fs, fn, sensor)
+            self.results[key] = self.check(a, fs, fn, sensor, *args)
         return copy.deepcopy(self.results[key])
 
 
