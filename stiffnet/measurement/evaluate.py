@@ -9,7 +9,9 @@ known beta and an estimate), sliced by beta class, gap, frequency ratio,
 amplitude and impact regime, with the worst recordings listed.
 
 Impact regime. From a simulation of the row with the manifest's parameters
-and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`):
+and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`,
+or the contact facts of a simulation the caller already ran: the loop passes its
+discrepancy's, :func:`stiffnet.measurement.compare.compare_campaign` with ``contact``):
 ``no_contact`` when the mass never reaches the restraint, ``grazing`` when the
 deepest penetration is under 5 % of the amplitude of the motion, else
 ``impacting``. Rows without the simulation columns fall back to the recording:
@@ -147,6 +149,7 @@ def evaluate_campaign(
     model_path: str | None = None,
     dynamics: Sequence[Effect] = (),
     require_beta: bool = True,
+    contact: Sequence[dict[str, float]] | None = None,
 ) -> dict[str, Any]:
     """Predictions and metrics of the learned model and the geometric method on a campaign.
 
@@ -160,6 +163,10 @@ def evaluate_campaign(
     require_beta : bool
         Refuse a campaign without any β (the ``evaluate`` command); the loop
         evaluates field campaigns too, where only the agreements mean something.
+    contact : sequence of dict, optional
+        Per recording, the contact facts of a simulation of the rows with ``dynamics``
+        already run (:func:`stiffnet.campaign.simulate.motion_contact`); default: simulated
+        here (:func:`stiffnet.campaign.simulate.simulated_contact`).
 
     Returns
     -------
@@ -182,7 +189,10 @@ def evaluate_campaign(
         )
     predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
-    contact = simulated_contact(campaign.rows, dynamics) if simulable else None
+    if not simulable:
+        contact = None
+    elif contact is None:
+        contact = simulated_contact(campaign.rows, dynamics)
     results, chain = campaign_predictions(campaign, model_path)
     rows = [_evaluated_row(row, res, None if contact is None else contact[i])
             for i, (row, res) in enumerate(zip(campaign.rows, results, strict=True))]  # fmt: skip
