@@ -36,8 +36,10 @@ dataset seed and near-edge share, with the accuracy the class read from the beta
 would give; ``--rig-families gbm,cnn`` trains each family on the same dataset (the CNN is
 the loop's default family), ``--rig-weights none,small_gaps`` draws the dataset with each
 per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), and
-``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Prints Markdown
-with the machine's load.
+``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Part 4c
+(``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 alone on that
+campaign, resumed from STATE's iteration 0 with the diagnosis D, the CPU seconds of its
+phases (``--rig-repeats`` runs). Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
@@ -46,6 +48,8 @@ with the machine's load.
     ... benchmarks/bench_loop_iteration.py --zero-chain 24,400 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-iteration /tmp/rig/two_stage-loop \
+        --rig-diagnosis d.json --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
         --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
 """
@@ -457,6 +461,45 @@ def rig_seeds(
                           f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
+def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1) -> None:
+    """Part 4c (``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 on
+    the rig's two-stage campaign (``CAMPAIGN``: ``--rig-dir``'s ``two_stage``), resumed from
+    a copy of STATE (a loop state folder of that campaign) cut to its iteration 0, with the
+    given diagnosis, in this process without tracking: the CPU seconds of its phases (the
+    iteration's ``cpu_seconds``) and its metrics, ``repeats`` times."""
+    import json
+    import shutil
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.loop import run_loop
+
+    camp = load_campaign(campaign)
+    diag = json.loads(diagnosis.read_text())
+    print("| run | dataset CPU s | training | evaluation + discrepancy | total | accuracy | β MAPE "
+          "| discrepancy | wall s | load |")  # fmt: skip
+    print("|---" * 10 + "|")
+    for k in range(repeats):
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp) / "loop"
+            st = json.loads((state / "state.json").read_text())
+            st.update(iterations=st["iterations"][:1], campaign=str(campaign.resolve()),
+                      tracking_uri=None)  # fmt: skip
+            shutil.copytree(state / "iter-000", folder / "iter-000")
+            shutil.copy(state / "stiffnet-run.json", folder / "stiffnet-run.json")
+            (folder / "state.json").write_text(json.dumps(st))
+            cfg = SimulationConfig.model_validate(st["start_config"])
+            t0 = time.perf_counter()
+            res = run_loop(camp, cfg, folder, iterations=1, diagnosis=diag, tracking_uri=None)
+            it, wall = res["iterations"][-1], time.perf_counter() - t0
+        c, m = it["cpu_seconds"], it["metrics"]
+        print(
+            f"| {k} | {c['dataset']:.1f} | {c['train']:.1f} | {c['evaluation']:.1f} | "
+            f"{c['total']:.1f} | {m['accuracy']:.3f} | {m['beta_mape']:.4f} | "
+            f"{m['discrepancy']:.4f} | {wall:.0f} | {os.getloadavg()[0]:.1f} |",
+            flush=True,
+        )
+
+
 def _cli(args: list[str]) -> tuple[float, float]:
     """``python -m stiffnet ARGS``: wall and CPU seconds (its processes and their children)."""
     import resource
@@ -567,6 +610,14 @@ def main() -> None:
     ap.add_argument("--rig-family", default="gbm")
     ap.add_argument("--rig-trajectories", type=int, default=None,
                     help="part 4: --n-trajectories (default the loop's); 4b: 400")  # fmt: skip
+    ap.add_argument(
+        "--rig-iteration",
+        type=Path,
+        default=None,
+        help="part 4c: a loop state folder of the two-stage campaign",
+    )
+    ap.add_argument("--rig-diagnosis", type=Path, default=None, help="part 4c: diagnose --json")
+    ap.add_argument("--rig-repeats", type=int, default=1, help="part 4c: runs")
     ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
     ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
     ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
@@ -574,6 +625,12 @@ def main() -> None:
     ap.add_argument("--rig-weights", default="none", help="part 4b: per-point rules, e.g. "
                     "none,small_gaps")  # fmt: skip
     args = ap.parse_args()
+    if args.rig_iteration:
+        if args.rig_diagnosis is None or args.rig_dir is None:
+            ap.error("--rig-iteration needs --rig-diagnosis and --rig-dir (its two_stage)")
+        rig_iteration(args.rig_iteration, args.rig_diagnosis, args.rig_dir / "two_stage",
+                      args.rig_repeats)  # fmt: skip
+        return
     if args.rig_seeds:
         rig_seeds(args.rig_dir or Path(tempfile.mkdtemp()),
                   [int(s) for s in args.rig_seeds.split(",")],

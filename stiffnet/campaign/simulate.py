@@ -234,7 +234,27 @@ def simulate_rows(
     effect_params: dict[str, dict[str, np.ndarray]] | None = None,
     oversample: bool = True,
 ) -> list[np.ndarray]:
-    """Simulate the rows as one batch; returns each row's acceleration in g.
+    """Simulate the rows as one batch; returns each row's acceleration in g (the arguments:
+    :func:`simulate_rows_contact`, which also returns the motion's contact facts).
+    """
+    return _simulate_rows(
+        rows, effects, lengths, seed, settings, starts, effect_params, oversample, False
+    )[0]
+
+
+def simulate_rows_contact(
+    rows: Sequence[ManifestRow],
+    effects: Sequence[Effect],
+    lengths: Sequence[int],
+    seed: int = DEFAULT_SEED,
+    settings: CampaignSolverSettings = CampaignSolverSettings(),
+    starts: Sequence[int] | None = None,
+    effect_params: dict[str, dict[str, np.ndarray]] | None = None,
+    oversample: bool = True,
+) -> tuple[list[np.ndarray], list[dict[str, float]]]:
+    """Simulate the rows as one batch: each row's acceleration in g, and the contact facts
+    of its simulated record (:func:`motion_contact`, for the impact regime), so that a
+    caller wanting both (the loop's evaluation and discrepancy) simulates the rows once.
 
     Parameters
     ----------
@@ -260,10 +280,31 @@ def simulate_rows(
 
     Returns
     -------
-    list of numpy.ndarray
+    accels : list of numpy.ndarray
+    contact : list of dict
+        Per row :func:`motion_contact` of the motion over the record returned (the lead-in
+        dropped), at the simulation's rate.
     """
+    return _simulate_rows(
+        rows, effects, lengths, seed, settings, starts, effect_params, oversample, True
+    )
+
+
+def _simulate_rows(
+    rows: Sequence[ManifestRow],
+    effects: Sequence[Effect],
+    lengths: Sequence[int],
+    seed: int,
+    settings: CampaignSolverSettings,
+    starts: Sequence[int] | None,
+    effect_params: dict[str, dict[str, np.ndarray]] | None,
+    oversample: bool,
+    with_contact: bool,
+) -> tuple[list[np.ndarray], list[dict[str, float]]]:
+    """:func:`simulate_rows_contact`; the contact facts only ``with_contact`` (a fit's
+    objective calls this hundreds of times and reads only the signals)."""
     if not rows:
-        return []
+        return [], []
     batch = rows_batch(rows)
     fs_ratio = np.array([r.fs_hz for r in rows]) / batch.natural_frequency_hz
     n = np.asarray(lengths, dtype=np.int64)
@@ -309,7 +350,13 @@ def simulate_rows(
         white = rng.standard_normal((len(rows), int(n.max())))
         std = noise * batch.forcing_scale
         out = [a + white[i, : a.size] * std[i] for i, a in enumerate(out)]
-    return [a * gains[i] for i, a in enumerate(out)]
+    record = [slice(lead[i], lead[i] + n[i] * k) for i in range(len(rows))] if with_contact else []
+    contact = [
+        motion_contact(res.x[i, r], res.contact_force[i, r], res.impacts[i, r],
+                       batch.gap[i], fs_ratio[i] * k, batch.omega[i])
+        for i, r in enumerate(record)
+    ]  # fmt: skip
+    return [a * gains[i] for i, a in enumerate(out)], contact
 
 
 #: The motion is simulated this many times faster than the logger's rate when an effect
@@ -435,17 +482,29 @@ def simulated_contact(
     out = []
     for i in range(len(rows)):
         k = int(np.ceil(periods * fs_ratio[i]))
-        x = res.x[i, :k]
-        pen = float(np.max(x - batch.gap[i]))
-        forcing_periods = k / fs_ratio[i] * batch.omega[i]
-        out.append(
-            {
-                "contact_fraction": float(np.mean(res.contact_force[i, :k] > 0)),
-                "impacts_per_period": float(res.impacts[i, :k].sum() / forcing_periods),
-                "max_penetration_ratio": pen / max(float(np.max(np.abs(x))), 1e-12),
-            }
-        )
+        out.append(motion_contact(res.x[i, :k], res.contact_force[i, :k], res.impacts[i, :k],
+                                  batch.gap[i], fs_ratio[i], batch.omega[i]))  # fmt: skip
     return out
+
+
+def motion_contact(
+    x: np.ndarray,
+    contact_force: np.ndarray,
+    impacts: np.ndarray,
+    gap: float,
+    fs_ratio: float,
+    omega: float,
+) -> dict[str, float]:
+    """Contact facts of one row's simulated motion (samples at ``fs_ratio`` per natural
+    period, forcing at ``omega``): ``contact_fraction``, ``impacts_per_period`` (per forcing
+    period) and ``max_penetration_ratio`` (deepest ``x - e`` over ``max |x|``)."""
+    pen = float(np.max(x - gap))
+    forcing_periods = x.size / fs_ratio * omega
+    return {
+        "contact_fraction": float(np.mean(contact_force > 0)),
+        "impacts_per_period": float(impacts.sum() / forcing_periods),
+        "max_penetration_ratio": pen / max(float(np.max(np.abs(x))), 1e-12),
+    }
 
 
 def impact_regime(contact: dict[str, float], grazing_ratio: float = 0.05) -> str:

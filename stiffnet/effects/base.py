@@ -39,7 +39,7 @@ A user effect is any subclass found at ``"package.module:ClassName"``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
@@ -265,6 +265,22 @@ class DynamicsEffect(Effect):
         """Dissipative contact force that depends on the penetration (e.g. Hunt-Crossley
         ``lambda delta^n delta'``), added to the elastic force in contact (B,)."""
         return None
+
+    def bound_elastic_contact(
+        self, p: ParamArrays, batch: Any
+    ) -> Callable[[np.ndarray], np.ndarray | None]:
+        """:meth:`elastic_contact` with the rows' parameters fixed, ``f(delta)``: the engine
+        binds it once per set of rows and calls it at every right-hand side. Override to
+        decide once what the parameters make of the law (the same numbers)."""
+        return lambda delta: self.elastic_contact(delta, p, batch)
+
+    def bound_contact_dissipation(
+        self, p: ParamArrays, batch: Any
+    ) -> Callable[[np.ndarray, np.ndarray], np.ndarray | None] | None:
+        """:meth:`contact_dissipation` with the rows' parameters fixed, ``f(delta, rate)``, or
+        None where it is zero on every row (nothing added). Override as
+        :meth:`bound_elastic_contact`."""
+        return lambda delta, rate: self.contact_dissipation(delta, rate, p, batch)
 
     n_states: ClassVar[int] = 0
     """Number of extra state variables the effect integrates (e.g. a restraint's DOF)."""

@@ -24,6 +24,7 @@ from stiffnet.campaign.simulate import (
     check_rows,
     natural_frequency,
     simulate_rows,
+    simulate_rows_contact,
 )
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.effects.base import Effect
@@ -47,6 +48,9 @@ class Comparison:
     measured: list[SignalStatistics]
     simulated: list[SignalStatistics | None]
     result: dict[str, Any]
+    #: Per recording, the contact facts of its simulation
+    #: (:func:`stiffnet.campaign.simulate.motion_contact`), when asked for.
+    contact: list[dict[str, float]] | None = None
 
 
 def config_effects(cfg: SimulationConfig) -> list[Effect]:
@@ -68,8 +72,13 @@ def compare_campaign(
     effects: Sequence[Effect] = (),
     settings: CampaignSolverSettings = CampaignSolverSettings(),
     seed: int = DEFAULT_SEED,
+    contact: bool = False,
 ) -> Comparison:
     """Compare every recording with its simulation (see the module notes).
+
+    ``contact``: also keep the contact facts of each row's simulation (``Comparison.contact``,
+    the impact regime of :func:`stiffnet.measurement.evaluate.evaluate_campaign`), from the
+    same simulation: the same signals, the rows simulated once.
 
     Returns
     -------
@@ -89,7 +98,11 @@ def compare_campaign(
     rows, _ = resolve_rows(campaign)
     check_rows(rows, str(campaign.manifest_path))
     measured, lengths, _ = measured_statistics(campaign, rows)  # shared with diagnose
-    sims = simulate_rows(rows, effects, lengths, seed, settings)
+    facts = None
+    if contact:
+        sims, facts = simulate_rows_contact(rows, effects, lengths, seed, settings)
+    else:
+        sims = simulate_rows(rows, effects, lengths, seed, settings)
     simulated = [_simulated_statistics(row, a) for row, a in zip(rows, sims, strict=True)]
     recs = []
     sq = {c: [] for c in COMPONENTS}
@@ -101,7 +114,7 @@ def compare_campaign(
         "seed": seed,
         **_campaign_summary(recs, sq),
     }
-    return Comparison(measured, simulated, result)
+    return Comparison(measured, simulated, result, facts)
 
 
 def _simulated_statistics(row: Any, accel: np.ndarray) -> SignalStatistics | None:

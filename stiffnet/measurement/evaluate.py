@@ -11,7 +11,9 @@ simulation against the same dynamics, and the reading the loop reports are added
 :mod:`stiffnet.measurement.simulation_reading` (``configs/simulated_beta.yaml``).
 
 Impact regime. From a simulation of the row with the manifest's parameters
-and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`):
+and the current model's dynamics (:func:`stiffnet.campaign.simulate.simulated_contact`,
+or the contact facts of a simulation the caller already ran: the loop passes its
+discrepancy's, :func:`stiffnet.measurement.compare.compare_campaign` with ``contact``):
 ``no_contact`` when the mass never reaches the restraint, ``grazing`` when the
 deepest penetration is under 5 % of the amplitude of the motion, else
 ``impacting``. Rows without the simulation columns fall back to the recording:
@@ -154,6 +156,7 @@ def evaluate_campaign(
     require_beta: bool = True,
     simulation: SimulatedBetaConfig | None = None,
     settings: CampaignSolverSettings | None = None,
+    contact: Sequence[dict[str, float]] | None = None,
 ) -> dict[str, Any]:
     """Predictions and metrics of the learned model and the geometric method on a campaign.
 
@@ -171,6 +174,10 @@ def evaluate_campaign(
         The reading by simulation (default: ``configs/simulated_beta.yaml``).
     settings : CampaignSolverSettings, optional
         The simulator config's solver settings, for the reading by simulation.
+    contact : sequence of dict, optional
+        Per recording, the contact facts of a simulation of the rows with ``dynamics``
+        already run (:func:`stiffnet.campaign.simulate.motion_contact`); default: simulated
+        here (:func:`stiffnet.campaign.simulate.simulated_contact`).
 
     Returns
     -------
@@ -199,7 +206,10 @@ def evaluate_campaign(
         )
     predictor = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
     simulable = all(getattr(r, c) is not None for r in campaign.rows for c in SIMULATION_COLUMNS)
-    contact = simulated_contact(campaign.rows, dynamics) if simulable else None
+    if not simulable:
+        contact = None
+    elif contact is None:
+        contact = simulated_contact(campaign.rows, dynamics)
     results, chain = campaign_predictions(campaign, model_path)
     results, law = campaign_law_alarms(results)
     rows = [_evaluated_row(row, res, None if contact is None else contact[i])

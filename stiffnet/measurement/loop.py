@@ -495,16 +495,15 @@ def _iteration(
     )  # fmt: skip
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     c_eval = cpu_seconds()
-    evaluation = evaluate_campaign(
-        campaign,
-        trained["onnx"],
-        config_effects(fixed_cfg),
-        require_beta=False,
-        settings=config_settings(fixed_cfg),
-    )
+    # one simulation of the campaign for the discrepancy and the evaluation's impact regime
     cmp = compare_campaign(
-        campaign, config_effects(fixed_cfg), config_settings(fixed_cfg), state["seed"]
-    )
+        campaign, config_effects(fixed_cfg), config_settings(fixed_cfg), state["seed"],
+        contact=True,
+    )  # fmt: skip
+    evaluation = evaluate_campaign(
+        campaign, trained["onnx"], config_effects(fixed_cfg), require_beta=False,
+        settings=config_settings(fixed_cfg), contact=cmp.contact,
+    )  # fmt: skip
     metrics = iteration_metrics(evaluation, cmp.result["discrepancy"])
     write_json_atomic(work / "evaluation.json", evaluation)
     if diagnosis is not None:

@@ -169,7 +169,6 @@ class _Model:
         cc: np.ndarray,
     ) -> None:
         self.effects = effects
-        self._set_rows(batch, params, forcing, gap, cc)
         elastic = [k for k, e in enumerate(effects) if _overrides(e, "elastic_contact")]
         if len(elastic) > 1:
             names = ", ".join(effects[k].name for k in elastic)
@@ -190,6 +189,7 @@ class _Model:
         self.restraints = [
             (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
         ]
+        self._set_rows(batch, params, forcing, gap, cc)
 
     def _set_rows(
         self,
@@ -208,6 +208,15 @@ class _Model:
         self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
         self.has_cc = bool(np.any(cc != 0))
         self.zero = np.zeros(self.n)
+        # the contact law's hooks bound to these rows' parameters once (a subset is made at
+        # every event; the right-hand side runs hundreds of thousands of times)
+        k = self.elastic
+        self._elastic = (
+            None if k is None else self.effects[k].bound_elastic_contact(params[k], batch)
+        )
+        bound = [self.effects[k].bound_contact_dissipation(params[k], batch)
+                 for k in self.dissipative]  # fmt: skip
+        self._dissipations = [f for f in bound if f is not None]
 
     def subset(self, idx: np.ndarray) -> _Model:
         """The same model restricted to rows ``idx`` (hooks are not called again)."""
@@ -301,15 +310,13 @@ class _Model:
                 dyr = dyr + (eff.restraint_position(s + ds0, p) - r)
         delta = x - e - yr
         dd = v - de - dyr
-        if self.elastic is None:
+        if self._elastic is None:
             elastic = self.beta * delta
         else:
-            k = self.elastic
-            elastic = effects[k].elastic_contact(np.maximum(delta, 0.0), params[k], self.batch)
+            elastic = self._elastic(np.maximum(delta, 0.0))
         fpot = elastic + self.cc * dd if self.has_cc else elastic
-        for k in self.dissipative:  # a damping that depends on the penetration (Hunt-Crossley)
-            dk = effects[k].contact_dissipation(np.maximum(delta, 0.0), dd, params[k], self.batch)
-            fpot = fpot + dk
+        for dissipation in self._dissipations:  # a damping growing with the penetration
+            fpot = fpot + dissipation(np.maximum(delta, 0.0), dd)
         fc = np.where(contact, fpot, 0.0)
         base = f_t - self.xi2 * v - x - fc
         total = base
