@@ -476,8 +476,9 @@ def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1
     camp = load_campaign(campaign)
     diag = json.loads(diagnosis.read_text())
     print("| run | dataset CPU s | training | evaluation + discrepancy | total | accuracy | β MAPE "
-          "| discrepancy | wall s | load |")  # fmt: skip
-    print("|---" * 10 + "|")
+          "| reading (simulation where it reproduces): accuracy / β MAPE | discrepancy | wall s "
+          "| load |")  # fmt: skip
+    print("|---" * 11 + "|")
     for k in range(repeats):
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "loop"
@@ -495,9 +496,15 @@ def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1
         print(
             f"| {k} | {c['dataset']:.1f} | {c['train']:.1f} | {c['evaluation']:.1f} | "
             f"{c['total']:.1f} | {m['accuracy']:.3f} | {m['beta_mape']:.4f} | "
+            f"{_pair(m.get('reading_accuracy'), m.get('reading_beta_mape'))} | "
             f"{m['discrepancy']:.4f} | {wall:.0f} | {os.getloadavg()[0]:.1f} |",
             flush=True,
         )
+
+
+def _pair(accuracy: float | None, mape: float | None) -> str:
+    """``accuracy / MAPE``, or a dash where the evaluation has no such reading."""
+    return "-" if accuracy is None else f"{accuracy:.3f} / {mape:.4f}"
 
 
 def _cli(args: list[str]) -> tuple[float, float]:
