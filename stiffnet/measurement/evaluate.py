@@ -93,8 +93,10 @@ def alarm_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     the beta interval held the manifest's beta (recordings with contact and a known beta)."""
     known = [r for r in rows if r["true_class"] is not None]
     return {
-        "alarm_rate": _share(r.get("ood") for r in rows),
-        "alarm_rate_wrong": _share(r.get("ood") for r in known if r["class"] != r["true_class"]),
+        "alarm_rate": flag_share(r.get("ood") for r in rows),
+        "alarm_rate_wrong": flag_share(
+            r.get("ood") for r in known if r["class"] != r["true_class"]
+        ),
         "interval_coverage": interval_coverage(rows, "beta_interval"),
     }
 
@@ -109,7 +111,7 @@ def interval_coverage(rows: Sequence[dict[str, Any]], key: str) -> float | None:
     return float(np.mean(hits)) if hits else None
 
 
-def _share(flags) -> float | None:
+def flag_share(flags) -> float | None:
     """Fraction of True among the flags that are not None."""
     known = [bool(f) for f in flags if f is not None]
     return float(np.mean(known)) if known else None
@@ -227,7 +229,7 @@ def evaluate_campaign(
             "restoring_force": {
                 **method_metrics(rows, "restoring_force_class", "restoring_force_beta"),
                 "interval_coverage": interval_coverage(rows, "restoring_force_beta_interval"),
-                "agreement_with_learned": _share(r["restoring_force_agreement"] for r in rows),
+                "agreement_with_learned": flag_share(r["restoring_force_agreement"] for r in rows),
             },
         },
         "slices": sliced_metrics(rows),

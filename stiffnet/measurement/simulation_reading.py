@@ -48,7 +48,7 @@ def with_simulation(
 ) -> dict[str, Any]:
     """``evaluation`` with the simulation method, its alarm and the reading (module notes);
     ``simulation`` holds its rule, settings, CPU seconds, or why it did not run."""
-    from stiffnet.measurement.evaluate import interval_coverage, method_metrics
+    from stiffnet.measurement.evaluate import flag_share, interval_coverage, method_metrics
 
     cfg = config or simulated_beta_config()
     if not cfg.enabled:
@@ -63,9 +63,9 @@ def with_simulation(
         **method_metrics(read, "simulation_class", "simulation_beta"),
         "read": len(read),
         "interval_coverage": interval_coverage(read, "simulation_beta_interval"),
-        "reproduced_share": _share([r["simulation_reproduced"] for r in read]),
+        "reproduced_share": flag_share([r["simulation_reproduced"] for r in read]),
         "alarms": sum(bool(r["simulation_alarm"]) for r in rows),
-        "alarm_rate": _share([r["simulation_alarm"] for r in rows]),
+        "alarm_rate": flag_share([r["simulation_alarm"] for r in rows]),
         **_wrong_silent(rows),
     }
     evaluation["metrics"]["simulation"] = metrics
@@ -123,11 +123,6 @@ def _wrong_silent(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
             not r.get("ood") and not r.get("simulation_alarm") for r in wrong
         ),
     }
-
-
-def _share(flags: Sequence[bool | None]) -> float | None:
-    known = [bool(f) for f in flags if f is not None]
-    return sum(known) / len(known) if known else None
 
 
 def summary_lines(evaluation: dict[str, Any]) -> list[str]:
