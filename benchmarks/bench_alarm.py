@@ -53,7 +53,7 @@ import independent_rig as rig  # noqa: E402
 
 from serving.predictor import Predictor  # noqa: E402
 from stiffnet.io_utils import write_json_atomic  # noqa: E402
-from stiffnet.measurement.evaluate import true_class  # noqa: E402
+from stiffnet.measurement.metrics import true_class  # noqa: E402
 from stiffnet.uncertainty.campaign_law import campaign_law_alarms  # noqa: E402
 from stiffnet.uncertainty.unseen_law import unseen_law_reasons, unseen_law_thresholds  # noqa: E402
 

@@ -425,7 +425,7 @@ def rig_seeds(
 
     from stiffnet.campaign import load_campaign
     from stiffnet.effects.learned_contact import LearnedContact
-    from stiffnet.measurement.evaluate import true_class
+    from stiffnet.measurement.metrics import true_class
 
     camp_dir = folder / "two_stage"
     if not (camp_dir / "manifest.csv").is_file():

@@ -109,7 +109,7 @@ def beta_by_simulation(camp, meas, rows, lengths, law, seed: int, floors: dict,
                        grid: np.ndarray) -> None:  # fmt: skip
     """``--estimate``: each recording's beta at the least discrepancy over ``grid`` (see the
     module notes), its class against the manifest's, and the accuracy and MAPE."""
-    from stiffnet.measurement.evaluate import true_class
+    from stiffnet.measurement.metrics import true_class
 
     alt = [r.model_copy(update={"beta": float(b)}) for r in rows for b in grid]
     n = len(grid)

@@ -10,7 +10,7 @@ from stiffnet.config.sim import SimulationConfig, randomised_effects
 from stiffnet.errors import ConfigError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
 from stiffnet.measurement.compare import beta_class_name
-from stiffnet.measurement.evaluate import true_class
+from stiffnet.measurement.metrics import true_class
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -21,7 +21,7 @@ from stiffnet.campaign import ManifestRow, load_campaign, simulate_campaign
 from stiffnet.cli import app
 from stiffnet.measurement import plots, report, report_figures
 from stiffnet.measurement.compare import Comparison, compare_campaign
-from stiffnet.measurement.evaluate import sliced_metrics
+from stiffnet.measurement.metrics import sliced_metrics
 from stiffnet.measurement.report import render_report
 from stiffnet.measurement.report_words import (
     Units,

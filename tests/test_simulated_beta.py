@@ -17,7 +17,7 @@ from campaign_helpers import short_manifest
 
 from stiffnet.campaign import load_campaign, simulate_campaign
 from stiffnet.errors import ConfigError
-from stiffnet.measurement.evaluate import true_class
+from stiffnet.measurement.metrics import true_class
 from stiffnet.measurement.simulated_beta import (
     SimulatedBetaConfig,
     beta_by_least_discrepancy,

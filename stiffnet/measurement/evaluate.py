@@ -25,130 +25,26 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-import numpy as np
-
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
 from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import CampaignSolverSettings, impact_regime, simulated_contact
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
-from stiffnet.geometry.calibration import NO_CONTACT, beta_class
+from stiffnet.geometry.calibration import NO_CONTACT
+from stiffnet.measurement.metrics import (
+    alarm_metrics,
+    flag_share,
+    interval_coverage,
+    method_metrics,
+    sliced_metrics,
+    true_class,
+)
 from stiffnet.measurement.nuisance import predicted
 from stiffnet.measurement.simulated_beta import SimulatedBetaConfig
 from stiffnet.measurement.simulation_reading import with_simulation
 from stiffnet.uncertainty.campaign_law import campaign_law_alarms
 
-#: Slices of the metrics: manifest column and its bin edges (None: the column is categorical).
-SLICE_EDGES: dict[str, list[float]] = {
-    "gap": [-np.inf, 0.5, 1.5, 2.5, np.inf],
-    "frequency_ratio": [0.0, 0.95, 1.05, np.inf],
-    "amplitude": [0.0, 1.0, 1.5, np.inf],
-}
 N_WORST = 5
-
-
-def true_class(beta: float | None, contact: bool) -> str | None:
-    """The label a recording should get: its beta class, or no_contact."""
-    if beta is None:
-        return None
-    return str(beta_class(beta)) if contact else NO_CONTACT
-
-
-def macro_f1(truth: Sequence[str], pred: Sequence[str]) -> float:
-    """Macro-averaged F1 over the classes present in either list."""
-    labels = sorted(set(truth) | set(pred))
-    if not labels:
-        return float("nan")
-    f1 = []
-    for c in labels:
-        tp = sum(t == c and p == c for t, p in zip(truth, pred, strict=True))
-        fp = sum(t != c and p == c for t, p in zip(truth, pred, strict=True))
-        fn = sum(t == c and p != c for t, p in zip(truth, pred, strict=True))
-        f1.append(2 * tp / (2 * tp + fp + fn) if tp + fp + fn else 0.0)
-    return float(np.mean(f1))
-
-
-def method_metrics(rows: Sequence[dict[str, Any]], cls_key: str, beta_key: str) -> dict[str, Any]:
-    """Accuracy, macro-F1 and beta MAPE of one method over recordings with a known class."""
-    known = [r for r in rows if r["true_class"] is not None]
-    truth = [r["true_class"] for r in known]
-    pred = [str(r[cls_key]) for r in known]
-    ape = [
-        abs(r[beta_key] - r["beta"]) / r["beta"]
-        for r in known
-        if r[beta_key] is not None and r["beta"] and r["true_class"] != NO_CONTACT
-    ]
-    return {
-        "n": len(known),
-        "accuracy": float(np.mean([t == p for t, p in zip(truth, pred, strict=True)]))
-        if known
-        else None,
-        "macro_f1": macro_f1(truth, pred) if known else None,
-        "beta_mape": float(np.mean(ape)) if ape else None,
-    }
-
-
-def alarm_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """How often the alarm fired, on the wrongly classified recordings too, and how often
-    the beta interval held the manifest's beta (recordings with contact and a known beta)."""
-    known = [r for r in rows if r["true_class"] is not None]
-    return {
-        "alarm_rate": flag_share(r.get("ood") for r in rows),
-        "alarm_rate_wrong": flag_share(
-            r.get("ood") for r in known if r["class"] != r["true_class"]
-        ),
-        "interval_coverage": interval_coverage(rows, "beta_interval"),
-    }
-
-
-def interval_coverage(rows: Sequence[dict[str, Any]], key: str) -> float | None:
-    """Fraction of the recordings with a known beta and an interval whose interval holds it."""
-    hits = [
-        r[key][0] <= r["beta"] <= r[key][1]
-        for r in rows
-        if r.get(key) and r["beta"] and r["true_class"] not in (None, NO_CONTACT)
-    ]
-    return float(np.mean(hits)) if hits else None
-
-
-def flag_share(flags) -> float | None:
-    """Fraction of True among the flags that are not None."""
-    known = [bool(f) for f in flags if f is not None]
-    return float(np.mean(known)) if known else None
-
-
-def _bin_label(value: float | None, edges: list[float]) -> str:
-    if value is None:
-        return "unknown"
-    k = int(np.searchsorted(edges, value, side="right")) - 1
-    k = min(max(k, 0), len(edges) - 2)
-    return f"[{edges[k]:g}, {edges[k + 1]:g})"
-
-
-def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Both methods' metrics by beta class, gap, frequency ratio, amplitude and impact regime."""
-    keys: dict[str, Any] = {
-        "beta_class": lambda r: r["true_class"] or "unknown",
-        "impact_regime": lambda r: r["impact_regime"],
-    }
-    for col, edges in SLICE_EDGES.items():
-        keys[col] = lambda r, col=col, edges=edges: _bin_label(r.get(col), edges)
-    out: dict[str, dict[str, Any]] = {}
-    for name, key in keys.items():
-        groups: dict[str, list[dict[str, Any]]] = {}
-        for r in rows:
-            groups.setdefault(key(r), []).append(r)
-        out[name] = {
-            g: {
-                "learned": method_metrics(rs, "class", "beta_estimate"),
-                "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
-                "restoring_force": method_metrics(
-                    rs, "restoring_force_class", "restoring_force_beta"
-                ),
-            }
-            for g, rs in sorted(groups.items())
-        }
-    return out
 
 
 def evaluate_campaign(

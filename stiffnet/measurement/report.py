@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.io_utils import write_bytes_atomic
+from stiffnet.measurement.metrics import SLICE_EDGES, bin_label
 from stiffnet.measurement.report_figures import comparison_figures, loop_alt, ranking_alt
 from stiffnet.measurement.report_units import nuisance_lines, reading_of
 from stiffnet.measurement.report_words import (
@@ -377,15 +378,13 @@ def alarm_section(recordings: list[dict[str, Any]]) -> list[str]:
 
 def slices_section(evaluation: dict[str, Any], units: Units) -> list[str]:
     """The metrics by beta class, impact regime and operating point (in ``units``)."""
-    from stiffnet.measurement.evaluate import SLICE_EDGES, _bin_label
-
     parts = []
     recs = evaluation["recordings"]
     for name, groups in evaluation["slices"].items():
         rows = []
         for g, v in groups.items():
             if name in SLICE_EDGES:
-                members = [r for r in recs if _bin_label(r.get(name), SLICE_EDGES[name]) == g]
+                members = [r for r in recs if bin_label(r.get(name), SLICE_EDGES[name]) == g]
                 label = units.slice_label(name, g, members)
             else:
                 label = f"{name.replace('_', ' ')} {g}"

@@ -29,6 +29,7 @@ from typing import Any
 from stiffnet.campaign import Campaign
 from stiffnet.campaign.simulate import CampaignSolverSettings
 from stiffnet.effects.base import Effect
+from stiffnet.measurement.metrics import flag_share, interval_coverage, method_metrics
 from stiffnet.measurement.simulated_beta import (
     SimulatedBetaConfig,
     beta_by_least_discrepancy,
@@ -48,8 +49,6 @@ def with_simulation(
 ) -> dict[str, Any]:
     """``evaluation`` with the simulation method, its alarm and the reading (module notes);
     ``simulation`` holds its rule, settings, CPU seconds, or why it did not run."""
-    from stiffnet.measurement.evaluate import flag_share, interval_coverage, method_metrics
-
     cfg = config or simulated_beta_config()
     if not cfg.enabled:
         evaluation["simulation"] = {"ran": False, "why": "switched off (simulated_beta.yaml)"}
