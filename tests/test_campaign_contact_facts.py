@@ -80,3 +80,21 @@ def test_evaluate_takes_the_given_contact_facts(campaign, monkeypatch):
     for evaluation in (given, own):
         evaluation["simulation"].pop("cpu_seconds")
     assert json.dumps(given) == json.dumps(own)
+
+
+def test_report_simulates_the_campaign_once(campaign, tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the campaign was simulated again")
+
+    monkeypatch.setattr(evaluate_mod, "simulated_contact", refused)
+    html, out = tmp_path / "r.html", tmp_path / "r.json"
+    args = ["report", campaign.folder, "--model", GBM, "--no-diagnose", "--out", html,
+            "--json", out]  # fmt: skip
+    res = CliRunner().invoke(app, [str(a) for a in args])
+    assert res.exit_code == 0, res.output
+    assert html.is_file()
+    assert json.loads(out.read_text())["discrepancy"] > 0

@@ -625,15 +625,16 @@ def report(
     diag = _read_json(diagnosis, "diagnosis")  # the given results are checked before any work
     loop_result = _read_json(loop_json, "loop")
     camp, cfg = _load(campaign, config)
-    effects = config_effects(cfg)
-    diag = _read_json(diagnosis, "diagnosis")
+    effects, settings = config_effects(cfg), config_settings(cfg)
     stages = 2 + int(diag is None and run_diagnose)
     with _progress(), progress_task("report stages", stages) as bar:
-        bar.update(note="evaluate")
+        bar.update(note="compare")
+        # one simulation of the campaign: the discrepancy's gives evaluate its impact regimes
+        cmp = compare_campaign(camp, effects, settings, contact=True)
+        bar.advance(note="evaluate")
         # a field campaign (no beta) is reported too: the readings side by side
-        ev = evaluate_campaign(camp, str(model) if model else None, effects, require_beta=False)
-        bar.advance(note="compare")
-        cmp = compare_campaign(camp, effects, config_settings(cfg))
+        ev = evaluate_campaign(camp, str(model) if model else None, effects, require_beta=False,
+                               settings=settings, contact=cmp.contact)  # fmt: skip
         if diag is None and run_diagnose:
             bar.advance(note="diagnose")
             diag = diagnose_campaign(camp, effects)
