@@ -216,6 +216,33 @@ def _evaluation(rows):
             "metrics": {"learned": {"n": len(rows)}}, "slices": sliced_metrics(rows)}  # fmt: skip
 
 
+def test_evaluate_table_and_slices_carry_beta_by_simulation_and_the_reading():
+    read = _evaluated("read.csv")
+    read.update({"simulation_class": "medium", "simulation_beta": 20.5,
+                 "simulation_beta_interval": [19.25, 21.75], "simulation_reproduced": True,
+                 "reading_class": "medium", "reading_beta": 20.5,
+                 "reading_method": "simulation"})  # fmt: skip
+    lost = _evaluated("lost.csv", ratio=0.9)
+    lost.update({"class": "hard", "simulation_class": None, "simulation_beta": None,
+                 "simulation_beta_interval": None, "simulation_reproduced": None,
+                 "reading_class": "hard", "reading_beta": 21.0,
+                 "reading_method": "learned"})  # fmt: skip
+    slices = sliced_metrics([read, lost])
+    medium = slices["beta_class"]["medium"]
+    # the simulation is scored on what it read, the reading on every recording
+    assert medium["simulation"]["n"] == 1 and medium["simulation"]["accuracy"] == 1.0
+    assert medium["reading"]["n"] == 2 and medium["reading"]["accuracy"] == 0.5
+    assert medium["learned"]["accuracy"] == 0.5
+    page = render_report("t", _evaluation([read, lost]), None, None)
+    assert "beta (simulation)" in page and "[19.2, 21.8]" in page
+    assert "medium (simulation)" in page and "hard (learned)" in page
+    assert "reading accuracy" in page and "simulation beta MAPE" in page
+    # without the simulation the table and the slices stay as they were
+    plain = _evaluation([_evaluated("a.csv")])
+    assert "simulation" not in plain["slices"]["beta_class"]["medium"]
+    assert "beta (simulation)" not in render_report("t", plain, None, None)
+
+
 def test_evaluate_table_has_both_beta_intervals_and_alarm_checks_in_words():
     rows = [_evaluated("quiet.csv"), _evaluated("loud.csv", fired=["embedding"])]
     renamed = _evaluated("renamed.csv")

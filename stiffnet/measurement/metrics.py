@@ -104,27 +104,42 @@ def bin_label(value: float | None, edges: list[float]) -> str:
     return f"[{edges[k]:g}, {edges[k + 1]:g})"
 
 
+#: Each method's class and beta keys in a recording's row; ``simulation`` and ``reading``
+#: are there once :mod:`stiffnet.measurement.simulation_reading` has run.
+METHOD_KEYS: dict[str, tuple[str, str]] = {
+    "learned": ("class", "beta_estimate"),
+    "geometric": ("geometric_class", "geometric_beta"),
+    "restoring_force": ("restoring_force_class", "restoring_force_beta"),
+    "simulation": ("simulation_class", "simulation_beta"),
+    "reading": ("reading_class", "reading_beta"),
+}
+
+
+def _method_rows(rows: Sequence[dict[str, Any]], method: str) -> list[dict[str, Any]]:
+    """The rows a method is scored on: all of them (a refusal is a wrong class), but for the
+    simulation only the recordings it read (as its campaign metrics)."""
+    if method == "simulation":
+        return [r for r in rows if r.get("simulation_class") is not None]
+    return list(rows)
+
+
 def sliced_metrics(rows: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Both methods' metrics by beta class, gap, frequency ratio, amplitude and impact regime."""
+    """Every method's metrics (those whose keys the rows carry) by beta class, gap,
+    frequency ratio, amplitude and impact regime."""
     keys: dict[str, Any] = {
         "beta_class": lambda r: r["true_class"] or "unknown",
         "impact_regime": lambda r: r["impact_regime"],
     }
     for col, edges in SLICE_EDGES.items():
         keys[col] = lambda r, col=col, edges=edges: bin_label(r.get(col), edges)
+    methods = {m: k for m, k in METHOD_KEYS.items() if any(k[0] in r for r in rows)}
     out: dict[str, dict[str, Any]] = {}
     for name, key in keys.items():
         groups: dict[str, list[dict[str, Any]]] = {}
         for r in rows:
             groups.setdefault(key(r), []).append(r)
         out[name] = {
-            g: {
-                "learned": method_metrics(rs, "class", "beta_estimate"),
-                "geometric": method_metrics(rs, "geometric_class", "geometric_beta"),
-                "restoring_force": method_metrics(
-                    rs, "restoring_force_class", "restoring_force_beta"
-                ),
-            }
+            g: {m: method_metrics(_method_rows(rs, m), *k) for m, k in methods.items()}
             for g, rs in sorted(groups.items())
         }
     return out

@@ -354,10 +354,26 @@ def _evaluated_row(r: dict[str, Any], units: Units, level: str) -> dict[str, Any
         "restoring-force class": _rf(r, "class"),
         "beta (restoring force)": _rf(r, "beta"),
         "restoring-force interval": _interval(_rf(r, "beta_interval")),
+        **_simulation_columns(r),
         "impact regime": r.get("impact_regime"),
         "alarm": ("fired: " + ", ".join(map(str, fired))) if fired else "none",
         _HEADERS["error"]: r.get("error"),
     }
+
+
+def _simulation_columns(r: dict[str, Any]) -> dict[str, Any]:
+    """Beta by simulation and the reading, where the evaluation ran them (none otherwise)."""
+    if "simulation_class" not in r:
+        return {}
+    cols = {
+        "simulation class": r.get("simulation_class"),
+        "beta (simulation)": r.get("simulation_beta"),
+        "simulation interval": _interval(r.get("simulation_beta_interval")),
+        "reproduced": r.get("simulation_reproduced"),
+    }
+    if "reading_class" in r:
+        cols["reading"] = f"{r['reading_class']} ({r.get('reading_method')})"
+    return cols
 
 
 def alarm_section(recordings: list[dict[str, Any]]) -> list[str]:
@@ -397,6 +413,8 @@ def slices_section(evaluation: dict[str, Any], units: Units) -> list[str]:
                 "geometric beta MAPE": v["geometric"]["beta_mape"],
                 "restoring-force accuracy": v.get("restoring_force", {}).get("accuracy"),
                 "restoring-force beta MAPE": v.get("restoring_force", {}).get("beta_mape"),
+                **{f"{m} {what}": v[m][key] for m in ("simulation", "reading") if m in v
+                   for what, key in (("accuracy", "accuracy"), ("beta MAPE", "beta_mape"))},
             })  # fmt: skip
         parts.append(_table(rows, list(rows[0]) if rows else ["slice"]))
     return parts

@@ -29,7 +29,12 @@ from typing import Any
 from stiffnet.campaign import Campaign
 from stiffnet.campaign.simulate import CampaignSolverSettings
 from stiffnet.effects.base import Effect
-from stiffnet.measurement.metrics import flag_share, interval_coverage, method_metrics
+from stiffnet.measurement.metrics import (
+    flag_share,
+    interval_coverage,
+    method_metrics,
+    sliced_metrics,
+)
 from stiffnet.measurement.simulated_beta import (
     SimulatedBetaConfig,
     beta_by_least_discrepancy,
@@ -73,6 +78,7 @@ def with_simulation(
             **method_metrics(rows, "reading_class", "reading_beta"),
             "from_simulation": sum(r["reading_method"] == SIMULATION for r in rows),
         }
+    evaluation["slices"] = sliced_metrics(rows)  # the slices gain both methods too
     evaluation["simulation"] = {
         "ran": True,
         "effects": [repr(e) for e in effects],
