@@ -12,7 +12,10 @@ alarm):
   (``rig_ideal``), Kelvin-Voigt zeta 0.2-0.4 (``rig_kv``), Hunt-Crossley lambda 8-25 s/m
   (``rig_hc``), two-stage knee 0.2 mm ratio 3 (``rig_two_stage``), power law n = 2
   (``rig_power``), the stop at the tip of a cantilever (mass 0.3 m, first mode 10 f_n, two
-  modes; ``rig_beam``).
+  modes; ``rig_beam``); laws in pairs: the same rig behind a mounted accelerometer
+  (resonance 237 Hz = 25 f_n, damping 0.05, high-pass 1 Hz; ``LAB_MOUNT``) with no contact
+  law (``rig_sensor``), Hunt-Crossley (``rig_hc_sensor``) or two-stage
+  (``rig_two_stage_sensor``).
 
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
@@ -60,14 +63,22 @@ from stiffnet.uncertainty.unseen_law import unseen_law_reasons, unseen_law_thres
 ROBUSTNESS_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
                    "damping_and_sensor", "bilinear_contact", "hunt_crossley_contact",
                    "power_law_contact"]  # fmt: skip
+#: A lab's mounted accelerometer: resonance 237 Hz (25 f_n), damping 0.05, high-pass 1 Hz.
+LAB_MOUNT = {"resonance_hz": 237.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
+_TWO_STAGE = {"contact": "two_stage", "knee_mm": 0.2, "stage_ratio": 3.0}
 #: The independent rig's contact laws (RigRun keywords; a draw's zeta / lambda where named).
 RIG_SETS: dict[str, dict[str, Any]] = {
     "rig_ideal": {},
     "rig_kv": {"contact": "kelvin_voigt"},
     "rig_hc": {"contact": "hunt_crossley"},
-    "rig_two_stage": {"contact": "two_stage", "knee_mm": 0.2, "stage_ratio": 3.0},
+    "rig_two_stage": _TWO_STAGE,
     "rig_power": {"contact": "power_law", "power_exponent": 2.0},
     "rig_beam": {"contact": "beam"},
+    # laws in pairs: a mounted accelerometer (resonance 25 f_n, high-pass 1 Hz) alone, the
+    # training world's, and behind two laws it lacks
+    "rig_sensor": {"sensor": LAB_MOUNT},
+    "rig_hc_sensor": {"contact": "hunt_crossley", "sensor": LAB_MOUNT},
+    "rig_two_stage_sensor": {**_TWO_STAGE, "sensor": LAB_MOUNT},
 }
 RIG_SEED = 7
 

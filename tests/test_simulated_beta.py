@@ -25,7 +25,7 @@ from stiffnet.measurement.simulated_beta import (
     load_simulated_beta_config,
     simulated_beta_config,
 )
-from stiffnet.measurement.simulation_reading import disjoint_alarm
+from stiffnet.measurement.simulation_reading import _add_row, disjoint_alarm
 
 #: Four recordings of the example manifest (beta 8, 14, 22, 30), 3 s each.
 N_ROWS = 4
@@ -102,6 +102,28 @@ def test_disjoint_intervals_alarm_only_where_reproduced():
     assert disjoint_alarm(None, sim) is None
 
 
+def test_a_reading_the_model_does_not_exclude_is_undecided():
+    sim = {"class": "hard", "beta": 53.3, "beta_interval": [33.6, 84.5], "floor_ratio": 1.5,
+           "reproduced": True, "reason": ""}  # fmt: skip
+
+    def row(cls, interval):
+        r = {"class": cls, "beta_estimate": 81.4, "beta_interval": interval}
+        _add_row(r, sim, reading=True)
+        return r
+
+    # another class, overlapping intervals: the reading takes the simulation's, undecided
+    r = row("very_hard", [62.7, 105.6])
+    assert (r["reading_method"], r["reading_class"]) == ("simulation", "hard")
+    assert r["reading_undecided"] is True and r["simulation_alarm"] is False
+    # the same class, or intervals that exclude each other (the simulation's alarm): decided
+    assert row("hard", [40.0, 60.0])["reading_undecided"] is False
+    far = row("very_hard", [90.0, 120.0])
+    assert far["reading_undecided"] is False and far["simulation_alarm"] is True
+    # not reproduced: the model's reading, nothing to decide
+    sim["reproduced"] = False
+    assert row("very_hard", [62.7, 105.6])["reading_undecided"] is False
+
+
 def test_evaluate_reports_the_simulation_and_the_reading(campaign):
     from stiffnet.measurement.evaluate import evaluate_campaign
 
@@ -120,5 +142,6 @@ def test_evaluate_reports_the_simulation_and_the_reading(campaign):
         )
         assert "class" in r and "beta_estimate" in r  # the model's own figures stay
     assert m["reading"]["from_simulation"] == N_ROWS
+    assert m["reading"]["wrong_silent"] == 0
     off = evaluate_campaign(campaign, simulation=SimulatedBetaConfig(enabled=False))
     assert "simulation" not in off["metrics"] and off["simulation"]["ran"] is False

@@ -372,7 +372,8 @@ def _simulation_columns(r: dict[str, Any]) -> dict[str, Any]:
         "reproduced": r.get("simulation_reproduced"),
     }
     if "reading_class" in r:
-        cols["reading"] = f"{r['reading_class']} ({r.get('reading_method')})"
+        undecided = ", undecided" if r.get("reading_undecided") else ""
+        cols["reading"] = f"{r['reading_class']} ({r.get('reading_method')}{undecided})"
     return cols
 
 

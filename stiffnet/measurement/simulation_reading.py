@@ -15,10 +15,16 @@
   :attr:`~stiffnet.measurement.simulated_beta.SimulatedBetaConfig.reading`): what the loop
   reports for the recording: the simulation's where it reproduces the recording, the
   learned model's otherwise. The learned model's own fields are never replaced.
+* ``reading_undecided``: the reading took the simulation's class, the learned model read
+  another, and their beta intervals overlap: neither excludes the other's class, so the
+  class is undecided between them (a manifest whose amplitude is 10 % off is absorbed by
+  beta where the profile is flat and still reproduces the recording: docs/measurement_loop.md).
 
 Metrics: ``simulation`` (accuracy, macro-F1 and beta MAPE over the recordings it read,
 ``interval_coverage``, ``reproduced_share``, ``alarms``, ``learned_wrong_silent`` before and
-after its alarm) and ``reading``.
+after its alarm) and ``reading`` (its accuracy and beta MAPE, how many came from the
+simulation, how many are undecided, and its wrong classes with none of the learned alarm,
+the simulation's alarm or ``reading_undecided`` beside them).
 """
 
 from __future__ import annotations
@@ -77,6 +83,13 @@ def with_simulation(
         evaluation["metrics"]["reading"] = {
             **method_metrics(rows, "reading_class", "reading_beta"),
             "from_simulation": sum(r["reading_method"] == SIMULATION for r in rows),
+            "undecided": sum(bool(r["reading_undecided"]) for r in rows),
+            "wrong_silent": sum(
+                r["true_class"] is not None
+                and r["reading_class"] != r["true_class"]
+                and not (r.get("ood") or r["simulation_alarm"] or r["reading_undecided"])
+                for r in rows
+            ),  # fmt: skip
         }
     evaluation["slices"] = sliced_metrics(rows)  # the slices gain both methods too
     evaluation["simulation"] = {
@@ -105,6 +118,16 @@ def _add_row(r: dict[str, Any], s: dict[str, Any], reading: bool) -> None:
         r["reading_method"] = SIMULATION if use else LEARNED
         r["reading_class"] = s["class"] if use else r.get("class")
         r["reading_beta"] = s["beta"] if use else r.get("beta_estimate")
+        r["reading_undecided"] = (
+            use
+            and s["class"] != r.get("class")
+            and overlap(r.get("beta_interval"), s["beta_interval"])
+        )
+
+
+def overlap(a: Sequence[float] | None, b: Sequence[float] | None) -> bool:
+    """True when both intervals are given and share a point."""
+    return bool(a and b and not (a[1] < b[0] or b[1] < a[0]))
 
 
 def disjoint_alarm(learned: Sequence[float] | None, sim: dict[str, Any]) -> bool | None:
@@ -113,8 +136,7 @@ def disjoint_alarm(learned: Sequence[float] | None, sim: dict[str, Any]) -> bool
     other = sim.get("beta_interval")
     if not learned or not other or sim.get("reproduced") is None:
         return None
-    disjoint = learned[1] < other[0] or other[1] < learned[0]
-    return bool(sim["reproduced"] and disjoint)
+    return bool(sim["reproduced"] and not overlap(learned, other))
 
 
 def _wrong_silent(rows: Sequence[dict[str, Any]]) -> dict[str, int]:
@@ -152,5 +174,10 @@ def summary_lines(evaluation: dict[str, Any]) -> list[str]:
         lines.append(
             f"reading: the simulation's on {n} recordings (it reproduces them), the learned "
             f"model's on {len(rows) - n} (metrics row 'reading'; 'learned' is the model alone)"
+        )
+        undecided = [r["recording"] for r in rows if r.get("reading_undecided")]
+        lines.append(
+            "reading undecided (the simulation's class, the model's another, their intervals "
+            "overlap): " + (", ".join(undecided) if undecided else "none")
         )
     return lines
