@@ -29,8 +29,12 @@ recordings' identified chains, as ``evaluate`` and ``predict-batch`` do
 (:mod:`serving.campaign_chain`; a set without campaigns counts as one, so the guard is
 measured on the sets whose chain is drawn per recording). Campaign sets: ``rig_campaigns``
 and ``rig_campaigns_damped`` (:func:`campaign_rig_set`: the independent rig, one lab chain
-and one rate per campaign of 6). Per set also the restoring-force accuracy (a refusal
-counts wrong) and its refusals.
+and one rate per campaign of 6; ``NAME+1000``, the same drawn at its seed + 1000). Per set
+also the restoring-force accuracy (a refusal counts wrong) and its refusals, the interval's
+median width (its high over its low) and the recordings the ``chain_class`` alarm fired on.
+``--spread-off`` adds each undo mode with the interval's chain spread off
+(:mod:`serving.chain_spread`: the model read through the fitted chain alone, as before it), a
+column 'NAME undo=MODE spread off', for before -> after on the same cache.
 
 The restoring-force check does not depend on the model and costs most of a prediction: it
 runs once per recording and is kept under ``--cache`` (with the simulated recordings), so a
@@ -63,6 +67,7 @@ import bench_alarm as ba  # noqa: E402  (its sets; imports bench_robustness)
 import bench_crosscheck as bc  # noqa: E402
 
 import serving.predictor as sp  # noqa: E402
+from serving.chain_spread import ChainSpreadConfig  # noqa: E402
 from stiffnet.io_utils import write_json_atomic  # noqa: E402
 
 CROSSCHECK_SETS = ["ideal 2%", "sensor_chains", "sensor_chains+1000", "rig_chains",
@@ -79,7 +84,8 @@ ALARM_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
 ROW_FIELDS = ("trajectory", "label", "beta", "pred", "log_beta", "scale")
 SET_COLUMNS = [("accuracy", "accuracy"), ("beta MAPE", "beta_mape"), ("coverage", "coverage"),
                ("alarms", "alarms"), ("wrong & silent", "wrong_silent"), ("silent", "silent"),
-               ("alarms on right", "alarms_on_right"), ("RF accuracy", "rf_accuracy"),
+               ("alarms on right", "alarms_on_right"), ("width (hi/lo)", "width"),
+               ("chain_class", "chain_class"), ("RF accuracy", "rf_accuracy"),
                ("RF refusals", "rf_refusals")]  # fmt: skip
 DATASET_COLUMNS = [("n", "n"), ("accuracy", "accuracy"), ("beta MAPE", "beta_mape"),
                    ("median APE", "median_ape"), ("coverage", "coverage"),
@@ -110,8 +116,9 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
     path = cache / "data" / f"{name.replace(' ', '_')}-{n}.pkl"
     if path.is_file():
         return pickle.loads(path.read_bytes())
-    if name in CAMPAIGN_SETS:
-        recs = campaign_rig_set(name, n)
+    if name.split("+")[0] in CAMPAIGN_SETS:
+        base, _, offset = name.partition("+")
+        recs = campaign_rig_set(base, n, 20261129 + int(offset or 0))
     elif name in CROSSCHECK_SETS:
         base = name.split("+")[0]
         seed = 20261123 + [*bc.SETS, *bc.RIG_SETS].index(base) + (1000 if "+" in name else 0)
@@ -170,20 +177,26 @@ def rig_data_sheets(name: str, n: int) -> list[dict[str, float]]:
 
 
 def predict_set(
-    pred: sp.Predictor, recs: list[dict[str, Any]], sheets: list[dict | None] | None = None
+    pred: sp.Predictor,
+    recs: list[dict[str, Any]],
+    sheets: list[dict | None] | None = None,
+    fitted: bool = False,
 ) -> list[dict[str, Any]]:
     """Each recording's class, beta, interval, alarm, restoring-force class and sensor chain
-    (and CPU seconds) from `pred` (with its data sheet where `sheets` are given)."""
+    (and CPU seconds) from `pred` (with its data sheet where `sheets` are given; `fitted`:
+    the sheets are a campaign's pooled fits, the predictor's ``sensor_fitted``)."""
     out = []
     for i, r in enumerate(recs):
         t = time.process_time()
         res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"],
-                           sensor=sheets[i] if sheets else None)  # fmt: skip
+                           sensor=sheets[i] if sheets else None,
+                           sensor_fitted=fitted and bool(sheets))  # fmt: skip
         out.append(dict(cls=res["class"], beta=res["beta"], interval=res["beta_interval"],
                         flag=bool(res["ood_flag"]), fired=(res["alarm"] or {}).get("fired", []),
                         rf_cls=res.get("restoring_force_class"),
                         rf=res.get("restoring_force"),
                         sensor=(res.get("restoring_force") or {}).get("sensor"),
+                        readings=res.get("chain_readings"),
                         cpu_s=time.process_time() - t))  # fmt: skip
     return out
 
@@ -210,7 +223,8 @@ def pooled_predictions(
     for k, idx in campaigns_of(recs).items():
         chain = campaign_chain([got[i]["sensor"] for i in idx], [str(i) for i in idx])
         if chain["pooled"]:
-            again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx))
+            again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
+                                fitted=True)  # fmt: skip
             chain = confirmed(chain, [got[i]["rf"] for i in idx], [a["rf"] for a in again])
             if chain["pooled"]:
                 for i, a in zip(idx, again, strict=True):
@@ -260,7 +274,16 @@ def score(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> dict[str, An
         else float("nan"),
         "rf_refusals": int(sum(g["rf_cls"] is None for g in got)),
         "cpu_s_per_recording": float(np.mean([g["cpu_s"] for g in got])),
+        "width": interval_width(recs, got),
+        "chain_class": int(sum("chain_class" in g["fired"] for g in got)),
     }
+
+
+def interval_width(recs: list[dict[str, Any]], got: list[dict[str, Any]]) -> float:
+    """Median over the contact recordings with an interval of its high over its low."""
+    ratios = [g["interval"][1] / g["interval"][0] for r, g in zip(recs, got, strict=True)
+              if r["class"] != "no_contact" and g["interval"]]  # fmt: skip
+    return float(np.median(ratios)) if ratios else float("nan")
 
 
 def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, cache: Path,
@@ -279,7 +302,7 @@ def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, ca
             rf_path = cache / "restoring_force" / f"{name.replace(' ', '_')}-{n}.pkl"
             cached.results = pickle.loads(rf_path.read_bytes()) if rf_path.is_file() else {}
             sheets = rig_data_sheets(name, n) if sheet and name in bc.RIG_SETS else None
-            if sheet and name in CAMPAIGN_SETS:
+            if sheet and name.split("+")[0] in CAMPAIGN_SETS:
                 sheets = [{k: float(v) for k, v in r["chain"].items()} for r in recs]
             runs = [(m, pred, None) for m, pred in models.items()]
             runs += [(f"{m} + data sheet", pred, sheets) for m, pred in models.items() if sheets]
@@ -393,16 +416,25 @@ def main(argv: list[str] | None = None) -> int:
                     help="also each model with every campaign's pooled chain as its recordings' "
                     "data sheet (serving.campaign_chain; a set without campaigns is one), a "
                     "column 'NAME + campaign chain'")  # fmt: skip
+    ap.add_argument("--spread-off", action="store_true",
+                    help="also each undo mode with the interval's chain spread off "
+                    "(serving.chain_spread: the model's reading through the fitted chain "
+                    "alone), a column 'NAME undo=MODE spread off'")  # fmt: skip
     args = ap.parse_args(argv)
     paths = {k: Path(v) for k, v in (m.split("=", 1) for m in args.model)}
     known = CROSSCHECK_SETS + ALARM_SETS + list(CAMPAIGN_SETS)
+    known += [f"{k}+1000" for k in CAMPAIGN_SETS]
     unknown = set(args.sets) - set(known)
     if unknown:
         ap.error(f"unknown sets {sorted(unknown)}; choose from {known}")
     models = {k: sp.Predictor.load(v, undo_chain="off") for k, v in paths.items()}
+    off = ChainSpreadConfig(enabled=False)
     for mode in args.undo:
         models.update({f"{k} undo={mode}": sp.Predictor.load(v, undo_chain=mode)
                        for k, v in paths.items()})  # fmt: skip
+        if args.spread_off:
+            models.update({f"{k} undo={mode} spread off": sp.Predictor.load(
+                v, undo_chain=mode, chain_spread=off) for k, v in paths.items()})  # fmt: skip
     t0 = time.perf_counter()
 
     def say(msg: str) -> None:

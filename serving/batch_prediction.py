@@ -288,7 +288,8 @@ def predict_part(job: PartJob) -> dict[str, Any]:
             result = predict_recording(file, fs_hz=fs, predictor=predictor,
                                        natural_frequency_hz=fn, columns=columns,
                                        time_unit=time_unit, channel=channel,
-                                       sensor=sensor)  # fmt: skip
+                                       sensor=sensor,
+                                       sensor_fitted=from_campaign)  # fmt: skip
             result = labelled(result, from_campaign)
             rows.append(result_row(path, result, None, channel))
         except StiffnetError as exc:

@@ -47,6 +47,13 @@ from typing import Any
 import numpy as np
 
 from serving.aggregate import geometric_verdict, named, segments
+from serving.chain_spread import (
+    ChainSpreadConfig,
+    chain_class_share,
+    chain_spread_config,
+    plausible_chains,
+    spread_interval,
+)
 from serving.chain_undo import UNDO_MODES, chain_as_read, model_record
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import (
@@ -76,10 +83,12 @@ from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
 from stiffnet.uncertainty.alarm import AlarmReference
 from stiffnet.uncertainty.alarm_verdict import (
+    CHAIN_CLASS_THRESHOLD,
     alarm_ratio,
     alarm_verdict,
     load_model_alarm,
     weak_restoring_force_fit,
+    with_rule_check,
 )
 from stiffnet.uncertainty.class_decision import ClassDecision, decide_class, family_rule
 from stiffnet.uncertainty.ood import OODReference, load_reference
@@ -173,12 +182,15 @@ class Predictor:
         segment_windows: int = SEGMENT_WINDOWS,
         geometric_windows: int = GEOMETRIC_WINDOWS,
         undo_chain: str = UNDO_CHAIN,
+        chain_spread: ChainSpreadConfig | None = None,
     ) -> None:
         from stiffnet.geometry.calibration import load_calibration
 
         if undo_chain not in UNDO_MODES:
             raise StiffnetError(f"undo_chain must be one of {', '.join(UNDO_MODES)}")
         self.undo_chain = undo_chain
+        #: which other chains a fitted one stands for (configs/chain_spread.yaml by default)
+        self.chain_spread = chain_spread if chain_spread is not None else chain_spread_config()
 
         self.model = model
         self.ood = ood
@@ -219,6 +231,7 @@ class Predictor:
         threads: int = 1,
         ood_reference: str | Path | None = None,
         undo_chain: str = UNDO_CHAIN,
+        chain_spread: ChainSpreadConfig | None = None,
     ) -> Predictor:
         """Verify and load a model (default ``models/cnn.onnx``) and its OOD reference.
 
@@ -235,6 +248,9 @@ class Predictor:
         undo_chain : str, optional
             Which identified sensor chain the model reads undone, one of
             :data:`serving.chain_undo.UNDO_MODES` (default :data:`UNDO_CHAIN`).
+        chain_spread : ChainSpreadConfig, optional
+            Which other chains a fitted chain stands for in the interval
+            (:mod:`serving.chain_spread`; default ``configs/chain_spread.yaml``).
 
         Raises
         ------
@@ -253,7 +269,7 @@ class Predictor:
                 if path.is_file():
                     ood = load_reference(path)
                     break
-        return cls(model, ood, alarm=alarm, undo_chain=undo_chain)
+        return cls(model, ood, alarm=alarm, undo_chain=undo_chain, chain_spread=chain_spread)
 
     def _training_fn(self) -> tuple[float | None, str]:
         """Training data f_n: from the metadata, model card, OOD reference or data card."""
@@ -309,6 +325,7 @@ class Predictor:
         source: str = "",
         natural_frequency_source: str | None = None,
         sensor: dict | None = None,
+        sensor_fitted: bool = False,
     ) -> dict[str, Any]:
         """Predict one recording: check -> windows -> model -> aggregate -> result.
 
@@ -329,6 +346,11 @@ class Predictor:
             The sensor chain's data sheet (``resonance_hz``, ``resonance_damping``,
             ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``): the restoring-force check
             undoes it instead of fitting one (:mod:`serving.restoring_force_check`).
+        sensor_fitted : bool, optional
+            `sensor` was fitted, not read off a data sheet (a campaign's pooled chain,
+            :mod:`serving.campaign_chain`): the interval spans the model's readings through
+            the other chains the fit allows, as for a chain fitted on this record
+            (:mod:`serving.chain_spread`).
 
         Returns
         -------
@@ -348,10 +370,15 @@ class Predictor:
         restoring_force = restoring_force_check(a, fs, fn, sensor, self.stage_ratio)
         read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],
                                     self.undo_chain)  # fmt: skip
+        if undone and sensor_fitted:
+            undone = {**undone, "source": "campaign"}
         reading = self._read_windows(read, fs, fn, what, warnings)
         interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
+        others = self._chain_readings(a, fs, fn, restoring_force.get("sensor"), undone, what)
         sensor_read = chain_as_read(restoring_force.get("sensor"), undone)
-        alarm = self._alarm(reading, interval, restoring_force, fs, fn, sensor_read)
+        # the checks judge the model's own reading; the answer's interval spans the others
+        alarm = self._alarm(reading, interval, restoring_force, fs, fn, sensor_read, others)
+        interval = spread_interval(interval, others)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
             interval = self._interval_behind_alarm(interval, restoring_force, warnings)
@@ -360,7 +387,7 @@ class Predictor:
         result = self._result(reading, interval, restoring_force, alarm)
         result.update(source=source, duration_s=a.size / fs, fs_hz=fs, natural_frequency_hz=fn,
                       natural_frequency_source=fn_source, warnings=warnings,
-                      chain_undone=undone)  # fmt: skip
+                      chain_undone=undone, chain_readings=others or None)  # fmt: skip
         return PredictionResult.model_validate(result).model_dump(by_alias=True)
 
     def _checked_input(
@@ -416,6 +443,41 @@ class Predictor:
             embedding_scores=emb,  # the alarm reads them too: computed once
         )
 
+    def _chain_readings(
+        self,
+        a: np.ndarray,
+        fs: float,
+        fn: float,
+        sensor: dict | None,
+        undone: dict | None,
+        what: str,
+    ) -> list[dict[str, Any]]:
+        """The model's class, beta and interval through each other chain a fitted one stands
+        for (:func:`serving.chain_spread.plausible_chains`; none for a data sheet or no chain).
+        One model pass each, without the geometric windows, segments or layers."""
+        out = []
+        chains = plausible_chains(sensor, undone, self.chain_spread)
+        for name, chain in chains.items():
+            read = a
+            if chain is not None:
+                read, _ = model_record(a, fs, fn, {"sensor": chain},
+                                       model_facts(self)["priors"], self.undo_chain)  # fmt: skip
+            starts, ok, n_win, _ = self._windows(read, fs, fn, what, [])
+            try:
+                outputs, _, _ = self._run_model(read, starts[ok], n_win, fs, fn, 0)
+            except SignalError as exc:
+                raise StiffnetError(f"{what}: {exc}") from None
+            est = aggregate_windows(outputs["probabilities"], outputs["log_beta"],
+                                    outputs.get("log_beta_scale"), self._nc)  # fmt: skip
+            out.append({
+                "chain": name,
+                "class": self.class_names[self.decide_class(est).label],
+                "beta": math.exp(est.log_beta) if est.log_beta is not None else None,
+                "beta_interval": beta_interval(est, self.metadata,
+                                               self.model.conformal_quantile),
+            })  # fmt: skip
+        return out
+
     def decide_class(self, estimate: RecordingEstimate) -> ClassDecision:
         """The class of aggregated windows: the class head's, or the beta head's near an edge
         (:func:`stiffnet.uncertainty.class_decision.decide_class`, this model family's rule)."""
@@ -430,16 +492,21 @@ class Predictor:
         fs: float,
         fn: float,
         sensor_read: dict | None = None,
+        chain_readings: list[dict[str, Any]] | None = None,
     ) -> dict[str, Any] | None:
         """How far to trust the answer: the model's checks, its class against its own beta,
         then the restoring-force gap, the unseen contact law, the layers and the sensor chain
-        (as the model read it: `sensor_read`, the identified one less the stages undone)."""
+        (as the model read it: `sensor_read`, the identified one less the stages undone; and
+        the classes it reads through the other chains a fitted one allows)."""
         alarm = alarm_verdict(self.alarm, self.ood, reading.estimate, reading.outputs,
                               reading.features, reading.embedding_scores)  # fmt: skip
         head = self.class_names[reading.estimate.label]  # class_beta: the heads against each other
         answered = self.class_names[reading.decision.label]
         alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn,
                             head_class=head, sensor_read=sensor_read)  # fmt: skip
+        alarm = with_rule_check(alarm, "chain_class",
+                                chain_class_share(answered, chain_readings or []),
+                                CHAIN_CLASS_THRESHOLD)  # fmt: skip
         return with_layers_alarm(alarm, reading.layers)
 
     @staticmethod
@@ -660,6 +727,7 @@ def predict_recording(
     time_unit: str | None = None,
     channel: str | int | None = None,
     sensor: dict | None = None,
+    sensor_fitted: bool = False,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -687,6 +755,8 @@ def predict_recording(
         Channel of a multi-channel file (required when it has several).
     sensor : dict, optional
         The sensor chain's data sheet; default: the sidecar's ``sensor`` entry, if any.
+    sensor_fitted : bool, optional
+        `sensor` is a campaign's pooled fits, not a data sheet (:meth:`Predictor.predict`).
 
     Returns
     -------
@@ -708,4 +778,5 @@ def predict_recording(
         source=rec.source,
         natural_frequency_source=fn_source,
         sensor=sensor if sensor is not None else sidecar_sensor(path),
+        sensor_fitted=sensor_fitted and sensor is not None,
     )

@@ -196,6 +196,13 @@ class PredictionResult(BaseModel):
         "sheet; serving.chain_undo); null where it read the record as recorded. The chain "
         "itself is restoring_force.sensor.",
     )
+    chain_readings: list[dict[str, Any]] | None = Field(
+        default=None,
+        description="Where the chain undone was fitted (not a data sheet): the model's class, "
+        "beta and beta interval read through each other chain the fit allows (chain: as "
+        "recorded, a lower low-pass corner; serving.chain_spread); beta_interval spans them, "
+        "and the chain_class alarm fires where one lands in another class. Null otherwise.",
+    )
     contact_detected: bool = Field(description="The model's class is not no_contact.")
     ood_score: float | None = Field(
         description="The alarm's largest check score relative to its threshold "

@@ -168,7 +168,9 @@ def campaign_predictions(
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
-        None if sheets[i] is not None else predicted(campaign, i, row, model_path, sensor=sheet)
+        None
+        if sheets[i] is not None
+        else predicted(campaign, i, row, model_path, sensor=sheet, sensor_fitted=True)
         for i, (row, sheet) in enumerate(zip(rows, campaign_sheets(chain, sheets), strict=True))
     ]  # the user's own sheet wins
     read = [i for i, r in enumerate(again) if r is not None]

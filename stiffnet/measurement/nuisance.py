@@ -107,9 +107,11 @@ def predicted(
     row: ManifestRow,
     model_path: str | None,
     sensor: dict[str, float] | None = None,
+    sensor_fitted: bool = False,
 ) -> dict[str, Any]:
     """The predictor's result for recording ``i`` (once per model for a loaded campaign;
-    ``sensor``: a data sheet in place of the row's own, e.g. the campaign's pooled chain).
+    ``sensor``: a data sheet in place of the row's own, e.g. the campaign's pooled chain,
+    then ``sensor_fitted``: :meth:`serving.predictor.Predictor.predict`'s).
 
     Raises what :meth:`serving.predictor.Predictor.predict` raises."""
     from serving.predictor import Predictor
@@ -122,11 +124,12 @@ def predicted(
         return predictor.predict(
             rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
             source=row.recording, sensor=sheet,
+            sensor_fitted=sensor_fitted and sensor is not None,
         )  # fmt: skip
 
     key = ("predicted", model_path, i, natural_frequency(row))
     if sensor is not None:
-        key += (tuple(sorted(sensor.items())),)
+        key += (tuple(sorted(sensor.items())), sensor_fitted)
     return memo(campaign, key, run)
 
 

@@ -58,6 +58,10 @@ ALARM_WORDS = {
     "contact_duration": "the impacts last over twice the half period of the contact law they "
     "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
     "trained on) or a contact the training data lack stretches them",
+    "chain_class": "the sensor chain was fitted, not given, and read through the other chains "
+    "the fit allows (as recorded, a lower low-pass corner) the model puts the recording in "
+    "another class: the class depends on a chain the record cannot pin down (give the "
+    "accelerometer's data sheet)",
     "campaign_law": "the campaign's recordings read a contact law the training data lack more "
     "often than any law of the training world does: the rig is outside the model's world, "
     "this recording included",
@@ -82,6 +86,9 @@ RESTORING_FORCE_MIN_R2 = 0.95
 #: bench_crosscheck's ideal / lab-chain sets and bench_robustness's ideal / sensor sets
 #: (0.8 and 0.7 each raised one on rig_chains).
 RESTORING_FORCE_CLASS_THRESHOLD = 0.9
+#: The chain_class check's score is the share of the readings through the other chains a
+#: fitted one allows (serving.chain_spread) that land in another class: any one fires it.
+CHAIN_CLASS_THRESHOLD = 0.0
 #: The contact_duration check's score is the log of the impacts' duration over
 #: MAX_DURATION_RATIO half periods of the fitted law: it fires beyond that ratio.
 CONTACT_DURATION_THRESHOLD = 0.0

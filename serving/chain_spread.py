@@ -1,0 +1,129 @@
+"""The learned model behind a fitted sensor chain: its interval spans the chains the fit allows.
+
+The predictor divides the identified chain out of the record before the model reads it
+(:mod:`serving.chain_undo`). A data sheet's chain is known; a chain fitted from the impacts
+(the restoring-force check's, or a campaign's pooled one) is not: its low-pass corner is
+read high by the pulse model (14-16 % on the independent rig's campaigns, outside the fit's
+own interval), and a corner undone too high leaves part of the low-pass in the record, which
+the model reads as a softer contact. The conformal interval was calibrated on records whose
+chain was either absent or in the training priors, so it does not know the chain it undid
+was a guess.
+
+:func:`plausible_chains` names the other chains the record may have passed through (as
+recorded, the low-pass corner lower, the resonance at the ends of its fitted interval:
+``configs/chain_spread.yaml``); the predictor reads the model through each, and the answer's
+interval spans theirs (:func:`spread_interval`). Where the readings land in different classes
+the class is a guess at the chain, and the ``chain_class`` alarm says so
+(:func:`chain_class_share`). A data sheet's chain, or no chain, is read once: the interval
+is the model's own.
+
+Numpy and pydantic only (the predictor imports it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import lru_cache
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+#: The shipped settings (under ``configs/``).
+CHAIN_SPREAD_CONFIG = "chain_spread.yaml"
+#: Where a chain came from when the predictor spreads over it: fitted on this record, or a
+#: campaign's pooled fits (:mod:`serving.campaign_chain`).
+FITTED_SOURCES = ("fitted", "campaign")
+
+
+class ChainSpreadConfig(BaseModel):
+    """Which other chains a fitted one stands for.
+
+    Attributes
+    ----------
+    enabled : bool
+        Off: the model reads the fitted chain alone (the interval as calibrated).
+    as_recorded : bool
+        Also read the record as recorded (nothing undone).
+    lowpass_factors : list of float
+        Also read it with the fitted low-pass corner times each factor undone.
+    resonance_interval : bool
+        Also read it with the resonance at each end of its fitted interval (a fit without
+        an interval: none).
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    enabled: bool = True
+    as_recorded: bool = True
+    lowpass_factors: list[Annotated[float, Field(ge=0.2, le=5.0)]] = Field(default_factory=list)
+    resonance_interval: bool = False
+
+
+@lru_cache(maxsize=1)
+def chain_spread_config() -> ChainSpreadConfig:
+    """The shipped settings: ``configs/chain_spread.yaml``, else the defaults."""
+    from stiffnet.config import load_yaml, validate_config
+    from stiffnet.shipped import default_config
+
+    path = default_config(CHAIN_SPREAD_CONFIG)
+    if not path.is_file():
+        return ChainSpreadConfig()
+    return validate_config(ChainSpreadConfig, load_yaml(path), str(path))
+
+
+def plausible_chains(
+    sensor: dict | None, undone: dict | None, config: ChainSpreadConfig
+) -> dict[str, dict | None]:
+    """The other chains a fitted one stands for, by name (None: the record as recorded).
+
+    Parameters
+    ----------
+    sensor : dict or None
+        The chain the model read undone (the restoring-force check's ``sensor``).
+    undone : dict or None
+        What :func:`serving.chain_undo.model_record` divided out, with its ``source``
+        (``fitted``, ``campaign`` or ``data sheet``).
+    config : ChainSpreadConfig
+
+    Returns
+    -------
+    dict
+        Empty where nothing fitted was undone (no chain, a data sheet, or switched off).
+    """
+    if not (config.enabled and sensor and undone) or undone.get("source") not in FITTED_SOURCES:
+        return {}
+    out: dict[str, dict | None] = {}
+    if config.as_recorded:
+        out["as recorded"] = None
+    corner = undone.get("lowpass_hz")
+    for f in config.lowpass_factors if corner else ():
+        out[f"low-pass {f * corner:.0f} Hz"] = {**sensor, "lowpass_hz": f * corner}
+    ends = (sensor.get("intervals") or {}).get("resonance_hz")
+    if config.resonance_interval and undone.get("resonance_hz") and ends:
+        for end in ends:
+            out[f"resonance {end:.0f} Hz"] = {**sensor, "resonance_hz": float(end)}
+    return out
+
+
+def spread_interval(
+    interval: list[float] | None, readings: Sequence[dict[str, Any]]
+) -> list[float] | None:
+    """The span of the model's interval and the readings' (``beta_interval`` each; one without
+    any adds nothing). None without the model's own."""
+    if not interval:
+        return interval
+    lo, hi = float(interval[0]), float(interval[1])
+    for r in readings:
+        other = r.get("beta_interval")
+        if other:
+            lo, hi = min(lo, float(other[0])), max(hi, float(other[1]))
+    return [lo, hi]
+
+
+def chain_class_share(class_name: str, readings: Sequence[dict[str, Any]]) -> float | None:
+    """Share of the readings through the other plausible chains that land in another class
+    than `class_name` (None without any: the check does not apply). The ``chain_class``
+    alarm fires above 0."""
+    if not readings:
+        return None
+    return sum(r.get("class") != class_name for r in readings) / len(readings)
