@@ -158,7 +158,10 @@ def fit_contact_law(
 
     def model(theta: np.ndarray) -> np.ndarray:
         p = theta[3] if exponent is None else exponent
-        return contact_force(x, v, np.exp(theta[0]), theta[1], theta[2], p, dr)
+        # a trial step may overflow the stiffness; its residual is then not finite and the
+        # step is refused by the solver, so numpy's warnings would only reach the user
+        with np.errstate(over="ignore", invalid="ignore"):
+            return contact_force(x, v, np.exp(theta[0]), theta[1], theta[2], p, dr)
 
     theta0 = [np.log(kc0), e0, max(cc0, 0.0)] + ([1.0] if exponent is None else [])
     lo = [-np.inf, -np.inf, 0.0] + ([EXPONENT_BOUNDS[0]] if exponent is None else [])
