@@ -39,7 +39,9 @@ per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), an
 ``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Part 4c
 (``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 alone on that
 campaign, resumed from STATE's iteration 0 with the diagnosis D, the CPU seconds of its
-phases (``--rig-repeats`` runs). Prints Markdown with the machine's load.
+phases (``--rig-repeats`` runs). Part 4d (``--rig-orbits ROWS``): the orbits (impacts per
+forcing period) the loop's training windows reach at those campaign rows against the
+recording's, by β band. Prints Markdown with the machine's load.
 
     OMP_NUM_THREADS=1 PYTHONPATH=.:tests python benchmarks/bench_loop_iteration.py \
         --trajectories 48 [--loop 120] [--seeds 0,1,7 --seed-trajectories 400 --edge-share 0.5]
@@ -52,6 +54,7 @@ phases (``--rig-repeats`` runs). Prints Markdown with the machine's load.
         --rig-diagnosis d.json --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
         --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-orbits 3,6 --rig-seeds 0,1 --rig-dir /tmp/rig
 """
 
 from __future__ import annotations
@@ -195,6 +198,60 @@ def shared_batches_ratio(points: int, n: int, warm: float = 0.0, folder: Path | 
           f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
+def _orbit_kind(stats) -> str:
+    """``1/1``, ``2/2`` (2 impacts every 2 forcing periods) or ``other`` for a window."""
+    from stiffnet.measurement.orbits import orbit_pattern
+
+    pattern = orbit_pattern(stats)
+    return {(1, 1): "1/1", (2, 2): "2/2"}.get(pattern, "other") if pattern else "other"
+
+
+def rig_orbits(rows: list[int], seed: int, n: int, folder: Path) -> None:
+    """Part 4d (``--rig-orbits ROWS``): which orbit the loop's training windows at the rig's
+    two-stage campaign rows ``rows`` settle on, against the recording's. The rows' shards
+    of the loop's operating-point dataset (``n`` trajectories, the discovered law's prior,
+    dataset seed ``seed``, shared batches) are simulated and every window (16 natural
+    periods, like the recording's first 16) named as ``diagnose`` names an orbit
+    (:func:`stiffnet.measurement.orbits.orbit_pattern` on the window's statistics), with
+    counts by β band; the impacts per forcing period are the simulation's own."""
+    from collections import Counter
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.statistics import signal_statistics
+
+    (configs,) = rig_point_configs(24, n, [{}], folder)
+    configs = [c.model_copy(update={"seed": seed}) for c in configs]
+    camp_dir = folder / "two_stage"
+    camp = load_campaign(camp_dir)
+    c0 = time.process_time()
+    tables = generate.simulate_shards([configs[i] for i in rows], rows)
+    cpu = time.process_time() - c0
+    bands = [(5.0, 35.0), (35.0, 60.0), (60.0, 100.0)]
+    for i, table in zip(rows, tables, strict=True):
+        r = camp.rows[i]
+        rec = np.loadtxt(camp_dir / r.recording, delimiter=",", skiprows=1)[:, 1]
+        stats = signal_statistics(rec, r.fs_hz, r.natural_frequency_hz, r.frequency_ratio,
+                                  inclination=False)  # fmt: skip
+        kinds, per_period = Counter(), []
+        by_band = {b: Counter() for b in bands}
+        for w in table.to_pylist():
+            a = np.asarray(w["accel"], dtype=float)
+            ws = signal_statistics(a, w["fs_hz"], w["natural_frequency_hz"], w["omega"],
+                                   inclination=False)  # fmt: skip
+            kind = _orbit_kind(ws)
+            kinds[kind] += 1
+            per_period.append(w["n_impacts"] * w["fs_ratio"] / (a.size * w["omega"]))
+            band = next((b for b in bands if b[0] <= w["beta"] < b[1]), None)
+            if band:
+                by_band[band][kind] += 1
+        cells = "; ".join(f"β {lo:g}-{hi:g}: " + ", ".join(f"{k} {c[k]}" for k in sorted(c))
+                          for (lo, hi), c in by_band.items())  # fmt: skip
+        print(f"| {i} ({Path(r.recording).stem}) | {r.gap:g} | {_orbit_kind(stats)} | "
+              f"{sum(kinds.values())} | {', '.join(f'{k} {kinds[k]}' for k in sorted(kinds))} | "
+              f"{cells} | {np.median(per_period):.2f} |", flush=True)  # fmt: skip
+    print(f"\n{len(rows)} shards simulated in {cpu:.1f} s CPU, load {os.getloadavg()[0]:.1f}")
+
+
 def zero_chain(points: int, n: int, folder: Path | None = None, repeats: int = 3) -> None:
     """Part 1d (``--zero-chain``): what the shared batches' first pass through each group's
     measurement chain costs. :func:`stiffnet.dataset.generate.simulate_shards` draws every
@@ -321,11 +378,14 @@ def _retrained(
     dynamics; ``weights`` the per-point rule of
     :func:`stiffnet.measurement.operating_points.point_weights`). The dataset is drawn once:
     each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row
-    (and apart under the key ``"dataset"``: wall s, CPU s)."""
+    (and apart under the key ``"dataset"``: wall s, CPU s). The evaluation is the learned
+    model's alone: the reading by simulation, which does not depend on the model's dataset
+    and is not printed here, is not run (35-40 s CPU per evaluation at load 10-16)."""
     from stiffnet.measurement import operating_points as ops
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
     from stiffnet.measurement.loop import _train_config
+    from stiffnet.measurement.simulated_beta import SimulatedBetaConfig
     from training.train import train
 
     t0, c0 = time.perf_counter(), time.process_time()
@@ -339,7 +399,8 @@ def _retrained(
     for family in families:
         t1, c1 = time.perf_counter(), time.process_time()
         model = train(work / "data", _train_config(family, None), work / family, progress=None)
-        ev = evaluate_campaign(camp, model["paths"]["onnx"], dyn, require_beta=False)
+        ev = evaluate_campaign(camp, model["paths"]["onnx"], dyn, require_beta=False,
+                               simulation=SimulatedBetaConfig(enabled=False))  # fmt: skip
         out[family] = (ev, data_wall + time.perf_counter() - t1,
                        data_cpu + time.process_time() - c1)  # fmt: skip
     return out
@@ -631,7 +692,19 @@ def main() -> None:
     ap.add_argument("--rig-families", default="gbm", help="part 4b: families, e.g. gbm,cnn")
     ap.add_argument("--rig-weights", default="none", help="part 4b: per-point rules, e.g. "
                     "none,small_gaps")  # fmt: skip
+    ap.add_argument("--rig-orbits", default="", help="part 4d: campaign rows, e.g. 3,6")
     args = ap.parse_args()
+    if args.rig_orbits:
+        if args.rig_dir is None:
+            ap.error("--rig-orbits needs --rig-dir (its two_stage)")
+        print("| row (recording) | gap mm | recording's orbit | windows | training windows' "
+              "orbits | by β band | impacts per forcing period, median |")  # fmt: skip
+        print("|---" * 7 + "|")
+        seeds = [int(s) for s in (args.rig_seeds or "0").split(",")]
+        for seed in seeds:
+            rig_orbits([int(r) for r in args.rig_orbits.split(",")], seed,
+                       args.rig_trajectories or 400, args.rig_dir)  # fmt: skip
+        return
     if args.rig_iteration:
         if args.rig_diagnosis is None or args.rig_dir is None:
             ap.error("--rig-iteration needs --rig-diagnosis and --rig-dir (its two_stage)")
