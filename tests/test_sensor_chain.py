@@ -300,6 +300,23 @@ def test_a_mount_resonance_at_three_contact_frequencies_is_not_read_as_a_lowpass
     assert got.resonance_damping == pytest.approx(0.076, rel=0.5)
 
 
+def test_a_mounts_highpass_is_the_corner_of_the_map_that_was_read():
+    """Independent rig, a lab mount (237 Hz, zeta 0.05) with a 1 Hz high-pass, beta 36: the
+    chain reported the corner fitted on the record as recorded, its ring not yet divided out
+    (here none; 3-4 Hz on 4 of bench_alarm's 24 such records, above the model's 2 Hz prior:
+    the sensor check fired on right answers), not that of the map beta was read from."""
+    from serving.restoring_force_check import restoring_force_check
+
+    mount = {"resonance_hz": 237.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
+    run = RigRun(recording="r.csv", beta=36.32, noise=0.0255, forcing_frequency_hz=10.28,
+                 duration_s=8.0, sensor=mount)  # fmt: skip
+    check = restoring_force_check(record(run, seed=7)[1], run.fs_hz, FN, None, None)
+    sensor = check["sensor"]
+    assert sensor["resonance_hz"] == pytest.approx(237.0, rel=0.02)
+    assert 0.5 < sensor["highpass_hz"] < 2.0
+    assert check["beta"] == pytest.approx(36.32, rel=0.1)
+
+
 # --- lab chains (all three stages) through the independent rig ---------------------------
 
 

@@ -1002,8 +1002,11 @@ def _estimate_at(
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
         m = _profile_free_damping(m, dtau, tau, use, period, k_given, exponent)
     fit, info = m.fit, m.info
-    if sensor is not None and chain is not None and highpass_hz == "auto":
-        chain = dataclasses.replace(chain, highpass_hz=m.corner * ff)  # the record's own
+    if chain is not None and chain.applied and highpass_hz == "auto":
+        # the corner of the map that was read: a data sheet's "auto" is the record's own,
+        # and a fitted chain's was fitted on the record as recorded, before its resonance
+        # or low-pass was undone (a 237 Hz mount's ring read as a 3-4 Hz corner for 1 Hz)
+        chain = dataclasses.replace(chain, highpass_hz=m.corner * ff)
     info["resonance_hz"] = resonance
     info["sensor"] = chain
     info.update(
