@@ -58,6 +58,10 @@ ALARM_WORDS = {
     "contact_duration": "the impacts last over twice the half period of the contact law they "
     "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
     "trained on) or a contact the training data lack stretches them",
+    "restraint_dynamics": "the contact force rises and falls more than once within each impact: "
+    "the restraint rings during the contact (a beam's tip, a stop on a flexible mount), which "
+    "the training data lack, and the model reads the contact in series with the restraint's "
+    "compliance (a softer class than the contact's)",
     "campaign_law": "the campaign's recordings read a contact law the training data lack more "
     "often than any law of the training world does: the rig is outside the model's world, "
     "this recording included",
