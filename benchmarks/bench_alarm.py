@@ -20,13 +20,16 @@ alarm):
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
 campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): how many recordings the
-``contact_law`` check judged and fired on, whether the campaign is flagged (every recording
-then has ``campaign_law`` fired), wrong and silent and alarms after it. "After" is the
+``contact_law`` check judged and on how many it or ``restraint_dynamics`` fired, whether
+the campaign is flagged (every recording then has ``campaign_law`` fired), wrong and silent
+and alarms after it. "After" is the
 predictor as shipped; "before" is the same prediction with the ``contact_law`` check's
 reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.unseen_law_reasons`) under the
 thresholds of ``--before KEY=VALUE`` (default: the soft first stage rule off,
 ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule off,
-``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired.
+``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired
+(``restraint_dynamics`` included: a change of it is measured against a run of the code
+before it).
 
 Run::
 
@@ -177,7 +180,8 @@ def main(argv: list[str] | None = None) -> int:
     configs = br.set_configs(br.DEFAULT_SETS)
     rows = {}
     print("| set | n | wrong | wrong & silent, before -> after | alarms, before -> after "
-          "| alarms on right answers | as a campaign: contact_law fired / judged, wrong & "
+          "| alarms on right answers | as a campaign: contact_law or restraint_dynamics fired "
+          "/ judged, wrong & "
           "silent, alarms |")  # fmt: skip
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for name in args.sets:

@@ -68,6 +68,7 @@ from stiffnet.uncertainty.campaign_law import (
     CAMPAIGN_LAW,
     campaign_law_decision,
     contact_law_fired,
+    law_check_fired,
 )
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
@@ -512,7 +513,7 @@ def _campaign_law(table: pa.Table) -> tuple[pa.Table, dict[str, Any]]:
     (:func:`stiffnet.uncertainty.campaign_law.campaign_law_decision`) and, where it is
     outside the model's world, every predicted row flagged with ``campaign_law``."""
     judged = [bool(j) for j in table.column("contact_law_judged").to_pylist()]
-    fired = ["contact_law" in (f or "").split(",") for f in table.column("alarm_fired").to_pylist()]
+    fired = [law_check_fired((f or "").split(",")) for f in table.column("alarm_fired").to_pylist()]
     decision = campaign_law_decision(judged, fired)
     if not decision["flag"]:
         return table, decision

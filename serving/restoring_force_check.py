@@ -14,7 +14,9 @@ chains the model was trained on, which the predictor's alarm counts.
 ``dissipation_gain`` / ``dissipation_share`` say whether the contact's dissipation
 grows with penetration (:mod:`stiffnet.uncertainty.unseen_law`); ``law_shape`` what a
 richer law than the training world's explains on held-out impacts
-(:mod:`stiffnet.uncertainty.law_shape`). A model trained with a learned two-stage law
+(:mod:`stiffnet.uncertainty.law_shape`); ``impact_peaks`` whether the force rises more than
+once within an impact, a restraint that rings (:mod:`stiffnet.uncertainty.restraint_dynamics`).
+A model trained with a learned two-stage law
 (:func:`trained_stage_ratio`) has beta read in that law's sense, its first-stage slope
 (``stage``; :mod:`stiffnet.restoring_force.staged_law`).
 """
@@ -29,6 +31,7 @@ from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.estimate import CHAIN_FIT_WHEN_NEEDED
 from stiffnet.uncertainty.law_shape import law_shape_gains
+from stiffnet.uncertainty.restraint_dynamics import second_peak_share
 from stiffnet.uncertainty.unseen_law import penetration_dissipation
 
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~20 ms
@@ -75,9 +78,10 @@ def restoring_force_check(
         reason = f"the restoring-force fit failed numerically ({type(exc).__name__})"
         return {"class": None, "beta": None, "beta_interval": None, "reason": reason}
     d = r.to_dict()
-    hc = shape = None
+    hc = shape = peaks = None
     if r.ok and r.law is not None:  # the map's own tests for a law the training world lacks
         law = r.law
+        peaks = second_peak_share(r.displacement, r.force, law.onset)
         hc = penetration_dissipation(r.displacement, r.velocity, r.force, law.onset,
                                      law.exponent, law.reference_penetration)  # fmt: skip
         shape = law_shape_gains(r.displacement, r.velocity, r.force, law.onset,
@@ -101,6 +105,7 @@ def restoring_force_check(
         "dissipation_gain": None if hc is None else hc[0],
         "dissipation_share": None if hc is None else hc[1],
         "law_shape": shape,
+        "impact_peaks": peaks,
         "stage": d["stage"],
         "reason": d["reason"],
     }

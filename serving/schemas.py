@@ -86,6 +86,15 @@ class RestoringForceCheck(BaseModel):
         "recorded: recorded_penetration_dissipation (with its _share) and recorded_r2_loss; "
         "misfit, n_impacts.",
     )
+    impact_peaks: dict[str, float] | None = Field(
+        default=None,
+        description="Whether the contact force rises more than once within an impact (a "
+        "restraint that rings: stiffnet.uncertainty.restraint_dynamics): second_peak (the "
+        "median over impacts of the second-largest peak prominence over the impact's peak "
+        "force; 0: one peak per impact, as every law of the training world gives), "
+        "second_peak_impacts (the share of impacts at or above the alarm's threshold), "
+        "n_impacts; null where the impacts are too few or too short to judge.",
+    )
     stage: dict[str, Any] | None = Field(
         default=None,
         description="Where the model was trained with a learned two-stage law: beta is that "

@@ -6,7 +6,8 @@ The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
 windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
 against its own beta, the restoring-force cross-check against the model (disjoint intervals,
 another class, stretched contacts, a refusal behind a chain outside the priors), a contact
-law the training world lacks, and the identified sensor chain against the training priors.
+law the training world lacks, a restraint that rings within its contacts, and the identified
+sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
 (:func:`stiffnet.uncertainty.conformal.interval_behind_alarm`) and the warning saying so.
 """
@@ -27,6 +28,7 @@ from stiffnet.uncertainty.alarm_verdict import (
     with_sensor_fit_check,
 )
 from stiffnet.uncertainty.conformal import interval_behind_alarm
+from stiffnet.uncertainty.restraint_dynamics import with_restraint_dynamics_check
 from stiffnet.uncertainty.unseen_law import trained_law_kinds, with_unseen_law_check
 
 
@@ -86,7 +88,9 @@ def rule_checks(
     alarm = with_restoring_force_check(alarm, gap)
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
     priors = model.get("priors")
-    alarm = with_unseen_law_check(alarm, restoring_force, trained_law_kinds(priors))
+    seen = trained_law_kinds(priors)
+    alarm = with_unseen_law_check(alarm, restoring_force, seen)
+    alarm = with_restraint_dynamics_check(alarm, restoring_force, seen)
     sensor = restoring_force.get("sensor")
     alarm = with_sensor_fit_check(alarm, sensor, priors, fs_hz)
     alarm = with_chain_refusal_check(alarm, restoring_force, priors, fs_hz)

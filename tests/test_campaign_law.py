@@ -13,6 +13,8 @@ from stiffnet.uncertainty.campaign_law import (
     campaign_law_alarms,
     campaign_law_decision,
     campaign_law_thresholds,
+    contact_law_fired,
+    law_check_fired,
     with_campaign_law,
 )
 
@@ -55,6 +57,25 @@ def test_a_flagged_campaign_fires_the_check_on_every_recording():
     assert with_campaign_law(quiet, decision) is quiet
 
 
+def test_a_restraint_that_rings_counts_like_a_contact_law():
+    """The restraint_dynamics check reads a map the contact-law check judges: its firing
+    counts for the campaign (a beam's tip, whose law is linear, fires only it)."""
+    scores = {"contact_law": 0.0, "restraint_dynamics": 0.4}
+    limits = {"contact_law": 0.0, "restraint_dynamics": 0.08}
+    ringing = {"class": "soft", "ood_flag": True,
+               "alarm": {"flag": True, "fired": ["restraint_dynamics"], "scores": scores,
+                         "thresholds": limits}}  # fmt: skip
+    quiet = {"class": "soft", "ood_flag": False,
+             "alarm": {"flag": False, "fired": [], "scores": {"contact_law": 0.0},
+                       "thresholds": {"contact_law": 0.0}}}  # fmt: skip
+    assert contact_law_fired(ringing["alarm"]) == (True, True)
+    assert contact_law_fired(quiet["alarm"]) == (True, False)
+    assert law_check_fired(["sensor", "restraint_dynamics"]) and not law_check_fired(["sensor"])
+    results, decision = campaign_law_alarms([ringing] * 6 + [quiet] * 3)
+    assert decision["flag"] and (decision["n_judged"], decision["n_fired"]) == (9, 6)
+    assert all(r["ood_flag"] for r in results)
+
+
 def test_the_shipped_settings_validate():
     t = campaign_law_thresholds()
     assert 0 < t.in_world_rate < 0.5 and 0 < t.level < 0.05
@@ -67,7 +88,7 @@ def test_the_shipped_settings_validate():
 def test_predict_batch_flags_every_predicted_row_of_a_flagged_campaign():
     from serving.batch_prediction import _campaign_law
 
-    fired = ["contact_law", "contact_law,sensor", None, "contact_law", "contact_law",
+    fired = ["contact_law", "contact_law,sensor", None, "restraint_dynamics", "contact_law",
              "contact_law", "embedding", None]  # fmt: skip
     table = pa.table({
         "path": list("abcdefgh"),

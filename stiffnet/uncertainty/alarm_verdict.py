@@ -62,6 +62,10 @@ ALARM_WORDS = {
     "the fit allows (as recorded, a lower low-pass corner) the model puts the recording in "
     "another class: the class depends on a chain the record cannot pin down (give the "
     "accelerometer's data sheet)",
+    "restraint_dynamics": "the contact force rises and falls more than once within each impact: "
+    "the restraint rings during the contact (a beam's tip, a stop on a flexible mount), which "
+    "the training data lack, and the model reads the contact in series with the restraint's "
+    "compliance (a softer class than the contact's)",
     "campaign_law": "the campaign's recordings read a contact law the training data lack more "
     "often than any law of the training world does: the rig is outside the model's world, "
     "this recording included",

@@ -9,10 +9,11 @@ or whose map bends as smoothly as a sensor chain's, reads like the training worl
 the model's wrong answers there stay silent (docs/crosscheck.md: 4-6 of 24 on the
 robustness sets' Hunt-Crossley and power laws).
 
-A campaign's recordings share one rig, hence one contact law. Where more of them fire
-the check than the training world's rate allows, the law is outside the model's world for
-every recording, including those whose own map could not show it: the campaign's
-``campaign_law`` check fires on all of them. The rule is a one-sided binomial test of the
+A campaign's recordings share one rig, hence one contact law and one restraint. Where more
+of them fire the check (or the ``restraint_dynamics`` check, a restraint that rings within
+its contacts: :data:`LAW_CHECKS`) than the training world's rate allows, the law is outside
+the model's world for every recording, including those whose own map could not show it: the
+campaign's ``campaign_law`` check fires on all of them. The rule is a one-sided binomial test of the
 count that fired among those the check could judge (a refused map judges nothing) against
 the in-world rate :attr:`CampaignLawThresholds.in_world_rate`, at level
 :attr:`CampaignLawThresholds.level` (``configs/alarm/campaign_law.yaml``): a campaign of
@@ -35,6 +36,11 @@ from stiffnet.uncertainty.alarm_verdict import alarm_message
 
 #: The check's name in an alarm's ``fired`` list.
 CAMPAIGN_LAW = "campaign_law"
+#: The per-recording checks whose firing counts: the contact law's own
+#: (:mod:`~stiffnet.uncertainty.unseen_law`) and a restraint that rings within its contacts
+#: (:mod:`~stiffnet.uncertainty.restraint_dynamics`), which reads a map the contact-law check
+#: judges.
+LAW_CHECKS = ("contact_law", "restraint_dynamics")
 THRESHOLDS_CONFIG = "alarm/campaign_law.yaml"
 
 
@@ -64,10 +70,15 @@ def campaign_law_thresholds() -> CampaignLawThresholds:
 
 def contact_law_fired(alarm: dict[str, Any] | None) -> tuple[bool, bool]:
     """Whether a recording's alarm judged its contact law (the check ran on a readable
-    map) and whether the ``contact_law`` check fired."""
+    map) and whether a check of :data:`LAW_CHECKS` fired."""
     alarm = alarm or {}
     judged = "contact_law" in (alarm.get("scores") or {})
-    return judged, judged and "contact_law" in (alarm.get("fired") or [])
+    return judged, judged and law_check_fired(alarm.get("fired") or [])
+
+
+def law_check_fired(fired: Sequence[str]) -> bool:
+    """Whether any check of :data:`LAW_CHECKS` is among an alarm's `fired` checks."""
+    return any(name in fired for name in LAW_CHECKS)
 
 
 def campaign_law_decision(

@@ -74,6 +74,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from stiffnet.uncertainty.alarm_verdict import alarm_message
+from stiffnet.uncertainty.restraint_dynamics import RESTRAINT_DYNAMICS
 
 #: Exponents the restoring-force fit reads on the training world's laws (robustness
 #: sets, R2 >= 0.98): linear and Kelvin-Voigt contacts 1.00-1.16, Hertz 1.38-1.52, and
@@ -227,9 +228,11 @@ def trained_law_kinds(priors: dict[str, Any] | None) -> frozenset[str]:
     A model the loop retrained with a learned law (``learned_contact`` in its card's
     ``data.priors["effects"]``) saw it: a knee with a stiffness ratio other than 1 or an
     exponent other than 1 is :data:`STIFFENING`, a Hunt-Crossley term
-    :data:`PENETRATION_DISSIPATION`. The ``contact_law`` check then does not call those
-    kinds unseen (:func:`unseen_law_reasons`' ``seen``). The shipped models' worlds have
-    none: an empty set.
+    :data:`PENETRATION_DISSIPATION`, a face with a mass of its own
+    :data:`~stiffnet.uncertainty.restraint_dynamics.RESTRAINT_DYNAMICS` (the
+    ``restraint_dynamics`` check then does not judge). The ``contact_law`` check then does
+    not call those kinds unseen (:func:`unseen_law_reasons`' ``seen``). The shipped models'
+    worlds have none: an empty set.
     """
     kinds: set[str] = set()
     for effect in (priors or {}).get("effects") or []:
@@ -240,6 +243,8 @@ def trained_law_kinds(priors: dict[str, Any] | None) -> frozenset[str]:
             kinds.add(STIFFENING)
         if _departs(params.get("hunt_crossley"), 0.0):
             kinds.add(PENETRATION_DISSIPATION)
+        if any(_departs(params.get(k), 0.0) for k in ("face_mass", "face2_mass")):
+            kinds.add(RESTRAINT_DYNAMICS)
     return frozenset(kinds)
 
 
