@@ -24,8 +24,8 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    kept if the joint model passes every significance test against the
    previous one. The nuisances are profiled again after each accepted step (where they
    moved, the selected effects are refitted locally, :data:`ACCEPT_ROUNDS`).
-   Selection stops when no candidate passes. Closed-form fits search on
-   :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
+   Selection stops when no candidate passes. Closed-form fits and the joint refits search
+   on :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
    operating points and are scored and tested on all of them; the selected effects then get
    a joint Nelder-Mead on every recording (:data:`POLISH_EVALUATIONS`), which takes back what
    the searches on a subset left of the whole campaign's optimum.

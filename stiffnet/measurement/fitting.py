@@ -42,7 +42,10 @@ Search, in the unit cube of the effect's fit space
   recording, oversampled, with the standard lead-in.
 * :func:`fit_joint` (every effect of a model at once): Nelder-Mead from the
   current values over all their coordinates, so an effect fitted first cannot
-  keep a share of the discrepancy that belongs to one found later.
+  keep a share of the discrepancy that belongs to one found later. In a diagnosis's
+  selection steps it searches on the same :data:`SUBSET_SEARCH` recordings as the fits
+  and scores its best point on all of them (the serial part of a diagnosis: a third of
+  the simulations on a 24-recording campaign); the final polish searches on all.
 """
 
 from __future__ import annotations
@@ -556,8 +559,9 @@ def fit_joint(
 
     ``start`` is the per-recording discrepancy at ``params`` if known;
     ``rounds`` of block coordinate descent come first (0 for a polish only), each effect's
-    refit searched on ``subset`` recordings (:func:`fit_effect`); the Nelder-Mead runs on all
-    of them. The result never ends worse than the start.
+    refit searched on ``subset`` recordings (:func:`fit_effect`), then the Nelder-Mead on the
+    same subset (:func:`spread_subset`; None: on every recording, as the polish), its best
+    point scored on every recording. The result never ends worse than the start.
 
     Returns
     -------
@@ -597,10 +601,15 @@ def fit_joint(
     if budget is None:
         per = JOINT_PER_COORDINATE_NUMERICAL if numerical else JOINT_PER_COORDINATE
         budget = max(1, per * k) + 1
-    ev = _Evaluator(target, [], names, spaces, settings, budget)
+    # the Nelder-Mead searches on the subset too, its best point scored on every recording
+    idx = spread_subset(target.rows, subset or len(target.rows))
+    if idx.size < len(target.rows):
+        ev = _Evaluator(target.subset(idx), [], names, spaces, settings, budget, target)
+    else:
+        ev = _Evaluator(target, [], names, spaces, settings, budget)
     u0 = np.concatenate([s.unit(p) for s, p in zip(spaces, params, strict=True)])
     ev.full[ev.key(u0)] = start
-    if not target.inclination:  # the search's values are the full ones
+    if not target.inclination and ev.whole is None:  # the search's values are the full ones
         ev.cache[ev.key(u0)] = start
     ev.per(u0)
     if k and len(ev.cache) < budget:
