@@ -62,13 +62,9 @@ class ChainSpreadConfig(BaseModel):
 @lru_cache(maxsize=1)
 def chain_spread_config() -> ChainSpreadConfig:
     """The shipped settings: ``configs/chain_spread.yaml``, else the defaults."""
-    from stiffnet.config import load_yaml, validate_config
-    from stiffnet.shipped import default_config
+    from stiffnet.config import shipped_settings
 
-    path = default_config(CHAIN_SPREAD_CONFIG)
-    if not path.is_file():
-        return ChainSpreadConfig()
-    return validate_config(ChainSpreadConfig, load_yaml(path), str(path))
+    return shipped_settings(ChainSpreadConfig, CHAIN_SPREAD_CONFIG)
 
 
 def plausible_chains(

@@ -133,3 +133,23 @@ def test_yaml_errors(tmp_path):
     bad.write_text("sweep: [1, 2\n")
     with pytest.raises(ConfigError, match="invalid YAML at line"):
         load_config(SimulationConfig, bad)
+
+
+def test_shipped_settings_validate_the_file_or_give_the_defaults(tmp_path, monkeypatch):
+    from pydantic import BaseModel, ConfigDict
+
+    import stiffnet.shipped
+    from stiffnet.config import shipped_settings
+
+    class Settings(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+        level: float = 0.5
+
+    monkeypatch.setattr(stiffnet.shipped, "default_config", lambda name: tmp_path / name)
+    assert shipped_settings(Settings, "s.yaml").level == 0.5  # no file: the defaults
+    (tmp_path / "s.yaml").write_text("level: 0.25\n", encoding="utf-8")
+    assert shipped_settings(Settings, "s.yaml").level == 0.25
+    (tmp_path / "s.yaml").write_text("levle: 0.25\n", encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        shipped_settings(Settings, "s.yaml")
+    assert "\n" not in str(err.value) and "levle" in str(err.value)

@@ -46,3 +46,13 @@ def load_yaml(path: str | Path) -> dict[str, Any]:
 def load_config(model: type[M], path: str | Path) -> M:
     """Load and validate a YAML config file."""
     return validate_config(model, load_yaml(path), str(path))
+
+
+def shipped_settings(model: type[M], name: str) -> M:
+    """``model`` validated from the shipped ``configs/<name>`` (one-line :class:`ConfigError`
+    when invalid), else its defaults where the file is not there (an installed package
+    without the repository's ``configs/``)."""
+    from stiffnet.shipped import default_config
+
+    path = default_config(name)
+    return load_config(model, path) if path.is_file() else model()

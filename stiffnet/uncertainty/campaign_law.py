@@ -59,13 +59,9 @@ class CampaignLawThresholds(BaseModel):
 @lru_cache(maxsize=1)
 def campaign_law_thresholds() -> CampaignLawThresholds:
     """The shipped settings: ``configs/alarm/campaign_law.yaml``, else the defaults."""
-    from stiffnet.config import load_yaml, validate_config
-    from stiffnet.shipped import default_config
+    from stiffnet.config import shipped_settings
 
-    path = default_config(THRESHOLDS_CONFIG)
-    if not path.is_file():
-        return CampaignLawThresholds()
-    return validate_config(CampaignLawThresholds, load_yaml(path), str(path))
+    return shipped_settings(CampaignLawThresholds, THRESHOLDS_CONFIG)
 
 
 def contact_law_fired(alarm: dict[str, Any] | None) -> tuple[bool, bool]:

@@ -54,13 +54,9 @@ class ClassDecisionConfig(BaseModel):
 @lru_cache(maxsize=1)
 def class_decision_config() -> ClassDecisionConfig:
     """The shipped rule: ``configs/class_decision.yaml``, else none (the class head decides)."""
-    from stiffnet.config import load_yaml, validate_config
-    from stiffnet.shipped import default_config
+    from stiffnet.config import shipped_settings
 
-    path = default_config(CLASS_DECISION_CONFIG)
-    if not path.is_file():
-        return ClassDecisionConfig()
-    return validate_config(ClassDecisionConfig, load_yaml(path), str(path))
+    return shipped_settings(ClassDecisionConfig, CLASS_DECISION_CONFIG)
 
 
 def family_rule(kind: str) -> FamilyRule | None:

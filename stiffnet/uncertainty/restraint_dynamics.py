@@ -67,13 +67,9 @@ class RestraintDynamicsThresholds(BaseModel):
 @lru_cache(maxsize=1)
 def restraint_dynamics_thresholds() -> RestraintDynamicsThresholds:
     """The shipped settings: ``configs/alarm/restraint_dynamics.yaml``, else the defaults."""
-    from stiffnet.config import load_yaml, validate_config
-    from stiffnet.shipped import default_config
+    from stiffnet.config import shipped_settings
 
-    path = default_config(THRESHOLDS_CONFIG)
-    if not path.is_file():
-        return RestraintDynamicsThresholds()
-    return validate_config(RestraintDynamicsThresholds, load_yaml(path), str(path))
+    return shipped_settings(RestraintDynamicsThresholds, THRESHOLDS_CONFIG)
 
 
 def impact_second_peak(force: np.ndarray) -> float:

@@ -171,13 +171,9 @@ class UnseenLawThresholds(BaseModel):
 @lru_cache(maxsize=1)
 def unseen_law_thresholds() -> UnseenLawThresholds:
     """The shipped thresholds: ``configs/alarm/unseen_law.yaml``, else the defaults above."""
-    from stiffnet.config import load_yaml, validate_config
-    from stiffnet.shipped import default_config
+    from stiffnet.config import shipped_settings
 
-    path = default_config(THRESHOLDS_CONFIG)
-    if not path.is_file():
-        return UnseenLawThresholds()
-    return validate_config(UnseenLawThresholds, load_yaml(path), str(path))
+    return shipped_settings(UnseenLawThresholds, THRESHOLDS_CONFIG)
 
 
 def penetration_dissipation(
