@@ -25,7 +25,15 @@ def test_score_counts_what_a_user_is_not_told(swap):
              (50.0, "no_contact")]]  # fmt: skip
     got = [
         dict(cls="soft", beta=11.0, interval=[8.0, 12.0], flag=False, cpu_s=1.0, rf_cls="soft"),
-        dict(cls="soft", beta=14.0, interval=[10.0, 18.0], flag=True, cpu_s=1.0, rf_cls=None),
+        dict(
+            cls="soft",
+            beta=14.0,
+            interval=[10.0, 18.0],
+            flag=True,
+            cpu_s=1.0,
+            rf_cls=None,
+            fired=["chain_class", "sensor"],
+        ),
         dict(cls="medium", beta=30.0, interval=[25.0, 36.0], flag=False, cpu_s=1.0, rf_cls="hard"),
         dict(
             cls="very_hard", beta=63.0, interval=[61.0, 66.0], flag=False, cpu_s=1.0, rf_cls="hard"
@@ -34,6 +42,8 @@ def test_score_counts_what_a_user_is_not_told(swap):
             cls="no_contact", beta=None, interval=None, flag=False, cpu_s=3.0, rf_cls="no_contact"
         ),
     ]
+    for g in got:
+        g.setdefault("fired", ["embedding"] if g["flag"] else [])
     s = swap.score(recs, got)
     assert s["n"] == 5 and s["n_contact"] == 4
     assert s["accuracy"] == pytest.approx(2 / 4)
@@ -46,6 +56,9 @@ def test_score_counts_what_a_user_is_not_told(swap):
     assert s["cpu_s_per_recording"] == pytest.approx(7 / 5)
     # the restoring force over the contact recordings: a refusal (no class) counts wrong
     assert s["rf_accuracy"] == pytest.approx(2 / 4) and s["rf_refusals"] == 1
+    # the chain spread's alarm, and the median interval width (high over low) with contact
+    assert s["chain_class"] == 1
+    assert s["width"] == pytest.approx(np.median([12 / 8, 18 / 10, 36 / 25, 66 / 61]))
 
 
 def test_the_restoring_force_check_runs_once_per_recording(swap):

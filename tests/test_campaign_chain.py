@@ -178,7 +178,11 @@ def test_evaluate_pools_one_known_chain_on_an_independent_rig_campaign(tmp_path)
     assert chain["pooled"], chain["reason"]
     assert chain["n_identified"] >= 2
     assert chain["sensor"]["resonance_hz"] == pytest.approx(SENSOR["resonance_hz"], rel=0.1)
-    assert [r["chain_source"] for r in res["recordings"]] == ["campaign"] * len(BETAS)
+    # every recording through the pooled chain, but one whose own contact law the pooled
+    # chain reads much worse keeps its own reading (reads_alone: here beta 90, whose own fit
+    # puts the high-pass at 3.4 Hz where the pool reads 0.9 Hz for the true 1 Hz)
+    sources = [r["chain_source"] for r in res["recordings"]]
+    assert sources.count("campaign") >= len(BETAS) - 1 and set(sources) <= {"campaign", "fitted"}
     # the first reading (each recording's own chain, or none) is memoised on the campaign
     own = [predicted(campaign, i, row, None) for i, row in enumerate(campaign.rows)]
     pooled = [r["beta_estimate"] for r in res["recordings"]]
@@ -191,7 +195,7 @@ def test_evaluate_pools_one_known_chain_on_an_independent_rig_campaign(tmp_path)
     summary = predict_batch(tmp_path / "camp", tmp_path / "out.parquet", part_size=4)
     assert summary["sensor"]["sensor"] == chain["sensor"] and summary["parts"] == 4
     table = pq.read_table(tmp_path / "out.parquet").to_pylist()
-    assert [r["sensor_source"] for r in table] == ["campaign"] * len(BETAS)
+    assert [r["sensor_source"] for r in table] == sources
     assert [r["beta"] for r in table] == pytest.approx(pooled)
 
 
