@@ -422,7 +422,9 @@ def main(argv: list[str] | None = None) -> int:
                     "alone), a column 'NAME undo=MODE spread off'")  # fmt: skip
     args = ap.parse_args(argv)
     paths = {k: Path(v) for k, v in (m.split("=", 1) for m in args.model)}
-    known = CROSSCHECK_SETS + ALARM_SETS + list(CAMPAIGN_SETS)
+    # every rig law of bench_alarm (rig_sensor: a lab mount) reads as its default sets do
+    known = CROSSCHECK_SETS + ALARM_SETS + [s for s in ba.RIG_SETS if s not in ALARM_SETS]
+    known += list(CAMPAIGN_SETS)
     known += [f"{k}+1000" for k in CAMPAIGN_SETS]
     unknown = set(args.sets) - set(known)
     if unknown:
