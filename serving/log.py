@@ -61,8 +61,8 @@ LOG_BATCH = 128
 #: Share of a layer's points with the alarm above which the layer is flagged.
 LAYER_ALARM_SHARE = 0.5
 #: Natural periods at the start of the record the accelerometer's chain is identified on
-#: (twice what one restoring-force check reads: it reads the middle of what it is given).
-CHAIN_FIT_PERIODS = 2 * RESTORING_FORCE_PERIODS
+#: (what one restoring-force check reads: a stream's first point waits for them).
+CHAIN_FIT_PERIODS = RESTORING_FORCE_PERIODS
 
 
 class StiffnessLogger:

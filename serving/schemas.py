@@ -299,7 +299,7 @@ class LogResult(BaseModel):
     points: list[LogPoint]
     sensor: dict[str, Any] | None = Field(
         default=None,
-        description="The accelerometer chain identified on the record's first 48 natural "
+        description="The accelerometer chain identified on the record's first 24 natural "
         "periods, or the data sheet's (the restoring-force check's sensor; null: none).",
     )
     chain_undone: dict[str, Any] | None = Field(

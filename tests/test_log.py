@@ -252,7 +252,7 @@ def test_a_data_sheets_chain_is_divided_out_of_every_window_in_any_chunking(pred
 @pytest.mark.slow
 def test_a_chain_fitted_on_the_records_start_is_undone_and_the_intervals_span_it(predictor):
     """No data sheet: the 3rd-order low-pass at 120 Hz is identified on the record's first
-    48 periods (read 145 Hz: the fit reads corners high), divided out of every window, and
+    24 periods (read 145 Hz: the fit reads corners high), divided out of every window, and
     each point's and layer's interval spans the readings through the other chains the fit
     stands for (as recorded, the corner at 0.8 and 0.9 of the fitted one)."""
     from serving.chain_spread import ChainSpreadConfig
