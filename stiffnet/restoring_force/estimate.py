@@ -770,9 +770,13 @@ def _inverse_map(
     inverse: bool = True,
 ) -> _Map:
     """The map of `y` with `chain` divided out (:func:`~.chain.deconvolve`), its contact law
-    fitted through what the inverse keeps (:func:`~.band.kept_band`); `inverse` as
-    :class:`_Map` (its short free runs join the contact)."""
-    band = kept_band(y, fs_hz, chain, m.fit.sigma)
+    fitted through what the inverse keeps (:func:`~.band.kept_band`) where the chain is known
+    (a data sheet, a campaign's pooled chain); `inverse` as :class:`_Map` (its short free runs
+    join the contact)."""
+    # a fitted chain is judged by the contact law it leaves (R2 against the record as
+    # recorded, R2_SLACK): a law fitted through its band explains more whether the chain is
+    # right or not, so a fitted chain's map keeps the plain fit
+    band = kept_band(y, fs_hz, chain, m.fit.sigma) if chain.source != "fitted" else None
     flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
     return _remap(flat, args, highpass_hz, corner, exponent, inverse=inverse, band=band)
 
