@@ -457,7 +457,7 @@ def _predict_json(
     _check_samples(len(req.samples), max_samples)
     accel = np.asarray(req.samples, dtype=np.float64)
     if what == "log":
-        return _log(predictor, accel, req.fs_hz, req.natural_frequency_hz, "request")
+        return _log(predictor, accel, req.fs_hz, req.natural_frequency_hz, "request", req.sensor)
     return predictor.predict(
         accel,
         req.fs_hz,
@@ -468,15 +468,24 @@ def _predict_json(
     )
 
 
-def _log(predictor: Predictor, accel: np.ndarray, fs: Any, fn: Any, source: str) -> dict:
-    """``POST /log``: the stiffness log of the samples (f_n required, as for /predict)."""
+def _log(
+    predictor: Predictor,
+    accel: np.ndarray,
+    fs: Any,
+    fn: Any,
+    source: str,
+    sensor: dict | None = None,
+) -> dict:
+    """``POST /log``: the stiffness log of the samples (f_n required, as for /predict;
+    `sensor`: the accelerometer chain's data sheet)."""
     from serving.log import stiffness_log
     from serving.predictor import record_natural_frequency
     from stiffnet.inputs import natural_frequency, sampling_rate
 
     if fn is None:
         record_natural_frequency(None, None)  # the one-line refusal
-    doc = stiffness_log(predictor, accel, sampling_rate(fs), natural_frequency(fn), source=source)
+    doc = stiffness_log(predictor, accel, sampling_rate(fs), natural_frequency(fn), source=source,
+                        sensor=sensor)  # fmt: skip
     doc["natural_frequency_source"] = "request"
     return doc
 

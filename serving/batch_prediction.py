@@ -174,6 +174,7 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("channel", pa.string()),
             ("sensor_source", pa.string()),
             ("sensor", pa.string()),
+            ("chain_readings", pa.string()),
             ("n_layers", pa.int64()),
             ("layers", pa.string()),
             ("warnings", pa.string()),
@@ -224,6 +225,11 @@ def result_row(
             "sensor_source": sensor.get("source"),
             # the chain itself (JSON): the campaign pools the identified ones
             "sensor": json.dumps(sensor) if sensor else None,
+            # the model's readings through the other chains a fitted one stands for (JSON):
+            # what the interval spans beside the model's own reading
+            "chain_readings": json.dumps(result["chain_readings"])
+            if result.get("chain_readings")
+            else None,
             "n_layers": len(result.get("layers") or []) or None,
             "layers": json.dumps(result["layers"]) if len(result.get("layers") or []) > 1 else None,
             "warnings": "; ".join(result.get("warnings") or []) or None,

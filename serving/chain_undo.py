@@ -108,6 +108,37 @@ def undone_record(accel: np.ndarray, fs_hz: float, chain: SensorChain) -> np.nda
     return flat[pad : pad + a.size]
 
 
+def undone_windows(
+    accel: np.ndarray, starts: np.ndarray, n_win: int, fs_hz: float, chain: SensorChain
+) -> np.ndarray:
+    """Windows ``accel[s : s + n_win]`` with the chain divided out, one by one.
+
+    Each window is read with :func:`window_margin` samples of `accel` either side (reflected
+    where `accel` ends) so that its ends do not leak into each other through the inverse,
+    and with its own noise floor: a window's reading does not depend on how the record was
+    cut into chunks, so a stream and the whole file give the same log.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(len(starts), n_win)``.
+    """
+    a = np.asarray(accel, dtype=float)
+    m = window_margin(n_win)
+    out = np.empty((len(starts), n_win))
+    for k, s in enumerate(np.asarray(starts, dtype=int)):
+        lo, hi = max(0, s - m), min(a.size, s + n_win + m)
+        seg = np.pad(a[lo:hi], (m - (s - lo), m - (hi - s - n_win)), mode="reflect")
+        out[k] = deconvolve(seg, fs_hz, chain, record_noise_sigma(seg, fs_hz))[m : m + n_win]
+    return out
+
+
+def window_margin(n_win: int) -> int:
+    """Samples of record read either side of a window whose chain is undone
+    (:data:`PAD_FRACTION` of it, as a whole record's reflected ends)."""
+    return max(16, int(PAD_FRACTION * n_win))
+
+
 def model_record(
     accel: np.ndarray,
     fs_hz: float,
@@ -140,10 +171,15 @@ def model_record(
     chain = chain_to_undo(sensor, priors, fs_hz, natural_frequency_hz, mode)
     if chain is None:
         return accel, None
-    undone = {k: v for k, v in dataclasses.asdict(chain).items()
-              if k in ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order",
-                       "source")}  # fmt: skip
-    return undone_record(accel, fs_hz, chain), undone
+    return undone_record(accel, fs_hz, chain), undone_stages(chain)
+
+
+def undone_stages(chain: SensorChain) -> dict[str, Any]:
+    """What dividing `chain` out undoes, as the results report it (``resonance_hz``,
+    ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``source``)."""
+    return {k: v for k, v in dataclasses.asdict(chain).items()
+            if k in ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order",
+                     "source")}  # fmt: skip
 
 
 def chain_as_read(sensor: dict | None, undone: dict[str, Any] | None) -> dict | None:

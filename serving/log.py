@@ -30,12 +30,18 @@ so a stream gives the same layers as the file.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
 
-from serving.restoring_force_check import restoring_force_check
+from serving.chain_spread import plausible_chains
+from serving.chain_undo import chain_to_undo, undone_stages, undone_windows, window_margin
+from serving.restoring_force_check import (
+    RESTORING_FORCE_PERIODS,
+    check_sensor_sheet,
+    restoring_force_check,
+)
 from serving.verdict import model_facts, rule_checks, widened_interval
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
@@ -54,6 +60,9 @@ MAX_RESTORING_FORCE_CHECKS = 1000
 LOG_BATCH = 128
 #: Share of a layer's points with the alarm above which the layer is flagged.
 LAYER_ALARM_SHARE = 0.5
+#: Natural periods at the start of the record the accelerometer's chain is identified on
+#: (what one restoring-force check reads: a stream's first point waits for them).
+CHAIN_FIT_PERIODS = RESTORING_FORCE_PERIODS
 
 
 class StiffnessLogger:
@@ -72,6 +81,13 @@ class StiffnessLogger:
     penalty : float, optional
         Change penalty per window length (default
         :data:`stiffnet.layers.PENALTY_PER_WINDOW`, calibrated).
+    sensor : dict, optional
+        The accelerometer chain's data sheet (checked:
+        :func:`serving.restoring_force_check.check_sensor_sheet`).
+    fit_chain : bool
+        Without a data sheet, identify the chain from the record's first
+        :data:`CHAIN_FIT_PERIODS` natural periods, as ``predict`` does on a recording (False:
+        the record is read as recorded).
     """
 
     def __init__(
@@ -83,6 +99,8 @@ class StiffnessLogger:
         hop_s: float = MAX_HOP_S,
         restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
         penalty: float | None = None,
+        sensor: dict | None = None,
+        fit_chain: bool = True,
     ) -> None:
         from serving.checks import rate_warnings
         from stiffnet.inputs import natural_frequency, sampling_rate
@@ -125,6 +143,17 @@ class StiffnessLogger:
         self.facts = model_facts(predictor)
         self.n_widened = 0  # points whose interval the alarm widened (said once, in warnings)
         self.widened_layers: list[int] = []  # flagged layers whose interval was widened
+        # the accelerometer's chain: identified on the record's start, then divided out of
+        # every window the model reads (as predict divides it out of a recording)
+        self.sheet = sensor
+        self.chain_fit_n = int(math.ceil(CHAIN_FIT_PERIODS * self.fs / self.fn))
+        self.chain_pending = sensor is not None or fit_chain
+        self.sensor: dict[str, Any] | None = None  # the chain identified (its check's)
+        self.undone: dict[str, Any] | None = None  # what the model's reading divides out
+        self.chain: Any = None  # its SensorChain
+        self.other_chains: dict[str, Any] = {}  # the readings a fitted chain stands for
+        self.margin = 0  # samples read past a window's end before it is read
+        self.spreads: list[tuple[float, float, float]] = []  # (t, low, high) log-beta offsets
 
     @property
     def window_s(self) -> float:
@@ -138,29 +167,64 @@ class StiffnessLogger:
             raise StiffnetError(f"sample {self.n_total + bad} is NaN or inf")
         self.buf = np.concatenate([self.buf, x]) if self.buf.size else x.copy()
         self.n_total += x.size
-        events: list[tuple[str, dict[str, Any]]] = []
-        while True:
-            ready = (self.n_total - self.n_win - self.next_window * self.hop) // self.hop + 1
-            if ready <= 0:
-                break
-            events.extend(self._windows(min(int(ready), LOG_BATCH)))
-        # keep what the next window and the next restoring-force check need
-        keep_from = self.next_window * self.hop
+        if self.chain_pending:
+            if self.n_total < self.chain_fit_n:
+                return []  # nothing is dropped before the chain is known
+            self._identify_chain(self.buf[: self.chain_fit_n])
+        events = self._drain(self.margin)
+        # keep what the next window (and the record it reads either side) needs
+        keep_from = self.next_window * self.hop - self.margin
         drop = max(0, keep_from - self.buf_start)
         if drop:
             self.buf = self.buf[drop:]
             self.buf_start += drop
         return events
 
+    def _drain(self, margin: int) -> list[tuple[str, dict[str, Any]]]:
+        """The points of every window with `margin` samples of record after it."""
+        events: list[tuple[str, dict[str, Any]]] = []
+        while True:
+            end = self.n_total - margin - self.n_win - self.next_window * self.hop
+            ready = end // self.hop + 1
+            if ready <= 0:
+                return events
+            events.extend(self._windows(min(int(ready), LOG_BATCH)))
+
+    def _identify_chain(self, head: np.ndarray) -> None:
+        """The accelerometer's chain from the record's start (the restoring-force check's, or
+        the data sheet's), what the model's reading divides out, and the other chains a
+        fitted one stands for (:func:`serving.chain_spread.plausible_chains`)."""
+        self.chain_pending = False
+        if head.size < self.n_win:
+            return
+        check = restoring_force_check(head, self.fs, self.fn, self.sheet, self.p.stage_ratio)
+        self.sensor = check.get("sensor")
+        priors = self.facts["priors"]
+        self.chain = chain_to_undo(self.sensor, priors, self.fs, self.fn, self.p.undo_chain)
+        if self.chain is None:
+            return
+        self.undone = undone_stages(self.chain)
+        others = plausible_chains(self.sensor, self.undone, self.p.chain_spread)
+        self.other_chains = {
+            name: None
+            if sensor is None
+            else chain_to_undo(sensor, priors, self.fs, self.fn, self.p.undo_chain)
+            for name, sensor in others.items()
+        }
+        self.margin = window_margin(self.n_win)
+
     def finish(self) -> list[tuple[str, dict[str, Any]]]:
-        """Close the stream: the last layers."""
+        """Close the stream: the last points and layers."""
+        if self.chain_pending:  # a record shorter than the chain's stretch: all of it
+            self._identify_chain(self.buf[: self.n_total - self.buf_start])
+        events = self._drain(0)  # the windows that waited for record after them
         if self.segmenter.n_seen == 0:
             raise StiffnetError(
                 f"the record is shorter than one model window ({self.window_s:.3g} s: "
                 f"{self.p.window_periods:g} natural periods at f_n {self.fn:.4g} Hz)"
             )
         end_t = (self.n_total) / self.fs
-        return [("layer", self._layer(x)) for x in self.segmenter.finish(end_t)]
+        return events + [("layer", self._layer(x)) for x in self.segmenter.finish(end_t)]
 
     # ------------------------------------------------------------ internals
 
@@ -169,12 +233,25 @@ class StiffnessLogger:
         ok = varying_windows(self.buf, starts - self.buf_start, self.n_win)
         out: dict[str, np.ndarray] = {}
         emb = None
+        others: list[dict[str, np.ndarray]] = []
         if ok.any():
-            # no geometric cross-check along the log: only what the model's input needs
-            out, _, _ = self.p._run_model(self.buf, starts[ok] - self.buf_start, self.n_win,
-                                          self.fs, self.fn, geometric_windows=0)  # fmt: skip
+            out = self._model(starts[ok] - self.buf_start, self.chain)
             emb = window_embedding_scores(self.p.alarm, out)
-        return self._emit(starts, ok, out, emb)
+            others = [
+                self._model(starts[ok] - self.buf_start, c) for c in self.other_chains.values()
+            ]
+        return self._emit(starts, ok, out, emb, others)
+
+    def _model(self, starts: np.ndarray, chain: Any) -> dict[str, np.ndarray]:
+        """The model's outputs on the buffer's windows at `starts`, `chain` divided out of
+        each (None: as recorded). No geometric cross-check along the log: only what the
+        model's input needs."""
+        a, at = self.buf, starts
+        if chain is not None:
+            a = undone_windows(self.buf, starts, self.n_win, self.fs, chain).reshape(-1)
+            at = np.arange(len(starts)) * self.n_win
+        out, _, _ = self.p._run_model(a, at, self.n_win, self.fs, self.fn, geometric_windows=0)
+        return out
 
     def replay(
         self,
@@ -206,8 +283,10 @@ class StiffnessLogger:
         ok: np.ndarray,
         out: dict[str, np.ndarray],
         emb: np.ndarray | None,
+        others: Sequence[dict[str, np.ndarray]] = (),
     ) -> list[tuple[str, dict[str, Any]]]:
-        """Points (and the layers they close) of the windows at `starts`, in order."""
+        """Points (and the layers they close) of the windows at `starts`, in order (`others`:
+        the model's outputs on the same windows through the other chains)."""
         events: list[tuple[str, dict[str, Any]]] = []
         k = 0
         for i in range(len(starts)):
@@ -216,13 +295,14 @@ class StiffnessLogger:
             if not ok[i]:
                 continue  # a constant window (a dropped-out sensor) gives no point
             point = self._point(j, out, k, None if emb is None else emb[k])
+            point["spread"] = self._spread(point, others, k)
             k += 1
             ph = None
             if self.restoring_force_every and end // self.restoring_force_every > (
                 end - self.hop
             ) // (self.restoring_force_every):
                 seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
-                ph = restoring_force_check(seg, self.fs, self.fn, stage_ratio=self.p.stage_ratio)
+                ph = restoring_force_check(seg, self.fs, self.fn, self.sheet, self.p.stage_ratio)
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded
@@ -265,13 +345,32 @@ class StiffnessLogger:
             "alarm": alarm,
         }
 
+    def _spread(
+        self, point: dict[str, Any], others: Sequence[dict[str, np.ndarray]], k: int
+    ) -> tuple[float, float] | None:
+        """How far the readings through the other chains move the point's log beta (lowest,
+        highest offset, 0 included; None: no other chain, or no contact). Kept for the
+        layers the point falls in."""
+        lbs = [float(o["log_beta"][k]) for o in others
+               if int(np.argmax(o["probabilities"][k])) != self.nc]  # fmt: skip
+        if not point["contact"] or not lbs:
+            return None
+        low = min(0.0, min(lbs) - point["log_beta"])
+        high = max(0.0, max(lbs) - point["log_beta"])
+        self.spreads.append((point["t"], low, high))
+        del self.spreads[: -self.segmenter.max_points]  # an endless layer: bounded
+        return low, high
+
     def _verdict(self, point: dict[str, Any], restoring_force: dict[str, Any] | None) -> None:
         """The point's alarm with the predictor's rule checks (:func:`serving.verdict.rule_checks`,
-        the restoring-force ones where the point carries a cross-check) and, when it fires, its
-        interval widened as the predictor widens a flagged recording's
-        (:func:`serving.verdict.widened_interval`). Its ``alarm`` becomes the fired checks."""
+        the restoring-force ones where the point carries a cross-check) on the model's own
+        interval; then the interval spans the readings through the other chains a fitted one
+        stands for and, when the alarm fires, is widened as the predictor widens a flagged
+        recording's (:func:`serving.verdict.widened_interval`). Its ``alarm`` becomes the
+        fired checks."""
         alarm = rule_checks(point["alarm"], point["class"], point["beta_interval"],
                             restoring_force, self.facts, self.fs, self.fn)  # fmt: skip
+        point["beta_interval"] = spread_by(point["beta_interval"], point["spread"])
         point["alarm"] = list(alarm["fired"]) if alarm is not None else []
         if alarm is not None and alarm["flag"] and point["contact"]:
             wide, said = widened_interval(point["beta_interval"], restoring_force)
@@ -291,6 +390,10 @@ class StiffnessLogger:
             raw["n_points"],
         )
         interval = beta_interval(est, self.p.metadata, self.q_window) if contact else None
+        inside = [(lo, hi) for t, lo, hi in self.spreads if raw["start_s"] <= t <= raw["end_s"]]
+        self.spreads = [s for s in self.spreads if s[0] > raw["end_s"]]
+        if inside:  # the layer's pooled reading moves as its points' readings move, on average
+            interval = spread_by(interval, tuple(np.mean(inside, axis=0)))
         beta = math.exp(raw["log_beta"]) if contact else None
         if beta is not None:
             cls, near = class_with_hysteresis(beta, self.previous_layer_class, self.classes)
@@ -329,6 +432,13 @@ class StiffnessLogger:
                 self.widened_layers.append(layer["index"])
         self.layers.append(layer)
         return layer
+
+
+def spread_by(interval: list[float] | None, spread: tuple[float, float] | None) -> list | None:
+    """`interval` with its ends moved out by the log-beta offsets `spread` (low <= 0 <= high)."""
+    if interval is None or spread is None:
+        return interval
+    return [interval[0] * math.exp(spread[0]), interval[1] * math.exp(spread[1])]
 
 
 def hop_samples(hop_s: float, fs_hz: float) -> int:
@@ -428,6 +538,7 @@ def stiffness_log(
     penalty: float | None = None,
     source: str = "",
     progress: Callable[[int, int], None] | None = None,
+    sensor: dict | None = None,
 ) -> dict[str, Any]:
     """The stiffness log of a whole record: points, layers, change times.
 
@@ -449,6 +560,9 @@ def stiffness_log(
         The record's name, echoed.
     progress : callable, optional
         ``progress(done_samples, total_samples)``.
+    sensor : dict, optional
+        The accelerometer chain's data sheet (default: identified from the record's start,
+        as ``predict`` does; :class:`StiffnessLogger`).
 
     Returns
     -------
@@ -457,10 +571,13 @@ def stiffness_log(
         and the model's identity (JSON-ready).
     """
     from serving.checks import finite_samples
+    from stiffnet.inputs import sampling_rate
 
     a = finite_samples(accel, source or "recording")
+    sheet = None if sensor is None else check_sensor_sheet(sensor, sampling_rate(fs_hz))
     log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, hop_s=hop_s, penalty=penalty,
-                          restoring_force_every_s=restoring_force_every_s)  # fmt: skip
+                          restoring_force_every_s=restoring_force_every_s,
+                          sensor=sheet)  # fmt: skip
     if a.size < log.n_win:
         raise StiffnetError(
             f"{source or 'recording'}: {a.size / fs_hz:.3g} s is shorter than one model window "
@@ -508,6 +625,14 @@ def log_result(
             + ", ".join(map(str, log.widened_layers))
             + " is widened to span their restoring-force interval"
         )
+    if log.undone is not None and log.other_chains:
+        warnings.append(
+            f"the accelerometer's chain was fitted on the record's first "
+            f"{log.chain_fit_n / log.fs:.3g} s and divided out of every window; the beta "
+            "intervals also span the readings through "
+            + ", ".join(log.other_chains)
+            + " (a data sheet, --sensor, reads it once)"
+        )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")
     flagged = [la["index"] for la in layers if la["alarm"]]
@@ -527,6 +652,11 @@ def log_result(
         "layers": layers,
         "changes": changes,
         "points": points,
+        # the accelerometer's chain identified on the record's start (or the data sheet's)
+        # and what was divided out of every window the model read (None: nothing)
+        "sensor": log.sensor,
+        "chain_undone": log.undone,
+        "chain_readings": list(log.other_chains) or None,
         "warnings": warnings,
     }
 
@@ -560,7 +690,9 @@ def record_layers(
     has already read the log's windows (the predictor's one pass); without it the
     model reads them here.
     """
-    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, restoring_force_every_s=None)
+    # `accel` is the record the model reads: any chain is already divided out of it
+    log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, restoring_force_every_s=None,
+                          fit_chain=False)  # fmt: skip
     if accel.size < log.n_win:
         return []
     if windows is not None:

@@ -569,6 +569,7 @@ class Predictor:
         hop_s: float = MAX_HOP_S,
         restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
         source: str = "",
+        sensor: dict | None = None,
     ) -> dict[str, Any]:
         """The stiffness log of a record: beta along it, its layers and change times.
 
@@ -587,12 +588,15 @@ class Predictor:
             Seconds between restoring-force cross-checks (None: none).
         source : str, optional
             The record's name, echoed.
+        sensor : dict, optional
+            The accelerometer chain's data sheet (default: identified from the record's
+            start and divided out of every window, as :meth:`predict` does).
         """
         from serving.log import stiffness_log
 
         return stiffness_log(
             self, accel, fs_hz, natural_frequency_hz, hop_s=hop_s,
-            restoring_force_every_s=restoring_force_every_s, source=source,
+            restoring_force_every_s=restoring_force_every_s, source=source, sensor=sensor,
         )  # fmt: skip
 
     def predict_file(

@@ -297,6 +297,21 @@ class LogResult(BaseModel):
     layers: list[LogLayer]
     changes: list[LogChange]
     points: list[LogPoint]
+    sensor: dict[str, Any] | None = Field(
+        default=None,
+        description="The accelerometer chain identified on the record's first 24 natural "
+        "periods, or the data sheet's (the restoring-force check's sensor; null: none).",
+    )
+    chain_undone: dict[str, Any] | None = Field(
+        default=None,
+        description="The stages divided out of every window the model read, with their source "
+        "(data sheet or fitted); null: the record as recorded.",
+    )
+    chain_readings: list[str] | None = Field(
+        default=None,
+        description="Behind a fitted chain, the other chains the model also read each window "
+        "through; every interval spans those readings (null: none).",
+    )
     warnings: list[str]
 
 
@@ -319,7 +334,7 @@ class PredictRequest(BaseModel):
         default=None,
         description="The accelerometer chain's data sheet (resonance_hz, resonance_damping, "
         "lowpass_hz, lowpass_order, highpass_hz; a stage left out is none): undone as given "
-        "instead of fitted from the impacts.",
+        "instead of fitted from the impacts (POST /log: out of every window).",
     )
 
 

@@ -3,6 +3,8 @@ on all (serving/campaign_chain.py, ``evaluate`` and ``predict-batch`` on a campa
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -183,6 +185,14 @@ def test_evaluate_pools_one_known_chain_on_an_independent_rig_campaign(tmp_path)
     # puts the high-pass at 3.4 Hz where the pool reads 0.9 Hz for the true 1 Hz)
     sources = [r["chain_source"] for r in res["recordings"]]
     assert sources.count("campaign") >= len(BETAS) - 1 and set(sources) <= {"campaign", "fitted"}
+    # a pooled chain is a fit, not a data sheet: each recording read through it is also read
+    # through the other chains the fit allows, and its interval spans those readings
+    for r in res["recordings"]:
+        readings = r["chain_readings"] or []
+        if r["chain_source"] == "campaign":
+            assert readings, r["recording"]
+        low, high = r["beta_interval"]
+        assert all(low <= x["beta"] <= high for x in readings), r["recording"]
     # the first reading (each recording's own chain, or none) is memoised on the campaign
     own = [predicted(campaign, i, row, None) for i, row in enumerate(campaign.rows)]
     pooled = [r["beta_estimate"] for r in res["recordings"]]
@@ -197,6 +207,9 @@ def test_evaluate_pools_one_known_chain_on_an_independent_rig_campaign(tmp_path)
     table = pq.read_table(tmp_path / "out.parquet").to_pylist()
     assert [r["sensor_source"] for r in table] == sources
     assert [r["beta"] for r in table] == pytest.approx(pooled)
+    assert [json.loads(r["chain_readings"] or "null") for r in table] == [
+        r["chain_readings"] for r in res["recordings"]
+    ]
 
 
 @pytest.mark.slow

@@ -206,6 +206,74 @@ def test_cli_refuses_without_natural_frequency_or_rate(records, tmp_path):
     assert b"Traceback" not in r.stderr and len(r.stderr.decode().strip().splitlines()) == 1
     r = _cli("-", "--follow", "--fn", "9.48", stdin=b"")
     assert r.returncode == 2 and b"--follow needs --fs" in r.stderr
+    r = _cli(str(rec), "--fn", "9.48", "--sensor", "lowpass_hz=120,gain=2")
+    assert r.returncode == 2 and b"unknown sensor key(s) gain" in r.stderr
+    assert len(r.stderr.decode().strip().splitlines()) == 1
+
+
+def _through_chain(a: np.ndarray, **stages: float) -> np.ndarray:
+    """`a` as an accelerometer behind the chain `stages` records it."""
+    from scipy import signal
+
+    from stiffnet.restoring_force.chain import SensorChain, chain_sos
+
+    return signal.sosfilt(chain_sos(SensorChain(**stages), FS), a)
+
+
+def _layer_betas(doc: dict) -> list[float]:
+    return [la["beta"] for la in doc["layers"]]
+
+
+def test_a_data_sheets_chain_is_divided_out_of_every_window_in_any_chunking(predictor):
+    """Soft then hard rock behind a mount resonance at 10 f_n and a 3rd-order low-pass at
+    0.06 fs: read as recorded the log is far off (both layers read above 50); with the data
+    sheet it reads the layers of the clean record, and a stream cut anywhere reads the
+    same points."""
+    from serving.restoring_force_check import check_sensor_sheet
+
+    clean, _ = layered_record([12.0, 60.0], [10.0, 10.0], seed=3)
+    sheet = {"resonance_hz": 10 * FN_HZ, "resonance_damping": 0.05, "lowpass_hz": 0.06 * FS,
+             "lowpass_order": 3}  # fmt: skip
+    rec = _through_chain(clean, **sheet)
+    truth = stiffness_log(predictor, clean, FS, FN_HZ, restoring_force_every_s=None)
+    read = stiffness_log(predictor, rec, FS, FN_HZ, restoring_force_every_s=None, sensor=sheet)
+    assert read["chain_undone"]["source"] == "data sheet" and read["chain_readings"] is None
+    assert _layer_betas(read) == pytest.approx(_layer_betas(truth), rel=0.1)
+    logger = StiffnessLogger(predictor, FS, FN_HZ, restoring_force_every_s=None, fit_chain=False)
+    as_recorded = [it for chunk in (rec,) for k, it in logger.feed(chunk) if k == "point"]
+    assert np.median([p["beta"] for p in as_recorded[:20]]) > 50  # truth 12
+    logger = StiffnessLogger(predictor, FS, FN_HZ, restoring_force_every_s=None,
+                             sensor=check_sensor_sheet(sheet, FS))  # fmt: skip
+    events = [e for chunk in np.array_split(rec, 37) for e in logger.feed(chunk)]
+    points = [it for k, it in events + logger.finish() if k == "point"]
+    assert [p["beta"] for p in points] == pytest.approx([p["beta"] for p in read["points"]])
+
+
+@pytest.mark.slow
+def test_a_chain_fitted_on_the_records_start_is_undone_and_the_intervals_span_it(predictor):
+    """No data sheet: the 3rd-order low-pass at 120 Hz is identified on the record's first
+    24 periods (read 145 Hz: the fit reads corners high), divided out of every window, and
+    each point's and layer's interval spans the readings through the other chains the fit
+    stands for (as recorded, the corner at 0.8 and 0.9 of the fitted one)."""
+    from serving.chain_spread import ChainSpreadConfig
+
+    clean, _ = layered_record([12.0, 60.0], [10.0, 10.0], seed=3)
+    rec = _through_chain(clean, lowpass_hz=0.06 * FS, lowpass_order=3)
+    doc = stiffness_log(predictor, rec, FS, FN_HZ, restoring_force_every_s=None)
+    assert doc["chain_undone"]["source"] == "fitted"
+    assert doc["chain_undone"]["lowpass_hz"] == pytest.approx(120.0, rel=0.3)
+    assert doc["chain_readings"] and any("fitted on the record" in w for w in doc["warnings"])
+    alone = Predictor.load(chain_spread=ChainSpreadConfig(enabled=False))
+    own = stiffness_log(alone, rec, FS, FN_HZ, restoring_force_every_s=None)
+    assert own["chain_readings"] is None
+    assert [p["beta"] for p in doc["points"]] == pytest.approx([p["beta"] for p in own["points"]])
+    wider = 0
+    for spread, narrow in zip(doc["points"] + doc["layers"], own["points"] + own["layers"],
+                              strict=True):  # fmt: skip
+        (lo, hi), (lo0, hi0) = spread["beta_interval"], narrow["beta_interval"]
+        assert lo <= lo0 * (1 + 1e-9) and hi >= hi0 * (1 - 1e-9)
+        wider += lo < lo0 * 0.99 or hi > hi0 * 1.01
+    assert wider >= len(doc["points"]) // 2
 
 
 @pytest.mark.slow

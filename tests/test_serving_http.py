@@ -340,6 +340,14 @@ def test_log_route_and_channel_field(client, tmp_path):
     assert abs(doc.changes[0].t_s - rec.duration_s) <= 1.0
     _is_error(client.post("/log", json={**body, "natural_frequency_hz": None}), 422,
               "natural frequency unknown")  # fmt: skip
+    # a data sheet is divided out of every window and said so; a bad one is a 4xx line
+    sheet = {"lowpass_hz": 300.0, "lowpass_order": 2.0}
+    r = client.post("/log", json={**body, "sensor": sheet})
+    assert r.status_code == 200, r.text
+    assert r.json()["chain_undone"]["source"] == "data sheet"
+    assert r.json()["chain_undone"]["lowpass_hz"] == 300.0
+    _is_error(client.post("/log", json={**body, "sensor": {"gain": 2.0}}), 422,
+              "unknown sensor key(s) gain")  # fmt: skip
     two = np.stack([np.zeros(hard.accel.size), hard.accel], axis=1).astype(np.float32)
     wavfile.write(tmp_path / "daq.wav", int(hard.fs_hz), two)
     raw = (tmp_path / "daq.wav").read_bytes()

@@ -495,21 +495,24 @@ def log_cmd(
     plot_path: Annotated[
         Path | None, typer.Option("--plot", help="The log as a PNG picture.")
     ] = None,
+    sensor: SensorOption = None,
 ) -> None:
     """Stiffness log along a record: beta(t) with intervals, layers and their change times."""
     from serving.predictor import Predictor
     from stiffnet.cli.console import console, out, write_json
+    from stiffnet.restoring_force.chain import parse_sensor_option
 
     _check_log_outputs(rows_path, plot_path)
+    sheet = parse_sensor_option(sensor) if sensor is not None else None
     predictor = Predictor.load(model, threads=threads)
     every = restoring_force_every if restoring_force_every > 0 else None
     if follow:
         stream = (stream_format, stream_column, idle_timeout)
         result = _followed_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
-                               every, stream)  # fmt: skip
+                               every, stream, sheet)  # fmt: skip
     else:
         result = _recorded_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
-                               every)  # fmt: skip
+                               every, sheet)  # fmt: skip
     for renderable in log_tables(result):
         (console if follow else out).print(renderable)  # a stream's stdout is its NDJSON
     write_json(json_path, result)
@@ -541,12 +544,13 @@ def _check_log_outputs(rows_path: Path | None, plot_path: Path | None) -> None:
 
 def _recorded_log(
     predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
-    hop: float, every: float | None,
+    hop: float, every: float | None, sheet: dict | None,
 ) -> dict[str, Any]:  # fmt: skip
     """The log of a recording file, with a progress bar (`reading`: columns, time unit,
-    channel)."""
+    channel; `sheet`: the chain's data sheet, else the sidecar's)."""
     from serving.log import stiffness_log
     from serving.predictor import record_natural_frequency
+    from serving.restoring_force_check import sidecar_sensor
     from stiffnet import progress
     from stiffnet.cli.console import show_progress
     from stiffnet.recordings import read_recording
@@ -558,7 +562,7 @@ def _recorded_log(
     with show_progress(), progress.task("logging", total=rec.accel.size) as bar:
         result = stiffness_log(
             predictor, rec.accel, rec.fs_hz, fn_value, hop_s=hop, restoring_force_every_s=every,
-            source=rec.source,
+            source=rec.source, sensor=sheet if sheet is not None else sidecar_sensor(recording),
             progress=lambda done, total: bar.update(completed=done, total=total),
         )  # fmt: skip
     result["natural_frequency_source"] = fn_source
@@ -567,15 +571,16 @@ def _recorded_log(
 
 def _followed_log(
     predictor: Any, recording: str, fs: float | None, fn: float | None, reading: tuple,
-    hop: float, every: float | None, stream: tuple,
+    hop: float, every: float | None, stream: tuple, sheet: dict | None,
 ) -> dict[str, Any]:  # fmt: skip
-    """The log of a growing file or stdin (`stream`: format, column, idle timeout): each
-    point and closed layer printed as it comes, the last FOLLOW_POINTS kept for the
-    final outputs."""
+    """The log of a growing file or stdin (`stream`: format, column, idle timeout; `sheet`:
+    the chain's data sheet, else a file's sidecar's): each point and closed layer printed as
+    it comes, the last FOLLOW_POINTS kept for the final outputs."""
     from collections import deque
 
     from serving.log import StiffnessLogger, log_result
     from serving.predictor import record_natural_frequency
+    from serving.restoring_force_check import check_sensor_sheet, sidecar_sensor
     from serving.stream import sample_chunks
     from stiffnet import inputs
     from stiffnet.cli.console import console
@@ -589,8 +594,12 @@ def _followed_log(
             "--stream-format and --stream-column"
         )
     fn_value, fn_source = record_natural_frequency(None if recording == "-" else recording, fn)
-    logger = StiffnessLogger(predictor, inputs.sampling_rate(fs, "--fs"), fn_value,
-                             hop_s=hop, restoring_force_every_s=every)  # fmt: skip
+    rate = inputs.sampling_rate(fs, "--fs")
+    if sheet is None and recording != "-":
+        sheet = sidecar_sensor(recording)
+    sheet = None if sheet is None else check_sensor_sheet(sheet, rate)
+    logger = StiffnessLogger(predictor, rate, fn_value, hop_s=hop, restoring_force_every_s=every,
+                             sensor=sheet)  # fmt: skip
     console.print(
         f"following {recording}: window {logger.window_s:.3g} s, hop {logger.hop_s:g} s, "
         f"f_n {fn_value:.4g} Hz ({fn_source})",

@@ -214,6 +214,9 @@ def _evaluated_row(row: Any, res: dict[str, Any], contact: Any) -> dict[str, Any
         # the chain the recording was read through: "campaign" (pooled), "data sheet",
         # "fitted" (its own) or None
         "chain_source": res.get("chain_source"),
+        # the model's readings through the other chains a fitted one stands for (the
+        # interval spans them): none behind a data sheet or where no chain was undone
+        "chain_readings": res.get("chain_readings"),
         "ood_score": res.get("ood_score"),
         "ood_threshold": res.get("ood_threshold"),
         "ood_checks": list((res.get("alarm") or {}).get("fired") or []),

@@ -1,4 +1,14 @@
-"""Whether "no contact" can be read: contacts a low-pass smoothed away still leave harmonics.
+"""The band a record carries: what a chain's inverse keeps, and whether "no contact" can be
+read (contacts a low-pass smoothed away still leave harmonics).
+
+**What the inverse keeps** (:func:`kept_band`). A known chain is divided out within the band
+the record supports (:func:`~.chain.deconvolve`: the Wiener weight switches the inverse off
+where the record sinks under its noise, the gain is capped); the deconvolved record is the
+true acceleration through the product of the chain and that inverse. The contact law is fitted
+forward through that product (:func:`~.contact_law.fit_contact_law`'s ``band``), so what the
+noise took from the pulses is taken from the law's force as well.
+
+**"No contact"** (:func:`smoothed_contact_refusal`).
 
 A linear free flight driven by the table (eq. 12 with ``H = 0``, the table's motion at the
 forcing harmonics :data:`~.free_flight.HARMONICS`) answers at those harmonics only. Impacts
@@ -15,6 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from stiffnet.restoring_force.chain import SensorChain, chain_response, wiener_gain
 from stiffnet.restoring_force.free_flight import HARMONICS
 
 #: A harmonic stands out when its power exceeds this many times the median of its
@@ -122,3 +133,23 @@ def smoothed_contact_refusal(
         f"the contact's frequency (at least {slowest:.0f} Hz) smooths them away, so beta is "
         "not identifiable from this sensor"
     )
+
+
+def kept_band(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: float) -> np.ndarray:
+    """The response, per ``rfft`` bin of `y`, from the true acceleration to the record with
+    the chain divided out (:func:`~.chain.deconvolve` of `y` with the same arguments): the
+    chain's analog response times its Wiener-weighted, capped inverse; 1 at zero frequency.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        The record as recorded (the inverse's weight reads its power).
+    fs_hz : float
+    chain : SensorChain
+    noise_sigma : float
+        Standard deviation of the record's white noise (the free flight's scatter).
+    """
+    h = chain_response(chain, np.fft.rfftfreq(y.size, 1.0 / fs_hz))
+    band = wiener_gain(y, h, noise_sigma**2) * h
+    band[0] = 1.0
+    return band

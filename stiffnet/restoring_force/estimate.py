@@ -35,7 +35,7 @@ from scipy import ndimage, optimize, stats
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
-from stiffnet.restoring_force.band import smoothed_contact_refusal
+from stiffnet.restoring_force.band import kept_band, smoothed_contact_refusal
 from stiffnet.restoring_force.chain import (
     SensorChain,
     deconvolve,
@@ -420,6 +420,9 @@ class _Map:
     #: A map of a chain's inverse (:func:`~.chain.deconvolve`): its short free runs join the
     #: contact (:data:`~.free_flight.MIN_FLIGHT_SAMPLES`)
     inverse: bool = False
+    #: What the record of a chain's inverse keeps of the true acceleration
+    #: (:func:`~.band.kept_band`): the contact law is fitted through it
+    band: np.ndarray | None = None
 
 
 def _auto_map(
@@ -432,6 +435,7 @@ def _auto_map(
     exponent: float | None,
     profile_below_r2: float = np.inf,
     inverse: bool = False,
+    band: np.ndarray | None = None,
 ) -> tuple[_Map, float]:
     """The map with the high-pass corner fitted (:mod:`.sensor`), and that corner.
 
@@ -442,15 +446,15 @@ def _auto_map(
     The corner is then profiled by the contact law (:func:`_profiled_corner`, about
     20 maps) only where the contact law explains less than `profile_below_r2`: the
     rule of a chain identified only where needed (:data:`CHAIN_FIT_WHEN_NEEDED`).
-    `inverse`: `y` is a chain's inverse (:class:`_Map`).
+    `inverse`: `y` is a chain's inverse, `band` what it keeps (:class:`_Map`).
     """
     args = (y, dtau, tau, use, period, k_given)
-    m = _fit_map(*args, 0.0, exponent, inverse=inverse)
+    m = _fit_map(*args, 0.0, exponent, inverse=inverse, band=band)
     corner = highpass_rule(
         *fit_highpass_corner(y, dtau, tau, use, k_given, sigma_plain=m.fit.sigma)
     )
     if corner > 0:
-        corrected = _fit_map(*args, corner, exponent, inverse=inverse)
+        corrected = _fit_map(*args, corner, exponent, inverse=inverse, band=band)
         if _contact_r2(corrected) >= _contact_r2(m):
             m = corrected
         else:
@@ -472,18 +476,22 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     """
     if m.law is None or m.labels is None:
         return m, corner
-    maps = {c: _fit_map(*args, float(c), exponent, inverse=m.inverse) for c in HIGHPASS_GRID}
+    maps = {
+        c: _fit_map(*args, float(c), exponent, inverse=m.inverse, band=m.band)
+        for c in HIGHPASS_GRID
+    }
     best = max(maps, key=lambda c: _contact_r2(maps[c]))
     i = int(np.flatnonzero(HIGHPASS_GRID == best)[0])
     lo, hi = HIGHPASS_GRID[max(i - 1, 0)], HIGHPASS_GRID[min(i + 1, HIGHPASS_GRID.size - 1)]
     sol = optimize.minimize_scalar(
         lambda u: -max(
-            _contact_r2(_fit_map(*args, float(np.exp(u)), exponent, inverse=m.inverse)), -1.0
+            _contact_r2(_fit_map(*args, float(np.exp(u)), exponent, inverse=m.inverse,
+                                 band=m.band)), -1.0
         ),
         bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 0.02, "maxiter": 12},
     )  # fmt: skip
     c_best = float(np.exp(sol.x))
-    profiled = _fit_map(*args, c_best, exponent, inverse=m.inverse)
+    profiled = _fit_map(*args, c_best, exponent, inverse=m.inverse, band=m.band)
     if _contact_r2(maps[best]) > _contact_r2(profiled):
         c_best, profiled = float(best), maps[best]
     if 1.0 - _contact_r2(profiled) <= HIGHPASS_PROFILE_GAIN * (1.0 - _contact_r2(m)):
@@ -507,9 +515,11 @@ def _fit_map(
     exponent: float | None,
     damping: float | None = None,
     inverse: bool = False,
+    band: np.ndarray | None = None,
 ) -> _Map:
     """Integrate, fit the free flight and the contact law (see the module notes); `inverse`:
-    `y` is a chain's inverse (:class:`_Map`)."""
+    `y` is a chain's inverse, `band` what it keeps (:class:`_Map`): the law is fitted
+    through it."""
     source = y
     y = undo_highpass(y, dtau, corner)
     vel_i, disp_i = integrate_spectral(y, dtau)
@@ -527,10 +537,10 @@ def _fit_map(
     )
     if fit.stiffness <= 0:
         why = "the free-flight law has no positive stiffness: not an oscillator"
-        return _Map(fit, info, corner, refusal=why, inverse=inverse)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     if fit.r2 < MIN_FREE_R2:
         why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
-        return _Map(fit, info, corner, refusal=why, inverse=inverse)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
     labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
     labels[~use] = 0
@@ -542,27 +552,27 @@ def _fit_map(
             f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
             f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
         )
-        return _Map(fit, info, corner, refusal=why, inverse=inverse)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     near = labels > 0
     spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
     info["samples_per_contact"] = spc
     kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
     if not np.isfinite(kc0) or int(core.sum()) < 4:
         why = "the contact force does not grow with the displacement"
-        return _Map(fit, info, corner, refusal=why, inverse=inverse)
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
     dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
     state = (fit.force, fit.displacement, fit.velocity, near)
     fixed = 1.0 if exponent is None else exponent
-    law = fit_contact_law(*state, (kc0, e0, cc0), dr, fixed)
+    law = fit_contact_law(*state, (kc0, e0, cc0), dr, fixed, band=band)
     # a second start where the first fit is poor: strongly damped contacts mislead it
     profiled = profile_contact_start(*state) if law.r2 < SECOND_START_R2 else (np.nan,)
     if np.isfinite(profiled[0]):
-        other = fit_contact_law(*state, profiled, dr, fixed)
+        other = fit_contact_law(*state, profiled, dr, fixed, band=band)
         law = other if other.sse < law.sse else law
     fitted_exponent = law.exponent
     if exponent is None:  # the exponent is reported; it sets beta only where it is significant
-        free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr)
+        free_law = fit_contact_law(*state, (law.stiffness, law.onset, law.damping), dr, band=band)
         fitted_exponent = free_law.exponent
         if exponent_matters(law, free_law):
             law = free_law
@@ -571,7 +581,9 @@ def _fit_map(
     # stiffer than its contacts' duration allows is fitting something else
     duration = spc * dtau / (np.pi / np.sqrt(law.stiffness + fit.stiffness))
     info.update(law=law, contact_r2=law.r2, duration_ratio=duration)
-    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source, inverse)
+    out = _Map(
+        fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source, inverse, band
+    )
     if law.r2 < MIN_CONTACT_R2:
         out.refusal = (
             f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
@@ -613,7 +625,8 @@ def _profile_free_damping(
     best, best_r2 = m, -np.inf
     for xi in FREE_DAMPING_GRID:
         other = _fit_map(m.source, dtau, tau, use, period, k_given, m.corner, exponent,
-                         damping=2.0 * xi * np.sqrt(k_given), inverse=m.inverse)  # fmt: skip
+                         damping=2.0 * xi * np.sqrt(k_given), inverse=m.inverse,
+                         band=m.band)  # fmt: skip
         if not other.refusal and _contact_r2(other) > best_r2:
             best, best_r2 = other, _contact_r2(other)
     return best
@@ -666,8 +679,7 @@ def _undo_chain(
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
         unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent) if rivals else []
         return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
-    flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
-    m2 = _remap(flat, args, highpass_hz, m.corner, exponent, inverse=True)
+    m2 = _inverse_map(chain, y, fs_hz, m, args, highpass_hz, m.corner, exponent)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
@@ -719,8 +731,8 @@ def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, expon
     if not ends or not all(np.isfinite(ends)):
         return []
     return [
-        _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=float(f)),
-                          m.fit.sigma), args, highpass_hz, m.corner, exponent, inverse=True)
+        _inverse_map(dataclasses.replace(chain, lowpass_hz=float(f)), y, fs_hz, m, args,
+                     highpass_hz, m.corner, exponent)
         for f in ends if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
 
@@ -733,8 +745,8 @@ def _unexcluded_maps(chain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> l
     if chain is None or chain.source != "fitted":
         return []
     return [
-        _remap(deconvolve(y, fs_hz, dataclasses.replace(chain, lowpass_hz=f, lowpass_order=o),
-                          m.fit.sigma), args, m.corner, m.corner, exponent)
+        _inverse_map(dataclasses.replace(chain, lowpass_hz=f, lowpass_order=o), y, fs_hz, m,
+                     args, m.corner, m.corner, exponent, inverse=False)
         for o, f in chain.lowpass_not_excluded if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
 
@@ -746,13 +758,38 @@ def _readings(maps: list[_Map]) -> list[float]:
             and x.fit.stiffness > 0]  # fmt: skip
 
 
-def _remap(y, args, highpass_hz, corner, exponent, inverse: bool = False) -> _Map:
+def _inverse_map(
+    chain: SensorChain,
+    y,
+    fs_hz,
+    m: _Map,
+    args,
+    highpass_hz,
+    corner,
+    exponent,
+    inverse: bool = True,
+) -> _Map:
+    """The map of `y` with `chain` divided out (:func:`~.chain.deconvolve`), its contact law
+    fitted through what the inverse keeps (:func:`~.band.kept_band`) where the chain is known
+    (a data sheet, a campaign's pooled chain); `inverse` as :class:`_Map` (its short free runs
+    join the contact)."""
+    # a fitted chain is judged by the contact law it leaves (R2 against the record as
+    # recorded, R2_SLACK): a law fitted through its band explains more whether the chain is
+    # right or not, so a fitted chain's map keeps the plain fit
+    band = kept_band(y, fs_hz, chain, m.fit.sigma) if chain.source != "fitted" else None
+    flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
+    return _remap(flat, args, highpass_hz, corner, exponent, inverse=inverse, band=band)
+
+
+def _remap(y, args, highpass_hz, corner, exponent, inverse: bool = False, band=None) -> _Map:
     """The map of `y` with the high-pass fitted again (``"auto"``) or at `corner`; `inverse`:
-    `y` is a chain's inverse (:class:`_Map`)."""
+    `y` is a chain's inverse, `band` what it keeps (:class:`_Map`)."""
     _, dtau, tau, use, period, k_given = args
     if highpass_hz == "auto":
-        return _auto_map(y, dtau, tau, use, period, k_given, exponent, inverse=inverse)[0]
-    return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent, inverse=inverse)
+        return _auto_map(y, dtau, tau, use, period, k_given, exponent, inverse=inverse,
+                         band=band)[0]  # fmt: skip
+    return _fit_map(y, dtau, tau, use, period, k_given, corner, exponent, inverse=inverse,
+                    band=band)  # fmt: skip
 
 
 def restoring_force_estimate(
