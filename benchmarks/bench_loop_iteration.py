@@ -55,11 +55,14 @@ recording's, by β band. Prints Markdown with the machine's load.
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
         --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-orbits 3,6 --rig-seeds 0,1 --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig-seeds 0 --rig-shares 0 --rig-hold none,orbit \
+        --rig-families gbm,cnn --rig-dir /tmp/rig   [--rig-jitter 0.02] [--rig-law 0.25,2.5]
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import os
 import sys
 import tempfile
@@ -372,11 +375,16 @@ def _retrained(
     effects=None,
     families: tuple[str, ...] = ("gbm",),
     weights: str = "none",
+    hold: str = "none",
+    jitter: float | None = None,
 ) -> dict[str, tuple]:
     """The iteration's dataset at the campaign's points and each family's model on it, at
     ``cfg``'s seed (evaluated with ``effects``, default ``cfg``'s, as the campaign's
     dynamics; ``weights`` the per-point rule of
-    :func:`stiffnet.measurement.operating_points.point_weights`). The dataset is drawn once:
+    :func:`stiffnet.measurement.operating_points.point_weights`; ``hold`` ``orbit``: each
+    row's windows held on its recording's orbit, :func:`stiffnet.measurement.
+    operating_points.hold_orbit`; ``jitter`` each row's relative jitter, default the
+    loop's). The dataset is drawn once:
     each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row
     (and apart under the key ``"dataset"``: wall s, CPU s). The evaluation is the learned
     model's alone: the reading by simulation, which does not depend on the model's dataset
@@ -389,11 +397,17 @@ def _retrained(
     from training.train import train
 
     t0, c0 = time.perf_counter(), time.process_time()
-    ops.operating_point_dataset(
+    orbits = ops.measured_orbits(camp) if hold == "orbit" else None
+    card = ops.operating_point_dataset(
         cfg, camp.rows, work / "data", edge_share=edge_share, shared_batches=shared,
-        weights=weights,
+        weights=weights, orbits=orbits, jitter=ops.JITTER if jitter is None else jitter,
     )  # fmt: skip
     data_wall, data_cpu = time.perf_counter() - t0, time.process_time() - c0
+    for h in card["operating_points"]["orbit_hold"] or []:
+        if h["orbit"] is not None and h["on_orbit"] < h["windows"]:
+            print(f"  orbit hold, row {h['row']} ({Path(camp.rows[h['row']].recording).stem}): "
+                  f"orbit {h['orbit']}, {h['on_orbit']} of {h['windows']} windows on it, "
+                  f"{'held' if h['held'] else 'kept whole'}", flush=True)  # fmt: skip
     dyn = config_effects(cfg) if effects is None else effects
     out: dict = {"dataset": (data_wall, data_cpu)}
     for family in families:
@@ -466,6 +480,23 @@ def rig_runs(law: str, seed: int = 11) -> list:
     return runs
 
 
+def simulate_once(module) -> None:
+    """``module.simulate_shards`` answering a repeat of the same configs and shards from
+    memory: the settings that differ only after the simulation (the orbit hold filters the
+    simulated windows) share one dataset's simulation, its CPU counted in the first."""
+    real = module.simulate_shards
+    memo: dict = {}
+
+    def once(cfgs, shards):
+        key = (tuple(generate.config_fingerprint(c) for c in cfgs), tuple(shards))
+        if key not in memo:
+            memo.clear()  # one dataset at a time
+            memo[key] = real(cfgs, shards)
+        return memo[key]
+
+    module.simulate_shards = once
+
+
 def rig_seeds(
     folder: Path,
     seeds: list[int],
@@ -474,11 +505,18 @@ def rig_seeds(
     n: int,
     families: tuple[str, ...] = ("gbm",),
     weights: tuple[str, ...] = ("none",),
+    holds: tuple[str, ...] = ("none",),
+    centre: tuple[float, float] | None = None,
+    jitters: tuple[float | None, ...] = (None,),
 ) -> None:
     """Part 4b (``--rig-seeds``): the loop's iteration 1 on the rig's two-stage campaign
     without its diagnosis (the law's prior as discovered, :data:`RIG_LAW_PRIOR`; evaluated
-    with the law at its fit), the dataset drawn at each seed, near-edge share and per-point
-    weighting rule (``--rig-weights``), each family (``--rig-families``) trained on it.
+    with the law at its fit; ``--rig-law KNEE,RATIO``: the prior, as wide, and the law of
+    the evaluation centred there instead, e.g. the rig's truth 0.25,2.5), the dataset drawn
+    at each seed, near-edge share and per-point
+    weighting rule (``--rig-weights``) and orbit hold (``--rig-hold none,orbit``), each
+    family (``--rig-families``) trained on it, at each jitter of the rows' values
+    (``--rig-jitter``, default the loop's).
     Besides the model's accuracy: what it would be with the class read from the beta head
     (``from beta``), and the misses (β: read, class). CPU and wall seconds: the dataset's
     plus the family's training and evaluation."""
@@ -493,33 +531,37 @@ def rig_seeds(
         write_campaign(camp_dir, rig_runs("two_stage"))
     camp = load_campaign(camp_dir)
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")
-    d.update(effects=[RIG_LAW_PRIOR])
+    knee, ratio = centre or (0.249, 2.436)
+    around = {"knee": [0.95 * knee, 1.05 * knee], "knee_ratio": [0.95 * ratio, 1.05 * ratio]}
+    prior = {**RIG_LAW_PRIOR, "params": {**RIG_LAW_PRIOR["params"], **around}}
+    d.update(effects=[prior if centre else RIG_LAW_PRIOR])
     law = SimulationConfig.model_validate(d)
-    fit = [LearnedContact(knee=0.249, knee_ratio=2.436, reference_penetration=0.54)]
-    print("| family | dataset seed | near-edge share | point weights | shared batches | accuracy "
-          "| from beta | β MAPE | wrong (β: read, class) | wall s | CPU s | load |")  # fmt: skip
-    print("|---" * 12 + "|")
-    for seed in seeds:
-        for share in shares:
-            for rule in weights:
-                cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
-                with tempfile.TemporaryDirectory() as tmp:
-                    runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule)
-                data_wall, data_cpu = runs.pop("dataset")
-                print(f"| dataset | {seed} | {share} | {rule} | {shared} | | | | | "
-                      f"{data_wall:.0f} | {data_cpu:.0f} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
-                for family, (ev, wall, cpu) in runs.items():
-                    rows, m = ev["recordings"], ev["metrics"]["learned"]
-                    by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
-                                       for r in rows])  # fmt: skip
-                    bad = [r for r in rows if r["class"] != r["true_class"]]
-                    wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']} "
-                                      f"({Path(r['recording']).stem.split('_b')[0]})"
-                                      for r in bad)  # fmt: skip
-                    print(f"| {family} | {seed} | {share} | {rule} | {shared} | "
-                          f"{m['accuracy']:.3f} | {by_beta:.3f} | {m['beta_mape']:.3f} | "
-                          f"{wrong or '-'} | {wall:.0f} | {cpu:.0f} | "
-                          f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
+    fit = [LearnedContact(knee=knee, knee_ratio=ratio, reference_penetration=0.54)]
+    print("| family | dataset seed | near-edge share | point weights | orbit hold | shared "
+          "batches | accuracy | from beta | β MAPE | wrong (β: read, class) | wall s | CPU s "
+          "| load |")  # fmt: skip
+    print("|---" * 13 + "|")
+    simulate_once(generate)
+    for seed, share, rule, jit, hold in itertools.product(seeds, shares, weights, jitters, holds):
+        cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule, hold, jit)
+        data_wall, data_cpu = runs.pop("dataset")
+        rule = rule if jit is None else f"{rule}, jitter {jit:g}"
+        print(f"| dataset | {seed} | {share} | {rule} | {hold} | {shared} | | | | | "
+              f"{data_wall:.0f} | {data_cpu:.0f} | {os.getloadavg()[0]:.1f} |")  # fmt: skip
+        for family, (ev, wall, cpu) in runs.items():
+            rows, m = ev["recordings"], ev["metrics"]["learned"]
+            by_beta = np.mean([true_class(r["beta_estimate"], True) == r["true_class"]
+                               for r in rows])  # fmt: skip
+            bad = [r for r in rows if r["class"] != r["true_class"]]
+            wrong = ", ".join(f"{r['beta']:g}: {r['beta_estimate']:.1f} {r['class']} "
+                              f"({Path(r['recording']).stem.split('_b')[0]})"
+                              for r in bad)  # fmt: skip
+            print(f"| {family} | {seed} | {share} | {rule} | {hold} | {shared} | "
+                  f"{m['accuracy']:.3f} | {by_beta:.3f} | {m['beta_mape']:.3f} | "
+                  f"{wrong or '-'} | {wall:.0f} | {cpu:.0f} | "
+                  f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
 def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1) -> None:
@@ -692,6 +734,11 @@ def main() -> None:
     ap.add_argument("--rig-families", default="gbm", help="part 4b: families, e.g. gbm,cnn")
     ap.add_argument("--rig-weights", default="none", help="part 4b: per-point rules, e.g. "
                     "none,small_gaps")  # fmt: skip
+    ap.add_argument("--rig-hold", default="none", help="part 4b: orbit holds, e.g. none,orbit")
+    ap.add_argument("--rig-jitter", default="", help="part 4b: the rows' jitters, e.g. "
+                    "0.05,0.02 (default the loop's)")  # fmt: skip
+    ap.add_argument("--rig-law", default="", help="part 4b: the law's centre KNEE,RATIO "
+                    "(default the discovery's 0.249,2.436)")  # fmt: skip
     ap.add_argument("--rig-orbits", default="", help="part 4d: campaign rows, e.g. 3,6")
     args = ap.parse_args()
     if args.rig_orbits:
@@ -712,12 +759,17 @@ def main() -> None:
                       args.rig_repeats)  # fmt: skip
         return
     if args.rig_seeds:
+        centre = tuple(float(x) for x in args.rig_law.split(",")) if args.rig_law else None
         rig_seeds(args.rig_dir or Path(tempfile.mkdtemp()),
                   [int(s) for s in args.rig_seeds.split(",")],
                   [float(s) for s in args.rig_shares.split(",")],
                   not args.rig_per_shard, args.rig_trajectories or 400,
                   tuple(args.rig_families.split(",")),
-                  tuple(args.rig_weights.split(",")))  # fmt: skip
+                  tuple(args.rig_weights.split(",")),
+                  tuple(args.rig_hold.split(",")),
+                  centre,
+                  tuple(float(x) for x in args.rig_jitter.split(",")) if args.rig_jitter
+                  else (None,))  # fmt: skip
         return
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)

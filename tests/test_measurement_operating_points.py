@@ -17,12 +17,14 @@ from stiffnet.measurement.operating_points import (
     EDGE_WIDTH,
     class_edges,
     edge_configs,
+    hold_orbit,
     operating_point_configs,
     operating_point_dataset,
     point_weights,
     split_evenly,
     split_weighted,
 )
+from stiffnet.measurement.orbits import window_orbits
 from stiffnet.shipped import default_config
 
 
@@ -175,3 +177,32 @@ def test_shared_batches_draw_each_points_trajectories_as_its_own_shard(tmp_path)
     for col in ("trajectory", "shard", "beta", "gap", "amplitude", "omega", "fs_ratio", "noise"):
         assert np.array_equal(a.column(col), b.column(col)), col
     np.testing.assert_array_equal(np.concatenate(a.windows()), np.concatenate(b.windows()))
+
+
+def test_the_orbit_hold_keeps_each_rows_windows_on_its_recordings_orbit(tmp_path):
+    # at the first point (2.8 mm, forcing 1.05 f_n) the ideal world's windows settle on one
+    # impact per period or on two every three periods, by their draws
+    rows = _rows()[:2]
+    cfg = _cfg(8)
+    cfg = cfg.model_copy(update={"windows": cfg.windows.model_copy(update={"per_trajectory": 2})})
+    operating_point_dataset(cfg, rows, tmp_path / "free")
+    free = load_dataset(tmp_path / "free")
+    shard = free.column("shard")
+    first = window_orbits(free.table.filter(shard == 0))
+    on = first.count((1, 1))
+    assert 0 < on < len(first)  # the point mixes orbits
+    # row 0's recording on one impact per period; row 1's on an orbit no window reaches
+    card = operating_point_dataset(cfg, rows, tmp_path / "held", orbits=[(1, 1), (3, 7)])
+    held = load_dataset(tmp_path / "held")
+    kept = held.column("shard")
+    assert window_orbits(held.table.filter(kept == 0)) == [(1, 1)] * on
+    assert np.sum(kept == 1) == np.sum(shard == 1)  # kept whole: the world does not reach it
+    info = card["operating_points"]["orbit_hold"]
+    assert [(h["held"], h["on_orbit"], h["windows"]) for h in info] == [
+        (True, on, len(first)),
+        (False, 0, int(np.sum(shard == 1))),
+    ]
+    # a recording without a repeating orbit, or too few windows on it, keeps the shard whole
+    table = free.table.filter(shard == 0)
+    assert hold_orbit(table, None)[0].num_rows == len(first)
+    assert hold_orbit(table, (1, 1), min_share=1.0)[1]["held"] is False

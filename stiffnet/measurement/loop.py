@@ -272,9 +272,11 @@ def _train(
     overrides: dict[str, Any] | None,
     keep_data: bool,
     rows: list[Any] | None = None,
+    orbits: list[Any] | None = None,
 ) -> dict[str, Any]:
     """Generate the iteration's dataset (over ``cfg``'s sweep, or at the ``rows``'
-    operating points) and train the family on it."""
+    operating points, held on their recordings' ``orbits`` where given) and train the
+    family on it."""
     from stiffnet.dataset.generate import generate_dataset, shard_sizes
     from stiffnet.measurement.operating_points import (
         operating_point_configs,
@@ -288,7 +290,8 @@ def _train(
     shards = len(operating_point_configs(cfg, rows)) if rows else len(shard_sizes(cfg))
     with progress_task("simulating shards", shards) as bar:
         if rows:
-            operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done))
+            operating_point_dataset(cfg, rows, data, progress=lambda done, _: bar.update(done),
+                                    orbits=orbits)  # fmt: skip
         else:
             generate_dataset(cfg, data, overwrite=True, progress=lambda done, _: bar.update(done))
     t_data, c_data = time.perf_counter() - t0, cpu_seconds() - c0
@@ -440,6 +443,7 @@ def _iteration(
     bar: Any,
 ) -> dict[str, Any]:
     from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.operating_points import HOLD_ORBITS, measured_orbits
 
     t0, c0 = time.perf_counter(), cpu_seconds()
     work = folder / f"iter-{k:03d}"
@@ -492,6 +496,7 @@ def _iteration(
     trained = _train(
         train_cfg, work, state["family"], state["train_overrides"], keep_data,
         list(campaign.rows) if ops else None,
+        measured_orbits(campaign) if ops and HOLD_ORBITS else None,
     )  # fmt: skip
     bar.update(note=f"iteration {k}: evaluation and discrepancy")
     c_eval = cpu_seconds()

@@ -76,3 +76,26 @@ def start_orbits(
             }
         )
     return out
+
+
+def window_orbits(table: Any) -> list[tuple[int, int] | None]:
+    """Each window's orbit ``(n, m)`` in a simulated dataset table, named as a recording's is
+    (:func:`orbit_pattern` on the window's statistics; None: no impacts, no repeat or a
+    window too short to name one).
+
+    Parameters
+    ----------
+    table : pyarrow.Table
+        Windows with the dataset's columns ``accel``, ``fs_hz``, ``natural_frequency_hz``
+        and ``omega`` (forcing over natural frequency).
+    """
+    import numpy as np
+
+    from stiffnet.measurement.statistics import batch_signal_statistics
+
+    cols = table.select(["accel", "fs_hz", "natural_frequency_hz", "omega"]).to_pydict()
+    stats = batch_signal_statistics(
+        [np.asarray(a, dtype=np.float64) for a in cols["accel"]],
+        cols["fs_hz"], cols["natural_frequency_hz"], cols["omega"], inclination=False,
+    )  # fmt: skip
+    return [orbit_pattern(s) for s in stats]
