@@ -144,13 +144,14 @@ def local_cluster(workers: int) -> Any:
     The caller closes it (it is a context manager). Workers get one thread for
     OpenMP/BLAS/numba (:data:`WORKER_ENV`): with one task per process, more threads
     would only fight over the same cores. Dask's housekeeping is set by
-    :func:`local_cluster_settings` (the scheduler reads it when it starts, each worker gets
-    this process's config when its nanny spawns it).
+    :func:`local_cluster_settings` (the scheduler reads it when it starts; each nanny gives it
+    to every worker it starts or restarts).
     """
     distributed = import_distributed()
     import dask
 
-    with dask.config.set(local_cluster_settings().dask_config()):
+    config = local_cluster_settings().dask_config()
+    with dask.config.set(config):
         return distributed.LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
@@ -162,4 +163,6 @@ def local_cluster(workers: int) -> Any:
             # no dashboard; the scheduler's small HTTP server (health checks) on a free
             # local port, not on 8787 where another user's cluster may be
             scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+            # each nanny hands these to every worker it (re)starts, whenever that is
+            config=config,
         )
