@@ -271,3 +271,36 @@ def test_cli_simulate_runs_where_stiffnet_scheduler_says(cluster, reference, tmp
     assert shard_bytes(tmp_path / "ds") == shard_bytes(reference)
     res = CliRunner().invoke(app, [*args, "--overwrite", "--workers", "2"], env=env)
     assert res.exit_code == 2 and "not both" in res.output
+
+
+def _worker_housekeeping() -> dict:
+    import dask
+
+    return {k: dask.config.get(k) for k in ("distributed.worker.profile.enabled",
+                                            "distributed.admin.tick.interval")}  # fmt: skip
+
+
+def test_local_cluster_runs_without_the_dashboards_housekeeping(cluster, tmp_path) -> None:
+    """The shipped settings reach the scheduler (no work stealing) and every worker (no
+    profiler, a slow tick); a typo in the file is one line."""
+    from distributed import Client
+
+    from stiffnet.config import load_config
+    from stiffnet.distributed.cluster import LocalClusterSettings, local_cluster_settings
+    from stiffnet.errors import ConfigError
+
+    assert local_cluster_settings() == LocalClusterSettings()  # the file: the defaults
+    with Client(cluster) as client:
+        seen = client.run(_worker_housekeeping)
+        stealing = client.run_on_scheduler(
+            lambda dask_scheduler: "stealing" in dask_scheduler.extensions
+        )  # fmt: skip
+    assert len(seen) == 2
+    for cfg in seen.values():
+        assert cfg == {"distributed.worker.profile.enabled": False,
+                       "distributed.admin.tick.interval": "1.0s"}  # fmt: skip
+    assert stealing is False
+    bad = tmp_path / "local_cluster.yaml"
+    bad.write_text("profile: false\ntick_interval: 1.0\n")
+    with pytest.raises(ConfigError, match="tick_interval"):
+        load_config(LocalClusterSettings, bad)

@@ -6,7 +6,10 @@ import contextlib
 import logging
 import re
 from collections.abc import Iterator
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from stiffnet.errors import StiffnetError
 
@@ -24,6 +27,44 @@ WORKER_ENV = {
     "MKL_NUM_THREADS": "1",
     "NUMBA_NUM_THREADS": "1",
 }
+
+
+#: The shipped housekeeping settings of a job's LocalCluster.
+LOCAL_CLUSTER_CONFIG = "distributed/local_cluster.yaml"
+
+
+class LocalClusterSettings(BaseModel):
+    """Dask's periodic housekeeping in a LocalCluster started for one job
+    (``configs/distributed/local_cluster.yaml``): a job's cluster has no dashboard, and its
+    tasks are queued on the scheduler in the order given, so these cost CPU for nothing."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    #: Dask's statistical profiler on the workers (a stack sample every 10 ms).
+    profile: bool = False
+    #: Seconds between the event loops' blocked-loop checks (Dask: 0.02).
+    tick_interval_s: float = Field(1.0, gt=0.0, le=60.0)
+    #: Work stealing between workers (Dask: on, every 0.1 s).
+    work_stealing: bool = False
+    #: Seconds between the servers' CPU and memory samples for the dashboard (Dask: 0.5).
+    system_monitor_interval_s: float = Field(5.0, gt=0.0, le=600.0)
+
+    def dask_config(self) -> dict[str, Any]:
+        """These settings as Dask config keys."""
+        return {
+            "distributed.worker.profile.enabled": self.profile,
+            "distributed.admin.tick.interval": f"{self.tick_interval_s}s",
+            "distributed.scheduler.work-stealing": self.work_stealing,
+            "distributed.admin.system-monitor.interval": f"{self.system_monitor_interval_s}s",
+        }
+
+
+@lru_cache(maxsize=1)
+def local_cluster_settings() -> LocalClusterSettings:
+    """The shipped settings: ``configs/distributed/local_cluster.yaml``, else the defaults."""
+    from stiffnet.config import shipped_settings
+
+    return shipped_settings(LocalClusterSettings, LOCAL_CLUSTER_CONFIG)
 
 
 def import_distributed() -> Any:
@@ -102,18 +143,26 @@ def local_cluster(workers: int) -> Any:
 
     The caller closes it (it is a context manager). Workers get one thread for
     OpenMP/BLAS/numba (:data:`WORKER_ENV`): with one task per process, more threads
-    would only fight over the same cores.
+    would only fight over the same cores. Dask's housekeeping is set by
+    :func:`local_cluster_settings` (the scheduler reads it when it starts; each nanny gives it
+    to every worker it starts or restarts).
     """
     distributed = import_distributed()
-    return distributed.LocalCluster(
-        n_workers=workers,
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        host="127.0.0.1",
-        env=WORKER_ENV,
-        silence_logs=logging.ERROR,
-        # no dashboard; the scheduler's small HTTP server (health checks) on a free
-        # local port, not on 8787 where another user's cluster may be
-        scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
-    )
+    import dask
+
+    config = local_cluster_settings().dask_config()
+    with dask.config.set(config):
+        return distributed.LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            host="127.0.0.1",
+            env=WORKER_ENV,
+            silence_logs=logging.ERROR,
+            # no dashboard; the scheduler's small HTTP server (health checks) on a free
+            # local port, not on 8787 where another user's cluster may be
+            scheduler_kwargs={"dashboard": False, "dashboard_address": "127.0.0.1:0"},
+            # each nanny hands these to every worker it (re)starts, whenever that is
+            config=config,
+        )

@@ -292,6 +292,13 @@ class DynamicsEffect(Effect):
         """Displacement of the restraint surface from the extra states ``s`` (B, n_states)."""
         return None
 
+    def restraint_rate(self, s: np.ndarray, p: ParamArrays) -> np.ndarray | None:
+        """Rate of :meth:`restraint_position` from the extra states ``s`` (B,), where it does
+        not depend on the contact force (a mechanical DOF: its velocity state); None: the
+        engine takes the position's change under the zero-force state derivative, one more
+        :meth:`state_derivative` per right-hand side."""
+        return None
+
     def state_derivative(
         self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
     ) -> np.ndarray:

@@ -284,6 +284,14 @@ class LearnedContact(DynamicsEffect):
         """The face's recoil ``y`` (plus the second mode's ``y_2``), (B,) (0 on rows without)."""
         return s[:, 0] if s.shape[1] == 2 else s[:, 0] + s[:, 2]
 
+    def restraint_rate(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
+        """The recoil's rate ``y'`` (plus ``y_2'``), (B,): the modes' velocity states (0 on
+        rows without a mode, as :meth:`state_derivative` holds them)."""
+        rate = np.where(np.asarray(p["face_mass"], float) > 0, s[:, 1], 0.0)
+        if s.shape[1] == 4:
+            rate = rate + np.where(np.asarray(p["face2_mass"], float) > 0, s[:, 3], 0.0)
+        return rate
+
     def state_derivative(
         self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
     ) -> np.ndarray:

@@ -87,6 +87,10 @@ class RestraintMass(DynamicsEffect):
         """Displacement ``y`` of the contact face, (B,)."""
         return s[:, 0]
 
+    def restraint_rate(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
+        """Velocity ``y'`` of the contact face, (B,): its own state."""
+        return s[:, 1]
+
     def state_derivative(
         self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
     ) -> np.ndarray:

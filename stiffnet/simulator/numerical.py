@@ -53,8 +53,8 @@ Conventions the hooks rely on:
   listed before it; to ``event_function`` and ``next_mode`` it is the total
   minus the effect's own force. Put an effect that balances ``other`` (sticking
   friction) last;
-* the rate of the restraint position is taken as
-  ``restraint_position(s + s'_0) - restraint_position(s)`` with ``s'_0`` the
+* the rate of the restraint position is the effect's ``restraint_rate``, or where it
+  gives none ``restraint_position(s + s'_0) - restraint_position(s)`` with ``s'_0`` the
   state derivative under zero contact force: exact when the position is affine
   in the states and its rate does not depend on the force (a mechanical DOF);
 * discrete modes start at 0; rows whose event function is ``<= 0`` at ``t = 0``
@@ -265,6 +265,15 @@ class _Model:
             return True
         return key == "Gr" and not self.has_cc and not self.dissipative
 
+    def root_on_penetration(self) -> np.ndarray:
+        """Per row (B,), whether the contact's root function ``aux["Gr"]`` is the penetration
+        ``delta`` in both regions, whose rate ``aux["dd"]`` the right-hand side also gives
+        (the event locator's Newton steps, :func:`~stiffnet.simulator.events._newton`): no
+        contact damping on the row and no penetration-dependent dissipation."""
+        if self.dissipative:
+            return np.zeros(self.n, dtype=bool)
+        return self.cc == 0 if self.has_cc else np.ones(self.n, dtype=bool)
+
     def state_value(self, t: np.ndarray, y: np.ndarray, key: str) -> np.ndarray:
         """``aux[key]`` of :meth:`rhs` at ``(t, y)`` without the forces (bitwise the same
         numbers), for a ``key`` where :meth:`reads_state` holds. The root finder evaluates
@@ -305,9 +314,12 @@ class _Model:
             eff, p, s = effects[k], params[k], y[:, sl]
             r = eff.restraint_position(s, p)
             if r is not None:
-                ds0 = eff.state_derivative(t, s, self.zero, p)
                 yr = yr + r
-                dyr = dyr + (eff.restraint_position(s + ds0, p) - r)
+                rate = eff.restraint_rate(s, p)
+                if rate is None:
+                    ds0 = eff.state_derivative(t, s, self.zero, p)
+                    rate = eff.restraint_position(s + ds0, p) - r
+                dyr = dyr + rate
         delta = x - e - yr
         dd = v - de - dyr
         if self._elastic is None:
@@ -650,13 +662,13 @@ class _Stepper:
             if it == _MAX_EVENTS_PER_SUBSTEP:  # chattering: finish without further events
                 _finish(st, a, np.ones(a.size, bool), y1, f1, aux1)
                 break
-            s_hi, g_hi = _brackets(st, ma, a, y1, aux1, hs)
+            s_hi, g_hi, rate_hi = _brackets(st, ma, a, y1, aux1, hs)
             any_ev = np.isfinite(s_hi).any(axis=1)
             _finish(st, a, ~any_ev, y1, f1, aux1)
             if not any_ev.any():
                 break
             ev = any_ev.nonzero()[0]
-            s_root, known, y_known = _first_roots(st, ma, a, s_hi, g_hi, hs)
+            s_root, known, y_known = _first_roots(st, ma, a, s_hi, g_hi, hs, rate_hi)
             e_rows = _switch(st, ma, a, ev, (s_root[ev], known[ev], y_known[ev]))
             active = e_rows[st["left"][e_rows] > 0]
         out = {k: st[k] for k in ("y", "f", "aux", "contact", "modes", "entries")}
