@@ -23,17 +23,18 @@ PACKAGES = ("stiffnet", "serving", "training")
 
 #: Layers from the bottom; a module belongs to the longest prefix listed.
 LAYERS: dict[str, tuple[str, ...]] = {
-    # the task runner is infrastructure: the callers pass in their tasks and thread limits
     "base": (
         "stiffnet",
         "stiffnet.errors",
         "stiffnet.io_utils",
         "stiffnet.plugins",
         "stiffnet.shipped",
-        "stiffnet.distributed",
     ),  # fmt: skip
     "core": (
         "stiffnet.config",
+        # the task runner is infrastructure: the callers pass in their tasks and thread
+        # limits; it reads only its own cluster's housekeeping from a shipped config
+        "stiffnet.distributed",
         "stiffnet.effects",
         "stiffnet.simulator",
         "stiffnet.nlts",
