@@ -82,7 +82,7 @@ class StiffnessLogger:
         Change penalty per window length (default
         :data:`stiffnet.layers.PENALTY_PER_WINDOW`, calibrated).
     sensor : dict, optional
-        The accelerometer chain's data sheet (checked:
+        The accelerometer chain's data sheet (checked here:
         :func:`serving.restoring_force_check.check_sensor_sheet`).
     fit_chain : bool
         Without a data sheet, identify the chain from the record's first
@@ -145,7 +145,7 @@ class StiffnessLogger:
         self.widened_layers: list[int] = []  # flagged layers whose interval was widened
         # the accelerometer's chain: identified on the record's start, then divided out of
         # every window the model reads (as predict divides it out of a recording)
-        self.sheet = sensor
+        self.sheet = None if sensor is None else check_sensor_sheet(sensor, self.fs)
         self.chain_fit_n = int(math.ceil(CHAIN_FIT_PERIODS * self.fs / self.fn))
         self.chain_pending = sensor is not None or fit_chain
         self.sensor: dict[str, Any] | None = None  # the chain identified (its check's)
@@ -571,13 +571,11 @@ def stiffness_log(
         and the model's identity (JSON-ready).
     """
     from serving.checks import finite_samples
-    from stiffnet.inputs import sampling_rate
 
     a = finite_samples(accel, source or "recording")
-    sheet = None if sensor is None else check_sensor_sheet(sensor, sampling_rate(fs_hz))
     log = StiffnessLogger(predictor, fs_hz, natural_frequency_hz, hop_s=hop_s, penalty=penalty,
                           restoring_force_every_s=restoring_force_every_s,
-                          sensor=sheet)  # fmt: skip
+                          sensor=sensor)  # fmt: skip
     if a.size < log.n_win:
         raise StiffnetError(
             f"{source or 'recording'}: {a.size / fs_hz:.3g} s is shorter than one model window "

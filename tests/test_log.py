@@ -229,8 +229,6 @@ def test_a_data_sheets_chain_is_divided_out_of_every_window_in_any_chunking(pred
     0.06 fs: read as recorded the log is far off (both layers read above 50); with the data
     sheet it reads the layers of the clean record, and a stream cut anywhere reads the
     same points."""
-    from serving.restoring_force_check import check_sensor_sheet
-
     clean, _ = layered_record([12.0, 60.0], [10.0, 10.0], seed=3)
     sheet = {"resonance_hz": 10 * FN_HZ, "resonance_damping": 0.05, "lowpass_hz": 0.06 * FS,
              "lowpass_order": 3}  # fmt: skip
@@ -243,7 +241,7 @@ def test_a_data_sheets_chain_is_divided_out_of_every_window_in_any_chunking(pred
     as_recorded = [it for chunk in (rec,) for k, it in logger.feed(chunk) if k == "point"]
     assert np.median([p["beta"] for p in as_recorded[:20]]) > 50  # truth 12
     logger = StiffnessLogger(predictor, FS, FN_HZ, restoring_force_every_s=None,
-                             sensor=check_sensor_sheet(sheet, FS))  # fmt: skip
+                             sensor=sheet)  # fmt: skip
     events = [e for chunk in np.array_split(rec, 37) for e in logger.feed(chunk)]
     points = [it for k, it in events + logger.finish() if k == "point"]
     assert [p["beta"] for p in points] == pytest.approx([p["beta"] for p in read["points"]])

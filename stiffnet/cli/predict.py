@@ -580,7 +580,7 @@ def _followed_log(
 
     from serving.log import StiffnessLogger, log_result
     from serving.predictor import record_natural_frequency
-    from serving.restoring_force_check import check_sensor_sheet, sidecar_sensor
+    from serving.restoring_force_check import sidecar_sensor
     from serving.stream import sample_chunks
     from stiffnet import inputs
     from stiffnet.cli.console import console
@@ -597,7 +597,6 @@ def _followed_log(
     rate = inputs.sampling_rate(fs, "--fs")
     if sheet is None and recording != "-":
         sheet = sidecar_sensor(recording)
-    sheet = None if sheet is None else check_sensor_sheet(sheet, rate)
     logger = StiffnessLogger(predictor, rate, fn_value, hop_s=hop, restoring_force_every_s=every,
                              sensor=sheet)  # fmt: skip
     console.print(
