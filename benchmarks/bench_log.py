@@ -164,7 +164,8 @@ def behind_a_chain(predictor, a: np.ndarray, c_base: float) -> None:
     """The log of the same record behind a 3rd-order low-pass at 120 Hz: read as recorded,
     with its data sheet (one model pass per window, each window undone) and with the chain
     fitted on the record's start (four passes: the fitted chain and the three it stands
-    for). No restoring-force checks along the record (each fits the chain anew behind one)."""
+    for); the last two again with a restoring-force check every 10 s (each reads through the
+    record's chain: the sheet, or the one fitted on the start)."""
     from scipy import signal
 
     from serving.log import StiffnessLogger, log_result
@@ -174,8 +175,8 @@ def behind_a_chain(predictor, a: np.ndarray, c_base: float) -> None:
     dur = a.size / FS
     sheet = {"lowpass_hz": 120.0, "lowpass_order": 3.0}
 
-    def run(sensor, fit_chain):
-        log = StiffnessLogger(predictor, FS, FN, restoring_force_every_s=None, sensor=sensor,
+    def run(sensor, fit_chain, every=None):
+        log = StiffnessLogger(predictor, FS, FN, restoring_force_every_s=every, sensor=sensor,
                               fit_chain=fit_chain)  # fmt: skip
         events = [*log.feed(rec), *log.finish()]
         return log_result(log, [i for k, i in events if k == "point"], [], "", dur)
@@ -183,10 +184,12 @@ def behind_a_chain(predictor, a: np.ndarray, c_base: float) -> None:
     print(f"\n## behind a 120 Hz 3rd-order low-pass, {dur:.0f} s of the record, one core")
     print("| log | chain undone | wall s | CPU s | CPU / the model alone |")
     print("|---|---|---|---|---|")
-    cases = (("as recorded", None, False), ("data sheet", sheet, False),
-             ("fitted on the start", None, True))  # fmt: skip
-    for name, sensor, fit_chain in cases:
-        r, t, c = _timed(lambda s=sensor, f=fit_chain: run(s, f))
+    cases = (("as recorded", None, False, None), ("data sheet", sheet, False, None),
+             ("fitted on the start", None, True, None),
+             ("data sheet, restoring force every 10 s", sheet, False, 10.0),
+             ("fitted on the start, restoring force every 10 s", None, True, 10.0))  # fmt: skip
+    for name, sensor, fit_chain, every in cases:
+        r, t, c = _timed(lambda s=sensor, f=fit_chain, e=every: run(s, f, e))
         u = r["chain_undone"]
         undone = f"{u['lowpass_hz']:.0f} Hz/{u['lowpass_order']} ({u['source']})" if u else "none"
         print(f"| {name} | {undone} | {t:.2f} | {c:.2f} | {c / c_base:.1f} |")

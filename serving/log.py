@@ -9,7 +9,12 @@ evaluated on that window (the model's embedding distance, ambiguity, beta
 uncertainty and class edge, against the thresholds calibrated per recording: one
 window is a short recording). Every :data:`RESTORING_FORCE_EVERY_S` seconds a point also
 carries the restoring-force cross-check on the window it ends
-(:func:`serving.restoring_force_check.restoring_force_check`).
+(:func:`serving.restoring_force_check.restoring_force_check`). The accelerometer's chain is
+one sensor's: the checks identify it once (on the record's start, or where the start's
+contact law needed none, at the first check whose law does: a harder layer shortens the
+pulse into a low-pass the soft start never showed) and read every later window through it
+without fitting it again (:meth:`StiffnessLogger._check`; a chain fit costs 1-3 s, the
+check through a known chain ~30 ms).
 
 The **layers** are the segments of constant mean log beta found by
 :class:`stiffnet.layers.LayerSegmenter` (penalised change in mean, penalty
@@ -35,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from serving.campaign_chain import identified
 from serving.chain_spread import plausible_chains
 from serving.chain_undo import chain_to_undo, undone_stages, undone_windows, window_margin
 from serving.restoring_force_check import (
@@ -47,6 +53,7 @@ from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
 from stiffnet.layers import LayerSegmenter, class_with_hysteresis
+from stiffnet.restoring_force.chain import shared_chain_sheet
 from stiffnet.uncertainty import RecordingEstimate, beta_interval
 from stiffnet.uncertainty.alarm import recording_checks
 
@@ -153,6 +160,11 @@ class StiffnessLogger:
         self.chain: Any = None  # its SensorChain
         self.other_chains: dict[str, Any] = {}  # the readings a fitted chain stands for
         self.margin = 0  # samples read past a window's end before it is read
+        # what the restoring-force checks along the record read through (the data sheet, or
+        # the chain the first fit identified: a sheet, or no stage and a held high-pass)
+        self.check_sheet = self.sheet
+        self.check_highpass: float | None = None
+        self.check_chain_known = self.sheet is not None
         self.spreads: list[tuple[float, float, float]] = []  # (t, low, high) log-beta offsets
 
     @property
@@ -197,7 +209,7 @@ class StiffnessLogger:
         self.chain_pending = False
         if head.size < self.n_win:
             return
-        check = restoring_force_check(head, self.fs, self.fn, self.sheet, self.p.stage_ratio)
+        check = self._check(head, 0.0)
         self.sensor = check.get("sensor")
         priors = self.facts["priors"]
         self.chain = chain_to_undo(self.sensor, priors, self.fs, self.fn, self.p.undo_chain)
@@ -212,6 +224,40 @@ class StiffnessLogger:
             for name, sensor in others.items()
         }
         self.margin = window_margin(self.n_win)
+
+    def _check(self, seg: np.ndarray, t: float) -> dict[str, Any]:
+        """The restoring-force check of `seg` (ending at `t` s) through the record's chain,
+        which the first check that fits one decides (:meth:`_hold_chain`)."""
+        check = restoring_force_check(seg, self.fs, self.fn, self.check_sheet,
+                                      self.p.stage_ratio, self.check_highpass)  # fmt: skip
+        if not self.check_chain_known:
+            self._hold_chain(check.get("sensor"), t)
+        return check
+
+    def _hold_chain(self, sensor: dict[str, Any] | None, t: float) -> None:
+        """Rule: the chain a check fitted (``source: "fitted"``; none is fitted where the
+        contact law explains enough as recorded) is the record's from then on: its resonance
+        and low-pass as a data sheet with the high-pass corner it read, or, where it applied
+        none, no stage and that corner. A stage found after the start, which the model does
+        not divide out, is said in the warnings."""
+        if not sensor or sensor.get("source") != "fitted":
+            return
+        self.check_chain_known = True
+        stages = identified(sensor)
+        if stages is None:
+            self.check_highpass = float(sensor.get("highpass_hz") or 0.0)
+            return
+        self.check_sheet = shared_chain_sheet(stages)
+        if self.chain is None and t > 0:
+            words = ", ".join(f"{k.removesuffix('_hz').replace('lowpass', 'low-pass')} "
+                              f"{stages[k]:.4g} Hz" for k in ("resonance_hz", "lowpass_hz")
+                              if stages.get(k))  # fmt: skip
+            self.warnings.append(
+                f"the restoring-force check at {t:.4g} s identified the accelerometer's chain "
+                f"({words}) that the record's start did not show: the later checks read "
+                "through it, the model reads the record as recorded (a data sheet, --sensor, "
+                "undoes it everywhere)"
+            )
 
     def finish(self) -> list[tuple[str, dict[str, Any]]]:
         """Close the stream: the last points and layers."""
@@ -302,7 +348,7 @@ class StiffnessLogger:
                 end - self.hop
             ) // (self.restoring_force_every):
                 seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
-                ph = restoring_force_check(seg, self.fs, self.fn, self.sheet, self.p.stage_ratio)
+                ph = self._check(seg, point["t"])
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded

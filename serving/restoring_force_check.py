@@ -53,11 +53,14 @@ def restoring_force_check(
     natural_frequency_hz: float,
     sensor: dict | None = None,
     stage_ratio: tuple[float, float] | None = None,
+    highpass_hz: float | None = None,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
     there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
     the model's learned two-stage law's ratio range (:func:`trained_stage_ratio`): beta is
-    then that law's first-stage slope."""
+    then that law's first-stage slope. `highpass_hz`, without a `sensor`: the chain is known
+    to have no resonance or low-pass and this high-pass corner (identified on another stretch
+    of the same record), so nothing is fitted either."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -65,9 +68,10 @@ def restoring_force_check(
             natural_frequency_hz=natural_frequency_hz,
             max_periods=RESTORING_FORCE_PERIODS,
             sensor=sensor,
+            highpass_hz="auto" if highpass_hz is None else highpass_hz,
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction
-            chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,
+            chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED if highpass_hz is None else -np.inf,
             stage_ratio=stage_ratio,
         )
     except StiffnetError as exc:

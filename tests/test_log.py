@@ -355,3 +355,52 @@ def test_a_flagged_layer_reports_the_wider_interval_behind_its_alarm(predictor, 
     loose = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=0.5)
     assert loose["layers"][0]["beta_interval"] == pytest.approx([lo, hi])
     assert not any("widened" in w for w in loose["warnings"])
+
+
+def test_the_checks_along_a_record_fit_its_chain_once(predictor, monkeypatch):
+    """Soft then hard rock, no chain: the hard layer's contact law explains under 98 % as
+    recorded (13 samples a contact), so every check there used to fit a chain (1-3 s each)
+    and find none. The first fit decides the record's chain; the later checks read through
+    it, and read what the window reads alone."""
+    import stiffnet.restoring_force.estimate as estimate
+
+    fits = []
+    real = estimate.fit_chain
+
+    def counted(*args, **kwargs):
+        fits.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(estimate, "fit_chain", counted)
+    a, _ = layered_record([20.0, 50.0], [60.0, 60.0], seed=11)
+    doc = stiffness_log(predictor, a, FS, FN_HZ, restoring_force_every_s=10.0)
+    hard = doc["layers"][-1]["restoring_force"]
+    assert len(fits) == 1 and hard["n_checks"] >= 5
+    assert hard["beta"] == pytest.approx(50.0, rel=0.1) and hard["agreement"]
+    from serving.restoring_force_check import restoring_force_check
+
+    last = [p for p in doc["points"] if "restoring_force" in p][-1]
+    end = int(round((last["t_s"] + 0.5 * 16 / FN_HZ) * FS))
+    own = restoring_force_check(a[end - 3376 : end], FS, FN_HZ)  # the window, read alone
+    assert last["restoring_force"]["beta"] == pytest.approx(own["beta"], rel=0.05)
+
+
+def test_a_chain_found_after_the_records_start_is_held_and_said(predictor):
+    """A check that fits a low-pass the start did not show: the later checks read through it
+    as through a data sheet (its corner and high-pass held), and a warning says the model
+    reads the record as recorded; a fit that applies no stage holds only its high-pass."""
+    log = StiffnessLogger(predictor, FS, FN_HZ)
+    found = {"source": "fitted", "applied": True, "resonance_hz": None, "lowpass_hz": 131.0,
+             "lowpass_order": 3.2, "highpass_hz": 0.4}  # fmt: skip
+    log._hold_chain(found, 42.0)
+    assert log.check_chain_known and log.check_highpass is None
+    assert log.check_sheet["lowpass_hz"] == 131.0 and log.check_sheet["lowpass_order"] == 3.0
+    assert log.check_sheet["highpass_hz"] == 0.4
+    assert any("at 42 s" in w and "low-pass 131 Hz" in w for w in log.warnings)
+    log = StiffnessLogger(predictor, FS, FN_HZ)
+    log._hold_chain({"source": "data sheet", "lowpass_hz": 131.0}, 42.0)  # not a fit
+    assert not log.check_chain_known
+    log._hold_chain({"source": "fitted", "applied": False, "lowpass_hz": 90.0,
+                     "highpass_hz": 1.5}, 42.0)  # fmt: skip
+    assert log.check_chain_known and log.check_sheet is None and log.check_highpass == 1.5
+    assert not log.warnings
