@@ -7,8 +7,8 @@ per-window split-conformal interval (``exp(log beta +- q)``, ``q`` the model's
 ``conformal_quantile``), its class with hysteresis at class edges, and the alarm
 evaluated on that window (the model's embedding distance, ambiguity, beta
 uncertainty and class edge, against the thresholds calibrated per recording: one
-window is a short recording). Every :data:`RESTORING_FORCE_EVERY_S` seconds a point also
-carries the restoring-force cross-check on the window it ends
+window is a short recording). Every :data:`RESTORING_FORCE_EVERY_S` seconds
+(``configs/log.yaml``) a point also carries the restoring-force cross-check on the window it ends
 (:func:`serving.restoring_force_check.restoring_force_check`). The accelerometer's chain is
 one sensor's: the checks identify it once (on the record's start, or where the start's
 contact law needed none, at the first check whose law does: a harder layer shortens the
@@ -36,9 +36,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator, Sequence
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from serving.campaign_chain import identified
 from serving.chain_spread import plausible_chains
@@ -57,16 +59,51 @@ from stiffnet.restoring_force.chain import shared_chain_sheet
 from stiffnet.uncertainty import RecordingEstimate, beta_interval
 from stiffnet.uncertainty.alarm import recording_checks
 
-#: Largest hop between points (s).
+#: Largest hop between points (s): a window is 16 natural periods, so points overlap and the
+#: change-point search sees every window a change touches.
 MAX_HOP_S = 0.5
-#: Seconds between two restoring-force cross-checks along the record (~30 ms each).
-RESTORING_FORCE_EVERY_S = 10.0
-#: Restoring-force checks an open layer keeps for its median (the latest; ~3 h at 10 s).
-MAX_RESTORING_FORCE_CHECKS = 1000
-#: Windows per ONNX Runtime call in the log.
-LOG_BATCH = 128
-#: Share of a layer's points with the alarm above which the layer is flagged.
-LAYER_ALARM_SHARE = 0.5
+#: The log's shipped settings file under ``configs/``.
+LOG_CONFIG = "log.yaml"
+
+
+class LogSettings(BaseModel):
+    """The stiffness log's defaults (``configs/log.yaml``).
+
+    Attributes
+    ----------
+    hop_s : float
+        Seconds between points (at most :data:`MAX_HOP_S`).
+    restoring_force_every_s : float or None
+        Seconds between restoring-force cross-checks along the record (None: none).
+    max_restoring_force_checks : int
+        Checks an open layer keeps for its median (the latest): an endless stream's bound.
+    layer_alarm_share : float
+        Share of a layer's points with the alarm above which the layer is flagged.
+    batch : int
+        Windows per ONNX Runtime call.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    hop_s: float = Field(0.5, gt=0.0, le=MAX_HOP_S)
+    restoring_force_every_s: float | None = Field(10.0, gt=0.0)
+    max_restoring_force_checks: int = Field(1000, ge=1)
+    layer_alarm_share: float = Field(0.5, gt=0.0, le=1.0)
+    batch: int = Field(128, ge=1, le=4096)
+
+
+@lru_cache(maxsize=1)
+def log_settings() -> LogSettings:
+    """The shipped settings: ``configs/log.yaml``, else the defaults."""
+    from stiffnet.config import shipped_settings
+
+    return shipped_settings(LogSettings, LOG_CONFIG)
+
+
+#: Seconds between points by default (``configs/log.yaml``).
+DEFAULT_HOP_S = log_settings().hop_s
+#: Seconds between two restoring-force cross-checks along the record by default.
+RESTORING_FORCE_EVERY_S = log_settings().restoring_force_every_s
 #: Natural periods at the start of the record the accelerometer's chain is identified on
 #: (what one restoring-force check reads: a stream's first point waits for them).
 CHAIN_FIT_PERIODS = RESTORING_FORCE_PERIODS
@@ -103,7 +140,7 @@ class StiffnessLogger:
         fs_hz: float,
         natural_frequency_hz: float,
         *,
-        hop_s: float = MAX_HOP_S,
+        hop_s: float = DEFAULT_HOP_S,
         restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
         penalty: float | None = None,
         sensor: dict | None = None,
@@ -200,7 +237,7 @@ class StiffnessLogger:
             ready = end // self.hop + 1
             if ready <= 0:
                 return events
-            events.extend(self._windows(min(int(ready), LOG_BATCH)))
+            events.extend(self._windows(min(int(ready), log_settings().batch)))
 
     def _identify_chain(self, head: np.ndarray) -> None:
         """The accelerometer's chain from the record's start (the restoring-force check's, or
@@ -351,7 +388,9 @@ class StiffnessLogger:
                 ph = self._check(seg, point["t"])
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
-                del self.restoring_force[:-MAX_RESTORING_FORCE_CHECKS]  # an endless layer: bounded
+                del self.restoring_force[
+                    : -log_settings().max_restoring_force_checks
+                ]  # an endless layer: bounded
             self._verdict(point, ph)
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
@@ -467,7 +506,7 @@ class StiffnessLogger:
             "n_points": raw["n_points"],
             "n_pooled": raw["n_pooled"],
             "alarm_fraction": raw["alarm_fraction"],
-            "alarm": raw["alarm_fraction"] > LAYER_ALARM_SHARE,
+            "alarm": raw["alarm_fraction"] > log_settings().layer_alarm_share,
             "restoring_force": _layer_restoring_force(inside, cls),
         }
         if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
@@ -579,7 +618,7 @@ def stiffness_log(
     fs_hz: float,
     natural_frequency_hz: float,
     *,
-    hop_s: float = MAX_HOP_S,
+    hop_s: float = DEFAULT_HOP_S,
     restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
     penalty: float | None = None,
     source: str = "",

@@ -57,7 +57,7 @@ from serving.chain_spread import (
 from serving.chain_undo import UNDO_MODES, chain_as_read, model_record
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import (
-    MAX_HOP_S,
+    DEFAULT_HOP_S,
     RESTORING_FORCE_EVERY_S,
     hop_samples,
     record_layers,
@@ -566,7 +566,7 @@ class Predictor:
         fs_hz: float,
         *,
         natural_frequency_hz: float,
-        hop_s: float = MAX_HOP_S,
+        hop_s: float = DEFAULT_HOP_S,
         restoring_force_every_s: float | None = RESTORING_FORCE_EVERY_S,
         source: str = "",
         sensor: dict | None = None,
@@ -583,9 +583,10 @@ class Predictor:
         fs_hz, natural_frequency_hz : float
             Sampling rate and the rig's natural frequency in Hz.
         hop_s : float, optional
-            Time between points (<= 0.5 s).
+            Time between points (<= 0.5 s; default ``configs/log.yaml``).
         restoring_force_every_s : float or None, optional
-            Seconds between restoring-force cross-checks (None: none).
+            Seconds between restoring-force cross-checks (None: none; default
+            ``configs/log.yaml``).
         source : str, optional
             The record's name, echoed.
         sensor : dict, optional
@@ -639,7 +640,7 @@ class Predictor:
         Constant windows are dropped (warned).
         """
         n_win = window_length(fs, fn, self.window_periods)
-        hop = hop_samples(MAX_HOP_S, fs)
+        hop = hop_samples(DEFAULT_HOP_S, fs)  # the log's, which replays these windows
         starts = window_starts(a.size, n_win, hop)
         ok = varying_windows(a, starts, n_win)
         if not ok.all():

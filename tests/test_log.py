@@ -209,6 +209,28 @@ def test_cli_refuses_without_natural_frequency_or_rate(records, tmp_path):
     r = _cli(str(rec), "--fn", "9.48", "--sensor", "lowpass_hz=120,gain=2")
     assert r.returncode == 2 and b"unknown sensor key(s) gain" in r.stderr
     assert len(r.stderr.decode().strip().splitlines()) == 1
+    r = _cli(str(rec), "--fn", "9.48", "--restoring-force-every", "-5")
+    assert r.returncode == 2 and b"--restoring-force-every must be >= 0 s" in r.stderr
+    assert len(r.stderr.decode().strip().splitlines()) == 1
+
+
+def test_the_logs_defaults_come_from_its_shipped_settings():
+    """configs/log.yaml validates, is what the log uses by default, and a hop above the
+    design's limit or an unknown key is refused in one line."""
+    from pydantic import ValidationError
+
+    from serving.log import LogSettings, log_settings
+    from stiffnet.config import load_config
+
+    shipped = load_config(LogSettings, ROOT / "configs/log.yaml")
+    assert shipped == log_settings()
+    log = StiffnessLogger(Predictor.load(), FS, FN_HZ)
+    assert log.hop_s == pytest.approx(shipped.hop_s, abs=1 / FS)
+    assert log.restoring_force_every == round(shipped.restoring_force_every_s * FS)
+    with pytest.raises(ValidationError):
+        LogSettings(hop_s=0.75)
+    with pytest.raises(ValidationError):
+        LogSettings(batch_size=64)
 
 
 def _through_chain(a: np.ndarray, **stages: float) -> np.ndarray:

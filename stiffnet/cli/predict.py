@@ -465,16 +465,20 @@ def log_cmd(
     time_unit: TimeUnitOption = None,
     channel: ChannelOption = None,
     model: ModelOption = None,
-    hop: Annotated[float, typer.Option(help="Seconds between points (<= 0.5).")] = 0.5,
+    hop: Annotated[
+        float | None,
+        typer.Option(help="Seconds between points (<= 0.5; default configs/log.yaml's, 0.5)."),
+    ] = None,
     restoring_force_every: Annotated[
-        float,
+        float | None,
         typer.Option(
             "--restoring-force-every",
             # the option's earlier name, kept so that scripts written before still run
             "--physical-every",
-            help="Seconds between restoring-force cross-checks (0: none).",
+            help="Seconds between restoring-force cross-checks (0: none; default "
+            "configs/log.yaml's, 10).",
         ),
-    ] = 10.0,
+    ] = None,
     stream_format: Annotated[
         str, typer.Option(help="--follow: csv (one sample per line) or f32 (raw float32).")
     ] = "csv",
@@ -498,14 +502,27 @@ def log_cmd(
     sensor: SensorOption = None,
 ) -> None:
     """Stiffness log along a record: beta(t) with intervals, layers and their change times."""
+    import math
+
+    from serving.log import log_settings
     from serving.predictor import Predictor
     from stiffnet.cli.console import console, out, write_json
+    from stiffnet.errors import StiffnetError
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     _check_log_outputs(rows_path, plot_path)
     sheet = parse_sensor_option(sensor) if sensor is not None else None
     predictor = Predictor.load(model, threads=threads)
-    every = restoring_force_every if restoring_force_every > 0 else None
+    settings = log_settings()
+    hop = settings.hop_s if hop is None else hop
+    if restoring_force_every is None:
+        every = settings.restoring_force_every_s
+    elif not (math.isfinite(restoring_force_every) and restoring_force_every >= 0):
+        raise StiffnetError(
+            f"--restoring-force-every must be >= 0 s, got {restoring_force_every:g}"
+        )
+    else:
+        every = restoring_force_every or None
     if follow:
         stream = (stream_format, stream_column, idle_timeout)
         result = _followed_log(predictor, recording, fs, fn, (columns, time_unit, channel), hop,
