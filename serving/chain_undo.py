@@ -22,7 +22,7 @@ highest): its inverse ``(s + w_h) / s`` adds ``w_h`` times the record's integral
 velocity, whose unknown start and drift are taken away (:func:`highpass_undone`). Left in,
 a corner of a few Hz turns the phase of the motion at f_n (23 degrees at 4 Hz for 9.5 Hz),
 and the model reads that as stiffness: on the independent rig a record through a 3.6-4.5 Hz
-high-pass alone reads beta 22-55 % off, and the same chain with its high-pass undone reads
+high-pass alone reads beta 19-55 % off, and the same chain with its high-pass undone reads
 what the record without any chain reads (docs/model_benchmark.md, "The high-pass the undo
 left in"). The model's own prior (0-2 Hz) is no reason to leave one in: it reads beta
 4-14 % off already behind 2 Hz, 0-6 % behind 1 Hz (against the same record without any
