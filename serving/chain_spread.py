@@ -10,11 +10,11 @@ chain was either absent or in the training priors, so it does not know the chain
 was a guess.
 
 :func:`plausible_chains` names the other chains the record may have passed through (as
-recorded, the low-pass corner lower, the resonance at the ends of its fitted interval:
-``configs/chain_spread.yaml``); the predictor reads the model through each, and the answer's
-interval spans theirs (:func:`spread_interval`). Where the readings land in different classes
-the class is a guess at the chain, and the ``chain_class`` alarm says so
-(:func:`chain_class_share`). A data sheet's chain, or no chain, is read once: the interval
+recorded, the low-pass corner lower, the resonance at the ends of its fitted interval, the
+high-pass left in: ``configs/chain_spread.yaml``); the predictor reads the model through
+each, and the answer's interval spans theirs (:func:`spread_interval`). Where the readings
+land in different classes the class is a guess at the chain, and the ``chain_class`` alarm
+says so (:func:`chain_class_share`). A data sheet's chain, or no chain, is read once: the interval
 is the model's own.
 
 Numpy and pydantic only (the predictor imports it).
@@ -49,6 +49,9 @@ class ChainSpreadConfig(BaseModel):
     resonance_interval : bool
         Also read it with the resonance at each end of its fitted interval (a fit without
         an interval: none).
+    highpass_kept : bool
+        Also read it with the fitted high-pass corner left in (the other stages undone):
+        the corner is a fit too, and the model reads a high-pass as stiffness.
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -57,6 +60,7 @@ class ChainSpreadConfig(BaseModel):
     as_recorded: bool = True
     lowpass_factors: list[Annotated[float, Field(ge=0.2, le=5.0)]] = Field(default_factory=list)
     resonance_interval: bool = False
+    highpass_kept: bool = False
 
 
 @lru_cache(maxsize=1)
@@ -98,6 +102,9 @@ def plausible_chains(
     if config.resonance_interval and undone.get("resonance_hz") and ends:
         for end in ends:
             out[f"resonance {end:.0f} Hz"] = {**sensor, "resonance_hz": float(end)}
+    highpass = undone.get("highpass_hz")
+    if config.highpass_kept and highpass:
+        out[f"high-pass {highpass:.2g} Hz kept"] = {**sensor, "highpass_hz": 0.0}
     return out
 
 

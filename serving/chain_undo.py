@@ -8,15 +8,25 @@ chain divided out (:func:`stiffnet.restoring_force.chain.deconvolve`, within the
 record supports) is closer to it. :func:`model_record` gives the record the model reads:
 
 * ``"off"``: the record as recorded;
-* ``"chain"``: every resonance and low-pass the check applied, divided out;
+* ``"chain"``: every resonance, low-pass and high-pass the check applied, divided out;
 * ``"resonance"``: the mount resonance alone;
 * ``"outside_priors"``: only the stages that lie outside the model's sensor priors (a
-  resonance below its lowest multiple of f_n, a low-pass below its lowest fraction of fs);
+  resonance below its lowest multiple of f_n, a low-pass below its lowest fraction of fs, a
+  high-pass above its highest corner);
   a stage inside them is one the model has seen, and dividing it out only amplifies noise.
 
 A fitted chain the check did not apply (its inverse left the contact law worse) is no
-evidence of a chain and is never undone. The charge amplifier's high-pass is left as it is:
-the model was trained behind such corners, and its inverse integrates the whole record.
+evidence of a chain and is never undone. The charge amplifier's 1st-order high-pass is
+undone with the rest (``"chain"``; ``"outside_priors"``: only a corner above the prior's
+highest): its inverse ``(s + w_h) / s`` adds ``w_h`` times the record's integral, the
+velocity, whose unknown start and drift are taken away (:func:`highpass_undone`). Left in,
+a corner of a few Hz turns the phase of the motion at f_n (23 degrees at 4 Hz for 9.5 Hz),
+and the model reads that as stiffness: on the independent rig a record through a 3.6-4.5 Hz
+high-pass alone reads beta 19-55 % off, and the same chain with its high-pass undone reads
+what the record without any chain reads (docs/model_benchmark.md, "The high-pass the undo
+left in"). The model's own prior (0-2 Hz) is no reason to leave one in: it reads beta
+4-14 % off already behind 2 Hz, 0-6 % behind 1 Hz (against the same record without any
+chain).
 """
 
 from __future__ import annotations
@@ -25,6 +35,7 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+from scipy import integrate, signal
 
 from serving.restoring_force_check import PRIOR_SLACK, sensor_prior_lows
 from stiffnet.restoring_force.chain import MIN_LOWPASS_RATIO, SensorChain, deconvolve
@@ -45,7 +56,8 @@ def chain_to_undo(
     natural_frequency_hz: float,
     mode: str,
 ) -> SensorChain | None:
-    """The resonance and low-pass to divide out of the record (None: nothing to undo).
+    """The resonance, low-pass and high-pass to divide out of the record (None: nothing to
+    undo).
 
     Parameters
     ----------
@@ -63,14 +75,17 @@ def chain_to_undo(
         return None
     fr, zr = sensor.get("resonance_hz"), sensor.get("resonance_damping")
     fl, order = sensor.get("lowpass_hz"), sensor.get("lowpass_order")
+    fh = float(sensor.get("highpass_hz") or 0.0)
     if mode == "outside_priors":
         lows = sensor_prior_lows(priors, fs_hz, natural_frequency_hz)
         if fr and fr * PRIOR_SLACK >= lows.get("resonance_hz", np.inf):
             fr = None  # inside: the model has read such resonances
         if fl and fl * PRIOR_SLACK >= lows.get("lowpass_hz", np.inf):
             fl = None
+        if fh <= PRIOR_SLACK * sensor_prior_highpass_top(priors):
+            fh = 0.0
     if mode == "resonance":
-        fl = None
+        fl, fh = None, 0.0
     contact = sensor.get("contact_hz")
     if fl and contact and fl < MIN_LOWPASS_RATIO * contact:
         fl = None  # it smooths the contact itself away: its inverse would invent the spike
@@ -79,9 +94,21 @@ def chain_to_undo(
         resonance_damping=float(zr) if fr and zr else None,
         lowpass_hz=float(fl) if fl and order else None,
         lowpass_order=int(order) if fl and order else None,
+        highpass_hz=fh if np.isfinite(fh) and fh > 0 else 0.0,
         source=str(sensor.get("source") or "fitted"),
     )
-    return chain if chain.has_dynamics else None
+    return chain if chain.has_dynamics or chain.highpass_hz > 0 else None
+
+
+def sensor_prior_highpass_top(priors: dict | None) -> float:
+    """The highest high-pass corner (Hz) of the model's sensor prior (the card's
+    ``data.priors``; infinity where the card gives none: every corner counts as inside)."""
+    for effect in (priors or {}).get("effects") or []:
+        if effect.get("name") == "sensor_dynamics":
+            top = (effect.get("params") or {}).get("highpass_hz")
+            if isinstance(top, list | tuple) and len(top) == 2:
+                return float(top[1])
+    return float("inf")
 
 
 def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
@@ -100,12 +127,27 @@ def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
 
 def undone_record(accel: np.ndarray, fs_hz: float, chain: SensorChain) -> np.ndarray:
     """`accel` divided by the chain's resonance and low-pass within the band it passes
-    (:func:`~stiffnet.restoring_force.chain.deconvolve`), its ends reflected first."""
+    (:func:`~stiffnet.restoring_force.chain.deconvolve`) and by its high-pass
+    (:func:`highpass_undone`), its ends reflected first."""
     a = np.asarray(accel, dtype=float)
     pad = min(a.size - 1, max(16, int(PAD_FRACTION * a.size)))
     padded = np.pad(a, pad, mode="reflect")
     flat = deconvolve(padded, fs_hz, chain, record_noise_sigma(a, fs_hz))
-    return flat[pad : pad + a.size]
+    return highpass_undone(flat[pad : pad + a.size], fs_hz, chain.highpass_hz)
+
+
+def highpass_undone(y: np.ndarray, fs_hz: float, highpass_hz: float) -> np.ndarray:
+    """`y` divided by a 1st-order high-pass at `highpass_hz` (the charge amplifier's,
+    ``s / (s + w_h)``): ``y + w_h * integral of y``, the integral's constant and slope taken
+    away (an acceleration's integral, the velocity, neither drifts nor has a known start).
+
+    In time, not by FFT: the inverse is an integrator, and a periodic (reflected) record's
+    ends would spread their error over every sample. `y` itself for no corner.
+    """
+    if not highpass_hz or highpass_hz <= 0:
+        return y
+    velocity = integrate.cumulative_trapezoid(y, dx=1.0 / fs_hz, initial=0.0)
+    return y + 2.0 * np.pi * highpass_hz * signal.detrend(velocity)
 
 
 def undone_windows(
@@ -129,7 +171,8 @@ def undone_windows(
     for k, s in enumerate(np.asarray(starts, dtype=int)):
         lo, hi = max(0, s - m), min(a.size, s + n_win + m)
         seg = np.pad(a[lo:hi], (m - (s - lo), m - (hi - s - n_win)), mode="reflect")
-        out[k] = deconvolve(seg, fs_hz, chain, record_noise_sigma(seg, fs_hz))[m : m + n_win]
+        flat = deconvolve(seg, fs_hz, chain, record_noise_sigma(seg, fs_hz))
+        out[k] = highpass_undone(flat, fs_hz, chain.highpass_hz)[m : m + n_win]
     return out
 
 
@@ -165,7 +208,7 @@ def model_record(
     -------
     numpy.ndarray, dict or None
         The record, and the undone stages (``resonance_hz``, ``resonance_damping``,
-        ``lowpass_hz``, ``lowpass_order``, ``source``) or None.
+        ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``, ``source``) or None.
     """
     sensor = (restoring_force or {}).get("sensor")
     chain = chain_to_undo(sensor, priors, fs_hz, natural_frequency_hz, mode)
@@ -176,10 +219,10 @@ def model_record(
 
 def undone_stages(chain: SensorChain) -> dict[str, Any]:
     """What dividing `chain` out undoes, as the results report it (``resonance_hz``,
-    ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``source``)."""
+    ``resonance_damping``, ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``, ``source``)."""
     return {k: v for k, v in dataclasses.asdict(chain).items()
             if k in ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order",
-                     "source")}  # fmt: skip
+                     "highpass_hz", "source")}  # fmt: skip
 
 
 def chain_as_read(sensor: dict | None, undone: dict[str, Any] | None) -> dict | None:
@@ -193,4 +236,6 @@ def chain_as_read(sensor: dict | None, undone: dict[str, Any] | None) -> dict | 
         left.update(resonance_hz=None, resonance_damping=None)
     if undone.get("lowpass_hz"):
         left.update(lowpass_hz=None, lowpass_order=None)
+    if undone.get("highpass_hz"):
+        left.update(highpass_hz=0.0)
     return left

@@ -201,9 +201,9 @@ class PredictionResult(BaseModel):
     chain_undone: dict[str, Any] | None = Field(
         default=None,
         description="The sensor-chain stages the model read divided out of the record "
-        "(resonance_hz, resonance_damping, lowpass_hz, lowpass_order, source: fitted or data "
-        "sheet; serving.chain_undo); null where it read the record as recorded. The chain "
-        "itself is restoring_force.sensor.",
+        "(resonance_hz, resonance_damping, lowpass_hz, lowpass_order, highpass_hz, source: "
+        "fitted, campaign or data sheet; serving.chain_undo); null where it read the record "
+        "as recorded. The chain itself is restoring_force.sensor.",
     )
     chain_readings: list[dict[str, Any]] | None = Field(
         default=None,

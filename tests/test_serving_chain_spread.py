@@ -41,6 +41,17 @@ def test_a_fitted_chain_stands_for_the_record_as_recorded_and_lower_corners():
     assert list(only) == ["as recorded", "resonance 185 Hz", "resonance 196 Hz"]
 
 
+def test_a_fitted_high_pass_undone_stands_for_the_record_with_it_left_in():
+    config = ChainSpreadConfig(as_recorded=False, highpass_kept=True)
+    chains = plausible_chains(FITTED, {**UNDONE, "highpass_hz": 3.0}, config)
+    assert list(chains) == ["high-pass 3 Hz kept"]
+    kept = chains["high-pass 3 Hz kept"]
+    assert kept["highpass_hz"] == 0.0  # left in: not divided out
+    assert (kept["resonance_hz"], kept["lowpass_hz"]) == (190.0, 100.0)  # still undone
+    assert plausible_chains(FITTED, UNDONE, config) == {}  # no corner undone: nothing
+    assert chain_spread_config().highpass_kept  # shipped on
+
+
 def test_a_data_sheet_no_chain_or_the_switch_off_read_once():
     config = ChainSpreadConfig(lowpass_factors=[0.8])
     assert plausible_chains(FITTED, {**UNDONE, "source": "data sheet"}, config) == {}
