@@ -39,7 +39,6 @@ class _StubRun:
         floors = Floors(np.full(N, FLOOR))
         self.floors = {FIT_SETTINGS: floors, FIT_SETTINGS_NUMERICAL: floors}
         self.stage, self.target, self.names = "", None, [f"r{i}" for i in range(N)]
-        self.tasks = None  # in this process
         self.bar = SimpleNamespace(step=lambda note=None: None)
 
     def fits(self, cands: list[str], fixed: list) -> list[dict]:

@@ -263,8 +263,6 @@ class _Run:
     stage: str = "single fits"
     #: The restoring-force evidence (contact law and shared sensor chain per recording).
     evidence: dict[str, Any] | None = None
-    #: Independent work of this process's serial stages as parallel tasks (:func:`_tasks_on`).
-    tasks: Callable[[Callable[[Any], Any], list[Any]], list[Any]] | None = None
 
     def fits(self, cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
         """Fit each candidate on top of ``fixed`` (parallel tasks), in the order given."""
@@ -375,31 +373,14 @@ def _prepare(
     target.sensor = evidence.get("sensor")
     target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit
     bar.step("nuisances and initial states")
-    tasks = _tasks_on(client)
-    nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info, tasks)
+    nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
     baseline = target.per_recording(base_effects, FIT_SETTINGS)
     run = _Run(
         campaign, base_effects, rows, target, [r.recording for r in rows], nuisance_info,
         floor_info, floors, options["budget"], options["budget_numerical"], client, bar,
-        evidence=evidence, tasks=tasks,
+        evidence=evidence,
     )  # fmt: skip
     return run, nuisances, baseline
-
-
-def _tasks_on(client: Any) -> Callable[[Callable[[Any], Any], list[Any]], list[Any]]:
-    """``fn`` over ``items`` as parallel tasks on the client's workers, the results in the
-    items' order (in this process, one after the other, without a client). The serial stages
-    of this process (the nuisances' initial states, a joint refit's block descent) hand it
-    work that depends on nothing of its own: the workers wait there otherwise."""
-    from stiffnet.distributed.tasks import run_tasks
-    from stiffnet.simulator.compiled import limited_threads
-
-    def run(fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
-        report = run_tasks(fn, items, client=client, thread_limit=limited_threads)
-        report.raise_failures()
-        return list(report.results)
-
-    return run
 
 
 def _fit_alone(
@@ -555,7 +536,6 @@ def _joint_step(
             start=np.array(c["per_recording"]),
             rounds=2 if kept else 0,  # alone, it was just fitted from its own design
             subset=SUBSET_SEARCH,
-            refits=run.tasks,
         )
         if tried is not None:
             tried[n] = joint
@@ -612,9 +592,7 @@ def _accept(
     run.bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
     target = run.target
     before_profile = (list(target.rows), list(target.starts or []))
-    nuisances = profile_nuisances(
-        target, _effects(kept, kept_params), settings, run.nuisance_info, run.tasks
-    )
+    nuisances = profile_nuisances(target, _effects(kept, kept_params), settings, run.nuisance_info)
     if (list(target.rows), list(target.starts or [])) != before_profile:
         # the nuisances moved (another orbit, another gap): refit the effects on them, locally
         # (ACCEPT_ROUNDS: a Nelder-Mead over all their coordinates from where the step that

@@ -51,7 +51,7 @@ Search, in the unit cube of the effect's fit space
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -68,10 +68,6 @@ from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.nuisance import N_STARTS
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
 from stiffnet.simulator.motion_cache import reuse_motion
-
-#: Runs a function on every item and returns the results in the items' order (a diagnosis
-#: passes its workers' :func:`~stiffnet.distributed.tasks.run_tasks`).
-Mapper = Callable[[Callable[[Any], Any], list[Any]], list[Any]]
 
 #: Evaluations of a one-effect fit (closed form) after its initial design.
 REFINE_EVALUATIONS = {1: 8, 2: 12}
@@ -558,7 +554,6 @@ def fit_joint(
     start: np.ndarray | None = None,
     rounds: int = 2,
     subset: int | None = None,
-    refits: Mapper | None = None,
 ) -> dict[str, Any]:
     """Refit every effect of a model jointly, from ``params`` (a local Nelder-Mead).
 
@@ -567,8 +562,6 @@ def fit_joint(
     refit searched on ``subset`` recordings (:func:`fit_effect`), then the Nelder-Mead on the
     same subset (:func:`spread_subset`; None: on every recording, as the polish), its best
     point scored on every recording. The result never ends worse than the start.
-    ``refits`` runs a round's refits (:func:`_block_round`: independent of one another, as
-    parallel tasks on a diagnosis's workers); None: one after the other in this process.
 
     Returns
     -------
@@ -594,9 +587,13 @@ def fit_joint(
     # stays in the valley where the first effect was fitted)
     for _ in range(0 if numerical else rounds):
         round_start = objective_value(start, target.weights)
-        params, start, spent = _block_round(target, names, params, start, settings, subset,
-                                            refits)  # fmt: skip
-        evaluations += spent
+        for i, n in enumerate(names):
+            others = _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :])
+            fit = fit_effect(target, n, others, settings, seeds=[params[i]], subset=subset)
+            evaluations += fit["evaluations"]
+            w = target.weights
+            if objective_value(np.asarray(fit["per_recording"]), w) < objective_value(start, w):
+                params[i], start = dict(fit["params"]), np.asarray(fit["per_recording"], float)
         if (
             objective_value(start, target.weights) >= round_start
         ):  # a round that moved nothing ends the descent
@@ -623,55 +620,6 @@ def fit_joint(
     res["improves"] = bool(res["improves"] or params != given)
     res["evaluations"] += evaluations
     return res
-
-
-def _refit_task(item: tuple) -> dict[str, Any]:
-    """One effect of a joint model refitted from its own design with the others held
-    (:func:`fit_effect`; a picklable task of :func:`_block_round`)."""
-    target, name, others, settings, seed, subset = item
-    return fit_effect(target, name, others, settings, seeds=[seed], subset=subset)
-
-
-def _block_round(
-    target: CampaignTarget,
-    names: list[str],
-    params: list[dict[str, float]],
-    start: np.ndarray,
-    settings: SolverSettings,
-    subset: int | None,
-    refits: Mapper | None,
-) -> tuple[list[dict[str, float]], np.ndarray, int]:
-    """One round of block coordinate descent: every effect refitted with the others held at
-    the round's start (:func:`_refit_task`; the refits depend on nothing of one another, so
-    ``refits`` may run them at once), then the best of the effects' moves alone and, when
-    several improved, of all of them together (one evaluation). Returns the parameters, the
-    per-recording discrepancies there (never worse than ``start``) and the evaluations."""
-    items = [
-        (target, n, _effects(names[:i] + names[i + 1 :], params[:i] + params[i + 1 :]),
-         settings, params[i], subset)
-        for i, n in enumerate(names)
-    ]  # fmt: skip
-    fits = refits(_refit_task, items) if refits is not None else [_refit_task(x) for x in items]
-    spent = sum(int(f["evaluations"]) for f in fits)
-    w = target.weights
-    value = objective_value(start, w)
-    moved = [
-        i for i, f in enumerate(fits) if objective_value(np.asarray(f["per_recording"]), w) < value
-    ]
-    best = [dict(p) for p in params], np.asarray(start, float)
-    for i in moved:  # each effect's move alone, its refit's own score
-        per = np.asarray(fits[i]["per_recording"], float)
-        if objective_value(per, w) < objective_value(best[1], w):
-            best = [*params[:i], dict(fits[i]["params"]), *params[i + 1 :]], per
-    if len(moved) > 1:  # together: the moves were made apart, so score their sum once
-        together = [
-            dict(fits[i]["params"]) if i in moved else dict(p) for i, p in enumerate(params)
-        ]
-        per = target.per_recording([*target.base_effects, *_effects(names, together)], settings)
-        spent += 1
-        if objective_value(per, w) < objective_value(best[1], w):
-            best = together, per
-    return [dict(p) for p in best[0]], best[1], spent
 
 
 def _effects(names: Sequence[str], params: Sequence[dict[str, float]]) -> list[Effect]:

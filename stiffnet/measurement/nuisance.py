@@ -36,7 +36,7 @@ selection and again after every accepted effect.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -237,16 +237,16 @@ def profile_nuisances(
     effects: Sequence[Effect],
     settings: CampaignSolverSettings,
     info: dict[str, Any],
-    tasks: Callable[[Callable[[Any], Any], list[Any]], list[Any]] | None = None,
 ) -> dict[str, Any]:
     """Set the nuisances of ``target`` (its rows and starts) to their best values for the model
-    ``target.base_effects + effects`` (see the module notes); returns them per recording.
-    ``tasks(fn, items)`` runs the initial states' simulations (independent of one another;
-    a diagnosis's workers, the results in the items' order); None: one after the other here."""
+    ``target.base_effects + effects`` (see the module notes); returns them per recording."""
     model = [*target.base_effects, *effects]
+    n = len(target.rows)
     # initial states: each recording keeps the start whose orbit matches it best
-    items = [(target, model, settings, k) for k in range(N_STARTS)]
-    stats = tasks(_start_statistics, items) if tasks else [_start_statistics(x) for x in items]
+    stats = [
+        target.simulated_statistics(model, settings, starts=[k] * n, inclination=False)
+        for k in range(N_STARTS)
+    ]
     pers = [target.discrepancies_of(st) for st in stats]
     target.starts = [int(k) for k in np.argmin(np.vstack(pers), axis=0)]
     orbits = start_orbits(target.measured, stats)
@@ -271,14 +271,6 @@ def profile_nuisances(
     if "frequency_ratio" in info.get("estimated", {}):
         out["frequency_ratio"] = [float(r.frequency_ratio) for r in target.rows]
     return out
-
-
-def _start_statistics(item: tuple) -> list[Any]:
-    """The campaign's statistics simulated from initial-state variant ``k`` on every row
-    (``(target, model, settings, k)``; a picklable task of :func:`profile_nuisances`)."""
-    target, model, settings, k = item
-    n = len(target.rows)
-    return target.simulated_statistics(model, settings, starts=[k] * n, inclination=False)
 
 
 def _profile(
