@@ -32,7 +32,9 @@ and prints the wall-time ratio: a before/after measured in the same run.
 Target: 24 recordings x 6 s in <= 60 s wall on a quiet 2-core machine: ``--workers 2``
 (the default) runs each step's fits on one 2-process LocalCluster for the whole diagnosis (the split
 then covers only this process: the joint refits, nuisances and verdict);
-``--workers 0`` runs everything in-process.
+``--workers 0`` runs everything in-process. ``--timeline``: each stage's wall time, this
+process's and the workers' CPU and the cores' idle seconds (:mod:`stage_timeline`): where the
+workers wait for this process and where it waits for them.
 
 ``--rig NAME[,NAME]``: held-out campaigns of the independent rig instead
 (``tests/independent_rig.py``, solve_ivp in SI units; nothing of stiffnet wrote them): the 24
@@ -60,6 +62,7 @@ Run (from the repository root, so this checkout's package is imported)::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import cProfile
 import csv
 import json
@@ -83,6 +86,9 @@ from stiffnet.measurement.loop import cpu_seconds
 from stiffnet.measurement.nuisance import resolve_rows
 from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget, measured_statistics
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stage_timeline import StageTimeline, label_stages  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 HIDDEN = [
@@ -380,6 +386,8 @@ def main() -> None:
     ap.add_argument("--rig-fs", type=float, default=2000.0, help="the rig's sampling rate, Hz")
     ap.add_argument("--subset", default="8", help="--rig: diagnose.SUBSET_SEARCH per run, e.g. "
                     "8,24 (24: the search on every recording)")  # fmt: skip
+    ap.add_argument("--timeline", action="store_true", help="also print each stage's wall "
+                    "time, this process's and the workers' CPU (stage_timeline.py)")  # fmt: skip
     ap.add_argument(
         "--polish",
         type=int,
@@ -407,17 +415,21 @@ def main() -> None:
         t_before, t_now = evaluation_ratio(camp)
         load0 = os.getloadavg()[0]
         prof = cProfile.Profile() if args.profile_out else None
+        timeline = StageTimeline() if args.timeline else None
+        if timeline is not None:
+            label_stages(timeline)
         spent = timed()
         by_stage = numerical_by_stage()
         cpu0 = cpu_seconds()
         t = time.perf_counter()
         if prof is not None:
             prof.enable()
-        res = diagnose_campaign(
-            camp, effects=FAST if args.fast_only else None, workers=args.workers or None,
-            inclination=not args.no_inclination,
-            progress=lambda done, total: print(f"  fits {done}/{total}", flush=True),
-        )  # fmt: skip
+        with timeline or contextlib.nullcontext():
+            res = diagnose_campaign(
+                camp, effects=FAST if args.fast_only else None, workers=args.workers or None,
+                inclination=not args.no_inclination,
+                progress=lambda done, total: print(f"  fits {done}/{total}", flush=True),
+            )  # fmt: skip
         if prof is not None:
             prof.disable()
             pstats.Stats(prof).dump_stats(args.profile_out)
@@ -456,6 +468,8 @@ def main() -> None:
     print(f"verdict {res['verdict']}, residual {res['residual_discrepancy']:.3g}, "
           f"noise floor {res['noise_floor']:.3g}; target <= 60 s (quiet machine): "
           f"{'met' if wall <= 60 else 'NOT met'} ({wall:.0f} s)")  # fmt: skip
+    if timeline is not None:
+        print(f"\n{timeline.table()}")
     if base is not None:
         print(f"\nbaseline ({args.baseline}), same campaign, run after this one (load "
               f"{load1:.2f} -> {load2:.2f}): {base['wall']:.1f} s wall, selected "
