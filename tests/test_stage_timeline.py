@@ -10,7 +10,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from stage_timeline import StageTimeline  # noqa: E402
+from stage_timeline import PERIOD_S, StageTimeline  # noqa: E402
 
 BURN = "import time\nt = time.process_time()\nwhile time.process_time() - t < {s}: pass\n"
 
@@ -35,8 +35,10 @@ def test_the_stages_split_this_process_from_its_workers():
         work.here(0.6)
         work.child(0.8)
     stages = {s: (wall, own, kids) for s, wall, own, kids in timeline.stages()}
+    # an interval goes to the stage running at its start, so a stage may take up to one
+    # sampling period of the next one's CPU
     _, own, kids = stages["alone"]
-    assert own > 0.4 and kids < 0.1
+    assert own > 0.4 and kids < PERIOD_S + 0.05
     _, own, kids = stages["on a worker"]
     # the child's CPU, kept after it exited (a live sum would fall back to 0 in the stage)
     assert kids > 0.5 and own < 0.3
