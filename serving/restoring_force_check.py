@@ -53,11 +53,15 @@ def restoring_force_check(
     natural_frequency_hz: float,
     sensor: dict | None = None,
     stage_ratio: tuple[float, float] | None = None,
+    fit_chain: bool = False,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
     there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
     the model's learned two-stage law's ratio range (:func:`trained_stage_ratio`): beta is
-    then that law's first-stage slope."""
+    then that law's first-stage slope. The chain is fitted only where the record's contact
+    law needs one (:data:`~stiffnet.restoring_force.estimate.CHAIN_FIT_WHEN_NEEDED`), or
+    always with `fit_chain` (a campaign whose gated fits identified too few chains to pool:
+    :func:`serving.campaign_chain.identify_regardless`)."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -67,7 +71,7 @@ def restoring_force_check(
             sensor=sensor,
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction
-            chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED,
+            chain_fit_below_r2=np.inf if fit_chain else CHAIN_FIT_WHEN_NEEDED,
             stage_ratio=stage_ratio,
         )
     except StiffnetError as exc:
