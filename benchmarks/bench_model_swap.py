@@ -213,15 +213,24 @@ def pooled_predictions(
     pred: sp.Predictor, recs: list[dict[str, Any]], got: list[dict[str, Any]], say: Any
 ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Each campaign's recordings read through the chain pooled from `got`'s identified chains
+    (fitted regardless of the gate where too few identified one: ``identify_regardless``)
     and kept where confirmed, except on a recording whose own contact law it reads much worse
     (:mod:`serving.campaign_chain`, as ``evaluate`` and ``predict-batch`` do), else `got`'s;
     and each campaign's decision with its true chain."""
-    from serving.campaign_chain import campaign_chain, confirmed, reads_alone
+    from serving.campaign_chain import confirmed, identify_regardless, reads_alone
+    from serving.checks import checked_recording
+
+    def identify(i: int) -> dict | None:  # the check with the chain always fitted
+        r = recs[i]
+        a = checked_recording(r["accel"], r["fs_hz"], r["fn_hz"], pred.window_periods, "")[0]
+        return sp.restoring_force_check(a, r["fs_hz"], r["fn_hz"], None, pred.stage_ratio,
+                                        True).get("sensor")  # fmt: skip
 
     out = list(got)
     decisions = []
     for k, idx in campaigns_of(recs).items():
-        chain = campaign_chain([got[i]["sensor"] for i in idx], [str(i) for i in idx])
+        chain, _ = identify_regardless([got[i]["sensor"] for i in idx], [str(i) for i in idx],
+                                       None, lambda j, idx=idx: identify(idx[j]))  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

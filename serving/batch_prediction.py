@@ -51,8 +51,14 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from serving.campaign_chain import campaign_chain, confirmed, labelled, reads_alone
-from serving.predictor import Predictor, predict_recording
+from serving.campaign_chain import (
+    chain_fitted_regardless,
+    confirmed,
+    identify_regardless,
+    labelled,
+    reads_alone,
+)
+from serving.predictor import Predictor, predict_recording, record_natural_frequency
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
 from stiffnet.errors import StiffnetError
@@ -427,7 +433,7 @@ def predict_batch(
         n_parts = len(records) + len(jobs)
         done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
         first = _parts_table(parts_dir, records, range(n_parts))
-        chain = None if manifest is None else _campaign_chain(first, paths, settings)
+        chain = None if manifest is None else _campaign_chain(first, paths, settings, predictor)
         if chain is not None and chain["pooled"]:
             # the second round: every recording without its own sheet through the pooled chain
             again, flags = _campaign_settings(first, settings, chain["sensor"])
@@ -494,12 +500,31 @@ def _add(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
             "backend": b["backend"]}  # fmt: skip
 
 
-def _campaign_chain(table: pa.Table, paths: list[str], settings: list[tuple]) -> dict[str, Any]:
+def _campaign_chain(
+    table: pa.Table, paths: list[str], settings: list[tuple], predictor: Predictor
+) -> dict[str, Any]:
     """The campaign's pooled chain from the first round's identified chains
     (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
-    (the manifest's or its sidecar's) does not vote."""
+    (the manifest's or its sidecar's) does not vote. Where too few identified one, the chain
+    is fitted regardless of the gate here, recording by recording
+    (:func:`serving.campaign_chain.identify_regardless`)."""
+    from stiffnet.recordings import read_recording
+
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
-    return campaign_chain(sensors, paths, [sheet for *_, sheet in settings])
+
+    def identify(i: int) -> dict | None:
+        fs, fn, columns, time_unit, channel, _ = settings[i]
+        try:
+            rec = read_recording(paths[i], fs_hz=fs, channel=channel, columns=columns,
+                                 time_unit=time_unit)  # fmt: skip
+            if fn is None:
+                fn = record_natural_frequency(paths[i], None)[0]
+            return chain_fitted_regardless(rec.accel, rec.fs_hz, fn, predictor)
+        except StiffnetError:  # the first round already reported this recording's fault
+            return None
+
+    sheets = [sheet for *_, sheet in settings]
+    return identify_regardless(sensors, paths, sheets, identify)[0]
 
 
 def _confirmed(

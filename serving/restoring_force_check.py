@@ -54,13 +54,17 @@ def restoring_force_check(
     sensor: dict | None = None,
     stage_ratio: tuple[float, float] | None = None,
     highpass_hz: float | None = None,
+    fit_chain: bool = False,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
     there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
     the model's learned two-stage law's ratio range (:func:`trained_stage_ratio`): beta is
-    then that law's first-stage slope. `highpass_hz`, without a `sensor`: the chain is known
-    to have no resonance or low-pass and this high-pass corner (identified on another stretch
-    of the same record), so nothing is fitted either."""
+    then that law's first-stage slope. The chain is fitted only where the record's contact
+    law needs one (:data:`~stiffnet.restoring_force.estimate.CHAIN_FIT_WHEN_NEEDED`), or
+    always with `fit_chain` (a campaign whose gated fits identified too few chains to pool:
+    :func:`serving.campaign_chain.identify_regardless`). `highpass_hz`, without a `sensor`:
+    the chain is known to have no resonance or low-pass and this high-pass corner (identified
+    on another stretch of the same record), so nothing is fitted either."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -71,7 +75,7 @@ def restoring_force_check(
             highpass_hz="auto" if highpass_hz is None else highpass_hz,
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction
-            chain_fit_below_r2=CHAIN_FIT_WHEN_NEEDED if highpass_hz is None else -np.inf,
+            chain_fit_below_r2=_chain_fit_below_r2(highpass_hz, fit_chain),
             stage_ratio=stage_ratio,
         )
     except StiffnetError as exc:
@@ -113,6 +117,14 @@ def restoring_force_check(
         "stage": d["stage"],
         "reason": d["reason"],
     }
+
+
+def _chain_fit_below_r2(highpass_hz: float | None, fit_chain: bool) -> float:
+    """Rule: the contact law's R² below which the check fits a chain: never behind a known
+    chain without stages (`highpass_hz`), always on request, else where the law needs one."""
+    if highpass_hz is not None:
+        return -np.inf
+    return np.inf if fit_chain else CHAIN_FIT_WHEN_NEEDED
 
 
 def as_recorded_law_shape(

@@ -13,6 +13,7 @@ from serving.campaign_chain import (
     campaign_chain,
     campaign_sheets,
     identified,
+    identify_regardless,
     labelled,
     reads_alone,
 )
@@ -91,6 +92,56 @@ def test_an_ideal_campaign_or_a_single_fit_pools_nothing():
     # a rejected fit (applied False) or a data sheet is no identification
     assert identified(fitted(300.0, applied=False)) is None
     assert identified({**fitted(300.0), "source": "data sheet"}) is None
+
+
+def test_a_campaign_whose_gated_checks_fit_no_chain_has_it_fitted_regardless_and_pooled():
+    # every gated check read its law above the gate and fitted no chain (None), one fit ran
+    # and was rejected, one recording has its own data sheet
+    sensors = [None, None, fitted(lowpass_hz=110.0, order=2, applied=False), None, None]
+    sheets = [None, None, None, {"lowpass_hz": 100.0, "lowpass_order": 2.0}, None]
+    asked = []
+
+    def identify(i):
+        asked.append(i)
+        return fitted(lowpass_hz=[104.0, 106.0, 0, 0, 105.0][i], order=2)
+
+    chain, pooled_from = identify_regardless(sensors, list("abcde"), sheets, identify)
+    # only the recordings without a sheet whose check fitted nothing are fitted again
+    assert asked == [0, 1, 4] and chain["fitted_regardless"] == ["a", "b", "e"]
+    assert chain["pooled"] and chain["sensor"]["lowpass_hz"] == pytest.approx(105.0)
+    assert chain["sensor"]["lowpass_order"] == 2.0 and "regardless" in chain["reason"]
+    assert pooled_from[2] is sensors[2] and pooled_from[3] is None
+    # a campaign whose gated checks already pool a chain is not fitted again
+    asked.clear()
+    enough = [fitted(300.0), fitted(305.0), None]
+    chain, _ = identify_regardless(enough, list("abc"), None, identify)
+    assert chain["pooled"] and asked == [] and "fitted_regardless" not in chain
+
+
+def test_behind_a_second_order_lowpass_the_gate_fits_no_chain_and_the_fit_regardless_does():
+    """The independent rig behind one campaign's chain (a 106 Hz order-2 low-pass, its mount
+    above the Nyquist frequency; 2 % noise): the record's law reads R2 above the gate, so the
+    gated check fits no chain and reads beta half the truth; fitted regardless of the gate
+    (what a campaign that pools nothing asks for) the low-pass is found within 10 % and beta
+    too."""
+    from independent_rig import RigRun, record
+
+    from serving.restoring_force_check import restoring_force_check
+
+    sensor = {"resonance_hz": 1267.0, "resonance_damping": 0.057, "lowpass_hz": 106.0,
+              "lowpass_order": 2, "highpass_hz": 2.76}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=38.9, fs_hz=1460.0, duration_s=3.0, gap_mm=1.5,
+                 sensor=sensor, noise=0.02)  # fmt: skip
+    accel = record(run, seed=3)[1]
+    gated = restoring_force_check(accel, run.fs_hz, 9.48, None, None)
+    assert gated["sensor"] is None and gated["contact_r2"] > 0.98
+    assert gated["beta"] < 0.8 * run.beta
+    got = restoring_force_check(accel, run.fs_hz, 9.48, None, None, True)
+    chain = got["sensor"]
+    assert chain["applied"] and chain["lowpass_order"] == 2
+    assert chain["lowpass_hz"] == pytest.approx(106.0, rel=0.1)
+    assert got["beta"] == pytest.approx(run.beta, rel=0.1)
+    assert got["beta_interval"][0] <= run.beta <= got["beta_interval"][1]
 
 
 def test_a_users_data_sheet_wins_and_does_not_vote():

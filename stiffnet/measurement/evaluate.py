@@ -27,7 +27,12 @@ from typing import Any
 
 from stiffnet.campaign import SIMULATION_COLUMNS, Campaign
 from stiffnet.campaign.loaded import memo
-from stiffnet.campaign.simulate import CampaignSolverSettings, impact_regime, simulated_contact
+from stiffnet.campaign.simulate import (
+    CampaignSolverSettings,
+    impact_regime,
+    natural_frequency,
+    simulated_contact,
+)
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import NO_CONTACT
@@ -153,18 +158,26 @@ def campaign_predictions(
     (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
     from serving.campaign_chain import (
-        campaign_chain,
         campaign_sheets,
+        chain_fitted_regardless,
         confirmed,
+        identify_regardless,
         labelled,
         reads_alone,
     )
+    from serving.predictor import Predictor
 
     rows = campaign.rows
     first = [predicted(campaign, i, row, model_path) for i, row in enumerate(rows)]
     sheets = [row.sensor_sheet() for row in rows]
-    chain = campaign_chain([(r.get("restoring_force") or {}).get("sensor") for r in first],
-                           [row.recording for row in rows], sheets)  # fmt: skip
+
+    def identify(i: int) -> dict | None:  # the chain fitted regardless of the gate
+        rec = campaign.recording(i)
+        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        return chain_fitted_regardless(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred)
+
+    chain, _ = identify_regardless([(r.get("restoring_force") or {}).get("sensor") for r in first],
+                                   [row.recording for row in rows], sheets, identify)  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
