@@ -22,7 +22,8 @@ drawn again at each seed, without and with a share of trajectories near the clas
 recordings classed wrong with their β read. Part 4 (``--rig``): the issue's held-out test as
 a user runs it, on campaigns of the independent rig (``tests/independent_rig.py``: 24
 recordings, the eight operating points of ``tests/test_independent_rig.POINTS`` with three
-betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks:
+betas each across the classes, 3 s at 2 % noise) with contact laws the library lacks
+(``RIG_LAWS``; ``beam``: the stop at a cantilever's tip, two modes) or the ideal one:
 ``stiffnet diagnose`` (the rig candidates of the tests) and, where it proposes a law,
 the plain ``stiffnet loop CAMPAIGN --diagnosis D --family F --iterations 1`` (GBM, or
 ``--rig-family``; no world option: the loop's ``auto`` world moves to the campaign's
@@ -48,7 +49,7 @@ recording's, by β band. Prints Markdown with the machine's load.
     ... benchmarks/bench_loop_iteration.py --shared 6,24
     ... benchmarks/bench_loop_iteration.py --solvers '6,24;{"substeps": 8};{"substeps": 4}'
     ... benchmarks/bench_loop_iteration.py --zero-chain 24,400 --rig-dir /tmp/rig
-    ... benchmarks/bench_loop_iteration.py --rig two_stage,hunt_crossley,ideal --rig-dir /tmp/rig
+    ... benchmarks/bench_loop_iteration.py --rig hunt_crossley,ideal,beam --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-iteration /tmp/rig/two_stage-loop \
         --rig-diagnosis d.json --rig-dir /tmp/rig
@@ -458,6 +459,14 @@ RIG_LAWS: dict[str, dict] = {
     "two_stage": {"contact": "two_stage", "knee_mm": 0.25, "stage_ratio": 2.5},
     "hunt_crossley": {"contact": "hunt_crossley", "hc_lambda_s_per_m": 6.0},
     "power_law": {"contact": "power_law", "power_exponent": 1.8, "power_d0_mm": 0.4},
+    # the stop at a cantilever's tip (tests/test_discovery_independent_rig.BEAM)
+    "beam": {
+        "contact": "beam",
+        "beam_mass_ratio": 0.4,
+        "beam_f1_ratio": 10.0,
+        "beam_modes": 2,
+        "beam_damping": 0.02,
+    },
 }
 #: Beta ranges the three recordings of each operating point are drawn from, in turn.
 RIG_BETAS = [(8.0, 15.0), (15.0, 35.0), (35.0, 60.0), (60.0, 90.0)]
