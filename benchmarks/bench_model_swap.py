@@ -101,13 +101,15 @@ class CachedRestoringForce:
         self.results: dict[tuple, dict] = {}
 
     def __call__(self, a: np.ndarray, fs: float, fn: float, sensor: dict | None,
-                 *args: Any) -> dict:  # fmt: skip
-        # the rest (the card's stage ratio) is part of the key: a model with a learned
-        # two-stage law reads beta in its own sense
+                 *args: Any, **kwargs: Any) -> dict:  # fmt: skip
+        # the rest (the card's stage ratio, a chain fitted regardless) is part of the key: a
+        # model with a learned two-stage law reads beta in its own sense; the keywords' values
+        # follow the positional ones, as the caches written when they were positional hold
         digest = hashlib.sha1(np.ascontiguousarray(a).tobytes()).hexdigest()
-        key = (digest, float(fs), float(fn), json.dumps(sensor, sort_keys=True), repr(args))
+        rest = repr((*args, *kwargs.values()))
+        key = (digest, float(fs), float(fn), json.dumps(sensor, sort_keys=True), rest)
         if key not in self.results:
-            self.results[key] = self.check(a, fs, fn, sensor, *args)
+            self.results[key] = self.check(a, fs, fn, sensor, *args, **kwargs)
         return copy.deepcopy(self.results[key])
 
 
@@ -224,7 +226,7 @@ def pooled_predictions(
         r = recs[i]
         a = checked_recording(r["accel"], r["fs_hz"], r["fn_hz"], pred.window_periods, "")[0]
         return sp.restoring_force_check(a, r["fs_hz"], r["fn_hz"], None, pred.stage_ratio,
-                                        True).get("sensor")  # fmt: skip
+                                        fit_chain=True).get("sensor")  # fmt: skip
 
     out = list(got)
     decisions = []

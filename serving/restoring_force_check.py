@@ -53,6 +53,7 @@ def restoring_force_check(
     natural_frequency_hz: float,
     sensor: dict | None = None,
     stage_ratio: tuple[float, float] | None = None,
+    *,
     highpass_hz: float | None = None,
     fit_chain: bool = False,
 ) -> dict[str, Any]:

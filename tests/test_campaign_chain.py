@@ -136,7 +136,7 @@ def test_behind_a_second_order_lowpass_the_gate_fits_no_chain_and_the_fit_regard
     gated = restoring_force_check(accel, run.fs_hz, 9.48, None, None)
     assert gated["sensor"] is None and gated["contact_r2"] > 0.98
     assert gated["beta"] < 0.8 * run.beta
-    got = restoring_force_check(accel, run.fs_hz, 9.48, None, None, True)
+    got = restoring_force_check(accel, run.fs_hz, 9.48, None, None, fit_chain=True)
     chain = got["sensor"]
     assert chain["applied"] and chain["lowpass_order"] == 2
     assert chain["lowpass_hz"] == pytest.approx(106.0, rel=0.1)
