@@ -9,7 +9,8 @@ other jobs'; the CPU columns are what a quiet machine would spend.
 A thread samples the CPU (user + system) of this process and of each of its descendants
 (``psutil``; a worker's CPU is counted by its increments, so one that exits takes nothing
 back, and what it spent after its last sample, at most one period, is not counted) every
-:data:`PERIOD_S`, and each interval goes to the stage running at its start: the
+:data:`PERIOD_S` and at each stage's start and end, and each interval goes to the stage
+running at its start: the
 innermost of ``diagnose``'s parts wrapped by :func:`label_stages` (this process only; the
 workers run their tasks unwrapped).
 """
@@ -40,6 +41,7 @@ class StageTimeline:
         self._kids: dict[int, float] = {}
         self._kids_total = 0.0
         self._stop = threading.Event()
+        self._lock = threading.Lock()  # the sampler thread and the stages' edges both sample
         self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _cpu_now(self) -> tuple[float, float]:
@@ -54,21 +56,28 @@ class StageTimeline:
             self._kids[child.pid] = now
         return t.user + t.system, self._kids_total
 
+    def _sample(self) -> None:
+        with self._lock:
+            self._sample_unlocked()
+
+    def _sample_unlocked(self) -> None:
+        own, kids = self._cpu_now()
+        self.samples.append((time.perf_counter(), self.stack[-1], own, kids))
+
     def _run(self) -> None:
         while not self._stop.is_set():
-            own, kids = self._cpu_now()
-            self.samples.append((time.perf_counter(), self.stack[-1], own, kids))
+            self._sample()
             self._stop.wait(PERIOD_S)
 
     def __enter__(self) -> StageTimeline:
+        self._sample()
         self._thread.start()
         return self
 
     def __exit__(self, *exc: Any) -> None:
         self._stop.set()
         self._thread.join()
-        own, kids = self._cpu_now()
-        self.samples.append((time.perf_counter(), self.stack[-1], own, kids))
+        self._sample()
 
     def label(self, owner: Any, name: str, label: Callable[..., str]) -> None:
         """Wrap ``owner.name`` so that the time inside it goes to ``label(*args)``."""
@@ -76,11 +85,20 @@ class StageTimeline:
 
         @functools.wraps(fn)
         def inner(*a: Any, **k: Any) -> Any:
-            self.stack.append(label(*a, **k))
+            # a sample at each edge: a stage that holds the interpreter (a pure-Python loop)
+            # can keep the sampler thread from running until it ends
+            # (under the lock, so no stage begins or ends inside a sample; each edge's sample
+            # is the first of the stage that starts there)
+            name = label(*a, **k)
+            with self._lock:
+                self.stack.append(name)
+                self._sample_unlocked()
             try:
                 return fn(*a, **k)
             finally:
-                self.stack.pop()
+                with self._lock:
+                    self.stack.pop()
+                    self._sample_unlocked()
 
         setattr(owner, name, inner)
 
@@ -126,7 +144,9 @@ def label_stages(timeline: StageTimeline) -> None:
         return lambda *a, **k: f"{what} [{timeline.stack[-1]}]"
 
     timeline.label(diagnose, "_prepare", lambda *a, **k: "rows, statistics, floors")
-    timeline.label(diagnose, "restoring_force_evidence", lambda *a, **k: "evidence")
+    # by the function's own name: as a quoted string it reads as the diagnosis JSON's earlier key
+    evidence = diagnose.restoring_force_evidence.__name__
+    timeline.label(diagnose, evidence, lambda *a, **k: "evidence")
     timeline.label(diagnose, "profile_nuisances", within("nuisances"))
     timeline.label(diagnose._Run, "fits", lambda run, cands, *a, **k:
                    f"fits: {run.stage.split(',')[0]} ({len(cands)})")  # fmt: skip
