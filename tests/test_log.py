@@ -402,8 +402,9 @@ def test_the_checks_along_a_record_fit_its_chain_once(predictor, monkeypatch):
     from serving.restoring_force_check import restoring_force_check
 
     last = [p for p in doc["points"] if "restoring_force" in p][-1]
-    end = int(round((last["t_s"] + 0.5 * 16 / FN_HZ) * FS))
-    own = restoring_force_check(a[end - 3376 : end], FS, FN_HZ)  # the window, read alone
+    n_win = StiffnessLogger(predictor, FS, FN_HZ).n_win
+    end = int(round(last["t_s"] * FS)) + n_win // 2
+    own = restoring_force_check(a[end - n_win : end], FS, FN_HZ)  # the window, read alone
     assert last["restoring_force"]["beta"] == pytest.approx(own["beta"], rel=0.05)
 
 
