@@ -219,7 +219,13 @@ def pooled_predictions(
     and kept where confirmed, except on a recording whose own contact law it reads much worse
     (:mod:`serving.campaign_chain`, as ``evaluate`` and ``predict-batch`` do), else `got`'s;
     and each campaign's decision with its true chain."""
-    from serving.campaign_chain import confirmed, identify_regardless, reads_alone
+    from serving.campaign_chain import (
+        campaign_highpass,
+        confirmed,
+        contact_r2_through,
+        identify_regardless,
+        reads_alone,
+    )
     from serving.checks import checked_recording
 
     def identify(i: int) -> dict | None:  # the check with the chain always fitted
@@ -228,11 +234,26 @@ def pooled_predictions(
         return sp.restoring_force_check(a, r["fs_hz"], r["fn_hz"], None, pred.stage_ratio,
                                         fit_chain=True).get("sensor")  # fmt: skip
 
+    # the corner profile's readings, kept with the checks (the bench's cache) where it is on
+    store = getattr(sp.restoring_force_check, "results", {})
+
+    def contact_r2(i: int, sheet: dict) -> float | None:
+        r = recs[i]
+        digest = hashlib.sha1(np.ascontiguousarray(r["accel"]).tobytes()).hexdigest()
+        key = (digest, float(r["fs_hz"]), float(r["fn_hz"]), json.dumps(sheet, sort_keys=True),
+               "contact_r2_through")  # fmt: skip
+        if key not in store:
+            store[key] = {"contact_r2": contact_r2_through(r["accel"], r["fs_hz"], r["fn_hz"],
+                                                           pred, sheet)}  # fmt: skip
+        return store[key]["contact_r2"]
+
     out = list(got)
     decisions = []
     for k, idx in campaigns_of(recs).items():
         chain, _ = identify_regardless([got[i]["sensor"] for i in idx], [str(i) for i in idx],
                                        None, lambda j, idx=idx: identify(idx[j]))  # fmt: skip
+        chain = campaign_highpass(chain, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet),
+                                  [recs[i]["fn_hz"] for i in idx])  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

@@ -52,8 +52,10 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from serving.campaign_chain import (
+    campaign_highpass,
     chain_fitted_regardless,
     confirmed,
+    contact_r2_through,
     identify_regardless,
     labelled,
     reads_alone,
@@ -524,7 +526,29 @@ def _campaign_chain(
             return None
 
     sheets = [sheet for *_, sheet in settings]
-    return identify_regardless(sensors, paths, sheets, identify)[0]
+    chain = identify_regardless(sensors, paths, sheets, identify)[0]
+    read: dict[int, tuple | None] = {}  # each recording read once for the corner's profile
+
+    def recording(i: int) -> tuple | None:
+        if i not in read:
+            fs, fn, columns, time_unit, channel, _ = settings[i]
+            try:
+                rec = read_recording(paths[i], fs_hz=fs, channel=channel, columns=columns,
+                                     time_unit=time_unit)  # fmt: skip
+                fn = record_natural_frequency(paths[i], None)[0] if fn is None else fn
+                read[i] = (rec.accel, rec.fs_hz, fn)
+            except StiffnetError:
+                read[i] = None
+        return read[i]
+
+    def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
+        rec = recording(i)
+        return None if rec is None else contact_r2_through(*rec, predictor, sheet)
+
+    if not chain["pooled"]:
+        return chain
+    fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
+    return campaign_highpass(chain, contact_r2, fns, sheets)
 
 
 def _confirmed(

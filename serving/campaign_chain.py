@@ -224,6 +224,108 @@ def chain_fitted_regardless(accel: Any, fs_hz: float, fn_hz: float, predictor: A
     return check.get("sensor")
 
 
+def campaign_highpass(
+    chain: dict[str, Any],
+    contact_r2: Callable[[int, dict[str, Any]], float | None],
+    fn_hz: Sequence[float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with its pooled high-pass corner profiled over the campaign: the one corner
+    that reads the campaign's contact laws best through the pooled chain.
+
+    The pooled corner is the median of the corners the recordings' own checks fitted, and
+    each was fitted behind a chain of that recording's own, whose contact law is read without
+    the band the inverse keeps (a fitted chain is judged by that law's R², so its map keeps
+    the plain fit). On a pulse a low-pass has rounded, that law fits best at a corner below
+    the true one, and the corner's veto and profile in
+    :func:`~stiffnet.restoring_force.estimate.restoring_force_estimate` follow it: the rig's
+    damped campaigns pooled 2.54 Hz for 4.04 and 3.34 for 4.52, and three recordings of the
+    second, read through their true chain without the band, fit their laws best near 3.5 Hz,
+    with it near 4.5. The pooled chain is read as a known chain, its law fitted through the
+    kept band, so the corner is profiled there: on each candidate corner every recording
+    without its own data sheet (`sheets`) is read through the pooled chain with that corner
+    held (`contact_r2`: recording index and data sheet to the contact law's R², None without
+    a law, which counts as R² 0), and the corner chosen is the one at which the median over
+    the recordings of ``log((1 - R²) / (1 - R²_best))`` is least, ``R²_best`` each
+    recording's best candidate: the recordings' joint misfit, each on its own scale (a
+    contact read at R² 0.9999 has as much say as one read at 0.99), and the median, as the
+    confirmation judges the campaign (:func:`confirmed`), so a recording whose map jumps with
+    the corner (a soft contact that barely stands out) does not move it. Candidates: the
+    estimate's corner grid (:data:`~stiffnet.restoring_force.estimate.HIGHPASS_GRID`, forcing
+    frequencies, at the recordings' median natural frequency `fn_hz`) and the pooled corner,
+    refined by a bounded search between the best one's neighbours. A chain that pooled
+    nothing, or no corner (``"auto"``: each recording fits its own), is returned as it is.
+    ``stages["highpass_hz"]`` reports the profiled and the pooled corner.
+    """
+    from scipy import optimize
+
+    from stiffnet.restoring_force.estimate import HIGHPASS_GRID
+
+    sheet = chain.get("sensor") if chain.get("pooled") else None
+    pooled = (sheet or {}).get("highpass_hz")
+    sheets = list(sheets) if sheets is not None else [None] * len(fn_hz)
+    todo = [i for i, own in enumerate(sheets) if own is None]
+    if not isinstance(pooled, int | float) or not pooled > 0 or not todo:
+        return chain
+    scale = np.nanmedian([fn_hz[i] if fn_hz[i] is not None else np.nan for i in todo])
+    if not np.isfinite(scale):
+        return chain
+    grid = np.unique(np.r_[HIGHPASS_GRID * float(scale), pooled])
+    memo: dict[float, np.ndarray] = {}
+
+    def misfit(corner: float) -> np.ndarray:  # each recording's share of force unexplained
+        if corner not in memo:
+            at = {**sheet, "highpass_hz": corner}
+            r2 = np.array([contact_r2(i, at) or 0.0 for i in todo])  # no law explains nothing
+            memo[corner] = np.maximum(1.0 - r2, np.finfo(float).eps)
+        return memo[corner]
+
+    table = np.array([misfit(float(c)) for c in grid])  # corners x recordings
+    read = table.min(axis=0) < 1.0  # a recording with no law at any corner has no say
+    if not read.any():
+        return chain
+    least = table.min(axis=0)
+
+    def median_misfit(corner: float) -> float:  # log: each recording against its own best
+        return float(np.median(np.log(misfit(corner) / least)[read]))
+
+    i = int(np.argmin([median_misfit(float(c)) for c in grid]))
+    lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    sol = optimize.minimize_scalar(lambda u: median_misfit(float(np.exp(u))),
+                                   bounds=(np.log(lo), np.log(hi)), method="bounded",
+                                   options={"xatol": 0.02, "maxiter": 12})  # fmt: skip
+    corner = float(np.exp(sol.x)) if sol.fun < median_misfit(float(grid[i])) else float(grid[i])
+    out = {**chain, "sensor": {**sheet, "highpass_hz": corner}}
+    out["stages"] = {**chain.get("stages", {}), "highpass_hz": {
+        "value": corner, "pooled_median": float(pooled), "profiled_on": int(read.sum()),
+        "median_log_misfit": median_misfit(corner)}}  # fmt: skip
+    out["reason"] = (f"{chain['reason']}; the high-pass corner profiled over the campaign's "
+                     f"contact laws: {corner:.2f} Hz (the median of the recordings' own fits "
+                     f"{float(pooled):.2f} Hz)")  # fmt: skip
+    return out
+
+
+def contact_r2_through(
+    accel: Any, fs_hz: float, fn_hz: float, predictor: Any, sheet: dict[str, Any]
+) -> float | None:
+    """The contact law's R² of a recording read through `sheet` (a data sheet, its corner
+    held) as `predictor`'s restoring-force check reads it, without the interval; None where
+    no law was fitted or the reading fails. The `contact_r2` of :func:`campaign_highpass`."""
+    from serving.checks import checked_recording
+    from serving.restoring_force_check import RESTORING_FORCE_PERIODS
+    from stiffnet.errors import StiffnetError
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    a = checked_recording(accel, fs_hz, fn_hz, predictor.window_periods, "recording")[0]
+    try:
+        r = restoring_force_estimate(a, fs_hz, natural_frequency_hz=fn_hz, sensor=sheet,
+                                     max_periods=RESTORING_FORCE_PERIODS, interval=False,
+                                     stage_ratio=predictor.stage_ratio)  # fmt: skip
+    except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+    return float(r.contact_r2) if r.law is not None and np.isfinite(r.contact_r2) else None
+
+
 def confirmed(
     chain: dict[str, Any], first: Sequence[dict | None], again: Sequence[dict | None]
 ) -> dict[str, Any]:

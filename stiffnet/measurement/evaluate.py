@@ -158,9 +158,11 @@ def campaign_predictions(
     (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
     from serving.campaign_chain import (
+        campaign_highpass,
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
+        contact_r2_through,
         identify_regardless,
         labelled,
         reads_alone,
@@ -178,6 +180,15 @@ def campaign_predictions(
 
     chain, _ = identify_regardless([(r.get("restoring_force") or {}).get("sensor") for r in first],
                                    [row.recording for row in rows], sheets, identify)  # fmt: skip
+
+    read: dict[int, Any] = {}  # each recording read once for the corner's profile
+
+    def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
+        rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
+        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet)
+
+    chain = campaign_highpass(chain, contact_r2, [natural_frequency(row) for row in rows], sheets)
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
