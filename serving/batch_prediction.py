@@ -509,7 +509,9 @@ def _campaign_chain(
     (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
     (the manifest's or its sidecar's) does not vote. Where too few identified one, the chain
     is fitted regardless of the gate here, recording by recording
-    (:func:`serving.campaign_chain.identify_regardless`)."""
+    (:func:`serving.campaign_chain.identify_regardless`); a pooled high-pass corner is
+    profiled over the recordings read through the pooled chain
+    (:func:`serving.campaign_chain.campaign_highpass`)."""
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]

@@ -40,13 +40,20 @@ high-pass, which read the rig's beta 0.3-0.9 off and cost a campaign its pooled 
 chain of another sensor, its profile by the contact law tunes it until the law fits again,
 and the confirmation no longer sees the wrong chain (the bench's per-recording
 ``sensor_chains``: median R² lost 0.001 instead of 0.16, and the pooled chain kept).
+A pooled corner is then profiled over the campaign (:func:`campaign_highpass`): the median of
+the corners the recordings' own checks fitted reads 10-45 % low behind a low-pass (each was
+fitted behind the recording's own chain, whose contact law is read without the band its
+inverse keeps), so the corner held for all is the one at which the campaign's contact laws,
+read through the pooled chain, fit best (the median over the recordings of each one's misfit
+against its own best corner).
 Where the gated fits identify too few chains to pool (:data:`MIN_IDENTIFIED`), the chain is
 fitted again regardless of the gate on every recording that fitted none
 (:func:`identify_regardless`), and those fits are pooled as above. The gate spares a single
 recording a fit its contact law does not ask for, but behind a second-order low-pass a few
 contact frequencies up every recording's law still reads R² 0.99 (a softer contact; the rig's
 106 Hz order 2 read β 19.5 for 38.9): the campaign is the evidence no recording gives alone.
-Numpy only (the predictor imports it).
+Numpy only at import (the predictor imports it); the corner's profile imports scipy and
+the restoring-force estimate when it runs.
 """
 
 from __future__ import annotations

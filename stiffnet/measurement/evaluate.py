@@ -151,11 +151,12 @@ def campaign_predictions(
     A campaign has one accelerometer: the chains the restoring-force check identified on
     some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
     they agree, every recording without its own data sheet is predicted again with the
-    pooled chain as its sheet; kept where it reads the contact laws about as well as the
-    first reading (:func:`serving.campaign_chain.confirmed`), except on a recording whose
-    own contact law it reads much worse (:func:`serving.campaign_chain.reads_alone`: its first
-    reading is kept). Returns the results
-    (``chain_source`` in each) and the campaign's ``sensor`` decision.
+    pooled chain as its sheet (its high-pass corner profiled over the campaign's contact
+    laws, :func:`serving.campaign_chain.campaign_highpass`); kept where it reads the contact
+    laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
+    except on a recording whose own contact law it reads much worse
+    (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
+    results (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
     from serving.campaign_chain import (
         campaign_highpass,
