@@ -41,7 +41,7 @@ chain of another sensor, its profile by the contact law tunes it until the law f
 and the confirmation no longer sees the wrong chain (the bench's per-recording
 ``sensor_chains``: median R² lost 0.001 instead of 0.16, and the pooled chain kept).
 A pooled corner is then profiled over the campaign (:func:`campaign_highpass`): the median of
-the corners the recordings' own checks fitted reads 10-45 % low behind a low-pass (each was
+the corners the recordings' own checks fitted reads up to 37 % low behind a low-pass (each was
 fitted behind the recording's own chain, whose contact law is read without the band its
 inverse keeps), so the corner held for all is the one at which the campaign's contact laws,
 read through the pooled chain, fit best (the median over the recordings of each one's misfit
