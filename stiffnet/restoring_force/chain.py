@@ -774,6 +774,11 @@ def fit_chain(
                          ring_hz, contact_hz)  # fmt: skip
     if win is None:
         return None
+    # in units of the windows' own scale (a power of two: exact), so the fit's tolerances
+    # (least_squares' gradient test) and the noise test do not depend on the record's unit
+    unit = float(np.exp2(np.round(np.log2(np.sqrt(np.mean(win.r**2)) or 1.0))))
+    win.r = win.r / unit
+    noise_sigma = None if noise_sigma is None else noise_sigma / unit
     search = _ChainSearch(win, fs_hz, natural_frequency_hz)
     none = search.no_chain(contact_hz)
     if not (noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2):

@@ -171,10 +171,15 @@ def fit_contact_law(
     -------
     ContactLaw
     """
-    f = force[near]
+    # fitted in units of the force's own scale (a power of two: exact; the law is
+    # homogeneous: force, penetration and velocity scale together, K, c_c and p do not), so
+    # least_squares' stopping tests do not depend on the record's unit
+    unit = float(np.exp2(np.round(np.log2(np.sqrt(np.mean(force[near] ** 2)) or 1.0))))
+    f = force[near] / unit
     kc0, e0, cc0 = start
-    dr = reference_penetration
-    x, v = (disp, vel) if band is not None else (disp[near], vel[near])
+    e0 = e0 / unit
+    dr = reference_penetration / unit
+    x, v = (disp / unit, vel / unit) if band is not None else (disp[near] / unit, vel[near] / unit)
 
     def model(theta: np.ndarray) -> np.ndarray:
         p = theta[3] if exponent is None else exponent
@@ -203,12 +208,12 @@ def fit_contact_law(
     r2 = 1.0 - float(np.sum(resid**2)) / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     return ContactLaw(
         stiffness=float(np.exp(th[0])),
-        onset=float(th[1]),
+        onset=float(th[1]) * unit,
         damping=float(th[2]),
         exponent=float(th[3]) if exponent is None else float(exponent),
-        reference_penetration=float(dr),
+        reference_penetration=float(reference_penetration),
         r2=r2,
-        sse=float(np.sum(resid**2)),
+        sse=float(np.sum(resid**2)) * unit**2,
         n_samples=int(f.size),
     )
 
