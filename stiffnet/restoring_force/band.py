@@ -198,7 +198,7 @@ def lowpass_refusal(chain: SensorChain, natural_hz: float, beta_low: float) -> s
     lowest = natural_hz * np.sqrt(1.0 + max(beta_low, 0.0))
     if not np.isfinite(lowest):  # no interval: the reading alone
         lowest = fc
-    if lowest <= fl:
+    if fl >= MIN_LOWPASS_RATIO * lowest:
         return ""
     return (
         f"the low-pass at {fl:.0f} Hz is below the contact's frequency {fc:.0f} Hz (at least "
