@@ -774,9 +774,10 @@ def fit_chain(
                          ring_hz, contact_hz)  # fmt: skip
     if win is None:
         return None
-    # in units of the windows' own scale (a power of two: exact), so the fit's tolerances
-    # (least_squares' gradient test) and the noise test do not depend on the record's unit
-    unit = float(np.exp2(np.round(np.log2(np.sqrt(np.mean(win.r**2)) or 1.0))))
+    # in units of the windows' own scale (their rms), so the fit's tolerances (least_squares'
+    # gradient test) and the noise test do not depend on the record's unit: a power of two
+    # would be exact, but a unit a few times larger then stops the fit elsewhere
+    unit = float(np.sqrt(np.mean(win.r**2))) or 1.0
     win.r = win.r / unit
     noise_sigma = None if noise_sigma is None else noise_sigma / unit
     search = _ChainSearch(win, fs_hz, natural_frequency_hz)

@@ -204,10 +204,10 @@ def fit_contact_law(
     -------
     ContactLaw
     """
-    # fitted in units of the force's own scale (a power of two: exact; the law is
-    # homogeneous: force, penetration and velocity scale together, K, c_c and p do not), so
-    # least_squares' stopping tests do not depend on the record's unit
-    unit = float(np.exp2(np.round(np.log2(np.sqrt(np.mean(force[near] ** 2)) or 1.0))))
+    # fitted in units of the force's own scale (its rms; the law is homogeneous: force,
+    # penetration and velocity scale together, K, c_c and p do not), so least_squares'
+    # stopping tests do not depend on the record's unit
+    unit = float(np.sqrt(np.mean(force[near] ** 2))) or 1.0
     f = force[near] / unit
     kc0, e0, cc0 = start
     e0 = e0 / unit

@@ -190,9 +190,9 @@ def _least_squares(
 ) -> optimize.OptimizeResult:
     """The two-stage law with ``ratio`` held fitted from ``theta0`` = ``(log K, e, c_c,
     log d_k)`` (the damping non-negative)."""
-    # in units of the force's own scale (a power of two: exact; force, penetration and
-    # velocity scale together), so the stopping tests do not depend on the record's unit
-    unit = float(np.exp2(np.round(np.log2(np.sqrt(np.mean(f**2)) or 1.0))))
+    # in units of the force's own scale (its rms; force, penetration and velocity scale
+    # together), so the stopping tests do not depend on the record's unit
+    unit = float(np.sqrt(np.mean(f**2))) or 1.0
     fu, xu, vu = f / unit, x / unit, v / unit
     # theta's onset and log knee are lengths; log K and c_c are ratios of scaled quantities
     to_unit = np.array([0.0, 0.0, 0.0, -np.log(unit)])
