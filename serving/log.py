@@ -203,6 +203,11 @@ class StiffnessLogger:
         self.check_highpass: float | None = None
         self.check_chain_known = self.sheet is not None
         self.spreads: list[tuple[float, float, float]] = []  # (t, low, high) log-beta offsets
+        # a chain with stages the start did not show, (its check's sensor, when); the checks a
+        # whole record's scan ran, by window (:meth:`scan_chain`)
+        self.found_late: tuple[dict[str, Any], float] | None = None
+        self.checks_ahead: dict[int, dict[str, Any]] = {}
+        self.scanning = False
 
     @property
     def window_s(self) -> float:
@@ -246,21 +251,60 @@ class StiffnessLogger:
         self.chain_pending = False
         if head.size < self.n_win:
             return
-        check = self._check(head, 0.0)
-        self.sensor = check.get("sensor")
+        self._read_through(self._check(head, 0.0).get("sensor"))
+
+    def _read_through(self, sensor: dict[str, Any] | None) -> None:
+        """Divide the chain `sensor` (a check's) out of every window the model reads from now
+        on, with the other chains a fitted one stands for."""
+        self.sensor = sensor
         priors = self.facts["priors"]
-        self.chain = chain_to_undo(self.sensor, priors, self.fs, self.fn, self.p.undo_chain)
+        self.chain = chain_to_undo(sensor, priors, self.fs, self.fn, self.p.undo_chain)
         if self.chain is None:
             return
         self.undone = undone_stages(self.chain)
-        others = plausible_chains(self.sensor, self.undone, self.p.chain_spread)
+        others = plausible_chains(sensor, self.undone, self.p.chain_spread)
         self.other_chains = {
             name: None
-            if sensor is None
-            else chain_to_undo(sensor, priors, self.fs, self.fn, self.p.undo_chain)
-            for name, sensor in others.items()
+            if other is None
+            else chain_to_undo(other, priors, self.fs, self.fn, self.p.undo_chain)
+            for name, other in others.items()
         }
         self.margin = window_margin(self.n_win)
+
+    def scan_chain(self, record: np.ndarray) -> None:
+        """Identify the chain on a whole record before any window is read: the start's, else
+        the first restoring-force check along the record that fits one (a harder layer's
+        shorter pulse shows a resonance or low-pass a soft start hides). The model then reads
+        the whole record through it, and the checks run here are kept for the points they
+        belong to (the same checks, in the same order, a stream would run)."""
+        if not self.chain_pending or self.sheet is not None:
+            return
+        self._identify_chain(record[: self.chain_fit_n])
+        if self.check_chain_known or not self.restoring_force_every:
+            return
+        self.scanning = True
+        for j, end in self._check_windows(record.size):
+            t = (j * self.hop + 0.5 * self.n_win) / self.fs
+            self.checks_ahead[j] = self._check(record[end - self.n_win : end], t)
+            if self.check_chain_known:
+                break
+        self.scanning = False
+        if self.found_late is None:
+            return
+        self._read_through(self.found_late[0])
+        # a chain the model does not divide out is said here (log_result says one it does)
+        if self.chain is None:
+            read = "the later checks read through it, the model reads the record as recorded"
+            self.warnings.append(self._found_late_words(read))
+
+    def _check_windows(self, n: int) -> Iterator[tuple[int, int]]:
+        """(window index, end sample) of the windows of an `n`-sample record that carry a
+        restoring-force check (:meth:`_emit`'s rule)."""
+        every = self.restoring_force_every
+        for j in range(max(0, (n - self.n_win) // self.hop + 1)):
+            end = j * self.hop + self.n_win
+            if end // every > (end - self.hop) // every:
+                yield j, end
 
     def _check(self, seg: np.ndarray, t: float) -> dict[str, Any]:
         """The restoring-force check of `seg` (ending at `t` s) through the record's chain,
@@ -286,15 +330,23 @@ class StiffnessLogger:
             return
         self.check_sheet = shared_chain_sheet(stages)
         if self.chain is None and t > 0:
-            words = ", ".join(f"{k.removesuffix('_hz').replace('lowpass', 'low-pass')} "
-                              f"{stages[k]:.4g} Hz" for k in ("resonance_hz", "lowpass_hz")
-                              if stages.get(k))  # fmt: skip
-            self.warnings.append(
-                f"the restoring-force check at {t:.4g} s identified the accelerometer's chain "
-                f"({words}) that the record's start did not show: the later checks read "
-                "through it, the model reads the record as recorded (a data sheet, --sensor, "
-                "undoes it everywhere)"
-            )
+            self.found_late = (sensor, t)
+            if not self.scanning:
+                self.warnings.append(self._found_late_words("the later checks read through it, "
+                                     "the model reads the record as recorded (a data sheet, "
+                                     "--sensor, undoes it everywhere)"))  # fmt: skip
+
+    def _found_late_words(self, consequence: str) -> str:
+        """The warning of a chain the record's start did not show."""
+        sensor, t = self.found_late
+        stages = identified(sensor) or {}
+        words = ", ".join(f"{k.removesuffix('_hz').replace('lowpass', 'low-pass')} "
+                          f"{stages[k]:.4g} Hz" for k in ("resonance_hz", "lowpass_hz")
+                          if stages.get(k))  # fmt: skip
+        return (
+            f"the restoring-force check at {t:.4g} s identified the accelerometer's chain "
+            f"({words}) that the record's start did not show: {consequence}"
+        )
 
     def finish(self) -> list[tuple[str, dict[str, Any]]]:
         """Close the stream: the last points and layers."""
@@ -384,8 +436,10 @@ class StiffnessLogger:
             if self.restoring_force_every and end // self.restoring_force_every > (
                 end - self.hop
             ) // (self.restoring_force_every):
-                seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
-                ph = self._check(seg, point["t"])
+                ph = self.checks_ahead.pop(j, None)
+                if ph is None:
+                    seg = self.buf[end - self.n_win - self.buf_start : end - self.buf_start]
+                    ph = self._check(seg, point["t"])
                 point["restoring_force"] = _restoring_force_fields(ph)
                 self.restoring_force.append({"t": point["t"], **point["restoring_force"]})
                 del self.restoring_force[
@@ -668,6 +722,7 @@ def stiffness_log(
         )
     from serving.checks import clipping_warning
 
+    log.scan_chain(a)
     points, layers = [], []
     step = max(log.hop, int(60 * log.fs))  # a minute of record per progress step
     for lo in range(0, a.size, step):
@@ -709,10 +764,14 @@ def log_result(
             + " is widened to span their restoring-force interval"
         )
     if log.undone is not None and log.other_chains:
+        where = (
+            f"on the record's first {log.chain_fit_n / log.fs:.3g} s"
+            if log.found_late is None
+            else f"by the check at {log.found_late[1]:.4g} s (the start showed none)"
+        )
         warnings.append(
-            f"the accelerometer's chain was fitted on the record's first "
-            f"{log.chain_fit_n / log.fs:.3g} s and divided out of every window; the beta "
-            "intervals also span the readings through "
+            f"the accelerometer's chain was fitted {where} and divided out of every window; the "
+            "beta intervals also span the readings through "
             + ", ".join(log.other_chains)
             + " (a data sheet, --sensor, reads it once)"
         )

@@ -427,3 +427,26 @@ def test_a_chain_found_after_the_records_start_is_held_and_said(predictor):
                      "highpass_hz": 1.5}, 42.0)  # fmt: skip
     assert log.check_chain_known and log.check_sheet is None and log.check_highpass == 1.5
     assert not log.warnings
+
+
+@pytest.mark.slow
+def test_a_whole_records_log_reads_it_through_a_chain_its_start_did_not_show(predictor):
+    """Soft then hard rock behind a 94.8 Hz mount (10 f_n) and a 120 Hz 3rd-order low-pass:
+    the start's check fits no chain (the soft pulse passes), a later one fits the mount. A
+    whole record is scanned first, so the model reads all of it through that mount: the soft
+    layer reads soft (as recorded it read very hard, 91). A stream cannot go back: it warns
+    and reads as recorded. Both run the same checks with the same readings."""
+    clean, _ = layered_record([12.0, 60.0], [40.0, 40.0], seed=3)
+    rec = _through_chain(clean, resonance_hz=10 * FN_HZ, resonance_damping=0.05,
+                         lowpass_hz=0.06 * FS, lowpass_order=3)  # fmt: skip
+    doc = stiffness_log(predictor, rec, FS, FN_HZ, restoring_force_every_s=5.0)
+    assert doc["chain_undone"]["resonance_hz"] == pytest.approx(10 * FN_HZ, rel=0.05)
+    assert any("fitted by the check at" in w for w in doc["warnings"])
+    soft = doc["layers"][0]
+    assert soft["class"] == "soft" and soft["beta"] == pytest.approx(12.0, rel=0.15)
+    logger = StiffnessLogger(predictor, FS, FN_HZ, restoring_force_every_s=5.0)
+    events = [e for chunk in np.array_split(rec, 9) for e in logger.feed(chunk)]
+    streamed = [it for k, it in events + logger.finish() if k == "point"]
+    assert any("the model reads the record as recorded" in w for w in logger.warnings)
+    checks = [p["restoring_force"]["beta"] for p in doc["points"] if "restoring_force" in p]
+    assert checks == [p["restoring_force"]["beta"] for p in streamed if "restoring_force" in p]

@@ -206,3 +206,25 @@ def test_the_orbit_hold_keeps_each_rows_windows_on_its_recordings_orbit(tmp_path
     table = free.table.filter(shard == 0)
     assert hold_orbit(table, None)[0].num_rows == len(first)
     assert hold_orbit(table, (1, 1), min_share=1.0)[1]["held"] is False
+
+
+def test_the_worlds_defaults_come_from_its_shipped_settings():
+    """configs/operating_points.yaml validates, is what the module's defaults are, and an
+    unknown rule or key is refused."""
+    from pydantic import ValidationError
+
+    from stiffnet.measurement import operating_points as op
+
+    shipped = load_config(op.OperatingPointSettings, default_config("operating_points.yaml"))
+    assert shipped == op.operating_point_settings()
+    assert (op.JITTER, op.EDGE_SHARE, op.WEIGHTS, op.HOLD_ORBITS) == (
+        shipped.jitter,
+        shipped.edge_share,
+        shipped.weights,
+        shipped.hold_orbits,
+    )
+    assert op.RECORD_SUBSTEPS == shipped.record_substeps
+    with pytest.raises(ValidationError):
+        op.OperatingPointSettings(weights="large_gaps")
+    with pytest.raises(ValidationError):
+        op.OperatingPointSettings(jiter=0.02)

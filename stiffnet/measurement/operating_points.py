@@ -76,42 +76,94 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
+from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
 
 from stiffnet.config.sim import SimulationConfig
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.envelope import COLUMNS, campaign_envelope
 
-#: Relative jitter of each row's values (of the value itself; a zero gap stays zero), so
-#: the model does not learn one exact point and a manifest's small errors stay inside
-#: (±2 % on the rig's two-stage campaign, seeds 0 and 1: CNN 19 and 21 of 24 where ±5 % read
-#: 20 and 20, GBM 20 and 23 where it read 19 and 20; docs/measurement_loop.md).
-JITTER = 0.05
-#: Share of each point's trajectories drawn near the class edges, the rest over the sweep
-#: (off by default: see the module's docstring).
-EDGE_SHARE = 0.0
-#: Relative half-width of the band around a class edge ``e``: β in ``[e / (1 + w), e (1 + w)]``.
-EDGE_WIDTH = 0.2
+#: The shipped settings (under ``configs/``).
+OPERATING_POINTS_CONFIG = "operating_points.yaml"
 #: Rules giving each row's point its share of the trajectories (:func:`point_weights`).
 WEIGHT_RULES = ("none", "small_gaps")
-#: The rule the loop uses (see the module's notes).
-WEIGHTS = "none"
-#: Largest share a point gets under ``small_gaps``, relative to a point at the median gap.
-MAX_WEIGHT = 2.0
-#: The record's RK4 substep at every point (``SolverSettings.record_substeps``; see the
+
+
+class OperatingPointSettings(BaseModel):
+    """The training world at the campaign's operating points (``configs/operating_points.yaml``;
+    the measurements behind each default are in the module's notes).
+
+    Attributes
+    ----------
+    jitter : float
+        Relative jitter of each row's values (of the value itself; a zero gap stays zero), so
+        the model does not learn one exact point and a manifest's small errors stay inside.
+    edge_share : float
+        Share of each point's trajectories drawn near the class edges, the rest over the sweep.
+    edge_width : float
+        Relative half-width ``w`` of the band around a class edge ``e``: β in
+        ``[e / (1 + w), e (1 + w)]``.
+    weights : {"none", "small_gaps"}
+        The rule giving each row's point its share of the trajectories.
+    max_weight : float
+        Largest share a point gets under ``small_gaps``, relative to a point at the median gap.
+    record_substeps : {"sample", "transient"}
+        The record's RK4 substep at every point (``SolverSettings.record_substeps``).
+    shared_batches : bool
+        Simulate the points' shards together.
+    hold_orbits : bool
+        Hold each row's training windows on its recording's orbit (:func:`hold_orbit`).
+    min_on_orbit : float
+        Least share of a shard's windows on the recording's orbit for the hold to drop the
+        others: below it the world rarely reaches that orbit at the point, and the shard is
+        kept whole.
+    """
+
+    model_config = ConfigDict(extra="forbid")
+
+    jitter: float = Field(0.05, ge=0.0, lt=0.5)
+    edge_share: float = Field(0.0, ge=0.0, le=1.0)
+    edge_width: float = Field(0.2, gt=0.0, lt=1.0)
+    weights: Literal["none", "small_gaps"] = "none"
+    max_weight: float = Field(2.0, ge=1.0, le=10.0)
+    record_substeps: Literal["sample", "transient"] = "transient"
+    shared_batches: bool = True
+    hold_orbits: bool = False
+    min_on_orbit: float = Field(0.25, gt=0.0, le=1.0)
+
+
+@lru_cache(maxsize=1)
+def operating_point_settings() -> OperatingPointSettings:
+    """The shipped settings: ``configs/operating_points.yaml``, else the defaults."""
+    from stiffnet.config import shipped_settings
+
+    return shipped_settings(OperatingPointSettings, OPERATING_POINTS_CONFIG)
+
+
+_SETTINGS = operating_point_settings()
+#: Relative jitter of each row's values (``configs/operating_points.yaml``).
+JITTER = _SETTINGS.jitter
+#: Share of each point's trajectories drawn near the class edges (off by default: see the
 #: module's notes).
-RECORD_SUBSTEPS = "transient"
+EDGE_SHARE = _SETTINGS.edge_share
+#: Relative half-width of the band around a class edge.
+EDGE_WIDTH = _SETTINGS.edge_width
+#: The rule the loop uses to share the trajectories among the points (see the module's notes).
+WEIGHTS = _SETTINGS.weights
+#: Largest share a point gets under ``small_gaps``.
+MAX_WEIGHT = _SETTINGS.max_weight
+#: The record's RK4 substep at every point (see the module's notes).
+RECORD_SUBSTEPS = _SETTINGS.record_substeps
 #: Simulate the points' shards together (see the module's notes).
-SHARED_BATCHES = True
-#: Hold each row's training windows on its recording's orbit (:func:`hold_orbits`; see the
-#: module's notes).
-HOLD_ORBITS = False
-#: Least share of a shard's windows on the recording's orbit for the hold to drop the others:
-#: below it the world rarely reaches that orbit at the point, and the shard is kept whole.
-MIN_ON_ORBIT = 0.25
+SHARED_BATCHES = _SETTINGS.shared_batches
+#: Hold each row's training windows on its recording's orbit (see the module's notes).
+HOLD_ORBITS = _SETTINGS.hold_orbits
+#: Least share of a shard's windows on the recording's orbit for the hold to drop the others.
+MIN_ON_ORBIT = _SETTINGS.min_on_orbit
 
 
 def split_evenly(n: int, k: int) -> list[int]:

@@ -8,6 +8,17 @@ true acceleration through the product of the chain and that inverse. The contact
 forward through that product (:func:`~.contact_law.fit_contact_law`'s ``band``), so what the
 noise took from the pulses is taken from the law's force as well.
 
+**A low-pass below the contact** (:func:`lowpass_refusal`). Fitted forward through that
+band, the law does not need the inverse to pass the contact's frequency: below the corner
+the pulses keep their area, and the band's bend of their spectrum still carries the
+contact's frequency. Information is not what runs out first: the Cramér-Rao half-width
+(90 %) of beta through 2nd- and 4th-order low-passes at 0.6-0.97 contact frequencies, at
+2 % noise, is 0.3-1.7 % (docs/crosscheck.md), yet readings there can be 20 % off. The
+readings that went wrong below the corner read their contact confidently above it; the
+right ones near the corner carry intervals that reach below it. So the refusal stands where
+the low end of the reading's interval is beyond the corner, and where the interval reaches
+a contact the low-pass passes the reading stands with that interval.
+
 **"No contact"** (:func:`smoothed_contact_refusal`).
 
 A linear free flight driven by the table (eq. 12 with ``H = 0``, the table's motion at the
@@ -25,7 +36,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from stiffnet.restoring_force.chain import SensorChain, chain_response, wiener_gain
+from stiffnet.restoring_force.chain import (
+    MIN_LOWPASS_RATIO,
+    SensorChain,
+    chain_response,
+    wiener_gain,
+)
 from stiffnet.restoring_force.free_flight import HARMONICS
 
 #: A harmonic stands out when its power exceeds this many times the median of its
@@ -153,3 +169,38 @@ def kept_band(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: floa
     band = wiener_gain(y, h, noise_sigma**2) * h
     band[0] = 1.0
     return band
+
+
+def lowpass_refusal(chain: SensorChain, natural_hz: float, beta_low: float) -> str:
+    """Rule: the one-line refusal where a known chain's low-pass sits below the contact's
+    frequency at every beta the reading leaves open, else ''.
+
+    Through a known chain the law is fitted through the band its inverse keeps
+    (:func:`kept_band`): below the low-pass the pulses keep their area and the band's bend
+    of their spectrum still carries the contact's frequency. Where the reading's interval
+    reaches a contact the low-pass passes (``f_n sqrt(1 + beta_low)`` at or under the
+    corner), the band is not shown to cut the contact, and the reading stands with that
+    interval; where even its low end is above the corner, the band cuts it.
+
+    Parameters
+    ----------
+    chain : SensorChain
+        The known chain, its ``contact_hz`` the contact's frequency the law fitted through
+        its band reads.
+    natural_hz : float
+        The free flight's natural frequency (Hz).
+    beta_low : float
+        The low end of the reading's interval.
+    """
+    fl, fc = chain.lowpass_hz, chain.contact_hz
+    if not fl or not fc or fl >= MIN_LOWPASS_RATIO * fc:
+        return ""
+    lowest = natural_hz * np.sqrt(1.0 + max(beta_low, 0.0))
+    if not np.isfinite(lowest):  # no interval: the reading alone
+        lowest = fc
+    if fl >= MIN_LOWPASS_RATIO * lowest:
+        return ""
+    return (
+        f"the low-pass at {fl:.0f} Hz is below the contact's frequency {fc:.0f} Hz (at least "
+        f"{lowest:.0f} Hz): beta is not identifiable from this sensor"
+    )

@@ -774,6 +774,12 @@ def fit_chain(
                          ring_hz, contact_hz)  # fmt: skip
     if win is None:
         return None
+    # in units of the windows' own scale (their rms), so the fit's tolerances (least_squares'
+    # gradient test) and the noise test do not depend on the record's unit: a power of two
+    # would be exact, but a unit a few times larger then stops the fit elsewhere
+    unit = float(np.sqrt(np.mean(win.r**2))) or 1.0
+    win.r = win.r / unit
+    noise_sigma = None if noise_sigma is None else noise_sigma / unit
     search = _ChainSearch(win, fs_hz, natural_frequency_hz)
     none = search.no_chain(contact_hz)
     if not (noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2):

@@ -86,6 +86,35 @@ def contact_force(
     return np.where(d > 0, np.maximum(elastic + damping * np.asarray(vel), 0.0), 0.0)
 
 
+def contact_force_jacobian(
+    disp: np.ndarray,
+    vel: np.ndarray,
+    stiffness: float,
+    onset: float,
+    damping: float,
+    exponent: float = 1.0,
+    reference_penetration: float = 1.0,
+    fit_exponent: bool = False,
+) -> np.ndarray:
+    """Derivatives of :func:`contact_force` by ``(log K, e, c_c)`` (and ``p`` with
+    `fit_exponent`), one column each: :func:`fit_contact_law`'s parameters.
+
+    Where the law pushes (``d > 0`` and ``K d_r (d/d_r)**p + c_c v > 0``) they are the
+    elastic force, ``-K p (d/d_r)**(p-1)``, ``v`` and the elastic force times
+    ``log(d/d_r)``; elsewhere the force is held at zero and they vanish (at onset and
+    release, where the law has kinks, the derivative of the side the sample lies on).
+    """
+    d = np.maximum(np.asarray(disp) - onset, 0.0)
+    vel = np.asarray(vel)
+    ratio = d / reference_penetration
+    elastic = stiffness * reference_penetration * ratio**exponent
+    pushes = (d > 0) & (elastic + damping * vel > 0)
+    cols = [elastic, -stiffness * exponent * ratio ** (exponent - 1.0), vel]
+    if fit_exponent:
+        cols.append(elastic * np.log(np.where(d > 0, ratio, 1.0)))
+    return np.where(pushes[:, None], np.column_stack(cols), 0.0)
+
+
 def linear_contact_start(
     force: np.ndarray, disp: np.ndarray, vel: np.ndarray, core: np.ndarray
 ) -> tuple[float, float, float]:
@@ -148,6 +177,10 @@ def fit_contact_law(
     27 for 41.6), while the same band applied to the law's force reads the law itself
     (41.2).
 
+    The solver is given the law's Jacobian (:func:`contact_force_jacobian`, through the band
+    where there is one: the band is linear), not forward differences: one evaluation of the
+    law per step in place of one per parameter and step.
+
     Parameters
     ----------
     force, disp, vel : numpy.ndarray
@@ -171,10 +204,15 @@ def fit_contact_law(
     -------
     ContactLaw
     """
-    f = force[near]
+    # fitted in units of the force's own scale (its rms; the law is homogeneous: force,
+    # penetration and velocity scale together, K, c_c and p do not), so least_squares'
+    # stopping tests do not depend on the record's unit
+    unit = float(np.sqrt(np.mean(force[near] ** 2))) or 1.0
+    f = force[near] / unit
     kc0, e0, cc0 = start
-    dr = reference_penetration
-    x, v = (disp, vel) if band is not None else (disp[near], vel[near])
+    e0 = e0 / unit
+    dr = reference_penetration / unit
+    x, v = (disp / unit, vel / unit) if band is not None else (disp[near] / unit, vel[near] / unit)
 
     def model(theta: np.ndarray) -> np.ndarray:
         p = theta[3] if exponent is None else exponent
@@ -186,6 +224,18 @@ def fit_contact_law(
                 return out
             return np.fft.irfft(np.fft.rfft(out) * band, out.size)[near]
 
+    def jacobian(theta: np.ndarray) -> np.ndarray:
+        # the band is linear: its Jacobian is the band applied to the law's own, one batched
+        # transform in place of a difference step per parameter
+        p = theta[3] if exponent is None else exponent
+        with np.errstate(over="ignore", invalid="ignore"):
+            jac = contact_force_jacobian(x, v, np.exp(theta[0]), theta[1], theta[2], p, dr,
+                                         fit_exponent=exponent is None)  # fmt: skip
+            if band is not None:
+                jac = np.fft.irfft(np.fft.rfft(jac, axis=0) * band[:, None], x.size,
+                                   axis=0)[near]  # fmt: skip
+        return jac
+
     lo = [-np.inf, -np.inf, 0.0] + ([EXPONENT_BOUNDS[0]] if exponent is None else [])
     hi = [np.inf, np.inf, np.inf] + ([EXPONENT_BOUNDS[1]] if exponent is None else [])
     # through a band the start (the map's own slope) reads soft: a stiffer start as well
@@ -193,8 +243,8 @@ def fit_contact_law(
     for gain in (1.0,) if band is None else BAND_START_GAINS:
         theta0 = [np.log(gain * kc0), e0, max(cc0, 0.0)] + ([1.0] if exponent is None else [])
         sol = optimize.least_squares(
-            lambda t: model(t) - f, np.clip(theta0, lo, hi), bounds=(lo, hi), x_scale="jac",
-            max_nfev=max_nfev,
+            lambda t: model(t) - f, np.clip(theta0, lo, hi), jac=jacobian, bounds=(lo, hi),
+            x_scale="jac", max_nfev=max_nfev,
         )  # fmt: skip
         if res is None or sol.cost < res.cost:
             res = sol
@@ -203,12 +253,12 @@ def fit_contact_law(
     r2 = 1.0 - float(np.sum(resid**2)) / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     return ContactLaw(
         stiffness=float(np.exp(th[0])),
-        onset=float(th[1]),
+        onset=float(th[1]) * unit,
         damping=float(th[2]),
         exponent=float(th[3]) if exponent is None else float(exponent),
-        reference_penetration=float(dr),
+        reference_penetration=float(reference_penetration),
         r2=r2,
-        sse=float(np.sum(resid**2)),
+        sse=float(np.sum(resid**2)) * unit**2,
         n_samples=int(f.size),
     )
 

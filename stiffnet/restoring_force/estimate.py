@@ -35,8 +35,13 @@ from scipy import ndimage, optimize, stats
 
 from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
-from stiffnet.restoring_force.band import kept_band, smoothed_contact_refusal
+from stiffnet.restoring_force.band import (
+    kept_band,
+    lowpass_refusal,
+    smoothed_contact_refusal,
+)
 from stiffnet.restoring_force.chain import (
+    COVERAGE,
     SensorChain,
     deconvolve,
     fit_chain,
@@ -684,6 +689,9 @@ def _undo_chain(
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
         chain = dataclasses.replace(chain, contact_hz=contact_hz)
     refusal = identifiability(chain)
+    below = bool(refusal) and chain.source != "fitted"
+    if below:  # a known chain: its law is fitted through the band, which may still carry it
+        refusal = _band_refusal(chain, m2, fs_hz / natural, args[3], args[1])
     fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
     no_contact = m2.info.get("restoring_force_class") == NO_CONTACT
     if no_contact and (chain.lowpass_hz or np.inf) < fastest:
@@ -693,7 +701,10 @@ def _undo_chain(
             "this sensor smooths away"
         )
     if chain.source != "fitted":
-        return m2, chain, chain.resonance_hz, refusal, []
+        # read below the low-pass: the interval spans this map's reading too (the free
+        # damping profiled afterwards can move beta away from it)
+        kept = _readings([m2]) if below and not refusal and rivals else []
+        return m2, chain, chain.resonance_hz, refusal, kept
     # the chain that makes the contact force a function of the state: a fitted chain whose
     # inverse leaves the contact law worse than the record as recorded (or with only its
     # ringing divided out) is not the record's (it is still reported) and refuses nothing:
@@ -723,6 +734,16 @@ def _undo_chain(
         chain = dataclasses.replace(chain, applied=False)
         return other[0], chain, other[1], "", _readings(readings)
     return m2, chain, chain.resonance_hz, refusal, _readings(readings)
+
+
+def _band_refusal(chain: SensorChain, m2: _Map, natural_hz: float, use, dtau) -> str:
+    """The refusal of a known chain whose low-pass sits below the contact's frequency
+    (:func:`~.band.lowpass_refusal`), judged at the low end of beta's interval from the map of
+    its inverse."""
+    if m2.law is None or m2.refusal:
+        return identifiability(chain)
+    _, (lo, _), _, _ = _beta_of_map(m2, use, dtau, COVERAGE, 0)
+    return lowpass_refusal(chain, natural_hz, float(lo))
 
 
 def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:

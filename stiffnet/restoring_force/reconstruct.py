@@ -151,10 +151,11 @@ def periodic_length(accel: np.ndarray, period: float, tail: int | None = None) -
     if whole < 1:
         return n
     best, best_err = int(round(whole * period)), np.inf
+    tie = 1e-12 * float(np.mean(accel**2))  # relative: the record's unit must not decide
     for m in range(whole, max(0, whole - 4), -1):
         length = int(round(m * period))
         err = float(np.mean((accel[length : length + tail] - accel[:tail]) ** 2))
-        if err < best_err - 1e-12:
+        if err < best_err - tie:
             best, best_err = length, err
     return best
 

@@ -190,13 +190,25 @@ def _least_squares(
 ) -> optimize.OptimizeResult:
     """The two-stage law with ``ratio`` held fitted from ``theta0`` = ``(log K, e, c_c,
     log d_k)`` (the damping non-negative)."""
+    # in units of the force's own scale (its rms; force, penetration and velocity scale
+    # together), so the stopping tests do not depend on the record's unit
+    unit = float(np.sqrt(np.mean(f**2))) or 1.0
+    fu, xu, vu = f / unit, x / unit, v / unit
+    # theta's onset and log knee are lengths; log K and c_c are ratios of scaled quantities
+    to_unit = np.array([0.0, 0.0, 0.0, -np.log(unit)])
 
     def residual(t: np.ndarray) -> np.ndarray:
-        return staged_force(x, v, np.exp(t[0]), t[1], t[2], np.exp(t[3]), ratio) - f
+        return staged_force(xu, vu, np.exp(t[0]), t[1], t[2], np.exp(t[3]), ratio) - fu
 
+    start = np.asarray(theta0, dtype=float) + to_unit
+    start[1] /= unit
     lo, hi = [-np.inf, -np.inf, 0.0, -np.inf], [np.inf, np.inf, np.inf, np.inf]
-    return optimize.least_squares(residual, theta0, bounds=(lo, hi), x_scale="jac",
-                                  max_nfev=MAX_NFEV)  # fmt: skip
+    res = optimize.least_squares(residual, start, bounds=(lo, hi), x_scale="jac",
+                                 max_nfev=MAX_NFEV)  # fmt: skip
+    res.x = res.x - to_unit
+    res.x[1] *= unit
+    res.fun = res.fun * unit
+    return res
 
 
 def stage_resolved(sse_one: float, sse_staged: float, n: int, level: float = STAGE_LEVEL) -> bool:

@@ -1,0 +1,60 @@
+"""A known chain's low-pass below the contact's frequency: read where the reading's interval
+reaches a contact the band passes, refused where even its low end lies beyond the corner.
+
+Recordings from the independent solve_ivp rig (tests/independent_rig.py), its analog chain
+run on the oversampled motion, each read through its true chain as a data sheet.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from serving.restoring_force_check import restoring_force_check
+from stiffnet.restoring_force.band import lowpass_refusal
+from stiffnet.restoring_force.chain import SensorChain
+from tests.independent_rig import RigRun, record
+
+FN = 9.48
+
+
+def _read_through_sheet(beta: float, ratio: float, order: int, seed: int, **sensor_extra):
+    """The check of a 3 s record behind a low-pass at `ratio` contact frequencies, read
+    through its true chain."""
+    sensor = {"lowpass_hz": round(ratio * FN * np.sqrt(1 + beta), 2), "lowpass_order": order,
+              **sensor_extra}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=beta, fs_hz=1000.0, duration_s=3.0, sensor=sensor)
+    return restoring_force_check(record(run, seed=seed)[1], run.fs_hz, FN, sensor, None)
+
+
+def test_the_rule_refuses_only_where_the_whole_interval_is_beyond_the_corner():
+    chain = SensorChain(lowpass_hz=80.0, lowpass_order=4, contact_hz=88.0)
+    reaching = (79.0 / FN) ** 2 - 1  # the interval's low end: a contact at 79 Hz
+    beyond = (81.0 / FN) ** 2 - 1
+    assert lowpass_refusal(chain, FN, reaching) == ""
+    assert lowpass_refusal(chain, FN, beyond) == (
+        "the low-pass at 80 Hz is below the contact's frequency 88 Hz (at least 81 Hz): beta "
+        "is not identifiable from this sensor"
+    )
+    above = SensorChain(lowpass_hz=90.0, lowpass_order=4, contact_hz=88.0)
+    assert lowpass_refusal(above, FN, beyond) == ""  # the low-pass passes the contact
+
+
+def test_a_contact_just_above_a_known_lowpass_is_read_within_ten_percent():
+    """Beta 86 (contact 88 Hz) behind a 4th-order low-pass at 0.9 of it: read through the
+    band the inverse keeps, 83.0 [69.2, 99.1]; the contact frequency alone (86.9 Hz read,
+    above the 79.7 Hz corner) refused it."""
+    got = _read_through_sheet(86.0, 0.9, 4, seed=5)
+    assert got["beta"] is not None, got["reason"]
+    assert got["beta"] == pytest.approx(86.0, rel=0.10)
+    lo, hi = got["beta_interval"]
+    assert lo <= 86.0 <= hi and got["class"] == "very_hard"
+
+
+def test_a_lowpass_far_below_the_contact_is_still_refused():
+    """Beta 20 (contact 43 Hz) behind a 2nd-order low-pass at 0.4 of it (17 Hz), 2 % noise:
+    without the refusal the law through the band reads 25.3 [22.0, 27.1], wrong and silent."""
+    got = _read_through_sheet(20.0, 0.4, 2, seed=3, highpass_hz=1.0)
+    assert got["beta"] is None and got["class"] is None
+    assert got["reason"].startswith("the low-pass at 17 Hz is below the contact's frequency")
+    assert got["reason"].endswith("beta is not identifiable from this sensor")
