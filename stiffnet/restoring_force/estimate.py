@@ -894,8 +894,10 @@ def restoring_force_estimate(
     penetration_dissipation : bool
         The model's learned law has a dissipation growing with penetration (a Hunt-Crossley
         ``delta v`` term): beta is then the elastic slope at first contact of the law with
-        that term fitted free (:mod:`.hunt_crossley_law`). A `stage_ratio` takes precedence.
-        False (default): the library's law.
+        that term fitted free (:mod:`.hunt_crossley_law`), where the map's leading term is
+        linear (its exponent not significant, as the model's law); a map that needs a power
+        law keeps the library's reading. A `stage_ratio` takes precedence. False (default):
+        the library's law.
 
     Returns
     -------
@@ -1096,7 +1098,9 @@ def _estimate_at(
     if stage_ratio is not None:
         beta, (lo, hi), damping_ratio, staged, beyond = _staged_beta(m, stage_ratio, coverage,
                                                                      seed, interval)  # fmt: skip
-    elif penetration_dissipation:
+    elif penetration_dissipation and m.law.exponent == 1.0:
+        # a map that needs a power law shows a term the model's law lacks: the library's
+        # reading then, and the contact_law check judges the exponent
         beta, (lo, hi), damping_ratio, hc = _hunt_crossley_beta(m, coverage, seed, interval)
     else:
         beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
