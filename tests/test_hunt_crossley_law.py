@@ -56,6 +56,20 @@ def test_a_hunt_crossley_models_check_reads_the_elastic_slope_where_the_library_
     assert any("before the fitted law's onset" in r for r in unseen_law_reasons(library, seen=seen))
 
 
+def test_a_map_that_needs_a_power_law_keeps_the_librarys_reading():
+    """A two-stage restraint (knee 0.25 mm, ratio 2.5) reads as a power law: a law with a
+    linear leading term, as the model's, would read its stiff stage; the library's reading is
+    kept (the contact_law check judges the exponent)."""
+    run = RigRun(recording="two_stage.csv", beta=19.0, forcing_frequency_hz=10.24,
+                 base_acceleration_g=0.718, gap_mm=2.4, fs_hz=2000.0, duration_s=3.0,
+                 contact="two_stage", knee_mm=0.25, stage_ratio=2.5)  # fmt: skip
+    _, accel = record(run, seed=3)
+    learned = restoring_force_check(accel, run.fs_hz, 9.48, penetration_dissipation=True)
+    library = restoring_force_check(accel, run.fs_hz, 9.48)
+    assert learned["exponent"] > 1.2 and learned["hunt_crossley"] is None, learned
+    assert learned["beta"] == library["beta"]
+
+
 def test_the_fit_recovers_a_known_law_and_finds_no_dissipation_term_on_a_kelvin_voigt_one():
     """Noisy half-sine impacts on ``K d (1 + a v) + c v``: the slope within 2 % and ``a``
     within 10 %; on a Kelvin-Voigt law (``a = 0``) the term carries almost none of the
