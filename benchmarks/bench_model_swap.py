@@ -232,7 +232,9 @@ def pooled_predictions(
         r = recs[i]
         a = checked_recording(r["accel"], r["fs_hz"], r["fn_hz"], pred.window_periods, "")[0]
         return sp.restoring_force_check(a, r["fs_hz"], r["fn_hz"], None, pred.stage_ratio,
-                                        fit_chain=True).get("sensor")  # fmt: skip
+                                        fit_chain=True,
+                                        penetration_dissipation=pred.penetration_dissipation,
+                                        ).get("sensor")  # fmt: skip
 
     # the corner profile's readings, kept with the checks (the bench's cache) where it is on
     store = getattr(sp.restoring_force_check, "results", {})

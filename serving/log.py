@@ -309,8 +309,10 @@ class StiffnessLogger:
     def _check(self, seg: np.ndarray, t: float) -> dict[str, Any]:
         """The restoring-force check of `seg` (ending at `t` s) through the record's chain,
         which the first check that fits one decides (:meth:`_hold_chain`)."""
-        check = restoring_force_check(seg, self.fs, self.fn, self.check_sheet, self.p.stage_ratio,
-                                      highpass_hz=self.check_highpass)  # fmt: skip
+        check = restoring_force_check(
+            seg, self.fs, self.fn, self.check_sheet, self.p.stage_ratio,
+            highpass_hz=self.check_highpass, penetration_dissipation=self.p.penetration_dissipation,
+        )  # fmt: skip
         if not self.check_chain_known:
             self._hold_chain(check.get("sensor"), t)
         return check

@@ -70,6 +70,7 @@ from serving.restoring_force_check import (
     check_sensor_sheet,
     restoring_force_check,
     sidecar_sensor,
+    trained_penetration_dissipation,
     trained_stage_ratio,
 )
 from serving.schemas import PredictionResult
@@ -214,6 +215,8 @@ class Predictor:
         #: the learned two-stage law the model was trained with: the restoring-force check
         #: reads beta in its sense (its first-stage slope)
         self.stage_ratio = trained_stage_ratio(model_facts(self)["priors"])
+        #: ... and a learned dissipation growing with penetration: read with that term free
+        self.penetration_dissipation = trained_penetration_dissipation(model_facts(self)["priors"])
         self.ood_warning = None
         if ood is not None:
             want = self.metadata.get("training_data_sha256")
@@ -367,7 +370,10 @@ class Predictor:
         a, fs, fn, fn_source, sensor, warnings = self._checked_input(
             accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
         )
-        restoring_force = restoring_force_check(a, fs, fn, sensor, self.stage_ratio)
+        restoring_force = restoring_force_check(
+            a, fs, fn, sensor, self.stage_ratio,
+            penetration_dissipation=self.penetration_dissipation,
+        )  # fmt: skip
         read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],
                                     self.undo_chain)  # fmt: skip
         if undone and sensor_fitted:

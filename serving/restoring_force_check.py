@@ -18,7 +18,11 @@ richer law than the training world's explains on held-out impacts
 once within an impact, a restraint that rings (:mod:`stiffnet.uncertainty.restraint_dynamics`).
 A model trained with a learned two-stage law
 (:func:`trained_stage_ratio`) has beta read in that law's sense, its first-stage slope
-(``stage``; :mod:`stiffnet.restoring_force.staged_law`).
+(``stage``; :mod:`stiffnet.restoring_force.staged_law`); one trained with a learned dissipation
+growing with penetration (:func:`trained_penetration_dissipation`) in its elastic slope at first
+contact, the ``delta v`` term fitted free (``hunt_crossley``;
+:mod:`stiffnet.restoring_force.hunt_crossley_law`), and the map's own tests then judge the
+law's shape from that law's onset.
 """
 
 from __future__ import annotations
@@ -32,7 +36,13 @@ from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.estimate import CHAIN_FIT_WHEN_NEEDED
 from stiffnet.uncertainty.law_shape import law_shape_gains
 from stiffnet.uncertainty.restraint_dynamics import second_peak_share
-from stiffnet.uncertainty.unseen_law import penetration_dissipation
+from stiffnet.uncertainty.unseen_law import (
+    PENETRATION_DISSIPATION,
+    trained_law_kinds,
+)
+from stiffnet.uncertainty.unseen_law import (
+    penetration_dissipation as dissipation_gain_share,
+)
 
 #: Forcing periods the cross-check analyses (24: ~1.5 windows; bounds its cost to ~20 ms
 #: without a sensor chain to fit, ~1-3 s with one).
@@ -56,6 +66,7 @@ def restoring_force_check(
     *,
     highpass_hz: float | None = None,
     fit_chain: bool = False,
+    penetration_dissipation: bool = False,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
     there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
@@ -65,7 +76,9 @@ def restoring_force_check(
     always with `fit_chain` (a campaign whose gated fits identified too few chains to pool:
     :func:`serving.campaign_chain.identify_regardless`). `highpass_hz`, without a `sensor`:
     the chain is known to have no resonance or low-pass and this high-pass corner (identified
-    on another stretch of the same record), so nothing is fitted either."""
+    on another stretch of the same record), so nothing is fitted either.
+    `penetration_dissipation`: the model's learned law has a Hunt-Crossley term
+    (:func:`trained_penetration_dissipation`): beta is read with that term fitted free."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -78,6 +91,7 @@ def restoring_force_check(
             # times the rest of the prediction
             chain_fit_below_r2=_chain_fit_below_r2(highpass_hz, fit_chain),
             stage_ratio=stage_ratio,
+            penetration_dissipation=penetration_dissipation,
         )
     except StiffnetError as exc:
         return {"class": None, "beta": None, "beta_interval": None, "reason": str(exc)}
@@ -90,11 +104,17 @@ def restoring_force_check(
     hc = shape = peaks = None
     if r.ok and r.law is not None:  # the map's own tests for a law the training world lacks
         law = r.law
-        peaks = second_peak_share(r.displacement, r.force, law.onset)
-        hc = penetration_dissipation(r.displacement, r.velocity, r.force, law.onset,
-                                     law.exponent, law.reference_penetration)  # fmt: skip
-        shape = law_shape_gains(r.displacement, r.velocity, r.force, law.onset,
-                                law.reference_penetration, law.exponent)  # fmt: skip
+        # from the onset of the law that gave beta: the library's law, fitted to a
+        # Hunt-Crossley contact, starts late, and the force before it reads as a first stage
+        onset, exponent = law.onset, law.exponent
+        if r.hunt_crossley is not None:
+            onset, exponent = r.hunt_crossley.onset, 1.0
+        peaks = second_peak_share(r.displacement, r.force, onset)
+        hc = dissipation_gain_share(r.displacement, r.velocity, r.force, onset, exponent,
+                                     law.reference_penetration)  # fmt: skip
+        shape = law_shape_gains(r.displacement, r.velocity, r.force, onset,
+                                law.reference_penetration, exponent,
+                                trained_dissipation=r.hunt_crossley is not None)  # fmt: skip
         if shape is not None and r.sensor is not None:
             shape.update(as_recorded_law_shape(accel, fs_hz, natural_frequency_hz, r))
     return {
@@ -116,6 +136,7 @@ def restoring_force_check(
         "law_shape": shape,
         "impact_peaks": peaks,
         "stage": d["stage"],
+        "hunt_crossley": d["hunt_crossley"],
         "reason": d["reason"],
     }
 
@@ -220,6 +241,28 @@ def trained_stage_ratio(priors: dict | None) -> tuple[float, float] | None:
             return None
         return float(ratio.min()), float(ratio.max())
     return None
+
+
+def trained_penetration_dissipation(priors: dict | None) -> bool:
+    """Whether a model was trained with a learned law whose dissipation grows with penetration
+    (a Hunt-Crossley term of ``learned_contact`` in its card's ``data.priors``: the kind
+    :data:`~stiffnet.uncertainty.unseen_law.PENETRATION_DISSIPATION` of
+    :func:`~stiffnet.uncertainty.unseen_law.trained_law_kinds`) and the check can read beta
+    in its sense: a linear leading term on the mass's own penetration, as for
+    :func:`trained_stage_ratio` (a power law's beta is a secant at a length in the model's
+    units, and a face's law acts on a penetration the map does not see)."""
+    if PENETRATION_DISSIPATION not in trained_law_kinds(priors):
+        return False
+    for effect in (priors or {}).get("effects") or []:
+        if not isinstance(effect, dict) or effect.get("name") != "learned_contact":
+            continue
+        if not effect.get("probability", 1.0) > 0:
+            continue
+        params = effect.get("params") or {}
+        linear = np.all(np.atleast_1d(np.asarray(params.get("exponent", 1.0), float)) == 1.0)
+        faces = [np.asarray(params.get(k, 0.0), float) for k in ("face_mass", "face2_mass")]
+        return bool(linear and not any(np.any(f > 0) for f in faces))
+    return False
 
 
 def _sensor_prior(priors: dict | None) -> dict | None:

@@ -104,6 +104,13 @@ class RestoringForceCheck(BaseModel):
         "beyond_knee_interval (not resolved: beta's interval had every impact been beyond "
         "the knee, the slope over the ratio, which the map cannot exclude).",
     )
+    hunt_crossley: dict[str, Any] | None = Field(
+        default=None,
+        description="Where the model was trained with a learned law whose dissipation grows "
+        "with penetration (Hunt-Crossley): beta is that law's elastic slope at first contact, "
+        "fitted with its delta*v term free; onset (map units), dissipation_share (the delta*v "
+        "term's share of the dissipation at the reference penetration), r2.",
+    )
     reason: str = Field(description="What was estimated, or why not.")
 
 

@@ -63,6 +63,11 @@ from stiffnet.restoring_force.free_flight import (
     MIN_FLIGHT_SAMPLES,
     fit_free_flight,
 )
+from stiffnet.restoring_force.hunt_crossley_law import (
+    HuntCrossleyLaw,
+    fit_hunt_crossley_law,
+    hunt_crossley_shape,
+)
 from stiffnet.restoring_force.reconstruct import (
     check_record,
     forcing_candidates,
@@ -204,6 +209,10 @@ class RestoringForceResult:
         Where a two-stage law's knee does not show on the map (`staged` not resolved): beta's
         interval had every impact been beyond the knee (the one slope over the ratio), which
         the map cannot exclude; `beta` and `beta_interval` read every impact short of it.
+    hunt_crossley : HuntCrossleyLaw or None
+        The law with a free ``delta v`` dissipation that gives beta where the model's law has
+        one (``penetration_dissipation``; :mod:`.hunt_crossley_law`): beta is its elastic
+        slope at first contact over ``k``.
     """
 
     ok: bool
@@ -235,6 +244,7 @@ class RestoringForceResult:
     sensor: SensorChain | None = None
     staged: StagedLaw | None = None
     beyond_knee_interval: tuple[float, float] | None = None
+    hunt_crossley: HuntCrossleyLaw | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -260,6 +270,7 @@ class RestoringForceResult:
             "duration_ratio": num(self.duration_ratio),
             "sensor": self.sensor.to_dict() if self.sensor is not None else None,
             "stage": _stage_dict(self.staged, self.beyond_knee_interval),
+            "hunt_crossley": _hunt_crossley_dict(self.hunt_crossley),
             "n_impacts": self.n_impacts,
             "samples_per_contact": num(self.samples_per_contact),
             "free_r2": num(self.free_r2),
@@ -283,6 +294,13 @@ def _stage_dict(
         "r2": float(staged.r2),
         "beyond_knee_interval": [float(v) for v in beyond] if beyond else None,
     }
+
+
+def _hunt_crossley_dict(law: HuntCrossleyLaw | None) -> dict[str, Any] | None:
+    """The Hunt-Crossley law's JSON fields (None without one)."""
+    if law is None:
+        return None
+    return {"onset": law.onset, "dissipation_share": law.dissipation_share, "r2": law.r2}
 
 
 def _polarity(a: np.ndarray) -> int:
@@ -830,6 +848,7 @@ def restoring_force_estimate(
     profile_highpass_below_r2: float | None = None,
     interval: bool = True,
     stage_ratio: float | tuple[float, float] | None = None,
+    penetration_dissipation: bool = False,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -893,6 +912,13 @@ def restoring_force_estimate(
         its prior range): beta is then that law's first-stage slope over ``k``, fitted with
         the ratio held and the knee free (:mod:`.staged_law`); a range's ends join the
         interval. None (default): the library's law.
+    penetration_dissipation : bool
+        The model's learned law has a dissipation growing with penetration (a Hunt-Crossley
+        ``delta v`` term): beta is then the elastic slope at first contact of the law with
+        that term fitted free (:mod:`.hunt_crossley_law`), where the map's leading term is
+        linear (its exponent not significant, as the model's law); a map that needs a power
+        law keeps the library's reading. A `stage_ratio` takes precedence. False (default):
+        the library's law.
 
     Returns
     -------
@@ -916,7 +942,8 @@ def restoring_force_estimate(
                    chain_fit_below_r2=chain_fit_below_r2,
                    profile_highpass_below_r2=chain_fit_below_r2
                    if profile_highpass_below_r2 is None else profile_highpass_below_r2,
-                   interval=interval, stage_ratio=stage_ratio)  # fmt: skip
+                   interval=interval, stage_ratio=stage_ratio,
+                   penetration_dissipation=penetration_dissipation)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -1031,6 +1058,7 @@ def _estimate_at(
     interval: bool = True,
     chain_profile: bool = False,
     stage_ratio: float | tuple[float, float] | None = None,
+    penetration_dissipation: bool = False,
 ) -> RestoringForceResult:
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz); without an
     `interval`, a fitted chain's unexcluded low-passes are profiled only with
@@ -1087,10 +1115,14 @@ def _estimate_at(
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
         return _refuse(m.refusal, **info)
-    staged, poles, beyond = None, None, None
+    staged, poles, beyond, hc = None, None, None, None
     if stage_ratio is not None:
         beta, (lo, hi), damping_ratio, staged, beyond = _staged_beta(m, stage_ratio, coverage,
                                                                      seed, interval)  # fmt: skip
+    elif penetration_dissipation and m.law.exponent == 1.0:
+        # a map that needs a power law shows a term the model's law lacks: the library's
+        # reading then, and the contact_law check judges the exponent
+        beta, (lo, hi), damping_ratio, hc = _hunt_crossley_beta(m, coverage, seed, interval)
     else:
         beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
                                                             interval)  # fmt: skip
@@ -1107,14 +1139,22 @@ def _estimate_at(
         contact_damping_ratio=damping_ratio,
         exponent=m.exponent,
         fitted_natural_frequency_hz=fitted_fn,
-        reason=_reason(law, n_imp, spc, poles, staged),
+        reason=_reason(law, n_imp, spc, poles, staged, hc),
         staged=staged,
         beyond_knee_interval=beyond,
+        hunt_crossley=hc,
         **info,
     )
 
 
-def _reason(law: ContactLaw, n_imp: int, spc: float, poles: Any, staged: StagedLaw | None) -> str:
+def _reason(
+    law: ContactLaw,
+    n_imp: int,
+    spc: float,
+    poles: Any,
+    staged: StagedLaw | None,
+    hc: HuntCrossleyLaw | None = None,
+) -> str:
     """The estimate's one line: impacts, samples, the law that gave beta."""
     words = f"{n_imp} impacts, {spc:.0f} samples each; contact law explains {law.r2:.0%} "
     words += "of the contact force"
@@ -1130,7 +1170,32 @@ def _reason(law: ContactLaw, n_imp: int, spc: float, poles: Any, staged: StagedL
                   f"{staged.ratio:.2f}): beta is that slope, every impact read as short of the "
                   "knee (had every impact been beyond it, beta would be the slope over the "
                   "ratio)")  # fmt: skip
+    if hc is not None:
+        words += (f"; beta is the elastic slope at first contact of the model's Hunt-Crossley "
+                  f"law (its delta*v term fitted free: {hc.dissipation_share:.0%} of the "
+                  f"dissipation; it explains {hc.r2:.0%})")  # fmt: skip
     return words
+
+
+def _hunt_crossley_beta(
+    m: _Map, coverage: float, seed: int, interval: bool = True
+) -> tuple[float, tuple[float, float], float, HuntCrossleyLaw]:
+    """Rule: beta, its interval and the contact damping ratio of the law with a free
+    ``delta v`` dissipation (:mod:`.hunt_crossley_law`), and that law. The interval: the
+    bootstrap over impacts at the law's onset and dissipation, widened by the
+    reconstruction's systematic error (:func:`widen_interval`)."""
+    fit, k = m.fit, m.fit.stiffness
+    law = fit_hunt_crossley_law(fit.force, fit.displacement, fit.velocity, m.labels > 0, m.law)
+    beta = law.stiffness / k
+    damping_ratio = float(law.damping / (2 * np.sqrt(law.stiffness)))
+    if not interval:
+        return beta, (np.nan, np.nan), damping_ratio, law
+    g = hunt_crossley_shape(fit.displacement, fit.velocity, law.onset, law.dissipation)
+    rhs = fit.force - law.damping * fit.velocity
+    inside = (fit.displacement > law.onset) & (fit.force > 0)
+    lo, hi = bootstrap_slope(g, rhs, inside, m.labels, m.n_impacts, beta, k, coverage,
+                             np.random.default_rng(seed))  # fmt: skip
+    return beta, widen_interval(beta, lo, hi, law.r2, m.spc), damping_ratio, law
 
 
 def _staged_beta(

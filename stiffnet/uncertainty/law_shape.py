@@ -26,6 +26,12 @@ and beyond): a power law bends smoothly from first touch, a two-stage law is str
 both sides of its knee. Through a sensor chain, or on Hertz's law, a hinge takes a little
 curvature too, but with a small stiffness ratio ``(a + b) / a`` across the knee.
 
+A model trained with a learned Hunt-Crossley law has ``(delta/d_r) v`` in its world: its
+base law (and both laws of :func:`stage_gain`) then carry that term, so the stiffening terms
+are judged against the law the model knows; left out, a Hunt-Crossley contact's dissipation,
+zero at first touch and largest mid-impact, bends the loading branch the curvature and the
+hinge read.
+
 Each is scored by leave-one-impact-out cross-validation (whole impacts held out, so the
 reconstruction's smooth errors within an impact cannot be fitted by the extra term):
 ``gain = 1 - SSE_cv(richer) / SSE_cv(base)``. Samples where the base law pulls and the
@@ -93,7 +99,11 @@ def held_out_impact_sse(design: np.ndarray, force: np.ndarray, groups: np.ndarra
 
 
 def stage_gain(
-    dn: np.ndarray, vn: np.ndarray, f: np.ndarray, groups: np.ndarray
+    dn: np.ndarray,
+    vn: np.ndarray,
+    f: np.ndarray,
+    groups: np.ndarray,
+    trained_dissipation: bool = False,
 ) -> tuple[float, float, float]:
     """Held-out-impact gain of a two-stage law over the best single power law.
 
@@ -103,6 +113,8 @@ def stage_gain(
         In-contact samples: penetration over ``d_r``, normalised velocity, contact force.
     groups : numpy.ndarray
         The impact (0 .. n-1) of each sample; whole impacts are held out.
+    trained_dissipation : bool
+        Both laws carry a ``(delta/d_r) v`` term (the model's world has one).
 
     Returns
     -------
@@ -113,12 +125,14 @@ def stage_gain(
         no knee gives a stiffening law.
     """
     one = np.ones_like(dn)
+    extra = [dn * vn] if trained_dissipation else []
     power = min(
-        held_out_impact_sse(np.column_stack([dn**q, one, vn]), f, groups) for q in POWER_EXPONENTS
+        held_out_impact_sse(np.column_stack([dn**q, one, vn, *extra]), f, groups)
+        for q in POWER_EXPONENTS
     )
     best = (np.inf, 1.0, 0.0)
     for knee in STAGE_KNEES:
-        design = np.column_stack([dn, one, vn, np.maximum(dn - knee, 0.0)])
+        design = np.column_stack([dn, one, vn, np.maximum(dn - knee, 0.0), *extra])
         coef = np.linalg.lstsq(design, f, rcond=None)[0]
         if not (coef[0] > 0 and coef[3] > 0):
             continue  # a softening or a sign-flipped first stage is no two-stage restraint
@@ -190,6 +204,7 @@ def law_shape_gains(
     exponent: float = 1.0,
     min_samples: int = 3,
     min_impacts: int = 4,
+    trained_dissipation: bool = False,
 ) -> dict[str, float] | None:
     """Held-out-impact gain of each richer term over the training world's law.
 
@@ -203,6 +218,10 @@ def law_shape_gains(
         base exponent (Hertz's 1.5 from :data:`HERTZ_FROM_EXPONENT`, else 1).
     min_samples, min_impacts : int
         Fewest in-contact samples per impact, and impacts, to judge.
+    trained_dissipation : bool
+        The model's world has a ``(delta/d_r) v`` term (a learned Hunt-Crossley law): the
+        base law of the stiffening terms (``curvature``, ``stage``) carries it; the
+        ``penetration_dissipation`` gain is still read against the Kelvin-Voigt law.
 
     Returns
     -------
@@ -241,17 +260,23 @@ def law_shape_gains(
     sse_base = held_out_impact_sse(base, f, groups)
     if not sse_base > 0:
         return None
+    # the stiffening terms against the law the model knows
+    known = np.column_stack([base, dn * vn]) if trained_dissipation else base
+    sse_known = held_out_impact_sse(known, f, groups) if trained_dissipation else sse_base
     out: dict[str, float] = {}
     for name, term in RICHER_TERMS.items():
-        design = np.column_stack([base, term(dn, vn, q)])
-        out[name] = 1.0 - held_out_impact_sse(design, f, groups) / sse_base
+        against, sse_against = (base, sse_base) if name != "curvature" else (known, sse_known)
+        design = np.column_stack([against, term(dn, vn, q)])
+        out[name] = 1.0 - held_out_impact_sse(design, f, groups) / max(sse_against, 1e-300)
         # the term's coefficient against the base law's own (elastic for the curvature,
         # dissipative for delta v) at the reference penetration: its sign says stiffening
         # or softening, dissipation growing or shrinking with penetration
         coef = np.linalg.lstsq(design, f, rcond=None)[0]
         own = coef[0] if name == "curvature" else coef[2]
-        out[name + "_share"] = float(coef[3] / (abs(own) + abs(coef[3]) + 1e-300))
-    out["stage"], out["stage_ratio"], out["stage_knee"] = stage_gain(dn, vn, f, groups)
+        out[name + "_share"] = float(coef[-1] / (abs(own) + abs(coef[-1]) + 1e-300))
+    out["stage"], out["stage_ratio"], out["stage_knee"] = stage_gain(
+        dn, vn, f, groups, trained_dissipation
+    )
     out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     out["n_impacts"] = float(int(groups.max()) + 1)
     toe = onset_toe(disp, force, onset, min_impacts)
