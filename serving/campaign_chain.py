@@ -227,7 +227,10 @@ def chain_fitted_regardless(accel: Any, fs_hz: float, fn_hz: float, predictor: A
     from serving.restoring_force_check import restoring_force_check
 
     a = checked_recording(accel, fs_hz, fn_hz, predictor.window_periods, "recording")[0]
-    check = restoring_force_check(a, fs_hz, fn_hz, None, predictor.stage_ratio, fit_chain=True)
+    check = restoring_force_check(
+        a, fs_hz, fn_hz, None, predictor.stage_ratio, fit_chain=True,
+        penetration_dissipation=predictor.penetration_dissipation,
+    )  # fmt: skip
     return check.get("sensor")
 
 
