@@ -226,16 +226,10 @@ def trained_stage_ratio(priors: dict | None) -> tuple[float, float] | None:
     ``d_r``, a length in the model's units that a record of unknown gain cannot place, and a
     face's law acts on a penetration the map does not see: those keep the library's reading.
     """
-    for effect in (priors or {}).get("effects") or []:
-        if not isinstance(effect, dict) or effect.get("name") != "learned_contact":
-            continue
-        if not effect.get("probability", 1.0) > 0:
-            continue
-        params = effect.get("params") or {}
+    params = _learned_law(priors)
+    if params is not None:
         ratio = np.atleast_1d(np.asarray(params.get("knee_ratio", 1.0), dtype=float))
-        linear = np.all(np.atleast_1d(np.asarray(params.get("exponent", 1.0), float)) == 1.0)
-        faces = [np.asarray(params.get(k, 0.0), float) for k in ("face_mass", "face2_mass")]
-        if not linear or any(np.any(f > 0) for f in faces) or np.all(ratio == 1.0):
+        if not _slope_on_own_penetration(params) or np.all(ratio == 1.0):
             return None
         if not np.all(np.isfinite(ratio)) or np.any(ratio <= 0):
             return None
@@ -253,16 +247,26 @@ def trained_penetration_dissipation(priors: dict | None) -> bool:
     units, and a face's law acts on a penetration the map does not see)."""
     if PENETRATION_DISSIPATION not in trained_law_kinds(priors):
         return False
+    params = _learned_law(priors)
+    return params is not None and _slope_on_own_penetration(params)
+
+
+def _learned_law(priors: dict | None) -> dict | None:
+    """The parameters of the first ``learned_contact`` a model card's ``data.priors`` draws
+    (probability above 0), or None."""
     for effect in (priors or {}).get("effects") or []:
-        if not isinstance(effect, dict) or effect.get("name") != "learned_contact":
-            continue
-        if not effect.get("probability", 1.0) > 0:
-            continue
-        params = effect.get("params") or {}
-        linear = np.all(np.atleast_1d(np.asarray(params.get("exponent", 1.0), float)) == 1.0)
-        faces = [np.asarray(params.get(k, 0.0), float) for k in ("face_mass", "face2_mass")]
-        return bool(linear and not any(np.any(f > 0) for f in faces))
-    return False
+        if isinstance(effect, dict) and effect.get("name") == "learned_contact":
+            if effect.get("probability", 1.0) > 0:
+                return effect.get("params") or {}
+    return None
+
+
+def _slope_on_own_penetration(params: dict) -> bool:
+    """Whether a learned law's beta is a slope at first contact the map can read: a linear
+    leading term (``exponent`` 1) on the mass's own penetration (no face mass)."""
+    linear = np.all(np.atleast_1d(np.asarray(params.get("exponent", 1.0), float)) == 1.0)
+    faces = [np.asarray(params.get(k, 0.0), float) for k in ("face_mass", "face2_mass")]
+    return bool(linear and not any(np.any(f > 0) for f in faces))
 
 
 def _sensor_prior(priors: dict | None) -> dict | None:
