@@ -43,6 +43,8 @@ from typing import Any
 import numpy as np
 from scipy import ndimage, optimize, signal, sparse, stats
 
+from stiffnet.restoring_force.contact_law import force_unit
+
 #: Fine-grid oversampling of the pulse model (the chain as the analog one it discretises).
 OVERSAMPLE = 16
 #: Most impacts one fit uses (the largest); bounds the cost.
@@ -774,10 +776,8 @@ def fit_chain(
                          ring_hz, contact_hz)  # fmt: skip
     if win is None:
         return None
-    # in units of the windows' own scale (their rms), so the fit's tolerances (least_squares'
-    # gradient test) and the noise test do not depend on the record's unit: a power of two
-    # would be exact, but a unit a few times larger then stops the fit elsewhere
-    unit = float(np.sqrt(np.mean(win.r**2))) or 1.0
+    # in the windows' own unit, so the fit and the noise test do not depend on the record's
+    unit = force_unit(win.r)
     win.r = win.r / unit
     noise_sigma = None if noise_sigma is None else noise_sigma / unit
     search = _ChainSearch(win, fs_hz, natural_frequency_hz)

@@ -86,6 +86,13 @@ def contact_force(
     return np.where(d > 0, np.maximum(elastic + damping * np.asarray(vel), 0.0), 0.0)
 
 
+def force_unit(force: np.ndarray) -> float:
+    """The scale a map's fits run in: its force's rms (1 for none). least_squares' stopping
+    tests are absolute, so a fit in the record's own unit stops elsewhere in g than in m/s^2;
+    in this unit every record's fit stops at the same place."""
+    return float(np.sqrt(np.mean(np.square(force)))) or 1.0
+
+
 def linear_contact_start(
     force: np.ndarray, disp: np.ndarray, vel: np.ndarray, core: np.ndarray
 ) -> tuple[float, float, float]:
@@ -175,10 +182,9 @@ def fit_contact_law(
     -------
     ContactLaw
     """
-    # fitted in units of the force's own scale (its rms; the law is homogeneous: force,
-    # penetration and velocity scale together, K, c_c and p do not), so least_squares'
-    # stopping tests do not depend on the record's unit
-    unit = float(np.sqrt(np.mean(force[near] ** 2))) or 1.0
+    # the law is homogeneous: force, penetration and velocity scale together, K, c_c and p
+    # do not
+    unit = force_unit(force[near])
     f = force[near] / unit
     kc0, e0, cc0 = start
     e0 = e0 / unit

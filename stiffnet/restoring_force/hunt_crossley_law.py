@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, optimize
 
-from stiffnet.restoring_force.contact_law import ContactLaw
+from stiffnet.restoring_force.contact_law import ContactLaw, force_unit
 
 #: Onsets profiled for the start, as quantiles of the displacements near impacts (as
 #: :func:`~.contact_law.profile_contact_start`'s).
@@ -137,14 +137,17 @@ def fit_hunt_crossley_law(
     HuntCrossleyLaw
         The better of the fits from both starts.
     """
-    f, x, v = force[near], disp[near], vel[near]
+    # in the force's own unit (force, penetration and velocity scale together: K and c_c do
+    # not, the onset scales with them and h = K a inversely)
+    unit = force_unit(force[near])
+    f, x, v = force[near] / unit, disp[near] / unit, vel[near] / unit
 
     def residual(t: np.ndarray) -> np.ndarray:
         k = np.exp(t[0])
         return hunt_crossley_force(x, v, k, t[1], t[2], t[3] / k) - f
 
     lo, hi = [-np.inf, -np.inf, 0.0, 0.0], [np.inf] * 4
-    starts = [(start.stiffness, start.onset, start.damping, 0.0)]
+    starts = [(start.stiffness, start.onset / unit, start.damping, 0.0)]
     profiled = hunt_crossley_start(f, x, v)
     if profiled is not None:
         starts.append(profiled)
@@ -155,9 +158,10 @@ def fit_hunt_crossley_law(
                                      max_nfev=MAX_NFEV)  # fmt: skip
         if best is None or sol.cost < best.cost:
             best = sol
-    k, e, c, h = float(np.exp(best.x[0])), float(best.x[1]), float(best.x[2]), float(best.x[3])
-    sse = float(np.sum(best.fun**2))
-    tss = max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
+    k, c = float(np.exp(best.x[0])), float(best.x[2])
+    e, h = float(best.x[1]) * unit, float(best.x[3]) / unit
+    sse = float(np.sum(best.fun**2)) * unit**2
+    tss = max(float(np.sum((f - f.mean()) ** 2)) * unit**2, 1e-300)
     dr = start.reference_penetration
     share = h * dr / (c + h * dr) if c + h * dr > 0 else 0.0
     return HuntCrossleyLaw(k, e, c, h / k, float(share), 1.0 - sse / tss, sse, int(f.size))

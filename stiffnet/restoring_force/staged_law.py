@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
-from stiffnet.restoring_force.contact_law import ContactLaw, fit_contact_law
+from stiffnet.restoring_force.contact_law import ContactLaw, fit_contact_law, force_unit
 
 #: Significance level of the knee over one slope (F-test, one parameter): as the exponent's.
 STAGE_LEVEL = 1e-3
@@ -190,9 +190,7 @@ def _least_squares(
 ) -> optimize.OptimizeResult:
     """The two-stage law with ``ratio`` held fitted from ``theta0`` = ``(log K, e, c_c,
     log d_k)`` (the damping non-negative)."""
-    # in units of the force's own scale (its rms; force, penetration and velocity scale
-    # together), so the stopping tests do not depend on the record's unit
-    unit = float(np.sqrt(np.mean(f**2))) or 1.0
+    unit = force_unit(f)  # force, penetration and velocity scale together
     fu, xu, vu = f / unit, x / unit, v / unit
     # theta's onset and log knee are lengths; log K and c_c are ratios of scaled quantities
     to_unit = np.array([0.0, 0.0, 0.0, -np.log(unit)])
