@@ -51,6 +51,7 @@ from serving.restoring_force_check import (
     restoring_force_check,
 )
 from serving.verdict import model_facts, rule_checks, widened_interval
+from stiffnet import progress
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
@@ -283,11 +284,15 @@ class StiffnessLogger:
         if self.check_chain_known or not self.restoring_force_every:
             return
         self.scanning = True
-        for j, end in self._check_windows(record.size):
-            t = (j * self.hop + 0.5 * self.n_win) / self.fs
-            self.checks_ahead[j] = self._check(record[end - self.n_win : end], t)
-            if self.check_chain_known:
-                break
+        windows = list(self._check_windows(record.size))
+        # a line of its own: the log's bar waits at zero until the scan ends
+        with progress.task("looking for the sensor chain", total=len(windows)) as bar:
+            for j, end in windows:
+                t = (j * self.hop + 0.5 * self.n_win) / self.fs
+                self.checks_ahead[j] = self._check(record[end - self.n_win : end], t)
+                bar.advance()
+                if self.check_chain_known:
+                    break
         self.scanning = False
         if self.found_late is None:
             return

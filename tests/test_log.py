@@ -429,6 +429,34 @@ def test_a_chain_found_after_the_records_start_is_held_and_said(predictor):
     assert not log.warnings
 
 
+def test_the_whole_records_chain_scan_shows_its_own_progress(predictor):
+    """The scan for a chain runs every check before the log's first point: a progress line
+    of its own counts them (the log's bar would otherwise wait at zero, silent)."""
+    from stiffnet import progress
+
+    class Lines:
+        def __init__(self):
+            self.lines = {}
+
+        def add_task(self, description, total=None, **fields):
+            self.lines[description] = {"total": total, "done": 0}
+            return description
+
+        def update(self, task_id, advance=0, **kwargs):
+            self.lines[task_id]["done"] += advance
+
+        def remove_task(self, task_id):
+            pass
+
+    clean, _ = layered_record([12.0], [30.0], seed=3)  # no chain: every check is run
+    log = StiffnessLogger(predictor, FS, FN_HZ, restoring_force_every_s=5.0)
+    lines = Lines()
+    with progress.reporting(lines):
+        log.scan_chain(clean)
+    scan = lines.lines["looking for the sensor chain"]
+    assert scan["total"] == len(log.checks_ahead) == scan["done"] >= 4
+
+
 @pytest.mark.slow
 def test_a_whole_records_log_reads_it_through_a_chain_its_start_did_not_show(predictor):
     """Soft then hard rock behind a 94.8 Hz mount (10 f_n) and a 120 Hz 3rd-order low-pass:
