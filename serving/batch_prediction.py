@@ -515,21 +515,7 @@ def _campaign_chain(
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
-
-    def identify(i: int) -> dict | None:
-        fs, fn, columns, time_unit, channel, _ = settings[i]
-        try:
-            rec = read_recording(paths[i], fs_hz=fs, channel=channel, columns=columns,
-                                 time_unit=time_unit)  # fmt: skip
-            if fn is None:
-                fn = record_natural_frequency(paths[i], None)[0]
-            return chain_fitted_regardless(rec.accel, rec.fs_hz, fn, predictor)
-        except StiffnetError:  # the first round already reported this recording's fault
-            return None
-
-    sheets = [sheet for *_, sheet in settings]
-    chain = identify_regardless(sensors, paths, sheets, identify)[0]
-    read: dict[int, tuple | None] = {}  # each recording read once for the corner's profile
+    read: dict[int, tuple | None] = {}  # each recording read once for both fits below
 
     def recording(i: int) -> tuple | None:
         if i not in read:
@@ -539,9 +525,19 @@ def _campaign_chain(
                                      time_unit=time_unit)  # fmt: skip
                 fn = record_natural_frequency(paths[i], None)[0] if fn is None else fn
                 read[i] = (rec.accel, rec.fs_hz, fn)
-            except StiffnetError:
+            except StiffnetError:  # the first round already reported this recording's fault
                 read[i] = None
         return read[i]
+
+    def identify(i: int) -> dict | None:
+        rec = recording(i)
+        try:
+            return None if rec is None else chain_fitted_regardless(*rec, predictor)
+        except StiffnetError:
+            return None
+
+    sheets = [sheet for *_, sheet in settings]
+    chain = identify_regardless(sensors, paths, sheets, identify)[0]
 
     def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
         rec = recording(i)
