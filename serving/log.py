@@ -514,7 +514,7 @@ class StiffnessLogger:
         point["beta_interval"] = spread_by(point["beta_interval"], point["spread"])
         point["alarm"] = list(alarm["fired"]) if alarm is not None else []
         if alarm is not None and alarm["flag"] and point["contact"]:
-            wide, said = widened_interval(point["beta_interval"], restoring_force)
+            wide, said = widened_interval(point["beta_interval"], restoring_force, self.facts)
             if said:
                 point["beta_interval"] = wide
                 self.n_widened += 1
