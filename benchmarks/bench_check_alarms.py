@@ -4,8 +4,9 @@ What ``stiffnet evaluate`` reads through the predictor (the campaign's pooled se
 and the campaign-level ``campaign_law`` decision included), without the reading by
 simulation: per recording the model's class and beta, the check's beta, interval and
 whether it covers the manifest's, the checks that fired and the ``contact_law`` reasons;
-then the honesty figures: right answers flagged, wrong answers without an alarm, the check's
-coverage, accuracy and beta MAPE, and the CPU seconds.
+then the honesty figures: right answers flagged, wrong answers without an alarm, how many
+answers' beta intervals (widened where flagged) cover the truth, the check's coverage, accuracy
+and beta MAPE, and the CPU seconds.
 
 Run (a campaign with ``beta`` in its manifest; ``shipped`` for the predictor's default)::
 
@@ -76,6 +77,10 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "wrong": len(wrong),
         "wrong_silent": sum(not r["flag"] for r in wrong),
         "contact_law_fired": sum("contact_law" in r["fired"] for r in rows),
+        "answer_covers": sum(
+            bool(r["beta_interval"]) and r["beta_interval"][0] <= r["beta"] <= r["beta_interval"][1]
+            for r in rows
+        ),  # fmt: skip
         "check_covers": sum(bool(r["covers"]) for r in rows),
         "check_read": len(read),
         "check_accuracy": sum(r["check_class"] == r["true_class"] for r in rows) / len(rows),

@@ -567,7 +567,7 @@ class StiffnessLogger:
         }
         if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
             # a flagged layer is a flagged recording: its interval behind the alarm, as predict's
-            wide, said = widened_interval(interval, layer["restoring_force"])
+            wide, said = widened_interval(interval, layer["restoring_force"], self.facts)
             if said:
                 layer["beta_interval"] = wide
                 self.widened_layers.append(layer["index"])

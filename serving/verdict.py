@@ -5,7 +5,8 @@ The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
 :func:`stiffnet.uncertainty.alarm_verdict.alarm_verdict`) are evaluated by the caller on its
 windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
 against its own beta, the restoring-force cross-check against the model (disjoint intervals,
-another class, stretched contacts, a refusal behind a chain outside the priors), a contact
+another class, a class neither reading places beta in, stretched contacts, a refusal behind a
+chain outside the priors), beta behind a learned face the record cannot resolve, a contact
 law the training world lacks, a restraint that rings within its contacts, and the identified
 sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
