@@ -141,7 +141,9 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
         after.append(bool(res["ood_flag"]))
         prior.append(others or (judged and bool(unseen_law_reasons(rf, before))))
         details.append({"class": res["class"], "true_class": r["class"], "beta": res["beta"],
-                        "true_beta": r["beta"], "fired": fired, "restoring_force": rf})  # fmt: skip
+                        "true_beta": r["beta"], "beta_interval": res["beta_interval"],
+                        "fired": fired, "scores": (res["alarm"] or {}).get("scores"),
+                        "restoring_force": rf})  # fmt: skip
     w, a, b = np.array(wrong), np.array(after), np.array(prior)
     flagged, campaign = campaign_law_alarms(results)  # the set read as one rig's campaign
     c = np.array([bool(res["ood_flag"]) for res in flagged])

@@ -4,8 +4,9 @@ What ``stiffnet evaluate`` reads through the predictor (the campaign's pooled se
 and the campaign-level ``campaign_law`` decision included), without the reading by
 simulation: per recording the model's class and beta, the check's beta, interval and
 whether it covers the manifest's, the checks that fired and the ``contact_law`` reasons;
-then the honesty figures: right answers flagged, wrong answers without an alarm, the check's
-coverage, accuracy and beta MAPE, and the CPU seconds.
+then the honesty figures: right answers flagged, wrong answers without an alarm, how many
+answers' beta intervals (widened where flagged) cover the truth, the check's coverage, accuracy
+and beta MAPE, and the CPU seconds.
 
 Run (a campaign with ``beta`` in its manifest; ``shipped`` for the predictor's default)::
 
@@ -47,12 +48,14 @@ def recording_row(row: Any, result: dict[str, Any], seen: frozenset[str]) -> dic
         "true_class": true_class(row.beta, True),
         "class": result.get("class"),
         "beta_estimate": result.get("beta"),
+        "beta_interval": result.get("beta_interval"),
         "check_beta": rf.get("beta"),
         "check_interval": iv,
         "check_class": rf.get("class"),
         "covers": None if not iv else bool(iv[0] <= row.beta <= iv[1]),
         "fired": list(alarm.get("fired") or []),
         "flag": bool(alarm.get("flag")),
+        "scores": alarm.get("scores"),
         "contact_law": unseen_law_reasons(rf, seen=seen) if rf.get("class") else None,
         "hunt_crossley": rf.get("hunt_crossley"),
     }
@@ -74,6 +77,10 @@ def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "wrong": len(wrong),
         "wrong_silent": sum(not r["flag"] for r in wrong),
         "contact_law_fired": sum("contact_law" in r["fired"] for r in rows),
+        "answer_covers": sum(
+            bool(r["beta_interval"]) and r["beta_interval"][0] <= r["beta"] <= r["beta_interval"][1]
+            for r in rows
+        ),  # fmt: skip
         "check_covers": sum(bool(r["covers"]) for r in rows),
         "check_read": len(read),
         "check_accuracy": sum(r["check_class"] == r["true_class"] for r in rows) / len(rows),

@@ -519,7 +519,7 @@ class StiffnessLogger:
         point["beta_interval"] = spread_by(point["beta_interval"], point["spread"])
         point["alarm"] = list(alarm["fired"]) if alarm is not None else []
         if alarm is not None and alarm["flag"] and point["contact"]:
-            wide, said = widened_interval(point["beta_interval"], restoring_force)
+            wide, said = widened_interval(point["beta_interval"], restoring_force, self.facts)
             if said:
                 point["beta_interval"] = wide
                 self.n_widened += 1
@@ -572,7 +572,7 @@ class StiffnessLogger:
         }
         if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
             # a flagged layer is a flagged recording: its interval behind the alarm, as predict's
-            wide, said = widened_interval(interval, layer["restoring_force"])
+            wide, said = widened_interval(interval, layer["restoring_force"], self.facts)
             if said:
                 layer["beta_interval"] = wide
                 self.widened_layers.append(layer["index"])

@@ -387,7 +387,8 @@ class Predictor:
         interval = spread_interval(interval, others)
         if alarm is not None and alarm["flag"]:
             warnings.append(alarm["message"])
-            interval = self._interval_behind_alarm(interval, restoring_force, warnings)
+            interval = self._interval_behind_alarm(interval, restoring_force, warnings,
+                                                   model_facts(self))  # fmt: skip
         if weak := weak_restoring_force_fit(restoring_force):
             warnings.append(weak)
         result = self._result(reading, interval, restoring_force, alarm)
@@ -517,11 +518,14 @@ class Predictor:
 
     @staticmethod
     def _interval_behind_alarm(
-        interval: list[float] | None, restoring_force: dict[str, Any], warnings: list[str]
+        interval: list[float] | None,
+        restoring_force: dict[str, Any],
+        warnings: list[str],
+        model: dict[str, Any] | None = None,
     ) -> list[float] | None:
-        """A flagged recording's beta interval spans the restoring-force one too
-        (:func:`serving.verdict.widened_interval`), said in a warning."""
-        wide, said = widened_interval(interval, restoring_force)
+        """A flagged recording's beta interval spans the restoring-force one too, and what a
+        learned face allows (:func:`serving.verdict.widened_interval`), said in a warning."""
+        wide, said = widened_interval(interval, restoring_force, model)
         if said:
             warnings.append(said)
         return wide

@@ -5,7 +5,8 @@ The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
 :func:`stiffnet.uncertainty.alarm_verdict.alarm_verdict`) are evaluated by the caller on its
 windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
 against its own beta, the restoring-force cross-check against the model (disjoint intervals,
-another class, stretched contacts, a refusal behind a chain outside the priors), a contact
+another class, a class neither reading places beta in, stretched contacts, a refusal behind a
+chain outside the priors), beta behind a learned face the record cannot resolve, a contact
 law the training world lacks, a restraint that rings within its contacts, and the identified
 sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
@@ -23,11 +24,18 @@ from stiffnet.uncertainty.alarm_verdict import (
     restoring_force_gap,
     with_chain_refusal_check,
     with_class_beta_check,
+    with_class_contested_check,
     with_restoring_force_check,
     with_restoring_force_checks,
+    with_rule_check,
     with_sensor_fit_check,
 )
 from stiffnet.uncertainty.conformal import interval_behind_alarm
+from stiffnet.uncertainty.face_identifiability import (
+    FACE_CLASS_THRESHOLD,
+    FACE_IDENTIFIABILITY,
+    face_class_share,
+)
 from stiffnet.uncertainty.restraint_dynamics import with_restraint_dynamics_check
 from stiffnet.uncertainty.unseen_law import trained_law_kinds, with_unseen_law_check
 
@@ -80,6 +88,9 @@ def rule_checks(
     names, edges = model["class_names"], model.get("class_edges")
     gap = class_beta_gap(head_class or class_name, interval, names, edges)
     alarm = with_class_beta_check(alarm, gap)
+    face = face_class_share(class_name, interval, model.get("priors"), names, edges)
+    alarm = with_rule_check(alarm, FACE_IDENTIFIABILITY, None if face is None else face[0],
+                            FACE_CLASS_THRESHOLD)  # fmt: skip
     if restoring_force is None:
         return alarm
     gap = restoring_force_gap(
@@ -87,6 +98,7 @@ def rule_checks(
     )
     alarm = with_restoring_force_check(alarm, gap)
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
+    alarm = with_class_contested_check(alarm, class_name, interval, restoring_force, names, edges)
     priors = model.get("priors")
     seen = trained_law_kinds(priors)
     alarm = with_unseen_law_check(alarm, restoring_force, seen)
@@ -100,22 +112,42 @@ def rule_checks(
 
 
 def widened_interval(
-    interval: list[float] | None, restoring_force: dict[str, Any] | None
+    interval: list[float] | None,
+    restoring_force: dict[str, Any] | None,
+    model: dict[str, Any] | None = None,
 ) -> tuple[list[float] | None, str | None]:
-    """A flagged answer's beta interval, spanning a close-fitting restoring-force interval too,
+    """A flagged answer's beta interval, spanning a close-fitting restoring-force interval and,
+    for a model trained behind a learned face (`model`: :func:`model_facts`), the betas the
+    face allows over it (:func:`~stiffnet.uncertainty.face_identifiability.face_beta_interval`),
     and the warning that says so (None when it is not wider)."""
-    if restoring_force is None:
-        return interval, None
-    wide = interval_behind_alarm(
-        interval,
-        restoring_force["beta_interval"],
-        restoring_force.get("contact_r2"),
-        RESTORING_FORCE_MIN_R2,
-    )
+    wide = interval
+    if restoring_force is not None:
+        wide = interval_behind_alarm(
+            interval,
+            restoring_force["beta_interval"],
+            restoring_force.get("contact_r2"),
+            RESTORING_FORCE_MIN_R2,
+        )
+    behind_face = _face_allowed(interval, model)
+    if wide and behind_face:
+        wide = [min(wide[0], behind_face[0]), max(wide[1], behind_face[1])]
     if not (wide and interval and wide != list(interval)):
         return wide, None
+    why = "the restoring-force interval"
+    if behind_face and list(behind_face) != list(interval):
+        why = "the betas the learned face allows (beta is barely identifiable behind it)"
     return wide, (
         f"the beta interval [{interval[0]:.3g}, {interval[1]:.3g}] is widened to "
-        f"[{wide[0]:.3g}, {wide[1]:.3g}] to span the restoring-force interval: the alarm "
+        f"[{wide[0]:.3g}, {wide[1]:.3g}] to span {why}: the alarm "
         "says the model's calibration does not hold for this recording"
     )
+
+
+def _face_allowed(interval: list[float] | None, model: dict[str, Any] | None) -> list[float] | None:
+    """The betas a learned face allows over the model's interval (None without a face)."""
+    if not model or not interval:
+        return None
+    edges = model.get("class_edges")
+    top = [n for n in model["class_names"] if n != "no_contact"][-1]
+    face = face_class_share(top, interval, model.get("priors"), model["class_names"], edges)
+    return None if face is None else face[1]

@@ -133,6 +133,35 @@ def test_restoring_force_class_share_is_the_log_share_outside_the_models_class()
     assert share("hard", rf, NAMES, EDGES[:-1]) is None
 
 
+def test_a_class_both_readings_leave_open_toward_the_checks_class_is_flagged():
+    """The Hunt-Crossley loop's two silent misses: beta 15 read 13.5 soft [12.0, 15.1] against
+    the check's [14.0, 26.8] (0.89 of it medium, below the 0.9 of restoring_force_class), and
+    beta 61 read 57.2 hard [51.5, 63.5] against [52.7, 70.4] (0.55 very hard)."""
+    from serving.verdict import rule_checks
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": None}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+
+    def fired(cls, interval, check):
+        rf = {"class": "x", "beta_interval": check, "contact_r2": 0.99, "beta": 1.0}
+        return rule_checks(quiet, cls, interval, rf, model, 1000.0, 9.48)["fired"]
+
+    assert fired("soft", [12.0, 15.1], [14.0, 26.8]) == ["class_contested"]
+    assert fired("hard", [51.5, 63.5], [52.7, 70.4]) == ["class_contested"]
+    # the model's interval stays inside its class: it excludes the other class on its own
+    assert fired("soft", [12.0, 14.9], [14.0, 26.8]) == []
+    # most of the check's interval in the model's class (a right beta 55 read 55.8 [51.4,
+    # 60.6] against [50.3, 68.8]: 0.44 outside), or inside it
+    assert fired("hard", [51.4, 60.6], [50.3, 68.8]) == []
+    assert fired("hard", [45.0, 62.0], [46.0, 58.0]) == []
+    # wholly outside: restoring_force_class's (and the disjoint intervals' restoring_force)
+    assert fired("soft", [12.0, 15.1], [16.0, 26.8]) == ["restoring_force", "restoring_force_class",
+                                                         "class_contested"]  # fmt: skip
+    # a loose fit is no evidence
+    rf = {"class": "medium", "beta_interval": [14.0, 26.8], "contact_r2": 0.9, "beta": 1.0}
+    assert rule_checks(quiet, "soft", [12.0, 15.1], rf, model, 1e3, 9.48)["fired"] == []
+
+
 def test_contact_duration_excess_fires_beyond_twice_the_half_period():
     from stiffnet.uncertainty.alarm_verdict import (
         ALARM_WORDS,

@@ -49,6 +49,13 @@ ALARM_WORDS = {
     "(an exponent neither linear nor Hertz, or dissipation growing with penetration)",
     "restoring_force_class": "the restoring-force cross-check (a close contact-law fit) puts "
     "its beta interval (almost) wholly in another class (the model's class is likely wrong)",
+    "class_contested": "the restoring-force cross-check puts most of its beta interval in "
+    "another class, and the model's own interval reaches into that class: neither reading "
+    "places beta in the model's class",
+    "face_identifiability": "the model was trained behind a learned restraint face: the record "
+    "carries the contact in series with the face's support, whose stiffness the training world "
+    "leaves free within its prior, and most of the betas that allows over the model's interval "
+    "lie in other classes (beta is not identifiable there; the interval spans them)",
     "sensor_fit": "the impacts fit a sensor low-pass far below the chains the model was trained "
     "on (the restoring-force map did not undo it, yet it reshapes what the model reads)",
     "chain_refusal": "the restoring-force cross-check refused because the sensor's low-pass "
@@ -246,6 +253,82 @@ def restoring_force_class_share(
         return None
     inside = max(0.0, math.log(min(hi, high[i]) / max(lo, low[i]))) if hi > low[i] else 0.0
     return 1.0 - min(1.0, inside / math.log(hi / lo))
+
+
+#: The class_contested check fires when more than half (in log beta) of a close-fitting
+#: restoring-force interval lies outside the model's class and the model's own interval
+#: reaches into the class holding most of it: a majority, not a tuned level.
+CLASS_CONTESTED_THRESHOLD = 0.5
+
+
+def _class_bounds(class_names: list[str], edges: Any) -> tuple[list[str], list[float], list[float]]:
+    """The contact classes and their beta ranges, open at both ends (as
+    :func:`class_beta_gap`); empty when the edges do not match the classes."""
+    names = [c for c in class_names if c != "no_contact"]
+    if not isinstance(edges, list | tuple) or len(edges) != len(names) + 1:
+        return [], [], []
+    inner = [float(e) for e in edges[1:-1]]
+    return names, [0.0, *inner], [*inner, math.inf]
+
+
+def class_contested_share(
+    class_name: str,
+    interval: list[float] | None,
+    restoring_force: dict[str, Any],
+    class_names: list[str],
+    edges: Any,
+) -> float | None:
+    """Share (in log beta) of the restoring-force interval outside the model's class, where the
+    model's own interval reaches into the class that holds most of it; 0 where it does not.
+
+    Two independent readings of beta, each with its ~90 % interval: where the restoring-force
+    reading (a close contact-law fit) puts most of its interval in another class and the
+    model's interval does not exclude that class, neither reading places beta in the model's
+    class, and the evidence of both leans the other way: the class is contested, however close
+    to the edge. Where the model's interval stays inside its class the model has excluded the
+    other class on its own, and the check says nothing
+    (:func:`restoring_force_class_share` judges the restoring-force interval alone). None
+    under the same conditions as that check, or without the model's interval.
+
+    Parameters
+    ----------
+    class_name : str
+        The model's class.
+    interval : list of float, optional
+        The model's beta interval ``[lo, hi]``.
+    restoring_force : dict
+        The cross-check: ``class``, ``beta_interval``, ``contact_r2``.
+    class_names : list of str
+        The model's classes, ``no_contact`` (if any) then the contact classes in beta order.
+    edges : list of float
+        The contact classes' beta edges ``[lo, e1, ..., hi]``.
+    """
+    share = restoring_force_class_share(class_name, restoring_force, class_names, edges)
+    names, low, high = _class_bounds(class_names, edges)
+    if share is None or not interval or not names:
+        return None
+    lo_m, hi_m = (float(v) for v in interval)
+    lo, hi = (float(v) for v in restoring_force["beta_interval"])
+    if not 0 < lo_m <= hi_m:
+        return None
+    parts = [math.log(min(hi, h) / max(lo, w)) if min(hi, h) > max(lo, w) else 0.0
+             for w, h in zip(low, high, strict=True)]  # fmt: skip
+    other = int(np.argmax(parts))
+    reaches = hi_m > low[other] and lo_m < high[other]
+    return share if names[other] != class_name and reaches else 0.0
+
+
+def with_class_contested_check(
+    alarm: dict[str, Any] | None,
+    class_name: str,
+    interval: list[float] | None,
+    restoring_force: dict[str, Any],
+    class_names: list[str],
+    edges: Any,
+) -> dict[str, Any] | None:
+    """The alarm with the class_contested check added (:func:`class_contested_share`)."""
+    share = class_contested_share(class_name, interval, restoring_force, class_names, edges)
+    return with_rule_check(alarm, "class_contested", share, CLASS_CONTESTED_THRESHOLD)
 
 
 def contact_duration_excess(restoring_force: dict[str, Any]) -> float | None:
