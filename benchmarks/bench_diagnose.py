@@ -25,6 +25,14 @@ their statistics and discrepancies) the way every evaluation ran before
 evaluation now (rows batched per sampling rate, inclinations left out; the best
 point of each fit is scored with them).
 
+``--statistics``: the statistics alone, per record, instead of a diagnosis: CPU
+milliseconds per record of ``batch_signal_statistics`` on one evaluation's simulated rows
+(the campaign's rows with contact damping 0.2), inclinations left out and included, and of
+the geometric estimate they come from (``geometric_estimate`` in three dimensions, no
+calibration), each the best of ``--rounds`` rounds in a fresh process; with ``--baseline
+DIR`` the same with DIR's code, the two alternating (before, now, before, now, ...), and the
+largest difference of their statistics (the answers must not change).
+
 ``--baseline DIR`` runs the same diagnosis on the same campaign with the code of another
 checkout (e.g. ``git archive`` of the commit before) in a fresh process after this one,
 and prints the wall-time ratio: a before/after measured in the same run.
@@ -57,6 +65,8 @@ Run (from the repository root, so this checkout's package is imported)::
         [--workers N] [--fast-only] [--no-inclination] [--duration S] [--baseline DIR]
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py --workers 0 \
         --rig ideal,damped_sensor,harmonics --subset 8,24 [--rig-dir /tmp/rig]
+    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py --statistics \
+        [--baseline DIR] [--rounds 3]
 """
 
 from __future__ import annotations
@@ -85,7 +95,7 @@ from stiffnet.measurement.discrepancy import normalised_differences, recording_d
 from stiffnet.measurement.loop import cpu_seconds
 from stiffnet.measurement.nuisance import resolve_rows
 from stiffnet.measurement.statistics import signal_statistics
-from stiffnet.measurement.target import CampaignTarget, measured_statistics
+from stiffnet.measurement.target import DEFAULT_SEED, CampaignTarget, measured_statistics
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from stage_timeline import StageTimeline, label_stages  # noqa: E402
@@ -355,6 +365,93 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 """
 
 
+STATISTICS = """
+import json, pickle, sys, time
+import numpy as np
+from stiffnet.geometry.estimate import geometric_estimate
+from stiffnet.measurement.statistics import batch_signal_statistics
+records, fs, fn, ratio = pickle.load(open(sys.argv[1], "rb"))
+repeats = int(sys.argv[2])
+
+def cpu_ms(fn):
+    fn()  # warm: imports, filter designs, kept operators
+    t = time.process_time()
+    for _ in range(repeats):
+        fn()
+    return (time.process_time() - t) / repeats / len(records) * 1e3
+
+def geometry():
+    for a, f in zip(records, fs):
+        try:
+            geometric_estimate((a - a.mean()) / a.std(), f, dimension=3, calibration=None)
+        except Exception:
+            pass
+
+out = {
+    "without": cpu_ms(lambda: batch_signal_statistics(records, fs, fn, ratio, inclination=False)),
+    "with": cpu_ms(lambda: batch_signal_statistics(records, fs, fn, ratio, inclination=True)),
+    "geometry": cpu_ms(geometry),
+}
+stats = batch_signal_statistics(records, fs, fn, ratio, inclination=True)
+out["values"] = [None if s is None else [np.nan if v is None else v for v in s.scalars().values()]
+                 + list(s.log_psd) + list(s.waveform) for s in stats]
+print(json.dumps(out))
+"""
+
+
+def statistics_table(args: argparse.Namespace) -> None:
+    """``--statistics``: CPU per record of the statistics of one evaluation's simulated rows,
+    this checkout against ``--baseline`` alternately (see the module notes)."""
+    import pickle
+    import subprocess
+
+    with tempfile.TemporaryDirectory() as d:
+        camp = load_campaign(campaign(Path(d), args.duration, args.rows))
+        rows, _ = resolve_rows(camp)
+        _, lengths, _ = measured_statistics(camp, rows, False)
+        model = [effect_class("contact_damping")(damping_ratio=0.2)]
+        sims = simulate_rows(rows, model, lengths, DEFAULT_SEED, FIT_SETTINGS)
+        blob = Path(d) / "records.pkl"
+        blob.write_bytes(pickle.dumps((sims, [r.fs_hz for r in rows],
+                                       [natural_frequency(r) for r in rows],
+                                       [r.frequency_ratio for r in rows])))  # fmt: skip
+        codes = {"now": str(ROOT)} | ({"before": args.baseline} if args.baseline else {})
+        best: dict[str, dict] = {}
+        load0 = os.getloadavg()[0]
+        for _ in range(args.rounds):
+            for name, code in sorted(codes.items()):  # "before" first
+                env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
+                cmd = [sys.executable, "-c", STATISTICS, str(blob), "5"]
+                out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True,
+                                     cwd=code)  # fmt: skip
+                res = json.loads(out.stdout.strip().splitlines()[-1])
+                keep = best.setdefault(name, res)
+                for k in ("without", "with", "geometry"):
+                    keep[k] = min(keep[k], res[k])
+        load1 = os.getloadavg()[0]
+    print(f"{len(sims)} records, {args.duration:g} s each; best of {args.rounds} rounds of 5 "
+          f"batches, CPU; load {load0:.2f} -> {load1:.2f}")  # fmt: skip
+    print(
+        "| code | statistics, inclinations left out, ms/record | with inclinations | "
+        "inclinations' share (with - without) | geometric estimate alone |\n|---|---|---|---|---|"
+    )
+    for name in sorted(best):
+        b = best[name]
+        print(f"| {name} | {b['without']:.2f} | {b['with']:.2f} | {b['with'] - b['without']:.2f} "
+              f"| {b['geometry']:.2f} |")  # fmt: skip
+    if "before" in best:
+        pairs = list(zip(best["before"]["values"], best["now"]["values"], strict=True))
+        alike = [(a is None) == (b is None) and (a is None or len(a) == len(b)) for a, b in pairs]
+        diffs = [
+            np.nanmax(np.abs(np.subtract(a, b, dtype=float)))
+            for (a, b), ok in zip(pairs, alike, strict=True)
+            if ok and a is not None
+        ]
+        same = sum(alike)
+        print(f"statistics before vs now: {same}/{len(sims)} records alike in shape, largest "
+              f"difference of any value {max(diffs, default=0.0):.2e}")  # fmt: skip
+
+
 def baseline_run(code: str, folder: Path, args: argparse.Namespace) -> dict:
     """The same diagnosis with another checkout's code (``code``: its root), in a fresh
     process on the same campaign folder: the before of a before/after in one run."""
@@ -388,6 +485,9 @@ def main() -> None:
                     "8,24 (24: the search on every recording)")  # fmt: skip
     ap.add_argument("--timeline", action="store_true", help="also print each stage's wall "
                     "time, this process's and the workers' CPU (stage_timeline.py)")  # fmt: skip
+    ap.add_argument("--statistics", action="store_true", help="the statistics per record "
+                    "(--baseline: before and now alternately), no diagnosis")  # fmt: skip
+    ap.add_argument("--rounds", type=int, default=3, help="--statistics: rounds per code (3)")
     ap.add_argument(
         "--polish",
         type=int,
@@ -406,6 +506,9 @@ def main() -> None:
         diagnose.POLISH_EVALUATIONS = args.polish
     if args.rig:
         rig_table(args)
+        return
+    if args.statistics:
+        statistics_table(args)
         return
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()

@@ -32,6 +32,22 @@ def test_savgol_keeps_quadratics_and_reduces_noise():
     assert residual.std() < 0.5 * 0.1
 
 
+@pytest.mark.parametrize(("window", "order"), [(5, 2), (17, 2), (101, 2), (33, 3), (9, 0)])
+def test_savgol_is_scipys_interp_mode_to_rounding(window, order):
+    """The kept edge operators give scipy's mode="interp" (a polynomial fitted to each end's
+    window): the interior bit for bit, the edges to rounding."""
+    from scipy.signal import savgol_filter
+
+    x = spiky(3.0, noise=0.2)[:1000] + 1e-3 * (T[:1000] - 400.0) ** 2
+    got, want = savgol_smooth(x, window, order), savgol_filter(x, window, order, mode="interp")
+    half = window // 2
+    np.testing.assert_array_equal(got[half:-half], want[half:-half])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * np.abs(want).max())
+    # a quadratic's ends are the quadratic itself
+    q = 1e-2 * (T[:200] - 30.0) ** 2
+    np.testing.assert_allclose(savgol_smooth(q, window, max(order, 2)), q, atol=1e-9)
+
+
 def test_savgol_rejects_even_window():
     with pytest.raises(ConfigError, match="odd"):
         savgol_smooth(SINE, 10)

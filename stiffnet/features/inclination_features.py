@@ -162,6 +162,46 @@ def _moments(z: np.ndarray) -> tuple[float, float]:
     return float(np.mean(z**3)), float(np.mean(z**4) - 3.0)
 
 
+def window_geometry(
+    accel: ArrayLike,
+    fs_hz: float,
+    calibration: GeometricCalibration | str | Path | None = None,
+) -> tuple[np.ndarray, GeometricResult | None]:
+    """The standardised window and the geometric estimate the features are read from.
+
+    Parameters
+    ----------
+    accel : array_like
+        Acceleration window (any gain, either polarity).
+    fs_hz : float
+        Sampling rate in Hz.
+    calibration : GeometricCalibration, path, "default" or None, optional
+        Passed to :func:`geometric_estimate`.
+
+    Returns
+    -------
+    standardised : numpy.ndarray
+        The window with zero mean and unit standard deviation.
+    estimate : GeometricResult or None
+        :func:`geometric_estimate` in :data:`EMBEDDING_DIMENSION` dimensions; None if it
+        raised :class:`SignalError`.
+
+    Raises
+    ------
+    SignalError
+        If the window is not a finite, non-constant 1-D signal of at least 32 samples.
+    """
+    a = as_signal(accel, 32, "acceleration")
+    a = (a - a.mean()) / a.std()
+    try:
+        est = geometric_estimate(
+            a, float(fs_hz), dimension=EMBEDDING_DIMENSION, calibration=calibration
+        )
+    except SignalError:
+        est = None
+    return a, est
+
+
 def features_and_estimate(
     accel: ArrayLike,
     fs_hz: float,
@@ -194,17 +234,8 @@ def features_and_estimate(
     SignalError
         If the window is not a finite, non-constant 1-D signal of at least 32 samples.
     """
-    a = as_signal(accel, 32, "acceleration")
-    a = (a - a.mean()) / a.std()
+    a, est = window_geometry(accel, fs_hz, calibration)
     f = np.array([FILL_VALUES[n] for n in FEATURE_NAMES], dtype=np.float64)
-
-    est: GeometricResult | None
-    try:
-        est = geometric_estimate(
-            a, float(fs_hz), dimension=EMBEDDING_DIMENSION, calibration=calibration
-        )
-    except SignalError:
-        est = None
 
     skew, kurt = _moments(a)
     f[_INDEX["kurtosis"]] = kurt

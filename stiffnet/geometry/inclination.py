@@ -140,32 +140,69 @@ def impact_regions(impact: ArrayLike, merge_gap: int = 0) -> tuple[np.ndarray, n
     return starts, stops
 
 
+@dataclass(frozen=True)
+class _OrbitSets:
+    """The tangent sets of every complete orbit, flat: ``approach[approach_orbit == k]`` are
+    orbit k's approach tangents (ascending), ``hits[hit_orbit == k]`` its impact tangents;
+    ``starts``, ``stops``: its impact region."""
+
+    approach: np.ndarray
+    approach_orbit: np.ndarray
+    hits: np.ndarray
+    hit_orbit: np.ndarray
+    starts: np.ndarray
+    stops: np.ndarray
+
+    @property
+    def n_orbits(self) -> int:
+        return int(self.starts.size)
+
+
+def _ranges(first: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``first[k] .. first[k] + count[k] - 1`` for every k, concatenated, and each entry's k."""
+    which = np.repeat(np.arange(first.size), count)
+    offset = np.cumsum(count) - count
+    return first[which] + np.arange(which.size) - offset[which], which
+
+
 def _orbit_sets(
     contact: np.ndarray, impact: np.ndarray, approach: int, merge_gap: int
-) -> list[tuple[np.ndarray, np.ndarray, int, int]]:
-    """(approach indices, impact indices, start, stop) for each complete orbit."""
+) -> _OrbitSets:
+    """The approach and impact tangents of each complete orbit, every orbit at once.
+
+    An orbit is an impact region (:func:`impact_regions`) that the window does not cut,
+    with at least two impact tangents (a lone one is a noise spike) and an approach: the
+    last `approach` free-flight tangents after the previous region and before this one,
+    at least :data:`_MIN_POINTS` of them, the last within `approach` tangents of the
+    region (the free flight just before it).
+    """
     if contact.shape != impact.shape or contact.ndim != 1:
         raise SignalError("contact and impact masks must be 1-D and of the same length")
     approach = check_int(approach, "approach", _MIN_POINTS)
     starts, stops = impact_regions(impact, merge_gap)
-    free = ~contact
-    out = []
-    prev_stop = 0
-    for start, stop in zip(starts, stops, strict=True):
-        lo = prev_stop
-        prev_stop = stop
-        if stop >= impact.size:  # region cut by the end of the window
-            break
-        cand = np.flatnonzero(free[lo:start]) + lo
-        app = cand[-approach:]
-        # An approach must reach the impact region: the free flight just before it.
-        if app.size < _MIN_POINTS or start - app[-1] > approach:
-            continue
-        hit = np.flatnonzero(impact[start:stop]) + start
-        if hit.size < 2:  # a lone tangent is a noise spike, not an impact
-            continue
-        out.append((app, hit, start, stop))
-    return out
+    # the free flight searched for an approach begins where the previous region stopped
+    lo = np.concatenate(([0], stops[:-1])).astype(np.int64)
+    free = np.flatnonzero(~contact)
+    n_before, n_lo = np.searchsorted(free, starts), np.searchsorted(free, lo)
+    first = np.maximum(n_lo, n_before - approach)
+    n_app = n_before - first
+    last = free[np.maximum(n_before - 1, 0)] if free.size else np.zeros_like(starts)
+    hit_pos = np.flatnonzero(impact)
+    h0, h1 = np.searchsorted(hit_pos, starts), np.searchsorted(hit_pos, stops)
+    keep = (
+        (stops < impact.size)  # a region cut by the end of the window
+        & (n_app >= _MIN_POINTS)
+        & (starts - last <= approach)
+        & (h1 - h0 >= 2)
+    )
+    app, app_k = _ranges(first[keep], n_app[keep])
+    hit, hit_k = _ranges(h0[keep], (h1 - h0)[keep])
+    return _OrbitSets(free[app], app_k, hit_pos[hit], hit_k, starts[keep], stops[keep])
+
+
+def _segment_means(values: np.ndarray, orbit: np.ndarray, n_orbits: int) -> np.ndarray:
+    """Mean of ``values`` over each orbit's entries (every orbit has some)."""
+    return np.bincount(orbit, values, n_orbits) / np.bincount(orbit, minlength=n_orbits)
 
 
 def gradient_inclinations(
@@ -202,13 +239,12 @@ def gradient_inclinations(
     if c.size != ang.size:
         raise SignalError(f"masks have {c.size} entries for {ang.size} tangents")
     sets = _orbit_sets(c, z, approach, merge_gap)
-    before = np.array([ang[a].mean() for a, _, _, _ in sets])
-    after = np.array([ang[h].mean() for _, h, _, _ in sets])
+    k = sets.n_orbits
     return OrbitInclinations(
-        before=before,
-        after=after,
-        starts=np.array([s for _, _, s, _ in sets], dtype=np.int64),
-        stops=np.array([e for _, _, _, e in sets], dtype=np.int64),
+        before=_segment_means(ang[sets.approach], sets.approach_orbit, k),
+        after=_segment_means(ang[sets.hits], sets.hit_orbit, k),
+        starts=sets.starts,
+        stops=sets.stops,
         method="gradient",
     )
 
@@ -293,18 +329,100 @@ def polynomial_inclinations(
     if c.size != x.size - lag:
         raise SignalError(f"masks have {c.size} entries for {x.size - lag} tangents")
     sets = _orbit_sets(c, h, approach, merge_gap)
-
-    def fit(idx: np.ndarray) -> float:
-        pts = np.union1d(idx, idx + lag)
-        return curve_inclination(x[pts], z[pts], degree)
-
+    degree = check_int(degree, "degree", 1)
+    k = sets.n_orbits
     return OrbitInclinations(
-        before=np.array([fit(a) for a, _, _, _ in sets]),
-        after=np.array([fit(i) for _, i, _, _ in sets]),
-        starts=np.array([s for _, _, s, _ in sets], dtype=np.int64),
-        stops=np.array([e for _, _, _, e in sets], dtype=np.int64),
+        before=_curve_inclinations(
+            x, z, *_with_lagged(sets.approach, sets.approach_orbit, lag, x.size), k, degree
+        ),
+        after=_curve_inclinations(
+            x, z, *_with_lagged(sets.hits, sets.hit_orbit, lag, x.size), k, degree
+        ),
+        starts=sets.starts,
+        stops=sets.stops,
         method="polynomial",
     )
+
+
+def _with_lagged(
+    idx: np.ndarray, orbit: np.ndarray, lag: int, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each orbit's points: both ends ``i`` and ``i + lag`` of its tangents, once each, in
+    order (orbit by orbit, ascending within an orbit)."""
+    key = orbit * n + idx  # ascending: orbit by orbit, each orbit's tangents in order
+    both = np.concatenate((key, key + lag))
+    # two ascending runs: a stable sort merges them in linear time (np.unique's hashing
+    # took twenty times longer on a record's few thousand points)
+    both.sort(kind="stable")
+    first = np.ones(both.size, dtype=bool)
+    first[1:] = both[1:] != both[:-1]
+    both = both[first]
+    return both % n, both // n
+
+
+def _curve_inclinations(
+    x: np.ndarray, z: np.ndarray, pts: np.ndarray, orbit: np.ndarray, n_orbits: int, degree: int
+) -> np.ndarray:
+    """:func:`curve_inclination` of the points ``pts`` of each orbit, every orbit at once.
+
+    The same rule: each orbit's fit runs along the coordinate that spreads more,
+    on the abscissa centred and scaled by its span; the slope at the centroid is
+    the fit's linear coefficient (degree 1: the closed-form least-squares slope,
+    from per-orbit sums; higher degrees: every orbit's scaled Vandermonde
+    system solved as one stack, as :func:`numpy.polynomial.polynomial.polyfit`
+    solves one).
+    """
+    if n_orbits == 0:
+        return np.empty(0)
+    count = np.bincount(orbit, minlength=n_orbits)
+    if count.min() < degree + 2:
+        raise SignalError(f"need matching 1-D x and z with >= {degree + 2} points")
+    bounds = np.concatenate(([0], np.cumsum(count)[:-1]))
+    xs, zs = x[pts], z[pts]
+    ptp_x = np.maximum.reduceat(xs, bounds) - np.minimum.reduceat(xs, bounds)
+    ptp_z = np.maximum.reduceat(zs, bounds) - np.minimum.reduceat(zs, bounds)
+    steep = ptp_z > ptp_x
+    u, w = np.where(steep[orbit], zs, xs), np.where(steep[orbit], xs, zs)
+    span = np.where(steep, ptp_z, ptp_x)
+    flat = span == 0  # every point the same: no direction to read
+    safe = np.where(flat, 1.0, span)
+    t = (u - (np.bincount(orbit, u, n_orbits) / count)[orbit]) / safe[orbit]
+    with np.errstate(divide="ignore", invalid="ignore"):  # the flat orbits are set below
+        if degree == 1:
+            dw = w - (np.bincount(orbit, w, n_orbits) / count)[orbit]
+            g1 = np.bincount(orbit, t * dw, n_orbits) / np.bincount(orbit, t * t, n_orbits)
+        else:
+            g1 = _linear_coefficients(t, w, orbit, count, bounds, degree)
+        g = np.abs(g1) / safe  # d(w)/d(u) at the centroid
+        deg = np.degrees(np.where(steep, np.arctan2(1.0, g), np.arctan(g)))
+    return np.where(flat, np.where(steep, 90.0, 0.0), deg)
+
+
+def _linear_coefficients(
+    t: np.ndarray,
+    w: np.ndarray,
+    orbit: np.ndarray,
+    count: np.ndarray,
+    bounds: np.ndarray,
+    degree: int,
+) -> np.ndarray:
+    """The coefficient of ``t`` in each orbit's least-squares polynomial of `degree`.
+
+    Each orbit's Vandermonde matrix is padded with zero rows to the longest
+    orbit's length (a zero row changes no least-squares solution), its columns
+    scaled to unit norm and the stack solved by the pseudo-inverse with
+    polyfit's cut-off (``len * eps``): polyfit's own steps, on every orbit at once.
+    """
+    n_orbits, longest = count.size, int(count.max())
+    row = np.arange(t.size) - bounds[orbit]
+    van = np.zeros((n_orbits, longest, degree + 1))
+    van[orbit, row] = t[:, None] ** np.arange(degree + 1)
+    rhs = np.zeros((n_orbits, longest))
+    rhs[orbit, row] = w
+    scale = np.sqrt(np.sum(van * van, axis=1))
+    scale[scale == 0] = 1
+    coef = np.linalg.pinv(van / scale[:, None, :], rcond=count * np.finfo(float).eps)
+    return (coef @ rhs[..., None])[:, 1, 0] / scale[:, 1]
 
 
 def check_method(method: str) -> str:

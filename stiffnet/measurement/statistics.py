@@ -20,7 +20,7 @@ spectrum                    Welch PSD averaged in 1/5-octave bands of f / f_n (l
 impact rate                 impacts per forcing period (spikes found on the low-passed
                             copy by a level rule, see :func:`spike_peaks`)
 inclination statistics      the geometric method's mean angles before / after impact
-                            (:func:`stiffnet.features.inclination_features.features_and_estimate`)
+                            (:func:`stiffnet.features.inclination_features.window_geometry`)
 ==========================  ===============================================================
 
 Conventions. Every statistic is gain-free: the record is centred on its median
@@ -705,9 +705,10 @@ def _statistics(
         impacts_per_period=impact_rate(peaks, y.size, p_f),
     )
     if inclination and peaks.size:
-        from stiffnet.features.inclination_features import features_and_estimate
+        # the estimate alone: the features built around it are not statistics here
+        from stiffnet.features.inclination_features import window_geometry
 
-        _, est = features_and_estimate(accel, fs_hz, natural_frequency_hz)
+        _, est = window_geometry(accel, fs_hz)
         if est is not None and est.contact_detected:
             stats.inclination_before_deg = float(est.inclination_before_deg)
             stats.inclination_after_deg = float(est.inclination_after_deg)

@@ -8,9 +8,12 @@ from the squared deviation from the mean (its "root mean square" rule).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import find_peaks, savgol_filter
+from scipy.ndimage import convolve1d
+from scipy.signal import find_peaks, savgol_coeffs
 
 from stiffnet.errors import ConfigError
 from stiffnet.nlts._validate import as_signal, check_choice, check_int
@@ -44,7 +47,35 @@ def savgol_smooth(x: ArrayLike, window: int, polyorder: int = 2) -> np.ndarray:
     if window % 2 == 0:
         raise ConfigError(f"window must be odd, got {window}")
     a = as_signal(x, window)
-    return savgol_filter(a, window, polyorder, mode="interp")
+    centre, first, last = _savgol_operators(window, polyorder)
+    # scipy.signal.savgol_filter(a, window, polyorder, mode="interp") to rounding: the same
+    # convolution, and the edges' polynomials applied as the least-squares operators kept
+    # per window (scipy fits both edges with polyfit at every call: two thirds of its time)
+    y = convolve1d(a, centre, mode="constant")
+    half = window // 2
+    y[:half] = first @ a[:window]
+    y[a.size - half :] = last @ a[a.size - window :]
+    return y
+
+
+@functools.lru_cache(maxsize=64)
+def _savgol_operators(window: int, polyorder: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Savitzky-Golay coefficients of the window's centre (as ``convolve1d`` takes them) and
+    the ``window // 2`` rows that evaluate the first and the last window's least-squares
+    polynomial at its first and last ``window // 2`` samples (read-only).
+
+    The edge rows are the least-squares projection built on the window's samples centred
+    and scaled to [-1, 1] (well conditioned: on raw sample numbers the cubic's projection
+    of a 101-sample window loses five digits)."""
+    half = window // 2
+    centre = savgol_coeffs(window, polyorder)
+    t = np.linspace(-1.0, 1.0, window)
+    basis = np.vander(t, polyorder + 1, increasing=True)
+    project = basis @ np.linalg.pinv(basis)  # fitted values of the window from its samples
+    first, last = project[:half].copy(), project[window - half :].copy()
+    for m in (centre, first, last):
+        m.setflags(write=False)
+    return centre, first, last
 
 
 def impact_indicator_derivative(x: ArrayLike, fs: float | None = None) -> np.ndarray:
