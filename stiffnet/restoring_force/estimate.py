@@ -909,7 +909,9 @@ def restoring_force_estimate(
         ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; a stage left out is none): it is
         undone as given and nothing is fitted, except a ``highpass_hz`` of ``"auto"`` (a
         campaign's pooled chain), fitted as `highpass_hz` ``"auto"`` fits it and reported
-        in the chain. None (default) identifies the chain from the impacts
+        in the chain. The corner's interval (``highpass_low_hz``, ``highpass_high_hz``: a
+        campaign's profiled corner) puts beta's readings at its ends into beta's interval.
+        None (default) identifies the chain from the impacts
         (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
     chain_fit_below_r2 : float, optional
         Identify the chain only where the record as recorded leaves the contact law
