@@ -343,10 +343,14 @@ def recordings_part(models: dict[str, sp.Predictor], sets: list[str], n: int, ca
             for m, pred, sheets_m in runs:
                 got = predict_set(pred, recs, sheets_m)
                 _row(table, name, m, score(recs, got), say)
+                table[name].setdefault("_recordings", {})[m] = _recording_rows(name, recs, got)
                 if pooled and sheets_m is None:
                     again, decisions = pooled_predictions(pred, recs, got, say)
                     table[name].setdefault("_campaigns", {})[m] = decisions
                     _row(table, name, f"{m} + campaign chain", score(recs, again), say)
+                    table[name]["_recordings"][f"{m} + campaign chain"] = _recording_rows(
+                        name, recs, again, decisions
+                    )
             rf_path.parent.mkdir(parents=True, exist_ok=True)
             rf_path.write_bytes(pickle.dumps(cached.results))
     finally:
@@ -487,6 +491,33 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         write_json_atomic(args.json, result)
     return 0
+
+
+def _recording_rows(
+    name: str,
+    recs: list[dict[str, Any]],
+    got: list[dict[str, Any]],
+    decisions: list[dict[str, Any]] | None = None,
+) -> list[dict[str, Any]]:
+    """One row per recording of set `name`: its campaign, true beta, class and chain, the
+    model's reading, the restoring-force reading (class, beta, interval, refusal reason, the
+    chain it used) and, with `decisions`, its campaign's pooled chain and decision."""
+    by_campaign = {d["campaign"]: d for d in decisions or []}
+    rows = []
+    for i, (r, g) in enumerate(zip(recs, got, strict=True)):
+        rf = g.get("rf") or {}
+        d = by_campaign.get(int(r.get("campaign", 0)))
+        rows.append({
+            "recording": i, "set": name, "campaign": r.get("campaign"),
+            "beta_true": r["beta"], "class_true": r["class"], "chain_true": r.get("chain"),
+            "class": g["cls"], "beta": g["beta"], "interval": g["interval"],
+            "alarm": g["flag"], "fired": g["fired"],
+            "rf_class": g["rf_cls"], "rf_beta": rf.get("beta"),
+            "rf_interval": rf.get("beta_interval"), "rf_reason": rf.get("reason"),
+            "rf_sensor": g.get("sensor"),
+            "pooled": None if d is None else {k: d.get(k) for k in ("pooled", "sensor", "reason")},
+        })  # fmt: skip
+    return rows
 
 
 if __name__ == "__main__":

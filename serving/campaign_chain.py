@@ -305,14 +305,46 @@ def campaign_highpass(
                                    bounds=(np.log(lo), np.log(hi)), method="bounded",
                                    options={"xatol": 0.02, "maxiter": 12})  # fmt: skip
     corner = float(np.exp(sol.x)) if sol.fun < median_misfit(float(grid[i])) else float(grid[i])
-    out = {**chain, "sensor": {**sheet, "highpass_hz": corner}}
+    low, high = corner_interval(memo, read, corner)
+    out = {**chain, "sensor": {**sheet, "highpass_hz": corner, "highpass_low_hz": low,
+                               "highpass_high_hz": high}}  # fmt: skip
     out["stages"] = {**chain.get("stages", {}), "highpass_hz": {
-        "value": corner, "pooled_median": float(pooled), "profiled_on": int(read.sum()),
-        "median_log_misfit": median_misfit(corner)}}  # fmt: skip
+        "value": corner, "interval": [low, high], "pooled_median": float(pooled),
+        "profiled_on": int(read.sum()), "median_log_misfit": median_misfit(corner)}}  # fmt: skip
     out["reason"] = (f"{chain['reason']}; the high-pass corner profiled over the campaign's "
-                     f"contact laws: {corner:.2f} Hz (the median of the recordings' own fits "
-                     f"{float(pooled):.2f} Hz)")  # fmt: skip
+                     f"contact laws: {corner:.2f} Hz [{low:.2f}, {high:.2f}] (the median of the "
+                     f"recordings' own fits {float(pooled):.2f} Hz)")  # fmt: skip
     return out
+
+
+def corner_interval(
+    memo: dict[float, np.ndarray], read: np.ndarray, corner: float, seed: int = 0
+) -> tuple[float, float]:
+    """The high-pass corners a campaign's contact laws cannot tell apart: the interval at
+    :data:`~stiffnet.restoring_force.chain.COVERAGE` of the corner
+    :func:`campaign_highpass` would choose from the campaign's recordings drawn again with
+    replacement (its rule on every corner it read, `memo`: corner to each recording's share
+    of force unexplained; `read`: the recordings with a say), widened to hold `corner`.
+
+    The recordings are the campaign's replicates: where their laws disagree on the corner
+    (each fits best at its own), the choice moves with which recordings the campaign holds,
+    and beta read at the interval's ends (the estimate spans them,
+    :func:`~stiffnet.restoring_force.estimate.restoring_force_estimate`) carries it. A
+    likelihood-ratio band on the contact laws' R² would not: their misfit is the laws' own
+    shape error, not noise, and such a band spans a percent of the corner.
+    """
+    from stiffnet.restoring_force.chain import COVERAGE
+    from stiffnet.restoring_force.estimate import N_BOOTSTRAP
+
+    corners = np.array(sorted(memo))
+    table = np.array([memo[c] for c in corners])[:, read]  # corners x recordings
+    logs = np.log(table / table.min(axis=0))
+    draws = np.random.default_rng(seed).integers(0, logs.shape[1], (N_BOOTSTRAP, logs.shape[1]))
+    chosen = corners[np.argmin(np.median(logs[:, draws], axis=2), axis=0)]
+    alpha = 0.5 * (1.0 - COVERAGE)
+    low = float(np.quantile(chosen, alpha, method="lower"))
+    high = float(np.quantile(chosen, 1.0 - alpha, method="higher"))
+    return min(low, corner), max(high, corner)
 
 
 def contact_r2_through(

@@ -58,3 +58,31 @@ def test_a_lowpass_far_below_the_contact_is_still_refused():
     assert got["beta"] is None and got["class"] is None
     assert got["reason"].startswith("the low-pass at 17 Hz is below the contact's frequency")
     assert got["reason"].endswith("beta is not identifiable from this sensor")
+
+
+def test_a_sheets_highpass_interval_is_carried_into_betas():
+    """A campaign's profiled corner comes with the corners its laws cannot tell apart
+    (``highpass_low_hz``, ``highpass_high_hz``): beta's interval spans the reading at each
+    end (beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass read through a sheet at
+    2.6 Hz whose interval reaches 4.4 Hz: [29.0, 34.5] alone, 28.5 at 4.4 Hz); a corner
+    outside its own ends is refused in one line."""
+    from stiffnet.restoring_force import restoring_force_estimate
+    from stiffnet.restoring_force.chain import sensor_from_mapping
+
+    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
+    sheet = {"lowpass_hz": 120.0, "lowpass_order": 4.0, "highpass_hz": 2.6}
+    ends = {"highpass_low_hz": 2.6, "highpass_high_hz": 4.4}
+    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                 contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor)  # fmt: skip
+    a = record(run, seed=1)[1]
+
+    def read(s):
+        return restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=s,
+                                        max_periods=24.0)  # fmt: skip
+
+    alone, spanned = read(sheet), read({**sheet, **ends})
+    far = read({**sheet, "highpass_hz": 4.4}).beta
+    assert spanned.beta == alone.beta and not alone.beta_interval[0] <= far
+    assert spanned.beta_interval[0] <= far <= spanned.beta_interval[1]
+    with pytest.raises(ValueError, match="must hold highpass_hz between them"):
+        sensor_from_mapping({**sheet, "highpass_low_hz": 3.0, "highpass_high_hz": 4.4}, 1250.0)

@@ -224,8 +224,11 @@ def test_the_pooled_highpass_corner_is_profiled_over_the_campaigns_contact_laws(
     corner = got["sensor"]["highpass_hz"]
     assert corner == pytest.approx(4.0, rel=0.1)
     assert got["stages"]["highpass_hz"]["pooled_median"] == 2.6 and "2.60 Hz" in got["reason"]
-    assert {k: v for k, v in got["sensor"].items() if k != "highpass_hz"} == {
+    corners = ("highpass_hz", "highpass_low_hz", "highpass_high_hz")
+    assert {k: v for k, v in got["sensor"].items() if k not in corners} == {
         k: v for k, v in pooled.items() if k != "highpass_hz"}  # fmt: skip
+    low, high = got["sensor"]["highpass_low_hz"], got["sensor"]["highpass_high_hz"]
+    assert low <= corner <= high and got["stages"]["highpass_hz"]["interval"] == [low, high]
 
     def errors(sheet):
         return [abs(restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=sheet,
@@ -320,3 +323,20 @@ def test_an_ideal_campaign_gets_no_pooled_chain_and_the_same_predictions(tmp_pat
         assert r["chain_source"] != "campaign"
         assert (r["class"], r["beta_estimate"], r["beta_interval"]) == (
             o["class"], o["beta"], o["beta_interval"])  # fmt: skip
+
+
+def test_the_profiled_corner_carries_the_corners_the_recordings_cannot_tell_apart():
+    """The profiled corner's interval is where the rule lands on the campaign's recordings
+    drawn again: recordings that agree pin it; recordings split between two corners (three
+    best at 3 Hz, three at 4.5 Hz, the other corner close behind) leave both open, and a
+    corner every recording fits far worse stays out."""
+    from serving.campaign_chain import corner_interval
+
+    read = np.ones(6, dtype=bool)
+    agree = {2.0: np.full(6, 0.05), 3.0: np.full(6, 0.01), 4.5: np.full(6, 0.04)}
+    assert corner_interval(agree, read, 3.0) == (3.0, 3.0)
+    split = {2.0: np.full(6, 0.2), 3.0: np.r_[[0.010] * 3, [0.012] * 3],
+             4.5: np.r_[[0.012] * 3, [0.010] * 3]}  # fmt: skip
+    assert corner_interval(split, read, 3.0) == (3.0, 4.5)
+    # a recording with no say does not move it
+    assert corner_interval(split, np.r_[[True] * 3, [False] * 3], 3.0) == (3.0, 3.0)

@@ -172,6 +172,9 @@ class SensorChain:
 
 #: The keys of a sensor data sheet.
 SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order", "highpass_hz")
+#: ... and the optional ends of its high-pass corner's interval (a campaign's profiled corner,
+#: :func:`serving.campaign_chain.campaign_highpass`): beta's interval spans the readings there.
+HIGHPASS_ENDS = ("highpass_low_hz", "highpass_high_hz")
 
 
 def parse_sensor_option(text: str, what: str = "--sensor") -> dict[str, float]:
@@ -230,14 +233,16 @@ def sheet_fits_highpass(data: dict[str, Any] | None) -> bool:
 def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
     ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage; ``highpass_hz``
-    :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here).
+    :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here), and
+    optionally the ends of the corner's interval (:data:`HIGHPASS_ENDS`, both holding it:
+    the chain's ``intervals["highpass_hz"]``).
 
     Raises
     ------
     ValueError
         With one line naming the key, for an unknown key or a value out of range.
     """
-    known = set(SENSOR_KEYS)
+    known = set(SENSOR_KEYS) | set(HIGHPASS_ENDS)
     unknown = sorted(set(data) - known)
     if unknown:
         raise ValueError(f"unknown sensor key(s) {', '.join(unknown)}; known: {sorted(known)}")
@@ -257,6 +262,10 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     if order != int(order):
         raise ValueError(f"sensor lowpass_order must be an integer, got {order:g}")
     fh = 0.0 if sheet_fits_highpass(data) else number("highpass_hz", 0.0, 1e3)
+    ends = [number(k, 0.0, 1e3) for k in HIGHPASS_ENDS]
+    if any(k in data for k in HIGHPASS_ENDS) and not (fh and ends[0] <= fh <= ends[1]):
+        raise ValueError(f"sensor {' and '.join(HIGHPASS_ENDS)} must hold highpass_hz between "
+                         f"them, got {ends[0]:g}, {fh:g}, {ends[1]:g}")  # fmt: skip
     in_band = 0.5 * fs_hz
     return SensorChain(
         resonance_hz=fr if 0 < fr < in_band else None,
@@ -265,6 +274,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
         lowpass_order=int(order) if 0 < fl < in_band else None,
         highpass_hz=fh,
         source="data sheet",
+        intervals={"highpass_hz": ends} if any(k in data for k in HIGHPASS_ENDS) else {},
     )
 
 

@@ -700,7 +700,12 @@ def _undo_chain(
         candidates.insert(0, (m_ring, mode[0] * fs_hz / (2 * np.pi)))  # first: wins ties
     if chain is None or not chain.has_dynamics:
         best = max(candidates, key=lambda c: _contact_r2(c[0]))
-        unseen = _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent) if rivals else []
+        unseen = (
+            _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+            + _highpass_end_maps(chain, y, fs_hz, ff, m, args, highpass_hz, exponent)
+            if rivals
+            else []
+        )
         return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
     m2 = _inverse_map(chain, y, fs_hz, m, args, highpass_hz, m.corner, exponent)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
@@ -722,6 +727,9 @@ def _undo_chain(
         # read below the low-pass: the interval spans this map's reading too (the free
         # damping profiled afterwards can move beta away from it)
         kept = _readings([m2]) if below and not refusal and rivals else []
+        if rivals and not refusal:  # the corner's interval, where the sheet gives one
+            ends = _highpass_end_maps(chain, y, fs_hz, ff, m, args, highpass_hz, exponent)
+            kept += _readings([m2, *ends]) if ends else []
         return m2, chain, chain.resonance_hz, refusal, kept
     # the chain that makes the contact force a function of the state: a fitted chain whose
     # inverse leaves the contact law worse than the record as recorded (or with only its
@@ -774,6 +782,22 @@ def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, expon
                      highpass_hz, m.corner, exponent)
         for f in ends if 0 < f < 0.5 * fs_hz
     ]  # fmt: skip
+
+
+def _highpass_end_maps(chain, y, fs_hz, ff, m: _Map, args, highpass_hz, exponent) -> list:
+    """The maps with a known chain's high-pass corner at the ends of its interval (a
+    campaign's profiled corner: the corners its contact laws cannot tell apart), the chain's
+    resonance and low-pass divided out as in the reading; none where the sheet gives no
+    interval or the corner is the record's own (``"auto"``)."""
+    ends = chain.intervals.get("highpass_hz") if chain is not None else None
+    if not ends or chain.source == "fitted" or highpass_hz == "auto":
+        return []
+    out = []
+    for f in {float(f) for f in ends if f != chain.highpass_hz}:
+        at = dataclasses.replace(chain, highpass_hz=f)
+        out.append(_inverse_map(at, y, fs_hz, m, args, f, f / ff, exponent) if at.has_dynamics
+                   else _remap(y, args, f, f / ff, exponent))  # fmt: skip
+    return out
 
 
 def _unexcluded_maps(chain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
@@ -885,7 +909,9 @@ def restoring_force_estimate(
         ``lowpass_hz``, ``lowpass_order``, ``highpass_hz``; a stage left out is none): it is
         undone as given and nothing is fitted, except a ``highpass_hz`` of ``"auto"`` (a
         campaign's pooled chain), fitted as `highpass_hz` ``"auto"`` fits it and reported
-        in the chain. None (default) identifies the chain from the impacts
+        in the chain. The corner's interval (``highpass_low_hz``, ``highpass_high_hz``: a
+        campaign's profiled corner) puts beta's readings at its ends into beta's interval.
+        None (default) identifies the chain from the impacts
         (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
     chain_fit_below_r2 : float, optional
         Identify the chain only where the record as recorded leaves the contact law
