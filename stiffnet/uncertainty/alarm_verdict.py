@@ -240,18 +240,33 @@ def restoring_force_class_share(
     interval, r2 = restoring_force.get("beta_interval"), restoring_force.get("contact_r2")
     if not interval or restoring_force.get("class") in (None, "no_contact"):
         return None
-    if r2 is None or not r2 >= RESTORING_FORCE_MIN_R2 or not isinstance(edges, list | tuple):
+    if r2 is None or not r2 >= RESTORING_FORCE_MIN_R2:
         return None
-    inner = [float(e) for e in edges[1:-1]]
-    low, high = [0.0, *inner], [*inner, math.inf]  # the contact classes, open at both ends
-    names = [c for c in class_names if c != "no_contact"]
-    if len(names) != len(low) or class_name not in names:
+    names, low, high = class_ranges(class_names, edges)
+    if class_name not in names:
         return None
     i = names.index(class_name)
     lo, hi = (float(v) for v in interval)
     if not 0 < lo < hi:
         return None
-    inside = max(0.0, math.log(min(hi, high[i]) / max(lo, low[i]))) if hi > low[i] else 0.0
+    return share_outside(lo, hi, low[i], high[i])
+
+
+def class_ranges(class_names: list[str], edges: Any) -> tuple[list[str], list[float], list[float]]:
+    """The contact classes and their beta ranges, open at both ends (a beta beyond the
+    training range is the other checks' business); empty when the edges do not match the
+    classes."""
+    names = [c for c in class_names if c != "no_contact"]
+    if not isinstance(edges, list | tuple) or len(edges) != len(names) + 1:
+        return [], [], []
+    inner = [float(e) for e in edges[1:-1]]
+    return names, [0.0, *inner], [*inner, math.inf]
+
+
+def share_outside(lo: float, hi: float, low: float, high: float) -> float:
+    """Share (in log beta) of the interval ``[lo, hi]`` (``0 < lo < hi``) outside the range
+    ``[low, high]``: 0 inside it, 1 when it misses it."""
+    inside = math.log(min(hi, high) / max(lo, low)) if min(hi, high) > max(lo, low) else 0.0
     return 1.0 - min(1.0, inside / math.log(hi / lo))
 
 
@@ -259,16 +274,6 @@ def restoring_force_class_share(
 #: restoring-force interval lies outside the model's class and the model's own interval
 #: reaches into the class holding most of it: a majority, not a tuned level.
 CLASS_CONTESTED_THRESHOLD = 0.5
-
-
-def _class_bounds(class_names: list[str], edges: Any) -> tuple[list[str], list[float], list[float]]:
-    """The contact classes and their beta ranges, open at both ends (as
-    :func:`class_beta_gap`); empty when the edges do not match the classes."""
-    names = [c for c in class_names if c != "no_contact"]
-    if not isinstance(edges, list | tuple) or len(edges) != len(names) + 1:
-        return [], [], []
-    inner = [float(e) for e in edges[1:-1]]
-    return names, [0.0, *inner], [*inner, math.inf]
 
 
 def class_contested_share(
@@ -304,7 +309,7 @@ def class_contested_share(
         The contact classes' beta edges ``[lo, e1, ..., hi]``.
     """
     share = restoring_force_class_share(class_name, restoring_force, class_names, edges)
-    names, low, high = _class_bounds(class_names, edges)
+    names, low, high = class_ranges(class_names, edges)
     if share is None or not interval or not names:
         return None
     lo_m, hi_m = (float(v) for v in interval)
@@ -482,14 +487,11 @@ def class_beta_gap(
     edges : list of float
         The contact classes' beta edges ``[lo, e1, ..., hi]`` (one more than the classes).
     """
-    contact = [c for c in class_names if c != "no_contact"]
-    if not interval or class_name not in contact or not isinstance(edges, list | tuple):
+    names, lows, highs = class_ranges(class_names, edges)
+    if not interval or class_name not in names:
         return None
-    if len(edges) != len(contact) + 1:
-        return None
-    i = contact.index(class_name)
-    low = float(edges[i]) if i > 0 else 0.0
-    high = float(edges[i + 1]) if i < len(contact) - 1 else math.inf
+    i = names.index(class_name)
+    low, high = lows[i], highs[i]
     lo, hi = (float(v) for v in interval)
     if not 0 < lo <= hi:
         return None

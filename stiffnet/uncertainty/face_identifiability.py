@@ -22,13 +22,16 @@ edge stands for it). That interval is what the signal allows; where most of it (
 lies outside the model's class (:func:`face_class_share`, above
 :data:`FACE_CLASS_THRESHOLD`, a majority) the class is not determined by the record, the
 check fires and the flagged answer's interval spans it (:func:`serving.verdict.widened_interval`).
-A model without a learned face is not judged. numpy-free, for the predictor.
+A model without a learned face is not judged. For the predictor (no scikit-learn, torch
+or mlflow).
 """
 
 from __future__ import annotations
 
 import math
 from typing import Any
+
+from stiffnet.uncertainty.alarm_verdict import class_ranges, share_outside
 
 #: The check's name in an alarm's ``fired`` list.
 FACE_IDENTIFIABILITY = "face_identifiability"
@@ -96,22 +99,18 @@ def face_class_share(
 ) -> tuple[float, list[float]] | None:
     """Share (in log beta) of :func:`face_beta_interval` outside the model's class, and that
     interval; None without a learned face, an interval, a contact class or matching edges.
-    The outer classes end at the class edges' ends here (the training world's range)."""
+    The outer classes are open-ended, as in the other class checks
+    (:func:`~stiffnet.uncertainty.alarm_verdict.class_ranges`)."""
     compliances = face_compliances(priors)
-    names = [c for c in class_names if c != "no_contact"]
+    names, low, high = class_ranges(class_names, edges)
     if compliances is None or not interval or class_name not in names:
-        return None
-    if not isinstance(edges, list | tuple) or len(edges) != len(names) + 1:
         return None
     lo_m, hi_m = (float(v) for v in interval)
     if not 0 < lo_m <= hi_m:
         return None
     wide = face_beta_interval([lo_m, hi_m], compliances, float(edges[-1]))
     lo, hi = wide
-    i = names.index(class_name)
-    low = float(edges[i]) if i > 0 else 0.0
-    high = float(edges[i + 1]) if i < len(names) - 1 else math.inf
     if not hi > lo:
         return 0.0, wide
-    inside = math.log(min(hi, high) / max(lo, low)) if min(hi, high) > max(lo, low) else 0.0
-    return 1.0 - min(1.0, inside / math.log(hi / lo)), wide
+    i = names.index(class_name)
+    return share_outside(lo, hi, low[i], high[i]), wide
