@@ -10,28 +10,39 @@ harmonics 1-3 and the damping absorb most of its force, the scatter of the rest 
 as its peak, and no sample stands out (:func:`~.band.smoothed_contact_refusal` then sees its
 harmonics 4 and beyond). The force is there; only the split fails.
 
-**The model** (the paper's eqs 11-12, linear contact with Kelvin-Voigt damping, in forcing
-radians and the record's gain)::
+**The model.** The paper's eqs 11-12 in non-dimensional time ``t`` (forcing radians here,
+``k = (f_n / f_f)^2``), ``v' = a w^2 sin(w t) - 2 xi v - x - beta (x - e) H(x - e)``, read
+as the map does (:mod:`.free_flight`: the accelerometer's ``y`` is the mass's absolute
+acceleration, the table's motion enters at the forcing harmonics), with a Kelvin-Voigt
+contact that releases at zero force, in the record's gain::
 
     -y = c v + k x + sum_m (p_m cos m tau + q_m sin m tau) + d
          + [K (x - e) + c_c v]  where x > e and K (x - e) + c_c v > 0
 
-with ``x = x_i + s + x_0`` the relative displacement (``x_i`` the integrated record, ``s``
+``x = x_i + s + x_0`` is the relative displacement (``x_i`` the integrated record, ``s``
 the table's displacement from ``p_m, q_m`` and ``x_0 = d / k``, as in
-:func:`~.free_flight.fit_free_flight`) and ``k = (f_n / f_f)^2`` known. For a given onset
-``e``, free damping ``c`` and contact set, it is linear in ``d, p_m, q_m, K, c_c``: the onset
-is profiled over a grid of the displacement's upper quantiles, the contact set is the
-samples beyond the onset whose force is compressive (release at zero force), and ``s`` is
-updated from the fitted ``p_m, q_m`` a few times. The free damping is profiled over
-:data:`~.estimate.FREE_DAMPING_GRID`-like ratios (:data:`FREE_DAMPING_RATIOS`): near
-resonance ``c v`` and the table's first harmonic trade freely, and a free ``c`` runs off to
-unphysical values as ``s`` is updated. ``beta = K / k``.
+:func:`~.free_flight.fit_free_flight`), and ``beta = K / k``. For a given onset ``e``, free
+damping ``c`` and contact set the model is linear in ``d, p_m, q_m, K, c_c``: the onset is
+profiled (a grid of the displacement's upper quantiles, then a bounded search), the
+contact set is the samples beyond it whose force is compressive, and ``s`` is updated from
+the fitted ``p_m, q_m`` (:data:`TABLE_UPDATES`; its first pass is the free-flight fit's,
+which the contact's force biased). The free damping is profiled over
+:data:`FREE_DAMPING_RATIOS`: near resonance ``c v`` and the table's first harmonic trade
+freely, and a free ``c`` ran off to damping ratios of 0.6-3 as ``s`` was updated.
 
 **Interval.** Bootstrap over forcing periods (each period's normal equations at the fitted
 onset, damping and contact set, resampled with replacement; the percentile interval), the
 readings at the neighbouring free damping ratios whose fit is as good (within
-:data:`DAMPING_SSE_SLACK` of the best sum of squares), and the reconstruction's systematic
-terms of :func:`~.estimate.widen_interval`.
+:data:`DAMPING_SSE_SLACK` of the best sum of squares), and in quadrature this fit's own
+systematic floor (:data:`SYSTEMATIC`) with the misfit and samples-per-contact terms of
+:func:`~.estimate.widen_interval`.
+
+**Why not the pulse's spectrum.** The excess harmonics carry the pulses' spectrum, and a
+half-sine of duration ``pi / omega_c`` has nulls at odd multiples of ``omega_c``; but a soft
+contact's pulse is an arc of the contact's oscillation about a centre the gap and the
+forcing shift (``-e / (1 + beta)`` in eq. 12's units, beyond the onset on the free side), so
+a shallow contact lasts much less than that half period and its duration does not give
+beta. The joint fit reads the law from the state, as the map does.
 
 **When it is read.** Only where the band is known to carry every contact (the caller's
 rule: a known chain whose low-pass passes every contact up to the classes' top, or none):
