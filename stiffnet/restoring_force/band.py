@@ -137,7 +137,7 @@ def smoothed_contact_refusal(
         f"{found.max()} of the forcing (up to {found.max() * ff:.0f} Hz) do, which a free "
         "flight lacks"
     )
-    if sheet_lowpass_hz is not None and sheet_lowpass_hz >= fastest:
+    if band_passes_contacts(sheet_lowpass_hz, natural_hz, beta_max):
         passes = "none in the band" if np.isinf(sheet_lowpass_hz) else f"{sheet_lowpass_hz:.0f} Hz"
         return (
             f"{seen}: the given chain's low-pass ({passes}) passes every contact up to "
@@ -149,6 +149,16 @@ def smoothed_contact_refusal(
         f"the contact's frequency (at least {slowest:.0f} Hz) smooths them away, so beta is "
         "not identifiable from this sensor"
     )
+
+
+def band_passes_contacts(
+    sheet_lowpass_hz: float | None, natural_hz: float, beta_max: float = 100.0
+) -> bool:
+    """Rule: whether a known chain's low-pass (``inf``: none in the band; None: the chain is
+    not known) passes every contact up to `beta_max`, ``f_n sqrt(1 + beta_max)``: then
+    contacts that do not stand out are the record's, not the sensor's."""
+    fastest = natural_hz * np.sqrt(1.0 + beta_max)
+    return sheet_lowpass_hz is not None and sheet_lowpass_hz >= fastest
 
 
 def kept_band(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: float) -> np.ndarray:
