@@ -361,7 +361,8 @@ def test_the_campaigns_lowpass_is_profiled_where_the_recordings_fits_disagree():
     contact laws (an analytic table whose laws all fit best at 90 Hz order 4), so the chain
     is pooled with 90 Hz order 4 within the refinement's 2 %, its interval holding it; where
     the recordings split between 85 and 100 Hz the interval spans both; a recording with its
-    own sheet is not read; a campaign whose chains show no low-pass is left as it is."""
+    own sheet is not read; a campaign whose recordings agree on a low-pass, leave the
+    high-pass to each recording, or show no low-pass is left as it is."""
     from serving.campaign_chain import campaign_lowpass
 
     sensors = [fitted(lowpass_hz=95.0), fitted(lowpass_hz=112.0), fitted(lowpass_hz=130.0),
@@ -374,7 +375,8 @@ def test_the_campaigns_lowpass_is_profiled_where_the_recordings_fits_disagree():
     assert sheet["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
     assert sheet["lowpass_low_hz"] <= sheet["lowpass_hz"] <= sheet["lowpass_high_hz"]
     assert sheet["lowpass_high_hz"] / sheet["lowpass_low_hz"] < 1.1
-    assert got["stages"]["lowpass_hz"]["pooled_median"] is None and "left out" in got["reason"]
+    assert got["stages"]["lowpass_hz"]["median"] == chain["stages"]["lowpass_hz"]["value"]
+    assert "left out" in got["reason"]
     assert check_sensor_sheet(sheet, 1000.0) == sheet  # a data sheet the check accepts
     # recordings split between two corners: the interval spans both
     split = campaign_lowpass(chain, sensors, _lowpass_table([85.0, 85.0, 100.0, 100.0, 85.0]))
@@ -386,12 +388,15 @@ def test_the_campaigns_lowpass_is_profiled_where_the_recordings_fits_disagree():
     sure = campaign_lowpass(chain, sensors,
                             lambda i, s: 1 / 0 if i == 4 else table(i, s), own)  # fmt: skip
     assert sure["sensor"]["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
-    # a pooled low-pass is profiled too, its pooled median reported
+    # a low-pass the recordings agree on is kept as pooled
     agreeing = [fitted(lowpass_hz=99.0), fitted(lowpass_hz=100.0), fitted(lowpass_hz=101.0)]
     pooled = campaign_chain(agreeing, list("abc"))
-    moved = campaign_lowpass(pooled, agreeing, _lowpass_table([90.0] * 3))
-    assert moved["stages"]["lowpass_hz"]["pooled_median"] == pytest.approx(100.0)
-    assert moved["sensor"]["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
+    assert campaign_lowpass(pooled, agreeing, lambda *_: 1 / 0) is pooled
+    # a high-pass left to each recording: not profiled (each reading would profile its own)
+    apart = [fitted(lowpass_hz=f, highpass=0.0) for f in (95.0, 112.0, 130.0)]
+    auto = campaign_chain(apart, list("abc"))
+    assert auto["unpooled_sheet"]["highpass_hz"] == HIGHPASS_FITTED
+    assert campaign_lowpass(auto, apart, lambda *_: 1 / 0) is auto
     # no low-pass shown: nothing profiled
     resonant = [fitted(300.0), fitted(305.0), fitted(298.0)]
     plain = campaign_chain(resonant, list("abc"))
