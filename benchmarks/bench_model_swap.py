@@ -221,6 +221,7 @@ def pooled_predictions(
     and each campaign's decision with its true chain."""
     from serving.campaign_chain import (
         campaign_highpass,
+        campaign_lowpass,
         confirmed,
         contact_r2_through,
         identify_regardless,
@@ -252,8 +253,11 @@ def pooled_predictions(
     out = list(got)
     decisions = []
     for k, idx in campaigns_of(recs).items():
-        chain, _ = identify_regardless([got[i]["sensor"] for i in idx], [str(i) for i in idx],
-                                       None, lambda j, idx=idx: identify(idx[j]))  # fmt: skip
+        chain, sensors = identify_regardless([got[i]["sensor"] for i in idx],
+                                             [str(i) for i in idx], None,
+                                             lambda j, idx=idx: identify(idx[j]))  # fmt: skip
+        chain = campaign_lowpass(chain, sensors,
+                                 lambda j, sheet, idx=idx: contact_r2(idx[j], sheet))  # fmt: skip
         chain = campaign_highpass(chain, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet),
                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
         if chain["pooled"]:

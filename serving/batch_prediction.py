@@ -53,6 +53,7 @@ import pyarrow.parquet as pq
 
 from serving.campaign_chain import (
     campaign_highpass,
+    campaign_lowpass,
     chain_fitted_regardless,
     confirmed,
     contact_r2_through,
@@ -509,9 +510,10 @@ def _campaign_chain(
     (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
     (the manifest's or its sidecar's) does not vote. Where too few identified one, the chain
     is fitted regardless of the gate here, recording by recording
-    (:func:`serving.campaign_chain.identify_regardless`); a pooled high-pass corner is
-    profiled over the recordings read through the pooled chain
-    (:func:`serving.campaign_chain.campaign_highpass`)."""
+    (:func:`serving.campaign_chain.identify_regardless`); a low-pass the identified chains
+    show, then a pooled high-pass corner, is profiled over the recordings read through the
+    pooled chain (:func:`serving.campaign_chain.campaign_lowpass`,
+    :func:`serving.campaign_chain.campaign_highpass`)."""
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
@@ -537,12 +539,13 @@ def _campaign_chain(
             return None
 
     sheets = [sheet for *_, sheet in settings]
-    chain = identify_regardless(sensors, paths, sheets, identify)[0]
+    chain, sensors = identify_regardless(sensors, paths, sheets, identify)
 
     def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
         rec = recording(i)
         return None if rec is None else contact_r2_through(*rec, predictor, sheet)
 
+    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     if not chain["pooled"]:
         return chain
     fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]

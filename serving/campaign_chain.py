@@ -46,6 +46,19 @@ fitted behind the recording's own chain, whose contact law is read without the b
 inverse keeps), so the corner held for all is the one at which the campaign's contact laws,
 read through the pooled chain, fit best (the median over the recordings of each one's misfit
 against its own best corner).
+The low-pass is profiled the same way, before the high-pass (:func:`campaign_lowpass`), where
+the identified chains show one the pool left out: a recording's chain fit trades the
+low-pass corner against its contact's damping, so the per-recording corners scatter, and
+where they disagree the pool left the stage out (a rig campaign behind a 187 Hz low-pass
+read without one). A low-pass the recordings agree on keeps its pooled median (profiled,
+the rig's damped campaigns moved away from the truth). The corner is shared and the contacts
+are not: candidate corners around the recordings' fitted ones (and orders 2-4 where the
+fitted orders disagree) are each held for the whole campaign, and the one at which the
+campaign's contact laws read best is kept, with its interval (:func:`corner_interval`) in
+the sheet as ``lowpass_low_hz`` / ``lowpass_high_hz`` (beta's interval spans the readings at
+its ends). A campaign whose stages all disagreed but whose chains show a low-pass is pooled
+with the profiled low-pass alone; :func:`confirmed` still judges it. The high-pass corner is
+then profiled through the chosen low-pass.
 Where the gated fits identify too few chains to pool (:data:`MIN_IDENTIFIED`), the chain is
 fitted again regardless of the gate on every recording that fitted none
 (:func:`identify_regardless`), and those fits are pooled as above. The gate spares a single
@@ -84,6 +97,19 @@ MIN_AGREEING_SHARE = 2 / 3
 STAGES = ("resonance_hz", "lowpass_hz")
 #: The parameter each stage carries with it.
 PARTNER = {"resonance_hz": "resonance_damping", "lowpass_hz": "lowpass_order"}
+#: The low-pass orders :func:`campaign_lowpass` profiles where the recordings' fitted orders
+#: disagree (a charge amplifier's low-pass: the lab prior's orders), beside the fitted ones.
+LOWPASS_ORDERS = (2, 3, 4)
+#: The low-pass profile's grid: steps of :data:`FIT_SCATTER` in frequency from this many steps
+#: below the lowest fitted corner (a recording's fit reads its corner high: 14-16 % on the
+#: rig's campaigns, the pulse model's bias) to this many above the highest.
+LOWPASS_STEPS_BELOW = 3
+LOWPASS_STEPS_ABOVE = 1
+#: At most this many corners per order on the coarse grid (wider spreads get coarser steps):
+#: the profile reads every recording at each, about 0.15 s CPU a reading.
+MAX_LOWPASS_GRID = 16
+#: Evaluations of the bounded refinement between the best grid corner's neighbours.
+LOWPASS_REFINE_ITER = 8
 
 
 def identified(sensor: dict | None) -> dict | None:
@@ -166,6 +192,7 @@ def campaign_chain(
     if not kept:
         out["reason"] = ("the recordings' identified chains disagree, not pooled: "
                          + "; ".join(apart))  # fmt: skip
+        out["unpooled_sheet"] = sheet  # what :func:`campaign_lowpass` may still complete
         return out
     words = " and ".join(k.removesuffix("_hz").replace("lowpass", "low-pass") for k in kept)
     out.update(pooled=True, sensor=sheet,
@@ -314,6 +341,149 @@ def campaign_highpass(
     out["reason"] = (f"{chain['reason']}; the high-pass corner profiled over the campaign's "
                      f"contact laws: {corner:.2f} Hz [{low:.2f}, {high:.2f}] (the median of the "
                      f"recordings' own fits {float(pooled):.2f} Hz)")  # fmt: skip
+    return out
+
+
+def campaign_lowpass(
+    chain: dict[str, Any],
+    sensors: Sequence[dict | None],
+    contact_r2: Callable[[int, dict[str, Any]], float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with its low-pass profiled over the campaign: the corner (and order) that reads
+    the campaign's contact laws best through the pooled chain, where the recordings'
+    identified chains show a low-pass that the pool left out because their corners disagree.
+
+    A recording's chain fit trades the low-pass corner against its contact's damping (one rig
+    record: least-squares corner 95.7 Hz for a true 85.9, its contact read at zeta 0.62 for
+    0.196), so per-recording corners scatter and read high, and the pool takes their median or
+    leaves the stage out. The corner is shared and the contacts are not: the campaign tells
+    them apart. On each candidate every recording without its own data sheet (`sheets`) is
+    read through the pooled chain with that corner and order held (`contact_r2`, as in
+    :func:`campaign_highpass`; None counts as R² 0), and the one chosen is the one at which
+    the median over the recordings of ``log((1 - R²) / (1 - R²_best))`` is least (the rule of
+    :func:`campaign_highpass`). Candidates: corners in steps of :data:`FIT_SCATTER` around
+    the recordings' fitted ones (:data:`LOWPASS_STEPS_BELOW` steps below the lowest,
+    :data:`LOWPASS_STEPS_ABOVE` above the highest, at most :data:`MAX_LOWPASS_GRID` per
+    order), at the fitted order where the recordings agree on one, else at each of
+    :data:`LOWPASS_ORDERS` and the fitted ones; the best refined by a bounded search between
+    its neighbours at its order. The corner's interval is :func:`corner_interval`'s over the
+    corners read at the chosen order, put in the sheet as ``lowpass_low_hz`` /
+    ``lowpass_high_hz`` (beta's interval spans the readings at its ends). A campaign whose
+    stages all disagree but whose chains show a low-pass is pooled with the profiled
+    low-pass alone (:func:`confirmed` still judges it).
+
+    Returned as it is: a campaign whose identified chains show no low-pass; one whose
+    recordings agree on a low-pass (pooled: profiled too, the rig's damped campaigns moved
+    three of four pooled corners away from the truth, 147 -> 155 Hz for 141.6, 561 -> 633
+    for 511, order 4 -> 3 for a true 4, and read fewer betas right: through a known chain the
+    contact laws' R² favours a corner a little high, so the profile is kept for the stage the
+    median cannot give); and one whose pool leaves the high-pass to each recording
+    (:data:`~stiffnet.restoring_force.chain.HIGHPASS_FITTED`: every reading would profile its
+    own corner, 4-9 s CPU a reading on the rig against 0.1-0.3 s with a corner held).
+
+    Parameters
+    ----------
+    chain : dict
+        :func:`campaign_chain`'s decision.
+    sensors : sequence of dict or None
+        The restoring-force ``sensor`` per recording that the decision pooled (the second
+        return of :func:`identify_regardless`).
+    contact_r2 : callable
+        Recording index and data sheet to that recording's contact-law R² (None: no law).
+    sheets : sequence of dict or None, optional
+        Each recording's own data sheet (read with it, not profiled).
+
+    Returns
+    -------
+    dict
+        `chain`, with the low-pass profiled into its ``sensor`` and
+        ``stages["lowpass_hz"]`` (value, order, interval, the median the pool compared, the
+        fitted corners, the recordings profiled on), and the reason extended.
+    """
+    from scipy import optimize
+
+    sheets = list(sheets) if sheets is not None else [None] * len(sensors)
+    base = chain.get("sensor") if chain.get("pooled") else chain.get("unpooled_sheet")
+    todo = [i for i, own in enumerate(sheets) if own is None]
+    fits = [s for i, s in enumerate(sensors) if i in todo and identified(s) and s.get("lowpass_hz")]
+    if not base or "lowpass_hz" not in chain.get("stages", {}) or not fits:
+        return chain
+    if chain.get("pooled") and base.get("lowpass_hz"):  # the recordings agreed: kept (below)
+        return chain
+    if base.get("highpass_hz") == HIGHPASS_FITTED:  # each reading would profile its own corner
+        return chain
+    corners = np.array([float(s["lowpass_hz"]) for s in fits])
+    fitted_orders = {int(round(s.get("lowpass_order") or 2)) for s in fits}
+    orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
+    step = np.log1p(FIT_SCATTER)
+    lo = np.log(corners.min()) - LOWPASS_STEPS_BELOW * step
+    hi = np.log(corners.max()) + LOWPASS_STEPS_ABOVE * step
+    grid = np.exp(np.linspace(lo, hi, int(min(MAX_LOWPASS_GRID, np.ceil((hi - lo) / step) + 1))))
+    memo: dict[tuple[int, float], np.ndarray] = {}
+
+    def misfit(order: int, corner: float) -> np.ndarray:  # each recording's share unexplained
+        if (order, corner) not in memo:
+            at = {**base, "lowpass_hz": corner, "lowpass_order": float(order)}
+            r2 = np.array([contact_r2(i, at) or 0.0 for i in todo])
+            memo[order, corner] = np.maximum(1.0 - r2, np.finfo(float).eps)
+        return memo[order, corner]
+
+    keys = [(o, float(c)) for o in orders for c in grid]
+    table = np.array([misfit(*k) for k in keys])
+    read = table.min(axis=0) < 1.0
+    if not read.any():
+        return chain
+    least = table.min(axis=0)
+
+    def median_misfit(order: int, corner: float) -> float:
+        return float(np.median(np.log(misfit(order, corner) / least)[read]))
+
+    best = int(np.argmin([median_misfit(*k) for k in keys]))
+    order, j = keys[best][0], best % grid.size
+    a, b = grid[max(j - 1, 0)], grid[min(j + 1, grid.size - 1)]
+    sol = optimize.minimize_scalar(
+        lambda u: median_misfit(order, float(np.exp(u))), bounds=(np.log(a), np.log(b)),
+        method="bounded", options={"xatol": 0.02, "maxiter": LOWPASS_REFINE_ITER},
+    )  # fmt: skip
+    corner = keys[best][1]
+    if sol.fun < median_misfit(order, corner):
+        corner = float(np.exp(sol.x))
+    low, high = corner_interval({c: m for (o, c), m in memo.items() if o == order}, read, corner)
+    return _with_lowpass(chain, base, corners, order, corner, (low, high), read,
+                         median_misfit(order, corner))  # fmt: skip
+
+
+def _with_lowpass(
+    chain: dict[str, Any],
+    base: dict[str, Any],
+    fitted: np.ndarray,
+    order: int,
+    corner: float,
+    interval: tuple[float, float],
+    read: np.ndarray,
+    misfit: float,
+) -> dict[str, Any]:
+    """`chain` pooled with the profiled low-pass in `base` (its sheet), reported."""
+    low, high = interval
+    stage = chain["stages"]["lowpass_hz"]
+    sheet = {**base, "lowpass_hz": corner, "lowpass_order": float(order), "lowpass_low_hz": low,
+             "lowpass_high_hz": high}  # fmt: skip
+    out = {k: v for k, v in chain.items() if k != "unpooled_sheet"}
+    out.update(pooled=True, sensor=sheet)
+    out["stages"] = {**chain["stages"], "lowpass_hz": {
+        **stage, "value": corner, "order": order, "interval": [low, high],
+        "median": stage["value"],
+        "fitted": sorted(float(f) for f in fitted), "profiled_on": int(read.sum()),
+        "median_log_misfit": misfit}}  # fmt: skip
+    said = (f"the low-pass profiled over the campaign's contact laws: {corner:.0f} Hz order "
+            f"{order} [{low:.0f}, {high:.0f}] (the recordings' own fits "
+            f"{fitted.min():.0f}-{fitted.max():.0f} Hz, left out of the pool)")  # fmt: skip
+    if chain.get("pooled"):
+        out["reason"] = f"{chain['reason']}; {said}"
+    else:
+        out["reason"] = (f"one sensor chain (low-pass) over the {chain['n_identified']} "
+                         f"recordings that identified one ({chain['reason']}); {said}")  # fmt: skip
     return out
 
 

@@ -86,3 +86,34 @@ def test_a_sheets_highpass_interval_is_carried_into_betas():
     assert spanned.beta_interval[0] <= far <= spanned.beta_interval[1]
     with pytest.raises(ValueError, match="must hold highpass_hz between them"):
         sensor_from_mapping({**sheet, "highpass_low_hz": 3.0, "highpass_high_hz": 4.4}, 1250.0)
+
+
+def test_a_sheets_lowpass_interval_is_carried_into_betas():
+    """A campaign's profiled low-pass comes with the corners its laws cannot tell apart
+    (``lowpass_low_hz``, ``lowpass_high_hz``): beta's interval spans the reading at each end
+    (beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass, read through a sheet at
+    135 Hz: 27.8 [25.8, 29.9], missing the truth; with the interval reaching 110 Hz it holds
+    the 30.7 read there, and the truth); ends that do not hold the corner are refused."""
+    from stiffnet.restoring_force import restoring_force_estimate
+    from stiffnet.restoring_force.chain import sensor_from_mapping
+
+    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
+    sheet = {"lowpass_hz": 135.0, "lowpass_order": 4.0, "highpass_hz": 4.0}
+    ends = {"lowpass_low_hz": 110.0, "lowpass_high_hz": 135.0}
+    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                 contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor)  # fmt: skip
+    a = record(run, seed=1)[1]
+
+    def read(s):
+        return restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=s,
+                                        max_periods=24.0)  # fmt: skip
+
+    alone, spanned = read(sheet), read({**sheet, **ends})
+    far = read({**sheet, "lowpass_hz": 110.0}).beta
+    assert spanned.beta == alone.beta and not alone.beta_interval[1] >= far
+    assert not alone.beta_interval[1] >= 30.0
+    assert spanned.beta_interval[0] <= far <= spanned.beta_interval[1]
+    assert spanned.beta_interval[0] <= 30.0 <= spanned.beta_interval[1]
+    assert spanned.sensor.intervals["lowpass_hz"] == [110.0, 135.0]
+    with pytest.raises(ValueError, match="must hold lowpass_hz between them"):
+        sensor_from_mapping({**sheet, "lowpass_low_hz": 140.0, "lowpass_high_hz": 150.0}, 1250.0)

@@ -340,3 +340,104 @@ def test_the_profiled_corner_carries_the_corners_the_recordings_cannot_tell_apar
     assert corner_interval(split, read, 3.0) == (3.0, 4.5)
     # a recording with no say does not move it
     assert corner_interval(split, np.r_[[True] * 3, [False] * 3], 3.0) == (3.0, 3.0)
+
+
+def _lowpass_table(truth):
+    """A campaign's contact laws as an analytic table: recording i's share of force unexplained
+    through a low-pass at corner c and order o is ``0.001 (i + 1) exp((ln(c / t_i) / 0.1)^2)``,
+    three times more at another order than 4 (`truth`: each recording's best corner t_i)."""
+
+    def contact_r2(i, sheet):
+        order_cost = 1.0 if sheet["lowpass_order"] == 4.0 else 3.0
+        shape = (np.log(sheet["lowpass_hz"] / truth[i]) / 0.1) ** 2
+        return 1.0 - 0.001 * (i + 1) * order_cost * np.exp(shape)
+
+    return contact_r2
+
+
+def test_the_campaigns_lowpass_is_profiled_where_the_recordings_fits_disagree():
+    """Four recordings fitted a low-pass 6-44 % above the campaign's 90 Hz order 4 (one at
+    order 3), too scattered to pool: the stage left out is profiled over the campaign's
+    contact laws (an analytic table whose laws all fit best at 90 Hz order 4), so the chain
+    is pooled with 90 Hz order 4 within the refinement's 2 %, its interval holding it; where
+    the recordings split between 85 and 100 Hz the interval spans both; a recording with its
+    own sheet is not read; a campaign whose recordings agree on a low-pass, leave the
+    high-pass to each recording, or show no low-pass is left as it is."""
+    from serving.campaign_chain import campaign_lowpass
+
+    sensors = [fitted(lowpass_hz=95.0), fitted(lowpass_hz=112.0), fitted(lowpass_hz=130.0),
+               fitted(lowpass_hz=100.0, order=3), None]  # fmt: skip
+    chain = campaign_chain(sensors, list("abcde"))
+    assert not chain["pooled"] and "lowpass_hz" in chain["stages"]
+    got = campaign_lowpass(chain, sensors, _lowpass_table([90.0] * 5))
+    sheet = got["sensor"]
+    assert got["pooled"] and sheet["lowpass_order"] == 4.0
+    assert sheet["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
+    assert sheet["lowpass_low_hz"] <= sheet["lowpass_hz"] <= sheet["lowpass_high_hz"]
+    assert sheet["lowpass_high_hz"] / sheet["lowpass_low_hz"] < 1.1
+    assert got["stages"]["lowpass_hz"]["median"] == chain["stages"]["lowpass_hz"]["value"]
+    assert "left out" in got["reason"]
+    assert check_sensor_sheet(sheet, 1000.0) == sheet  # a data sheet the check accepts
+    # recordings split between two corners: the interval spans both
+    split = campaign_lowpass(chain, sensors, _lowpass_table([85.0, 85.0, 100.0, 100.0, 85.0]))
+    assert split["sensor"]["lowpass_low_hz"] <= 85.0 * 1.03
+    assert split["sensor"]["lowpass_high_hz"] >= 100.0 / 1.03
+    # a recording read with its own data sheet is neither read nor voting
+    own = [None, None, None, None, {"lowpass_hz": 50.0}]
+    table = _lowpass_table([90.0] * 5)
+    sure = campaign_lowpass(chain, sensors,
+                            lambda i, s: 1 / 0 if i == 4 else table(i, s), own)  # fmt: skip
+    assert sure["sensor"]["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
+    # a low-pass the recordings agree on is kept as pooled
+    agreeing = [fitted(lowpass_hz=99.0), fitted(lowpass_hz=100.0), fitted(lowpass_hz=101.0)]
+    pooled = campaign_chain(agreeing, list("abc"))
+    assert campaign_lowpass(pooled, agreeing, lambda *_: 1 / 0) is pooled
+    # a high-pass left to each recording: not profiled (each reading would profile its own)
+    apart = [fitted(lowpass_hz=f, highpass=0.0) for f in (95.0, 112.0, 130.0)]
+    auto = campaign_chain(apart, list("abc"))
+    assert auto["unpooled_sheet"]["highpass_hz"] == HIGHPASS_FITTED
+    assert campaign_lowpass(auto, apart, lambda *_: 1 / 0) is auto
+    # no low-pass shown: nothing profiled
+    resonant = [fitted(300.0), fitted(305.0), fitted(298.0)]
+    plain = campaign_chain(resonant, list("abc"))
+    assert campaign_lowpass(plain, resonant, lambda *_: 1 / 0) is plain
+
+
+def test_a_lowpass_the_recordings_fits_scatter_over_is_profiled_on_a_rig_campaign():
+    """Three damped contacts of the independent rig behind one 120 Hz order-4 low-pass and a
+    4 Hz high-pass (2 % noise), whose chain fits read the corner 8-46 % high and too scattered
+    to pool (the corner traded against each contact's damping): the campaign's contact laws
+    read through the chain with the corner held choose it within 10 % at order 4, the interval
+    holds the truth, and every beta reads closer to the truth than through the chain the
+    pool left without its low-pass."""
+    from types import SimpleNamespace
+
+    from independent_rig import RigRun, record
+
+    from serving.campaign_chain import campaign_lowpass, contact_r2_through
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
+    betas = (12.0, 30.0, 55.0)
+    recs = [record(RigRun(recording="r.csv", beta=b, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                          contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor),
+                   seed=i)[1] for i, b in enumerate(betas)]  # fmt: skip
+    fits = [fitted(lowpass_hz=f, highpass=4.0) for f in (130.0, 150.0, 175.0)]
+    chain = campaign_chain(fits, list("abc"))
+    assert not chain["pooled"]  # the corners disagree: the stage is left out
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+    got = campaign_lowpass(
+        chain, fits, lambda i, s: contact_r2_through(recs[i], 1250.0, 9.48, pred, s)
+    )
+    sheet = got["sensor"]
+    assert got["pooled"] and sheet["lowpass_order"] == 4.0
+    assert sheet["lowpass_hz"] == pytest.approx(120.0, rel=0.1)
+    assert sheet["lowpass_low_hz"] <= 120.0 * 1.02 and sheet["lowpass_high_hz"] >= 120.0 / 1.02
+
+    def errors(at):
+        return [abs(restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=at,
+                                             max_periods=24.0, interval=False).beta / b - 1)
+                for a, b in zip(recs, betas, strict=True)]  # fmt: skip
+
+    bare = {k: v for k, v in sheet.items() if not k.startswith("lowpass")}
+    assert all(e < e0 for e, e0 in zip(errors(sheet), errors(bare), strict=True))

@@ -151,8 +151,10 @@ def campaign_predictions(
     A campaign has one accelerometer: the chains the restoring-force check identified on
     some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
     they agree, every recording without its own data sheet is predicted again with the
-    pooled chain as its sheet (its high-pass corner profiled over the campaign's contact
-    laws, :func:`serving.campaign_chain.campaign_highpass`); kept where it reads the contact
+    pooled chain as its sheet (a low-pass the identified chains show, then its high-pass
+    corner, profiled over the campaign's contact laws,
+    :func:`serving.campaign_chain.campaign_lowpass`,
+    :func:`serving.campaign_chain.campaign_highpass`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
     except on a recording whose own contact law it reads much worse
     (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
@@ -160,6 +162,7 @@ def campaign_predictions(
     """
     from serving.campaign_chain import (
         campaign_highpass,
+        campaign_lowpass,
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
@@ -179,8 +182,10 @@ def campaign_predictions(
         pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
         return chain_fitted_regardless(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred)
 
-    chain, _ = identify_regardless([(r.get("restoring_force") or {}).get("sensor") for r in first],
-                                   [row.recording for row in rows], sheets, identify)  # fmt: skip
+    chain, sensors = identify_regardless(
+        [(r.get("restoring_force") or {}).get("sensor") for r in first],
+        [row.recording for row in rows], sheets, identify,
+    )  # fmt: skip
 
     read: dict[int, Any] = {}  # each recording read once for the corner's profile
 
@@ -189,6 +194,7 @@ def campaign_predictions(
         pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
         return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet)
 
+    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     chain = campaign_highpass(chain, contact_r2, [natural_frequency(row) for row in rows], sheets)
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain

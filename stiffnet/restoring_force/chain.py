@@ -175,6 +175,9 @@ SENSOR_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order
 #: ... and the optional ends of its high-pass corner's interval (a campaign's profiled corner,
 #: :func:`serving.campaign_chain.campaign_highpass`): beta's interval spans the readings there.
 HIGHPASS_ENDS = ("highpass_low_hz", "highpass_high_hz")
+#: ... and of its low-pass corner's (a campaign's profiled low-pass,
+#: :func:`serving.campaign_chain.campaign_lowpass`), at the sheet's order.
+LOWPASS_ENDS = ("lowpass_low_hz", "lowpass_high_hz")
 
 
 def parse_sensor_option(text: str, what: str = "--sensor") -> dict[str, float]:
@@ -235,14 +238,15 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage; ``highpass_hz``
     :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here), and
     optionally the ends of the corner's interval (:data:`HIGHPASS_ENDS`, both holding it:
-    the chain's ``intervals["highpass_hz"]``).
+    the chain's ``intervals["highpass_hz"]``) and of the low-pass corner's
+    (:data:`LOWPASS_ENDS`: ``intervals["lowpass_hz"]``).
 
     Raises
     ------
     ValueError
         With one line naming the key, for an unknown key or a value out of range.
     """
-    known = set(SENSOR_KEYS) | set(HIGHPASS_ENDS)
+    known = set(SENSOR_KEYS) | set(HIGHPASS_ENDS) | set(LOWPASS_ENDS)
     unknown = sorted(set(data) - known)
     if unknown:
         raise ValueError(f"unknown sensor key(s) {', '.join(unknown)}; known: {sorted(known)}")
@@ -266,7 +270,15 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
     if any(k in data for k in HIGHPASS_ENDS) and not (fh and ends[0] <= fh <= ends[1]):
         raise ValueError(f"sensor {' and '.join(HIGHPASS_ENDS)} must hold highpass_hz between "
                          f"them, got {ends[0]:g}, {fh:g}, {ends[1]:g}")  # fmt: skip
+    low_ends = [number(k, 1e-3, 1e7) for k in LOWPASS_ENDS]
+    has_low_ends = any(k in data for k in LOWPASS_ENDS)
+    if has_low_ends and not (fl and low_ends[0] <= fl <= low_ends[1]):
+        raise ValueError(f"sensor {' and '.join(LOWPASS_ENDS)} must hold lowpass_hz between "
+                         f"them, got {low_ends[0]:g}, {fl:g}, {low_ends[1]:g}")  # fmt: skip
     in_band = 0.5 * fs_hz
+    intervals = {"highpass_hz": ends} if any(k in data for k in HIGHPASS_ENDS) else {}
+    if has_low_ends and 0 < fl < in_band:
+        intervals["lowpass_hz"] = low_ends
     return SensorChain(
         resonance_hz=fr if 0 < fr < in_band else None,
         resonance_damping=zr if 0 < fr < in_band else None,
@@ -274,7 +286,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
         lowpass_order=int(order) if 0 < fl < in_band else None,
         highpass_hz=fh,
         source="data sheet",
-        intervals={"highpass_hz": ends} if any(k in data for k in HIGHPASS_ENDS) else {},
+        intervals=intervals,
     )
 
 

@@ -729,8 +729,9 @@ def _undo_chain(
         # read below the low-pass: the interval spans this map's reading too (the free
         # damping profiled afterwards can move beta away from it)
         kept = _readings([m2]) if below and not refusal and rivals else []
-        if rivals and not refusal:  # the corner's interval, where the sheet gives one
+        if rivals and not refusal:  # the corners' intervals, where the sheet gives them
             ends = _highpass_end_maps(chain, y, fs_hz, ff, m, args, highpass_hz, exponent)
+            ends += _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
             kept += _readings([m2, *ends]) if ends else []
         return m2, chain, chain.resonance_hz, refusal, kept
     # the chain that makes the contact force a function of the state: a fitted chain whose
@@ -775,14 +776,16 @@ def _band_refusal(chain: SensorChain, m2: _Map, natural_hz: float, use, dtau) ->
 
 
 def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
-    """The maps with the fitted low-pass at the ends of its interval (its uncertainty)."""
+    """The maps with the low-pass at the ends of its interval (its uncertainty: a fitted
+    chain's, or a campaign's profiled corner given as a data sheet's ``lowpass_low_hz`` /
+    ``lowpass_high_hz``)."""
     ends = chain.intervals.get("lowpass_hz") if chain.lowpass_hz else None
     if not ends or not all(np.isfinite(ends)):
         return []
     return [
         _inverse_map(dataclasses.replace(chain, lowpass_hz=float(f)), y, fs_hz, m, args,
                      highpass_hz, m.corner, exponent)
-        for f in ends if 0 < f < 0.5 * fs_hz
+        for f in sorted({float(f) for f in ends}) if 0 < f < 0.5 * fs_hz and f != chain.lowpass_hz
     ]  # fmt: skip
 
 
@@ -912,7 +915,8 @@ def restoring_force_estimate(
         undone as given and nothing is fitted, except a ``highpass_hz`` of ``"auto"`` (a
         campaign's pooled chain), fitted as `highpass_hz` ``"auto"`` fits it and reported
         in the chain. The corner's interval (``highpass_low_hz``, ``highpass_high_hz``: a
-        campaign's profiled corner) puts beta's readings at its ends into beta's interval.
+        campaign's profiled corner) puts beta's readings at its ends into beta's interval,
+        as do the low-pass corner's (``lowpass_low_hz``, ``lowpass_high_hz``).
         None (default) identifies the chain from the impacts
         (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
     chain_fit_below_r2 : float, optional
