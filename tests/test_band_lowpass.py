@@ -60,26 +60,34 @@ def test_a_lowpass_far_below_the_contact_is_still_refused():
     assert got["reason"].endswith("beta is not identifiable from this sensor")
 
 
+def _rig_beta30_reader():
+    """The rig's beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass (a damped
+    contact, zeta 0.15), read through a data sheet by the restoring-force estimate."""
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
+    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                 contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor)  # fmt: skip
+    a = record(run, seed=1)[1]
+
+    def read(sheet):
+        return restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=sheet,
+                                        max_periods=24.0)  # fmt: skip
+
+    return read
+
+
 def test_a_sheets_highpass_interval_is_carried_into_betas():
     """A campaign's profiled corner comes with the corners its laws cannot tell apart
     (``highpass_low_hz``, ``highpass_high_hz``): beta's interval spans the reading at each
     end (beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass read through a sheet at
     2.6 Hz whose interval reaches 4.4 Hz: [29.0, 34.5] alone, 28.5 at 4.4 Hz); a corner
     outside its own ends is refused in one line."""
-    from stiffnet.restoring_force import restoring_force_estimate
     from stiffnet.restoring_force.chain import sensor_from_mapping
 
-    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
     sheet = {"lowpass_hz": 120.0, "lowpass_order": 4.0, "highpass_hz": 2.6}
     ends = {"highpass_low_hz": 2.6, "highpass_high_hz": 4.4}
-    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
-                 contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor)  # fmt: skip
-    a = record(run, seed=1)[1]
-
-    def read(s):
-        return restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=s,
-                                        max_periods=24.0)  # fmt: skip
-
+    read = _rig_beta30_reader()
     alone, spanned = read(sheet), read({**sheet, **ends})
     far = read({**sheet, "highpass_hz": 4.4}).beta
     assert spanned.beta == alone.beta and not alone.beta_interval[0] <= far
@@ -94,20 +102,11 @@ def test_a_sheets_lowpass_interval_is_carried_into_betas():
     (beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass, read through a sheet at
     135 Hz: 27.8 [25.8, 29.9], missing the truth; with the interval reaching 110 Hz it holds
     the 30.7 read there, and the truth); ends that do not hold the corner are refused."""
-    from stiffnet.restoring_force import restoring_force_estimate
     from stiffnet.restoring_force.chain import sensor_from_mapping
 
-    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
     sheet = {"lowpass_hz": 135.0, "lowpass_order": 4.0, "highpass_hz": 4.0}
     ends = {"lowpass_low_hz": 110.0, "lowpass_high_hz": 135.0}
-    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
-                 contact="kelvin_voigt", contact_zeta=0.15, sensor=sensor)  # fmt: skip
-    a = record(run, seed=1)[1]
-
-    def read(s):
-        return restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=s,
-                                        max_periods=24.0)  # fmt: skip
-
+    read = _rig_beta30_reader()
     alone, spanned = read(sheet), read({**sheet, **ends})
     far = read({**sheet, "lowpass_hz": 110.0}).beta
     assert spanned.beta == alone.beta and not alone.beta_interval[1] >= far
