@@ -97,9 +97,6 @@ MAX_DURATION_RATIO = 2.0
 #: 4.7 % on the independent rig's soft contacts (beta 5-10, damped and not, 0-3 % noise;
 #: set on those simulations, docs/crosscheck.md), more than the map's 2 % floor.
 SYSTEMATIC = 0.05
-#: ... and per unit of the contact's unexplained share (the map's
-#: :data:`~.estimate.SYSTEMATIC_PER_MISFIT`).
-MISFIT_SYSTEMATIC = 4.0
 #: Bootstrap replicates over forcing periods.
 N_BOOTSTRAP = 200
 
@@ -307,8 +304,11 @@ def fit_soft_contact(
     ]
     lo, hi = min(lo, beta, *others), max(hi, beta, *others)
     # the reconstruction's systematic terms (:func:`~.estimate.widen_interval`'s misfit and
-    # samples-per-contact terms) with this fit's own floor, in quadrature
-    sys_hw = float(np.linalg.norm([SYSTEMATIC, MISFIT_SYSTEMATIC * (1.0 - share), 1.0 / spc]))
+    # samples-per-contact terms) with this fit's own floor, in quadrature; imported here, as
+    # the estimate imports this module
+    from stiffnet.restoring_force.estimate import SYSTEMATIC_PER_MISFIT
+
+    sys_hw = float(np.linalg.norm([SYSTEMATIC, SYSTEMATIC_PER_MISFIT * (1.0 - share), 1.0 / spc]))
     lo = beta * np.exp(-np.hypot(np.log(beta / lo), sys_hw)) if lo > 0 else 0.0
     hi = beta * np.exp(np.hypot(np.log(hi / beta), sys_hw))
     force = p.target - p.design[:, :_FREE_COLUMNS] @ p.coef[:_FREE_COLUMNS]
