@@ -151,6 +151,8 @@ SYSTEMATIC_PER_MISFIT = 4.0
 SYSTEMATIC_PER_SAMPLE = 1.0
 #: Bootstrap replicates over impacts.
 N_BOOTSTRAP = 200
+#: Why the joint fit of :mod:`.soft_contact` reads where no contact stands out.
+SOFT_UNSEEN = "too soft to stand out of the free-flight law"
 
 
 @dataclass(frozen=True)
@@ -1135,22 +1137,25 @@ def _estimate_at(
         highpass_hz=corner * ff,
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
+    beta_min = min(float(lo) for _, lo, _ in classes)
+    known = chain if chain is not None and chain.source != "fitted" else None
+    lowpass = None if known is None else (known.lowpass_hz or np.inf)
+    carried = band_passes_contacts(lowpass, info["natural_frequency_hz"], beta_max)
     if not refusal and info.get("restoring_force_class") == NO_CONTACT:
         # no impact stands out: unless a low-pass smoothed them away (their harmonics remain)
-        beta_min = min(float(lo) for _, lo, _ in classes)
-        known = chain if chain is not None and chain.source != "fitted" else None
-        lowpass = None if known is None else (known.lowpass_hz or np.inf)
         refusal = smoothed_contact_refusal(
             y, period, fs_hz, info["natural_frequency_hz"], beta_min, beta_max, lowpass,
         )  # fmt: skip
-        if refusal and band_passes_contacts(lowpass, info["natural_frequency_hz"], beta_max):
+        if refusal and carried:
             soft = _soft_reading(m, args, info, classes, coverage, seed, rivals)
             if soft is not None:  # contacts the band carries, too soft to stand out
                 return soft
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
-        return _refuse(m.refusal, **info)
+        soft = _soft_instead(m, m.law and m.law.stiffness / m.fit.stiffness, beta_min, carried,
+                             args, info, classes, coverage, seed, rivals)  # fmt: skip
+        return soft if soft is not None else _refuse(m.refusal, **info)
     staged, poles, beyond, hc = None, None, None, None
     if stage_ratio is not None:
         beta, (lo, hi), damping_ratio, staged, beyond = _staged_beta(m, stage_ratio, coverage,
@@ -1162,6 +1167,11 @@ def _estimate_at(
     else:
         beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
                                                             interval)  # fmt: skip
+    if stage_ratio is None and hc is None:
+        soft = _soft_instead(m, beta, beta_min, carried, args, info, classes, coverage, seed,
+                             rivals)  # fmt: skip
+        if soft is not None:
+            return soft
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
@@ -1184,12 +1194,20 @@ def _estimate_at(
 
 
 def _soft_reading(
-    m: _Map, args: tuple, info: dict, classes, coverage: float, seed: int, rivals: list[float]
+    m: _Map,
+    args: tuple,
+    info: dict,
+    classes,
+    coverage: float,
+    seed: int,
+    rivals: list[float],
+    why: str = SOFT_UNSEEN,
 ) -> RestoringForceResult | None:
-    """Rule: beta of contacts that do not stand out of the free-flight law, where the band is
-    known to carry them (the caller's rule), by the free flight and the contact fitted
-    jointly (:mod:`.soft_contact`); None where that fit describes no contacts (the refusal
-    stands) or `f_n` was not given (the joint fit needs ``k``)."""
+    """Rule: beta of contacts that do not stand out of the free-flight law (or that the map
+    reads below the classes, `why`), where the band is known to carry them (the caller's
+    rule), by the free flight and the contact fitted jointly (:mod:`.soft_contact`); None
+    where that fit describes no contacts (the refusal stands) or `f_n` was not given (the
+    joint fit needs ``k``)."""
     y, dtau, tau, use, period, k_given = args
     if k_given is None or m.source is None:
         return None
@@ -1217,13 +1235,46 @@ def _soft_reading(
         exponent=1.0,
         fitted_natural_frequency_hz=None,
         reason=(
-            f"{soft.n_contacts} contacts, {soft.samples_per_contact:.0f} samples each, too soft "
-            "to stand out of the free-flight law: beta from the free flight and a Kelvin-Voigt "
+            f"{soft.n_contacts} contacts, {soft.samples_per_contact:.0f} samples each, {why}: "
+            "beta from the free flight and a Kelvin-Voigt "
             f"contact fitted jointly (the contact explains {soft.share:.0%} of what the "
             "free-flight law leaves)"
         ),
         **fields,
     )
+
+
+def _soft_instead(
+    m: _Map,
+    map_beta: float | None,
+    beta_min: float,
+    carried: bool,
+    args: tuple,
+    info: dict,
+    classes,
+    coverage: float,
+    seed: int,
+    rivals: list[float],
+) -> RestoringForceResult | None:
+    """Rule: the joint fit's reading (:func:`_soft_reading`) in place of a map that reads its
+    contacts below the classes' least beta `beta_min` (`map_beta`: its reading, or its
+    refused law's), where the band is known to carry every contact (`carried`); None
+    elsewhere, or where the joint fit describes no contacts (the map's result stands).
+
+    A soft contact lasts a large share of the forcing period and the free-flight law's table
+    harmonics and damping absorb part of its force: the map then sees only the tips of the
+    long pulses above its split and reads a law far softer than the contact (rig beta 5.8
+    read 3.8, interval missing), or a misfit it refuses. The bias runs one way, down, so a
+    map reading below the softest class is where the map is out of the world its intervals
+    were set on; the joint fit reads the whole pulse, and a contact truly that soft reads
+    the same there. Readings at or above `beta_min` are left to the map."""
+    if not carried or map_beta is None or not map_beta < beta_min:
+        return None
+    why = (
+        f"read by the force-displacement map below the softest class (beta {map_beta:.2f} < "
+        f"{beta_min:g}: the map sees only the pulses' tips)"
+    )
+    return _soft_reading(m, args, info, classes, coverage, seed, rivals, why)
 
 
 def _soft_fields(soft: SoftContactFit) -> dict[str, Any]:
