@@ -26,6 +26,7 @@ a gain cancels.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -1141,20 +1142,22 @@ def _estimate_at(
     known = chain if chain is not None and chain.source != "fitted" else None
     lowpass = None if known is None else (known.lowpass_hz or np.inf)
     carried = band_passes_contacts(lowpass, info["natural_frequency_hz"], beta_max)
+    soft_reading = functools.partial(_soft_reading, m, args, info, classes, coverage, seed, rivals)
     if not refusal and info.get("restoring_force_class") == NO_CONTACT:
         # no impact stands out: unless a low-pass smoothed them away (their harmonics remain)
         refusal = smoothed_contact_refusal(
             y, period, fs_hz, info["natural_frequency_hz"], beta_min, beta_max, lowpass,
         )  # fmt: skip
         if refusal and carried:
-            soft = _soft_reading(m, args, info, classes, coverage, seed, rivals)
+            soft = soft_reading()
             if soft is not None:  # contacts the band carries, too soft to stand out
                 return soft
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
-        soft = _soft_instead(m, m.law and m.law.stiffness / m.fit.stiffness, beta_min, carried,
-                             args, info, classes, coverage, seed, rivals)  # fmt: skip
+        law_beta = m.law.stiffness / m.fit.stiffness if m.law is not None else None
+        why = _map_below_classes(law_beta, beta_min, carried)
+        soft = soft_reading(why) if why else None
         return soft if soft is not None else _refuse(m.refusal, **info)
     staged, poles, beyond, hc = None, None, None, None
     if stage_ratio is not None:
@@ -1168,8 +1171,8 @@ def _estimate_at(
         beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
                                                             interval)  # fmt: skip
     if stage_ratio is None and hc is None:
-        soft = _soft_instead(m, beta, beta_min, carried, args, info, classes, coverage, seed,
-                             rivals)  # fmt: skip
+        why = _map_below_classes(beta, beta_min, carried)
+        soft = soft_reading(why) if why else None
         if soft is not None:
             return soft
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
@@ -1244,22 +1247,11 @@ def _soft_reading(
     )
 
 
-def _soft_instead(
-    m: _Map,
-    map_beta: float | None,
-    beta_min: float,
-    carried: bool,
-    args: tuple,
-    info: dict,
-    classes,
-    coverage: float,
-    seed: int,
-    rivals: list[float],
-) -> RestoringForceResult | None:
-    """Rule: the joint fit's reading (:func:`_soft_reading`) in place of a map that reads its
+def _map_below_classes(map_beta: float | None, beta_min: float, carried: bool) -> str:
+    """Rule: why the joint fit (:func:`_soft_reading`) reads in place of a map that reads its
     contacts below the classes' least beta `beta_min` (`map_beta`: its reading, or its
-    refused law's), where the band is known to carry every contact (`carried`); None
-    elsewhere, or where the joint fit describes no contacts (the map's result stands).
+    refused law's), where the band is known to carry every contact (`carried`); '' elsewhere
+    (the map's result stands, as it does where the joint fit describes no contacts).
 
     A soft contact lasts a large share of the forcing period and the free-flight law's table
     harmonics and damping absorb part of its force: the map then sees only the tips of the
@@ -1269,12 +1261,11 @@ def _soft_instead(
     were set on; the joint fit reads the whole pulse, and a contact truly that soft reads
     the same there. Readings at or above `beta_min` are left to the map."""
     if not carried or map_beta is None or not map_beta < beta_min:
-        return None
-    why = (
+        return ""
+    return (
         f"read by the force-displacement map below the softest class (beta {map_beta:.2f} < "
         f"{beta_min:g}: the map sees only the pulses' tips)"
     )
-    return _soft_reading(m, args, info, classes, coverage, seed, rivals, why)
 
 
 def _soft_fields(soft: SoftContactFit) -> dict[str, Any]:
