@@ -83,6 +83,13 @@ MIN_TRAJECTORIES = 50
 #: (``auto``, see the module notes), over the starting config's sweep, or at the campaign's
 #: own operating points (:mod:`stiffnet.measurement.operating_points`).
 WORLDS = ("auto", "sweep", "operating_points")
+#: What each iteration's record keeps of a recording's evaluation (the state stays small).
+RECORDING_COLUMNS = (
+    "recording", "beta", "class", "beta_estimate", "restoring_force_beta",
+    "restoring_force_agreement", "error", "simulation_class", "simulation_beta",
+    "simulation_reproduced", "simulation_alarm", "reading_method", "reading_class",
+    "reading_beta",
+)  # fmt: skip
 
 
 def check_n_trajectories(n: int | None) -> None:
@@ -451,16 +458,7 @@ def _iteration(
         shutil.rmtree(work)
     work.mkdir(parents=True)
     prev = state["iterations"][-1]["effects"] if state["iterations"] else []
-    gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
-    effects = [e for e in prev if effect_class(e["name"]).name not in gone] + [
-        {
-            "name": a["name"],
-            "params": refit_params(prev, a),
-            "fitted": a["fitted"],
-            **({"intervals": a["intervals"]} if a.get("intervals") else {}),
-        }
-        for a in added
-    ]
+    effects = carried_effects(prev, added)
     # the model at the fitted values; its effects include the starting config's own (a
     # user's --config with a nonlinear law decides the world too)
     fixed_cfg = config_with_effects(start_cfg, [(e["name"], e["params"]) for e in effects])
@@ -469,22 +467,9 @@ def _iteration(
         OPERATING_POINT_TRAJECTORIES if world == "operating_points" else DEFAULT_TRAJECTORIES
     )
     ops = world == "operating_points"
-    base = start_cfg.model_copy(update={"n_trajectories": n})
-    train_cfg = config_with_effects(
-        base,
-        [
-            (
-                e["name"],
-                spread_params(
-                    e["name"], e["params"], e["fitted"], state["spread"], e.get("intervals")
-                ),
-            )
-            for e in effects
-        ],
-    )
     names = ", ".join(f"{e['name']}" for e in added) or "none (starting config)"
     train_cfg = write_config_yaml(
-        train_cfg,
+        _prior_config(start_cfg.model_copy(update={"n_trajectories": n}), effects, state["spread"]),
         work / "config.yaml",
         f"stiffnet loop on {campaign.folder.name}, iteration {k}: added {names}\n"
         f"fitted values +-{state['spread']:.0%} (prior centred on the fit); "
@@ -527,28 +512,7 @@ def _iteration(
         "metrics": metrics,
         "train_metrics": trained["train_metrics"],
         "diagnosis": diagnosis_summary(diagnosis) if diagnosis is not None else None,
-        "recordings": [
-            {
-                c: r.get(c)
-                for c in (
-                    "recording",
-                    "beta",
-                    "class",
-                    "beta_estimate",
-                    "restoring_force_beta",
-                    "restoring_force_agreement",
-                    "error",
-                    "simulation_class",
-                    "simulation_beta",
-                    "simulation_reproduced",
-                    "simulation_alarm",
-                    "reading_method",
-                    "reading_class",
-                    "reading_beta",
-                )
-            }
-            for r in evaluation["recordings"]
-        ],
+        "recordings": [{c: r.get(c) for c in RECORDING_COLUMNS} for r in evaluation["recordings"]],
         "seconds": {**trained["seconds"], "total": round(time.perf_counter() - t0, 2)},
         # the evaluation's restoring-force checks and the discrepancy's simulation
         "cpu_seconds": {
@@ -557,6 +521,39 @@ def _iteration(
             "total": round(cpu_seconds() - c0, 2),
         },
     }
+
+
+def carried_effects(
+    prev: list[dict[str, Any]], added: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
+    """The next iteration's effects: the previous ones, less those an added effect replaces
+    (the same effect refitted, or one it supersedes), then the added ones at their fit."""
+    gone = {effect_class(a["name"]).name for a in added} | replaced_by(added)
+    return [e for e in prev if effect_class(e["name"]).name not in gone] + [
+        {
+            "name": a["name"],
+            "params": refit_params(prev, a),
+            "fitted": a["fitted"],
+            **({"intervals": a["intervals"]} if a.get("intervals") else {}),
+        }
+        for a in added
+    ]
+
+
+def _prior_config(
+    base: SimulationConfig, effects: list[dict[str, Any]], spread: float
+) -> SimulationConfig:
+    """The training world's config: each effect as a prior around its fitted values."""
+    return config_with_effects(
+        base,
+        [
+            (
+                e["name"],
+                spread_params(e["name"], e["params"], e["fitted"], spread, e.get("intervals")),
+            )
+            for e in effects
+        ],
+    )
 
 
 def dataset_world(world: str, effects: Sequence[Effect]) -> tuple[str, str]:
