@@ -116,15 +116,9 @@ def propose_learned_law(
         :func:`excess_shares`), ``at_floor``, ``noise_floor``, ``map``, ``skipped``.
     """
     samples, skipped = campaign_contact_samples(campaign, rows)
-    try:
-        law = discover_contact_law(samples, seed=seed)
-    except StiffnetError as exc:
-        return {"proposed": False, "summary": f"no contact law learned: {exc}",
-                "skipped": skipped}  # fmt: skip
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        # a fit that breaks numerically is a missing proposal, never a failed diagnosis
-        why = f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
-        return {"proposed": False, "summary": why, "skipped": skipped}
+    law = _discovered(samples, seed)
+    if isinstance(law, str):
+        return {"proposed": False, "summary": law, "skipped": skipped}
     # a power law's beta is a secant at d_r: referred to the manifest's where it gives beta
     given = {g.recording: g.beta for g in campaign.rows}
     law = law.referred_to([given.get(name) for name in law.recordings])
@@ -173,23 +167,41 @@ def propose_learned_law(
         at_floor=rest,
         noise_floor=floor.median,
     )
+    out["summary"] = _proposal_summary(law, out, floor.median)
+    return out
+
+
+def _discovered(samples: Sequence[ContactSamples], seed: int) -> Any:
+    """The campaign's discovered law, or the one-line reason none was learned."""
+    try:
+        return discover_contact_law(samples, seed=seed)
+    except StiffnetError as exc:
+        return f"no contact law learned: {exc}"
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        # a fit that breaks numerically is a missing proposal, never a failed diagnosis
+        return f"no contact law learned: the fit failed numerically ({type(exc).__name__})"
+
+
+def _proposal_summary(law: Any, out: dict[str, Any], floor_median: float) -> str:
+    """The proposal in one line: the law, the discrepancy before and after, what is left."""
     floor_words = (
         "at the noise floor"
-        if rest
-        else f"above the recordings' noise floors (median {floor.median:.3g})"
+        if out["at_floor"]
+        else f"above the recordings' noise floors (median {floor_median:.3g})"
     )
-    out["summary"] = (
+    d0, d1 = out["discrepancy_before"], out["discrepancy_after"]
+    summary = (
         f"learned contact law: {law.equation}; {law.words}. With it the discrepancy goes from "
-        f"{d0:.3g} to {d1:.3g} ({removed:.0%} removed; it explains "
-        f"{shares['explained_fraction']:.0%} of the base model's excess over the recordings' "
+        f"{d0:.3g} to {d1:.3g} ({out['removed_fraction']:.0%} removed; it explains "
+        f"{out['explained_fraction']:.0%} of the base model's excess over the recordings' "
         f"floors), the rest {floor_words}"
     )
     if out.get("unknowns"):  # a face the maps refused, kept by the simulation
-        out["summary"] += (
+        summary += (
             ". The face was decided by simulating the campaign (the maps' held-out test refused "
             f"it); not known: {'; '.join(out['unknowns'])}"
         )
-    return out
+    return summary
 
 
 def _face_entries(
