@@ -52,6 +52,7 @@ from stiffnet.campaign.simulate import DEFAULT_SEED, FIT_SETTINGS, FIT_SETTINGS_
 from stiffnet.effects.base import Effect
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy, where_sums
+from stiffnet.measurement.evaluation_pool import evaluation_pool
 from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import (
     DEFAULT_BUDGET_NUMERICAL,
@@ -240,7 +241,9 @@ def diagnose_campaign(
         options = {"budget": budget, "budget_numerical": budget_numerical, "seed": seed,
                    "inclination": inclination, "model_path": model_path}  # fmt: skip
         candidates = candidate_effects(base_effects, user_effects, effects)
-        return _diagnose(campaign, base_effects, candidates, options, client, bar, t0)
+        # this process's searches spread their independent evaluations over the workers
+        with evaluation_pool(client):
+            return _diagnose(campaign, base_effects, candidates, options, client, bar, t0)
 
 
 @dataclass

@@ -46,6 +46,11 @@ Search, in the unit cube of the effect's fit space
   selection steps it searches on the same :data:`SUBSET_SEARCH` recordings as the fits
   and scores its best point on all of them (the serial part of a diagnosis: a third of
   the simulations on a 24-recording campaign); the final polish searches on all.
+
+Points that do not depend on each other (an initial design, a global-stage block's grid, a
+Nelder-Mead's first simplex, the starts profiled at a reading) are evaluated as one batch
+(:meth:`_Evaluator.prefetch`, :mod:`~stiffnet.measurement.evaluation_pool`): on the
+workers when the diagnosis runs this search in its own process, with the same numbers.
 """
 
 from __future__ import annotations
@@ -65,6 +70,7 @@ from stiffnet.effects.base import Effect
 from stiffnet.effects.fit_space import FitSpace, global_blocks
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.evaluation_pool import per_recording_many
 from stiffnet.measurement.nuisance import N_STARTS
 from stiffnet.measurement.target import CampaignTarget, needs_numerical
 from stiffnet.simulator.motion_cache import reuse_motion
@@ -196,16 +202,35 @@ class _Evaluator:
         if key not in self.cache:
             if len(self.cache) >= self.budget:
                 return None
-            effects = [
-                effect_class(n)(**p)
-                for n, p in zip(self.names, self.split(np.array(key)), strict=True)
-            ]
+            effects = self._effects(np.array(key))
             self.cache[key] = self.target.per_recording(
                 [*self.target.base_effects, *self.fixed, *effects],
                 self.settings,
                 inclination=False,
             )
         return self.cache[key]
+
+    def prefetch(self, points: Sequence[np.ndarray]) -> None:
+        """Evaluate the points not yet cached at once (:func:`per_recording_many`: spread over
+        the workers inside an evaluation pool), as many as the budget leaves, in order: the
+        cache then holds exactly what calling the evaluator on them one by one would."""
+        new: dict[tuple[float, ...], None] = {}
+        for u in points:
+            key = self.key(u)
+            if key not in self.cache and len(self.cache) + len(new) < self.budget:
+                new.setdefault(key, None)
+        if not new:
+            return
+        models = [
+            [*self.target.base_effects, *self.fixed, *self._effects(np.array(key))] for key in new
+        ]
+        pers = per_recording_many(
+            self.target, [(m, self.settings, {"inclination": False}) for m in models]
+        )
+        self.cache.update(zip(new, pers, strict=True))
+
+    def _effects(self, u: np.ndarray) -> list[Effect]:
+        return [effect_class(n)(**p) for n, p in zip(self.names, self.split(u), strict=True)]
 
     def __call__(self, u: np.ndarray) -> float:
         per = self.per(u)
@@ -351,6 +376,7 @@ def _fit_effect(
         ev = _Evaluator(target.subset(idx), fixed, [name], [space], settings, budget, target)
     else:
         ev = _Evaluator(target, fixed, [name], [space], settings, budget)
+    ev.prefetch(design)
     values = [ev(u) for u in design]
     best = design[int(np.argmin(values))]
     step = 0.5 / 3
@@ -419,10 +445,10 @@ def starts_at(
     n = len(target.rows)
     held = list(target.starts) if target.starts is not None else [0] * n
     pers = np.vstack(
-        [
-            target.per_recording(model, settings, starts=[k] * n, inclination=False)
-            for k in range(N_STARTS)
-        ]
+        per_recording_many(
+            target,
+            [(model, settings, {"starts": [k] * n, "inclination": False}) for k in range(N_STARTS)],
+        )
     )
     cols = np.arange(n)
     best = np.argmin(pers, axis=0)
@@ -442,6 +468,7 @@ def global_stage(
         for idx, grid in blocks:
             pts = np.repeat(u[None, :], len(grid), axis=0)
             pts[:, idx] = grid
+            ev.prefetch(pts)
             values = [ev(p) for p in pts]
             j = int(np.argmin(values))
             if values[j] < ev(u):
@@ -536,6 +563,7 @@ def _nelder_mead(ev: _Evaluator, start: np.ndarray, step: float, maxfev: int) ->
             for j in range(k)
         ]
     )
+    ev.prefetch(simplex)  # the first simplex's points do not depend on each other
     optimize.minimize(
         ev,
         start,

@@ -47,6 +47,7 @@ from stiffnet.campaign.loaded import memo
 from stiffnet.campaign.simulate import CampaignSolverSettings, natural_frequency
 from stiffnet.effects.base import Effect
 from stiffnet.errors import StiffnetError
+from stiffnet.measurement.evaluation_pool import per_recording_many, statistics_many
 from stiffnet.measurement.orbits import start_orbits
 from stiffnet.measurement.target import CampaignTarget
 
@@ -243,10 +244,10 @@ def profile_nuisances(
     model = [*target.base_effects, *effects]
     n = len(target.rows)
     # initial states: each recording keeps the start whose orbit matches it best
-    stats = [
-        target.simulated_statistics(model, settings, starts=[k] * n, inclination=False)
-        for k in range(N_STARTS)
-    ]
+    stats = statistics_many(
+        target,
+        [(model, settings, {"starts": [k] * n, "inclination": False}) for k in range(N_STARTS)],
+    )
     pers = [target.discrepancies_of(st) for st in stats]
     target.starts = [int(k) for k in np.argmin(np.vstack(pers), axis=0)]
     orbits = start_orbits(target.measured, stats)
@@ -286,13 +287,16 @@ def _profile(
     n = len(target.rows)
     g = np.broadcast_to(grid if grid.ndim == 2 else grid[None, :], (n, grid.shape[-1]))
     scores = np.empty_like(g, dtype=float)
+    calls = []
     for j in range(g.shape[1]):
         values = nu.values(g[:, j])
         rows = [
             r.model_copy(update={nu.name: float(v)})
             for r, v in zip(target.rows, values, strict=True)
         ]
-        scores[:, j] = target.per_recording(model, settings, rows, inclination=False)
+        calls.append((model, settings, {"rows": rows, "inclination": False}))
+    for j, per in enumerate(per_recording_many(target, calls)):  # independent grid values
+        scores[:, j] = per
     best = np.empty(n)
     for grp in np.unique(nu.groups):
         sel = nu.groups == grp
