@@ -222,6 +222,7 @@ def pooled_predictions(
     from serving.campaign_chain import (
         campaign_highpass,
         campaign_lowpass,
+        campaign_resonance,
         confirmed,
         contact_r2_through,
         identify_regardless,
@@ -240,14 +241,16 @@ def pooled_predictions(
     # the corner profile's readings, kept with the checks (the bench's cache) where it is on
     store = getattr(sp.restoring_force_check, "results", {})
 
-    def contact_r2(i: int, sheet: dict) -> float | None:
+    def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
         r = recs[i]
         digest = hashlib.sha1(np.ascontiguousarray(r["accel"]).tobytes()).hexdigest()
+        tag = "read_r2_through" if refused_as_unexplained else "contact_r2_through"
         key = (digest, float(r["fs_hz"]), float(r["fn_hz"]), json.dumps(sheet, sort_keys=True),
-               "contact_r2_through")  # fmt: skip
+               tag)  # fmt: skip
         if key not in store:
             store[key] = {"contact_r2": contact_r2_through(r["accel"], r["fs_hz"], r["fn_hz"],
-                                                           pred, sheet)}  # fmt: skip
+                                                           pred, sheet,
+                                                           refused_as_unexplained)}  # fmt: skip
         return store[key]["contact_r2"]
 
     out = list(got)
@@ -260,6 +263,9 @@ def pooled_predictions(
                                  lambda j, sheet, idx=idx: contact_r2(idx[j], sheet))  # fmt: skip
         chain = campaign_highpass(chain, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet),
                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
+        chain = campaign_resonance(chain,
+                                   lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
+                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

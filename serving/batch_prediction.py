@@ -54,6 +54,7 @@ import pyarrow.parquet as pq
 from serving.campaign_chain import (
     campaign_highpass,
     campaign_lowpass,
+    campaign_resonance,
     chain_fitted_regardless,
     confirmed,
     contact_r2_through,
@@ -511,9 +512,11 @@ def _campaign_chain(
     (the manifest's or its sidecar's) does not vote. Where too few identified one, the chain
     is fitted regardless of the gate here, recording by recording
     (:func:`serving.campaign_chain.identify_regardless`); a low-pass the identified chains
-    show, then a pooled high-pass corner, is profiled over the recordings read through the
-    pooled chain (:func:`serving.campaign_chain.campaign_lowpass`,
-    :func:`serving.campaign_chain.campaign_highpass`)."""
+    show, then a pooled high-pass corner, then a pooled resonance near the contacts that
+    refuses a recording, is profiled over the recordings read through the pooled chain
+    (:func:`serving.campaign_chain.campaign_lowpass`,
+    :func:`serving.campaign_chain.campaign_highpass`,
+    :func:`serving.campaign_chain.campaign_resonance`)."""
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
@@ -541,15 +544,17 @@ def _campaign_chain(
     sheets = [sheet for *_, sheet in settings]
     chain, sensors = identify_regardless(sensors, paths, sheets, identify)
 
-    def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
-        rec = recording(i)
-        return None if rec is None else contact_r2_through(*rec, predictor, sheet)
+    def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
+        rec = recording(i)  # read through the pooled chain
+        return None if rec is None else contact_r2_through(*rec, predictor, sheet,
+                                                           refused_as_unexplained)  # fmt: skip
 
     chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     if not chain["pooled"]:
         return chain
     fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
-    return campaign_highpass(chain, contact_r2, fns, sheets)
+    chain = campaign_highpass(chain, contact_r2, fns, sheets)
+    return campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
 
 
 def _confirmed(

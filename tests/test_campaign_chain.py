@@ -441,3 +441,144 @@ def test_a_lowpass_the_recordings_fits_scatter_over_is_profiled_on_a_rig_campaig
 
     bare = {k: v for k, v in sheet.items() if not k.startswith("lowpass")}
     assert all(e < e0 for e, e0 in zip(errors(sheet), errors(bare), strict=True))
+
+
+def _resonance_table(truth_hz, truth_damping=0.05, never_read=()):
+    """A campaign's contact laws as an analytic table, read as :func:`contact_r2_through`
+    reads them with ``refused_as_unexplained``: recording i's share of force unexplained
+    through a resonance at f Hz, damping z is ``0.001 (i + 1) exp(shape)``, with
+    ``shape = (ln(f / t_i) / 0.03)^2 + (ln(z / truth_damping) / 0.3)^2`` (`truth_hz`: each
+    recording's best frequency t_i); a reading with shape above 3 is refused (R² 0), as the
+    ringing a resonance off in frequency and damping leaves makes the contacts last too long;
+    the recordings in `never_read` are refused everywhere."""
+
+    def contact_read(i, sheet):
+        shape = (np.log(sheet["resonance_hz"] / truth_hz[i]) / 0.03) ** 2
+        shape += (np.log(sheet["resonance_damping"] / truth_damping) / 0.3) ** 2
+        return 0.0 if shape > 3.0 or i in never_read else 1.0 - 0.001 * (i + 1) * np.exp(shape)
+
+    return contact_read
+
+
+RESONANCE_SHEET = {"resonance_hz": 208.0, "resonance_damping": 0.034, "lowpass_hz": 0.0,
+                   "lowpass_order": 0.0, "highpass_hz": 1.0}  # fmt: skip
+
+
+def _resonance_chain(resonance_hz=208.0, damping=0.034):
+    sheet = {**RESONANCE_SHEET, "resonance_hz": resonance_hz, "resonance_damping": damping}
+    return {"pooled": True, "sensor": sheet, "reason": "pooled",
+            "stages": {"resonance_hz": {"value": resonance_hz}}}  # fmt: skip
+
+
+def test_a_pooled_resonance_that_refuses_the_contacts_is_profiled_over_the_campaign():
+    """A resonance pooled 4 % high in frequency and a third low in damping (as two or three
+    fits pool it), near the contacts, refuses every recording of an analytic table whose laws
+    all fit best at 200 Hz zeta 0.05: profiled, the sheet gets 200 Hz within 1 % and zeta 0.05
+    within 10 %, every recording reads, its interval holds the frequency, the rest of the
+    sheet is unchanged; recordings split between 196 and 204 Hz give an interval spanning
+    both. Left as they are: a resonance far above the contacts, a high-pass left to each
+    recording, no resonance, nothing pooled; a recording with its own sheet is not read."""
+    from serving.campaign_chain import RESONANCE_NEAR_CONTACT, campaign_resonance
+
+    chain, fns = _resonance_chain(), [9.48] * 5
+    table = _resonance_table([200.0] * 5)
+    assert all(table(i, chain["sensor"]) == 0.0 for i in range(5))  # the pool refuses them
+    got = campaign_resonance(chain, table, fns)
+    out = got["sensor"]
+    assert out["resonance_hz"] == pytest.approx(200.0, rel=0.01)
+    assert out["resonance_damping"] == pytest.approx(0.05, rel=0.1)
+    assert all(table(i, out) > 0.99 for i in range(5))
+    stage = got["stages"]["resonance_hz"]
+    assert stage["pooled"] == 208.0 and stage["pooled_damping"] == 0.034
+    assert (stage["read_pooled"], stage["read"], stage["profiled_on"]) == (0, 5, 5)
+    assert stage["interval"][0] <= out["resonance_hz"] <= stage["interval"][1]
+    assert "208.0 Hz" in got["reason"]
+    assert {k: v for k, v in out.items() if not k.startswith("resonance")} == {
+        k: v for k, v in RESONANCE_SHEET.items() if not k.startswith("resonance")}  # fmt: skip
+    split = campaign_resonance(chain, _resonance_table([196.0, 196.0, 204.0, 204.0, 196.0]), fns)
+    low, high = split["stages"]["resonance_hz"]["interval"]
+    assert low <= 196.0 * 1.02 and high >= 204.0 / 1.02
+    # a recording read with its own sheet is neither read nor voting
+    own = [None, None, None, None, {"resonance_hz": 500.0}]
+    sure = campaign_resonance(chain, lambda i, s: 1 / 0 if i == 4 else table(i, s), fns, own)
+    assert sure["sensor"]["resonance_hz"] == pytest.approx(200.0, rel=0.01)
+    # far above the stiffest contact (96 Hz at beta 100, f_n 9.48 Hz): not profiled
+    far_hz = 1.05 * RESONANCE_NEAR_CONTACT * 9.48 * np.sqrt(101.0)
+    far = {**chain, "sensor": {**chain["sensor"], "resonance_hz": far_hz}}
+    assert campaign_resonance(far, lambda *_: 1 / 0, fns) is far
+    auto = {**chain, "sensor": {**chain["sensor"], "highpass_hz": HIGHPASS_FITTED}}
+    assert campaign_resonance(auto, lambda *_: 1 / 0, fns) is auto
+    none = {**chain, "sensor": {**chain["sensor"], "resonance_hz": 0.0, "resonance_damping": 0.0}}
+    assert campaign_resonance(none, lambda *_: 1 / 0, fns) is none
+    assert campaign_resonance({"pooled": False, "sensor": None}, lambda *_: 1 / 0, fns) == {
+        "pooled": False, "sensor": None}  # fmt: skip
+
+
+def test_a_pooled_resonance_is_kept_unless_a_candidate_reads_more_recordings():
+    """The guard: a pool that reads every recording is returned as it is after reading each
+    once, though the contact laws' R² alone would move it (every law fits best 2 % lower,
+    zeta 0.04); and a pool that refuses a recording no candidate reads is kept (reported),
+    though every other law fits best elsewhere: the profile never trades readings for fit."""
+    from serving.campaign_chain import campaign_resonance
+
+    calls = []
+
+    def counted(table):
+        def read(i, sheet):
+            calls.append(i)
+            return table(i, sheet)
+
+        return read
+
+    right = _resonance_chain(200.0, 0.05)
+    leaning = _resonance_table([196.0] * 5, truth_damping=0.04)
+    assert all(leaning(i, right["sensor"]) > 0.0 for i in range(5))
+    assert campaign_resonance(right, counted(leaning), [9.48] * 5) is right
+    assert len(calls) == 5
+    unread = _resonance_table([200.0] * 5, never_read=(4,))
+    kept = campaign_resonance(_resonance_chain(203.0, 0.05), unread, [9.48] * 5)
+    assert kept["sensor"]["resonance_hz"] == 203.0 and kept["sensor"]["resonance_damping"] == 0.05
+    assert kept["stages"]["resonance_hz"]["kept"] and kept["stages"]["resonance_hz"]["read"] == 4
+
+
+@pytest.mark.slow
+def test_a_mount_resonance_pooled_off_is_profiled_on_a_rig_campaign():
+    """Three hard contacts of the independent rig behind a 200 Hz zeta 0.05 mount (about twice
+    the stiffest contact's frequency) and a 1 Hz high-pass (2 % noise), read through the
+    resonance as two or three fits pool it (208 Hz, zeta 0.034): the ringing left around each
+    pulse refuses at least one (the contacts last too long, or the law explains too little).
+    Profiled over the campaign's contact laws, the resonance lands within 3 % in frequency and
+    25 % in damping, and every recording reads beta within 10 %. The true resonance, pooled,
+    reads all three and is returned as it is."""
+    from types import SimpleNamespace
+
+    from independent_rig import RigRun, record
+
+    from serving.campaign_chain import campaign_resonance, contact_r2_through
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    sensor = {"resonance_hz": 200.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
+    betas = (50.0, 80.0, 95.0)
+    recs = [record(RigRun(recording="r.csv", beta=b, fs_hz=2000.0, duration_s=3.0, gap_mm=1.5,
+                          sensor=sensor), seed=i)[1] for i, b in enumerate(betas)]  # fmt: skip
+
+    def readings(sheet):
+        return [restoring_force_estimate(a, 2000.0, natural_frequency_hz=9.48, sensor=sheet,
+                                         max_periods=24.0, interval=False)
+                for a in recs]  # fmt: skip
+
+    chain = _resonance_chain()
+    assert not all(r.ok for r in readings(chain["sensor"]))
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+
+    def read(i, s):
+        return contact_r2_through(recs[i], 2000.0, 9.48, pred, s, refused_as_unexplained=True)
+
+    got = campaign_resonance(chain, read, [9.48] * 3)
+    sheet = got["sensor"]
+    assert sheet["resonance_hz"] == pytest.approx(200.0, rel=0.03)
+    assert sheet["resonance_damping"] == pytest.approx(0.05, rel=0.25)
+    for r, b in zip(readings(sheet), betas, strict=True):
+        assert r.ok and r.beta == pytest.approx(b, rel=0.1)
+    right = _resonance_chain(200.0, 0.05)
+    assert campaign_resonance(right, read, [9.48] * 3) is right

@@ -152,9 +152,10 @@ def campaign_predictions(
     some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
     they agree, every recording without its own data sheet is predicted again with the
     pooled chain as its sheet (a low-pass the identified chains show, then its high-pass
-    corner, profiled over the campaign's contact laws,
-    :func:`serving.campaign_chain.campaign_lowpass`,
-    :func:`serving.campaign_chain.campaign_highpass`); kept where it reads the contact
+    corner, then a resonance near the contacts that refuses a recording, profiled over the
+    campaign's contact laws, :func:`serving.campaign_chain.campaign_lowpass`,
+    :func:`serving.campaign_chain.campaign_highpass`,
+    :func:`serving.campaign_chain.campaign_resonance`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
     except on a recording whose own contact law it reads much worse
     (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
@@ -163,6 +164,7 @@ def campaign_predictions(
     from serving.campaign_chain import (
         campaign_highpass,
         campaign_lowpass,
+        campaign_resonance,
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
@@ -189,13 +191,16 @@ def campaign_predictions(
 
     read: dict[int, Any] = {}  # each recording read once for the corner's profile
 
-    def contact_r2(i: int, sheet: dict) -> float | None:  # read through the pooled chain
+    def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
         rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
         pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
-        return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet)
+        return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet,
+                                  refused_as_unexplained)  # fmt: skip
 
     chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
-    chain = campaign_highpass(chain, contact_r2, [natural_frequency(row) for row in rows], sheets)
+    fns = [natural_frequency(row) for row in rows]
+    chain = campaign_highpass(chain, contact_r2, fns, sheets)
+    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
