@@ -584,6 +584,8 @@ def _profiled_resonance(
 
     least = np.min([misfit(*k) for k in keys], axis=0)
     say = least < 1.0  # a recording read at no candidate has no say
+    if not say.any():  # no candidate reads a recording: nothing to rank them by
+        return chain
 
     def rank(f: float, z: float) -> tuple[int, float]:  # most readings, then least misfit
         n_read = int(np.sum(r2_at(f, z) > 0.0))

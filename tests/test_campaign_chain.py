@@ -541,6 +541,19 @@ def test_a_pooled_resonance_is_kept_unless_a_candidate_reads_more_recordings():
     assert kept["stages"]["resonance_hz"]["kept"] and kept["stages"]["resonance_hz"]["read"] == 4
 
 
+def test_a_pool_no_candidate_reads_any_recording_through_is_returned_as_it_is():
+    """Where every candidate's readings are refused, nothing ranks the candidates: the chain
+    comes back untouched, without the empty median's warning."""
+    import warnings
+
+    from serving.campaign_chain import campaign_resonance
+
+    chain = _resonance_chain(200.0, 0.05)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert campaign_resonance(chain, lambda i, sheet: 0.0, [9.48] * 3) is chain
+
+
 @pytest.mark.slow
 def test_a_mount_resonance_pooled_off_is_profiled_on_a_rig_campaign():
     """Three hard contacts of the independent rig behind a 200 Hz zeta 0.05 mount (about twice
