@@ -100,7 +100,7 @@ def test_a_class_near_an_edge_nothing_confirms_is_flagged(predictor):
     (0.31), beta 16.0 (medium), 1.2 % noise at 134 f_n. The CNN reads it soft, about 16
     [11, 25], with none of its own checks firing (wrong and silent before class_unverified),
     and the cross-check's law explains under 80 % of the contact force: it confirms nothing.
-    About 0.6 of the model's interval (in log beta) lies above 15 (> 0.30)."""
+    About 0.6 of the model's interval (in log beta) lies above 15 (> 0.35)."""
     ratio = 133.8252
     effects = [build_effect("contact_damping", {"damping_ratio": 0.3069})]
     one = [np.array([v]) for v in (16.0444, 2.838, 1.4226, 0.8341, 0.0198, FN)]

@@ -48,7 +48,7 @@ class UnverifiedClassSettings(BaseModel):
 
     #: Share (in log β) of the model's interval outside its class above which an answer no
     #: physical reading confirms is flagged.
-    outside_share_min: float = Field(0.30, ge=0.0, lt=1.0)
+    outside_share_min: float = Field(0.35, ge=0.0, lt=1.0)
 
 
 @lru_cache(maxsize=1)
