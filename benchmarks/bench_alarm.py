@@ -143,6 +143,8 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
         details.append({"class": res["class"], "true_class": r["class"], "beta": res["beta"],
                         "true_beta": r["beta"], "beta_interval": res["beta_interval"],
                         "fired": fired, "scores": (res["alarm"] or {}).get("scores"),
+                        "probabilities": res.get("probabilities"),
+                        "geometric_class": (res.get("geometric") or {}).get("class"),
                         "restoring_force": rf})  # fmt: skip
     w, a, b = np.array(wrong), np.array(after), np.array(prior)
     flagged, campaign = campaign_law_alarms(results)  # the set read as one rig's campaign

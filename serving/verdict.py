@@ -3,10 +3,11 @@ an alarm, in one place for ``predict`` and the stiffness log.
 
 The model's own checks (embedding, ambiguity, beta uncertainty, class edge:
 :func:`stiffnet.uncertainty.alarm_verdict.alarm_verdict`) are evaluated by the caller on its
-windows. :func:`rule_checks` adds the checks that need no calibration: the model's class
-against its own beta, the restoring-force cross-check against the model (disjoint intervals,
-another class, a class neither reading places beta in, stretched contacts, a refusal behind a
-chain outside the priors), beta behind a learned face the record cannot resolve, a contact
+windows. :func:`rule_checks` adds the rule checks: the model's class against its own beta, the
+restoring-force cross-check against the model (disjoint intervals, another class, a class
+neither reading places beta in, stretched contacts, a refusal behind a chain outside the
+priors), a class near an edge that no close reading checks (its threshold set on draws the
+benchmark does not score), beta behind a learned face the record cannot resolve, a contact
 law the training world lacks, a restraint that rings within its contacts, and the identified
 sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
@@ -38,6 +39,7 @@ from stiffnet.uncertainty.face_identifiability import (
 )
 from stiffnet.uncertainty.restraint_dynamics import with_restraint_dynamics_check
 from stiffnet.uncertainty.unseen_law import trained_law_kinds, with_unseen_law_check
+from stiffnet.uncertainty.unverified_class import with_unverified_class_check
 
 
 def model_facts(predictor: Any) -> dict[str, Any]:
@@ -99,6 +101,7 @@ def rule_checks(
     alarm = with_restoring_force_check(alarm, gap)
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
     alarm = with_class_contested_check(alarm, class_name, interval, restoring_force, names, edges)
+    alarm = with_unverified_class_check(alarm, class_name, interval, restoring_force, names, edges)
     priors = model.get("priors")
     seen = trained_law_kinds(priors)
     alarm = with_unseen_law_check(alarm, restoring_force, seen)

@@ -25,7 +25,7 @@ def _record(beta=45.0, effects=()):
     return res.accel[0]
 
 
-@pytest.mark.parametrize("beta", [10.0, 45.0, 80.0])
+@pytest.mark.parametrize("beta", [10.0, 14.0, 37.0, 45.0, 80.0])
 def test_no_alarm_on_an_ideal_rig(predictor, beta):
     res = predictor.predict(_record(beta), FS, natural_frequency_hz=FN)
     assert not res["ood_flag"] and res["alarm"]["fired"] == []
@@ -93,3 +93,24 @@ def test_a_refusal_for_the_sensor_band_flags_the_answer(predictor, monkeypatch):
     assert res["ood_flag"] and res["alarm"]["fired"] == ["chain_refusal"]
     assert res["beta_interval"] == calm["beta_interval"]
     assert any(w.startswith("UNRELIABLE") and "smooths the contact" in w for w in res["warnings"])
+
+
+def test_a_class_near_an_edge_nothing_confirms_is_flagged(predictor):
+    """The robustness benchmark's contact_damping draw 15, simulated again: a damped contact
+    (0.31), beta 16.0 (medium), 1.2 % noise at 134 f_n. The CNN reads it soft, about 16
+    [11, 25], with none of its own checks firing (wrong and silent before class_unverified),
+    and the cross-check's law explains under 80 % of the contact force: it confirms nothing.
+    About 0.6 of the model's interval (in log beta) lies above 15 (> 0.35)."""
+    ratio = 133.8252
+    effects = [build_effect("contact_damping", {"damping_ratio": 0.3069})]
+    one = [np.array([v]) for v in (16.0444, 2.838, 1.4226, 0.8341, 0.0198, FN)]
+    accel = (
+        Simulator(effects)
+        .simulate(OscillatorBatch(*one), ratio, int(128 * ratio), noise=0.0123, rng=0)
+        .accel[0]
+    )
+    res = predictor.predict(accel, FN * ratio, natural_frequency_hz=FN)
+    assert res["class"] == "soft"  # the truth is medium
+    assert res["restoring_force"]["contact_r2"] < 0.95
+    assert res["ood_flag"] and res["alarm"]["fired"] == ["class_unverified"]
+    assert res["alarm"]["scores"]["class_unverified"] > 0.5

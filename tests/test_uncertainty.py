@@ -162,6 +162,48 @@ def test_a_class_both_readings_leave_open_toward_the_checks_class_is_flagged():
     assert rule_checks(quiet, "soft", [12.0, 15.1], rf, model, 1e3, 9.48)["fired"] == []
 
 
+def test_a_class_near_an_edge_no_close_reading_confirms_is_flagged():
+    """contact_damping's draw 15 of the robustness benchmark, wrong and silent before the check:
+    beta 16.0 (medium) read 15.6 soft [9.9, 25.1], the cross-check's law explaining 91 % of
+    the contact force (< 0.95: no evidence either way). 0.55 of the model's interval (in log
+    beta) lies above 15, beyond the shipped 0.35: class_unverified fires. The same answer with
+    a close-fitting reading, or an interval inside its class, stays quiet."""
+    from serving.verdict import rule_checks
+    from stiffnet.uncertainty.unverified_class import (
+        CLASS_UNVERIFIED,
+        unverified_class_settings,
+        unverified_class_share,
+    )
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": None}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    loose = {"class": "soft", "beta": 3.85, "beta_interval": [2.62, 5.67], "contact_r2": 0.91}
+    share = unverified_class_share("soft", [9.9, 25.1], loose, NAMES, EDGES)
+    assert share == pytest.approx(np.log(25.1 / 15) / np.log(25.1 / 9.9))
+    assert unverified_class_settings().outside_share_min == 0.35
+    res = rule_checks(quiet, "soft", [9.9, 25.1], loose, model, 1000.0, 9.48)
+    assert res["fired"] == [CLASS_UNVERIFIED] and res["flag"]
+    assert "the model's guess alone" in res["message"]
+    # a refusal confirms nothing either
+    refused = {"class": None, "beta": None, "beta_interval": None, "reason": "no meaningful fit"}
+    assert rule_checks(quiet, "soft", [9.9, 25.1], refused, model, 1e3, 9.48)["fired"] == [
+        CLASS_UNVERIFIED
+    ]
+    # below the threshold: 0.30 of damping_and_sensor's draw 22, medium [17.1, 47.3] (wrong),
+    # is not beyond it (the calibration draws' right answers set it)
+    assert unverified_class_share("medium", [17.1, 47.3], loose, NAMES, EDGES) < 0.35
+    assert rule_checks(quiet, "medium", [17.1, 47.3], loose, model, 1e3, 9.48)["fired"] == []
+    # a close reading in the model's class confirms it; the checks comparing the two readings
+    # judge a close one (class_contested, restoring_force_class), this one does not apply
+    close = {"class": "soft", "beta": 12.0, "beta_interval": [10.0, 14.0], "contact_r2": 0.99}
+    res = rule_checks(quiet, "soft", [9.9, 25.1], close, model, 1e3, 9.48)
+    assert res["fired"] == [] and CLASS_UNVERIFIED not in res["scores"]
+    # an ideal rig's answer: the interval inside its class, nothing to confirm
+    assert rule_checks(quiet, "soft", [8.0, 14.0], loose, model, 1e3, 9.48)["fired"] == []
+    # no class range to judge
+    assert unverified_class_share("no_contact", [1.0, 2.0], loose, NAMES, EDGES) is None
+
+
 def test_contact_duration_excess_fires_beyond_twice_the_half_period():
     from stiffnet.uncertainty.alarm_verdict import (
         ALARM_WORDS,

@@ -52,6 +52,9 @@ ALARM_WORDS = {
     "class_contested": "the restoring-force cross-check puts most of its beta interval in "
     "another class, and the model's own interval reaches into that class: neither reading "
     "places beta in the model's class",
+    "class_unverified": "the model's beta interval reaches well into another class and the "
+    "restoring-force cross-check does not confirm the class (it refused, or its contact law "
+    "fits loosely): the class near the edge is the model's guess alone",
     "face_identifiability": "the model was trained behind a learned restraint face: the record "
     "carries the contact in series with the face's support, whose stiffness the training world "
     "leaves free within its prior, and most of the betas that allows over the model's interval "
