@@ -98,7 +98,7 @@ def per_recording_many(target: CampaignTarget, calls: Sequence[Call]) -> list[np
     todo: list[int] = []
     # a stand-in target (a test's, a user's) is evaluated here: only a CampaignTarget travels
     if client is not None and len(calls) >= MIN_BATCH and isinstance(target, CampaignTarget):
-        keys = [_memo_key(target, e, s, kw) for e, s, kw in calls]
+        keys = [target.call_key(e, s, **kw) for e, s, kw in calls]
         # an effect pickle cannot digest (no memo key) cannot travel either: all here
         if all(k is not None for k in keys):
             todo = [i for i, k in enumerate(keys) if k not in target.known]
@@ -124,17 +124,6 @@ def statistics_many(
     if client is None or len(calls) < MIN_BATCH or not isinstance(target, CampaignTarget):
         return [target.simulated_statistics(e, s, **kw) for e, s, kw in calls]
     return _spread(_chunk_statistics, target, calls, client)
-
-
-def _memo_key(
-    target: CampaignTarget, effects: Sequence[Effect], settings: SolverSettings, kw: dict[str, Any]
-) -> bytes | None:
-    """The key :meth:`CampaignTarget.per_recording` files this call's result under."""
-    rows = target.rows if kw.get("rows") is None else list(kw["rows"])
-    starts = target.starts if kw.get("starts") is None else kw["starts"]
-    incl = kw.get("inclination")
-    incl = target.inclination if incl is None else target.inclination and incl
-    return target.memo_key(effects, settings, rows, starts, incl, kw.get("oversample", True))
 
 
 __all__ = ["MIN_BATCH", "evaluation_pool", "per_recording_many", "statistics_many"]

@@ -166,6 +166,22 @@ class CampaignTarget:
                 out[i] = d if np.isfinite(d) else FAILED_DISCREPANCY
         return out
 
+    def call_key(
+        self,
+        effects: Sequence[Effect],
+        settings: SolverSettings,
+        rows: Sequence[ManifestRow] | None = None,
+        starts: Sequence[int] | None = None,
+        inclination: bool | None = None,
+        oversample: bool = True,
+    ) -> bytes | None:
+        """The :meth:`memo_key` :meth:`per_recording` files a call with these arguments under
+        (the target's own rows, starts and inclination where they are None)."""
+        rows_ = self.rows if rows is None else list(rows)
+        starts_ = self.starts if starts is None else starts
+        incl = self.inclination if inclination is None else self.inclination and inclination
+        return self.memo_key(effects, settings, rows_, starts_, incl, oversample)
+
     def per_recording(
         self,
         effects: Sequence[Effect],
@@ -179,14 +195,11 @@ class CampaignTarget:
         (``rows``, ``starts``: other nuisance values than the target's; ``inclination``,
         ``oversample``: see :meth:`simulated_statistics`). Computed once per inputs
         (:attr:`known`)."""
-        rows_ = self.rows if rows is None else list(rows)
-        starts_ = self.starts if starts is None else starts
-        incl = self.inclination if inclination is None else self.inclination and inclination
-        key = self.memo_key(effects, settings, rows_, starts_, incl, oversample)
+        key = self.call_key(effects, settings, rows, starts, inclination, oversample)
         if key is not None and key in self.known:
             return self.known[key].copy()
         out = self.discrepancies_of(
-            self.simulated_statistics(effects, settings, rows_, starts_, inclination, oversample)
+            self.simulated_statistics(effects, settings, rows, starts, inclination, oversample)
         )
         if key is not None and len(self.known) < MEMO_ENTRIES:
             self.known[key] = out.copy()
