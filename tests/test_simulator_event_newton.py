@@ -1,12 +1,14 @@
-"""The numerical engine's contact events located by Newton steps from a Hermite guess.
+"""The numerical engine's events located by Newton steps from a Hermite guess.
 
-Where the contact's root function is the penetration (no contact damping), its rate is
-known at both ends of the substep and at every partial step, so the locator starts at the
-root of the cubic Hermite interpolant and takes Newton steps (:func:`events._newton`)
-instead of the secant's. Expectation: the same event (within the secant's tolerance of the
-root of the same function), at the analytic contact time of a free flight to RK4's
-accuracy, the same trajectory to round-off, in fewer partial steps; and the locator keeps
-the secant's contract (far side of the root, within the tolerance) on hard functions.
+Where the contact's root function is the penetration (no contact damping), or an effect's
+event function has a rate it gives (``event_rate``: dry friction's slip, whose function is
+the velocity), the rate is known at both ends of the substep and at every partial step, so
+the locator starts at the root of the cubic Hermite interpolant and takes Newton steps
+(:func:`events._newton`) instead of the secant's. Expectation: the same event (within the
+secant's tolerance of the root of the same function), at the analytic contact time of a
+free flight (the slip reversal of a friction-braked one) to RK4's accuracy, the same
+trajectory to round-off, in fewer partial steps; and the locator keeps the secant's
+contract (far side of the root, within the tolerance) on hard functions.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from stiffnet.effects.dry_friction import STUCK, DryFriction
 from stiffnet.effects.hertz_contact import HertzContact
 from stiffnet.effects.restraint_mass import RestraintMass
 from stiffnet.simulator import events as ev
@@ -150,3 +153,83 @@ def test_restraint_rate_is_the_zero_force_state_derivatives() -> None:
         ds0 = eff.state_derivative(np.zeros(5), s, np.zeros(5), p)
         fd = eff.restraint_position(s + ds0, p) - eff.restraint_position(s, p)
         np.testing.assert_allclose(eff.restraint_rate(s, p), fd, rtol=1e-12, atol=1e-12)
+
+
+MU = 0.15  # kinetic friction of the slip test: the unforced mass reverses, then sticks
+
+
+def _slip_reversal_time() -> float:
+    """First velocity reversal of the unforced, damped mass slipping forward from x = 0,
+    v = V0 against a kinetic friction MU: x'' + 2 xi x' + x = -MU."""
+    wd = np.sqrt(1 - XI**2)
+    b = (V0 + XI * MU) / wd
+
+    def v(t):
+        c, s = np.cos(wd * t), np.sin(wd * t)
+        return np.exp(-XI * t) * (-XI * (MU * c + b * s) + wd * (b * c - MU * s))
+
+    return brentq(v, 0.1, 3.0, xtol=1e-15)
+
+
+def _run_friction(newton: bool, mp: pytest.MonkeyPatch) -> tuple[np.ndarray, object, int]:
+    """One unforced row slipping far from the restraint (no contact) until it sticks; returns
+    the located event times, the result and the partial steps taken. ``newton=False``: the
+    slip events by the secant (the effect gives no rate)."""
+    batch = OscillatorBatch(
+        np.array([30.0]), np.array([100.0]), np.array([0.0]), np.array([1.3]), np.array([XI])
+    )
+    eff = DryFriction(coefficient=MU, static_ratio=1.2)
+    if not newton:
+        mp.setattr(DryFriction, "event_rate", lambda self, *a: None)
+    times: list[float] = []
+    switch = nm._switch
+
+    def recorded(st, ma, a, evs, roots):
+        rows = switch(st, ma, a, evs, roots)
+        times.extend(st["t"][rows].tolist())
+        return rows
+
+    mp.setattr(nm, "_switch", recorded)
+    steps = [0]
+    state = ev._Partial.state
+
+    def counted(self, s):
+        steps[0] += 1
+        return state(self, s)
+
+    mp.setattr(ev._Partial, "state", counted)
+    out = simulate_numerical(batch, [eff], [eff.batch_params(1, None)], 0.0, V0, H, 0, H, 400, SUB)
+    return np.array(times), out, steps[0]
+
+
+def test_newton_locates_the_secants_slip_reversal_at_the_analytic_time() -> None:
+    """Dry friction's slip events (the function is the velocity, its rate the acceleration)
+    by Newton steps: the secant's events within its tolerance, the first at the analytic
+    reversal time, the same trajectory to round-off and the same sticking, in fewer partial
+    steps."""
+    with pytest.MonkeyPatch.context() as mp:
+        t_new, new, n_new = _run_friction(True, mp)
+    with pytest.MonkeyPatch.context() as mp:
+        t_old, old, n_old = _run_friction(False, mp)
+    assert t_new.size == t_old.size >= 3  # reversals, then sticking
+    assert np.all(np.abs(t_new - t_old) <= 2 * ev._ROOT_TOL * H / SUB + 1e-15)
+    assert abs(t_new[0] - _slip_reversal_time()) < 1e-8
+    for key in ("x", "v", "accel"):
+        np.testing.assert_allclose(getattr(new, key), getattr(old, key), rtol=0, atol=1e-12)
+    assert np.all(np.abs(new.v[0, -20:]) < 1e-12)  # stuck at the end, as by the secant
+    assert n_new < 0.7 * n_old
+
+
+def test_dry_frictions_event_rate_is_its_event_functions_derivative() -> None:
+    """The slip modes' rate is the event function's time derivative along a motion (a
+    central difference of ``+/-v`` over a step of the constant-force motion); stuck: none."""
+    eff = DryFriction(coefficient=0.2, static_ratio=1.2)
+    p = eff.batch_params(3, None)
+    mode = np.array([0.0, -1.0, STUCK])
+    x, v, other = np.array([0.1, -0.2, 0.3]), np.array([0.5, -0.4, 0.0]), np.array([0.3, 0.1, 0.1])
+    accel = other + eff.extra_force(np.zeros(3), x, v, other, mode, p)
+    dt = 1e-6
+    g = [eff.event_function(np.zeros(3), x, v + k * dt * accel, other, mode, p) for k in (-1, 1)]
+    rate = eff.event_rate(np.zeros(3), x, v, accel, other, mode, p)
+    np.testing.assert_allclose(rate[:2], ((g[1] - g[0]) / (2 * dt))[:2], rtol=1e-9)
+    assert np.isnan(rate[2])

@@ -333,6 +333,24 @@ class DynamicsEffect(Effect):
         """A function whose sign change switches the effect's mode (located exactly)."""
         return None
 
+    def event_rate(
+        self,
+        t: np.ndarray,
+        x: np.ndarray,
+        v: np.ndarray,
+        accel: np.ndarray,
+        other: np.ndarray,
+        mode: np.ndarray,
+        p: ParamArrays,
+    ) -> np.ndarray | None:
+        """Time derivative of :meth:`event_function` at the state, (B,), where the effect
+        knows it from the state and ``accel`` (``dv/dt``, the mass's acceleration in the
+        relative frame), NaN where not (e.g. a mode whose function reads ``other``'s rate).
+        The engine then locates those rows' events by Newton steps from a Hermite guess
+        (:func:`~stiffnet.simulator.events._newton`) instead of the secant. None: no rate
+        known in any mode."""
+        return None
+
     def next_mode(
         self, x: np.ndarray, v: np.ndarray, other: np.ndarray, mode: np.ndarray, p: ParamArrays
     ) -> np.ndarray:

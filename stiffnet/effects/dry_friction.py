@@ -93,6 +93,20 @@ class DryFriction(DynamicsEffect):
         mu_s = p["static_ratio"] * p["coefficient"]
         return np.where(mode == STUCK, mu_s - np.abs(other), np.where(mode == SLIP_BACKWARD, -v, v))
 
+    def event_rate(
+        self,
+        t: np.ndarray,
+        x: np.ndarray,
+        v: np.ndarray,
+        accel: np.ndarray,
+        other: np.ndarray,
+        mode: np.ndarray,
+        p: ParamArrays,
+    ) -> np.ndarray:
+        """Rate of :meth:`event_function`: ``+/-accel`` slipping (the function is ``+/-v``);
+        NaN stuck (``|other|``'s rate is not in the state), where the secant locates it."""
+        return np.where(mode == STUCK, np.nan, np.where(mode == SLIP_BACKWARD, -accel, accel))
+
     def next_mode(
         self, x: np.ndarray, v: np.ndarray, other: np.ndarray, mode: np.ndarray, p: ParamArrays
     ) -> np.ndarray:

@@ -294,6 +294,18 @@ class _Partial:
 
         return from_aux
 
+    def event_and_rate(self, j: int) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        """``s -> (aux["g"][:, j], its rate)`` (:meth:`_Model.event_rates`), for rows whose
+        event function ``j`` has a known rate: both from one partial step and one right-hand
+        side, as the secant's evaluation of ``aux["g"]`` costs."""
+
+        def fun(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            t, y = self.t + s, self.state(s)
+            dy, aux = self.m.rhs(t, y, self.c, self.mo, full=True)
+            return aux["g"][:, j], self.m.event_rates(t, y, dy, aux, self.mo)[:, j]
+
+        return fun
+
     def state_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(found (R,), states (R, n_y)): the states already computed at exactly ``s``."""
         found = np.zeros(s.size, dtype=bool)
@@ -307,11 +319,20 @@ class _Partial:
 
 
 def _brackets(
-    st: dict[str, Any], ma: _Model, a: np.ndarray, y1: np.ndarray, aux1: dict, hs: np.ndarray
+    st: dict[str, Any],
+    ma: _Model,
+    a: np.ndarray,
+    y1: np.ndarray,
+    f1: np.ndarray,
+    aux1: dict,
+    hs: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Brackets ``[0, s_hi]`` of each switching function's crossing in the rest of the
     substep, and the function's value at ``s_hi``: (A, 1 + n_events) each, NaN where none;
-    and the penetration rate at the contact's ``s_hi`` (A,), for its first guess.
+    and each function's rate at ``s_hi`` (A, 1 + n_events), for its first guess: the
+    penetration rate at the contact's, the event functions' where their effects give one
+    (:meth:`_Model.event_rates`), NaN elsewhere. ``y1, f1, aux1``: the state, right-hand
+    side and ``aux`` at the end of the substep.
 
     Column 0 is the contact: a sign change of ``G`` over the step, or one hidden between
     two points of the same sign, found at the penetration's interior extremum (grazing);
@@ -337,10 +358,14 @@ def _brackets(
         hit = a_ext["G"] * sign_in[sel] <= 0
         s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
         rate_hi[sel[hit]] = a_ext["dd"][hit]
+    rates = np.full((a.size, 1 + n_ev), np.nan)
+    rates[:, 0] = rate_hi
     for j in range(n_ev):
         out_j = aux1["g"][:, j] <= 0
         s_hi[out_j, 1 + j], g_hi[out_j, 1 + j] = la[out_j], aux1["g"][out_j, j]
-    return s_hi, g_hi, rate_hi
+    if ma.rated_fx and np.isfinite(s_hi[:, 1:]).any():
+        rates[:, 1:] = ma.event_rates(st["t"][a] + la, y1, f1, aux1, st["modes"][:, a])
+    return s_hi, g_hi, rates
 
 
 def _first_roots(
@@ -356,46 +381,57 @@ def _first_roots(
     row whether the root finders already computed the state at the earliest crossing (A,),
     and that state (A, n_y).
 
-    The contact's crossing, where its root function is the penetration
-    (:meth:`_Model.root_on_penetration`) and ``rate_hi`` (the penetration rate at
-    ``s_hi``, :func:`_brackets`) is given, by :func:`_newton` from the Hermite
-    interpolant's root; the others by :func:`_illinois`.
+    Where ``rate_hi`` (each function's rate at ``s_hi``, :func:`_brackets`) is given, a
+    crossing whose rate is known at both ends is located by :func:`_newton` from the
+    Hermite interpolant's root: the contact's where its root function is the penetration
+    (:meth:`_Model.root_on_penetration`), an event function's where its effect gives the
+    rate (:meth:`_Model.event_rates`); the others by :func:`_illinois`.
     """
     a0 = {k: v[a] for k, v in st["aux"].items()}
     sign_in = np.where(st["contact"][a], 1.0, -1.0)
     s_root = np.full(s_hi.shape, np.inf)
     finders: list[tuple[np.ndarray, _Partial]] = []
+    rate0 = None
+    if rate_hi is not None and ma.rated_fx and np.isfinite(s_hi[:, 1:]).any():
+        rate0 = ma.event_rates(st["t"][a], st["y"][a], st["f"][a], a0, st["modes"][:, a])
     for col in range(s_hi.shape[1]):
         sel = np.isfinite(s_hi[:, col]).nonzero()[0]
         if sel.size == 0:
             continue
-        if col == 0 and rate_hi is not None:
-            newton = ma.root_on_penetration()[sel]
-            if newton.any():
-                sel, rest = sel[newton], sel[~newton]
-                part = _Partial(st, ma, a, sel)
-                glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
-                s_top, g_top = s_hi[sel, 0], g_hi[sel, 0]
-                guess = _hermite_root(glo, a0["dd"][sel], g_top, rate_hi[sel], s_top)
-                s_root[sel, 0] = _newton(part.penetration_and_rate(), s_top, glo, g_top,
-                                         _ROOT_TOL * hs[a[sel]], guess)  # fmt: skip
-                finders.append((sel, part))
-                sel = rest
-                if sel.size == 0:
-                    continue
-        part = _Partial(st, ma, a, sel)
         if col == 0:
             # right after an event G(0) is ~0 with either sign: use the region's
-            glo = sign_in[sel] * np.maximum(np.abs(a0["Gr"][sel]), _TINY)
+            glo_all = sign_in * np.maximum(np.abs(a0["Gr"]), _TINY)
+            newton = None
+            if rate_hi is not None:
+                newton = ma.root_on_penetration()[sel]
+                d0_all = a0["dd"]
+        else:
+            glo_all = np.maximum(np.abs(a0["g"][:, col - 1]), _TINY)
+            newton = None
+            if rate0 is not None:
+                newton = np.isfinite(rate0[sel, col - 1]) & np.isfinite(rate_hi[sel, col])
+                d0_all = rate0[:, col - 1]
+        if newton is not None and newton.any():
+            sel, rest = sel[newton], sel[~newton]
+            part = _Partial(st, ma, a, sel)
+            glo, s_top, g_top = glo_all[sel], s_hi[sel, col], g_hi[sel, col]
+            guess = _hermite_root(glo, d0_all[sel], g_top, rate_hi[sel, col], s_top)
+            fun_r = part.penetration_and_rate() if col == 0 else part.event_and_rate(col - 1)
+            s_root[sel, col] = _newton(fun_r, s_top, glo, g_top, _ROOT_TOL * hs[a[sel]], guess)
+            finders.append((sel, part))
+            sel = rest
+            if sel.size == 0:
+                continue
+        part = _Partial(st, ma, a, sel)
+        if col == 0:
             fun = part.value("Gr")
         else:
-            glo = np.maximum(np.abs(a0["g"][sel, col - 1]), _TINY)
 
             def fun(s, _at=part.aux, _j=col - 1):
                 return _at(s)["g"][:, _j]
 
         s_root[sel, col] = _illinois(
-            fun, s_hi[sel, col], glo, g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
+            fun, s_hi[sel, col], glo_all[sel], g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
         )
         finders.append((sel, part))
     s_star = np.min(s_root, axis=1)

@@ -179,6 +179,10 @@ class _Model:
         ]
         self.force_fx = [k for k, e in enumerate(effects) if _overrides(e, "extra_force")]
         self.event_fx = [k for k, e in enumerate(effects) if _overrides(e, "event_function")]
+        # the event functions whose rate the effect gives (Newton steps for their events)
+        self.rated_fx = [
+            j for j, k in enumerate(self.event_fx) if _overrides(effects[k], "event_rate")
+        ]
         self.slices: list[tuple[int, slice]] = []
         i = 2
         for k, e in enumerate(effects):
@@ -283,6 +287,22 @@ class _Model:
             return y[:, 1] - self._gap.rate(t) if self.has_gap else y[:, 1]
         e = self.e0 + self._gap.value(t) if self.has_gap else self.e0
         return y[:, 0] - e
+
+    def event_rates(
+        self, t: np.ndarray, y: np.ndarray, dy: np.ndarray, aux: dict, modes: np.ndarray
+    ) -> np.ndarray:
+        """The event functions' rates at states ``y`` with right-hand side ``dy`` and ``aux``
+        (:meth:`rhs`), (B, n_event_effects): an effect's :meth:`event_rate` where it gives
+        one, NaN elsewhere (those events keep the secant)."""
+        out = np.full((y.shape[0], len(self.event_fx)), np.nan)
+        for j in self.rated_fx:
+            k = self.event_fx[j]
+            r = self.effects[k].event_rate(
+                t, y[:, 0], y[:, 1], dy[:, 1], aux["other"][:, k], modes[k], self.params[k]
+            )
+            if r is not None:
+                out[:, j] = r
+        return out
 
     def rhs(
         self,
@@ -662,7 +682,7 @@ class _Stepper:
             if it == _MAX_EVENTS_PER_SUBSTEP:  # chattering: finish without further events
                 _finish(st, a, np.ones(a.size, bool), y1, f1, aux1)
                 break
-            s_hi, g_hi, rate_hi = _brackets(st, ma, a, y1, aux1, hs)
+            s_hi, g_hi, rate_hi = _brackets(st, ma, a, y1, f1, aux1, hs)
             any_ev = np.isfinite(s_hi).any(axis=1)
             _finish(st, a, ~any_ev, y1, f1, aux1)
             if not any_ev.any():
