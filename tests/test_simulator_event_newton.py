@@ -233,3 +233,21 @@ def test_dry_frictions_event_rate_is_its_event_functions_derivative() -> None:
     rate = eff.event_rate(np.zeros(3), x, v, accel, other, mode, p)
     np.testing.assert_allclose(rate[:2], ((g[1] - g[0]) / (2 * dt))[:2], rtol=1e-9)
     assert np.isnan(rate[2])
+
+
+def test_dry_frictions_hooks_are_their_piecewise_definitions_bit_for_bit() -> None:
+    """The force and the event function from the mode by a sign (the engine calls them at
+    every right-hand side) equal the piecewise definitions exactly: ``-other`` / ``-mu_k`` /
+    ``+mu_k`` and ``mu_s - |other|`` / ``v`` / ``-v``, signed zeros included."""
+    eff = DryFriction()
+    mode = np.repeat([0.0, -1.0, STUCK], 4)
+    v = np.tile([0.7, -0.3, 0.0, -0.0], 3)
+    other = np.tile([0.4, -2.0, 0.0, 1e-300], 3)
+    for mu in (0.0, 1e-3, 0.18, 10.0):
+        p = {"coefficient": np.full(12, mu), "static_ratio": np.full(12, 1.3)}
+        force = eff.extra_force(np.zeros(12), v, v, other, mode, p)
+        want = np.select([mode == STUCK, mode == -1.0], [-other, np.full(12, mu)], -mu)
+        assert np.array_equal(force, want) and np.array_equal(np.signbit(force), np.signbit(want))
+        g = eff.event_function(np.zeros(12), v, v, other, mode, p)
+        want = np.select([mode == STUCK, mode == -1.0], [1.3 * mu - np.abs(other), -v], v)
+        assert np.array_equal(g, want) and np.array_equal(np.signbit(g), np.signbit(want))

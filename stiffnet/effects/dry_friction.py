@@ -12,6 +12,9 @@ SLIP_FORWARD = 0.0
 STUCK = 1.0
 SLIP_BACKWARD = -1.0
 
+#: ``copysign(1, mode - _SLIP_SIGN)``: +1 for ``SLIP_FORWARD``, -1 for ``SLIP_BACKWARD``.
+_SLIP_SIGN = -0.5
+
 _V_TOL = 1e-9
 """|v| below this at an event counts as a velocity reversal (a located event has |v| ~ 1e-15)."""
 
@@ -77,8 +80,9 @@ class DryFriction(DynamicsEffect):
         p: ParamArrays,
     ) -> np.ndarray:
         """Friction force on the mass, (B,): ``-other`` when stuck, ``-/+ mu_k`` slipping."""
-        mu_k = p["coefficient"]
-        return np.where(mode == STUCK, -other, np.where(mode == SLIP_BACKWARD, mu_k, -mu_k))
+        # the slip's sign from the mode (+ backward, - forward) by one copysign: the engine
+        # calls this at every right-hand side, where each numpy call's cost is the cost
+        return np.where(mode == STUCK, -other, np.copysign(p["coefficient"], _SLIP_SIGN - mode))
 
     def event_function(
         self,
@@ -91,7 +95,9 @@ class DryFriction(DynamicsEffect):
     ) -> np.ndarray:
         """Positive while the mode holds: ``+/-v`` slipping, ``mu_s - |other|`` stuck."""
         mu_s = p["static_ratio"] * p["coefficient"]
-        return np.where(mode == STUCK, mu_s - np.abs(other), np.where(mode == SLIP_BACKWARD, -v, v))
+        return np.where(
+            mode == STUCK, mu_s - np.abs(other), np.copysign(1.0, mode - _SLIP_SIGN) * v
+        )
 
     def event_rate(
         self,
