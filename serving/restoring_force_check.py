@@ -124,6 +124,7 @@ def restoring_force_check(
         "beta_interval_coverage": d["coverage"] if r.ok else None,
         "contact_damping_ratio": d["contact_damping_ratio"],
         "exponent": d["exponent"],
+        "penetration_over_table": d["penetration_over_table"],
         "n_impacts": d["n_impacts"],
         "contact_r2": d["contact_r2"],
         "duration_ratio": d["duration_ratio"],

@@ -49,6 +49,11 @@ class RestoringForceCheck(BaseModel):
         default=None, description="Kelvin-Voigt damping ratio of the contact."
     )
     exponent: float | None = Field(default=None, description="Contact exponent (1 linear).")
+    penetration_over_table: float | None = Field(
+        default=None,
+        description="The impacts' median peak penetration (where beta is the secant) over the "
+        "table's displacement amplitude at the forcing frequency (gain-free).",
+    )
     n_impacts: int | None = None
     contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
     duration_ratio: float | None = Field(

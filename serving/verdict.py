@@ -7,7 +7,8 @@ windows. :func:`rule_checks` adds the rule checks: the model's class against its
 restoring-force cross-check against the model (disjoint intervals, another class, a class
 neither reading places beta in, stretched contacts, a refusal behind a chain outside the
 priors), a class near an edge that no close reading checks (its threshold set on draws the
-benchmark does not score), beta behind a learned face the record cannot resolve, a contact
+benchmark does not score), beta behind a learned face the record cannot resolve, beta of a
+stiffening contact at reference penetrations the record does not carry, a contact
 law the training world lacks, a restraint that rings within its contacts, and the identified
 sensor chain against the training priors.
 :func:`widened_interval` is the interval a flagged answer reports
@@ -36,6 +37,10 @@ from stiffnet.uncertainty.face_identifiability import (
     FACE_CLASS_THRESHOLD,
     FACE_IDENTIFIABILITY,
     face_class_share,
+)
+from stiffnet.uncertainty.reference_penetration import (
+    reference_penetration_span,
+    with_reference_penetration_check,
 )
 from stiffnet.uncertainty.restraint_dynamics import with_restraint_dynamics_check
 from stiffnet.uncertainty.unseen_law import trained_law_kinds, with_unseen_law_check
@@ -103,6 +108,8 @@ def rule_checks(
     alarm = with_class_contested_check(alarm, class_name, interval, restoring_force, names, edges)
     alarm = with_unverified_class_check(alarm, class_name, interval, restoring_force, names, edges)
     priors = model.get("priors")
+    alarm = with_reference_penetration_check(alarm, class_name, restoring_force, priors, names,
+                                             edges)  # fmt: skip
     seen = trained_law_kinds(priors)
     alarm = with_unseen_law_check(alarm, restoring_force, seen)
     alarm = with_restraint_dynamics_check(alarm, restoring_force, seen)
@@ -122,7 +129,9 @@ def widened_interval(
     """A flagged answer's beta interval, spanning a close-fitting restoring-force interval and,
     for a model trained behind a learned face (`model`: :func:`model_facts`), the betas the
     face allows over it (:func:`~stiffnet.uncertainty.face_identifiability.face_beta_interval`),
-    and the warning that says so (None when it is not wider)."""
+    and on a clearly nonlinear contact law the betas its reference penetrations allow
+    (:func:`~stiffnet.uncertainty.reference_penetration.reference_penetration_span`), and the
+    warning that says so (None when it is not wider)."""
     wide = interval
     if restoring_force is not None:
         wide = interval_behind_alarm(
@@ -134,11 +143,19 @@ def widened_interval(
     behind_face = _face_allowed(interval, model)
     if wide and behind_face:
         wide = [min(wide[0], behind_face[0]), max(wide[1], behind_face[1])]
+    at_references = reference_penetration_span(restoring_force, (model or {}).get("priors"))
+    if wide and at_references:
+        wide = [min(wide[0], at_references[0]), max(wide[1], at_references[1])]
     if not (wide and interval and wide != list(interval)):
         return wide, None
     why = "the restoring-force interval"
     if behind_face and list(behind_face) != list(interval):
         why = "the betas the learned face allows (beta is barely identifiable behind it)"
+    elif at_references:
+        why = (
+            "the betas the contact law allows at the training world's reference penetrations "
+            "(beta is a secant at a penetration the record does not carry)"
+        )
     return wide, (
         f"the beta interval [{interval[0]:.3g}, {interval[1]:.3g}] is widened to "
         f"[{wide[0]:.3g}, {wide[1]:.3g}] to span {why}: the alarm "

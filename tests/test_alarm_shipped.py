@@ -114,3 +114,34 @@ def test_a_class_near_an_edge_nothing_confirms_is_flagged(predictor):
     assert res["restoring_force"]["contact_r2"] < 0.95
     assert res["ood_flag"] and res["alarm"]["fired"] == ["class_unverified"]
     assert res["alarm"]["scores"]["class_unverified"] > 0.5
+
+
+def _hertz_record(beta, gap, amplitude, omega, damping, reference, ratio, noise):
+    effects = [build_effect("hertz_contact", {"reference_penetration": reference})]
+    one = [np.array([v]) for v in (beta, gap, amplitude, omega, damping, FN)]
+    batch = OscillatorBatch(*one)
+    # 48 natural periods (the benchmark's records have 128): 4 s of RK4, the same readings
+    return Simulator(effects).simulate(batch, ratio, int(48 * ratio), noise=noise, rng=0).accel[0]
+
+
+def test_a_hertz_class_at_a_far_reference_penetration_is_flagged(predictor):
+    """The robustness benchmark's hertz_contact draw 0, simulated again: beta 86.1 (very hard)
+    as the secant at delta_ref 0.49, the impacts reaching about 0.12. Both readings take the
+    secant near the impacts' depth (hard, about 43-52) and no other check fires (wrong and
+    silent before reference_penetration); over the training world's reference penetrations
+    the record allows betas from about 18 to 300, most of them outside hard."""
+    accel = _hertz_record(86.08, 0.730, 0.5264, 0.9983, 0.04284, 0.4929, 92.0036, 0.0055)
+    res = predictor.predict(accel, FN * 92.0036, natural_frequency_hz=FN)
+    assert res["class"] == "hard"  # the truth is very_hard
+    assert res["alarm"]["fired"] == ["reference_penetration"]
+    lo, hi = res["beta_interval"]
+    assert lo < 86.08 < hi
+
+
+def test_a_hertz_class_the_record_determines_stays_quiet(predictor):
+    """Draw 11: beta 91.4 at delta_ref 0.35, read very hard; the betas its reference
+    penetrations allow lie mostly above 60 (the open top class): no alarm."""
+    accel = _hertz_record(91.39, 1.6093, 1.3651, 1.0999, 0.03818, 0.3509, 71.8996, 0.0101)
+    res = predictor.predict(accel, FN * 71.8996, natural_frequency_hz=FN)
+    assert res["class"] == "very_hard" and res["alarm"]["fired"] == []
+    assert res["alarm"]["scores"]["reference_penetration"] < 0.5

@@ -204,6 +204,74 @@ def test_a_class_near_an_edge_no_close_reading_confirms_is_flagged():
     assert unverified_class_share("no_contact", [1.0, 2.0], loose, NAMES, EDGES) is None
 
 
+#: The shipped models' training world, the parts the reference_penetration check reads
+#: (the card's ``data.priors``): forcing amplitude and the Hertz contact's reference penetration.
+HERTZ_WORLD = {
+    "sweep": {"amplitude": [0.2, 2.0]},
+    "effects": [{"name": "hertz_contact", "probability": 0.12,
+                 "params": {"reference_penetration": [0.1, 2.0]}}],
+}  # fmt: skip
+
+
+def _hertz_check(interval, exponent=1.48, r2=0.9996, scale=0.227):
+    return {"class": "hard", "beta": float(np.sqrt(interval[0] * interval[1])),
+            "beta_interval": interval, "exponent": exponent, "contact_r2": r2,
+            "penetration_over_table": scale}  # fmt: skip
+
+
+def test_a_hertz_class_the_record_does_not_determine_is_flagged():
+    """hertz_contact's draw 0 of the robustness benchmark, wrong and silent before the check:
+    beta 86.1 (delta_ref 0.49) read 51.8 hard [42.5, 63.2], the cross-check 42.9 [37.1, 49.6]
+    at exponent 1.48, R2 0.9996, its median peak penetration 0.227 of the table's amplitude
+    (0.119 model lengths at the draw's a = 0.526: both read the secant there). Over the training
+    world's delta_ref 0.1-2.0 and a 0.2-2.0 the record allows beta from
+    37.1 (0.1 / (0.227 x 2.0))^0.48 to 49.6 (2.0 / (0.227 x 0.2))^0.48, 0.81 of it outside
+    hard: the check fires and the flagged interval spans it, 86.1 included."""
+    from serving.verdict import rule_checks, widened_interval
+    from stiffnet.uncertainty.reference_penetration import (
+        REFERENCE_PENETRATION,
+        reference_penetration_settings,
+        reference_penetration_share,
+        reference_penetration_span,
+    )
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": HERTZ_WORLD}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    rf = _hertz_check([37.1, 49.6])
+    lo, hi = reference_penetration_span(rf, HERTZ_WORLD)
+    assert lo == pytest.approx(37.1 * (0.1 / (0.227 * 2.0)) ** 0.48)
+    assert hi == pytest.approx(49.6 * (2.0 / (0.227 * 0.2)) ** 0.48)
+    share = reference_penetration_share("hard", rf, HERTZ_WORLD, NAMES, EDGES)
+    assert share == pytest.approx(1 - np.log(60 / 35) / np.log(hi / lo))
+    assert share > reference_penetration_settings().outside_share_min == 0.5
+    res = rule_checks(quiet, "hard", [42.5, 63.2], rf, model, 872.2, 9.48)
+    assert res["fired"] == [REFERENCE_PENETRATION] and res["flag"]
+    assert "reference penetration the record does not carry" in res["message"]
+    wide, said = widened_interval([42.5, 63.2], rf, model)
+    assert wide == pytest.approx([lo, hi]) and wide[0] < 86.1 < wide[1]
+    assert "reference penetrations" in said
+    # a stiff Hertz contact whose span lies mostly above 60 (the open top class): draw 11,
+    # beta 91.4 read very_hard, the check [63.2, 104.4] at 0.21 of the table's amplitude
+    stiff = _hertz_check([63.2, 104.4], exponent=1.52, scale=0.21)
+    assert reference_penetration_share("very_hard", stiff, HERTZ_WORLD, NAMES, EDGES) < 0.5
+    assert rule_checks(quiet, "very_hard", [88.8, 123.2], stiff, model, 681.6, 9.48)["fired"] == []
+    # not a clearly nonlinear law: linear, below the Hertz band (1.3), or a loose fit (< 0.98)
+    for kw in ({"exponent": 1.0}, {"exponent": 1.25}, {"r2": 0.97}):
+        assert reference_penetration_span(_hertz_check([37.1, 49.6], **kw), HERTZ_WORLD) is None
+    # a training world without Hertz contacts (the contact_law check judges the law there), or
+    # without a forcing amplitude to place the penetration in model lengths
+    no_hertz = {"sweep": {"amplitude": [0.2, 2.0]}, "effects": []}
+    assert reference_penetration_span(rf, no_hertz) is None
+    assert reference_penetration_span(rf, {**HERTZ_WORLD, "sweep": {}}) is None
+    assert reference_penetration_span({**rf, "penetration_over_table": None}, HERTZ_WORLD) is None
+    assert reference_penetration_share("no_contact", rf, HERTZ_WORLD, NAMES, EDGES) is None
+    # known to the model's world at one reference penetration and one amplitude, the span is
+    # the check's own interval
+    exact = {"sweep": {"amplitude": 0.524}, "effects": [
+        {"name": "hertz_contact", "params": {"reference_penetration": 0.119}}]}  # fmt: skip
+    assert reference_penetration_span(rf, exact) == pytest.approx([37.1, 49.6], rel=0.01)
+
+
 def test_contact_duration_excess_fires_beyond_twice_the_half_period():
     from stiffnet.uncertainty.alarm_verdict import (
         ALARM_WORDS,

@@ -218,6 +218,11 @@ class RestoringForceResult:
         The law with a free ``delta v`` dissipation that gives beta where the model's law has
         one (``penetration_dissipation``; :mod:`.hunt_crossley_law`): beta is its elastic
         slope at first contact over ``k``.
+    penetration_over_table : float or None
+        The law's reference penetration ``d_r`` (the impacts' median peak penetration, where
+        beta is the secant) over the table's displacement amplitude at the forcing frequency:
+        a ratio of two lengths of the same map, so the record's gain cancels. Times the
+        forcing amplitude ``a`` (model length units) it is ``d_r`` in the model's units.
     """
 
     ok: bool
@@ -250,6 +255,7 @@ class RestoringForceResult:
     staged: StagedLaw | None = None
     beyond_knee_interval: tuple[float, float] | None = None
     hunt_crossley: HuntCrossleyLaw | None = None
+    penetration_over_table: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -281,6 +287,7 @@ class RestoringForceResult:
             "free_r2": num(self.free_r2),
             "contact_r2": num(self.contact_r2),
             "polarity": self.polarity,
+            "penetration_over_table": num(self.penetration_over_table),
             "reason": self.reason,
         }
 
@@ -1192,8 +1199,16 @@ def _estimate_at(
         staged=staged,
         beyond_knee_interval=beyond,
         hunt_crossley=hc,
+        penetration_over_table=_penetration_over_table(m),
         **info,
     )
+
+
+def _penetration_over_table(m: _Map) -> float | None:
+    """The law's reference penetration over the table's displacement amplitude at the forcing
+    frequency (:attr:`RestoringForceResult.penetration_over_table`); None without either."""
+    table = float(np.hypot(*m.fit.table[0])) if m.law is not None else 0.0
+    return m.law.reference_penetration / table if table > 0 else None
 
 
 def _soft_reading(

@@ -59,6 +59,10 @@ ALARM_WORDS = {
     "carries the contact in series with the face's support, whose stiffness the training world "
     "leaves free within its prior, and most of the betas that allows over the model's interval "
     "lie in other classes (beta is not identifiable there; the interval spans them)",
+    "reference_penetration": "the contact stiffens with penetration (a power law, as a Hertz "
+    "contact): its beta is the secant stiffness at a reference penetration the record does not "
+    "carry, and over the reference penetrations the training world allows most of the betas "
+    "lie in other classes (the class is not determined by the record; the interval spans them)",
     "sensor_fit": "the impacts fit a sensor low-pass far below the chains the model was trained "
     "on (the restoring-force map did not undo it, yet it reshapes what the model reads)",
     "chain_refusal": "the restoring-force cross-check refused because the sensor's low-pass "

@@ -40,7 +40,7 @@ FACE_IDENTIFIABILITY = "face_identifiability"
 FACE_CLASS_THRESHOLD = 0.5
 
 
-def _range(value: Any) -> tuple[float, float] | None:
+def prior_range(value: Any) -> tuple[float, float] | None:
     """A prior's ``[low, high]`` or single number as ``(low, high)``, None when not positive."""
     values = value if isinstance(value, list | tuple) else [value]
     try:
@@ -67,7 +67,7 @@ def face_compliances(priors: dict[str, Any] | None) -> tuple[float, float, float
         params = effect.get("params") or {}
         low = mid = high = 0.0
         for mass, stiffness in (("face_mass", "face_stiffness"), ("face2_mass", "face2_stiffness")):
-            m, k = _range(params.get(mass, 0.0)), _range(params.get(stiffness))
+            m, k = prior_range(params.get(mass, 0.0)), prior_range(params.get(stiffness))
             if m is None or k is None:
                 continue  # no such mode (mass 0) or no stiffness to read
             low, mid, high = low + 1 / k[1], mid + 2 / (k[0] + k[1]), high + 1 / k[0]
