@@ -37,15 +37,9 @@ def _free_flight_contact_time() -> float:
     return brentq(lambda t: x(t) - GAP, 0.1, 1.5, xtol=1e-15)
 
 
-def _run(effects: list, newton: bool, mp: pytest.MonkeyPatch) -> tuple[np.ndarray, object, int]:
-    """Simulate one unforced row into contact; returns the located event times, the result
-    and the partial steps taken."""
-    batch = OscillatorBatch(
-        np.array([30.0]), np.array([GAP]), np.array([0.0]), np.array([1.3]), np.array([XI])
-    )
-    params = [_rm(1) if isinstance(e, RestraintMass) else e.batch_params(1, None) for e in effects]
-    if not newton:
-        mp.setattr(nm._Model, "root_on_penetration", lambda self: np.zeros(self.n, dtype=bool))
+def _instrumented(mp: pytest.MonkeyPatch) -> tuple[list[float], list[int]]:
+    """Record the engine's located event times and count its partial steps (lists filled as
+    it runs)."""
     times: list[float] = []
     switch = nm._switch
 
@@ -63,6 +57,19 @@ def _run(effects: list, newton: bool, mp: pytest.MonkeyPatch) -> tuple[np.ndarra
         return state(self, s)
 
     mp.setattr(ev._Partial, "state", counted)
+    return times, steps
+
+
+def _run(effects: list, newton: bool, mp: pytest.MonkeyPatch) -> tuple[np.ndarray, object, int]:
+    """Simulate one unforced row into contact; returns the located event times, the result
+    and the partial steps taken."""
+    batch = OscillatorBatch(
+        np.array([30.0]), np.array([GAP]), np.array([0.0]), np.array([1.3]), np.array([XI])
+    )
+    params = [_rm(1) if isinstance(e, RestraintMass) else e.batch_params(1, None) for e in effects]
+    if not newton:
+        mp.setattr(nm._Model, "root_on_penetration", lambda self: np.zeros(self.n, dtype=bool))
+    times, steps = _instrumented(mp)
     out = simulate_numerical(batch, effects, params, 0.0, V0, H, 0, H, 80, SUB)
     return np.array(times), out, steps[0]
 
@@ -181,23 +188,7 @@ def _run_friction(newton: bool, mp: pytest.MonkeyPatch) -> tuple[np.ndarray, obj
     eff = DryFriction(coefficient=MU, static_ratio=1.2)
     if not newton:
         mp.setattr(DryFriction, "event_rate", lambda self, *a: None)
-    times: list[float] = []
-    switch = nm._switch
-
-    def recorded(st, ma, a, evs, roots):
-        rows = switch(st, ma, a, evs, roots)
-        times.extend(st["t"][rows].tolist())
-        return rows
-
-    mp.setattr(nm, "_switch", recorded)
-    steps = [0]
-    state = ev._Partial.state
-
-    def counted(self, s):
-        steps[0] += 1
-        return state(self, s)
-
-    mp.setattr(ev._Partial, "state", counted)
+    times, steps = _instrumented(mp)
     out = simulate_numerical(batch, [eff], [eff.batch_params(1, None)], 0.0, V0, H, 0, H, 400, SUB)
     return np.array(times), out, steps[0]
 
