@@ -137,8 +137,7 @@ class CampaignTarget:
         """Statistics of the campaign simulated with ``effects`` (one batch; ``inclination``:
         override the target's choice, e.g. False while a fit searches; ``oversample``: see
         :func:`~stiffnet.campaign.simulate.simulate_rows`)."""
-        rows = self.rows if rows is None else list(rows)
-        starts = self.starts if starts is None else starts
+        rows, starts = self._rows_and_starts(rows, starts)
         sims = simulate_rows(
             rows, effects, self.lengths, self.seed, settings, starts, oversample=oversample
         )
@@ -147,7 +146,7 @@ class CampaignTarget:
     def _statistics(
         self, sims: Sequence[np.ndarray], rows: Sequence[ManifestRow], inclination: bool | None
     ) -> list[SignalStatistics | None]:
-        incl = self.inclination if inclination is None else self.inclination and inclination
+        incl = self._inclination(inclination)
         return batch_signal_statistics(
             sims,
             [r.fs_hz for r in rows],
@@ -177,10 +176,22 @@ class CampaignTarget:
     ) -> bytes | None:
         """The :meth:`memo_key` :meth:`per_recording` files a call with these arguments under
         (the target's own rows, starts and inclination where they are None)."""
+        rows_, starts_ = self._rows_and_starts(rows, starts)
+        return self.memo_key(
+            effects, settings, rows_, starts_, self._inclination(inclination), oversample
+        )
+
+    def _rows_and_starts(
+        self, rows: Sequence[ManifestRow] | None, starts: Sequence[int] | None
+    ) -> tuple[list[ManifestRow], Sequence[int] | None]:
+        """A call's rows and starts, the target's own where None."""
         rows_ = self.rows if rows is None else list(rows)
-        starts_ = self.starts if starts is None else starts
-        incl = self.inclination if inclination is None else self.inclination and inclination
-        return self.memo_key(effects, settings, rows_, starts_, incl, oversample)
+        return rows_, self.starts if starts is None else starts
+
+    def _inclination(self, inclination: bool | None) -> bool:
+        """Whether a call computes the inclination statistics: the target's choice, which a
+        call may only turn off (e.g. while a fit searches)."""
+        return self.inclination if inclination is None else self.inclination and inclination
 
     def per_recording(
         self,
