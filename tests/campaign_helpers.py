@@ -1,11 +1,27 @@
-"""Shared by the measurement tests: the example manifest shortened for fast campaigns."""
+"""Shared by the measurement tests: the example manifest shortened for fast campaigns, and one
+lab rig's operating point as a manifest row."""
 
 from __future__ import annotations
 
 import csv
 from pathlib import Path
 
+from stiffnet.campaign import ManifestRow
+
 MANIFEST = Path(__file__).resolve().parents[1] / "examples" / "hidden_effect_manifest.csv"
+#: The lab rig of the paper's Table 1 forced at its natural frequency, 1.2 mm gap, beta 30, 2 %
+#: noise: the row the measurement tests vary with ``model_copy(update=...)``.
+LAB_ROW = ManifestRow(
+    recording="r.csv",
+    fs_hz=1250,
+    natural_frequency_hz=9.48,
+    frequency_ratio=1.0,
+    amplitude=1.2,
+    gap=1.2,
+    damping_ratio=0.02,
+    beta=30,
+    noise=0.02,
+)
 
 
 def short_manifest(tmp: Path, n: int | None = None, duration_s: str = "3") -> Path:

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
+from campaign_helpers import LAB_ROW
 
-from stiffnet.campaign import ManifestRow
 from stiffnet.campaign.simulate import FIT_SETTINGS, simulate_rows
 from stiffnet.effects.fit_space import global_blocks
 from stiffnet.effects.forcing_harmonics import READ_RADIUS_MIN, READ_RADIUS_SE, ForcingHarmonics
@@ -20,16 +20,7 @@ from stiffnet.measurement.forcing_lines import (
     spikes_polarity,
 )
 
-ROW = ManifestRow(
-    recording="r.csv",
-    fs_hz=1250,
-    natural_frequency_hz=9.48,
-    frequency_ratio=1.0,
-    amplitude=1.2,
-    gap=1.2,
-    damping_ratio=0.02,
-    beta=30,
-)
+ROW = LAB_ROW.model_copy(update={"noise": None})
 
 
 def _linear_record(ratio, zeta, h, theta, fs_per_period=120, periods=12):

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.signal as sps
+from campaign_helpers import LAB_ROW
 
-from stiffnet.campaign import ManifestRow
 from stiffnet.campaign.simulate import (
     FIT_SETTINGS,
     FIT_SETTINGS_NUMERICAL,
@@ -32,17 +32,7 @@ from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget
 
 SCREEN_TOLERANCE = fitting.SCREEN_SETTLE_TOLERANCE
-ROW = ManifestRow(
-    recording="r.csv",
-    fs_hz=1250,
-    natural_frequency_hz=9.48,
-    frequency_ratio=1.0,
-    amplitude=1.2,
-    gap=1.2,
-    damping_ratio=0.02,
-    beta=30,
-    noise=0.02,
-)
+ROW = LAB_ROW
 
 
 def _fresh_chain(x: np.ndarray, fs: float, f_r: float, zeta: float, f_h: float) -> np.ndarray:

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from campaign_helpers import LAB_ROW
 
-from stiffnet.campaign import ManifestRow
 from stiffnet.campaign.simulate import FIT_SETTINGS, CampaignSolverSettings, simulate_rows
 from stiffnet.effects.registry import CANONICAL, effect_class
 from stiffnet.errors import SignalError
@@ -23,17 +23,7 @@ from stiffnet.measurement.significance import significance
 from stiffnet.measurement.statistics import signal_statistics
 from stiffnet.measurement.target import CampaignTarget
 
-ROW = ManifestRow(
-    recording="r.csv",
-    fs_hz=1250,
-    natural_frequency_hz=9.48,
-    frequency_ratio=1.0,
-    amplitude=1.2,
-    gap=1.2,
-    damping_ratio=0.02,
-    beta=30,
-    noise=0.02,
-)
+ROW = LAB_ROW
 FAR = ROW.model_copy(update={"recording": "far.csv", "gap": 50.0})
 
 
