@@ -48,6 +48,7 @@ from stiffnet.restoring_force.chain import (
     deconvolve,
     fit_chain,
     identifiability,
+    inverse_noise_sigma,
     sensor_from_mapping,
     settling_samples,
     sheet_fits_highpass,
@@ -854,8 +855,9 @@ def _inverse_map(
     # a fitted chain is judged by the contact law it leaves (R2 against the record as
     # recorded, R2_SLACK): a law fitted through its band explains more whether the chain is
     # right or not, so a fitted chain's map keeps the plain fit
-    band = kept_band(y, fs_hz, chain, m.fit.sigma) if chain.source != "fitted" else None
-    flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
+    sigma = inverse_noise_sigma(y, fs_hz, chain, m.fit.sigma)
+    band = kept_band(y, fs_hz, chain, sigma) if chain.source != "fitted" else None
+    flat = deconvolve(y, fs_hz, chain, sigma)
     return _remap(flat, args, highpass_hz, corner, exponent, inverse=inverse, band=band)
 
 
