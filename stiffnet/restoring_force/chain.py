@@ -423,21 +423,24 @@ def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
 
 def inverse_noise_sigma(y: np.ndarray, fs_hz: float, chain: SensorChain, scatter: float) -> float:
     """Rule: the white-noise level a known chain's inverse is weighted by (:func:`wiener_gain`):
-    the free flight's `scatter` of the record as recorded, or the top of the band's floor
-    (:func:`record_noise_sigma`) where that is lower; a fitted chain's inverse keeps `scatter`.
+    the free flight's `scatter` of the record as recorded, or, behind a known resonance, the top
+    of the band's floor (:func:`record_noise_sigma`) where that is lower.
 
-    The scatter is the record's noise only where the record is a copy of the motion. Behind a
-    mount ringing within a few contact frequencies each impact sets the mount ringing through
-    the free flight after it, and the scatter is that ringing: 0.89 g on a rig record without
-    noise behind a mount at twice its contact's frequency. Weighted by it the inverse is off
-    over much of the band it must restore, and the map of the half-undone pulses read beta
-    1.26 times the truth with an interval missing it, or refused it ("the contacts last 3.6x
-    the half period"); the top of the band, which the mount's roll-off has cleared of motion,
-    holds the logger's noise alone. The lower of the two never weights the inverse above what
-    the record shows. A fitted chain is judged by the contact law its inverse leaves against
-    the record as recorded (:data:`~.estimate.R2_SLACK`), a comparison set with the scatter.
+    The scatter is the record's noise only where the record is a copy of the motion. A mount
+    rings on through the flight after each impact (lightly damped: 0.01-0.1), and behind one
+    within a few contact frequencies the scatter is that ringing: 0.89 g on a rig record
+    without noise behind a mount at twice its contact's frequency. Weighted by it the inverse
+    is off over much of the band it must restore, and the map of the half-undone pulses read
+    beta 1.26 times the truth with an interval missing it, or refused it ("the contacts last
+    3.6x the half period"); the top of the band, which the mount's roll-off has cleared of
+    motion, holds the logger's noise alone. The lower of the two never weights the inverse
+    above what the record shows. A low-pass alone does not ring through the flight, and there
+    the scatter stands: the lower floor let its inverse lift more noise into the pulses, and
+    damped contacts behind a 120 Hz 4th-order low-pass read 1-4 % further from the truth. A
+    fitted chain keeps the scatter too: it is judged by the contact law its inverse leaves
+    against the record as recorded (:data:`~.estimate.R2_SLACK`), a comparison set with it.
     """
-    if chain.source == "fitted":
+    if chain.source == "fitted" or not chain.resonance_hz:
         return scatter
     return min(scatter, record_noise_sigma(y, fs_hz))
 
