@@ -415,7 +415,9 @@ def test_a_sheet_that_leaves_the_highpass_to_the_record_fits_its_corner():
     """Independent rig, elastic contact, beta 30, a mount resonance at 20 f_n and a 3.5 Hz
     charge amplifier: a sheet with the resonance and ``highpass_hz: "auto"`` (a campaign's
     pooled chain) finds the corner within 10 % and beta within 10 %, as the true sheet does;
-    the same sheet with the high-pass held at 0 reads beta far off (the map's drift)."""
+    the same sheet with the high-pass held at 0 reads beta off by more than that (the map's
+    drift: 15 % with an interval of 5.6-116 since the inverse is weighted by the record's noise
+    floor, more than 30 % before)."""
     from serving.restoring_force_check import check_sensor_sheet
     from stiffnet.restoring_force.chain import HIGHPASS_FITTED
 
@@ -432,7 +434,7 @@ def test_a_sheet_that_leaves_the_highpass_to_the_record_fits_its_corner():
     held = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
                                     sensor={**chain, "highpass_hz": 0.0})  # fmt: skip
     assert held.highpass_hz == 0.0
-    assert not held.ok or abs(held.beta / 30.0 - 1) > 0.3
+    assert not held.ok or abs(held.beta / 30.0 - 1) > 0.1
 
 
 # --- "no contact" behind a low-pass ------------------------------------------------------
