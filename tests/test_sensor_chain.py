@@ -66,7 +66,8 @@ def test_deconvolve_leaves_bands_of_pure_noise_alone():
 def test_a_known_chains_inverse_is_weighted_by_the_lower_of_the_scatter_and_the_band_top():
     """White noise of 0.03 under a 100 Hz sinusoid: behind a known mount the top of the band
     reads the noise, and a free-flight scatter above it (the mount's ringing) gives way to it,
-    one below it stands; a fitted chain, and a known low-pass alone, keep the scatter."""
+    one below it stands; a fitted chain, a sheet fitted to recordings (a campaign's pooled
+    chain), and a known low-pass alone keep the scatter."""
     rng = np.random.default_rng(1)
     fs, n = 2000.0, 8000
     y = np.sin(2 * np.pi * 100 * np.arange(n) / fs) + rng.normal(0.0, 0.03, n)
@@ -75,6 +76,10 @@ def test_a_known_chains_inverse_is_weighted_by_the_lower_of_the_scatter_and_the_
     assert inverse_noise_sigma(y, fs, sheet, 0.01) == 0.01
     fitted = dataclasses.replace(sheet, source="fitted")
     assert inverse_noise_sigma(y, fs, fitted, 1.0) == 1.0
+    pooled = sensor_from_mapping({"resonance_hz": 300.0, "resonance_damping": 0.05}, fs,
+                                 fitted_sheet=True)  # fmt: skip
+    assert pooled.source == "data sheet" and pooled.fitted_sheet
+    assert inverse_noise_sigma(y, fs, pooled, 1.0) == 1.0
     lowpass = SensorChain(lowpass_hz=300.0, lowpass_order=4, source="data sheet")
     assert inverse_noise_sigma(y, fs, lowpass, 1.0) == 1.0  # no ringing: the scatter stands
 
@@ -729,3 +734,42 @@ def test_a_data_sheet_mount_near_the_contact_reads_beta(ratio, zeta, samples, be
     assert r.ok, r.reason
     assert r.beta == pytest.approx(beta, rel=0.1 if ratio < 6 else 0.02)
     assert r.beta_interval[0] <= beta <= r.beta_interval[1]
+
+
+def test_a_sheet_fitted_to_recordings_keeps_the_scatter_weighting(monkeypatch):
+    """The rig behind a mount at twice the contact's frequency (elastic, 8 samples, beta 30),
+    its true chain given as a sheet fitted to recordings (a campaign's pooled chain: the
+    estimate's ``sensor_fitted``, the corner profile's :func:`contact_r2_through`, the
+    predictor's check): each reads exactly as with the inverse weighted by the free flight's
+    scatter (the band top's floor switched off), and differs from the user's sheet, which the
+    floor moves. The campaign's corner profile is read through these R²s: the floor there
+    flattened a damped campaign's profile (high-pass 4.07 -> 1.41 Hz for a true 4.48)."""
+    from types import SimpleNamespace
+
+    import stiffnet.restoring_force.estimate as estimate_module
+    from serving.campaign_chain import contact_r2_through
+    from serving.restoring_force_check import restoring_force_check
+
+    fc = FN * np.sqrt(31.0)
+    fs = 2.0 * fc * 8
+    mount = {"resonance_hz": 2.0 * fc, "resonance_damping": 0.05}
+    run = RigRun(recording="pooled.csv", beta=30.0, fs_hz=fs, duration_s=3.0, gap_mm=1.7,
+                 sensor={**mount, "oversample": 8}, noise=0.02)  # fmt: skip
+    accel = record(run, seed=3)[1]
+    sheet = {**mount, "highpass_hz": 0.0}
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+
+    def readings():
+        est = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
+                                       sensor=sheet, sensor_fitted=True)  # fmt: skip
+        check = restoring_force_check(accel, fs, FN, sheet, sensor_fitted=True)
+        return est.beta, est.contact_r2, check["beta"], contact_r2_through(accel, fs, FN, pred,
+                                                                           sheet)  # fmt: skip
+
+    user = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24,
+                                    sensor=sheet)  # fmt: skip
+    pooled = readings()
+    monkeypatch.setattr(estimate_module, "inverse_noise_sigma", lambda y, f, c, scatter: scatter)
+    assert readings() == pooled  # the floor never reaches a fitted sheet
+    assert user.beta == pytest.approx(30.0, rel=0.1)
+    assert abs(pooled[0] / user.beta - 1) > 0.05  # the floor matters on this record

@@ -119,6 +119,13 @@ class SensorChain:
         First-order high-pass corner (0: none).
     source : str
         ``"fitted"`` (from the record) or ``"data sheet"`` (given).
+    fitted_sheet : bool
+        A data sheet whose values were themselves fitted to recordings, not read off the
+        accelerometer's calibration sheet: a campaign's pooled chain (profiled over its
+        contact laws' R², :mod:`serving.campaign_chain`), ``diagnose``'s shared chain, the
+        chain a log's first check fitted. Read as a data sheet, but its inverse is weighted
+        as a fitted chain's (:func:`inverse_noise_sigma`). Not reported (the callers name
+        such a chain's source themselves).
     intervals : dict
         ``name -> [low, high]`` at :data:`COVERAGE` for the fitted quantities.
     contact_hz, contact_damping : float or None
@@ -138,6 +145,7 @@ class SensorChain:
     lowpass_order: int | None = None
     highpass_hz: float = 0.0
     source: str = "fitted"
+    fitted_sheet: bool = False
     intervals: dict[str, list[float]] = field(default_factory=dict)
     contact_hz: float | None = None
     contact_damping: float | None = None
@@ -235,13 +243,16 @@ def sheet_fits_highpass(data: dict[str, Any] | None) -> bool:
     return bool(data) and data.get("highpass_hz") == HIGHPASS_FITTED
 
 
-def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
+def sensor_from_mapping(
+    data: dict[str, Any], fs_hz: float, fitted_sheet: bool = False
+) -> SensorChain:
     """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
     ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage; ``highpass_hz``
     :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here), and
     optionally the ends of the corner's interval (:data:`HIGHPASS_ENDS`, both holding it:
     the chain's ``intervals["highpass_hz"]``) and of the low-pass corner's
-    (:data:`LOWPASS_ENDS`: ``intervals["lowpass_hz"]``).
+    (:data:`LOWPASS_ENDS`: ``intervals["lowpass_hz"]``). `fitted_sheet`: the values were
+    fitted to recordings (:attr:`SensorChain.fitted_sheet`), not given by the user.
 
     Raises
     ------
@@ -288,6 +299,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
         lowpass_order=int(order) if 0 < fl < in_band else None,
         highpass_hz=fh,
         source="data sheet",
+        fitted_sheet=fitted_sheet,
         intervals=intervals,
     )
 
@@ -423,8 +435,9 @@ def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
 
 def inverse_noise_sigma(y: np.ndarray, fs_hz: float, chain: SensorChain, scatter: float) -> float:
     """Rule: the white-noise level a known chain's inverse is weighted by (:func:`wiener_gain`):
-    the free flight's `scatter` of the record as recorded, or, behind a known resonance, the top
-    of the band's floor (:func:`record_noise_sigma`) where that is lower.
+    the free flight's `scatter` of the record as recorded, or, behind a resonance the user's
+    data sheet gives, the top of the band's floor (:func:`record_noise_sigma`) where that is
+    lower.
 
     The scatter is the record's noise only where the record is a copy of the motion. A mount
     rings on through the flight after each impact (lightly damped: 0.01-0.1), and behind one
@@ -439,8 +452,12 @@ def inverse_noise_sigma(y: np.ndarray, fs_hz: float, chain: SensorChain, scatter
     damped contacts behind a 120 Hz 4th-order low-pass read 1-4 % further from the truth. A
     fitted chain keeps the scatter too: it is judged by the contact law its inverse leaves
     against the record as recorded (:data:`~.estimate.R2_SLACK`), a comparison set with it.
+    So does a sheet fitted to recordings (:attr:`SensorChain.fitted_sheet`: a campaign's
+    pooled chain), whose corners are profiled by the contact laws' R² read through this
+    inverse: the lower floor lifts more noise into the pulses, the R² falls and flattens the
+    profile, and a damped campaign's high-pass corner went from 4.07 Hz to 1.41 Hz (true 4.48).
     """
-    if chain.source == "fitted" or not chain.resonance_hz:
+    if chain.source == "fitted" or chain.fitted_sheet or not chain.resonance_hz:
         return scatter
     return min(scatter, record_noise_sigma(y, fs_hz))
 
