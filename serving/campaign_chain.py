@@ -693,8 +693,9 @@ def contact_r2_through(
     sheet: dict[str, Any],
     refused_as_unexplained: bool = False,
 ) -> float | None:
-    """The contact law's R² of a recording read through `sheet` (a data sheet, its corner
-    held) as `predictor`'s restoring-force check reads it, without the interval; None where
+    """The contact law's R² of a recording read through `sheet` (the campaign's pooled chain
+    as a data sheet, its corner held) as `predictor`'s restoring-force check reads it with
+    that chain (``sensor_fitted``), without the interval; None where
     no law was fitted or the reading fails. The `contact_r2` of :func:`campaign_highpass`.
     With `refused_as_unexplained`, a reading refused after its law was fitted (the law
     explains too little, the contacts last too long) gives 0: no beta, its force counted
@@ -707,8 +708,8 @@ def contact_r2_through(
     a = checked_recording(accel, fs_hz, fn_hz, predictor.window_periods, "recording")[0]
     try:
         r = restoring_force_estimate(a, fs_hz, natural_frequency_hz=fn_hz, sensor=sheet,
-                                     max_periods=RESTORING_FORCE_PERIODS, interval=False,
-                                     stage_ratio=predictor.stage_ratio)  # fmt: skip
+                                     sensor_fitted=True, max_periods=RESTORING_FORCE_PERIODS,
+                                     interval=False, stage_ratio=predictor.stage_ratio)  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
     if r.law is None or not np.isfinite(r.contact_r2):

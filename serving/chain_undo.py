@@ -38,12 +38,15 @@ import numpy as np
 from scipy import integrate, signal
 
 from serving.restoring_force_check import PRIOR_SLACK, sensor_prior_lows
-from stiffnet.restoring_force.chain import MIN_LOWPASS_RATIO, SensorChain, deconvolve
+from stiffnet.restoring_force.chain import (
+    MIN_LOWPASS_RATIO,
+    SensorChain,
+    deconvolve,
+    record_noise_sigma,
+)
 
 #: What the model may read (see the module's docstring).
 UNDO_MODES = ("off", "chain", "resonance", "outside_priors")
-#: The top of the band whose periodogram gives the white-noise floor (fraction of Nyquist).
-NOISE_BAND = 0.75
 #: Samples reflected at each end before the inverse (the FFT treats the record as periodic:
 #: without them the end of the record leaks into its start through the inverse's response).
 PAD_FRACTION = 0.05
@@ -109,20 +112,6 @@ def sensor_prior_highpass_top(priors: dict | None) -> float:
             if isinstance(top, list | tuple) and len(top) == 2:
                 return float(top[1])
     return float("inf")
-
-
-def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
-    """The record's white-noise standard deviation from the top of its band.
-
-    The median periodogram bin above :data:`NOISE_BAND` of Nyquist, over ``n ln 2`` (the
-    median of a white-noise bin's exponential power): there the chain's low-pass or
-    resonance has cut the motion, so what is left is the logger's noise. Where the motion
-    still reaches up there the floor reads high, and the inverse only acts less.
-    """
-    y = np.asarray(accel, dtype=float) - float(np.mean(accel))
-    power = np.abs(np.fft.rfft(y)) ** 2
-    top = power[int(NOISE_BAND * (power.size - 1)) :]
-    return float(np.sqrt(np.median(top) / (y.size * np.log(2.0))))
 
 
 def undone_record(accel: np.ndarray, fs_hz: float, chain: SensorChain) -> np.ndarray:

@@ -201,6 +201,7 @@ class StiffnessLogger:
         # what the restoring-force checks along the record read through (the data sheet, or
         # the chain the first fit identified: a sheet, or no stage and a held high-pass)
         self.check_sheet = self.sheet
+        self.check_sheet_fitted = False  # the held fit, not the user's sheet (its inverse's weight)
         self.check_highpass: float | None = None
         self.check_chain_known = self.sheet is not None
         self.spreads: list[tuple[float, float, float]] = []  # (t, low, high) log-beta offsets
@@ -317,6 +318,7 @@ class StiffnessLogger:
         check = restoring_force_check(
             seg, self.fs, self.fn, self.check_sheet, self.p.stage_ratio,
             highpass_hz=self.check_highpass, penetration_dissipation=self.p.penetration_dissipation,
+            sensor_fitted=self.check_sheet_fitted,
         )  # fmt: skip
         if not self.check_chain_known:
             self._hold_chain(check.get("sensor"), t)
@@ -336,6 +338,7 @@ class StiffnessLogger:
             self.check_highpass = float(sensor.get("highpass_hz") or 0.0)
             return
         self.check_sheet = shared_chain_sheet(stages)
+        self.check_sheet_fitted = True
         if self.chain is None and t > 0:
             self.found_late = (sensor, t)
             if not self.scanning:

@@ -353,7 +353,8 @@ class Predictor:
             `sensor` was fitted, not read off a data sheet (a campaign's pooled chain,
             :mod:`serving.campaign_chain`): the interval spans the model's readings through
             the other chains the fit allows, as for a chain fitted on this record
-            (:mod:`serving.chain_spread`).
+            (:mod:`serving.chain_spread`), and the restoring-force check weights its inverse
+            as a fitted chain's.
 
         Returns
         -------
@@ -373,6 +374,7 @@ class Predictor:
         restoring_force = restoring_force_check(
             a, fs, fn, sensor, self.stage_ratio,
             penetration_dissipation=self.penetration_dissipation,
+            sensor_fitted=sensor_fitted and sensor is not None,
         )  # fmt: skip
         read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],
                                     self.undo_chain)  # fmt: skip

@@ -67,6 +67,7 @@ def restoring_force_check(
     highpass_hz: float | None = None,
     fit_chain: bool = False,
     penetration_dissipation: bool = False,
+    sensor_fitted: bool = False,
 ) -> dict[str, Any]:
     """Restoring-force beta, class, interval and sensor chain of one recording, or the reason
     there is none. `sensor` is the data sheet's chain (then nothing is fitted); `stage_ratio`
@@ -78,7 +79,10 @@ def restoring_force_check(
     the chain is known to have no resonance or low-pass and this high-pass corner (identified
     on another stretch of the same record), so nothing is fitted either.
     `penetration_dissipation`: the model's learned law has a Hunt-Crossley term
-    (:func:`trained_penetration_dissipation`): beta is read with that term fitted free."""
+    (:func:`trained_penetration_dissipation`): beta is read with that term fitted free.
+    `sensor_fitted`: `sensor` was fitted to recordings (a campaign's pooled chain, the chain a
+    log's first check fitted), not the user's sheet: its inverse is weighted as a fitted
+    chain's (:func:`~stiffnet.restoring_force.chain.inverse_noise_sigma`)."""
     try:
         r = restoring_force_estimate(
             accel,
@@ -86,6 +90,7 @@ def restoring_force_check(
             natural_frequency_hz=natural_frequency_hz,
             max_periods=RESTORING_FORCE_PERIODS,
             sensor=sensor,
+            sensor_fitted=sensor_fitted,
             highpass_hz="auto" if highpass_hz is None else highpass_hz,
             # on a clean record the chain changes nothing, and fitting it would cost ten
             # times the rest of the prediction

@@ -156,7 +156,8 @@ def _read(
 
 def _contact_law_task(item: tuple[Any, ManifestRow, dict[str, float] | None]) -> dict[str, Any]:
     """One recording's restoring-force estimate as evidence (a picklable task); the third
-    item is the data sheet undone (None: the chain is fitted)."""
+    item is the data sheet undone (None: the chain is fitted): the row's own, or else the
+    campaign's shared chain, fitted to its recordings (``sensor_fitted``)."""
     rec, row, sheet = item
     fn = row.natural_frequency_hz
     ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
@@ -164,6 +165,7 @@ def _contact_law_task(item: tuple[Any, ManifestRow, dict[str, float] | None]) ->
         r = restoring_force_estimate(
             rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
             max_periods=PERIODS, sensor=sheet,
+            sensor_fitted=sheet is not None and sheet != row.sensor_sheet(),
         )  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return {"recording": row.recording, "ok": False, "reason": str(exc)}

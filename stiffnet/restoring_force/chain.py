@@ -91,6 +91,8 @@ MAX_GAIN = 30.0
 #: rise before the inverse acts on it): 1, the Wiener filter. Larger values cut into the
 #: contact's band (beta 30 read 27 through a 4th-order low-pass at 0.1 fs with 1.5-4).
 OVER_SUBTRACTION = 1.0
+#: The top of the band whose periodogram gives the white-noise floor (fraction of Nyquist).
+NOISE_BAND = 0.75
 #: A low-pass corner below this multiple of the contact frequency refuses beta.
 MIN_LOWPASS_RATIO = 1.0
 #: The low-pass the impacts cannot exclude: corners tried (in contact frequencies, up to the
@@ -117,6 +119,13 @@ class SensorChain:
         First-order high-pass corner (0: none).
     source : str
         ``"fitted"`` (from the record) or ``"data sheet"`` (given).
+    fitted_sheet : bool
+        A data sheet whose values were themselves fitted to recordings, not read off the
+        accelerometer's calibration sheet: a campaign's pooled chain (profiled over its
+        contact laws' R², :mod:`serving.campaign_chain`), ``diagnose``'s shared chain, the
+        chain a log's first check fitted. Read as a data sheet, but its inverse is weighted
+        as a fitted chain's (:func:`inverse_noise_sigma`). Not reported (the callers name
+        such a chain's source themselves).
     intervals : dict
         ``name -> [low, high]`` at :data:`COVERAGE` for the fitted quantities.
     contact_hz, contact_damping : float or None
@@ -136,6 +145,7 @@ class SensorChain:
     lowpass_order: int | None = None
     highpass_hz: float = 0.0
     source: str = "fitted"
+    fitted_sheet: bool = False
     intervals: dict[str, list[float]] = field(default_factory=dict)
     contact_hz: float | None = None
     contact_damping: float | None = None
@@ -233,13 +243,16 @@ def sheet_fits_highpass(data: dict[str, Any] | None) -> bool:
     return bool(data) and data.get("highpass_hz") == HIGHPASS_FITTED
 
 
-def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
+def sensor_from_mapping(
+    data: dict[str, Any], fs_hz: float, fitted_sheet: bool = False
+) -> SensorChain:
     """A data-sheet chain from ``resonance_hz``, ``resonance_damping``, ``lowpass_hz``,
     ``lowpass_order``, ``highpass_hz`` (any left out or 0: no such stage; ``highpass_hz``
     :data:`HIGHPASS_FITTED`: the record's own corner, fitted by the caller, 0 here), and
     optionally the ends of the corner's interval (:data:`HIGHPASS_ENDS`, both holding it:
     the chain's ``intervals["highpass_hz"]``) and of the low-pass corner's
-    (:data:`LOWPASS_ENDS`: ``intervals["lowpass_hz"]``).
+    (:data:`LOWPASS_ENDS`: ``intervals["lowpass_hz"]``). `fitted_sheet`: the values were
+    fitted to recordings (:attr:`SensorChain.fitted_sheet`), not given by the user.
 
     Raises
     ------
@@ -286,6 +299,7 @@ def sensor_from_mapping(data: dict[str, Any], fs_hz: float) -> SensorChain:
         lowpass_order=int(order) if 0 < fl < in_band else None,
         highpass_hz=fh,
         source="data sheet",
+        fitted_sheet=fitted_sheet,
         intervals=intervals,
     )
 
@@ -403,6 +417,49 @@ def wiener_gain(y: np.ndarray, h: np.ndarray, noise_var: float) -> np.ndarray:
     mag = np.abs(inverse)
     inverse = np.where(mag > MAX_GAIN, inverse * MAX_GAIN / np.maximum(mag, 1e-300), inverse)
     return inverse * weight
+
+
+def record_noise_sigma(accel: np.ndarray, fs_hz: float) -> float:
+    """The record's white-noise standard deviation from the top of its band.
+
+    The median periodogram bin above :data:`NOISE_BAND` of Nyquist, over ``n ln 2`` (the
+    median of a white-noise bin's exponential power): there the chain's low-pass or
+    resonance has cut the motion, so what is left is the logger's noise. Where the motion
+    still reaches up there the floor reads high, and the inverse only acts less.
+    """
+    y = np.asarray(accel, dtype=float) - float(np.mean(accel))
+    power = np.abs(np.fft.rfft(y)) ** 2
+    top = power[int(NOISE_BAND * (power.size - 1)) :]
+    return float(np.sqrt(np.median(top) / (y.size * np.log(2.0))))
+
+
+def inverse_noise_sigma(y: np.ndarray, fs_hz: float, chain: SensorChain, scatter: float) -> float:
+    """Rule: the white-noise level a known chain's inverse is weighted by (:func:`wiener_gain`):
+    the free flight's `scatter` of the record as recorded, or, behind a resonance the user's
+    data sheet gives, the top of the band's floor (:func:`record_noise_sigma`) where that is
+    lower.
+
+    The scatter is the record's noise only where the record is a copy of the motion. A mount
+    rings on through the flight after each impact (lightly damped: 0.01-0.1), and behind one
+    within a few contact frequencies the scatter is that ringing: 0.89 g on a rig record
+    without noise behind a mount at twice its contact's frequency. Weighted by it the inverse
+    is off over much of the band it must restore, and the map of the half-undone pulses read
+    beta 1.26 times the truth with an interval missing it, or refused it ("the contacts last
+    3.6x the half period"); the top of the band, which the mount's roll-off has cleared of
+    motion, holds the logger's noise alone. The lower of the two never weights the inverse
+    above what the record shows. A low-pass alone does not ring through the flight, and there
+    the scatter stands: the lower floor let its inverse lift more noise into the pulses, and
+    damped contacts behind a 120 Hz 4th-order low-pass read 1-4 % further from the truth. A
+    fitted chain keeps the scatter too: it is judged by the contact law its inverse leaves
+    against the record as recorded (:data:`~.estimate.R2_SLACK`), a comparison set with it.
+    So does a sheet fitted to recordings (:attr:`SensorChain.fitted_sheet`: a campaign's
+    pooled chain), whose corners are profiled by the contact laws' R² read through this
+    inverse: the lower floor lifts more noise into the pulses, the R² falls and flattens the
+    profile, and a damped campaign's high-pass corner went from 4.07 Hz to 1.41 Hz (true 4.48).
+    """
+    if chain.source == "fitted" or chain.fitted_sheet or not chain.resonance_hz:
+        return scatter
+    return min(scatter, record_noise_sigma(y, fs_hz))
 
 
 def deconvolve(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: float) -> np.ndarray:

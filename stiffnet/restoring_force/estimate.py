@@ -48,6 +48,7 @@ from stiffnet.restoring_force.chain import (
     deconvolve,
     fit_chain,
     identifiability,
+    inverse_noise_sigma,
     sensor_from_mapping,
     settling_samples,
     sheet_fits_highpass,
@@ -854,8 +855,9 @@ def _inverse_map(
     # a fitted chain is judged by the contact law it leaves (R2 against the record as
     # recorded, R2_SLACK): a law fitted through its band explains more whether the chain is
     # right or not, so a fitted chain's map keeps the plain fit
-    band = kept_band(y, fs_hz, chain, m.fit.sigma) if chain.source != "fitted" else None
-    flat = deconvolve(y, fs_hz, chain, m.fit.sigma)
+    sigma = inverse_noise_sigma(y, fs_hz, chain, m.fit.sigma)
+    band = kept_band(y, fs_hz, chain, sigma) if chain.source != "fitted" else None
+    flat = deconvolve(y, fs_hz, chain, sigma)
     return _remap(flat, args, highpass_hz, corner, exponent, inverse=inverse, band=band)
 
 
@@ -883,6 +885,7 @@ def restoring_force_estimate(
     max_periods: float | None = None,
     highpass_hz: float | str = "auto",
     sensor: SensorChain | dict | None = None,
+    sensor_fitted: bool = False,
     chain_fit_below_r2: float = np.inf,
     profile_highpass_below_r2: float | None = None,
     interval: bool = True,
@@ -929,6 +932,12 @@ def restoring_force_estimate(
         as do the low-pass corner's (``lowpass_low_hz``, ``lowpass_high_hz``).
         None (default) identifies the chain from the impacts
         (:func:`~stiffnet.restoring_force.chain.fit_chain`) and undoes it.
+    sensor_fitted : bool
+        `sensor` was fitted to recordings, not given by the user (a campaign's pooled chain,
+        ``diagnose``'s shared chain, a log's held chain): read as a data sheet, its inverse
+        weighted as a fitted chain's
+        (:func:`~stiffnet.restoring_force.chain.inverse_noise_sigma`). False (default): the
+        user's data sheet.
     chain_fit_below_r2 : float, optional
         Identify the chain only where the record as recorded leaves the contact law
         explaining less than this (R2; default: always). A chain that distorts the
@@ -976,6 +985,8 @@ def restoring_force_estimate(
     """
     sensor, highpass_hz = _checked_options(fs_hz, natural_frequency_hz, forcing_frequency_hz,
                                            coverage, sensor, highpass_hz)  # fmt: skip
+    if sensor is not None and sensor_fitted:
+        sensor = dataclasses.replace(sensor, fitted_sheet=True)
     a, lines = _record_and_lines(accel, fs_hz, natural_frequency_hz, forcing_frequency_hz,
                                  max_periods)  # fmt: skip
     options = dict(natural_frequency_hz=natural_frequency_hz, exponent=exponent,
