@@ -75,3 +75,39 @@ def test_fits_beside_the_evidence_give_the_in_process_diagnosis(tmp_path, monkey
     assert seen["thread"] != [threading.main_thread().name]
     assert _without_seconds(there) == _without_seconds(here)
     assert "contact_damping" in there["missing_effects"]
+
+
+def test_fit_tasks_go_longest_first_by_their_planned_evaluations(tmp_path):
+    """The numerical-engine fits first, then the closed-form ones by the budget their fit
+    starts with (design, global stage, refinement), the largest first; the budget is the
+    one fit_effect spends within."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement.fitting import (
+        DEFAULT_BUDGET_NUMERICAL,
+        REFINE_EVALUATIONS,
+        fit_effect,
+        planned_evaluations,
+    )
+    from stiffnet.measurement.target import CampaignTarget, measured_statistics
+
+    path = simulate_campaign(short_manifest(tmp_path, 2, "2"), tmp_path / "c", [], seed=0)
+    camp = load_campaign(path)
+    measured, lengths, _ = measured_statistics(camp, camp.rows, False)
+    target = CampaignTarget(list(camp.rows), measured, lengths, [], inclination=False)
+    # one parameter: a 9-point design, then the bounded Brent's refinement
+    assert planned_evaluations(target, "contact_damping") == 9 + REFINE_EVALUATIONS[1]
+    assert planned_evaluations(target, "hertz_contact") == DEFAULT_BUDGET_NUMERICAL
+    plans = {n: planned_evaluations(target, n) for n in ("gap_drift", "adc", "colored_noise")}
+    fit = fit_effect(target, "gap_drift")
+    assert 0 < fit["evaluations"] <= plans["gap_drift"]
+
+    run = SimpleNamespace(target=target, budget=None, budget_numerical=None)
+    names = ["contact_damping", "adc", "hertz_contact", "gap_drift", "colored_noise"]
+    order, items = diagnose._Run._items(run, names, [])
+    closed = sorted(
+        [n for n in names if n != "hertz_contact"],
+        key=lambda n: -(9 + REFINE_EVALUATIONS[1] if n == "contact_damping" else plans[n]),
+    )
+    assert order == ["hertz_contact", *closed]
+    assert [item[1] for item in items] == order

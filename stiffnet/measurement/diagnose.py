@@ -60,6 +60,7 @@ from stiffnet.measurement.fitting import (
     SUBSET_SEARCH,
     fit_effect,
     fit_joint,
+    planned_evaluations,
 )
 from stiffnet.measurement.forcing_lines import campaign_forcing_lines
 from stiffnet.measurement.learned_law import learned_law_proposal
@@ -289,11 +290,17 @@ class _Run:
     def _items(
         self, cands: list[str], fixed: list[Effect], target: CampaignTarget | None = None
     ) -> tuple[list[str], list[tuple]]:
-        """The fit tasks of ``cands`` on top of ``fixed``, the numerical-engine fits (the long
-        ones) first, so parallel workers finish together."""
-        order = sorted(cands, key=lambda n: not needs_numerical(n))
+        """The fit tasks of ``cands`` on top of ``fixed``, the longest first so parallel
+        workers finish together: the numerical-engine fits, then the closed-form ones by
+        their evaluation budget (:func:`planned_evaluations`), the largest first."""
         budget = {True: self.budget_numerical, False: self.budget}
         target = self.target if target is None else target
+
+        def longest_first(n: str) -> tuple[bool, int]:
+            numerical = needs_numerical(n)
+            return not numerical, -planned_evaluations(target, n, budget[numerical])
+
+        order = sorted(cands, key=longest_first)
         return order, [(target, n, fixed, budget[needs_numerical(n)]) for n in order]
 
     def _score_off(self, cands: list[str], fixed: list[Effect]) -> None:
