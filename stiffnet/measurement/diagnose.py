@@ -13,7 +13,9 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    tolerances.
 2. **Single fits.** Every candidate effect (the library and user
    ``module:Class`` effects) is fitted alone on top of the base model
-   (parallel tasks, :func:`stiffnet.distributed.map_tasks`) and tested against it.
+   (parallel tasks, :func:`stiffnet.distributed.map_tasks`, the longest first) and tested
+   against it; with workers, those whose fit reads nothing of the restoring-force evidence
+   (:func:`reads_evidence`) start while it is read.
 3. **Forward selection with joint refits.** At each step every remaining
    candidate that showed something alone (:data:`SCREEN_EXCESS`, or is
    closed-form) is fitted on top of the selected effects, the closed-form ones first (with
