@@ -11,8 +11,9 @@ A thread samples the CPU (user + system) of this process and of each of its desc
 back, and what it spent after its last sample, at most one period, is not counted) every
 :data:`PERIOD_S` and at each stage's start and end, and each interval goes to the stage
 running at its start: the
-innermost of ``diagnose``'s parts wrapped by :func:`label_stages` (this process only; the
-workers run their tasks unwrapped).
+innermost of ``diagnose``'s parts wrapped by :func:`label_stages` (this process's main
+thread only: what another thread runs beside it, the restoring-force evidence with workers,
+goes to the main thread's stage; the workers run their tasks unwrapped).
 """
 
 from __future__ import annotations
@@ -85,6 +86,8 @@ class StageTimeline:
 
         @functools.wraps(fn)
         def inner(*a: Any, **k: Any) -> Any:
+            if threading.current_thread() is not threading.main_thread():
+                return fn(*a, **k)  # work beside the main thread's stage belongs to it
             # a sample at each edge: a stage that holds the interpreter (a pure-Python loop)
             # can keep the sampler thread from running until it ends
             # (under the lock, so no stage begins or ends inside a sample; each edge's sample
@@ -147,6 +150,9 @@ def label_stages(timeline: StageTimeline) -> None:
     # by the function's own name: as a quoted string it reads as the diagnosis JSON's earlier key
     evidence = diagnose.restoring_force_evidence.__name__
     timeline.label(diagnose, evidence, lambda *a, **k: "evidence")
+    # with workers the evidence is read on a thread beside the nuisances (unlabelled there):
+    # this is the wait for the rest of it, the early single fits running beside it
+    timeline.label(diagnose, "_await_evidence", lambda *a, **k: "evidence (the rest)")
     timeline.label(diagnose, "profile_nuisances", within("nuisances"))
     timeline.label(diagnose._Run, "fits", lambda run, cands, *a, **k:
                    f"fits: {run.stage.split(',')[0]} ({len(cands)})")  # fmt: skip

@@ -192,44 +192,86 @@ def _run_local(fn, items, names, progress) -> TaskReport:
 
 
 def _run_dask(client, fn, items, names, retries, progress, thread_limit) -> TaskReport:
-    from distributed import as_completed
+    pending = submit_tasks(fn, items, client=client, names=names, retries=retries,
+                           thread_limit=thread_limit)  # fmt: skip
+    return pending.collect(progress)
 
-    run_id = uuid.uuid4().hex[:8]
+
+@dataclass
+class PendingTasks:
+    """Tasks submitted to a Dask cluster by :func:`submit_tasks`, not yet collected."""
+
+    client: Any
+    futures: list[Any]
+    names: list[str]
+
+    def collect(self, progress: Callable[[int, int], None] | None = None) -> TaskReport:
+        """Wait for every task and report as :func:`run_tasks` does (``progress(done,
+        total)`` as they finish); the results are then released on the workers."""
+        from distributed import as_completed
+
+        client, futures, names = self.client, self.futures, self.names
+        report = TaskReport(results=[None] * len(futures), names=names,
+                            backend=str(client.scheduler.address))  # fmt: skip
+        index = {f.key: i for i, f in enumerate(futures)}
+        done = 0
+        for future in as_completed(futures):
+            i = index[future.key]
+            if future.status == "finished":
+                result = future.result()
+                if isinstance(result, _UserError):
+                    report.failed[names[i]] = _describe(result.error)
+                    report.errors[names[i]] = result.error
+                else:
+                    report.results[i] = result
+            elif future.status == "error":
+                exc = future.exception()
+                report.failed[names[i]] = _describe(exc)
+                report.errors[names[i]] = exc
+            else:  # cancelled: the scheduler or this client went away
+                report.failed[names[i]] = f"task {future.status} (the Dask scheduler was lost?)"
+            done += 1
+            if progress:
+                progress(done, len(futures))
+        keys = [f.key for f in futures]
+        extra = {names[index[k]]: n for k, n in _extra_runs(client, keys).items()}
+        report.rerun = {n: extra[n] for n in names if n in extra}  # in the items' order
+        report.failed = {n: report.failed[n] for n in names if n in report.failed}
+        for name, exc in report.errors.items():  # say how hard the cluster tried
+            if not isinstance(exc, StiffnetError):
+                report.failed[name] += f" (after {1 + report.rerun.get(name, 0)} runs)"
+        client.cancel(futures)  # release results held on the workers
+        return report
+
+
+def submit_tasks(
+    fn: Callable[[Any], Any],
+    items: Iterable[Any],
+    *,
+    client: Any,
+    names: Sequence[str] | None = None,
+    retries: int = 2,
+    thread_limit: ThreadLimit | None = None,
+    priority: int = 0,
+) -> PendingTasks:
+    """Submit ``fn`` on every item to the Dask ``client`` and return at once; the tasks run
+    while the caller does other work, and :meth:`PendingTasks.collect` waits for them.
+
+    ``priority``: Dask's (higher first; :func:`run_tasks`' tasks have 0): tasks submitted
+    below 0 take a worker only when no task of a higher priority is waiting, so they fill
+    the cores other work leaves idle. The other arguments as in :func:`run_tasks`.
+    """
+    items = list(items)
     label = _label(fn)  # Dask groups tasks by this prefix (dashboard, logs)
+    names = list(names) if names is not None else [f"{label}[{i}]" for i in range(len(items))]
+    if len(names) != len(items):
+        raise ValueError("names and items differ in length")
+    run_id = uuid.uuid4().hex[:8]
     keys = [f"{label}-{run_id}-{i}" for i in range(len(items))]
     futures = client.map(_run_on_worker, [fn] * len(items), items,
                          [thread_limit] * len(items), key=keys, retries=retries,
-                         pure=False)  # fmt: skip
-    report = TaskReport(results=[None] * len(items), names=names,
-                        backend=str(client.scheduler.address))  # fmt: skip
-    index = {f.key: i for i, f in enumerate(futures)}
-    done = 0
-    for future in as_completed(futures):
-        i = index[future.key]
-        if future.status == "finished":
-            result = future.result()
-            if isinstance(result, _UserError):
-                report.failed[names[i]] = _describe(result.error)
-                report.errors[names[i]] = result.error
-            else:
-                report.results[i] = result
-        elif future.status == "error":
-            exc = future.exception()
-            report.failed[names[i]] = _describe(exc)
-            report.errors[names[i]] = exc
-        else:  # cancelled: the scheduler or this client went away
-            report.failed[names[i]] = f"task {future.status} (the Dask scheduler was lost?)"
-        done += 1
-        if progress:
-            progress(done, len(items))
-    extra = {names[index[k]]: n for k, n in _extra_runs(client, keys).items()}
-    report.rerun = {n: extra[n] for n in names if n in extra}  # in the items' order
-    report.failed = {n: report.failed[n] for n in names if n in report.failed}
-    for name, exc in report.errors.items():  # say how hard the cluster tried
-        if not isinstance(exc, StiffnetError):
-            report.failed[name] += f" (after {1 + report.rerun.get(name, 0)} runs)"
-    client.cancel(futures)  # release results held on the workers
-    return report
+                         pure=False, priority=priority)  # fmt: skip
+    return PendingTasks(client, list(futures), names)
 
 
 def _extra_runs(client, keys: list[str]) -> dict[str, int]:

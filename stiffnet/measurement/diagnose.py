@@ -13,7 +13,9 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    tolerances.
 2. **Single fits.** Every candidate effect (the library and user
    ``module:Class`` effects) is fitted alone on top of the base model
-   (parallel tasks, :func:`stiffnet.distributed.map_tasks`) and tested against it.
+   (parallel tasks, :func:`stiffnet.distributed.map_tasks`, the longest first) and tested
+   against it; with workers, those whose fit reads nothing of the restoring-force evidence
+   (:func:`reads_evidence`) start while it is read.
 3. **Forward selection with joint refits.** At each step every remaining
    candidate that showed something alone (:data:`SCREEN_EXCESS`, or is
    closed-form) is fitted on top of the selected effects, the closed-form ones first (with
@@ -41,7 +43,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -59,6 +62,7 @@ from stiffnet.measurement.fitting import (
     SUBSET_SEARCH,
     fit_effect,
     fit_joint,
+    planned_evaluations,
 )
 from stiffnet.measurement.forcing_lines import campaign_forcing_lines
 from stiffnet.measurement.learned_law import learned_law_proposal
@@ -101,6 +105,10 @@ ACCEPT_ROUNDS = 0
 POLISH_EVALUATIONS = 40
 #: At most this many effects are selected.
 MAX_EFFECTS = 4
+#: Dask priority of the single fits submitted before the restoring-force evidence is read
+#: (:meth:`_Run.submit_early`): below the evidence's tasks (0), so a worker takes one only
+#: where the evidence leaves it idle (its three chain fits on two workers, the reads' tail).
+EARLY_PRIORITY = -1
 #: Effects never searched blind from their class defaults: a learned law is proposed by the
 #: contact-law discovery with its own terms (``learned_law``).
 PROPOSED_ONLY = ("learned_contact",)
@@ -116,6 +124,18 @@ def candidate_effects(
     for n in names:
         effect_class(n)  # one-line error for an unknown name
     return [n for n in names if effect_class(n).name not in present]
+
+
+def reads_evidence(name: str) -> bool:
+    """Whether an effect's fit starts from what the measurement shows
+    (:meth:`CampaignTarget.observed`, which holds the restoring-force evidence's shared sensor
+    chain): its class overrides :meth:`Effect.fit_seeds` or :meth:`Effect.observed_fit_space`.
+    The others' single fits need nothing of the evidence and may run while it is read."""
+    cls = effect_class(name)
+    return any(
+        getattr(cls, hook).__func__ is not getattr(Effect, hook).__func__
+        for hook in ("fit_seeds", "observed_fit_space")
+    )
 
 
 def _fit_task(item: tuple[CampaignTarget, str, list[Effect], int | None]) -> dict[str, Any]:
@@ -266,36 +286,81 @@ class _Run:
     stage: str = "single fits"
     #: The restoring-force evidence (contact law and shared sensor chain per recording).
     evidence: dict[str, Any] | None = None
+    #: Single fits submitted before the evidence (:meth:`submit_early`): names, tasks.
+    early: tuple[list[str], Any] | None = None
+
+    def _items(
+        self, cands: list[str], fixed: list[Effect], target: CampaignTarget | None = None
+    ) -> tuple[list[str], list[tuple]]:
+        """The fit tasks of ``cands`` on top of ``fixed``, the longest first so parallel
+        workers finish together: the numerical-engine fits, then the closed-form ones by
+        their evaluation budget (:func:`planned_evaluations`), the largest first."""
+        budget = {True: self.budget_numerical, False: self.budget}
+        target = self.target if target is None else target
+
+        def longest_first(n: str) -> tuple[bool, int]:
+            numerical = needs_numerical(n)
+            return not numerical, -planned_evaluations(target, n, budget[numerical])
+
+        order = sorted(cands, key=longest_first)
+        return order, [(target, n, fixed, budget[needs_numerical(n)]) for n in order]
+
+    def _score_off(self, cands: list[str], fixed: list[Effect]) -> None:
+        """Score "effect off", every fit's reference, here once per settings: it travels with
+        the target (CampaignTarget.known) instead of being simulated again by every task."""
+        dynamics = [e.name for e in fixed if e.kind == "dynamics"]
+        for settings in {settings_for([n, *dynamics]) for n in cands}:
+            self.target.per_recording([*self.target.base_effects, *fixed], settings)
+
+    def submit_early(self, cands: list[str]) -> None:
+        """With workers, submit the single fits of the candidates whose fit reads nothing of
+        the restoring-force evidence (:func:`reads_evidence`) before it is read, below its
+        priority (:data:`EARLY_PRIORITY`): they fill the cores the evidence leaves idle, and
+        :meth:`fits` collects them. Each task gets the target as it is now (its memo
+        copied), which is what it would get after the evidence: nothing they read moves."""
+        from stiffnet.distributed.tasks import submit_tasks
+        from stiffnet.simulator.compiled import limited_threads
+
+        early = [n for n in cands if not reads_evidence(n)]
+        if self.client is None or not early:
+            return
+        self._score_off(cands, [])
+        snapshot = replace(self.target)  # the evidence then sets the target's sensor chain
+        snapshot.known = dict(self.target.known)
+        order, items = self._items(early, [], snapshot)
+        self.early = (order, submit_tasks(
+            _fit_task, items, client=self.client, names=order, thread_limit=limited_threads,
+            priority=EARLY_PRIORITY,
+        ))  # fmt: skip
 
     def fits(self, cands: list[str], fixed: list[Effect]) -> list[dict[str, Any]]:
-        """Fit each candidate on top of ``fixed`` (parallel tasks), in the order given."""
+        """Fit each candidate on top of ``fixed`` (parallel tasks), in the order given; the
+        single fits submitted early (:meth:`submit_early`) are collected here."""
         from stiffnet.distributed.tasks import run_tasks
         from stiffnet.simulator.compiled import limited_threads
 
-        # numerical-engine fits (the long ones) first, so parallel workers finish together
-        order = sorted(cands, key=lambda n: not needs_numerical(n))
-        items = [
-            (self.target, n, fixed, self.budget_numerical if needs_numerical(n) else self.budget)
-            for n in order
-        ]
-        # "effect off", every fit's reference, scored here once per settings: it travels with
-        # the target (CampaignTarget.known) instead of being simulated again by every task
-        dynamics = [e.name for e in fixed if e.kind == "dynamics"]
-        for settings in {settings_for([n, *dynamics]) for n in order}:
-            self.target.per_recording([*self.target.base_effects, *fixed], settings)
+        early_order, early = ([], None) if fixed or self.early is None else self.early
+        self.early = None
+        order, items = self._items([n for n in cands if n not in early_order], fixed)
+        self._score_off(order, fixed)
         start = self.bar.done
+        everything = [*order, *early_order]
 
         def show(done: int, _total: int) -> None:
-            nxt = f": fitting {order[done]}" if done < len(order) else ""
+            nxt = f": fitting {everything[done]}" if done < len(everything) else ""
             self.bar.to(start + done, f"{self.stage}{nxt}")
 
-        show(0, len(order))
+        show(0, len(everything))
         report = run_tasks(
             _fit_task, items, client=self.client, names=order, progress=show,
             thread_limit=limited_threads,
         )  # fmt: skip
         report.raise_failures()
         by_name = dict(zip(order, report.results, strict=True))
+        if early is not None:
+            late = early.collect(lambda done, total: show(len(order) + done, total))
+            late.raise_failures()
+            by_name.update(zip(early_order, late.results, strict=True))
         return [by_name[n] for n in cands]
 
     def judge(self, fit: dict[str, Any], before: np.ndarray, kept: list[str]) -> dict[str, Any]:
@@ -327,7 +392,9 @@ def _diagnose(
 ) -> dict[str, Any]:
     """The body of :func:`diagnose_campaign` (``client``: Dask client or None, in-process;
     ``options``: ``budget``, ``budget_numerical``, ``seed``, ``inclination``, ``model_path``)."""
-    run, nuisances, baseline = _prepare(campaign, list(base_effects), options, client, bar)
+    run, nuisances, baseline = _prepare(
+        campaign, list(base_effects), options, client, bar, candidates
+    )
     # the baseline's nuisances (no effect) stay in the result beside the final model's
     effect_free = {**nuisances, "profiled_with": []}
     entries, searched = _fit_alone(run, candidates, baseline)
@@ -347,9 +414,15 @@ def _prepare(
     options: dict[str, Any],
     client: Any,
     bar: _Progress,
+    candidates: Sequence[str] = (),
 ) -> tuple[_Run, dict[str, Any], np.ndarray]:
     """Rows and nuisances resolved, measured statistics, the recordings' floors, the
-    nuisances profiled against the base model and its per-recording discrepancies."""
+    nuisances profiled against the base model and its per-recording discrepancies.
+
+    With workers the restoring-force evidence is read on them while this process profiles
+    the nuisances, and the single fits of the ``candidates`` that need nothing of it are
+    submitted before it ends (:meth:`_Run.submit_early`): the three chain fits on two
+    workers and the reads' tail leave a core idle, which those fits fill."""
     inclination = options["inclination"]
     rows, nuisance_info = resolve_rows(campaign, options["model_path"])
     measured, lengths, signals = measured_statistics(campaign, rows, inclination)
@@ -367,23 +440,37 @@ def _prepare(
     }
     # a non-repeatable recording (halves far apart) weighs less in every fit's objective
     target.weights = floors[FIT_SETTINGS].weights().tolist()
+    target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit
+
     # the contact law read off each force-displacement map (evidence without simulation);
     # its shared sensor chain is where sensor_dynamics' fit starts
-    evidence = memo(
-        campaign, ("restoring_force", rows_key(rows)),
-        lambda: restoring_force_evidence(campaign, rows, client),
-    )  # fmt: skip
+    def read_evidence() -> dict[str, Any]:
+        return memo(
+            campaign, ("restoring_force", rows_key(rows)),
+            lambda: restoring_force_evidence(campaign, rows, client),
+        )  # fmt: skip
+
+    with ThreadPoolExecutor(max_workers=1) as beside:
+        reading = beside.submit(read_evidence) if client is not None else None
+        evidence = read_evidence() if reading is None else None
+        bar.step("nuisances and initial states")
+        nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
+        baseline = target.per_recording(base_effects, FIT_SETTINGS)
+        run = _Run(
+            campaign, base_effects, rows, target, [r.recording for r in rows], nuisance_info,
+            floor_info, floors, options["budget"], options["budget_numerical"], client, bar,
+        )  # fmt: skip
+        if reading is not None and not floors[FIT_SETTINGS].at_floor(baseline):
+            run.submit_early(list(candidates))
+        evidence = _await_evidence(reading) if reading is not None else evidence
+    run.evidence = evidence
     target.sensor = evidence.get("sensor")
-    target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit
-    bar.step("nuisances and initial states")
-    nuisances = profile_nuisances(target, [], FIT_SETTINGS, nuisance_info)
-    baseline = target.per_recording(base_effects, FIT_SETTINGS)
-    run = _Run(
-        campaign, base_effects, rows, target, [r.recording for r in rows], nuisance_info,
-        floor_info, floors, options["budget"], options["budget_numerical"], client, bar,
-        evidence=evidence,
-    )  # fmt: skip
     return run, nuisances, baseline
+
+
+def _await_evidence(reading: Any) -> dict[str, Any]:
+    """The evidence read beside the nuisances (a future of this process's thread)."""
+    return reading.result()
 
 
 def _fit_alone(

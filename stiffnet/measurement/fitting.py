@@ -334,38 +334,14 @@ def _fit_effect(
 
     t0 = time.perf_counter()
     fixed = list(fixed)
-    observed = target.observed()
-    space = effect_space(name, target.rows, observed, dict(seeds[0]) if seeds else None)
+    space, design, read, blocks, budget = _plan(target, name, seeds, budget)
     numerical = needs_numerical(name)
     if settings is None:
         settings = settings_for([name, *(e.name for e in fixed if e.kind == "dynamics")])
     if off is None:
         off = target.per_recording([*target.base_effects, *fixed], settings)
-    design = initial_design(space)
-    n_seeds = len(seeds)
-    read = effect_class(name).fit_seeds(observed, space)
-    seeds = [*seeds, *read]
-    # seeds read off the measurement that stand for the global stage replace the design
-    # (but the centre): the basin is known, a design would only find orbit jumps elsewhere
     seeded = bool(space.global_seeds and read)
-    if seeded:
-        design = design[:1]
-    if seeds:
-        design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
     k = len(space.free)
-    blocks = [] if numerical else global_blocks(space)
-    if budget is None:
-        refine = REFINE_EVALUATIONS.get(k, REFINE_EVALUATIONS_MANY)
-        sweeps = GLOBAL_ROUNDS * sum(len(grid) for _, grid in blocks)
-        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + sweeps + refine
-    if len(design) > budget:  # a small budget keeps the given seeds, spreads the rest
-        keep = np.unique(
-            np.r_[
-                np.arange(min(n_seeds, budget)),
-                np.round(np.linspace(0, len(design) - 1, budget - min(n_seeds, budget))),
-            ]
-        )
-        design = design[keep.astype(int)[:budget]]
     if numerical:
         return _fit_design(target, name, fixed, space, design, settings, off, t0)
     if seeded:  # the orbit moves with the effect: starts profiled at it
@@ -408,6 +384,48 @@ def _fit_effect(
         "seconds": res["seconds"],
         "engine": "numerical" if numerical else "closed_form",
     }
+
+
+def _plan(
+    target: CampaignTarget, name: str, seeds: Sequence[dict[str, float]], budget: int | None
+) -> tuple[FitSpace, np.ndarray, list[dict[str, float]], list, int]:
+    """What a fit of ``name`` will search (:func:`fit_effect`): its space, its design (the
+    given seeds and those read off the measurement first), the seeds read, the global stage's
+    blocks and the evaluation budget."""
+    observed = target.observed()
+    space = effect_space(name, target.rows, observed, dict(seeds[0]) if seeds else None)
+    numerical = needs_numerical(name)
+    design = initial_design(space)
+    n_seeds = len(seeds)
+    read = effect_class(name).fit_seeds(observed, space)
+    seeds = [*seeds, *read]
+    # seeds read off the measurement that stand for the global stage replace the design
+    # (but the centre): the basin is known, a design would only find orbit jumps elsewhere
+    if space.global_seeds and read:
+        design = design[:1]
+    if seeds:
+        design = np.vstack([np.array([space.unit(s) for s in seeds]), design])
+    k = len(space.free)
+    blocks = [] if numerical else global_blocks(space)
+    if budget is None:
+        refine = REFINE_EVALUATIONS.get(k, REFINE_EVALUATIONS_MANY)
+        sweeps = GLOBAL_ROUNDS * sum(len(grid) for _, grid in blocks)
+        budget = DEFAULT_BUDGET_NUMERICAL if numerical else len(design) + sweeps + refine
+    if len(design) > budget:  # a small budget keeps the given seeds, spreads the rest
+        keep = np.unique(
+            np.r_[
+                np.arange(min(n_seeds, budget)),
+                np.round(np.linspace(0, len(design) - 1, budget - min(n_seeds, budget))),
+            ]
+        )
+        design = design[keep.astype(int)[:budget]]
+    return space, design, read, blocks, budget
+
+
+def planned_evaluations(target: CampaignTarget, name: str, budget: int | None = None) -> int:
+    """The evaluation budget a fit of ``name`` on ``target`` starts with (:func:`fit_effect`
+    with no seeds given): a closed-form fit's design, global stage and refinement."""
+    return _plan(target, name, (), budget)[4]
 
 
 def spread_subset(rows: Sequence[Any], k: int) -> np.ndarray:
