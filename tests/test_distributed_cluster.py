@@ -128,6 +128,36 @@ def test_thread_limit_is_the_callers_and_applies_on_workers_only(cluster):
     assert map_tasks(_limit_seen, [4], thread_limit=_record_limit) == [(4, None)]
 
 
+#: What a worker process of a LocalCluster goes through: a script's imports load numba (its
+#: thread count read from the environment then), the nanny's ``env`` sets the worker's count
+#: after the process started, a task runs inside the simulator's thread limit, and then
+#: something is compiled for the first time (a cold cache: a fresh install, changed code).
+WORKER_FIRST_COMPILE = """
+import os
+os.environ["NUMBA_NUM_THREADS"] = "2"
+from stiffnet.simulator import compiled
+os.environ["NUMBA_NUM_THREADS"] = "1"
+with compiled.limited_threads(1):
+    pass
+import numba
+numba.njit(lambda x: x + 1)(1)
+print(numba.config.NUMBA_NUM_THREADS)
+"""
+
+
+def test_a_workers_first_compile_after_its_thread_limit_does_not_fail():
+    # numba re-reads NUMBA_NUM_THREADS only when it compiles, and refuses a changed value
+    # once its pool is launched: the limit reads the environment before it launches the pool
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    run = subprocess.run([sys.executable, "-c", WORKER_FIRST_COMPILE], env=env,
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert run.returncode == 0, run.stderr.strip().splitlines()[-1:]
+    assert run.stdout.strip() == "1"
+
+
 def test_bad_input_is_not_retried(cluster):
     report = run_tasks(_user_error, [0, 1, 2], scheduler=cluster.scheduler_address, retries=2)
     assert report.results == [0, None, 2] and not report.rerun

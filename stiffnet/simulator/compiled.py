@@ -50,14 +50,25 @@ from stiffnet.simulator.result import EngineResult
 
 
 def threads() -> int:
-    """Threads the parallel kernel uses (numba's, ``NUMBA_NUM_THREADS``)."""
+    """Threads the parallel kernel uses (numba's, ``NUMBA_NUM_THREADS``).
+
+    The environment is read again before numba's pool is asked (which launches it): numba
+    reads ``NUMBA_NUM_THREADS`` when it is imported and after that only when it compiles. A
+    Dask worker is given the variable after its process started (the nanny's ``env``,
+    :data:`stiffnet.distributed.cluster.WORKER_ENV`), where a script's imports may already
+    have loaded numba; a pool launched with the import-time count then makes the worker's
+    first compile (a cold cache: a fresh install, changed code) fail with "Cannot set
+    NUMBA_NUM_THREADS to a different value once the threads have been launched".
+    """
+    numba.config.reload_config()
     return int(numba.get_num_threads())
 
 
 @contextlib.contextmanager
 def limited_threads(n: int) -> Iterator[None]:
-    """Run the parallel kernel on at most ``n`` threads inside the block."""
-    before = numba.get_num_threads()
+    """Run the parallel kernel on at most ``n`` threads inside the block (numba's pool
+    launched as the environment says: :func:`threads`)."""
+    before = threads()
     numba.set_num_threads(max(1, min(n, before)))
     try:
         yield
