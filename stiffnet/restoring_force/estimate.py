@@ -227,7 +227,7 @@ class RestoringForceResult:
     impact_onsets : ImpactOnsetLaw or None
         The contact law refitted with an onset per impact (:mod:`.impact_onsets`): the
         exponent where the reconstruction's level wanders between impacts. It reports only;
-        beta is the law's above.
+        beta is the law's above. None without `interval` (the discovery's maps).
     """
 
     ok: bool
@@ -1194,8 +1194,12 @@ def _estimate_at(
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
     cls = str(beta_class(np.array([beta]), classes)[0])
     law, n_imp, spc = m.law, m.n_impacts, m.spc
-    core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
-    onsets = fit_impact_onset_law(fit.force, fit.displacement, fit.velocity, m.labels, core, law)
+    onsets = None
+    if interval:  # the alarm's reading; the discovery's maps (no interval) do not need it
+        core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+        onsets = fit_impact_onset_law(
+            fit.force, fit.displacement, fit.velocity, m.labels, core, law
+        )
     return RestoringForceResult(
         ok=True,
         beta=float(beta),
