@@ -130,6 +130,7 @@ def restoring_force_check(
         "contact_damping_ratio": d["contact_damping_ratio"],
         "exponent": d["exponent"],
         "penetration_over_table": d["penetration_over_table"],
+        "impact_onsets": d["impact_onsets"],
         "n_impacts": d["n_impacts"],
         "contact_r2": d["contact_r2"],
         "duration_ratio": d["duration_ratio"],

@@ -54,6 +54,12 @@ class RestoringForceCheck(BaseModel):
         description="The impacts' median peak penetration (where beta is the secant) over the "
         "table's displacement amplitude at the forcing frequency (gain-free).",
     )
+    impact_onsets: dict[str, float] | None = Field(
+        default=None,
+        description="The contact law refitted with an onset per impact: exponent, r2, "
+        "onset_spread (over the reference penetration), n_impacts, and with Hunt-Crossley's "
+        "dissipation on the elastic force dissipation_r2, dissipation_share.",
+    )
     n_impacts: int | None = None
     contact_r2: float | None = Field(default=None, description="Goodness of the contact law.")
     duration_ratio: float | None = Field(

@@ -272,6 +272,52 @@ def test_a_hertz_class_the_record_does_not_determine_is_flagged():
     assert reference_penetration_span(rf, exact) == pytest.approx([37.1, 49.6], rel=0.01)
 
 
+def test_an_exponent_read_with_an_onset_per_impact_counts_where_the_law_does_not():
+    """Recorded numbers of bench_alarm's offset-0 draws. power_law_contact draw 14 (exponent
+    2.06 drawn, beta 56.1 read very_hard, wrong and silent before): the law with one onset
+    reads p 1.10 at R2 0.944, which does not count; with an onset per impact p 2.09 at R2
+    0.996, removing 0.86 of the misfit of the linear law with the same onsets, on a contact
+    damped 0.08: outside both training bands, the contact_law check fires. contact_damping
+    draw 19 (a linear Kelvin-Voigt contact, zeta 0.26 drawn, 0.36 fitted, R2 0.740 with one
+    onset) reads p 1.64 at R2 0.986 per impact: the damping ceiling leaves it out."""
+    from stiffnet.uncertainty.unseen_law import (
+        exponent_reading,
+        impact_onset_gain,
+        stiffening_reasons,
+        unseen_law_thresholds,
+    )
+
+    t = unseen_law_thresholds()
+    power = {
+        "exponent": 1.1038,
+        "contact_r2": 0.94373,
+        "contact_damping_ratio": 0.0768,
+        "impact_onsets": {"exponent": 2.0935, "r2": 0.99629, "linear_r2": 0.97349},
+    }
+    assert impact_onset_gain(0.99629, 0.97349) == pytest.approx(1 - 0.00371 / 0.02651)
+    p, r2, how = exponent_reading(power, t)
+    assert (p, r2, how) == (2.0935, 0.99629, "an onset per impact")
+    assert "2.09 (R2 0.996, an onset per impact)" in stiffening_reasons(power, t)[0]
+    # the law's own reading counts first where it fits closely
+    close = {**power, "exponent": 1.05, "contact_r2": 0.985}
+    assert exponent_reading(close, t) == (1.05, 0.985, "the law")
+    assert stiffening_reasons(close, t) == []
+    # each condition of the per-impact reading
+    for change in ({"r2": 0.975}, {"linear_r2": 0.9955}):
+        loose = {**power, "impact_onsets": {**power["impact_onsets"], **change}}
+        assert exponent_reading(loose, t) is None
+    damped = {
+        "exponent": 1.0,
+        "contact_r2": 0.740,
+        "contact_damping_ratio": 0.3590,
+        "impact_onsets": {"exponent": 1.6359, "r2": 0.98594, "linear_r2": 0.70115},
+    }
+    assert exponent_reading(damped, t) is None and stiffening_reasons(damped, t) == []
+    assert exponent_reading({**power, "impact_onsets": None}, t) is None
+    off = t.model_copy(update={"impact_onset_min_r2": float("inf")})
+    assert exponent_reading(power, off) is None
+
+
 def test_contact_duration_excess_fires_beyond_twice_the_half_period():
     from stiffnet.uncertainty.alarm_verdict import (
         ALARM_WORDS,

@@ -304,6 +304,44 @@ def test_recordings_of_unseen_laws_fire_and_library_laws_do_not(effects, fires):
     assert bool(unseen_law_reasons(restoring_force)) is fires, restoring_force
 
 
+def _power_law_draw(effects) -> tuple[np.ndarray, float]:
+    """The robustness benchmark's power_law_contact draw 14 (bench_alarm, offset 0) simulated
+    again over 48 natural periods: beta 56.1, gap 0.53, amplitude 1.91, forcing 1.18 f_n,
+    1.7 % noise at 106.8 samples per natural period."""
+    one = [np.array([v]) for v in (56.0756, 0.5315, 1.9117, 1.1798, 0.0266)]
+    ratio = 106.8183
+    res = Simulator(effects).simulate(
+        OscillatorBatch(*one), np.array([ratio]), int(48 * ratio), noise=0.017, rng=0
+    )
+    return res.accel[0], ratio * FN
+
+
+def test_a_power_law_is_read_with_an_onset_per_impact():
+    """Drawn exponent 2.06 (secant beta at d0 0.27, damping 0.13): the map's level wanders
+    between impacts, so the law fitted with one onset reads nearly linear (on the benchmark's
+    128-period record the shipped CNN was wrong and silent: very hard for hard; this shorter
+    record also trips the onset-toe rule, so the reading and its reason are what is checked).
+    With an onset per impact the exponent is read, outside both training bands."""
+    law = laws.PowerLawContact(exponent=2.0598, d0=0.2657)
+    accel, fs = _power_law_draw([law, ContactDamping(damping_ratio=0.131)])
+    restoring_force = restoring_force_check(accel, fs, FN)
+    onsets = restoring_force["impact_onsets"]
+    assert onsets["r2"] >= 0.98 and abs(onsets["exponent"] - 2.0598) < 0.3, onsets
+    assert onsets["r2"] > restoring_force["contact_r2"]
+    reasons = unseen_law_reasons(restoring_force)
+    assert any("an onset per impact" in r for r in reasons), restoring_force
+
+
+def test_a_kelvin_voigt_contact_keeps_a_linear_exponent_per_impact():
+    """The same draw with the library's laws (linear, Kelvin-Voigt damped): an onset per
+    impact leaves the exponent in the linear band, and nothing fires."""
+    accel, fs = _power_law_draw([ContactDamping(damping_ratio=0.131)])
+    restoring_force = restoring_force_check(accel, fs, FN)
+    onsets = restoring_force["impact_onsets"]
+    assert onsets["exponent"] <= 1.2, onsets
+    assert unseen_law_reasons(restoring_force) == [], restoring_force
+
+
 def _rig_law_shape(name: str, beta: float, ratio: float, noise: float, contact: dict):
     """The predictor's restoring-force check on one 8 s independent-rig recording (seed 7,
     forcing ``ratio`` f_n): the check and its law shape."""

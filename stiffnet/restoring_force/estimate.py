@@ -71,6 +71,7 @@ from stiffnet.restoring_force.hunt_crossley_law import (
     fit_hunt_crossley_law,
     hunt_crossley_shape,
 )
+from stiffnet.restoring_force.impact_onsets import ImpactOnsetLaw, fit_impact_onset_law
 from stiffnet.restoring_force.reconstruct import (
     check_record,
     forcing_candidates,
@@ -224,6 +225,10 @@ class RestoringForceResult:
         beta is the secant) over the table's displacement amplitude at the forcing frequency:
         a ratio of two lengths of the same map, so the record's gain cancels. Times the
         forcing amplitude ``a`` (model length units) it is ``d_r`` in the model's units.
+    impact_onsets : ImpactOnsetLaw or None
+        The contact law refitted with an onset per impact (:mod:`.impact_onsets`): the
+        exponent where the reconstruction's level wanders between impacts. It reports only;
+        beta is the law's above. None without `interval` (the discovery's maps).
     """
 
     ok: bool
@@ -257,6 +262,7 @@ class RestoringForceResult:
     beyond_knee_interval: tuple[float, float] | None = None
     hunt_crossley: HuntCrossleyLaw | None = None
     penetration_over_table: float | None = None
+    impact_onsets: ImpactOnsetLaw | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -289,6 +295,7 @@ class RestoringForceResult:
             "contact_r2": num(self.contact_r2),
             "polarity": self.polarity,
             "penetration_over_table": num(self.penetration_over_table),
+            "impact_onsets": self.impact_onsets.to_dict() if self.impact_onsets else None,
             "reason": self.reason,
         }
 
@@ -1198,6 +1205,12 @@ def _estimate_at(
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
     cls = str(beta_class(np.array([beta]), classes)[0])
     law, n_imp, spc = m.law, m.n_impacts, m.spc
+    onsets = None
+    if interval:  # the alarm's reading; the discovery's maps (no interval) do not need it
+        core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+        onsets = fit_impact_onset_law(
+            fit.force, fit.displacement, fit.velocity, m.labels, core, law
+        )
     return RestoringForceResult(
         ok=True,
         beta=float(beta),
@@ -1211,6 +1224,7 @@ def _estimate_at(
         beyond_knee_interval=beyond,
         hunt_crossley=hc,
         penetration_over_table=_penetration_over_table(m),
+        impact_onsets=onsets,
         **info,
     )
 

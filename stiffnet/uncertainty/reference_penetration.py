@@ -23,10 +23,11 @@ the reference prior's alone.
 The check (:func:`reference_penetration_span`) applies where the cross-check reads a clearly
 nonlinear power law: an exponent at or above the lowest training exponent band above the
 linear one (the Hertz band of ``configs/alarm/unseen_law.yaml``, or beyond) from a law
-explaining ``exponent_min_r2`` of the contact force, on a model whose training world draws
-Hertz contacts. Where more than half (in log beta) of the span lies outside the model's
-class (:attr:`ReferencePenetrationSettings.outside_share_min`, the majority
-``class_contested`` and ``face_identifiability`` use, not a fitted level) the class is not
+explaining ``exponent_min_r2`` of the contact force, or read with an onset per impact where
+that law does not (:func:`~stiffnet.uncertainty.unseen_law.exponent_reading`), on a model
+whose training world draws Hertz contacts. Where more than half (in log beta) of the span
+lies outside the model's class (:attr:`ReferencePenetrationSettings.outside_share_min`, the
+majority ``class_contested`` and ``face_identifiability`` use, not a fitted level) the class is not
 determined by the record: the check fires and the flagged answer's interval spans the span
 (:func:`serving.verdict.widened_interval`). pydantic and the standard library only: the
 predictor imports it.
@@ -41,7 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from stiffnet.uncertainty.alarm_verdict import class_ranges, share_outside, with_rule_check
 from stiffnet.uncertainty.face_identifiability import prior_range
-from stiffnet.uncertainty.unseen_law import unseen_law_thresholds
+from stiffnet.uncertainty.unseen_law import exponent_reading, unseen_law_thresholds
 
 #: The check's name in an alarm's ``fired`` list.
 REFERENCE_PENETRATION = "reference_penetration"
@@ -103,14 +104,15 @@ def reference_penetration_span(
     close-fitting law, no penetration scale, or a training world without Hertz contacts)."""
     rf = restoring_force or {}
     ranges = training_ranges(priors)
-    interval, p = rf.get("beta_interval"), rf.get("exponent")
-    r2, scale = rf.get("contact_r2"), rf.get("penetration_over_table")
-    if ranges is None or not interval or p is None or r2 is None or not scale:
+    interval, scale = rf.get("beta_interval"), rf.get("penetration_over_table")
+    if ranges is None or not interval or not scale:
         return None
     t = unseen_law_thresholds()
+    reading = exponent_reading(rf, t)
     p_min = nonlinear_exponent_min(t.training_exponent_bands)
-    if p_min is None or not (p >= p_min and r2 >= t.exponent_min_r2 and scale > 0):
+    if p_min is None or reading is None or not (reading[0] >= p_min and scale > 0):
         return None
+    p = reading[0]
     lo, hi = (float(v) for v in interval)
     if not 0 < lo <= hi:
         return None

@@ -84,6 +84,20 @@ TRAINING_EXPONENT_BANDS = ((1.0, 1.2), (1.3, 1.85))
 #: The exponent counts only from a law that explains this share of the contact force
 #: (through a sensor chain the exponent of a poorer fit wanders over 1.0-3.0).
 EXPONENT_MIN_R2 = 0.98
+#: Where the law's own exponent does not count, the exponent read with an onset per impact
+#: (``impact_onsets``, :mod:`stiffnet.restoring_force.impact_onsets`) counts from a law that
+#: explains this share (the same level: an onset per impact is a nuisance of the
+#: reconstruction, not a term of the law; ``inf`` leaves it out).
+IMPACT_ONSET_MIN_R2 = 0.98
+#: ... and from an exponent that removes at least this share of the misfit of the linear law
+#: with the same onsets free (``impact_onsets.linear_r2``): a damped linear contact read
+#: with an onset per impact can bend its law without the exponent explaining much (see the
+#: YAML).
+IMPACT_ONSET_MIN_GAIN = 0.3
+#: ... and only on a contact whose fitted Kelvin-Voigt damping ratio is at most this: where
+#: the damper carries most of the force at the start of each contact, an onset per impact
+#: and the exponent trade off (see the YAML).
+IMPACT_ONSET_MAX_DAMPING = 0.35
 #: Fraction of the fitted law's misfit a ``delta v`` term must remove (in-distribution,
 #: share >= 0.3: <= 0.59 on damped contacts, <= 0.16 through a sensor chain, up to 0.86
 #: on a damped contact through a sensor chain, where 2 of 96 reach 0.8).
@@ -150,6 +164,9 @@ class UnseenLawThresholds(BaseModel):
 
     training_exponent_bands: list[tuple[float, float]] = list(TRAINING_EXPONENT_BANDS)
     exponent_min_r2: float = EXPONENT_MIN_R2
+    impact_onset_min_r2: float = IMPACT_ONSET_MIN_R2
+    impact_onset_min_gain: float = IMPACT_ONSET_MIN_GAIN
+    impact_onset_max_damping: float = IMPACT_ONSET_MAX_DAMPING
     dissipation_min_gain: float = DISSIPATION_MIN_GAIN
     dissipation_min_share: float = DISSIPATION_MIN_SHARE
     curvature_min_gain: float = CURVATURE_MIN_GAIN
@@ -276,18 +293,51 @@ def unseen_law_reasons(
     return reasons
 
 
-def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
-    """The :data:`STIFFENING` rules: the exponent, a curvature within the impacts, stages and
-    a soft first stage."""
-    reasons = []
+def exponent_reading(
+    restoring_force: dict[str, Any], t: UnseenLawThresholds
+) -> tuple[float, float, str] | None:
+    """Rule: the contact exponent that counts, as ``(p, R2, how it was read)``: the law's own
+    where it explains ``exponent_min_r2`` of the contact force, else the law refitted with an
+    onset per impact (``impact_onsets``) where that explains ``impact_onset_min_r2`` and its
+    exponent removes ``impact_onset_min_gain`` of the misfit of the linear law with the same
+    onsets (:func:`impact_onset_gain`), on a contact damped at most
+    ``impact_onset_max_damping``; None where neither counts. A map whose level wanders
+    between impacts smears a power law into a line at one onset
+    (:mod:`stiffnet.restoring_force.impact_onsets`)."""
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
+        return float(p), float(r2), "the law"
+    onsets = restoring_force.get("impact_onsets") or {}
+    p, r2, linear = onsets.get("exponent"), onsets.get("r2"), onsets.get("linear_r2")
+    if p is None or r2 is None or linear is None or r2 < t.impact_onset_min_r2:
+        return None
+    if impact_onset_gain(r2, linear) < t.impact_onset_min_gain:
+        return None
+    zeta = restoring_force.get("contact_damping_ratio")
+    if zeta is None or zeta > t.impact_onset_max_damping:
+        return None
+    return float(p), float(r2), "an onset per impact"
+
+
+def impact_onset_gain(r2: float, linear_r2: float) -> float:
+    """Share of the linear law's misfit (the same onsets free) the exponent removes."""
+    return 1.0 - (1.0 - r2) / max(1.0 - linear_r2, 1e-12)
+
+
+def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
+    """The :data:`STIFFENING` rules: the exponent (:func:`exponent_reading`), a curvature
+    within the impacts, stages and a soft first stage."""
+    reasons = []
+    reading = exponent_reading(restoring_force, t)
+    if reading is not None:
+        p, r2, how = reading
         if not any(lo <= p <= hi for lo, hi in t.training_exponent_bands):
             reasons.append(
-                f"contact exponent {p:.2f} (R2 {r2:.3f}) is outside what linear and Hertz "
-                "contacts read"
+                f"contact exponent {p:.2f} (R2 {r2:.3f}, {how}) is outside what linear and "
+                "Hertz contacts read"
             )
     shape = restoring_force.get("law_shape")
+    r2 = restoring_force.get("contact_r2")
     reasons += curvature_reasons(shape, t) + stage_reasons(shape, t)
     return reasons + onset_toe_reasons(shape, r2, t)
 
