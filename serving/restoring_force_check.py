@@ -97,6 +97,8 @@ def restoring_force_check(
             chain_fit_below_r2=_chain_fit_below_r2(highpass_hz, fit_chain),
             stage_ratio=stage_ratio,
             penetration_dissipation=penetration_dissipation,
+            # the exponent read with an onset per impact, for the alarm's exponent rules
+            impact_onsets=True,
         )
     except StiffnetError as exc:
         return {"class": None, "beta": None, "beta_interval": None, "reason": str(exc)}

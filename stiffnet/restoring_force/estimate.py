@@ -228,7 +228,8 @@ class RestoringForceResult:
     impact_onsets : ImpactOnsetLaw or None
         The contact law refitted with an onset per impact (:mod:`.impact_onsets`): the
         exponent where the reconstruction's level wanders between impacts. It reports only;
-        beta is the law's above. None without `interval` (the discovery's maps).
+        beta is the law's above. None unless asked for (``impact_onsets=True``: the
+        predictor's check).
     """
 
     ok: bool
@@ -898,6 +899,7 @@ def restoring_force_estimate(
     interval: bool = True,
     stage_ratio: float | tuple[float, float] | None = None,
     penetration_dissipation: bool = False,
+    impact_onsets: bool = False,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -977,6 +979,10 @@ def restoring_force_estimate(
         linear (its exponent not significant, as the model's law); a map that needs a power
         law keeps the library's reading. A `stage_ratio` takes precedence. False (default):
         the library's law.
+    impact_onsets : bool
+        Also refit the contact law with an onset per impact (:mod:`.impact_onsets`), reported
+        beside beta (``impact_onsets``) for the alarm's exponent rules; beta and its interval
+        do not change. Six small fits per record: only the predictor's check asks for it.
 
     Returns
     -------
@@ -1003,7 +1009,8 @@ def restoring_force_estimate(
                    profile_highpass_below_r2=chain_fit_below_r2
                    if profile_highpass_below_r2 is None else profile_highpass_below_r2,
                    interval=interval, stage_ratio=stage_ratio,
-                   penetration_dissipation=penetration_dissipation)  # fmt: skip
+                   penetration_dissipation=penetration_dissipation,
+                   impact_onsets=impact_onsets)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
@@ -1119,6 +1126,7 @@ def _estimate_at(
     chain_profile: bool = False,
     stage_ratio: float | tuple[float, float] | None = None,
     penetration_dissipation: bool = False,
+    impact_onsets: bool = False,
 ) -> RestoringForceResult:
     """:func:`restoring_force_estimate` at a given forcing frequency ``ff`` (Hz); without an
     `interval`, a fitted chain's unexcluded low-passes are profiled only with
@@ -1206,7 +1214,7 @@ def _estimate_at(
     cls = str(beta_class(np.array([beta]), classes)[0])
     law, n_imp, spc = m.law, m.n_impacts, m.spc
     onsets = None
-    if interval:  # the alarm's reading; the discovery's maps (no interval) do not need it
+    if impact_onsets:
         core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
         onsets = fit_impact_onset_law(
             fit.force, fit.displacement, fit.velocity, m.labels, core, law
