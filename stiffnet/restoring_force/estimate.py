@@ -64,6 +64,7 @@ from stiffnet.restoring_force.contact_poles import fit_contact_poles
 from stiffnet.restoring_force.free_flight import (
     CONTACT_SIGMAS,
     MIN_FLIGHT_SAMPLES,
+    FreeFlightFit,
     fit_free_flight,
 )
 from stiffnet.restoring_force.hunt_crossley_law import (
@@ -543,6 +544,12 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     return m, corner
 
 
+def _in_contact(fit: FreeFlightFit, use: np.ndarray) -> np.ndarray:
+    """The samples in contact: within the segment `use`, the free-flight law's residual force
+    above :data:`CONTACT_SIGMAS` times its scatter."""
+    return (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+
+
 def _contact_r2(m: _Map) -> float:
     """The contact law's R2 of a map (-inf when it has none)."""
     return m.law.r2 if m.law is not None else -np.inf
@@ -585,7 +592,7 @@ def _fit_map(
     if fit.r2 < MIN_FREE_R2:
         why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
         return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
-    core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+    core = _in_contact(fit, use)
     labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
     labels[~use] = 0
     info["n_impacts"] = n_imp
@@ -709,7 +716,7 @@ def _undo_chain(
     chain = sensor
     if chain is None and m.labels is not None and _contact_r2(m) < chain_fit_below_r2:
         fn_hz = fs_hz / natural
-        core = (m.fit.force > CONTACT_SIGMAS * m.fit.sigma) & use
+        core = _in_contact(m.fit, use)
         ring_hz = ring[0] * fs_hz / (2 * np.pi) if ring is not None and ring[2] > 0.5 else None
         hint = ff * float(np.sqrt(m.law.stiffness + m.fit.stiffness)) if m.law else None
         chain = fit_chain(m.fit.force, core, fs_hz, fn_hz, m.spc, ring_hz, m.corner * ff, hint,
@@ -1215,7 +1222,7 @@ def _estimate_at(
     law, n_imp, spc = m.law, m.n_impacts, m.spc
     onsets = None
     if impact_onsets:
-        core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+        core = _in_contact(fit, use)
         onsets = fit_impact_onset_law(
             fit.force, fit.displacement, fit.velocity, m.labels, core, law
         )
@@ -1465,7 +1472,7 @@ def _beta_of_map(
     law, fit, spc, k = m.law, m.fit, m.spc, m.fit.stiffness
     poles = None
     if spc < POLE_MAX_SAMPLES:
-        core = (fit.force > CONTACT_SIGMAS * fit.sigma) & use
+        core = _in_contact(fit, use)
         poles = fit_contact_poles(fit.force, core, dtau)
         if poles is not None:
             # contacts last at most the oscillation's half period (a damped one releases
