@@ -349,7 +349,7 @@ class _Model:
         ``extra`` (sum of extra forces), ``other`` (B, n_effects) and ``g``
         (B, n_event_effects), the effects' event functions.
         """
-        if full and self.kernel is not None:  # the compiled kernel: the same numbers
+        if full and forcing is None and self.kernel is not None:  # compiled: the same numbers
             return rhs_full(
                 self.kernel, self._pack, self.has_gap, self.has_cc, len(self.effects),
                 t, y, contact, modes,
