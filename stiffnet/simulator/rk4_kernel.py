@@ -237,11 +237,11 @@ def rk4_step(
     """One classical RK4 step of length ``s`` (per row) from ``(t, y)`` with ``k1 = f(t,
     y)``, and its stages ``(k1, k2, k3, k4)``: bitwise :func:`~stiffnet.simulator.rk4.
     _rk4_dense`'s. ``has_gap``, ``has_cc``: the model's flags for these rows."""
-    out = np.empty_like(y)
-    k2, k3, k4 = np.empty_like(y), np.empty_like(y), np.empty_like(y)
     # the event locator hands views and column selections: one layout, one compilation
     y, k1 = np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(k1, dtype=float)
     modes = np.ascontiguousarray(modes, dtype=float)
+    out = np.empty_like(y)
+    k2, k3, k4 = np.empty_like(y), np.empty_like(y), np.empty_like(y)
     _rk4_rows(
         pack, np.ascontiguousarray(t, dtype=float), y, k1, np.ascontiguousarray(s, dtype=float),
         np.ascontiguousarray(contact, dtype=np.bool_), modes, form.friction, has_gap, has_cc,
