@@ -61,6 +61,8 @@ def _switched_off(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def _count_rhs(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    # counted on numpy's path: the compiled RK4 step (rk4_kernel) calls no ``rhs``
+    monkeypatch.setattr(nm, "COMPILED_STEP", False)
     calls = [0]
     rhs = nm._Model.rhs
 

@@ -89,10 +89,15 @@ from stiffnet.simulator.events import (  # noqa: F401  (_illinois: tests reach i
 )
 from stiffnet.simulator.result import EngineResult
 from stiffnet.simulator.rk4 import _dense_states, _rk4, _rk4_dense
+from stiffnet.simulator.rk4_kernel import kernel_form, kernel_pack, rhs_full, rk4_step
 
 _MAX_EVENTS_PER_SUBSTEP = 8
 _MAX_RATE_STEP = 1.0  # fastest rate x substep: RK4 stable (< 2.8) and the mode resolved
 _CHECK_EVERY = 64  # steps between divergence checks
+#: Take the RK4 steps in the compiled kernel where the model's effects allow
+#: (:mod:`.rk4_kernel`; bitwise the same states). False: numpy's path for every model
+#: (the kernel's tests and benchmark compare the two).
+COMPILED_STEP = True
 
 
 def _overrides(effect: DynamicsEffect, hook: str) -> bool:
@@ -194,6 +199,12 @@ class _Model:
             (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
         ]
         self._set_rows(batch, params, forcing, gap, cc)
+        self.kernel = kernel_form(effects, forcing, gap) if COMPILED_STEP else None
+        self._pack = (
+            None
+            if self.kernel is None
+            else kernel_pack(self.kernel, effects, params, batch, forcing, gap, cc)
+        )
 
     def _set_rows(
         self,
@@ -235,7 +246,24 @@ class _Model:
             self.gap.subset(idx),
             self.cc[idx],
         )
+        if self._pack is not None:
+            new._pack = self._pack[idx]
         return new
+
+    def rk4_stages(
+        self,
+        t: np.ndarray,
+        y: np.ndarray,
+        k1: np.ndarray,
+        s: np.ndarray,
+        contact: np.ndarray,
+        modes: np.ndarray,
+    ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+        """An RK4 step and its stages by the compiled kernel (:func:`.rk4_kernel.rk4_step`),
+        for a model whose :attr:`kernel` is set."""
+        return rk4_step(
+            self.kernel, self._pack, self.has_gap, self.has_cc, t, y, k1, s, contact, modes
+        )
 
     def initial_state(self, x0: np.ndarray, v0: np.ndarray) -> np.ndarray:
         y = np.zeros((self.n, self.n_y))
@@ -321,6 +349,11 @@ class _Model:
         ``extra`` (sum of extra forces), ``other`` (B, n_effects) and ``g``
         (B, n_event_effects), the effects' event functions.
         """
+        if full and forcing is None and self.kernel is not None:  # compiled: the same numbers
+            return rhs_full(
+                self.kernel, self._pack, self.has_gap, self.has_cc, len(self.effects),
+                t, y, contact, modes,
+            )  # fmt: skip
         effects, params = self.effects, self.params
         x, v = y[:, 0], y[:, 1]
         f_t = self.forcing_at(t) if forcing is None else forcing

@@ -20,7 +20,12 @@ def _rk4(
     contact: np.ndarray,
     modes: np.ndarray,
 ) -> np.ndarray:
-    """One classical RK4 step of length ``s`` (per row) from ``(t, y)``; ``k1 = f(t, y)``."""
+    """One classical RK4 step of length ``s`` (per row) from ``(t, y)``; ``k1 = f(t, y)``.
+
+    By the compiled kernel where the model has one (``model.kernel``, the library's own
+    effects: :mod:`.rk4_kernel`), bitwise the same states."""
+    if model.kernel is not None:
+        return model.rk4_stages(t, y, k1, s, contact, modes)[0]
     half = 0.5 * s
     tm = t + half
     fm = model.forcing_at(tm)  # k2 and k3 share the midpoint time
@@ -41,6 +46,8 @@ def _rk4_dense(
 ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
     """:func:`_rk4` (the same arithmetic) and its stages ``(k1, k2, k3, k4)``, for
     :func:`_dense_states`."""
+    if model.kernel is not None:
+        return model.rk4_stages(t, y, k1, s, contact, modes)
     half = 0.5 * s
     tm = t + half
     fm = model.forcing_at(tm)

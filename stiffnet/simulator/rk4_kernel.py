@@ -1,0 +1,315 @@
+"""The numerical engine's RK4 step compiled with numba, for the library's own effects.
+
+Event location marches one or two rows at a time through RK4 partial steps (two or three
+per event, each of three right-hand sides), where numpy's cost per call on one-element
+arrays, not the arithmetic, is the engine's cost. Where every dynamics effect of a model
+is one this module knows (:data:`KNOWN_EFFECTS`: the Hertz contact law, dry friction, the
+restraint's own mass; the effects that only add forcing or gap sinusoids or contact
+damping are folded into the model's arrays), :func:`rk4_step` takes the step in one
+compiled loop over the rows: the same IEEE operations in the same order as
+:meth:`~stiffnet.simulator.numerical._Model.rhs` (``full=False``) and
+:func:`~stiffnet.simulator.rk4._rk4`, so bitwise the same states. Any other effect (a
+user's, the learned contact law), or more than :data:`MAX_TERMS` sinusoids, keeps the
+numpy path. The switching data (``aux``), the root finders and the switch stay in
+Python (:mod:`.events`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numba
+import numpy as np
+
+from stiffnet.effects.base import DynamicsEffect, ParamArrays, Sinusoids
+from stiffnet.effects.dry_friction import STUCK, DryFriction
+from stiffnet.effects.hertz_contact import HertzContact
+from stiffnet.effects.restraint_mass import RestraintMass
+
+if TYPE_CHECKING:
+    from stiffnet.simulator.batch import OscillatorBatch
+
+#: The effects whose numerical hooks the kernel reproduces (their exact classes: a
+#: subclass may override a hook).
+KNOWN_EFFECTS = (HertzContact, DryFriction, RestraintMass)
+#: The hooks an effect may override and still run here when it is one of the known.
+_HOOKS = (
+    "elastic_contact",
+    "contact_dissipation",
+    "extra_force",
+    "event_function",
+    "restraint_position",
+    "state_derivative",
+)
+#: Sinusoids per forcing or gap sum the kernel takes: it adds them left to right, as
+#: numpy's ``sum(axis=1)`` does on so few (its pairwise summation starts at 8 terms).
+MAX_TERMS = 4
+
+# the per-row pack's columns
+_E0, _XI2, _BETA, _CC, _KH, _MUK, _MUS, _MU, _KAPPA, _RDAMP = range(10)
+_FORCING = 10  # amp, freq, phase per term, MAX_TERMS terms
+_GAP = _FORCING + 3 * MAX_TERMS
+_N_COLS = _GAP + 3 * MAX_TERMS
+
+
+@dataclass(frozen=True)
+class KernelForm:
+    """Which of the known effects a model holds (the rows' values are in the pack).
+
+    ``hertz``: the elastic law is the Hertz one (else ``beta delta``); ``friction``: the
+    index of the dry-friction effect in the model's effects (its mode row), -1 if none;
+    ``restraint``: the restraint's mass states sit at columns 2-3 of the state.
+    """
+
+    hertz: bool
+    friction: int
+    restraint: bool
+    n_forcing: int
+    n_gap: int
+
+
+def kernel_form(
+    effects: list[DynamicsEffect], forcing: Sinusoids, gap: Sinusoids
+) -> KernelForm | None:
+    """The model's :class:`KernelForm`, or None where the kernel cannot reproduce its
+    right-hand side (an unknown effect overriding a numerical hook, two of a kind, too
+    many sinusoids)."""
+    seen: set[type] = set()
+    friction = -1
+    for k, eff in enumerate(effects):
+        hooks = [h for h in _HOOKS if getattr(type(eff), h) is not getattr(DynamicsEffect, h)]
+        if not hooks and not eff.n_states:
+            continue  # forcing, gap or contact damping only: folded into the arrays
+        if type(eff) not in KNOWN_EFFECTS or type(eff) in seen:
+            return None
+        seen.add(type(eff))
+        if type(eff) is DryFriction:
+            friction = k
+    if forcing.amp.shape[1] > MAX_TERMS or gap.amp.shape[1] > MAX_TERMS:
+        return None
+    if RestraintMass in seen and any(e.n_states for e in effects if type(e) is not RestraintMass):
+        return None
+    return KernelForm(
+        hertz=HertzContact in seen,
+        friction=friction,
+        restraint=RestraintMass in seen,
+        n_forcing=forcing.amp.shape[1],
+        n_gap=gap.amp.shape[1],
+    )
+
+
+def kernel_pack(
+    form: KernelForm,
+    effects: list[DynamicsEffect],
+    params: list[ParamArrays],
+    batch: OscillatorBatch,
+    forcing: Sinusoids,
+    gap: Sinusoids,
+    cc: np.ndarray,
+) -> np.ndarray:
+    """The rows' values the kernel reads, (B, columns): each derived from the parameters
+    by the same numpy expression as the hooks' (bitwise the same coefficients)."""
+    n = len(batch)
+    pack = np.zeros((n, _N_COLS))
+    pack[:, _E0], pack[:, _XI2], pack[:, _BETA] = batch.gap, 2.0 * batch.damping, batch.beta
+    pack[:, _CC] = cc
+    for eff, p in zip(effects, params, strict=True):
+        if type(eff) is HertzContact:
+            pack[:, _KH] = batch.beta / np.sqrt(p["reference_penetration"])
+        elif type(eff) is DryFriction:
+            pack[:, _MUK] = p["coefficient"]
+            pack[:, _MUS] = p["static_ratio"] * p["coefficient"]
+        elif type(eff) is RestraintMass:
+            mu, kappa = p["mass_ratio"], p["stiffness_ratio"]
+            pack[:, _MU], pack[:, _KAPPA] = mu, kappa
+            pack[:, _RDAMP] = 2.0 * p["damping_ratio"] * np.sqrt(kappa * mu)
+    for col, sines, n_terms in ((_FORCING, forcing, form.n_forcing), (_GAP, gap, form.n_gap)):
+        for j in range(n_terms):
+            pack[:, col + 3 * j] = sines.amp[:, j]
+            pack[:, col + 3 * j + 1] = sines.freq[:, j]
+            pack[:, col + 3 * j + 2] = sines.phase[:, j]
+    return pack
+
+
+def _jit(func):
+    return numba.njit(cache=True, error_model="numpy")(func)
+
+
+@_jit
+def _sines(p, col, n_terms, t, rate):
+    """The sum of a row's sinusoids at ``t`` (``rate``: its time derivative), in
+    :class:`~stiffnet.simulator.numerical._Sines`' operations and order."""
+    out = 0.0
+    for j in range(n_terms):
+        amp, freq, phase = p[col + 3 * j], p[col + 3 * j + 1], p[col + 3 * j + 2]
+        if rate:
+            term = amp * freq * math.cos(freq * t + phase)
+        else:
+            term = amp * math.sin(freq * t + phase)
+        out = term if j == 0 else out + term
+    return out
+
+
+@_jit
+def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restraint,
+         n_gap, dy):  # fmt: skip
+    """dy/dt of one row into ``dy`` (``_Model.rhs``); ``f_t`` the forcing at ``t``.
+    Returns what the switching data are made of: ``delta, dd, fpot, base, total`` and the
+    friction force ``fk`` (0 without friction)."""
+    x, v = y[0], y[1]
+    if has_gap:
+        e = p[_E0] + _sines(p, _GAP, n_gap, t, False)
+        de = _sines(p, _GAP, n_gap, t, True)
+    else:
+        e, de = p[_E0], 0.0
+    yr, dyr = 0.0, 0.0
+    if restraint:
+        yr, dyr = 0.0 + y[2], 0.0 + y[3]
+    delta = x - e - yr
+    dd = v - de - dyr
+    if hertz:
+        d = delta if delta > 0.0 else 0.0
+        elastic = p[_KH] * d * math.sqrt(d)
+    else:
+        elastic = p[_BETA] * delta
+    fpot = elastic + p[_CC] * dd if has_cc else elastic
+    fc = fpot if contact else 0.0
+    base = f_t - p[_XI2] * v - x - fc
+    total = base
+    fk = 0.0
+    if friction:
+        fk = -total if mode == STUCK else math.copysign(p[_MUK], -0.5 - mode)
+        total = total + fk
+    dy[0] = v
+    dy[1] = total
+    if restraint:
+        dy[2] = y[3]
+        dy[3] = (fc - p[_KAPPA] * y[2] - p[_RDAMP] * y[3]) / p[_MU]
+    return delta, dd, fpot, base, total, fk
+
+
+@_jit
+def _rk4_rows(pack, t, y, k1, s, contact, modes, fric, has_gap, has_cc, hertz, restraint,
+              n_forcing, n_gap, out, k2, k3, k4):  # fmt: skip
+    """:func:`~stiffnet.simulator.rk4._rk4` row by row, its stages into ``k2, k3, k4``."""
+    n_y = y.shape[1]
+    tmp = np.empty(n_y)
+    friction = fric >= 0
+    for i in range(y.shape[0]):
+        p = pack[i]
+        mode = modes[fric, i] if friction else 0.0
+        half = 0.5 * s[i]
+        tm = t[i] + half
+        fm = _sines(p, _FORCING, n_forcing, tm, False)
+        for c in range(n_y):
+            tmp[c] = y[i, c] + half * k1[i, c]
+        _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
+             n_gap, k2[i])  # fmt: skip
+        for c in range(n_y):
+            tmp[c] = y[i, c] + half * k2[i, c]
+        _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
+             n_gap, k3[i])  # fmt: skip
+        for c in range(n_y):
+            tmp[c] = y[i, c] + s[i] * k3[i, c]
+        t4 = t[i] + s[i]
+        f4 = _sines(p, _FORCING, n_forcing, t4, False)
+        _rhs(p, t4, tmp, contact[i], mode, f4, has_gap, has_cc, hertz, friction, restraint,
+             n_gap, k4[i])  # fmt: skip
+        w = s[i] / 6.0
+        for c in range(n_y):
+            out[i, c] = y[i, c] + w * (k1[i, c] + 2.0 * (k2[i, c] + k3[i, c]) + k4[i, c])
+
+
+def rk4_step(
+    form: KernelForm,
+    pack: np.ndarray,
+    has_gap: bool,
+    has_cc: bool,
+    t: np.ndarray,
+    y: np.ndarray,
+    k1: np.ndarray,
+    s: np.ndarray,
+    contact: np.ndarray,
+    modes: np.ndarray,
+) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    """One classical RK4 step of length ``s`` (per row) from ``(t, y)`` with ``k1 = f(t,
+    y)``, and its stages ``(k1, k2, k3, k4)``: bitwise :func:`~stiffnet.simulator.rk4.
+    _rk4_dense`'s. ``has_gap``, ``has_cc``: the model's flags for these rows."""
+    # the event locator hands views and column selections: one layout, one compilation
+    y, k1 = np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(k1, dtype=float)
+    modes = np.ascontiguousarray(modes, dtype=float)
+    out = np.empty_like(y)
+    k2, k3, k4 = np.empty_like(y), np.empty_like(y), np.empty_like(y)
+    _rk4_rows(
+        pack, np.ascontiguousarray(t, dtype=float), y, k1, np.ascontiguousarray(s, dtype=float),
+        np.ascontiguousarray(contact, dtype=np.bool_), modes, form.friction, has_gap, has_cc,
+        form.hertz, form.restraint, form.n_forcing, form.n_gap, out, k2, k3, k4,
+    )  # fmt: skip
+    return out, (k1, k2, k3, k4)
+
+
+#: The rows of :func:`rhs_full`'s block of switching data, by ``aux`` key.
+AUX_ROWS = ("G", "Gr", "dd", "delta", "fc", "extra")
+
+
+@_jit
+def _rhs_rows(pack, t, y, contact, modes, fric, has_gap, has_cc, hertz, restraint,
+              n_forcing, n_gap, dy, block, other, g):  # fmt: skip
+    """``_Model.rhs(full=True)`` row by row: dy/dt into ``dy``, the switching data into
+    ``block`` (:data:`AUX_ROWS`), ``other`` (B, n_effects) and ``g`` (B, 1 with friction)."""
+    friction = fric >= 0
+    for i in range(y.shape[0]):
+        p = pack[i]
+        mode = modes[fric, i] if friction else 0.0
+        f_t = _sines(p, _FORCING, n_forcing, t[i], False)
+        delta, dd, fpot, base, total, fk = _rhs(
+            p, t[i], y[i], contact[i], mode, f_t, has_gap, has_cc, hertz, friction,
+            restraint, n_gap, dy[i],
+        )  # fmt: skip
+        g_contact = delta if (delta < fpot or delta != delta) else fpot  # np.minimum
+        block[0, i] = g_contact
+        # the root function: G where contact damping acts on the row, else delta
+        block[1, i] = (g_contact if p[_CC] != 0 else delta) if has_cc else delta
+        block[2, i], block[3, i] = dd, delta
+        pos = fpot if (fpot > 0.0 or fpot != fpot) else 0.0  # np.maximum(fpot, 0)
+        block[4, i] = pos if contact[i] else 0.0
+        block[5, i] = total - base
+        for k in range(other.shape[1]):
+            other[i, k] = total
+        if friction:
+            other[i, fric] = total - fk  # the total less the effect's own force
+            if mode == STUCK:
+                g[i, 0] = p[_MUS] - abs(other[i, fric])
+            else:
+                g[i, 0] = math.copysign(1.0, mode + 0.5) * y[i, 1]
+
+
+def rhs_full(
+    form: KernelForm,
+    pack: np.ndarray,
+    has_gap: bool,
+    has_cc: bool,
+    n_effects: int,
+    t: np.ndarray,
+    y: np.ndarray,
+    contact: np.ndarray,
+    modes: np.ndarray,
+) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """``_Model.rhs(t, y, contact, modes, full=True)`` by the kernel: dy/dt and ``aux``,
+    bitwise the numpy path's."""
+    n = y.shape[0]
+    dy = np.empty((n, y.shape[1]))
+    block = np.empty((len(AUX_ROWS), n))
+    other = np.empty((n, n_effects))
+    g = np.empty((n, 1 if form.friction >= 0 else 0))
+    _rhs_rows(
+        pack, np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(contact, dtype=np.bool_), np.ascontiguousarray(modes, dtype=float),
+        form.friction, has_gap, has_cc, form.hertz, form.restraint, form.n_forcing,
+        form.n_gap, dy, block, other, g,
+    )  # fmt: skip
+    aux = dict(zip(AUX_ROWS, block, strict=True))
+    aux["other"], aux["g"] = other, g
+    return dy, aux
