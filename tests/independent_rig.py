@@ -34,7 +34,10 @@ normalised to ``∫ φ_i² = L`` has ``|φ_i(L)| = 2``, so every mode's mass at 
 ``M_b / 4`` and the frequencies go as ``λ_i²``, ``λ L = 1.8751, 4.6941, 7.8548``:
 1 : 6.267 : 17.55 (:func:`cantilever_tip_modes`). The base's motion on the beam's modes is
 left out: its forcing sits at a tenth of their frequencies or less, a quasi-static tip
-deflection of ``(ω_n / ω_1)²`` of the mass's excursion at most.
+deflection of ``(ω_n / ω_1)²`` of the mass's excursion at most. Beta is then the
+contact's stiffness behind the beam, which the campaign shares; or (``beam_material``) the
+beam is the impacted material, as on the paper's rig: beta is its static tip stiffness, each
+recording's beam its own (:func:`material_beam_tip_modes`), struck through a stiff contact.
 """
 
 from __future__ import annotations
@@ -91,6 +94,23 @@ class RigRun:
     beam_modes: int = 2
     beam_damping: float = 0.02
     beam_tip_modes: tuple = ()
+    #: ``contact="beam"`` with ``beam_material``: the beam is the impacted material (the
+    #: paper's rig, whose "effective stiffness ... is controlled by adjusting the length of
+    #: the elastic beam"): beta labels the cantilever's static tip stiffness, the beam's
+    #: length sets it at a fixed section (mass ``beam_mass_ratio (30 / beta)^(1/3)`` m,
+    #: :func:`material_beam_tip_modes`), and the tip is struck through a stiff local contact
+    #: of ``beam_contact_ratio`` beta. Else beta is the contact's own stiffness behind a beam
+    #: the campaign shares.
+    beam_material: bool = False
+    beam_contact_ratio: float = 20.0
+
+    @property
+    def contact_beta(self) -> float:
+        """The contact's stiffness over the primary spring's: beta, or the local contact
+        in front of a beam that is the material."""
+        if self.contact == "beam" and self.beam_material:
+            return self.beam_contact_ratio * self.beta
+        return self.beta
 
     @property
     def omega_n(self) -> float:
@@ -105,9 +125,12 @@ class RigRun:
         """``(modal mass over m, angular frequency in rad/s)`` of each beam mode at the tip."""
         if self.contact != "beam":
             return []
-        modes = self.beam_tip_modes or cantilever_tip_modes(
-            self.beam_modes, self.beam_mass_ratio, self.beam_f1_ratio
-        )
+        if self.beam_tip_modes:
+            modes = self.beam_tip_modes
+        elif self.beam_material:
+            modes = material_beam_tip_modes(self.beam_modes, self.beam_mass_ratio, self.beta)
+        else:
+            modes = cantilever_tip_modes(self.beam_modes, self.beam_mass_ratio, self.beam_f1_ratio)
         return [(float(mu), float(r) * self.omega_n) for mu, r in modes]
 
     @property
@@ -125,6 +148,23 @@ def cantilever_tip_modes(n: int, mass_ratio: float, f1_ratio: float) -> list[tup
     modes: a quarter of the beam's mass each, frequencies as ``(λ_i / λ_1)²``."""
     lam = CANTILEVER_LAMBDA_L[:n]
     return [(0.25 * mass_ratio, f1_ratio * (li / lam[0]) ** 2) for li in lam]
+
+
+#: The beta at which a material beam's mass is ``beam_mass_ratio`` m.
+MATERIAL_BEAM_REFERENCE_BETA = 30.0
+
+
+def material_beam_tip_modes(n: int, mass_ratio: float, beta: float) -> list[tuple[float, float]]:
+    """``(tip modal mass over m, frequency over f_n)`` of the first ``n`` modes of a uniform
+    cantilever whose static tip stiffness is ``beta`` m ω_n², its length set by beta at a
+    fixed section: mass ``mass_ratio (30 / beta)^(1/3)`` m (mass ~ L, stiffness ~ L^-3).
+
+    Each mode's tip compliance is ``4 / (λ_i L)^4`` of ``L^3 / (EI)``, and all of them sum to
+    the static ``1 / 3`` (97.1 % in the first), so ``(ω_i / ω_n)^2 = beta (λ_i L)^4 /
+    (3 M_b / m)`` with the tip modal mass ``M_b / 4``."""
+    m_beam = mass_ratio * (MATERIAL_BEAM_REFERENCE_BETA / beta) ** (1 / 3)
+    lam = CANTILEVER_LAMBDA_L[:n]
+    return [(0.25 * m_beam, math.sqrt(beta * li**4 / (3 * m_beam))) for li in lam]
 
 
 def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -252,7 +292,7 @@ def _simulate_beam(run: RigRun, transient_s: float) -> tuple[np.ndarray, np.ndar
     falling), the modes integrated in both phases."""
     wn, zeta = run.omega_n, run.damping_ratio
     big_a, om = run.base_acceleration_ms2, 2 * math.pi * run.forcing_frequency_hz
-    e, k = run.gap_mm * 1e-3, run.beta * run.omega_n**2
+    e, k = run.gap_mm * 1e-3, run.contact_beta * run.omega_n**2
     modes = run.tip_modes
     mu = np.array([m for m, _ in modes])
     wb = np.array([w for _, w in modes])
