@@ -6,10 +6,10 @@ cross-check (a contact law fitted to the reconstructed force against penetration
 independent of the model and of the other: the first reads angles of the orbit, the second a
 force map. Where the restoring-force law fits closely, the checks that compare its interval
 with the model's judge the class (``restoring_force_class``, ``class_contested``); where it
-fits loosely (a damped contact behind a sensor chain: R2 0.7-0.93 on the robustness
+fits loosely (a damped contact behind a sensor chain: R2 0.74-0.93 on the robustness
 benchmark's ``damping_and_sensor`` draws) its class alone is a coin against the model's.
 
-Two loose readings that name classes on the same side of the model's class are a vote,
+Two readings that name classes on the same side of the model's class are a vote,
 though, where the model's own interval does not place beta firmly in its class. The check
 applies where both name a contact class on one side (both softer, or both harder) of the
 class answered; its score is then the share (in log beta) of the model's own interval outside
