@@ -857,16 +857,30 @@ def record_layers(
     return [{k: la[k] for k in keep} for la in layers]
 
 
+def reported_changes(layers: list[dict[str, Any]]) -> int:
+    """How many times what the layers report changes along the record: a boundary between
+    two layers without contact (``no_contact``, no beta) changes nothing, whatever the
+    segmenter saw in the windows' raw outputs there (a record without any impact splits on
+    the beta head's output, which means nothing without contact)."""
+    return sum(
+        1
+        for a, b in zip(layers, layers[1:], strict=False)
+        if not (a["beta"] is None and b["beta"] is None and a["class"] == b["class"])
+    )
+
+
 def with_layers_alarm(
     alarm: dict[str, Any] | None, layers: list[dict[str, Any]]
 ) -> dict[str, Any] | None:
-    """The alarm with the layers check: fires when beta changes along the record."""
-    if len(layers) <= 1:
+    """The alarm with the layers check: fires when beta changes along the record
+    (:func:`reported_changes`; neighbouring layers without contact change nothing)."""
+    changes = reported_changes(layers)
+    if changes == 0:
         return alarm
     if alarm is None:
         alarm = {"flag": False, "fired": [], "scores": {}, "thresholds": {}, "message": ""}
     alarm = {**alarm, "scores": dict(alarm["scores"]), "thresholds": dict(alarm["thresholds"])}
-    alarm["scores"][LAYERS_CHECK] = float(len(layers) - 1)
+    alarm["scores"][LAYERS_CHECK] = float(changes)
     alarm["thresholds"][LAYERS_CHECK] = 0.0
     alarm["fired"] = [*alarm["fired"], LAYERS_CHECK]
     alarm["flag"] = True

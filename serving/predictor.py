@@ -512,7 +512,8 @@ class Predictor:
         head = self.class_names[reading.estimate.label]  # class_beta: the heads against each other
         answered = self.class_names[reading.decision.label]
         alarm = rule_checks(alarm, answered, interval, restoring_force, model_facts(self), fs, fn,
-                            head_class=head, sensor_read=sensor_read)  # fmt: skip
+                            head_class=head, sensor_read=sensor_read,
+                            geometric_class=(reading.geometric or {}).get("class"))  # fmt: skip
         alarm = with_rule_check(alarm, "chain_class",
                                 chain_class_share(answered, chain_readings or []),
                                 CHAIN_CLASS_THRESHOLD)  # fmt: skip

@@ -38,6 +38,7 @@ from stiffnet.uncertainty.face_identifiability import (
     FACE_IDENTIFIABILITY,
     face_class_share,
 )
+from stiffnet.uncertainty.outvoted_class import with_outvoted_class_check
 from stiffnet.uncertainty.reference_penetration import (
     reference_penetration_span,
     with_reference_penetration_check,
@@ -67,6 +68,7 @@ def rule_checks(
     natural_frequency_hz: float,
     head_class: str | None = None,
     sensor_read: dict | None = None,
+    geometric_class: str | None = None,
 ) -> dict[str, Any] | None:
     """The alarm with the rule checks added to the model's own (`alarm`, None without one).
 
@@ -91,6 +93,10 @@ def rule_checks(
         The chain as the model read it where the predictor undid stages of it
         (:func:`serving.chain_undo.chain_as_read`): the ``sensor`` check judges that one
         against the priors. Default: the identified chain.
+    geometric_class : str, optional
+        The geometric cross-check's class on the same record: with the restoring-force
+        class, the two physical readings ``class_outvoted`` weighs against the model's class
+        (None: the check does not apply).
     """
     names, edges = model["class_names"], model.get("class_edges")
     gap = class_beta_gap(head_class or class_name, interval, names, edges)
@@ -107,6 +113,8 @@ def rule_checks(
     alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
     alarm = with_class_contested_check(alarm, class_name, interval, restoring_force, names, edges)
     alarm = with_unverified_class_check(alarm, class_name, interval, restoring_force, names, edges)
+    alarm = with_outvoted_class_check(alarm, class_name, interval, geometric_class,
+                                      restoring_force, names, edges)  # fmt: skip
     priors = model.get("priors")
     alarm = with_reference_penetration_check(alarm, class_name, restoring_force, priors, names,
                                              edges)  # fmt: skip

@@ -145,3 +145,66 @@ def test_a_hertz_class_the_record_determines_stays_quiet(predictor):
     res = predictor.predict(accel, FN * 71.8996, natural_frequency_hz=FN)
     assert res["class"] == "very_hard" and res["alarm"]["fired"] == []
     assert res["alarm"]["scores"]["reference_penetration"] < 0.5
+
+
+def _damped_behind_sensor(beta, gap, amplitude, omega, damping, ratio, noise, zeta, sensor):
+    """A damped contact (damping ratio `zeta`) behind a sensor chain, 128 natural periods."""
+    effects = [build_effect("contact_damping", {"damping_ratio": zeta}),
+               build_effect("sensor_dynamics", sensor)]  # fmt: skip
+    one = [np.array([v]) for v in (beta, gap, amplitude, omega, damping, FN)]
+    batch = OscillatorBatch(*one)
+    return Simulator(effects).simulate(batch, ratio, int(128 * ratio), noise=noise, rng=0).accel[0]
+
+
+def test_a_class_both_physical_readings_place_softer_is_flagged(predictor):
+    """The robustness benchmark's damping_and_sensor draw 20, simulated again: beta 27.4
+    (medium), a contact damped 0.41 behind a resonance at 196 Hz and a 151 Hz low-pass. The
+    CNN reads it hard, about 43 [31, 60], none of its own checks firing and 0.17 of its
+    interval outside hard (under class_unverified's 0.35); the cross-check's law explains 91 %
+    (a loose fit) and reads medium, so does the geometric cross-check: class_outvoted fires
+    (wrong and silent before it)."""
+    sensor = {"resonance_hz": 195.83845, "resonance_damping": 0.033267, "highpass_hz": 1.83009,
+              "lowpass_hz": 151.09067, "lowpass_order": 3}  # fmt: skip
+    ratio = 92.877009
+    accel = _damped_behind_sensor(27.413485, 1.1826712, 1.4202367, 1.1374402, 0.0449996, ratio,
+                                  0.0143041, 0.4068591, sensor)  # fmt: skip
+    res = predictor.predict(accel, FN * ratio, natural_frequency_hz=FN)
+    assert res["class"] == "hard"  # the truth is medium
+    assert res["geometric"]["class"] == res["restoring_force"]["class"] == "medium"
+    assert res["restoring_force"]["contact_r2"] < 0.95
+    assert res["ood_flag"] and res["alarm"]["fired"] == ["class_outvoted"]
+
+
+def test_a_class_the_model_holds_inside_its_range_stays_quiet_against_both_readings(predictor):
+    """damping_and_sensor's draw 18 at seed offset 2000: beta 91.7 (very hard), damped 0.50
+    behind a 170 Hz low-pass. Both physical readings say hard (the cross-check about 40 at
+    R2 0.6), the CNN very hard [70, 117], an interval inside its class: the model placed beta
+    there on its own and is right; the check stays quiet."""
+    sensor = {"resonance_hz": 387.56, "resonance_damping": 0.04751, "highpass_hz": 1.101,
+              "lowpass_hz": 170.46, "lowpass_order": 2}  # fmt: skip
+    ratio = 96.209
+    accel = _damped_behind_sensor(91.704, 2.6136, 1.6570, 1.1261, 0.02358, ratio, 0.03648,
+                                  0.4968, sensor)  # fmt: skip
+    res = predictor.predict(accel, FN * ratio, natural_frequency_hz=FN)
+    assert res["class"] == "very_hard"
+    assert res["geometric"]["class"] == res["restoring_force"]["class"] == "hard"
+    assert res["alarm"]["fired"] == [] and res["alarm"]["scores"]["class_outvoted"] == 0.0
+
+
+def test_a_record_without_contact_does_not_say_beta_changes(predictor):
+    """The robustness benchmark's ideal draw 3 at seed offset 2000, simulated again: a gap of
+    2.08 the table's 0.25 never closes. The segmenter splits the record where the free
+    flight settles (about 4.6 s), on the beta head's output, which means nothing without
+    contact: both layers report no contact and no beta, so nothing changes along the record
+    and the layers check stays quiet (it fired 'no_contact -> no_contact' before)."""
+    ratio = 98.26446
+    one = [np.array([v]) for v in (74.1316, 2.079443, 0.2487810, 0.9453176, 0.0187227, FN)]
+    accel = (
+        Simulator([])
+        .simulate(OscillatorBatch(*one), ratio, int(128 * ratio), noise=0.0055008, rng=0)
+        .accel[0]
+    )
+    res = predictor.predict(accel, FN * ratio, natural_frequency_hz=FN)
+    assert res["class"] == "no_contact"
+    assert [la["class"] for la in res["layers"]] == ["no_contact", "no_contact"]
+    assert res["alarm"]["fired"] == [] and not res["ood_flag"]

@@ -478,3 +478,22 @@ def test_a_whole_records_log_reads_it_through_a_chain_its_start_did_not_show(pre
     assert any("the model reads the record as recorded" in w for w in logger.warnings)
     checks = [p["restoring_force"]["beta"] for p in doc["points"] if "restoring_force" in p]
     assert checks == [p["restoring_force"]["beta"] for p in streamed if "restoring_force" in p]
+
+
+def test_the_layers_check_counts_what_the_layers_report():
+    """Two neighbouring layers without contact report the same (no contact, no beta): no
+    change; a contact starting or beta changing is one."""
+    from serving.log import LAYERS_CHECK, reported_changes, with_layers_alarm
+
+    none = {"class": "no_contact", "beta": None}
+    soft, hard = {"class": "soft", "beta": 12.0}, {"class": "hard", "beta": 45.0}
+    assert reported_changes([none, none, none]) == 0
+    assert reported_changes([none, soft, hard]) == 2
+    assert reported_changes([soft, none, none, hard]) == 2
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}, "message": ""}
+    assert with_layers_alarm(quiet, [none, none]) is quiet
+    layered = [
+        {**la, "start_s": 5.0 * i, "end_s": 5.0 * i + 5} for i, la in enumerate([none, none, soft])
+    ]
+    res = with_layers_alarm(quiet, layered)
+    assert res["fired"] == [LAYERS_CHECK] and res["scores"][LAYERS_CHECK] == 1.0

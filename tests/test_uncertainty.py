@@ -204,6 +204,77 @@ def test_a_class_near_an_edge_no_close_reading_confirms_is_flagged():
     assert unverified_class_share("no_contact", [1.0, 2.0], loose, NAMES, EDGES) is None
 
 
+def test_both_physical_readings_on_one_side_outvote_a_class_the_model_leaves_open():
+    """The rule on analytic inputs: it applies only where the geometric and the
+    restoring-force classes lie on one side of the class answered, and scores the share (in
+    log beta) of the model's interval outside its class."""
+    from stiffnet.uncertainty.outvoted_class import (
+        outvoted_class_settings,
+        outvoted_class_share,
+        readings_side,
+    )
+
+    names = NAMES[1:]
+    assert readings_side("hard", ["medium", "soft"], names) == -1
+    assert readings_side("soft", ["medium", "very_hard"], names) == 1
+    assert readings_side("hard", ["medium", "very_hard"], names) == 0  # split
+    assert readings_side("hard", ["medium", "hard"], names) == 0  # one agrees with the model
+    assert readings_side("hard", ["medium", None], names) == 0  # a refusal
+    assert readings_side("hard", ["medium", "no_contact"], names) == 0
+
+    rf = {"class": "medium", "beta": 20.0, "beta_interval": [12.0, 33.0], "contact_r2": 0.8}
+    # [20, 80] read hard (35-60): log(35/20) below, log(80/60) above, over log(80/20)
+    share = outvoted_class_share("hard", [20.0, 80.0], "soft", rf, NAMES, EDGES)
+    assert share == pytest.approx((np.log(35 / 20) + np.log(80 / 60)) / np.log(4))
+    # an interval inside its class: the model placed beta there on its own
+    assert outvoted_class_share("hard", [40.0, 55.0], "soft", rf, NAMES, EDGES) == 0.0
+    # harder readings: only the part above the class counts (medium [30, 40]: 35-40)
+    hard_rf = {**rf, "class": "very_hard"}
+    share = outvoted_class_share("medium", [30.0, 40.0], "hard", hard_rf, NAMES, EDGES)
+    assert share == pytest.approx(np.log(40 / 35) / np.log(40 / 30))
+    # no vote: readings split, one missing or agreeing with the model, no interval
+    assert outvoted_class_share("hard", [20.0, 80.0], "very_hard", rf, NAMES, EDGES) is None
+    assert outvoted_class_share("hard", [20.0, 80.0], None, rf, NAMES, EDGES) is None
+    assert outvoted_class_share("medium", [20.0, 80.0], "soft", rf, NAMES, EDGES) is None
+    assert outvoted_class_share("hard", None, "soft", rf, NAMES, EDGES) is None
+    assert outvoted_class_share("no_contact", [1.0, 2.0], "soft", rf, NAMES, EDGES) is None
+    assert outvoted_class_share("hard", [20.0, 80.0], "soft", rf, NAMES, EDGES[:-1]) is None
+    assert outvoted_class_settings().outside_share_min == 0.05
+
+
+def test_an_answer_both_physical_readings_place_in_a_softer_class_is_flagged():
+    """damping_and_sensor's draw 20 of the robustness benchmark (a damped contact behind a
+    sensor chain), wrong and silent before the check: beta 27.4 (medium) read 43.1 hard
+    [31.3, 59.5]; the geometric cross-check medium, the restoring-force one medium 33.3
+    [22.3, 49.7] at R2 0.91 (a loose fit: the comparing checks do not apply, and 0.17 of the
+    model's interval outside hard is under class_unverified's 0.35). Both physical readings
+    lie below hard and the model's interval leaves hard: class_outvoted fires. A right answer
+    the readings split on, or whose interval stays inside its class, stays quiet."""
+    from serving.verdict import rule_checks
+    from stiffnet.uncertainty.outvoted_class import CLASS_OUTVOTED
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": None}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    rf = {"class": "medium", "beta": 33.3, "beta_interval": [22.3, 49.7], "contact_r2": 0.91}
+    res = rule_checks(quiet, "hard", [31.3, 59.5], rf, model, 1e3, 9.48, geometric_class="medium")
+    assert res["fired"] == [CLASS_OUTVOTED] and res["flag"]
+    assert res["scores"][CLASS_OUTVOTED] == pytest.approx(np.log(35 / 31.3) / np.log(59.5 / 31.3))
+    assert "against both readings" in res["message"]
+    # without the geometric reading (the log's points) the check does not apply
+    res = rule_checks(quiet, "hard", [31.3, 59.5], rf, model, 1e3, 9.48)
+    assert res["fired"] == [] and CLASS_OUTVOTED not in res["scores"]
+    # the geometric reading hard (with the model): no vote, quiet
+    res = rule_checks(quiet, "hard", [31.3, 59.5], rf, model, 1e3, 9.48, geometric_class="hard")
+    assert res["fired"] == []
+    # damping_and_sensor's draw 18 at seed offset 2000, right: beta 91.7 read 90.2 very_hard
+    # [70.0, 117.1], both readings hard (39.7 [8.0, 210] at R2 0.59): the interval stays in
+    # very_hard, the model placed beta there on its own
+    loose = {"class": "hard", "beta": 39.7, "beta_interval": [8.0, 210.0], "contact_r2": 0.59}
+    res = rule_checks(quiet, "very_hard", [70.0, 117.1], loose, model, 1e3, 9.48,
+                      geometric_class="hard")  # fmt: skip
+    assert res["fired"] == [] and res["scores"][CLASS_OUTVOTED] == 0.0
+
+
 #: The shipped models' training world, the parts the reference_penetration check reads
 #: (the card's ``data.priors``): forcing amplitude and the Hertz contact's reference penetration.
 HERTZ_WORLD = {

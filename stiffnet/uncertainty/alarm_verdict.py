@@ -55,6 +55,9 @@ ALARM_WORDS = {
     "class_unverified": "the model's beta interval reaches well into another class and the "
     "restoring-force cross-check does not confirm the class (it refused, or its contact law "
     "fits loosely): the class near the edge is the model's guess alone",
+    "class_outvoted": "both physical readings (the geometric and the restoring-force "
+    "cross-checks) name classes on the same side of the model's class, and the model's own "
+    "beta interval reaches out of its class: the class is the model's against both readings",
     "face_identifiability": "the model was trained behind a learned restraint face: the record "
     "carries the contact in series with the face's support, whose stiffness the training world "
     "leaves free within its prior, and most of the betas that allows over the model's interval "
