@@ -445,7 +445,8 @@ def campaign_highpass_damped(
         trial = corner
     given = float(np.median(zeta_rig))
     low_p, high_p = stage["interval"]
-    report: dict[str, Any] = {"corner": corner, "rig_damping": given, "read_on": int(ok.sum()),
+    report: dict[str, Any] = {"corner": corner if np.isfinite(corner) else None,
+                              "rig_damping": given, "read_on": int(ok.sum()),
                               "free_damping": [None if not np.isfinite(z) else float(z)
                                                for z in zeta], "trial": trial}  # fmt: skip
     if ok.sum() < MIN_IDENTIFIED:
