@@ -286,13 +286,13 @@ def pooled_predictions(
                                  lambda j, sheet, idx=idx: contact_r2(idx[j], sheet))  # fmt: skip
         chain = campaign_highpass(chain, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet),
                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
+        chain = campaign_resonance(chain,
+                                   lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
+                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
         chain = campaign_highpass_damped(chain,
                                          lambda j, sheet, idx=idx: free_damping(idx[j], sheet),
                                          [recs[i]["fn_hz"] for i in idx],
                                          [recs[i].get("damping_ratio") for i in idx])  # fmt: skip
-        chain = campaign_resonance(chain,
-                                   lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
-                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

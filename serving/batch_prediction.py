@@ -531,8 +531,8 @@ def _campaign_chain(
     refuses a recording, is profiled over the recordings read through the pooled chain
     (:func:`serving.campaign_chain.campaign_lowpass`,
     :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`); the corner from the free flight where
-    the manifest's rows give the rig's damping (`dampings`,
+    :func:`serving.campaign_chain.campaign_resonance`); last the corner from the free flight
+    where the manifest's rows give the rig's damping (`dampings`,
     :func:`serving.campaign_chain.campaign_highpass_damped`)."""
     from stiffnet.recordings import read_recording
 
@@ -571,14 +571,14 @@ def _campaign_chain(
         return chain
     fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
+    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = recording(i)
         return None if rec is None else free_damping_through(*rec, predictor, sheet)
 
-    chain = campaign_highpass_damped(chain, free_damping, fns, dampings or [None] * len(paths),
-                                     sheets)  # fmt: skip
-    return campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+    return campaign_highpass_damped(chain, free_damping, fns, dampings or [None] * len(paths),
+                                    sheets)  # fmt: skip
 
 
 def _confirmed(

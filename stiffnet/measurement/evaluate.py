@@ -154,9 +154,10 @@ def campaign_predictions(
     pooled chain as its sheet (a low-pass the identified chains show, then its high-pass
     corner, then a resonance near the contacts that refuses a recording, profiled over the
     campaign's contact laws, :func:`serving.campaign_chain.campaign_lowpass`,
-    :func:`serving.campaign_chain.campaign_highpass`, the corner then from the free flight
-    where the rows give the rig's damping, :func:`serving.campaign_chain.campaign_highpass_damped`,
-    :func:`serving.campaign_chain.campaign_resonance`); kept where it reads the contact
+    :func:`serving.campaign_chain.campaign_highpass`,
+    :func:`serving.campaign_chain.campaign_resonance`; last the corner from the free flight
+    where the rows give the rig's damping,
+    :func:`serving.campaign_chain.campaign_highpass_damped`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
     except on a recording whose own contact law it reads much worse
     (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
@@ -203,6 +204,7 @@ def campaign_predictions(
     chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     fns = [natural_frequency(row) for row in rows]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
+    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
@@ -211,7 +213,6 @@ def campaign_predictions(
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
     chain = campaign_highpass_damped(chain, free_damping, fns, dampings, sheets)
-    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
