@@ -404,9 +404,10 @@ def campaign_highpass_damped(
     the corner ``f_h' + 2 f_n (zeta_free - zeta_rig)`` and the campaign's is their median,
     read again once from there where the step exceeds :data:`FREE_FLIGHT_STEP_TOL`
     (:data:`FREE_FLIGHT_STEPS`). Its interval is the median's over the recordings drawn again
-    with replacement (:func:`_median_interval`), in the sheet as ``highpass_low_hz`` /
-    ``highpass_high_hz``. ``stages["highpass_hz"]["source"]`` says which corner the sheet
-    holds: ``"free_flight_damping"`` or ``"contact_r2_profile"``.
+    with replacement (:func:`_median_interval`) widened to hold the contact laws' corner (the
+    bootstrap knows neither the given damping's error nor the formula's), in the sheet as
+    ``highpass_low_hz`` / ``highpass_high_hz``. ``stages["highpass_hz"]["source"]`` says
+    which corner the sheet holds: ``"free_flight_damping"`` or ``"contact_r2_profile"``.
 
     The guard: a given damping can be wrong (a lab writes 0.04 for 0.02: the corner moves by
     ``2 f_n`` times the error, 0.38 Hz on the rig), and recordings can disagree. The profile
@@ -476,6 +477,10 @@ def campaign_highpass_damped(
         out = {**chain, "stages": {**chain["stages"], "highpass_hz": kept}}
         out["reason"] = f"{chain['reason']}; the profiled corner kept: {why}"
         return out
+    # the sheet's interval spans both identifiers: the free flight's median is read at a
+    # given damping taken as exact and its formula's slope, so its bootstrap is not the
+    # corner's whole uncertainty, and the contact laws' corner is the other reading of it
+    low, high = min(low, profiled), max(high, profiled)
     out = {**chain, "sensor": {**sheet, "highpass_hz": corner, "highpass_low_hz": low,
                                "highpass_high_hz": high}}  # fmt: skip
     out["stages"] = {**chain["stages"], "highpass_hz": {

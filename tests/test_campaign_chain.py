@@ -299,6 +299,8 @@ def test_a_damped_campaigns_highpass_corner_is_read_from_the_free_flight_at_the_
     assert corner == pytest.approx(truth, rel=0.05)
     assert abs(profiled["sensor"]["highpass_hz"] / truth - 1) > abs(corner / truth - 1)
     assert sheet["highpass_low_hz"] <= corner <= sheet["highpass_high_hz"]
+    # the interval holds both readings of the corner: the free flight's and the profile's
+    assert sheet["highpass_low_hz"] <= profiled["sensor"]["highpass_hz"]
     assert stage["interval"] == [sheet["highpass_low_hz"], sheet["highpass_high_hz"]]
     assert stage["profiled"] == profiled["sensor"]["highpass_hz"] and "free flight" in got["reason"]
     assert {k: v for k, v in sheet.items() if not k.startswith("highpass")} == {
