@@ -117,7 +117,7 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
     """The set's recordings (``accel``, ``fs_hz``, ``fn_hz``, ``beta``, ``class``), cached."""
     path = cache / "data" / f"{name.replace(' ', '_')}-{n}.pkl"
     if path.is_file():
-        return pickle.loads(path.read_bytes())
+        return with_rig_damping(name, pickle.loads(path.read_bytes()))
     if name.split("+")[0] in CAMPAIGN_SETS:
         base, _, offset = name.partition("+")
         recs = campaign_rig_set(base, n, 20261129 + int(offset or 0))
@@ -137,7 +137,18 @@ def set_recordings(name: str, n: int, cache: Path) -> list[dict[str, Any]]:
         recs = ba.br.recordings(cfg, cache / "data" / f"{name}-{n}")
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(pickle.dumps(recs))
-    return recs
+    return with_rig_damping(name, recs)
+
+
+def with_rig_damping(name: str, recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """A campaign set's recordings with the rig's ``damping_ratio``, the value its manifest
+    carries (``independent_rig.write_campaign`` writes the rig's own; caches written before
+    the key lack it), as a lab's campaign gives it to the campaign chain's high-pass corner."""
+    if name.split("+")[0] not in CAMPAIGN_SETS:
+        return recs
+    from independent_rig import RigRun
+
+    return [{"damping_ratio": RigRun.damping_ratio, **r} for r in recs]
 
 
 def campaign_rig_set(name: str, n: int, seed: int = 20261129) -> list[dict[str, Any]]:
@@ -221,10 +232,12 @@ def pooled_predictions(
     and each campaign's decision with its true chain."""
     from serving.campaign_chain import (
         campaign_highpass,
+        campaign_highpass_damped,
         campaign_lowpass,
         campaign_resonance,
         confirmed,
         contact_r2_through,
+        free_damping_through,
         identify_regardless,
         reads_alone,
     )
@@ -253,6 +266,16 @@ def pooled_predictions(
                                                            refused_as_unexplained)}  # fmt: skip
         return store[key]["contact_r2"]
 
+    def free_damping(i: int, sheet: dict) -> float | None:
+        r = recs[i]
+        digest = hashlib.sha1(np.ascontiguousarray(r["accel"]).tobytes()).hexdigest()
+        key = (digest, float(r["fs_hz"]), float(r["fn_hz"]), json.dumps(sheet, sort_keys=True),
+               "free_damping_through")  # fmt: skip
+        if key not in store:
+            zeta = free_damping_through(r["accel"], r["fs_hz"], r["fn_hz"], pred, sheet)
+            store[key] = {"free_damping": zeta}
+        return store[key]["free_damping"]
+
     out = list(got)
     decisions = []
     for k, idx in campaigns_of(recs).items():
@@ -266,6 +289,10 @@ def pooled_predictions(
         chain = campaign_resonance(chain,
                                    lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
                                    [recs[i]["fn_hz"] for i in idx])  # fmt: skip
+        chain = campaign_highpass_damped(chain,
+                                         lambda j, sheet, idx=idx: free_damping(idx[j], sheet),
+                                         [recs[i]["fn_hz"] for i in idx],
+                                         [recs[i].get("damping_ratio") for i in idx])  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

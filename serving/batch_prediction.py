@@ -53,11 +53,13 @@ import pyarrow.parquet as pq
 
 from serving.campaign_chain import (
     campaign_highpass,
+    campaign_highpass_damped,
     campaign_lowpass,
     campaign_resonance,
     chain_fitted_regardless,
     confirmed,
     contact_r2_through,
+    free_damping_through,
     identify_regardless,
     labelled,
     reads_alone,
@@ -437,7 +439,9 @@ def predict_batch(
         n_parts = len(records) + len(jobs)
         done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
         first = _parts_table(parts_dir, records, range(n_parts))
-        chain = None if manifest is None else _campaign_chain(first, paths, settings, predictor)
+        dampings = None if manifest is None else _rig_dampings(manifest)
+        chain = None if manifest is None else _campaign_chain(first, paths, settings, predictor,
+                                                              dampings)  # fmt: skip
         if chain is not None and chain["pooled"]:
             # the second round: every recording without its own sheet through the pooled chain
             again, flags = _campaign_settings(first, settings, chain["sensor"])
@@ -504,8 +508,19 @@ def _add(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
             "backend": b["backend"]}  # fmt: skip
 
 
+def _rig_dampings(manifest: Path) -> list[float | None]:
+    """Each manifest row's ``damping_ratio`` (the rig's, None where not given)."""
+    from stiffnet.campaign.manifest import read_manifest
+
+    return [row.damping_ratio for row in read_manifest(manifest)]
+
+
 def _campaign_chain(
-    table: pa.Table, paths: list[str], settings: list[tuple], predictor: Predictor
+    table: pa.Table,
+    paths: list[str],
+    settings: list[tuple],
+    predictor: Predictor,
+    dampings: list[float | None] | None = None,
 ) -> dict[str, Any]:
     """The campaign's pooled chain from the first round's identified chains
     (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
@@ -516,7 +531,9 @@ def _campaign_chain(
     refuses a recording, is profiled over the recordings read through the pooled chain
     (:func:`serving.campaign_chain.campaign_lowpass`,
     :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`)."""
+    :func:`serving.campaign_chain.campaign_resonance`); last the corner from the free flight
+    where the manifest's rows give the rig's damping (`dampings`,
+    :func:`serving.campaign_chain.campaign_highpass_damped`)."""
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
@@ -554,7 +571,14 @@ def _campaign_chain(
         return chain
     fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
-    return campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+
+    def free_damping(i: int, sheet: dict) -> float | None:
+        rec = recording(i)
+        return None if rec is None else free_damping_through(*rec, predictor, sheet)
+
+    return campaign_highpass_damped(chain, free_damping, fns, dampings or [None] * len(paths),
+                                    sheets)  # fmt: skip
 
 
 def _confirmed(

@@ -136,6 +136,14 @@ RESONANCE_DAMPING_FACTORS = (0.5, 0.7, 1.0, 1.4, 2.0)
 #: neighbours, in frequency then in damping: a grid, not a scalar search, because the
 #: candidates are ranked first by the recordings they read, then by their misfit.
 RESONANCE_REFINE_POINTS = 7
+#: :func:`campaign_highpass_damped` reads the free flight at a trial corner at most this many
+#: times: the first step from the contact laws' corner, a second where that step moved the
+#: corner by more than :data:`FREE_FLIGHT_STEP_TOL` (the free damping's slope in the corner
+#: differs from ``1 / (2 f_n)``: 0.049 per Hz measured for 0.053 on the rig's campaign behind
+#: 4.48 Hz, so one step leaves under a tenth of itself).
+FREE_FLIGHT_STEPS = 2
+#: ... relative step below which the first step's corner is kept unread.
+FREE_FLIGHT_STEP_TOL = 0.02
 
 
 def identified(sensor: dict | None) -> dict | None:
@@ -363,11 +371,141 @@ def campaign_highpass(
                                "highpass_high_hz": high}}  # fmt: skip
     out["stages"] = {**chain.get("stages", {}), "highpass_hz": {
         "value": corner, "interval": [low, high], "pooled_median": float(pooled),
-        "profiled_on": int(read.sum()), "median_log_misfit": median_misfit(corner)}}  # fmt: skip
+        "profiled_on": int(read.sum()), "median_log_misfit": median_misfit(corner),
+        "source": "contact_r2_profile"}}  # fmt: skip
     out["reason"] = (f"{chain['reason']}; the high-pass corner profiled over the campaign's "
                      f"contact laws: {corner:.2f} Hz [{low:.2f}, {high:.2f}] (the median of the "
                      f"recordings' own fits {float(pooled):.2f} Hz)")  # fmt: skip
     return out
+
+
+def campaign_highpass_damped(
+    chain: dict[str, Any],
+    free_damping: Callable[[int, dict[str, Any]], float | None],
+    fn_hz: Sequence[float | None],
+    rig_damping: Sequence[float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with its profiled high-pass corner taken from the free flight where the
+    campaign's rows give the rig's damping ratio (the manifest's ``damping_ratio``).
+
+    Why. On a damped contact the contact laws' R² barely tells corners apart
+    (:func:`campaign_highpass` read 4.07 Hz for a true 4.48, and a Kelvin-Voigt law moves
+    beta about -1 % per +1 % of corner). The free flight does: a corner undone off by a
+    fraction ``delta`` leaves ``delta`` times the recorded velocity in the acceleration, which
+    the free-flight law ``x'' + 2 zeta x' + x = forcing`` reads as damping,
+    ``zeta_free ~ zeta_rig + delta f_h / (2 f_n)``. The free damping and the corner are one
+    parameter to the record, so the rig's own damping (a free-decay test) must be given.
+
+    The rule. Every recording without its own data sheet (`sheets`) whose row gives a damping
+    (`rig_damping`) and a natural frequency (`fn_hz`) is read through the pooled chain with
+    the trial corner held (`free_damping`: recording index and data sheet to the free
+    flight's own damping ratio, :func:`free_damping_through`; None without one); each implies
+    the corner ``f_h' + 2 f_n (zeta_free - zeta_rig)`` and the campaign's is their median,
+    read again once from there where the step exceeds :data:`FREE_FLIGHT_STEP_TOL`
+    (:data:`FREE_FLIGHT_STEPS`). Its interval is the median's over the recordings drawn again
+    with replacement (:func:`_median_interval`) widened to hold the contact laws' corner (the
+    bootstrap knows neither the given damping's error nor the formula's), in the sheet as
+    ``highpass_low_hz`` / ``highpass_high_hz``. ``stages["highpass_hz"]["source"]`` says
+    which corner the sheet holds: ``"free_flight_damping"`` or ``"contact_r2_profile"``.
+
+    The guard: a given damping can be wrong (a lab writes 0.04 for 0.02: the corner moves by
+    ``2 f_n`` times the error, 0.38 Hz on the rig), and recordings can disagree. The profile
+    is kept, with the reason under ``stages["highpass_hz"]["free_flight"]`` and in the
+    chain's ``reason``, where fewer than :data:`MIN_IDENTIFIED` recordings read a free
+    damping, where the implied corner lies outside the profile's interval widened by
+    :data:`FIT_SCATTER` (the contact laws' plausible range: a damping off by 0.02 moves the
+    corner less than that on the rig and is not caught), or where the free flight's interval
+    spans more than :data:`FIT_SCATTER` either side (``high / low > (1 + FIT_SCATTER)²``,
+    the chain fits' own scatter, beyond which the recordings do not read one corner) or is
+    no narrower than the profile's (the free flights tell the corner no better than the
+    contact laws).
+
+    It runs last, after :func:`campaign_resonance`: read through a pooled resonance near the
+    contacts that is off (the rig's 205.9 Hz zeta 0.034 for a true 197.8 Hz 0.051), the mount
+    rings through the flight and the free damping read a corner of 6.85 Hz for 4.48; through
+    the profiled one (197.9 Hz zeta 0.054) 4.49. The resonance is profiled at the contact
+    laws' corner and not again.
+
+    Returned as it is: a chain whose corner was not profiled (:func:`campaign_highpass`: no
+    pool, or each recording's own corner) and a campaign whose rows give no damping.
+    """
+    stage = (chain.get("stages") or {}).get("highpass_hz")
+    sheet = chain.get("sensor") if chain.get("pooled") else None
+    sheets = list(sheets) if sheets is not None else [None] * len(fn_hz)
+    todo = [i for i, own in enumerate(sheets) if own is None and fn_hz[i] and rig_damping[i]]
+    if not stage or not sheet or not todo:
+        return chain
+    fn = np.array([float(fn_hz[i]) for i in todo])
+    zeta_rig = np.array([float(rig_damping[i]) for i in todo])
+    trial, profiled = float(stage["value"]), float(stage["value"])
+    held = {k: v for k, v in sheet.items() if k not in ("highpass_low_hz", "highpass_high_hz")}
+    for step in range(FREE_FLIGHT_STEPS):
+        at = {**held, "highpass_hz": trial}  # held: the profile's interval need not hold it
+        zeta = np.array([np.nan if (z := free_damping(i, at)) is None else z for i in todo])
+        implied = trial + 2.0 * fn * (zeta - zeta_rig)
+        ok = np.isfinite(implied)
+        corner = float(np.median(implied[ok])) if ok.sum() >= MIN_IDENTIFIED else np.nan
+        last = step == FREE_FLIGHT_STEPS - 1
+        if last or not corner > 0 or abs(np.log(corner / trial)) <= FREE_FLIGHT_STEP_TOL:
+            break
+        trial = corner
+    given = float(np.median(zeta_rig))
+    low_p, high_p = stage["interval"]
+    report: dict[str, Any] = {"corner": corner if np.isfinite(corner) else None,
+                              "rig_damping": given, "read_on": int(ok.sum()),
+                              "free_damping": [None if not np.isfinite(z) else float(z)
+                                               for z in zeta], "trial": trial}  # fmt: skip
+    if ok.sum() < MIN_IDENTIFIED:
+        why = f"the free flight read a damping on {int(ok.sum())} recording(s)"
+    elif not low_p / (1 + FIT_SCATTER) <= corner <= high_p * (1 + FIT_SCATTER):
+        why = (f"the corner the free flight implies at the given damping {given:g} "
+               f"({corner:.2f} Hz) lies outside the contact laws' range [{low_p:.2f}, "
+               f"{high_p:.2f}] Hz widened by {FIT_SCATTER:.0%}: is the damping right?")  # fmt: skip
+    else:
+        low, high = _median_interval(implied[ok], corner)
+        report["interval"] = [low, high]
+        spread = np.log(high / low)
+        if spread > 2.0 * np.log1p(FIT_SCATTER) or spread >= np.log(high_p / low_p):
+            why = (f"the recordings' free flights disagree: {low:.2f}-{high:.2f} Hz (wider "
+                   f"than {FIT_SCATTER:.0%} either side, or than the contact laws' "
+                   f"[{low_p:.2f}, {high_p:.2f}] Hz)")  # fmt: skip
+        else:
+            why = None
+    if why is not None:
+        kept = {**stage, "source": "contact_r2_profile", "free_flight": {**report, "kept": why}}
+        out = {**chain, "stages": {**chain["stages"], "highpass_hz": kept}}
+        out["reason"] = f"{chain['reason']}; the profiled corner kept: {why}"
+        return out
+    # the sheet's interval spans both identifiers: the free flight's median is read at a
+    # given damping taken as exact and its formula's slope, so its bootstrap is not the
+    # corner's whole uncertainty, and the contact laws' corner is the other reading of it
+    low, high = min(low, profiled), max(high, profiled)
+    out = {**chain, "sensor": {**sheet, "highpass_hz": corner, "highpass_low_hz": low,
+                               "highpass_high_hz": high}}  # fmt: skip
+    out["stages"] = {**chain["stages"], "highpass_hz": {
+        **stage, "value": corner, "interval": [low, high], "profiled": profiled,
+        "profiled_interval": [low_p, high_p], "source": "free_flight_damping",
+        "free_flight": report}}  # fmt: skip
+    out["reason"] = (f"{chain['reason']}; the corner from the free flight at the rig's "
+                     f"damping {given:g}: {corner:.2f} Hz [{low:.2f}, {high:.2f}] on "
+                     f"{int(ok.sum())} recordings (the contact laws' "
+                     f"{profiled:.2f} Hz)")  # fmt: skip
+    return out
+
+
+def _median_interval(values: np.ndarray, centre: float, seed: int = 0) -> tuple[float, float]:
+    """The interval at :data:`~stiffnet.restoring_force.chain.COVERAGE` of the median of
+    `values` (the recordings' implied corners) over the recordings drawn again with
+    replacement, widened to hold `centre` (the rule of :func:`corner_interval`)."""
+    from stiffnet.restoring_force.chain import COVERAGE
+    from stiffnet.restoring_force.estimate import N_BOOTSTRAP
+
+    draws = np.random.default_rng(seed).integers(0, values.size, (N_BOOTSTRAP, values.size))
+    medians = np.median(values[draws], axis=1)
+    alpha = 0.5 * (1.0 - COVERAGE)
+    low, high = np.quantile(medians, [alpha, 1.0 - alpha])
+    return min(float(low), centre), max(float(high), centre)
 
 
 def campaign_lowpass(
@@ -700,6 +838,33 @@ def contact_r2_through(
     With `refused_as_unexplained`, a reading refused after its law was fitted (the law
     explains too little, the contacts last too long) gives 0: no beta, its force counted
     unexplained (the `contact_read` of :func:`campaign_resonance`)."""
+    r = _read_through(accel, fs_hz, fn_hz, predictor, sheet)
+    if r is None or r.law is None or not np.isfinite(r.contact_r2):
+        return None
+    return 0.0 if refused_as_unexplained and not r.ok else float(r.contact_r2)
+
+
+def free_damping_through(
+    accel: Any, fs_hz: float, fn_hz: float, predictor: Any, sheet: dict[str, Any]
+) -> float | None:
+    """The free flight's own damping ratio
+    (:attr:`~stiffnet.restoring_force.estimate.RestoringForceResult.free_damping_fitted`) of
+    a recording read through `sheet` as :func:`contact_r2_through` reads it; None where the
+    reading fails or the free-flight law explains too little to be read. The `free_damping`
+    of :func:`campaign_highpass_damped`."""
+    from stiffnet.restoring_force.estimate import MIN_FREE_R2
+
+    r = _read_through(accel, fs_hz, fn_hz, predictor, sheet)
+    if r is None or not np.isfinite(r.free_damping_fitted) or not r.free_r2 >= MIN_FREE_R2:
+        return None
+    return float(r.free_damping_fitted)
+
+
+def _read_through(
+    accel: Any, fs_hz: float, fn_hz: float, predictor: Any, sheet: dict[str, Any]
+) -> Any:
+    """`predictor`'s restoring-force reading of a recording through `sheet`, a sheet fitted
+    to recordings (``sensor_fitted``), without the interval; None where it fails."""
     from serving.checks import checked_recording
     from serving.restoring_force_check import RESTORING_FORCE_PERIODS
     from stiffnet.errors import StiffnetError
@@ -707,14 +872,13 @@ def contact_r2_through(
 
     a = checked_recording(accel, fs_hz, fn_hz, predictor.window_periods, "recording")[0]
     try:
-        r = restoring_force_estimate(a, fs_hz, natural_frequency_hz=fn_hz, sensor=sheet,
-                                     sensor_fitted=True, max_periods=RESTORING_FORCE_PERIODS,
-                                     interval=False, stage_ratio=predictor.stage_ratio)  # fmt: skip
+        return restoring_force_estimate(
+            a, fs_hz, natural_frequency_hz=fn_hz, sensor=sheet, sensor_fitted=True,
+            max_periods=RESTORING_FORCE_PERIODS, interval=False,
+            stage_ratio=predictor.stage_ratio,
+        )  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
-    if r.law is None or not np.isfinite(r.contact_r2):
-        return None
-    return 0.0 if refused_as_unexplained and not r.ok else float(r.contact_r2)
 
 
 def confirmed(

@@ -243,6 +243,105 @@ def test_the_pooled_highpass_corner_is_profiled_over_the_campaigns_contact_laws(
         "pooled": False, "sensor": None}  # fmt: skip
 
 
+DAMPED_SENSOR = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.5}
+DAMPED_BETAS = (12.0, 30.0, 55.0)
+
+
+@pytest.fixture(scope="module")
+def damped_campaign():
+    """Three Kelvin-Voigt contacts (zeta 0.2) of the independent rig (its damping ratio 0.02)
+    behind one 120 Hz order-4 low-pass and a 4.5 Hz high-pass, 2 % noise; the pooled chain
+    with the corner 30 % low, profiled over the contact laws (:func:`campaign_highpass`);
+    each recording's reading through a sheet memoised."""
+    from types import SimpleNamespace
+
+    from independent_rig import RigRun, record
+
+    from serving.campaign_chain import campaign_highpass, contact_r2_through, free_damping_through
+
+    recs = [record(RigRun(recording="r.csv", beta=b, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                          contact="kelvin_voigt", contact_zeta=0.2, sensor=DAMPED_SENSOR),
+                   seed=i)[1] for i, b in enumerate(DAMPED_BETAS)]  # fmt: skip
+    pooled = {"resonance_hz": 0.0, "resonance_damping": 0.0, "lowpass_hz": 120.0,
+              "lowpass_order": 4.0, "highpass_hz": 0.7 * DAMPED_SENSOR["highpass_hz"]}  # fmt: skip
+    chain = {"pooled": True, "sensor": pooled, "reason": "pooled", "stages": {}}
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+    calls = []
+
+    def free_damping(i, sheet):
+        calls.append(sheet["highpass_hz"])
+        return free_damping_through(recs[i], 1250.0, 9.48, pred, sheet)
+
+    profiled = campaign_highpass(
+        chain, lambda i, s: contact_r2_through(recs[i], 1250.0, 9.48, pred, s), [9.48] * 3
+    )
+    return SimpleNamespace(recs=recs, profiled=profiled, free_damping=free_damping, calls=calls)
+
+
+def test_a_damped_campaigns_highpass_corner_is_read_from_the_free_flight_at_the_rigs_damping(
+    damped_campaign,
+):
+    """The rig's damping given (0.02, a manifest's ``damping_ratio``): the corner is where the
+    recordings' free flights, read through the pooled chain, show that damping, within 5 % of
+    the true 4.5 Hz, with an interval that holds it; the contact laws' profile, which main
+    keeps, is further off (3.74 Hz). Every beta reads within 5 % (two do not through the
+    profile's corner)."""
+    from serving.campaign_chain import campaign_highpass_damped
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    profiled = damped_campaign.profiled
+    assert profiled["stages"]["highpass_hz"]["source"] == "contact_r2_profile"
+    got = campaign_highpass_damped(profiled, damped_campaign.free_damping, [9.48] * 3,
+                                   [0.02] * 3)  # fmt: skip
+    stage, sheet = got["stages"]["highpass_hz"], got["sensor"]
+    assert stage["source"] == "free_flight_damping", stage["free_flight"]
+    corner, truth = sheet["highpass_hz"], DAMPED_SENSOR["highpass_hz"]
+    assert corner == pytest.approx(truth, rel=0.05)
+    assert abs(profiled["sensor"]["highpass_hz"] / truth - 1) > abs(corner / truth - 1)
+    assert sheet["highpass_low_hz"] <= corner <= sheet["highpass_high_hz"]
+    # the interval holds both readings of the corner: the free flight's and the profile's
+    assert sheet["highpass_low_hz"] <= profiled["sensor"]["highpass_hz"]
+    assert stage["interval"] == [sheet["highpass_low_hz"], sheet["highpass_high_hz"]]
+    assert stage["profiled"] == profiled["sensor"]["highpass_hz"] and "free flight" in got["reason"]
+    assert {k: v for k, v in sheet.items() if not k.startswith("highpass")} == {
+        k: v for k, v in profiled["sensor"].items() if not k.startswith("highpass")}  # fmt: skip
+
+    def errors(s):
+        return [abs(restoring_force_estimate(a, 1250.0, natural_frequency_hz=9.48, sensor=s,
+                                             max_periods=24.0, interval=False).beta / b - 1)
+                for a, b in zip(damped_campaign.recs, DAMPED_BETAS, strict=True)]  # fmt: skip
+
+    plain = {k: v for k, v in sheet.items() if k not in ("highpass_low_hz", "highpass_high_hz")}
+    before = {**plain, "highpass_hz": profiled["sensor"]["highpass_hz"]}
+    # through the true 4.5 Hz the betas read 0.984, 0.967, 1.018 of the truth; through the
+    # profile's 3.74 Hz 1.065, 1.011, 1.056
+    assert max(errors(plain)) < 0.05 < max(errors(before))
+
+
+def test_a_wrong_given_damping_keeps_the_profiled_corner_and_says_why(damped_campaign):
+    """A damping given ten times the rig's (0.2, a lab writing the contact's) implies a corner
+    far outside the contact laws' range: the profile is kept, its sheet unchanged, and the
+    reason asks whether the damping is right. A campaign whose rows give no damping is
+    returned as it is, the free flight never read."""
+    from serving.campaign_chain import campaign_highpass_damped
+
+    profiled = damped_campaign.profiled
+    got = campaign_highpass_damped(profiled, damped_campaign.free_damping, [9.48] * 3,
+                                   [0.2] * 3)  # fmt: skip
+    assert got["sensor"] == profiled["sensor"]
+    stage = got["stages"]["highpass_hz"]
+    assert stage["source"] == "contact_r2_profile"
+    assert "damping right" in stage["free_flight"]["kept"]
+    assert "the profiled corner kept" in got["reason"] and "0.2" in got["reason"]
+    calls = len(damped_campaign.calls)
+    assert campaign_highpass_damped(profiled, damped_campaign.free_damping, [9.48] * 3,
+                                    [None] * 3) is profiled  # fmt: skip
+    assert len(damped_campaign.calls) == calls
+    # a chain whose corner was not profiled (none pooled: each recording's own) stays as it is
+    auto = {"pooled": True, "sensor": {"highpass_hz": HIGHPASS_FITTED}, "stages": {}}
+    assert campaign_highpass_damped(auto, lambda *_: 1 / 0, [9.48], [0.02]) is auto
+
+
 SENSOR = {"resonance_hz": 190.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
 BETAS = (8.0, 20.0, 30.0, 45.0, 70.0, 90.0)
 

@@ -155,7 +155,9 @@ def campaign_predictions(
     corner, then a resonance near the contacts that refuses a recording, profiled over the
     campaign's contact laws, :func:`serving.campaign_chain.campaign_lowpass`,
     :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`); kept where it reads the contact
+    :func:`serving.campaign_chain.campaign_resonance`; last the corner from the free flight
+    where the rows give the rig's damping,
+    :func:`serving.campaign_chain.campaign_highpass_damped`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
     except on a recording whose own contact law it reads much worse
     (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
@@ -163,12 +165,14 @@ def campaign_predictions(
     """
     from serving.campaign_chain import (
         campaign_highpass,
+        campaign_highpass_damped,
         campaign_lowpass,
         campaign_resonance,
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
         contact_r2_through,
+        free_damping_through,
         identify_regardless,
         labelled,
         reads_alone,
@@ -201,6 +205,14 @@ def campaign_predictions(
     fns = [natural_frequency(row) for row in rows]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
     chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+
+    def free_damping(i: int, sheet: dict) -> float | None:
+        rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
+        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+        return free_damping_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
+
+    dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
+    chain = campaign_highpass_damped(chain, free_damping, fns, dampings, sheets)
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [

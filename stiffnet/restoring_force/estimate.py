@@ -180,6 +180,11 @@ class RestoringForceResult:
         Contact exponent ``p`` (1 linear, 1.5 Hertz).
     free_damping_ratio : float
         ``xi = c / (2 sqrt(k))``.
+    free_damping_fitted : float
+        The free flight's own least-squares ``xi``, before a negative one is replaced by the
+        profile over the contact law (``free_damping_ratio`` where none was): a high-pass
+        corner undone off by ``delta`` leaves about ``delta f_h / (2 f_n)`` in it, sign
+        included, which a campaign's corner reads (:mod:`serving.campaign_chain`).
     natural_frequency_hz : float
         ``f_f sqrt(k)`` (the given one when `stiffness_rule` is ``"given f_n"``).
     fitted_natural_frequency_hz : float or None
@@ -265,6 +270,7 @@ class RestoringForceResult:
     hunt_crossley: HuntCrossleyLaw | None = None
     penetration_over_table: float | None = None
     impact_onsets: ImpactOnsetLaw | None = None
+    free_damping_fitted: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-ready summary (no arrays)."""
@@ -1159,9 +1165,11 @@ def _estimate_at(
         chain_fit_below_r2, rivals=interval, profile=interval or chain_profile,
     )  # fmt: skip
     corner = m.corner
+    own_damping = float(m.info.get("free_damping_ratio", np.nan))
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
         m = _profile_free_damping(m, dtau, tau, use, period, k_given, exponent)
+    m.info["free_damping_fitted"] = own_damping
     fit, info = m.fit, m.info
     if chain is not None and chain.applied and highpass_hz == "auto":
         # the corner of the map that was read: a data sheet's "auto" is the record's own,
