@@ -6,7 +6,10 @@ The batch is the one the diagnosis's numerical-engine fits simulate in spirit: `
 forced rows driven into contact (beta 10-60, gap 0.2-0.8, w 0.8-1.6, xi 0.02), each
 ``--transient`` then ``--samples`` steps of a fortieth of its forcing period, 3 RK4
 substeps a step; every row has many located events (contacts; slip reversals and
-sticking with dry friction; the restraint's ringing). Each variant runs ``--repeats``
+sticking with dry friction; the restraint's ringing). The learned contact law runs as
+the measurement loop draws it: two-stage (the rig's discovered knee and ratio, in model
+units a knee of 0.05), Hunt-Crossley (the rig's alpha 0.356) and with a face of its own
+(mass 0.3, stiffness 40). Each variant runs ``--repeats``
 times, alternated, after one untimed run (numba's compilation, or its cache's load); the
 figure is the best CPU time (``time.process_time``) and trajectories per CPU second. The
 outputs of the two variants are compared (max abs difference over the range of each
@@ -26,6 +29,7 @@ import numpy as np
 
 from stiffnet.effects.dry_friction import DryFriction
 from stiffnet.effects.hertz_contact import HertzContact
+from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.restraint_mass import RestraintMass
 from stiffnet.simulator import numerical
 from stiffnet.simulator.batch import OscillatorBatch
@@ -60,12 +64,23 @@ def main() -> None:
     ap.add_argument("--samples", type=int, default=400)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--only", default="", help="effects whose name holds one of these words")
     args = ap.parse_args()
     print(f"load before: {os.getloadavg()[0]:.2f}")
     batch = _batch(args.rows, args.seed)
     print("| effect | numpy: CPU s (traj./CPU s) | compiled: CPU s (traj./CPU s) | ratio | "
           "max diff / range | bitwise |\n|---|---|---|---|---|---|")  # fmt: skip
-    for effect in (HertzContact(), DryFriction(coefficient=0.18), RestraintMass()):
+    effects = {
+        "hertz_contact": HertzContact(),
+        "dry_friction": DryFriction(coefficient=0.18),
+        "restraint_mass": RestraintMass(),
+        "learned two-stage": LearnedContact(knee=0.05, knee_ratio=2.436),
+        "learned Hunt-Crossley": LearnedContact(hunt_crossley=0.356),
+        "learned face": LearnedContact(face_mass=0.3, face_stiffness=40.0, face_damping=0.05),
+    }
+    for name, effect in effects.items():
+        if args.only and not any(w in name for w in args.only.split(",")):
+            continue
         p = effect.batch_params(args.rows, None)
         best = {False: np.inf, True: np.inf}
         outs = {}
@@ -84,7 +99,7 @@ def main() -> None:
             same &= bool(np.array_equal(a, b))
         rate = {k: args.rows / v for k, v in best.items()}
         ratio = best[False] / best[True]
-        print(f"| {effect.name} | {best[False]:.3f} ({rate[False]:.1f}) | {best[True]:.3f} "
+        print(f"| {name} | {best[False]:.3f} ({rate[False]:.1f}) | {best[True]:.3f} "
               f"({rate[True]:.1f}) | x{ratio:.2f} | {diff:.1e} | {same} |")  # fmt: skip
     numerical.COMPILED_STEP = True
     print(f"load after: {os.getloadavg()[0]:.2f}")

@@ -5,8 +5,10 @@ for the library's own numerical effects (the same IEEE operations in the same or
 Expectation: every output of the engine with the kernel equals the numpy path's (switched
 off by ``numerical.COMPILED_STEP``) to 1e-9 of its range (bitwise in practice), on each
 numerical effect, their combination, contact damping, a gap sinusoid, a forcing harmonic,
-sticking friction and the oversampled (dense-output) march; and an effect the kernel does
-not know runs the numpy path.
+sticking friction and the oversampled (dense-output) march; the learned contact law's
+terms each alone and together (second stage, preload, Hunt-Crossley and Kelvin-Voigt
+dissipation, a face of one and two modes, terms on some rows only), bit for bit; and an
+effect the kernel does not know, or a learned power law, runs the numpy path.
 """
 
 from __future__ import annotations
@@ -19,10 +21,12 @@ from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.dry_friction import DryFriction
 from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.hertz_contact import HertzContact
+from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.restraint_mass import RestraintMass
 from stiffnet.simulator import numerical as nm
+from stiffnet.simulator import rk4_kernel as rk
 from stiffnet.simulator.numerical import simulate_numerical
-from tests.test_simulator_numerical import W, _rm, paper_batch
+from tests.test_simulator_numerical import E, W, _rm, paper_batch
 
 K = 8
 REL_TOL = 1e-9
@@ -48,13 +52,25 @@ class PushyFriction(DryFriction):
         return 1.5 * super().extra_force(t, x, v, other, mode, p)
 
 
+#: A learned law whose terms differ by row (some rows without them), as a prior's draws or
+#: a subset of rows make them: the hooks add a term to every row once one row has it. Its
+#: rows' values are :data:`ROWWISE`'s (set by :func:`_params`).
+ROWWISE_LAW = LearnedContact(face_mass=0.2)
+#: Per-row values of :data:`ROWWISE_LAW` (three rows).
+ROWWISE = {"knee_ratio": np.array([1.0, 3.0, 2.0]), "knee": np.array([0.1, 0.05, 0.2]),
+           "preload": np.array([0.0, 0.0, 0.03]), "hunt_crossley": np.array([0.0, 0.5, 0.3]),
+           "face_mass": np.array([0.2, 0.0, 0.3])}  # fmt: skip
+
+
 def _params(effects: list[DynamicsEffect], n: int) -> list[ParamArrays]:
     rng = np.random.default_rng(0)
     out = []
     for e in effects:
         p = _rm(n) if isinstance(e, RestraintMass) else e.batch_params(n, rng)
         if isinstance(e, DryFriction):  # strong enough to stick at some reversals
-            p = {**p, "coefficient": np.array([0.3, 1.2, 2.0])}
+            p = {**p, "coefficient": np.resize([0.3, 1.2, 2.0], n)}
+        if e is ROWWISE_LAW:
+            p = {**p, **{k: np.resize(v, n) for k, v in ROWWISE.items()}}
         out.append(p)
     return out
 
@@ -73,6 +89,34 @@ def _run(effects: list[DynamicsEffect], compiled: bool, dense: bool = False):
         return simulate_numerical(batch, effects, p, x0, v0, 8 * h, 60, 8 * h, 600, 2)
 
 
+#: The learned law's terms, each alone, then together with the other effects.
+LEARNED_FACE = {"face_mass": 0.3, "face_stiffness": 40.0, "face_damping": 0.05}
+LEARNED_CASES = {
+    "learned_two_stage": [LearnedContact(knee=0.05, knee_ratio=3.0)],
+    "learned_preload": [LearnedContact(preload=0.02)],
+    "learned_hunt_crossley": [LearnedContact(hunt_crossley=0.5)],
+    "learned_kelvin_voigt": [LearnedContact(damping_ratio=0.1)],
+    "learned_face": [LearnedContact(**LEARNED_FACE)],
+    "learned_two_mode_face": [
+        LearnedContact(**LEARNED_FACE, face2_mass=0.1, face2_stiffness=400.0)
+    ],
+    "learned_all_terms": [
+        LearnedContact(
+            knee=0.05,
+            knee_ratio=2.5,
+            preload=0.02,
+            hunt_crossley=0.4,
+            damping_ratio=0.05,
+            **LEARNED_FACE,
+            face2_mass=0.1,
+            face2_stiffness=400.0,
+        ),
+        WobblingGap(),
+        ForcingHarmonics(),
+        DryFriction(),
+    ],
+    "learned_terms_on_some_rows": [ROWWISE_LAW, DryFriction()],
+}
 CASES = {
     "hertz": [HertzContact()],
     "dry_friction": [DryFriction()],
@@ -80,6 +124,7 @@ CASES = {
     "hertz_restraint_friction": [HertzContact(), RestraintMass(), DryFriction()],
     "friction_damped_contact": [ContactDamping(), DryFriction()],
     "hertz_wobbling_gap_harmonic": [HertzContact(), WobblingGap(), ForcingHarmonics()],
+    **LEARNED_CASES,
 }
 
 
@@ -95,8 +140,63 @@ def test_the_kernels_trajectories_are_numpys(name: str, dense: bool) -> None:
     assert old.impacts.sum() >= 10  # events to locate in every case
     for key in KEYS:
         a, b = getattr(new, key).astype(float), getattr(old, key).astype(float)
+        if name in LEARNED_CASES:  # the learned law's kernel is held to the bit
+            np.testing.assert_array_equal(a, b, err_msg=key)
         scale = max(float(np.ptp(b)), 1.0)
         assert np.max(np.abs(a - b)) <= REL_TOL * scale, key
+
+
+def _rhs_and_step(model: nm._Model, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
+    """``rhs(full=True)``'s outputs and one RK4 step of ``model`` at random states near the
+    learned laws' knee and face amplitudes, rows in and out of contact, every friction
+    mode."""
+    n = model.n
+    t = rng.uniform(0, 300, n)
+    y = np.column_stack([rng.normal(E + 0.05, 0.1, n), rng.normal(0, 1, n)]
+                        + [rng.normal(0, 0.02, n) for _ in range(model.n_y - 2)])  # fmt: skip
+    contact = np.arange(n) % 3 != 1
+    modes = np.zeros((len(model.effects), n))
+    if model.event_fx:
+        modes[model.event_fx[0]] = np.resize([0.0, 1.0, -1.0, 1.0], n)
+    dy, aux = model.rhs(t, y, contact, modes, full=True)
+    s = rng.uniform(0.001, 0.05, n)
+    step = nm._rk4(model, t, y, dy, s, contact, modes)
+    return (dy, step, *(aux[k] for k in sorted(aux)))
+
+
+@pytest.mark.parametrize("name", list(LEARNED_CASES))
+def test_the_learned_laws_right_hand_side_is_numpys_bit_for_bit(name: str) -> None:
+    """Each learned term's ``rhs(full=True)`` and RK4 step, on six rows and on a subset of
+    them (the event locator's), equal numpy's to the bit."""
+    effects = LEARNED_CASES[name]
+    batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
+    p = _params(effects, 6)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(nm, "COMPILED_STEP", False)
+        slow = nm._Model(batch, effects, p)
+    fast = nm._Model(batch, effects, p)
+    assert fast.kernel is not None and fast.kernel.learned and slow.kernel is None
+    for rows in (np.arange(6), np.array([0, 3]), np.array([4])):
+        a, b = fast.subset(rows), slow.subset(rows)
+        for x, y in zip(_rhs_and_step(a, np.random.default_rng(7)),
+                        _rhs_and_step(b, np.random.default_rng(7)), strict=True):  # fmt: skip
+            np.testing.assert_array_equal(x, y)
+
+
+def test_a_perturbed_learned_kernel_is_caught() -> None:
+    """The bitwise comparison sees one unit in the last place of one of the law's
+    coefficients (the stage slope) in the kernel's pack."""
+    effects = LEARNED_CASES["learned_all_terms"]
+    batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
+    p = _params(effects, 6)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(nm, "COMPILED_STEP", False)
+        slow = nm._Model(batch, effects, p)
+    fast = nm._Model(batch, effects, p)
+    fast._pack[:, rk._SLOPE] = np.nextafter(fast._pack[:, rk._SLOPE], np.inf)
+    got = _rhs_and_step(fast, np.random.default_rng(7))
+    want = _rhs_and_step(slow, np.random.default_rng(7))
+    assert any(not np.array_equal(x, y) for x, y in zip(got, want, strict=True))
 
 
 def test_sticking_friction_is_exercised() -> None:
@@ -134,15 +234,28 @@ def test_the_kernels_right_hand_side_is_numpys_bit_for_bit() -> None:
     )
 
 
+class StiffeningLaw(LearnedContact):
+    """A user's subclass of the learned law: it may override a hook, so numpy's path."""
+
+    name = "stiffening_law"
+
+
 @pytest.mark.parametrize(
     "effects",
-    [[PushyFriction()], [HertzContact(), HertzContact()]],
-    ids=["user_subclass", "two_of_a_kind"],
-)
+    [
+        [PushyFriction()],
+        [StiffeningLaw(knee_ratio=2.0)],
+        [LearnedContact(exponent=1.5)],  # numpy's SIMD pow is not the C library's
+        [HertzContact(), HertzContact()],
+        [HertzContact(), LearnedContact()],
+    ],
+    ids=["user_subclass", "learned_subclass", "learned_power_law", "two_of_a_kind",
+         "two_elastic_laws"],
+)  # fmt: skip
 def test_a_model_the_kernel_does_not_know_runs_numpys_path(effects) -> None:
     batch = paper_batch()
     params = _params(effects, len(batch))
     if len(effects) == 2:  # two elastic laws are refused by the engine itself
-        assert nm.kernel_form(effects, Sinusoids.empty(3), Sinusoids.empty(3)) is None
+        assert nm.kernel_form(effects, params, Sinusoids.empty(3), Sinusoids.empty(3)) is None
         return
     assert nm._Model(batch, effects, params).kernel is None

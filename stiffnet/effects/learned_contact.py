@@ -92,11 +92,58 @@ def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -
     return np.where(p == 1.0, d, dr * (d / dr) ** p)
 
 
+def stage_slope(p: Mapping[str, Any]) -> np.ndarray:
+    """``r - 1``: the second stage's slope per unit beta beyond the knee."""
+    return np.asarray(p["knee_ratio"], float) - 1.0
+
+
+def hunt_crossley_gain(p: Mapping[str, Any], beta: Any) -> np.ndarray:
+    """``beta alpha``: the Hunt-Crossley force per unit ``d_r (delta / d_r)**p delta'``."""
+    return np.asarray(beta, float) * np.asarray(p["hunt_crossley"], float)
+
+
+def mode_coefficients(
+    mass: Any, stiffness: Any, damping: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One mode of the face: ``(has, m, c)``, whether the row has the mode (its mass > 0),
+    the mass it divides by (1 where it has none) and its support's damping
+    ``2 zeta sqrt(kappa m)``."""
+    mu = np.asarray(mass, float)
+    has = mu > 0
+    m = np.where(has, mu, 1.0)
+    return has, m, 2.0 * damping * np.sqrt(stiffness * m)
+
+
+def law_coefficients(p: Mapping[str, Any], beta: Any) -> dict[str, np.ndarray]:
+    """The law's per-row coefficients as its hooks compute them, for a compiled right-hand
+    side (:mod:`stiffnet.simulator.rk4_kernel`): the knee, the stage slope
+    (:func:`stage_slope`), the preload, the Hunt-Crossley gain (:func:`hunt_crossley_gain`)
+    and each face mode's ``has, m, c`` (:func:`mode_coefficients`) with its stiffness
+    (``face_*`` and ``face2_*``)."""
+    out = {
+        "knee": np.asarray(p["knee"], float),
+        "stage_slope": stage_slope(p),
+        "preload": np.asarray(p["preload"], float),
+        "hunt_crossley_gain": hunt_crossley_gain(p, beta),
+    }
+    for mode in ("face", "face2"):
+        stiffness = p[f"{mode}_stiffness"]
+        has, m, c = mode_coefficients(p[f"{mode}_mass"], stiffness, p[f"{mode}_damping"])
+        out.update({f"{mode}_has": has, f"{mode}_m": m, f"{mode}_c": c,
+                    f"{mode}_stiffness": np.asarray(stiffness, float)})  # fmt: skip
+    return out
+
+
+def linear_leading_term(p: Mapping[str, Any]) -> bool:
+    """Whether the law's leading term is linear (``p = 1``) on every row."""
+    return not np.any(np.asarray(p["exponent"], float) != 1.0)
+
+
 def elastic_shape(delta: np.ndarray, p: dict[str, Any]) -> np.ndarray:
     """The elastic part of ``shape`` (per unit beta) for penetrations ``delta >= 0``."""
     d = np.maximum(delta, 0.0)
     lead = leading_term(d, p["exponent"], p["reference_penetration"])
-    stage = (np.asarray(p["knee_ratio"], float) - 1.0) * np.maximum(d - p["knee"], 0.0)
+    stage = stage_slope(p) * np.maximum(d - p["knee"], 0.0)
     preload = np.asarray(p["preload"], float)
     # without a preload on any row its term is zeros: skipped (see leading_term)
     if preload.shape in ((), d.shape) and not np.any(preload):
@@ -148,10 +195,7 @@ def _mode_derivative(
 ) -> np.ndarray:
     """``(y', y'')`` of one mode of the face pushed by the contact force, (B, 2); rows whose
     mode has no mass stay at rest."""
-    mu = np.asarray(mass, float)
-    has = mu > 0
-    m = np.where(has, mu, 1.0)
-    c = 2.0 * damping * np.sqrt(stiffness * m)
+    has, m, c = mode_coefficients(mass, stiffness, damping)
     y, w = s[:, 0], s[:, 1]
     out = np.empty_like(s)
     out[:, 0] = np.where(has, w, 0.0)
@@ -323,12 +367,10 @@ class LearnedContact(DynamicsEffect):
         """:meth:`elastic_contact` for these rows: where the law is linear on every row and
         has no preload (the usual two-stage law), ``beta (delta + (r - 1) max(delta - k, 0))``
         without deciding so again at each call (the same numbers, fewer numpy calls)."""
-        exponent = np.asarray(p["exponent"], float)
-        preload = np.asarray(p["preload"], float)
-        if np.any(exponent != 1.0) or np.any(preload):
+        if not linear_leading_term(p) or np.any(np.asarray(p["preload"], float)):
             return super().bound_elastic_contact(p, batch)
         beta = np.asarray(batch.beta, float)
-        ratio = np.asarray(p["knee_ratio"], float) - 1.0
+        ratio = stage_slope(p)
         knee = p["knee"]
 
         def elastic(delta: np.ndarray) -> np.ndarray:
@@ -360,4 +402,4 @@ class LearnedContact(DynamicsEffect):
         if alpha.shape in ((), np.shape(delta)) and not np.any(alpha):
             return np.zeros(np.shape(delta))
         lead = leading_term(delta, p["exponent"], p["reference_penetration"])
-        return np.asarray(batch.beta, float) * alpha * lead * rate
+        return hunt_crossley_gain(p, batch.beta) * lead * rate

@@ -254,10 +254,16 @@ class _Partial:
         self.t, self.y, self.f = st["t"][rows], st["y"][rows], st["f"][rows]
         self.c, self.mo = st["contact"][rows], st["modes"][:, rows]
         self.seen: list[tuple[np.ndarray, np.ndarray]] = []
+        # one row (most events): the states by their step length, a dict lookup where the
+        # list's search costs numpy calls per state already computed (the secant's
+        # evaluations grow it by one each)
+        self.one: dict[float, np.ndarray] | None = {} if rows.size == 1 else None
 
     def state(self, s: np.ndarray) -> np.ndarray:
         """The state after a partial step of length ``s`` (per row)."""
         y = _rk4(self.m, self.t, self.y, self.f, s, self.c, self.mo)
+        if self.one is not None:
+            self.one[float(s[0])] = y
         self.seen.append((s, y))
         return y
 
@@ -307,7 +313,13 @@ class _Partial:
         return fun
 
     def state_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(found (R,), states (R, n_y)): the states already computed at exactly ``s``."""
+        """(found (R,), states (R, n_y)): the states already computed at exactly ``s`` (the
+        latest where one was computed twice)."""
+        if self.one is not None:
+            y = self.one.get(float(s[0]))
+            if y is None:
+                return np.zeros(1, dtype=bool), np.empty_like(self.y)
+            return np.ones(1, dtype=bool), y.copy()
         found = np.zeros(s.size, dtype=bool)
         out = np.empty_like(self.y)
         for s_k, y_k in reversed(self.seen):

@@ -199,7 +199,7 @@ class _Model:
             (k, sl) for k, sl in self.slices if _overrides(effects[k], "restraint_position")
         ]
         self._set_rows(batch, params, forcing, gap, cc)
-        self.kernel = kernel_form(effects, forcing, gap) if COMPILED_STEP else None
+        self.kernel = kernel_form(effects, params, forcing, gap) if COMPILED_STEP else None
         self._pack = (
             None
             if self.kernel is None

@@ -4,14 +4,21 @@ Event location marches one or two rows at a time through RK4 partial steps (two 
 per event, each of three right-hand sides), where numpy's cost per call on one-element
 arrays, not the arithmetic, is the engine's cost. Where every dynamics effect of a model
 is one this module knows (:data:`KNOWN_EFFECTS`: the Hertz contact law, dry friction, the
-restraint's own mass; the effects that only add forcing or gap sinusoids or contact
-damping are folded into the model's arrays), :func:`rk4_step` takes the step in one
-compiled loop over the rows: the same IEEE operations in the same order as
+restraint's own mass, the learned contact law; the effects that only add forcing or gap
+sinusoids or contact damping are folded into the model's arrays), :func:`rk4_step` takes
+the step in one compiled loop over the rows: the same IEEE operations in the same order as
 :meth:`~stiffnet.simulator.numerical._Model.rhs` (``full=False``) and
 :func:`~stiffnet.simulator.rk4._rk4`, so bitwise the same states. Any other effect (a
-user's, the learned contact law), or more than :data:`MAX_TERMS` sinusoids, keeps the
-numpy path. The switching data (``aux``), the root finders and the switch stay in
-Python (:mod:`.events`).
+user's), or more than :data:`MAX_TERMS` sinusoids, keeps the numpy path.
+
+The learned law (:class:`~stiffnet.effects.learned_contact.LearnedContact`) runs here with
+a linear leading term on every row (``exponent`` 1): its second stage, preload,
+Hunt-Crossley and Kelvin-Voigt dissipation and its face's one or two modes. A power-law
+leading term keeps numpy's path: numpy's ``**`` on float arrays is its own SIMD
+``pow`` (SVML on AVX-512 machines), which differs from the C library's, numba's, in the
+last bit on about one value in twenty. Its coefficients come from the law's own
+:func:`~stiffnet.effects.learned_contact.law_coefficients`. The switching data
+(``aux``), the root finders and the switch stay in Python (:mod:`.events`).
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import numpy as np
 from stiffnet.effects.base import DynamicsEffect, ParamArrays, Sinusoids
 from stiffnet.effects.dry_friction import STUCK, DryFriction
 from stiffnet.effects.hertz_contact import HertzContact
+from stiffnet.effects.learned_contact import LearnedContact, law_coefficients, linear_leading_term
 from stiffnet.effects.restraint_mass import RestraintMass
 
 if TYPE_CHECKING:
@@ -33,7 +41,7 @@ if TYPE_CHECKING:
 
 #: The effects whose numerical hooks the kernel reproduces (their exact classes: a
 #: subclass may override a hook).
-KNOWN_EFFECTS = (HertzContact, DryFriction, RestraintMass)
+KNOWN_EFFECTS = (HertzContact, DryFriction, RestraintMass, LearnedContact)
 #: The hooks an effect may override and still run here when it is one of the known.
 _HOOKS = (
     "elastic_contact",
@@ -49,7 +57,10 @@ MAX_TERMS = 4
 
 # the per-row pack's columns
 _E0, _XI2, _BETA, _CC, _KH, _MUK, _MUS, _MU, _KAPPA, _RDAMP = range(10)
-_FORCING = 10  # amp, freq, phase per term, MAX_TERMS terms
+_KNEE, _SLOPE, _PRE, _HCG = range(10, 14)  # the learned law's
+_FACE = 14  # the learned face's modes: has, m, stiffness, c per mode, two modes
+_MODE_KEYS = ("has", "m", "stiffness", "c")
+_FORCING = _FACE + 2 * len(_MODE_KEYS)  # amp, freq, phase per term, MAX_TERMS terms
 _GAP = _FORCING + 3 * MAX_TERMS
 _N_COLS = _GAP + 3 * MAX_TERMS
 
@@ -60,7 +71,9 @@ class KernelForm:
 
     ``hertz``: the elastic law is the Hertz one (else ``beta delta``); ``friction``: the
     index of the dry-friction effect in the model's effects (its mode row), -1 if none;
-    ``restraint``: the restraint's mass states sit at columns 2-3 of the state.
+    ``restraint``: the restraint's mass states sit at columns 2-3 of the state;
+    ``learned``: the contact law is the learned one (linear leading term), whose face's
+    ``n_face`` modes sit at columns 2-3 and 4-5.
     """
 
     hertz: bool
@@ -68,16 +81,23 @@ class KernelForm:
     restraint: bool
     n_forcing: int
     n_gap: int
+    learned: bool = False
+    n_face: int = 0
 
 
 def kernel_form(
-    effects: list[DynamicsEffect], forcing: Sinusoids, gap: Sinusoids
+    effects: list[DynamicsEffect],
+    params: list[ParamArrays],
+    forcing: Sinusoids,
+    gap: Sinusoids,
 ) -> KernelForm | None:
     """The model's :class:`KernelForm`, or None where the kernel cannot reproduce its
-    right-hand side (an unknown effect overriding a numerical hook, two of a kind, too
-    many sinusoids)."""
+    right-hand side (an unknown effect overriding a numerical hook, two of a kind, two
+    elastic laws, a learned law with a power-law leading term on a row, too many
+    sinusoids)."""
     seen: set[type] = set()
     friction = -1
+    n_face = 0
     for k, eff in enumerate(effects):
         hooks = [h for h in _HOOKS if getattr(type(eff), h) is not getattr(DynamicsEffect, h)]
         if not hooks and not eff.n_states:
@@ -87,7 +107,13 @@ def kernel_form(
         seen.add(type(eff))
         if type(eff) is DryFriction:
             friction = k
+        if type(eff) is LearnedContact:
+            if not linear_leading_term(params[k]):
+                return None
+            n_face = eff.n_states // 2
     if forcing.amp.shape[1] > MAX_TERMS or gap.amp.shape[1] > MAX_TERMS:
+        return None
+    if HertzContact in seen and LearnedContact in seen:
         return None
     if RestraintMass in seen and any(e.n_states for e in effects if type(e) is not RestraintMass):
         return None
@@ -97,6 +123,8 @@ def kernel_form(
         restraint=RestraintMass in seen,
         n_forcing=forcing.amp.shape[1],
         n_gap=gap.amp.shape[1],
+        learned=LearnedContact in seen,
+        n_face=n_face,
     )
 
 
@@ -125,6 +153,13 @@ def kernel_pack(
             mu, kappa = p["mass_ratio"], p["stiffness_ratio"]
             pack[:, _MU], pack[:, _KAPPA] = mu, kappa
             pack[:, _RDAMP] = 2.0 * p["damping_ratio"] * np.sqrt(kappa * mu)
+        elif type(eff) is LearnedContact:
+            law = law_coefficients(p, batch.beta)
+            pack[:, _KNEE], pack[:, _SLOPE] = law["knee"], law["stage_slope"]
+            pack[:, _PRE], pack[:, _HCG] = law["preload"], law["hunt_crossley_gain"]
+            for j, mode in enumerate(("face", "face2")):
+                for c, key in enumerate(_MODE_KEYS):
+                    pack[:, _FACE + len(_MODE_KEYS) * j + c] = law[f"{mode}_{key}"]
     for col, sines, n_terms in ((_FORCING, forcing, form.n_forcing), (_GAP, gap, form.n_gap)):
         for j in range(n_terms):
             pack[:, col + 3 * j] = sines.amp[:, j]
@@ -153,8 +188,25 @@ def _sines(p, col, n_terms, t, rate):
 
 
 @_jit
+def _clip(x):
+    """``np.maximum(x, 0.0)`` (NaN propagated)."""
+    return x if (x >= 0.0 or x != x) else 0.0
+
+
+@_jit
+def _learned_flags(pack):
+    """Whether any row has a preload, and any the Hunt-Crossley term: the learned law's
+    hooks add those terms to every row of a model where one row has them."""
+    has_pre, has_diss = False, False
+    for i in range(pack.shape[0]):
+        has_pre = has_pre or pack[i, _PRE] != 0.0
+        has_diss = has_diss or pack[i, _HCG] != 0.0
+    return has_pre, has_diss
+
+
+@_jit
 def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restraint,
-         n_gap, dy):  # fmt: skip
+         n_gap, learned, n_face, has_pre, has_diss, dy):  # fmt: skip
     """dy/dt of one row into ``dy`` (``_Model.rhs``); ``f_t`` the forcing at ``t``.
     Returns what the switching data are made of: ``delta, dd, fpot, base, total`` and the
     friction force ``fk`` (0 without friction)."""
@@ -167,14 +219,28 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
     yr, dyr = 0.0, 0.0
     if restraint:
         yr, dyr = 0.0 + y[2], 0.0 + y[3]
+    elif n_face:  # LearnedContact.restraint_position and restraint_rate
+        r = y[2] if n_face == 1 else y[2] + y[4]
+        rate = y[3] if p[_FACE] != 0.0 else 0.0
+        if n_face == 2:
+            rate = rate + (y[5] if p[_FACE + len(_MODE_KEYS)] != 0.0 else 0.0)
+        yr, dyr = 0.0 + r, 0.0 + rate
     delta = x - e - yr
     dd = v - de - dyr
     if hertz:
         d = delta if delta > 0.0 else 0.0
         elastic = p[_KH] * d * math.sqrt(d)
+    elif learned:  # beta (d + (r - 1) max(d - knee, 0) [+ preload]), d = max(delta, 0)
+        d = _clip(delta)
+        shape = d + p[_SLOPE] * _clip(d - p[_KNEE])
+        if has_pre:
+            shape = shape + (p[_PRE] if d > 0.0 else 0.0)
+        elastic = p[_BETA] * shape
     else:
         elastic = p[_BETA] * delta
     fpot = elastic + p[_CC] * dd if has_cc else elastic
+    if has_diss:  # Hunt-Crossley: beta alpha max(delta, 0) delta'
+        fpot = fpot + p[_HCG] * _clip(delta) * dd
     fc = fpot if contact else 0.0
     base = f_t - p[_XI2] * v - x - fc
     total = base
@@ -187,16 +253,24 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
     if restraint:
         dy[2] = y[3]
         dy[3] = (fc - p[_KAPPA] * y[2] - p[_RDAMP] * y[3]) / p[_MU]
+    for j in range(n_face):  # LearnedContact.state_derivative: rows without a mode rest
+        col, s = _FACE + len(_MODE_KEYS) * j, 2 + 2 * j
+        if p[col] != 0.0:
+            dy[s] = y[s + 1]
+            dy[s + 1] = (fc - p[col + 2] * y[s] - p[col + 3] * y[s + 1]) / p[col + 1]
+        else:
+            dy[s], dy[s + 1] = 0.0, 0.0
     return delta, dd, fpot, base, total, fk
 
 
 @_jit
 def _rk4_rows(pack, t, y, k1, s, contact, modes, fric, has_gap, has_cc, hertz, restraint,
-              n_forcing, n_gap, out, k2, k3, k4):  # fmt: skip
+              n_forcing, n_gap, learned, n_face, out, k2, k3, k4):  # fmt: skip
     """:func:`~stiffnet.simulator.rk4._rk4` row by row, its stages into ``k2, k3, k4``."""
     n_y = y.shape[1]
     tmp = np.empty(n_y)
     friction = fric >= 0
+    has_pre, has_diss = _learned_flags(pack) if learned else (False, False)
     for i in range(y.shape[0]):
         p = pack[i]
         mode = modes[fric, i] if friction else 0.0
@@ -206,17 +280,17 @@ def _rk4_rows(pack, t, y, k1, s, contact, modes, fric, has_gap, has_cc, hertz, r
         for c in range(n_y):
             tmp[c] = y[i, c] + half * k1[i, c]
         _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, k2[i])  # fmt: skip
+             n_gap, learned, n_face, has_pre, has_diss, k2[i])  # fmt: skip
         for c in range(n_y):
             tmp[c] = y[i, c] + half * k2[i, c]
         _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, k3[i])  # fmt: skip
+             n_gap, learned, n_face, has_pre, has_diss, k3[i])  # fmt: skip
         for c in range(n_y):
             tmp[c] = y[i, c] + s[i] * k3[i, c]
         t4 = t[i] + s[i]
         f4 = _sines(p, _FORCING, n_forcing, t4, False)
         _rhs(p, t4, tmp, contact[i], mode, f4, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, k4[i])  # fmt: skip
+             n_gap, learned, n_face, has_pre, has_diss, k4[i])  # fmt: skip
         w = s[i] / 6.0
         for c in range(n_y):
             out[i, c] = y[i, c] + w * (k1[i, c] + 2.0 * (k2[i, c] + k3[i, c]) + k4[i, c])
@@ -245,7 +319,8 @@ def rk4_step(
     _rk4_rows(
         pack, np.ascontiguousarray(t, dtype=float), y, k1, np.ascontiguousarray(s, dtype=float),
         np.ascontiguousarray(contact, dtype=np.bool_), modes, form.friction, has_gap, has_cc,
-        form.hertz, form.restraint, form.n_forcing, form.n_gap, out, k2, k3, k4,
+        form.hertz, form.restraint, form.n_forcing, form.n_gap, form.learned, form.n_face,
+        out, k2, k3, k4,
     )  # fmt: skip
     return out, (k1, k2, k3, k4)
 
@@ -256,22 +331,28 @@ AUX_ROWS = ("G", "Gr", "dd", "delta", "fc", "extra")
 
 @_jit
 def _rhs_rows(pack, t, y, contact, modes, fric, has_gap, has_cc, hertz, restraint,
-              n_forcing, n_gap, dy, block, other, g):  # fmt: skip
+              n_forcing, n_gap, learned, n_face, dy, block, other, g):  # fmt: skip
     """``_Model.rhs(full=True)`` row by row: dy/dt into ``dy``, the switching data into
     ``block`` (:data:`AUX_ROWS`), ``other`` (B, n_effects) and ``g`` (B, 1 with friction)."""
     friction = fric >= 0
+    has_pre, has_diss = _learned_flags(pack) if learned else (False, False)
     for i in range(y.shape[0]):
         p = pack[i]
         mode = modes[fric, i] if friction else 0.0
         f_t = _sines(p, _FORCING, n_forcing, t[i], False)
         delta, dd, fpot, base, total, fk = _rhs(
             p, t[i], y[i], contact[i], mode, f_t, has_gap, has_cc, hertz, friction,
-            restraint, n_gap, dy[i],
+            restraint, n_gap, learned, n_face, has_pre, has_diss, dy[i],
         )  # fmt: skip
         g_contact = delta if (delta < fpot or delta != delta) else fpot  # np.minimum
+        # the root function: G where contact damping acts on the row, else delta; with a
+        # law that has a penetration-dependent dissipation hook (the learned one, whether or
+        # not its term is on), G while the mass leaves, else delta
+        if learned:
+            block[1, i] = g_contact if dd < 0 else delta
+        else:
+            block[1, i] = (g_contact if p[_CC] != 0 else delta) if has_cc else delta
         block[0, i] = g_contact
-        # the root function: G where contact damping acts on the row, else delta
-        block[1, i] = (g_contact if p[_CC] != 0 else delta) if has_cc else delta
         block[2, i], block[3, i] = dd, delta
         pos = fpot if (fpot > 0.0 or fpot != fpot) else 0.0  # np.maximum(fpot, 0)
         block[4, i] = pos if contact[i] else 0.0
@@ -308,7 +389,7 @@ def rhs_full(
         pack, np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
         np.ascontiguousarray(contact, dtype=np.bool_), np.ascontiguousarray(modes, dtype=float),
         form.friction, has_gap, has_cc, form.hertz, form.restraint, form.n_forcing,
-        form.n_gap, dy, block, other, g,
+        form.n_gap, form.learned, form.n_face, dy, block, other, g,
     )  # fmt: skip
     aux = dict(zip(AUX_ROWS, block, strict=True))
     aux["other"], aux["g"] = other, g
