@@ -682,8 +682,23 @@ def campaign_lowpass_minority(
                          f"contact laws read as well without one (median log-misfit {none:.2f}; "
                          f"{misfit:.2f} at {corner:.0f} Hz order {order})")  # fmt: skip
         return out
+    grid = _lowpass_grid(corners)
+    if np.isclose(corner, grid[0]) or np.isclose(corner, grid[-1]):  # the laws may read beyond
+        stage["at_grid_end"] = True
+        shown += (f"; at the end of the corners profiled, {grid[0]:.0f}-{grid[-1]:.0f} Hz: the "
+                  "interval does not reach beyond it")  # fmt: skip
     chain = {**chain, "stages": {**chain["stages"], "lowpass_hz": stage}}
     return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit, shown)
+
+
+def _lowpass_grid(corners: np.ndarray) -> np.ndarray:
+    """The low-pass profile's candidate corners around the fitted `corners`: steps of
+    :data:`FIT_SCATTER` from :data:`LOWPASS_STEPS_BELOW` below the lowest to
+    :data:`LOWPASS_STEPS_ABOVE` above the highest, at most :data:`MAX_LOWPASS_GRID`."""
+    step = np.log1p(FIT_SCATTER)
+    lo = np.log(corners.min()) - LOWPASS_STEPS_BELOW * step
+    hi = np.log(corners.max()) + LOWPASS_STEPS_ABOVE * step
+    return np.exp(np.linspace(lo, hi, int(min(MAX_LOWPASS_GRID, np.ceil((hi - lo) / step) + 1))))
 
 
 def _profiled_lowpass(
@@ -702,10 +717,7 @@ def _profiled_lowpass(
     from scipy import optimize
 
     orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
-    step = np.log1p(FIT_SCATTER)
-    lo = np.log(corners.min()) - LOWPASS_STEPS_BELOW * step
-    hi = np.log(corners.max()) + LOWPASS_STEPS_ABOVE * step
-    grid = np.exp(np.linspace(lo, hi, int(min(MAX_LOWPASS_GRID, np.ceil((hi - lo) / step) + 1))))
+    grid = _lowpass_grid(corners)
     memo: dict[tuple[int, float], np.ndarray] = {}
 
     def misfit(order: int, corner: float) -> np.ndarray:  # each recording's share unexplained

@@ -675,6 +675,9 @@ def test_a_lowpass_fewer_than_half_the_chains_show_is_profiled_with_none_a_candi
     assert sheet["resonance_hz"] == chain["sensor"]["resonance_hz"]
     assert got["stages"]["lowpass_hz"]["showing"] == 1
     assert "shown by 1 of the 3 identified chains" in got["reason"]
+    assert "at_grid_end" not in got["stages"]["lowpass_hz"]  # 371 Hz lies inside 259-380 Hz
+    edge = campaign_lowpass_minority(chain, sensors, _minority_table(450.0, without=50.0))
+    assert edge["stages"]["lowpass_hz"]["at_grid_end"] and "end of the corners" in edge["reason"]
     assert check_sensor_sheet(sheet, 2420.0) == sheet
     # the contact laws read best without a low-pass: none added, and the reason says so
     kept = campaign_lowpass_minority(chain, sensors, _minority_table(371.0, without=0.5))
