@@ -234,6 +234,7 @@ def pooled_predictions(
         campaign_highpass,
         campaign_highpass_damped,
         campaign_lowpass,
+        campaign_lowpass_minority,
         campaign_resonance,
         confirmed,
         contact_r2_through,
@@ -289,6 +290,9 @@ def pooled_predictions(
         chain = campaign_resonance(chain,
                                    lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
                                    [recs[i]["fn_hz"] for i in idx])  # fmt: skip
+        chain = campaign_lowpass_minority(
+            chain, sensors, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet)
+        )
         chain = campaign_highpass_damped(chain,
                                          lambda j, sheet, idx=idx: free_damping(idx[j], sheet),
                                          [recs[i]["fn_hz"] for i in idx],

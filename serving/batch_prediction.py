@@ -55,6 +55,7 @@ from serving.campaign_chain import (
     campaign_highpass,
     campaign_highpass_damped,
     campaign_lowpass,
+    campaign_lowpass_minority,
     campaign_resonance,
     chain_fitted_regardless,
     confirmed,
@@ -531,8 +532,9 @@ def _campaign_chain(
     refuses a recording, is profiled over the recordings read through the pooled chain
     (:func:`serving.campaign_chain.campaign_lowpass`,
     :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`); last the corner from the free flight
-    where the manifest's rows give the rig's damping (`dampings`,
+    :func:`serving.campaign_chain.campaign_resonance`), then a low-pass fewer than half the
+    chains show (:func:`serving.campaign_chain.campaign_lowpass_minority`); last the corner
+    from the free flight where the manifest's rows give the rig's damping (`dampings`,
     :func:`serving.campaign_chain.campaign_highpass_damped`)."""
     from stiffnet.recordings import read_recording
 
@@ -572,6 +574,7 @@ def _campaign_chain(
     fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
     chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+    chain = campaign_lowpass_minority(chain, sensors, contact_r2, sheets)
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = recording(i)

@@ -67,6 +67,11 @@ mount 2-4 % off in frequency and a third off in damping leaves ringing around ea
 and the contacts read as lasting too long (refused). A refused reading counts as force
 unexplained, the candidate that reads the most recordings wins, and the pool is kept unless
 one reads more than it does: a pool that reads every recording is never moved.
+A low-pass that fewer than half the identified chains show is no pooled stage; it is then
+profiled the same way over the pooled chain as it stands (:func:`campaign_lowpass_minority`),
+with "no low-pass" a candidate, and kept only where it reads the contact laws better: well
+above the contacts only the recordings whose laws asked for a chain fit show it (the rig's
+371 Hz order 3 behind a 217 Hz mount, shown by one fit of three).
 Where the gated fits identify too few chains to pool (:data:`MIN_IDENTIFIED`), the chain is
 fitted again regardless of the gate on every recording that fitted none
 (:func:`identify_regardless`), and those fits are pooled as above. The gate spares a single
@@ -581,8 +586,6 @@ def campaign_lowpass(
         ``stages["lowpass_hz"]`` (value, order, interval, the median the pool compared, the
         fitted corners, the recordings profiled on), and the reason extended.
     """
-    from scipy import optimize
-
     sheets = list(sheets) if sheets is not None else [None] * len(sensors)
     base = chain.get("sensor") if chain.get("pooled") else chain.get("unpooled_sheet")
     todo = [i for i, own in enumerate(sheets) if own is None]
@@ -595,25 +598,143 @@ def campaign_lowpass(
         return chain
     corners = np.array([float(s["lowpass_hz"]) for s in fits])
     fitted_orders = {int(round(s.get("lowpass_order") or 2)) for s in fits}
-    orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
+    best = _profiled_lowpass(base, todo, contact_r2, corners, fitted_orders)
+    if best is None:
+        return chain
+    order, corner, interval, read, misfit, _ = best
+    return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit)
+
+
+def campaign_lowpass_minority(
+    chain: dict[str, Any],
+    sensors: Sequence[dict | None],
+    contact_r2: Callable[[int, dict[str, Any]], float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with a low-pass that fewer than half of the identified chains show profiled over
+    the campaign, "no low-pass" a candidate beside it, where the pool holds none.
+
+    The pool counts a stage only where at least half the identified chains show it
+    (:func:`~stiffnet.restoring_force.chain.shared_chain`), and :func:`campaign_lowpass` profiles
+    only a stage the pool counted. A recording's chain fit shows a low-pass well above the
+    contacts only where its contact law asks for one: behind the rig's 371 Hz order-3 low-pass
+    (contacts up to 96 Hz), one of a campaign's three fits showed it (345 Hz order 2), and the
+    campaign was read without it. Its contact laws do see it once the resonance is right: read
+    through the profiled resonance, their median log-misfit was 0.33 without a low-pass and
+    0.09 with the true one. So it runs after :func:`campaign_resonance`, on the pooled chain as
+    it stands. A single fit may also be a spurious stage, so the pool without a low-pass is a
+    candidate, and a low-pass is added only where one reads the contact laws better (the rule
+    of :func:`campaign_lowpass`; every order of :data:`LOWPASS_ORDERS` beside the fitted ones,
+    since one or two fits agree on no order). Either way the stage is reported
+    (``stages["lowpass_hz"]``: the fits that showed it, the best corner and its misfit, the
+    misfit without one) and the reason says which was kept.
+
+    Returned as it is: an unpooled chain, one whose pool holds a low-pass or whose low-pass
+    :func:`campaign_lowpass` already judged, one whose identified chains show none, and one
+    whose pool leaves the high-pass to each recording
+    (:data:`~stiffnet.restoring_force.chain.HIGHPASS_FITTED`: every reading would profile its
+    own corner).
+
+    Parameters
+    ----------
+    chain : dict
+        The campaign's decision (:func:`campaign_chain`, after the profiles).
+    sensors : sequence of dict or None
+        The restoring-force ``sensor`` per recording that the decision pooled.
+    contact_r2 : callable
+        Recording index and data sheet to that recording's contact-law R² (None: no law).
+    sheets : sequence of dict or None, optional
+        Each recording's own data sheet (read with it, not profiled).
+
+    Returns
+    -------
+    dict
+        `chain`, with the low-pass profiled into its ``sensor`` where one reads best, its
+        ``stages["lowpass_hz"]`` and the reason extended either way.
+    """
+    sheets = list(sheets) if sheets is not None else [None] * len(sensors)
+    base = chain.get("sensor") if chain.get("pooled") else None
+    todo = [i for i, own in enumerate(sheets) if own is None]
+    if not base or base.get("lowpass_hz") or "lowpass_hz" in chain.get("stages", {}) or not todo:
+        return chain
+    if base.get("highpass_hz") == HIGHPASS_FITTED:
+        return chain
+    votes = [s for i, s in enumerate(sensors) if i in todo and identified(s)]
+    fits = [s for s in votes if s.get("lowpass_hz")]
+    if not fits:
+        return chain
+    corners = np.array([float(s["lowpass_hz"]) for s in fits])
+    orders = {*(int(round(s.get("lowpass_order") or 2)) for s in fits), *LOWPASS_ORDERS}
+    best = _profiled_lowpass(base, todo, contact_r2, corners, orders, none_too=True)
+    if best is None:
+        return chain
+    order, corner, interval, read, misfit, none = best
+    shown = f"shown by {len(fits)} of the {len(votes)} identified chains"
+    stage = {"value": float(np.median(corners)), "showing": len(fits), "identified": len(votes),
+             "none_median_log_misfit": none}  # fmt: skip
+    if none <= misfit:  # the pool without a low-pass reads the contact laws as well
+        stage.update(value=None, fitted=sorted(float(c) for c in corners), best=corner,
+                     best_order=order, best_median_log_misfit=misfit,
+                     profiled_on=int(read.sum()))  # fmt: skip
+        out = {**chain, "stages": {**chain["stages"], "lowpass_hz": stage}}
+        out["reason"] = (f"{chain['reason']}; a low-pass {shown} "
+                         f"({corners.min():.0f}-{corners.max():.0f} Hz) not kept: the campaign's "
+                         f"contact laws read as well without one (median log-misfit {none:.2f}; "
+                         f"{misfit:.2f} at {corner:.0f} Hz order {order})")  # fmt: skip
+        return out
+    grid = _lowpass_grid(corners)
+    if np.isclose(corner, grid[0]) or np.isclose(corner, grid[-1]):  # the laws may read beyond
+        stage["at_grid_end"] = True
+        shown += (f"; at the end of the corners profiled, {grid[0]:.0f}-{grid[-1]:.0f} Hz: the "
+                  "interval does not reach beyond it")  # fmt: skip
+    chain = {**chain, "stages": {**chain["stages"], "lowpass_hz": stage}}
+    return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit, shown)
+
+
+def _lowpass_grid(corners: np.ndarray) -> np.ndarray:
+    """The low-pass profile's candidate corners around the fitted `corners`: steps of
+    :data:`FIT_SCATTER` from :data:`LOWPASS_STEPS_BELOW` below the lowest to
+    :data:`LOWPASS_STEPS_ABOVE` above the highest, at most :data:`MAX_LOWPASS_GRID`."""
     step = np.log1p(FIT_SCATTER)
     lo = np.log(corners.min()) - LOWPASS_STEPS_BELOW * step
     hi = np.log(corners.max()) + LOWPASS_STEPS_ABOVE * step
-    grid = np.exp(np.linspace(lo, hi, int(min(MAX_LOWPASS_GRID, np.ceil((hi - lo) / step) + 1))))
+    return np.exp(np.linspace(lo, hi, int(min(MAX_LOWPASS_GRID, np.ceil((hi - lo) / step) + 1))))
+
+
+def _profiled_lowpass(
+    base: dict[str, Any],
+    todo: list[int],
+    contact_r2: Callable[[int, dict[str, Any]], float | None],
+    corners: np.ndarray,
+    fitted_orders: set[int],
+    none_too: bool = False,
+) -> tuple[int, float, tuple[float, float], np.ndarray, float, float | None] | None:
+    """The low-pass that reads the campaign's contact laws best through `base` (the rule of
+    :func:`campaign_lowpass`, its candidates around the fitted `corners`): its order, corner,
+    interval, the recordings with a say, its median log-misfit, and with `none_too` the
+    median log-misfit of `base` read with no low-pass (the least misfits taken over it too;
+    else None). None where no candidate reads a recording."""
+    from scipy import optimize
+
+    orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
+    grid = _lowpass_grid(corners)
     memo: dict[tuple[int, float], np.ndarray] = {}
 
     def misfit(order: int, corner: float) -> np.ndarray:  # each recording's share unexplained
         if (order, corner) not in memo:
             at = {**base, "lowpass_hz": corner, "lowpass_order": float(order)}
+            if not order:  # no low-pass: the sheet's own ends go with it
+                at = {k: v for k, v in at.items() if k not in ("lowpass_low_hz", "lowpass_high_hz")}
+                at.update(lowpass_hz=0.0, lowpass_order=0.0)
             r2 = np.array([contact_r2(i, at) or 0.0 for i in todo])
             memo[order, corner] = np.maximum(1.0 - r2, np.finfo(float).eps)
         return memo[order, corner]
 
     keys = [(o, float(c)) for o in orders for c in grid]
-    table = np.array([misfit(*k) for k in keys])
+    table = np.array([misfit(*k) for k in [*keys, *([(0, 0.0)] if none_too else [])]])
     read = table.min(axis=0) < 1.0
     if not read.any():
-        return chain
+        return None
     least = table.min(axis=0)
 
     def median_misfit(order: int, corner: float) -> float:
@@ -629,9 +750,10 @@ def campaign_lowpass(
     corner = keys[best][1]
     if sol.fun < median_misfit(order, corner):
         corner = float(np.exp(sol.x))
-    low, high = corner_interval({c: m for (o, c), m in memo.items() if o == order}, read, corner)
-    return _with_lowpass(chain, base, corners, order, corner, (low, high), read,
-                         median_misfit(order, corner))  # fmt: skip
+    at_order = {c: m for (o, c), m in memo.items() if o == order}
+    interval = corner_interval(at_order, read, corner)
+    none = median_misfit(0, 0.0) if none_too else None
+    return order, corner, interval, read, median_misfit(order, corner), none
 
 
 def campaign_resonance(
@@ -785,8 +907,10 @@ def _with_lowpass(
     interval: tuple[float, float],
     read: np.ndarray,
     misfit: float,
+    why: str = "left out of the pool",
 ) -> dict[str, Any]:
-    """`chain` pooled with the profiled low-pass in `base` (its sheet), reported."""
+    """`chain` pooled with the profiled low-pass in `base` (its sheet), reported (`why`: why
+    the pool did not hold it)."""
     low, high = interval
     stage = chain["stages"]["lowpass_hz"]
     sheet = {**base, "lowpass_hz": corner, "lowpass_order": float(order), "lowpass_low_hz": low,
@@ -800,7 +924,7 @@ def _with_lowpass(
         "median_log_misfit": misfit}}  # fmt: skip
     said = (f"the low-pass profiled over the campaign's contact laws: {corner:.0f} Hz order "
             f"{order} [{low:.0f}, {high:.0f}] (the recordings' own fits "
-            f"{fitted.min():.0f}-{fitted.max():.0f} Hz, left out of the pool)")  # fmt: skip
+            f"{fitted.min():.0f}-{fitted.max():.0f} Hz, {why})")  # fmt: skip
     if chain.get("pooled"):
         out["reason"] = f"{chain['reason']}; {said}"
     else:

@@ -636,6 +636,98 @@ def test_a_lowpass_the_recordings_fits_scatter_over_is_profiled_on_a_rig_campaig
     assert all(e < e0 for e, e0 in zip(errors(sheet), errors(bare), strict=True))
 
 
+def _minority_table(truth_hz, truth_order=3, without=5.0):
+    """A campaign's contact laws as an analytic table: recording i's share of force unexplained
+    through a low-pass at corner c is ``0.001 (i + 1) exp((ln(c / truth_hz) / 0.1)^2)``, three
+    times more at another order than `truth_order`, and `without` times its best with no
+    low-pass (the chain the pool left without one)."""
+
+    def contact_r2(i, sheet):
+        if not sheet["lowpass_hz"]:
+            return 1.0 - 0.001 * (i + 1) * without
+        order_cost = 1.0 if sheet["lowpass_order"] == truth_order else 3.0
+        shape = (np.log(sheet["lowpass_hz"] / truth_hz) / 0.1) ** 2
+        return 1.0 - 0.001 * (i + 1) * order_cost * np.exp(shape)
+
+    return contact_r2
+
+
+def test_a_lowpass_fewer_than_half_the_chains_show_is_profiled_with_none_a_candidate():
+    """Three recordings fitted the campaign's resonance, one of them also a 345 Hz order-2
+    low-pass (rig_campaigns+1000's campaign 1: true 371 Hz order 3). The pool counts a stage
+    only where half the chains show it, so it holds none, and :func:`campaign_lowpass` leaves
+    it so. Where the campaign's contact laws (an analytic table) read best at 371 Hz order 3,
+    and 5x worse without a low-pass, the profile adds it within 10 % at order 3, its interval
+    holding it; where they read best without one, none is added and the reason says so; a
+    pool that holds a low-pass, a chain none of whose fits shows one, or one that leaves the
+    high-pass to each recording is left as it is."""
+    from serving.campaign_chain import campaign_lowpass, campaign_lowpass_minority
+
+    sensors = [fitted(216.0), fitted(221.0), fitted(227.0, lowpass_hz=345.0, order=2)]
+    chain = campaign_chain(sensors, list("abc"))
+    assert chain["pooled"] and not chain["sensor"]["lowpass_hz"]
+    assert campaign_lowpass(chain, sensors, lambda *_: 1 / 0) is chain  # main: no low-pass
+    got = campaign_lowpass_minority(chain, sensors, _minority_table(371.0))
+    sheet = got["sensor"]
+    assert sheet["lowpass_order"] == 3.0
+    assert sheet["lowpass_hz"] == pytest.approx(371.0, rel=0.10)
+    assert sheet["lowpass_low_hz"] <= 371.0 * 1.02 and sheet["lowpass_high_hz"] >= 371.0 / 1.02
+    assert sheet["resonance_hz"] == chain["sensor"]["resonance_hz"]
+    assert got["stages"]["lowpass_hz"]["showing"] == 1
+    assert "shown by 1 of the 3 identified chains" in got["reason"]
+    assert "at_grid_end" not in got["stages"]["lowpass_hz"]  # 371 Hz lies inside 259-380 Hz
+    edge = campaign_lowpass_minority(chain, sensors, _minority_table(450.0, without=50.0))
+    assert edge["stages"]["lowpass_hz"]["at_grid_end"] and "end of the corners" in edge["reason"]
+    assert check_sensor_sheet(sheet, 2420.0) == sheet
+    # the contact laws read best without a low-pass: none added, and the reason says so
+    kept = campaign_lowpass_minority(chain, sensors, _minority_table(371.0, without=0.5))
+    assert kept["sensor"] == chain["sensor"]
+    assert kept["stages"]["lowpass_hz"]["value"] is None
+    assert "not kept" in kept["reason"]
+    # left as it is: a pooled low-pass, no fit showing one, a high-pass left to each recording
+    agreeing = [fitted(lowpass_hz=99.0), fitted(lowpass_hz=100.0), fitted(lowpass_hz=101.0)]
+    pooled = campaign_chain(agreeing, list("abc"))
+    assert campaign_lowpass_minority(pooled, agreeing, lambda *_: 1 / 0) is pooled
+    resonant = [fitted(300.0), fitted(305.0), fitted(298.0)]
+    plain = campaign_chain(resonant, list("abc"))
+    assert campaign_lowpass_minority(plain, resonant, lambda *_: 1 / 0) is plain
+    auto_fits = [fitted(216.0, highpass=0.0), fitted(221.0, highpass=0.0),
+                 fitted(227.0, lowpass_hz=345.0, order=2, highpass=0.0)]  # fmt: skip
+    auto = campaign_chain(auto_fits, list("abc"))
+    assert auto["sensor"]["highpass_hz"] == HIGHPASS_FITTED
+    assert campaign_lowpass_minority(auto, auto_fits, lambda *_: 1 / 0) is auto
+
+
+@pytest.mark.slow
+def test_a_lowpass_one_fit_shows_is_recovered_on_a_rig_campaign():
+    """Three elastic contacts of the independent rig behind rig_campaigns+1000's campaign-1
+    chain (a 216.8 Hz mount of zeta 0.068, a 371 Hz order-3 low-pass, 1.12 Hz; 2 % noise at
+    2420 Hz), the pool holding the mount and no low-pass (one fit of three showed one, at
+    345 Hz order 2): the campaign's contact laws read through the pooled chain choose the
+    low-pass within 10 % of the truth."""
+    from types import SimpleNamespace
+
+    from independent_rig import RigRun, record
+
+    from serving.campaign_chain import campaign_lowpass_minority, contact_r2_through
+
+    true = {"resonance_hz": 216.8, "resonance_damping": 0.068, "lowpass_hz": 371.0,
+            "lowpass_order": 3.0, "highpass_hz": 1.12}  # fmt: skip
+    betas = (46.0, 78.0, 52.0)
+    recs = [record(RigRun(recording="r.csv", beta=b, fs_hz=2420.0, duration_s=3.0, gap_mm=1.5,
+                          sensor=true), seed=i)[1] for i, b in enumerate(betas)]  # fmt: skip
+    fits = [fitted(216.0, highpass=1.12), fitted(221.0, highpass=1.12),
+            fitted(227.0, lowpass_hz=345.0, order=2, highpass=1.12)]  # fmt: skip
+    chain = campaign_chain(fits, list("abc"))
+    pool = {**true, "lowpass_hz": 0.0, "lowpass_order": 0.0}
+    chain = {**chain, "sensor": pool}  # the resonance as profiled: at the truth
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+    got = campaign_lowpass_minority(
+        chain, fits, lambda i, s: contact_r2_through(recs[i], 2420.0, 9.48, pred, s)
+    )
+    assert got["sensor"]["lowpass_hz"] == pytest.approx(371.0, rel=0.10), got["reason"]
+
+
 def _resonance_table(truth_hz, truth_damping=0.05, never_read=()):
     """A campaign's contact laws as an analytic table, read as :func:`contact_r2_through`
     reads them with ``refused_as_unexplained``: recording i's share of force unexplained

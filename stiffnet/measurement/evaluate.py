@@ -155,7 +155,9 @@ def campaign_predictions(
     corner, then a resonance near the contacts that refuses a recording, profiled over the
     campaign's contact laws, :func:`serving.campaign_chain.campaign_lowpass`,
     :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`; last the corner from the free flight
+    :func:`serving.campaign_chain.campaign_resonance`, then a low-pass fewer than half the
+    chains show, :func:`serving.campaign_chain.campaign_lowpass_minority`; last the corner
+    from the free flight
     where the rows give the rig's damping,
     :func:`serving.campaign_chain.campaign_highpass_damped`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
@@ -167,6 +169,7 @@ def campaign_predictions(
         campaign_highpass,
         campaign_highpass_damped,
         campaign_lowpass,
+        campaign_lowpass_minority,
         campaign_resonance,
         campaign_sheets,
         chain_fitted_regardless,
@@ -205,6 +208,7 @@ def campaign_predictions(
     fns = [natural_frequency(row) for row in rows]
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
     chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+    chain = campaign_lowpass_minority(chain, sensors, contact_r2, sheets)
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
