@@ -157,6 +157,33 @@ FREE_FLIGHT_STEP_TOL = 0.02
 #: of it). The corner moves by ``2 f_n`` times it (0.19 Hz on the rig), which the sheet's
 #: interval spans.
 FREE_DAMPING_TOLERANCE = 0.01
+#: The most recording readings one campaign profile spends on its candidates (each a whole
+#: restoring-force estimate, 0.3-1 s CPU on the rig): a 24-recording campaign's low-pass
+#: profile over three orders read every recording on 48 candidates, 1,150 readings and over
+#: ten minutes of an evaluation. Beyond it the profile reads an evenly spaced subset of the
+#: recordings (:func:`profiled_subset`); the rig's six-recording campaigns stay whole.
+MAX_PROFILE_READINGS = 400
+#: ... but never fewer recordings than this: the profile's criterion is their median.
+MIN_PROFILED_RECORDINGS = 8
+
+
+def profiled_subset(todo: Sequence[int], n_candidates: int, kept: Sequence[int] = ()) -> list[int]:
+    """Rule: the recordings a campaign profile reads on each of its `n_candidates`: all of
+    `todo` where that stays within :data:`MAX_PROFILE_READINGS` readings, else a subset of as
+    many as the budget allows, at least :data:`MIN_PROFILED_RECORDINGS`: the recordings of
+    `kept` (those the profile is for) and the others evenly spaced in the campaign's order;
+    returned in `todo`'s order. The profiles' criterion is a median over the recordings,
+    which a spread subset estimates; the cost of one stays bounded whatever the campaign's
+    size."""
+    keep = max(MIN_PROFILED_RECORDINGS, MAX_PROFILE_READINGS // max(int(n_candidates), 1))
+    if len(todo) <= keep:
+        return list(todo)
+    first = [i for i in todo if i in set(kept)][:keep]
+    rest = [i for i in todo if i not in set(first)]
+    n_rest = keep - len(first)
+    picks = np.unique(np.round(np.linspace(0, len(rest) - 1, n_rest)).astype(int)) if n_rest else []
+    chosen = {*first, *(rest[int(k)] for k in picks)}
+    return [i for i in todo if i in chosen]
 
 
 def identified(sensor: dict | None) -> dict | None:
@@ -355,6 +382,7 @@ def campaign_highpass(
     if not np.isfinite(scale):
         return chain
     grid = np.unique(np.r_[HIGHPASS_GRID * float(scale), pooled])
+    todo = profiled_subset(todo, grid.size)
     memo: dict[float, np.ndarray] = {}
 
     def misfit(corner: float) -> np.ndarray:  # each recording's share of force unexplained
@@ -718,6 +746,8 @@ def _profiled_lowpass(
 
     orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
     grid = _lowpass_grid(corners)
+    keys = [(o, float(c)) for o in orders for c in grid]
+    todo = profiled_subset(todo, len(keys) + int(none_too))
     memo: dict[tuple[int, float], np.ndarray] = {}
 
     def misfit(order: int, corner: float) -> np.ndarray:  # each recording's share unexplained
@@ -730,7 +760,6 @@ def _profiled_lowpass(
             memo[order, corner] = np.maximum(1.0 - r2, np.finfo(float).eps)
         return memo[order, corner]
 
-    keys = [(o, float(c)) for o in orders for c in grid]
     table = np.array([misfit(*k) for k in [*keys, *([(0, 0.0)] if none_too else [])]])
     read = table.min(axis=0) < 1.0
     if not read.any():
@@ -836,6 +865,11 @@ def campaign_resonance(
     freqs[n_steps] = f0
     dampings = z0 * np.asarray(RESONANCE_DAMPING_FACTORS)
     keys = [(float(f), float(z)) for z in dampings for f in freqs]
+    refused = [i for i, r2 in zip(todo, pooled, strict=True) if r2 == 0.0]
+    subset = profiled_subset(todo, len(keys) + RESONANCE_REFINE_POINTS + len(dampings), refused)
+    if len(subset) < len(todo):  # the profile reads the subset only, the pool's reading too
+        memo[f0, z0] = pooled[np.isin(todo, subset)]
+        todo[:] = subset
     for k in keys:
         r2_at(*k)
     return _profiled_resonance(chain, sheet, memo, keys, freqs, dampings, r2_at)

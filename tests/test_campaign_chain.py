@@ -596,6 +596,40 @@ def test_the_campaigns_lowpass_is_profiled_where_the_recordings_fits_disagree():
     assert campaign_lowpass(plain, resonant, lambda *_: 1 / 0) is plain
 
 
+def test_a_large_campaigns_lowpass_profile_reads_a_bounded_spread_subset():
+    """A 24-recording campaign whose fits scatter over three orders: the profile reads every
+    candidate on an evenly spaced subset of at least MIN_PROFILED_RECORDINGS recordings, so
+    its readings stay within MAX_PROFILE_READINGS plus the refinement's (every recording on
+    every candidate would be 24 x 48), and it still finds the 90 Hz order 4 the laws share;
+    a six-recording campaign is read whole."""
+    from serving.campaign_chain import (
+        LOWPASS_REFINE_ITER,
+        MAX_PROFILE_READINGS,
+        MIN_PROFILED_RECORDINGS,
+        campaign_lowpass,
+        profiled_subset,
+    )
+
+    n = 24
+    sensors = [fitted(lowpass_hz=95.0 + 3.0 * i, order=2 + i % 3) for i in range(n)]
+    chain = campaign_chain(sensors, [f"r{i}" for i in range(n)])
+    assert not chain["pooled"] and "lowpass_hz" in chain["stages"]
+    table = _lowpass_table([90.0] * n)
+    calls = []
+    got = campaign_lowpass(chain, sensors, lambda i, s: calls.append(i) or table(i, s))
+    assert got["sensor"]["lowpass_hz"] == pytest.approx(90.0, rel=0.02)
+    assert got["sensor"]["lowpass_order"] == 4.0
+    read = sorted(set(calls))
+    assert MIN_PROFILED_RECORDINGS <= len(read) < n
+    assert read[0] == 0 and read[-1] == n - 1  # spread over the campaign
+    assert len(calls) <= MAX_PROFILE_READINGS + (LOWPASS_REFINE_ITER + 4) * len(read)
+    assert got["stages"]["lowpass_hz"]["profiled_on"] == len(read)
+    # the subset keeps the recordings it is asked to, and a small campaign whole
+    assert {5, 23} <= set(profiled_subset(list(range(n)), 48, kept=[5, 23]))
+    assert profiled_subset(list(range(6)), 48) == list(range(6))
+    assert profiled_subset(list(range(n)), 11) == list(range(n))
+
+
 def test_a_lowpass_the_recordings_fits_scatter_over_is_profiled_on_a_rig_campaign():
     """Three damped contacts of the independent rig behind one 120 Hz order-4 low-pass and a
     4 Hz high-pass (2 % noise), whose chain fits read the corner 8-46 % high and too scattered
