@@ -119,10 +119,12 @@ LOWPASS_ORDERS = (2, 3, 4)
 LOWPASS_STEPS_BELOW = 3
 LOWPASS_STEPS_ABOVE = 1
 #: At most this many corners per order on the coarse grid (wider spreads get coarser steps):
-#: the profile reads every recording at each, about 0.15 s CPU a reading.
+#: the profile reads every recording at each (or a subset: :func:`profiled_subset`).
 MAX_LOWPASS_GRID = 16
 #: Evaluations of the bounded refinement between the best grid corner's neighbours.
 LOWPASS_REFINE_ITER = 8
+#: The high-pass profile's refinement: its bounded search's iterations.
+HIGHPASS_REFINE_ITER = 12
 #: :func:`campaign_resonance` profiles a pooled resonance only below this many times the
 #: stiffest contact's frequency (``f_n sqrt(1 + beta)`` at the classes' top beta, 96 Hz on the
 #: rig): a mount ringing there overlaps the contact pulse, whose spectrum reaches a few times
@@ -157,14 +159,16 @@ FREE_FLIGHT_STEP_TOL = 0.02
 #: of it). The corner moves by ``2 f_n`` times it (0.19 Hz on the rig), which the sheet's
 #: interval spans.
 FREE_DAMPING_TOLERANCE = 0.01
-#: The most recording readings one campaign profile spends on its candidates (each a whole
-#: restoring-force estimate, 0.3-1 s CPU on the rig): a 24-recording campaign's low-pass
-#: profile over three orders read every recording on 48 candidates, 1,150 readings and over
-#: ten minutes of an evaluation. Beyond it the profile reads an evenly spaced subset of the
-#: recordings (:func:`profiled_subset`); the rig's six-recording campaigns stay whole.
-MAX_PROFILE_READINGS = 400
-#: ... but never fewer recordings than this: the profile's criterion is their median.
-MIN_PROFILED_RECORDINGS = 8
+#: The most recording readings one campaign profile spends on its candidates and their
+#: refinement (each a whole restoring-force estimate, about 1 s CPU on the rig): a
+#: 24-recording campaign's low-pass profile over three orders read every recording on 48
+#: candidates and 8 refinements, 1,340 readings, and its high-pass profile 550 more, over
+#: half an hour of one evaluation. Beyond it the profile reads a spread subset of the
+#: recordings (:func:`profiled_subset`).
+MAX_PROFILE_READINGS = 200
+#: ... but never fewer recordings than this: the profile's criterion is their median (the
+#: bench's campaigns hold six recordings, read whole).
+MIN_PROFILED_RECORDINGS = 6
 
 
 def profiled_subset(todo: Sequence[int], n_candidates: int, kept: Sequence[int] = ()) -> list[int]:
@@ -382,7 +386,7 @@ def campaign_highpass(
     if not np.isfinite(scale):
         return chain
     grid = np.unique(np.r_[HIGHPASS_GRID * float(scale), pooled])
-    todo = profiled_subset(todo, grid.size)
+    todo = profiled_subset(todo, grid.size + HIGHPASS_REFINE_ITER)
     memo: dict[float, np.ndarray] = {}
 
     def misfit(corner: float) -> np.ndarray:  # each recording's share of force unexplained
@@ -403,9 +407,10 @@ def campaign_highpass(
 
     i = int(np.argmin([median_misfit(float(c)) for c in grid]))
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-    sol = optimize.minimize_scalar(lambda u: median_misfit(float(np.exp(u))),
-                                   bounds=(np.log(lo), np.log(hi)), method="bounded",
-                                   options={"xatol": 0.02, "maxiter": 12})  # fmt: skip
+    sol = optimize.minimize_scalar(
+        lambda u: median_misfit(float(np.exp(u))), bounds=(np.log(lo), np.log(hi)),
+        method="bounded", options={"xatol": 0.02, "maxiter": HIGHPASS_REFINE_ITER},
+    )  # fmt: skip
     corner = float(np.exp(sol.x)) if sol.fun < median_misfit(float(grid[i])) else float(grid[i])
     low, high = corner_interval(memo, read, corner)
     out = {**chain, "sensor": {**sheet, "highpass_hz": corner, "highpass_low_hz": low,
@@ -747,7 +752,7 @@ def _profiled_lowpass(
     orders = sorted(fitted_orders if len(fitted_orders) == 1 else fitted_orders | {*LOWPASS_ORDERS})
     grid = _lowpass_grid(corners)
     keys = [(o, float(c)) for o in orders for c in grid]
-    todo = profiled_subset(todo, len(keys) + int(none_too))
+    todo = profiled_subset(todo, len(keys) + int(none_too) + LOWPASS_REFINE_ITER)
     memo: dict[tuple[int, float], np.ndarray] = {}
 
     def misfit(order: int, corner: float) -> np.ndarray:  # each recording's share unexplained
