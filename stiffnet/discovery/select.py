@@ -309,6 +309,9 @@ def forward_path(
     while len(current.terms) < len(TERMS):
         cands = _candidates(data, current, dr, screened, screen_on)
         best = min(cands, key=_bic)
+        if scaled_face_short_of_gain(current, best):
+            path.append(refused_unheld(len(path), "face_scaled", best, data))
+            break
         cv_new = held_out_error(data, best, tests)
         one = [c for c in cands if c.terms == current.terms | {"face"}]
         if len(best.terms - current.terms) == 2 and one:
@@ -327,6 +330,28 @@ def forward_path(
             break
         current, cv = best, cv_new
     return current, path
+
+
+def scaled_face_short_of_gain(current: Fit, best: Fit) -> bool:
+    """Rule: a scaled face (``face_scaled`` the path's next term) that lowers the fitted
+    error by less than :data:`MIN_HELD_OUT_GAIN` of the current law's is refused without its
+    held-out test: :func:`_candidates` then keeps its screen, not fitted to the end.
+
+    Its held-out folds filter every recording's force at every recording's own face on
+    every evaluation: 4.4 of the 8.4 CPU seconds of a 23-recording material beam's
+    discovery where it explained 1 % more (held-out gain 0.003). The shared face keeps
+    its held-out test (its laws and paths as they were).
+    """
+    added = best.terms - current.terms
+    return added == {"face_scaled"} and best.sse > (1 - MIN_HELD_OUT_GAIN) * current.sse
+
+
+def refused_unheld(step: int, term: str, fit: Fit, data: Data) -> dict[str, Any]:
+    """The path's step of a candidate refused before its held-out test
+    (:func:`scaled_face_short_of_gain`): no held-out error or gain."""
+    return {"step": step, "term": term, "entered": False, "bic": _bic(fit),
+            "held_out_error": None, "held_out_gain": None,
+            "explained_fraction": explained_fraction(data, fit)}  # fmt: skip
 
 
 def recording_factors(data: Data, fit: Fit) -> np.ndarray:

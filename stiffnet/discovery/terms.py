@@ -144,31 +144,32 @@ class Data:
         return delta, v
 
     def face_recoil(
-        self, mass: float, stiffness: float, damping: float
+        self, mass: float | np.ndarray, stiffness: float | np.ndarray, damping: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """:func:`~.face.face_response` to the samples' force, the last faces' kept: it
         depends on the face alone, and a Jacobian's finite differences in the recordings'
-        betas and onsets (half the residual evaluations of a fit) leave the face as it is."""
+        betas and onsets (half the residual evaluations of a fit) leave the face as it is.
+        ``mass`` and ``stiffness`` may be each recording's (R,): a scaled face."""
         if self.parent is not None:  # the held-out impacts' force still drives the face
             full, idx = self.parent
             y, yd = full.face_recoil(mass, stiffness, damping)
             return y[idx], yd[idx]
-        key = (float(mass), float(stiffness), float(damping))
+        if np.ndim(mass) > 0:
+            mass, stiffness = np.asarray(mass, float), np.asarray(stiffness, float)
+            key: tuple = (mass.tobytes(), stiffness.tobytes(), float(damping))
+        else:
+            mass, stiffness = float(mass), float(stiffness)
+            key = (mass, stiffness, float(damping))
         cache = self._face_cache
         if key in cache:  # the least recently used face goes first
             cache[key] = cache.pop(key)
         else:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            cache[key] = face_response(self.f, self.layout, self.dt, *key, chain=self.chain,
+            cache[key] = face_response(self.f, self.layout, self.dt, mass, stiffness,
+                                       float(damping), chain=self.chain,
                                        drive=self._face_drive)  # fmt: skip
         return cache[key]
-
-    @cached_property
-    def single_recordings(self) -> list[Data]:
-        """Each recording's samples as a campaign of its own (a scaled face filters each
-        recording's force at its own face)."""
-        return [recordings_subset(self, np.array([r])) for r in range(self.n_rec)]
 
     @cached_property
     def _face_drive(self) -> tuple[np.ndarray, np.ndarray]:
@@ -189,8 +190,6 @@ class Data:
                    self.onset0, self.names, self.dt, self.index, self.parent,
                    self.beta_ref)  # fmt: skip
         out.__dict__["_face_cache"] = self._face_cache  # cached_property's own slot
-        if "single_recordings" in self.__dict__:
-            out.__dict__["single_recordings"] = self.single_recordings
         out.__dict__["layout"] = self.layout
         out.__dict__["chain"] = self.chain
         out.__dict__["_face_drive"] = self._face_drive
