@@ -427,8 +427,8 @@ def test_a_face_is_screened_from_its_starts_once_then_from_its_best():
     """The path's first step screens the face from its nine starts and both modes from four;
     a later step starts each from that screen's best alone, with the law's other terms at
     their current values. On the synthetic two-stage law (linear, then the hinge, then a
-    refused step): 9 + 4 short face fits at the first step, 1 + 1 at the second, the same
-    hinge as before (knee 0.12, ratio 3 within 15 %)."""
+    refused step): 9 + 4 short face fits at the first step, 1 + 1 at the second (and the
+    scaled face's 6, then 1), the same hinge as before (knee 0.12, ratio 3 within 15 %)."""
     from stiffnet.discovery import select
     from stiffnet.discovery.face import face_starts, second_mode_starts
     from stiffnet.discovery.terms import Fit
@@ -482,7 +482,8 @@ def test_a_face_is_screened_from_its_starts_once_then_from_its_best():
     assert [s["term"] for s in law.path[:2]] == ["linear", "hinge"] and law.terms == ("hinge",)
     assert law.params["knee"] == pytest.approx(0.12, rel=0.15)
     assert law.params["knee_ratio"] == pytest.approx(3.0, rel=0.15)
-    assert counts == {1: 9 + 4, 2: 1 + 1}
+    # and the scaled face from its six starts, then from its best
+    assert counts == {1: 9 + 4 + 6, 2: 1 + 1 + 1}
 
 
 def test_the_bootstraps_replicates_stop_early_at_the_same_quantiles():

@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 from stiffnet.cli import app
 from stiffnet.config import load_config
 from stiffnet.config.sim import SimulationConfig
-from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force
+from stiffnet.effects.learned_contact import LearnedContact, learned_contact_force, scaled_face
 from stiffnet.effects.registry import build_effect
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
@@ -207,3 +207,54 @@ def test_shortcuts_of_a_law_without_power_preload_or_dissipation_are_the_same_nu
     np.testing.assert_array_equal(
         elastic_shape(delta, mixed), power + stage + np.where(d > 0, mixed["preload"], 0.0)
     )
+
+
+#: A face that scales with beta: support 1.25 beta, so the contact is 5 beta in front of it
+#: (1/(5 beta) + 1/(1.25 beta) = 1/beta); mass 0.1 at beta 20, as beta^(-1/3).
+SCALED = {"face_mass": 0.1, "face_stiffness_ratio": 1.25, "face_mass_exponent": -1 / 3,
+          "face_reference_beta": 20.0, "face_damping": 0.05}  # fmt: skip
+
+
+def _one_row(i):
+    return OscillatorBatch(beta=[BATCH.beta[i]], gap=[BATCH.gap[i]],
+                           amplitude=[BATCH.amplitude[i]], omega=[BATCH.omega[i]],
+                           damping=[BATCH.damping[i]])  # fmt: skip
+
+
+def test_a_scaled_face_is_each_rows_own_face_behind_a_stiffer_contact():
+    """Each row of a batch moves as the absolute face of its own beta (support r beta, mass
+    mu (beta/beta_ref)^q) behind a contact of beta r/(r - 1), here written as a second stage
+    from first touch (knee 0, ratio 5): the same physics, written once per campaign instead
+    of once per recording."""
+    eff = LearnedContact(**SCALED)
+    assert eff.n_states == 3  # the face's two states and the row's beta
+    # a short record: the stiff contact's chattering orbit is chaotic, and the two writings of
+    # the force (5 beta delta, beta (delta + 4 delta)) differ in their last bits
+    kw = {"settle_tolerance": 0.2, "min_transient_periods": 2.0, "substeps": 4}
+    for i, beta in enumerate(BATCH.beta):
+        scaled = Simulator([eff], **kw).simulate(_one_row(i), 20.0, 600, rng=1).accel[0]
+        own = LearnedContact(face_mass=0.1 * (beta / 20.0) ** (-1 / 3),
+                             face_stiffness=1.25 * beta, face_damping=0.05, knee=0.0,
+                             knee_ratio=5.0)  # fmt: skip
+        a = Simulator([own], **kw).simulate(_one_row(i), 20.0, 600, rng=1).accel[0]
+        assert np.abs(a).max() > 1.0  # there were impacts
+        np.testing.assert_allclose(scaled, a, atol=1e-6 * np.abs(a).max())
+    # its static stiffness at the contact is beta: the contact and the support in series
+    p = {k: np.asarray(v, float) for k, v in eff.params.model_dump().items()}
+    contact, kappa, _ = scaled_face(np.array(BATCH.beta), p)
+    np.testing.assert_allclose(1.0 / (1.0 / contact + 1.0 / kappa), BATCH.beta, rtol=1e-12)
+
+
+def test_a_scaled_face_in_the_config_yaml(tmp_path):
+    path = tmp_path / "c.yaml"
+    path.write_text("effects:\n  - name: learned_contact\n    params: " + json.dumps(SCALED) + "\n")
+    eff = load_config(SimulationConfig, path).effects[0].build()
+    assert eff.n_states == 3 and eff.params.face_stiffness_ratio == 1.25
+    back = yaml.safe_load(yaml.safe_dump({"params": eff.params.model_dump()}))["params"]
+    assert LearnedContact(**back).params == eff.params
+    with pytest.raises(Exception, match="face_stiffness_ratio"):
+        LearnedContact(face_mass=0.1, face_stiffness_ratio=0.8)  # a contact that pulls
+    # the refit from a scaled law frees its ratio around it, not an absolute stiffness
+    space = LearnedContact.fit_space_at(SCALED, 1000.0)
+    free = {fp.name: fp for fp in space.free}
+    assert "face_stiffness" not in free and free["face_stiffness_ratio"].low > 1.0

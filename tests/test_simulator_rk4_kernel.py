@@ -246,11 +246,13 @@ class StiffeningLaw(LearnedContact):
         [PushyFriction()],
         [StiffeningLaw(knee_ratio=2.0)],
         [LearnedContact(exponent=1.5)],  # numpy's SIMD pow is not the C library's
+        # each row's own contact, support and mass: the kernel packs the absolute face
+        [LearnedContact(face_mass=0.2, face_stiffness_ratio=1.5, face_mass_exponent=-0.3)],
         [HertzContact(), HertzContact()],
         [HertzContact(), LearnedContact()],
     ],
-    ids=["user_subclass", "learned_subclass", "learned_power_law", "two_of_a_kind",
-         "two_elastic_laws"],
+    ids=["user_subclass", "learned_subclass", "learned_power_law", "learned_scaled_face",
+         "two_of_a_kind", "two_elastic_laws"],
 )  # fmt: skip
 def test_a_model_the_kernel_does_not_know_runs_numpys_path(effects) -> None:
     batch = paper_batch()

@@ -115,6 +115,20 @@ def face_transition(mass: float, stiffness: float, damping: float, dts: np.ndarr
     return linalg.expm(np.asarray(dts, float)[:, None, None] * m)
 
 
+def face_transitions(
+    mass: np.ndarray, stiffness: np.ndarray, damping: float, dts: np.ndarray
+) -> np.ndarray:
+    """:func:`face_transition` of one face per recording, (R, 4, 4): recording ``r``'s face
+    (``mass[r]``, ``stiffness[r]``) at its interval ``dts[r]``, in one ``expm`` of the stack."""
+    mass, stiffness = np.asarray(mass, float), np.asarray(stiffness, float)
+    w2 = stiffness / mass
+    m = np.zeros((mass.size, 4, 4))
+    m[:, 0, 1] = 1.0
+    m[:, 1, 0], m[:, 1, 1], m[:, 1, 2] = -w2, -2.0 * damping * np.sqrt(w2), 1.0 / mass
+    m[:, 2, 3] = 1.0
+    return linalg.expm(np.asarray(dts, float)[:, None, None] * m)
+
+
 def force_drive(force: np.ndarray, lay: Layout, dts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The force and its slope to the next sample on the padded impacts, (I, C) each: what
     drives the face (:func:`face_transition`'s ``F`` and ``F'``)."""
@@ -129,8 +143,8 @@ def face_response(
     force: np.ndarray,
     lay: Layout,
     dts: np.ndarray,
-    mass: float,
-    stiffness: float,
+    mass: float | np.ndarray,
+    stiffness: float | np.ndarray,
     damping: float,
     index: np.ndarray | None = None,
     chain: ImpactChain | None = None,
@@ -147,7 +161,8 @@ def face_response(
     dts : numpy.ndarray
         Each recording's sampling interval in model time.
     mass, stiffness, damping : float
-        ``mu``, ``kappa``, ``zeta`` of the face (see the module notes).
+        ``mu``, ``kappa``, ``zeta`` of the face (see the module notes); ``mass`` and
+        ``stiffness`` may be arrays (R,), each recording's own face (:mod:`.face_scaled`).
     index : numpy.ndarray, optional
         Each sample's index in its record: the face then carries its ringing from one
         impact into the next (:func:`ringing_from_before`); without, each starts at rest.
@@ -159,15 +174,18 @@ def face_response(
     """
     if force.size == 0:
         return np.zeros(0), np.zeros(0)
-    # one map per distinct interval (a campaign has few; scipy's expm was a third of a face)
-    steps, of_rec = np.unique(np.asarray(dts, float), return_inverse=True)
-    e = face_transition(mass, stiffness, damping, steps)[of_rec.reshape(-1)[lay.rec]]  # (I, 4, 4)
+    if np.ndim(mass) > 0:  # a face per recording, all filtered at once
+        e = face_transitions(mass, stiffness, damping, dts)[lay.rec]
+    else:
+        # one map per distinct interval (a campaign has few; scipy's expm was a third of a face)
+        steps, of_rec = np.unique(np.asarray(dts, float), return_inverse=True)
+        e = face_transition(mass, stiffness, damping, steps)[of_rec.reshape(-1)[lay.rec]]
     u, du = force_drive(force, lay, dts) if drive is None else drive
     y, yd = response_from_rest(np.ascontiguousarray(e), u, du)
     if chain is None and index is not None and index.size == force.size:
         chain = impact_chain(lay, index, dts)
     if chain is not None:
-        free = ringing_from_before(y, yd, chain, mass, stiffness, damping)
+        free = ringing_from_before(y, yd, chain, mass, stiffness, damping, lay.rec)
         y, yd = y + free[..., 0], yd + free[..., 1]
     return y[lay.row, lay.col], yd[lay.row, lay.col]
 
@@ -223,7 +241,7 @@ def carried_states(m: np.ndarray, b: np.ndarray) -> np.ndarray:  # pragma: no co
     return states
 
 
-def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
+def free_map(gap: np.ndarray, w2: float | np.ndarray, damping: float) -> np.ndarray:
     """``expm(A t)`` of the free face, ``A = [[0, 1], [-w2, -2 zeta sqrt(w2)]]``, (T, 2, 2).
 
     In closed form (scipy's ``expm`` of a stack of 2 x 2 matrices loops over them in Python,
@@ -231,7 +249,7 @@ def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
     ``wd = w sqrt(1 - zeta^2)``, ``e^{-sigma t}`` times ``[[cos + sigma sin / wd, sin / wd],
     [-w2 sin / wd, cos - sigma sin / wd]]``; overdamped, the sines are hyperbolic (written
     with both exponents combined, so that nothing overflows where the product does not); at
-    critical damping ``sin(wd t) / wd`` is ``t`` in the limit.
+    critical damping ``sin(wd t) / wd`` is ``t`` in the limit. ``w2`` may be one per gap.
     """
     dc, ds, sigma = free_parts(gap, w2, damping)
     out = np.empty(dc.shape + (2, 2))
@@ -242,14 +260,18 @@ def free_map(gap: np.ndarray, w2: float, damping: float) -> np.ndarray:
     return out
 
 
-def free_parts(t: np.ndarray, w2: float, damping: float) -> tuple[np.ndarray, np.ndarray, float]:
+def free_parts(
+    t: np.ndarray, w2: float | np.ndarray, damping: float
+) -> tuple[np.ndarray, np.ndarray, float | np.ndarray]:
     """:func:`free_map`'s ingredients at the times ``t``: ``e^{-sigma t} cos(wd t)``,
-    ``e^{-sigma t} sin(wd t) / wd`` (hyperbolic when overdamped) and ``sigma``."""
+    ``e^{-sigma t} sin(wd t) / wd`` (hyperbolic when overdamped) and ``sigma`` (``w2``: one,
+    or an array that broadcasts with ``t``, one face per row)."""
     t = np.asarray(t, float)
     w = np.sqrt(w2)
     sigma = damping * w
     a = w * np.sqrt(abs(1.0 - damping * damping))
-    if a * float(np.max(t, initial=0.0)) < 1e-6:  # critical: the series' first terms
+    # max(a t) is a max(t) for one face (rounding keeps the order), the largest for many
+    if float(np.max(a * t, initial=0.0)) < 1e-6:  # critical: the series' first terms
         dc = np.exp(-sigma * t)
         ds = dc * t
     elif damping < 1.0:
@@ -302,8 +324,8 @@ def impact_chain(lay: Layout, index: np.ndarray, dts: np.ndarray) -> ImpactChain
 
 
 def ringing_from_before(
-    y: np.ndarray, yd: np.ndarray, chain: ImpactChain, mass: float, stiffness: float,
-    damping: float,
+    y: np.ndarray, yd: np.ndarray, chain: ImpactChain, mass: float | np.ndarray,
+    stiffness: float | np.ndarray, damping: float, face_of: np.ndarray | None = None,
 ) -> np.ndarray:  # fmt: skip
     """The free ringing each impact inherits from the ones before it, (I, C, 2).
 
@@ -314,15 +336,22 @@ def ringing_from_before(
     forcing period later, which starting every impact from rest reads as misfit.
     The free map over ``c`` samples is :func:`free_map` at ``c dt`` (the one-step map's
     ``c``-th power, in closed form: the powers of a stack of 2 x 2 matrices, taken one
-    product at a time, were most of a face fit's time).
+    product at a time, were most of a face fit's time). ``mass`` and ``stiffness`` may be
+    arrays of faces (F,), ``face_of`` (I,) each impact's: a face per recording
+    (:mod:`.face_scaled`).
     """
     c = chain
+    per_impact = np.ndim(mass) > 0
+    n_face = np.size(mass)
     w2 = stiffness / mass
+    if per_impact:
+        w2 = np.asarray(w2, float)[face_of]
     gap = c.gap
+    w2_gap = w2[:-1] if per_impact else w2  # a gap within a recording: its impacts' face
     # (I - 1, 2, 2) the free map over each gap; a ringing decayed below e^-40 is gone
     across = np.zeros((gap.size, 2, 2))
-    alive = (damping * np.sqrt(w2) * gap < 40.0) & c.same_rec
-    across[alive] = free_map(gap[alive], w2, damping)
+    alive = (damping * np.sqrt(w2_gap) * gap < 40.0) & c.same_rec
+    across[alive] = free_map(gap[alive], w2_gap[alive] if per_impact else w2, damping)
     rows = np.arange(c.length.size)
     own_end = np.stack([y[rows, c.length], yd[rows, c.length]], axis=1)  # (I, 2) from rest
     through = free_map(c.through_t, w2, damping)  # (I, 2, 2) over each impact's own samples
@@ -338,8 +367,16 @@ def ringing_from_before(
     # the free map over c samples applied to each start, (I, C) each; the map's entries are
     # those of the impact's sampling interval (a campaign has few: a fifth of a face's
     # filter went to evaluating them on every impact's samples)
-    dc, ds, sigma = free_parts(c.times, w2, damping)
-    a, b, d = (dc + sigma * ds)[c.interval], ds[c.interval], (dc - sigma * ds)[c.interval]
+    if per_impact:  # each impact's face's map on its interval's times, once per pair
+        pair, row = np.unique(c.interval * n_face + face_of, return_inverse=True)
+        w2_pair = (np.asarray(stiffness / mass, float)[pair % n_face])[:, None]
+        dc, ds, sigma = free_parts(c.times[pair // n_face], w2_pair, damping)
+        row = row.reshape(-1)
+        a, b, d = (dc + sigma * ds)[row], ds[row], (dc - sigma * ds)[row]
+        w2 = w2[:, None]
+    else:
+        dc, ds, sigma = free_parts(c.times, w2, damping)
+        a, b, d = (dc + sigma * ds)[c.interval], ds[c.interval], (dc - sigma * ds)[c.interval]
     s0, s1 = start[:, :1], start[:, 1:]
     return np.stack([a * s0 + b * s1, -w2 * b * s0 + d * s1], -1)
 

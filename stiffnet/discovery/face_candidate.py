@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from stiffnet.discovery.face import face_starts
+from stiffnet.discovery.face_scaled import scaled_face_starts
 from stiffnet.discovery.law import DiscoveredLaw
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.discovery.select import (
@@ -47,6 +48,10 @@ GRID_MASSES = (0.05, 0.15, 0.45)
 GRID_FREQUENCIES = (1.5, 3.0, 6.0)
 #: The grid's damping ratio (a beam's modes ring lightly; the refit sweeps it).
 GRID_DAMPING = 0.05
+#: A scaled face's grid (:func:`scaled_face_grid`): its support over beta (a contact 10, 3
+#: and 1.5 times stiffer than the support in front of it) and its mass at the reference beta.
+SCALED_GRID_RATIOS = (1.1, 1.33, 1.67)
+SCALED_GRID_MASSES = (0.05, 0.15, 0.45)
 
 
 def face_in_question(law: DiscoveredLaw) -> bool:
@@ -61,23 +66,32 @@ def face_in_question(law: DiscoveredLaw) -> bool:
         return False
     last = law.path[-1]
     return bool(
-        last["term"] in ("face", "face2")
+        last["term"] in ("face", "face2", "face_scaled")
         and not last["entered"]
         and last["explained_fraction"] > law.explained_fraction
     )
 
 
-def maps_face_law(samples: Sequence[ContactSamples], path: list[dict[str, Any]]) -> DiscoveredLaw:
-    """The one-mode face fitted on the maps from every start of the discovery's screen, as a
-    law (no bootstrap: its intervals are the simulation's to give), whatever the held-out
-    test said (``path``: the discovery's, kept for the report)."""
+def in_question_term(law: DiscoveredLaw) -> str:
+    """The face the maps could not decide on: ``face_scaled`` where the path's refused step
+    is the scaled face, else the one-mode shared ``face``."""
+    return "face_scaled" if law.path and law.path[-1]["term"] == "face_scaled" else "face"
+
+
+def maps_face_law(
+    samples: Sequence[ContactSamples], path: list[dict[str, Any]], term: str = "face"
+) -> DiscoveredLaw:
+    """The one-mode face (``term``: ``face``, or ``face_scaled``) fitted on the maps from every
+    start of the discovery's screen, as a law (no bootstrap: its intervals are the
+    simulation's to give), whatever the held-out test said (``path``: the discovery's, kept
+    for the report)."""
     data = stack(samples)
     dr = reference_penetration(data)
     lin = fit_law(data, frozenset(), dr)
     per = lin.theta[: 2 * lin.n_rec]
-    terms = frozenset({"face"})
-    short = [fit_law(data, terms, dr, s, per, max_nfev=FACE_SCREEN_NFEV)
-             for s in face_starts(lin.betas)]  # fmt: skip
+    terms = frozenset({term})
+    starts = face_starts(lin.betas) if term == "face" else scaled_face_starts(lin.betas)
+    short = [fit_law(data, terms, dr, s, per, max_nfev=FACE_SCREEN_NFEV) for s in starts]
     best = min(short, key=lambda f: f.sse)
     fit = fit_law(data, terms, dr, best.shared, best.theta[: 2 * best.n_rec])
     return law_from_fit(data, fit, path, library_fit(data, dr))
@@ -95,12 +109,29 @@ def face_grid(betas: Sequence[float]) -> list[dict[str, float]]:
     ]  # fmt: skip
 
 
+def scaled_face_grid(maps: DiscoveredLaw) -> list[dict[str, float]]:
+    """The coarse grid of scaled faces (:data:`SCALED_GRID_RATIOS` x :data:`SCALED_GRID_MASSES`)
+    at the maps' own mass exponent, reference beta and the grid's damping, as
+    ``learned_contact`` parameters."""
+    p = maps.params
+    return [
+        {"face_mass": m, "face_stiffness_ratio": r, "face_damping": GRID_DAMPING,
+         "face_mass_exponent": float(f"{p['face_mass_exponent']:.3g}"),
+         "face_reference_beta": p["face_reference_beta"]}
+        for m in SCALED_GRID_MASSES for r in SCALED_GRID_RATIOS
+    ]  # fmt: skip
+
+
 def betas_behind_face(
     samples: Sequence[ContactSamples], law: DiscoveredLaw, face: dict[str, float]
 ) -> DiscoveredLaw:
     """``law`` with the face's parameters set to ``face`` and each recording's beta and onset
     refitted on the maps behind that face (the face held: its recoil under the measured
-    force taken off the penetration, the linear spring fitted on what is left)."""
+    force taken off the penetration, the linear spring fitted on what is left). A scaled
+    face depends on each recording's beta: its law keeps the maps' betas (the restraint's
+    static stiffness, read with the maps' own scaled face)."""
+    if float(face.get("face_stiffness_ratio", 0.0)) > 0:
+        return replace(law, params={**law.params, **face})
     data = stack(samples)
     params = {**law.params, **face}
     modes = [m for m in FACE_MODES if float(params.get(f"{m}_mass", 0.0)) > 0]
@@ -119,7 +150,10 @@ def betas_behind_face(
 
 
 def series_betas(betas: Sequence[float], params: dict[str, float]) -> list[float]:
-    """The contact in series with the face's support(s): ``1 / (1/beta + sum 1/kappa_i)``."""
+    """The contact in series with the face's support(s): ``1 / (1/beta + sum 1/kappa_i)``; a
+    scaled face's betas are that already (its definition of beta)."""
+    if float(params.get("face_stiffness_ratio", 0.0)) > 0:
+        return [float(b) for b in betas]
     comp = 1.0 / float(params["face_stiffness"]) if float(params.get("face_mass", 0)) > 0 else 0.0
     if float(params.get("face2_mass", 0.0)) > 0:
         comp += 1.0 / float(params["face2_stiffness"])

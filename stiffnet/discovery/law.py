@@ -24,6 +24,8 @@ WORDS = {
     "preload": "a preload (a force step at first touch)",
     "face": "a restraint face with its own mass on a support spring (it recoils and rings)",
     "face2": "a second mode of the face (a beam's tip: two modes in parallel, recoils summed)",
+    "face_scaled": "a restraint face that is each recording's own (the beam is the material: "
+    "its support and mass scale with beta, a stiffer contact in front)",
 }
 
 
@@ -122,6 +124,8 @@ class DiscoveredLaw:
             return p["face_stiffness"]
         if term == "face2":
             return p["face2_stiffness"]
+        if term == "face_scaled":
+            return beta * p["face_stiffness_ratio"]
         raise KeyError(term)
 
     def referred_to(self, betas: Sequence[float | None]) -> DiscoveredLaw:
@@ -190,6 +194,14 @@ class DiscoveredLaw:
         eq = "F_c = max(0, beta [" + " + ".join(parts) + "]"
         if "damping" in self.terms:
             eq += f" + 2 ({p['damping_ratio']:.3g}) sqrt(beta) v"
+        if "face_scaled" in self.terms:
+            r = p["face_stiffness_ratio"]
+            return eq.replace("beta [", f"{r / (r - 1):.4g} beta [", 1) + (
+                f")  for delta = x - e - y > 0, v = x' - y'; the face, each recording's own: "
+                f"mu y'' + 2 ({p['face_damping']:.3g}) sqrt({r:.4g} beta mu) y' + {r:.4g} beta y "
+                f"= F_c, mu = {p['face_mass']:.3g} (beta/{p['face_reference_beta']:.3g})^"
+                f"{p['face_mass_exponent']:.3g} (beta: the contact in series with the support)"
+            )
         if "face2" in self.terms:
             return eq + (
                 ")  for delta = x - e - y - y2 > 0, v = x' - y' - y2'; the face's modes: "

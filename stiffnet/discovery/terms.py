@@ -22,6 +22,11 @@ term                      force per unit beta                    shared paramete
 ``face2``                 the face's second mode: ``y`` is the   ``face2_mass``,
                           sum of both modes' recoils (only on    ``face2_stiffness``,
                           top of ``face``)                       ``face2_damping``
+``face_scaled``           a face that is each recording's own:   ``face_mass``,
+                          support ``r beta``, mass scaling as    ``face_stiffness_ratio``,
+                          ``beta^q``, the contact ``r/(r-1)``    ``face_damping``,
+                          beta in front (:mod:`.face_scaled`;    ``face_mass_exponent``
+                          not with ``face``)
 ========================  =====================================  =====================
 
 ``d_r`` is fixed (the campaign's median peak penetration, rounded), not fitted:
@@ -53,13 +58,17 @@ from stiffnet.discovery.face import (
     layout,
     sample_interval,
 )
+from stiffnet.discovery.face_scaled import SCALED_PARAMS, reference_beta, scaled_face_recoil
 from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.learned_contact import NEUTRAL, learned_contact_force
 
 #: Candidate terms beyond the linear spring, in the order they are tried.
-TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face", "face2")
+TERMS = ("power", "hinge", "damping", "hunt_crossley", "preload", "face", "face2", "face_scaled")
 #: The face's modes, each a term whose parameters are ``MODE_mass``/``_stiffness``/``_damping``.
 FACE_MODES = ("face", "face2")
+#: Terms that are a face (the shared one's modes, the scaled one): the scaled face is never
+#: in a law with the shared one.
+FACE_TERMS = ("face", "face2", "face_scaled")
 #: Terms of the library's own laws (``contact_damping``); ``hertz`` is ``power`` at 3/2.
 LIBRARY_TERMS = frozenset({"damping", "hertz"})
 #: Shared parameters of each term, with their bounds and starting value.
@@ -71,6 +80,7 @@ TERM_PARAMS: dict[str, tuple[tuple[str, float, float, float], ...]] = {
     "preload": (("preload", -0.5, 0.5, 0.0),),
     "face": FACE_PARAMS,
     "face2": FACE2_PARAMS,
+    "face_scaled": SCALED_PARAMS,
 }
 #: Loss of the fit (squared; a soft-l1 loss at the force scale changed beta by < 10 % on the
 #: two-stage test campaigns and read the first stage as outliers at smaller scales).
@@ -103,6 +113,8 @@ class Data:
     index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     #: The samples this is a subset of, and which: a face's ringing runs through all of them.
     parent: tuple[Data, np.ndarray] | None = None
+    #: The beta at which a scaled face's mass is its ``face_mass`` (:func:`stack`'s).
+    beta_ref: float = 30.0
 
     @property
     def n_rec(self) -> int:
@@ -132,23 +144,30 @@ class Data:
         return delta, v
 
     def face_recoil(
-        self, mass: float, stiffness: float, damping: float
+        self, mass: float | np.ndarray, stiffness: float | np.ndarray, damping: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """:func:`~.face.face_response` to the samples' force, the last faces' kept: it
         depends on the face alone, and a Jacobian's finite differences in the recordings'
-        betas and onsets (half the residual evaluations of a fit) leave the face as it is."""
+        betas and onsets (half the residual evaluations of a fit) leave the face as it is.
+        ``mass`` and ``stiffness`` may be each recording's (R,): a scaled face."""
         if self.parent is not None:  # the held-out impacts' force still drives the face
             full, idx = self.parent
             y, yd = full.face_recoil(mass, stiffness, damping)
             return y[idx], yd[idx]
-        key = (float(mass), float(stiffness), float(damping))
+        if np.ndim(mass) > 0:
+            mass, stiffness = np.asarray(mass, float), np.asarray(stiffness, float)
+            key: tuple = (mass.tobytes(), stiffness.tobytes(), float(damping))
+        else:
+            mass, stiffness = float(mass), float(stiffness)
+            key = (mass, stiffness, float(damping))
         cache = self._face_cache
         if key in cache:  # the least recently used face goes first
             cache[key] = cache.pop(key)
         else:
             if len(cache) >= FACE_CACHE:
                 cache.pop(next(iter(cache)))
-            cache[key] = face_response(self.f, self.layout, self.dt, *key, chain=self.chain,
+            cache[key] = face_response(self.f, self.layout, self.dt, mass, stiffness,
+                                       float(damping), chain=self.chain,
                                        drive=self._face_drive)  # fmt: skip
         return cache[key]
 
@@ -168,7 +187,8 @@ class Data:
         selected law's face and would otherwise filter the force again for it.
         """
         out = Data(self.x, self.v, self.f, weight, self.rec, self.impact, self.beta0,
-                   self.onset0, self.names, self.dt, self.index, self.parent)  # fmt: skip
+                   self.onset0, self.names, self.dt, self.index, self.parent,
+                   self.beta_ref)  # fmt: skip
         out.__dict__["_face_cache"] = self._face_cache  # cached_property's own slot
         out.__dict__["layout"] = self.layout
         out.__dict__["chain"] = self.chain
@@ -190,13 +210,14 @@ def stack(samples: Sequence[ContactSamples]) -> Data:
         imps.append(s.impact + offset)
         offset += s.n_impacts
     cat = np.concatenate
+    beta0 = np.array([max(s.beta, 1e-3) for s in samples])
     return Data(
         cat(xs), cat(vs), cat(fs), cat(ws), cat(rs), cat(imps),
-        np.array([max(s.beta, 1e-3) for s in samples]), np.array([s.onset for s in samples]),
+        beta0, np.array([s.onset for s in samples]),
         tuple(s.recording for s in samples),
         np.array([sample_interval(s.displacement, s.velocity, s.impact) for s in samples]),
         cat([s.index for s in samples]) if all(s.index is not None for s in samples)
-        else np.zeros(0, dtype=int),
+        else np.zeros(0, dtype=int), beta_ref=reference_beta(beta0),
     )  # fmt: skip
 
 
@@ -214,6 +235,7 @@ def recordings_subset(data: Data, keep: np.ndarray) -> Data:
         tuple(data.names[i] for i in keep),
         data.dt[keep] if data.dt.size else data.dt,
         data.index[sel] if data.index.size == data.f.size else data.index,
+        beta_ref=data.beta_ref,
     )  # fmt: skip
 
 
@@ -222,11 +244,16 @@ def shared_names(terms: frozenset[str]) -> list[str]:
     return [p[0] for t in TERMS if t in terms for p in TERM_PARAMS[t]]
 
 
-def law_params(terms: frozenset[str], shared: dict[str, float], dr: float) -> dict[str, float]:
-    """The ``learned_contact`` parameters of a law (neutral where a term is absent)."""
+def law_params(
+    terms: frozenset[str], shared: dict[str, float], dr: float, beta_ref: float = 30.0
+) -> dict[str, float]:
+    """The ``learned_contact`` parameters of a law (neutral where a term is absent);
+    ``beta_ref``: a scaled face's reference beta."""
     p = {**NEUTRAL, "reference_penetration": dr, "knee": 0.0}
     if "hertz" in terms:
         p["exponent"] = HERTZ_EXPONENT
+    if "face_scaled" in terms:
+        p["face_reference_beta"] = float(beta_ref)
     p.update({k: float(v) for k, v in shared.items()})
     return p
 
@@ -241,6 +268,8 @@ class Fit:
     n_rec: int
     sse: float
     n: int
+    #: A scaled face's reference beta (the samples', :attr:`Data.beta_ref`).
+    beta_ref: float = 30.0
 
     @property
     def shared(self) -> dict[str, float]:
@@ -257,7 +286,7 @@ class Fit:
 
     @property
     def params(self) -> dict[str, float]:
-        return law_params(self.terms, self.shared, self.dr)
+        return law_params(self.terms, self.shared, self.dr, self.beta_ref)
 
     @property
     def n_params(self) -> int:
@@ -274,6 +303,11 @@ def predict(data: Data, terms: frozenset[str], theta: np.ndarray, dr: float) -> 
     # the law acts on the face, which recoils under the measured force (a second mode
     # recoils under the same force, in parallel at the tip)
     delta, v = data.behind_face(delta, v, shared, [m for m in FACE_MODES if m in terms])
+    if "face_scaled" in terms:  # each recording's own face; the contact in front, stiffer
+        y, yd = scaled_face_recoil(data, np.exp(theta[:r]), shared, data.beta_ref)
+        delta, v = delta - y, v - yd
+        ratio = shared["face_stiffness_ratio"]
+        beta = beta * ratio / (ratio - 1.0)
     return learned_contact_force(delta, v, beta, law_params(terms, shared, dr))
 
 
@@ -340,7 +374,7 @@ def fit_law(
         resid, theta0, bounds=(lo, hi), jac=jac, x_scale="jac", max_nfev=max_nfev,
         tr_solver="lsmr", loss=LOSS, f_scale=F_SCALE, ftol=ftol,
     )  # fmt: skip
-    return Fit(terms, sol.x, dr, r, float(np.sum(sol.fun**2)), int(idx.size))
+    return Fit(terms, sol.x, dr, r, float(np.sum(sol.fun**2)), int(idx.size), data.beta_ref)
 
 
 def difference_jacobian(
@@ -401,7 +435,7 @@ def _subset(data: Data, idx: np.ndarray) -> Data:
     return Data(
         data.x[idx], data.v[idx], data.f[idx], data.weight[idx], data.rec[idx],
         data.impact[idx], data.beta0, data.onset0, data.names, data.dt,
-        parent=(data, idx),
+        parent=(data, idx), beta_ref=data.beta_ref,
     )  # fmt: skip
 
 

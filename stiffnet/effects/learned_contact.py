@@ -30,6 +30,19 @@ without one runs with the one-mode face's two states, as before. Beta is then th
 contact's own stiffness, in series with the face's support: the static stiffness is
 ``beta kappa / (beta + kappa)``.
 
+A face that scales with beta (``face_stiffness_ratio`` ``r > 0``; the paper's rig, where the
+beam is the material and every recording has its own): the restraint is the material, so
+its support and modal mass are each recording's own, set by its beta::
+
+    kappa = r beta,   mu = face_mass (beta / beta_ref)**q,   contact: beta r / (r - 1)
+
+(``face_mass_exponent`` q, ``face_reference_beta`` beta_ref). Beta is then the
+restraint's static stiffness at the contact, the contact in series with the support
+(``1 / (r - 1) beta r + 1 / r beta = 1 / beta``): for a beam struck through a contact
+much stiffer than it (``r`` near 1), its static tip stiffness. The face's two states carry
+a third, the row's beta held constant (the face's derivative needs it and
+:meth:`LearnedContact.state_derivative` is not given the batch).
+
 **What beta means** for such a law (docs/crosscheck.md, "beta for a nonlinear
 law"): the coefficient of the leading elastic term. For a law whose leading
 term is linear (``p = 1``) that is the elastic slope at first contact,
@@ -54,6 +67,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
+from pydantic import model_validator
 
 from stiffnet.effects.base import DynamicsEffect, EffectParams, ParamArrays, ParamValue, param
 from stiffnet.effects.fit_space import FitParam, FitSpace
@@ -73,10 +87,31 @@ LAW_PARAMS = (
     "face2_mass",
     "face2_stiffness",
     "face2_damping",
+    "face_stiffness_ratio",
+    "face_mass_exponent",
+    "face_reference_beta",
 )
 #: "Effect off": the paper's linear restraint.
 NEUTRAL = {"exponent": 1.0, "knee_ratio": 1.0, "preload": 0.0, "hunt_crossley": 0.0,
-           "damping_ratio": 0.0, "face_mass": 0.0, "face2_mass": 0.0}  # fmt: skip
+           "damping_ratio": 0.0, "face_mass": 0.0, "face2_mass": 0.0,
+           "face_stiffness_ratio": 0.0}  # fmt: skip
+
+
+def scaled_face(beta: Any, p: Mapping[str, Any]) -> tuple[Any, Any, Any]:
+    """A face that scales with beta (``face_stiffness_ratio`` ``r > 0``, see the module notes):
+    the contact's own stiffness, the face's support stiffness and its mass for ``beta``,
+    ``(beta r / (r - 1), r beta, face_mass (beta / beta_ref)**q)``; where ``r`` is 0 (an
+    absolute face, or none) ``(beta, face_stiffness, face_mass)``."""
+    beta = np.asarray(beta, float)
+    r = np.asarray(p["face_stiffness_ratio"], float)
+    on = r > 0
+    rs = np.where(on, r, 2.0)  # any ratio above 1 where off: no division by zero
+    contact = np.where(on, beta * rs / (rs - 1.0), beta)
+    kappa = np.where(on, rs * beta, p["face_stiffness"])
+    ratio = beta / np.asarray(p["face_reference_beta"], float)
+    mass = np.asarray(p["face_mass"], float) * np.where(on, ratio ** np.asarray(
+        p["face_mass_exponent"], float), 1.0)  # fmt: skip
+    return contact, kappa, mass
 
 
 def leading_term(delta: np.ndarray, exponent: Any, reference_penetration: Any) -> np.ndarray:
@@ -244,6 +279,27 @@ class LearnedContact(DynamicsEffect):
             1000.0, 0.1, 1e5, "kappa_2: the second mode's stiffness over the primary spring"
         )
         face2_damping: ParamValue = param(0.05, 0.0, 2.0, "damping ratio of the second mode")
+        face_stiffness_ratio: ParamValue = param(
+            0.0, 0.0, 100.0,
+            "r: a face that scales with beta, support r beta, contact beta r / (r - 1) "
+            "(0: the face is absolute, face_stiffness; above 1 when used)",
+        )  # fmt: skip
+        face_mass_exponent: ParamValue = param(
+            0.0, -1.0, 1.0, "q: a scaled face's mass face_mass (beta / beta_ref)^q"
+        )
+        face_reference_beta: ParamValue = param(
+            30.0, 0.1, 1e4, "beta_ref: the beta at which a scaled face's mass is face_mass"
+        )
+
+        @model_validator(mode="after")
+        def _ratio_above_one(self) -> LearnedContact.Params:
+            r = np.asarray(self.face_stiffness_ratio, float)
+            if np.any((r > 0) & (r <= 1.0)):
+                raise ValueError(
+                    "face_stiffness_ratio must be 0 (no scaled face) or above 1 (the contact "
+                    "in series with the support is beta)"
+                )
+            return self
 
     #: The shape of the law (exponent, second stage, Hunt-Crossley dissipation) when fitted by
     #: ``diagnose --only learned_contact``; d_r, preload and the Kelvin-Voigt damping stay at
@@ -277,10 +333,15 @@ class LearnedContact(DynamicsEffect):
             zeta = max(float(full["face_damping"]), 1e-3)
             free += [
                 _around(cls, "face_mass", float(full["face_mass"]), f),
-                _around(cls, "face_stiffness", float(full["face_stiffness"]), f),
                 _around(cls, "face_damping", zeta, f * f),
             ]
-            multimodal = ("face_stiffness",)
+            r = float(full["face_stiffness_ratio"])
+            if r > 0:  # a scaled face: its support's share of the compliance, 1 - 1/r, around
+                free.append(FitParam("face_stiffness_ratio", 1.0 + (r - 1.0) / f,
+                                     1.0 + (r - 1.0) * f))  # fmt: skip
+            else:
+                free.insert(1, _around(cls, "face_stiffness", float(full["face_stiffness"]), f))
+                multimodal = ("face_stiffness",)
         names = {fp.name for fp in free}
         fixed = {k: float(v) for k, v in full.items() if k not in names}
         return FitSpace(tuple(free), fixed, multimodal=multimodal)
@@ -288,7 +349,7 @@ class LearnedContact(DynamicsEffect):
     def fastest_rate(self, p: ParamArrays, batch: Any) -> np.ndarray:
         """Upper bound of the contact mode's rate, (B,): the stiffest slope the law reaches up
         to twice ``d_r`` and twice the knee, with both dampings at that penetration."""
-        beta = np.asarray(batch.beta, float)
+        beta, kappa_f, mu = scaled_face(batch.beta, p)  # the contact's own stiffness
         reach = 2.0 * np.maximum(p["reference_penetration"], p["knee"])
         slope = np.maximum(p["exponent"], 1.0) * np.maximum(
             (reach / p["reference_penetration"]) ** (p["exponent"] - 1.0), 1.0
@@ -296,14 +357,13 @@ class LearnedContact(DynamicsEffect):
         lead = leading_term(reach, p["exponent"], p["reference_penetration"])
         c = 2.0 * p["damping_ratio"] * np.sqrt(beta) + beta * p["hunt_crossley"] * lead
         rate = 0.5 * c + np.sqrt(0.25 * c * c + 1.0 + beta * slope)
-        mu = np.asarray(p["face_mass"], float)
         if not np.any(mu > 0):
             return rate
         # the face in contact: its support and the contact's steepest slope on its mass, plus
         # the contact's damping on it (trace bound, as restraint_mass's)
         m = np.where(mu > 0, mu, 1.0)
-        k = (p["face_stiffness"] + beta * slope) / m
-        cf = (2.0 * p["face_damping"] * np.sqrt(p["face_stiffness"] * m) + c) / m
+        k = (kappa_f + beta * slope) / m
+        cf = (2.0 * p["face_damping"] * np.sqrt(kappa_f * m) + c) / m
         face = 0.5 * cf + np.sqrt(0.25 * cf * cf + k + 1.0 + beta * slope)
         rate = np.where(mu > 0, np.maximum(rate, face), rate)
         mu2 = np.asarray(p["face2_mass"], float)
@@ -317,22 +377,42 @@ class LearnedContact(DynamicsEffect):
         return np.where(mu2 > 0, np.maximum(rate, second), rate)
 
     @property
+    def _second_mode(self) -> bool:
+        """A second mode on some row: its two states after the first mode's."""
+        return bool(np.any(np.asarray(self.params.face2_mass, float) > 0))
+
+    @property
+    def _scaled(self) -> bool:
+        """A face that scales with beta on some row: the row's beta held as the last state."""
+        return bool(np.any(np.asarray(self.params.face_stiffness_ratio, float) > 0)) and bool(
+            np.any(np.asarray(self.params.face_mass, float) > 0)
+        )
+
+    @property
     def n_states(self) -> int:  # type: ignore[override]
         """The face's recoil and its rate when the law has a face (any row), two more when
-        it has a second mode (any row), else none."""
-        if np.any(np.asarray(self.params.face2_mass, float) > 0):
-            return 4
-        return 2 if np.any(np.asarray(self.params.face_mass, float) > 0) else 0
+        it has a second mode (any row), one more (the row's beta) when the face scales with
+        beta (any row), else none."""
+        if not np.any(np.asarray(self.params.face_mass, float) > 0) and not self._second_mode:
+            return 0
+        return 2 + 2 * self._second_mode + self._scaled
+
+    def initial_states(self, p: ParamArrays, batch: Any) -> np.ndarray:
+        """The face at rest, (B, n_states); a scaled face's last state is the row's beta."""
+        out = np.zeros((len(batch), self.n_states))
+        if self._scaled:
+            out[:, -1] = np.asarray(batch.beta, float)
+        return out
 
     def restraint_position(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
         """The face's recoil ``y`` (plus the second mode's ``y_2``), (B,) (0 on rows without)."""
-        return s[:, 0] if s.shape[1] == 2 else s[:, 0] + s[:, 2]
+        return s[:, 0] + s[:, 2] if self._second_mode else s[:, 0]
 
     def restraint_rate(self, s: np.ndarray, p: ParamArrays) -> np.ndarray:
         """The recoil's rate ``y'`` (plus ``y_2'``), (B,): the modes' velocity states (0 on
         rows without a mode, as :meth:`state_derivative` holds them)."""
         rate = np.where(np.asarray(p["face_mass"], float) > 0, s[:, 1], 0.0)
-        if s.shape[1] == 4:
+        if self._second_mode:
             rate = rate + np.where(np.asarray(p["face2_mass"], float) > 0, s[:, 3], 0.0)
         return rate
 
@@ -340,13 +420,16 @@ class LearnedContact(DynamicsEffect):
         self, t: np.ndarray, s: np.ndarray, contact_force: np.ndarray, p: ParamArrays
     ) -> np.ndarray:
         """``(y', y'')`` of the face pushed by the contact force (and ``(y_2', y_2'')`` of its
-        second mode), (B, 2) or (B, 4); rows without a mode (its mass 0) keep it at rest."""
-        out = np.empty_like(s)
-        out[:, :2] = _mode_derivative(s[:, :2], contact_force, p["face_mass"],
-                                      p["face_stiffness"], p["face_damping"])  # fmt: skip
-        if s.shape[1] == 4:
-            out[:, 2:] = _mode_derivative(s[:, 2:], contact_force, p["face2_mass"],
-                                          p["face2_stiffness"], p["face2_damping"])  # fmt: skip
+        second mode), (B, 2) or (B, 4), and 0 for a scaled face's beta; rows without a mode
+        (its mass 0) keep it at rest."""
+        out = np.zeros_like(s)
+        kappa, mass = p["face_stiffness"], p["face_mass"]
+        if self._scaled:
+            _, kappa, mass = scaled_face(s[:, -1], p)
+        out[:, :2] = _mode_derivative(s[:, :2], contact_force, mass, kappa, p["face_damping"])
+        if self._second_mode:
+            out[:, 2:4] = _mode_derivative(s[:, 2:4], contact_force, p["face2_mass"],
+                                           p["face2_stiffness"], p["face2_damping"])  # fmt: skip
         return out
 
     @property
@@ -360,8 +443,9 @@ class LearnedContact(DynamicsEffect):
         )
 
     def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
-        """``beta`` times the elastic shape, (B,)."""
-        return np.asarray(batch.beta, float) * elastic_shape(delta, p)
+        """The contact's stiffness (beta, or a scaled face's ``beta r / (r - 1)``) times the
+        elastic shape, (B,)."""
+        return scaled_face(batch.beta, p)[0] * elastic_shape(delta, p)
 
     def bound_elastic_contact(self, p: ParamArrays, batch: Any) -> Callable[[np.ndarray], Any]:
         """:meth:`elastic_contact` for these rows: where the law is linear on every row and
@@ -369,7 +453,7 @@ class LearnedContact(DynamicsEffect):
         without deciding so again at each call (the same numbers, fewer numpy calls)."""
         if not linear_leading_term(p) or np.any(np.asarray(p["preload"], float)):
             return super().bound_elastic_contact(p, batch)
-        beta = np.asarray(batch.beta, float)
+        beta = scaled_face(batch.beta, p)[0]
         ratio = stage_slope(p)
         knee = p["knee"]
 
@@ -389,8 +473,8 @@ class LearnedContact(DynamicsEffect):
         return super().bound_contact_dissipation(p, batch)
 
     def contact_damping(self, p: ParamArrays, batch: Any) -> np.ndarray:
-        """Kelvin-Voigt coefficient ``2 zeta_c sqrt(beta)``, (B,)."""
-        return 2.0 * p["damping_ratio"] * np.sqrt(np.asarray(batch.beta, float))
+        """Kelvin-Voigt coefficient ``2 zeta_c sqrt(beta)``, (B,) (beta the contact's own)."""
+        return 2.0 * p["damping_ratio"] * np.sqrt(scaled_face(batch.beta, p)[0])
 
     def contact_dissipation(
         self, delta: np.ndarray, rate: np.ndarray, p: ParamArrays, batch: Any
@@ -402,4 +486,4 @@ class LearnedContact(DynamicsEffect):
         if alpha.shape in ((), np.shape(delta)) and not np.any(alpha):
             return np.zeros(np.shape(delta))
         lead = leading_term(delta, p["exponent"], p["reference_penetration"])
-        return hunt_crossley_gain(p, batch.beta) * lead * rate
+        return hunt_crossley_gain(p, scaled_face(batch.beta, p)[0]) * lead * rate

@@ -34,7 +34,9 @@ from stiffnet.campaign.simulate import natural_frequency
 from stiffnet.discovery.face_candidate import (
     betas_behind_face,
     face_grid,
+    in_question_term,
     maps_face_law,
+    scaled_face_grid,
     series_betas,
 )
 from stiffnet.discovery.law import DiscoveredLaw
@@ -55,10 +57,18 @@ FACE_PARAMETERS = 3
 #: misses what a sweep finds).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
 FACE_REFIT_GRID = 7
+#: A face that scales with beta (``face_scaled``): its parameters, of which the first four are
+#: fitted (the reference beta is the campaign's, fixed).
+SCALED_KEYS = ("face_mass", "face_stiffness_ratio", "face_damping", "face_mass_exponent",
+               "face_reference_beta")  # fmt: skip
+SCALED_PARAMETERS = 4
 #: The order of the refit's sweeps: the damping before the stiffness, for the ringing's
 #: frequency the stiffness sets is read at the damping's best (swept at the grid's damping,
 #: the stiffness locked onto a neighbouring orbit on the beam campaign).
 SWEEP_ORDER = ("face_mass", "face_damping", "face_stiffness")
+#: A face that scales with beta sweeps its support's ratio to beta where the shared face sweeps
+#: its support (:meth:`LearnedContact.fit_space_at`).
+SCALED_SWEEP = {"face_stiffness": "face_stiffness_ratio"}
 
 
 def face_by_simulation(
@@ -99,9 +109,14 @@ def face_by_simulation(
         ``significance``, ``maps_face``, ``grid_best``, ``refit``, ``seconds``.
     """
     t0 = time.perf_counter()
-    maps = maps_face_law(samples, law.path)
+    term = in_question_term(law)
+    maps = maps_face_law(samples, law.path, term)
     start = maps.effect_params
-    points = [start, *({**start, **g} for g in face_grid(law.betas))]
+    grid = face_grid(law.betas) if term == "face" else scaled_face_grid(maps)
+    keys, n_params = (
+        (FACE_KEYS, FACE_PARAMETERS) if term == "face" else (SCALED_KEYS, SCALED_PARAMETERS)
+    )
+    points = [start, *({**start, **g} for g in grid)]
     tgt = replace(target, rows=list(rows))
     # every point on every model as one batch each, a screen: the batch draws other noise per
     # point and runs the numerical-engine design's shorter transient begun warm, so the best
@@ -126,8 +141,8 @@ def face_by_simulation(
     params = refit["params"] if refit["improves"] else point
     after = np.asarray(refit["per_recording"] if refit["improves"] else alone, float)
     names = [r.recording for r in rows]
-    sig = significance(before, after, FACE_PARAMETERS, floor, names)
-    chosen = {k: float(params[k]) for k in FACE_KEYS}
+    sig = significance(before, after, n_params, floor, names)
+    chosen = {k: float(params[k]) for k in keys}
     face_law = betas_behind_face(samples, maps, chosen) if sig["significant"] else None
     return {
         "significant": bool(sig["significant"]),
@@ -137,16 +152,17 @@ def face_by_simulation(
         "per_recording": after.tolist(),
         "discrepancy": campaign_discrepancy(after),
         "significance": {k: sig[k] for k in ("excess_reduction", "bic_delta", "reasons")},
-        "maps_face": {k: float(start[k]) for k in FACE_KEYS}
+        "term": term,
+        "maps_face": {k: float(start[k]) for k in keys}
         | {"explained_fraction": maps.explained_fraction},
-        "grid_best": {k: float(point[k]) for k in FACE_KEYS},
+        "grid_best": {k: float(point[k]) for k in keys},
         "grid_discrepancies": [float(d) for d, i, _ in scored if i == mi],
         "refit": {
             k: refit[k]
             for k in ("improves", "discrepancy_discovered", "discrepancy_refit", "first_sweeps")
         }
         | {"seconds": refit["seconds"]},
-        "other_start": None if other is None else {k: float(points[other][k]) for k in FACE_KEYS},
+        "other_start": None if other is None else {k: float(points[other][k]) for k in keys},
         "seconds": round(time.perf_counter() - t0, 2),
     }
 
@@ -170,8 +186,10 @@ def _same(a: Sequence[Effect], b: Sequence[Effect]) -> bool:
 
 def face_unknowns(law: DiscoveredLaw, rows: Sequence[Any], params: dict[str, float]) -> list[str]:
     """What a face chosen by simulation leaves unknown, in words (the proposal says so)."""
-    w = float(np.sqrt(params["face_stiffness"] / params["face_mass"]))
     nyq = min(0.5 * r.fs_hz / natural_frequency(r) for r in rows)  # in natural frequencies
+    if float(params.get("face_stiffness_ratio", 0.0)) > 0:
+        return _scaled_unknowns(params, nyq)
+    w = float(np.sqrt(params["face_stiffness"] / params["face_mass"]))
     series = series_betas(law.betas, params)
     return [
         "the face was chosen by simulating the campaign, not by the maps' held-out test "
@@ -184,6 +202,22 @@ def face_unknowns(law: DiscoveredLaw, rows: Sequence[Any], params: dict[str, flo
         "support stiffness; the contact in series with the support, "
         f"1 / (1/beta + 1/kappa) = {min(series):.3g}-{max(series):.3g}, is what a static "
         "test measures and is the better-determined of the two",
+    ]
+
+
+def _scaled_unknowns(params: dict[str, float], nyq: float) -> list[str]:
+    """:func:`face_unknowns` of a face that scales with beta."""
+    r, beta_ref = float(params["face_stiffness_ratio"]), float(params["face_reference_beta"])
+    w = float(np.sqrt(r * beta_ref / params["face_mass"]))
+    return [
+        "the face was chosen by simulating the campaign, not by the maps' held-out test "
+        "(it failed there): its values carry no bootstrap interval, only the refit's box",
+        f"modes of the restraint above {nyq:.3g} natural frequencies (the slowest recording's "
+        "Nyquist frequency) alias into the measured force and are not identified: the face "
+        f"is one mode, at {w:.3g} natural frequencies at beta {beta_ref:.3g}, standing for all",
+        "beta is the restraint's static stiffness at the contact (the contact in series with "
+        f"the support); the contact's own, {r / (r - 1):.3g} beta, is weakly determined where "
+        "it is much stiffer than the support",
     ]
 
 
@@ -229,6 +263,7 @@ def refine_face(
         first.append((*_sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0), box))
     best, per, fitted, box = min(first, key=lambda f: campaign_discrepancy(f[1]))
     for key in SWEEP_ORDER[1:]:  # the others across the chosen start's box, at the best so far
+        key = key if key in box else SCALED_SWEEP[key]
         best, per, fitted = _sweep(tgt, settings, box, key, best, per)
     d0, d1 = campaign_discrepancy(at_discovered), campaign_discrepancy(per)
     return {

@@ -378,8 +378,8 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
     fitted = [k for k, v in params.items()
               if k in LearnedContact.neutral and v != LearnedContact.neutral[k]] + [
               k for k in ("knee",) if "hinge" in learned["law"]["terms"]]  # fmt: skip
-    face = "face" in learned["law"]["terms"]
-    fitted += ["face_stiffness"] if face else []
+    fitted += ["face_stiffness"] if "face" in learned["law"]["terms"] else []
+    face = bool({"face", "face_scaled"} & set(learned["law"]["terms"]))
     fitted += ["face2_stiffness"] if "face2" in learned["law"]["terms"] else []
     # a law with its own face replaces a library restraint with a mass (two faces would add)
     gone = {*REPLACED, *learned.get("replaces", []), *(["restraint_mass"] if face else [])}

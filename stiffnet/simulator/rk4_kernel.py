@@ -93,7 +93,7 @@ def kernel_form(
 ) -> KernelForm | None:
     """The model's :class:`KernelForm`, or None where the kernel cannot reproduce its
     right-hand side (an unknown effect overriding a numerical hook, two of a kind, two
-    elastic laws, a learned law with a power-law leading term on a row, too many
+    elastic laws, a learned law with a power-law leading term or a scaled face on a row, too many
     sinusoids)."""
     seen: set[type] = set()
     friction = -1
@@ -108,7 +108,11 @@ def kernel_form(
         if type(eff) is DryFriction:
             friction = k
         if type(eff) is LearnedContact:
-            if not linear_leading_term(params[k]):
+            # a power law (numpy's SIMD pow is not libm's) or a face that scales with each
+            # row's beta (its contact, support and mass are the row's own) keep numpy's path
+            if not linear_leading_term(params[k]) or np.any(
+                np.asarray(params[k]["face_stiffness_ratio"], float) > 0
+            ):
                 return None
             n_face = eff.n_states // 2
     if forcing.amp.shape[1] > MAX_TERMS or gap.amp.shape[1] > MAX_TERMS:
