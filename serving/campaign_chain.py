@@ -169,17 +169,26 @@ MAX_PROFILE_READINGS = 200
 #: ... but never fewer recordings than this: the profile's criterion is their median (the
 #: bench's campaigns hold six recordings, read whole).
 MIN_PROFILED_RECORDINGS = 6
+#: The most recordings whose chain is fitted again regardless of the gate (each fit 5-15 s CPU
+#: on the rig: 24 of them were six minutes of an evaluation); the pool needs a consensus,
+#: which this many spread over the campaign give.
+MAX_FITTED_REGARDLESS = 8
 
 
 def profiled_subset(todo: Sequence[int], n_candidates: int, kept: Sequence[int] = ()) -> list[int]:
     """Rule: the recordings a campaign profile reads on each of its `n_candidates`: all of
-    `todo` where that stays within :data:`MAX_PROFILE_READINGS` readings, else a subset of as
-    many as the budget allows, at least :data:`MIN_PROFILED_RECORDINGS`: the recordings of
-    `kept` (those the profile is for) and the others evenly spaced in the campaign's order;
-    returned in `todo`'s order. The profiles' criterion is a median over the recordings,
-    which a spread subset estimates; the cost of one stays bounded whatever the campaign's
-    size."""
+    `todo` where that stays within :data:`MAX_PROFILE_READINGS` readings, else as many as the
+    budget allows, at least :data:`MIN_PROFILED_RECORDINGS` (:func:`spread_subset`, `kept`
+    the recordings the profile is for). The profiles' criterion is a median over the
+    recordings, which a spread subset estimates; the cost of one stays bounded whatever the
+    campaign's size."""
     keep = max(MIN_PROFILED_RECORDINGS, MAX_PROFILE_READINGS // max(int(n_candidates), 1))
+    return spread_subset(todo, keep, kept)
+
+
+def spread_subset(todo: Sequence[int], keep: int, kept: Sequence[int] = ()) -> list[int]:
+    """Rule: `todo` where it holds at most `keep` recordings, else `keep` of them: those of
+    `kept`, and the others evenly spaced in the campaign's order; returned in `todo`'s order."""
     if len(todo) <= keep:
         return list(todo)
     first = [i for i in todo if i in set(kept)][:keep]
@@ -306,11 +315,12 @@ def identify_regardless(
 ) -> tuple[dict[str, Any], list[dict | None]]:
     """The campaign's chain (:func:`campaign_chain`), with the chain fitted regardless of the
     gate (`identify`: recording index to the restoring-force ``sensor`` of a check that always
-    fits one) on the recordings :func:`gated_out` names, where the gated fits pool nothing for
+    fits one) on the recordings :func:`gated_out` names (at most :data:`MAX_FITTED_REGARDLESS`,
+    spread over the campaign: :func:`spread_subset`), where the gated fits pool nothing for
     want of identified chains. Returns the decision (``fitted_regardless``: those recordings'
     names) and the sensors it pooled."""
     chain = campaign_chain(sensors, names, sheets)
-    todo = gated_out(chain, sensors, sheets)
+    todo = spread_subset(gated_out(chain, sensors, sheets), MAX_FITTED_REGARDLESS)
     if not todo:
         return chain, list(sensors)
     sensors = list(sensors)

@@ -118,6 +118,26 @@ def test_a_campaign_whose_gated_checks_fit_no_chain_has_it_fitted_regardless_and
     assert chain["pooled"] and asked == [] and "fitted_regardless" not in chain
 
 
+def test_a_large_campaign_has_its_chain_fitted_regardless_on_a_spread_few():
+    """24 recordings whose gated checks fitted no chain: the chain is fitted again on
+    MAX_FITTED_REGARDLESS of them, spread from the first to the last, and pooled from those."""
+    from serving.campaign_chain import MAX_FITTED_REGARDLESS
+
+    n = 24
+    asked = []
+
+    def identify(i):
+        asked.append(i)
+        return fitted(lowpass_hz=100.0 + 0.1 * i, order=2)
+
+    chain, pooled_from = identify_regardless([None] * n, [f"r{i}" for i in range(n)], None,
+                                             identify)  # fmt: skip
+    assert len(asked) == MAX_FITTED_REGARDLESS < n and asked[0] == 0 and asked[-1] == n - 1
+    assert len(chain["fitted_regardless"]) == MAX_FITTED_REGARDLESS
+    assert chain["pooled"] and chain["sensor"]["lowpass_hz"] == pytest.approx(101.15, abs=0.5)
+    assert sum(s is not None for s in pooled_from) == MAX_FITTED_REGARDLESS
+
+
 def test_behind_a_second_order_lowpass_the_gate_fits_no_chain_and_the_fit_regardless_does():
     """The independent rig behind one campaign's chain (a 106 Hz order-2 low-pass, its mount
     above the Nyquist frequency; 2 % noise): the record's law reads R2 above the gate, so the
