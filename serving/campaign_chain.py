@@ -191,7 +191,8 @@ def spread_subset(todo: Sequence[int], keep: int, kept: Sequence[int] = ()) -> l
     `kept`, and the others evenly spaced in the campaign's order; returned in `todo`'s order."""
     if len(todo) <= keep:
         return list(todo)
-    first = [i for i in todo if i in set(kept)][:keep]
+    wanted = set(kept)
+    first = [i for i in todo if i in wanted][:keep]
     rest = [i for i in todo if i not in set(first)]
     n_rest = keep - len(first)
     picks = np.unique(np.round(np.linspace(0, len(rest) - 1, n_rest)).astype(int)) if n_rest else []
