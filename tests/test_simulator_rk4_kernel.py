@@ -146,6 +146,14 @@ def test_the_kernels_trajectories_are_numpys(name: str, dense: bool) -> None:
         assert np.max(np.abs(a - b)) <= REL_TOL * scale, key
 
 
+def _kernel_and_numpy(batch, effects, params) -> tuple[nm._Model, nm._Model]:
+    """The same model built with the compiled step and with numpy's path."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(nm, "COMPILED_STEP", False)
+        slow = nm._Model(batch, effects, params)
+    return nm._Model(batch, effects, params), slow
+
+
 def _rhs_and_step(model: nm._Model, rng: np.random.Generator) -> tuple[np.ndarray, ...]:
     """``rhs(full=True)``'s outputs and one RK4 step of ``model`` at random states near the
     learned laws' knee and face amplitudes, rows in and out of contact, every friction
@@ -171,10 +179,7 @@ def test_the_learned_laws_right_hand_side_is_numpys_bit_for_bit(name: str) -> No
     effects = LEARNED_CASES[name]
     batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
     p = _params(effects, 6)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(nm, "COMPILED_STEP", False)
-        slow = nm._Model(batch, effects, p)
-    fast = nm._Model(batch, effects, p)
+    fast, slow = _kernel_and_numpy(batch, effects, p)
     assert fast.kernel is not None and fast.kernel.learned and slow.kernel is None
     for rows in (np.arange(6), np.array([0, 3]), np.array([4])):
         a, b = fast.subset(rows), slow.subset(rows)
@@ -189,10 +194,7 @@ def test_a_perturbed_learned_kernel_is_caught() -> None:
     effects = LEARNED_CASES["learned_all_terms"]
     batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
     p = _params(effects, 6)
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(nm, "COMPILED_STEP", False)
-        slow = nm._Model(batch, effects, p)
-    fast = nm._Model(batch, effects, p)
+    fast, slow = _kernel_and_numpy(batch, effects, p)
     fast._pack[:, rk._SLOPE] = np.nextafter(fast._pack[:, rk._SLOPE], np.inf)
     got = _rhs_and_step(fast, np.random.default_rng(7))
     want = _rhs_and_step(slow, np.random.default_rng(7))
@@ -211,10 +213,7 @@ def test_the_kernels_right_hand_side_is_numpys_bit_for_bit() -> None:
     batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
     p = _params(effects, 6)
     p[2] = {**p[2], "coefficient": np.full(6, 0.4)}
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(nm, "COMPILED_STEP", False)
-        slow = nm._Model(batch, effects, p)
-    fast = nm._Model(batch, effects, p)
+    fast, slow = _kernel_and_numpy(batch, effects, p)
     rng = np.random.default_rng(5)
     t = rng.uniform(0, 300, 6)
     y = np.column_stack([rng.normal(2.8, 0.3, 6), rng.normal(0, 1, 6),
