@@ -231,15 +231,11 @@ def pooled_predictions(
     (:mod:`serving.campaign_chain`, as ``evaluate`` and ``predict-batch`` do), else `got`'s;
     and each campaign's decision with its true chain."""
     from serving.campaign_chain import (
-        campaign_highpass,
-        campaign_highpass_damped,
-        campaign_lowpass,
-        campaign_lowpass_minority,
-        campaign_resonance,
         confirmed,
         contact_r2_through,
         free_damping_through,
         identify_regardless,
+        profiled_campaign_chain,
         reads_alone,
     )
     from serving.checks import checked_recording
@@ -283,20 +279,13 @@ def pooled_predictions(
         chain, sensors = identify_regardless([got[i]["sensor"] for i in idx],
                                              [str(i) for i in idx], None,
                                              lambda j, idx=idx: identify(idx[j]))  # fmt: skip
-        chain = campaign_lowpass(chain, sensors,
-                                 lambda j, sheet, idx=idx: contact_r2(idx[j], sheet))  # fmt: skip
-        chain = campaign_highpass(chain, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet),
-                                  [recs[i]["fn_hz"] for i in idx])  # fmt: skip
-        chain = campaign_resonance(chain,
-                                   lambda j, sheet, idx=idx: contact_r2(idx[j], sheet, True),
-                                   [recs[i]["fn_hz"] for i in idx])  # fmt: skip
-        chain = campaign_lowpass_minority(
-            chain, sensors, lambda j, sheet, idx=idx: contact_r2(idx[j], sheet)
-        )
-        chain = campaign_highpass_damped(chain,
-                                         lambda j, sheet, idx=idx: free_damping(idx[j], sheet),
-                                         [recs[i]["fn_hz"] for i in idx],
-                                         [recs[i].get("damping_ratio") for i in idx])  # fmt: skip
+        chain = profiled_campaign_chain(
+            chain, sensors,
+            lambda j, sheet, refused=False, idx=idx: contact_r2(idx[j], sheet, refused),
+            lambda j, sheet, idx=idx: free_damping(idx[j], sheet),
+            lambda idx=idx: [recs[i]["fn_hz"] for i in idx],
+            [recs[i].get("damping_ratio") for i in idx],
+        )  # fmt: skip
         if chain["pooled"]:
             again = predict_set(pred, [recs[i] for i in idx], [chain["sensor"]] * len(idx),
                                 fitted=True)  # fmt: skip

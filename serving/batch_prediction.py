@@ -52,17 +52,13 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from serving.campaign_chain import (
-    campaign_highpass,
-    campaign_highpass_damped,
-    campaign_lowpass,
-    campaign_lowpass_minority,
-    campaign_resonance,
     chain_fitted_regardless,
     confirmed,
     contact_r2_through,
     free_damping_through,
     identify_regardless,
     labelled,
+    profiled_campaign_chain,
     reads_alone,
 )
 from serving.predictor import Predictor, predict_recording, record_natural_frequency
@@ -527,15 +523,10 @@ def _campaign_chain(
     (:func:`serving.campaign_chain.campaign_chain`); a recording read with a data sheet
     (the manifest's or its sidecar's) does not vote. Where too few identified one, the chain
     is fitted regardless of the gate here, recording by recording
-    (:func:`serving.campaign_chain.identify_regardless`); a low-pass the identified chains
-    show, then a pooled high-pass corner, then a pooled resonance near the contacts that
-    refuses a recording, is profiled over the recordings read through the pooled chain
-    (:func:`serving.campaign_chain.campaign_lowpass`,
-    :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`), then a low-pass fewer than half the
-    chains show (:func:`serving.campaign_chain.campaign_lowpass_minority`); last the corner
-    from the free flight where the manifest's rows give the rig's damping (`dampings`,
-    :func:`serving.campaign_chain.campaign_highpass_damped`)."""
+    (:func:`serving.campaign_chain.identify_regardless`); the pooled chain's stages are
+    profiled over the recordings read through it, the high-pass corner last from the free
+    flight where the manifest's rows give the rig's damping (`dampings`;
+    :func:`serving.campaign_chain.profiled_campaign_chain`)."""
     from stiffnet.recordings import read_recording
 
     sensors = [json.loads(s) if s else None for s in table.column("sensor").to_pylist()]
@@ -568,20 +559,15 @@ def _campaign_chain(
         return None if rec is None else contact_r2_through(*rec, predictor, sheet,
                                                            refused_as_unexplained)  # fmt: skip
 
-    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
-    if not chain["pooled"]:
-        return chain
-    fns = [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
-    chain = campaign_highpass(chain, contact_r2, fns, sheets)
-    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
-    chain = campaign_lowpass_minority(chain, sensors, contact_r2, sheets)
+    def fns() -> list[float | None]:
+        return [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = recording(i)
         return None if rec is None else free_damping_through(*rec, predictor, sheet)
 
-    return campaign_highpass_damped(chain, free_damping, fns, dampings or [None] * len(paths),
-                                    sheets)  # fmt: skip
+    return profiled_campaign_chain(chain, sensors, contact_r2, free_damping, fns,
+                                   dampings or [None] * len(paths), sheets)  # fmt: skip
 
 
 def _confirmed(

@@ -735,6 +735,37 @@ def campaign_lowpass_minority(
     return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit, shown)
 
 
+def profiled_campaign_chain(
+    chain: dict[str, Any],
+    sensors: Sequence[dict | None],
+    contact_r2: Callable[..., float | None],
+    free_damping: Callable[[int, dict[str, Any]], float | None],
+    fn_hz: Callable[[], Sequence[float | None]],
+    rig_damping: Sequence[float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """The campaign's pooled decision (:func:`identify_regardless`) with its stages profiled
+    over the campaign's contact laws, in their order: the low-pass the fits disagree on
+    (:func:`campaign_lowpass`), the high-pass corner (:func:`campaign_highpass`), a resonance
+    near the contacts that refuses a recording (:func:`campaign_resonance`), a low-pass fewer
+    than half the chains show (:func:`campaign_lowpass_minority`), last the corner from the
+    free flight where the rows give the rig's damping (:func:`campaign_highpass_damped`).
+
+    `contact_r2` is recording index, data sheet and ``refused_as_unexplained`` to the contact
+    law's R² (:func:`contact_r2_through`); `free_damping` recording index and sheet to the
+    free flight's damping (:func:`free_damping_through`); `fn_hz` gives each recording's
+    natural frequency, asked for only where the chain is pooled (every stage after the
+    low-pass profiles a pool)."""
+    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
+    if not chain["pooled"]:
+        return chain
+    fns = fn_hz()
+    chain = campaign_highpass(chain, contact_r2, fns, sheets)
+    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
+    chain = campaign_lowpass_minority(chain, sensors, contact_r2, sheets)
+    return campaign_highpass_damped(chain, free_damping, fns, rig_damping, sheets)
+
+
 def _lowpass_grid(corners: np.ndarray) -> np.ndarray:
     """The low-pass profile's candidate corners around the fitted `corners`: steps of
     :data:`FIT_SCATTER` from :data:`LOWPASS_STEPS_BELOW` below the lowest to

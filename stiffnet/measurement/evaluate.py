@@ -151,26 +151,14 @@ def campaign_predictions(
     A campaign has one accelerometer: the chains the restoring-force check identified on
     some recordings are pooled (:func:`serving.campaign_chain.campaign_chain`) and, where
     they agree, every recording without its own data sheet is predicted again with the
-    pooled chain as its sheet (a low-pass the identified chains show, then its high-pass
-    corner, then a resonance near the contacts that refuses a recording, profiled over the
-    campaign's contact laws, :func:`serving.campaign_chain.campaign_lowpass`,
-    :func:`serving.campaign_chain.campaign_highpass`,
-    :func:`serving.campaign_chain.campaign_resonance`, then a low-pass fewer than half the
-    chains show, :func:`serving.campaign_chain.campaign_lowpass_minority`; last the corner
-    from the free flight
-    where the rows give the rig's damping,
-    :func:`serving.campaign_chain.campaign_highpass_damped`); kept where it reads the contact
+    pooled chain as its sheet (its stages profiled over the campaign's contact laws,
+    :func:`serving.campaign_chain.profiled_campaign_chain`); kept where it reads the contact
     laws about as well as the first reading (:func:`serving.campaign_chain.confirmed`),
     except on a recording whose own contact law it reads much worse
     (:func:`serving.campaign_chain.reads_alone`: its first reading is kept). Returns the
     results (``chain_source`` in each) and the campaign's ``sensor`` decision.
     """
     from serving.campaign_chain import (
-        campaign_highpass,
-        campaign_highpass_damped,
-        campaign_lowpass,
-        campaign_lowpass_minority,
-        campaign_resonance,
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
@@ -178,6 +166,7 @@ def campaign_predictions(
         free_damping_through,
         identify_regardless,
         labelled,
+        profiled_campaign_chain,
         reads_alone,
     )
     from serving.predictor import Predictor
@@ -204,11 +193,7 @@ def campaign_predictions(
         return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet,
                                   refused_as_unexplained)  # fmt: skip
 
-    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     fns = [natural_frequency(row) for row in rows]
-    chain = campaign_highpass(chain, contact_r2, fns, sheets)
-    chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)
-    chain = campaign_lowpass_minority(chain, sensors, contact_r2, sheets)
 
     def free_damping(i: int, sheet: dict) -> float | None:
         rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
@@ -216,7 +201,8 @@ def campaign_predictions(
         return free_damping_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
-    chain = campaign_highpass_damped(chain, free_damping, fns, dampings, sheets)
+    chain = profiled_campaign_chain(chain, sensors, contact_r2, free_damping, lambda: fns,
+                                    dampings, sheets)  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     again = [
