@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, optimize, stats
+from scipy import fft, linalg, optimize, stats
 
 #: Bounds of the contact exponent: from linear to well beyond Hertz (1.5). Below 1 (softer
 #: than linear) a free exponent mostly absorbs reconstruction error at a damped onset.
@@ -35,6 +35,9 @@ EXPONENT_BOUNDS = (1.0, 3.0)
 #: the contact (campaign records through their data sheets), and the fit through the band
 #: can stall on the way from there.
 BAND_START_GAINS = (1.0, 1.6)
+#: Relative step of a forward difference: least_squares' own (``jac="2-point"``), the square
+#: root of the machine epsilon, times ``max(1, |x|)``.
+FORWARD_DIFFERENCE_STEP = float(np.sqrt(np.finfo(float).eps))
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,109 @@ def profile_contact_start(
     return best
 
 
+class _LawResiduals:
+    """The law's residual force (in the fit's unit) at a parameter vector ``(log K, e, c_c[, p])``
+    or at each row of a batch of them, and its forward-difference Jacobian.
+
+    Through a `band` the law's force over the whole record is filtered per ``rfft`` bin and
+    read on the samples `near` the impacts; a batch is transformed in one call (``scipy.fft``
+    along the last axis gives each row bit for bit what a transform of that row alone gives).
+    The last point evaluated is kept: the solver asks for the Jacobian where it has just
+    evaluated the residual, and the difference is taken from that same residual.
+    """
+
+    def __init__(self, x, v, f, dr, exponent, band, near) -> None:
+        self.x, self.v, self.f, self.dr = x, v, f, dr
+        self.exponent, self.band, self.near = exponent, band, near
+        self._last: tuple[bytes, np.ndarray] | None = None
+
+    def batch(self, thetas: np.ndarray) -> np.ndarray:
+        """Residuals at each row of `thetas` (rows, n_params) -> (rows, samples)."""
+        # a trial step may overflow the stiffness; its residual is then not finite and the
+        # step is refused by the solver, so numpy's warnings would only reach the user
+        with np.errstate(over="ignore", invalid="ignore"):
+            out = np.array([
+                contact_force(self.x, self.v, np.exp(t[0]), t[1], t[2],
+                              t[3] if self.exponent is None else self.exponent, self.dr)
+                for t in thetas
+            ])  # fmt: skip
+            if self.band is not None:
+                n = self.x.size
+                out = fft.irfft(fft.rfft(out, axis=-1) * self.band, n, axis=-1)[:, self.near]
+        return out - self.f
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        r = self.batch(theta[None, :])[0]
+        self._last = (np.asarray(theta, dtype=float).tobytes(), r)
+        return r
+
+    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        """least_squares' forward-difference Jacobian at `theta` within the law's bounds."""
+        key = np.asarray(theta, dtype=float).tobytes()
+        r0 = self._last[1] if self._last is not None and self._last[0] == key else self(theta)
+        return forward_difference_jacobian(self.batch, theta, r0, *_law_bounds(self.exponent))
+
+
+def _law_bounds(exponent: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of ``(log K, e, c_c[, p])``: a damping that only dissipates, the exponent within
+    :data:`EXPONENT_BOUNDS` where it is fitted."""
+    free = exponent is None
+    lo = [-np.inf, -np.inf, 0.0] + ([EXPONENT_BOUNDS[0]] if free else [])
+    hi = [np.inf, np.inf, np.inf] + ([EXPONENT_BOUNDS[1]] if free else [])
+    return np.array(lo), np.array(hi)
+
+
+def forward_difference_steps(x0: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """least_squares' forward-difference steps (``jac="2-point"``): :data:`FORWARD_DIFFERENCE_STEP`
+    times ``max(1, |x|)`` with the sign of ``x`` (+ at 0), reversed where it would leave the
+    bounds and the other side has room, else cut to the farther bound."""
+    x0 = np.asarray(x0, dtype=float)
+    sign = (x0 >= 0).astype(float) * 2 - 1
+    h = FORWARD_DIFFERENCE_STEP * sign * np.maximum(1.0, np.abs(x0))
+    below, above = x0 - lower, upper - x0
+    violated = (x0 + h < lower) | (x0 + h > upper)
+    fitting = np.abs(h) <= np.maximum(below, above)
+    h[violated & fitting] *= -1
+    forward = (above >= below) & ~fitting
+    h[forward] = above[forward]
+    backward = (above < below) & ~fitting
+    h[backward] = -below[backward]
+    return h
+
+
+def forward_difference_jacobian(
+    batch, x0: np.ndarray, f0: np.ndarray, lower: np.ndarray, upper: np.ndarray
+) -> np.ndarray:
+    """The forward-difference Jacobian least_squares computes for ``jac="2-point"``, bit for
+    bit, with the stepped points evaluated in one call.
+
+    Parameters
+    ----------
+    batch : callable
+        Residuals at each row of a (rows, n) array of points -> (rows, m).
+    x0 : numpy.ndarray
+        The point (n,).
+    f0 : numpy.ndarray
+        The residuals at `x0` (m,).
+    lower, upper : numpy.ndarray
+        Bounds on the parameters (n,).
+
+    Returns
+    -------
+    numpy.ndarray
+        (m, n); the transpose of a C-ordered array, as scipy lays it out.
+    """
+    x0 = np.asarray(x0, dtype=float)
+    h = forward_difference_steps(x0, lower, upper)
+    stepped = np.tile(x0, (x0.size, 1))
+    idx = np.arange(x0.size)
+    stepped[idx, idx] = x0 + h
+    dx = (x0 + h) - x0
+    # scipy fills an (n, m) C-ordered array and returns its transpose; the solver's products
+    # with the Jacobian take another path (and round otherwise) on another layout
+    return np.ascontiguousarray((batch(stepped) - f0) / dx[:, None]).T
+
+
 def fit_contact_law(
     force: np.ndarray,
     disp: np.ndarray,
@@ -157,7 +263,8 @@ def fit_contact_law(
 
     The solver uses forward differences: the law's analytic Jacobian, tried, reached other end
     points (a rig record behind an 80 Hz 2nd-order low-pass then chose another chain and read
-    beta 13.4 for 30).
+    beta 13.4 for 30). They are least_squares' own (:func:`forward_difference_jacobian`), its
+    steps evaluated in one batch: through a band one ``rfft`` of all of them.
 
     Parameters
     ----------
@@ -190,25 +297,15 @@ def fit_contact_law(
     e0 = e0 / unit
     dr = reference_penetration / unit
     x, v = (disp / unit, vel / unit) if band is not None else (disp[near] / unit, vel[near] / unit)
+    residuals = _LawResiduals(x, v, f, dr, exponent, band, near)
 
-    def model(theta: np.ndarray) -> np.ndarray:
-        p = theta[3] if exponent is None else exponent
-        # a trial step may overflow the stiffness; its residual is then not finite and the
-        # step is refused by the solver, so numpy's warnings would only reach the user
-        with np.errstate(over="ignore", invalid="ignore"):
-            out = contact_force(x, v, np.exp(theta[0]), theta[1], theta[2], p, dr)
-            if band is None:
-                return out
-            return np.fft.irfft(np.fft.rfft(out) * band, out.size)[near]
-
-    lo = [-np.inf, -np.inf, 0.0] + ([EXPONENT_BOUNDS[0]] if exponent is None else [])
-    hi = [np.inf, np.inf, np.inf] + ([EXPONENT_BOUNDS[1]] if exponent is None else [])
+    lo, hi = _law_bounds(exponent)
     # through a band the start (the map's own slope) reads soft: a stiffer start as well
     res = None
     for gain in (1.0,) if band is None else BAND_START_GAINS:
         theta0 = [np.log(gain * kc0), e0, max(cc0, 0.0)] + ([1.0] if exponent is None else [])
         sol = optimize.least_squares(
-            lambda t: model(t) - f, np.clip(theta0, lo, hi), bounds=(lo, hi),
+            residuals, np.clip(theta0, lo, hi), jac=residuals.jacobian, bounds=(lo, hi),
             x_scale="jac", max_nfev=max_nfev,
         )  # fmt: skip
         if res is None or sol.cost < res.cost:
