@@ -1,7 +1,8 @@
 """Event resolution of the numerical engine (:mod:`.numerical`): inside a substep, each
 switching function's crossing is bracketed (the contact's ``G``, a grazing contact at the
 penetration's interior extremum, the effects' event functions), located by a safeguarded
-secant (Illinois) on RK4 partial steps from the substep's start, and the rows are stepped
+secant (Illinois) on RK4 partial steps from the substep's start (compiled with its
+evaluations on a model with the kernel, :meth:`_Partial.secant`), and the rows are stepped
 to their earliest event and switched there (the region, then the effects' modes).
 
 The module notes of :mod:`.numerical` give the switching functions and conventions.

@@ -17,8 +17,13 @@ Hunt-Crossley and Kelvin-Voigt dissipation and its face's one or two modes. A po
 leading term keeps numpy's path: numpy's ``**`` on float arrays is its own SIMD
 ``pow`` (SVML on AVX-512 machines), which differs from the C library's, numba's, in the
 last bit on about one value in twenty. Its coefficients come from the law's own
-:func:`~stiffnet.effects.learned_contact.law_coefficients`. The switching data
-(``aux``), the root finders and the switch stay in Python (:mod:`.events`).
+:func:`~stiffnet.effects.learned_contact.law_coefficients`.
+
+The event locator's Illinois secant runs here too (:func:`secant_rows`): its RK4 partial
+steps and root-function evaluations in one compiled call, row by row in the vectorised
+loop's operations and order, where each evaluation from Python cost two wrapped kernel calls
+and a search of the states already computed. The brackets, the Newton locator and the
+switch stay in Python (:mod:`.events`).
 """
 
 from __future__ import annotations
