@@ -7,8 +7,11 @@ off by ``numerical.COMPILED_STEP``) to 1e-9 of its range (bitwise in practice), 
 numerical effect, their combination, contact damping, a gap sinusoid, a forcing harmonic,
 sticking friction and the oversampled (dense-output) march; the learned contact law's
 terms each alone and together (second stage, preload, Hunt-Crossley and Kelvin-Voigt
-dissipation, a face of one and two modes, terms on some rows only), bit for bit; and an
-effect the kernel does not know, or a learned power law, runs the numpy path.
+dissipation, a face of one and two modes, terms on some rows only), bit for bit; every
+located event's time and state (the secant compiled with its evaluations,
+``rk4_kernel.secant_rows``) bit for bit in every case and on rows located together, a
+secant one unit in the last place off caught; and an effect the kernel does not know, or a
+learned power law, runs the numpy path.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from stiffnet.effects.forcing_harmonics import ForcingHarmonics
 from stiffnet.effects.hertz_contact import HertzContact
 from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.effects.restraint_mass import RestraintMass
+from stiffnet.simulator import events as ev
 from stiffnet.simulator import numerical as nm
 from stiffnet.simulator import rk4_kernel as rk
 from stiffnet.simulator.numerical import simulate_numerical
@@ -199,6 +203,113 @@ def test_a_perturbed_learned_kernel_is_caught() -> None:
     got = _rhs_and_step(fast, np.random.default_rng(7))
     want = _rhs_and_step(slow, np.random.default_rng(7))
     assert any(not np.array_equal(x, y) for x, y in zip(got, want, strict=True))
+
+
+def _events(effects: list[DynamicsEffect], compiled: bool, dense: bool = False, secant=None):
+    """Every located event of :func:`_run`: the rows' time, state and region after each
+    switch, in order; and the roots the compiled secant was asked for, by root function
+    (``secant``: a replacement of ``_Model.kernel_secant``, default the engine's)."""
+    log: list[tuple[np.ndarray, ...]] = []
+    asked: dict = {}
+    switch, kernel_secant = nm._switch, secant or nm._Model.kernel_secant
+
+    def spy(st, ma, a, ev, roots):
+        rows = switch(st, ma, a, ev, roots)
+        log.append((st["t"][rows].copy(), st["y"][rows].copy(), st["contact"][rows].copy()))
+        return rows
+
+    def counted(self, start, root, bracket, iters, tiny):
+        asked[root] = asked.get(root, 0) + 1
+        return kernel_secant(self, start, root, bracket, iters, tiny)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(nm, "_switch", spy)
+        mp.setattr(nm._Model, "kernel_secant", counted)
+        _run(effects, compiled, dense)
+    return log, asked
+
+
+def _same_events(new: list, old: list) -> bool:
+    """Whether two runs' events (:func:`_events`) are the same, to the bit."""
+    return len(new) == len(old) and all(
+        a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+        for got, want in zip(new, old, strict=True)
+        for a, b in zip(got, want, strict=True)
+    )
+
+
+@pytest.mark.parametrize("dense", [False, True], ids=["plain", "oversampled"])
+@pytest.mark.parametrize("name", list(CASES))
+def test_every_located_event_is_numpys_bit_for_bit(name: str, dense: bool) -> None:
+    """The event times and states, the compiled secant against numpy's path, to the bit."""
+    new, asked = _events(CASES[name], compiled=True, dense=dense)
+    old, none = _events(CASES[name], compiled=False, dense=dense)
+    assert not none and len(old) >= 10
+    assert _same_events(new, old)
+    if name in LEARNED_CASES:  # their contact's root function is G or delta: the secant
+        assert asked.get("Gr", 0) >= 10
+    if any(type(e) is DryFriction for e in CASES[name]):
+        assert asked.get(0, 0) + asked.get("Gr", 0) >= 1
+
+
+def test_the_secant_roots_of_every_kind_are_compiled() -> None:
+    """The cases exercise the compiled secant on the contact's root function, the grazing
+    extremum of the penetration rate and the friction's event function."""
+    asked: dict = {}
+    for name in ("learned_all_terms", "learned_terms_on_some_rows", "friction_damped_contact"):
+        for root, count in _events(CASES[name], compiled=True)[1].items():
+            asked[root] = asked.get(root, 0) + count
+    assert {"Gr", "dd", 0} <= set(asked)
+
+
+def test_a_secant_one_ulp_off_is_caught() -> None:
+    """The event comparison sees one unit in the last place of the gap (the root
+    function's offset) in the compiled secant's evaluations alone (the steps between events
+    untouched)."""
+
+    def off(self, start, root, bracket, iters, tiny):
+        pack = self._pack.copy()
+        pack[:, rk._E0] = np.nextafter(pack[:, rk._E0], np.inf)
+        return rk.secant_rows(self.kernel, pack, self.has_gap, self.has_cc, len(self.effects),
+                             start, root, bracket, iters, tiny)  # fmt: skip
+
+    effects = LEARNED_CASES["learned_two_stage"]
+    new, _ = _events(effects, compiled=True, secant=off)
+    old, _ = _events(effects, compiled=False)
+    assert not _same_events(new, old)
+    assert _same_events(_events(effects, compiled=True)[0], old)  # unperturbed: the same
+
+
+def test_the_compiled_secant_is_numpys_on_rows_located_together() -> None:
+    """Six rows leaving contact in one substep, their terms differing by row (the law's
+    row-wide decisions): the compiled secant's roots, every state it computed and the
+    states the switch reuses equal numpy's vectorised secant's, to the bit."""
+    effects = [ROWWISE_LAW, DryFriction()]
+    batch = paper_batch(np.array([5.0, 20.0, 80.0, 5.0, 20.0, 80.0]))
+    fast, slow = _kernel_and_numpy(batch, effects, _params(effects, 6))
+    rng = np.random.default_rng(3)
+    y = np.zeros((6, fast.n_y))
+    y[:, 0] = E + rng.uniform(1e-4, 2e-3, 6)  # just in contact, leaving it
+    y[:, 1] = -rng.uniform(0.3, 1.0, 6)
+    t, contact = rng.uniform(0, 300, 6), np.ones(6, dtype=bool)
+    modes = np.zeros((2, 6))
+    modes[1] = [1.0, -1.0, 1.0, -1.0, 1.0, -1.0]  # slipping
+    f, aux0 = slow.rhs(t, y, contact, modes, full=True)
+    st = {"t": t, "y": y, "f": f, "contact": contact, "modes": modes}
+    rows, hi = np.arange(6), np.full(6, 0.02)
+    ghi = ev._Partial(st, slow, rows, rows).aux(hi)["Gr"]
+    assert np.all(aux0["Gr"] > 0) and np.all(ghi < 0)  # a crossing on every row
+    got = []
+    for model in (fast, slow):
+        part = ev._Partial(st, model, rows, rows)
+        root = part.secant("Gr", hi, aux0["Gr"], ghi, np.full(6, 1e-13 * 0.02))
+        got.append((root, part.seen, part.state_at(root)))
+    (root_f, seen_f, (ok_f, y_f)), (root_s, seen_s, (ok_s, y_s)) = got
+    assert root_f.tobytes() == root_s.tobytes() and np.all(root_f < 0.02)
+    assert len(seen_f) == len(seen_s) >= 3
+    for (s_f, ys_f), (s_s, ys_s) in zip(seen_f, seen_s, strict=True):
+        assert s_f.tobytes() == s_s.tobytes() and ys_f.tobytes() == ys_s.tobytes()
+    assert ok_f.all() and ok_s.all() and y_f.tobytes() == y_s.tobytes()
 
 
 def test_sticking_friction_is_exercised() -> None:

@@ -1,7 +1,8 @@
 """Event resolution of the numerical engine (:mod:`.numerical`): inside a substep, each
 switching function's crossing is bracketed (the contact's ``G``, a grazing contact at the
 penetration's interior extremum, the effects' event functions), located by a safeguarded
-secant (Illinois) on RK4 partial steps from the substep's start, and the rows are stepped
+secant (Illinois) on RK4 partial steps from the substep's start (compiled with its
+evaluations on a model with the kernel, :meth:`_Partial.secant`), and the rows are stepped
 to their earliest event and switched there (the region, then the effects' modes).
 
 The module notes of :mod:`.numerical` give the switching functions and conventions.
@@ -270,7 +271,8 @@ class _Partial:
     def aux(self, s: np.ndarray) -> dict[str, np.ndarray]:
         """The right-hand side's ``aux`` after a partial step of length ``s`` (from a state
         already computed at that length where there is one)."""
-        found, y = self.state_at(s) if self.seen else (np.zeros(s.size, dtype=bool), None)
+        seen = self.seen or self.one
+        found, y = self.state_at(s) if seen else (np.zeros(s.size, dtype=bool), None)
         if not found.all():
             y = self.state(s)
         return self.m.rhs(self.t + s, y, self.c, self.mo, full=True)[1]
@@ -281,6 +283,33 @@ class _Partial:
         if self.m.reads_state(key):
             return lambda s: self.m.state_value(self.t + s, self.state(s), key)
         return lambda s: self.aux(s)[key]
+
+    def secant(
+        self, root: str | int, hi: np.ndarray, glo: np.ndarray, ghi: np.ndarray, tol: np.ndarray
+    ) -> np.ndarray:
+        """:func:`_illinois` on ``aux[root]`` (a key, read as :meth:`value` reads it) or on the
+        event function ``root`` (an index into ``aux["g"]``).
+
+        On a model with the compiled kernel the secant runs with its partial steps and
+        root-function evaluations in one compiled call (:meth:`_Model.kernel_secant`: the
+        same IEEE operations in the same order, row by row, so the same roots and states);
+        the states it computed are kept as :meth:`state` keeps them. Other models call the
+        root function from Python.
+        """
+        if self.m.kernel is None:
+            if isinstance(root, str):
+                return _illinois(self.value(root), hi, glo, ghi, tol)
+            return _illinois(lambda s: self.aux(s)["g"][:, root], hi, glo, ghi, tol)
+        start = (self.t, self.y, self.f, self.c, self.mo)
+        at, s_seen, y_seen = self.m.kernel_secant(
+            start, root, (hi, glo, ghi, tol), _ROOT_ITERS, _TINY
+        )
+        if self.one is not None:
+            for s, y in zip(s_seen[:, 0].tolist(), y_seen, strict=True):
+                self.one[s] = y
+        else:
+            self.seen.extend(zip(s_seen, y_seen, strict=True))
+        return at
 
     def penetration_and_rate(self) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
         """``s -> (aux["Gr"], aux["dd"])``, for rows whose contact root function is the
@@ -363,9 +392,7 @@ def _brackets(
     if turning.any():
         sel = turning.nonzero()[0]
         part = _Partial(st, ma, a, sel)
-        s_ext = _illinois(
-            part.value("dd"), la[sel], dd0[sel], dd1[sel], _EXTREMUM_TOL * hs[a[sel]]
-        )  # fmt: skip
+        s_ext = part.secant("dd", la[sel], dd0[sel], dd1[sel], _EXTREMUM_TOL * hs[a[sel]])
         a_ext = part.aux(s_ext)
         hit = a_ext["G"] * sign_in[sel] <= 0
         s_hi[sel[hit], 0], g_hi[sel[hit], 0] = s_ext[hit], a_ext["Gr"][hit]
@@ -435,16 +462,10 @@ def _first_roots(
             if sel.size == 0:
                 continue
         part = _Partial(st, ma, a, sel)
-        if col == 0:
-            fun = part.value("Gr")
-        else:
-
-            def fun(s, _at=part.aux, _j=col - 1):
-                return _at(s)["g"][:, _j]
-
-        s_root[sel, col] = _illinois(
-            fun, s_hi[sel, col], glo_all[sel], g_hi[sel, col], _ROOT_TOL * hs[a[sel]]
-        )
+        s_root[sel, col] = part.secant(
+            "Gr" if col == 0 else col - 1,
+            s_hi[sel, col], glo_all[sel], g_hi[sel, col], _ROOT_TOL * hs[a[sel]],
+        )  # fmt: skip
         finders.append((sel, part))
     s_star = np.min(s_root, axis=1)
     found = np.zeros(a.size, dtype=bool)

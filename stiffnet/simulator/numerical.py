@@ -89,7 +89,13 @@ from stiffnet.simulator.events import (  # noqa: F401  (_illinois: tests reach i
 )
 from stiffnet.simulator.result import EngineResult
 from stiffnet.simulator.rk4 import _dense_states, _rk4, _rk4_dense
-from stiffnet.simulator.rk4_kernel import kernel_form, kernel_pack, rhs_full, rk4_step
+from stiffnet.simulator.rk4_kernel import (
+    kernel_form,
+    kernel_pack,
+    rhs_full,
+    rk4_step,
+    secant_rows,
+)
 
 _MAX_EVENTS_PER_SUBSTEP = 8
 _MAX_RATE_STEP = 1.0  # fastest rate x substep: RK4 stable (< 2.8) and the mode resolved
@@ -264,6 +270,21 @@ class _Model:
         return rk4_step(
             self.kernel, self._pack, self.has_gap, self.has_cc, t, y, k1, s, contact, modes
         )
+
+    def kernel_secant(
+        self,
+        start: tuple[np.ndarray, ...],
+        root: str | int,
+        bracket: tuple[np.ndarray, ...],
+        iters: int,
+        tiny: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The event locator's secant on the rows' RK4 partial steps by the compiled kernel
+        (:func:`.rk4_kernel.secant_rows`), for a model whose :attr:`kernel` is set."""
+        return secant_rows(
+            self.kernel, self._pack, self.has_gap, self.has_cc, len(self.effects), start,
+            root, bracket, iters, tiny,
+        )  # fmt: skip
 
     def initial_state(self, x0: np.ndarray, v0: np.ndarray) -> np.ndarray:
         y = np.zeros((self.n, self.n_y))

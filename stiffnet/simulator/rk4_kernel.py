@@ -17,8 +17,13 @@ Hunt-Crossley and Kelvin-Voigt dissipation and its face's one or two modes. A po
 leading term keeps numpy's path: numpy's ``**`` on float arrays is its own SIMD
 ``pow`` (SVML on AVX-512 machines), which differs from the C library's, numba's, in the
 last bit on about one value in twenty. Its coefficients come from the law's own
-:func:`~stiffnet.effects.learned_contact.law_coefficients`. The switching data
-(``aux``), the root finders and the switch stay in Python (:mod:`.events`).
+:func:`~stiffnet.effects.learned_contact.law_coefficients`.
+
+The event locator's Illinois secant runs here too (:func:`secant_rows`): its RK4 partial
+steps and root-function evaluations in one compiled call, row by row in the vectorised
+loop's operations and order, where each evaluation from Python cost two wrapped kernel calls
+and a search of the states already computed. The brackets, the Newton locator and the
+switch stay in Python (:mod:`.events`).
 """
 
 from __future__ import annotations
@@ -268,36 +273,47 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
 
 
 @_jit
+def _rk4_row(p, t, y, k1, s, contact, mode, has_gap, has_cc, hertz, friction, restraint,
+             n_forcing, n_gap, learned, n_face, has_pre, has_diss, out, k2, k3, k4,
+             tmp):  # fmt: skip
+    """:func:`~stiffnet.simulator.rk4._rk4` for one row: its state after a step of length
+    ``s`` into ``out``, its stages into ``k2, k3, k4`` (``tmp``: scratch of the state's
+    size)."""
+    n_y = y.shape[0]
+    half = 0.5 * s
+    tm = t + half
+    fm = _sines(p, _FORCING, n_forcing, tm, False)
+    for c in range(n_y):
+        tmp[c] = y[c] + half * k1[c]
+    _rhs(p, tm, tmp, contact, mode, fm, has_gap, has_cc, hertz, friction, restraint,
+         n_gap, learned, n_face, has_pre, has_diss, k2)  # fmt: skip
+    for c in range(n_y):
+        tmp[c] = y[c] + half * k2[c]
+    _rhs(p, tm, tmp, contact, mode, fm, has_gap, has_cc, hertz, friction, restraint,
+         n_gap, learned, n_face, has_pre, has_diss, k3)  # fmt: skip
+    for c in range(n_y):
+        tmp[c] = y[c] + s * k3[c]
+    t4 = t + s
+    f4 = _sines(p, _FORCING, n_forcing, t4, False)
+    _rhs(p, t4, tmp, contact, mode, f4, has_gap, has_cc, hertz, friction, restraint,
+         n_gap, learned, n_face, has_pre, has_diss, k4)  # fmt: skip
+    w = s / 6.0
+    for c in range(n_y):
+        out[c] = y[c] + w * (k1[c] + 2.0 * (k2[c] + k3[c]) + k4[c])
+
+
+@_jit
 def _rk4_rows(pack, t, y, k1, s, contact, modes, fric, has_gap, has_cc, hertz, restraint,
               n_forcing, n_gap, learned, n_face, out, k2, k3, k4):  # fmt: skip
     """:func:`~stiffnet.simulator.rk4._rk4` row by row, its stages into ``k2, k3, k4``."""
-    n_y = y.shape[1]
-    tmp = np.empty(n_y)
+    tmp = np.empty(y.shape[1])
     friction = fric >= 0
     has_pre, has_diss = _learned_flags(pack) if learned else (False, False)
     for i in range(y.shape[0]):
-        p = pack[i]
         mode = modes[fric, i] if friction else 0.0
-        half = 0.5 * s[i]
-        tm = t[i] + half
-        fm = _sines(p, _FORCING, n_forcing, tm, False)
-        for c in range(n_y):
-            tmp[c] = y[i, c] + half * k1[i, c]
-        _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, learned, n_face, has_pre, has_diss, k2[i])  # fmt: skip
-        for c in range(n_y):
-            tmp[c] = y[i, c] + half * k2[i, c]
-        _rhs(p, tm, tmp, contact[i], mode, fm, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, learned, n_face, has_pre, has_diss, k3[i])  # fmt: skip
-        for c in range(n_y):
-            tmp[c] = y[i, c] + s[i] * k3[i, c]
-        t4 = t[i] + s[i]
-        f4 = _sines(p, _FORCING, n_forcing, t4, False)
-        _rhs(p, t4, tmp, contact[i], mode, f4, has_gap, has_cc, hertz, friction, restraint,
-             n_gap, learned, n_face, has_pre, has_diss, k4[i])  # fmt: skip
-        w = s[i] / 6.0
-        for c in range(n_y):
-            out[i, c] = y[i, c] + w * (k1[i, c] + 2.0 * (k2[i, c] + k3[i, c]) + k4[i, c])
+        _rk4_row(pack[i], t[i], y[i], k1[i], s[i], contact[i], mode, has_gap, has_cc, hertz,
+                 friction, restraint, n_forcing, n_gap, learned, n_face, has_pre, has_diss,
+                 out[i], k2[i], k3[i], k4[i], tmp)  # fmt: skip
 
 
 def rk4_step(
@@ -334,6 +350,41 @@ AUX_ROWS = ("G", "Gr", "dd", "delta", "fc", "extra")
 
 
 @_jit
+def _aux_row(p, t, y, contact, mode, fric, has_gap, has_cc, hertz, restraint, n_forcing,
+             n_gap, learned, n_face, has_pre, has_diss, dy, block, i, other, g):  # fmt: skip
+    """``_Model.rhs(full=True)`` for one row: dy/dt into ``dy``, the switching data into
+    column ``i`` of ``block`` (:data:`AUX_ROWS`), ``other`` (n_effects,) and ``g`` (1 with
+    friction)."""
+    friction = fric >= 0
+    f_t = _sines(p, _FORCING, n_forcing, t, False)
+    delta, dd, fpot, base, total, fk = _rhs(
+        p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction,
+        restraint, n_gap, learned, n_face, has_pre, has_diss, dy,
+    )  # fmt: skip
+    g_contact = delta if (delta < fpot or delta != delta) else fpot  # np.minimum
+    # the root function: G where contact damping acts on the row, else delta; with a
+    # law that has a penetration-dependent dissipation hook (the learned one, whether or
+    # not its term is on), G while the mass leaves, else delta
+    if learned:
+        block[1, i] = g_contact if dd < 0 else delta
+    else:
+        block[1, i] = (g_contact if p[_CC] != 0 else delta) if has_cc else delta
+    block[0, i] = g_contact
+    block[2, i], block[3, i] = dd, delta
+    pos = fpot if (fpot > 0.0 or fpot != fpot) else 0.0  # np.maximum(fpot, 0)
+    block[4, i] = pos if contact else 0.0
+    block[5, i] = total - base
+    for k in range(other.shape[0]):
+        other[k] = total
+    if friction:
+        other[fric] = total - fk  # the total less the effect's own force
+        if mode == STUCK:
+            g[0] = p[_MUS] - abs(other[fric])
+        else:
+            g[0] = math.copysign(1.0, mode + 0.5) * y[1]
+
+
+@_jit
 def _rhs_rows(pack, t, y, contact, modes, fric, has_gap, has_cc, hertz, restraint,
               n_forcing, n_gap, learned, n_face, dy, block, other, g):  # fmt: skip
     """``_Model.rhs(full=True)`` row by row: dy/dt into ``dy``, the switching data into
@@ -341,34 +392,10 @@ def _rhs_rows(pack, t, y, contact, modes, fric, has_gap, has_cc, hertz, restrain
     friction = fric >= 0
     has_pre, has_diss = _learned_flags(pack) if learned else (False, False)
     for i in range(y.shape[0]):
-        p = pack[i]
         mode = modes[fric, i] if friction else 0.0
-        f_t = _sines(p, _FORCING, n_forcing, t[i], False)
-        delta, dd, fpot, base, total, fk = _rhs(
-            p, t[i], y[i], contact[i], mode, f_t, has_gap, has_cc, hertz, friction,
-            restraint, n_gap, learned, n_face, has_pre, has_diss, dy[i],
-        )  # fmt: skip
-        g_contact = delta if (delta < fpot or delta != delta) else fpot  # np.minimum
-        # the root function: G where contact damping acts on the row, else delta; with a
-        # law that has a penetration-dependent dissipation hook (the learned one, whether or
-        # not its term is on), G while the mass leaves, else delta
-        if learned:
-            block[1, i] = g_contact if dd < 0 else delta
-        else:
-            block[1, i] = (g_contact if p[_CC] != 0 else delta) if has_cc else delta
-        block[0, i] = g_contact
-        block[2, i], block[3, i] = dd, delta
-        pos = fpot if (fpot > 0.0 or fpot != fpot) else 0.0  # np.maximum(fpot, 0)
-        block[4, i] = pos if contact[i] else 0.0
-        block[5, i] = total - base
-        for k in range(other.shape[1]):
-            other[i, k] = total
-        if friction:
-            other[i, fric] = total - fk  # the total less the effect's own force
-            if mode == STUCK:
-                g[i, 0] = p[_MUS] - abs(other[i, fric])
-            else:
-                g[i, 0] = math.copysign(1.0, mode + 0.5) * y[i, 1]
+        _aux_row(pack[i], t[i], y[i], contact[i], mode, fric, has_gap, has_cc, hertz,
+                 restraint, n_forcing, n_gap, learned, n_face, has_pre, has_diss, dy[i],
+                 block, i, other[i], g[i])  # fmt: skip
 
 
 def rhs_full(
@@ -398,3 +425,132 @@ def rhs_full(
     aux = dict(zip(AUX_ROWS, block, strict=True))
     aux["other"], aux["g"] = other, g
     return dy, aux
+
+
+#: What :func:`secant_row` locates the root of: a row of ``aux``'s block
+#: (:data:`AUX_ROWS`) by its key, or an effect's event function (``aux["g"]``'s column).
+SECANT_KEYS = {key: k for k, key in enumerate(AUX_ROWS)}
+_EVENT_KEY = -1
+
+
+@_jit
+def _sign(x):
+    """``np.sign`` of a float (NaN propagated; the sign of a zero is irrelevant where it is
+    used: a product with it is never positive)."""
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else x)
+
+
+@_jit
+def _secant_rows(pack, t, y, k1, contact, modes, fric, has_gap, has_cc, hertz, restraint,
+                 n_forcing, n_gap, learned, n_face, n_effects, key, col, hi, glo, ghi, tol,
+                 iters, tiny, s_seen, y_seen):  # fmt: skip
+    """The event locator's secant (``events._illinois``) on RK4 partial steps of the rows
+    of ``pack`` from ``(t, y)`` with ``k1 = f(t, y)``: the root function is ``aux``'s block
+    row ``key`` at the partial step's state, or with ``key`` < 0 the event function ``col``.
+
+    The same IEEE operations in the same order as the vectorised loop, row by row: every
+    pass evaluates every row (a converged row at the far end of its bracket, as numpy's
+    loop does), each evaluation the kernel's :func:`_rk4_row` then :func:`_aux_row` with
+    the model's row-wide flags (bitwise the numbers of ``_Partial.aux``). The roots (the far
+    ends of the final brackets) are left in ``hi``; each pass's step lengths and states go
+    into ``s_seen`` (passes, R) and ``y_seen`` (passes, R, n_y). Returns the passes."""
+    friction = fric >= 0
+    has_pre, has_diss = _learned_flags(pack) if learned else (False, False)
+    n_rows, n_y = y.shape
+    k2, k3, k4 = np.empty(n_y), np.empty(n_y), np.empty(n_y)
+    tmp, dy = np.empty(n_y), np.empty(n_y)
+    block = np.empty((len(AUX_ROWS), 1))
+    other = np.empty(n_effects)
+    g = np.empty(1 if friction else 0)
+    lo = np.zeros(n_rows)
+    last = np.zeros(n_rows, dtype=np.int8)  # -1: lo moved last, +1: hi moved last
+    sgn = np.empty(n_rows)
+    for i in range(n_rows):
+        sgn[i] = _sign(glo[i])
+    live = np.empty(n_rows, dtype=np.bool_)
+    for n in range(iters):
+        any_live = False
+        for i in range(n_rows):
+            live[i] = hi[i] - lo[i] > tol[i] and ghi[i] != 0.0
+            any_live = any_live or live[i]
+        if not any_live:
+            return n
+        for i in range(n_rows):
+            if live[i]:
+                s = lo[i] - glo[i] * (hi[i] - lo[i]) / (ghi[i] - glo[i])
+                if not math.isfinite(s) or s <= lo[i] or s >= hi[i] or abs(glo[i]) <= tiny:
+                    s = 0.5 * (lo[i] + hi[i])
+            else:
+                s = hi[i]
+            mode = modes[fric, i] if friction else 0.0
+            ys = y_seen[n, i]
+            _rk4_row(pack[i], t[i], y[i], k1[i], s, contact[i], mode, has_gap, has_cc, hertz,
+                     friction, restraint, n_forcing, n_gap, learned, n_face, has_pre,
+                     has_diss, ys, k2, k3, k4, tmp)  # fmt: skip
+            s_seen[n, i] = s
+            _aux_row(pack[i], t[i] + s, ys, contact[i], mode, fric, has_gap, has_cc, hertz,
+                     restraint, n_forcing, n_gap, learned, n_face, has_pre, has_diss, dy,
+                     block, 0, other, g)  # fmt: skip
+            if not live[i]:
+                continue
+            val = g[col] if key < 0 else block[key, 0]
+            if val * sgn[i] > 0:
+                if last[i] == -1:
+                    ghi[i] = 0.5 * ghi[i]
+                lo[i], glo[i], last[i] = s, val, -1
+            else:
+                if last[i] == 1:
+                    glo[i] = 0.5 * glo[i]
+                hi[i], ghi[i], last[i] = s, val, 1
+    return iters
+
+
+def secant_rows(
+    form: KernelForm,
+    pack: np.ndarray,
+    has_gap: bool,
+    has_cc: bool,
+    n_effects: int,
+    start: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    root: str | int,
+    bracket: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    iters: int,
+    tiny: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Roots of the rows' switching function on RK4 partial steps, by the event locator's
+    Illinois secant compiled with its evaluations (:func:`_secant_rows`).
+
+    Parameters
+    ----------
+    form, pack, has_gap, has_cc, n_effects
+        The rows' model's kernel (``_Model.kernel``, its pack and flags).
+    start
+        ``(t, y, k1, contact, modes)`` of the R rows, (R,), (R, n_y), (R, n_y), (R,),
+        (n_effects, R): the partial steps start there.
+    root
+        The root function: ``aux``'s key (:data:`SECANT_KEYS`), or ``j`` for the model's
+        event function ``j`` (``aux["g"][:, j]``).
+    bracket
+        ``(hi, g(0), g(hi), tol)``, (R,) each, as ``events._illinois`` takes them.
+    iters, tiny
+        The secant's iteration cap and its boundary threshold (``events``' constants).
+
+    Returns
+    -------
+    tuple
+        The roots (R,), and each pass's step lengths (passes, R) and states
+        (passes, R, n_y), in the order they were computed.
+    """
+    t, y, k1, contact, modes = start
+    k, col = (SECANT_KEYS[root], 0) if isinstance(root, str) else (_EVENT_KEY, root)
+    n_rows = y.shape[0]
+    s_seen, y_seen = np.empty((iters, n_rows)), np.empty((iters, n_rows, y.shape[1]))
+    hi, glo, ghi, tol = (np.array(v, dtype=float) for v in bracket)  # copies: updated in place
+    n = _secant_rows(
+        pack, np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
+        np.ascontiguousarray(k1, dtype=float), np.ascontiguousarray(contact, dtype=np.bool_),
+        np.ascontiguousarray(modes, dtype=float), form.friction, has_gap, has_cc, form.hertz,
+        form.restraint, form.n_forcing, form.n_gap, form.learned, form.n_face, n_effects, k,
+        col, hi, glo, ghi, tol, iters, tiny, s_seen, y_seen,
+    )  # fmt: skip
+    return hi, s_seen[:n], y_seen[:n]
