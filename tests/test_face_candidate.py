@@ -139,6 +139,39 @@ def test_the_proposal_carries_the_face_with_its_series_betas_or_says_why_not():
     assert out["law"]["terms"] == ["face"] and len(out["unknowns"]) == 3
     np.testing.assert_allclose(out["series_betas"], [1 / (1 / b + 0.1) for b in BETAS], rtol=0.02)
     assert "law" not in out["face_by_simulation"] and "summary" not in out
-    refused = {"significant": False, "significance": {"reasons": ["it removes 5 %"]}}
+    first = {"significant": False, "term": "face_scaled",
+             "significance": {"reasons": ["it removes 1 %"]}}  # fmt: skip
+    refused = {"significant": False, "term": "face", "refused_first": first,
+               "significance": {"reasons": ["it removes 5 %"]}}  # fmt: skip
     out = _face_entries(refused, plain, samples, rows)
-    assert out["proposed"] is False and out["summary"].endswith("refused: it removes 5 %")
+    assert out["proposed"] is False
+    assert out["summary"].endswith(
+        "refused (a face that scales with beta: it removes 1 %; the rig's shared face: it "
+        "removes 5 %)"
+    )
+
+
+def test_the_simulation_tries_the_scaled_face_only_where_it_refuses_the_shared_one(monkeypatch):
+    """The shared face (three parameters) is simulated first; the scaled face only where the
+    simulation refuses it, the refused account's entries kept beside the other's."""
+    import stiffnet.measurement.face_by_simulation as fbs
+
+    def simulated(significant):
+        def run(term, *args):
+            tried.append(term)
+            return {"significant": significant[term], "term": term, "law": None}
+
+        return run
+
+    both = ["face", "face_scaled"]
+    cases = [({"face": True, "face_scaled": True}, ["face"]),
+             ({"face": False, "face_scaled": True}, both),
+             ({"face": False, "face_scaled": False}, both)]  # fmt: skip
+    for significant, order in cases:
+        tried = []
+        monkeypatch.setattr(fbs, "simulated_face", simulated(significant))
+        out = fbs.face_by_simulation(*([None] * 8))
+        assert tried == order and out["term"] == order[-1]
+        assert ("refused_first" in out) == (len(order) == 2)
+        if len(order) == 2:
+            assert out["refused_first"] == {"significant": False, "term": "face"}

@@ -52,6 +52,14 @@ GRID_DAMPING = 0.05
 #: and 1.5 times stiffer than the support in front of it) and its mass at the reference beta.
 SCALED_GRID_RATIOS = (1.1, 1.33, 1.67)
 SCALED_GRID_MASSES = (0.05, 0.15, 0.45)
+#: The two accounts of a restraint the maps could not decide on, in the order the simulation
+#: tries them: the rig's shared ``face`` (three parameters), then the ``face_scaled`` that is
+#: each recording's own (four), the second only where the simulation refuses the first,
+#: whichever the path refused. Where the restraint's modes alias into the measured force the
+#: maps' ranking of the two is not the campaign's: on a beam's tip shared by every recording
+#: the path refused the scaled face, the better fit on the maps, and the shared face
+#: simulated removes most of the excess; so the simpler account goes first.
+FACE_ACCOUNTS = ("face", "face_scaled")
 
 
 def face_in_question(law: DiscoveredLaw) -> bool:
@@ -70,12 +78,6 @@ def face_in_question(law: DiscoveredLaw) -> bool:
         and not last["entered"]
         and last["explained_fraction"] > law.explained_fraction
     )
-
-
-def in_question_term(law: DiscoveredLaw) -> str:
-    """The face the maps could not decide on: ``face_scaled`` where the path's refused step
-    is the scaled face, else the one-mode shared ``face``."""
-    return "face_scaled" if law.path and law.path[-1]["term"] == "face_scaled" else "face"
 
 
 def maps_face_law(

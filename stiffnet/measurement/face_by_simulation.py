@@ -32,9 +32,9 @@ import numpy as np
 
 from stiffnet.campaign.simulate import natural_frequency
 from stiffnet.discovery.face_candidate import (
+    FACE_ACCOUNTS,
     betas_behind_face,
     face_grid,
-    in_question_term,
     maps_face_law,
     scaled_face_grid,
     series_betas,
@@ -106,10 +106,35 @@ def face_by_simulation(
     dict
         ``significant`` (bool), ``law`` (the face law with the betas behind the chosen face,
         or None), ``params``, ``model`` (index into ``models``), ``per_recording``,
-        ``significance``, ``maps_face``, ``grid_best``, ``refit``, ``seconds``.
+        ``significance``, ``term``, ``maps_face``, ``grid_best``, ``refit``, ``seconds``;
+        ``refused_first``: the first account's entries where the second was kept or both
+        were refused (:data:`~stiffnet.discovery.face_candidate.FACE_ACCOUNTS`).
     """
+    first, second = FACE_ACCOUNTS
+    args = (samples, law, target, rows, models, before, floor, settings)
+    tried = simulated_face(first, *args)
+    if tried["significant"]:
+        return tried
+    other = simulated_face(second, *args)
+    other["refused_first"] = {k: v for k, v in tried.items() if k != "law"}
+    return other
+
+
+def simulated_face(
+    term: str,
+    samples: Sequence[ContactSamples],
+    law: DiscoveredLaw,
+    target: Any,
+    rows: Sequence[Any],
+    models: Sequence[Sequence[Effect]],
+    before: np.ndarray,
+    floor: Floors,
+    settings: Any,
+) -> dict[str, Any]:
+    """One account of the restraint (``term``: ``face``, or ``face_scaled``) decided by
+    simulation: the maps' fit and the grid screened on every model, the best refitted and
+    tested (:func:`face_by_simulation`'s parameters and entries)."""
     t0 = time.perf_counter()
-    term = in_question_term(law)
     maps = maps_face_law(samples, law.path, term)
     start = maps.effect_params
     grid = face_grid(law.betas) if term == "face" else scaled_face_grid(maps)

@@ -41,6 +41,8 @@ REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
 #: Recordings (low, middle and high beta) and points per recording kept for the map figure.
 MAP_RECORDINGS = 3
 MAP_POINTS = 300
+#: The restraint's two accounts, as a refusal names them.
+FACE_WORDS = {"face": "the rig's shared face", "face_scaled": "a face that scales with beta"}
 
 
 def should_propose(verdict_info: dict[str, Any]) -> tuple[bool, str]:
@@ -211,10 +213,14 @@ def _face_entries(
     and why), or the face law with its map, series betas and what it leaves unknown."""
     out: dict[str, Any] = {"face_by_simulation": {k: v for k, v in face.items() if k != "law"}}
     if not face["significant"]:
-        why = "; ".join(face["significance"]["reasons"])
+        why = "; ".join(
+            f"{FACE_WORDS[f['term']]}: {'; '.join(f['significance']['reasons'])}"
+            for f in (face.get("refused_first"), face)
+            if f is not None
+        )
         out.update(proposed=False, summary=(
             f"the learned contact law has nothing the library lacks ({law.words}); a face "
-            f"simulated on the campaign was refused: {why}"))  # fmt: skip
+            f"simulated on the campaign was refused ({why})"))  # fmt: skip
         return out
     chosen, params = face["law"], face["params"]
     out.update(law=chosen.to_dict(), map=law_map(samples, chosen),
