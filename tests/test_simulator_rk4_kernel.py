@@ -7,11 +7,13 @@ off by ``numerical.COMPILED_STEP``) to 1e-9 of its range (bitwise in practice), 
 numerical effect, their combination, contact damping, a gap sinusoid, a forcing harmonic,
 sticking friction and the oversampled (dense-output) march; the learned contact law's
 terms each alone and together (second stage, preload, Hunt-Crossley and Kelvin-Voigt
-dissipation, a face of one and two modes, terms on some rows only), bit for bit; every
+dissipation, a face of one and two modes, terms on some rows only, a face that scales
+with each row's beta alone, with every other term and on some rows only, on 1, 2 and 6 rows
+of different betas), bit for bit; every
 located event's time and state (the secant compiled with its evaluations,
 ``rk4_kernel.secant_rows``) bit for bit in every case and on rows located together, a
-secant one unit in the last place off caught; and an effect the kernel does not know, or a
-learned power law, runs the numpy path.
+secant one unit in the last place off caught (and a scaled face's mass one unit off); and
+an effect the kernel does not know, or a learned power law, runs the numpy path.
 """
 
 from __future__ import annotations
@@ -66,6 +68,18 @@ ROWWISE = {"knee_ratio": np.array([1.0, 3.0, 2.0]), "knee": np.array([0.1, 0.05,
            "face_mass": np.array([0.2, 0.0, 0.3])}  # fmt: skip
 
 
+#: A scaled face on some rows only (an absolute one, or none, on the others): the law's
+#: hooks take every row's support and mass from :func:`~stiffnet.effects.learned_contact.
+#: scaled_face`, which gives a row without the ratio its absolute face.
+SCALED_ROWWISE_LAW = LearnedContact(face_mass=0.2, face_stiffness_ratio=1.5,
+                                    face_mass_exponent=-0.3)  # fmt: skip
+#: Per-row values of :data:`SCALED_ROWWISE_LAW` (three rows).
+SCALED_ROWWISE = {"face_stiffness_ratio": np.array([1.25, 0.0, 3.0]),
+                  "face_mass": np.array([0.2, 0.1, 0.0]),
+                  "face_mass_exponent": np.array([-1 / 3, 0.5, 0.7])}  # fmt: skip
+ROWWISE_VALUES = {id(ROWWISE_LAW): ROWWISE, id(SCALED_ROWWISE_LAW): SCALED_ROWWISE}
+
+
 def _params(effects: list[DynamicsEffect], n: int) -> list[ParamArrays]:
     rng = np.random.default_rng(0)
     out = []
@@ -73,8 +87,8 @@ def _params(effects: list[DynamicsEffect], n: int) -> list[ParamArrays]:
         p = _rm(n) if isinstance(e, RestraintMass) else e.batch_params(n, rng)
         if isinstance(e, DryFriction):  # strong enough to stick at some reversals
             p = {**p, "coefficient": np.resize([0.3, 1.2, 2.0], n)}
-        if e is ROWWISE_LAW:
-            p = {**p, **{k: np.resize(v, n) for k, v in ROWWISE.items()}}
+        if id(e) in ROWWISE_VALUES:
+            p = {**p, **{k: np.resize(v, n) for k, v in ROWWISE_VALUES[id(e)].items()}}
         out.append(p)
     return out
 
@@ -95,6 +109,10 @@ def _run(effects: list[DynamicsEffect], compiled: bool, dense: bool = False):
 
 #: The learned law's terms, each alone, then together with the other effects.
 LEARNED_FACE = {"face_mass": 0.3, "face_stiffness": 40.0, "face_damping": 0.05}
+#: A face that is each row's own (a material beam's): support 1.25 beta, contact 5 beta,
+#: mass 0.3 (beta / 30)^(-1/3).
+SCALED_FACE = {"face_mass": 0.3, "face_stiffness_ratio": 1.25, "face_mass_exponent": -1 / 3,
+               "face_damping": 0.05}  # fmt: skip
 LEARNED_CASES = {
     "learned_two_stage": [LearnedContact(knee=0.05, knee_ratio=3.0)],
     "learned_preload": [LearnedContact(preload=0.02)],
@@ -120,6 +138,23 @@ LEARNED_CASES = {
         DryFriction(),
     ],
     "learned_terms_on_some_rows": [ROWWISE_LAW, DryFriction()],
+    "learned_scaled_face": [LearnedContact(**SCALED_FACE)],
+    "learned_scaled_face_all_terms": [
+        LearnedContact(
+            knee=0.05,
+            knee_ratio=2.5,
+            preload=0.02,
+            hunt_crossley=0.4,
+            damping_ratio=0.05,
+            **SCALED_FACE,
+            face2_mass=0.1,
+            face2_stiffness=400.0,
+        ),
+        WobblingGap(),
+        ForcingHarmonics(),
+        DryFriction(),
+    ],
+    "learned_scaled_face_on_some_rows": [SCALED_ROWWISE_LAW, DryFriction()],
 }
 CASES = {
     "hertz": [HertzContact()],
@@ -166,6 +201,8 @@ def _rhs_and_step(model: nm._Model, rng: np.random.Generator) -> tuple[np.ndarra
     t = rng.uniform(0, 300, n)
     y = np.column_stack([rng.normal(E + 0.05, 0.1, n), rng.normal(0, 1, n)]
                         + [rng.normal(0, 0.02, n) for _ in range(model.n_y - 2)])  # fmt: skip
+    if any(type(e) is LearnedContact and e.scaled for e in model.effects):
+        y[:, -1] = model.beta  # a scaled face's beta state: the row's (the engine keeps it)
     contact = np.arange(n) % 3 != 1
     modes = np.zeros((len(model.effects), n))
     if model.event_fx:
@@ -203,6 +240,83 @@ def test_a_perturbed_learned_kernel_is_caught() -> None:
     got = _rhs_and_step(fast, np.random.default_rng(7))
     want = _rhs_and_step(slow, np.random.default_rng(7))
     assert any(not np.array_equal(x, y) for x, y in zip(got, want, strict=True))
+
+
+#: The scaled face's cases (each row's contact, support and mass its own beta's).
+SCALED_CASES = [n for n in LEARNED_CASES if "scaled" in n]
+#: Rows of different betas (the scaled face's mass goes as numpy's ``pow`` of each).
+OWN_BETAS = np.array([4.0, 9.5, 22.0, 30.0, 47.0, 83.0])
+
+
+@pytest.mark.parametrize("name", SCALED_CASES)
+def test_a_scaled_faces_right_hand_side_is_numpys_on_rows_of_their_own_betas(name: str) -> None:
+    """A scaled face's ``rhs(full=True)`` and RK4 step on six rows of six betas, and on two
+    rows and one row of them (the event locator's subsets), equal numpy's to the bit, the
+    face's beta state held."""
+    effects = LEARNED_CASES[name]
+    batch = paper_batch(OWN_BETAS)
+    fast, slow = _kernel_and_numpy(batch, effects, _params(effects, 6))
+    assert fast.kernel is not None and fast.kernel.learned and slow.kernel is None
+    assert fast.n_y % 2 == 1  # the face holds the row's beta
+    for rows in (np.arange(6), np.array([1, 4]), np.array([5])):
+        a, b = fast.subset(rows), slow.subset(rows)
+        got = _rhs_and_step(a, np.random.default_rng(11))
+        want = _rhs_and_step(b, np.random.default_rng(11))
+        for x, y in zip(got, want, strict=True):
+            np.testing.assert_array_equal(x, y)
+        assert np.all(got[0][:, -1] == 0.0)  # d beta / dt
+
+
+def test_a_scaled_faces_mass_one_ulp_off_is_caught() -> None:
+    """The bitwise comparison sees one unit in the last place of a scaled face's mass (the
+    row's ``face_mass (beta / beta_ref)**q``) in the kernel's pack."""
+    effects = LEARNED_CASES["learned_scaled_face"]
+    batch = paper_batch(OWN_BETAS)
+    fast, slow = _kernel_and_numpy(batch, effects, _params(effects, 6))
+    want = _rhs_and_step(slow, np.random.default_rng(11))
+    assert all(np.array_equal(x, y) for x, y in
+               zip(_rhs_and_step(fast, np.random.default_rng(11)), want, strict=True))  # fmt: skip
+    mass = rk._FACE + 1
+    fast._pack[:, mass] = np.nextafter(fast._pack[:, mass], np.inf)
+    got = _rhs_and_step(fast, np.random.default_rng(11))
+    assert any(not np.array_equal(x, y) for x, y in zip(got, want, strict=True))
+
+
+def _run_rows(effects: list[DynamicsEffect], betas: np.ndarray, compiled: bool):
+    """:func:`_run` on rows of the given betas, and every located event (:func:`_events`)."""
+    n = betas.size
+    batch = paper_batch(betas)
+    p = _params(effects, n)
+    h = 2 * np.pi / (W * np.resize([800.0, 960.0, 880.0], n))
+    x0, v0 = np.zeros(n), np.resize([0.0, 1.0, -0.5], n)
+    log: list[tuple[np.ndarray, ...]] = []
+    switch = nm._switch
+
+    def spy(st, ma, a, ev, roots):
+        rows = switch(st, ma, a, ev, roots)
+        log.append((st["t"][rows].copy(), st["y"][rows].copy(), st["contact"][rows].copy()))
+        return rows
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(nm, "COMPILED_STEP", compiled)
+        mp.setattr(nm, "_switch", spy)
+        out = simulate_numerical(batch, effects, p, x0, v0, 8 * h, 60, 8 * h, 600, 2)
+    return out, log
+
+
+@pytest.mark.parametrize("rows", [1, 2, 6])
+@pytest.mark.parametrize("name", SCALED_CASES)
+def test_a_scaled_faces_engine_is_numpys_on_rows_of_their_own_betas(name: str, rows: int) -> None:
+    """The whole engine with a scaled face on 1, 2 and 6 rows of different betas: every
+    output and every located event's time and state, the compiled step against numpy's, to
+    the bit."""
+    effects, betas = LEARNED_CASES[name], OWN_BETAS[-rows:]
+    new, new_events = _run_rows(effects, betas, compiled=True)
+    old, old_events = _run_rows(effects, betas, compiled=False)
+    assert old.impacts.sum() >= 5 * rows and len(old_events) >= 10
+    for key in KEYS:
+        np.testing.assert_array_equal(getattr(new, key), getattr(old, key), err_msg=key)
+    assert _same_events(new_events, old_events)
 
 
 def _events(effects: list[DynamicsEffect], compiled: bool, dense: bool = False, secant=None):
@@ -356,13 +470,11 @@ class StiffeningLaw(LearnedContact):
         [PushyFriction()],
         [StiffeningLaw(knee_ratio=2.0)],
         [LearnedContact(exponent=1.5)],  # numpy's SIMD pow is not the C library's
-        # each row's own contact, support and mass: the kernel packs the absolute face
-        [LearnedContact(face_mass=0.2, face_stiffness_ratio=1.5, face_mass_exponent=-0.3)],
         [HertzContact(), HertzContact()],
         [HertzContact(), LearnedContact()],
     ],
-    ids=["user_subclass", "learned_subclass", "learned_power_law", "learned_scaled_face",
-         "two_of_a_kind", "two_elastic_laws"],
+    ids=["user_subclass", "learned_subclass", "learned_power_law", "two_of_a_kind",
+         "two_elastic_laws"],
 )  # fmt: skip
 def test_a_model_the_kernel_does_not_know_runs_numpys_path(effects) -> None:
     batch = paper_batch()

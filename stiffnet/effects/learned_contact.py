@@ -149,21 +149,32 @@ def mode_coefficients(
     return has, m, 2.0 * damping * np.sqrt(stiffness * m)
 
 
-def law_coefficients(p: Mapping[str, Any], beta: Any) -> dict[str, np.ndarray]:
+def law_coefficients(
+    p: Mapping[str, Any], beta: Any, scaled: bool = False
+) -> dict[str, np.ndarray]:
     """The law's per-row coefficients as its hooks compute them, for a compiled right-hand
-    side (:mod:`stiffnet.simulator.rk4_kernel`): the knee, the stage slope
+    side (:mod:`stiffnet.simulator.rk4_kernel`): the contact's own stiffness (beta, or a
+    scaled face's ``beta r / (r - 1)``, :func:`scaled_face`), the knee, the stage slope
     (:func:`stage_slope`), the preload, the Hunt-Crossley gain (:func:`hunt_crossley_gain`)
     and each face mode's ``has, m, c`` (:func:`mode_coefficients`) with its stiffness
-    (``face_*`` and ``face2_*``)."""
+    (``face_*`` and ``face2_*``), and whether the first mode's rate moves the face
+    (``face_on``: its declared mass > 0, as :meth:`LearnedContact.restraint_rate` reads it).
+    With ``scaled`` (the law's face scales with beta, :attr:`LearnedContact.scaled`) the first
+    mode's support and mass are the rows' own, :func:`scaled_face` of ``beta``."""
+    contact, kappa, mass = scaled_face(beta, p)
     out = {
+        "contact": contact,
         "knee": np.asarray(p["knee"], float),
         "stage_slope": stage_slope(p),
         "preload": np.asarray(p["preload"], float),
-        "hunt_crossley_gain": hunt_crossley_gain(p, beta),
+        "hunt_crossley_gain": hunt_crossley_gain(p, contact),
+        "face_on": np.asarray(p["face_mass"], float) > 0,
     }
     for mode in ("face", "face2"):
-        stiffness = p[f"{mode}_stiffness"]
-        has, m, c = mode_coefficients(p[f"{mode}_mass"], stiffness, p[f"{mode}_damping"])
+        stiffness, m_raw = p[f"{mode}_stiffness"], p[f"{mode}_mass"]
+        if scaled and mode == "face":
+            stiffness, m_raw = kappa, mass
+        has, m, c = mode_coefficients(m_raw, stiffness, p[f"{mode}_damping"])
         out.update({f"{mode}_has": has, f"{mode}_m": m, f"{mode}_c": c,
                     f"{mode}_stiffness": np.asarray(stiffness, float)})  # fmt: skip
     return out
@@ -382,7 +393,7 @@ class LearnedContact(DynamicsEffect):
         return bool(np.any(np.asarray(self.params.face2_mass, float) > 0))
 
     @property
-    def _scaled(self) -> bool:
+    def scaled(self) -> bool:
         """A face that scales with beta on some row: the row's beta held as the last state."""
         return bool(np.any(np.asarray(self.params.face_stiffness_ratio, float) > 0)) and bool(
             np.any(np.asarray(self.params.face_mass, float) > 0)
@@ -395,12 +406,12 @@ class LearnedContact(DynamicsEffect):
         beta (any row), else none."""
         if not np.any(np.asarray(self.params.face_mass, float) > 0) and not self._second_mode:
             return 0
-        return 2 + 2 * self._second_mode + self._scaled
+        return 2 + 2 * self._second_mode + self.scaled
 
     def initial_states(self, p: ParamArrays, batch: Any) -> np.ndarray:
         """The face at rest, (B, n_states); a scaled face's last state is the row's beta."""
         out = np.zeros((len(batch), self.n_states))
-        if self._scaled:
+        if self.scaled:
             out[:, -1] = np.asarray(batch.beta, float)
         return out
 
@@ -424,7 +435,7 @@ class LearnedContact(DynamicsEffect):
         (its mass 0) keep it at rest."""
         out = np.zeros_like(s)
         kappa, mass = p["face_stiffness"], p["face_mass"]
-        if self._scaled:
+        if self.scaled:
             _, kappa, mass = scaled_face(s[:, -1], p)
         out[:, :2] = _mode_derivative(s[:, :2], contact_force, mass, kappa, p["face_damping"])
         if self._second_mode:

@@ -17,7 +17,12 @@ Hunt-Crossley and Kelvin-Voigt dissipation and its face's one or two modes. A po
 leading term keeps numpy's path: numpy's ``**`` on float arrays is its own SIMD
 ``pow`` (SVML on AVX-512 machines), which differs from the C library's, numba's, in the
 last bit on about one value in twenty. Its coefficients come from the law's own
-:func:`~stiffnet.effects.learned_contact.law_coefficients`.
+:func:`~stiffnet.effects.learned_contact.law_coefficients`. A face that scales with beta
+(``face_stiffness_ratio`` > 0) runs here too: its contact ``beta r / (r - 1)``, support
+``r beta`` and mass ``face_mass (beta / beta_ref)**q`` are packed per row by the law's own
+:func:`~stiffnet.effects.learned_contact.scaled_face` on the batch's beta, numpy's ``pow``
+included (element by element the same whatever the array's length, measured), which the
+hooks compute again from the face's beta state at every call, a state RK4 keeps to the bit.
 
 The event locator's Illinois secant runs here too (:func:`secant_rows`): its RK4 partial
 steps and root-function evaluations in one compiled call, row by row in the vectorised
@@ -62,8 +67,11 @@ MAX_TERMS = 4
 
 # the per-row pack's columns
 _E0, _XI2, _BETA, _CC, _KH, _MUK, _MUS, _MU, _KAPPA, _RDAMP = range(10)
-_KNEE, _SLOPE, _PRE, _HCG = range(10, 14)  # the learned law's
-_FACE = 14  # the learned face's modes: has, m, stiffness, c per mode, two modes
+# the learned law's: knee, stage slope, preload, Hunt-Crossley gain, the contact's own
+# stiffness (beta, or a scaled face's beta r / (r - 1)), whether the first mode's rate moves
+# the face (its declared mass > 0)
+_KNEE, _SLOPE, _PRE, _HCG, _KC, _FACE_ON = range(10, 16)
+_FACE = 16  # the learned face's modes: has, m, stiffness, c per mode, two modes
 _MODE_KEYS = ("has", "m", "stiffness", "c")
 _FORCING = _FACE + 2 * len(_MODE_KEYS)  # amp, freq, phase per term, MAX_TERMS terms
 _GAP = _FORCING + 3 * MAX_TERMS
@@ -78,7 +86,9 @@ class KernelForm:
     index of the dry-friction effect in the model's effects (its mode row), -1 if none;
     ``restraint``: the restraint's mass states sit at columns 2-3 of the state;
     ``learned``: the contact law is the learned one (linear leading term), whose face's
-    ``n_face`` modes sit at columns 2-3 and 4-5.
+    ``n_face`` modes sit at columns 2-3 and 4-5, and a face that scales with beta holds the
+    row's beta in the next column (its derivative 0; the rows' support, mass and contact
+    are packed from the batch's beta, the value that state keeps: RK4 adds zeros to it).
     """
 
     hertz: bool
@@ -98,8 +108,7 @@ def kernel_form(
 ) -> KernelForm | None:
     """The model's :class:`KernelForm`, or None where the kernel cannot reproduce its
     right-hand side (an unknown effect overriding a numerical hook, two of a kind, two
-    elastic laws, a learned law with a power-law leading term or a scaled face on a row, too many
-    sinusoids)."""
+    elastic laws, a learned law with a power-law leading term, too many sinusoids)."""
     seen: set[type] = set()
     friction = -1
     n_face = 0
@@ -113,13 +122,9 @@ def kernel_form(
         if type(eff) is DryFriction:
             friction = k
         if type(eff) is LearnedContact:
-            # a power law (numpy's SIMD pow is not libm's) or a face that scales with each
-            # row's beta (its contact, support and mass are the row's own) keep numpy's path
-            if not linear_leading_term(params[k]) or np.any(
-                np.asarray(params[k]["face_stiffness_ratio"], float) > 0
-            ):
+            if not linear_leading_term(params[k]):  # numpy's SIMD pow is not libm's
                 return None
-            n_face = eff.n_states // 2
+            n_face = eff.n_states // 2  # a scaled face's beta state is the odd one
     if forcing.amp.shape[1] > MAX_TERMS or gap.amp.shape[1] > MAX_TERMS:
         return None
     if HertzContact in seen and LearnedContact in seen:
@@ -163,9 +168,12 @@ def kernel_pack(
             pack[:, _MU], pack[:, _KAPPA] = mu, kappa
             pack[:, _RDAMP] = 2.0 * p["damping_ratio"] * np.sqrt(kappa * mu)
         elif type(eff) is LearnedContact:
-            law = law_coefficients(p, batch.beta)
+            # a scaled face's mass (beta / beta_ref)**q by numpy's own pow, once per row: the
+            # hooks compute it from the beta state at every call, the same value each time
+            law = law_coefficients(p, batch.beta, scaled=eff.scaled)
             pack[:, _KNEE], pack[:, _SLOPE] = law["knee"], law["stage_slope"]
             pack[:, _PRE], pack[:, _HCG] = law["preload"], law["hunt_crossley_gain"]
+            pack[:, _KC], pack[:, _FACE_ON] = law["contact"], law["face_on"]
             for j, mode in enumerate(("face", "face2")):
                 for c, key in enumerate(_MODE_KEYS):
                     pack[:, _FACE + len(_MODE_KEYS) * j + c] = law[f"{mode}_{key}"]
@@ -230,7 +238,7 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
         yr, dyr = 0.0 + y[2], 0.0 + y[3]
     elif n_face:  # LearnedContact.restraint_position and restraint_rate
         r = y[2] if n_face == 1 else y[2] + y[4]
-        rate = y[3] if p[_FACE] != 0.0 else 0.0
+        rate = y[3] if p[_FACE_ON] != 0.0 else 0.0
         if n_face == 2:
             rate = rate + (y[5] if p[_FACE + len(_MODE_KEYS)] != 0.0 else 0.0)
         yr, dyr = 0.0 + r, 0.0 + rate
@@ -239,12 +247,12 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
     if hertz:
         d = delta if delta > 0.0 else 0.0
         elastic = p[_KH] * d * math.sqrt(d)
-    elif learned:  # beta (d + (r - 1) max(d - knee, 0) [+ preload]), d = max(delta, 0)
+    elif learned:  # k_c (d + (r - 1) max(d - knee, 0) [+ preload]), d = max(delta, 0)
         d = _clip(delta)
         shape = d + p[_SLOPE] * _clip(d - p[_KNEE])
         if has_pre:
             shape = shape + (p[_PRE] if d > 0.0 else 0.0)
-        elastic = p[_BETA] * shape
+        elastic = p[_KC] * shape
     else:
         elastic = p[_BETA] * delta
     fpot = elastic + p[_CC] * dd if has_cc else elastic
@@ -269,6 +277,9 @@ def _rhs(p, t, y, contact, mode, f_t, has_gap, has_cc, hertz, friction, restrain
             dy[s + 1] = (fc - p[col + 2] * y[s] - p[col + 3] * y[s + 1]) / p[col + 1]
         else:
             dy[s], dy[s + 1] = 0.0, 0.0
+    if learned:  # a scaled face's beta state: held
+        for c in range(2 + 2 * n_face, dy.shape[0]):
+            dy[c] = 0.0
     return delta, dd, fpot, base, total, fk
 
 
