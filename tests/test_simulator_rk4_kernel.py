@@ -113,6 +113,17 @@ LEARNED_FACE = {"face_mass": 0.3, "face_stiffness": 40.0, "face_damping": 0.05}
 #: mass 0.3 (beta / 30)^(-1/3).
 SCALED_FACE = {"face_mass": 0.3, "face_stiffness_ratio": 1.25, "face_mass_exponent": -1 / 3,
                "face_damping": 0.05}  # fmt: skip
+
+
+def _every_term(face: dict) -> list[DynamicsEffect]:
+    """Every learned term at once with ``face`` as the first mode, beside the other effects
+    the kernel covers."""
+    terms = {"knee": 0.05, "knee_ratio": 2.5, "preload": 0.02, "hunt_crossley": 0.4,
+             "damping_ratio": 0.05, "face2_mass": 0.1, "face2_stiffness": 400.0}  # fmt: skip
+    law = LearnedContact(**terms, **face)
+    return [law, WobblingGap(), ForcingHarmonics(), DryFriction()]
+
+
 LEARNED_CASES = {
     "learned_two_stage": [LearnedContact(knee=0.05, knee_ratio=3.0)],
     "learned_preload": [LearnedContact(preload=0.02)],
@@ -122,38 +133,10 @@ LEARNED_CASES = {
     "learned_two_mode_face": [
         LearnedContact(**LEARNED_FACE, face2_mass=0.1, face2_stiffness=400.0)
     ],
-    "learned_all_terms": [
-        LearnedContact(
-            knee=0.05,
-            knee_ratio=2.5,
-            preload=0.02,
-            hunt_crossley=0.4,
-            damping_ratio=0.05,
-            **LEARNED_FACE,
-            face2_mass=0.1,
-            face2_stiffness=400.0,
-        ),
-        WobblingGap(),
-        ForcingHarmonics(),
-        DryFriction(),
-    ],
+    "learned_all_terms": _every_term(LEARNED_FACE),
     "learned_terms_on_some_rows": [ROWWISE_LAW, DryFriction()],
     "learned_scaled_face": [LearnedContact(**SCALED_FACE)],
-    "learned_scaled_face_all_terms": [
-        LearnedContact(
-            knee=0.05,
-            knee_ratio=2.5,
-            preload=0.02,
-            hunt_crossley=0.4,
-            damping_ratio=0.05,
-            **SCALED_FACE,
-            face2_mass=0.1,
-            face2_stiffness=400.0,
-        ),
-        WobblingGap(),
-        ForcingHarmonics(),
-        DryFriction(),
-    ],
+    "learned_scaled_face_all_terms": _every_term(SCALED_FACE),
     "learned_scaled_face_on_some_rows": [SCALED_ROWWISE_LAW, DryFriction()],
 }
 CASES = {
