@@ -32,6 +32,16 @@ def test_the_compliance_adds_the_modes_over_the_prior():
     assert face_compliances({"effects": [{"name": "contact_damping", "params": {}}]}) is None
 
 
+def test_a_face_that_scales_with_beta_is_not_judged():
+    # m5's scaled face (support 1.27 beta, contact 4.76 beta): beta is the series stiffness
+    # itself, and the law's absolute face_stiffness (100, unused) is no support to read
+    scaled = priors(100.0, face_stiffness_ratio=[1.14, 1.39], face_mass_exponent=-0.73)
+    assert face_compliances(scaled) is None
+    assert face_class_share("medium", [9.7, 45.8], scaled, NAMES, EDGES) is None
+    shared = priors([50.0, 200.0], face_stiffness_ratio=0.0)
+    assert face_compliances(shared) == pytest.approx((1 / 200, 2 / 250, 1 / 50))
+
+
 def test_a_face_known_exactly_keeps_the_models_interval():
     # one stiffness: the series stiffness maps back to the same beta
     c = 1 / 11.21

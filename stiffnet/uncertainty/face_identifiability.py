@@ -22,8 +22,11 @@ edge stands for it). That interval is what the signal allows; where most of it (
 lies outside the model's class (:func:`face_class_share`, above
 :data:`FACE_CLASS_THRESHOLD`, a majority) the class is not determined by the record, the
 check fires and the flagged answer's interval spans it (:func:`serving.verdict.widened_interval`).
-A model without a learned face is not judged. For the predictor (no scikit-learn, torch
-or mlflow).
+A model without a learned face is not judged, nor one whose face scales with beta
+(``face_stiffness_ratio`` > 0, :mod:`stiffnet.discovery.face_scaled`): there beta *is* the
+series stiffness (the support ``r beta`` behind the contact ``beta r/(r - 1)``), which the
+record carries, and the law's absolute ``face_stiffness`` is an unused default that would
+otherwise be read as a support. For the predictor (no scikit-learn, torch or mlflow).
 """
 
 from __future__ import annotations
@@ -57,7 +60,8 @@ def face_compliances(priors: dict[str, Any] | None) -> tuple[float, float, float
     ``(lowest, central, highest)``; None when the model's world has no learned face.
 
     The central one takes each mode's stiffness at the middle of its prior (the loop draws it
-    around the discovered face); a mode with ``face*_mass`` 0 adds nothing.
+    around the discovered face); a mode with ``face*_mass`` 0 adds nothing. A face that
+    scales with beta hides nothing behind its support (see the module notes): None.
     """
     for effect in (priors or {}).get("effects") or []:
         if not isinstance(effect, dict) or effect.get("name") != "learned_contact":
@@ -65,6 +69,8 @@ def face_compliances(priors: dict[str, Any] | None) -> tuple[float, float, float
         if not effect.get("probability", 1.0) > 0:
             continue
         params = effect.get("params") or {}
+        if prior_range(params.get("face_stiffness_ratio", 0.0)) is not None:
+            return None
         low = mid = high = 0.0
         for mass, stiffness in (("face_mass", "face_stiffness"), ("face2_mass", "face2_stiffness")):
             m, k = prior_range(params.get(mass, 0.0)), prior_range(params.get(stiffness))
