@@ -258,3 +258,26 @@ def test_a_scaled_face_in_the_config_yaml(tmp_path):
     space = LearnedContact.fit_space_at(SCALED, 1000.0)
     free = {fp.name: fp for fp in space.free}
     assert "face_stiffness" not in free and free["face_stiffness_ratio"].low > 1.0
+
+
+def test_a_scaled_faces_beta_scale_runs_it_at_that_share_of_the_rows_beta():
+    """``face_beta_scale`` s: the law's beta is s times the row's (a manifest labelling the
+    beam's tip alone, without the contact in front), in its contact, support and mass alike,
+    and a refit sweeps it within the face's box; on an absolute face it changes nothing."""
+    beta = np.array(BATCH.beta, float)
+    p = {**LearnedContact().params.model_dump(), **SCALED}
+    for got, want in zip(scaled_face(beta, {**p, "face_beta_scale": 0.8}),
+                         scaled_face(0.8 * beta, p), strict=True):  # fmt: skip
+        np.testing.assert_allclose(got, want, rtol=1e-12)
+    contact, kappa, _ = scaled_face(beta, {**p, "face_beta_scale": 0.8})
+    np.testing.assert_allclose(1.0 / (1.0 / contact + 1.0 / kappa), 0.8 * beta, rtol=1e-12)
+    absolute = {**p, "face_stiffness_ratio": 0.0, "face_stiffness": 40.0}
+    for got, want in zip(scaled_face(beta, {**absolute, "face_beta_scale": 0.8}),
+                         scaled_face(beta, absolute), strict=True):  # fmt: skip
+        np.testing.assert_array_equal(got, want)
+    free = {fp.name: fp for fp in LearnedContact.fit_space_at(
+        {**SCALED, "face_beta_scale": 0.9}, 1000.0).free}  # fmt: skip
+    assert free["face_beta_scale"].low == pytest.approx(0.6)
+    assert free["face_beta_scale"].high == pytest.approx(1.35)
+    assert "face_beta_scale" not in {fp.name for fp in LearnedContact.fit_space_at(
+        {"face_mass": 0.3, "face_stiffness": 40.0}, 1000.0).free}  # fmt: skip

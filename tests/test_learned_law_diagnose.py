@@ -321,3 +321,34 @@ def test_refit_of_a_sprung_face_lands_near_the_truth_and_never_worse(tmp_path, m
     assert out["params"]["face_stiffness"] == pytest.approx(43.2, rel=0.15)
     assert out["params"]["reference_penetration"] == 0.64  # held, never the class default
     assert out["fitted"] == ["face_mass", "face_stiffness", "face_damping"]
+
+
+@pytest.mark.slow
+def test_refit_of_a_scaled_face_finds_the_scale_of_the_manifests_betas(tmp_path, monkeypatch):
+    """A scaled face (support 1.25 beta, 5 beta in front) whose law's beta is 0.8 of the
+    manifest's (a manifest labelling the tip alone, behind a contact of 4 times it): refitted
+    by simulation from the truth's face at the rows' betas (scale 1, as the maps give it), the
+    refit's sweep of the scale lands within 10 % of 0.8 and the discrepancy falls."""
+    import stiffnet.measurement.face_by_simulation as face_by_simulation
+    from stiffnet.measurement.face_by_simulation import refine_face
+    from stiffnet.measurement.target import (
+        FIT_SETTINGS_NUMERICAL,
+        CampaignTarget,
+        measured_statistics,
+    )
+
+    law = {"exponent": 1.0, "reference_penetration": 0.5, "face_mass": 0.1,
+           "face_stiffness_ratio": 1.25, "face_mass_exponent": -1 / 3,
+           "face_reference_beta": 20.0, "face_damping": 0.05}  # fmt: skip
+    truth = LearnedContact(**law, face_beta_scale=0.8)
+    camp = batch_campaign(tmp_path / "scaled", [truth], duration_s=2.0)
+    monkeypatch.setattr(face_by_simulation, "FACE_REFIT_GRID", 5)  # bounded cost: 4 batches of 6
+    rows = list(camp.rows)
+    measured, lengths, _ = measured_statistics(camp, rows, False)
+    target = CampaignTarget(rows, measured, lengths, [], 0, False)
+    settings = FIT_SETTINGS_NUMERICAL
+    at_law = target.per_recording([LearnedContact(**law)], settings)
+    out = refine_face(target, rows, [], law, at_law, settings)
+    assert out["discrepancy_refit"] < out["discrepancy_discovered"]
+    assert out["params"]["face_beta_scale"] == pytest.approx(0.8, rel=0.1)
+    assert "face_beta_scale" in out["fitted"]

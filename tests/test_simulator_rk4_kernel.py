@@ -76,7 +76,8 @@ SCALED_ROWWISE_LAW = LearnedContact(face_mass=0.2, face_stiffness_ratio=1.5,
 #: Per-row values of :data:`SCALED_ROWWISE_LAW` (three rows).
 SCALED_ROWWISE = {"face_stiffness_ratio": np.array([1.25, 0.0, 3.0]),
                   "face_mass": np.array([0.2, 0.1, 0.0]),
-                  "face_mass_exponent": np.array([-1 / 3, 0.5, 0.7])}  # fmt: skip
+                  "face_mass_exponent": np.array([-1 / 3, 0.5, 0.7]),
+                  "face_beta_scale": np.array([0.8, 1.2, 1.0])}  # fmt: skip
 ROWWISE_VALUES = {id(ROWWISE_LAW): ROWWISE, id(SCALED_ROWWISE_LAW): SCALED_ROWWISE}
 
 
@@ -136,6 +137,7 @@ LEARNED_CASES = {
     "learned_all_terms": _every_term(LEARNED_FACE),
     "learned_terms_on_some_rows": [ROWWISE_LAW, DryFriction()],
     "learned_scaled_face": [LearnedContact(**SCALED_FACE)],
+    "learned_scaled_face_beta_scale": [LearnedContact(**SCALED_FACE, face_beta_scale=0.85)],
     "learned_scaled_face_all_terms": _every_term(SCALED_FACE),
     "learned_scaled_face_on_some_rows": [SCALED_ROWWISE_LAW, DryFriction()],
 }

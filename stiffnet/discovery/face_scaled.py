@@ -61,12 +61,14 @@ def reference_beta(betas: np.ndarray) -> float:
 
 def scaled_params(shared: dict[str, float], beta_ref: float) -> dict[str, float]:
     """The ``learned_contact`` parameters :func:`~stiffnet.effects.learned_contact.scaled_face`
-    reads, from the term's shared values."""
+    reads, from the term's shared values (the maps fit each recording's beta, the law's own:
+    its scale over the rows' is 1)."""
     return {
         "face_mass": float(shared["face_mass"]),
         "face_stiffness_ratio": float(shared["face_stiffness_ratio"]),
         "face_mass_exponent": float(shared["face_mass_exponent"]),
         "face_reference_beta": float(beta_ref),
+        "face_beta_scale": 1.0,
     }
 
 

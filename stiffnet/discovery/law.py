@@ -200,7 +200,9 @@ class DiscoveredLaw:
                 f")  for delta = x - e - y > 0, v = x' - y'; the face, each recording's own: "
                 f"mu y'' + 2 ({p['face_damping']:.3g}) sqrt({r:.4g} beta mu) y' + {r:.4g} beta y "
                 f"= F_c, mu = {p['face_mass']:.3g} (beta/{p['face_reference_beta']:.3g})^"
-                f"{p['face_mass_exponent']:.3g} (beta: the contact in series with the support)"
+                f"{p['face_mass_exponent']:.3g} (beta: the contact in series with the support"
+                + _beta_scale_words(p)
+                + ")"
             )
         if "face2" in self.terms:
             return eq + (
@@ -272,3 +274,9 @@ class DiscoveredLaw:
                 )
             ],  # fmt: skip
         }
+
+
+def _beta_scale_words(p: dict[str, float]) -> str:
+    """A scaled face's beta over the manifest's, where the simulation fitted it (not 1)."""
+    scale = float(p.get("face_beta_scale", 1.0))
+    return "" if scale == 1.0 else f", {scale:.3g} of the manifest's beta where it gives one"

@@ -39,7 +39,10 @@ its support and modal mass are each recording's own, set by its beta::
 (``face_mass_exponent`` q, ``face_reference_beta`` beta_ref). Beta is then the
 restraint's static stiffness at the contact, the contact in series with the support
 (``1 / (r - 1) beta r + 1 / r beta = 1 / beta``): for a beam struck through a contact
-much stiffer than it (``r`` near 1), its static tip stiffness. The face's two states carry
+much stiffer than it (``r`` near 1), its static tip stiffness. A campaign's manifest may
+label another quantity (the beam's own tip stiffness, without the contact in front): the
+law's beta is then ``s`` times the row's (``face_beta_scale``, 1 unless
+``diagnose``'s simulation fitted it), in every one of the three. The face's two states carry
 a third, the row's beta held constant (the face's derivative needs it and
 :meth:`LearnedContact.state_derivative` is not given the batch).
 
@@ -94,17 +97,18 @@ LAW_PARAMS = (
 #: "Effect off": the paper's linear restraint.
 NEUTRAL = {"exponent": 1.0, "knee_ratio": 1.0, "preload": 0.0, "hunt_crossley": 0.0,
            "damping_ratio": 0.0, "face_mass": 0.0, "face2_mass": 0.0,
-           "face_stiffness_ratio": 0.0}  # fmt: skip
+           "face_stiffness_ratio": 0.0, "face_beta_scale": 1.0}  # fmt: skip
 
 
 def scaled_face(beta: Any, p: Mapping[str, Any]) -> tuple[Any, Any, Any]:
     """A face that scales with beta (``face_stiffness_ratio`` ``r > 0``, see the module notes):
-    the contact's own stiffness, the face's support stiffness and its mass for ``beta``,
-    ``(beta r / (r - 1), r beta, face_mass (beta / beta_ref)**q)``; where ``r`` is 0 (an
-    absolute face, or none) ``(beta, face_stiffness, face_mass)``."""
-    beta = np.asarray(beta, float)
+    the contact's own stiffness, the face's support stiffness and its mass for the row's
+    ``beta``, ``(b r / (r - 1), r b, face_mass (b / beta_ref)**q)`` with the law's beta
+    ``b = s beta`` (``face_beta_scale`` s); where ``r`` is 0 (an absolute face, or none)
+    ``(beta, face_stiffness, face_mass)``."""
     r = np.asarray(p["face_stiffness_ratio"], float)
     on = r > 0
+    beta = np.asarray(beta, float) * np.where(on, np.asarray(p["face_beta_scale"], float), 1.0)
     rs = np.where(on, r, 2.0)  # any ratio above 1 where off: no division by zero
     contact = np.where(on, beta * rs / (rs - 1.0), beta)
     kappa = np.where(on, rs * beta, p["face_stiffness"])
@@ -226,6 +230,9 @@ def learned_contact_force(
 #: A refit from a discovered face searches its mass and stiffness within this factor of the
 #: discovered values (the discovery reads them within 15 %; the box leaves room for more).
 FACE_REFIT_FACTOR = 1.5
+#: A refit from a scaled face searches its mass exponent within this much of the discovered
+#: one (the maps read a beam's -1/3 as -0.73 where its modes alias into the force).
+MASS_EXPONENT_REACH = 0.5
 
 
 def _around(cls: Any, name: str, value: float, factor: float) -> FitParam:
@@ -301,6 +308,9 @@ class LearnedContact(DynamicsEffect):
         face_reference_beta: ParamValue = param(
             30.0, 0.1, 1e4, "beta_ref: the beta at which a scaled face's mass is face_mass"
         )
+        face_beta_scale: ParamValue = param(
+            1.0, 0.1, 10.0, "s: a scaled face's beta over the row's (the manifest's): s beta"
+        )
 
         @model_validator(mode="after")
         def _ratio_above_one(self) -> LearnedContact.Params:
@@ -329,7 +339,9 @@ class LearnedContact(DynamicsEffect):
         """The space of a refit from a discovered law (``params``): the shape terms the law
         has (its non-neutral ones, within their class ranges), and, when the law has a face,
         the face's mass, stiffness and damping within :data:`FACE_REFIT_FACTOR` of their
-        discovered values (the damping, weakly identified, within its square); everything
+        discovered values (the damping, weakly identified, within its square; a scaled
+        face's beta scale within the same factor and its mass exponent within
+        :data:`MASS_EXPONENT_REACH`); everything
         else held at its value (d_r, the preload, the terms the law lacks). The face's
         ringing frequency ``sqrt(kappa / mu)`` has one basin per mode the impacts can lock
         onto: its stiffness is declared multimodal (swept at the mass held)."""
@@ -350,6 +362,10 @@ class LearnedContact(DynamicsEffect):
             if r > 0:  # a scaled face: its support's share of the compliance, 1 - 1/r, around
                 free.append(FitParam("face_stiffness_ratio", 1.0 + (r - 1.0) / f,
                                      1.0 + (r - 1.0) * f))  # fmt: skip
+                free.append(_around(cls, "face_beta_scale", float(full["face_beta_scale"]), f))
+                q = float(full["face_mass_exponent"])
+                free.append(FitParam("face_mass_exponent", max(q - MASS_EXPONENT_REACH, -1.0),
+                                     min(q + MASS_EXPONENT_REACH, 1.0)))  # fmt: skip
             else:
                 free.insert(1, _around(cls, "face_stiffness", float(full["face_stiffness"]), f))
                 multimodal = ("face_stiffness",)

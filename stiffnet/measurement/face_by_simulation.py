@@ -18,7 +18,9 @@ only where it passes the tests every diagnosed effect must
 (:func:`~stiffnet.measurement.significance.significance`: it lowers the
 discrepancy beyond the recordings' noise floors, for most recordings, and pays
 for its parameters). The betas are then read on the maps behind the chosen face
-(:func:`~stiffnet.discovery.face_candidate.betas_behind_face`).
+(:func:`~stiffnet.discovery.face_candidate.betas_behind_face`); a face that scales with beta
+whose refit moved the scale of the rows' betas (``face_beta_scale``) reports the betas the
+simulation ran instead.
 """
 
 from __future__ import annotations
@@ -57,18 +59,25 @@ FACE_PARAMETERS = 3
 #: misses what a sweep finds).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
 FACE_REFIT_GRID = 7
-#: A face that scales with beta (``face_scaled``): its parameters, of which the first four are
-#: fitted (the reference beta is the campaign's, fixed).
+#: A face that scales with beta (``face_scaled``): its parameters, of which all but the
+#: reference beta (the campaign's, fixed) are fitted: the maps give four, the refit sweeps
+#: one more, the shared scale of the rows' betas (:data:`SCALED_SWEEP_ORDER`).
 SCALED_KEYS = ("face_mass", "face_stiffness_ratio", "face_damping", "face_mass_exponent",
-               "face_reference_beta")  # fmt: skip
-SCALED_PARAMETERS = 4
+               "face_beta_scale", "face_reference_beta")  # fmt: skip
+SCALED_PARAMETERS = 5
 #: The order of the refit's sweeps: the damping before the stiffness, for the ringing's
 #: frequency the stiffness sets is read at the damping's best (swept at the grid's damping,
 #: the stiffness locked onto a neighbouring orbit on the beam campaign).
 SWEEP_ORDER = ("face_mass", "face_damping", "face_stiffness")
 #: A face that scales with beta sweeps its support's ratio to beta where the shared face sweeps
-#: its support (:meth:`LearnedContact.fit_space_at`).
-SCALED_SWEEP = {"face_stiffness": "face_stiffness_ratio"}
+#: its support (:meth:`LearnedContact.fit_space_at`) and, after its mass, the law's beta over
+#: the rows' (``face_beta_scale``): the simulation runs each recording at its manifest's beta,
+#: which may label another quantity than the law's (a material beam's own tip stiffness, where
+#: the law's beta is that tip in series with the contact in front: 0.83 of it behind a contact
+#: of 5 beta), and the maps, whose betas read such a rig low, cannot give the scale; then its
+#: mass exponent, which the maps read through the aliased modes (a beam's -1/3 as -0.73).
+SCALED_SWEEP_ORDER = ("face_mass", "face_beta_scale", "face_mass_exponent", "face_damping",
+                      "face_stiffness_ratio")  # fmt: skip
 
 
 def face_by_simulation(
@@ -169,6 +178,8 @@ def simulated_face(
     sig = significance(before, after, n_params, floor, names)
     chosen = {k: float(params[k]) for k in keys}
     face_law = betas_behind_face(samples, maps, chosen) if sig["significant"] else None
+    if face_law is not None and float(chosen.get("face_beta_scale", 1.0)) != 1.0:
+        face_law = _simulated_betas(face_law, rows, chosen["face_beta_scale"])
     return {
         "significant": bool(sig["significant"]),
         "law": face_law,
@@ -205,6 +216,17 @@ def _other_start(
     return min(far)[1] if far else None
 
 
+def _simulated_betas(law: DiscoveredLaw, rows: Sequence[Any], scale: float) -> DiscoveredLaw:
+    """A scaled face's law with each recording's beta the one the simulation ran: ``scale``
+    times its row's (the manifest's, or the maps' where it has none); a recording without a
+    row keeps the maps'."""
+    given = {r.recording: r.beta for r in rows if r.beta is not None}
+    betas = [scale * given[n] if n in given else b for n, b in zip(law.recordings, law.betas,
+                                                                  strict=True)]  # fmt: skip
+    return replace(law, betas=tuple(float(b) for b in betas),
+                   beta_intervals=tuple([None] * len(betas)))  # fmt: skip
+
+
 def _same(a: Sequence[Effect], b: Sequence[Effect]) -> bool:
     return len(a) == len(b) and all(x is y for x, y in zip(a, b, strict=True))
 
@@ -234,7 +256,7 @@ def _scaled_unknowns(params: dict[str, float], nyq: float) -> list[str]:
     """:func:`face_unknowns` of a face that scales with beta."""
     r, beta_ref = float(params["face_stiffness_ratio"]), float(params["face_reference_beta"])
     w = float(np.sqrt(r * beta_ref / params["face_mass"]))
-    return [
+    words = [
         "the face was chosen by simulating the campaign, not by the maps' held-out test "
         "(it failed there): its values carry no bootstrap interval, only the refit's box",
         f"modes of the restraint above {nyq:.3g} natural frequencies (the slowest recording's "
@@ -244,6 +266,14 @@ def _scaled_unknowns(params: dict[str, float], nyq: float) -> list[str]:
         f"the support); the contact's own, {r / (r - 1):.3g} beta, is weakly determined where "
         "it is much stiffer than the support",
     ]
+    scale = float(params.get("face_beta_scale", 1.0))
+    if scale != 1.0:  # the refit moved the law's beta off the rows'
+        words.append(
+            f"that beta is {scale:.3g} of the manifest's, a scale fitted by the simulation and "
+            "not read on the maps: the manifest's beta may label another quantity (e.g. the "
+            "material alone, without the contact in front)"
+        )
+    return words
 
 
 def refine_face(
@@ -283,12 +313,14 @@ def refine_face(
     if other is not None:
         starts.append((dict(other[0]), np.asarray(other[1], float)))
     first = []
+    defaults = LearnedContact().params.model_dump()
     for start, per0 in starts:
         box = {fp.name: fp for fp in LearnedContact.fit_space_at(start, fs_min).free}
+        start.update({k: float(defaults[k]) for k in box if k not in start})  # a law from before
         first.append((*_sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0), box))
     best, per, fitted, box = min(first, key=lambda f: campaign_discrepancy(f[1]))
-    for key in SWEEP_ORDER[1:]:  # the others across the chosen start's box, at the best so far
-        key = key if key in box else SCALED_SWEEP[key]
+    order = SCALED_SWEEP_ORDER if "face_beta_scale" in box else SWEEP_ORDER
+    for key in order[1:]:  # the others across the chosen start's box, at the best so far
         best, per, fitted = _sweep(tgt, settings, box, key, best, per)
     d0, d1 = campaign_discrepancy(at_discovered), campaign_discrepancy(per)
     return {
