@@ -191,6 +191,30 @@ def test_the_chain_fitted_regardless_is_the_whole_checks_chain():
     assert json.dumps(got, sort_keys=True) == json.dumps(whole, sort_keys=True)
 
 
+def test_a_recording_is_read_once_per_sheet_within_a_campaign():
+    """The profiles' repeats: a recording read through a sheet with the same entries (in any
+    order) is read once; another recording or another corner is read again; each pooling
+    keeps its own readings."""
+    from serving.campaign_chain import read_once
+
+    asked = []
+
+    def read(i, sheet):
+        asked.append((i, sheet["highpass_hz"]))
+        return {"r": i, "corner": sheet["highpass_hz"]}
+
+    once = read_once(read)
+    sheet = {"lowpass_hz": 120.0, "lowpass_order": 4.0, "highpass_hz": 3.1}
+    first = once(0, sheet)
+    assert once(0, dict(reversed(sheet.items()))) is first
+    assert once(1, sheet) == {"r": 1, "corner": 3.1}
+    assert once(0, {**sheet, "highpass_hz": 3.2}) == {"r": 0, "corner": 3.2}
+    assert once(0, {**sheet, "highpass_low_hz": 2.9}) == {"r": 0, "corner": 3.1}
+    assert asked == [(0, 3.1), (1, 3.1), (0, 3.2), (0, 3.1)]
+    read_once(read)(0, sheet)  # another campaign's pooling reads again
+    assert len(asked) == 5
+
+
 def test_a_users_data_sheet_wins_and_does_not_vote():
     sheet = {"resonance_hz": 800.0, "resonance_damping": 0.03}
     sensors = [fitted(300.0), fitted(302.0), {**fitted(800.0), "source": "fitted"}]
