@@ -344,7 +344,9 @@ def chain_fitted_regardless(accel: Any, fs_hz: float, fn_hz: float, predictor: A
     check's law-shape readings, its chain's unexcluded low-passes still profiled
     (``chain_profile``): the same chain as the whole check fits (an estimate without an
     interval reads the same map and chain), for about 70 % of its CPU (two rig records behind
-    a low-pass: 4.6 -> 3.4 and 5.5 -> 3.9 s)."""
+    a low-pass: 4.6 -> 3.4 and 5.5 -> 3.9 s). Where a part of the whole check after the chain
+    fails (the interval's fits, the impact onsets) the check reports no chain; this reading
+    still reports the chain it fitted."""
     from serving.checks import checked_recording
     from serving.restoring_force_check import RESTORING_FORCE_PERIODS
     from stiffnet.errors import StiffnetError
