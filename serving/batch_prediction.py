@@ -54,11 +54,13 @@ import pyarrow.parquet as pq
 from serving.campaign_chain import (
     chain_fitted_regardless,
     confirmed,
-    contact_r2_through,
-    free_damping_through,
+    contact_r2_of,
+    free_damping_of,
     identify_regardless,
     labelled,
     profiled_campaign_chain,
+    read_once,
+    read_through,
     reads_alone,
 )
 from serving.predictor import Predictor, predict_recording, record_natural_frequency
@@ -554,17 +556,20 @@ def _campaign_chain(
     sheets = [sheet for *_, sheet in settings]
     chain, sensors = identify_regardless(sensors, paths, sheets, identify)
 
+    def through(i: int, sheet: dict) -> Any:  # recording i read through the sheet
+        rec = recording(i)
+        return None if rec is None else read_through(*rec, predictor, sheet)
+
+    once = read_once(through)  # the profiles' repeats, in this campaign's scope only
+
     def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
-        rec = recording(i)  # read through the pooled chain
-        return None if rec is None else contact_r2_through(*rec, predictor, sheet,
-                                                           refused_as_unexplained)  # fmt: skip
+        return contact_r2_of(once(i, sheet), refused_as_unexplained)
 
     def fns() -> list[float | None]:
         return [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
 
     def free_damping(i: int, sheet: dict) -> float | None:
-        rec = recording(i)
-        return None if rec is None else free_damping_through(*rec, predictor, sheet)
+        return free_damping_of(once(i, sheet))
 
     return profiled_campaign_chain(chain, sensors, contact_r2, free_damping, fns,
                                    dampings or [None] * len(paths), sheets)  # fmt: skip

@@ -164,6 +164,57 @@ def test_behind_a_second_order_lowpass_the_gate_fits_no_chain_and_the_fit_regard
     assert got["beta_interval"][0] <= run.beta <= got["beta_interval"][1]
 
 
+def test_the_chain_fitted_regardless_is_the_whole_checks_chain():
+    """The campaign's fit regardless of the gate keeps only the chain, read without beta's
+    interval: on the independent rig behind a 3rd-order 145 Hz low-pass (bench_crosscheck's
+    rig_chains #8) it is the chain the whole check fits (fit_chain), every field the same,
+    the low-pass the impacts cannot exclude too (profiled without the interval)."""
+    from types import SimpleNamespace
+
+    from independent_rig import RigRun, record
+
+    from serving.campaign_chain import chain_fitted_regardless
+    from serving.checks import checked_recording
+    from serving.restoring_force_check import restoring_force_check
+
+    sensor = {"resonance_hz": 1597.73, "resonance_damping": 0.0832, "lowpass_hz": 144.685,
+              "lowpass_order": 3, "highpass_hz": 0.3724}  # fmt: skip
+    run = RigRun(recording="r.csv", beta=7.780985785073243, fs_hz=2078.9479613976932,
+                 duration_s=3.0, gap_mm=2.1053183865925034, sensor=sensor)  # fmt: skip
+    accel = record(run, seed=20261135)[1]
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None, penetration_dissipation=False)
+    got = chain_fitted_regardless(accel, run.fs_hz, 9.48, pred)
+    a = checked_recording(accel, run.fs_hz, 9.48, pred.window_periods, "recording")[0]
+    whole = restoring_force_check(a, run.fs_hz, 9.48, None, None, fit_chain=True)["sensor"]
+    assert got is not None and got["lowpass_hz"] == pytest.approx(144.685, rel=0.15)
+    assert got["lowpass_not_excluded"]
+    assert json.dumps(got, sort_keys=True) == json.dumps(whole, sort_keys=True)
+
+
+def test_a_recording_is_read_once_per_sheet_within_a_campaign():
+    """The profiles' repeats: a recording read through a sheet with the same entries (in any
+    order) is read once; another recording or another corner is read again; each pooling
+    keeps its own readings."""
+    from serving.campaign_chain import read_once
+
+    asked = []
+
+    def read(i, sheet):
+        asked.append((i, sheet["highpass_hz"]))
+        return {"r": i, "corner": sheet["highpass_hz"]}
+
+    once = read_once(read)
+    sheet = {"lowpass_hz": 120.0, "lowpass_order": 4.0, "highpass_hz": 3.1}
+    first = once(0, sheet)
+    assert once(0, dict(reversed(sheet.items()))) is first
+    assert once(1, sheet) == {"r": 1, "corner": 3.1}
+    assert once(0, {**sheet, "highpass_hz": 3.2}) == {"r": 0, "corner": 3.2}
+    assert once(0, {**sheet, "highpass_low_hz": 2.9}) == {"r": 0, "corner": 3.1}
+    assert asked == [(0, 3.1), (1, 3.1), (0, 3.2), (0, 3.1)]
+    read_once(read)(0, sheet)  # another campaign's pooling reads again
+    assert len(asked) == 5
+
+
 def test_a_users_data_sheet_wins_and_does_not_vote():
     sheet = {"resonance_hz": 800.0, "resonance_damping": 0.03}
     sensors = [fitted(300.0), fitted(302.0), {**fitted(800.0), "source": "fitted"}]

@@ -126,3 +126,6 @@ def test_an_estimate_without_interval_reads_the_same_map_and_chain():
     assert np.all(np.isnan(lean.beta_interval))
     lo, hi = full.beta_interval
     assert lo < full.beta < hi
+    # asked to profile the chain's unexcluded low-passes, the chain is the whole estimate's
+    profiled = restoring_force_estimate(accel, 2000.0, interval=False, chain_profile=True, **opts)
+    assert profiled.sensor == full.sensor and profiled.law == full.law

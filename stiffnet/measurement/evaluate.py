@@ -162,11 +162,13 @@ def campaign_predictions(
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
-        contact_r2_through,
-        free_damping_through,
+        contact_r2_of,
+        free_damping_of,
         identify_regardless,
         labelled,
         profiled_campaign_chain,
+        read_once,
+        read_through,
         reads_alone,
     )
     from serving.predictor import Predictor
@@ -174,31 +176,35 @@ def campaign_predictions(
     rows = campaign.rows
     first = [predicted(campaign, i, row, model_path) for i, row in enumerate(rows)]
     sheets = [row.sensor_sheet() for row in rows]
+    # the pooling's readings share one predictor (a campaign not held in memory memoises
+    # nothing, and each of its ~200 readings loaded the model again)
+    pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
+    read: dict[int, Any] = {}  # each recording loaded once for the fits and profiles below
+    fns = [natural_frequency(row) for row in rows]
+
+    def recording(i: int) -> Any:
+        return read[i] if i in read else read.setdefault(i, campaign.recording(i))
 
     def identify(i: int) -> dict | None:  # the chain fitted regardless of the gate
-        rec = campaign.recording(i)
-        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
-        return chain_fitted_regardless(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred)
+        rec = recording(i)
+        return chain_fitted_regardless(rec.accel, rec.fs_hz, fns[i], pred)
 
     chain, sensors = identify_regardless(
         [(r.get("restoring_force") or {}).get("sensor") for r in first],
         [row.recording for row in rows], sheets, identify,
     )  # fmt: skip
 
-    read: dict[int, Any] = {}  # each recording read once for the corner's profile
+    def through(i: int, sheet: dict) -> Any:  # recording i read through the sheet
+        rec = recording(i)
+        return read_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
+
+    once = read_once(through)  # the profiles' repeats, in this campaign's scope only
 
     def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
-        rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
-        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
-        return contact_r2_through(rec.accel, rec.fs_hz, natural_frequency(rows[i]), pred, sheet,
-                                  refused_as_unexplained)  # fmt: skip
-
-    fns = [natural_frequency(row) for row in rows]
+        return contact_r2_of(once(i, sheet), refused_as_unexplained)
 
     def free_damping(i: int, sheet: dict) -> float | None:
-        rec = read[i] if i in read else read.setdefault(i, campaign.recording(i))
-        pred = memo(campaign, ("predictor", model_path), lambda: Predictor.load(model_path))
-        return free_damping_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
+        return free_damping_of(once(i, sheet))
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
     chain = profiled_campaign_chain(chain, sensors, contact_r2, free_damping, lambda: fns,

@@ -913,6 +913,7 @@ def restoring_force_estimate(
     stage_ratio: float | tuple[float, float] | None = None,
     penetration_dissipation: bool = False,
     impact_onsets: bool = False,
+    chain_profile: bool = False,
 ) -> RestoringForceResult:
     """Estimate beta from one acceleration record by the restoring-force method.
 
@@ -996,6 +997,13 @@ def restoring_force_estimate(
         Also refit the contact law with an onset per impact (:mod:`.impact_onsets`), reported
         beside beta (``impact_onsets``) for the alarm's exponent rules; beta and its interval
         do not change. Six small fits per record: only the predictor's check asks for it.
+    chain_profile : bool
+        Without an `interval`, still profile a fitted chain's low-passes the impacts cannot
+        exclude (``lowpass_not_excluded``), so the chain reported is the one an estimate with
+        an interval reports; its other readings are not mapped. What a caller that keeps only
+        the fitted chain needs (a campaign's chain fitted regardless of the gate). False
+        (default): profiled without an interval only where the record's start-up is read
+        through them (:func:`_estimate_settled`).
 
     Returns
     -------
@@ -1023,7 +1031,7 @@ def restoring_force_estimate(
                    if profile_highpass_below_r2 is None else profile_highpass_below_r2,
                    interval=interval, stage_ratio=stage_ratio,
                    penetration_dissipation=penetration_dissipation,
-                   impact_onsets=impact_onsets)  # fmt: skip
+                   impact_onsets=impact_onsets, chain_profile=chain_profile)  # fmt: skip
     results = []
     for i, ff in enumerate(lines):
         try:
