@@ -54,12 +54,10 @@ import pyarrow.parquet as pq
 from serving.campaign_chain import (
     chain_fitted_regardless,
     confirmed,
-    contact_r2_of,
-    free_damping_of,
     identify_regardless,
     labelled,
+    profile_readers,
     profiled_campaign_chain,
-    read_once,
     read_through,
     reads_alone,
 )
@@ -560,16 +558,10 @@ def _campaign_chain(
         rec = recording(i)
         return None if rec is None else read_through(*rec, predictor, sheet)
 
-    once = read_once(through)  # the profiles' repeats, in this campaign's scope only
-
-    def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
-        return contact_r2_of(once(i, sheet), refused_as_unexplained)
+    contact_r2, free_damping = profile_readers(through)  # in this campaign's scope only
 
     def fns() -> list[float | None]:
         return [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
-
-    def free_damping(i: int, sheet: dict) -> float | None:
-        return free_damping_of(once(i, sheet))
 
     return profiled_campaign_chain(chain, sensors, contact_r2, free_damping, fns,
                                    dampings or [None] * len(paths), sheets)  # fmt: skip

@@ -1145,6 +1145,25 @@ def read_once(read: Callable[[int, dict[str, Any]], Any]) -> Callable[[int, dict
     return once
 
 
+def profile_readers(
+    read: Callable[[int, dict[str, Any]], Any],
+) -> tuple[Callable[..., float | None], Callable[[int, dict[str, Any]], float | None]]:
+    """The `contact_r2` and `free_damping` of :func:`profiled_campaign_chain` from `read`
+    (recording index and data sheet to a reading, :func:`read_through`), both over one
+    :func:`read_once` of it: what a campaign's pooling passes its profiles."""
+    once = read_once(read)
+
+    def contact_r2(
+        i: int, sheet: dict[str, Any], refused_as_unexplained: bool = False
+    ) -> float | None:
+        return contact_r2_of(once(i, sheet), refused_as_unexplained)
+
+    def free_damping(i: int, sheet: dict[str, Any]) -> float | None:
+        return free_damping_of(once(i, sheet))
+
+    return contact_r2, free_damping
+
+
 def confirmed(
     chain: dict[str, Any], first: Sequence[dict | None], again: Sequence[dict | None]
 ) -> dict[str, Any]:

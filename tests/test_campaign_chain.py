@@ -215,6 +215,28 @@ def test_a_recording_is_read_once_per_sheet_within_a_campaign():
     assert len(asked) == 5
 
 
+def test_the_profiles_readers_share_one_reading_per_sheet():
+    """A campaign's contact-law R2 and free damping of one recording through one sheet come
+    from a single reading (the free flight at the corner the high-pass profile chose)."""
+    from types import SimpleNamespace
+
+    from serving.campaign_chain import profile_readers
+
+    asked = []
+
+    def read(i, sheet):
+        asked.append(i)
+        return SimpleNamespace(law="linear", contact_r2=0.9, ok=i == 0,
+                               free_damping_fitted=0.02, free_r2=0.99)  # fmt: skip
+
+    contact_r2, free_damping = profile_readers(read)
+    sheet = {"highpass_hz": 3.1}
+    assert contact_r2(0, sheet) == 0.9 and free_damping(0, sheet) == 0.02
+    assert contact_r2(1, sheet, refused_as_unexplained=True) == 0.0  # refused: unexplained
+    assert free_damping(1, sheet) == 0.02
+    assert asked == [0, 1]
+
+
 def test_a_users_data_sheet_wins_and_does_not_vote():
     sheet = {"resonance_hz": 800.0, "resonance_damping": 0.03}
     sensors = [fitted(300.0), fitted(302.0), {**fitted(800.0), "source": "fitted"}]

@@ -162,12 +162,10 @@ def campaign_predictions(
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
-        contact_r2_of,
-        free_damping_of,
         identify_regardless,
         labelled,
+        profile_readers,
         profiled_campaign_chain,
-        read_once,
         read_through,
         reads_alone,
     )
@@ -198,13 +196,7 @@ def campaign_predictions(
         rec = recording(i)
         return read_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
 
-    once = read_once(through)  # the profiles' repeats, in this campaign's scope only
-
-    def contact_r2(i: int, sheet: dict, refused_as_unexplained: bool = False) -> float | None:
-        return contact_r2_of(once(i, sheet), refused_as_unexplained)
-
-    def free_damping(i: int, sheet: dict) -> float | None:
-        return free_damping_of(once(i, sheet))
+    contact_r2, free_damping = profile_readers(through)  # in this campaign's scope only
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
     chain = profiled_campaign_chain(chain, sensors, contact_r2, free_damping, lambda: fns,
