@@ -208,3 +208,23 @@ def test_a_record_without_contact_does_not_say_beta_changes(predictor):
     assert res["class"] == "no_contact"
     assert [la["class"] for la in res["layers"]] == ["no_contact", "no_contact"]
     assert res["alarm"]["fired"] == [] and not res["ood_flag"]
+
+
+def test_a_linear_contact_wandering_at_a_small_gap_is_not_read_as_two_stage(predictor):
+    """The independent rig's ideal campaign (``bench_loop_iteration.rig_runs("ideal")``):
+    the linear contact at the 0.5 mm gap, beta 34, whose impacts range from grazes to five
+    reference penetrations. A hinge across them read gain 0.20 and ratio 8.2 and fired the
+    ``contact_law`` check on a right answer; the stage is judged on alike depths only."""
+    from independent_rig import record
+    from test_independent_rig import _runs
+
+    run = _runs([(34, 0.95, 1.0, 0.5, 1000)], 3.0)[0]
+    run.recording = "rec/p1_2_b034.csv"  # the campaign's noise draw
+    res = predictor.predict(
+        record(run)[1], run.fs_hz, natural_frequency_hz=run.natural_frequency_hz
+    )
+    shape = res["restoring_force"]["law_shape"]
+    assert shape["stage"] > 0.15 and shape["stage_ratio"] > 2.0, shape  # the hinge is there
+    assert shape["depth_spread"] > 5.0, shape
+    assert "contact_law" not in res["alarm"]["fired"], res["alarm"]
+    assert res["class"] == "medium"

@@ -16,7 +16,12 @@ from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.simulator.batch import OscillatorBatch
 from stiffnet.simulator.simulator import Simulator
-from stiffnet.uncertainty.law_shape import impact_runs, law_shape_gains, onset_toe
+from stiffnet.uncertainty.law_shape import (
+    depth_spread,
+    impact_runs,
+    law_shape_gains,
+    onset_toe,
+)
 from stiffnet.uncertainty.unseen_law import (
     PENETRATION_DISSIPATION,
     STIFFENING,
@@ -170,6 +175,28 @@ def test_a_two_stage_law_reads_apart_from_any_single_power_law(law, ratio):
         assert g["stage_ratio"] == pytest.approx(ratio, rel=0.15)
         reasons = stage_reasons(g, t)
         assert len(reasons) == 1 and "depends on the depth" in reasons[0]
+
+
+def test_the_depth_spread_is_the_ratio_of_the_deep_to_the_shallow_impacts():
+    # ten impacts 1.0 deep, ten 4.0 deep: the 90th percentile is 4, the 10th 1
+    d = np.r_[np.full(10, 1.0), np.full(10, 4.0)]
+    peaks = np.repeat(d, 5) * np.tile(np.sin(np.linspace(0.3, np.pi / 2, 5)), 20)
+    groups = np.repeat(np.arange(20), 5)
+    assert depth_spread(peaks, groups) == pytest.approx(4.0)
+    d, v = _impacts_with_gaps()  # a steady record's impacts: CV 2 %
+    g = law_shape_gains(d, v, np.where(d > 0, d, 0.0), 0.0, 1.0, 1.0)
+    assert 1.0 <= g["depth_spread"] < 1.1, g
+
+
+def test_a_stage_read_across_impacts_of_unlike_depths_does_not_fire():
+    """A linear contact whose impacts' reconstructed level wanders by a graze's penetration:
+    across grazes and deep impacts a hinge takes the wander as a stiffness rising with depth
+    (the independent rig's ideal record at the 0.5 mm gap read gain 0.20, ratio 8.2)."""
+    t = UnseenLawThresholds()
+    hinge = {"stage": 0.2, "stage_ratio": 8.2, "stage_knee": 0.4}
+    assert stage_reasons({**hinge, "depth_spread": 11.5}, t) == []
+    assert stage_reasons({**hinge, "depth_spread": 1.05}, t)
+    assert stage_reasons(hinge, t)  # a reading from before the spread was kept
 
 
 @pytest.mark.parametrize(

@@ -80,6 +80,28 @@ def impact_runs(delta: np.ndarray, min_samples: int = 3) -> list[np.ndarray]:
     return [r for r in runs if r.size >= min_samples]
 
 
+def depth_spread(dn: np.ndarray, groups: np.ndarray) -> float:
+    """How far apart the impacts' depths lie: the 90th over the 10th percentile of the
+    impacts' deepest penetration (1 where every impact reaches alike).
+
+    A steady record's impacts reach within a few per cent of each other; a wandering or
+    chattering one mixes grazes and deep impacts, and there the reconstruction's level,
+    which wanders between impacts by up to the penetration of a shallow one, is read across
+    impacts of different depths as a stiffness that changes with depth.
+
+    Parameters
+    ----------
+    dn : numpy.ndarray
+        In-contact penetrations (any unit: the ratio is unitless).
+    groups : numpy.ndarray
+        The impact (0 .. n-1, ascending) of each sample.
+    """
+    starts = np.flatnonzero(np.r_[True, np.diff(groups) != 0])
+    peaks = np.maximum.reduceat(np.asarray(dn, float), starts)
+    lo, hi = np.quantile(peaks, [0.1, 0.9])
+    return float(hi / lo) if lo > 0 else float("inf")
+
+
 def held_out_impact_sse(design: np.ndarray, force: np.ndarray, groups: np.ndarray) -> float:
     """Sum over impacts of the squared error of the least-squares law fitted on the others.
 
@@ -232,7 +254,8 @@ def law_shape_gains(
         ``penetration_dissipation``; positive for a stiffening law, a dissipation growing
         with penetration), ``stage`` / ``stage_ratio`` / ``stage_knee``
         (:func:`stage_gain`), ``misfit`` (the base law's held-out SSE over the force's
-        variance), ``n_impacts`` and ``toe`` / ``toe_least_side`` (:func:`onset_toe`,
+        variance), ``n_impacts``, ``depth_spread`` (:func:`depth_spread`) and ``toe`` /
+        ``toe_least_side`` (:func:`onset_toe`,
         where it can be read); None with too few impacts or no positive reference
         penetration.
     """
@@ -279,6 +302,7 @@ def law_shape_gains(
     )
     out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     out["n_impacts"] = float(int(groups.max()) + 1)
+    out["depth_spread"] = depth_spread(dn, groups)
     toe = onset_toe(disp, force, onset, min_impacts)
     if toe is not None:
         out["toe"], out["toe_least_side"] = toe

@@ -48,10 +48,11 @@ them on rigs whose law the training world lacks, and neither needs the model:
   short soft first stage lies just outside its impacts
   (:func:`stiffnet.uncertainty.law_shape.onset_toe`): within-impact terms never see it,
   and at 1 kHz a two-stage contact of 6-7 samples leaves the hinge 2-3 of them.
-* **a stiffness that depends on depth** (``stage_min_gain``, ``stage_min_ratio``): a
-  two-stage law, straight on both sides of a knee with a stiffness at least
-  ``stage_min_ratio`` times higher beyond it, predicts held-out impacts better than any
-  single power law (:func:`stiffnet.uncertainty.law_shape.stage_gain`). A two-stage
+* **a stiffness that depends on depth** (``stage_min_gain``, ``stage_min_ratio``,
+  ``stage_max_depth_spread``): a two-stage law, straight on both sides of a knee with a
+  stiffness at least ``stage_min_ratio`` times higher beyond it, predicts held-out impacts
+  better than any single power law (:func:`stiffnet.uncertainty.law_shape.stage_gain`), on
+  impacts that reach alike depths. A two-stage
   restraint's map reads as Hertz to the power-law fit (exponent 1.3-1.6) and the model
   reads one stiffness between the stages, a class too hard; Hertz's own law and sensor
   chains bend the map smoothly, which a hinge takes only with a small stiffness ratio.
@@ -137,6 +138,9 @@ EXCESS_DAMPING_MIN_R2 = 0.7
 STAGE_MIN_GAIN = 0.15
 #: Least stiffness ratio across the knee (a Hertz contact's hinge reads 1.5-1.7).
 STAGE_MIN_RATIO = 2.0
+#: The stage is judged only where the impacts reach alike depths
+#: (:func:`stiffnet.uncertainty.law_shape.depth_spread` at most this; see the YAML).
+STAGE_MAX_DEPTH_SPREAD = 2.0
 #: Fitted Kelvin-Voigt damping ratio from which the contact's duration is judged: the law
 #: then predicts a release at least 19 % before the undamped half period
 #: (:func:`kelvin_voigt_release_ratio`), more than the duration's sampling error.
@@ -178,6 +182,7 @@ class UnseenLawThresholds(BaseModel):
     excess_damping_min_r2: float = EXCESS_DAMPING_MIN_R2
     stage_min_gain: float = STAGE_MIN_GAIN
     stage_min_ratio: float = STAGE_MIN_RATIO
+    stage_max_depth_spread: float = STAGE_MAX_DEPTH_SPREAD
     long_contact_min_damping: float = LONG_CONTACT_MIN_DAMPING
     long_contact_min_samples: float = LONG_CONTACT_MIN_SAMPLES
     onset_toe_min: float = ONSET_TOE_MIN
@@ -447,11 +452,16 @@ def stage_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> lis
     """Rule: a two-stage law (:func:`stiffnet.uncertainty.law_shape.stage_gain`) predicts
     held-out impacts at least :attr:`UnseenLawThresholds.stage_min_gain` better than any
     single power law, with a stiffness ratio across its knee of at least
-    :attr:`UnseenLawThresholds.stage_min_ratio`: the stiffness depends on the depth."""
+    :attr:`UnseenLawThresholds.stage_min_ratio`: the stiffness depends on the depth. Judged
+    only on impacts of alike depths (``depth_spread`` at most
+    :attr:`UnseenLawThresholds.stage_max_depth_spread`): across grazes and deep impacts the
+    reconstruction's level wander reads as a stiffness rising with depth."""
     if not shape or shape.get("stage") is None:
         return []
     gain, ratio = shape["stage"], shape.get("stage_ratio", 1.0)
     if gain < t.stage_min_gain or ratio < t.stage_min_ratio:
+        return []
+    if shape.get("depth_spread", 1.0) > t.stage_max_depth_spread:
         return []
     return [
         f"the contact's stiffness depends on the depth: it rises {ratio:.1f}-fold beyond "
