@@ -123,14 +123,8 @@ LOWPASS_STEPS_ABOVE = 1
 MAX_LOWPASS_GRID = 16
 #: Evaluations of the bounded refinement between the best grid corner's neighbours.
 LOWPASS_REFINE_ITER = 8
-#: The high-pass profile's refinement: its bounded search's iterations ...
+#: The high-pass profile's refinement: its bounded search's iterations.
 HIGHPASS_REFINE_ITER = 12
-#: ... and its tolerance in log corner: half the fits' own scatter (:data:`FIT_SCATTER`),
-#: corners that close being one stage. Each step reads the profiled recordings again (8 of
-#: the rig's 24 on 20 corners, about 60 % of an evaluation), and at 0.02 the search spent
-#: them resolving the corner to 1 % in a criterion flat over a factor of 2.4 (the rig's
-#: two-stage campaign: 9 steps to 0.201 Hz, interval [0.095, 0.226]).
-HIGHPASS_REFINE_TOL = 0.5 * float(np.log1p(FIT_SCATTER))
 #: :func:`campaign_resonance` profiles a pooled resonance only below this many times the
 #: stiffest contact's frequency (``f_n sqrt(1 + beta)`` at the classes' top beta, 96 Hz on the
 #: rig): a mount ringing there overlaps the contact pulse, whose spectrum reaches a few times
@@ -441,7 +435,7 @@ def campaign_highpass(
     lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     sol = optimize.minimize_scalar(
         lambda u: median_misfit(float(np.exp(u))), bounds=(np.log(lo), np.log(hi)),
-        method="bounded", options={"xatol": HIGHPASS_REFINE_TOL, "maxiter": HIGHPASS_REFINE_ITER},
+        method="bounded", options={"xatol": 0.02, "maxiter": HIGHPASS_REFINE_ITER},
     )  # fmt: skip
     corner = float(np.exp(sol.x)) if sol.fun < median_misfit(float(grid[i])) else float(grid[i])
     low, high = corner_interval(memo, read, corner)

@@ -411,52 +411,6 @@ def test_a_damped_campaigns_highpass_corner_is_read_from_the_free_flight_at_the_
     assert max(errors(plain)) < 0.05 < max(errors(before))
 
 
-@pytest.mark.slow
-def test_the_highpass_profiles_refinement_reaches_the_dense_searchs_corner(
-    damped_campaign, monkeypatch
-):
-    """On the damped campaign's known chain (a true 4.5 Hz corner, pooled 30 % low), the
-    high-pass profile refined to :data:`HIGHPASS_REFINE_TOL` (half the fits' scatter) lands
-    within the fits' scatter of the corner a refinement to 0.02 reaches, its interval's ends
-    as close and the true corner still inside, for fewer readings: a search that stopped on a
-    grid corner (3.15 or 4.74 Hz for the dense 3.74) would be 17-24 % off."""
-    from types import SimpleNamespace
-
-    import serving.campaign_chain as cc
-
-    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
-    pooled = {"resonance_hz": 0.0, "resonance_damping": 0.0, "lowpass_hz": 120.0,
-              "lowpass_order": 4.0, "highpass_hz": 0.7 * DAMPED_SENSOR["highpass_hz"]}  # fmt: skip
-    chain = {"pooled": True, "sensor": pooled, "reason": "pooled", "stages": {}}
-    readings: dict = {}
-
-    def profiled(tol: float) -> tuple[dict, int]:
-        monkeypatch.setattr(cc, "HIGHPASS_REFINE_TOL", tol)
-        asked = set()
-
-        def contact_r2(i, sheet):
-            key = (i, tuple(sorted(sheet.items())))
-            asked.add(key)
-            if key not in readings:  # one reading per recording and sheet for both searches
-                readings[key] = cc.contact_r2_through(damped_campaign.recs[i], 1250.0, 9.48,
-                                                      pred, sheet)  # fmt: skip
-            return readings[key]
-
-        return cc.campaign_highpass(chain, contact_r2, [9.48] * 3)["sensor"], len(asked)
-
-    tol = cc.HIGHPASS_REFINE_TOL
-    dense, n_dense = profiled(0.02)
-    fast, n_fast = profiled(tol)
-    scatter = np.log1p(cc.FIT_SCATTER)
-    for key in ("highpass_hz", "highpass_low_hz", "highpass_high_hz"):
-        assert abs(np.log(fast[key] / dense[key])) <= scatter, (key, fast, dense)
-    truth = DAMPED_SENSOR["highpass_hz"]
-    assert dense["highpass_low_hz"] <= truth <= dense["highpass_high_hz"]
-    assert fast["highpass_low_hz"] <= truth <= fast["highpass_high_hz"]
-    assert n_fast < n_dense
-    assert fast == damped_campaign.profiled["sensor"]  # what the profile reads by default
-
-
 def test_a_wrong_given_damping_keeps_the_profiled_corner_and_says_why(damped_campaign):
     """A damping given ten times the rig's (0.2, a lab writing the contact's) implies a corner
     far outside the contact laws' range: the profile is kept, its sheet unchanged, and the
