@@ -378,6 +378,7 @@ def _retrained(
     weights: str = "none",
     hold: str = "none",
     jitter: float | None = None,
+    eval_ratio: bool = False,
 ) -> dict[str, tuple]:
     """The iteration's dataset at the campaign's points and each family's model on it, at
     ``cfg``'s seed (evaluated with ``effects``, default ``cfg``'s, as the campaign's
@@ -389,7 +390,9 @@ def _retrained(
     each family's row is (evaluation, wall s, CPU s), the dataset's seconds in every row
     (and apart under the key ``"dataset"``: wall s, CPU s). The evaluation is the learned
     model's alone: the reading by simulation, which does not depend on the model's dataset
-    and is not printed here, is not run (35-40 s CPU per evaluation at load 10-16)."""
+    and is not printed here, is not run (35-40 s CPU per evaluation at load 10-16). With
+    ``eval_ratio``, each model is evaluated again by the old and this code's estimate
+    (:func:`evaluation_ratio`), outside the row's seconds."""
     from stiffnet.measurement import operating_points as ops
     from stiffnet.measurement.compare import config_effects
     from stiffnet.measurement.evaluate import evaluate_campaign
@@ -418,7 +421,81 @@ def _retrained(
                                simulation=SimulatedBetaConfig(enabled=False))  # fmt: skip
         out[family] = (ev, data_wall + time.perf_counter() - t1,
                        data_cpu + time.process_time() - c1)  # fmt: skip
+        if eval_ratio:
+            evaluation_ratio(camp.folder, model["paths"]["onnx"], dyn)
     return out
+
+
+def _old_estimate(estimate):
+    """The restoring-force estimate as it was (``--rig-eval-ratio``'s old path): the
+    record-as-recorded map behind a known chain fitted with its contact law too (``contact``
+    ignored); returns the undo."""
+    fit_map = estimate._fit_map
+
+    def with_law(*args, contact=True, **kwargs):  # noqa: ARG001
+        return fit_map(*args, **kwargs)
+
+    estimate._fit_map = with_law
+
+    def undo() -> None:
+        estimate._fit_map = fit_map
+
+    return undo
+
+
+def evaluation_ratio(folder: Path, onnx: str, effects) -> None:
+    """Part 4b's ``--rig-eval-ratio``: the campaign's evaluation (the learned model's, as
+    :func:`_retrained` runs it) by the old estimate (:func:`_old_estimate`) and by this
+    code's, back to back on the same model, each on the campaign loaded afresh (nothing
+    memoised between them): CPU seconds, the readings the chain's pooling made, the profiled
+    high-pass corner and its interval, the metrics, and whether the recordings' answers are
+    the same (each recording's row of the report, compared whole)."""
+    import serving.campaign_chain as cc
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.evaluate import evaluate_campaign
+    from stiffnet.measurement.simulated_beta import SimulatedBetaConfig
+    from stiffnet.restoring_force import estimate
+
+    runs, real_read, reads = {}, cc.read_through, {"old": 0, "new": 0}
+    for name in ("old", "new"):
+
+        def counted(*args, _name=name, **kwargs):
+            reads[_name] += 1
+            return real_read(*args, **kwargs)
+
+        undo = _old_estimate(estimate) if name == "old" else (lambda: None)
+        cc.read_through = counted
+        try:
+            c0, load = time.process_time(), os.getloadavg()[0]
+            ev = evaluate_campaign(load_campaign(folder), onnx, effects, require_beta=False,
+                                   simulation=SimulatedBetaConfig(enabled=False))  # fmt: skip
+            runs[name] = (ev, time.process_time() - c0, reads[name], load)
+        finally:
+            undo()
+            cc.read_through = real_read
+
+    def row(name: str) -> str:
+        ev, cpu, n_reads, load = runs[name]
+        hp = (ev["sensor"].get("stages") or {}).get("highpass_hz") or {}
+        m = ev["metrics"]
+        corner = (f"{hp['value']:.4f} [{hp['interval'][0]:.4f}, {hp['interval'][1]:.4f}]"
+                  if hp else "-")  # fmt: skip
+        return (f"| {name} | {cpu:.1f} | {n_reads} | {corner} | "
+                f"{_pair(m['learned']['accuracy'], m['learned']['beta_mape'])} | "
+                f"{_pair(m['restoring_force']['accuracy'], m['restoring_force']['beta_mape'])} "
+                f"| {load:.1f} |")  # fmt: skip
+
+    print("\n| estimate | evaluation CPU s | pooling readings | profiled high-pass corner "
+          "[interval] Hz | learned accuracy / MAPE | restoring force accuracy / MAPE "
+          "| load |")  # fmt: skip
+    print("|---" * 7 + "|")
+    print(row("old"))
+    print(row("new"))
+    old, new = runs["old"][0], runs["new"][0]
+    same = sum(a == b for a, b in zip(old["recordings"], new["recordings"], strict=True))
+    print(f"\nevaluation CPU ×{runs['old'][1] / runs['new'][1]:.3f}; recordings' rows equal: "
+          f"{same} of {len(new['recordings'])}; the pooled chain equal: "
+          f"{old['sensor'] == new['sensor']}\n", flush=True)  # fmt: skip
 
 
 def seed_spread(seeds: list[int], n: int, edge_share: float) -> None:
@@ -517,6 +594,7 @@ def rig_seeds(
     holds: tuple[str, ...] = ("none",),
     centre: tuple[float, float] | None = None,
     jitters: tuple[float | None, ...] = (None,),
+    eval_ratio: bool = False,
 ) -> None:
     """Part 4b (``--rig-seeds``): the loop's iteration 1 on the rig's two-stage campaign
     without its diagnosis (the law's prior as discovered, :data:`RIG_LAW_PRIOR`; evaluated
@@ -554,7 +632,8 @@ def rig_seeds(
     for seed, share, rule, jit, hold in itertools.product(seeds, shares, weights, jitters, holds):
         cfg = law.model_copy(update={"seed": seed, "n_trajectories": n})
         with tempfile.TemporaryDirectory() as tmp:
-            runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule, hold, jit)
+            runs = _retrained(camp, cfg, Path(tmp), share, shared, fit, families, rule, hold, jit,
+                              eval_ratio)  # fmt: skip
         data_wall, data_cpu = runs.pop("dataset")
         rule = rule if jit is None else f"{rule}, jitter {jit:g}"
         print(f"| dataset | {seed} | {share} | {rule} | {hold} | {shared} | | | | | "
@@ -740,6 +819,9 @@ def main() -> None:
     ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
     ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
     ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
+    ap.add_argument("--rig-eval-ratio", action="store_true",
+                    help="part 4b: each model evaluated again by the old and this code's "
+                    "estimate, side by side")  # fmt: skip
     ap.add_argument("--rig-families", default="gbm", help="part 4b: families, e.g. gbm,cnn")
     ap.add_argument("--rig-weights", default="none", help="part 4b: per-point rules, e.g. "
                     "none,small_gaps")  # fmt: skip
@@ -778,7 +860,7 @@ def main() -> None:
                   tuple(args.rig_hold.split(",")),
                   centre,
                   tuple(float(x) for x in args.rig_jitter.split(",")) if args.rig_jitter
-                  else (None,))  # fmt: skip
+                  else (None,), args.rig_eval_ratio)  # fmt: skip
         return
     if args.rig:
         rig_table(args.rig.split(","), args.rig_dir, args.rig_family, args.rig_trajectories)

@@ -129,3 +129,40 @@ def test_an_estimate_without_interval_reads_the_same_map_and_chain():
     # asked to profile the chain's unexcluded low-passes, the chain is the whole estimate's
     profiled = restoring_force_estimate(accel, 2000.0, interval=False, chain_profile=True, **opts)
     assert profiled.sensor == full.sensor and profiled.law == full.law
+
+
+def test_behind_a_known_chain_the_recorded_maps_contact_law_is_not_fitted(monkeypatch):
+    """Independent rig, beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass, read
+    through its data sheet (the campaign's pooled chain, the corner's interval given): the
+    record as recorded gives the inverse only its free flight, so its contact law is not
+    fitted (fewer contact-law fits), and the result, interval and every map included, is the
+    one that fits it."""
+    from stiffnet.restoring_force import contact_law, estimate
+
+    sensor = {"lowpass_hz": 120.0, "lowpass_order": 4, "highpass_hz": 4.0}
+    run = RigRun(recording="r.csv", beta=30.0, fs_hz=1250.0, duration_s=3.0, gap_mm=1.5,
+                 sensor=sensor)  # fmt: skip
+    accel = record(run, seed=1)[1]
+    sheet = {**sensor, "lowpass_order": 4.0, "highpass_low_hz": 3.5, "highpass_high_hz": 4.4}
+    fits = [0]
+    real_fit, real_map = contact_law.fit_contact_law, estimate._fit_map
+
+    def counted(*args, **kwargs):
+        fits[0] += 1
+        return real_fit(*args, **kwargs)
+
+    def with_law(*args, contact=True, **kwargs):  # the map as read before: law always fitted
+        return real_map(*args, **kwargs)
+
+    monkeypatch.setattr(estimate, "fit_contact_law", counted)
+    opts = dict(natural_frequency_hz=FN, sensor=sheet, sensor_fitted=True, max_periods=24.0)
+    lean = restoring_force_estimate(accel, 1250.0, **opts)
+    n_lean, fits[0] = fits[0], 0
+    monkeypatch.setattr(estimate, "_fit_map", with_law)
+    full = restoring_force_estimate(accel, 1250.0, **opts)
+    assert fits[0] > n_lean
+    assert lean.ok and lean.sensor.source == "data sheet" and lean.sensor.has_dynamics
+    assert lean.to_dict() == full.to_dict()
+    for name in ("displacement", "velocity", "force"):
+        assert np.array_equal(getattr(lean, name), getattr(full, name))
+    assert lean.beta == pytest.approx(30.0, rel=0.2)

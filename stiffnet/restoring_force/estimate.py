@@ -573,10 +573,12 @@ def _fit_map(
     damping: float | None = None,
     inverse: bool = False,
     band: np.ndarray | None = None,
+    contact: bool = True,
 ) -> _Map:
     """Integrate, fit the free flight and the contact law (see the module notes); `inverse`:
     `y` is a chain's inverse, `band` what it keeps (:class:`_Map`): the law is fitted
-    through it."""
+    through it. Without `contact`, the free flight alone (no impacts, no law): a map read
+    only for its free flight."""
     source = y
     y = undo_highpass(y, dtau, corner)
     vel_i, disp_i = integrate_spectral(y, dtau)
@@ -592,6 +594,8 @@ def _fit_map(
         force=fit.force[use],
         free_stiffness=fit.stiffness,
     )
+    if not contact:
+        return _Map(fit, info, corner, source=source, inverse=inverse, band=band)
     if fit.stiffness <= 0:
         why = "the free-flight law has no positive stiffness: not an oscillator"
         return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
@@ -1166,7 +1170,10 @@ def _estimate_at(
         ):
             raise ConfigError(f"highpass_hz must be a number >= 0 or 'auto', got {highpass_hz!r}")
         corner = float(highpass_hz) / ff
-        m = _fit_map(*args, corner, exponent)
+        # behind a known chain that is divided out, the record as recorded gives the inverse
+        # only its free flight (scatter, stiffness, ringing): its contact law is never read
+        undone = sensor is not None and sensor.source != "fitted" and sensor.has_dynamics
+        m = _fit_map(*args, corner, exponent, contact=not undone)
     beta_max = max(float(hi) for _, _, hi in classes)
     m, chain, resonance, refusal, rivals = _undo_chain(
         m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
