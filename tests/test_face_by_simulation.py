@@ -16,7 +16,7 @@ from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.face_by_simulation import refine_face
-from stiffnet.measurement.fitting import objective_value
+from stiffnet.measurement.fitting import SUBSET_NUMERICAL, objective_value
 
 #: A scaled face as the grid gives it (the material beam struck through 20 beta).
 START = {"exponent": 1.0, "reference_penetration": 0.76, "face_mass": 0.15,
@@ -43,6 +43,8 @@ class FaceMassCampaign:
     base_effects: list[Any] = field(default_factory=list)
     inclination: bool = False
     evaluations: int = 0
+    #: (rows, settings) of each batch of points (:meth:`per_recording_points`).
+    batches: list[tuple[int, Any]] = field(default_factory=list)
 
     def observed(self) -> dict[str, float]:
         return {}
@@ -67,12 +69,13 @@ class FaceMassCampaign:
     def per_recording_points(
         self, effects: Any, name: str, points: Any, settings: Any, **_: Any
     ) -> list[np.ndarray]:
+        self.batches.append((len(self.rows), settings))
         return [self._per([*effects, LearnedContact(**p)]) for p in points]
 
 
-def campaign() -> FaceMassCampaign:
-    rows = [_Row("a.csv"), _Row("b.csv"), _Row("chatter.csv")]
-    return FaceMassCampaign(rows, list(WEIGHTS))
+def campaign(repeatable: int = 2) -> FaceMassCampaign:
+    rows = [*(_Row(f"r{i}.csv") for i in range(repeatable)), _Row("chatter.csv")]
+    return FaceMassCampaign(rows, [1.0] * repeatable + [WEIGHTS[-1]])
 
 
 def test_refit_keeps_a_face_its_sweeps_kept_by_the_weighted_objective():
@@ -104,3 +107,17 @@ def test_refit_without_weights_is_the_campaign_discrepancy():
     assert out["objective_refit"] == pytest.approx(out["discrepancy_refit"])
     assert out["objective_refit"] <= out["objective_discovered"]
     assert out["first_sweeps"][0] <= campaign_discrepancy(at_start)
+
+
+def test_refit_sweeps_simulate_every_recording_at_the_full_settings():
+    """A campaign of more recordings than a numerical design's screen holds
+    (``SUBSET_NUMERICAL``): each sweep's batch is every recording at the settings the start
+    was scored with, not a screen (a subset, a short transient begun warm), and the face
+    found is the one the full scoring ranks first."""
+    target = campaign(repeatable=SUBSET_NUMERICAL + 3)
+    settings = FIT_SETTINGS_NUMERICAL
+    at_start = target.per_recording([LearnedContact(**START)], settings)
+    out = refine_face(target, target.rows, [], START, at_start, settings)
+    assert len(target.batches) == 5  # the mass, the scale, the exponent, damping and ratio
+    assert all(n == len(target.rows) and st == settings for n, st in target.batches)
+    assert out["params"]["face_mass"] == pytest.approx(0.1145, rel=0.01)
