@@ -293,8 +293,10 @@ def refine_face(
     campaign's statistics see the face ringing between impacts too. The refit searches
     ``learned_contact``'s space around the law (:meth:`LearnedContact.fit_space_at`: the face
     within a factor 1.5, its damping 2.25): each of the face's parameters swept across its
-    box on a grid simulated as one batch (:data:`FACE_REFIT_GRID`), the best point so far
-    among its points, a point taken only where, scored again alone, it lowers the fits'
+    box on a grid simulated as one batch on every recording at ``settings``
+    (:data:`FACE_REFIT_GRID`; not a screen, which does not rank these points as their full
+    scoring), the best point so far among its points, a point taken only where, scored again
+    alone, it lowers the fits'
     objective (:func:`~stiffnet.measurement.fitting.objective_value`: the campaign
     discrepancy with the target's weights, a non-repeatable recording weighed down). Every
     decision here reads that objective, the sweeps' own: judged by the unweighted mean, a
