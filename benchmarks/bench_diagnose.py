@@ -99,6 +99,7 @@ from pathlib import Path
 import numpy as np
 
 from stiffnet.campaign import load_campaign, simulate_campaign
+from stiffnet.campaign.manifest import MANIFEST_NAME
 from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
@@ -589,6 +590,8 @@ def main() -> None:
         statistics_table(args)
         return
     if args.campaign:
+        if not (Path(args.campaign) / MANIFEST_NAME).is_file():
+            ap.error(f"--campaign: no manifest.csv in {args.campaign}")
         campaign_runs(args)
         return
     with tempfile.TemporaryDirectory() as d:
