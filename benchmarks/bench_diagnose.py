@@ -59,6 +59,15 @@ named with their values against the truth, the residual, the explained fraction,
 CPU seconds and the load. ``--polish N`` sets ``diagnose.POLISH_EVALUATIONS`` for every run
 (here and with ``--rig``).
 
+``--campaign DIR``: an existing campaign folder instead (e.g. the independent rig's 8-recording
+material beam, whose diagnosis ends on the face decided by simulation), diagnosed in-process
+with the effects ``--only`` names (repeatable; default every shipped effect), each code in a
+fresh process: this checkout, and with ``--baseline DIR`` the other checkout's, alternately
+for ``--rounds`` rounds (before first); the table gives each run's CPU seconds (the process and
+its children), wall seconds, the load, the verdict, the learned law's proposal (the share of
+the base model's excess it explains, its discrepancy, its face's values) and the seconds of
+the face by simulation, then the CPU ratio of the best runs (the answers must not change).
+
 Run (from the repository root, so this checkout's package is imported)::
 
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
@@ -67,6 +76,8 @@ Run (from the repository root, so this checkout's package is imported)::
         --rig ideal,damped_sensor,harmonics --subset 8,24 [--rig-dir /tmp/rig]
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py --statistics \
         [--baseline DIR] [--rounds 3]
+    OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py --campaign DIR \
+        --only contact_damping --only gap_drift --no-inclination [--baseline DIR] [--rounds 1]
 """
 
 from __future__ import annotations
@@ -88,6 +99,7 @@ from pathlib import Path
 import numpy as np
 
 from stiffnet.campaign import load_campaign, simulate_campaign
+from stiffnet.campaign.manifest import MANIFEST_NAME
 from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate_rows
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
@@ -365,6 +377,68 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 """
 
 
+CAMPAIGN = """
+import json, resource, sys, time
+from stiffnet.campaign import load_campaign
+from stiffnet.measurement.diagnose import diagnose_campaign
+def cpu():
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+a = json.loads(sys.argv[1])
+camp = load_campaign(a["campaign"])
+t, c = time.perf_counter(), cpu()
+res = diagnose_campaign(camp, effects=a["effects"], inclination=a["inclination"])
+ll = res.get("learned_law") or {}
+face = ll.get("face_by_simulation") or {}
+params = (ll.get("effect") or {}).get("params") or {}
+print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
+                  "verdict": res["verdict"], "selected": res["missing_effects"],
+                  "residual": res["residual_discrepancy"], "proposed": ll.get("proposed"),
+                  "explained": ll.get("explained_fraction"), "after": ll.get("discrepancy_after"),
+                  "face": {k: v for k, v in params.items() if k.startswith("face_")},
+                  "term": face.get("term"), "face_seconds": face.get("seconds")}))
+"""
+
+
+def campaign_runs(args: argparse.Namespace) -> None:
+    """``--campaign``: the folder diagnosed by this checkout and ``--baseline`` in fresh
+    processes, alternately (see the module notes)."""
+    import subprocess
+
+    spec = {"campaign": str(Path(args.campaign).resolve()), "effects": args.only,
+            "inclination": not args.no_inclination}  # fmt: skip
+    codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
+    print("| code | round | CPU s | wall s | load | verdict | learned law: explained, "
+          "discrepancy | face | face by simulation, s |\n|---|---|---|---|---|---|---|---|---|",
+          flush=True)  # fmt: skip
+    best: dict[str, dict] = {}
+    for k in range(args.rounds):
+        for name, code in codes.items():
+            env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
+            load0 = os.getloadavg()[0]
+            out = subprocess.run([sys.executable, "-c", CAMPAIGN, json.dumps(spec)], env=env,
+                                 capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            if name not in best or r["cpu"] < best[name]["cpu"]:
+                best[name] = r
+            face = ", ".join(f"{f.removeprefix('face_')} {v:.4g}" for f, v in r["face"].items()
+                             if v)  # fmt: skip
+            said = (f"{r['explained']:.1%}, {r['after']:.4g}" if r["proposed"] else
+                    "not proposed")  # fmt: skip
+            print(f"| {name} | {k + 1} | {r['cpu']:.1f} | {r['wall']:.1f} | {load0:.1f} -> "
+                  f"{os.getloadavg()[0]:.1f} | {r['verdict']} | {said} | {face or '-'} | "
+                  f"{r['face_seconds'] or '-'} |", flush=True)  # fmt: skip
+    if "before" in best:
+        b, n = best["before"], best["now"]
+        same = all(b[k] == n[k] for k in ("verdict", "selected", "proposed", "explained",
+                                          "after", "face"))  # fmt: skip
+        print(
+            f"\nCPU before / now (the best of each): {b['cpu']:.1f} / {n['cpu']:.1f} = "
+            f"x{b['cpu'] / n['cpu']:.2f}; the same verdict, law and face to the bit: {same}"
+        )
+
+
 STATISTICS = """
 import json, pickle, sys, time
 import numpy as np
@@ -487,7 +561,12 @@ def main() -> None:
                     "time, this process's and the workers' CPU (stage_timeline.py)")  # fmt: skip
     ap.add_argument("--statistics", action="store_true", help="the statistics per record "
                     "(--baseline: before and now alternately), no diagnosis")  # fmt: skip
-    ap.add_argument("--rounds", type=int, default=3, help="--statistics: rounds per code (3)")
+    ap.add_argument("--rounds", type=int, default=3, help="--statistics, --campaign: rounds "
+                    "per code (3)")  # fmt: skip
+    ap.add_argument("--campaign", help="an existing campaign folder to diagnose (with "
+                    "--baseline: before and now alternately)")  # fmt: skip
+    ap.add_argument("--only", action="append", help="--campaign: a candidate effect "
+                    "(repeatable; default: every shipped effect)")  # fmt: skip
     ap.add_argument(
         "--polish",
         type=int,
@@ -509,6 +588,11 @@ def main() -> None:
         return
     if args.statistics:
         statistics_table(args)
+        return
+    if args.campaign:
+        if not (Path(args.campaign) / MANIFEST_NAME).is_file():
+            ap.error(f"--campaign: no manifest.csv in {args.campaign}")
+        campaign_runs(args)
         return
     with tempfile.TemporaryDirectory() as d:
         t = time.perf_counter()

@@ -443,6 +443,71 @@ def test_the_kernels_right_hand_side_is_numpys_bit_for_bit() -> None:
     )
 
 
+def _numpys_suspects(model, aux0, contact, aux1, hs) -> np.ndarray:
+    """``_Stepper._suspects`` of a substep from switching data ``aux0`` to ``aux1``."""
+    st = object.__new__(nm._Stepper)
+    st.m, st.aux, st.contact = model, aux0, contact
+    return st._suspects(aux1, hs)
+
+
+@pytest.mark.parametrize(
+    "name", ["learned_all_terms", "learned_scaled_face", "hertz_restraint_friction",
+             "friction_damped_contact"],
+)  # fmt: skip
+def test_a_compiled_substep_is_numpys_step_right_hand_side_and_suspects(name: str) -> None:
+    """The march's substep in one compiled call (``rk4_kernel.substep``): the state, its
+    right-hand side and switching data at the substep's end and the rows to resolve equal
+    numpy's three calls' (``_rk4``, ``rhs(full=True)``, ``_Stepper._suspects``) to the bit,
+    on 60 rows near the restraint, in and out of contact, some of them to resolve."""
+    effects = CASES[name]
+    n = 60
+    batch = paper_batch(np.resize(OWN_BETAS, n))
+    fast, slow = _kernel_and_numpy(batch, effects, _params(effects, n))
+    assert fast.kernel is not None and slow.kernel is None
+    rng = np.random.default_rng(3)
+    t = rng.uniform(0, 300, n)
+    y = np.column_stack([rng.normal(E, 0.05, n), rng.normal(0, 0.5, n)]
+                        + [rng.normal(0, 0.02, n) for _ in range(slow.n_y - 2)])  # fmt: skip
+    if any(type(e) is LearnedContact and e.scaled for e in effects):
+        y[:, -1] = slow.beta  # a scaled face's beta state: the row's
+    contact = rng.random(n) < 0.5
+    modes = np.zeros((len(effects), n))
+    if slow.event_fx:
+        modes[slow.event_fx[0]] = np.resize([0.0, 1.0, -1.0, 1.0], n)
+    f0, aux0 = slow.rhs(t, y, contact, modes, full=True)
+    hs = rng.uniform(0.005, 0.1, n)
+    t1 = t + hs
+    y1 = nm._rk4(slow, t, y, f0, hs, contact, modes)
+    f1, aux1 = slow.rhs(t1, y1, contact, modes, full=True)
+    want = _numpys_suspects(slow, aux0, contact, aux1, hs)
+    got_y, got_f, got_aux, got = fast.kernel_substep(t, y, f0, hs, t1, contact, modes, aux0)
+    np.testing.assert_array_equal(got_y, y1)
+    np.testing.assert_array_equal(got_f, f1)
+    assert got_aux.keys() == aux1.keys()
+    for key in aux1:
+        np.testing.assert_array_equal(got_aux[key], aux1[key], err_msg=key)
+    np.testing.assert_array_equal(got, want)
+    assert 0 < want.size < n  # rows to resolve and rows that are not
+
+
+def test_the_march_takes_each_substep_in_one_compiled_call(monkeypatch) -> None:
+    """A model the kernel steps marches through ``rk4_kernel.substep`` (the trajectories'
+    test above then holds it to numpy's path); numpy's path never calls it."""
+    calls = []
+    real = nm.substep
+
+    def spy(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(nm, "substep", spy)
+    _run(LEARNED_CASES["learned_scaled_face"], compiled=True)
+    assert len(calls) >= 600  # the record's steps at least
+    calls.clear()
+    _run(LEARNED_CASES["learned_scaled_face"], compiled=False)
+    assert not calls
+
+
 class StiffeningLaw(LearnedContact):
     """A user's subclass of the learned law: it may override a hook, so numpy's path."""
 

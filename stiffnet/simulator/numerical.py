@@ -95,6 +95,7 @@ from stiffnet.simulator.rk4_kernel import (
     rhs_full,
     rk4_step,
     secant_rows,
+    substep,
 )
 
 _MAX_EVENTS_PER_SUBSTEP = 8
@@ -229,15 +230,20 @@ class _Model:
         self.has_gap = gap.amp.shape[1] > 0 and bool(np.any(gap.amp != 0))
         self.has_cc = bool(np.any(cc != 0))
         self.zero = np.zeros(self.n)
-        # the contact law's hooks bound to these rows' parameters once (a subset is made at
-        # every event; the right-hand side runs hundreds of thousands of times)
-        k = self.elastic
-        self._elastic = (
-            None if k is None else self.effects[k].bound_elastic_contact(params[k], batch)
-        )
-        bound = [self.effects[k].bound_contact_dissipation(params[k], batch)
-                 for k in self.dissipative]  # fmt: skip
-        self._dissipations = [f for f in bound if f is not None]
+        self._hooks: tuple[Any, list[Any]] | None = None  # bound by numpy's path, when used
+
+    def _bound_hooks(self) -> tuple[Any, list[Any]]:
+        """The contact law's hooks bound to these rows' parameters (elastic law or None,
+        dissipations), once per set of rows: numpy's right-hand side runs hundreds of
+        thousands of times. Bound on first use, not in :meth:`_set_rows`: a subset is made
+        at every event, and a model the compiled kernel steps never calls them."""
+        if self._hooks is None:
+            k, batch, params = self.elastic, self.batch, self.params
+            elastic = None if k is None else self.effects[k].bound_elastic_contact(params[k], batch)
+            bound = [self.effects[k].bound_contact_dissipation(params[k], batch)
+                     for k in self.dissipative]  # fmt: skip
+            self._hooks = (elastic, [f for f in bound if f is not None])
+        return self._hooks
 
     def subset(self, idx: np.ndarray) -> _Model:
         """The same model restricted to rows ``idx`` (hooks are not called again)."""
@@ -270,6 +276,25 @@ class _Model:
         return rk4_step(
             self.kernel, self._pack, self.has_gap, self.has_cc, t, y, k1, s, contact, modes
         )
+
+    def kernel_substep(
+        self,
+        t: np.ndarray,
+        y: np.ndarray,
+        k1: np.ndarray,
+        s: np.ndarray,
+        t1: np.ndarray,
+        contact: np.ndarray,
+        modes: np.ndarray,
+        aux0: dict[str, np.ndarray],
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray]:
+        """A substep of the march by the compiled kernel (:func:`.rk4_kernel.substep`: the
+        state, its right-hand side and ``aux`` at ``t1``, the rows to resolve), for a model
+        whose :attr:`kernel` is set."""
+        return substep(
+            self.kernel, self._pack, self.has_gap, self.has_cc, len(self.effects), t, y, k1,
+            s, t1, contact, modes, aux0,
+        )  # fmt: skip
 
     def kernel_secant(
         self,
@@ -396,12 +421,13 @@ class _Model:
                 dyr = dyr + rate
         delta = x - e - yr
         dd = v - de - dyr
-        if self._elastic is None:
+        bound_elastic, dissipations = self._bound_hooks()
+        if bound_elastic is None:
             elastic = self.beta * delta
         else:
-            elastic = self._elastic(np.maximum(delta, 0.0))
+            elastic = bound_elastic(np.maximum(delta, 0.0))
         fpot = elastic + self.cc * dd if self.has_cc else elastic
-        for dissipation in self._dissipations:  # a damping growing with the penetration
+        for dissipation in dissipations:  # a damping growing with the penetration
             fpot = fpot + dissipation(np.maximum(delta, 0.0), dd)
         fc = np.where(contact, fpot, 0.0)
         base = f_t - self.xi2 * v - x - fc
@@ -515,9 +541,14 @@ class _Stepper:
         for q in range(1, total + 1):
             # times from the substep count, not by accumulation, so rows stay on their grid
             t1 = t_start + q * hs
-            y1 = _rk4(m, self.t, self.y, self.f, hs, self.contact, self.modes)
-            f1, aux1 = m.rhs(t1, y1, self.contact, self.modes, full=True)
-            sus = self._suspects(aux1, hs)
+            if m.kernel is not None:  # one compiled call, the same numbers
+                y1, f1, aux1, sus = m.kernel_substep(
+                    self.t, self.y, self.f, hs, t1, self.contact, self.modes, self.aux
+                )
+            else:
+                y1 = _rk4(m, self.t, self.y, self.f, hs, self.contact, self.modes)
+                f1, aux1 = m.rhs(t1, y1, self.contact, self.modes, full=True)
+                sus = self._suspects(aux1, hs)
             if sus.size:
                 trial = (y1[sus], f1[sus], {k: v[sus] for k, v in aux1.items()})
                 res = self._resolve(sus, hs[sus], trial)
