@@ -358,7 +358,8 @@ def rig_table(args: argparse.Namespace) -> None:
                       f"{load0:.1f} -> {os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
-BASELINE = """
+#: What both scripts run before the diagnosis: the CPU clock and the campaign.
+SCRIPT_HEAD = """
 import json, resource, sys, time
 from stiffnet.campaign import load_campaign
 from stiffnet.measurement.diagnose import diagnose_campaign
@@ -369,25 +370,24 @@ def cpu():
 a = json.loads(sys.argv[1])
 camp = load_campaign(a["campaign"])
 t, c = time.perf_counter(), cpu()
+"""
+
+
+BASELINE = (
+    SCRIPT_HEAD
+    + """
 res = diagnose_campaign(camp, effects=a["effects"],
                         workers=a["workers"], inclination=a["inclination"])
 print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
                   "selected": res["missing_effects"], "params": res["fitted_params"],
                   "verdict": res["verdict"], "residual": res["residual_discrepancy"]}))
 """
+)
 
 
-CAMPAIGN = """
-import json, resource, sys, time
-from stiffnet.campaign import load_campaign
-from stiffnet.measurement.diagnose import diagnose_campaign
-def cpu():
-    own = resource.getrusage(resource.RUSAGE_SELF)
-    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
-a = json.loads(sys.argv[1])
-camp = load_campaign(a["campaign"])
-t, c = time.perf_counter(), cpu()
+CAMPAIGN = (
+    SCRIPT_HEAD
+    + """
 res = diagnose_campaign(camp, effects=a["effects"], inclination=a["inclination"])
 ll = res.get("learned_law") or {}
 face = ll.get("face_by_simulation") or {}
@@ -399,6 +399,7 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
                   "face": {k: v for k, v in params.items() if k.startswith("face_")},
                   "term": face.get("term"), "face_seconds": face.get("seconds")}))
 """
+)
 
 
 def campaign_runs(args: argparse.Namespace) -> None:
