@@ -1,4 +1,5 @@
-"""The face's refit by simulation (``refine_face``) reads one objective, its sweeps' own.
+"""The face's refit by simulation (``refine_face``) reads one objective, its sweeps' own, and
+so does the choice of the model a discovered law joins (``learned_law._law_scored``).
 
 The campaign here is a stand-in for the simulator: each recording's discrepancy a closed
 function of the face's mass, so the refit's search and decisions are tested in milliseconds.
@@ -7,16 +8,19 @@ function of the face's mass, so the refit's search and decisions are tested in m
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
 
 from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
+from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.face_by_simulation import refine_face
 from stiffnet.measurement.fitting import SUBSET_NUMERICAL, objective_value
+from stiffnet.measurement.learned_law import _law_scored
 
 #: A scaled face as the grid gives it (the material beam struck through 20 beta).
 START = {"exponent": 1.0, "reference_penetration": 0.76, "face_mass": 0.15,
@@ -121,3 +125,32 @@ def test_refit_sweeps_simulate_every_recording_at_the_full_settings():
     assert len(target.batches) == 5  # the mass, the scale, the exponent, damping and ratio
     assert all(n == len(target.rows) and st == settings for n, st in target.batches)
     assert out["params"]["face_mass"] == pytest.approx(0.1145, rel=0.01)
+
+
+@dataclass
+class DampedOrNotCampaign(FaceMassCampaign):
+    """A campaign whose recordings answer whether the model holds a contact damper: with it
+    the repeatable recordings fit better and the non-repeatable one worse."""
+
+    def _per(self, effects: list[Any]) -> np.ndarray:
+        damped = any(e.name == ContactDamping.name for e in effects)
+        repeatable, chattering = (5.0, 10.0) if damped else (8.0, 1.0)
+        return np.array([chattering if "chatter" in r.recording else repeatable for r in self.rows])
+
+
+def test_a_discovered_law_joins_the_model_the_weighted_objective_prefers():
+    """The discovered law on two models, the selection (a damper) and the base alone: the
+    unweighted mean prefers the base (the non-repeatable recording fits it), the objective,
+    which weighs that recording 0.02, the selection: the law joins the selection."""
+    c = campaign()
+    target = DampedOrNotCampaign(c.rows, c.weights)
+    models = [[ContactDamping()], []]
+    law = SimpleNamespace(effect_params={"exponent": 1.0, "reference_penetration": 0.76})
+    trials = [target.per_recording(m, FIT_SETTINGS_NUMERICAL) for m in models]
+    assert campaign_discrepancy(trials[1]) < campaign_discrepancy(trials[0])
+    after, kept, params, refit = _law_scored(target, target.rows, models, law,
+                                             FIT_SETTINGS_NUMERICAL)  # fmt: skip
+    assert kept is models[0] and refit is None
+    assert objective_value(after, target.weights) == pytest.approx(
+        objective_value(trials[0], target.weights)
+    )

@@ -31,6 +31,7 @@ from stiffnet.effects.learned_contact import LearnedContact, learned_contact_for
 from stiffnet.errors import StiffnetError
 from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unknowns, refine_face
+from stiffnet.measurement.fitting import objective_value
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
 
@@ -232,11 +233,12 @@ def _face_entries(
 def _law_scored(
     target: Any, rows_law: Sequence[Any], models: list[list[Effect]], law: Any, settings: Any
 ) -> tuple[np.ndarray, list[Effect], dict[str, float], dict[str, Any] | None]:
-    """The discovered law simulated on each model (the better kept) and, with a face, refitted
-    by simulation (:func:`refine_face`): per-recording discrepancy, model, params, refit."""
+    """The discovered law simulated on each model (the better by the fits' objective kept, as
+    :func:`refine_face` judges: a non-repeatable recording weighed down) and, with a face,
+    refitted by simulation: per-recording discrepancy, model, params, refit."""
     learned = LearnedContact(**law.effect_params)
     trials = [target.per_recording([*m, learned], settings, rows=rows_law) for m in models]
-    best = int(np.argmin([campaign_discrepancy(t) for t in trials]))
+    best = int(np.argmin([objective_value(t, target.weights) for t in trials]))
     after, kept = trials[best], models[best]
     refit, params = None, law.effect_params
     if float(params.get("face_mass", 0.0)) > 0:
