@@ -17,7 +17,21 @@ land in different classes the class is a guess at the chain, and the ``chain_cla
 says so (:func:`chain_class_share`). A data sheet's chain, or no chain, is read once: the interval
 is the model's own.
 
-Numpy and pydantic only (the predictor imports it).
+**When the record as recorded is no alternative.** The reading as recorded stands for a
+fitted chain that is not the record's: a resonance or low-pass the pulse model took to
+reshape a contact it cannot draw (a damped contact read through a 93-118 Hz "mount").
+A resonance can reshape a pulse only within the pulse's band; one far above the contact
+(:data:`~serving.campaign_chain.RESONANCE_NEAR_CONTACT` times the fastest contact the fit
+allows, where, as the campaign chain notes, its inverse barely touches the pulse) and
+lightly damped (:data:`~stiffnet.restoring_force.sensor.RINGING_MAX_DAMPING`, a mount's)
+was kept by the fit for the ring it leaves after every impact, which no contact draws: the
+record passed through it (:func:`resonance_rings_clear`). Behind such a resonance alone the
+record as recorded is not read: the model would read a mount it was not trained behind
+(on the independent rig's 237 Hz mount it read β 41-100 for 35-83, a class too hard on 5
+of 24), and ``chain_class`` would fire on answers the chain leaves in no doubt. A resonance
+near the contact, or one undone with a low-pass, keeps the reading.
+
+The predictor imports it (numpy, pydantic and the constants it reuses).
 """
 
 from __future__ import annotations
@@ -27,6 +41,9 @@ from functools import lru_cache
 from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from serving.campaign_chain import RESONANCE_NEAR_CONTACT
+from stiffnet.restoring_force.sensor import RINGING_MAX_DAMPING
 
 #: The shipped settings (under ``configs/``).
 CHAIN_SPREAD_CONFIG = "chain_spread.yaml"
@@ -43,7 +60,8 @@ class ChainSpreadConfig(BaseModel):
     enabled : bool
         Off: the model reads the fitted chain alone (the interval as calibrated).
     as_recorded : bool
-        Also read the record as recorded (nothing undone).
+        Also read the record as recorded (nothing undone), except behind a resonance alone
+        that rings clear of the contact (:func:`resonance_rings_clear`).
     lowpass_factors : list of float
         Also read it with the fitted low-pass corner times each factor undone.
     resonance_interval : bool
@@ -93,7 +111,7 @@ def plausible_chains(
     if not (config.enabled and sensor and undone) or undone.get("source") not in FITTED_SOURCES:
         return {}
     out: dict[str, dict | None] = {}
-    if config.as_recorded:
+    if config.as_recorded and not resonance_rings_clear(sensor, undone):
         out["as recorded"] = None
     corner = undone.get("lowpass_hz")
     for f in config.lowpass_factors if corner else ():
@@ -106,6 +124,39 @@ def plausible_chains(
     if config.highpass_kept and highpass:
         out[f"high-pass {highpass:.2g} Hz kept"] = {**sensor, "highpass_hz": 0.0}
     return out
+
+
+def resonance_rings_clear(sensor: dict, undone: dict) -> bool:
+    """Whether the chain undone is a resonance alone that the fit kept for its ring: lightly
+    damped (below :data:`~stiffnet.restoring_force.sensor.RINGING_MAX_DAMPING`) and, over its
+    whole fitted interval, at least :data:`~serving.campaign_chain.RESONANCE_NEAR_CONTACT`
+    times the fastest contact the fit allows (the top of its ``contact_hz`` interval).
+
+    Parameters
+    ----------
+    sensor : dict
+        The fitted chain (the restoring-force check's ``sensor``: ``resonance_damping``,
+        ``contact_hz``, ``intervals``).
+    undone : dict
+        The stages divided out (:func:`serving.chain_undo.model_record`).
+
+    Returns
+    -------
+    bool
+        False where a low-pass was undone too (a low-pass reshapes the pulse wherever it
+        lies), where the fit gives no contact frequency, or where the resonance lies near
+        the contact: there the record as recorded stays a reading.
+    """
+    resonance = undone.get("resonance_hz")
+    if not resonance or undone.get("lowpass_hz"):
+        return False
+    damping = sensor.get("resonance_damping")
+    intervals = sensor.get("intervals") or {}
+    contact = (intervals.get("contact_hz") or [None, sensor.get("contact_hz")])[-1]
+    if damping is None or not contact or not 0 < float(damping) < RINGING_MAX_DAMPING:
+        return False
+    lowest = min([float(resonance), *(float(v) for v in intervals.get("resonance_hz") or ())])
+    return lowest >= RESONANCE_NEAR_CONTACT * float(contact)
 
 
 def spread_interval(
