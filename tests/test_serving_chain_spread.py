@@ -9,6 +9,7 @@ from serving.chain_spread import (
     ChainSpreadConfig,
     chain_class_share,
     chain_spread_config,
+    contact_frequencies,
     plausible_chains,
     resonance_rings_clear,
     spread_interval,
@@ -67,32 +68,50 @@ MOUNT = {"resonance_hz": 237.0, "resonance_damping": 0.05, "lowpass_hz": None,
          "intervals": {"resonance_hz": [236.7, 237.3], "contact_hz": [65.3, 66.8]}}  # fmt: skip
 MOUNT_UNDONE = {"resonance_hz": 237.0, "resonance_damping": 0.05, "lowpass_hz": None,
                 "highpass_hz": 1.0, "source": "fitted"}  # fmt: skip
+#: ... and the model's reading through it: beta 48 in [35, 66] (the rig's f_n 9.48 Hz).
+READ = contact_frequencies(48.0, [35.0, 66.0], FN)
+
+
+def test_the_contact_the_model_reads_in_hz():
+    low, at_beta, high = READ
+    assert at_beta == pytest.approx(FN * 7.0)  # sqrt(1 + 48)
+    assert low == pytest.approx(FN * 6.0) and high == pytest.approx(FN * np.sqrt(67.0))
+    assert contact_frequencies(None, [35.0, 66.0], FN) is None
+    assert contact_frequencies(48.0, None, FN) is None
 
 
 def test_a_resonance_ringing_clear_of_the_contact_is_not_read_away():
-    # a light resonance 3.5 times the fastest contact the fit allows rings after every
-    # impact: the record went through it, so "as recorded" is no reading; the corner is
+    # a light resonance 3.5 times the fastest contact, the fit's contact the one the model
+    # reads: it rings after every impact, the record went through it, so "as recorded" is
+    # no reading; the corner left in still is
     config = ChainSpreadConfig(as_recorded=True, highpass_kept=True)
-    assert resonance_rings_clear(MOUNT, MOUNT_UNDONE)
-    assert list(plausible_chains(MOUNT, MOUNT_UNDONE, config)) == ["high-pass 1 Hz kept"]
-    # the same resonance where the pulse could take it: near the contact (its interval's
-    # top, 80 Hz, a third of 237), heavily damped, or undone with a low-pass
+    assert resonance_rings_clear(MOUNT, MOUNT_UNDONE, READ)
+    assert list(plausible_chains(MOUNT, MOUNT_UNDONE, config, READ)) == ["high-pass 1 Hz kept"]
+    # without the model's reading (the stiffness log's choice): read as before
+    assert not resonance_rings_clear(MOUNT, MOUNT_UNDONE)
+    assert "as recorded" in plausible_chains(MOUNT, MOUNT_UNDONE, config)
+    # the same resonance where the pulse could take it: near the fit's contact (its
+    # interval's top 80 Hz, a third of 237), heavily damped, undone with a low-pass
     near = {**MOUNT, "intervals": {**MOUNT["intervals"], "contact_hz": [65.0, 80.0]}}
     damped = {**MOUNT, "resonance_damping": 0.3}
     lowpass = {**MOUNT_UNDONE, "lowpass_hz": 300.0, "lowpass_order": 4}
     for sensor, undone in ((near, MOUNT_UNDONE), (damped, MOUNT_UNDONE), (MOUNT, lowpass)):
-        assert not resonance_rings_clear(sensor, undone)
-        assert "as recorded" in plausible_chains(sensor, undone, config)
-    # the resonance's own interval reaching down near the contact; no contact read; no
+        assert not resonance_rings_clear(sensor, undone, READ)
+        assert "as recorded" in plausible_chains(sensor, undone, config, READ)
+    # near the model's contact: it reads beta 70 (80 Hz); its interval still holds 66 Hz
+    assert not resonance_rings_clear(MOUNT, MOUNT_UNDONE, contact_frequencies(70, [40, 90], FN))
+    # the fit's contact bent away from the model's: a 93 Hz "mount" over an 18 Hz contact
+    # (beta 2.6) where the model reads beta 13 [9, 18] through it (30-42 Hz)
+    bent = {**MOUNT, "resonance_hz": 93.0, "contact_hz": 18.0,
+            "intervals": {"resonance_hz": [92.0, 94.0], "contact_hz": [17.5, 18.5]}}  # fmt: skip
+    assert not resonance_rings_clear(bent, {**MOUNT_UNDONE, "resonance_hz": 93.0},
+                                     contact_frequencies(13.0, [9.0, 18.0], FN))  # fmt: skip
+    # the resonance's own interval reaching down near the contact; no contact fitted; no
     # resonance undone (a high-pass alone)
     wide = {**MOUNT, "intervals": {**MOUNT["intervals"], "resonance_hz": [190.0, 280.0]}}
-    assert not resonance_rings_clear(wide, MOUNT_UNDONE)
-    assert not resonance_rings_clear({**MOUNT, "contact_hz": None, "intervals": {}},
-                                     MOUNT_UNDONE)  # fmt: skip
-    assert not resonance_rings_clear(MOUNT, {**MOUNT_UNDONE, "resonance_hz": None})
-    # the interval's top, not the point, is the contact judged: 237 / 3 = 79 Hz
-    assert not resonance_rings_clear({**MOUNT, "intervals": {"contact_hz": [70.0, 79.5]}},
-                                     MOUNT_UNDONE)  # fmt: skip
+    assert not resonance_rings_clear(wide, MOUNT_UNDONE, READ)
+    assert not resonance_rings_clear({**MOUNT, "contact_hz": None}, MOUNT_UNDONE, READ)
+    assert not resonance_rings_clear(MOUNT, {**MOUNT_UNDONE, "resonance_hz": None}, READ)
 
 
 def test_the_interval_spans_the_readings_and_the_alarm_counts_other_classes():
