@@ -34,7 +34,8 @@ on answers the chain leaves in no doubt. A resonance near the contact, one undon
 low-pass, or a fit whose contact the model does not read keeps the reading; so does every
 caller that passes no model reading (the stiffness log chooses its chains before it reads).
 
-The predictor imports it (numpy, pydantic and the constants it reuses).
+The predictor and the stiffness log import it: pydantic, and the two constants above from
+their modules (numpy and scipy; never torch, scikit-learn or mlflow).
 """
 
 from __future__ import annotations
