@@ -17,16 +17,38 @@ land in different classes the class is a guess at the chain, and the ``chain_cla
 says so (:func:`chain_class_share`). A data sheet's chain, or no chain, is read once: the interval
 is the model's own.
 
-Numpy and pydantic only (the predictor imports it).
+**When the record as recorded is no alternative.** The reading as recorded stands for a
+fitted chain that is not the record's: a resonance or low-pass the pulse model took to
+reshape a contact it cannot draw (a damped contact read through a 93-118 Hz "mount" over an
+18-22 Hz contact). A resonance can reshape a pulse only within the pulse's band; one far
+above the contact (:data:`~serving.campaign_chain.RESONANCE_NEAR_CONTACT` times it, where,
+as the campaign chain notes, its inverse barely touches the pulse) and lightly damped
+(:data:`~stiffnet.restoring_force.sensor.RINGING_MAX_DAMPING`, a mount's) was kept by the
+fit for the ring it leaves after every impact, which no contact draws. Where, besides, the
+fit's own contact is the one the model reads through the chain (inside the model's
+interval: the pulse was not bent to fit the resonance), the record passed through that
+resonance (:func:`resonance_rings_clear`), and the record as recorded is not read: the
+model would read a mount it was not trained behind (on the independent rig's 237 Hz mount
+it read β 41-100 for 35-83, a class too hard on 5 of 24), and ``chain_class`` would fire
+on answers the chain leaves in no doubt. A resonance near the contact, one undone with a
+low-pass, or a fit whose contact the model does not read keeps the reading; so does every
+caller that passes no model reading (the stiffness log chooses its chains before it reads).
+
+The predictor and the stiffness log import it: pydantic, and the two constants above from
+their modules (numpy and scipy; never torch, scikit-learn or mlflow).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from functools import lru_cache
 from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from serving.campaign_chain import RESONANCE_NEAR_CONTACT
+from stiffnet.restoring_force.sensor import RINGING_MAX_DAMPING
 
 #: The shipped settings (under ``configs/``).
 CHAIN_SPREAD_CONFIG = "chain_spread.yaml"
@@ -43,7 +65,8 @@ class ChainSpreadConfig(BaseModel):
     enabled : bool
         Off: the model reads the fitted chain alone (the interval as calibrated).
     as_recorded : bool
-        Also read the record as recorded (nothing undone).
+        Also read the record as recorded (nothing undone), except behind a resonance alone
+        that rings clear of the contact the model reads (:func:`resonance_rings_clear`).
     lowpass_factors : list of float
         Also read it with the fitted low-pass corner times each factor undone.
     resonance_interval : bool
@@ -72,7 +95,10 @@ def chain_spread_config() -> ChainSpreadConfig:
 
 
 def plausible_chains(
-    sensor: dict | None, undone: dict | None, config: ChainSpreadConfig
+    sensor: dict | None,
+    undone: dict | None,
+    config: ChainSpreadConfig,
+    contact_read: list[float] | None = None,
 ) -> dict[str, dict | None]:
     """The other chains a fitted one stands for, by name (None: the record as recorded).
 
@@ -84,6 +110,10 @@ def plausible_chains(
         What :func:`serving.chain_undo.model_record` divided out, with its ``source``
         (``fitted``, ``campaign`` or ``data sheet``).
     config : ChainSpreadConfig
+    contact_read : list of float, optional
+        The contact's frequency (Hz) the model reads through the chain: the low end of its
+        interval, its β, the high end (:func:`contact_frequencies`). Without it the record
+        as recorded is always read.
 
     Returns
     -------
@@ -93,7 +123,7 @@ def plausible_chains(
     if not (config.enabled and sensor and undone) or undone.get("source") not in FITTED_SOURCES:
         return {}
     out: dict[str, dict | None] = {}
-    if config.as_recorded:
+    if config.as_recorded and not resonance_rings_clear(sensor, undone, contact_read):
         out["as recorded"] = None
     corner = undone.get("lowpass_hz")
     for f in config.lowpass_factors if corner else ():
@@ -106,6 +136,61 @@ def plausible_chains(
     if config.highpass_kept and highpass:
         out[f"high-pass {highpass:.2g} Hz kept"] = {**sensor, "highpass_hz": 0.0}
     return out
+
+
+def contact_frequencies(
+    beta: float | None, interval: list[float] | None, fn_hz: float
+) -> list[float] | None:
+    """The contact's frequency ``f_n sqrt(1 + beta)`` (Hz) at the low end of `interval`, at
+    `beta` and at the high end; None without both."""
+    if beta is None or not interval:
+        return None
+    return [fn_hz * math.sqrt(1.0 + max(float(b), 0.0)) for b in (interval[0], beta, interval[1])]
+
+
+def resonance_rings_clear(
+    sensor: dict, undone: dict, contact_read: list[float] | None = None
+) -> bool:
+    """Whether the chain undone is a resonance alone that the fit kept for its ring: lightly
+    damped (below :data:`~stiffnet.restoring_force.sensor.RINGING_MAX_DAMPING`); the fit's
+    contact frequency inside the one the model reads through the chain (`contact_read`'s
+    ends); and, over its whole fitted interval, at least
+    :data:`~serving.campaign_chain.RESONANCE_NEAR_CONTACT` times the fastest of the fit's
+    contact (the top of its ``contact_hz`` interval) and the model's (at its β).
+
+    Parameters
+    ----------
+    sensor : dict
+        The fitted chain (the restoring-force check's ``sensor``: ``resonance_damping``,
+        ``contact_hz``, ``intervals``).
+    undone : dict
+        The stages divided out (:func:`serving.chain_undo.model_record`).
+    contact_read : list of float, optional
+        The model's contact frequency through the chain, ``[low, at beta, high]`` (Hz,
+        :func:`contact_frequencies`).
+
+    Returns
+    -------
+    bool
+        False without the model's reading, where a low-pass was undone too (a low-pass
+        reshapes the pulse wherever it lies), where the fit gives no contact frequency or
+        one the model does not read, or where the resonance lies near the contact: there
+        the record as recorded stays a reading.
+    """
+    resonance = undone.get("resonance_hz")
+    if not (resonance and contact_read) or undone.get("lowpass_hz"):
+        return False
+    damping = sensor.get("resonance_damping")
+    fitted = sensor.get("contact_hz")
+    if damping is None or not fitted or not 0 < float(damping) < RINGING_MAX_DAMPING:
+        return False
+    low, at_beta, high = (float(v) for v in contact_read)
+    if not low <= float(fitted) <= high:
+        return False  # the fit's pulse is not the model's contact: it may have been bent
+    intervals = sensor.get("intervals") or {}
+    fastest = max(float((intervals.get("contact_hz") or [fitted])[-1]), at_beta)
+    lowest = min([float(resonance), *(float(v) for v in intervals.get("resonance_hz") or ())])
+    return lowest >= RESONANCE_NEAR_CONTACT * fastest
 
 
 def spread_interval(

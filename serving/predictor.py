@@ -51,6 +51,7 @@ from serving.chain_spread import (
     ChainSpreadConfig,
     chain_class_share,
     chain_spread_config,
+    contact_frequencies,
     plausible_chains,
     spread_interval,
 )
@@ -382,7 +383,12 @@ class Predictor:
             undone = {**undone, "source": "campaign"}
         reading = self._read_windows(read, fs, fn, what, warnings)
         interval = beta_interval(reading.estimate, self.metadata, self.model.conformal_quantile)
-        others = self._chain_readings(a, fs, fn, restoring_force.get("sensor"), undone, what)
+        log_beta = reading.estimate.log_beta
+        # the contact the model reads through the chain: is the fit's resonance clear of it?
+        contact = contact_frequencies(None if log_beta is None else math.exp(log_beta),
+                                      interval, fn)  # fmt: skip
+        others = self._chain_readings(a, fs, fn, restoring_force.get("sensor"), undone, what,
+                                      contact)  # fmt: skip
         sensor_read = chain_as_read(restoring_force.get("sensor"), undone)
         # the checks judge the model's own reading; the answer's interval spans the others
         alarm = self._alarm(reading, interval, restoring_force, fs, fn, sensor_read, others)
@@ -460,12 +466,14 @@ class Predictor:
         sensor: dict | None,
         undone: dict | None,
         what: str,
+        contact_read: list[float] | None = None,
     ) -> list[dict[str, Any]]:
         """The model's class, beta and interval through each other chain a fitted one stands
-        for (:func:`serving.chain_spread.plausible_chains`; none for a data sheet or no chain).
+        for (:func:`serving.chain_spread.plausible_chains`, given the contact frequency the
+        model read through it, `contact_read`; none for a data sheet or no chain).
         One model pass each, without the geometric windows, segments or layers."""
         out = []
-        chains = plausible_chains(sensor, undone, self.chain_spread)
+        chains = plausible_chains(sensor, undone, self.chain_spread, contact_read)
         for name, chain in chains.items():
             read = a
             if chain is not None:
