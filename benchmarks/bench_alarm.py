@@ -19,8 +19,9 @@ alarm):
 
 Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
-campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): how many recordings the
-``contact_law`` check judged and on how many it or ``restraint_dynamics`` fired, whether
+campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): on how many recordings the law
+was read and on how many a counted check fired (``contact_law``, ``restraint_dynamics``,
+``contact_duration``: the campaign rule's ``law_checks``), whether
 the campaign is flagged (every recording then has ``campaign_law`` fired), wrong and silent
 and alarms after it. "After" is the
 predictor as shipped; "before" is the same prediction with the ``contact_law`` check's
@@ -184,8 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     configs = br.set_configs(br.DEFAULT_SETS)
     rows = {}
     print("| set | n | wrong | wrong & silent, before -> after | alarms, before -> after "
-          "| alarms on right answers | as a campaign: contact_law or restraint_dynamics fired "
-          "/ judged, wrong & "
+          "| alarms on right answers | as a campaign: a law check fired / law read, wrong & "
           "silent, alarms |")  # fmt: skip
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: |")
     for name in args.sets:

@@ -77,7 +77,7 @@ from stiffnet.uncertainty.campaign_law import (
     CAMPAIGN_LAW,
     campaign_law_decision,
     contact_law_fired,
-    law_check_fired,
+    law_checks_fired,
 )
 
 #: Recordings per part (one task) by default: big enough to amortise a task's
@@ -584,8 +584,8 @@ def _campaign_law(table: pa.Table) -> tuple[pa.Table, dict[str, Any]]:
     (:func:`stiffnet.uncertainty.campaign_law.campaign_law_decision`) and, where it is
     outside the model's world, every predicted row flagged with ``campaign_law``."""
     judged = [bool(j) for j in table.column("contact_law_judged").to_pylist()]
-    fired = [law_check_fired((f or "").split(",")) for f in table.column("alarm_fired").to_pylist()]
-    decision = campaign_law_decision(judged, fired)
+    seen = [law_checks_fired((f or "").split(",")) for f in table.column("alarm_fired").to_pylist()]
+    decision = campaign_law_decision(judged, [bool(s) for s in seen], seen=seen)
     if not decision["flag"]:
         return table, decision
     predicted = [e is None for e in table.column("error").to_pylist()]

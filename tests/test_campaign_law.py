@@ -76,6 +76,73 @@ def test_a_restraint_that_rings_counts_like_a_contact_law():
     assert all(r["ood_flag"] for r in results)
 
 
+def _refused_for_duration(duration_ratio: float) -> dict:
+    """A prediction whose map the cross-check refused because its contacts last
+    `duration_ratio` half periods of the law they fit: no ``contact_law`` score, the
+    ``contact_duration`` check fired (its score the log of the excess over 2)."""
+    import math
+
+    scores = {"embedding": 0.5, "contact_duration": math.log(duration_ratio / 2.0)}
+    return {"class": "hard", "ood_flag": True,
+            "alarm": {"flag": True, "fired": ["contact_duration"], "scores": scores,
+                      "thresholds": {"embedding": 2.0, "contact_duration": 0.0}}}  # fmt: skip
+
+
+def _judged(fired: list[str]) -> dict:
+    return {"class": "hard", "ood_flag": bool(fired),
+            "alarm": {"flag": bool(fired), "fired": fired,
+                      "scores": {"contact_law": float("contact_law" in fired),
+                                 "contact_duration": -0.5},
+                      "thresholds": {"contact_law": 0.0, "contact_duration": 0.0}}}  # fmt: skip
+
+
+def test_contacts_outlasting_their_law_count_as_a_law_read_outside_the_world():
+    """The rig's two-stage law behind a mount at --seed-offset 1000 (bench_alarm): 3 of the
+    15 maps the contact-law check judged fire it, and 9 maps are refused because their
+    contacts last 2.4-3.9 half periods of their law (contact_duration). Counting only the
+    judged maps leaves the campaign unflagged (p 0.18) and 6 wrong answers silent; the
+    refusals are a reading of the law too, which no in-world set produces."""
+    t = CampaignLawThresholds(in_world_rate=0.1, level=5e-3)
+    results = ([_refused_for_duration(r) for r in (3.1, 3.7, 3.4, 2.6, 3.9, 2.5, 2.4, 3.3, 2.5)]
+               + [_judged(["contact_law"])] * 3 + [_judged([])] * 12)  # fmt: skip
+    flagged, decision = campaign_law_alarms(results, t)
+    assert (decision["n_judged"], decision["n_fired"]) == (24, 12)
+    assert decision["flag"] and decision["p_value"] == pytest.approx(stats.binom.sf(11, 24, 0.1))
+    assert decision["by_check"] == {"contact_law": 3, "restraint_dynamics": 0,
+                                    "contact_duration": 9}  # fmt: skip
+    assert "twice the half period" in decision["message"] and "on 9" in decision["message"]
+    assert all(r["ood_flag"] and r["alarm"]["fired"][-1] == CAMPAIGN_LAW for r in flagged)
+    assert contact_law_fired(results[0]["alarm"], t) == (True, True)
+    # without the duration reading the same campaign is not flagged (3 of 15)
+    judged_only = t.model_copy(update={"law_checks": ["contact_law", "restraint_dynamics"]})
+    _, unread = campaign_law_alarms(results, judged_only)
+    assert (unread["n_judged"], unread["n_fired"]) == (15, 3) and not unread["flag"]
+    # a judged map whose contacts last less than twice the half period counts as not fired
+    assert contact_law_fired(_judged([])["alarm"], t) == (True, False)
+
+
+def test_the_shipped_level_flags_what_the_in_world_campaigns_never_reach():
+    """The shipped level against bench_alarm's p-values (24 recordings a set, offsets
+    0 / 1000 / 2000): every in-world campaign stays unflagged (the lowest, sensor_dynamics
+    5 of 17, p 2.2e-2), and the weakest unseen-law campaigns are flagged (bilinear and power
+    law, 7 of 21, p 3.3e-3; the rig's two-stage law behind a mount, 8 of 24, p 1.7e-3)."""
+    for n, m in ((17, 5), (14, 3), (20, 4), (18, 2), (24, 0)):
+        assert not campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
+    for n, m in ((21, 7), (24, 8)):
+        assert campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
+
+
+def test_the_counted_checks_are_known_ones():
+    assert campaign_law_thresholds().law_checks == ["contact_law", "restraint_dynamics",
+                                                    "contact_duration"]  # fmt: skip
+    with pytest.raises(ValidationError, match="unknown checks"):
+        CampaignLawThresholds(law_checks=["contact_law", "embedding"])
+    narrow = CampaignLawThresholds(law_checks=["contact_law"])
+    assert law_check_fired(["contact_law"], narrow) and not law_check_fired(
+        ["contact_duration"], narrow
+    )
+
+
 def test_the_shipped_settings_validate():
     t = campaign_law_thresholds()
     assert 0 < t.in_world_rate < 0.5 and 0 < t.level < 0.05
@@ -106,6 +173,27 @@ def test_predict_batch_flags_every_predicted_row_of_a_flagged_campaign():
     calm = table.set_column(2, "alarm_fired", pa.array([None] * 8, pa.string()))
     same, decision = _campaign_law(calm)
     assert not decision["flag"] and same.equals(calm)
+
+
+def test_predict_batch_counts_contacts_outlasting_their_law():
+    """A row whose map was refused for its contacts' duration has contact_law_judged true
+    (the predictor's contact_law_fired) and counts as fired; the summary names the check."""
+    from serving.batch_prediction import _campaign_law
+
+    refused = _refused_for_duration(3.0)
+    assert contact_law_fired(refused["alarm"]) == (True, True)
+    fired = ["contact_duration"] * 5 + ["contact_law"] * 3 + [None] * 16
+    table = pa.table({
+        "path": [f"r{i}" for i in range(24)],
+        "ood_flag": [f is not None for f in fired],
+        "alarm_fired": fired,
+        "contact_law_judged": [True] * 24,
+        "error": [None] * 24,
+    })  # fmt: skip
+    out, decision = _campaign_law(table)
+    assert decision["flag"] and (decision["n_judged"], decision["n_fired"]) == (24, 8)
+    assert decision["by_check"]["contact_duration"] == 5
+    assert all(CAMPAIGN_LAW in f for f in out.column("alarm_fired").to_pylist())
 
 
 @pytest.mark.slow

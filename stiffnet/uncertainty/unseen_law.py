@@ -48,6 +48,14 @@ them on rigs whose law the training world lacks, and neither needs the model:
   short soft first stage lies just outside its impacts
   (:func:`stiffnet.uncertainty.law_shape.onset_toe`): within-impact terms never see it,
   and at 1 kHz a two-stage contact of 6-7 samples leaves the hinge 2-3 of them.
+* **contacts that outlast their law behind an undone chain** (``outlasting_contact_min_ratio``,
+  ``outlasting_contact_min_r2``): where the sensor chain was identified and undone, a linear
+  or Hertz contact lasts its fitted law's half period (shortened by its damping,
+  :func:`kelvin_voigt_release_ratio`), while a soft first stage adds its own time to each
+  contact that the stiff stage's law lacks. Behind a mounted accelerometer the mount's
+  ringing hides the first stage's force from the stage and soft-first-stage rules, and the
+  contact's duration is what remains of it (maps whose contacts last over twice the half
+  period are refused by the cross-check and raise ``contact_duration``).
 * **a stiffness that depends on depth** (``stage_min_gain``, ``stage_min_ratio``,
   ``stage_max_depth_spread``): a two-stage law, straight on both sides of a knee with a
   stiffness at least ``stage_min_ratio`` times higher beyond it, predicts held-out impacts
@@ -157,6 +165,11 @@ ONSET_TOE_MIN_R2 = 0.95
 #: ... and on neither side of the impacts a force below this (a sensor chain's ringing or
 #: low-pass leaves the force after the release negative: -4 to -48 on robustness sets).
 ONSET_TOE_MIN_SIDE = -1.0
+#: Contact duration over the fitted Kelvin-Voigt law's release (:func:`kelvin_voigt_release_ratio`)
+#: that fires, behind a sensor chain the cross-check identified and undid (see the YAML).
+OUTLASTING_CONTACT_MIN_RATIO = 1.5
+#: ... counted only from a law explaining this share of the contact force.
+OUTLASTING_CONTACT_MIN_R2 = 0.98
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -188,6 +201,8 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min: float = ONSET_TOE_MIN
     onset_toe_min_r2: float = ONSET_TOE_MIN_R2
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
+    outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
+    outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
 
 
 @lru_cache(maxsize=1)
@@ -331,7 +346,8 @@ def impact_onset_gain(r2: float, linear_r2: float) -> float:
 
 def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
     """The :data:`STIFFENING` rules: the exponent (:func:`exponent_reading`), a curvature
-    within the impacts, stages and a soft first stage."""
+    within the impacts, stages and a soft first stage (its force outside the law's
+    contacts, or its time: :func:`outlasting_contact_reasons`)."""
     reasons = []
     reading = exponent_reading(restoring_force, t)
     if reading is not None:
@@ -344,7 +360,41 @@ def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) 
     shape = restoring_force.get("law_shape")
     r2 = restoring_force.get("contact_r2")
     reasons += curvature_reasons(shape, t) + stage_reasons(shape, t)
-    return reasons + onset_toe_reasons(shape, r2, t)
+    return (
+        reasons + onset_toe_reasons(shape, r2, t) + outlasting_contact_reasons(restoring_force, t)
+    )
+
+
+def outlasting_contact_reasons(
+    restoring_force: dict[str, Any], t: UnseenLawThresholds
+) -> list[str]:
+    """Rule: behind a sensor chain the cross-check identified and undid (``sensor.applied``),
+    on a law explaining at least :attr:`UnseenLawThresholds.outlasting_contact_min_r2` of the
+    contact force, the contacts last at least
+    :attr:`UnseenLawThresholds.outlasting_contact_min_ratio` times the fitted law's release
+    (the undamped half period shortened by its damping, :func:`kelvin_voigt_release_ratio`):
+    a soft first stage adds its time to each contact, which the stiff stage's law, the one the
+    map and the model read, lacks. A chain that was not undone stretches the contacts itself
+    and is not judged; from a damping of
+    :attr:`UnseenLawThresholds.long_contact_min_damping` long contacts are
+    :func:`long_contact_reasons`' (a dissipation that vanishes at the contact's edges)."""
+    if not (restoring_force.get("sensor") or {}).get("applied"):
+        return []
+    r2, duration = restoring_force.get("contact_r2"), restoring_force.get("duration_ratio")
+    zeta = restoring_force.get("contact_damping_ratio")
+    values = (r2, duration, zeta)
+    if any(v is None or not np.isfinite(v) for v in values) or r2 < t.outlasting_contact_min_r2:
+        return []
+    if zeta >= t.long_contact_min_damping:
+        return []  # a strongly damped contact's long contacts read as Hunt-Crossley's
+    release = kelvin_voigt_release_ratio(zeta)
+    if not duration >= t.outlasting_contact_min_ratio * release:
+        return []
+    return [
+        f"the contacts last {duration:.2f} of the fitted law's half period (its damping, "
+        f"{zeta:.2f}, lets them last {release:.2f}) with the sensor chain undone: a soft first "
+        "stage adds its time to each contact, and the model reads the stiff stage"
+    ]
 
 
 def dissipation_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
