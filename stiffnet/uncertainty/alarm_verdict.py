@@ -74,7 +74,8 @@ ALARM_WORDS = {
     "the model reads, and makes a contact look softer)",
     "contact_duration": "the impacts last over twice the half period of the contact law they "
     "fit closely: a sensor low-pass near the contact's band (outside the chains the model was "
-    "trained on) or a contact the training data lack stretches them",
+    "trained on) or a contact the training data lack (a soft first stage before a stiff "
+    "one adds its own time to each impact) stretches them",
     "chain_class": "the sensor chain was fitted, not given, and read through the other chains "
     "the fit allows (as recorded, a lower low-pass corner) the model puts the recording in "
     "another class: the class depends on a chain the record cannot pin down (give the "
