@@ -20,7 +20,10 @@ discrepancy beyond the recordings' noise floors, for most recordings, and pays
 for its parameters). The betas are then read on the maps behind the chosen face
 (:func:`~stiffnet.discovery.face_candidate.betas_behind_face`); a face that scales with beta
 whose refit moved the scale of the rows' betas (``face_beta_scale``) reports the betas the
-simulation ran instead.
+simulation ran instead. The batches that do not depend on each other (the screen on each
+model, the two starts scored alone, their first sweeps) run as tasks on diagnose's workers
+when it has them (:func:`~stiffnet.measurement.evaluation_pool.map_independent`: the same
+numbers); the later sweeps, each from the one before, run in turn.
 """
 
 from __future__ import annotations
