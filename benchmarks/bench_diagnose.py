@@ -60,13 +60,14 @@ CPU seconds and the load. ``--polish N`` sets ``diagnose.POLISH_EVALUATIONS`` fo
 (here and with ``--rig``).
 
 ``--campaign DIR``: an existing campaign folder instead (e.g. the independent rig's 8-recording
-material beam, whose diagnosis ends on the face decided by simulation), diagnosed in-process
-with the effects ``--only`` names (repeatable; default every shipped effect), each code in a
-fresh process: this checkout, and with ``--baseline DIR`` the other checkout's, alternately
-for ``--rounds`` rounds (before first); the table gives each run's CPU seconds (the process and
-its children), wall seconds, the load, the verdict, the learned law's proposal (the share of
-the base model's excess it explains, its discrepancy, its face's values) and the seconds of
-the face by simulation, then the CPU ratio of the best runs (the answers must not change).
+material beam, whose diagnosis ends on the face decided by simulation), diagnosed with the
+effects ``--only`` names (repeatable; default every shipped effect) on ``--workers`` (``0``:
+in-process), each code in a fresh process: this checkout, and with ``--baseline DIR`` the
+other checkout's, alternately for ``--rounds`` rounds (before first); the table gives each
+run's CPU seconds (the process and its children), wall seconds, the load, the verdict, the
+learned law's proposal (the share of the base model's excess it explains, its discrepancy, its
+face's values) and the seconds of the face by simulation, then the CPU ratio of the best runs
+(the answers must not change).
 
 Run (from the repository root, so this checkout's package is imported)::
 
@@ -388,7 +389,8 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 CAMPAIGN = (
     SCRIPT_HEAD
     + """
-res = diagnose_campaign(camp, effects=a["effects"], inclination=a["inclination"])
+res = diagnose_campaign(camp, effects=a["effects"], workers=a["workers"],
+                        inclination=a["inclination"])
 ll = res.get("learned_law") or {}
 face = ll.get("face_by_simulation") or {}
 params = (ll.get("effect") or {}).get("params") or {}
@@ -408,7 +410,7 @@ def campaign_runs(args: argparse.Namespace) -> None:
     import subprocess
 
     spec = {"campaign": str(Path(args.campaign).resolve()), "effects": args.only,
-            "inclination": not args.no_inclination}  # fmt: skip
+            "inclination": not args.no_inclination, "workers": args.workers or None}  # fmt: skip
     codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
     print("| code | round | CPU s | wall s | load | verdict | learned law: explained, "
           "discrepancy | face | face by simulation, s |\n|---|---|---|---|---|---|---|---|---|",

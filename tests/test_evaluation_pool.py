@@ -142,3 +142,27 @@ def test_fits_and_nuisances_in_a_pool_equal_those_in_process(measured, client, m
     assert j0["params"] == j1["params"]
     assert j0["evaluations"] == j1["evaluations"]
     np.testing.assert_array_equal(j0["per_recording"], j1["per_recording"])
+
+
+def test_independent_batches_on_the_workers_equal_the_loop(measured, client):
+    """The face's independent steps (a grid's screen per model, a point scored alone) as
+    tasks on the workers: the same arrays as in order here, bit for bit."""
+    from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
+    from stiffnet.measurement.face_by_simulation import _scored_alone, _screen_batch
+
+    t = make(measured)
+    face = {"exponent": 1.0, "reference_penetration": 0.5, "face_mass": 0.1,
+            "face_stiffness": 20.0, "face_damping": 0.05}  # fmt: skip
+    points = [face, {**face, "face_mass": 0.15}]
+    screens = [(t, [], points, FIT_SETTINGS_NUMERICAL), (t, [damping(0.2)], points,
+                                                         FIT_SETTINGS_NUMERICAL)]  # fmt: skip
+    alone = [(t, [], p, FIT_SETTINGS_NUMERICAL) for p in points]
+    here = [[_screen_batch(i) for i in screens], [_scored_alone(i) for i in alone]]
+    with pool.evaluation_pool(client):
+        there = [pool.map_independent(_screen_batch, screens),
+                 pool.map_independent(_scored_alone, alone)]  # fmt: skip
+    for a, b in zip(here[0], there[0], strict=True):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
+    for x, y in zip(here[1], there[1], strict=True):
+        np.testing.assert_array_equal(x, y)

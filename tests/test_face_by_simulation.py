@@ -26,6 +26,20 @@ from stiffnet.measurement.learned_law import _law_scored
 START = {"exponent": 1.0, "reference_penetration": 0.76, "face_mass": 0.15,
          "face_stiffness_ratio": 1.1, "face_damping": 0.05, "face_mass_exponent": -0.796,
          "face_reference_beta": 14.0}  # fmt: skip
+#: Whether each batch of points ran on a Dask worker (a thread-based cluster's: one memory).
+ON_WORKER: list[bool] = []
+
+
+def _on_worker() -> bool:
+    try:
+        from distributed import get_worker
+
+        get_worker()
+    except (ImportError, ValueError):
+        return False
+    return True
+
+
 #: Two repeatable recordings and one whose halves differ (weighed down, as the floors do).
 WEIGHTS = [1.0, 1.0, 0.02]
 
@@ -74,6 +88,7 @@ class FaceMassCampaign:
         self, effects: Any, name: str, points: Any, settings: Any, **_: Any
     ) -> list[np.ndarray]:
         self.batches.append((len(self.rows), settings))
+        ON_WORKER.append(_on_worker())
         return [self._per([*effects, LearnedContact(**p)]) for p in points]
 
 
@@ -154,3 +169,33 @@ def test_a_discovered_law_joins_the_model_the_weighted_objective_prefers():
     assert objective_value(after, target.weights) == pytest.approx(
         objective_value(trials[0], target.weights)
     )
+
+
+def test_refit_in_a_pool_sweeps_both_starts_on_the_workers_with_the_same_answer():
+    """The first sweeps from the two starts do not depend on each other: in an evaluation
+    pool they run as two tasks on the workers, the later sweeps here, and the refit ends
+    where the in-process one ends, to the bit."""
+    distributed = pytest.importorskip("distributed")
+    from stiffnet.measurement.evaluation_pool import evaluation_pool
+
+    def run(client: Any) -> tuple[dict[str, Any], list[bool]]:
+        target = campaign()
+        other = {**START, "face_mass": 0.05}
+        at = [target.per_recording([LearnedContact(**p)], FIT_SETTINGS_NUMERICAL)
+              for p in (START, other)]  # fmt: skip
+        ON_WORKER.clear()
+        with evaluation_pool(client):
+            out = refine_face(target, target.rows, [], START, at[0], FIT_SETTINGS_NUMERICAL,
+                              other=(other, at[1]))  # fmt: skip
+        return out, list(ON_WORKER)
+
+    here, where_here = run(None)
+    with distributed.Client(processes=False, n_workers=2, threads_per_worker=1,
+                            dashboard_address=None) as client:  # fmt: skip
+        there, where_there = run(client)
+    assert not any(where_here)
+    # two first sweeps (one batch each) on the workers, then the scaled face's other four
+    assert where_there == [True, True, False, False, False, False]
+    assert here["params"] == there["params"]
+    assert here["first_sweeps"] == there["first_sweeps"]
+    np.testing.assert_array_equal(here["per_recording"], there["per_recording"])

@@ -126,4 +126,24 @@ def statistics_many(
     return _spread(_chunk_statistics, target, calls, client)
 
 
-__all__ = ["MIN_BATCH", "evaluation_pool", "per_recording_many", "statistics_many"]
+def map_independent(fn: Any, items: Sequence[Any]) -> list[Any]:
+    """``[fn(item) for item in items]``, one task per item on the pool's workers (in order,
+    here, outside a pool or for a single item): for a search whose independent steps are
+    whole simulated batches (the face's screens and sweeps,
+    :mod:`~stiffnet.measurement.face_by_simulation`) rather than evaluations of one target.
+    ``fn`` is module-level (the workers import it); the items travel pickled, a target
+    without its memo where the caller gives one so."""
+    items = list(items)
+    client = _CLIENT.get()
+    if client is None or len(items) < 2:
+        return [fn(item) for item in items]
+    from stiffnet.distributed.tasks import run_tasks
+    from stiffnet.simulator.compiled import limited_threads
+
+    report = run_tasks(fn, items, client=client, thread_limit=limited_threads)
+    report.raise_failures()
+    return list(report.results)
+
+
+__all__ = ["MIN_BATCH", "evaluation_pool", "map_independent", "per_recording_many",
+           "statistics_many"]  # fmt: skip

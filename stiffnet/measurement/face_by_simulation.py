@@ -20,7 +20,10 @@ discrepancy beyond the recordings' noise floors, for most recordings, and pays
 for its parameters). The betas are then read on the maps behind the chosen face
 (:func:`~stiffnet.discovery.face_candidate.betas_behind_face`); a face that scales with beta
 whose refit moved the scale of the rows' betas (``face_beta_scale``) reports the betas the
-simulation ran instead.
+simulation ran instead. The batches that do not depend on each other (the screen on each
+model, the two starts scored alone, their first sweeps) run as tasks on diagnose's workers
+when it has them (:func:`~stiffnet.measurement.evaluation_pool.map_independent`: the same
+numbers); the later sweeps, each from the one before, run in turn.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import FACE_REFIT_FACTOR, LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
+from stiffnet.measurement.evaluation_pool import map_independent
 from stiffnet.measurement.fitting import objective_value, screen_settings
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.significance import significance
@@ -159,24 +163,22 @@ def simulated_face(
     # point and runs the numerical-engine design's shorter transient begun warm, so the best
     # is scored again alone, in full (the noise and transient of per_recording); ranked by the
     # fits' objective, which weighs a non-repeatable recording down as the refit's sweeps do
+    # the same model twice (the selection held only contact effects) is screened once; the
+    # models' batches do not depend on each other (on the workers when a pool is open)
+    distinct = [i for i, m in enumerate(models) if not any(_same(m, o) for o in models[:i])]
+    batches = map_independent(_screen_batch, [(tgt, list(models[i]), points, settings)
+                                              for i in distinct])  # fmt: skip
     scored, screened = [], []
-    for i, m in enumerate(models):
-        if any(_same(m, o) for o in models[:i]):
-            continue  # the same model twice (the selection held only contact effects)
-        pers = tgt.per_recording_points(list(m), LearnedContact.name, points,
-                                        screen_settings(settings), inclination=False,
-                                        oversample=False)  # fmt: skip
+    for i, pers in zip(distinct, batches, strict=True):
         scored += [(objective_value(p, tgt.weights), i, j) for j, p in enumerate(pers)]
         screened += [(campaign_discrepancy(p), i) for p in pers]
     _, mi, pj = min(scored)
     model, point = list(models[mi]), points[pj]
-    alone = tgt.per_recording([*model, LearnedContact(**point)], settings)
     other = _other_start(scored, mi, pj, points)
-    other_at = None
-    if other is not None:
-        other_at = tgt.per_recording([*model, LearnedContact(**points[other])], settings)
+    kept = [point] if other is None else [point, points[other]]
+    alone, *other_at = map_independent(_scored_alone, [(tgt, model, p, settings) for p in kept])
     refit = refine_face(tgt, rows, model, point, alone, settings,
-                        other=None if other is None else (points[other], other_at))  # fmt: skip
+                        other=None if other is None else (points[other], other_at[0]))  # fmt: skip
     params = refit["params"] if refit["improves"] else point
     after = np.asarray(refit["per_recording"] if refit["improves"] else alone, float)
     names = [r.recording for r in rows]
@@ -203,6 +205,19 @@ def simulated_face(
         "other_start": None if other is None else {k: float(points[other][k]) for k in keys},
         "seconds": round(time.perf_counter() - t0, 2),
     }
+
+
+def _screen_batch(item: tuple[Any, list[Effect], list[dict], Any]) -> list[np.ndarray]:
+    """The screen of the grid's points on one model (:func:`simulated_face`), one batch."""
+    tgt, model, points, settings = item
+    return tgt.per_recording_points(model, LearnedContact.name, points, screen_settings(settings),
+                                    inclination=False, oversample=False)  # fmt: skip
+
+
+def _scored_alone(item: tuple[Any, list[Effect], dict[str, float], Any]) -> np.ndarray:
+    """A grid point scored alone, in full (the noise and transient of ``per_recording``)."""
+    tgt, model, point, settings = item
+    return np.asarray(tgt.per_recording([*model, LearnedContact(**point)], settings), float)
 
 
 def _other_start(
@@ -322,12 +337,17 @@ def refine_face(
     starts = [(dict(params), np.asarray(at_discovered, float))]
     if other is not None:
         starts.append((dict(other[0]), np.asarray(other[1], float)))
-    first = []
     defaults = LearnedContact().params.model_dump()
-    for start, per0 in starts:
+    boxes = []
+    for start, _ in starts:
         box = {fp.name: fp for fp in LearnedContact.fit_space_at(start, fs_min).free}
         start.update({k: float(defaults[k]) for k in box if k not in start})  # a law from before
-        first.append((*_sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0), box))
+        boxes.append(box)
+    # the two starts' first sweeps do not depend on each other (on the workers in a pool)
+    swept = map_independent(_first_sweep, [(tgt, settings, box, start, per0)
+                                           for box, (start, per0) in zip(boxes, starts,
+                                                                         strict=True)])  # fmt: skip
+    first = [(*f, box) for f, box in zip(swept, boxes, strict=True)]
     best, per, fitted, box = min(first, key=lambda f: objective_value(f[1], tgt.weights))
     order = SCALED_SWEEP_ORDER if "face_beta_scale" in box else SWEEP_ORDER
     for key in order[1:]:  # the others across the chosen start's box, at the best so far
@@ -345,6 +365,14 @@ def refine_face(
         "first_sweeps": [objective_value(f[1], tgt.weights) for f in first],
         "seconds": round(time.perf_counter() - t0, 2),
     }
+
+
+def _first_sweep(
+    item: tuple[Any, Any, dict[str, Any], dict[str, float], np.ndarray],
+) -> tuple[dict[str, float], np.ndarray, list[str]]:
+    """:func:`_sweep` of the first parameter of :data:`SWEEP_ORDER` from one start."""
+    tgt, settings, box, start, per0 = item
+    return _sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0)
 
 
 def _sweep(
