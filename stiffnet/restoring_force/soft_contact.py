@@ -131,6 +131,11 @@ class SoftContactFit:
         Median contact duration over the law's half period ``pi / sqrt(K + k)``.
     displacement, velocity, force : numpy.ndarray
         The relative state and the force beyond the free-flight law, for the figure.
+    residual : numpy.ndarray
+        What the joint law leaves of the record, on the used samples (the record's units):
+        white at the record's noise where free flight and contact are the whole record, the
+        forcing's harmonics where a sensor chain shaped the pulses
+        (:func:`~.band.chain_free_reading`).
     """
 
     beta: float
@@ -144,6 +149,7 @@ class SoftContactFit:
     displacement: np.ndarray
     velocity: np.ndarray
     force: np.ndarray
+    residual: np.ndarray
 
 
 @dataclass
@@ -324,4 +330,5 @@ def fit_soft_contact(
         displacement=p.x[use],
         velocity=p.v[use],
         force=force[use],
+        residual=(p.target - p.design @ p.coef)[use],
     )
