@@ -133,3 +133,21 @@ def test_a_contact_the_map_reads_within_the_classes_keeps_the_maps_reading(beta,
                                  max_periods=24, sensor=SHEET)  # fmt: skip
     assert r.ok and "fitted jointly" not in r.reason and "impacts" in r.reason
     assert r.beta_interval[0] <= beta <= r.beta_interval[1]
+
+
+def test_the_chain_free_rule_reads_the_residual_against_the_records_noise():
+    """Analytic: a residual of white noise at the record's level leaves no harmonic of a
+    one-sided force (the reading stands where its interval reaches the softest class); a
+    residual keeping a pulse train's harmonics, even at a tenth of the record's pulses, does
+    not; and a reading wholly below the classes does not stand either."""
+    from stiffnet.restoring_force.band import chain_free_reading
+
+    period, n = 80.0, 80 * 24
+    rng = np.random.default_rng(0)
+    t = np.arange(n)
+    pulses = np.where((t % period) < 8, np.sin(np.pi * (t % period) / 8), 0.0)
+    record = np.sin(2 * np.pi * t / period) + pulses + 0.01 * rng.standard_normal(n)
+    white = 0.01 * rng.standard_normal(n)
+    assert chain_free_reading(record, white, period, 6.0, 5.0)
+    assert not chain_free_reading(record, white + 0.1 * pulses, period, 6.0, 5.0)
+    assert not chain_free_reading(record, white, period, 3.4, 5.0)
