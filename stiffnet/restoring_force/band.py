@@ -180,9 +180,10 @@ def chain_free_reading(
     contact fits only roughly: the joint law's residual keeps the forcing's harmonics, and
     the reading falls below the classes (stiffnet's simulator behind low-passes at 0.01-0.06
     fs, no other stage: every joint reading left harmonics 4 and beyond 550-1.2e6 times the
-    record's floor, and read 0.2-2.5 where the contacts were 12-90; ideal soft contacts
-    left none above 43 times it, docs/crosscheck.md). A record the joint law explains to its
-    noise needs no chain, so the smoothed-contact refusal's low-pass is not the record's.
+    record's floor, and read 0.2-2.5 for contacts of beta 6.5-90; elastic and damped soft
+    contacts with no sensor left none above 60 times it, docs/crosscheck.md). A record the
+    joint law explains to its noise needs no chain, so the smoothed-contact refusal's
+    low-pass is not the record's.
 
     Parameters
     ----------
