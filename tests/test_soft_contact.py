@@ -46,27 +46,39 @@ def test_a_soft_contact_behind_a_lowpass_below_it_keeps_the_refusal():
     """Guard: the same beta 5.8 record behind a 20 Hz order-4 low-pass (below its 25 Hz
     contact) keeps a refusal whether the sheet is given (the chain's band refusal) or not
     (the smoothed-contact refusal, naming the low-pass): a contact a low-pass hides is
-    never read as soft. And with no chain known, a soft contact is not read either."""
+    never read as soft."""
     accel = _rig(5.8, LOW_SHEET)
     for given in (LOW_SHEET, None):
         r = restoring_force_estimate(accel, FS, natural_frequency_hz=FN, max_periods=24,
                                      sensor=given)  # fmt: skip
         assert not r.ok and r.restoring_force_class is None and "low-pass" in r.reason
+
+
+def test_a_soft_contact_with_no_sensor_is_read_without_a_sheet():
+    """The same beta 5.8 with no sensor at all and no sheet: the joint law, through no
+    chain, leaves none of the record's harmonics beyond its noise, so no low-pass is needed
+    and the contact is read in class, its interval covering (main refused it "... from this
+    sensor", and the predictor's chain_refusal alarm fired on the right answers of such
+    records)."""
     plain = restoring_force_estimate(_rig(5.8, None), FS, natural_frequency_hz=FN,
                                      max_periods=24)  # fmt: skip
-    assert not plain.ok and plain.reason.endswith("not identifiable from this sensor")
+    assert plain.ok, plain.reason
+    assert plain.restoring_force_class == "soft" and "no low-pass needed" in plain.reason
+    lo, hi = plain.beta_interval
+    assert lo <= 5.8 <= hi and hi / lo < 1.25
 
 
 def test_a_soft_contact_from_stiffnets_simulator_reads_with_a_chain_known_to_be_absent():
     """stiffnet's own engine, beta 9 at a forcing of 1.2 f_n, 3 % noise: no impact stands
     out; an empty data sheet (no stage in the band) lets the joint fit read it, within its
-    interval; without any sheet it refuses as before."""
+    interval; without any sheet too, as the joint law explains the record without a chain."""
     from tests.test_restoring_force import FN as SIM_FN
     from tests.test_restoring_force import simulate
 
     accel, fs = simulate(9.0, (), fs_ratio=300.0, periods=24, noise=0.03, omega=1.2)
     plain = restoring_force_estimate(accel, fs, natural_frequency_hz=SIM_FN)
-    assert not plain.ok and "stands out" in plain.reason
+    assert plain.ok and "no low-pass needed" in plain.reason
+    assert plain.beta_interval[0] <= 9.0 <= plain.beta_interval[1]
     r = restoring_force_estimate(accel, fs, natural_frequency_hz=SIM_FN, sensor={})
     assert r.ok and r.restoring_force_class == "soft"
     assert r.beta_interval[0] <= 9.0 <= r.beta_interval[1]
@@ -121,3 +133,21 @@ def test_a_contact_the_map_reads_within_the_classes_keeps_the_maps_reading(beta,
                                  max_periods=24, sensor=SHEET)  # fmt: skip
     assert r.ok and "fitted jointly" not in r.reason and "impacts" in r.reason
     assert r.beta_interval[0] <= beta <= r.beta_interval[1]
+
+
+def test_the_chain_free_rule_reads_the_residual_against_the_records_noise():
+    """Analytic: a residual of white noise at the record's level leaves no harmonic of a
+    one-sided force (the reading stands where its interval reaches the softest class); a
+    residual keeping a pulse train's harmonics, even at a tenth of the record's pulses, does
+    not; and a reading wholly below the classes does not stand either."""
+    from stiffnet.restoring_force.band import chain_free_reading
+
+    period, n = 80.0, 80 * 24
+    rng = np.random.default_rng(0)
+    t = np.arange(n)
+    pulses = np.where((t % period) < 8, np.sin(np.pi * (t % period) / 8), 0.0)
+    record = np.sin(2 * np.pi * t / period) + pulses + 0.01 * rng.standard_normal(n)
+    white = 0.01 * rng.standard_normal(n)
+    assert chain_free_reading(record, white, period, 6.0, 5.0)
+    assert not chain_free_reading(record, white + 0.1 * pulses, period, 6.0, 5.0)
+    assert not chain_free_reading(record, white, period, 3.4, 5.0)

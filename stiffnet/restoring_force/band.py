@@ -43,6 +43,7 @@ from stiffnet.restoring_force.chain import (
     wiener_gain,
 )
 from stiffnet.restoring_force.free_flight import HARMONICS
+from stiffnet.restoring_force.reconstruct import periodic_length
 
 #: A harmonic stands out when its power exceeds this many times the median of its
 #: neighbouring bins (white noise: the median is 0.69 of the mean, so the chance of a noise
@@ -60,7 +61,9 @@ NEIGHBOURS = 11
 LOBE = 2
 
 
-def excess_harmonics(y: np.ndarray, period: float) -> np.ndarray:
+def excess_harmonics(
+    y: np.ndarray, period: float, floor_of: np.ndarray | None = None
+) -> np.ndarray:
     """The forcing harmonics beyond the free-flight law's that stand out of the noise.
 
     Parameters
@@ -70,6 +73,10 @@ def excess_harmonics(y: np.ndarray, period: float) -> np.ndarray:
         cuts it).
     period : float
         Samples per forcing period.
+    floor_of : numpy.ndarray, optional
+        The signal, as long as `y`, whose neighbouring bins set each harmonic's noise floor
+        (default `y`): a fit's residual is judged against the record's own noise, not
+        against its own floor, which a misfit raises.
 
     Returns
     -------
@@ -83,15 +90,24 @@ def excess_harmonics(y: np.ndarray, period: float) -> np.ndarray:
     reach = min(NEIGHBOURS, int(np.floor(periods / 2)))
     if reach < LOBE + 3:
         return np.array([], dtype=int)
-    power = np.abs(np.fft.rfft((y - np.mean(y)) * np.hanning(n))) ** 2
+    window = np.hanning(n)
+    power = np.abs(np.fft.rfft((y - np.mean(y)) * window)) ** 2
+    ref = floor_of if floor_of is not None else y
+    noise = power if ref is y else np.abs(np.fft.rfft((ref - np.mean(ref)) * window)) ** 2
     offsets = np.r_[-reach:-LOBE, LOBE + 1 : reach + 1]
     out = []
     for m in range(max(HARMONICS) + 1, int((power.size - 1 - reach) / periods) + 1):
         k = int(round(m * periods))
-        floor = float(np.median(power[k + offsets]))
+        floor = float(np.median(noise[k + offsets]))
         if power[k] > HARMONIC_RATIO * max(floor, 1e-300):
             out.append(m)
     return np.array(out, dtype=int)
+
+
+def contact_harmonics(found: np.ndarray) -> bool:
+    """Rule: whether standing-out harmonics (:func:`excess_harmonics`) are a one-sided
+    force's: at least :data:`MIN_HARMONICS`, even and odd ones among them."""
+    return bool(found.size >= MIN_HARMONICS and np.any(found % 2 == 0) and np.any(found % 2 == 1))
 
 
 def smoothed_contact_refusal(
@@ -127,7 +143,7 @@ def smoothed_contact_refusal(
         chain is not known (fitted or unread).
     """
     found = excess_harmonics(y, period)
-    if found.size < MIN_HARMONICS or not (np.any(found % 2 == 0) and np.any(found % 2 == 1)):
+    if not contact_harmonics(found):
         return ""
     ff = fs_hz / period
     slowest = natural_hz * np.sqrt(1.0 + beta_min)
@@ -149,6 +165,40 @@ def smoothed_contact_refusal(
         f"the contact's frequency (at least {slowest:.0f} Hz) smooths them away, so beta is "
         "not identifiable from this sensor"
     )
+
+
+def chain_free_reading(
+    record: np.ndarray, residual: np.ndarray, period: float, beta_high: float, beta_min: float
+) -> bool:
+    """Rule: whether contacts that do not stand out, read by the joint fit of
+    :mod:`.soft_contact` with no chain known, are the record's alone: the joint law (free
+    flight and a Kelvin-Voigt contact, through no sensor) leaves no harmonics of a one-sided
+    force (:func:`contact_harmonics`) standing out of the record's own noise, and its
+    interval reaches the softest class.
+
+    A low-pass below the contact's frequency rounds the pulses into a shape a softer linear
+    contact fits only roughly: the joint law's residual keeps the forcing's harmonics, and
+    the reading falls below the classes (stiffnet's simulator behind low-passes at 0.01-0.06
+    fs, no other stage: every joint reading left harmonics 4 and beyond 550-1.2e6 times the
+    record's floor, and read 0.2-2.5 for contacts of beta 6.5-90; elastic and damped soft
+    contacts with no sensor left none above 60 times it, docs/crosscheck.md). A record the
+    joint law explains to its noise needs no chain, so the smoothed-contact refusal's
+    low-pass is not the record's.
+
+    Parameters
+    ----------
+    record, residual : numpy.ndarray
+        The record the joint fit read and its residual, on the same used samples.
+    period : float
+        Samples per forcing period.
+    beta_high : float
+        The high end of the joint reading's interval.
+    beta_min : float
+        The softest class's least beta.
+    """
+    n = periodic_length(record, period)
+    left = excess_harmonics(residual[:n], period, floor_of=record[:n])
+    return not contact_harmonics(left) and beta_high >= beta_min
 
 
 def band_passes_contacts(

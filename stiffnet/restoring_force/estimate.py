@@ -38,6 +38,7 @@ from stiffnet.errors import ConfigError, SignalError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_class
 from stiffnet.restoring_force.band import (
     band_passes_contacts,
+    chain_free_reading,
     kept_band,
     lowpass_refusal,
     smoothed_contact_refusal,
@@ -155,8 +156,14 @@ SYSTEMATIC_PER_MISFIT = 4.0
 SYSTEMATIC_PER_SAMPLE = 1.0
 #: Bootstrap replicates over impacts.
 N_BOOTSTRAP = 200
-#: Why the joint fit of :mod:`.soft_contact` reads where no contact stands out.
+#: Why the joint fit of :mod:`.soft_contact` reads where no contact stands out ...
 SOFT_UNSEEN = "too soft to stand out of the free-flight law"
+#: ... and where, with no chain known, it leaves none of the record's harmonics
+#: (:func:`~.band.chain_free_reading`).
+SOFT_CHAIN_FREE = (
+    f"{SOFT_UNSEEN}, with no harmonic of the forcing left beyond the record's noise (no "
+    "low-pass needed)"
+)
 
 
 @dataclass(frozen=True)
@@ -1211,9 +1218,11 @@ def _estimate_at(
         refusal = smoothed_contact_refusal(
             y, period, fs_hz, info["natural_frequency_hz"], beta_min, beta_max, lowpass,
         )  # fmt: skip
-        if refusal and carried:
-            soft = soft_reading()
-            if soft is not None:  # contacts the band carries, too soft to stand out
+        if refusal and (carried or known is None):
+            # contacts the band carries, too soft to stand out; with no chain known, only
+            # where the joint law needs no chain to explain the record
+            soft = soft_reading() if carried else soft_reading(SOFT_CHAIN_FREE, chain_free=True)
+            if soft is not None:
                 return soft
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
@@ -1283,12 +1292,14 @@ def _soft_reading(
     seed: int,
     rivals: list[float],
     why: str = SOFT_UNSEEN,
+    chain_free: bool = False,
 ) -> RestoringForceResult | None:
     """Rule: beta of contacts that do not stand out of the free-flight law (or that the map
     reads below the classes, `why`), where the band is known to carry them (the caller's
     rule), by the free flight and the contact fitted jointly (:mod:`.soft_contact`); None
     where that fit describes no contacts (the refusal stands) or `f_n` was not given (the
-    joint fit needs ``k``)."""
+    joint fit needs ``k``). `chain_free`: no chain is known, and the reading stands only
+    where the joint law explains the record without one (:func:`~.band.chain_free_reading`)."""
     y, dtau, tau, use, period, k_given = args
     if k_given is None or m.source is None:
         return None
@@ -1302,6 +1313,9 @@ def _soft_reading(
     if soft is None:
         return None
     lo, hi = soft.interval
+    beta_min = min(float(low) for _, low, _ in classes)
+    if chain_free and not chain_free_reading(record[use], soft.residual, period, hi, beta_min):
+        return None
     if rivals:  # a known chain's other readings (its high-pass corner's ends)
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     cls = str(beta_class(np.array([soft.beta]), classes)[0])

@@ -45,9 +45,10 @@ a shallow contact lasts much less than that half period and its duration does no
 beta. The joint fit reads the law from the state, as the map does.
 
 **When it is read.** Only where the band is known to carry every contact (the caller's
-rule: a known chain whose low-pass passes every contact up to the classes' top, or none):
-a low-pass below the contact rounds the pulse into a shape a linear contact fits with the
-wrong stiffness. And only where the fit describes contacts: at least
+rule: a known chain whose low-pass passes every contact up to the classes' top, or none),
+or, with no chain known, where the fit itself leaves none of the record's harmonics beyond
+its noise (:func:`~.band.chain_free_reading`): a low-pass below the contact rounds the pulse
+into a shape a linear contact fits with the wrong stiffness, and leaves the harmonics. And only where the fit describes contacts: at least
 :data:`MIN_CONTACTS` contact runs, compressive, the contact explaining at least
 :data:`MIN_SHARE` of what the free-flight law leaves, and contacts lasting no longer than
 the fitted law allows.
@@ -131,6 +132,11 @@ class SoftContactFit:
         Median contact duration over the law's half period ``pi / sqrt(K + k)``.
     displacement, velocity, force : numpy.ndarray
         The relative state and the force beyond the free-flight law, for the figure.
+    residual : numpy.ndarray
+        What the joint law leaves of the record, on the used samples (the record's units):
+        white at the record's noise where free flight and contact are the whole record, the
+        forcing's harmonics where a sensor chain shaped the pulses
+        (:func:`~.band.chain_free_reading`).
     """
 
     beta: float
@@ -144,6 +150,7 @@ class SoftContactFit:
     displacement: np.ndarray
     velocity: np.ndarray
     force: np.ndarray
+    residual: np.ndarray
 
 
 @dataclass
@@ -324,4 +331,5 @@ def fit_soft_contact(
         displacement=p.x[use],
         velocity=p.v[use],
         force=force[use],
+        residual=(p.target - p.design @ p.coef)[use],
     )
