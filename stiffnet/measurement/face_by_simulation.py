@@ -162,8 +162,8 @@ def simulated_face(
     # every point on every model as one batch each, a screen: the batch draws other noise per
     # point and runs the numerical-engine design's shorter transient begun warm, so the best
     # is scored again alone, in full (the noise and transient of per_recording); ranked by the
-    # fits' objective, which weighs a non-repeatable recording down as the refit's sweeps do
-    # the same model twice (the selection held only contact effects) is screened once; the
+    # fits' objective, which weighs a non-repeatable recording down as the refit's sweeps do.
+    # The same model twice (the selection held only contact effects) is screened once; the
     # models' batches do not depend on each other (on the workers when a pool is open)
     distinct = [i for i, m in enumerate(models) if not any(_same(m, o) for o in models[:i])]
     batches = map_independent(_screen_batch, [(tgt, list(models[i]), points, settings)

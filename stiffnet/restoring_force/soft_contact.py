@@ -48,8 +48,9 @@ beta. The joint fit reads the law from the state, as the map does.
 rule: a known chain whose low-pass passes every contact up to the classes' top, or none),
 or, with no chain known, where the fit itself leaves none of the record's harmonics beyond
 its noise (:func:`~.band.chain_free_reading`): a low-pass below the contact rounds the pulse
-into a shape a linear contact fits with the wrong stiffness, and leaves the harmonics. And only where the fit describes contacts: at least
-:data:`MIN_CONTACTS` contact runs, compressive, the contact explaining at least
+into a shape a linear contact fits with the wrong stiffness, and leaves the harmonics. And
+only where the fit describes contacts: at least :data:`MIN_CONTACTS` contact runs,
+compressive, the contact explaining at least
 :data:`MIN_SHARE` of what the free-flight law leaves, and contacts lasting no longer than
 the fitted law allows.
 """
