@@ -14,7 +14,7 @@ from stiffnet.uncertainty.campaign_law import (
     campaign_law_decision,
     campaign_law_thresholds,
     contact_law_fired,
-    law_check_fired,
+    law_checks_fired,
     with_campaign_law,
 )
 
@@ -70,7 +70,7 @@ def test_a_restraint_that_rings_counts_like_a_contact_law():
                        "thresholds": {"contact_law": 0.0}}}  # fmt: skip
     assert contact_law_fired(ringing["alarm"]) == (True, True)
     assert contact_law_fired(quiet["alarm"]) == (True, False)
-    assert law_check_fired(["sensor", "restraint_dynamics"]) and not law_check_fired(["sensor"])
+    assert law_checks_fired(["sensor", "restraint_dynamics"]) and not law_checks_fired(["sensor"])
     results, decision = campaign_law_alarms([ringing] * 6 + [quiet] * 3)
     assert decision["flag"] and (decision["n_judged"], decision["n_fired"]) == (9, 6)
     assert all(r["ood_flag"] for r in results)
@@ -138,7 +138,7 @@ def test_the_counted_checks_are_known_ones():
     with pytest.raises(ValidationError, match="unknown checks"):
         CampaignLawThresholds(law_checks=["contact_law", "embedding"])
     narrow = CampaignLawThresholds(law_checks=["contact_law"])
-    assert law_check_fired(["contact_law"], narrow) and not law_check_fired(
+    assert law_checks_fired(["contact_law"], narrow) and not law_checks_fired(
         ["contact_duration"], narrow
     )
 

@@ -1208,7 +1208,7 @@ def _estimate_at(
         highpass_hz=corner * ff,
         natural_frequency_hz=ff * info.pop("natural_frequency_ratio"),
     )
-    beta_min = min(float(lo) for _, lo, _ in classes)
+    beta_min = _least_beta(classes)
     known = chain if chain is not None and chain.source != "fitted" else None
     lowpass = None if known is None else (known.lowpass_hz or np.inf)
     carried = band_passes_contacts(lowpass, info["natural_frequency_hz"], beta_max)
@@ -1313,7 +1313,7 @@ def _soft_reading(
     if soft is None:
         return None
     lo, hi = soft.interval
-    beta_min = min(float(low) for _, low, _ in classes)
+    beta_min = _least_beta(classes)
     if chain_free and not chain_free_reading(record[use], soft.residual, period, hi, beta_min):
         return None
     if rivals:  # a known chain's other readings (its high-pass corner's ends)
@@ -1337,6 +1337,11 @@ def _soft_reading(
         ),
         **fields,
     )
+
+
+def _least_beta(classes: list[tuple[str, float, float]]) -> float:
+    """The softest class's least beta (``classes``: name, low and high beta)."""
+    return min(float(low) for _, low, _ in classes)
 
 
 def _map_below_classes(map_beta: float | None, beta_min: float, carried: bool) -> str:

@@ -114,12 +114,6 @@ def law_checks_fired(
     return [name for name in counted if name in fired]
 
 
-def law_check_fired(fired: Sequence[str], thresholds: CampaignLawThresholds | None = None) -> bool:
-    """Whether any counted check (:attr:`CampaignLawThresholds.law_checks`) is among an
-    alarm's `fired` checks."""
-    return bool(law_checks_fired(fired, thresholds))
-
-
 def campaign_law_decision(
     judged: Sequence[bool],
     fired: Sequence[bool],
