@@ -221,6 +221,55 @@ def test_the_stage_rule_needs_the_gain_and_the_stiffness_ratio(shape, fires):
     assert bool(unseen_law_reasons(rf, t)) is fires
 
 
+def _hertz_read(exponent=1.61, r2=0.984, **shape):
+    """A map the power-law fit reads as Hertz, with a hinge (the independent rig's two-stage
+    draw 22, bench_alarm seed 7: stage gain 0.125, ratio 2.42, knee 0.6, spread 1.09)."""
+    hinge = {"stage": 0.125, "stage_ratio": 2.42, "stage_knee": 0.6, "depth_spread": 1.09}
+    return {"exponent": exponent, "contact_r2": r2, "law_shape": {**hinge, **shape}}
+
+
+@pytest.mark.parametrize(
+    "rf, fires",
+    [
+        (_hertz_read(), True),
+        # the same hinge on a map read near-linear: a sensor chain bends those with hinges of
+        # ratio over 2 and gains up to 0.13, so there the stage rule's own gain holds
+        (_hertz_read(exponent=1.10), False),
+        # a Hertz contact's own hinge: a large gain with a ratio under 2 (hertz_contact)
+        (_hertz_read(exponent=1.52, r2=0.999, stage=0.182, stage_ratio=1.65), False),
+        # the in-world map read as Hertz with the best gain at a ratio over 2 (sensor_dynamics)
+        (_hertz_read(exponent=1.51, r2=0.985, stage=0.037, stage_ratio=2.14), False),
+        (_hertz_read(r2=0.9), False),  # no exponent counts: nothing says Hertz
+        (_hertz_read(depth_spread=3.0), False),  # impacts of unlike depths
+    ],
+)
+def test_a_knee_over_a_map_read_as_hertz_fires_at_a_smaller_gain(rf, fires):
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert bool(reasons) is fires, reasons
+    if fires:
+        assert "rises 2.4-fold beyond 60%" in reasons[0]
+
+
+@pytest.mark.slow  # two 8-s solve_ivp recordings, ~6 s CPU each
+@pytest.mark.parametrize(
+    "name, contact, fires",
+    [
+        # read as Hertz (exponent 1.6) with a knee at ratio 2.4 whose gain (0.13) is under the
+        # stage rule's 0.15: the shipped model read "very_hard" for "hard" with no alarm
+        ("two_stage_22.csv", dict(contact="two_stage", knee_mm=0.2, stage_ratio=3.0), True),
+        ("ideal_22.csv", {}, False),  # the same draw with the paper's linear contact
+    ],
+)
+def test_the_independent_rigs_two_stage_restraint_read_as_hertz_has_a_knee(name, contact, fires):
+    """Draw 22 of the benchmark (benchmarks/bench_alarm.py: seed 7, 8 s at 1 kHz): beta 51.0,
+    forcing 1.086 f_n."""
+    restoring_force, shape = _rig_law_shape(name, 50.98961, 1.08638, 0.01302, contact)
+    reasons = unseen_law_reasons(restoring_force, unseen_law_thresholds())
+    assert bool(reasons) is fires, restoring_force
+    if fires:
+        assert any("depends on the depth" in r for r in reasons), reasons
+
+
 @pytest.mark.parametrize("first_stage", [0.0, 0.6])
 def test_a_soft_first_stage_cut_off_by_the_onset_shows_as_force_outside_the_impacts(
     first_stage,

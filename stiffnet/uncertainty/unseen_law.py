@@ -64,6 +64,8 @@ them on rigs whose law the training world lacks, and neither needs the model:
   restraint's map reads as Hertz to the power-law fit (exponent 1.3-1.6) and the model
   reads one stiffness between the stages, a class too hard; Hertz's own law and sensor
   chains bend the map smoothly, which a hinge takes only with a small stiffness ratio.
+  On a map the power-law fit reads as Hertz (``power_law_stage_min_gain``) a smaller gain
+  counts: there no in-world hinge of that ratio gains more than a few per cent.
 
 The thresholds are read from ``configs/alarm/unseen_law.yaml``
 (:func:`unseen_law_thresholds`; the defaults here where the file is missing).
@@ -149,6 +151,11 @@ STAGE_MIN_RATIO = 2.0
 #: The stage is judged only where the impacts reach alike depths
 #: (:func:`stiffnet.uncertainty.law_shape.depth_spread` at most this; see the YAML).
 STAGE_MAX_DEPTH_SPREAD = 2.0
+#: Held-out-impact gain of the two-stage law that fires on a map whose counted exponent lies
+#: in a training band above the linear one (read as Hertz; :func:`power_law_stage_reasons`):
+#: there the in-world hinges of ratio >= :data:`STAGE_MIN_RATIO` gain at most 0.037 (see the
+#: YAML), while sensor chains' maps read near-linear reach 0.13.
+POWER_LAW_STAGE_MIN_GAIN = 0.075
 #: Fitted Kelvin-Voigt damping ratio from which the contact's duration is judged: the law
 #: then predicts a release at least 19 % before the undamped half period
 #: (:func:`kelvin_voigt_release_ratio`), more than the duration's sampling error.
@@ -196,6 +203,7 @@ class UnseenLawThresholds(BaseModel):
     stage_min_gain: float = STAGE_MIN_GAIN
     stage_min_ratio: float = STAGE_MIN_RATIO
     stage_max_depth_spread: float = STAGE_MAX_DEPTH_SPREAD
+    power_law_stage_min_gain: float = POWER_LAW_STAGE_MIN_GAIN
     long_contact_min_damping: float = LONG_CONTACT_MIN_DAMPING
     long_contact_min_samples: float = LONG_CONTACT_MIN_SAMPLES
     onset_toe_min: float = ONSET_TOE_MIN
@@ -359,7 +367,8 @@ def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) 
             )
     shape = restoring_force.get("law_shape")
     r2 = restoring_force.get("contact_r2")
-    reasons += curvature_reasons(shape, t) + stage_reasons(shape, t)
+    stages = stage_reasons(shape, t) or power_law_stage_reasons(shape, reading, t)
+    reasons += curvature_reasons(shape, t) + stages
     return (
         reasons + onset_toe_reasons(shape, r2, t) + outlasting_contact_reasons(restoring_force, t)
     )
@@ -498,10 +507,12 @@ def onset_toe_reasons(
     ]
 
 
-def stage_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> list[str]:
+def stage_reasons(
+    shape: dict[str, float] | None, t: UnseenLawThresholds, min_gain: float | None = None
+) -> list[str]:
     """Rule: a two-stage law (:func:`stiffnet.uncertainty.law_shape.stage_gain`) predicts
-    held-out impacts at least :attr:`UnseenLawThresholds.stage_min_gain` better than any
-    single power law, with a stiffness ratio across its knee of at least
+    held-out impacts at least :attr:`UnseenLawThresholds.stage_min_gain` (or `min_gain`)
+    better than any single power law, with a stiffness ratio across its knee of at least
     :attr:`UnseenLawThresholds.stage_min_ratio`: the stiffness depends on the depth. Judged
     only on impacts of alike depths (``depth_spread`` at most
     :attr:`UnseenLawThresholds.stage_max_depth_spread`): across grazes and deep impacts the
@@ -509,7 +520,8 @@ def stage_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> lis
     if not shape or shape.get("stage") is None:
         return []
     gain, ratio = shape["stage"], shape.get("stage_ratio", 1.0)
-    if gain < t.stage_min_gain or ratio < t.stage_min_ratio:
+    least = t.stage_min_gain if min_gain is None else min_gain
+    if gain < least or ratio < t.stage_min_ratio:
         return []
     if shape.get("depth_spread", 1.0) > t.stage_max_depth_spread:
         return []
@@ -519,6 +531,27 @@ def stage_reasons(shape: dict[str, float] | None, t: UnseenLawThresholds) -> lis
         f"predicts held-out impacts {gain:.0%} better than any single power law), and the "
         "model reads one stiffness between the stages"
     ]
+
+
+def power_law_stage_reasons(
+    shape: dict[str, float] | None,
+    reading: tuple[float, float, str] | None,
+    t: UnseenLawThresholds,
+) -> list[str]:
+    """Rule: on a map whose counted exponent (`reading`, :func:`exponent_reading`) lies in a
+    training band above the linear one (read as Hertz, the best single power law), the stage
+    rule (:func:`stage_reasons`) with a gain of
+    :attr:`UnseenLawThresholds.power_law_stage_min_gain`. A Hertz contact's own hinge reads a
+    ratio under 2; a stage at least that steep over a Hertz-read map is a stiffness that
+    changes at a depth, which the power law only stands in for. Maps read near-linear keep
+    :attr:`UnseenLawThresholds.stage_min_gain`: a sensor chain bends those with hinges of
+    ratio over 2 that gain more."""
+    if reading is None:
+        return []
+    bands = sorted(t.training_exponent_bands)
+    if not any(lo <= reading[0] <= hi for lo, hi in bands[1:]):
+        return []
+    return stage_reasons(shape, t, min_gain=t.power_law_stage_min_gain)
 
 
 def excess_damping_reasons(
