@@ -450,5 +450,7 @@ def _sweep(
             alone = np.asarray(tgt.per_recording([*model, LearnedContact(**points[j])],
                                                  settings), float)  # fmt: skip
             if objective_value(alone, tgt.weights) < o_best:
-                o_best, kept = objective_value(alone, tgt.weights), (points[j], alone)
+                # every parameter of the law, as the fits report a point
+                taken = {**LearnedContact(**points[j]).params.model_dump(), **points[j]}
+                o_best, kept = objective_value(alone, tgt.weights), (taken, alone)
     return dict(kept[0]), kept[1], list(box)
