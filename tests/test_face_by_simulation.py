@@ -17,9 +17,16 @@ import pytest
 from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
 from stiffnet.effects.contact_damping import ContactDamping
 from stiffnet.effects.learned_contact import LearnedContact
+from stiffnet.measurement import face_by_simulation
 from stiffnet.measurement.discrepancy import campaign_discrepancy
-from stiffnet.measurement.face_by_simulation import refine_face
-from stiffnet.measurement.fitting import SUBSET_NUMERICAL, objective_value
+from stiffnet.measurement.face_by_simulation import (
+    SWEEP_RECORDINGS,
+    SWEEP_RESCORED,
+    FaceRefitSettings,
+    face_refit_settings,
+    refine_face,
+)
+from stiffnet.measurement.fitting import objective_value
 from stiffnet.measurement.learned_law import _law_scored
 
 #: A scaled face as the grid gives it (the material beam struck through 20 beta).
@@ -48,6 +55,10 @@ WEIGHTS = [1.0, 1.0, 0.02]
 class _Row:
     recording: str
     fs_hz: float = 1000.0
+    beta: float | None = None
+    gap: float | None = None
+    amplitude: float | None = None
+    frequency_ratio: float | None = None
 
 
 @dataclass
@@ -63,6 +74,9 @@ class FaceMassCampaign:
     evaluations: int = 0
     #: (rows, settings) of each batch of points (:meth:`per_recording_points`).
     batches: list[tuple[int, Any]] = field(default_factory=list)
+    #: The recordings of each batch of points, and the rows of each model scored alone.
+    batch_rows: list[list[str]] = field(default_factory=list)
+    alone: list[int] = field(default_factory=list)
 
     def observed(self) -> dict[str, float]:
         return {}
@@ -82,12 +96,14 @@ class FaceMassCampaign:
         return np.array([chattering if "chatter" in r.recording else repeatable for r in self.rows])
 
     def per_recording(self, effects: Any, settings: Any, **_: Any) -> np.ndarray:
+        self.alone.append(len(self.rows))
         return self._per(list(effects))
 
     def per_recording_points(
         self, effects: Any, name: str, points: Any, settings: Any, **_: Any
     ) -> list[np.ndarray]:
         self.batches.append((len(self.rows), settings))
+        self.batch_rows.append([r.recording for r in self.rows])
         ON_WORKER.append(_on_worker())
         return [self._per([*effects, LearnedContact(**p)]) for p in points]
 
@@ -128,18 +144,80 @@ def test_refit_without_weights_is_the_campaign_discrepancy():
     assert out["first_sweeps"][0] <= campaign_discrepancy(at_start)
 
 
-def test_refit_sweeps_simulate_every_recording_at_the_full_settings():
-    """A campaign of more recordings than a numerical design's screen holds
-    (``SUBSET_NUMERICAL``): each sweep's batch is every recording at the settings the start
-    was scored with, not a screen (a subset, a short transient begun warm), and the face
-    found is the one the full scoring ranks first."""
-    target = campaign(repeatable=SUBSET_NUMERICAL + 3)
+def spread_campaign(repeatable: int = 11) -> FaceMassCampaign:
+    """More recordings than a sweep ranks on, their betas (1 ... n) out of order."""
+    betas = np.random.default_rng(3).permutation(np.arange(1.0, repeatable + 2))
+    rows = [_Row(f"r{i}.csv", beta=float(b)) for i, b in enumerate(betas[:-1])]
+    rows.append(_Row("chatter.csv", beta=float(betas[-1])))
+    return FaceMassCampaign(rows, [1.0] * repeatable + [WEIGHTS[-1]])
+
+
+def _refit(target: FaceMassCampaign) -> dict[str, Any]:
     settings = FIT_SETTINGS_NUMERICAL
     at_start = target.per_recording([LearnedContact(**START)], settings)
-    out = refine_face(target, target.rows, [], START, at_start, settings)
+    target.alone.clear()
+    return refine_face(target, target.rows, [], START, at_start, settings)
+
+
+def test_refit_sweeps_rank_on_a_spread_subset_and_score_the_chosen_alone():
+    """A campaign of more recordings than a sweep ranks on: each sweep's batch (the start and
+    the grid) is ``SWEEP_RECORDINGS`` recordings at the settings the start was scored with
+    (not a screen), spanning the campaign's betas, and at most ``SWEEP_RESCORED`` points per
+    sweep are scored on every recording."""
+    target = spread_campaign()
+    out = _refit(target)
+    settings = FIT_SETTINGS_NUMERICAL
     assert len(target.batches) == 5  # the mass, the scale, the exponent, damping and ratio
-    assert all(n == len(target.rows) and st == settings for n, st in target.batches)
+    assert all(n == SWEEP_RECORDINGS < len(target.rows) and st == settings
+               for n, st in target.batches)  # fmt: skip
+    beta = {r.recording: r.beta for r in target.rows}
+    for names in target.batch_rows:  # the least and the largest beta in every ranking
+        assert {min(beta.values()), max(beta.values())} <= {beta[n] for n in names}
+    assert 1 <= len(target.alone) <= 5 * SWEEP_RESCORED
+    assert all(n == len(target.rows) for n in target.alone)
     assert out["params"]["face_mass"] == pytest.approx(0.1145, rel=0.01)
+
+
+def test_refit_on_a_subset_ends_where_the_full_sweeps_end_when_they_rank_alike(monkeypatch):
+    """Where the subset ranks the grid as every recording does (the stand-in's recordings
+    agree), the refit ends on the same face, to the bit, as with every sweep on every
+    recording, for less: fewer rows simulated in the sweeps' batches."""
+    subset = spread_campaign()
+    on_subset = _refit(subset)
+    monkeypatch.setattr(face_by_simulation, "SWEEP_RECORDINGS", 10**6)
+    everywhere = spread_campaign()
+    full = _refit(everywhere)
+    assert all(n == len(everywhere.rows) for n, _ in everywhere.batches)
+    assert on_subset["params"] == full["params"]
+    np.testing.assert_array_equal(on_subset["per_recording"], full["per_recording"])
+    assert sum(n for n, _ in subset.batches) < sum(n for n, _ in everywhere.batches)
+
+
+def test_a_sweep_whose_start_ranks_first_scores_nothing_alone():
+    """The start already best on the subset (a face at the repeatable recordings' best mass,
+    its other parameters not read by them): no point is scored alone, the start is kept."""
+    target = spread_campaign()
+    start = {**START, "face_mass": 0.12}
+    at_start = target.per_recording([LearnedContact(**start)], FIT_SETTINGS_NUMERICAL)
+    target.alone.clear()
+    out = refine_face(target, target.rows, [], start, at_start, FIT_SETTINGS_NUMERICAL)
+    assert target.alone == []
+    assert out["params"]["face_mass"] == 0.12
+    assert not out["improves"]
+
+
+def test_face_refit_settings_are_validated():
+    """The shipped settings load (``configs/face_refit.yaml``) and a sweep that ranks on one
+    recording, or rescores none, is refused."""
+    shipped = face_refit_settings()
+    assert (shipped.sweep_recordings, shipped.sweep_rescored) == (
+        SWEEP_RECORDINGS,
+        SWEEP_RESCORED,
+    )
+    with pytest.raises(ValueError):
+        FaceRefitSettings(sweep_recordings=1)
+    with pytest.raises(ValueError):
+        FaceRefitSettings(sweep_rescored=0)
 
 
 @dataclass

@@ -285,7 +285,6 @@ def fit_effect(
     off: np.ndarray | None = None,
     seeds: Sequence[dict[str, float]] = (),
     subset: int | None = None,
-    screen: bool = True,
 ) -> dict[str, Any]:
     """Fit one effect's parameters, shared by all recordings, on top of ``fixed`` effects.
 
@@ -309,12 +308,6 @@ def fit_effect(
         A closed-form effect is searched on at most this many recordings
         (:func:`spread_subset`, e.g. :data:`SUBSET_SEARCH`), its best point scored on all;
         None: searched on all (a numerical-engine effect's design has its own subset).
-    screen : bool
-        A numerical-engine effect's design is a screen (:func:`_fit_design`): on
-        :data:`SUBSET_NUMERICAL` recordings, at :func:`screen_settings`. False: simulated on
-        every recording at ``settings``, for a search whose objective is rough (a face's
-        refit sweep, :func:`~stiffnet.measurement.face_by_simulation.refine_face`), where a
-        screen does not rank the points as their full scoring does.
 
     Returns
     -------
@@ -324,7 +317,7 @@ def fit_effect(
     """
     # a measurement effect's evaluations share one motion (only its chain moves)
     with reuse_motion():
-        return _fit_effect(target, name, fixed, settings, budget, off, seeds, subset, screen)
+        return _fit_effect(target, name, fixed, settings, budget, off, seeds, subset)
 
 
 def _fit_effect(
@@ -336,7 +329,6 @@ def _fit_effect(
     off: np.ndarray | None,
     seeds: Sequence[dict[str, float]],
     subset: int | None = None,
-    screen: bool = True,
 ) -> dict[str, Any]:
     from stiffnet.measurement.target import settings_for
 
@@ -351,7 +343,7 @@ def _fit_effect(
     seeded = bool(space.global_seeds and read)
     k = len(space.free)
     if numerical:
-        return _fit_design(target, name, fixed, space, design, settings, off, t0, screen)
+        return _fit_design(target, name, fixed, space, design, settings, off, t0)
     if seeded:  # the orbit moves with the effect: starts profiled at it
         model = [*target.base_effects, *fixed, effect_class(name)(**read[0])]
         target = starts_at(target, model, settings)
@@ -513,25 +505,22 @@ def _fit_design(
     settings: SolverSettings,
     off: np.ndarray,
     t0: float,
-    screen: bool = True,
 ) -> dict[str, Any]:
     """A numerical-engine effect's fit: its design simulated as one batch on a subset of the
     recordings (:meth:`CampaignTarget.per_recording_points`), the best point scored alone on
-    all of them when it beats "effect off" on the subset; without ``screen``, the batch on
-    every recording at ``settings`` (:func:`fit_effect`)."""
+    all of them when it beats "effect off" on the subset."""
     cls = effect_class(name)
     model = [*target.base_effects, *fixed]
     points = [space.params(u) for u in design]
     n = len(target.rows)
-    n_searched = min(n, SUBSET_NUMERICAL) if screen else n
-    idx = np.unique(np.round(np.linspace(0, n - 1, n_searched)).astype(int))
+    idx = np.unique(np.round(np.linspace(0, n - 1, min(n, SUBSET_NUMERICAL))).astype(int))
     searched = target if idx.size == n else target.subset(idx)
     # the design scores what a full evaluation would (its first point is then the answer)
     same = idx.size == n and not target.inclination and oversampling(model) == 1
     # else it screens: an analog sensor in the model filters at the logger's rate there
     # (the numerical engine's cost is per step: 8x oversampled, 4x the steps) and the
     # transient is shorter (SCREEN_SETTLE_TOLERANCE); the best point is then scored in full
-    design_settings = settings if same or not screen else screen_settings(settings, True)
+    design_settings = settings if same else screen_settings(settings, True)
     pers = searched.per_recording_points(
         model, name, points, design_settings, inclination=False, oversample=False
     )
