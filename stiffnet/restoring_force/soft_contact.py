@@ -243,7 +243,8 @@ def _joint_pass(y, disp_i, vel_i, tau, use, k, ratio, x_start, response=None) ->
     model's acceleration through the chain's `response` where one is given."""
     c = 2.0 * ratio * np.sqrt(k)
     free = through_chain(free_flight_design(vel_i, disp_i, tau)[:, 2:], response)
-    target = -y - through_chain(k * disp_i + c * vel_i, response)
+    # term by term: through no chain, the same sums as the chain-free fit's, to the bit
+    target = -y - through_chain(k * disp_i, response) - through_chain(c * vel_i, response)
     x, v = x_start, vel_i
     best = None
     for _ in range(TABLE_UPDATES):
