@@ -90,7 +90,7 @@ from stiffnet.restoring_force.sensor import (
     undo_highpass,
     undo_resonance,
 )
-from stiffnet.restoring_force.soft_contact import SoftContactFit, fit_soft_contact
+from stiffnet.restoring_force.soft_contact import SoftContactFit, fit_soft_contact, record_response
 from stiffnet.restoring_force.staged_law import (
     StagedLaw,
     fit_staged_law,
@@ -1303,13 +1303,14 @@ def _soft_reading(
     y, dtau, tau, use, period, k_given = args
     if k_given is None or m.source is None:
         return None
-    # the record as recorded, its high-pass undone: the known low-pass passes every contact
-    # up to the classes' top, far above a soft one, while its inverse's Wiener band took the
-    # pulses' high harmonics from the record but not from the fitted contact (beta 5.8 behind
-    # the rig's 284 Hz sheet read 5.11 [4.67, 5.60] through it, 5.74 [5.43, 6.05] as recorded)
+    # the record as recorded, its high-pass undone, and the known chain's resonance and
+    # low-pass applied to the model (forward), not divided out of the record: its inverse's
+    # Wiener band took the pulses' high harmonics from the record but not from the fitted
+    # contact (beta 5.8 behind the rig's 284 Hz sheet read 5.11 [4.67, 5.60] through it, 5.74
+    # [5.43, 6.05] as recorded)
     record = undo_highpass(y, dtau, m.corner)
     soft = fit_soft_contact(record, dtau, tau, use, period, k_given, m.fit.displacement,
-                            coverage, seed)  # fmt: skip
+                            coverage, seed, _known_response(info, dtau, record.size))  # fmt: skip
     if soft is None:
         return None
     lo, hi = soft.interval
@@ -1337,6 +1338,20 @@ def _soft_reading(
         ),
         **fields,
     )
+
+
+def _known_response(info: dict, dtau: float, n: int) -> np.ndarray | None:
+    """A known chain's resonance and low-pass per ``rfft`` bin of the `n`-sample record
+    whose high-pass is already undone, for the joint fit to pass its model through
+    (forward); None without a known chain with either. The record as recorded keeps the
+    mount's ring after every contact, which a contact law through no chain cannot explain
+    (beta 7.6 behind a 146 Hz, zeta 0.011 mount and a 169 Hz low-pass given: no contacts
+    described, refused; through the chain 7.52 [6.91, 8.18])."""
+    chain = info.get("sensor")
+    if chain is None or chain.source == "fitted" or not chain.has_dynamics:
+        return None
+    fs_hz = 2 * np.pi * info["forcing_frequency_hz"] / dtau
+    return record_response(dataclasses.replace(chain, highpass_hz=0.0), fs_hz, n)
 
 
 def _least_beta(classes: list[tuple[str, float, float]]) -> float:

@@ -44,6 +44,13 @@ forcing shift (``-e / (1 + beta)`` in eq. 12's units, beyond the onset on the fr
 a shallow contact lasts much less than that half period and its duration does not give
 beta. The joint fit reads the law from the state, as the map does.
 
+**Through a known chain.** The model's acceleration meets the record through the chain's
+response (forward: :func:`through_chain`), its state from the record with the chain divided
+out (:func:`motion_of_record`). A lightly damped mount rings after every contact; fitted to
+the record as recorded, the joint law leaves that ring unexplained and describes no contacts
+(stiffnet's engine, beta 7.6 behind a mount at 15 f_n, zeta 0.011, and a 3rd-order low-pass
+at 18 f_n, the chain given: refused; through it 7.33 [6.72, 7.99], docs/crosscheck.md).
+
 **When it is read.** Only where the band is known to carry every contact (the caller's
 rule: a known chain whose low-pass passes every contact up to the classes' top, or none),
 or, with no chain known, where the fit itself leaves none of the record's harmonics beyond
@@ -61,8 +68,9 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, optimize
+from scipy import ndimage, optimize, signal
 
+from stiffnet.restoring_force.chain import MAX_GAIN, SensorChain, chain_sos
 from stiffnet.restoring_force.free_flight import (
     HARMONICS,
     free_flight_design,
@@ -177,35 +185,71 @@ def _relative_state(coef, disp_i, vel_i, tau, k, c) -> tuple[np.ndarray, np.ndar
     return x, v
 
 
-def _at_onset(free: np.ndarray, target, x, v, e: float, use) -> tuple:
+def through_chain(columns: np.ndarray, response: np.ndarray | None) -> np.ndarray:
+    """`columns` (samples along axis 0) through a chain's response per ``rfft`` bin, applied
+    as a periodic filter (the record spans whole forcing periods); unchanged without one."""
+    if response is None:
+        return columns
+    spec = np.fft.rfft(columns, axis=0)
+    shape = (-1,) + (1,) * (columns.ndim - 1)
+    return np.fft.irfft(spec * response.reshape(shape), columns.shape[0], axis=0)
+
+
+def motion_of_record(y: np.ndarray, response: np.ndarray | None) -> np.ndarray:
+    """The acceleration whose integrals give the state: the record with the chain divided
+    out (the gain capped at :data:`~.chain.MAX_GAIN`), the record itself without a chain.
+
+    The model meets the record through the chain, but its state must be the mass's own: the
+    chain's high-pass turns the forcing's phase by ``atan(f_h / f_f)`` and lowers its
+    amplitude, and a resonance's ring integrates into the velocity, so that the state of the
+    record as recorded puts the onset and the contact's damping in the wrong place (true
+    chain forward without the state undone: beta 21.8 read 3.6, 7.6 read 2.1). What the
+    division amplifies above the low-pass is noise divided by ``w`` and ``w^2``.
+    """
+    if response is None:
+        return y
+    mag = np.abs(response)
+    h = np.where(mag * MAX_GAIN < 1.0, np.exp(1j * np.angle(response)) / MAX_GAIN, response)
+    return np.fft.irfft(np.fft.rfft(y) / h, y.size)
+
+
+def _contact_columns(inside, pen, v, response) -> np.ndarray:
+    """The contact's stiffness and damping columns, through the chain where one is given."""
+    return through_chain(np.column_stack([np.where(inside, pen, 0.0), np.where(inside, v, 0.0)]),
+                         response)  # fmt: skip
+
+
+def _at_onset(free: np.ndarray, target, x, v, e: float, use, response=None) -> tuple:
     """Least squares at one onset: the contact set released where the force turns tensile."""
     pen = x - e
     inside = pen > 0
     for _ in range(RELEASE_UPDATES + 1):
-        design = np.column_stack([free, np.where(inside, pen, 0.0), np.where(inside, v, 0.0)])
+        design = np.column_stack([free, _contact_columns(inside, pen, v, response)])
         coef = scaled_lstsq(design[use], target[use])
         inside = (pen > 0) & (coef[_K] * pen + coef[_CC] * v > 0)
-    design = np.column_stack([free, np.where(inside, pen, 0.0), np.where(inside, v, 0.0)])
+    design = np.column_stack([free, _contact_columns(inside, pen, v, response)])
     coef = scaled_lstsq(design[use], target[use])
     r = target[use] - design[use] @ coef
     return float(r @ r), coef, design, inside
 
 
-def _onset_cost(free, target, x, v, use, e: float) -> float:
+def _onset_cost(free, target, x, v, use, response, e: float) -> float:
     """The joint fit's sum of squares at onset `e` (:func:`_at_onset`)."""
-    return _at_onset(free, target, x, v, float(e), use)[0]
+    return _at_onset(free, target, x, v, float(e), use, response)[0]
 
 
-def _joint_pass(y, disp_i, vel_i, tau, use, k, ratio, x_start) -> _Pass:
-    """The joint fit at one free damping ratio: onset profiled, the table updated."""
+def _joint_pass(y, disp_i, vel_i, tau, use, k, ratio, x_start, response=None) -> _Pass:
+    """The joint fit at one free damping ratio: onset profiled, the table updated; the
+    model's acceleration through the chain's `response` where one is given."""
     c = 2.0 * ratio * np.sqrt(k)
-    free = free_flight_design(vel_i, disp_i, tau)[:, 2:]  # constant, table harmonics
-    target = -y - k * disp_i - c * vel_i
+    free = through_chain(free_flight_design(vel_i, disp_i, tau)[:, 2:], response)
+    # term by term: through no chain, the same sums as the chain-free fit's, to the bit
+    target = -y - through_chain(k * disp_i, response) - through_chain(c * vel_i, response)
     x, v = x_start, vel_i
     best = None
     for _ in range(TABLE_UPDATES):
         onsets = np.quantile(x[use], np.linspace(*ONSET_QUANTILES, ONSET_GRID))
-        cost = functools.partial(_onset_cost, free, target, x, v, use)
+        cost = functools.partial(_onset_cost, free, target, x, v, use, response)
         sses = [cost(float(e)) for e in onsets]
         i = int(np.argmin(sses))
         sol = optimize.minimize_scalar(
@@ -215,7 +259,7 @@ def _joint_pass(y, disp_i, vel_i, tau, use, k, ratio, x_start) -> _Pass:
             options={"xatol": ONSET_TOLERANCE * float(np.ptp(x[use]))},
         )
         e = float(sol.x) if sol.fun < sses[i] else float(onsets[i])
-        sse, coef, design, inside = _at_onset(free, target, x, v, e, use)
+        sse, coef, design, inside = _at_onset(free, target, x, v, e, use, response)
         best = _Pass(sse, coef, design, target, x, v, inside)
         if not coef[_K] > 0:
             break
@@ -256,6 +300,7 @@ def fit_soft_contact(
     start_displacement: np.ndarray,
     coverage: float = 0.9,
     seed: int = 0,
+    response: np.ndarray | None = None,
 ) -> SoftContactFit | None:
     """Rule: beta of contacts that do not stand out, by the joint fit of the module notes;
     None where the fit describes no contacts.
@@ -279,15 +324,18 @@ def fit_soft_contact(
         Nominal coverage of the bootstrap interval.
     seed : int
         Seed of the bootstrap.
+    response : numpy.ndarray, optional
+        A sensor chain's complex response per ``rfft`` bin of `y`: the model's acceleration
+        is passed through it (forward, the record left as recorded) before it meets `y`.
 
     Returns
     -------
     SoftContactFit or None
     """
-    vel_i, disp_i = integrate_spectral(y, dtau)
+    vel_i, disp_i = integrate_spectral(motion_of_record(y, response), dtau)
     k = stiffness
     passes = {
-        r: _joint_pass(y, disp_i, vel_i, tau, use, k, r, start_displacement)
+        r: _joint_pass(y, disp_i, vel_i, tau, use, k, r, start_displacement, response)
         for r in FREE_DAMPING_RATIOS
     }
     ratio = min(passes, key=lambda r: passes[r].sse)
@@ -334,3 +382,15 @@ def fit_soft_contact(
         force=force[use],
         residual=(p.target - p.design @ p.coef)[use],
     )
+
+
+def record_response(chain: SensorChain, fs_hz: float, n: int) -> np.ndarray:
+    """The chain's response per ``rfft`` bin of an `n`-sample record: its digital
+    resonance and low-pass (:func:`~.chain.chain_sos`, as a logger's sections) and its
+    first-order high-pass."""
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    sos = chain_sos(chain, fs_hz)
+    h = np.ones(f.size, complex) if sos is None else signal.sosfreqz(sos, worN=f, fs=fs_hz)[1]
+    if chain.highpass_hz:
+        h = h * (1j * f) / (1j * f + chain.highpass_hz)
+    return h
