@@ -15,8 +15,10 @@ contact law. :func:`restoring_force_estimate` chains
    forcing share a frequency and ``k`` is poorly determined by one record);
 4. the contact law with dissipation and exponent on the samples around the
    impacts (:mod:`.contact_law`): ``beta = K / k``;
-5. an interval by bootstrap over impacts, goodness of fit, and a refusal with a
-   reason when there is no contact or the fit means nothing.
+5. an interval by bootstrap over impacts (and, where the high-pass corner is the
+   record's own, over the corners its contact law cannot exclude: :mod:`.corner_profile`),
+   goodness of fit, and a refusal with a reason when there is no contact or the fit means
+   nothing.
 
 Polarity and gain: the record's polarity is chosen so that contact forces are
 compressive (the spikes' side); every slope is a ratio within the same map, so
@@ -178,7 +180,9 @@ class RestoringForceResult:
     beta : float or None
         ``K / k``, the contact stiffness over the free-flight stiffness.
     beta_interval : tuple of float or None
-        Bootstrap interval over impacts at `coverage`.
+        Bootstrap interval over impacts at `coverage`, spanning the profiled high-pass
+        corners the record cannot exclude (:mod:`.corner_profile`) and a chain's other
+        readings.
     restoring_force_class : str
         Class of `beta` by the configured edges, ``"no_contact"`` without contact,
         None when refused for another reason.
