@@ -15,8 +15,10 @@ contact law. :func:`restoring_force_estimate` chains
    forcing share a frequency and ``k`` is poorly determined by one record);
 4. the contact law with dissipation and exponent on the samples around the
    impacts (:mod:`.contact_law`): ``beta = K / k``;
-5. an interval by bootstrap over impacts, goodness of fit, and a refusal with a
-   reason when there is no contact or the fit means nothing.
+5. an interval by bootstrap over impacts (and, where the high-pass corner is the
+   record's own, over the corners its contact law cannot exclude: :mod:`.corner_profile`),
+   goodness of fit, and a refusal with a reason when there is no contact or the fit means
+   nothing.
 
 Polarity and gain: the record's polarity is chosen so that contact forces are
 compressive (the spikes' side); every slope is a ratio within the same map, so
@@ -62,6 +64,7 @@ from stiffnet.restoring_force.contact_law import (
     profile_contact_start,
 )
 from stiffnet.restoring_force.contact_poles import fit_contact_poles
+from stiffnet.restoring_force.corner_profile import corner_readings
 from stiffnet.restoring_force.free_flight import (
     CONTACT_SIGMAS,
     MIN_FLIGHT_SAMPLES,
@@ -177,7 +180,9 @@ class RestoringForceResult:
     beta : float or None
         ``K / k``, the contact stiffness over the free-flight stiffness.
     beta_interval : tuple of float or None
-        Bootstrap interval over impacts at `coverage`.
+        Bootstrap interval over impacts at `coverage`, spanning the profiled high-pass
+        corners the record cannot exclude (:mod:`.corner_profile`) and a chain's other
+        readings.
     restoring_force_class : str
         Class of `beta` by the configured edges, ``"no_contact"`` without contact,
         None when refused for another reason.
@@ -481,6 +486,9 @@ class _Map:
     #: What the record of a chain's inverse keeps of the true acceleration
     #: (:func:`~.band.kept_band`): the contact law is fitted through it
     band: np.ndarray | None = None
+    #: ``(1 - R2, beta)`` at each high-pass corner profiled where the corner is the record's
+    #: own (:func:`_profiled_corner`; None where none was): the interval's corner term
+    corner_profile: list[tuple[float, float]] | None = None
 
 
 def _auto_map(
@@ -552,9 +560,14 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     profiled = _fit_map(*args, c_best, exponent, inverse=m.inverse, band=m.band)
     if _contact_r2(maps[best]) > _contact_r2(profiled):
         c_best, profiled = float(best), maps[best]
+    # every corner's reading and misfit: the interval spans those the record cannot exclude
+    profile = [
+        (1.0 - x.law.r2, x.law.stiffness / x.fit.stiffness)
+        for x in (m, profiled, *maps.values()) if _readings([x])
+    ]  # fmt: skip
     if 1.0 - _contact_r2(profiled) <= HIGHPASS_PROFILE_GAIN * (1.0 - _contact_r2(m)):
-        return profiled, c_best
-    return m, corner
+        m, corner = profiled, c_best
+    return dataclasses.replace(m, corner_profile=profile), corner
 
 
 def _in_contact(fit: FreeFlightFit, use: np.ndarray) -> np.ndarray:
@@ -1186,7 +1199,7 @@ def _estimate_at(
         m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
         chain_fit_below_r2, rivals=interval, profile=interval or chain_profile,
     )  # fmt: skip
-    corner = m.corner
+    corner, corner_profile = m.corner, m.corner_profile
     own_damping = float(m.info.get("free_damping_ratio", np.nan))
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
             and m.spc >= PROFILE_MIN_SAMPLES and m.law.r2 >= PROFILE_MIN_R2):  # fmt: skip
@@ -1247,6 +1260,13 @@ def _estimate_at(
         soft = soft_reading(why) if why else None
         if soft is not None:
             return soft
+    if interval and corner_profile and stage_ratio is None and hc is None and poles is None:
+        # the record's own high-pass corner: the interval is the union of the intervals at
+        # every corner its contact law cannot exclude, each as wide (in log beta) as the
+        # read corner's (the bootstrap and systematic terms hold the corner fixed)
+        at = corner_readings(corner_profile, m.n_impacts, coverage)
+        lo = min([lo, *(b * lo / beta for b in at)])
+        hi = max([hi, *(b * hi / beta for b in at)])
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
