@@ -187,13 +187,16 @@ def test_predict_batch_reads_no_law_through_a_chain_the_map_could_not_undo():
 
 
 def test_the_shipped_level_flags_what_the_in_world_campaigns_never_reach():
-    """The shipped level against bench_alarm's p-values (24 recordings a set, offsets
-    0 / 1000 / 2000): every in-world campaign stays unflagged (the lowest, sensor_dynamics
-    5 of 17, p 2.2e-2), and the weakest unseen-law campaigns are flagged (bilinear and power
-    law, 7 of 21, p 3.3e-3; the rig's two-stage law behind a mount, 8 of 24, p 1.7e-3)."""
-    for n, m in ((17, 5), (14, 3), (20, 4), (18, 2), (24, 0)):
+    """The shipped level against bench_alarm's p-values (24 recordings a set), counted with
+    maps read through a chain left on not read: at offsets 0 / 1000 / 2000 every in-world
+    campaign stays unflagged (the lowest, damping_and_sensor 3 of 10, p 7.0e-2; before,
+    sensor_dynamics 5 of 17, p 2.2e-2), and the weakest unseen-law campaigns are flagged
+    (power law 7 of 21, p 3.3e-3; bilinear 8 of 21; the rig's two-stage law behind a mount
+    13 of 23). The fresh in-world sensor_dynamics draws at 3000 / 4000 / 5000 (5 of 13,
+    5 of 13, 6 of 19) stay unflagged, one firing recording short of the level."""
+    for n, m in ((10, 3), (11, 3), (13, 3), (14, 2), (22, 1), (24, 0), (13, 5), (19, 6)):
         assert not campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
-    for n, m in ((21, 7), (24, 8)):
+    for n, m in ((21, 7), (21, 8), (23, 13), (13, 6), (19, 7)):
         assert campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
 
 
