@@ -160,6 +160,8 @@ def test_a_law_read_through_a_chain_the_map_could_not_undo_is_no_reading():
         True,
         True,
     )
+    _, mixed = campaign_law_alarms([both] + [_through([], None, None)] * 3)
+    assert mixed["by_check"] == {"contact_law": 0, "restraint_dynamics": 0, "contact_duration": 1}
     alone = results[0]
     assert contact_law_fired(alone["alarm"], restoring_force=alone["restoring_force"]) == (
         False,
