@@ -224,7 +224,9 @@ def result_row(
             # the alarm's checks that fired (comma-separated), and whether its contact-law
             # check could judge the recording (the campaign's law is judged on all of them)
             "alarm_fired": ",".join((result.get("alarm") or {}).get("fired") or []) or None,
-            "contact_law_judged": contact_law_fired(result.get("alarm"))[0],
+            "contact_law_judged": contact_law_fired(
+                result.get("alarm"), restoring_force=result.get("restoring_force")
+            )[0],
             "n_windows": result.get("n_windows"),
             "fs_hz": result.get("fs_hz"),
             "natural_frequency_hz": result.get("natural_frequency_hz"),
@@ -584,7 +586,13 @@ def _campaign_law(table: pa.Table) -> tuple[pa.Table, dict[str, Any]]:
     (:func:`stiffnet.uncertainty.campaign_law.campaign_law_decision`) and, where it is
     outside the model's world, every predicted row flagged with ``campaign_law``."""
     judged = [bool(j) for j in table.column("contact_law_judged").to_pylist()]
-    seen = [law_checks_fired((f or "").split(",")) for f in table.column("alarm_fired").to_pylist()]
+    fired = table.column("alarm_fired").to_pylist()
+    # a row whose law was not read (its contact_law reading through a chain its map could
+    # not undo, contact_law_judged) has no say in which checks fired either
+    seen = [
+        law_checks_fired((f or "").split(",")) if j else []
+        for f, j in zip(fired, judged, strict=True)
+    ]
     decision = campaign_law_decision(judged, [bool(s) for s in seen], seen=seen)
     if not decision["flag"]:
         return table, decision

@@ -13,6 +13,7 @@ from stiffnet.uncertainty.campaign_law import (
     campaign_law_alarms,
     campaign_law_decision,
     campaign_law_thresholds,
+    chain_left_on_map,
     contact_law_fired,
     law_checks_fired,
     with_campaign_law,
@@ -121,14 +122,83 @@ def test_contacts_outlasting_their_law_count_as_a_law_read_outside_the_world():
     assert contact_law_fired(_judged([])["alarm"], t) == (True, False)
 
 
+def _through(fired: list[str], sensor: dict | None, resonance_hz: float | None) -> dict:
+    """A judged prediction whose map was read with the mount's ringing at `resonance_hz`
+    divided out (None: none seen) and `sensor` the chain fitted (None: none)."""
+    out = _judged(fired)
+    return {**out, "restoring_force": {"resonance_hz": resonance_hz, "sensor": sensor}}
+
+
+def test_a_law_read_through_a_chain_the_map_could_not_undo_is_no_reading():
+    """The training world's sensor_dynamics set at bench_alarm --seed-offset 3000: 10 of the
+    20 judged recordings fire (p 7e-6, the campaign called outside the model's world), 5 of
+    them right answers whose maps show a mount's ringing (144-238 Hz, divided out) but no
+    chain undone, 2 more such maps quiet. Those 7 are no reading of the law: 5 of 13 (p
+    6.5e-3) is not flagged. A chain that was undone, or a check reading the contacts'
+    duration on a map with the chain left on, still counts."""
+    left = {"resonance_hz": 190.0, "resonance_damping": 0.03, "applied": False}
+    results = ([_through(["contact_law"], None, 189.9)] * 3
+               + [_through(["contact_law"], left, 237.7)] * 2
+               + [_through([], None, 160.0)] * 2
+               + [_through(["contact_law"], {**left, "applied": True}, 208.8)] * 4
+               + [_refused_for_duration(2.1)]
+               + [_through([], None, None)] * 8
+               + [{"class": "soft", "alarm": None}] * 4)  # fmt: skip
+    _, decision = campaign_law_alarms(results)
+    assert (decision["n_judged"], decision["n_fired"]) == (13, 5) and not decision["flag"]
+    assert decision["p_value"] == pytest.approx(stats.binom.sf(4, 13, 0.1))
+    assert decision["by_check"]["contact_law"] == 4
+    counted = campaign_law_thresholds().model_copy(update={"count_chain_left_on_map": True})
+    _, before = campaign_law_alarms(results, counted)
+    assert (before["n_judged"], before["n_fired"]) == (20, 10) and before["flag"]
+    assert chain_left_on_map(results[0]["restoring_force"])
+    assert not chain_left_on_map(results[7]["restoring_force"])  # undone
+    assert not chain_left_on_map({"resonance_hz": None, "sensor": None})  # no ringing seen
+    # the contacts' duration still reads the law on a map with the chain left on
+    both = _through(["contact_law", "contact_duration"], None, 190.0)
+    assert contact_law_fired(both["alarm"], restoring_force=both["restoring_force"]) == (
+        True,
+        True,
+    )
+    _, mixed = campaign_law_alarms([both] + [_through([], None, None)] * 3)
+    assert mixed["by_check"] == {"contact_law": 0, "restraint_dynamics": 0, "contact_duration": 1}
+    alone = results[0]
+    assert contact_law_fired(alone["alarm"], restoring_force=alone["restoring_force"]) == (
+        False,
+        False,
+    )
+
+
+def test_predict_batch_reads_no_law_through_a_chain_the_map_could_not_undo():
+    """predict-batch's row records contact_law_judged with the same rule, and an unread row
+    names no check in the campaign's summary."""
+    from serving.batch_prediction import _campaign_law
+
+    fired = ["contact_law"] * 8 + [None] * 16
+    judged = [False] * 4 + [True] * 20  # 4 of the firing maps read through a chain left on
+    table = pa.table({
+        "path": [f"r{i}" for i in range(24)],
+        "ood_flag": [f is not None for f in fired],
+        "alarm_fired": fired,
+        "contact_law_judged": judged,
+        "error": [None] * 24,
+    })  # fmt: skip
+    _, decision = _campaign_law(table)
+    assert (decision["n_judged"], decision["n_fired"]) == (20, 4) and not decision["flag"]
+    assert decision["by_check"]["contact_law"] == 4
+
+
 def test_the_shipped_level_flags_what_the_in_world_campaigns_never_reach():
-    """The shipped level against bench_alarm's p-values (24 recordings a set, offsets
-    0 / 1000 / 2000): every in-world campaign stays unflagged (the lowest, sensor_dynamics
-    5 of 17, p 2.2e-2), and the weakest unseen-law campaigns are flagged (bilinear and power
-    law, 7 of 21, p 3.3e-3; the rig's two-stage law behind a mount, 8 of 24, p 1.7e-3)."""
-    for n, m in ((17, 5), (14, 3), (20, 4), (18, 2), (24, 0)):
+    """The shipped level against bench_alarm's p-values (24 recordings a set), counted with
+    maps read through a chain left on not read: at offsets 0 / 1000 / 2000 every in-world
+    campaign stays unflagged (the lowest, damping_and_sensor 3 of 10, p 7.0e-2; before,
+    sensor_dynamics 5 of 17, p 2.2e-2), and the weakest unseen-law campaigns are flagged
+    (power law 7 of 21, p 3.3e-3; bilinear 8 of 21; the rig's two-stage law behind a mount
+    13 of 23). The fresh in-world sensor_dynamics draws at 3000 / 4000 / 5000 (5 of 13,
+    5 of 13, 6 of 19) stay unflagged, one firing recording short of the level."""
+    for n, m in ((10, 3), (11, 3), (13, 3), (14, 2), (22, 1), (24, 0), (13, 5), (19, 6)):
         assert not campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
-    for n, m in ((21, 7), (24, 8)):
+    for n, m in ((21, 7), (21, 8), (23, 13), (13, 6), (19, 7)):
         assert campaign_law_decision([True] * n, [True] * m + [False] * (n - m))["flag"]
 
 

@@ -29,6 +29,21 @@ stage adds its own time to every contact, the mount's ringing hides its force fr
 stage and soft-first-stage rules), and a rule that counted only the maps it could judge
 then missed the campaign; no recording of the training world's sets is refused so.
 
+A contact-law reading through a chain the map could not undo is no reading of the law
+(:func:`chain_left_on_map`): where the record shows a mount's ringing (the cross-check
+divided it out, ``resonance_hz``) but the chain it belongs to was not undone (no chain
+fitted, the law fitting well enough as recorded, or a fitted one rejected), the map still
+carries the chain's low-pass and whatever of the mount the division missed, and the
+exponent and curvature rules read that chain's bend of the pulse (the training world's
+sensor sets: exponents 1.23-2.01 and curvature gains 0.17-0.49 on such maps of right
+answers). Such a recording's ``contact_law`` check neither counts as read nor as fired; a
+counted check that reads the contacts' duration or the restraint still counts. The training
+world's sensor sets put 7 such maps, 5 of them firing, among the 20 read recordings of one
+campaign (sensor_dynamics at ``--seed-offset`` 3000, flagged at p 7e-6 by a count that held
+them; without them 5 of 13, p 6.5e-3); no firing map of an unseen-law set is such a map
+(the rig's two-stage law behind a mount fires through its undone chain). Behind the
+priors' chains the rules still fire above the in-world rate (docs/crosscheck.md).
+
 Numpy/scipy only: the predictor's campaign commands (``evaluate``, ``predict-batch``)
 import it.
 """
@@ -74,6 +89,9 @@ class CampaignLawThresholds(BaseModel):
     level: float = Field(5e-3, gt=0.0, lt=1.0)
     #: The per-recording checks whose firing counts (:data:`LAW_CHECKS`, or fewer).
     law_checks: list[str] = Field(default_factory=lambda: list(LAW_CHECKS))
+    #: Whether a ``contact_law`` reading through a chain the map could not undo
+    #: (:func:`chain_left_on_map`) counts; false: it is no reading of the law.
+    count_chain_left_on_map: bool = False
 
     @field_validator("law_checks")
     @classmethod
@@ -92,17 +110,40 @@ def campaign_law_thresholds() -> CampaignLawThresholds:
     return shipped_settings(CampaignLawThresholds, THRESHOLDS_CONFIG)
 
 
+def chain_left_on_map(restoring_force: dict[str, Any] | None) -> bool:
+    """Rule: the restoring-force map was read through a sensor chain it could not undo: the
+    record shows a mount's ringing (``resonance_hz``, divided out) and no chain was undone
+    (``sensor`` absent or not ``applied``). The law's shape read there is partly the chain's."""
+    rf = restoring_force or {}
+    return rf.get("resonance_hz") is not None and not (rf.get("sensor") or {}).get("applied")
+
+
 def contact_law_fired(
-    alarm: dict[str, Any] | None, thresholds: CampaignLawThresholds | None = None
+    alarm: dict[str, Any] | None,
+    thresholds: CampaignLawThresholds | None = None,
+    restoring_force: dict[str, Any] | None = None,
 ) -> tuple[bool, bool]:
     """Whether a recording's law was read and whether a check of the counted
     :attr:`CampaignLawThresholds.law_checks` fired: read where the ``contact_law`` check
     judged its map, or where a counted check fired on a map it could not judge (the
-    cross-check refused contacts that outlast their law)."""
+    cross-check refused contacts that outlast their law). The ``contact_law`` check's own
+    reading does not count on a map read through a chain it could not undo
+    (:func:`chain_left_on_map` of the recording's `restoring_force`), unless
+    :attr:`CampaignLawThresholds.count_chain_left_on_map`."""
+    judged, counted = _law_read(alarm, thresholds or campaign_law_thresholds(), restoring_force)
+    return judged, bool(counted)
+
+
+def _law_read(
+    alarm: dict[str, Any] | None, t: CampaignLawThresholds, restoring_force: dict[str, Any] | None
+) -> tuple[bool, list[str]]:
+    """:func:`contact_law_fired`'s reading, with the counted checks that fired."""
     alarm = alarm or {}
-    fired = law_checks_fired(alarm.get("fired") or [], thresholds)
-    judged = "contact_law" in (alarm.get("scores") or {}) or bool(fired)
-    return judged, bool(fired)
+    fired = law_checks_fired(alarm.get("fired") or [], t)
+    own = "contact_law" in (alarm.get("scores") or {})
+    if own and not t.count_chain_left_on_map and chain_left_on_map(restoring_force):
+        own, fired = False, [name for name in fired if name != "contact_law"]
+    return own or bool(fired), fired
 
 
 def law_checks_fired(
@@ -181,7 +222,7 @@ def campaign_law_alarms(
     """The campaign's predictions with :func:`with_campaign_law` applied, and the decision
     (:func:`campaign_law_decision` over their alarms)."""
     t = thresholds or campaign_law_thresholds()
-    reads = [contact_law_fired(r.get("alarm"), t) for r in results]
-    seen = [law_checks_fired((r.get("alarm") or {}).get("fired") or [], t) for r in results]
-    decision = campaign_law_decision([j for j, _ in reads], [f for _, f in reads], t, seen)
+    reads = [_law_read(r.get("alarm"), t, r.get("restoring_force")) for r in results]
+    seen = [counted for _, counted in reads]
+    decision = campaign_law_decision([j for j, _ in reads], [bool(c) for c in seen], t, seen)
     return [with_campaign_law(r, decision) for r in results], decision
