@@ -326,7 +326,8 @@ def fit_soft_contact(
         Seed of the bootstrap.
     response : numpy.ndarray, optional
         A sensor chain's complex response per ``rfft`` bin of `y`: the model's acceleration
-        is passed through it (forward, the record left as recorded) before it meets `y`.
+        is passed through it (forward) before it meets `y` as recorded, and the state is
+        integrated from `y` with the chain divided out (:func:`motion_of_record`).
 
     Returns
     -------
