@@ -447,10 +447,10 @@ def _sweep(
         ahead = [int(j) for j in np.argsort(values, kind="stable") if values[j] < values[0]]
         o_best, kept = objective_value(per, tgt.weights), (best, per)
         for j in ahead[:SWEEP_RESCORED]:
-            alone = np.asarray(tgt.per_recording([*model, LearnedContact(**points[j])],
-                                                 settings), float)  # fmt: skip
-            if objective_value(alone, tgt.weights) < o_best:
+            law = LearnedContact(**points[j])
+            alone = np.asarray(tgt.per_recording([*model, law], settings), float)
+            o_alone = objective_value(alone, tgt.weights)
+            if o_alone < o_best:
                 # every parameter of the law, as the fits report a point
-                taken = {**LearnedContact(**points[j]).params.model_dump(), **points[j]}
-                o_best, kept = objective_value(alone, tgt.weights), (taken, alone)
+                o_best, kept = o_alone, ({**law.params.model_dump(), **points[j]}, alone)
     return dict(kept[0]), kept[1], list(box)
