@@ -67,7 +67,10 @@ other checkout's, alternately for ``--rounds`` rounds (before first); the table 
 run's CPU seconds (the process and its children), wall seconds, the load, the verdict, the
 learned law's proposal (the share of the base model's excess it explains, its discrepancy, its
 face's values) and the seconds of the face by simulation, then the CPU ratio of the best runs
-(the answers must not change).
+(the answers must not change). ``--phases``: also a table of each run's CPU seconds per phase
+(:data:`PHASES`: the restoring-force evidence, the library's fits, the discovery, the face by
+simulation and its parts), timed by wrappers in the run's process (``--workers 0`` to see
+them all).
 
 Run (from the repository root, so this checkout's package is imported)::
 
@@ -386,9 +389,49 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 )
 
 
+#: ``--phases``: the diagnosis' phases timed in CPU seconds of this process (label: module,
+#: function), each counted where it is not nested in itself; the face by simulation's parts
+#: are within its own line.
+PHASES = {
+    "restoring-force evidence": ("stiffnet.measurement.diagnose", "restoring_force_evidence"),
+    "library fits alone": ("stiffnet.measurement.diagnose", "_fit_alone"),
+    "selection steps": ("stiffnet.measurement.diagnose", "_step"),
+    "discovery's maps": ("stiffnet.measurement.learned_law", "campaign_contact_samples"),
+    "law discovered": ("stiffnet.measurement.learned_law", "_discovered"),
+    "face by simulation": ("stiffnet.measurement.learned_law", "face_by_simulation"),
+    "  maps' face fits": ("stiffnet.measurement.face_by_simulation", "maps_face_law"),
+    "  grid screens": ("stiffnet.measurement.face_by_simulation", "_screen_batch"),
+    "  grid points alone": ("stiffnet.measurement.face_by_simulation", "_scored_alone"),
+    "  refits (sweeps)": ("stiffnet.measurement.face_by_simulation", "refine_face"),
+}
+
 CAMPAIGN = (
     SCRIPT_HEAD
     + """
+phases = {}
+if a.get("phases"):
+    import importlib
+
+    def timed_phase(label, module, name):
+        fn, active = getattr(module, name), []
+
+        def run(*args, **kw):
+            t0 = time.process_time()
+            active.append(1)
+            try:
+                return fn(*args, **kw)
+            finally:
+                active.pop()
+                if not active:
+                    c, n = phases.get(label, (0.0, 0))
+                    phases[label] = (c + time.process_time() - t0, n + 1)
+
+        setattr(module, name, run)
+
+    for label, (mod, name) in a["phases"].items():
+        m = importlib.import_module(mod)
+        if hasattr(m, name):
+            timed_phase(label, m, name)
 res = diagnose_campaign(camp, effects=a["effects"], workers=a["workers"],
                         inclination=a["inclination"])
 ll = res.get("learned_law") or {}
@@ -399,7 +442,8 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
                   "residual": res["residual_discrepancy"], "proposed": ll.get("proposed"),
                   "explained": ll.get("explained_fraction"), "after": ll.get("discrepancy_after"),
                   "face": {k: v for k, v in params.items() if k.startswith("face_")},
-                  "term": face.get("term"), "face_seconds": face.get("seconds")}))
+                  "term": face.get("term"), "face_seconds": face.get("seconds"),
+                  "phases": phases}))
 """
 )
 
@@ -410,8 +454,10 @@ def campaign_runs(args: argparse.Namespace) -> None:
     import subprocess
 
     spec = {"campaign": str(Path(args.campaign).resolve()), "effects": args.only,
-            "inclination": not args.no_inclination, "workers": args.workers or None}  # fmt: skip
+            "inclination": not args.no_inclination, "workers": args.workers or None,
+            "phases": PHASES if args.phases else None}  # fmt: skip
     codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
+    runs: list[tuple[str, dict]] = []
     print("| code | round | CPU s | wall s | load | verdict | learned law: explained, "
           "discrepancy | face | face by simulation, s |\n|---|---|---|---|---|---|---|---|---|",
           flush=True)  # fmt: skip
@@ -423,6 +469,7 @@ def campaign_runs(args: argparse.Namespace) -> None:
             out = subprocess.run([sys.executable, "-c", CAMPAIGN, json.dumps(spec)], env=env,
                                  capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
             r = json.loads(out.stdout.strip().splitlines()[-1])
+            runs.append((f"{name} {k + 1}", r))
             if name not in best or r["cpu"] < best[name]["cpu"]:
                 best[name] = r
             face = ", ".join(f"{f.removeprefix('face_')} {v:.4g}" for f, v in r["face"].items()
@@ -432,6 +479,8 @@ def campaign_runs(args: argparse.Namespace) -> None:
             print(f"| {name} | {k + 1} | {r['cpu']:.1f} | {r['wall']:.1f} | {load0:.1f} -> "
                   f"{os.getloadavg()[0]:.1f} | {r['verdict']} | {said} | {face or '-'} | "
                   f"{r['face_seconds'] or '-'} |", flush=True)  # fmt: skip
+    if args.phases:
+        _phase_table(runs)
     if "before" in best:
         b, n = best["before"], best["now"]
         same = all(b[k] == n[k] for k in ("verdict", "selected", "proposed", "explained",
@@ -440,6 +489,17 @@ def campaign_runs(args: argparse.Namespace) -> None:
             f"\nCPU before / now (the best of each): {b['cpu']:.1f} / {n['cpu']:.1f} = "
             f"x{b['cpu'] / n['cpu']:.2f}; the same verdict, law and face to the bit: {same}"
         )
+
+
+def _phase_table(runs: list[tuple[str, dict]]) -> None:
+    """``--phases``: each run's CPU seconds per phase (:data:`PHASES`; calls in brackets)."""
+    print("\n| phase | " + " | ".join(name for name, _ in runs) + " |\n|---|"
+          + "---|" * len(runs))  # fmt: skip
+    for label in PHASES:
+        cells = [r["phases"].get(label) for _, r in runs]
+        print(f"| {label} | " + " | ".join("-" if c is None else f"{c[0]:.1f} ({c[1]})"
+                                           for c in cells) + " |")  # fmt: skip
+    print("| the whole run | " + " | ".join(f"{r['cpu']:.1f}" for _, r in runs) + " |")
 
 
 STATISTICS = """
@@ -568,6 +628,8 @@ def main() -> None:
                     "per code (3)")  # fmt: skip
     ap.add_argument("--campaign", help="an existing campaign folder to diagnose (with "
                     "--baseline: before and now alternately)")  # fmt: skip
+    ap.add_argument("--phases", action="store_true", help="--campaign: also each run's CPU "
+                    "seconds per phase of the diagnosis (in-process: --workers 0)")  # fmt: skip
     ap.add_argument("--only", action="append", help="--campaign: a candidate effect "
                     "(repeatable; default: every shipped effect)")  # fmt: skip
     ap.add_argument(

@@ -77,6 +77,8 @@ class FaceMassCampaign:
     #: The recordings of each batch of points, and the rows of each model scored alone.
     batch_rows: list[list[str]] = field(default_factory=list)
     alone: list[int] = field(default_factory=list)
+    #: The points of each batch.
+    batch_points: list[list[dict[str, float]]] = field(default_factory=list)
 
     def observed(self) -> dict[str, float]:
         return {}
@@ -104,6 +106,7 @@ class FaceMassCampaign:
     ) -> list[np.ndarray]:
         self.batches.append((len(self.rows), settings))
         self.batch_rows.append([r.recording for r in self.rows])
+        self.batch_points.append([dict(p) for p in points])
         ON_WORKER.append(_on_worker())
         return [self._per([*effects, LearnedContact(**p)]) for p in points]
 
@@ -204,6 +207,32 @@ def test_a_sweep_whose_start_ranks_first_scores_nothing_alone():
     assert target.alone == []
     assert out["params"]["face_mass"] == 0.12
     assert not out["improves"]
+
+
+def test_a_sweep_simulates_the_start_once():
+    """A box centred on the start (the face's mass, damping and beta scale: log-scale, a
+    factor either side) has the start's own value in its grid's middle: the batch holds the
+    start once, the grid's other points beside it; a box the start is not the middle of (the
+    support's ratio, the mass exponent clipped at -1) keeps its whole grid."""
+    target = spread_campaign()
+    _refit(target)
+    first = target.batch_points[0]  # the face's mass: 0.15 within a factor 1.5
+    masses = [p["face_mass"] for p in first]
+    assert masses[0] == START["face_mass"]
+    assert len(first) == face_by_simulation.FACE_REFIT_GRID  # the start and 6 grid points
+    assert sum(np.isclose(masses, START["face_mass"], rtol=1e-9)) == 1
+    assert min(masses) == pytest.approx(0.1) and max(masses) == pytest.approx(0.225)
+    for points in target.batch_points:  # no sweep simulates one point twice
+        keys = [tuple(sorted(p.items())) for p in points]
+        assert len(set(keys)) == len(keys)
+        values = np.array([[p[k] for k in sorted(p)] for p in points])
+        for j in range(1, len(values)):
+            assert not np.allclose(values[j], values[0], rtol=1e-9, atol=0.0)
+    ratio = LearnedContact.fit_space_at(START, 1000.0)
+    box = {fp.name: fp for fp in ratio.free}
+    grid = face_by_simulation.sweep_grid(box["face_stiffness_ratio"], "face_stiffness_ratio",
+                                         START)  # fmt: skip
+    assert len(grid) == face_by_simulation.FACE_REFIT_GRID
 
 
 def test_face_refit_settings_are_validated():

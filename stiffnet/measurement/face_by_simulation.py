@@ -29,6 +29,7 @@ numbers); the later sweeps, each from the one before, run in turn.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import replace
@@ -101,7 +102,8 @@ FACE_PARAMETERS = 3
 #: them one after the other, each across its box (:meth:`LearnedContact.fit_space_at`) on a
 #: grid of this many points simulated as one batch with the best point so far (the objective
 #: is rough: the face's ringing locks the impacts onto one orbit or another, so a local step
-#: misses what a sweep finds).
+#: misses what a sweep finds), less the grid's point at the best point's own value
+#: (:func:`sweep_grid`).
 FACE_KEYS = ("face_mass", "face_stiffness", "face_damping")
 FACE_REFIT_GRID = 7
 #: A face that scales with beta (``face_scaled``): its parameters, of which all but the
@@ -417,6 +419,16 @@ def _first_sweep(
     return _sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0)
 
 
+def sweep_grid(param: Any, key: str, best: dict[str, float]) -> list[dict[str, float]]:
+    """The points of a sweep of ``key`` across ``param``'s range (the others at ``best``):
+    :data:`FACE_REFIT_GRID` evenly spaced in its coordinate, less the one at the start's own
+    value (a box centred on the start has it in its middle; the batch holds the start
+    already)."""
+    values = [param.value(u) for u in np.linspace(0, 1, FACE_REFIT_GRID)]
+    at = float(best[key])
+    return [{**best, key: v} for v in values if not math.isclose(v, at, rel_tol=1e-9)]
+
+
 def _sweep(
     tgt: Any, settings: Any, box: dict[str, Any], key: str, best: dict[str, float], per: np.ndarray
 ) -> tuple[dict[str, float], np.ndarray, list[str]]:
@@ -424,12 +436,11 @@ def _sweep(
     its per-recording discrepancy (``best`` kept unless a point, scored alone as ``per`` was,
     lowers the fits' objective), the fitted names.
 
-    The grid and the start are simulated as one batch at the full settings on
-    :data:`SWEEP_RECORDINGS` recordings spread over the campaign (all of them on a smaller
-    campaign) and ranked there; the :data:`SWEEP_RESCORED` best points ranked above the start
-    are scored alone on every recording."""
-    grid = [{**best, key: box[key].value(u)} for u in np.linspace(0, 1, FACE_REFIT_GRID)]
-    points = [best, *grid]
+    The grid (:func:`sweep_grid`) and the start are simulated as one batch at the full
+    settings on :data:`SWEEP_RECORDINGS` recordings spread over the campaign (all of them on
+    a smaller campaign) and ranked there; the :data:`SWEEP_RESCORED` best points ranked above
+    the start are scored alone on every recording."""
+    points = [best, *sweep_grid(box[key], key, best)]
     # at the full settings: the face's ringing locks impacts onto one orbit or another, and a
     # screen (a short transient begun warm) ranks the sweep's points otherwise than their full
     # scoring (on the material beam struck through 20 beta it missed a mass exponent that
