@@ -343,6 +343,34 @@ def test_a_hertz_class_the_record_does_not_determine_is_flagged():
     assert reference_penetration_span(rf, exact) == pytest.approx([37.1, 49.6], rel=0.01)
 
 
+def test_a_hertz_reading_through_a_chain_left_on_the_map_does_not_flag_the_class():
+    """sensor_dynamics' draw 20 (bench_alarm, seed offset 0): a linear contact, beta 27.4,
+    behind a chain of the priors (low-pass 140 Hz order 3 at 880 Hz, high-pass 1.97 Hz) answered
+    medium, right; the cross-check undid the high-pass (2.04 Hz) but fitted no chain, and read
+    27.5 [25.3, 29.9] at exponent 1.59, R2 0.997, 0.853 of the table's amplitude. The exponent
+    is partly the low-pass's, so no reference penetration is read from it: before, the check
+    fired at a share of 0.74 and this right answer carried an alarm."""
+    from serving.verdict import rule_checks
+    from stiffnet.uncertainty.reference_penetration import (
+        REFERENCE_PENETRATION,
+        reference_penetration_span,
+    )
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": HERTZ_WORLD}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    rf = {**_hertz_check([25.34, 29.92], exponent=1.586, r2=0.997, scale=0.853),
+          "class": "medium", "beta": 27.47, "highpass_hz": 2.04}  # fmt: skip
+    assert reference_penetration_span(rf, HERTZ_WORLD) is None
+    res = rule_checks(quiet, "medium", [4.81, 126.6], rf, model, 880.5, 9.48)
+    assert REFERENCE_PENETRATION not in res["fired"] and "high-pass" in res["exponent_unread"]
+    # the same map with no chain in the record reads as Hertz, and the class is a convention
+    bare = {**rf, "highpass_hz": 0.0}
+    lo, hi = reference_penetration_span(bare, HERTZ_WORLD)
+    assert lo < 15 and hi > 35
+    assert REFERENCE_PENETRATION in rule_checks(quiet, "medium", [4.81, 126.6], bare, model,
+                                                880.5, 9.48)["fired"]  # fmt: skip
+
+
 def test_an_exponent_read_with_an_onset_per_impact_counts_where_the_law_does_not():
     """Recorded numbers of bench_alarm's offset-0 draws. power_law_contact draw 14 (exponent
     2.06 drawn, beta 56.1 read very_hard, wrong and silent before): the law with one onset

@@ -29,6 +29,7 @@ from stiffnet.uncertainty.unseen_law import (
     PENETRATION_DISSIPATION,
     STIFFENING,
     UnseenLawThresholds,
+    chain_left_on_exponent,
     kelvin_voigt_release_ratio,
     law_shape_reasons,
     long_contact_reasons,
@@ -350,6 +351,68 @@ def test_reasons_follow_the_training_world_laws(restoring_force, fires):
     assert bool(unseen_law_reasons(restoring_force)) is fires
     alarm = with_unseen_law_check(None, restoring_force)
     assert alarm["flag"] is fires and ("contact_law" in alarm["fired"]) is fires
+
+
+#: Linear contacts behind the sensor chains of the priors whose maps read exponents outside
+#: the training bands (bench_alarm's sensor_dynamics, seed offset 0): right answers whose
+#: alarm the exponent rule alone raised. Draw 22: a chain undone, the record excluding neither
+#: of the priors' 91 Hz low-passes, exponent 2.05 with an onset per impact (here the law's own,
+#: for brevity); draw 3: a mount ringing at 318 Hz divided out and no chain undone, 1.23; a
+#: high-pass alone undone (draw 20, 2.04 Hz, read 1.59 as Hertz).
+_UNDONE_LOWPASS = {"applied": True, "lowpass_not_excluded": [{"order": 2, "hz": 90.84},
+                                                            {"order": 4, "hz": 90.84}]}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "chain, left",
+    [
+        ({}, None),  # no chain in the record: the exponent is the law's
+        ({"sensor": _UNDONE_LOWPASS}, "low-passes 91 Hz order 2, 91 Hz order 4"),
+        ({"resonance_hz": 317.6, "sensor": None}, "a mount ringing at 318 Hz"),
+        ({"resonance_hz": 243.6, "sensor": {"applied": False}}, "a mount ringing at 244 Hz"),
+        ({"highpass_hz": 2.04}, "a high-pass at 2.04 Hz"),
+        # a chain identified and undone with its low-pass resolved: the map is the law's
+        (
+            {
+                "resonance_hz": 237.0,
+                "highpass_hz": 1.0,
+                "sensor": {"applied": True, "lowpass_not_excluded": []},
+            },
+            None,
+        ),  # fmt: skip
+    ],
+)
+def test_an_exponent_read_through_a_chain_left_on_the_map_is_not_the_laws(chain, left):
+    rf = {"exponent": 2.05, "contact_r2": 0.99, **chain}
+    said = chain_left_on_exponent(rf)
+    assert (said is None) is (left is None) and (left is None or left in said)
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert bool(reasons) is (left is None), reasons
+    alarm = with_unseen_law_check(None, rf)
+    assert ("contact_law" in alarm["fired"]) is (left is None)
+    assert ("exponent_unread" in alarm) is (left is not None)
+    if left is not None:
+        said = alarm["exponent_unread"]
+        assert left in said and "not read as the law's" in said
+        counted = unseen_law_thresholds().model_copy(update={"exponent_through_left_chain": True})
+        assert unseen_law_reasons(rf, counted)  # the setting counts it again
+
+
+def test_a_chain_left_on_the_map_leaves_the_other_stiffening_rules_judging():
+    """A two-stage law's hinge, a curvature within impacts: no low-pass's smooth bend. Draw 3
+    of sensor_dynamics read a curvature gain of 0.49 (share 0.18) through its mount's chain; the
+    exponent (1.23) is not read there, the curvature is."""
+    rf = {"exponent": 1.23, "contact_r2": 0.999, "resonance_hz": 317.6,
+          "law_shape": {"curvature": 0.49, "curvature_share": 0.18}}  # fmt: skip
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert len(reasons) == 1 and "stiffens within each impact" in reasons[0]
+    hinge = {"exponent": 1.61, "contact_r2": 0.984, "highpass_hz": 1.1, "law_shape": {
+        "stage": 0.2, "stage_ratio": 2.4, "stage_knee": 0.6, "depth_spread": 1.09}}  # fmt: skip
+    assert any("depends on the depth" in r for r in unseen_law_reasons(hinge))
+    # the Hertz-read stage rule's smaller gain needs the exponent read as Hertz
+    low = {**hinge, "law_shape": {**hinge["law_shape"], "stage": 0.125}}
+    assert unseen_law_reasons(low) == []
+    assert unseen_law_reasons({**low, "highpass_hz": 0.0})
 
 
 def test_a_refused_cross_check_leaves_the_alarm_alone():

@@ -211,6 +211,9 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
+    #: Whether the exponent counts on a map read through a sensor chain the cross-check left
+    #: on it (:func:`chain_left_on_exponent`); false: it is no reading of the law.
+    exponent_through_left_chain: bool = False
 
 
 @lru_cache(maxsize=1)
@@ -329,9 +332,12 @@ def exponent_reading(
     onset per impact (``impact_onsets``) where that explains ``impact_onset_min_r2`` and its
     exponent removes ``impact_onset_min_gain`` of the misfit of the linear law with the same
     onsets (:func:`impact_onset_gain`), on a contact damped at most
-    ``impact_onset_max_damping``; None where neither counts. A map whose level wanders
-    between impacts smears a power law into a line at one onset
-    (:mod:`stiffnet.restoring_force.impact_onsets`)."""
+    ``impact_onset_max_damping``; None where neither counts, or where the map was read
+    through a sensor chain the cross-check left on it (:func:`chain_left_on_exponent`,
+    unless ``exponent_through_left_chain``). A map whose level wanders between impacts
+    smears a power law into a line at one onset (:mod:`stiffnet.restoring_force.impact_onsets`)."""
+    if not t.exponent_through_left_chain and chain_left_on_exponent(restoring_force):
+        return None
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
         return float(p), float(r2), "the law"
@@ -345,6 +351,55 @@ def exponent_reading(
     if zeta is None or zeta > t.impact_onset_max_damping:
         return None
     return float(p), float(r2), "an onset per impact"
+
+
+def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None:
+    """Rule: why the map's exponent is partly a sensor chain's (None: it is the law's).
+
+    A low-pass in the chain delays and rounds each contact pulse, which bends a linear law's
+    force-penetration map as a stiffening exponent does (the training world's sensor sets
+    read linear contacts at 1.2-2.1 through such chains). The exponent is the law's only
+    where the map carries no chain: none shows in the record, or the cross-check identified
+    one and undid it with its low-pass resolved. It is partly the chain's where
+
+    * the record shows a chain (a mount's ringing divided out, ``resonance_hz``, or a
+      high-pass undone, ``highpass_hz``) but no chain was undone (``sensor`` absent or not
+      ``applied``): whatever low-pass the chain has is still on the map;
+    * a chain was undone but the record does not exclude low-passes of the priors other than
+      the one fitted (``sensor.lowpass_not_excluded``): the map, and its exponent, depend on
+      which of them the chain has.
+
+    The curvature, stage and soft-first-stage rules keep judging such a map (a two-stage
+    law's hinge is no low-pass's bend); the exponent rule, the stage rule's Hertz-read
+    variant and the ``reference_penetration`` check, which read the exponent, do not.
+    """
+    rf = restoring_force or {}
+    sensor = rf.get("sensor") or {}
+    if sensor.get("applied"):
+        left = [
+            f"{float(lp['hz']):.0f} Hz order {int(lp['order'])}"
+            for lp in sensor.get("lowpass_not_excluded") or []
+            if lp.get("hz") is not None and lp.get("order") is not None
+        ]
+        if not left:
+            return None
+        return (
+            f"the sensor chain was undone, but the record does not exclude the priors' "
+            f"low-pass{'es' * (len(left) > 1)} {', '.join(left)}, and the map's exponent "
+            "depends on which low-pass the chain has"
+        )
+    shows = []
+    if rf.get("resonance_hz") is not None:
+        shows.append(f"a mount ringing at {float(rf['resonance_hz']):.0f} Hz")
+    if (rf.get("highpass_hz") or 0.0) > 0:
+        shows.append(f"a high-pass at {float(rf['highpass_hz']):.2f} Hz")
+    if not shows:
+        return None
+    return (
+        f"the record shows {' and '.join(shows)}, a sensor chain the cross-check did not "
+        "undo: its low-pass is still on the map and bends a linear law's map as a "
+        "stiffening exponent does"
+    )
 
 
 def impact_onset_gain(r2: float, linear_r2: float) -> float:
@@ -634,8 +689,12 @@ def with_unseen_law_check(
     ``alarm["contact_law"]``. A model without an alarm gets one made of this check. `seen`:
     the kinds of law the model was trained on (:func:`trained_law_kinds`), not judged; the
     alarm names them (``contact_law_trained_on``) so a reader knows what was not checked.
+    Where the map's exponent was not read because a sensor chain is left on it
+    (:func:`chain_left_on_exponent`), ``alarm["exponent_unread"]`` says why: neither the
+    exponent rule nor ``reference_penetration`` judged it.
     """
-    reasons = unseen_law_reasons(restoring_force, seen=seen)
+    t = unseen_law_thresholds()
+    reasons = unseen_law_reasons(restoring_force, t, seen=seen)
     judged = ("exponent", "dissipation_gain", "law_shape")
     if all(restoring_force.get(k) is None for k in judged):
         return alarm  # the cross-check refused: nothing to judge
@@ -646,6 +705,9 @@ def with_unseen_law_check(
     alarm["thresholds"]["contact_law"] = 0.0
     if seen:
         alarm["contact_law_trained_on"] = sorted(seen)
+    left = chain_left_on_exponent(restoring_force)
+    if left and not t.exponent_through_left_chain and restoring_force.get("exponent") is not None:
+        alarm["exponent_unread"] = f"{left}: the exponent is not read as the law's"
     if reasons:
         alarm["fired"] = [*alarm["fired"], "contact_law"]
         alarm["flag"] = True
