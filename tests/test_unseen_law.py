@@ -355,12 +355,17 @@ def test_reasons_follow_the_training_world_laws(restoring_force, fires):
 
 #: Linear contacts behind the sensor chains of the priors whose maps read exponents outside
 #: the training bands (bench_alarm's sensor_dynamics, seed offset 0): right answers whose
-#: alarm the exponent rule alone raised. Draw 22: a chain undone, the record excluding neither
-#: of the priors' 91 Hz low-passes, exponent 2.05 with an onset per impact (here the law's own,
-#: for brevity); draw 3: a mount ringing at 318 Hz divided out and no chain undone, 1.23; a
-#: high-pass alone undone (draw 20, 2.04 Hz, read 1.59 as Hertz).
-_UNDONE_LOWPASS = {"applied": True, "lowpass_not_excluded": [{"order": 2, "hz": 90.84},
-                                                            {"order": 4, "hz": 90.84}]}  # fmt: skip
+#: alarm the exponent rule raised. Draw 22: a chain undone (its high-pass 2.5 Hz), the record
+#: excluding neither of the priors' 91 Hz low-passes, exponent 2.05 with an onset per impact
+#: (here the law's own, for brevity); draw 3: a mount ringing at 318 Hz divided out and no
+#: chain undone, 1.23.
+_91HZ = [{"order": 2, "hz": 90.84}, {"order": 4, "hz": 90.84}]
+_UNDONE_LOWPASS = {
+    "applied": True,
+    "highpass_hz": 2.5,
+    "resonance_hz": None,
+    "lowpass_not_excluded": _91HZ,
+}
 
 
 @pytest.mark.parametrize(
@@ -370,7 +375,11 @@ _UNDONE_LOWPASS = {"applied": True, "lowpass_not_excluded": [{"order": 2, "hz": 
         ({"sensor": _UNDONE_LOWPASS}, "low-passes 91 Hz order 2, 91 Hz order 4"),
         ({"resonance_hz": 317.6, "sensor": None}, "a mount ringing at 318 Hz"),
         ({"resonance_hz": 243.6, "sensor": {"applied": False}}, "a mount ringing at 244 Hz"),
-        ({"highpass_hz": 2.04}, "a high-pass at 2.04 Hz"),
+        # a high-pass corner alone, or an undone "chain" of unexcluded low-passes only: records
+        # without a chain read both (a damped contact's corner, a low-pass fitted to it), the
+        # two-stage rig's among them
+        ({"highpass_hz": 1.3}, None),
+        ({"sensor": {**_UNDONE_LOWPASS, "highpass_hz": 0.0}}, None),
         # a chain identified and undone with its low-pass resolved: the map is the law's
         (
             {
@@ -406,13 +415,13 @@ def test_a_chain_left_on_the_map_leaves_the_other_stiffening_rules_judging():
           "law_shape": {"curvature": 0.49, "curvature_share": 0.18}}  # fmt: skip
     reasons = unseen_law_reasons(rf, unseen_law_thresholds())
     assert len(reasons) == 1 and "stiffens within each impact" in reasons[0]
-    hinge = {"exponent": 1.61, "contact_r2": 0.984, "highpass_hz": 1.1, "law_shape": {
+    hinge = {"exponent": 1.61, "contact_r2": 0.984, "resonance_hz": 240.0, "law_shape": {
         "stage": 0.2, "stage_ratio": 2.4, "stage_knee": 0.6, "depth_spread": 1.09}}  # fmt: skip
     assert any("depends on the depth" in r for r in unseen_law_reasons(hinge))
     # the Hertz-read stage rule's smaller gain needs the exponent read as Hertz
     low = {**hinge, "law_shape": {**hinge["law_shape"], "stage": 0.125}}
     assert unseen_law_reasons(low) == []
-    assert unseen_law_reasons({**low, "highpass_hz": 0.0})
+    assert unseen_law_reasons({**low, "resonance_hz": None})
 
 
 def test_a_refused_cross_check_leaves_the_alarm_alone():
