@@ -67,6 +67,12 @@ them on rigs whose law the training world lacks, and neither needs the model:
   On a map the power-law fit reads as Hertz (``power_law_stage_min_gain``) a smaller gain
   counts: there no in-world hinge of that ratio gains more than a few per cent.
 
+None of these is read through a sensor chain the cross-check left on the map: where it saw
+the mount ringing but undid no chain the check abstains (``law_through_left_mount``), and
+where it undid a chain whose low-pass the record does not resolve the exponent is not read
+(:func:`chain_left_on_exponent`); a chain's low-pass bends a linear law's map as a stiffening
+law does.
+
 The thresholds are read from ``configs/alarm/unseen_law.yaml``
 (:func:`unseen_law_thresholds`; the defaults here where the file is missing).
 
