@@ -379,3 +379,149 @@ def test_a_hertz_reading_through_a_chain_left_on_the_map_does_not_flag_the_class
     assert lo < 5 and hi > 15
     fired = rule_checks(quiet, "soft", [1.37, 825.7], bare, model, 718.1, 9.48)["fired"]
     assert REFERENCE_PENETRATION in fired
+
+
+def test_an_exponent_read_with_an_onset_per_impact_counts_where_the_law_does_not():
+    """Recorded numbers of bench_alarm's offset-0 draws. power_law_contact draw 14 (exponent
+    2.06 drawn, beta 56.1 read very_hard, wrong and silent before): the law with one onset
+    reads p 1.10 at R2 0.944, which does not count; with an onset per impact p 2.09 at R2
+    0.996, removing 0.86 of the misfit of the linear law with the same onsets, on a contact
+    damped 0.08: outside both training bands, the contact_law check fires. contact_damping
+    draw 19 (a linear Kelvin-Voigt contact, zeta 0.26 drawn, 0.36 fitted, R2 0.740 with one
+    onset) reads p 1.64 at R2 0.986 per impact: the damping ceiling leaves it out."""
+    from stiffnet.uncertainty.unseen_law import (
+        exponent_reading,
+        impact_onset_gain,
+        stiffening_reasons,
+        unseen_law_thresholds,
+    )
+
+    t = unseen_law_thresholds()
+    power = {
+        "exponent": 1.1038,
+        "contact_r2": 0.94373,
+        "contact_damping_ratio": 0.0768,
+        "impact_onsets": {"exponent": 2.0935, "r2": 0.99629, "linear_r2": 0.97349},
+    }
+    assert impact_onset_gain(0.99629, 0.97349) == pytest.approx(1 - 0.00371 / 0.02651)
+    p, r2, how = exponent_reading(power, t)
+    assert (p, r2, how) == (2.0935, 0.99629, "an onset per impact")
+    assert "2.09 (R2 0.996, an onset per impact)" in stiffening_reasons(power, t)[0]
+    # the law's own reading counts first where it fits closely
+    close = {**power, "exponent": 1.05, "contact_r2": 0.985}
+    assert exponent_reading(close, t) == (1.05, 0.985, "the law")
+    assert stiffening_reasons(close, t) == []
+    # each condition of the per-impact reading
+    for change in ({"r2": 0.975}, {"linear_r2": 0.9955}):
+        loose = {**power, "impact_onsets": {**power["impact_onsets"], **change}}
+        assert exponent_reading(loose, t) is None
+    damped = {
+        "exponent": 1.0,
+        "contact_r2": 0.740,
+        "contact_damping_ratio": 0.3590,
+        "impact_onsets": {"exponent": 1.6359, "r2": 0.98594, "linear_r2": 0.70115},
+    }
+    assert exponent_reading(damped, t) is None and stiffening_reasons(damped, t) == []
+    assert exponent_reading({**power, "impact_onsets": None}, t) is None
+    off = t.model_copy(update={"impact_onset_min_r2": float("inf")})
+    assert exponent_reading(power, off) is None
+
+
+def test_contact_duration_excess_fires_beyond_twice_the_half_period():
+    from stiffnet.uncertainty.alarm_verdict import (
+        ALARM_WORDS,
+        contact_duration_excess,
+        with_restoring_force_checks,
+    )
+
+    assert contact_duration_excess({"duration_ratio": 2.2, "contact_r2": 0.988}) == (
+        pytest.approx(np.log(1.1))
+    )
+    assert contact_duration_excess({"duration_ratio": 1.2, "contact_r2": 0.99}) < 0
+    assert contact_duration_excess({"duration_ratio": 3.0, "contact_r2": 0.6}) is None
+    assert contact_duration_excess({"duration_ratio": None, "contact_r2": 0.99}) is None
+    quiet = {
+        "flag": False,
+        "fired": [],
+        "scores": {"embedding": 1.0},
+        "thresholds": {"embedding": 3.0},
+    }
+    refused = {"class": None, "beta_interval": None, "contact_r2": 0.988, "duration_ratio": 2.2}
+    out = with_restoring_force_checks(quiet, "hard", refused, NAMES, EDGES)
+    assert out["flag"] and out["fired"] == ["contact_duration"]
+    assert ALARM_WORDS["contact_duration"] in out["message"]
+    assert quiet["fired"] == [] and "contact_duration" not in quiet["scores"]  # not mutated
+    agree = {"class": "hard", "beta_interval": [40.0, 50.0], "contact_r2": 0.99,
+             "duration_ratio": 1.1}  # fmt: skip
+    calm = with_restoring_force_checks(quiet, "hard", agree, NAMES, EDGES)
+    assert not calm["flag"] and calm["scores"]["restoring_force_class"] == 0.0
+    wrong = with_restoring_force_checks(quiet, "very_hard", agree, NAMES, EDGES)
+    assert wrong["fired"] == ["restoring_force_class"]
+
+
+def test_interval_behind_alarm_spans_a_close_restoring_force_interval():
+    from stiffnet.uncertainty.conformal import interval_behind_alarm
+
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.99, 0.95) == [28.0, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 90.0], 0.99, 0.95) == [44.8, 90.0]
+    assert interval_behind_alarm([44.8, 84.0], [50.0, 60.0], 0.99, 0.95) == [44.8, 84.0]
+    # a loose contact-law fit, a refusal or no model interval: the model's interval stands
+    assert interval_behind_alarm([44.8, 84.0], [28.0, 33.0], 0.9, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm([44.8, 84.0], None, None, 0.95) == [44.8, 84.0]
+    assert interval_behind_alarm(None, [28.0, 33.0], 0.99, 0.95) is None
+
+
+def test_an_unapplied_lowpass_far_below_the_prior_fires_the_sensor_fit_check():
+    from stiffnet.uncertainty.alarm_verdict import unapplied_lowpass_excess, with_sensor_fit_check
+
+    priors = {"effects": [{"name": "sensor_dynamics", "relative": {
+        "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]}}}]}  # fmt: skip
+    fit = {"lowpass_hz": 57.7, "lowpass_order": 3, "applied": False}
+    # 0.10 fs of a 718 Hz recording is 71.8 Hz: log(71.8 / 57.7) beyond it
+    assert unapplied_lowpass_excess(fit, priors, 718.0) == pytest.approx(np.log(71.8 / 57.7))
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": 80.0}, priors, 718.0) < 0
+    assert unapplied_lowpass_excess({**fit, "applied": True}, priors, 718.0) is None
+    assert unapplied_lowpass_excess({**fit, "lowpass_hz": None}, priors, 718.0) is None
+    assert unapplied_lowpass_excess(fit, {"effects": []}, 718.0) is None
+    assert unapplied_lowpass_excess(None, priors, 718.0) is None
+    out = with_sensor_fit_check(None, fit, priors, 718.0)
+    assert out["flag"] and out["fired"] == ["sensor_fit"]
+    assert with_sensor_fit_check(None, {**fit, "applied": True}, priors, 718.0) is None
+
+
+def test_a_refusal_for_the_sensor_fires_the_chain_refusal_check_outside_the_prior():
+    from stiffnet.restoring_force.band import smoothed_contact_refusal
+    from stiffnet.restoring_force.chain import SensorChain, identifiability
+    from stiffnet.uncertainty.alarm_verdict import (
+        SENSOR_REFUSAL_WORDS,
+        UNFITTED_LOWPASS_SCORE,
+        chain_refusal_excess,
+        with_chain_refusal_check,
+    )
+
+    priors = {"effects": [{"name": "sensor_dynamics", "relative": {
+        "lowpass_hz": {"per": "sampling_rate", "range": [0.15, 0.45]}}}]}  # fmt: skip
+    # the refusals the cross-check writes for its sensor's band carry the words the rule reads
+    said = identifiability(SensorChain(lowpass_hz=54.0, lowpass_order=3, contact_hz=93.0))
+    assert SENSOR_REFUSAL_WORDS in said
+    # a rounded pulse per period (even and odd harmonics) and no impact: smoothed away
+    w = 2 * np.pi * np.arange(64 * 60) / 64
+    noise = 1e-4 * np.random.default_rng(0).standard_normal(w.size)
+    smooth = np.sin(w) + 0.3 * np.maximum(np.sin(w), 0) ** 4 + noise
+    assert SENSOR_REFUSAL_WORDS in smoothed_contact_refusal(smooth, 64.0, 576.0, 9.48, 5.0)
+    fitted = {"beta": None, "reason": said, "sensor": {"lowpass_hz": 54.0, "applied": True}}
+    # 0.15 fs of a 1812 Hz recording is 271.8 Hz: the fitted 54 Hz lies log(271.8 / 54) below
+    assert chain_refusal_excess(fitted, priors, 1812.0) == pytest.approx(np.log(271.8 / 54.0))
+    # a low-pass inside the prior: the model was calibrated behind such chains
+    assert chain_refusal_excess(fitted, priors, 300.0) < 0
+    unfitted = {"beta": None, "reason": "... so beta is not identifiable from this sensor"}
+    assert chain_refusal_excess(unfitted, priors, 578.0) == UNFITTED_LOWPASS_SCORE > 0
+    # not a refusal for the sensor, an answer, or no prior to judge by: the check does not apply
+    assert chain_refusal_excess({**fitted, "reason": "no contact"}, priors, 1812.0) is None
+    assert chain_refusal_excess({**fitted, "beta": 40.0}, priors, 1812.0) is None
+    assert chain_refusal_excess(fitted, {"effects": []}, 1812.0) is None
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    out = with_chain_refusal_check(quiet, unfitted, priors, 578.0)
+    assert out["flag"] and out["fired"] == ["chain_refusal"] and "UNRELIABLE" in out["message"]
+    assert not with_chain_refusal_check(quiet, fitted, priors, 300.0)["flag"]
+    assert quiet["fired"] == []  # not mutated
