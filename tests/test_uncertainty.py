@@ -343,6 +343,44 @@ def test_a_hertz_class_the_record_does_not_determine_is_flagged():
     assert reference_penetration_span(rf, exact) == pytest.approx([37.1, 49.6], rel=0.01)
 
 
+def test_a_hertz_reading_through_a_chain_left_on_the_map_does_not_flag_the_class():
+    """sensor_dynamics' draw 22 (bench_alarm, seed offset 0): a linear contact, beta 10.1,
+    behind a chain of the priors (resonance 202 Hz, low-pass 198 Hz order 4, high-pass 1.69 Hz)
+    answered soft, right. The cross-check undid a chain (high-pass 2.5 Hz) but the record
+    excludes neither of the priors' 91 Hz low-passes; with an onset per impact the map read
+    exponent 2.05 (R2 0.982, gain 0.31 over the linear law), 0.175 of the table's amplitude.
+    That exponent is partly the low-pass's, so no reference penetration is read from it:
+    before, the check fired at a share of 0.63 and this right answer carried an alarm."""
+    from serving.verdict import rule_checks
+    from stiffnet.uncertainty.reference_penetration import (
+        REFERENCE_PENETRATION,
+        reference_penetration_span,
+    )
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": HERTZ_WORLD}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    lowpasses = [{"order": 2, "hz": 90.84}, {"order": 4, "hz": 90.84}]
+    sensor = {
+        "applied": True,
+        "resonance_hz": None,
+        "highpass_hz": 2.5,
+        "lowpass_not_excluded": lowpasses,
+    }
+    onsets = {"exponent": 2.045, "r2": 0.982, "linear_r2": 0.974}
+    rf = {**_hertz_check([5.07, 12.01], exponent=1.003, r2=0.905, scale=0.175),
+          "class": "soft", "beta": 7.90, "impact_onsets": onsets,
+          "contact_damping_ratio": 0.0, "sensor": sensor}  # fmt: skip
+    assert reference_penetration_span(rf, HERTZ_WORLD) is None
+    res = rule_checks(quiet, "soft", [1.37, 825.7], rf, model, 718.1, 9.48)
+    assert REFERENCE_PENETRATION not in res["fired"] and "91 Hz" in res["exponent_unread"]
+    # the same map with the low-pass resolved reads as a power law: the class is a convention
+    bare = {**rf, "sensor": {**sensor, "lowpass_not_excluded": []}}
+    lo, hi = reference_penetration_span(bare, HERTZ_WORLD)
+    assert lo < 5 and hi > 15
+    fired = rule_checks(quiet, "soft", [1.37, 825.7], bare, model, 718.1, 9.48)["fired"]
+    assert REFERENCE_PENETRATION in fired
+
+
 def test_an_exponent_read_with_an_onset_per_impact_counts_where_the_law_does_not():
     """Recorded numbers of bench_alarm's offset-0 draws. power_law_contact draw 14 (exponent
     2.06 drawn, beta 56.1 read very_hard, wrong and silent before): the law with one onset

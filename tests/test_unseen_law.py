@@ -29,6 +29,7 @@ from stiffnet.uncertainty.unseen_law import (
     PENETRATION_DISSIPATION,
     STIFFENING,
     UnseenLawThresholds,
+    chain_left_on_exponent,
     kelvin_voigt_release_ratio,
     law_shape_reasons,
     long_contact_reasons,
@@ -350,6 +351,100 @@ def test_reasons_follow_the_training_world_laws(restoring_force, fires):
     assert bool(unseen_law_reasons(restoring_force)) is fires
     alarm = with_unseen_law_check(None, restoring_force)
     assert alarm["flag"] is fires and ("contact_law" in alarm["fired"]) is fires
+
+
+#: Linear contacts behind the sensor chains of the priors whose maps read exponents outside
+#: the training bands (bench_alarm's sensor_dynamics, seed offset 0): right answers whose
+#: alarm the exponent rule raised. Draw 22: a chain undone (its high-pass 2.5 Hz), the record
+#: excluding neither of the priors' 91 Hz low-passes, exponent 2.05 with an onset per impact
+#: (here the law's own, for brevity); draw 3: a mount ringing at 318 Hz divided out and no
+#: chain undone, 1.23.
+_91HZ = [{"order": 2, "hz": 90.84}, {"order": 4, "hz": 90.84}]
+_UNDONE_LOWPASS = {
+    "applied": True,
+    "highpass_hz": 2.5,
+    "resonance_hz": None,
+    "lowpass_not_excluded": _91HZ,
+}
+
+
+@pytest.mark.parametrize(
+    "chain, left",
+    [
+        ({}, None),  # no chain in the record: the exponent is the law's
+        ({"sensor": _UNDONE_LOWPASS}, "low-passes 91 Hz order 2, 91 Hz order 4"),
+        ({"resonance_hz": 317.6, "sensor": None}, "a mount ringing at 318 Hz"),
+        ({"resonance_hz": 243.6, "sensor": {"applied": False}}, "a mount ringing at 244 Hz"),
+        # a high-pass corner alone, or an undone "chain" of unexcluded low-passes only: records
+        # without a chain read both (a damped contact's corner, a low-pass fitted to it), the
+        # two-stage rig's among them
+        ({"highpass_hz": 1.3}, None),
+        ({"sensor": {**_UNDONE_LOWPASS, "highpass_hz": 0.0}}, None),
+        # a chain identified and undone with its low-pass resolved: the map is the law's
+        (
+            {
+                "resonance_hz": 237.0,
+                "highpass_hz": 1.0,
+                "sensor": {"applied": True, "lowpass_not_excluded": []},
+            },
+            None,
+        ),  # fmt: skip
+    ],
+)
+def test_an_exponent_read_through_a_chain_left_on_the_map_is_not_the_laws(chain, left):
+    rf = {"exponent": 2.05, "contact_r2": 0.99, **chain}
+    said = chain_left_on_exponent(rf)
+    assert (said is None) is (left is None) and (left is None or left in said)
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert bool(reasons) is (left is None), reasons
+    alarm = with_unseen_law_check(None, rf)
+    assert ("contact_law" in alarm["fired"]) is (left is None)
+    # a mount left on the map: the whole law is not read; an unresolved low-pass: the exponent
+    key = "contact_law_unread" if "mount" in (left or "") else "exponent_unread"
+    assert (key in alarm) is (left is not None)
+    if left is not None:
+        assert left in alarm[key] and "not read" in alarm[key]
+        counted = unseen_law_thresholds().model_copy(
+            update={"exponent_through_left_chain": True, "law_through_left_mount": True}
+        )
+        assert unseen_law_reasons(rf, counted)  # the settings count it again
+
+
+#: sensor_dynamics' draw 3 (seed offset 0): a linear contact behind a chain of the priors
+#: (resonance 319 Hz, low-pass 263 Hz order 2), right; the cross-check divided out the ringing
+#: at 318 Hz and undid no chain, and the map read exponent 1.23 and a curvature gain of 0.49.
+_DRAW_3 = {"exponent": 1.23, "contact_r2": 0.999, "resonance_hz": 317.6, "sensor": None,
+           "law_shape": {"curvature": 0.49, "curvature_share": 0.18}}  # fmt: skip
+
+
+def test_a_mount_left_on_the_map_leaves_the_law_unread():
+    """Through a mount whose ringing was divided out and no chain undone, the map's shape is
+    the chain's as much as the law's: no rule judges it (the campaign rule reads no law there
+    either), and the alarm says so."""
+    assert unseen_law_reasons(_DRAW_3, unseen_law_thresholds()) == []
+    alarm = with_unseen_law_check(None, _DRAW_3)
+    assert alarm["fired"] == [] and "318 Hz" in alarm["contact_law_unread"]
+    # a dissipation growing with depth read there (offset 1000, draw 3: 0.66) is not judged
+    hc = {**_DRAW_3, "law_shape": {"penetration_dissipation": 0.66,
+                                   "penetration_dissipation_share": 0.9}}  # fmt: skip
+    assert unseen_law_reasons(hc) == []
+    assert unseen_law_reasons({**hc, "resonance_hz": None})  # no mount seen: judged
+    assert unseen_law_reasons({**_DRAW_3, "sensor": {"applied": True}})  # the chain undone
+
+
+def test_an_unresolved_low_pass_leaves_the_other_stiffening_rules_judging():
+    """Behind an undone chain whose low-pass the record does not resolve only the exponent is
+    unread: a curvature within impacts and a two-stage law's hinge are no low-pass's bend."""
+    rf = {**_DRAW_3, "resonance_hz": None, "sensor": _UNDONE_LOWPASS}
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert len(reasons) == 1 and "stiffens within each impact" in reasons[0]
+    hinge = {"exponent": 1.61, "contact_r2": 0.984, "sensor": _UNDONE_LOWPASS, "law_shape": {
+        "stage": 0.2, "stage_ratio": 2.4, "stage_knee": 0.6, "depth_spread": 1.09}}  # fmt: skip
+    assert any("depends on the depth" in r for r in unseen_law_reasons(hinge))
+    # the Hertz-read stage rule's smaller gain needs the exponent read as Hertz
+    low = {**hinge, "law_shape": {**hinge["law_shape"], "stage": 0.125}}
+    assert unseen_law_reasons(low) == []
+    assert unseen_law_reasons({**low, "sensor": None})
 
 
 def test_a_refused_cross_check_leaves_the_alarm_alone():

@@ -113,7 +113,9 @@ def campaign_law_thresholds() -> CampaignLawThresholds:
 def chain_left_on_map(restoring_force: dict[str, Any] | None) -> bool:
     """Rule: the restoring-force map was read through a sensor chain it could not undo: the
     record shows a mount's ringing (``resonance_hz``, divided out) and no chain was undone
-    (``sensor`` absent or not ``applied``). The law's shape read there is partly the chain's."""
+    (``sensor`` absent or not ``applied``). The law's shape read there is partly the chain's;
+    the per-recording ``contact_law`` check abstains there too
+    (:attr:`~stiffnet.uncertainty.unseen_law.UnseenLawThresholds.law_through_left_mount`)."""
     rf = restoring_force or {}
     return rf.get("resonance_hz") is not None and not (rf.get("sensor") or {}).get("applied")
 

@@ -25,7 +25,12 @@ nonlinear power law: an exponent at or above the lowest training exponent band a
 linear one (the Hertz band of ``configs/alarm/unseen_law.yaml``, or beyond) from a law
 explaining ``exponent_min_r2`` of the contact force, or read with an onset per impact where
 that law does not (:func:`~stiffnet.uncertainty.unseen_law.exponent_reading`), on a model
-whose training world draws Hertz contacts. Where more than half (in log beta) of the span
+whose training world draws Hertz contacts. An exponent read through a sensor chain the
+cross-check left on the map (:func:`~stiffnet.uncertainty.unseen_law.chain_left_on_exponent`:
+a chain shows in the record but none was undone, or low-passes of the priors stay
+unexcluded) is partly the chain's low-pass, which bends a linear law's map into the Hertz band,
+so it says nothing of a reference penetration and the check does not apply (the alarm's
+``exponent_unread`` says why). Where more than half (in log beta) of the span
 lies outside the model's class (:attr:`ReferencePenetrationSettings.outside_share_min`, the
 majority ``class_contested`` and ``face_identifiability`` use, not a fitted level) the class is not
 determined by the record: the check fires and the flagged answer's interval spans the span
@@ -101,7 +106,8 @@ def reference_penetration_span(
     """The betas the record allows over the training world's reference penetrations (see the
     module notes): the cross-check's interval times ``(delta_ref / delta_rec)^(p - 1)`` at
     both ends of the ratio's range; None where the check does not apply (no clearly nonlinear
-    close-fitting law, no penetration scale, or a training world without Hertz contacts)."""
+    close-fitting law, an exponent read through a chain left on the map, no penetration
+    scale, or a training world without Hertz contacts)."""
     rf = restoring_force or {}
     ranges = training_ranges(priors)
     interval, scale = rf.get("beta_interval"), rf.get("penetration_over_table")

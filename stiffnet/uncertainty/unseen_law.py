@@ -67,6 +67,12 @@ them on rigs whose law the training world lacks, and neither needs the model:
   On a map the power-law fit reads as Hertz (``power_law_stage_min_gain``) a smaller gain
   counts: there no in-world hinge of that ratio gains more than a few per cent.
 
+None of these is read through a sensor chain the cross-check left on the map: where it saw
+the mount ringing but undid no chain the check abstains (``law_through_left_mount``), and
+where it undid a chain whose low-pass the record does not resolve the exponent is not read
+(:func:`chain_left_on_exponent`); a chain's low-pass bends a linear law's map as a stiffening
+law does.
+
 The thresholds are read from ``configs/alarm/unseen_law.yaml``
 (:func:`unseen_law_thresholds`; the defaults here where the file is missing).
 
@@ -85,6 +91,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from stiffnet.uncertainty.alarm_verdict import alarm_message
+from stiffnet.uncertainty.campaign_law import chain_left_on_map
 from stiffnet.uncertainty.restraint_dynamics import RESTRAINT_DYNAMICS
 
 #: Exponents the restoring-force fit reads on the training world's laws (robustness
@@ -211,6 +218,13 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
+    #: Whether the exponent counts on a map read through a sensor chain the cross-check left
+    #: on it (:func:`chain_left_on_exponent`); false: it is no reading of the law.
+    exponent_through_left_chain: bool = False
+    #: Whether any rule judges a map read through a mount the cross-check saw ringing but
+    #: did not undo (:func:`~stiffnet.uncertainty.campaign_law.chain_left_on_map`); false:
+    #: the map's shape is the chain's as much as the law's, and the check abstains.
+    law_through_left_mount: bool = False
 
 
 @lru_cache(maxsize=1)
@@ -310,9 +324,17 @@ def unseen_law_reasons(
     ``contact_damping_ratio`` and ``law_shape``
     (:func:`stiffnet.uncertainty.law_shape.law_shape_gains`).
     `thresholds` default to :func:`unseen_law_thresholds`. `seen`: the kinds of law the
-    model was trained on (:func:`trained_law_kinds`), whose reasons are left out.
+    model was trained on (:func:`trained_law_kinds`), whose reasons are left out. None on a
+    map read through a mount the cross-check saw ringing but did not undo
+    (:func:`~stiffnet.uncertainty.campaign_law.chain_left_on_map`, unless
+    ``law_through_left_mount``): the chain's low-pass and what the division of the ringing
+    missed shape that map as much as the law does (the training world's sensor sets: exponents
+    1.23-2.01, curvature gains 0.17-0.49, a within-impact ``delta v`` of 0.66 on right
+    answers), and no unseen-law set's firing map is such a map.
     """
     t = thresholds or unseen_law_thresholds()
+    if not t.law_through_left_mount and chain_left_on_map(restoring_force):
+        return []
     reasons = []
     if STIFFENING not in seen:
         reasons += stiffening_reasons(restoring_force, t)
@@ -329,9 +351,12 @@ def exponent_reading(
     onset per impact (``impact_onsets``) where that explains ``impact_onset_min_r2`` and its
     exponent removes ``impact_onset_min_gain`` of the misfit of the linear law with the same
     onsets (:func:`impact_onset_gain`), on a contact damped at most
-    ``impact_onset_max_damping``; None where neither counts. A map whose level wanders
-    between impacts smears a power law into a line at one onset
-    (:mod:`stiffnet.restoring_force.impact_onsets`)."""
+    ``impact_onset_max_damping``; None where neither counts, or where the map was read
+    through a sensor chain the cross-check left on it (:func:`chain_left_on_exponent`,
+    unless ``exponent_through_left_chain``). A map whose level wanders between impacts
+    smears a power law into a line at one onset (:mod:`stiffnet.restoring_force.impact_onsets`)."""
+    if not t.exponent_through_left_chain and chain_left_on_exponent(restoring_force):
+        return None
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
         return float(p), float(r2), "the law"
@@ -345,6 +370,56 @@ def exponent_reading(
     if zeta is None or zeta > t.impact_onset_max_damping:
         return None
     return float(p), float(r2), "an onset per impact"
+
+
+def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None:
+    """Rule: why the map's exponent is partly a sensor chain's (None: read it as the law's).
+
+    A low-pass in the chain delays and rounds each contact pulse, which bends a linear law's
+    force-penetration map as a stiffening exponent does (the training world's sensor sets
+    read linear contacts at 1.2-2.1 through such chains). The exponent is partly the chain's
+    where the record shows a chain the cross-check did not resolve:
+
+    * the mount's ringing was divided out (``resonance_hz``) but no chain was undone
+      (``sensor`` absent or not ``applied``): whatever low-pass the chain has is still on
+      the map (the campaign rule's :func:`~stiffnet.uncertainty.campaign_law.chain_left_on_map`);
+    * a chain with a resonance or a high-pass was undone, but the record does not exclude
+      low-passes of the priors other than the one fitted (``sensor.lowpass_not_excluded``):
+      the map, and its exponent, depend on which of them the chain has.
+
+    A high-pass corner read alone, or an undone "chain" of nothing but unexcluded low-passes,
+    is no evidence of a chain: records without any read corners of 0.1-1.5 Hz (damped
+    contacts, drifts) and have a damped contact fitted as a low-pass, the unseen laws among
+    them (bench_alarm's two-stage rig at seed offset 1000: a wrong answer whose only alarm
+    was the exponent went silent when those counted).
+
+    The curvature, stage and soft-first-stage rules keep judging such a map (a two-stage
+    law's hinge is no low-pass's bend); the exponent rule, the stage rule's Hertz-read
+    variant and the ``reference_penetration`` check, which read the exponent, do not.
+    """
+    rf = restoring_force or {}
+    sensor = rf.get("sensor") or {}
+    if sensor.get("applied"):
+        seen = sensor.get("resonance_hz") is not None or (sensor.get("highpass_hz") or 0.0) > 0
+        left = [
+            f"{float(lp['hz']):.0f} Hz order {int(lp['order'])}"
+            for lp in sensor.get("lowpass_not_excluded") or []
+            if lp.get("hz") is not None and lp.get("order") is not None
+        ]
+        if not (seen and left):
+            return None
+        return (
+            f"the sensor chain was undone, but the record does not exclude the priors' "
+            f"low-pass{'es' * (len(left) > 1)} {', '.join(left)}, and the map's exponent "
+            "depends on which low-pass the chain has"
+        )
+    if rf.get("resonance_hz") is None:
+        return None
+    return (
+        f"the record shows a mount ringing at {float(rf['resonance_hz']):.0f} Hz, a sensor "
+        "chain the cross-check did not undo: its low-pass is still on the map and bends a "
+        "linear law's map as a stiffening exponent does"
+    )
 
 
 def impact_onset_gain(r2: float, linear_r2: float) -> float:
@@ -634,8 +709,14 @@ def with_unseen_law_check(
     ``alarm["contact_law"]``. A model without an alarm gets one made of this check. `seen`:
     the kinds of law the model was trained on (:func:`trained_law_kinds`), not judged; the
     alarm names them (``contact_law_trained_on``) so a reader knows what was not checked.
+    Where the map was read through a mount left on it
+    (:func:`~stiffnet.uncertainty.campaign_law.chain_left_on_map`) the check abstains and
+    ``alarm["contact_law_unread"]`` says why; where only its exponent was not read
+    (:func:`chain_left_on_exponent`), ``alarm["exponent_unread"]`` does: neither the exponent
+    rule nor ``reference_penetration`` judged it.
     """
-    reasons = unseen_law_reasons(restoring_force, seen=seen)
+    t = unseen_law_thresholds()
+    reasons = unseen_law_reasons(restoring_force, t, seen=seen)
     judged = ("exponent", "dissipation_gain", "law_shape")
     if all(restoring_force.get(k) is None for k in judged):
         return alarm  # the cross-check refused: nothing to judge
@@ -646,6 +727,11 @@ def with_unseen_law_check(
     alarm["thresholds"]["contact_law"] = 0.0
     if seen:
         alarm["contact_law_trained_on"] = sorted(seen)
+    left = chain_left_on_exponent(restoring_force)
+    if not t.law_through_left_mount and chain_left_on_map(restoring_force):
+        alarm["contact_law_unread"] = f"{left}: the contact law's shape is not read"
+    elif left and not t.exponent_through_left_chain and restoring_force.get("exponent") is not None:
+        alarm["exponent_unread"] = f"{left}: the exponent is not read as the law's"
     if reasons:
         alarm["fired"] = [*alarm["fired"], "contact_law"]
         alarm["flag"] = True
