@@ -43,6 +43,7 @@ from stiffnet.restoring_force.band import (
     chain_free_reading,
     kept_band,
     lowpass_refusal,
+    smoothed_away_refusal,
     smoothed_contact_refusal,
 )
 from stiffnet.restoring_force.chain import (
@@ -166,6 +167,12 @@ SOFT_UNSEEN = "too soft to stand out of the free-flight law"
 SOFT_CHAIN_FREE = (
     f"{SOFT_UNSEEN}, with no harmonic of the forcing left beyond the record's noise (no "
     "low-pass needed)"
+)
+#: ... and behind a known low-pass below the stiffest contact, where the contact it reads
+#: passes that low-pass (:func:`~.band.lowpass_refusal`).
+SOFT_BEHIND_LOWPASS = (
+    f"{SOFT_UNSEEN}, its harmonics showing contacts behind the known low-pass, which passes the "
+    "contact read"
 )
 
 
@@ -773,14 +780,11 @@ def _undo_chain(
     below = bool(refusal) and chain.source != "fitted"
     if below:  # a known chain: its law is fitted through the band, which may still carry it
         refusal = _band_refusal(chain, m2, fs_hz / natural, args[3], args[1])
-    fastest = fs_hz / natural * float(np.sqrt(1.0 + beta_max))
     no_contact = m2.info.get("restoring_force_class") == NO_CONTACT
-    if no_contact and (chain.lowpass_hz or np.inf) < fastest:
-        refusal = (
-            f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
-            f"{fastest:.0f} Hz (beta {beta_max:g}): no contact cannot be told from a contact "
-            "this sensor smooths away"
-        )
+    if no_contact and chain.source == "fitted":
+        # a known chain's "no contact" is judged by the caller on the record's harmonics and,
+        # where they show contacts, on the contact frequency the joint fit reads
+        refusal = smoothed_away_refusal(chain.lowpass_hz, fs_hz / natural, beta_max)
     if chain.source != "fitted":
         # read below the low-pass: the interval spans this map's reading too (the free
         # damping profiled afterwards can move beta away from it)
@@ -1228,8 +1232,9 @@ def _estimate_at(
     soft_reading = functools.partial(_soft_reading, m, args, info, classes, coverage, seed, rivals)
     if not refusal and info.get("restoring_force_class") == NO_CONTACT:
         # no impact stands out: unless a low-pass smoothed them away (their harmonics remain)
+        fn_hz = info["natural_frequency_hz"]
         refusal = smoothed_contact_refusal(
-            y, period, fs_hz, info["natural_frequency_hz"], beta_min, beta_max, lowpass,
+            y, period, fs_hz, fn_hz, beta_min, beta_max, lowpass,
         )  # fmt: skip
         if refusal and (carried or known is None):
             # contacts the band carries, too soft to stand out; with no chain known, only
@@ -1237,6 +1242,17 @@ def _estimate_at(
             soft = soft_reading() if carried else soft_reading(SOFT_CHAIN_FREE, chain_free=True)
             if soft is not None:
                 return soft
+        elif refusal:
+            # a known low-pass below the stiffest contact: the joint fit, forward through the
+            # chain, reads the record's own contact, which the low-pass may still carry
+            soft = soft_reading(SOFT_BEHIND_LOWPASS)
+            if soft is not None:
+                at = dataclasses.replace(known, contact_hz=fn_hz * float(np.sqrt(1.0 + soft.beta)))
+                refusal = lowpass_refusal(at, fn_hz, float(soft.beta_interval[0]))
+                if not refusal:
+                    return soft
+        elif not carried and known is not None:  # no harmonics: no contact, unless smoothed
+            refusal = smoothed_away_refusal(lowpass, fn_hz, beta_max)
     if refusal:  # the sensor's band: neither a class nor "no contact" can be read
         return _refuse(refusal, **{**info, "restoring_force_class": None})
     if m.refusal:
