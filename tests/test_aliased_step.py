@@ -26,8 +26,8 @@ def test_the_forcing_lines_are_integrated_and_a_line_between_them_is_dropped():
 
 def test_a_soft_damped_contact_sampled_raw_is_read_within_five_percent():
     """Beta 5.5, zeta_c 0.2, 83.3 samples per forcing period, 2 % noise, no chain: the joint
-    fit read 3.61 [2.60, 5.02] from the state its aliased onset steps bent; 5.53 [5.13, 5.96]
-    from the forcing lines."""
+    fit read 3.61 [2.60, 5.02] from the state its aliased onset steps bent; 5.53 from the
+    forcing lines, its interval [3.59, 5.96] reaching the record's own reading."""
     accel, fs = simulate(5.5, [("contact_damping", {"damping_ratio": 0.2})], fs_ratio=100,
                          periods=40, noise=0.02, omega=1.2, gap=0.8)  # fmt: skip
     got = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24, sensor={})
@@ -38,7 +38,8 @@ def test_a_soft_damped_contact_sampled_raw_is_read_within_five_percent():
 
 def test_a_damped_contacts_map_sampled_raw_is_read_within_five_percent():
     """Beta 20, zeta_c 0.3, 90.9 samples per forcing period, 2 % noise: the map read 17.6
-    [14.8, 21.1]; 20.2 [17.4, 23.4] with its state from the forcing lines."""
+    [14.8, 21.1]; 20.2 [14.8, 23.4] with its state from the forcing lines (the interval
+    spans the record's own integration's)."""
     accel, fs = simulate(20.0, [("contact_damping", {"damping_ratio": 0.3})], fs_ratio=100,
                          periods=40, noise=0.02, omega=1.1, gap=1.0)  # fmt: skip
     got = restoring_force_estimate(accel, fs, natural_frequency_hz=FN, max_periods=24, sensor={})

@@ -352,12 +352,16 @@ def fit_soft_contact(
     k = stiffness
     passes = _damping_passes(y, dtau, tau, use, k, start_displacement, response, False)
     ratio = min(passes, key=lambda r: passes[r].sse)
+    recorded = []  # the reading of the record as integrated, where the other is kept
     if _damping_ratio(passes[ratio]) >= ALIAS_MIN_DAMPING:
         # a damped contact's step may have aliased between the forcing lines: the state
-        # integrated from them alone is kept where the joint law then fits better
+        # integrated from them alone is kept where the joint law then fits better, and the
+        # interval reaches the record's own reading (the fit does not prove which lines are
+        # the mass's)
         lines = _damping_passes(y, dtau, tau, use, k, start_displacement, response, True)
         best = min(lines, key=lambda r: lines[r].sse)
         if lines[best].sse < passes[ratio].sse:
+            recorded = [float(passes[ratio].coef[_K]) / k] if passes[ratio].coef[_K] > 0 else []
             passes, ratio = lines, best
     p = passes[ratio]
     stiff, damp = float(p.coef[_K]), float(p.coef[_CC])
@@ -378,7 +382,7 @@ def fit_soft_contact(
         for r in FREE_DAMPING_RATIOS
         if r != ratio and passes[r].sse <= (1.0 + DAMPING_SSE_SLACK) * p.sse
     ]
-    lo, hi = min(lo, beta, *others), max(hi, beta, *others)
+    lo, hi = min(lo, beta, *others, *recorded), max(hi, beta, *others, *recorded)
     # the reconstruction's systematic terms (:func:`~.estimate.widen_interval`'s misfit and
     # samples-per-contact terms) with this fit's own floor, in quadrature; imported here, as
     # the estimate imports this module
