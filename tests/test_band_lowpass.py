@@ -11,8 +11,12 @@ import numpy as np
 import pytest
 
 from serving.restoring_force_check import restoring_force_check
-from stiffnet.restoring_force.band import lowpass_refusal
+from stiffnet.effects.registry import build_effect
+from stiffnet.restoring_force import restoring_force_estimate
+from stiffnet.restoring_force.band import lowpass_refusal, smoothed_away_refusal
 from stiffnet.restoring_force.chain import SensorChain
+from stiffnet.simulator.batch import OscillatorBatch
+from stiffnet.simulator.simulator import Simulator
 from tests.independent_rig import RigRun, record
 
 FN = 9.48
@@ -100,8 +104,9 @@ def test_a_sheets_lowpass_interval_is_carried_into_betas():
     """A campaign's profiled low-pass comes with the corners its laws cannot tell apart
     (``lowpass_low_hz``, ``lowpass_high_hz``): beta's interval spans the reading at each end
     (beta 30 behind a 120 Hz order-4 low-pass and a 4 Hz high-pass, read through a sheet at
-    135 Hz: 27.8 [25.8, 29.9], missing the truth; with the interval reaching 110 Hz it holds
-    the 30.7 read there, and the truth); ends that do not hold the corner are refused."""
+    135 Hz: 27.8, its interval short of the 30.7 read at 110 Hz; with the interval reaching
+    110 Hz it holds that reading, and the truth); ends that do not hold the corner are
+    refused."""
     from stiffnet.restoring_force.chain import sensor_from_mapping
 
     sheet = {"lowpass_hz": 135.0, "lowpass_order": 4.0, "highpass_hz": 4.0}
@@ -110,9 +115,36 @@ def test_a_sheets_lowpass_interval_is_carried_into_betas():
     alone, spanned = read(sheet), read({**sheet, **ends})
     far = read({**sheet, "lowpass_hz": 110.0}).beta
     assert spanned.beta == alone.beta and not alone.beta_interval[1] >= far
-    assert not alone.beta_interval[1] >= 30.0
     assert spanned.beta_interval[0] <= far <= spanned.beta_interval[1]
     assert spanned.beta_interval[0] <= 30.0 <= spanned.beta_interval[1]
     assert spanned.sensor.intervals["lowpass_hz"] == [110.0, 135.0]
     with pytest.raises(ValueError, match="must hold lowpass_hz between them"):
         sensor_from_mapping({**sheet, "lowpass_low_hz": 140.0, "lowpass_high_hz": 150.0}, 1250.0)
+
+
+def test_no_contact_behind_a_lowpass_is_refused_against_the_stiffest_contact_only():
+    # contact frequency at beta 100: 9.48 sqrt(101) = 95.3 Hz
+    assert smoothed_away_refusal(None, FN, 100.0) == ""
+    assert smoothed_away_refusal(96.0, FN, 100.0) == ""
+    assert smoothed_away_refusal(93.0, FN, 100.0) == (
+        "the low-pass at 93 Hz is below the contact's frequency 95 Hz (beta 100): no contact "
+        "cannot be told from a contact this sensor smooths away"
+    )
+
+
+def test_soft_contacts_behind_a_known_lowpass_that_passes_them_are_read_not_refused():
+    """Stiffnet's engine, beta 5.53 (contact 23.6 Hz), zeta_c 0.12, behind a 2nd-order
+    low-pass at 68 Hz, a 240 Hz mount and a 1.15 Hz high-pass given as the sheet, 1 % noise:
+    no impact stands out, the harmonics show contacts. Refused before against beta 100's
+    contact (95 Hz) rather than the record's own; read by the joint fit through the chain,
+    4.57 [3.72, 5.63]."""
+    chain = {"resonance_hz": 240.5, "resonance_damping": 0.04, "highpass_hz": 1.15,
+             "lowpass_hz": 68.3, "lowpass_order": 2}  # fmt: skip
+    batch = OscillatorBatch.single(beta=5.53, gap=2.96, amplitude=1.5, omega=1.137, damping=0.0146)
+    effects = [build_effect("contact_damping", {"damping_ratio": 0.117}),
+               build_effect("sensor_dynamics", chain)]  # fmt: skip
+    accel = Simulator(effects).simulate(batch, 67.67, 2165, noise=0.01, rng=1).accel[0]
+    got = restoring_force_estimate(accel, 67.67 * FN, natural_frequency_hz=FN, sensor=chain)
+    assert got.ok, got.reason
+    assert got.beta_interval[0] <= 5.53 <= got.beta_interval[1]
+    assert "behind the known low-pass" in got.reason

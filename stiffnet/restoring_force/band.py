@@ -167,6 +167,34 @@ def smoothed_contact_refusal(
     )
 
 
+def smoothed_away_refusal(lowpass_hz: float | None, natural_hz: float, beta_max: float) -> str:
+    """Rule: the one-line refusal of "no contact" behind a low-pass below the stiffest
+    contact's frequency, ``f_n sqrt(1 + beta_max)``, else ''.
+
+    Where the record shows no contact at all (no impact stands out, no harmonics of a
+    one-sided force, :func:`smoothed_contact_refusal`), there is no contact of its own to
+    compare the low-pass with: only the stiffest the classes allow. Where it shows harmonics,
+    the caller compares the low-pass with the contact the joint fit reads instead
+    (:func:`lowpass_refusal`).
+
+    Parameters
+    ----------
+    lowpass_hz : float or None
+        The chain's low-pass corner (None or ``inf``: none in the band).
+    natural_hz : float
+        The free flight's natural frequency (Hz).
+    beta_max : float
+        The greatest beta of a contact (the classes' top).
+    """
+    fastest = natural_hz * float(np.sqrt(1.0 + beta_max))
+    if not lowpass_hz or not lowpass_hz < fastest:
+        return ""
+    return (
+        f"the low-pass at {lowpass_hz:.0f} Hz is below the contact's frequency {fastest:.0f} Hz "
+        f"(beta {beta_max:g}): no contact cannot be told from a contact this sensor smooths away"
+    )
+
+
 def chain_free_reading(
     record: np.ndarray, residual: np.ndarray, period: float, beta_high: float, beta_min: float
 ) -> bool:

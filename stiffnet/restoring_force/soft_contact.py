@@ -77,7 +77,7 @@ from stiffnet.restoring_force.free_flight import (
     scaled_lstsq,
     table_motion,
 )
-from stiffnet.restoring_force.reconstruct import integrate_spectral
+from stiffnet.restoring_force.reconstruct import ALIAS_MIN_DAMPING, integrate_spectral
 
 #: Free-flight damping ratios profiled (from none to twice the priors' 0.01-0.05).
 FREE_DAMPING_RATIOS = (0.0, 0.015, 0.03, 0.05, 0.08)
@@ -290,6 +290,22 @@ def _period_bootstrap(p: _Pass, use, period: float, k: float, coverage, rng) -> 
     return float(lo), float(hi)
 
 
+def _damping_passes(y, dtau, tau, use, k, start, response, lines_only: bool) -> dict:
+    """The joint fit at each free damping ratio (:data:`FREE_DAMPING_RATIOS`), the state
+    integrated from the record (`lines_only`: from its forcing lines alone,
+    :func:`~.reconstruct.integrate_spectral`)."""
+    vel_i, disp_i = integrate_spectral(motion_of_record(y, response), dtau,
+                                       forcing_lines_only=lines_only)  # fmt: skip
+    return {r: _joint_pass(y, disp_i, vel_i, tau, use, k, r, start, response)
+            for r in FREE_DAMPING_RATIOS}  # fmt: skip
+
+
+def _damping_ratio(p: _Pass) -> float:
+    """The contact damping ratio ``c_c / (2 sqrt(K))`` of a pass (nan where ``K <= 0``)."""
+    stiff = float(p.coef[_K])
+    return float(p.coef[_CC]) / (2.0 * np.sqrt(stiff)) if stiff > 0 else float("nan")
+
+
 def fit_soft_contact(
     y: np.ndarray,
     dtau: float,
@@ -333,13 +349,20 @@ def fit_soft_contact(
     -------
     SoftContactFit or None
     """
-    vel_i, disp_i = integrate_spectral(motion_of_record(y, response), dtau)
     k = stiffness
-    passes = {
-        r: _joint_pass(y, disp_i, vel_i, tau, use, k, r, start_displacement, response)
-        for r in FREE_DAMPING_RATIOS
-    }
+    passes = _damping_passes(y, dtau, tau, use, k, start_displacement, response, False)
     ratio = min(passes, key=lambda r: passes[r].sse)
+    recorded = []  # the reading of the record as integrated, where the other is kept
+    if _damping_ratio(passes[ratio]) >= ALIAS_MIN_DAMPING:
+        # a damped contact's step may have aliased between the forcing lines: the state
+        # integrated from them alone is kept where the joint law then fits better, and the
+        # interval reaches the record's own reading (the fit does not prove which lines are
+        # the mass's)
+        lines = _damping_passes(y, dtau, tau, use, k, start_displacement, response, True)
+        best = min(lines, key=lambda r: lines[r].sse)
+        if lines[best].sse < passes[ratio].sse:
+            recorded = [float(passes[ratio].coef[_K]) / k] if passes[ratio].coef[_K] > 0 else []
+            passes, ratio = lines, best
     p = passes[ratio]
     stiff, damp = float(p.coef[_K]), float(p.coef[_CC])
     if not stiff > 0:
@@ -359,7 +382,7 @@ def fit_soft_contact(
         for r in FREE_DAMPING_RATIOS
         if r != ratio and passes[r].sse <= (1.0 + DAMPING_SSE_SLACK) * p.sse
     ]
-    lo, hi = min(lo, beta, *others), max(hi, beta, *others)
+    lo, hi = min(lo, beta, *others, *recorded), max(hi, beta, *others, *recorded)
     # the reconstruction's systematic terms (:func:`~.estimate.widen_interval`'s misfit and
     # samples-per-contact terms) with this fit's own floor, in quadrature; imported here, as
     # the estimate imports this module
