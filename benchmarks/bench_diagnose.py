@@ -108,6 +108,7 @@ from stiffnet.campaign.simulate import FIT_SETTINGS, natural_frequency, simulate
 from stiffnet.effects.registry import effect_class
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.discrepancy import normalised_differences, recording_discrepancy
+from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.loop import cpu_seconds
 from stiffnet.measurement.nuisance import resolve_rows
 from stiffnet.measurement.statistics import signal_statistics
@@ -393,7 +394,10 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
 #: function), each counted where it is not nested in itself; the face by simulation's parts
 #: are within its own line.
 PHASES = {
-    "restoring-force evidence": ("stiffnet.measurement.diagnose", "restoring_force_evidence"),
+    "restoring-force evidence": (
+        "stiffnet.measurement.diagnose",
+        restoring_force_evidence.__name__,
+    ),
     "library fits alone": ("stiffnet.measurement.diagnose", "_fit_alone"),
     "selection steps": ("stiffnet.measurement.diagnose", "_step"),
     "discovery's maps": ("stiffnet.measurement.learned_law", "campaign_contact_samples"),
