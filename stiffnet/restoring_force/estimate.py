@@ -79,7 +79,6 @@ from stiffnet.restoring_force.hunt_crossley_law import (
 )
 from stiffnet.restoring_force.impact_onsets import ImpactOnsetLaw, fit_impact_onset_law
 from stiffnet.restoring_force.reconstruct import (
-    ALIAS_MIN_DAMPING,
     check_record,
     forcing_candidates,
     forcing_frequency,
@@ -497,8 +496,6 @@ class _Map:
     #: ``(1 - R2, beta)`` at each high-pass corner profiled where the corner is the record's
     #: own (:func:`_profiled_corner`; None where none was): the interval's corner term
     corner_profile: list[tuple[float, float]] | None = None
-    #: The state integrated from the forcing lines alone (:func:`_forcing_lines_map`)
-    lines_only: bool = False
 
 
 def _auto_map(
@@ -604,16 +601,14 @@ def _fit_map(
     inverse: bool = False,
     band: np.ndarray | None = None,
     contact: bool = True,
-    lines_only: bool = False,
 ) -> _Map:
     """Integrate, fit the free flight and the contact law (see the module notes); `inverse`:
     `y` is a chain's inverse, `band` what it keeps (:class:`_Map`): the law is fitted
     through it. Without `contact`, the free flight alone (no impacts, no law): a map read
-    only for its free flight. `lines_only`: the state from the forcing lines alone
-    (:func:`~.reconstruct.integrate_spectral`)."""
+    only for its free flight."""
     source = y
     y = undo_highpass(y, dtau, corner)
-    vel_i, disp_i = integrate_spectral(y, dtau, forcing_lines_only=lines_only)
+    vel_i, disp_i = integrate_spectral(y, dtau)
     fit = fit_free_flight(y, vel_i, disp_i, tau, use, stiffness=k_given, damping=damping,
                           min_flight=MIN_FLIGHT_SAMPLES if inverse else 0)  # fmt: skip
     root_k = float(np.sqrt(max(fit.stiffness, 0.0)))
@@ -627,19 +622,13 @@ def _fit_map(
         free_stiffness=fit.stiffness,
     )
     if not contact:
-        return _Map(
-            fit, info, corner, source=source, inverse=inverse, band=band, lines_only=lines_only
-        )
+        return _Map(fit, info, corner, source=source, inverse=inverse, band=band)
     if fit.stiffness <= 0:
         why = "the free-flight law has no positive stiffness: not an oscillator"
-        return _Map(
-            fit, info, corner, refusal=why, inverse=inverse, band=band, lines_only=lines_only
-        )
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     if fit.r2 < MIN_FREE_R2:
         why = f"the free-flight law explains {fit.r2:.0%} of the force (< 50 %)"
-        return _Map(
-            fit, info, corner, refusal=why, inverse=inverse, band=band, lines_only=lines_only
-        )
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     core = _in_contact(fit, use)
     labels, n_imp = impact_regions(core, max(2, int(0.03 * period)))
     labels[~use] = 0
@@ -651,25 +640,14 @@ def _fit_map(
             f"no contact: {n_imp} excursion(s) of the restoring force beyond the linear "
             f"free-flight law ({MIN_IMPACTS} needed; largest {peak:.1f} sigma)"
         )
-        return _Map(
-            fit,
-            info,
-            corner,
-            refusal=why,
-            source=source,
-            inverse=inverse,
-            band=band,
-            lines_only=lines_only,
-        )
+        return _Map(fit, info, corner, refusal=why, source=source, inverse=inverse, band=band)
     near = labels > 0
     spc = float(np.median(ndimage.sum(core, labels, np.arange(1, n_imp + 1))))
     info["samples_per_contact"] = spc
     kc0, e0, cc0 = linear_contact_start(fit.force, fit.displacement, fit.velocity, core)
     if not np.isfinite(kc0) or int(core.sum()) < 4:
         why = "the contact force does not grow with the displacement"
-        return _Map(
-            fit, info, corner, refusal=why, inverse=inverse, band=band, lines_only=lines_only
-        )
+        return _Map(fit, info, corner, refusal=why, inverse=inverse, band=band)
     peaks = ndimage.maximum(fit.displacement - e0, labels, np.arange(1, n_imp + 1))
     dr = float(np.median(peaks)) if np.median(peaks) > 0 else float(np.std(fit.displacement))
     state = (fit.force, fit.displacement, fit.velocity, near)
@@ -691,8 +669,9 @@ def _fit_map(
     # stiffer than its contacts' duration allows is fitting something else
     duration = spc * dtau / (np.pi / np.sqrt(law.stiffness + fit.stiffness))
     info.update(law=law, contact_r2=law.r2, duration_ratio=duration)
-    out = _Map(fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source, inverse,
-               band, lines_only=lines_only)  # fmt: skip
+    out = _Map(
+        fit, info, corner, "", law, labels, n_imp, spc, fitted_exponent, source, inverse, band
+    )
     if law.r2 < MIN_CONTACT_R2:
         out.refusal = (
             f"the contact law explains {law.r2:.0%} of the contact force (< 50 %): "
@@ -735,7 +714,7 @@ def _profile_free_damping(
     for xi in FREE_DAMPING_GRID:
         other = _fit_map(m.source, dtau, tau, use, period, k_given, m.corner, exponent,
                          damping=2.0 * xi * np.sqrt(k_given), inverse=m.inverse,
-                         band=m.band, lines_only=m.lines_only)  # fmt: skip
+                         band=m.band)  # fmt: skip
         if not other.refusal and _contact_r2(other) > best_r2:
             best, best_r2 = other, _contact_r2(other)
     return best
@@ -844,40 +823,6 @@ def _undo_chain(
         chain = dataclasses.replace(chain, applied=False)
         return other[0], chain, other[1], "", _readings(readings)
     return m2, chain, chain.resonance_hz, refusal, _readings(readings)
-
-
-def _forcing_lines_map(m: _Map, args: tuple, exponent: float | None) -> tuple[_Map, _Map | None]:
-    """The map with its state integrated from the forcing lines alone, where its contact law
-    is damped (:data:`~.reconstruct.ALIAS_MIN_DAMPING`) and that map's free flight fits
-    better; `m` elsewhere.
-
-    A damped contact's force steps at its onset, and a record sampled with no analog
-    anti-alias filter (a simulator's, a chain applied digitally after the sampler) folds the
-    step's harmonics between the forcing lines, where their integrals are a displacement the
-    mass does not have (:func:`~.reconstruct.integrate_spectral`): the free-flight law
-    ``-y = c v + k x + ...`` meets them as ``k / w**2`` times their acceleration, up to 9 times
-    at a third of the forcing frequency. A period-2 or 3 orbit has lines there of its own,
-    which the free flight needs: the integration whose free flight scatters less (its robust
-    sigma) is kept where its contact law explains as much (within :data:`R2_SLACK`: a fitted
-    chain's inverse read from the lines alone once scattered less and read beta 43.9 as 12.4,
-    its law explaining 61 %), and an elastic contact (no step) is left as it was. The map of
-    the record as integrated is returned beside where the other is kept (None elsewhere):
-    beta's interval spans its interval too, as the scatter does not prove which lines are
-    the mass's (behind a low-pass at the contact's frequency the two readings part by up to
-    a half, docs/crosscheck.md)."""
-    if m.law is None or m.source is None or m.lines_only:
-        return m, None
-    if not m.law.damping / (2.0 * np.sqrt(m.law.stiffness)) >= ALIAS_MIN_DAMPING:
-        return m, None
-    y, dtau, tau, use, period, k_given = args
-    other = _fit_map(m.source, dtau, tau, use, period, k_given, m.corner, exponent,
-                     inverse=m.inverse, band=m.band, lines_only=True)  # fmt: skip
-    if other.refusal or other.law is None or not other.fit.sigma < m.fit.sigma:
-        return m, None
-    if _contact_r2(other) < _contact_r2(m) - R2_SLACK:  # a free flight bought with the contact
-        return m, None
-    other.corner_profile = m.corner_profile
-    return other, (None if m.refusal else m)
 
 
 def _band_refusal(chain: SensorChain, m2: _Map, natural_hz: float, use, dtau) -> str:
@@ -1258,7 +1203,6 @@ def _estimate_at(
         m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
         chain_fit_below_r2, rivals=interval, profile=interval or chain_profile,
     )  # fmt: skip
-    m, recorded = _forcing_lines_map(m, args, exponent)
     corner, corner_profile = m.corner, m.corner_profile
     own_damping = float(m.info.get("free_damping_ratio", np.nan))
     if (k_given is not None and m.law is not None and m.info["free_damping_ratio"] < 0
@@ -1327,9 +1271,6 @@ def _estimate_at(
     else:
         beta, (lo, hi), damping_ratio, poles = _beta_of_map(m, use, dtau, coverage, seed,
                                                             interval)  # fmt: skip
-        if interval and recorded is not None:  # the record's own integration's interval
-            _, (lo_r, hi_r), _, _ = _beta_of_map(recorded, use, dtau, coverage, seed)
-            lo, hi = min(lo, lo_r), max(hi, hi_r)
     if stage_ratio is None and hc is None:
         why = _map_below_classes(beta, beta_min, carried)
         soft = soft_reading(why) if why else None

@@ -27,7 +27,7 @@ CUTOFF = 0.25
 #: alone (:func:`integrate_spectral`): the record spans whole periods only to the nearest
 #: sample, and the line's main lobe spreads over its neighbours.
 LINE_BINS = 1
-#: The contact damping ratio from which a map or joint fit is also read with its state
+#: The contact damping ratio from which the soft-contact joint fit is also read with its state
 #: integrated from the forcing lines alone: an elastic contact's force has no step to alias,
 #: and its fitted ratio scatters about 0 by a few hundredths.
 ALIAS_MIN_DAMPING = 0.05
