@@ -364,7 +364,7 @@ def fit_soft_contact(
             recorded = [float(passes[ratio].coef[_K]) / k] if passes[ratio].coef[_K] > 0 else []
             passes, ratio = lines, best
     p = passes[ratio]
-    stiff, damp = float(p.coef[_K]), float(p.coef[_CC])
+    stiff = float(p.coef[_K])
     if not stiff > 0:
         return None
     labels, n = ndimage.label(p.inside & use)
@@ -395,7 +395,7 @@ def fit_soft_contact(
     return SoftContactFit(
         beta=beta,
         interval=(float(lo), float(hi)),
-        contact_damping_ratio=float(damp / (2.0 * np.sqrt(stiff))),
+        contact_damping_ratio=_damping_ratio(p),
         free_damping_ratio=float(ratio),
         share=float(share),
         n_contacts=int(n),

@@ -413,7 +413,7 @@ def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None
             f"low-pass{'es' * (len(left) > 1)} {', '.join(left)}, and the map's exponent "
             "depends on which low-pass the chain has"
         )
-    if rf.get("resonance_hz") is None:
+    if not chain_left_on_map(rf):
         return None
     return (
         f"the record shows a mount ringing at {float(rf['resonance_hz']):.0f} Hz, a sensor "
