@@ -238,6 +238,22 @@ def test_manifest_unknown_column(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz,stiffness\na.csv,1,2\n", "unknown column 'stiffness'")
 
 
+@pytest.mark.parametrize(
+    ("header", "match"),
+    [
+        ("gap_mm [mm]", r"column 3 'gap_mm \[mm\]': a unit beside .* write 'gap_mm'$"),
+        ("fs (Hz)", r"column 3 'fs \(hz\)': .* write 'fs_hz'$"),
+        ("gap [mm]", r"write 'gap_mm'$"),  # not the model's 'gap'
+        ("base_acceleration [m/s^2]", r"write 'base_acceleration_ms2'$"),
+        ("fs_hz [kHz]", r"write 'fs_hz', in Hz \('khz' is not its unit\)$"),
+    ],
+)
+def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, header, match):
+    """A lab sheet's header with units beside the names is refused naming the cell and the
+    column that carries the unit (was: 'unknown column 3 (name not shown)')."""
+    manifest_error(tmp_path, f"recording,beta,{header}\na.csv,3,2\n", match)
+
+
 def test_manifest_missing_required_column(tmp_path):
     manifest_error(tmp_path, "recording,beta\na.csv,3\n", "missing required column fs_hz")
 

@@ -12,6 +12,7 @@ import csv
 import math
 import os
 import posixpath
+import re
 import secrets
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -310,11 +311,56 @@ def read_manifest_with_columns(
     return columns, rows
 
 
+#: A header cell with its unit written beside the name, as spreadsheets do:
+#: ``gap_mm [mm]``, ``fs (Hz)``, ``base_acceleration / g``.
+_UNIT_BESIDE = re.compile(
+    r"^(?P<name>[a-z][a-z0-9_ ]*?)\s*"
+    r"(?:\[(?P<b>[^\]]{1,12})\]|\((?P<p>[^)]{1,12})\)|/\s*(?P<s>\S{1,12}))$"
+)
+#: Units written beside a name, as the suffix of the column that carries that unit.
+_UNIT_SUFFIX = {"hz": "hz", "mm": "mm", "g": "g", "m/s^2": "ms2", "m/s2": "ms2", "m/s²": "ms2",
+                "ms^-2": "ms2", "ms-2": "ms2", "s": "s", "-": "", "1": ""}  # fmt: skip
+_UNIT_SHOWN = {"hz": "Hz", "mm": "mm", "g": "g", "ms2": "m/s²", "s": "s"}
+
+
+def _unit_in_header(col: str) -> str | None:
+    """Why a header cell such as ``gap_mm [mm]`` is refused and which name to write, or
+    None when the cell is not a known column with a unit beside it.
+
+    The unit is never read from beside the name: ``gap [mm]`` could mean the model's
+    ``gap`` or ``gap_mm``, and a column's unit is fixed by its name
+    (docs/campaign.md, "Physical units and tolerances").
+    """
+    m = _UNIT_BESIDE.match(col)
+    if not m:
+        return None
+    name = m["name"].strip().replace(" ", "_")
+    unit = (m["b"] or m["p"] or m["s"]).strip()
+    suffix = _UNIT_SUFFIX.get(unit.lower().replace(" ", ""))
+    if suffix and f"{name}_{suffix}" in COLUMNS:
+        fix = f"{name}_{suffix}"
+    elif name in COLUMNS:
+        fix = name
+    else:
+        return None
+    own = next((u for u in _UNIT_SUFFIX.values() if u and fix.endswith(f"_{u}")), "")
+    if suffix is None or (own or suffix) != suffix:
+        own_unit = _UNIT_SHOWN.get(own, "the unit docs/campaign.md gives it")
+        hint = f"write {fix!r}, in {own_unit} ({unit!r} is not its unit)"
+    else:
+        hint = f"write {fix!r}"
+    # the cell is a known column's name and a short unit: quoting it echoes no file content
+    return f"{col!r}: a unit beside a column's name is not read (the name carries it); {hint}"
+
+
 def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
     for i, col in enumerate(columns):
         if not col:
             raise StiffnetError(f"{p}: line {line}: column {i + 1} of the header has no name")
         if col not in COLUMNS:
+            unit_hint = _unit_in_header(col)
+            if unit_hint:
+                raise StiffnetError(f"{p}: column {i + 1} {unit_hint}")
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
             shown = quote_content(col) or f"{i + 1} (name not shown)"  # never echo a secret
             raise StiffnetError(
