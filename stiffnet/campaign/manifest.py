@@ -282,26 +282,16 @@ def read_manifest_with_columns(
             rows: list[ManifestRow] = []
             seen: dict[str, int] = {}
             folders: set[str] = set()
+            problems: list[str] = []  # a lab sheet's every bad row, not one per run
             for cells in reader:
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
                     continue
-                if len(cells) != len(columns):
-                    raise StiffnetError(
-                        f"{p}: line {line} has {len(cells)} cells, expected {len(columns)} "
-                        f"({','.join(columns)})"
-                    )
-                data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
-                row = _validate_row(data, f"{p}: line {line}")
-                row._line = line
-                if row.recording in seen:
-                    raise StiffnetError(
-                        f"{p}: line {line}: recording {row.recording!r} is listed twice "
-                        f"(also on line {seen[row.recording]})"
-                    )
-                seen[row.recording] = line
-                _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
-                rows.append(row)
+                try:
+                    rows.append(_read_row(p, line, columns, cells, seen, folders))
+                except StiffnetError as exc:
+                    problems.append(str(exc))
+            raise_problems(p, problems)
     except UnicodeDecodeError:
         raise StiffnetError(f"{p}: manifest is not a UTF-8 text file") from None
     except csv.Error as exc:
@@ -351,6 +341,54 @@ def _unit_in_header(col: str) -> str | None:
         hint = f"write {fix!r}"
     # the cell is a known column's name and a short unit: quoting it echoes no file content
     return f"{col!r}: a unit beside a column's name is not read (the name carries it); {hint}"
+
+
+def _read_row(
+    p: Path,
+    line: int,
+    columns: list[str],
+    cells: list[str],
+    seen: dict[str, int],
+    folders: set[str],
+) -> ManifestRow:
+    """One line of the manifest validated, unique and not a folder of another row."""
+    if len(cells) != len(columns):
+        raise StiffnetError(
+            f"{p}: line {line} has {len(cells)} cells, expected {len(columns)} "
+            f"({','.join(columns)})"
+        )
+    data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
+    row = _validate_row(data, f"{p}: line {line}")
+    row._line = line
+    if row.recording in seen:
+        raise StiffnetError(
+            f"{p}: line {line}: recording {row.recording!r} is listed twice "
+            f"(also on line {seen[row.recording]})"
+        )
+    seen[row.recording] = line
+    _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
+    return row
+
+
+#: Problems of a manifest a message spells out before counting the rest.
+SHOWN_PROBLEMS = 5
+
+
+def raise_problems(manifest: Path, problems: list[str]) -> None:
+    """Raise one line naming every problem of ``manifest`` (the first few in full), if any.
+
+    Each problem reads ``<manifest>: line N ...``; the ones after the first lose the
+    repeated manifest path.
+    """
+    if not problems:
+        return
+    if len(problems) == 1:
+        raise StiffnetError(problems[0])
+    prefix = f"{manifest}: "
+    rest = [q.removeprefix(prefix) for q in problems[1:SHOWN_PROBLEMS]]
+    more = len(problems) - SHOWN_PROBLEMS
+    tail = f"; and {more} more" if more > 0 else ""
+    raise StiffnetError(f"{len(problems)} problems: {problems[0]}; also {'; '.join(rest)}{tail}")
 
 
 def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
@@ -558,10 +596,12 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
         raise StiffnetError(f"{p}: campaign folder not found")
     rows = read_manifest(manifest)
     root = p.resolve()
+    problems = []
     for row in rows:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
-            raise StiffnetError(f"{row.where(manifest)}: recording file not found: {path}")
+            problems.append(f"{row.where(manifest)}: recording file not found: {path}")
+    raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
 
 
