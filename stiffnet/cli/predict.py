@@ -427,8 +427,10 @@ def predict_batch_cmd(
         from stiffnet.cli.console import console
 
         for f in summary["failed"]:
-            console.print(f"[red]failed:[/] {f['path']}: {f['error']}", highlight=False,
-                          soft_wrap=True)  # fmt: skip
+            # a reader's error names its file already
+            said = f["error"] if f["error"].startswith(f"{f['path']}:") else (
+                f"{f['path']}: {f['error']}")  # fmt: skip
+            console.print(f"[red]failed:[/] {said}", highlight=False, soft_wrap=True)
         console.print(
             f"[bold red]error:[/] {len(summary['failed'])} of {summary['recordings']} "
             f"recording(s) failed (rows with their error in {out_path})",
