@@ -405,7 +405,9 @@ def predict_batch_cmd(
             resume=resume,
             progress=lambda done, total: bar.update(completed=done, total=total),
         )
-    table = Table(title=f"{summary['recordings']} recordings -> {out_path}")
+    # the path on a line of its own: a title wraps at the narrow table's width, inside it
+    out.print(f"{summary['recordings']} recordings -> {out_path}", soft_wrap=True, markup=False)
+    table = Table()
     table.add_column("class")
     table.add_column("recordings", justify="right")
     for name, count in summary["class_counts"].items():
