@@ -254,6 +254,11 @@ def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, 
     manifest_error(tmp_path, f"recording,beta,{header}\na.csv,3,2\n", match)
 
 
+def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
+    msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
+    assert "(name not shown)" in msg and "k=" not in msg
+
+
 def test_manifest_names_every_bad_row_in_one_line(tmp_path):
     """A lab sheet with a bad cell, a repeated recording and a bad number: all three in one
     message, in file order, so that one run shows what to mend (was: the first alone)."""

@@ -303,9 +303,11 @@ def read_manifest_with_columns(
 
 #: A header cell with its unit written beside the name, as spreadsheets do:
 #: ``gap_mm [mm]``, ``fs (Hz)``, ``base_acceleration / g``.
+#: A unit is a few plain symbols: a cell with anything else is never quoted back.
+_UNIT = r"[a-z0-9/^²%.*· -]{1,12}"
 _UNIT_BESIDE = re.compile(
-    r"^(?P<name>[a-z][a-z0-9_ ]*?)\s*"
-    r"(?:\[(?P<b>[^\]]{1,12})\]|\((?P<p>[^)]{1,12})\)|/\s*(?P<s>\S{1,12}))$"
+    rf"^(?P<name>[a-z][a-z0-9_ ]*?)\s*"
+    rf"(?:\[(?P<b>{_UNIT})\]|\((?P<p>{_UNIT})\)|/\s*(?P<s>{_UNIT}))$"
 )
 #: Units written beside a name, as the suffix of the column that carries that unit.
 _UNIT_SUFFIX = {"hz": "hz", "mm": "mm", "g": "g", "m/s^2": "ms2", "m/s2": "ms2", "m/s²": "ms2",
