@@ -238,6 +238,56 @@ def test_manifest_unknown_column(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz,stiffness\na.csv,1,2\n", "unknown column 'stiffness'")
 
 
+@pytest.mark.parametrize(
+    ("header", "match"),
+    [
+        ("gap_mm [mm]", r"column 3 'gap_mm \[mm\]': a unit beside .* write 'gap_mm'$"),
+        ("fs (Hz)", r"column 3 'fs \(hz\)': .* write 'fs_hz'$"),
+        ("gap [mm]", r"write 'gap_mm'$"),  # not the model's 'gap'
+        ("base_acceleration [m/s^2]", r"write 'base_acceleration_ms2'$"),
+        ("fs_hz [kHz]", r"write 'fs_hz', in Hz \('khz' is not its unit\)$"),
+    ],
+)
+def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, header, match):
+    """A lab sheet's header with units beside the names is refused naming the cell and the
+    column that carries the unit (was: 'unknown column 3 (name not shown)')."""
+    manifest_error(tmp_path, f"recording,beta,{header}\na.csv,3,2\n", match)
+
+
+def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
+    msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
+    assert "(name not shown)" in msg and "k=" not in msg
+
+
+def test_manifest_names_every_bad_row_in_one_line(tmp_path):
+    """A lab sheet with a bad cell, a repeated recording and a bad number: all three in one
+    message, in file order, so that one run shows what to mend (was: the first alone)."""
+    text = ("recording,fs_hz,damping_ratio\na.csv,1000,0.02\nb.csv,1000,2\nc.csv,x,0.02\n"
+            "a.csv,1000,0.02\nd.csv,1000,0.02\n")  # fmt: skip
+    msg = manifest_error(tmp_path, text, r"^3 problems: ")
+    lines = [msg.index(f"line {n}") for n in (3, 4, 5)]
+    assert lines == sorted(lines), msg
+    assert "must be < 1" in msg and "fs_hz" in msg and "listed twice (also on line 2)" in msg
+    assert msg.count(str(tmp_path)) == 1  # the manifest named once
+
+
+def test_manifest_counts_the_problems_it_does_not_spell_out(tmp_path):
+    text = "recording,fs_hz\n" + "".join(f"r{i}.csv,-1\n" for i in range(8))
+    msg = manifest_error(tmp_path, text, r"^8 problems: ")
+    assert msg.endswith("; and 3 more"), msg
+
+
+def test_load_campaign_names_every_missing_file(tmp_path):
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\na.csv,1000\nb.csv,1000\nc.csv,1000\n")
+    write(tmp_path / "b.csv", "t,accel\n0,1\n")
+    with pytest.raises(
+        StiffnetError,
+        match=r"^2 problems: .*line 2 \(a\.csv\): recording file "
+        r"not found.*; also line 4 \(c\.csv\): recording file not found",
+    ):
+        load_campaign(tmp_path)
+
+
 def test_manifest_missing_required_column(tmp_path):
     manifest_error(tmp_path, "recording,beta\na.csv,3\n", "missing required column fs_hz")
 

@@ -96,6 +96,24 @@ def test_outputs_never_land_on_inputs(tmp_path):
                    "is also --json")  # fmt: skip
 
 
+@pytest.mark.parametrize("flag", ["--rows", "--json", "--plot"])
+def test_log_outputs_never_land_on_its_recording(tmp_path, flag):
+    """`log`'s recording is text (it may be `-`): it still counts as the input, and --rows
+    and --plot are checked with the other outputs (they replaced the record before)."""
+    rec = tmp_path / "drill.csv"
+    shutil.copy(EXAMPLE, rec)
+    data = rec.read_bytes()
+    one_line_error(["log", rec, "--fn", "9.48", flag, rec], "is the input recording")
+    assert rec.read_bytes() == data
+
+
+def test_log_rows_and_plot_are_two_outputs(tmp_path):
+    rec = tmp_path / "drill.csv"
+    shutil.copy(EXAMPLE, rec)
+    out = tmp_path / "log.png"
+    one_line_error(["log", rec, "--fn", "9.48", "--rows", out, "--plot", out], "is also --rows")
+
+
 def test_plots_never_replace_a_users_figures(tmp_path):
     rec = tmp_path / "rec.csv"
     shutil.copy(EXAMPLE, rec)

@@ -73,6 +73,30 @@ def test_evaluate_json_contract(campaign, tmp_path):
     assert ev["worst"]
 
 
+def test_evaluate_names_the_recordings_it_leaves_unscored(campaign, tmp_path):
+    """A calibration sheet with one beta left blank: the metrics count the others, and the
+    output says which recording is predicted but not scored (was: n 3 of 4, unexplained)."""
+    import shutil
+
+    folder = shutil.copytree(campaign, tmp_path / "camp")
+    manifest = folder / "manifest.csv"
+    lines = manifest.read_text().splitlines()
+    cols = lines[0].split(",")
+    i = cols.index("beta")
+    cells = lines[2].split(",")
+    blank = cells[0]
+    cells[i] = ""
+    lines[2] = ",".join(cells)
+    manifest.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "ev.json"
+    res = _run(["--wide", "evaluate", folder, "--json", out])
+    assert res.exit_code == 0, res.output
+    ev = json.loads(out.read_text())
+    assert ev["metrics"]["learned"]["n"] == len(ev["recordings"]) - 1
+    assert f"not scored: 1 of {len(ev['recordings'])} recordings have no beta" in res.output
+    assert f"({blank}): predicted, left out of the metrics" in res.output
+
+
 def test_compare_writes_plots(campaign, tmp_path):
     out = tmp_path / "cmp.json"
     res = _run(["compare", campaign, "--plots", tmp_path / "figs", "--json", out])

@@ -191,7 +191,10 @@ def test_cli_predict_batch(recordings, reference, tmp_path):
     res = CliRunner().invoke(app, args)
     assert res.exit_code == 1, res.output  # two recordings failed: named, exit 1
     assert "failed: " in res.output and "broken.csv" in res.output and "short.csv" in res.output
+    for line in (ln for ln in res.output.splitlines() if ln.startswith("failed: ")):
+        assert line.count(str(recordings)) == 1, line  # the reader names the file already
     assert "2 of 7 recording(s) failed" in res.output
+    assert f"7 recordings -> {out}\n" in res.output  # the path whole, not wrapped in a title
     summary = json.loads((tmp_path / "s.json").read_text())
     assert summary["recordings"] == 7 and summary["errors"] == 2
     assert sorted(Path(f["path"]).name for f in summary["failed"]) == ["broken.csv", "short.csv"]

@@ -12,6 +12,7 @@ import csv
 import math
 import os
 import posixpath
+import re
 import secrets
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -281,26 +282,16 @@ def read_manifest_with_columns(
             rows: list[ManifestRow] = []
             seen: dict[str, int] = {}
             folders: set[str] = set()
+            problems: list[str] = []  # a lab sheet's every bad row, not one per run
             for cells in reader:
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
                     continue
-                if len(cells) != len(columns):
-                    raise StiffnetError(
-                        f"{p}: line {line} has {len(cells)} cells, expected {len(columns)} "
-                        f"({','.join(columns)})"
-                    )
-                data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
-                row = _validate_row(data, f"{p}: line {line}")
-                row._line = line
-                if row.recording in seen:
-                    raise StiffnetError(
-                        f"{p}: line {line}: recording {row.recording!r} is listed twice "
-                        f"(also on line {seen[row.recording]})"
-                    )
-                seen[row.recording] = line
-                _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
-                rows.append(row)
+                try:
+                    rows.append(_read_row(p, line, columns, cells, seen, folders))
+                except StiffnetError as exc:
+                    problems.append(str(exc))
+            raise_problems(p, problems)
     except UnicodeDecodeError:
         raise StiffnetError(f"{p}: manifest is not a UTF-8 text file") from None
     except csv.Error as exc:
@@ -310,11 +301,106 @@ def read_manifest_with_columns(
     return columns, rows
 
 
+#: A header cell with its unit written beside the name, as spreadsheets do:
+#: ``gap_mm [mm]``, ``fs (Hz)``, ``base_acceleration / g``.
+#: A unit is a few plain symbols: a cell with anything else is never quoted back.
+_UNIT = r"[a-z0-9/^²%.*· -]{1,12}"
+_UNIT_BESIDE = re.compile(
+    rf"^(?P<name>[a-z][a-z0-9_ ]*?)\s*"
+    rf"(?:\[(?P<b>{_UNIT})\]|\((?P<p>{_UNIT})\)|/\s*(?P<s>{_UNIT}))$"
+)
+#: Units written beside a name, as the suffix of the column that carries that unit.
+_UNIT_SUFFIX = {"hz": "hz", "mm": "mm", "g": "g", "m/s^2": "ms2", "m/s2": "ms2", "m/s²": "ms2",
+                "ms^-2": "ms2", "ms-2": "ms2", "s": "s", "-": "", "1": ""}  # fmt: skip
+_UNIT_SHOWN = {"hz": "Hz", "mm": "mm", "g": "g", "ms2": "m/s²", "s": "s"}
+
+
+def _unit_in_header(col: str) -> str | None:
+    """Why a header cell such as ``gap_mm [mm]`` is refused and which name to write, or
+    None when the cell is not a known column with a unit beside it.
+
+    The unit is never read from beside the name: ``gap [mm]`` could mean the model's
+    ``gap`` or ``gap_mm``, and a column's unit is fixed by its name
+    (docs/campaign.md, "Physical units and tolerances").
+    """
+    m = _UNIT_BESIDE.match(col)
+    if not m:
+        return None
+    name = m["name"].strip().replace(" ", "_")
+    unit = (m["b"] or m["p"] or m["s"]).strip()
+    suffix = _UNIT_SUFFIX.get(unit.lower().replace(" ", ""))
+    if suffix and f"{name}_{suffix}" in COLUMNS:
+        fix = f"{name}_{suffix}"
+    elif name in COLUMNS:
+        fix = name
+    else:
+        return None
+    own = next((u for u in _UNIT_SUFFIX.values() if u and fix.endswith(f"_{u}")), "")
+    if suffix is None or (own or suffix) != suffix:
+        own_unit = _UNIT_SHOWN.get(own, "the unit docs/campaign.md gives it")
+        hint = f"write {fix!r}, in {own_unit} ({unit!r} is not its unit)"
+    else:
+        hint = f"write {fix!r}"
+    # the cell is a known column's name and a short unit: quoting it echoes no file content
+    return f"{col!r}: a unit beside a column's name is not read (the name carries it); {hint}"
+
+
+def _read_row(
+    p: Path,
+    line: int,
+    columns: list[str],
+    cells: list[str],
+    seen: dict[str, int],
+    folders: set[str],
+) -> ManifestRow:
+    """One line of the manifest validated, unique and not a folder of another row."""
+    if len(cells) != len(columns):
+        raise StiffnetError(
+            f"{p}: line {line} has {len(cells)} cells, expected {len(columns)} "
+            f"({','.join(columns)})"
+        )
+    data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
+    row = _validate_row(data, f"{p}: line {line}")
+    row._line = line
+    if row.recording in seen:
+        raise StiffnetError(
+            f"{p}: line {line}: recording {row.recording!r} is listed twice "
+            f"(also on line {seen[row.recording]})"
+        )
+    seen[row.recording] = line
+    _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
+    return row
+
+
+#: Problems of a manifest a message spells out before counting the rest.
+SHOWN_PROBLEMS = 5
+
+
+def raise_problems(manifest: Path, problems: list[str]) -> None:
+    """Raise one line naming every problem of ``manifest`` (the first few in full), if any.
+
+    Each problem reads ``<manifest>: line N ...``; the ones after the first lose the
+    repeated manifest path.
+    """
+    if not problems:
+        return
+    if len(problems) == 1:
+        raise StiffnetError(problems[0])
+    prefix = f"{manifest}: "
+    rest = [q.removeprefix(prefix) for q in problems[1:SHOWN_PROBLEMS]]
+    more = len(problems) - SHOWN_PROBLEMS
+    tail = f"; and {more} more" if more > 0 else ""
+    raise StiffnetError(f"{len(problems)} problems: {problems[0]}; also {'; '.join(rest)}{tail}")
+
+
 def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
     for i, col in enumerate(columns):
         if not col:
             raise StiffnetError(f"{p}: line {line}: column {i + 1} of the header has no name")
         if col not in COLUMNS:
+            unit_hint = _unit_in_header(col)
+            if unit_hint:
+                raise StiffnetError(f"{p}: column {i + 1} {unit_hint}")
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
             shown = quote_content(col) or f"{i + 1} (name not shown)"  # never echo a secret
             raise StiffnetError(
@@ -512,10 +598,12 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
         raise StiffnetError(f"{p}: campaign folder not found")
     rows = read_manifest(manifest)
     root = p.resolve()
+    problems = []
     for row in rows:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
-            raise StiffnetError(f"{row.where(manifest)}: recording file not found: {path}")
+            problems.append(f"{row.where(manifest)}: recording file not found: {path}")
+    raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
 
 

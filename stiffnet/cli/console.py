@@ -148,7 +148,8 @@ def report_error(message: object) -> None:
 
 
 #: Parameters every command names the same way: checked before the command runs.
-_OUTPUT_FILES = {"json_path": "--json", "out_path": "--out"}
+_OUTPUT_FILES = {"json_path": "--json", "out_path": "--out", "rows_path": "--rows",
+                 "plot_path": "--plot"}  # fmt: skip
 _OUTPUT_FOLDERS = {"out_dir": "--out", "state": "--state"}
 _FIGURES = {"plots": "--plots"}
 #: What the commands read (argument name -> how a message names it).
@@ -191,9 +192,12 @@ def check_arguments(kwargs: dict[str, Any]) -> None:
     for name, flag in _FIGURES.items():
         if kwargs.get(name) is not None:
             outputs[flag] = (inputs.figure_folder(kwargs[name], flag), "folder")
-    # paths only (`train --model gbm` names a family); a folder or glob of recordings is text
+    # paths only (`train --model gbm` names a family); a folder or glob of recordings is
+    # text, and so is `log`'s recording (`-` is stdin)
+    text_inputs = ("recordings", "recording")
     ins = {name: Path(kwargs[name]) for name in _INPUTS
-           if (isinstance(kwargs.get(name), Path) or (name == "recordings" and kwargs.get(name)))
+           if (isinstance(kwargs.get(name), Path) or (name in text_inputs and kwargs.get(name)
+                                                      and kwargs[name] != "-"))
            and os.path.lexists(str(kwargs[name]))}  # fmt: skip
     inputs.check_outputs(outputs, ins)
 

@@ -164,6 +164,13 @@ def evaluate(
         res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg),
                                 settings=config_settings(cfg))  # fmt: skip
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
+    unscored = [r["recording"] for r in res["recordings"] if r["beta"] is None]
+    if unscored:  # the table's n counts the others only: say which rows it leaves out
+        out.print(
+            f"not scored: {len(unscored)} of {len(res['recordings'])} recordings have no beta "
+            f"in the manifest ({', '.join(unscored[:5])}{', ...' if len(unscored) > 5 else ''}):"
+            " predicted, left out of the metrics"
+        )
     worst = ", ".join(f"{w['recording']} ({w['error']:.2f})" for w in res["worst"][:3])
     out.print(f"worst recordings by error (1 for a wrong class + relative beta error): {worst}")
     flagged = [r for r in res["recordings"] if r["ood"]]

@@ -405,7 +405,9 @@ def predict_batch_cmd(
             resume=resume,
             progress=lambda done, total: bar.update(completed=done, total=total),
         )
-    table = Table(title=f"{summary['recordings']} recordings -> {out_path}")
+    # the path on a line of its own: a title wraps at the narrow table's width, inside it
+    out.print(f"{summary['recordings']} recordings -> {out_path}", soft_wrap=True, markup=False)
+    table = Table()
     table.add_column("class")
     table.add_column("recordings", justify="right")
     for name, count in summary["class_counts"].items():
@@ -427,8 +429,10 @@ def predict_batch_cmd(
         from stiffnet.cli.console import console
 
         for f in summary["failed"]:
-            console.print(f"[red]failed:[/] {f['path']}: {f['error']}", highlight=False,
-                          soft_wrap=True)  # fmt: skip
+            # a reader's error names its file already
+            said = f["error"] if f["error"].startswith(f"{f['path']}:") else (
+                f"{f['path']}: {f['error']}")  # fmt: skip
+            console.print(f"[red]failed:[/] {said}", highlight=False, soft_wrap=True)
         console.print(
             f"[bold red]error:[/] {len(summary['failed'])} of {summary['recordings']} "
             f"recording(s) failed (rows with their error in {out_path})",
