@@ -852,3 +852,80 @@ def test_a_model_trained_on_a_stiffening_law_is_not_told_its_law_is_unseen():
     alarm = with_unseen_law_check(None, hc, seen)
     assert alarm["flag"] is True
     assert all("dissipation" in r for r in alarm["contact_law"])
+
+
+def test_a_linear_law_reads_linear_through_a_wide_low_pass_and_bends_through_a_near_one():
+    """The chain's forward model (stiffnet.uncertainty.chain_exponent): the estimate's own
+    exponent fit reads a linear contact of 13 samples as linear through an anti-alias
+    low-pass near Nyquist, and as a stiffening law through the priors' lowest corner."""
+    from stiffnet.uncertainty.chain_exponent import exponent_through_lowpass
+
+    wide = exponent_through_lowpass(1.0, 13.0, 0.45, 2)
+    near = exponent_through_lowpass(1.0, 13.0, 0.05, 4)
+    assert wide is not None and near is not None
+    assert abs(wide - 1.0) < 0.05
+    assert near > 1.85  # beyond the training world's upper exponent band
+
+
+def test_a_hertz_law_reads_in_its_band_through_a_wide_low_pass():
+    from stiffnet.uncertainty.chain_exponent import exponents_through_lowpass
+
+    read = exponents_through_lowpass(40.0, 0.45, 1)
+    assert read is not None
+    linear, hertz = read
+    assert abs(linear - 1.0) < 0.05
+    assert 1.3 <= hertz <= 1.6
+
+
+def test_the_forward_reading_rises_as_the_contact_shortens_against_the_corner():
+    from stiffnet.uncertainty.chain_exponent import exponent_through_lowpass
+
+    reads = [exponent_through_lowpass(1.0, spc, 0.1, 4) for spc in (40.0, 20.0, 8.0)]
+    assert all(r is not None for r in reads)
+    assert reads[0] < reads[1] < reads[2]
+
+
+def test_the_unexcluded_low_pass_is_the_priors_lowest_without_an_undone_chain():
+    from stiffnet.uncertainty.chain_exponent import unexcluded_lowpass
+
+    assert unexcluded_lowpass({"sensor": None}, 0.05, 4)[:2] == (0.05, 4)
+    undone = {
+        "samples_per_contact": 10.0,
+        "duration_ratio": 1.0,
+        "sensor": {
+            "applied": True,
+            "contact_hz": 50.0,  # fs = 2 * 50 * 10 / 1 = 1000 Hz
+            "lowpass_not_excluded": [{"order": 4, "hz": 300.0}, {"order": 2, "hz": 200.0}],
+        },
+    }
+    corner, order, _ = unexcluded_lowpass(undone, 0.05, 4)
+    assert (round(corner, 3), order) == (0.2, 2)
+    excluded = {**undone, "sensor": {**undone["sensor"], "lowpass_not_excluded": []}}
+    assert unexcluded_lowpass(excluded, 0.05, 4) is None
+
+
+def test_the_configured_prior_low_pass_is_the_sim_priors():
+    """The corner the forward model assumes unexcluded is the training priors' lowest."""
+    import yaml
+
+    from stiffnet.uncertainty.chain_exponent import PRIOR_LOWPASS_ORDER, PRIOR_LOWPASS_OVER_FS
+
+    root = Path(__file__).resolve().parents[1]
+    sim = yaml.safe_load((root / "configs" / "sim" / "default.yaml").read_text())
+    effect = next(e for e in sim["effects"] if e["name"] == "sensor_dynamics")
+    assert effect["relative"]["lowpass_hz"]["range"][0] == PRIOR_LOWPASS_OVER_FS
+    assert max(effect["params"]["lowpass_order"]) == PRIOR_LOWPASS_ORDER
+
+
+@pytest.mark.parametrize(
+    "spc, corner, order",
+    [(13.0, 0.157, 4), (11.0, 0.173, 2), (13.0, 0.159, 3)],  # sensor_dynamics #5, #7, #20
+)
+def test_the_records_own_low_pass_does_not_bend_a_linear_law_to_their_exponents(spc, corner, order):
+    """The three right answers bench_alarm's sensor_dynamics flags at offset 0 read 1.96,
+    1.39 and 1.59 through their simulated chains; a linear law of their contacts' duration
+    through those chains' low-passes reads under 1.15: the low-pass alone is not the bend."""
+    from stiffnet.uncertainty.chain_exponent import exponent_through_lowpass
+
+    read = exponent_through_lowpass(1.0, spc, corner, order)
+    assert read is not None and 1.0 <= read < 1.15
