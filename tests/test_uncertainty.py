@@ -525,3 +525,21 @@ def test_a_refusal_for_the_sensor_fires_the_chain_refusal_check_outside_the_prio
     assert out["flag"] and out["fired"] == ["chain_refusal"] and "UNRELIABLE" in out["message"]
     assert not with_chain_refusal_check(quiet, fitted, priors, 300.0)["flag"]
     assert quiet["fired"] == []  # not mutated
+
+
+def test_a_hertz_reading_without_a_chain_is_flagged_and_says_a_data_sheet_would_tell():
+    """hertz_contact's draw 0 through rule_checks, as read (no sensor chain): the
+    reference_penetration alarm fires and the alarm says that a low-pass near the contact reads
+    as this exponent; with a chain undone the note goes (the exponent is read through it)."""
+    from serving.verdict import rule_checks
+    from stiffnet.uncertainty.reference_penetration import REFERENCE_PENETRATION
+
+    model = {"class_names": NAMES, "class_edges": EDGES, "priors": HERTZ_WORLD}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    rf = _hertz_check([37.1, 49.6])
+    res = rule_checks(quiet, "hard", [42.5, 63.2], rf, model, 872.2, 9.48)
+    assert REFERENCE_PENETRATION in res["fired"]
+    assert "--sensor" in res["exponent_chain_unknown"]
+    undone = {**rf, "sensor": {"applied": True, "lowpass_not_excluded": []}}
+    res = rule_checks(quiet, "hard", [42.5, 63.2], undone, model, 872.2, 9.48)
+    assert REFERENCE_PENETRATION in res["fired"] and "exponent_chain_unknown" not in res

@@ -852,3 +852,46 @@ def test_a_model_trained_on_a_stiffening_law_is_not_told_its_law_is_unseen():
     alarm = with_unseen_law_check(None, hc, seen)
     assert alarm["flag"] is True
     assert all("dissipation" in r for r in alarm["contact_law"])
+
+
+#: sensor_dynamics' draw 5 (seed offset 0): a linear contact behind an in-prior low-pass
+#: (98 Hz order 4 at 626 Hz), right; the cross-check found no chain (its law fitted R2 0.995,
+#: so the chain fit was not tried) and read exponent 1.96 with a curvature gain of 0.66.
+_DRAW_5 = {"exponent": 1.96, "contact_r2": 0.995, "sensor": None, "highpass_hz": 0.0,
+           "law_shape": {"curvature": 0.66, "curvature_share": 0.61}}  # fmt: skip
+
+
+def test_an_exponent_alarm_on_a_map_read_without_a_chain_says_what_would_resolve_it():
+    """The alarm stands on draw 5 (the two-stage rig's and the power law's wrong answers read
+    alike), and says that a low-pass bends the map the same way and the data sheet tells."""
+    alarm = with_unseen_law_check(None, _DRAW_5)
+    assert "contact_law" in alarm["fired"]
+    note = alarm["exponent_chain_unknown"]
+    assert "1.96" in note and "--sensor" in note and "low-pass" in note
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        # the chain identified (or given) and undone: the exponent is read through it
+        {"sensor": {"applied": True, "lowpass_not_excluded": []}},
+        # a linear reading: no exponent alarm to explain (the curvature still fires)
+        {"exponent": 1.05},
+        # a loose fit: the exponent does not count
+        {"contact_r2": 0.9},
+    ],
+)
+def test_no_chain_note_where_the_exponent_was_read_through_a_chain_or_did_not_alarm(change):
+    alarm = with_unseen_law_check(None, {**_DRAW_5, **change})
+    assert "exponent_chain_unknown" not in alarm
+
+
+def test_a_reference_penetration_alarm_without_a_chain_carries_the_note():
+    """sensor_dynamics' draw 7 (offset 0): linear, behind a 196 Hz order-2 low-pass at
+    1134 Hz, read as Hertz (1.39, R2 0.988) with no chain; only reference_penetration fired."""
+    from stiffnet.uncertainty.unseen_law import exponent_chain_unknown
+
+    rf = {"exponent": 1.39, "contact_r2": 0.988, "sensor": None, "highpass_hz": 1.13}
+    t = unseen_law_thresholds()
+    assert "1.39" in exponent_chain_unknown(rf, ["reference_penetration"], t)
+    assert exponent_chain_unknown(rf, ["class_outvoted"], t) is None
