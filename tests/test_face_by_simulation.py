@@ -79,10 +79,6 @@ class FaceMassCampaign:
     alone: list[int] = field(default_factory=list)
     #: The points of each batch.
     batch_points: list[list[dict[str, float]]] = field(default_factory=list)
-    #: Each batch of blocks (:meth:`per_recording_blocks`): its blocks' recordings (None: all).
-    shared: list[list[int | None]] = field(default_factory=list)
-    #: Each simulated batch: a point alone, a batch of points or of blocks (copies share it).
-    calls: list[str] = field(default_factory=list)
 
     def observed(self) -> dict[str, float]:
         return {}
@@ -102,43 +98,17 @@ class FaceMassCampaign:
         return np.array([chattering if "chatter" in r.recording else repeatable for r in self.rows])
 
     def per_recording(self, effects: Any, settings: Any, **_: Any) -> np.ndarray:
-        self.calls.append("alone")
         self.alone.append(len(self.rows))
         return self._per(list(effects))
 
     def per_recording_points(
         self, effects: Any, name: str, points: Any, settings: Any, **_: Any
     ) -> list[np.ndarray]:
-        self.calls.append("points")
         self.batches.append((len(self.rows), settings))
         self.batch_rows.append([r.recording for r in self.rows])
         self.batch_points.append([dict(p) for p in points])
         ON_WORKER.append(_on_worker())
         return [self._per([*effects, LearnedContact(**p)]) for p in points]
-
-    def per_recording_blocks(
-        self, effects: Any, name: str, blocks: Any, settings: Any, **_: Any
-    ) -> list[np.ndarray]:
-        """Blocks of one batch: each on every recording counts as a point scored alone, those
-        on a subset as one batch of points (as :meth:`per_recording_points` records it)."""
-        self.calls.append("blocks")
-        self.shared.append([None if idx is None else len(idx) for _, idx, _ in blocks])
-        out, grid, rows = [], [], []
-        for p, idx, _ in blocks:
-            if idx is None:
-                self.alone.append(len(self.rows))
-                out.append(self._per([*effects, LearnedContact(**p)]))
-                continue
-            part = self.subset(idx)
-            rows = [r.recording for r in part.rows]
-            grid.append(dict(p))
-            out.append(part._per([*effects, LearnedContact(**p)]))
-        if grid:
-            self.batches.append((len(rows), settings))
-            self.batch_rows.append(rows)
-            self.batch_points.append(grid)
-            ON_WORKER.append(_on_worker())
-        return out
 
 
 def campaign(repeatable: int = 2) -> FaceMassCampaign:
@@ -336,38 +306,3 @@ def test_refit_in_a_pool_sweeps_both_starts_on_the_workers_with_the_same_answer(
     assert here["params"] == there["params"]
     assert here["first_sweeps"] == there["first_sweeps"]
     np.testing.assert_array_equal(here["per_recording"], there["per_recording"])
-
-
-def test_points_scored_alone_share_a_batch_with_the_next_sweep_and_end_where_serial_ends(
-    monkeypatch,
-):
-    """In the process, the two starts' first sweeps are one batch, and the first start's pick
-    is scored alone in one batch with the next sweep's grid from it (the stand-in's noise-free
-    recordings score the same in any batch): the refit ends where the sweeps run one batch
-    after the other end, to the bit, in fewer batches; the point alone comes first in its
-    batch (every recording), the grid after it on the sweep's subset."""
-
-    def run() -> tuple[dict[str, Any], FaceMassCampaign]:
-        target = spread_campaign()
-        other = {**START, "face_mass": 0.05}
-        at = [target.per_recording([LearnedContact(**p)], FIT_SETTINGS_NUMERICAL)
-              for p in (START, other)]  # fmt: skip
-        target.calls[:], target.alone[:] = [], []
-        out = refine_face(target, target.rows, [], START, at[0], FIT_SETTINGS_NUMERICAL,
-                          other=(other, at[1]))  # fmt: skip
-        return out, target
-
-    shared, in_one = run()
-    monkeypatch.setattr(face_by_simulation, "_shares_batches", lambda model: False)
-    serial, in_turn = run()
-    assert shared["params"] == serial["params"]
-    assert shared["first_sweeps"] == serial["first_sweeps"]
-    np.testing.assert_array_equal(shared["per_recording"], serial["per_recording"])
-    assert in_turn.shared == []
-    n = SWEEP_RECORDINGS
-    grid = face_by_simulation.FACE_REFIT_GRID
-    # both starts' mass grids in one batch; the first start's pick alone, then the scale's grid
-    assert in_one.shared[0] == [n] * (2 * grid)
-    assert in_one.shared[1] == [None] + [n] * grid
-    assert len(in_one.calls) <= len(in_turn.calls) - 2
-    assert len(in_one.alone) == len(in_turn.alone)  # the same points scored alone

@@ -176,39 +176,6 @@ def test_design_points_as_one_batch_match_single_evaluations():
         assert not np.array_equal(batch[0], batch[1])  # the points differ
 
 
-def test_a_point_alone_and_a_design_on_fewer_recordings_share_one_batch():
-    """per_recording_blocks: a point on every recording first, then a design on a subset, in
-    one batch: the first block scores what the point scores alone, noise included, to the
-    bit (its rows draw the same noise); the design's blocks score on their own recordings
-    (without noise, what each point scores alone there)."""
-    from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL
-
-    quiet = ROW.model_copy(update={"noise": 0.0})
-    rows = [ROW, quiet.model_copy(update={"recording": "b.csv", "beta": 60.0}),
-            quiet.model_copy(update={"recording": "c.csv", "beta": 90.0})]  # fmt: skip
-    sims = simulate_rows(rows, [], [3000] * 3, seed=3, settings=FIT_SETTINGS)
-    measured = [signal_statistics(a, 1250, 9.48, 1.0) for a in sims]
-    target = CampaignTarget(rows, measured, [3000] * 3, [], seed=11, inclination=False)
-    cls = effect_class("hertz_contact")
-    alone, design = {"reference_penetration": 0.05}, [{"reference_penetration": v}
-                                                      for v in (0.02, 0.2)]  # fmt: skip
-    blocks = [(alone, None, None), *((p, [1, 2], False) for p in design)]
-    out = target.per_recording_blocks([], "hertz_contact", blocks, FIT_SETTINGS_NUMERICAL)
-    assert [o.size for o in out] == [3, 2, 2]
-    np.testing.assert_array_equal(
-        out[0], target.per_recording([cls(**alone)], FIT_SETTINGS_NUMERICAL)
-    )
-    sub = target.subset([1, 2])
-    for got, p in zip(out[1:], design, strict=True):
-        np.testing.assert_array_equal(got, sub.per_recording([cls(**p)], FIT_SETTINGS_NUMERICAL))
-    # a design alone is the blocks of every recording: per_recording_points' numbers
-    points = target.per_recording_points([], "hertz_contact", design, FIT_SETTINGS_NUMERICAL)
-    same = target.per_recording_blocks([], "hertz_contact", [(p, None, None) for p in design],
-                                       FIT_SETTINGS_NUMERICAL)  # fmt: skip
-    for a, b in zip(points, same, strict=True):
-        np.testing.assert_array_equal(a, b)
-
-
 def test_search_leaves_the_inclinations_out_and_scores_the_best_with_them(signal):
     """With inclination statistics on, the search runs without them, and the reported
     discrepancies (best point and effect off) are scored with every statistic."""

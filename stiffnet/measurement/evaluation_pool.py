@@ -126,12 +126,6 @@ def statistics_many(
     return _spread(_chunk_statistics, target, calls, client)
 
 
-def in_pool() -> bool:
-    """Whether an evaluation pool is open (:func:`evaluation_pool`): independent batches
-    then run as tasks on its workers rather than one after the other here."""
-    return _CLIENT.get() is not None
-
-
 def map_independent(fn: Any, items: Sequence[Any]) -> list[Any]:
     """``[fn(item) for item in items]``, one task per item on the pool's workers (in order,
     here, outside a pool or for a single item): for a search whose independent steps are
@@ -151,5 +145,5 @@ def map_independent(fn: Any, items: Sequence[Any]) -> list[Any]:
     return list(report.results)
 
 
-__all__ = ["MIN_BATCH", "evaluation_pool", "in_pool", "map_independent", "per_recording_many",
+__all__ = ["MIN_BATCH", "evaluation_pool", "map_independent", "per_recording_many",
            "statistics_many"]  # fmt: skip

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from stiffnet.campaign.simulate import natural_frequency, oversampling
+from stiffnet.campaign.simulate import natural_frequency
 from stiffnet.discovery.face_candidate import (
     FACE_ACCOUNTS,
     betas_behind_face,
@@ -52,7 +52,7 @@ from stiffnet.discovery.samples import ContactSamples
 from stiffnet.effects.base import Effect
 from stiffnet.effects.learned_contact import FACE_REFIT_FACTOR, LearnedContact
 from stiffnet.measurement.discrepancy import campaign_discrepancy
-from stiffnet.measurement.evaluation_pool import in_pool, map_independent
+from stiffnet.measurement.evaluation_pool import map_independent
 from stiffnet.measurement.fitting import objective_value, screen_settings, spread_subset
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.significance import significance
@@ -387,15 +387,15 @@ def refine_face(
         box = {fp.name: fp for fp in LearnedContact.fit_space_at(start, fs_min).free}
         start.update({k: float(defaults[k]) for k in box if k not in start})  # a law from before
         boxes.append(box)
-    order = SCALED_SWEEP_ORDER if "face_beta_scale" in boxes[0] else SWEEP_ORDER
-    first = _first_sweeps(tgt, settings, boxes, starts, order[1])
-    best, per, fitted, box, ranked = min(first, key=lambda f: objective_value(f[1], tgt.weights))
-    if box is not boxes[0]:  # the next sweep's grid was simulated from the first start's pick
-        ranked = None
-    rest = order[1:]  # the others across the chosen start's box, at the best so far
-    for n, key in enumerate(rest):
-        then = rest[n + 1] if n + 1 < len(rest) else None
-        best, per, fitted, ranked = _sweep(tgt, settings, box, key, best, per, then, ranked)
+    # the two starts' first sweeps do not depend on each other (on the workers in a pool)
+    swept = map_independent(_first_sweep, [(tgt, settings, box, start, per0)
+                                           for box, (start, per0) in zip(boxes, starts,
+                                                                         strict=True)])  # fmt: skip
+    first = [(*f, box) for f, box in zip(swept, boxes, strict=True)]
+    best, per, fitted, box = min(first, key=lambda f: objective_value(f[1], tgt.weights))
+    order = SCALED_SWEEP_ORDER if "face_beta_scale" in box else SWEEP_ORDER
+    for key in order[1:]:  # the others across the chosen start's box, at the best so far
+        best, per, fitted = _sweep(tgt, settings, box, key, best, per)
     o0, o1 = objective_value(at_discovered, tgt.weights), objective_value(per, tgt.weights)
     return {
         "params": best,
@@ -411,58 +411,12 @@ def refine_face(
     }
 
 
-def _first_sweeps(
-    tgt: Any,
-    settings: Any,
-    boxes: list[dict[str, Any]],
-    starts: list[tuple[dict[str, float], np.ndarray]],
-    then: str,
-) -> list[tuple[dict[str, float], np.ndarray, list[str], dict[str, Any], list | None]]:
-    """The first sweep (:data:`SWEEP_ORDER`'s first parameter) from each start: (best, its
-    per-recording discrepancy, the fitted names, the start's box, the next sweep's batch
-    from the first start's kept point or None; :func:`_sweep`).
-
-    The starts' sweeps do not depend on each other: on the workers in a pool, where each is
-    a task with its pick scored alone apart; in the process, one batch holds every start's
-    grid, and the first start's pick is scored alone in one batch with the grid of the next
-    sweep (``then``) from it (the refit goes on from the first start where it wins)."""
-    if (in_pool() and len(starts) > 1) or not _shares_batches(tgt.base_effects):
-        items = [(tgt, settings, box, start, per0)
-                 for box, (start, per0) in zip(boxes, starts, strict=True)]  # fmt: skip
-        swept = map_independent(_first_sweep, items)
-        return [(*f, box, None) for f, box in zip(swept, boxes, strict=True)]
-    key = SWEEP_ORDER[0]
-    grids = [
-        [start, *sweep_grid(box[key], key, start)]
-        for box, (start, _) in zip(boxes, starts, strict=True)
-    ]
-    idx = spread_subset(tgt.rows, SWEEP_RECORDINGS)
-    blocks = [(p, idx, False) for grid in grids for p in grid]
-    model = list(tgt.base_effects)
-    with reuse_motion():
-        pers = tgt.per_recording_blocks(model, LearnedContact.name, blocks, settings,
-                                        oversample=False)  # fmt: skip
-    out, at = [], 0
-    for n, (box, (start, per0), grid) in enumerate(zip(boxes, starts, grids, strict=True)):
-        mine, at = pers[at : at + len(grid)], at + len(grid)
-        *f, ranked = _sweep(tgt, settings, box, key, start, per0, then if n == 0 else None, mine)
-        out.append((*f, box, ranked))
-    return out
-
-
 def _first_sweep(
     item: tuple[Any, Any, dict[str, Any], dict[str, float], np.ndarray],
 ) -> tuple[dict[str, float], np.ndarray, list[str]]:
     """:func:`_sweep` of the first parameter of :data:`SWEEP_ORDER` from one start."""
     tgt, settings, box, start, per0 = item
-    return _sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0)[:3]
-
-
-def _shares_batches(model: Sequence[Effect]) -> bool:
-    """Whether a point scored alone (:meth:`per_recording`, oversampled where an effect is
-    analog) and a sweep's grid (not oversampled) can share one batch: they run at the same
-    rate only where nothing in ``model`` with the face asks for oversampling."""
-    return oversampling([*model, LearnedContact()]) == 1
+    return _sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0)
 
 
 def sweep_grid(param: Any, key: str, best: dict[str, float]) -> list[dict[str, float]]:
@@ -476,28 +430,16 @@ def sweep_grid(param: Any, key: str, best: dict[str, float]) -> list[dict[str, f
 
 
 def _sweep(
-    tgt: Any,
-    settings: Any,
-    box: dict[str, Any],
-    key: str,
-    best: dict[str, float],
-    per: np.ndarray,
-    then: str | None = None,
-    ranked: list[np.ndarray] | None = None,
-) -> tuple[dict[str, float], np.ndarray, list[str], list[np.ndarray] | None]:
+    tgt: Any, settings: Any, box: dict[str, Any], key: str, best: dict[str, float], per: np.ndarray
+) -> tuple[dict[str, float], np.ndarray, list[str]]:
     """One face parameter swept across its box (the others at ``best``): the best point and
     its per-recording discrepancy (``best`` kept unless a point, scored alone as ``per`` was,
-    lowers the fits' objective), the fitted names, and the batch of the next sweep (``then``)
-    from the kept point where it was simulated with it (else None).
+    lowers the fits' objective), the fitted names.
 
     The grid (:func:`sweep_grid`) and the start are simulated as one batch at the full
     settings on :data:`SWEEP_RECORDINGS` recordings spread over the campaign (all of them on
-    a smaller campaign) and ranked there (``ranked``: that batch, simulated already); the
-    :data:`SWEEP_RESCORED` best points ranked above the start are scored alone on every
-    recording, the last of them in one batch with the next sweep's grid from it: the
-    engine's cost is per time step, hardly per row, and the sweeps run in turn, so where
-    that point is kept the next sweep's batch costs a few rows, and where it is not, that
-    grid is simulated again from the point kept."""
+    a smaller campaign) and ranked there; the :data:`SWEEP_RESCORED` best points ranked above
+    the start are scored alone on every recording."""
     points = [best, *sweep_grid(box[key], key, best)]
     # at the full settings: the face's ringing locks impacts onto one orbit or another, and a
     # screen (a short transient begun warm) ranks the sweep's points otherwise than their full
@@ -507,31 +449,19 @@ def _sweep(
     idx = spread_subset(tgt.rows, SWEEP_RECORDINGS)
     ranked_on = tgt if idx.size == len(tgt.rows) else tgt.subset(idx)
     model = list(tgt.base_effects)
-    chain = then is not None and _shares_batches(model)
     with reuse_motion():
-        pers = ranked if ranked is not None else ranked_on.per_recording_points(
-            model, LearnedContact.name, points, settings, inclination=False, oversample=False
-        )  # fmt: skip
+        pers = ranked_on.per_recording_points(model, LearnedContact.name, points, settings,
+                                              inclination=False, oversample=False)  # fmt: skip
         values = [objective_value(p, ranked_on.weights) for p in pers]
         # the start's batch value is the yardstick, so a point is ranked against it as drawn
         # in the same batch; the kept point is scored alone (the batch drew other noise)
         ahead = [int(j) for j in np.argsort(values, kind="stable") if values[j] < values[0]]
-        o_best, kept, after = objective_value(per, tgt.weights), (best, per), None
-        picks = ahead[:SWEEP_RESCORED]
-        for n, j in enumerate(picks):
+        o_best, kept = objective_value(per, tgt.weights), (best, per)
+        for j in ahead[:SWEEP_RESCORED]:
             law = LearnedContact(**points[j])
-            point = {**law.params.model_dump(), **points[j]}  # every parameter, as fits report
-            if chain and n == len(picks) - 1:
-                # the point alone first: its rows draw the noise of per_recording
-                grid = [point, *sweep_grid(box[then], then, point)]
-                blocks = [(points[j], None, None), *((p, idx, False) for p in grid)]
-                alone, *next_pers = tgt.per_recording_blocks(
-                    model, LearnedContact.name, blocks, settings, oversample=False
-                )
-            else:
-                alone, next_pers = tgt.per_recording([*model, law], settings), None
-            alone = np.asarray(alone, float)
+            alone = np.asarray(tgt.per_recording([*model, law], settings), float)
             o_alone = objective_value(alone, tgt.weights)
             if o_alone < o_best:
-                o_best, kept, after = o_alone, (point, alone), next_pers
-    return dict(kept[0]), kept[1], list(box), after
+                # every parameter of the law, as the fits report a point
+                o_best, kept = o_alone, ({**law.params.model_dump(), **points[j]}, alone)
+    return dict(kept[0]), kept[1], list(box)

@@ -234,52 +234,26 @@ class CampaignTarget:
         (one generator for the batch), so their values carry the scatter of the
         noise floor: a design to pick a point from, to be scored again alone.
         """
-        blocks = [(p, None, inclination) for p in points]
-        return self.per_recording_blocks(effects, name, blocks, settings, oversample)
-
-    def per_recording_blocks(
-        self,
-        effects: Sequence[Effect],
-        name: str,
-        blocks: Sequence[tuple[dict[str, float], Sequence[int] | None, bool | None]],
-        settings: SolverSettings,
-        oversample: bool = True,
-    ) -> list[np.ndarray]:
-        """:meth:`per_recording_points` of blocks of recordings: ``effects`` plus effect ``name``
-        at each block's point ``(point, recordings, inclination)`` on the block's recordings
-        (indices; None: all of them), every block in **one** batch; each block's discrepancies
-        on its own recordings (``inclination``: see :meth:`simulated_statistics`).
-
-        A first block on every recording draws the noise of :meth:`per_recording` (the same
-        numbers, where its ``oversample`` gives the same oversampling: the batch's noise is
-        drawn row by row, its substep from its coarsest rate, both held by the first block's
-        recordings); the other blocks draw other noise. So a point scored alone and a design
-        of points on fewer recordings cost one batch, not two."""
-        if not blocks:
+        n, k = len(self.rows), len(points)
+        if k == 0:
             return []
-        n = len(self.rows)
         cls = effect_class(name)
-        first = cls(**blocks[0][0])
+        first = cls(**points[0])
         rng = np.random.default_rng(0)  # fixed parameters: batch_params draws nothing
-        picked = [np.arange(n) if idx is None else np.asarray(idx, int) for _, idx, _ in blocks]
-        per_block = [cls(**p).batch_params(ix.size, rng)
-                     for (p, _, _), ix in zip(blocks, picked, strict=True)]  # fmt: skip
-        stacked = {first.name: {key: np.concatenate([pb[key] for pb in per_block])
-                                for key in per_block[0]}}  # fmt: skip
-        order = np.concatenate(picked)
-        rows = [self.rows[i] for i in order]
-        starts = None if self.starts is None else [self.starts[i] for i in order]
+        per_point = [cls(**p).batch_params(n, rng) for p in points]
+        stacked = {first.name: {key: np.concatenate([pp[key] for pp in per_point])
+                                for key in per_point[0]}}  # fmt: skip
+        starts = None if self.starts is None else list(self.starts) * k
         sims = simulate_rows(
-            rows, [*effects, first], [self.lengths[i] for i in order], self.seed, settings,
-            starts, effect_params=stacked, oversample=oversample,
+            self.rows * k, [*effects, first], self.lengths * k, self.seed, settings, starts,
+            effect_params=stacked, oversample=oversample,
         )  # fmt: skip
-        out, at = [], 0
-        for (_, _, incl), ix in zip(blocks, picked, strict=True):
-            part = self if ix.size == n and np.array_equal(ix, np.arange(n)) else self.subset(ix)
-            stats_ = part._statistics(sims[at : at + ix.size], part.rows, incl)
-            out.append(part.discrepancies_of(stats_))
-            at += ix.size
-        return out
+        return [
+            self.discrepancies_of(
+                self._statistics(sims[j * n : (j + 1) * n], self.rows, inclination)
+            )
+            for j in range(k)
+        ]
 
     def subset(self, idx: Sequence[int]) -> CampaignTarget:
         """The target restricted to the recordings ``idx`` (same model, seed and nuisances)."""
