@@ -26,7 +26,11 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    kept if the joint model passes every significance test against the
    previous one. The nuisances are profiled again after each accepted step (where they
    moved, the selected effects are refitted locally, :data:`ACCEPT_ROUNDS`).
-   Selection stops when no candidate passes. Closed-form fits and the joint refits search
+   Selection stops when no candidate passes. The first step has one more candidate: the
+   effects the restoring-force evidence identifies together (:func:`evidence_group`, the
+   shared sensor chain with the contact law it supports), fitted jointly from its values;
+   neither of a damped contact and a mounted chain passes alone when both are there.
+   Closed-form fits and the joint refits search
    on :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
    operating points and are scored and tested on all of them; the selected effects then get
    a joint Nelder-Mead on every recording (:data:`POLISH_EVALUATIONS`), which takes back what
