@@ -137,7 +137,8 @@ def test_the_first_step_fits_every_candidate_at_once():
 def test_damped_contact_and_mount_with_a_numerical_candidate(tmp_path, monkeypatch):
     """Contact damping 0.25 and a 237-Hz mount resonance hidden, Hertz contact among the
     candidates: both closed-form effects found with their values, and Hertz contact fitted
-    only alone (step 1), never on top of the sensor once contact damping reached the floor."""
+    only alone (step 1), never on top of them once they reached the floor (the evidence's
+    chain and damping, selected together in the first step)."""
     hidden = ["contact_damping:damping_ratio=0.25",
               "sensor_dynamics:resonance_hz=237,resonance_damping=0.03,lowpass_hz=0"]  # fmt: skip
     camp = simulate_campaign(short_manifest(tmp_path, 8), tmp_path / "c", hidden, seed=0)
@@ -160,8 +161,10 @@ def test_damped_contact_and_mount_with_a_numerical_candidate(tmp_path, monkeypat
     assert p["sensor_dynamics"]["resonance_hz"] == pytest.approx(237, rel=0.03)
     assert d["verdict"] == "explained"
     hertz = next(r for r in d["ranking"] if r["effect"] == "hertz_contact")
-    # alone it removed enough of the excess to be refitted on top of the sensor (0.30)...
+    # alone it removed enough of the excess to be refitted on top of the others (0.30)...
     assert hertz["excess_reduction"] >= diagnose.SCREEN_EXCESS
-    # ... but the closed-form step 2 left nothing to explain: it was fitted alone only
+    # ... but the first step left nothing to explain: it was fitted alone only
     assert [fixed for n, fixed in fitted if n == "hertz_contact"] == [[]]
-    assert any(r.startswith("not fitted on top of sensor_dynamics") for r in hertz["reasons"])
+    assert hertz["reasons"][0].startswith(
+        "nothing left to explain: sensor_dynamics, contact_damping bring the model"
+    )

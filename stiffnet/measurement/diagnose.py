@@ -26,7 +26,11 @@ campaign's noise floor and verdict (:mod:`~stiffnet.measurement.noise_floor`).
    kept if the joint model passes every significance test against the
    previous one. The nuisances are profiled again after each accepted step (where they
    moved, the selected effects are refitted locally, :data:`ACCEPT_ROUNDS`).
-   Selection stops when no candidate passes. Closed-form fits and the joint refits search
+   Selection stops when no candidate passes. The first step has one more candidate: the
+   effects the restoring-force evidence identifies together (:func:`evidence_group`, the
+   shared sensor chain with the contact law it supports), fitted jointly from its values;
+   neither of a damped contact and a mounted chain passes alone when both are there.
+   Closed-form fits and the joint refits search
    on :data:`~stiffnet.measurement.fitting.SUBSET_SEARCH` recordings spread over the
    operating points and are scored and tested on all of them; the selected effects then get
    a joint Nelder-Mead on every recording (:data:`POLISH_EVALUATIONS`), which takes back what
@@ -60,6 +64,7 @@ from stiffnet.measurement.evidence import restoring_force_evidence
 from stiffnet.measurement.fitting import (
     DEFAULT_BUDGET_NUMERICAL,
     SUBSET_SEARCH,
+    effect_space,
     fit_effect,
     fit_joint,
     planned_evaluations,
@@ -154,11 +159,12 @@ SETUP_STEPS = 3
 def planned_steps(n_candidates: int) -> list[int]:
     """The diagnosis' plan, known before any work: the cumulative step count at the end of
     the setup, of the single fits and of each possible selection step (its conditional
-    fits, :data:`JOINT_TRIES` joint refits and a profile of the nuisances), then the verdict.
-    An upper bound: a selection that stops early skips to the verdict."""
+    fits, :data:`JOINT_TRIES` joint refits and a profile of the nuisances; the first, the
+    evidence's group instead of conditional fits), then the verdict. An upper bound: a
+    selection that stops early skips to the verdict."""
     ends = [SETUP_STEPS, SETUP_STEPS + n_candidates]
     for k in range(min(MAX_EFFECTS, n_candidates)):
-        ends.append(ends[-1] + (n_candidates - k if k else 0) + JOINT_TRIES + 1)
+        ends.append(ends[-1] + (n_candidates - k if k else 1) + JOINT_TRIES + 1)
     return [*ends, ends[-1] + 1]
 
 
@@ -518,6 +524,12 @@ def _select(
                 ]
             break
         accepted = _step(run, remaining, kept, kept_params, current, entries, steps)
+        if not kept:
+            grouped = _evidence_step(run, remaining, entries, current, steps)
+            if grouped is not None and (
+                accepted is None or grouped[5]["bic_delta"] < accepted[5]["bic_delta"]
+            ):
+                accepted = grouped
         if accepted is None:
             break
         kept_params, current, nuisances = _accept(run, accepted, kept, entries)
@@ -656,27 +668,129 @@ def _joint_step(
     return None
 
 
+def evidence_group(evidence: dict[str, Any] | None, candidates: Sequence[str]) -> list[str]:
+    """The effects the restoring-force evidence identifies together: ``sensor_dynamics`` when
+    it identified the campaign's shared sensor chain (a resonance or a low-pass), with the
+    contact effects its maps support (``supports``, read through that chain); empty unless
+    the chain and one contact effect are both among the ``candidates``.
+
+    The chain and the contact law act on one thing, the impact's pulse: a mounted resonance
+    rings as hard as the spike that excites it, so with the contact left elastic the chain
+    makes the model far worse, and with the chain left out a damped contact explains little;
+    neither passes alone and a forward selection never reaches the pair."""
+    sensor = (evidence or {}).get("sensor") or {}
+    if "sensor_dynamics" not in candidates or not any(
+        sensor.get(k) for k in ("resonance_hz", "lowpass_hz")
+    ):
+        return []
+    contact = [n for n in (evidence or {}).get("supports") or [] if n in candidates]
+    return ["sensor_dynamics", *contact] if contact else []
+
+
+#: Where the evidence gives a group member's value directly: parameter -> evidence key.
+EVIDENCE_VALUES = {"contact_damping": {"damping_ratio": "contact_damping_ratio"}}
+
+
+def _group_start(run: _Run, group: list[str], entries: dict[str, Any]) -> list[dict[str, float]]:
+    """Each member's start: the evidence's value (:data:`EVIDENCE_VALUES`), else its first
+    seed from the measurement (the identified chain), else its single fit's values."""
+    observed = run.target.observed()
+    starts = []
+    for n in group:
+        space = effect_space(n, run.rows, observed)
+        seeds = effect_class(n).fit_seeds(observed, space)
+        start = dict(seeds[0]) if seeds else dict(entries[n]["params"])
+        for key, evidence_key in EVIDENCE_VALUES.get(n, {}).items():
+            value = (run.evidence or {}).get(evidence_key)
+            if value is not None and np.isfinite(value) and key in space.names:
+                fp = next(f for f in space.free if f.name == key)
+                start[key] = float(np.clip(value, fp.low, fp.high))
+        starts.append(start)
+    return starts
+
+
+def _evidence_step(
+    run: _Run,
+    remaining: list[str],
+    entries: dict[str, dict[str, Any]],
+    current: dict[Any, np.ndarray],
+    steps: list[dict[str, Any]],
+) -> tuple | None:
+    """The first step's other candidate: the group the evidence identifies together
+    (:func:`evidence_group`) fitted jointly from the evidence's values (a joint refit on the
+    subset, :func:`~stiffnet.measurement.fitting.fit_joint`) and tested against the base
+    model with all its parameters, then each member against the group without it (the group
+    is kept only when every member pays for itself). Returns what :func:`_joint_step`
+    returns, or None."""
+    group = evidence_group(run.evidence, remaining)
+    if not group:
+        return None
+    run.bar.step(f"step 1: the evidence's {', '.join(group)} jointly")
+    settings = settings_for(group)
+    base = run.target.base_effects
+    if settings not in current:
+        current[settings] = run.target.per_recording(base, settings)
+    before = current[settings]
+    # each member refitted from its own design with the others held, then the Nelder-Mead:
+    # from the evidence's values alone the local search stops short (a damped contact 0.25
+    # behind a 237 Hz mount: 16.1 -> 0.62, where the refits reach the floor)
+    joint = fit_joint(run.target, group, _group_start(run, group, entries), settings,
+                      rounds=2, subset=SUBSET_SEARCH)  # fmt: skip
+    after, params = np.asarray(joint["per_recording"]), joint["params"]
+    floors = run.floors[settings]
+    sig = significance(before, after, sum(map(len, joint["fitted"])), floors, run.names)
+    reasons = [f"jointly with the evidence's {', '.join(group)}: {r}" for r in sig["reasons"]]
+    for i, n in enumerate(group):  # each member against the group without it
+        others = [m for m in range(len(group)) if m != i]
+        without = run.target.per_recording(
+            [*base, *_effects([group[m] for m in others], [params[m] for m in others])],
+            settings,
+        )
+        sig_n = significance(without, after, len(joint["fitted"][i]), floors, run.names)
+        reasons += [f"{n} on top of the rest of the evidence's group: {r}"
+                    for r in sig_n["reasons"]]  # fmt: skip
+    steps.append({
+        "step": 0,
+        "effect": "+".join(group),
+        "effects": group,
+        "proposed_by": "restoring-force evidence",
+        "params": params,
+        "discrepancy_before": campaign_discrepancy(before),
+        "discrepancy_after": campaign_discrepancy(after),
+        **{k: sig[k] for k in ("excess_reduction", "bootstrap_positive", "bic_delta")},
+        "significant": not reasons,
+        "reasons": reasons,
+    })  # fmt: skip
+    return None if reasons else (group, params, before, after, settings, sig)
+
+
 def _accept(
     run: _Run, accepted: tuple, kept: list[str], entries: dict[str, dict[str, Any]]
 ) -> tuple[list[dict[str, float]], dict[Any, np.ndarray], dict[str, Any]]:
     """Select the accepted effect (``kept`` grows), profile the nuisances again and, when
     they moved, refit the selected effects on them. Returns the selected effects' values,
     the model's per-recording discrepancies (by settings) and the nuisances."""
-    n, params_new, before, after, settings, sig = accepted
-    kept.append(n)
+    selected, params_new, before, after, settings, sig = accepted
+    # one effect from a forward step, or the evidence's group (:func:`_evidence_step`)
+    names = [selected] if isinstance(selected, str) else list(selected)
+    step = len(kept)
+    kept.extend(names)
     kept_params = [dict(p) for p in params_new]
-    entries[n].update(
-        selected=True,
-        significant=True,
-        reasons=[],
-        selected_at_step=len(kept) - 1,
-        params=kept_params[-1],
-        discrepancy_reduction=campaign_discrepancy(before) - campaign_discrepancy(after),
-        relative_reduction=sig["relative_reduction"],
-        excess_reduction=sig["excess_reduction"],
-        bootstrap_positive=sig["bootstrap_positive"],
-        bic_delta=sig["bic_delta"],
-    )
+    for i, n in enumerate(names):  # a group shares its step's numbers
+        entries[n].update(
+            selected=True,
+            significant=True,
+            reasons=[],
+            selected_at_step=step,
+            params=kept_params[step + i],
+            discrepancy_reduction=campaign_discrepancy(before) - campaign_discrepancy(after),
+            relative_reduction=sig["relative_reduction"],
+            excess_reduction=sig["excess_reduction"],
+            bootstrap_positive=sig["bootstrap_positive"],
+            bic_delta=sig["bic_delta"],
+        )
+        if len(names) > 1:
+            entries[n]["selected_with"] = [m for m in names if m != n]
     for name_k, p in zip(kept, kept_params, strict=True):  # joint values of the earlier ones
         entries[name_k]["params"] = p
     run.bar.end_of(1 + len(kept), f"step {len(kept)}: nuisances and initial states again")
@@ -981,4 +1095,4 @@ def _current(
     return current[settings]
 
 
-__all__ = ["candidate_effects", "diagnose_campaign", "recording_verdicts"]
+__all__ = ["candidate_effects", "diagnose_campaign", "evidence_group", "recording_verdicts"]
