@@ -182,7 +182,7 @@ ONSET_TOE_MIN_SIDE = -1.0
 #: ... and above this share of the fitted law's damped step at the onset (a Kelvin-Voigt
 #: force steps to ``c v`` there, and an undone chain's band limit rings the step onto the
 #: samples before it; see the YAML).
-ONSET_TOE_MIN_STEP_SHARE = 0.25
+ONSET_TOE_MIN_STEP_SHARE = 0.2
 #: Contact duration over the fitted Kelvin-Voigt law's release (:func:`kelvin_voigt_release_ratio`)
 #: that fires, behind a sensor chain the cross-check identified and undid (see the YAML).
 OUTLASTING_CONTACT_MIN_RATIO = 1.5
