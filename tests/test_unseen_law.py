@@ -284,7 +284,8 @@ def test_a_soft_first_stage_cut_off_by_the_onset_shows_as_force_outside_the_impa
     sigma = 0.005 * f.max()
     f = f + np.random.default_rng(4).normal(0, sigma, d.size)
     onset = 0.75 * first_stage
-    toe, least_side = onset_toe(d, f, onset)
+    toe, least_side, step = onset_toe(d, f, onset)
+    assert step == 0.0  # no damping force given
     # the two samples on each side at or below the onset: sin(pi/15), sin(2 pi/15) with the
     # first stage's force, free-flight samples without; both sides alike
     expected = np.mean(np.sin(t[:2])) / sigma if first_stage else 0.0
@@ -297,6 +298,42 @@ def test_a_soft_first_stage_cut_off_by_the_onset_shows_as_force_outside_the_impa
     # a sensor chain's ringing: force before the impact, a pull after the release
     assert onset_toe_reasons({"toe": 9.0, "toe_least_side": -8.0}, 0.99, thresholds) == []
     assert onset_toe(d[:100], f[:100], onset) is None  # too few impacts
+
+
+def _band_limited_kelvin_voigt_map(zeta: float, seed: int = 1):
+    """24 half-sine impacts (15 samples in contact, 25 free) of a Kelvin-Voigt contact
+    ``max(0, delta + 2 zeta v)`` whose force is seen through a zero-phase 4th-order low-pass
+    at 0.4 of Nyquist: what an undone chain's band limit leaves of the step ``c v`` at each
+    onset, part of it rung onto the samples before the contact."""
+    from scipy.signal import butter, filtfilt
+
+    per, free, n = 15, 25, 24
+    t = np.pi * np.arange(1, per + 1) / (per + 1)
+    amp = np.repeat(np.linspace(0.9, 1.1, n), per + free)
+    d = np.tile(np.r_[np.sin(t), -np.linspace(0.05, 1.0, free)], n) * amp
+    v = np.tile(np.r_[np.cos(t), -np.ones(free)], n) * amp
+    f = np.where(d > 0, np.maximum(d + 2.0 * zeta * v, 0.0), 0.0)
+    f = filtfilt(*butter(4, 0.4), f) + np.random.default_rng(seed).normal(0, 0.0025, d.size)
+    return d, v * np.pi / (per + 1), f
+
+
+def test_a_damped_step_rung_before_the_onset_by_a_band_limit_is_no_first_stage():
+    """A damped contact (zeta 0.3) behind a band limit: its toe reaches the rule's level
+    (the independent rig's Kelvin-Voigt campaign behind an undone 320 Hz low-pass read 8-14
+    on the 12 recordings it fired on), but it is a tenth of the fitted law's damped step at
+    the onset; the same band limit on an undamped contact leaves no toe to explain."""
+    t = unseen_law_thresholds()
+    d, v, f = _band_limited_kelvin_voigt_map(0.3)
+    shape = law_shape_gains(d, v, f, 0.0, 1.0)
+    assert shape["toe"] > t.onset_toe_min and shape["toe_least_side"] > t.onset_toe_min_side
+    assert shape["toe"] < 0.15 * shape["toe_damped_step"], shape
+    assert onset_toe_reasons(shape, 0.99, t) == []
+    # the step it is judged against is the law's own: an undamped contact has none
+    d, v, f = _band_limited_kelvin_voigt_map(0.0)
+    assert law_shape_gains(d, v, f, 0.0, 1.0)["toe_damped_step"] < 0.5
+    # a first stage's toe on an undamped law still fires
+    first_stage = {"toe": 14.0, "toe_least_side": 1.0, "toe_damped_step": 2.0}
+    assert onset_toe_reasons(first_stage, 0.99, t)
 
 
 def test_impact_runs_and_too_few_impacts():

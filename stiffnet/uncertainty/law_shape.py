@@ -167,8 +167,12 @@ def stage_gain(
 
 
 def onset_toe(
-    disp: np.ndarray, force: np.ndarray, onset: float, min_impacts: int = 4
-) -> tuple[float, float] | None:
+    disp: np.ndarray,
+    force: np.ndarray,
+    onset: float,
+    min_impacts: int = 4,
+    damping_force: np.ndarray | None = None,
+) -> tuple[float, float, float] | None:
     """Contact force just outside the fitted law's contact, in units of the free flight's
     force scatter: a soft first stage the law's onset cuts off.
 
@@ -186,15 +190,22 @@ def onset_toe(
         The fitted contact law's ``e``.
     min_impacts : int
         Fewest impacts, with :data:`TOE_SAMPLES` samples on each side, to judge.
+    damping_force : numpy.ndarray, optional
+        The fitted law's dissipative force (its ``v`` term) on every sample of the map.
 
     Returns
     -------
     tuple of float or None
-        ``(toe, least_side)``: the median over impacts of the mean force on the
+        ``(toe, least_side, damped_step)``: the median over impacts of the mean force on the
         :data:`TOE_SAMPLES` samples before and after each impact's run (``delta > 0``), and
         the lesser of the medians of each side alone, both over the standard deviation of
         the force on samples at least :data:`TOE_MARGIN` samples from any impact (a sensor
-        chain's ringing leaves a negative force after the release, a first stage none);
+        chain's ringing leaves a negative force after the release, a first stage none),
+        and the median over impacts of `damping_force` on each impact's first in-contact
+        sample in the same unit (0 without it): a Kelvin-Voigt contact's force steps to
+        ``c v`` at its onset, and an undone, band-limited chain's inverse rings that step
+        onto the samples before it, a toe of a few per cent to a fifth of the step (an
+        independent-rig Kelvin-Voigt campaign, zeta 0.15, behind a 320 Hz low-pass);
         None with too few impacts or no free-flight samples.
     """
     d = np.asarray(disp, float) - onset
@@ -214,7 +225,11 @@ def onset_toe(
     # which side of an impact a short first stage's samples fall on depends on the sampling
     # phase: the two sides are read together, and apart for a sign
     toe = float(np.median(0.5 * (before + after))) / scatter
-    return toe, float(min(np.median(before), np.median(after))) / scatter
+    least_side = float(min(np.median(before), np.median(after))) / scatter
+    step = 0.0
+    if damping_force is not None:
+        step = float(np.median([damping_force[r[0]] for r in runs])) / scatter
+    return toe, least_side, step
 
 
 def law_shape_gains(
@@ -255,9 +270,9 @@ def law_shape_gains(
         with penetration), ``stage`` / ``stage_ratio`` / ``stage_knee``
         (:func:`stage_gain`), ``misfit`` (the base law's held-out SSE over the force's
         variance), ``n_impacts``, ``depth_spread`` (:func:`depth_spread`) and ``toe`` /
-        ``toe_least_side`` (:func:`onset_toe`,
-        where it can be read); None with too few impacts or no positive reference
-        penetration.
+        ``toe_least_side`` / ``toe_damped_step`` (:func:`onset_toe`, the damped step from
+        the base law's ``v`` coefficient, where it can be read); None with too few impacts
+        or no positive reference penetration.
     """
     if not reference_penetration > 0:
         return None
@@ -274,7 +289,8 @@ def law_shape_gains(
     base = np.column_stack([dn**q, np.ones_like(dn), vn])
     # where the law would pull and the restraint gives nothing, its max(0, .) clipped: the
     # clip is not a term (a first stage the linear law cuts off, with force, is kept)
-    pulls = base @ np.linalg.lstsq(base, f, rcond=None)[0]
+    base_coef = np.linalg.lstsq(base, f, rcond=None)[0]
+    pulls = base @ base_coef
     keep = np.maximum(pulls, f) > CLIP_FRACTION * float(np.max(f))
     groups = np.unique(groups[keep], return_inverse=True)[1]
     if int(groups.max(initial=-1)) + 1 < min_impacts:
@@ -303,7 +319,8 @@ def law_shape_gains(
     out["misfit"] = sse_base / max(float(np.sum((f - f.mean()) ** 2)), 1e-300)
     out["n_impacts"] = float(int(groups.max()) + 1)
     out["depth_spread"] = depth_spread(dn, groups)
-    toe = onset_toe(disp, force, onset, min_impacts)
+    damping_force = base_coef[2] * np.asarray(vel, float) / (float(np.std(v)) or 1.0)
+    toe = onset_toe(disp, force, onset, min_impacts, damping_force)
     if toe is not None:
-        out["toe"], out["toe_least_side"] = toe
+        out["toe"], out["toe_least_side"], out["toe_damped_step"] = toe
     return out
