@@ -92,10 +92,12 @@ class RestoringForceCheck(BaseModel):
         "Kelvin-Voigt law: curvature, penetration_dissipation (each with its _share); stage "
         "(a two-stage law's gain), stage_ratio (its stiffness ratio across the knee), "
         "stage_knee (the knee over the reference penetration); toe (the median force on the "
-        "samples just outside each impact over the free flight's scatter: a soft first stage) "
-        "and toe_least_side; where a fitted low-pass barely helped the law, the record as "
-        "recorded: recorded_penetration_dissipation (with its _share) and recorded_r2_loss; "
-        "misfit, n_impacts.",
+        "samples just outside each impact over the free flight's scatter: a soft first stage), "
+        "toe_least_side and toe_damped_step (the fitted law's damping force on each impact's "
+        "first in-contact sample, same unit: a damped step an undone chain rings before the "
+        "onset); where a fitted low-pass barely helped the law, the record as recorded: "
+        "recorded_penetration_dissipation (with its _share) and recorded_r2_loss; misfit, "
+        "n_impacts.",
     )
     impact_peaks: dict[str, float] | None = Field(
         default=None,
