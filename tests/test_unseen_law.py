@@ -334,6 +334,11 @@ def test_a_damped_step_rung_before_the_onset_by_a_band_limit_is_no_first_stage()
     # a first stage's toe on an undamped law still fires
     first_stage = {"toe": 14.0, "toe_least_side": 1.0, "toe_damped_step": 2.0}
     assert onset_toe_reasons(first_stage, 0.99, t)
+    # a force pushing on both sides is no ringing before the onset, however large the step
+    # (a Hunt-Crossley record read with the library's late onset: toe 27, 0.07 of its step)
+    both_sides = {"toe": 27.0, "toe_least_side": 8.0, "toe_damped_step": 415.0}
+    assert onset_toe_reasons(both_sides, 0.99, t)
+    assert not onset_toe_reasons({**both_sides, "toe_least_side": 0.7}, 0.99, t)
 
 
 def test_impact_runs_and_too_few_impacts():

@@ -183,6 +183,9 @@ ONSET_TOE_MIN_SIDE = -1.0
 #: force steps to ``c v`` there, and an undone chain's band limit rings the step onto the
 #: samples before it; see the YAML).
 ONSET_TOE_MIN_STEP_SHARE = 0.2
+#: ... unless the weaker side's force reaches this: the band limit rings the onset's step
+#: onto the samples before the contact only, while a first stage pushes on both sides.
+ONSET_TOE_STEP_MAX_SIDE = 1.2
 #: Contact duration over the fitted Kelvin-Voigt law's release (:func:`kelvin_voigt_release_ratio`)
 #: that fires, behind a sensor chain the cross-check identified and undid (see the YAML).
 OUTLASTING_CONTACT_MIN_RATIO = 1.5
@@ -221,6 +224,7 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min_r2: float = ONSET_TOE_MIN_R2
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
     onset_toe_min_step_share: float = ONSET_TOE_MIN_STEP_SHARE
+    onset_toe_step_max_side: float = ONSET_TOE_STEP_MAX_SIDE
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
     #: Whether the exponent counts on a map read through a sensor chain the cross-check left
@@ -576,14 +580,18 @@ def onset_toe_reasons(
     (a sensor chain's ringing pulls after the release) and the toe above
     :attr:`UnseenLawThresholds.onset_toe_min_step_share` of the fitted law's damped step at
     the onset (``toe_damped_step``: a Kelvin-Voigt force steps to ``c v`` there, and an
-    undone chain's band limit rings part of the step onto the samples before the contact):
-    the restraint pushes before the law starts, a soft first stage the law cuts off."""
+    undone chain's band limit rings part of the step onto the samples before the contact;
+    judged so only where the weaker side stays below
+    :attr:`UnseenLawThresholds.onset_toe_step_max_side`, as that ringing leaves the samples
+    after the release alone): the restraint pushes before the law starts, a soft first
+    stage the law cuts off."""
     if not shape or shape.get("toe") is None or r2 is None or r2 < t.onset_toe_min_r2:
         return []
     toe = shape["toe"]
     if toe < t.onset_toe_min or shape.get("toe_least_side", 0.0) < t.onset_toe_min_side:
         return []
-    if toe < t.onset_toe_min_step_share * shape.get("toe_damped_step", 0.0):
+    one_sided = shape.get("toe_least_side", 0.0) < t.onset_toe_step_max_side
+    if one_sided and toe < t.onset_toe_min_step_share * shape.get("toe_damped_step", 0.0):
         return []
     return [
         f"the contact pushes before the fitted law's onset (the force just outside each "
