@@ -687,21 +687,18 @@ def evidence_group(evidence: dict[str, Any] | None, candidates: Sequence[str]) -
     return ["sensor_dynamics", *contact] if contact else []
 
 
-#: Where the evidence gives a group member's value directly: parameter -> evidence key.
-EVIDENCE_VALUES = {"contact_damping": {"damping_ratio": "contact_damping_ratio"}}
-
-
 def _group_start(run: _Run, group: list[str], entries: dict[str, Any]) -> list[dict[str, float]]:
-    """Each member's start: the evidence's value (:data:`EVIDENCE_VALUES`), else its first
-    seed from the measurement (the identified chain), else its single fit's values."""
+    """Each member's start: the values the evidence reads for it (``supported_values``,
+    :func:`~stiffnet.measurement.evidence.contact_evidence`), else its first seed from the
+    measurement (the identified chain), else its single fit's values."""
     observed = run.target.observed()
+    read = (run.evidence or {}).get("supported_values") or {}
     starts = []
     for n in group:
         space = effect_space(n, run.rows, observed)
         seeds = effect_class(n).fit_seeds(observed, space)
         start = dict(seeds[0]) if seeds else dict(entries[n]["params"])
-        for key, evidence_key in EVIDENCE_VALUES.get(n, {}).items():
-            value = (run.evidence or {}).get(evidence_key)
+        for key, value in read.get(n, {}).items():
             if value is not None and np.isfinite(value) and key in space.names:
                 fp = next(f for f in space.free if f.name == key)
                 start[key] = float(np.clip(value, fp.low, fp.high))

@@ -185,13 +185,14 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     dict
         ``answered`` / ``n``, ``contact_damping_ratio`` and ``exponent`` (medians
         and 10-90 % ranges over the answered recordings), ``restitution``,
-        ``supports`` (effect names the map shows), ``summary`` (one line),
+        ``supports`` (effect names the map shows), ``supported_values`` (per supported
+        effect, the parameters the map reads directly: a fit's start), ``summary`` (one line),
         ``per_recording``.
     """
     ok = [p for p in per_recording if p["ok"]]
     n = len(per_recording)
     res: dict[str, Any] = {"n": n, "answered": len(ok), "per_recording": per_recording,
-                           "supports": []}  # fmt: skip
+                           "supports": [], "supported_values": {}}  # fmt: skip
     # sensor_dynamics' start, one vote per recording: one read well through the shared
     # chain (its law explains >= SHARED_CHAIN_MIN_R2) votes for that chain, as a recording
     # whose own chain was fitted votes for its own
@@ -224,6 +225,7 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     words = []
     if z_med > DISSIPATION_ZETA:
         res["supports"].append("contact_damping")
+        res["supported_values"]["contact_damping"] = {"damping_ratio": z_med}
         words.append(f"the loops dissipate (contact damping ratio {z_med:.2f}, restitution "
                      f"{restitution(z_med):.2f}): supports contact_damping")  # fmt: skip
     else:
