@@ -635,13 +635,10 @@ def _predict_path(
     fn_hz = _number_field(fn, "natural_frequency_hz")
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
     check_upload_size(path, max_samples)
-    hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
     try:
         rec = read_recording(path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout)
     except StiffnetError as exc:
         raise StiffnetError(str(exc).replace(str(path), shown)) from None
-    finally:
-        HINT_CONTEXT.reset(hints)
     _check_samples(rec.accel.size, max_samples)
     if what == "log":
         return _log(predictor, rec.accel, rec.fs_hz, fn_hz, shown)
@@ -1067,7 +1064,11 @@ class Admission:
                 raise late
             ran["start"] = t0
             cost.started(ticket, t0, *thread_cpu_clock())
-            result = job()  # a failed job is not measured: a refusal costs nothing
+            hints = HINT_CONTEXT.set("http")  # its messages name fields, never CLI options
+            try:
+                result = job()  # a failed job is not measured: a refusal costs nothing
+            finally:
+                HINT_CONTEXT.reset(hints)
             cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
             return result
 
