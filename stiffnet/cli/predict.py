@@ -159,6 +159,12 @@ def _restoring_force_text(result: dict[str, Any]) -> str:
     return text + ("  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]")
 
 
+#: The alarm's notes (:func:`stiffnet.uncertainty.unseen_law.with_unseen_law_check`): what the
+#: contact-law check could not read, and what would resolve an exponent alarm. A reader of
+#: the table needs them as much as a reader of the JSON.
+ALARM_NOTES = ("contact_law_unread", "exponent_unread", "exponent_chain_unknown")
+
+
 def _alarm_rows(alarm: dict[str, Any] | None) -> list[tuple[str, str]]:
     """The alarm's verdict and each check's score against its threshold."""
     if alarm is None:
@@ -174,7 +180,8 @@ def _alarm_rows(alarm: dict[str, Any] | None) -> list[tuple[str, str]]:
         for k, v in alarm["scores"].items()
         if k in alarm["thresholds"]
     )
-    return [("alarm", verdict), ("alarm checks (score/threshold)", scores)]
+    notes = [("alarm note", str(alarm[k])) for k in ALARM_NOTES if alarm.get(k)]
+    return [("alarm", verdict), ("alarm checks (score/threshold)", scores), *notes]
 
 
 def _layers_table(layers: list[dict[str, Any]]) -> Any:
