@@ -361,6 +361,10 @@ def _read_row(
         )
     data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
     row = _validate_row(data, f"{p}: line {line}")
+    sidecar_fn = _sidecar_natural_frequency(p, line, row)
+    if sidecar_fn is not None and row.natural_frequency_hz is None:
+        # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
+        row = _validate_row({**data, "natural_frequency_hz": sidecar_fn}, f"{p}: line {line}")
     row._line = line
     if row.recording in seen:
         raise StiffnetError(
@@ -370,6 +374,29 @@ def _read_row(
     seen[row.recording] = line
     _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
     return row
+
+
+#: Relative difference between a row's f_n and its sidecar's read as the same value (the
+#: tolerance of a file's own rate against the manifest's).
+NATURAL_FREQUENCY_AGREEMENT = 1e-3
+
+
+def _sidecar_natural_frequency(p: Path, line: int, row: ManifestRow) -> float | None:
+    """The f_n of the row's sidecar ``<recording>.json`` (None: none), refused where the row
+    gives another: a recording has one rig, and ``predict`` (which reads the sidecar) and
+    the campaign's commands (which read the manifest) must not read it at two."""
+    from stiffnet.recordings.sidecar import read_sidecar
+
+    value, sidecar = read_sidecar(p.parent / row.recording)
+    own = row.natural_frequency_hz
+    if value is not None and own is not None:
+        if not math.isclose(value, own, rel_tol=NATURAL_FREQUENCY_AGREEMENT):
+            raise StiffnetError(
+                f"{p}: line {line}, column natural_frequency_hz: {own:g} Hz disagrees with the "
+                f"recording's sidecar {sidecar.name} ({value:g} Hz); a recording has one rig: "
+                "mend one"
+            )
+    return value
 
 
 #: Problems of a manifest a message spells out before counting the rest.
@@ -605,6 +632,31 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
             problems.append(f"{row.where(manifest)}: recording file not found: {path}")
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRow] | None:
+    """The manifest row listing ``recording`` in the campaign it sits in, and the manifest.
+
+    The campaign is the nearest folder above the recording holding a ``manifest.csv``
+    (a campaign folder, docs/campaign.md); None where there is none or it does not list the
+    file. ``predict`` on one recording of a campaign reads it as ``predict-batch`` does.
+
+    Raises
+    ------
+    StiffnetError
+        That manifest does not read (its problems, naming it: it is the recording's
+        campaign, so a broken row there is not passed over in silence).
+    """
+    path = Path(recording).resolve()
+    for folder in path.parents:
+        manifest = folder / MANIFEST_NAME
+        if not manifest.is_file():
+            continue
+        for row in read_manifest(manifest):
+            if (folder / row.recording).resolve() == path:
+                return manifest, row
+        return None
+    return None
 
 
 def _inside(root: Path, relative: str, where: str) -> Path:

@@ -7,6 +7,7 @@ scikit-learn or mlflow. The shared console helpers come from :mod:`stiffnet.cli.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -39,15 +40,27 @@ def predict(
     json_path: JsonOption = None,
     sensor: SensorOption = None,
 ) -> None:
-    """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
+    """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically.
+
+    A recording listed in the manifest of the campaign folder it sits in is read with its
+    row (f_n, rate, columns, time unit, channel, data sheet) where the options leave them
+    empty, as ``predict-batch`` reads it; ``--fn`` still wins."""
+    from serving.batch_prediction import row_settings
     from serving.predictor import Predictor, predict_recording
+    from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
-
-    require_rate(recording, fs)  # before loading the model
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
+    listed = campaign_row_of(recording) if fn is None else None
+    if listed is not None:  # its campaign's row, as predict-batch reads it
+        given = (fs, None, columns, time_unit, channel, sheet)
+        fs, fn, columns, time_unit, channel, sheet = (
+            mine if mine is not None else theirs
+            for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
+        )
+    require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -59,7 +72,9 @@ def predict(
         channel=channel,
         sensor=sheet,
     )
-    if fn is not None:
+    if listed is not None and fn is not None:
+        result["natural_frequency_source"] = "manifest:" + listed[1].where(listed[0])
+    elif fn is not None:
         result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):
         out.print(renderable)
@@ -76,6 +91,9 @@ def _source_text(result: dict[str, Any]) -> str:
     source = str(result["natural_frequency_source"])
     if source.startswith("sidecar:"):
         return "sidecar " + Path(source.removeprefix("sidecar:")).name
+    row = re.match(r"manifest:(.+): (line \d+) ", source)  # its campaign's row
+    if row:
+        return f"{Path(row[1]).name} {row[2]}"
     return source
 
 
