@@ -47,6 +47,9 @@ def fit_table(table: Table, width: int) -> Table:
     cols = table.columns
     if not cols:
         return table
+    if table.title is not None:  # the title wraps at the table's width: a path stays whole
+        longest = min(width, _longest_word(_plain(table.title)))
+        table.min_width = max(table.min_width or 0, longest)
     cells = [[_plain(c) for c in col.cells] for col in cols]
     heads = [_plain(col.header) for col in cols]
     natural = [max(_longest_line(x) for x in [h, *cs]) for h, cs in zip(heads, cells, strict=True)]
