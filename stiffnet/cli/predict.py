@@ -50,6 +50,7 @@ def predict(
     from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
+    from stiffnet.recordings.sidecar import read_sidecar
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
@@ -60,6 +61,8 @@ def predict(
             mine if mine is not None else theirs
             for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
         )
+        if read_sidecar(recording)[0] is not None:  # the same value (the manifest checks it):
+            fn = None  # its sidecar stays its source, as the docs' order has it
     require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
