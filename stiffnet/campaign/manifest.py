@@ -278,7 +278,8 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
-            columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num)
+            columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num,
+                                    header)  # fmt: skip
             rows: list[ManifestRow] = []
             seen: dict[str, int] = {}
             folders: set[str] = set()
@@ -313,9 +314,15 @@ _UNIT_BESIDE = re.compile(
 _UNIT_SUFFIX = {"hz": "hz", "mm": "mm", "g": "g", "m/s^2": "ms2", "m/s2": "ms2", "m/s²": "ms2",
                 "ms^-2": "ms2", "ms-2": "ms2", "s": "s", "-": "", "1": ""}  # fmt: skip
 _UNIT_SHOWN = {"hz": "Hz", "mm": "mm", "g": "g", "ms2": "m/s²", "s": "s"}
+#: Columns that are ratios: a unit written beside one is a quantity the column does not hold.
+_RATIOS = {
+    "beta": "a ratio without a unit (the restraint's stiffness over the primary spring's)",
+    "damping_ratio": "a ratio without a unit",
+    "frequency_ratio": "a ratio without a unit (the forcing frequency over f_n)",
+}
 
 
-def _unit_in_header(col: str) -> str | None:
+def _unit_in_header(col: str, written: str | None = None) -> str | None:
     """Why a header cell such as ``gap_mm [mm]`` is refused and which name to write, or
     None when the cell is not a known column with a unit beside it.
 
@@ -336,13 +343,20 @@ def _unit_in_header(col: str) -> str | None:
     else:
         return None
     own = next((u for u in _UNIT_SUFFIX.values() if u and fix.endswith(f"_{u}")), "")
-    if suffix is None or (own or suffix) != suffix:
+    shown = (written or col).strip()  # as the user wrote it: "N/m", not "n/m"
+    if len(shown) != len(col):  # lower() kept every span of an ASCII cell
+        shown = col
+    group = next(g for g in ("b", "p", "s") if m[g])
+    unit_shown = shown[m.start(group) : m.end(group)].strip()
+    if fix in _RATIOS and suffix != "":  # '-' or '1' beside a ratio is its own (no) unit
+        hint = f"write {fix!r}, {_RATIOS[fix]} ({unit_shown!r} is not its unit)"
+    elif suffix is None or (own or suffix) != suffix:
         own_unit = _UNIT_SHOWN.get(own, "the unit docs/campaign.md gives it")
-        hint = f"write {fix!r}, in {own_unit} ({unit!r} is not its unit)"
+        hint = f"write {fix!r}, in {own_unit} ({unit_shown!r} is not its unit)"
     else:
         hint = f"write {fix!r}"
     # the cell is a known column's name and a short unit: quoting it echoes no file content
-    return f"{col!r}: a unit beside a column's name is not read (the name carries it); {hint}"
+    return f"{shown!r}: a unit beside a column's name is not read (the name carries it); {hint}"
 
 
 def _read_row(
@@ -420,12 +434,14 @@ def raise_problems(manifest: Path, problems: list[str]) -> None:
     raise StiffnetError(f"{len(problems)} problems: {problems[0]}; also {'; '.join(rest)}{tail}")
 
 
-def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
+def _check_header(
+    p: Path, columns: list[str], line: int, written: list[str] | None = None
+) -> list[str]:
     for i, col in enumerate(columns):
         if not col:
             raise StiffnetError(f"{p}: line {line}: column {i + 1} of the header has no name")
         if col not in COLUMNS:
-            unit_hint = _unit_in_header(col)
+            unit_hint = _unit_in_header(col, None if written is None else written[i])
             if unit_hint:
                 raise StiffnetError(f"{p}: column {i + 1} {unit_hint}")
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
