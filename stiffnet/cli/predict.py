@@ -50,19 +50,16 @@ def predict(
     from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
-    from stiffnet.recordings.sidecar import read_sidecar
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
     listed = campaign_row_of(recording) if fn is None else None
     if listed is not None:  # its campaign's row, as predict-batch reads it
         given = (fs, None, columns, time_unit, channel, sheet)
-        fs, fn, columns, time_unit, channel, sheet = (
+        fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
             mine if mine is not None else theirs
             for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
         )
-        if read_sidecar(recording)[0] is not None:  # the same value (the manifest checks it):
-            fn = None  # its sidecar stays its source, as the docs' order has it
     require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
@@ -75,9 +72,7 @@ def predict(
         channel=channel,
         sensor=sheet,
     )
-    if listed is not None and fn is not None:
-        result["natural_frequency_source"] = "manifest:" + listed[1].where(listed[0])
-    elif fn is not None:
+    if fn is not None:
         result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):
         out.print(renderable)
