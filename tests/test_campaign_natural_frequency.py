@@ -84,3 +84,18 @@ def test_predict_reads_the_row_of_the_campaign_its_recording_sits_in(tmp_path):
     assert campaign_row_of(camp / "rec" / "other.csv") is None
     shutil.copy(EXAMPLE, tmp_path / "alone.csv")
     assert campaign_row_of(tmp_path / "alone.csv") is None
+
+
+@pytest.mark.parametrize("output", ["manifest.csv", "rec/run.csv.json"])
+def test_an_output_never_lands_on_what_predict_reads_beside_its_recording(tmp_path, output):
+    """``predict rec --json manifest.csv`` replaced the campaign's manifest (and a sidecar
+    named as the output was replaced too): both are read with the recording."""
+    camp = _campaign(
+        tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", 9.48
+    )
+    before = (camp / output).read_bytes()
+    res = runner.invoke(
+        app, ["predict", str(camp / "rec" / "run.csv"), "--json", str(camp / output)]
+    )
+    assert res.exit_code == 2 and "is the input recording's" in res.output, res.output
+    assert (camp / output).read_bytes() == before

@@ -663,15 +663,23 @@ def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRo
         That manifest does not read (its problems, naming it: it is the recording's
         campaign, so a broken row there is not passed over in silence).
     """
-    path = Path(recording).resolve()
-    for folder in path.parents:
-        manifest = folder / MANIFEST_NAME
-        if not manifest.is_file():
-            continue
-        for row in read_manifest(manifest):
-            if (folder / row.recording).resolve() == path:
-                return manifest, row
+    manifest = campaign_manifest_above(recording)
+    if manifest is None:
         return None
+    path = Path(recording).resolve()
+    for row in read_manifest(manifest):
+        if (manifest.parent / row.recording).resolve() == path:
+            return manifest, row
+    return None
+
+
+def campaign_manifest_above(recording: str | os.PathLike[str]) -> Path | None:
+    """The ``manifest.csv`` of the campaign folder a recording sits in: the nearest folder
+    above it holding one (None: none). Read for the recording's row, and never written
+    over by a command reading the recording."""
+    for folder in Path(recording).resolve().parents:
+        if (folder / MANIFEST_NAME).is_file():
+            return folder / MANIFEST_NAME
     return None
 
 
