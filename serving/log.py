@@ -64,7 +64,7 @@ from stiffnet.uncertainty.alarm import recording_checks
 
 def sensor_given() -> str:
     """Where the user gives the accelerometer's data sheet (an HTTP client has no option)."""
-    return where_given("--sensor", "the manifest's column sensor", "the JSON field sensor")
+    return where_given("--sensor", "the manifest's column sensor", "the field sensor")
 
 
 #: Largest hop between points (s): a window is 16 natural periods, so points overlap and the

@@ -77,7 +77,7 @@ def test_a_time_column_in_ms_names_the_time_unit_field(client):
     [
         ("cli", "--fn HZ", "--sensor"),
         ("manifest", "the manifest's column natural_frequency_hz", "the manifest's column sensor"),
-        ("http", "the field natural_frequency_hz", "the JSON field sensor"),
+        ("http", "the field natural_frequency_hz", "the field sensor"),
     ],
 )
 def test_each_place_gets_its_own_words(where, fn_text, sensor_text):
