@@ -145,7 +145,7 @@ HEADER_TIMEOUT_S = 10.0
 #: needs the machine to slow it 3.75 times more than measured when it was admitted.
 OVERRUN_GRACE = 2.0
 #: Form fields of a multipart request; any other is refused, as unknown JSON keys are.
-FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel")
+FORM_FIELDS = ("file", "fs_hz", "natural_frequency_hz", "columns", "time_unit", "channel", "sensor")
 #: One line per request: client, method, path, status, bytes, milliseconds.
 access_log = logging.getLogger("stiffnet.access")
 
@@ -598,19 +598,20 @@ def _predict_file(
     time_unit: Any = None,
     channel: Any = None,
     what: str = "predict",
+    sensor: Any = None,
 ) -> dict:
     """Predict an uploaded recording: its bytes, or a file of :func:`spool_upload` (removed)."""
     if isinstance(data, Path):
         try:
             return _predict_path(predictor, data, filename, fs, fn, max_samples, columns,
-                                 time_unit, channel, what)  # fmt: skip
+                                 time_unit, channel, what, sensor)  # fmt: skip
         finally:
             shutil.rmtree(data.parent, ignore_errors=True)
     with tempfile.TemporaryDirectory(prefix="stiffnet-upload-") as tmp:
         path = Path(tmp) / f"upload{upload_suffix(filename)}"
         path.write_bytes(data)
         return _predict_path(predictor, path, filename, fs, fn, max_samples, columns, time_unit,
-                             channel, what)  # fmt: skip
+                             channel, what, sensor)  # fmt: skip
 
 
 def _predict_path(
@@ -624,10 +625,16 @@ def _predict_path(
     time_unit: Any,
     channel: Any = None,
     what: str = "predict",
+    sensor: Any = None,
 ) -> dict:
     from stiffnet.recordings import read_recording
+    from stiffnet.restoring_force.chain import parse_sensor_option
 
     fs_hz = _number_field(fs, "fs_hz")
+    # the data sheet as the CLI's --sensor writes it (KEY=VALUE,...): a lab posting a file
+    # gives it in the same form; its keys are checked where the JSON body's are
+    sheet_text = _text_field(sensor, "sensor")
+    sheet = None if sheet_text is None else parse_sensor_option(sheet_text, "form field sensor")
     layout = {
         "columns": _text_field(columns, "columns"),
         "time_unit": _text_field(time_unit, "time_unit"),
@@ -635,22 +642,20 @@ def _predict_path(
     fn_hz = _number_field(fn, "natural_frequency_hz")
     shown = re.sub(r"[^\w.\- ]", "_", Path(filename).name)[:80] or "upload"
     check_upload_size(path, max_samples)
-    hints = HINT_CONTEXT.set("http")  # a wrong header's hint names the form fields
     try:
         rec = read_recording(path, fs_hz=fs_hz, channel=_text_field(channel, "channel"), **layout)
     except StiffnetError as exc:
         raise StiffnetError(str(exc).replace(str(path), shown)) from None
-    finally:
-        HINT_CONTEXT.reset(hints)
     _check_samples(rec.accel.size, max_samples)
     if what == "log":
-        return _log(predictor, rec.accel, rec.fs_hz, fn_hz, shown)
+        return _log(predictor, rec.accel, rec.fs_hz, fn_hz, shown, sheet)
     return predictor.predict(
         rec.accel,
         rec.fs_hz,
         natural_frequency_hz=fn_hz,
         source=shown,
         natural_frequency_source="request",
+        sensor=sheet,
     )
 
 
@@ -683,6 +688,13 @@ _PREDICT_BODY = {
                             "description": "Unit of the CSV time column (default s)",
                         },
                         "channel": {"type": "string"},
+                        "sensor": {
+                            "type": "string",
+                            "description": "The accelerometer chain's data sheet, KEY=VALUE,... "
+                            "(resonance_hz, resonance_damping, lowpass_hz, lowpass_order, "
+                            "highpass_hz), undone as given instead of fitted",
+                            "examples": ["resonance_hz=4200,resonance_damping=0.03"],
+                        },
                     },
                 }
             },
@@ -927,7 +939,8 @@ class Admission:
                 raise
             job = partial(_predict_file, predictor, spooled, name, form.get("fs_hz"),
                           form.get("natural_frequency_hz"), n, form.get("columns"),
-                          form.get("time_unit"), form.get("channel"), what)  # fmt: skip
+                          form.get("time_unit"), form.get("channel"), what,
+                          form.get("sensor"))  # fmt: skip
             job.spooled = spooled  # type: ignore[attr-defined]  # removed if it never runs
             job.samples = samples  # type: ignore[attr-defined]
             return job
@@ -1067,7 +1080,11 @@ class Admission:
                 raise late
             ran["start"] = t0
             cost.started(ticket, t0, *thread_cpu_clock())
-            result = job()  # a failed job is not measured: a refusal costs nothing
+            hints = HINT_CONTEXT.set("http")  # its messages name fields, never CLI options
+            try:
+                result = job()  # a failed job is not measured: a refusal costs nothing
+            finally:
+                HINT_CONTEXT.reset(hints)
             cost.measure(samples, time.monotonic() - t0, time.thread_time() - cpu0)
             return result
 

@@ -141,15 +141,30 @@ def campaign_inputs(
         if not path.is_relative_to(root):
             raise StiffnetError(f"{row.where(manifest)}: recording path leaves the campaign folder")
         paths.append(str(manifest.parent / row.recording))
-        settings.append((
-            row.fs_hz if row.fs_hz is not None else fs_hz,
-            row.natural_frequency_hz or natural_frequency_hz,
-            row.columns.replace(";", ",") if row.columns else columns,
-            row.time_unit or time_unit,
-            row.channel or channel,
-            row.sensor_sheet(),  # the data sheet (None: the sidecar's, else fitted)
-        ))  # fmt: skip
+        settings.append(row_settings(row, fs_hz, natural_frequency_hz, columns, time_unit,
+                                     channel))  # fmt: skip
     return paths, settings, manifest
+
+
+def row_settings(
+    row: Any,
+    fs_hz: float | None = None,
+    natural_frequency_hz: float | None = None,
+    columns: str | None = None,
+    time_unit: str | None = None,
+    channel: str | None = None,
+) -> tuple[Any, ...]:
+    """How to read one manifest row's recording: ``(fs_hz, natural_frequency_hz, columns,
+    time_unit, channel, sensor data sheet)``, the row's values where it gives them, else the
+    ones passed (:func:`campaign_inputs`; ``predict`` on one recording of a campaign)."""
+    return (
+        row.fs_hz if row.fs_hz is not None else fs_hz,
+        row.natural_frequency_hz or natural_frequency_hz,
+        row.columns.replace(";", ",") if row.columns else columns,
+        row.time_unit or time_unit,
+        row.channel or channel,
+        row.sensor_sheet(),  # the data sheet (None: the sidecar's, else fitted)
+    )
 
 
 def result_schema(class_names: list[str]) -> pa.Schema:

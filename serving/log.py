@@ -55,10 +55,17 @@ from stiffnet import progress
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
+from stiffnet.inputs import where_given
 from stiffnet.layers import LayerSegmenter, class_with_hysteresis
 from stiffnet.restoring_force.chain import shared_chain_sheet
 from stiffnet.uncertainty import RecordingEstimate, beta_interval
 from stiffnet.uncertainty.alarm import recording_checks
+
+
+def sensor_given() -> str:
+    """Where the user gives the accelerometer's data sheet (an HTTP client has no option)."""
+    return where_given("--sensor", "the manifest's column sensor", "the field sensor")
+
 
 #: Largest hop between points (s): a window is 16 natural periods, so points overlap and the
 #: change-point search sees every window a change touches.
@@ -344,7 +351,7 @@ class StiffnessLogger:
             if not self.scanning:
                 self.warnings.append(self._found_late_words("the later checks read through it, "
                                      "the model reads the record as recorded (a data sheet, "
-                                     "--sensor, undoes it everywhere)"))  # fmt: skip
+                                     f"{sensor_given()}, undoes it everywhere)"))  # fmt: skip
 
     def _found_late_words(self, consequence: str) -> str:
         """The warning of a chain the record's start did not show."""
@@ -783,7 +790,7 @@ def log_result(
             f"the accelerometer's chain was fitted {where} and divided out of every window; the "
             "beta intervals also span the readings through "
             + ", ".join(log.other_chains)
-            + " (a data sheet, --sensor, reads it once)"
+            + f" (a data sheet, {sensor_given()}, reads it once)"
         )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")

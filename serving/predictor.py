@@ -79,7 +79,13 @@ from serving.verdict import model_facts, rule_checks, widened_interval
 from stiffnet.config.window import WINDOW_PERIODS
 from stiffnet.errors import SignalError, StiffnetError
 from stiffnet.features.windows import window_length, window_starts
-from stiffnet.inputs import natural_frequency, read_json, real_number, sampling_rate
+from stiffnet.inputs import (
+    natural_frequency,
+    read_json,
+    real_number,
+    sampling_rate,
+    where_given,
+)
 from stiffnet.recordings import natural_frequency_of
 from stiffnet.shipped import REPO_MODELS_DIR, shipped_file
 from stiffnet.uncertainty import RecordingEstimate, aggregate_windows, beta_interval
@@ -120,12 +126,24 @@ def _finite_positive(value: Any, what: str) -> float:
 
 
 #: Why f_n is never guessed from a record (measured: docs/field.md).
-FN_UNKNOWN = (
-    "natural frequency unknown: give it (--fn HZ; a sidecar <recording>.json with "
-    "natural_frequency_hz; the manifest column natural_frequency_hz; the HTTP field "
-    "natural_frequency_hz). A steady-state record does not show it (its motion is at the "
-    "forcing frequency) and the training data's value is not assumed"
+FN_NOT_GUESSED = (
+    "A steady-state record does not show it (its motion is at the forcing frequency) and "
+    "the training data's value is not assumed"
 )
+
+
+def fn_unknown() -> str:
+    """The refusal without f_n, naming what the user can give where they are: the option
+    and the sidecar on the command line, the manifest's column for a campaign, the field
+    over HTTP (:func:`stiffnet.inputs.where_given`)."""
+    how = where_given(
+        cli="--fn HZ, or a sidecar <recording>.json with natural_frequency_hz, or the "
+        "natural_frequency_hz column of the campaign manifest listing the recording",
+        manifest="the manifest's column natural_frequency_hz, or a sidecar "
+        "<recording>.json with natural_frequency_hz",
+        http="the field natural_frequency_hz",
+    )
+    return f"natural frequency unknown: give it ({how}). {FN_NOT_GUESSED}"
 
 
 def record_natural_frequency(
@@ -136,13 +154,13 @@ def record_natural_frequency(
     Raises
     ------
     StiffnetError
-        Neither is there (:data:`FN_UNKNOWN`), or the value is out of range.
+        Neither is there (:func:`fn_unknown`), or the value is out of range.
     """
     value, source = natural_frequency_of(recording, natural_frequency_hz)
     if value is not None:
         return value, source
     where = f"{recording}: " if recording is not None else ""
-    raise StiffnetError(where + FN_UNKNOWN)
+    raise StiffnetError(where + fn_unknown())
 
 
 @dataclass(frozen=True)
@@ -649,7 +667,7 @@ class Predictor:
                 natural_frequency(natural_frequency_hz),
                 natural_frequency_source or "argument",
             )
-        raise StiffnetError(FN_UNKNOWN)
+        raise StiffnetError(fn_unknown())
 
     def _windows(
         self, a: np.ndarray, fs: float, fn: float, what: str, warnings: list[str]

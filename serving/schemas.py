@@ -254,7 +254,8 @@ class PredictionResult(BaseModel):
     model: ModelInfo
     natural_frequency_hz: float
     natural_frequency_source: str = Field(
-        description="option / argument / request / sidecar:<path> / manifest"
+        description="option / argument / request / sidecar:<path> / manifest:<manifest>: line N "
+        "(<recording>) (predict on a recording its campaign's manifest lists)"
     )
     warnings: list[str]
 

@@ -580,6 +580,13 @@ def shell_quote(text: str) -> str:
     return shlex.quote(text)
 
 
+def where_given(cli: str, manifest: str, http: str) -> str:
+    """How the user gives a value where they are (:data:`HINT_CONTEXT`): the command's
+    option, the manifest's column or the HTTP field, so that a hint never names what the
+    user cannot type (an HTTP client has no ``--fn``)."""
+    return {"cli": cli, "manifest": manifest, "http": http}[HINT_CONTEXT.get()]
+
+
 def columns_hint(columns: str, time_unit: str | None = None) -> str:
     """How to name a CSV's columns (``"TIME,ACCEL"``) where the user gives them."""
     where = HINT_CONTEXT.get()

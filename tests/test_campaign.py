@@ -242,10 +242,17 @@ def test_manifest_unknown_column(tmp_path):
     ("header", "match"),
     [
         ("gap_mm [mm]", r"column 3 'gap_mm \[mm\]': a unit beside .* write 'gap_mm'$"),
-        ("fs (Hz)", r"column 3 'fs \(hz\)': .* write 'fs_hz'$"),
+        ("fs (Hz)", r"column 3 'fs \(Hz\)': .* write 'fs_hz'$"),  # as written, not 'fs (hz)'
         ("gap [mm]", r"write 'gap_mm'$"),  # not the model's 'gap'
         ("base_acceleration [m/s^2]", r"write 'base_acceleration_ms2'$"),
-        ("fs_hz [kHz]", r"write 'fs_hz', in Hz \('khz' is not its unit\)$"),
+        ("fs_hz [kHz]", r"write 'fs_hz', in Hz \('kHz' is not its unit\)$"),
+        # a stiffness in N/m is not the ratio the column holds; '-' is the ratio's own unit
+        (
+            "Beta [N/m]",
+            r"'Beta \[N/m\]': .* write 'beta', a ratio without a unit \(the "
+            r"restraint's stiffness over the primary spring's\) \('N/m' is not its unit\)$",
+        ),
+        ("damping_ratio (-)", r"write 'damping_ratio'$"),
     ],
 )
 def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, header, match):

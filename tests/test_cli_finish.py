@@ -192,3 +192,24 @@ def test_predict_table_stays_side_by_side_at_80_columns_with_a_sidecar(tmp_path)
         "model cnn" in line and line.count("┃") == 4 for line in text.splitlines()
     )  # the header row: the model's and the geometric method's columns side by side
     assert "rec.csv.json)" in _tokens(text) and str(deep) not in text
+
+
+@pytest.mark.parametrize("width", [60, 80])
+def test_a_long_path_in_a_title_stays_whole(width):
+    """A narrow table's title (``stiffness log of PATH``) wrapped at the table's width cut
+    the recording's path in two (``d_drill3/d`` / ``rill.csv``)."""
+    import io
+
+    from rich.console import Console
+    from rich.table import Table
+
+    from stiffnet.cli.console import fit_table
+
+    path = "/work/scratch/s38/fresh/rigs/d_drill3/drill.csv"
+    t = Table(title=f"stiffness log of {path}: 3 layer(s), 87 points every 0.5 s")
+    for col in ("layer", "beta"):
+        t.add_column(col)
+    t.add_row("0", "11.6 [9.92, 13.8]")
+    console = Console(width=width, record=True, file=io.StringIO())
+    console.print(fit_table(t, width))
+    assert path in console.export_text()

@@ -278,7 +278,8 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
-            columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num)
+            columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num,
+                                    header)  # fmt: skip
             rows: list[ManifestRow] = []
             seen: dict[str, int] = {}
             folders: set[str] = set()
@@ -313,9 +314,15 @@ _UNIT_BESIDE = re.compile(
 _UNIT_SUFFIX = {"hz": "hz", "mm": "mm", "g": "g", "m/s^2": "ms2", "m/s2": "ms2", "m/s²": "ms2",
                 "ms^-2": "ms2", "ms-2": "ms2", "s": "s", "-": "", "1": ""}  # fmt: skip
 _UNIT_SHOWN = {"hz": "Hz", "mm": "mm", "g": "g", "ms2": "m/s²", "s": "s"}
+#: Columns that are ratios: a unit written beside one is a quantity the column does not hold.
+_RATIOS = {
+    "beta": "a ratio without a unit (the restraint's stiffness over the primary spring's)",
+    "damping_ratio": "a ratio without a unit",
+    "frequency_ratio": "a ratio without a unit (the forcing frequency over f_n)",
+}
 
 
-def _unit_in_header(col: str) -> str | None:
+def _unit_in_header(col: str, written: str | None = None) -> str | None:
     """Why a header cell such as ``gap_mm [mm]`` is refused and which name to write, or
     None when the cell is not a known column with a unit beside it.
 
@@ -336,13 +343,20 @@ def _unit_in_header(col: str) -> str | None:
     else:
         return None
     own = next((u for u in _UNIT_SUFFIX.values() if u and fix.endswith(f"_{u}")), "")
-    if suffix is None or (own or suffix) != suffix:
+    shown = (written or col).strip()  # as the user wrote it: "N/m", not "n/m"
+    if len(shown) != len(col):  # lower() kept every span of an ASCII cell
+        shown = col
+    group = next(g for g in ("b", "p", "s") if m[g])
+    unit_shown = shown[m.start(group) : m.end(group)].strip()
+    if fix in _RATIOS and suffix != "":  # '-' or '1' beside a ratio is its own (no) unit
+        hint = f"write {fix!r}, {_RATIOS[fix]} ({unit_shown!r} is not its unit)"
+    elif suffix is None or (own or suffix) != suffix:
         own_unit = _UNIT_SHOWN.get(own, "the unit docs/campaign.md gives it")
-        hint = f"write {fix!r}, in {own_unit} ({unit!r} is not its unit)"
+        hint = f"write {fix!r}, in {own_unit} ({unit_shown!r} is not its unit)"
     else:
         hint = f"write {fix!r}"
     # the cell is a known column's name and a short unit: quoting it echoes no file content
-    return f"{col!r}: a unit beside a column's name is not read (the name carries it); {hint}"
+    return f"{shown!r}: a unit beside a column's name is not read (the name carries it); {hint}"
 
 
 def _read_row(
@@ -361,6 +375,10 @@ def _read_row(
         )
     data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
     row = _validate_row(data, f"{p}: line {line}")
+    sidecar_fn = _sidecar_natural_frequency(p, line, row)
+    if sidecar_fn is not None and row.natural_frequency_hz is None:
+        # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
+        row = _validate_row({**data, "natural_frequency_hz": sidecar_fn}, f"{p}: line {line}")
     row._line = line
     if row.recording in seen:
         raise StiffnetError(
@@ -370,6 +388,29 @@ def _read_row(
     seen[row.recording] = line
     _file_and_folder(row.recording, seen, folders, f"{p}: line {line}")
     return row
+
+
+#: Relative difference between a row's f_n and its sidecar's read as the same value (the
+#: tolerance of a file's own rate against the manifest's).
+NATURAL_FREQUENCY_AGREEMENT = 1e-3
+
+
+def _sidecar_natural_frequency(p: Path, line: int, row: ManifestRow) -> float | None:
+    """The f_n of the row's sidecar ``<recording>.json`` (None: none), refused where the row
+    gives another: a recording has one rig, and ``predict`` (which reads the sidecar) and
+    the campaign's commands (which read the manifest) must not read it at two."""
+    from stiffnet.recordings.sidecar import read_sidecar
+
+    value, sidecar = read_sidecar(p.parent / row.recording)
+    own = row.natural_frequency_hz
+    if value is not None and own is not None:
+        if not math.isclose(value, own, rel_tol=NATURAL_FREQUENCY_AGREEMENT):
+            raise StiffnetError(
+                f"{p}: line {line}, column natural_frequency_hz: {own:g} Hz disagrees with the "
+                f"recording's sidecar {sidecar.name} ({value:g} Hz); a recording has one rig: "
+                "mend one"
+            )
+    return value
 
 
 #: Problems of a manifest a message spells out before counting the rest.
@@ -393,12 +434,14 @@ def raise_problems(manifest: Path, problems: list[str]) -> None:
     raise StiffnetError(f"{len(problems)} problems: {problems[0]}; also {'; '.join(rest)}{tail}")
 
 
-def _check_header(p: Path, columns: list[str], line: int) -> list[str]:
+def _check_header(
+    p: Path, columns: list[str], line: int, written: list[str] | None = None
+) -> list[str]:
     for i, col in enumerate(columns):
         if not col:
             raise StiffnetError(f"{p}: line {line}: column {i + 1} of the header has no name")
         if col not in COLUMNS:
-            unit_hint = _unit_in_header(col)
+            unit_hint = _unit_in_header(col, None if written is None else written[i])
             if unit_hint:
                 raise StiffnetError(f"{p}: column {i + 1} {unit_hint}")
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
@@ -605,6 +648,39 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
             problems.append(f"{row.where(manifest)}: recording file not found: {path}")
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRow] | None:
+    """The manifest row listing ``recording`` in the campaign it sits in, and the manifest.
+
+    The campaign is the nearest folder above the recording holding a ``manifest.csv``
+    (a campaign folder, docs/campaign.md); None where there is none or it does not list the
+    file. ``predict`` on one recording of a campaign reads it as ``predict-batch`` does.
+
+    Raises
+    ------
+    StiffnetError
+        That manifest does not read (its problems, naming it: it is the recording's
+        campaign, so a broken row there is not passed over in silence).
+    """
+    manifest = campaign_manifest_above(recording)
+    if manifest is None:
+        return None
+    path = Path(recording).resolve()
+    for row in read_manifest(manifest):
+        if (manifest.parent / row.recording).resolve() == path:
+            return manifest, row
+    return None
+
+
+def campaign_manifest_above(recording: str | os.PathLike[str]) -> Path | None:
+    """The ``manifest.csv`` of the campaign folder a recording sits in: the nearest folder
+    above it holding one (None: none). Read for the recording's row, and never written
+    over by a command reading the recording."""
+    for folder in Path(recording).resolve().parents:
+        if (folder / MANIFEST_NAME).is_file():
+            return folder / MANIFEST_NAME
+    return None
 
 
 def _inside(root: Path, relative: str, where: str) -> Path:

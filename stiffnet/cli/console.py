@@ -47,6 +47,9 @@ def fit_table(table: Table, width: int) -> Table:
     cols = table.columns
     if not cols:
         return table
+    if table.title is not None:  # the title wraps at the table's width: a path stays whole
+        longest = min(width, _longest_word(_plain(table.title)))
+        table.min_width = max(table.min_width or 0, longest)
     cells = [[_plain(c) for c in col.cells] for col in cols]
     heads = [_plain(col.header) for col in cols]
     natural = [max(_longest_line(x) for x in [h, *cs]) for h, cs in zip(heads, cells, strict=True)]
@@ -199,7 +202,20 @@ def check_arguments(kwargs: dict[str, Any]) -> None:
            if (isinstance(kwargs.get(name), Path) or (name in text_inputs and kwargs.get(name)
                                                       and kwargs[name] != "-"))
            and os.path.lexists(str(kwargs[name]))}  # fmt: skip
+    if outputs and "recording" in ins and ins["recording"].is_file():
+        ins.update(_read_beside(ins["recording"]))
     inputs.check_outputs(outputs, ins)
+
+
+def _read_beside(recording: Path) -> dict[str, Path]:
+    """What a command reading one recording reads beside it: its sidecar (f_n, the data
+    sheet) and its campaign's manifest (its row): inputs no output may replace."""
+    from stiffnet.campaign.manifest import campaign_manifest_above
+    from stiffnet.recordings.sidecar import sidecar_path
+
+    found = {"recording's sidecar": sidecar_path(recording),
+             "recording's campaign manifest": campaign_manifest_above(recording)}  # fmt: skip
+    return {name: path for name, path in found.items() if path is not None and path.is_file()}
 
 
 def _check_effects(kwargs: dict[str, Any]) -> None:

@@ -7,6 +7,7 @@ scikit-learn or mlflow. The shared console helpers come from :mod:`stiffnet.cli.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -39,15 +40,27 @@ def predict(
     json_path: JsonOption = None,
     sensor: SensorOption = None,
 ) -> None:
-    """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically."""
+    """Stiffness class and beta of a recording by the ONNX model, cross-checked geometrically.
+
+    A recording listed in the manifest of the campaign folder it sits in is read with its
+    row (f_n, rate, columns, time unit, channel, data sheet) where the options leave them
+    empty, as ``predict-batch`` reads it; ``--fn`` still wins."""
+    from serving.batch_prediction import row_settings
     from serving.predictor import Predictor, predict_recording
+    from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
-
-    require_rate(recording, fs)  # before loading the model
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
+    listed = campaign_row_of(recording) if fn is None else None
+    if listed is not None:  # its campaign's row, as predict-batch reads it
+        given = (fs, None, columns, time_unit, channel, sheet)
+        fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
+            mine if mine is not None else theirs
+            for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
+        )
+    require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -76,6 +89,9 @@ def _source_text(result: dict[str, Any]) -> str:
     source = str(result["natural_frequency_source"])
     if source.startswith("sidecar:"):
         return "sidecar " + Path(source.removeprefix("sidecar:")).name
+    row = re.match(r"manifest:(.+): (line \d+) ", source)  # its campaign's row
+    if row:
+        return f"{Path(row[1]).name} {row[2]}"
     return source
 
 
@@ -159,6 +175,12 @@ def _restoring_force_text(result: dict[str, Any]) -> str:
     return text + ("  agrees" if result["restoring_force_agreement"] else "  [red]disagrees[/]")
 
 
+#: The alarm's notes (:func:`stiffnet.uncertainty.unseen_law.with_unseen_law_check`): what the
+#: contact-law check could not read, and what would resolve an exponent alarm. A reader of
+#: the table needs them as much as a reader of the JSON.
+ALARM_NOTES = ("contact_law_unread", "exponent_unread", "exponent_chain_unknown")
+
+
 def _alarm_rows(alarm: dict[str, Any] | None) -> list[tuple[str, str]]:
     """The alarm's verdict and each check's score against its threshold."""
     if alarm is None:
@@ -174,7 +196,8 @@ def _alarm_rows(alarm: dict[str, Any] | None) -> list[tuple[str, str]]:
         for k, v in alarm["scores"].items()
         if k in alarm["thresholds"]
     )
-    return [("alarm", verdict), ("alarm checks (score/threshold)", scores)]
+    notes = [("alarm note", str(alarm[k])) for k in ALARM_NOTES if alarm.get(k)]
+    return [("alarm", verdict), ("alarm checks (score/threshold)", scores), *notes]
 
 
 def _layers_table(layers: list[dict[str, Any]]) -> Any:

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import where_given
 
 if TYPE_CHECKING:
     import numpy as np
@@ -78,6 +79,13 @@ def brief(exc: BaseException) -> str:
     """First line of an exception's message (or its type), for one-line errors."""
     text = str(exc).strip().splitlines()
     return text[0][:200] if text else type(exc).__name__
+
+
+def choose_channel(what: str) -> str:
+    """``choose one with ...``: how the user names a channel where they are (``what``: INDEX
+    or NAME), an option on the command line, a column in a manifest, a field over HTTP."""
+    how = where_given(f"--channel {what}", "the manifest's column channel", "the field channel")
+    return f"choose one with {how}"
 
 
 def channel_index(channel: str | int | None, n: int, name: str, kind: str) -> int:

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import columns_hint, quote_content
+from stiffnet.inputs import columns_hint, quote_content, where_given
 from stiffnet.recordings.base import Recording, RecordingReader, Samples, rates_agree
 
 if TYPE_CHECKING:
@@ -142,9 +142,11 @@ def unit_mistake_hint(fs_hz: float, lo_hz: float, hi_hz: float = math.inf) -> st
     """
     for factor, (word, unit) in _UNIT_FACTORS.items():
         if lo_hz <= fs_hz * factor <= hi_hz:
+            given = where_given(f"--time-unit {unit}", f"the manifest's column time_unit {unit}",
+                                f"the field time_unit={unit}")  # fmt: skip
             return (
                 f"; if the time column is in {word}, give the time unit {unit} "
-                f"(--time-unit {unit}; manifest/HTTP field time_unit), which gives "
+                f"({given}), which gives "
                 f"{fs_hz * factor:.6g} Hz"
             )
     return ""
@@ -235,7 +237,8 @@ def _channels_hint(header: list[str]) -> str:
     names = [c.strip() for c in header]
     if len(names) <= 2 or not all(map(_COLUMN_NAME.match, names)):
         return ""
-    return f"; its {len(names)} columns: {', '.join(names)} (--channel NAME picks the acceleration)"
+    pick = where_given("--channel NAME", "the manifest's column channel", "the field channel")
+    return f"; its {len(names)} columns: {', '.join(names)} ({pick} picks the acceleration)"
 
 
 def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndarray, float, str]:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
-from stiffnet.recordings.base import RecordingReader, Samples, brief, channel_index
+from stiffnet.recordings.base import RecordingReader, Samples, brief, channel_index, choose_channel
 
 if TYPE_CHECKING:
     import numpy as np
@@ -40,7 +40,7 @@ class NpyReader(RecordingReader):
             if channel is None:
                 raise StiffnetError(
                     f"{name}: {arr.shape[1]} channels (columns 0..{arr.shape[1] - 1} of shape "
-                    f"{arr.shape}); choose one with --channel INDEX (manifest/HTTP field channel)"
+                    f"{arr.shape}); " + choose_channel("INDEX")
                 )
             idx = channel_index(channel, arr.shape[1], name, "NPY")
             arr, name = arr[:, idx], f"{name} (channel {idx})"

@@ -2,8 +2,8 @@
 
 One home for the sidecar: the commands (``analyze``, ``predict``, ``log``,
 ``predict-batch``) and the predictor resolve a recording's natural frequency through
-:func:`natural_frequency_of` (the option, else the sidecar), so each says the same
-about where the value came from.
+:func:`natural_frequency_of` (the option, else the sidecar, else the manifest row of the
+campaign listing the recording), so each says the same about where the value came from.
 """
 
 from __future__ import annotations
@@ -64,14 +64,16 @@ def natural_frequency_of(
     given_hz: float | None,
     option: str = "--fn",
 ) -> tuple[float | None, str]:
-    """A recording's f_n and where it came from: the option, else its sidecar.
+    """A recording's f_n and where it came from: the option, else its sidecar, else the row
+    of the campaign manifest listing it (:func:`stiffnet.campaign.manifest.campaign_row_of`).
 
     Returns
     -------
     (float or None, str)
         The value in Hz (range-checked) and its source: ``"option --fn"``,
-        ``"sidecar:<path>"``, or ``(None, "unknown")`` when neither gives it (the
-        caller decides whether that is a refusal).
+        ``"sidecar:<path>"``, ``"manifest:<manifest>: line N (<recording>)"``, or
+        ``(None, "unknown")`` when none gives it (the caller decides whether that is a
+        refusal).
     """
     if given_hz is not None:
         return natural_frequency(given_hz, option), f"option {option}"
@@ -79,4 +81,10 @@ def natural_frequency_of(
         value, sidecar = read_sidecar(recording)
         if value is not None:
             return value, f"sidecar:{sidecar}"
+        from stiffnet.campaign.manifest import campaign_row_of  # the campaign reads recordings
+
+        listed = campaign_row_of(recording)
+        if listed is not None and listed[1].natural_frequency_hz is not None:
+            manifest, row = listed
+            return row.natural_frequency_hz, "manifest:" + row.where(manifest)
     return None, "unknown"

@@ -13,7 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.errors import StiffnetError
-from stiffnet.recordings.base import RecordingReader, Samples, brief, check_agreement
+from stiffnet.recordings.base import (
+    RecordingReader,
+    Samples,
+    brief,
+    check_agreement,
+    choose_channel,
+)
 
 #: npTDMS's log level is global state: set it under a lock.
 _TDMS_LOCK = threading.Lock()
@@ -96,8 +102,7 @@ def _pick(channels: list[tuple[str, Any]], channel: str | int | None, name: str)
         if len(with_data) > 1:
             listed = ", ".join(f"{g}/{c.name}" for g, c in with_data)
             raise StiffnetError(
-                f"{name}: {len(with_data)} channels hold data ({listed}); choose one with "
-                "--channel NAME (manifest/HTTP field channel)"
+                f"{name}: {len(with_data)} channels hold data ({listed}); " + choose_channel("NAME")
             )
         return with_data[0]
     want = str(channel)

@@ -17,6 +17,7 @@ from stiffnet.recordings.base import (
     channel_index,
     check_agreement,
     check_rate,
+    choose_channel,
 )
 
 
@@ -39,8 +40,8 @@ class WavReader(RecordingReader):
         rate, data = _load(path)
         if data.ndim == 2 and data.shape[1] > 1 and channel is None:
             raise StiffnetError(
-                f"{name}: {data.shape[1]} channels (0..{data.shape[1] - 1}); choose one with "
-                "--channel INDEX (manifest/HTTP field channel)"
+                f"{name}: {data.shape[1]} channels (0..{data.shape[1] - 1}); "
+                + choose_channel("INDEX")
             )
         if data.ndim == 2:
             idx = channel_index(channel, data.shape[1], name, "WAV")

@@ -1,0 +1,101 @@
+"""A recording's f_n is one value whatever reads it: the manifest's row and its sidecar
+agree or the manifest is refused; ``predict`` on one recording of a campaign reads its row
+as ``predict-batch`` does; a campaign's rows without f_n are said, not read silently at
+the paper's 9.48 Hz."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from stiffnet.campaign import load_campaign, read_manifest
+from stiffnet.campaign.manifest import campaign_row_of
+from stiffnet.cli import app
+from stiffnet.cli.measurement import assumed_natural_frequency
+from stiffnet.errors import StiffnetError
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "recordings" / "impact_beta45.csv"
+runner = CliRunner()
+
+
+def _campaign(tmp_path: Path, header: str, row: str, sidecar_hz: float | None) -> Path:
+    folder = tmp_path / "camp"
+    (folder / "rec").mkdir(parents=True)
+    shutil.copy(EXAMPLE, folder / "rec" / "run.csv")
+    (folder / "manifest.csv").write_text(f"{header}\n{row}\n")
+    if sidecar_hz is not None:
+        (folder / "rec" / "run.csv.json").write_text(
+            json.dumps({"natural_frequency_hz": sidecar_hz})
+        )
+    return folder
+
+
+def test_a_sidecar_disagreeing_with_the_manifest_is_refused(tmp_path):
+    camp = _campaign(
+        tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", 12.0
+    )
+    said = r"line 2, column natural_frequency_hz: 9\.48 Hz disagrees with the recording's sidecar"
+    with pytest.raises(StiffnetError, match=said + r" run\.csv\.json \(12 Hz\)"):
+        load_campaign(camp)
+    res = runner.invoke(app, ["predict", str(camp / "rec" / "run.csv")])
+    assert res.exit_code == 2 and "disagrees with the recording's sidecar" in res.output
+
+
+def test_a_sidecar_agreeing_within_its_rounding_is_read(tmp_path):
+    # 0.05 % apart (the tolerance of a file's own rate): a value rounded in one file
+    camp = _campaign(
+        tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", 9.4847
+    )
+    assert load_campaign(camp).rows[0].natural_frequency_hz == 9.48
+
+
+def test_the_sidecar_fills_a_row_without_f_n_before_its_units_convert(tmp_path):
+    header = "recording,fs_hz,forcing_frequency_hz,base_acceleration_g,gap_mm,beta"
+    camp = _campaign(tmp_path, header, "rec/run.csv,1000,14.9,1.7,2.8,45", 14.2)
+    (row,) = read_manifest(camp / "manifest.csv")
+    assert row.natural_frequency_hz == 14.2
+    assert row.frequency_ratio == pytest.approx(14.9 / 14.2)  # not 14.9 / 9.48
+    assert assumed_natural_frequency(load_campaign(camp)) is None
+
+
+def test_rows_without_f_n_are_said(tmp_path):
+    camp = _campaign(tmp_path, "recording,fs_hz,beta", "rec/run.csv,1000,45", None)
+    said = assumed_natural_frequency(load_campaign(camp))
+    assert said is not None and "1 of 1 recordings (rec/run.csv)" in said and "9.48 Hz" in said
+
+
+def test_predict_reads_the_row_of_the_campaign_its_recording_sits_in(tmp_path):
+    camp = _campaign(
+        tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", None
+    )
+    recording = camp / "rec" / "run.csv"
+    manifest, row = campaign_row_of(recording)
+    assert manifest == camp / "manifest.csv" and row.recording == "rec/run.csv"
+    res = runner.invoke(app, ["predict", str(recording), "--json", str(tmp_path / "r.json")])
+    assert res.exit_code == 0, res.output
+    r = json.loads((tmp_path / "r.json").read_text())
+    assert r["natural_frequency_source"].startswith(f"manifest:{manifest}: line 2")
+    assert r["natural_frequency_hz"] == 9.48 and "manifest.csv line 2" in res.output
+    # --fn still wins; a recording the manifest does not list is not read through it
+    assert campaign_row_of(camp / "rec" / "other.csv") is None
+    shutil.copy(EXAMPLE, tmp_path / "alone.csv")
+    assert campaign_row_of(tmp_path / "alone.csv") is None
+
+
+@pytest.mark.parametrize("output", ["manifest.csv", "rec/run.csv.json"])
+def test_an_output_never_lands_on_what_predict_reads_beside_its_recording(tmp_path, output):
+    """``predict rec --json manifest.csv`` replaced the campaign's manifest (and a sidecar
+    named as the output was replaced too): both are read with the recording."""
+    camp = _campaign(
+        tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", 9.48
+    )
+    before = (camp / output).read_bytes()
+    res = runner.invoke(
+        app, ["predict", str(camp / "rec" / "run.csv"), "--json", str(camp / output)]
+    )
+    assert res.exit_code == 2 and "is the input recording's" in res.output, res.output
+    assert (camp / output).read_bytes() == before
