@@ -41,8 +41,9 @@ without the chain 0.061 / 0.027. With the campaign's identified chain the regres
 carries the chain's free modes after each impact (:func:`free_mode_columns`), two
 regressors per mode and impact, linear like the rest, and the split is redone with them
 until the contact stands; the lines are then divided by the chain's response at each
-harmonic (a few per cent at most). Campaign a then reads 0.060 at 0.91 rad and 0.029 at
--1.31 rad (truth 0.06 at 0.9, 0.025 at -1.3), and without harmonics 0.001 / 0.003.
+harmonic (a few per cent at most). Through its identified chain campaign a then reads
+0.0605 at 0.92 rad and 0.0305 at -1.24 rad (truth 0.06 at 0.9, 0.025 at -1.3), and
+without harmonics 0.001 / 0.005.
 """
 
 from __future__ import annotations
