@@ -446,7 +446,6 @@ def _prepare(
     }
     # a non-repeatable recording (halves far apart) weighs less in every fit's objective
     target.weights = floors[FIT_SETTINGS].weights().tolist()
-    target.forcing = campaign_forcing_lines(signals, rows)  # seeds forcing_harmonics' fit
 
     # the contact law read off each force-displacement map (evidence without simulation);
     # its shared sensor chain is where sensor_dynamics' fit starts
@@ -471,6 +470,9 @@ def _prepare(
         evidence = _await_evidence(reading) if reading is not None else evidence
     run.evidence = evidence
     target.sensor = evidence.get("sensor")
+    # seeds forcing_harmonics' fit (read through the chain the evidence identified: a
+    # mount's ringing after each impact reads as forcing lines otherwise)
+    target.forcing = campaign_forcing_lines(signals, rows, target.sensor)
     return run, nuisances, baseline
 
 
