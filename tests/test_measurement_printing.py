@@ -139,3 +139,26 @@ def test_diagnose_cli_every_candidate(tmp_path, field):
     for r in diag["ranking"]:
         assert set(r["fitted"]) <= set(r["params"]), r["effect"]
     assert "verdict:" in res.output
+
+
+def test_a_mean_one_recording_carries_names_it_and_the_median():
+    """An ideal campaign's one wandering orbit (1,140 against 0.008) made the headline mean
+    48.1: the headline names the recording and the median beside the mean; a campaign whose
+    recordings share the mean prints the mean alone."""
+    names = [f"rec/r{i}.csv" for i in range(24)]
+    values = [0.008] * 24
+    values[5] = 1140.0
+    note = commands.carried_note(values, names)
+    assert "rec/r5.csv" in note and "100%" in note and "median 0.008" in note
+    res = {
+        "verdict": "nothing_missing",
+        "residual_discrepancy": float(np.mean(values)),
+        "explained_fraction": 0.0,
+        "summary": "the base model is at the recordings' own noise floors",
+        "residual_per_recording": values,
+        "recordings": names,
+    }
+    assert "% of it from rec/r5.csv, median 0.008," in commands.diagnosis_lines(res)[0]
+    shared = [0.5 + 0.01 * i for i in range(24)]
+    assert commands.carried_note(shared, names) == ""
+    assert commands.carried_note([1.0, float("nan")], names[:2]) == ""  # too few to say
