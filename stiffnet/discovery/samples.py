@@ -240,10 +240,11 @@ def shared_chain_readings(
 
     Each record's own fit decides its chain alone, and a law the library lacks bends the
     pulse the chain fit models as a linear contact: behind one 240 Hz mount, a two-stage
-    restraint (knee 0.3 mm, ratio 2) read 11 of 24 records as recorded (the mount left in;
-    the right 240 Hz chain among the rejected) and 5 of the 13 kept with a low-pass the sensor
-    lacks (beta 215-235 for 69-83); that mix hid the second stage (a linear spring, 95.9 % of
-    the force), where the one chain undone on all found it (knee 0.32, ratio 1.7).
+    restraint (knee 0.3 mm, ratio 2) read 10 of 24 records as recorded (the mount left in;
+    a right 240 Hz chain among the rejected) and 5 of the 14 kept with a low-pass the sensor
+    lacks (beta 215-235 for 69-83 on three); that mix hid the second stage (a linear spring,
+    95.9 % of the force), where the chain the kept ones share, undone on all, found it (knee
+    0.297, ratio 1.99).
 
     The shared chain (:func:`~stiffnet.restoring_force.chain.shared_chain`: each stage
     that at least half of the kept chains show, at their median) is undone on every
