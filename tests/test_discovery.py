@@ -196,7 +196,7 @@ def _fake_reading(outcome: str):
     from types import SimpleNamespace
 
     chain = None if outcome == "none" else SimpleNamespace(
-        source="fitted", applied=outcome == "kept", has_dynamics=True)  # fmt: skip
+        source="fitted", applied=outcome == "kept", has_dynamics=True, to_dict=dict)  # fmt: skip
     return None, SimpleNamespace(sensor=chain)
 
 
@@ -307,6 +307,62 @@ def test_discovery_keeps_the_reading_whose_force_is_a_function_of_the_state():
     assert keeps_chain(plain=ringing, undone=static)
     assert not keeps_chain(plain=static, undone=ringing)
     assert not keeps_chain(plain=static, undone=None) and keeps_chain(plain=None, undone=static)
+
+
+def test_a_shared_chain_replaces_the_records_own_readings_only_where_it_reads_better():
+    """The campaign's readings through its shared chain are kept where the shared chain's force is
+    more of a function of the state on the median recording, not where one recording gains,
+    nor where the shared chain loses a recording."""
+    from stiffnet.discovery.chain_choice import keeps_shared_chain
+
+    static = synthetic_samples({"knee": 0.15, "knee_ratio": 2.0}, 0.02)
+    ringing = [_ringing(s, 0.05, seed=i) for i, s in enumerate(static)]
+    assert keeps_shared_chain(own=ringing, shared=static)
+    assert not keeps_shared_chain(own=static, shared=ringing)
+    # one recording read better (the one least explained), the others the same
+    assert not keeps_shared_chain(own=[*static[:3], ringing[3]], shared=static)
+    assert not keeps_shared_chain(own=ringing, shared=[None, *static[1:]])
+
+
+def _chain_reading(samples, outcome: str, chain: dict | None = None):
+    """A reading with `samples` whose estimate did ``outcome`` with a fitted `chain`."""
+    from types import SimpleNamespace
+
+    sensor = SimpleNamespace(source="fitted", applied=outcome == "kept", has_dynamics=True,
+                             to_dict=lambda: dict(chain or {}))  # fmt: skip
+    return samples, SimpleNamespace(sensor=sensor)
+
+
+def test_the_campaigns_readings_undo_the_chain_its_kept_readings_share():
+    """Six recordings of one sensor whose own fits disagree: four keep a 240 Hz chain (one
+    with a low-pass the sensor lacks, one off at 199 Hz), two reject theirs and are read
+    as recorded (ringing). Every recording is read again through the kept chains' shared one
+    (240 Hz at their median damping, no low-pass: one of four shows it) and, their force a
+    function of the state, those readings are the campaign's."""
+    from types import SimpleNamespace
+
+    static = synthetic_samples({"knee": 0.15, "knee_ratio": 2.0}, 0.02)
+    static = [*static, *static[:2]]
+    kept = [{"resonance_hz": 240.0, "resonance_damping": 0.04},
+            {"resonance_hz": 239.0, "resonance_damping": 0.05, "lowpass_hz": 264.0,
+             "lowpass_order": 1},
+            {"resonance_hz": 199.0, "resonance_damping": 0.02},
+            {"resonance_hz": 241.0, "resonance_damping": 0.03}]  # fmt: skip
+    sheets = []
+
+    def read(i, fit_chain):
+        if isinstance(fit_chain, dict):
+            sheets.append(fit_chain)
+            return static[i], SimpleNamespace(sensor=None)
+        ringing = _ringing(static[i], 0.05, seed=i)
+        return _chain_reading(ringing, "kept" if i < 4 else "rejected", kept[i] if i < 4 else None)
+
+    out = campaign_readings(read, 6)
+    assert len(sheets) == 6 and all(sh == sheets[0] for sh in sheets)
+    assert sheets[0]["resonance_hz"] == pytest.approx(239.5)
+    assert sheets[0]["resonance_damping"] == pytest.approx(0.035)
+    assert not sheets[0]["lowpass_hz"] and not sheets[0]["highpass_hz"]
+    assert all(out[i][0] is static[i] for i in range(6))
 
 
 def test_a_recording_whose_impacts_disagree_does_not_flatten_the_power_law():

@@ -20,6 +20,7 @@ fits); a spurious one's inverse adds ringing and loops of its own.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -91,3 +92,21 @@ def keeps_chain(plain: ContactSamples | None, undone: ContactSamples | None) -> 
     if not np.isfinite(r2_plain):
         return True
     return 1.0 - r2_undone <= MAX_UNEXPLAINED_RATIO * (1.0 - r2_plain)
+
+
+def keeps_shared_chain(
+    own: Sequence[ContactSamples | None], shared: Sequence[ContactSamples | None]
+) -> bool:
+    """Rule: a campaign's shared chain replaces the records' own readings where it answers on
+    as many recordings and its median held-out unexplained force (:func:`state_function_r2`,
+    over the recordings both readings answer) is at most :data:`MAX_UNEXPLAINED_RATIO` of
+    the own readings' (a clear gain, as :func:`keeps_chain` asks of one record's chain)."""
+    if sum(s is not None for s in shared) < sum(s is not None for s in own):
+        return False
+    both = [(o, s) for o, s in zip(own, shared, strict=True) if o is not None and s is not None]
+    lost = np.array([(1.0 - state_function_r2(o), 1.0 - state_function_r2(s)) for o, s in both])
+    lost = lost[np.isfinite(lost).all(axis=1)] if lost.size else lost
+    if not lost.size:
+        return False
+    own_median, shared_median = np.median(lost, axis=0)
+    return bool(shared_median <= MAX_UNEXPLAINED_RATIO * own_median)
