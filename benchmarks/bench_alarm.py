@@ -28,7 +28,9 @@ predictor as shipped; "before" is the same prediction with the ``contact_law`` c
 reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.unseen_law_reasons`) under the
 thresholds of ``--before KEY=VALUE`` (default: the soft first stage rule off,
 ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule off,
-``contact_damping_ratio_max=inf`` the damping ceiling), every other check as it fired
+``contact_damping_ratio_max=inf`` the damping ceiling,
+``fast_chain_contact_min_ratio=inf`` the fitted chain's pulse against the law), every other
+check as it fired
 (``restraint_dynamics`` included: a change of it is measured against a run of the code
 before it).
 

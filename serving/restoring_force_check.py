@@ -38,6 +38,7 @@ from stiffnet.uncertainty.law_shape import law_shape_gains
 from stiffnet.uncertainty.restraint_dynamics import second_peak_share
 from stiffnet.uncertainty.unseen_law import (
     PENETRATION_DISSIPATION,
+    chain_contact_ratio,
     trained_law_kinds,
 )
 from stiffnet.uncertainty.unseen_law import (
@@ -140,6 +141,9 @@ def restoring_force_check(
         "highpass_hz": d["highpass_hz"],
         "resonance_hz": d["resonance_hz"],
         "sensor": d["sensor"],
+        "chain_contact_ratio": chain_contact_ratio(
+            d["sensor"], d["beta_interval"], natural_frequency_hz
+        ),
         "dissipation_gain": None if hc is None else hc[0],
         "dissipation_share": None if hc is None else hc[1],
         "law_shape": shape,

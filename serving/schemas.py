@@ -80,6 +80,12 @@ class RestoringForceCheck(BaseModel):
         "sheet's): resonance_hz, resonance_damping, lowpass_hz, lowpass_order, highpass_hz, "
         "source, applied, intervals (90 %), contact_hz.",
     )
+    chain_contact_ratio: list[float] | None = Field(
+        default=None,
+        description="A fitted chain's contact pulse frequency (sensor.contact_hz) over the "
+        "fitted law's f_n sqrt(1 + beta), [low, high] over both 90 % intervals; null without "
+        "a fitted resonance or low-pass.",
+    )
     dissipation_gain: float | None = Field(
         default=None, description="Share of the contact law's misfit a delta*v term removes."
     )

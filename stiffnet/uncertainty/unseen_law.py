@@ -191,6 +191,11 @@ ONSET_TOE_STEP_MAX_SIDE = 1.2
 OUTLASTING_CONTACT_MIN_RATIO = 1.5
 #: ... counted only from a law explaining this share of the contact force.
 OUTLASTING_CONTACT_MIN_R2 = 0.98
+#: Low end of the chain fit's contact frequency over the high end of the fitted law's (both
+#: 90 % intervals, :func:`chain_contact_ratio`) that fires behind a fitted chain (see the YAML).
+FAST_CHAIN_CONTACT_MIN_RATIO = 1.0
+#: ... counted only from a law explaining this share of the contact force.
+FAST_CHAIN_CONTACT_MIN_R2 = 0.995
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -227,6 +232,8 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_step_max_side: float = ONSET_TOE_STEP_MAX_SIDE
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
+    fast_chain_contact_min_ratio: float = FAST_CHAIN_CONTACT_MIN_RATIO
+    fast_chain_contact_min_r2: float = FAST_CHAIN_CONTACT_MIN_R2
     #: Whether the exponent counts on a map read through a sensor chain the cross-check left
     #: on it (:func:`chain_left_on_exponent`); false: it is no reading of the law.
     exponent_through_left_chain: bool = False
@@ -439,7 +446,8 @@ def impact_onset_gain(r2: float, linear_r2: float) -> float:
 def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) -> list[str]:
     """The :data:`STIFFENING` rules: the exponent (:func:`exponent_reading`), a curvature
     within the impacts, stages and a soft first stage (its force outside the law's
-    contacts, or its time: :func:`outlasting_contact_reasons`)."""
+    contacts, or its time: :func:`outlasting_contact_reasons`; or a pulse faster than its
+    law behind a fitted chain: :func:`fast_chain_contact_reasons`)."""
     reasons = []
     reading = exponent_reading(restoring_force, t)
     if reading is not None:
@@ -454,8 +462,80 @@ def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) 
     stages = stage_reasons(shape, t) or power_law_stage_reasons(shape, reading, t)
     reasons += curvature_reasons(shape, t) + stages
     return (
-        reasons + onset_toe_reasons(shape, r2, t) + outlasting_contact_reasons(restoring_force, t)
+        reasons
+        + onset_toe_reasons(shape, r2, t)
+        + outlasting_contact_reasons(restoring_force, t)
+        + fast_chain_contact_reasons(restoring_force, t)
     )
+
+
+def chain_contact_ratio(
+    sensor: dict[str, Any] | None,
+    beta_interval: list[float] | None,
+    natural_frequency_hz: float,
+) -> list[float] | None:
+    """The contact frequency the chain fit read over the one the fitted law implies.
+
+    A fitted chain (:func:`stiffnet.restoring_force.chain.identify_sensor_chain`) is fitted
+    jointly with a linear contact pulse of frequency ``contact_hz``; the law the map then
+    fits (through the chain where it was undone) implies ``f_n sqrt(1 + beta)``. On a linear
+    contact the two agree (the independent rig behind its lab mount: 0.98-1.06).
+
+    Parameters
+    ----------
+    sensor : dict or None
+        The restoring-force check's ``sensor`` (``source``, ``resonance_hz``,
+        ``lowpass_hz``, ``contact_hz``, ``intervals``).
+    beta_interval : list of float or None
+        The restoring-force beta interval.
+    natural_frequency_hz : float
+
+    Returns
+    -------
+    list of float or None
+        ``[low, high]``: the ratio's range over both 90 % intervals (the chain's low end over
+        the law's high end, and the reverse). None where no chain with a resonance or
+        low-pass was fitted, or either interval is missing or not finite.
+    """
+    if not sensor or sensor.get("source") != "fitted" or not beta_interval:
+        return None
+    if not (sensor.get("resonance_hz") or sensor.get("lowpass_hz")):
+        return None  # a high-pass alone: the pulse is the law's, no joint fit to compare
+    contact = (sensor.get("intervals") or {}).get("contact_hz")
+    if not contact or not natural_frequency_hz > 0:
+        return None
+    lo_beta, hi_beta = beta_interval
+    values = (contact[0], contact[1], lo_beta, hi_beta)
+    if not all(v is not None and np.isfinite(v) and v > -1.0 for v in values):
+        return None
+    law_lo = natural_frequency_hz * np.sqrt(1.0 + lo_beta)
+    law_hi = natural_frequency_hz * np.sqrt(1.0 + hi_beta)
+    if not (law_lo > 0 and contact[0] > 0):
+        return None
+    return [float(contact[0] / law_hi), float(contact[1] / law_lo)]
+
+
+def fast_chain_contact_reasons(
+    restoring_force: dict[str, Any], t: UnseenLawThresholds
+) -> list[str]:
+    """Rule: where the cross-check fitted a chain, on a law explaining at least
+    :attr:`UnseenLawThresholds.fast_chain_contact_min_r2` of the contact force, the chain
+    fit's linear contact pulse is faster than the law the map fits: the low end of
+    their ratio (``chain_contact_ratio``, :func:`chain_contact_ratio`) reaches
+    :attr:`UnseenLawThresholds.fast_chain_contact_min_ratio`. A two-stage restraint behind a
+    mount reads as a plausible linear law of the stiff stage, which the model reads too; the
+    pulse the joint fit reads agrees with no one linear law. Only the faster side counts:
+    the slower one occurs on a linear contact (see the YAML)."""
+    ratio, r2 = restoring_force.get("chain_contact_ratio"), restoring_force.get("contact_r2")
+    if not ratio or r2 is None or not r2 >= t.fast_chain_contact_min_r2:
+        return []
+    if not ratio[0] >= t.fast_chain_contact_min_ratio:
+        return []
+    return [
+        f"the chain fit's contact pulse is {ratio[0]:.2f}-{ratio[1]:.2f} times as fast as the "
+        f"fitted law (R2 {r2:.3f}) through the fitted sensor chain: no one linear contact gives "
+        "both, as a soft first stage before a stiff one does, and the model reads the stiff stage"
+    ]
 
 
 def outlasting_contact_reasons(
