@@ -55,17 +55,11 @@ from stiffnet import progress
 from stiffnet.errors import StiffnetError
 from stiffnet.features.windows import window_length
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
-from stiffnet.inputs import where_given
+from stiffnet.inputs import sensor_given
 from stiffnet.layers import LayerSegmenter, class_with_hysteresis
 from stiffnet.restoring_force.chain import shared_chain_sheet
 from stiffnet.uncertainty import RecordingEstimate, beta_interval
 from stiffnet.uncertainty.alarm import recording_checks
-
-
-def sensor_given() -> str:
-    """Where the user gives the accelerometer's data sheet (an HTTP client has no option)."""
-    return where_given("--sensor", "the manifest's column sensor", "the field sensor")
-
 
 #: Largest hop between points (s): a window is 16 natural periods, so points overlap and the
 #: change-point search sees every window a change touches.

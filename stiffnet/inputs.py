@@ -587,6 +587,11 @@ def where_given(cli: str, manifest: str, http: str) -> str:
     return {"cli": cli, "manifest": manifest, "http": http}[HINT_CONTEXT.get()]
 
 
+def sensor_given() -> str:
+    """Where the user gives the accelerometer's data sheet (an HTTP client has no option)."""
+    return where_given("--sensor", "the manifest's column sensor", "the field sensor")
+
+
 def columns_hint(columns: str, time_unit: str | None = None) -> str:
     """How to name a CSV's columns (``"TIME,ACCEL"``) where the user gives them."""
     where = HINT_CONTEXT.get()

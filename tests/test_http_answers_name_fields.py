@@ -17,9 +17,8 @@ import pytest
 from scipy.io import wavfile
 
 from serving.app import Limits, create_app
-from serving.log import sensor_given
 from serving.predictor import Predictor, fn_unknown
-from stiffnet.inputs import HINT_CONTEXT
+from stiffnet.inputs import HINT_CONTEXT, sensor_given
 from stiffnet.recordings import read_recording
 
 with warnings.catch_warnings():

@@ -937,3 +937,19 @@ def test_a_reference_penetration_alarm_without_a_chain_carries_the_note():
     t = unseen_law_thresholds()
     assert "1.39" in exponent_chain_unknown(rf, ["reference_penetration"], t)
     assert exponent_chain_unknown(rf, ["class_outvoted"], t) is None
+
+
+def test_the_chain_note_names_how_the_user_gives_the_data_sheet_where_they_are():
+    """Over HTTP the note names the form field, never the CLI's --sensor."""
+    from stiffnet.inputs import HINT_CONTEXT
+    from stiffnet.uncertainty.unseen_law import exponent_chain_unknown
+
+    rf = {"exponent": 1.39, "contact_r2": 0.988, "sensor": None, "highpass_hz": 1.13}
+    t = unseen_law_thresholds()
+    assert "(--sensor)" in exponent_chain_unknown(rf, ["reference_penetration"], t)
+    token = HINT_CONTEXT.set("http")
+    try:
+        note = exponent_chain_unknown(rf, ["reference_penetration"], t)
+    finally:
+        HINT_CONTEXT.reset(token)
+    assert "(the field sensor)" in note and "--sensor" not in note

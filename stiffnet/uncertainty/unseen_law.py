@@ -90,6 +90,7 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from stiffnet.inputs import sensor_given
 from stiffnet.uncertainty.alarm_verdict import alarm_message
 from stiffnet.uncertainty.campaign_law import chain_left_on_map
 from stiffnet.uncertainty.restraint_dynamics import RESTRAINT_DYNAMICS
@@ -873,5 +874,5 @@ def exponent_chain_unknown(
         f"the map was read as recorded, with no sensor chain identified or given: a sensor "
         f"low-pass near the contact's band bends a linear contact's map as this exponent "
         f"({reading[0]:.2f}) does, and the record cannot tell the two apart; give the "
-        "accelerometer's data sheet (--sensor) to read the law through its chain"
+        f"accelerometer's data sheet ({sensor_given()}) to read the law through its chain"
     )
