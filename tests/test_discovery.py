@@ -9,6 +9,8 @@ together. The fast tests use samples written from a known law.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
@@ -725,3 +727,33 @@ def test_the_faces_compiled_recursions_are_the_array_loops_they_replaced():
         states[:, k, 0], states[:, k, 1] = s0, s1
     np.testing.assert_array_equal(carried_states(m, b), states)
     assert np.all(carried_states(m, b)[:, 0] == 0)
+
+
+@pytest.mark.parametrize("shared_level", [0.05, 0.0])
+def test_a_chain_the_campaigns_records_refute_is_read_as_recorded(shared_level):
+    """Six recordings of a power-law contact (exponent 1.6): five read as recorded (their law
+    explains enough, no chain fitted), one keeps a chain of its own that rings. Undone on all
+    six, that chain rings on every one (the force clearly less a function of the state): it
+    is no sensor's, and the record that kept it is read as recorded too. Where it leaves the
+    others as they were (neither gain nor loss), its record keeps its own reading."""
+    static = synthetic_samples({"exponent": 1.6}, 0.02)
+    static = [*static, *static[:2]]
+    spurious = _ringing(static[5], 0.08, seed=5)
+    calls = []
+
+    def read(i, fit_chain):
+        calls.append((i, fit_chain))
+        if isinstance(fit_chain, dict):
+            ringing = _ringing(static[i], shared_level, seed=10 + i) if shared_level else static[i]
+            return (spurious if i == 5 else ringing), SimpleNamespace(sensor=None)
+        if i == 5 and fit_chain:
+            return _chain_reading(spurious, "kept", {"resonance_hz": 172.0,
+                                                     "resonance_damping": 0.008})  # fmt: skip
+        return static[i], SimpleNamespace(sensor=None)
+
+    out = campaign_readings(read, 6)
+    if shared_level:
+        assert out[5][0] is static[5] and (5, False) in calls
+        assert all(out[i][0] is static[i] for i in range(6))
+    else:
+        assert out[5][0] is spurious and (5, False) not in calls
