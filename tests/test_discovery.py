@@ -9,6 +9,8 @@ together. The fast tests use samples written from a known law.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
@@ -725,3 +727,36 @@ def test_the_faces_compiled_recursions_are_the_array_loops_they_replaced():
         states[:, k, 0], states[:, k, 1] = s0, s1
     np.testing.assert_array_equal(carried_states(m, b), states)
     assert np.all(carried_states(m, b)[:, 0] == 0)
+
+
+@pytest.mark.parametrize("shared_level, n_kept", [(0.05, 1), (0.0, 1), (0.05, 3)])
+def test_a_chain_the_campaigns_records_refute_is_read_as_recorded(shared_level, n_kept):
+    """Six recordings of a power-law contact (exponent 1.6): five read as recorded (their law
+    explains enough, no chain fitted), one keeps a chain of its own that rings. Undone on all
+    six, that chain rings on every one (the force clearly less a function of the state): it
+    is no sensor's, and the record that kept it is read as recorded too. Where it leaves the
+    others as they were (neither gain nor loss), or where half the records keep a chain (their
+    readings are the campaign's account of its sensor), they keep their own readings."""
+    static = synthetic_samples({"exponent": 1.6}, 0.02)
+    static = [*static, *static[:2]]
+    keeps = range(6 - n_kept, 6)
+    spurious = {i: _ringing(static[i], 0.08, seed=i) for i in keeps}
+    calls = []
+
+    def read(i, fit_chain):
+        calls.append((i, fit_chain))
+        if isinstance(fit_chain, dict):
+            ringing = _ringing(static[i], shared_level, seed=10 + i) if shared_level else static[i]
+            return spurious.get(i, ringing), SimpleNamespace(sensor=None)
+        if i in keeps and fit_chain:
+            return _chain_reading(spurious[i], "kept", {"resonance_hz": 172.0,
+                                                        "resonance_damping": 0.008})  # fmt: skip
+        return static[i], SimpleNamespace(sensor=None)
+
+    out = campaign_readings(read, 6)
+    if shared_level and n_kept == 1:
+        assert out[5][0] is static[5] and (5, False) in calls
+        assert all(out[i][0] is static[i] for i in range(6))
+    else:
+        assert all(out[i][0] is spurious[i] for i in keeps)
+        assert not any(i in keeps and fit is False for i, fit in calls)

@@ -94,6 +94,20 @@ def keeps_chain(plain: ContactSamples | None, undone: ContactSamples | None) -> 
     return 1.0 - r2_undone <= MAX_UNEXPLAINED_RATIO * (1.0 - r2_plain)
 
 
+def _shared_and_own_unexplained(
+    own: Sequence[ContactSamples | None], shared: Sequence[ContactSamples | None]
+) -> tuple[float, float] | None:
+    """Median held-out unexplained force (:func:`state_function_r2`) of the own and the shared
+    readings over the recordings both answer (None where none does)."""
+    both = [(o, s) for o, s in zip(own, shared, strict=True) if o is not None and s is not None]
+    lost = np.array([(1.0 - state_function_r2(o), 1.0 - state_function_r2(s)) for o, s in both])
+    lost = lost[np.isfinite(lost).all(axis=1)] if lost.size else lost
+    if not lost.size:
+        return None
+    own_median, shared_median = np.median(lost, axis=0)
+    return float(own_median), float(shared_median)
+
+
 def keeps_shared_chain(
     own: Sequence[ContactSamples | None], shared: Sequence[ContactSamples | None]
 ) -> bool:
@@ -103,10 +117,21 @@ def keeps_shared_chain(
     the own readings' (a clear gain, as :func:`keeps_chain` asks of one record's chain)."""
     if sum(s is not None for s in shared) < sum(s is not None for s in own):
         return False
-    both = [(o, s) for o, s in zip(own, shared, strict=True) if o is not None and s is not None]
-    lost = np.array([(1.0 - state_function_r2(o), 1.0 - state_function_r2(s)) for o, s in both])
-    lost = lost[np.isfinite(lost).all(axis=1)] if lost.size else lost
-    if not lost.size:
-        return False
-    own_median, shared_median = np.median(lost, axis=0)
-    return bool(shared_median <= MAX_UNEXPLAINED_RATIO * own_median)
+    medians = _shared_and_own_unexplained(own, shared)
+    return medians is not None and medians[1] <= MAX_UNEXPLAINED_RATIO * medians[0]
+
+
+def refutes_shared_chain(
+    own: Sequence[ContactSamples | None], shared: Sequence[ContactSamples | None]
+) -> bool:
+    """Rule: the campaign's records refute the chain its kept readings share where, undone on
+    all of them, it leaves a median held-out unexplained force at least ``1 /``
+    :data:`MAX_UNEXPLAINED_RATIO` times the own readings' (the mirror of
+    :func:`keeps_shared_chain`: a clear loss).
+
+    A sensor's chain acts on every record, so undoing the right one never makes the force
+    clearly less a function of the state; a chain that does so is a reading of the records
+    that kept it (a law the library lacks bending their pulses), not the sensor's.
+    """
+    medians = _shared_and_own_unexplained(own, shared)
+    return medians is not None and medians[1] * MAX_UNEXPLAINED_RATIO >= medians[0]
