@@ -38,7 +38,7 @@ def test_calibration_set_refits_the_quantile_only(model_and_other_set, tiny_dir,
     from stiffnet.cli import app
     from stiffnet.dataset.store import load_dataset
     from stiffnet.uncertainty.alarm import load_alarm
-    from training.recalibrate import model_outputs
+    from training.recalibrate import column_classes, model_outputs
     from training.uncertainty_calibration import trajectory_table
 
     src, other = model_and_other_set
@@ -62,7 +62,8 @@ def test_calibration_set_refits_the_quantile_only(model_and_other_set, tiny_dir,
     ds = load_dataset(other)
     table = trajectory_table(ds.column("trajectory"), ds.column("label"), ds.column("beta"),
                              model_outputs(model, ds, after["metadata"]),
-                             load_alarm(tmp_path / "gbm.alarm.npz"))  # fmt: skip
+                             load_alarm(tmp_path / "gbm.alarm.npz"),
+                             classes=column_classes(after["metadata"]))  # fmt: skip
     ok = (table.label != 0) & np.isfinite(table.log_beta)
     covered = np.abs(table.log_beta[ok] - np.log(table.beta[ok])) <= q * table.scale[ok] + 1e-12
     assert covered.mean() >= 0.9 and out["coverage"] == pytest.approx(covered.mean())

@@ -73,6 +73,7 @@ def calibrate(
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), label, beta, split, outputs, config.coverage,
         config.alarm_false_alarm, config.seed, alarm_info(ds, card_sha), config.alarm_checks,
+        model.classes,
     )  # fmt: skip
     say(
         f"per-trajectory conformal quantile {q_rec:.3f} (normalised); alarm thresholds "

@@ -58,6 +58,15 @@ def model_outputs(path: Path, ds: Any, meta: dict[str, Any]) -> dict[str, np.nda
     return out
 
 
+def column_classes(meta: dict[str, Any]) -> np.ndarray | None:
+    """The class index of each probability column of a model, from its card's metadata
+    (``class_indices``; None for a model that does not record them: column k is class k)."""
+    idx = meta.get("class_indices")
+    if isinstance(idx, str):  # ONNX metadata values are JSON-encoded
+        idx = json.loads(idx)
+    return None if idx is None else np.asarray(idx, dtype=np.int64)
+
+
 def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfig) -> dict:
     """Refit the interval and alarm of `model_path` on `data_dir`; returns the new metrics."""
     path, data_dir = Path(model_path), Path(data_dir)
@@ -80,7 +89,7 @@ def recalibrate(model_path: str | Path, data_dir: str | Path, config: TrainConfi
     alarm, q_rec, m_rec = calibrate_recording_level(
         ds.column("trajectory"), ds.column("label"), ds.column("beta"), sp, outputs,
         config.coverage, config.alarm_false_alarm, config.seed, alarm_info(ds, card_sha),
-        config.alarm_checks,
+        config.alarm_checks, column_classes(meta),
     )  # fmt: skip
     alarm_path = path.with_suffix(ALARM_SUFFIX)
     save_alarm(alarm_path, alarm)
@@ -138,7 +147,7 @@ def recalibrate_interval(
     alarm = load_alarm(alarm_path) if alarm_path.is_file() else None
     outputs = model_outputs(path, ds, meta)
     table = trajectory_table(ds.column("trajectory"), ds.column("label"), ds.column("beta"),
-                             outputs, alarm)  # fmt: skip
+                             outputs, alarm, classes=column_classes(meta))  # fmt: skip
     previous = float(meta.get("conformal_quantile_recording") or np.nan)
     q = recording_quantile(table, level)
     before, after = trajectory_metrics(table, previous), trajectory_metrics(table, q, alarm)

@@ -54,12 +54,20 @@ def trajectory_table(
     outputs: dict[str, np.ndarray],
     alarm: AlarmReference | None = None,
     no_contact: int = 0,
+    classes: np.ndarray | None = None,
 ) -> TrajectoryTable:
     """Aggregate window outputs (``probabilities``, ``log_beta``, optional
     ``log_beta_scale`` and ``embedding``) per trajectory, as the predictor does.
 
-    The true label of a trajectory is its windows' majority label.
+    The true label of a trajectory is its windows' majority label. ``classes`` is the
+    class index of each ``probabilities`` column (default: column k is class k); a model
+    trained where every window has contact (a GBM at a campaign's operating points) has no
+    ``no_contact`` column, and its first column is then a contact class, as the predictor
+    reads it from the model's ``class_names``.
     """
+    cols = np.arange(outputs["probabilities"].shape[1]) if classes is None else np.asarray(classes)
+    hit = np.flatnonzero(cols == no_contact)
+    nc_column = int(hit[0]) if hit.size else None
     ids, inverse = np.unique(traj, return_inverse=True)
     emb_scores = None
     if alarm is not None and alarm.embeddings is not None and "embedding" in outputs:
@@ -73,11 +81,11 @@ def trajectory_table(
             outputs["probabilities"][w],
             outputs["log_beta"][w],
             outputs["log_beta_scale"][w] if "log_beta_scale" in outputs else None,
-            no_contact,
+            nc_column,
         )
         rows["label"].append(int(np.bincount(label[w]).argmax()))
         rows["beta"].append(float(beta[w][0]))
-        rows["pred"].append(est.label)
+        rows["pred"].append(int(cols[est.label]))
         rows["lb"].append(np.nan if est.log_beta is None else est.log_beta)
         rows["scale"].append(np.nan if est.scale is None else est.scale)
         c = recording_checks(est, None if emb_scores is None else emb_scores[w], None, edges)
@@ -111,12 +119,13 @@ def fit_alarm(
     seed: int,
     info: dict[str, Any],
     checks: list[str] | None = None,
+    classes: np.ndarray | None = None,
 ) -> tuple[AlarmReference, float]:
     """Reference embeddings from training windows, thresholds from calibration trajectories.
 
     ``checks`` limits the alarm to those checks (default: every check the model's
-    outputs allow). Returns the reference and the fraction of calibration
-    trajectories it flags.
+    outputs allow); ``classes`` as in :func:`trajectory_table`. Returns the reference
+    and the fraction of calibration trajectories it flags.
     """
     ref = AlarmReference(thresholds={}, info=dict(info))
     if train_embeddings is not None and len(train_embeddings):
@@ -124,7 +133,7 @@ def fit_alarm(
             train_embeddings, MAX_REFERENCE_WINDOWS, np.random.default_rng(seed)
         )
         ref.embeddings, ref.center, ref.scale = emb, center, scale
-    table = trajectory_table(cal_traj, cal_label, cal_beta, cal_outputs, ref)
+    table = trajectory_table(cal_traj, cal_label, cal_beta, cal_outputs, ref, classes=classes)
     scores = {k: v for k, v in table.checks.items() if checks is None or k in checks}
     ref.thresholds, rate = calibrate_thresholds(scores, target)
     ref.info.update({"target_false_alarm": target, "calibration_false_alarm": rate,
@@ -172,11 +181,13 @@ def calibrate_recording_level(
     seed: int,
     info: dict[str, Any],
     checks: list[str] | None = None,
+    classes: np.ndarray | None = None,
 ) -> tuple[AlarmReference, float, dict[str, float]]:
     """The alarm, the recording-level conformal quantile and the test trajectories' metrics.
 
     `outputs` holds the model's window outputs for every window of the dataset
-    (NaN-free where the split needs them); `split` is the trajectory-wise split.
+    (NaN-free where the split needs them); `split` is the trajectory-wise split;
+    ``classes`` is the class index of each probability column (:func:`trajectory_table`).
     """
     train_emb = None
     if "embedding" in outputs:
@@ -190,9 +201,11 @@ def calibrate_recording_level(
         return {k: v[mask] for k, v in outputs.items()}
 
     alarm, _ = fit_alarm(train_emb, traj[cal], label[cal], beta[cal], part(cal), target, seed,
-                         info, checks)  # fmt: skip
-    q = recording_quantile(trajectory_table(traj[cal], label[cal], beta[cal], part(cal), alarm),
-                           coverage)  # fmt: skip
+                         info, checks, classes)  # fmt: skip
+    q = recording_quantile(
+        trajectory_table(traj[cal], label[cal], beta[cal], part(cal), alarm, classes=classes),
+        coverage,
+    )
     te = split.test
-    table = trajectory_table(traj[te], label[te], beta[te], part(te), alarm)
+    table = trajectory_table(traj[te], label[te], beta[te], part(te), alarm, classes=classes)
     return alarm, q, trajectory_metrics(table, q, alarm)
