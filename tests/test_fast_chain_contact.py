@@ -3,11 +3,9 @@ fitted law's contact frequency (stiffnet.uncertainty.unseen_law.fast_chain_conta
 
 from __future__ import annotations
 
-import functools
-from pathlib import Path
-
 import pytest
-from independent_rig import RigRun, record
+from independent_rig import RigRun
+from rig_predictions import LAB_MOUNT, predict_rig_run
 
 from stiffnet.uncertainty.unseen_law import (
     STIFFENING,
@@ -96,17 +94,6 @@ def test_the_rule_is_off_at_an_infinite_ratio():
     assert not fast_chain_contact_reasons(rf, off)
 
 
-@functools.lru_cache(maxsize=1)
-def _shipped_predictor():
-    from serving.predictor import Predictor
-
-    return Predictor.load(str(Path(__file__).resolve().parents[1] / "models" / "cnn.onnx"))
-
-
-#: The lab's mounted accelerometer of benchmarks/bench_alarm.py (resonance 25 f_n).
-_LAB_MOUNT = {"resonance_hz": 237.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
-
-
 @pytest.mark.slow  # two 8-s solve_ivp recordings and their cross-checks, ~25 s CPU
 @pytest.mark.parametrize(
     "name, contact, fires",
@@ -125,11 +112,8 @@ def test_the_independent_rigs_two_stage_law_behind_a_mount_is_faster_than_its_la
     draw with the paper's linear contact reads its law's frequency."""
     run = RigRun(recording=f"{name}_0.csv", beta=36.32123972011487,
                  forcing_frequency_hz=9.48 * 1.0845820701454363, noise=0.025513713804903866,
-                 duration_s=8.0, sensor=_LAB_MOUNT, **contact)  # fmt: skip
-    _, accel = record(run, seed=7)
-    res = _shipped_predictor().predict(
-        accel, run.fs_hz, natural_frequency_hz=run.natural_frequency_hz
-    )
+                 duration_s=8.0, sensor=LAB_MOUNT, **contact)  # fmt: skip
+    res = predict_rig_run(run, seed=7)
     rf, t = res["restoring_force"], unseen_law_thresholds()
     assert rf["chain_contact_ratio"] is not None, rf["sensor"]
     reasons = fast_chain_contact_reasons(rf, t)

@@ -7,13 +7,11 @@ predictor's restoring-force cross-check for the check itself.
 
 from __future__ import annotations
 
-import functools
-from pathlib import Path
-
 import numpy as np
 import pytest
 import unknown_contact_laws as laws
 from independent_rig import RigRun, record
+from rig_predictions import LAB_MOUNT, predict_rig_run
 
 from serving.restoring_force_check import restoring_force_check
 from stiffnet.effects.contact_damping import ContactDamping
@@ -812,17 +810,6 @@ def test_contacts_outlasting_their_law_behind_an_undone_chain_fire(
     assert not set(reasons) & set(unseen_law_reasons(rf, t, seen=frozenset({STIFFENING})))
 
 
-@functools.lru_cache(maxsize=1)
-def _shipped_predictor():
-    from serving.predictor import Predictor
-
-    return Predictor.load(str(Path(__file__).resolve().parents[1] / "models" / "cnn.onnx"))
-
-
-#: The lab's mounted accelerometer of benchmarks/bench_alarm.py (resonance 25 f_n).
-_LAB_MOUNT = {"resonance_hz": 237.0, "resonance_damping": 0.05, "highpass_hz": 1.0}
-
-
 @pytest.mark.slow  # two 8-s solve_ivp recordings and their cross-checks, ~25 s CPU
 @pytest.mark.parametrize(
     "name, contact, fires",
@@ -842,11 +829,8 @@ def test_the_independent_rigs_two_stage_law_behind_a_mount_outlasts_its_law(name
     # record changes with either, and with another noise the chain fit can stay unapplied
     run = RigRun(recording=f"{name}_14.csv", beta=15.65810244553841,
                  forcing_frequency_hz=9.48 * 0.9969138577523576, noise=0.02861254120285065,
-                 duration_s=8.0, sensor=_LAB_MOUNT, **contact)  # fmt: skip
-    _, accel = record(run, seed=1007)
-    res = _shipped_predictor().predict(
-        accel, run.fs_hz, natural_frequency_hz=run.natural_frequency_hz
-    )
+                 duration_s=8.0, sensor=LAB_MOUNT, **contact)  # fmt: skip
+    res = predict_rig_run(run, seed=1007)
     rf = res["restoring_force"]
     t = unseen_law_thresholds()
     assert rf["sensor"]["applied"] and rf["contact_r2"] >= t.outlasting_contact_min_r2, rf
