@@ -116,13 +116,14 @@ def campaign_inputs(
     columns: str | None = None,
     time_unit: str | None = None,
     channel: str | None = None,
-) -> tuple[list[str], list[tuple[Any, ...]], Path] | None:
+) -> tuple[list[str], list[tuple[Any, ...]], Path, list[str | None]] | None:
     """A campaign folder's recordings and per-recording read settings, from its manifest.
 
     None when ``spec`` is not a campaign (no ``manifest.csv`` in the folder, and not a
     manifest file). The manifest's columns win; the options fill the empty ones. A row's
     settings end with its ``sensor`` data sheet (None: none in the manifest). Recording
-    files that do not exist stay in the list (their rows get the error).
+    files that do not exist stay in the list (their rows get the error). Last, where each
+    row's f_n comes from (:func:`fn_source`).
     """
     from stiffnet.campaign import MANIFEST_NAME
     from stiffnet.campaign.manifest import read_manifest
@@ -135,7 +136,7 @@ def campaign_inputs(
     else:
         return None
     root = manifest.parent.resolve()
-    paths, settings = [], []
+    paths, settings, sources = [], [], []
     for row in read_manifest(manifest):
         path = (root / row.recording).resolve()
         if not path.is_relative_to(root):
@@ -143,7 +144,18 @@ def campaign_inputs(
         paths.append(str(manifest.parent / row.recording))
         settings.append(row_settings(row, fs_hz, natural_frequency_hz, columns, time_unit,
                                      channel))  # fmt: skip
-    return paths, settings, manifest
+        given = row.natural_frequency_hz is not None
+        sources.append(fn_source(natural_frequency_hz, row.where(manifest) if given else None))
+    return paths, settings, manifest, sources
+
+
+def fn_source(option_hz: float | None, row_where: str | None = None) -> str | None:
+    """Where a recording's f_n comes from, as ``natural_frequency_source`` says it: the
+    manifest row (``row_where``, :meth:`ManifestRow.where`) before the option; None where
+    neither gives it (the recording's sidecar or its campaign's row then, as ``predict``)."""
+    if row_where is not None:
+        return "manifest:" + row_where
+    return None if option_hz is None else "option --fn"
 
 
 def row_settings(
@@ -290,6 +302,8 @@ class PartJob:
     settings: tuple[tuple[Any, ...], ...] | None = None
     #: per recording: read through the campaign's pooled chain (its sheet in `settings`)
     campaign_chain: tuple[bool, ...] | None = None
+    #: per recording: where its f_n comes from (:func:`fn_source`; None: resolved on reading)
+    fn_sources: tuple[str | None, ...] | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
 
@@ -314,15 +328,16 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     shared = (job.fs_hz, job.natural_frequency_hz, job.columns, job.time_unit, None, None)
     settings = job.settings or (shared,) * len(job.paths)
     pooled = job.campaign_chain or (False,) * len(job.paths)
-    for path, file, (fs, fn, columns, time_unit, channel, sensor), from_campaign in zip(
-        job.paths, job.files, settings, pooled, strict=True
+    fn_sources = job.fn_sources or (None,) * len(job.paths)
+    for path, file, (fs, fn, columns, time_unit, channel, sensor), from_campaign, fn_from in zip(
+        job.paths, job.files, settings, pooled, fn_sources, strict=True
     ):
         try:
             result = predict_recording(file, fs_hz=fs, predictor=predictor,
                                        natural_frequency_hz=fn, columns=columns,
                                        time_unit=time_unit, channel=channel,
-                                       sensor=sensor,
-                                       sensor_fitted=from_campaign)  # fmt: skip
+                                       sensor=sensor, sensor_fitted=from_campaign,
+                                       natural_frequency_source=fn_from)  # fmt: skip
             result = labelled(result, from_campaign)
             rows.append(result_row(path, result, None, channel))
         except StiffnetError as exc:
@@ -439,7 +454,7 @@ def predict_batch(
     check_target(scheduler, workers)
     out = _checked_output(out, overwrite, part_size)
     reading = (fs_hz, natural_frequency_hz, columns, time_unit, channel)
-    paths, settings, manifest = _recordings_and_settings(recordings, reading)
+    paths, settings, manifest, fn_sources = _recordings_and_settings(recordings, reading)
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
     parts_dir = out.parent / f"{out.name}.parts"
     run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
@@ -449,7 +464,7 @@ def predict_batch(
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
         jobs, records = _plan_parts(paths, settings, part_size, predictor, parts_dir, reading,
-                                    resume, before_part)  # fmt: skip
+                                    resume, before_part, fn_sources=fn_sources)  # fmt: skip
         n_parts = len(records) + len(jobs)
         done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
         first = _parts_table(parts_dir, records, range(n_parts))
@@ -461,7 +476,7 @@ def predict_batch(
             again, flags = _campaign_settings(first, settings, chain["sensor"])
             jobs2, records2 = _plan_parts(paths, again, part_size, predictor, parts_dir,
                                           reading, resume, before_part, first_index=n_parts,
-                                          campaign_chain=flags)  # fmt: skip
+                                          campaign_chain=flags, fn_sources=fn_sources)  # fmt: skip
             records |= records2
             done = _add(done, _run_parts(jobs2, records, client, retries, progress,
                                          2 * n_parts, n_parts))  # fmt: skip
@@ -663,16 +678,16 @@ def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
 
 def _recordings_and_settings(
     recordings: str | Path, reading: tuple
-) -> tuple[list[str], list[tuple], Path | None]:
+) -> tuple[list[str], list[tuple], Path | None, list[str | None]]:
     """The recordings to predict, how to read each ``(fs, f_n, columns, time unit,
-    channel, sensor data sheet)``, and the manifest they came from: a campaign's manifest
-    rows where there is one (:func:`campaign_inputs`), else every recording found, each read
-    alike (its data sheet from its sidecar, if any)."""
+    channel, sensor data sheet)``, the manifest they came from and where each f_n comes
+    from: a campaign's manifest rows where there is one (:func:`campaign_inputs`), else
+    every recording found, each read alike (its data sheet from its sidecar, if any)."""
     campaign = campaign_inputs(recordings, *reading)
     if campaign is not None:
         return campaign
     paths = [str(p) for p in find_recordings(recordings)]
-    return paths, [(*reading, None)] * len(paths), None
+    return paths, [(*reading, None)] * len(paths), None, [fn_source(reading[1])] * len(paths)
 
 
 def _plan_parts(
@@ -686,6 +701,7 @@ def _plan_parts(
     before_part: Callable[[int], None] | None,
     first_index: int = 0,
     campaign_chain: tuple[bool, ...] | None = None,
+    fn_sources: list[str | None] | None = None,
 ) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
     """The parts still to run (jobs) and the records of those an interrupted run with the
     same inputs finished (kept when `resume`), by part index (from `first_index`: a second
@@ -697,6 +713,7 @@ def _plan_parts(
         chunk = tuple(paths[lo : lo + part_size])
         chunk_settings = tuple(settings[lo : lo + part_size])
         flags = None if campaign_chain is None else tuple(campaign_chain[lo : lo + part_size])
+        fn_from = None if fn_sources is None else tuple(fn_sources[lo : lo + part_size])
         fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
                           (columns, time_unit), chunk_settings)  # fmt: skip
         record = _finished_part(parts_dir, index, fp) if resume else None
@@ -708,7 +725,7 @@ def _plan_parts(
                             predictor.sha256, tuple(predictor.class_names), fs_hz,
                             natural_frequency_hz, fp, columns, time_unit,
                             settings=chunk_settings, campaign_chain=flags,
-                            before=before_part))  # fmt: skip
+                            fn_sources=fn_from, before=before_part))  # fmt: skip
     return jobs, records
 
 

@@ -772,6 +772,7 @@ def predict_recording(
     channel: str | int | None = None,
     sensor: dict | None = None,
     sensor_fitted: bool = False,
+    natural_frequency_source: str | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -801,6 +802,9 @@ def predict_recording(
         The sensor chain's data sheet; default: the sidecar's ``sensor`` entry, if any.
     sensor_fitted : bool, optional
         `sensor` is a campaign's pooled fits, not a data sheet (:meth:`Predictor.predict`).
+    natural_frequency_source : str, optional
+        Where `natural_frequency_hz` came from (a manifest row, an option), as the result's
+        ``natural_frequency_source`` says it; default ``"argument"``.
 
     Returns
     -------
@@ -812,7 +816,7 @@ def predict_recording(
     pred = predictor or _cached_load(model_path)
     rec = read_recording(path, fs_hz=fs_hz, channel=channel, columns=columns,
                          time_unit=time_unit)  # fmt: skip
-    fn_source = "argument"
+    fn_source = natural_frequency_source or "argument"
     if natural_frequency_hz is None:
         natural_frequency_hz, fn_source = record_natural_frequency(path, None)
     return pred.predict(

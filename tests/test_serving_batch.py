@@ -238,6 +238,9 @@ def test_campaign_folder_is_read_through_its_manifest(recordings, tmp_path):
         assert pd.isna(row["error"]) and row["class"] == ref["class"], row["error"]
         assert row["beta"] == pytest.approx(ref["beta"], rel=1e-6)
     assert table.loc[str(camp / "two.npy"), "channel"] == "1"
+    # f_n said from where it came: the row that gave it, not an "argument"
+    source = table.loc[str(camp / "lab.csv"), "natural_frequency_source"]
+    assert source.startswith(f"manifest:{camp / 'manifest.csv'}: line 2"), source
     failed = {Path(f["path"]).name: f["error"] for f in summary["failed"]}
     assert set(failed) == {"nofn.csv", "gone.csv"}
     assert "natural frequency unknown" in failed["nofn.csv"]
