@@ -99,3 +99,19 @@ def test_an_output_never_lands_on_what_predict_reads_beside_its_recording(tmp_pa
     )
     assert res.exit_code == 2 and "is the input recording's" in res.output, res.output
     assert (camp / output).read_bytes() == before
+
+
+def test_reading_a_campaigns_row_does_not_load_the_simulator():
+    """``predict`` on a campaign's recording reads its manifest row (f_n): the predictor's
+    path stays free of the simulator and numba (a subprocess: this one has both loaded)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from stiffnet.campaign.manifest import campaign_row_of; "
+        "import stiffnet.campaign as c; "
+        "print('numba' in sys.modules, 'stiffnet.simulator.simulator' in sys.modules); "
+        "c.simulate_rows; print('numba' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False", "True"], out.stderr

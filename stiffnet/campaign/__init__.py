@@ -15,6 +15,9 @@ A campaign is how users bring measurements to stiffnet (see ``docs/campaign.md``
   parameters -> a synthetic campaign folder with its ``campaign_card.json``.
 """
 
+import importlib
+from typing import Any
+
 from stiffnet.campaign.loaded import LoadedCampaign
 from stiffnet.campaign.manifest import (
     CARD_NAME,
@@ -32,19 +35,28 @@ from stiffnet.campaign.manifest import (
     read_manifest_with_columns,
     write_manifest,
 )
-from stiffnet.campaign.simulate import (
-    DEFAULT_NOISE,
-    DEFAULT_SEED,
-    FIT_SETTINGS,
-    FIT_SETTINGS_NUMERICAL,
-    SIMULATION_COLUMNS,
-    CampaignSolverSettings,
-    check_rows,
-    sensor_gain,
-    simulate_row,
-    simulate_rows,
-)
-from stiffnet.campaign.synthetic import simulate_campaign
+
+# The simulation side loads the simulator (numba) on first use only: reading a manifest
+# (``predict`` on a campaign's recording: its row's f_n) stays as light as the predictor.
+_LAZY = {
+    **dict.fromkeys(
+        ("DEFAULT_NOISE", "DEFAULT_SEED", "FIT_SETTINGS", "FIT_SETTINGS_NUMERICAL",
+         "SIMULATION_COLUMNS", "CampaignSolverSettings", "check_rows", "sensor_gain",
+         "simulate_row", "simulate_rows"),
+        "stiffnet.campaign.simulate",
+    ),
+    "simulate_campaign": "stiffnet.campaign.synthetic",
+}  # fmt: skip
+
+
+def __getattr__(name: str) -> Any:
+    """The simulation side's names, imported on first use (PEP 562)."""
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_LAZY[name]), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "CARD_NAME",

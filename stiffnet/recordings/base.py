@@ -81,11 +81,15 @@ def brief(exc: BaseException) -> str:
     return text[0][:200] if text else type(exc).__name__
 
 
+def channel_given(what: str) -> str:
+    """How the user names a channel where they are (``what``: INDEX or NAME): an option on
+    the command line, a column in a manifest, a field over HTTP."""
+    return where_given(f"--channel {what}", "the manifest's column channel", "the field channel")
+
+
 def choose_channel(what: str) -> str:
-    """``choose one with ...``: how the user names a channel where they are (``what``: INDEX
-    or NAME), an option on the command line, a column in a manifest, a field over HTTP."""
-    how = where_given(f"--channel {what}", "the manifest's column channel", "the field channel")
-    return f"choose one with {how}"
+    """``choose one with ...`` (:func:`channel_given`)."""
+    return f"choose one with {channel_given(what)}"
 
 
 def channel_index(channel: str | int | None, n: int, name: str, kind: str) -> int:

@@ -29,7 +29,13 @@ from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import StiffnetError
 from stiffnet.inputs import columns_hint, quote_content, where_given
-from stiffnet.recordings.base import Recording, RecordingReader, Samples, rates_agree
+from stiffnet.recordings.base import (
+    Recording,
+    RecordingReader,
+    Samples,
+    channel_given,
+    rates_agree,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -237,7 +243,7 @@ def _channels_hint(header: list[str]) -> str:
     names = [c.strip() for c in header]
     if len(names) <= 2 or not all(map(_COLUMN_NAME.match, names)):
         return ""
-    pick = where_given("--channel NAME", "the manifest's column channel", "the field channel")
+    pick = channel_given("NAME")
     return f"; its {len(names)} columns: {', '.join(names)} ({pick} picks the acceleration)"
 
 
