@@ -72,6 +72,10 @@ face's values) and the seconds of the face by simulation, then the CPU ratio of 
 simulation and its parts), timed by wrappers in the run's process (``--workers 0`` to see
 them all).
 
+Every code compared is first run once on two rows untimed (:func:`warm_kernels`): numba
+compiles the engines' kernels into a checkout's cache on its first run, and a copy of the
+commit before (or a new worktree) would otherwise count that compilation as its diagnosis.
+
 Run (from the repository root, so this checkout's package is imported)::
 
     OMP_NUM_THREADS=1 PYTHONPATH=. python benchmarks/bench_diagnose.py \
@@ -401,13 +405,54 @@ PHASES = {
     "library fits alone": ("stiffnet.measurement.diagnose", "_fit_alone"),
     "selection steps": ("stiffnet.measurement.diagnose", "_step"),
     "discovery's maps": ("stiffnet.measurement.learned_law", "campaign_contact_samples"),
+    "  through the shared chain": ("stiffnet.discovery.samples", "shared_chain_readings"),
     "law discovered": ("stiffnet.measurement.learned_law", "_discovered"),
     "face by simulation": ("stiffnet.measurement.learned_law", "face_by_simulation"),
     "  maps' face fits": ("stiffnet.measurement.face_by_simulation", "maps_face_law"),
     "  grid screens": ("stiffnet.measurement.face_by_simulation", "_screen_batch"),
     "  grid points alone": ("stiffnet.measurement.face_by_simulation", "_scored_alone"),
     "  refits (sweeps)": ("stiffnet.measurement.face_by_simulation", "refine_face"),
+    "law simulated (no face in question)": ("stiffnet.measurement.learned_law", "_law_scored"),
+    "sensor chains fitted (evidence and maps)": ("stiffnet.restoring_force.estimate", "fit_chain"),
+    "soft contacts' joint fits (evidence and maps)": (
+        "stiffnet.restoring_force.estimate",
+        "_soft_reading",
+    ),
+    "polish": ("stiffnet.measurement.diagnose", "_polish"),
 }
+
+#: A fresh process that compiles the engines' numba kernels into this checkout's cache (the
+#: closed-form kernel, the numerical engine's RK4 substep and event search) on two rows of
+#: the campaign, and prints its CPU seconds. numba's cache is per source file and its
+#: modification time: a checkout whose kernels were never run (a new worktree, a ``git
+#: archive`` of the commit before, the first run after a merge that touched the simulator)
+#: compiles them in its first diagnosis: 44 s of CPU on a copy of main, 20 s the closed-form
+#: kernel's, 23 s the numerical engine's (load 10-12), which belong to no diagnosis after it.
+WARM = (
+    SCRIPT_HEAD
+    + """
+from stiffnet.campaign.simulate import FIT_SETTINGS, FIT_SETTINGS_NUMERICAL, simulate_rows
+from stiffnet.effects.registry import effect_class
+from stiffnet.measurement.nuisance import resolve_rows
+rows = resolve_rows(camp)[0][:2]
+for model, settings in (([], FIT_SETTINGS),
+                        ([effect_class("hertz_contact")()], FIT_SETTINGS_NUMERICAL)):
+    simulate_rows(rows, model, [2000] * len(rows), 0, settings)
+print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c}))
+"""
+)
+
+
+def warm_kernels(code: str, campaign: str) -> float:
+    """Compile ``code``'s numba kernels into its cache before it is timed (:data:`WARM`, a
+    fresh process); returns the CPU seconds that took (a few where the cache is warm)."""
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
+    out = subprocess.run([sys.executable, "-c", WARM, json.dumps({"campaign": campaign})],
+                         env=env, capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
+    return json.loads(out.stdout.strip().splitlines()[-1])["cpu"]
+
 
 CAMPAIGN = (
     SCRIPT_HEAD
@@ -461,6 +506,10 @@ def campaign_runs(args: argparse.Namespace) -> None:
             "inclination": not args.no_inclination, "workers": args.workers or None,
             "phases": PHASES if args.phases else None}  # fmt: skip
     codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
+    for name, code in codes.items():  # a cold kernel cache is no part of a diagnosis
+        warm = warm_kernels(code, spec["campaign"])
+        print(f"{name}: kernels compiled or loaded in {warm:.1f} s CPU before the timed runs",
+              flush=True)  # fmt: skip
     runs: list[tuple[str, dict]] = []
     print("| code | round | CPU s | wall s | load | verdict | learned law: explained, "
           "discrepancy | face | face by simulation, s |\n|---|---|---|---|---|---|---|---|---|",
@@ -601,6 +650,7 @@ def baseline_run(code: str, folder: Path, args: argparse.Namespace) -> dict:
 
     spec = {"campaign": str(folder), "effects": FAST if args.fast_only else None,
             "workers": args.workers or None, "inclination": not args.no_inclination}  # fmt: skip
+    warm_kernels(code, str(folder))  # its first-run compile is no part of the diagnosis
     env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
     out = subprocess.run([sys.executable, "-c", BASELINE, json.dumps(spec)], env=env,
                          capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
@@ -669,6 +719,7 @@ def main() -> None:
         camp = load_campaign(folder)
         t_sim = time.perf_counter() - t
         t_before, t_now = evaluation_ratio(camp)
+        warm_kernels(str(ROOT), str(folder))
         load0 = os.getloadavg()[0]
         prof = cProfile.Profile() if args.profile_out else None
         timeline = StageTimeline() if args.timeline else None
