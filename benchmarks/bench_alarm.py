@@ -148,6 +148,8 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
                         "fired": fired, "scores": (res["alarm"] or {}).get("scores"),
                         "probabilities": res.get("probabilities"),
                         "geometric_class": (res.get("geometric") or {}).get("class"),
+                        "chain_undone": res.get("chain_undone"),
+                        "chain_readings": res.get("chain_readings"),
                         "restoring_force": rf})  # fmt: skip
     w, a, b = np.array(wrong), np.array(after), np.array(prior)
     flagged, campaign = campaign_law_alarms(results)  # the set read as one rig's campaign
