@@ -1004,3 +1004,26 @@ def test_only_a_ringing_release_with_no_chain_undone_leaves_the_law_unread(chang
     # the setting that counts a chain's exponent counts this one too
     counted = unseen_law_thresholds().model_copy(update={"exponent_through_left_chain": True})
     assert unseen_law_reasons(rf, counted)
+
+
+#: bench_alarm's readings (offset 1000 #17 of the rig's two-stage law, a wrong answer no check
+#: alarmed; offset 0 #19 of damping_and_sensor, the in-world map whose weaker side pushes most).
+_TWO_STAGE_BOTH_SIDES = {"toe": 5.65, "toe_least_side": 3.35, "toe_damped_step": 0.83}
+_IN_WORLD_TOP_SIDE = {"toe": 3.44, "toe_least_side": 1.13, "toe_damped_step": 36.4}
+
+
+@pytest.mark.parametrize(
+    "shape, r2, fires",
+    [
+        (_TWO_STAGE_BOTH_SIDES, 0.994, True),  # a first stage on both sides, toe below 8
+        (_IN_WORLD_TOP_SIDE, 0.961, False),
+        (_TWO_STAGE_BOTH_SIDES, 0.90, False),  # a loose law: its onset is no reading
+    ],
+)
+def test_a_contact_pushing_on_both_sides_of_its_law_fires_below_the_toe_level(shape, r2, fires):
+    t = unseen_law_thresholds()
+    assert shape["toe"] < t.onset_toe_min
+    reasons = onset_toe_reasons(shape, r2, t)
+    assert bool(reasons) is fires
+    if fires:
+        assert "both sides" in reasons[0] and "3.4" in reasons[0]

@@ -187,6 +187,8 @@ ONSET_TOE_MIN_STEP_SHARE = 0.2
 #: ... unless the weaker side's force reaches this: the band limit rings the onset's step
 #: onto the samples before the contact only, while a first stage pushes on both sides.
 ONSET_TOE_STEP_MAX_SIDE = 1.2
+#: ... or, whatever the toe, the weaker side's force at least this: both sides push (see the YAML).
+ONSET_TOE_BOTH_SIDES_MIN = 2.0
 #: Contact duration over the fitted Kelvin-Voigt law's release (:func:`kelvin_voigt_release_ratio`)
 #: that fires, behind a sensor chain the cross-check identified and undid (see the YAML).
 OUTLASTING_CONTACT_MIN_RATIO = 1.5
@@ -235,6 +237,7 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
     onset_toe_min_step_share: float = ONSET_TOE_MIN_STEP_SHARE
     onset_toe_step_max_side: float = ONSET_TOE_STEP_MAX_SIDE
+    onset_toe_both_sides_min: float = ONSET_TOE_BOTH_SIDES_MIN
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
     fast_chain_contact_min_ratio: float = FAST_CHAIN_CONTACT_MIN_RATIO
@@ -704,11 +707,21 @@ def onset_toe_reasons(
     judged so only where the weaker side stays below
     :attr:`UnseenLawThresholds.onset_toe_step_max_side`, as that ringing leaves the samples
     after the release alone): the restraint pushes before the law starts, a soft first
-    stage the law cuts off."""
+    stage the law cuts off. Where both sides push by at least
+    :attr:`UnseenLawThresholds.onset_toe_both_sides_min` the toe need not reach
+    ``onset_toe_min``: a chain's ring or step lies on one side only, a first stage's force on
+    both as the sampling phase falls."""
     if not shape or shape.get("toe") is None or r2 is None or r2 < t.onset_toe_min_r2:
         return []
-    toe = shape["toe"]
-    if toe < t.onset_toe_min or shape.get("toe_least_side", 0.0) < t.onset_toe_min_side:
+    toe, least = shape["toe"], shape.get("toe_least_side", 0.0)
+    if least >= t.onset_toe_both_sides_min:
+        return [
+            f"the contact pushes on both sides of the fitted law's impacts (the force just "
+            f"outside each, on the weaker side, is {least:.1f} times the free flight's scatter): "
+            "a soft first stage that the law cuts off, as a two-stage restraint has, and the "
+            "model reads the stiff stage"
+        ]
+    if toe < t.onset_toe_min or least < t.onset_toe_min_side:
         return []
     one_sided = shape.get("toe_least_side", 0.0) < t.onset_toe_step_max_side
     if one_sided and toe < t.onset_toe_min_step_share * shape.get("toe_damped_step", 0.0):
