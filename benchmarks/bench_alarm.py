@@ -17,7 +17,9 @@ alarm):
   law (``rig_sensor``), Hunt-Crossley (``rig_hc_sensor``) or two-stage
   (``rig_two_stage_sensor``).
 
-Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
+Each recording's details keep the model's readings through the other chains a fitted one
+allows (``chain_readings``: what ``chain_class`` judged). Per set: wrong classes; wrong
+classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
 campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): on how many recordings the law
 was read and on how many a counted check fired (``contact_law``, ``restraint_dynamics``,
@@ -29,7 +31,9 @@ reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.unseen_law_reasons`) 
 thresholds of ``--before KEY=VALUE`` (default: the soft first stage rule off,
 ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule off,
 ``contact_damping_ratio_max=inf`` the damping ceiling,
-``fast_chain_contact_min_ratio=inf`` the fitted chain's pulse against the law), every other
+``fast_chain_contact_min_ratio=inf`` the fitted chain's pulse against the law,
+``release_ring_max_side=-inf`` a ringing release's hold on the exponent and curvature), and
+``reference_penetration`` recomputed under them too (it reads the exponent), every other
 check as it fired
 (``restraint_dynamics`` included: a change of it is measured against a run of the code
 before it).
