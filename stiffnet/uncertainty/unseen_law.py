@@ -714,16 +714,15 @@ def onset_toe_reasons(
     if not shape or shape.get("toe") is None or r2 is None or r2 < t.onset_toe_min_r2:
         return []
     toe, least = shape["toe"], shape.get("toe_least_side", 0.0)
-    if least >= t.onset_toe_both_sides_min:
-        return [
-            f"the contact pushes on both sides of the fitted law's impacts (the force just "
-            f"outside each, on the weaker side, is {least:.1f} times the free flight's scatter): "
-            "a soft first stage that the law cuts off, as a two-stage restraint has, and the "
-            "model reads the stiff stage"
-        ]
+    both_sides = [
+        f"the contact pushes before the fitted law's onset and after its release (the force "
+        f"just outside each impact, on the weaker side, is {least:.1f} times the free flight's "
+        "scatter): a soft first stage that the law cuts off, as a two-stage restraint has, and "
+        "the model reads the stiff stage"
+    ]
     if toe < t.onset_toe_min or least < t.onset_toe_min_side:
-        return []
-    one_sided = shape.get("toe_least_side", 0.0) < t.onset_toe_step_max_side
+        return both_sides if least >= t.onset_toe_both_sides_min else []
+    one_sided = least < t.onset_toe_step_max_side
     if one_sided and toe < t.onset_toe_min_step_share * shape.get("toe_damped_step", 0.0):
         return []
     return [
