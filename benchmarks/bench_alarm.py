@@ -17,7 +17,9 @@ alarm):
   law (``rig_sensor``), Hunt-Crossley (``rig_hc_sensor``) or two-stage
   (``rig_two_stage_sensor``).
 
-Per set: wrong classes; wrong classes without any alarm ("silent") and alarms, before ->
+Each recording's details keep the model's readings through the other chains a fitted one
+allows (``chain_readings``: what ``chain_class`` judged). Per set: wrong classes; wrong
+classes without any alarm ("silent") and alarms, before ->
 after; and the set read as one rig's campaign (``evaluate`` and ``predict-batch`` on a
 campaign folder: :mod:`stiffnet.uncertainty.campaign_law`): on how many recordings the law
 was read and on how many a counted check fired (``contact_law``, ``restraint_dynamics``,
@@ -29,7 +31,9 @@ reasons recomputed (:func:`stiffnet.uncertainty.unseen_law.unseen_law_reasons`) 
 thresholds of ``--before KEY=VALUE`` (default: the soft first stage rule off,
 ``onset_toe_min=inf``; ``stage_min_gain=inf`` turns the stage rule off,
 ``contact_damping_ratio_max=inf`` the damping ceiling,
-``fast_chain_contact_min_ratio=inf`` the fitted chain's pulse against the law), every other
+``fast_chain_contact_min_ratio=inf`` the fitted chain's pulse against the law,
+``release_ring_max_side=-inf`` a ringing release's hold on the exponent and curvature), and
+``reference_penetration`` recomputed under them too (it reads the exponent), every other
 check as it fired
 (``restraint_dynamics`` included: a change of it is measured against a run of the code
 before it).
@@ -61,9 +65,15 @@ import bench_robustness as br  # noqa: E402  (the robustness sets and their reco
 import independent_rig as rig  # noqa: E402
 
 from serving.predictor import Predictor  # noqa: E402
+from serving.verdict import model_facts  # noqa: E402
 from stiffnet.io_utils import write_json_atomic  # noqa: E402
 from stiffnet.measurement.metrics import true_class  # noqa: E402
 from stiffnet.uncertainty.campaign_law import campaign_law_alarms  # noqa: E402
+from stiffnet.uncertainty.reference_penetration import (  # noqa: E402
+    REFERENCE_PENETRATION,
+    reference_penetration_settings,
+    reference_penetration_share,
+)
 from stiffnet.uncertainty.unseen_law import unseen_law_reasons, unseen_law_thresholds  # noqa: E402
 
 ROBUSTNESS_SETS = ["ideal", "contact_damping", "hertz_contact", "sensor_dynamics",
@@ -132,22 +142,31 @@ def score(pred: Predictor, recs: list[dict[str, Any]], before: Any) -> dict[str,
     """Wrong, wrong and silent, alarms: before (thresholds `before`) and after (as shipped);
     ``recordings``: each recording's classes, β, alarm and restoring-force check."""
     wrong, after, prior, details, t0 = [], [], [], [], time.process_time()
+    facts = model_facts(pred)
     results = []
     for r in recs:
         res = pred.predict(r["accel"], r["fs_hz"], natural_frequency_hz=r["fn_hz"])
         results.append(res)
         fired = (res["alarm"] or {}).get("fired", [])
-        others = any(f != "contact_law" for f in fired)
+        others = any(f not in ("contact_law", REFERENCE_PENETRATION) for f in fired)
         rf = res.get("restoring_force") or {}
         judged = any(rf.get(k) is not None for k in ("exponent", "dissipation_gain", "law_shape"))
         wrong.append(res["class"] != r["class"])
         after.append(bool(res["ood_flag"]))
-        prior.append(others or (judged and bool(unseen_law_reasons(rf, before))))
+        # reference_penetration reads the exponent as the contact_law check does: recomputed
+        share = reference_penetration_share(res["class"], rf, facts["priors"], pred.class_names,
+                                            pred.metadata.get("class_edges"), before)  # fmt: skip
+        at_reference = (
+            share is not None and share > reference_penetration_settings().outside_share_min
+        )
+        prior.append(others or at_reference or (judged and bool(unseen_law_reasons(rf, before))))
         details.append({"class": res["class"], "true_class": r["class"], "beta": res["beta"],
                         "true_beta": r["beta"], "beta_interval": res["beta_interval"],
                         "fired": fired, "scores": (res["alarm"] or {}).get("scores"),
                         "probabilities": res.get("probabilities"),
                         "geometric_class": (res.get("geometric") or {}).get("class"),
+                        "chain_undone": res.get("chain_undone"),
+                        "chain_readings": res.get("chain_readings"),
                         "restoring_force": rf})  # fmt: skip
     w, a, b = np.array(wrong), np.array(after), np.array(prior)
     flagged, campaign = campaign_law_alarms(results)  # the set read as one rig's campaign

@@ -543,3 +543,20 @@ def test_a_hertz_reading_without_a_chain_is_flagged_and_says_a_data_sheet_would_
     undone = {**rf, "sensor": {"applied": True, "lowpass_not_excluded": []}}
     res = rule_checks(quiet, "hard", [42.5, 63.2], undone, model, 872.2, 9.48)
     assert REFERENCE_PENETRATION in res["fired"] and "exponent_chain_unknown" not in res
+
+
+def test_a_hertz_reading_through_a_ringing_low_pass_is_no_reference_penetration():
+    """sensor_dynamics' draw 20 (bench_alarm offset 0): a linear contact behind a 140 Hz
+    low-pass read as Hertz (1.59, R2 0.997) with no chain undone, its force pulling after the
+    release (-27.8 free-flight scatters). The exponent is the chain's: no span; with the
+    thresholds that count a chain's exponent (the benchmark's "before"), the span is read."""
+    from stiffnet.uncertainty.reference_penetration import reference_penetration_span
+    from stiffnet.uncertainty.unseen_law import unseen_law_thresholds
+
+    rf = {**_hertz_check([25.3, 29.9], exponent=1.59, r2=0.997),
+          "law_shape": {"toe_least_side": -27.8}}  # fmt: skip
+    assert reference_penetration_span(rf, HERTZ_WORLD) is None
+    counted = unseen_law_thresholds().model_copy(update={"exponent_through_left_chain": True})
+    assert reference_penetration_span(rf, HERTZ_WORLD, counted) is not None
+    quiet = {**rf, "law_shape": {"toe_least_side": -0.5}}  # an unseen law's side: read
+    assert reference_penetration_span(quiet, HERTZ_WORLD) is not None

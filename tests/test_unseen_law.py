@@ -888,8 +888,9 @@ _DRAW_5 = {"exponent": 1.96, "contact_r2": 0.995, "sensor": None, "highpass_hz":
 
 
 def test_an_exponent_alarm_on_a_map_read_without_a_chain_says_what_would_resolve_it():
-    """The alarm stands on draw 5 (the two-stage rig's and the power law's wrong answers read
-    alike), and says that a low-pass bends the map the same way and the data sheet tells."""
+    """The alarm stands on draw 5's reading without its pull after the release (the two-stage
+    rig's and the power law's wrong answers read alike), and says that a low-pass bends the
+    map the same way and the data sheet tells."""
     alarm = with_unseen_law_check(None, _DRAW_5)
     assert "contact_law" in alarm["fired"]
     note = alarm["exponent_chain_unknown"]
@@ -937,3 +938,92 @@ def test_the_chain_note_names_how_the_user_gives_the_data_sheet_where_they_are()
     finally:
         HINT_CONTEXT.reset(token)
     assert "(the field sensor)" in note and "--sensor" not in note
+
+
+#: bench_alarm's sensor_dynamics draws at seed offset 0, linear contacts behind low-passes of
+#: the training priors, answered right: (beta, gap, amplitude, omega, damping, samples per
+#: natural period, noise) and the chain.
+_RINGING_DRAWS = {
+    5: ((10.6934, 2.21967, 0.61925, 0.99818, 0.040986), 66.083, 0.0075,
+        {"resonance_hz": 535.9, "resonance_damping": 0.049, "highpass_hz": 1.211,
+         "lowpass_hz": 98.32, "lowpass_order": 4}),
+    20: ((27.4135, 1.18267, 1.42024, 1.13744, 0.045), 92.877, 0.0143,
+         {"resonance_hz": 613.5, "resonance_damping": 0.035, "highpass_hz": 1.967,
+          "lowpass_hz": 139.74, "lowpass_order": 3}),
+}  # fmt: skip
+
+
+def test_a_low_pass_ringing_after_the_release_leaves_the_exponent_and_curvature_unread():
+    """Behind an in-prior low-pass the cross-check does not identify, the map reads a linear
+    contact as stiffening (draw 5: curvature gain 0.27-0.52; draw 20: exponent 1.58, read as
+    Hertz, which reference_penetration judged) and its force pulls after the release (-20,
+    -27 scatters); the ring says the bend is the chain's, and no stiffening rule fires."""
+    from stiffnet.effects.sensor_dynamics import SensorDynamics
+    from stiffnet.uncertainty.unseen_law import exponent_reading, release_ring
+
+    t = unseen_law_thresholds()
+    unringed = t.model_copy(update={"release_ring_max_side": -np.inf})
+    for key, (draw, ratio, noise, chain) in _RINGING_DRAWS.items():
+        batch = OscillatorBatch(*(np.array([v]) for v in draw))
+        res = Simulator([SensorDynamics(**chain)]).simulate(
+            batch, np.array([ratio]), int(64 * ratio), noise=noise, rng=1
+        )
+        rf = restoring_force_check(res.accel[0], ratio * FN, FN)
+        assert not (rf.get("sensor") or {}).get("applied")  # no chain undone: read as recorded
+        assert rf["law_shape"]["toe_least_side"] <= t.release_ring_max_side
+        assert release_ring(rf, t) and "pulls after the release" in release_ring(rf, t)
+        if key == 5:  # without the ring rule the curvature fires on a right answer
+            assert any("stiffens within" in r for r in unseen_law_reasons(rf, unringed))
+        else:  # ... and the exponent is read as Hertz's
+            assert exponent_reading(rf, unringed) is not None
+        assert unseen_law_reasons(rf, t) == [] and exponent_reading(rf, t) is None
+        alarm = with_unseen_law_check(None, rf)
+        assert "contact_law" not in alarm["fired"] and "curvature" in alarm["exponent_unread"]
+
+
+@pytest.mark.parametrize(
+    "change, unread",
+    [
+        ({}, True),
+        # the unseen laws without a chain push or rest after the release: -4.6 at the least
+        ({"law_shape": {**_DRAW_5["law_shape"], "toe_least_side": -4.6}}, False),
+        # a chain identified and undone: the other chain rules judge what is left
+        ({"sensor": {"applied": True, "lowpass_not_excluded": []}}, False),
+    ],
+)
+def test_only_a_ringing_release_with_no_chain_undone_leaves_the_law_unread(change, unread):
+    """Draw 5's reading (exponent 1.96, curvature 0.66) with its measured pull after the
+    release (-17.6): unread; the same map without the pull, or read through an undone chain,
+    fires on its exponent and curvature as an unseen law's does."""
+    rf = {**_DRAW_5, "law_shape": {**_DRAW_5["law_shape"], "toe_least_side": -17.6}, **change}
+    reasons = unseen_law_reasons(rf, unseen_law_thresholds())
+    assert (reasons == []) is unread
+    if not unread:
+        assert any("exponent 1.96" in r for r in reasons)
+        assert any("stiffens within" in r for r in reasons)
+    # the setting that counts a chain's exponent counts this one too
+    counted = unseen_law_thresholds().model_copy(update={"exponent_through_left_chain": True})
+    assert unseen_law_reasons(rf, counted)
+
+
+#: bench_alarm's readings (offset 1000 #17 of the rig's two-stage law, a wrong answer no check
+#: alarmed; offset 0 #19 of damping_and_sensor, the in-world map whose weaker side pushes most).
+_TWO_STAGE_BOTH_SIDES = {"toe": 5.65, "toe_least_side": 3.35, "toe_damped_step": 0.83}
+_IN_WORLD_TOP_SIDE = {"toe": 3.44, "toe_least_side": 1.13, "toe_damped_step": 36.4}
+
+
+@pytest.mark.parametrize(
+    "shape, r2, fires",
+    [
+        (_TWO_STAGE_BOTH_SIDES, 0.994, True),  # a first stage on both sides, toe below 8
+        (_IN_WORLD_TOP_SIDE, 0.961, False),
+        (_TWO_STAGE_BOTH_SIDES, 0.90, False),  # a loose law: its onset is no reading
+    ],
+)
+def test_a_contact_pushing_on_both_sides_of_its_law_fires_below_the_toe_level(shape, r2, fires):
+    t = unseen_law_thresholds()
+    assert shape["toe"] < t.onset_toe_min
+    reasons = onset_toe_reasons(shape, r2, t)
+    assert bool(reasons) is fires
+    if fires:
+        assert "after its release" in reasons[0] and "3.4" in reasons[0]

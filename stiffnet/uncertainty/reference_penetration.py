@@ -47,7 +47,11 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from stiffnet.uncertainty.alarm_verdict import class_ranges, share_outside, with_rule_check
 from stiffnet.uncertainty.face_identifiability import prior_range
-from stiffnet.uncertainty.unseen_law import exponent_reading, unseen_law_thresholds
+from stiffnet.uncertainty.unseen_law import (
+    UnseenLawThresholds,
+    exponent_reading,
+    unseen_law_thresholds,
+)
 
 #: The check's name in an alarm's ``fired`` list.
 REFERENCE_PENETRATION = "reference_penetration"
@@ -101,19 +105,23 @@ def training_ranges(
 
 
 def reference_penetration_span(
-    restoring_force: dict[str, Any] | None, priors: dict[str, Any] | None
+    restoring_force: dict[str, Any] | None,
+    priors: dict[str, Any] | None,
+    thresholds: UnseenLawThresholds | None = None,
 ) -> list[float] | None:
     """The betas the record allows over the training world's reference penetrations (see the
     module notes): the cross-check's interval times ``(delta_ref / delta_rec)^(p - 1)`` at
     both ends of the ratio's range; None where the check does not apply (no clearly nonlinear
     close-fitting law, an exponent read through a chain left on the map, no penetration
-    scale, or a training world without Hertz contacts)."""
+    scale, or a training world without Hertz contacts). `thresholds`: those that read the
+    exponent (:func:`~stiffnet.uncertainty.unseen_law.exponent_reading`; default the shipped
+    ones)."""
     rf = restoring_force or {}
     ranges = training_ranges(priors)
     interval, scale = rf.get("beta_interval"), rf.get("penetration_over_table")
     if ranges is None or not interval or not scale:
         return None
-    t = unseen_law_thresholds()
+    t = thresholds or unseen_law_thresholds()
     reading = exponent_reading(rf, t)
     p_min = nonlinear_exponent_min(t.training_exponent_bands)
     if p_min is None or reading is None or not (reading[0] >= p_min and scale > 0):
@@ -133,12 +141,14 @@ def reference_penetration_share(
     priors: dict[str, Any] | None,
     class_names: list[str],
     edges: Any,
+    thresholds: UnseenLawThresholds | None = None,
 ) -> float | None:
     """Share (in log beta) of :func:`reference_penetration_span` outside the model's class;
     None where the span does not apply, for ``no_contact`` or edges that do not match the
     classes. The outer classes are open-ended, as in the other class checks
-    (:func:`~stiffnet.uncertainty.alarm_verdict.class_ranges`)."""
-    span = reference_penetration_span(restoring_force, priors)
+    (:func:`~stiffnet.uncertainty.alarm_verdict.class_ranges`). `thresholds` as in
+    :func:`reference_penetration_span`."""
+    span = reference_penetration_span(restoring_force, priors, thresholds)
     names, low, high = class_ranges(class_names, edges)
     if span is None or class_name not in names:
         return None

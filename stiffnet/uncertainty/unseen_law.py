@@ -187,6 +187,8 @@ ONSET_TOE_MIN_STEP_SHARE = 0.2
 #: ... unless the weaker side's force reaches this: the band limit rings the onset's step
 #: onto the samples before the contact only, while a first stage pushes on both sides.
 ONSET_TOE_STEP_MAX_SIDE = 1.2
+#: ... or, whatever the toe, the weaker side's force at least this: both sides push (see the YAML).
+ONSET_TOE_BOTH_SIDES_MIN = 2.0
 #: Contact duration over the fitted Kelvin-Voigt law's release (:func:`kelvin_voigt_release_ratio`)
 #: that fires, behind a sensor chain the cross-check identified and undid (see the YAML).
 OUTLASTING_CONTACT_MIN_RATIO = 1.5
@@ -197,6 +199,10 @@ OUTLASTING_CONTACT_MIN_R2 = 0.98
 FAST_CHAIN_CONTACT_MIN_RATIO = 1.0
 #: ... counted only from a law explaining this share of the contact force.
 FAST_CHAIN_CONTACT_MIN_R2 = 0.995
+#: Force on the weaker side just outside the impacts (``law_shape.toe_least_side``, in units of
+#: the free flight's force scatter) at or below which a map read with no chain undone shows a
+#: low-pass ringing after the release (:func:`release_ring`; see the YAML).
+RELEASE_RING_MAX_SIDE = -6.0
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -231,10 +237,12 @@ class UnseenLawThresholds(BaseModel):
     onset_toe_min_side: float = ONSET_TOE_MIN_SIDE
     onset_toe_min_step_share: float = ONSET_TOE_MIN_STEP_SHARE
     onset_toe_step_max_side: float = ONSET_TOE_STEP_MAX_SIDE
+    onset_toe_both_sides_min: float = ONSET_TOE_BOTH_SIDES_MIN
     outlasting_contact_min_ratio: float = OUTLASTING_CONTACT_MIN_RATIO
     outlasting_contact_min_r2: float = OUTLASTING_CONTACT_MIN_R2
     fast_chain_contact_min_ratio: float = FAST_CHAIN_CONTACT_MIN_RATIO
     fast_chain_contact_min_r2: float = FAST_CHAIN_CONTACT_MIN_R2
+    release_ring_max_side: float = RELEASE_RING_MAX_SIDE
     #: Whether the exponent counts on a map read through a sensor chain the cross-check left
     #: on it (:func:`chain_left_on_exponent`); false: it is no reading of the law.
     exponent_through_left_chain: bool = False
@@ -372,7 +380,7 @@ def exponent_reading(
     through a sensor chain the cross-check left on it (:func:`chain_left_on_exponent`,
     unless ``exponent_through_left_chain``). A map whose level wanders between impacts
     smears a power law into a line at one onset (:mod:`stiffnet.restoring_force.impact_onsets`)."""
-    if not t.exponent_through_left_chain and chain_left_on_exponent(restoring_force):
+    if not t.exponent_through_left_chain and chain_left_on_exponent(restoring_force, t):
         return None
     p, r2 = restoring_force.get("exponent"), restoring_force.get("contact_r2")
     if p is not None and r2 is not None and r2 >= t.exponent_min_r2:
@@ -389,7 +397,9 @@ def exponent_reading(
     return float(p), float(r2), "an onset per impact"
 
 
-def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None:
+def chain_left_on_exponent(
+    restoring_force: dict[str, Any] | None, thresholds: UnseenLawThresholds | None = None
+) -> str | None:
     """Rule: why the map's exponent is partly a sensor chain's (None: read it as the law's).
 
     A low-pass in the chain delays and rounds each contact pulse, which bends a linear law's
@@ -402,7 +412,9 @@ def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None
       the map (the campaign rule's :func:`~stiffnet.uncertainty.campaign_law.chain_left_on_map`);
     * a chain with a resonance or a high-pass was undone, but the record does not exclude
       low-passes of the priors other than the one fitted (``sensor.lowpass_not_excluded``):
-      the map, and its exponent, depend on which of them the chain has.
+      the map, and its exponent, depend on which of them the chain has;
+    * no chain was undone and the map's force pulls after the release
+      (:func:`release_ring`): a low-pass the cross-check did not identify rings there.
 
     A high-pass corner read alone, or an undone "chain" of nothing but unexcluded low-passes,
     is no evidence of a chain: records without any read corners of 0.1-1.5 Hz (damped
@@ -411,8 +423,10 @@ def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None
     was the exponent went silent when those counted).
 
     The curvature, stage and soft-first-stage rules keep judging such a map (a two-stage
-    law's hinge is no low-pass's bend); the exponent rule, the stage rule's Hertz-read
-    variant and the ``reference_penetration`` check, which read the exponent, do not.
+    law's hinge is no low-pass's bend), the curvature except behind a ringing release;
+    the exponent rule, the stage rule's Hertz-read variant and the ``reference_penetration``
+    check, which read the exponent, do not. `thresholds` default to
+    :func:`unseen_law_thresholds`.
     """
     rf = restoring_force or {}
     sensor = rf.get("sensor") or {}
@@ -431,11 +445,37 @@ def chain_left_on_exponent(restoring_force: dict[str, Any] | None) -> str | None
             "depends on which low-pass the chain has"
         )
     if not chain_left_on_map(rf):
-        return None
+        return release_ring(rf, thresholds or unseen_law_thresholds())
     return (
         f"the record shows a mount ringing at {float(rf['resonance_hz']):.0f} Hz, a sensor "
         "chain the cross-check did not undo: its low-pass is still on the map and bends a "
         "linear law's map as a stiffening exponent does"
+    )
+
+
+def release_ring(restoring_force: dict[str, Any] | None, t: UnseenLawThresholds) -> str | None:
+    """Rule: a map read with no chain undone whose force pulls after the release, the ringing
+    of a sensor low-pass the cross-check did not identify (None: no such ring).
+
+    A low-pass delays and rounds each contact pulse and rings below zero after it: on the map
+    the force on the samples just outside the impacts is negative on one side
+    (:func:`stiffnet.uncertainty.law_shape.onset_toe`'s ``toe_least_side``), while a contact
+    law pushes or is at rest there. The same delay bends a linear law's loading branch as a
+    stiffening exponent or a within-impact curvature does, so neither is the law's. Where the
+    cross-check identified and undid a chain (``sensor.applied``) the other rules of
+    :func:`chain_left_on_exponent` judge what is left of it. Fires at or below
+    ``release_ring_max_side`` (see the YAML for the readings behind it).
+    """
+    rf = restoring_force or {}
+    if (rf.get("sensor") or {}).get("applied"):
+        return None
+    least = (rf.get("law_shape") or {}).get("toe_least_side")
+    if least is None or not least <= t.release_ring_max_side:
+        return None
+    return (
+        f"the cross-check undid no sensor chain, yet the map's force pulls after the release "
+        f"({float(least):.1f} times the free flight's scatter): a low-pass rings there, and "
+        "its delay bends a linear law's map as a stiffening exponent or curvature does"
     )
 
 
@@ -461,7 +501,9 @@ def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) 
     shape = restoring_force.get("law_shape")
     r2 = restoring_force.get("contact_r2")
     stages = stage_reasons(shape, t) or power_law_stage_reasons(shape, reading, t)
-    reasons += curvature_reasons(shape, t) + stages
+    if t.exponent_through_left_chain or not release_ring(restoring_force, t):
+        reasons += curvature_reasons(shape, t)  # a ringing low-pass bends it as it does p
+    reasons += stages
     return (
         reasons
         + onset_toe_reasons(shape, r2, t)
@@ -665,13 +707,22 @@ def onset_toe_reasons(
     judged so only where the weaker side stays below
     :attr:`UnseenLawThresholds.onset_toe_step_max_side`, as that ringing leaves the samples
     after the release alone): the restraint pushes before the law starts, a soft first
-    stage the law cuts off."""
+    stage the law cuts off. Where both sides push by at least
+    :attr:`UnseenLawThresholds.onset_toe_both_sides_min` the toe need not reach
+    ``onset_toe_min``: a chain's ring or step lies on one side only, a first stage's force on
+    both as the sampling phase falls."""
     if not shape or shape.get("toe") is None or r2 is None or r2 < t.onset_toe_min_r2:
         return []
-    toe = shape["toe"]
-    if toe < t.onset_toe_min or shape.get("toe_least_side", 0.0) < t.onset_toe_min_side:
-        return []
-    one_sided = shape.get("toe_least_side", 0.0) < t.onset_toe_step_max_side
+    toe, least = shape["toe"], shape.get("toe_least_side", 0.0)
+    both_sides = [
+        f"the contact pushes before the fitted law's onset and after its release (the force "
+        f"just outside each impact, on the weaker side, is {least:.1f} times the free flight's "
+        "scatter): a soft first stage that the law cuts off, as a two-stage restraint has, and "
+        "the model reads the stiff stage"
+    ]
+    if toe < t.onset_toe_min or least < t.onset_toe_min_side:
+        return both_sides if least >= t.onset_toe_both_sides_min else []
+    one_sided = least < t.onset_toe_step_max_side
     if one_sided and toe < t.onset_toe_min_step_share * shape.get("toe_damped_step", 0.0):
         return []
     return [
@@ -828,11 +879,13 @@ def with_unseen_law_check(
     alarm["thresholds"]["contact_law"] = 0.0
     if seen:
         alarm["contact_law_trained_on"] = sorted(seen)
-    left = chain_left_on_exponent(restoring_force)
+    left = chain_left_on_exponent(restoring_force, t)
     if not t.law_through_left_mount and chain_left_on_map(restoring_force):
         alarm["contact_law_unread"] = f"{left}: the contact law's shape is not read"
     elif left and not t.exponent_through_left_chain and restoring_force.get("exponent") is not None:
-        alarm["exponent_unread"] = f"{left}: the exponent is not read as the law's"
+        ring = release_ring(restoring_force, t)
+        what = "exponent and the within-impact curvature are" if ring else "exponent is"
+        alarm["exponent_unread"] = f"{left}: the {what} not read as the law's"
     if reasons:
         alarm["fired"] = [*alarm["fired"], "contact_law"]
         alarm["flag"] = True
@@ -853,14 +906,16 @@ def exponent_chain_unknown(
     Where the exponent counted (:func:`exponent_reading`) above the linear band, fired the
     ``contact_law`` check or ``reference_penetration``, and the cross-check neither identified
     a chain nor was given one (``sensor`` absent or not applied), a sensor low-pass near the
-    contact's band bends a linear contact's map the same way, and nothing in the record tells
-    the two apart: bench_alarm's ``sensor_dynamics`` right answers #5, #7, #20 (seed offset
-    0, linear contacts behind low-passes at 0.16-0.17 fs of order 2-4) read 1.96, 1.39, 1.59
-    as recorded and 1.30, 1.00, 1.15 with their data sheets, while the two-stage rig's wrong
-    answers read 1.23-1.34 with the same lack of a chain (docs/crosscheck.md). The chain fit
-    cannot settle it (forced on such maps it takes Hertz's and the two-stage law's bend for a
-    low-pass); the accelerometer's data sheet can. The alarm stands; this says what would
-    resolve it.
+    contact's band bends a linear contact's map the same way: bench_alarm's
+    ``sensor_dynamics`` right answers #5, #7, #20 (seed offset 0, linear contacts behind
+    low-passes at 0.16-0.17 fs of order 2-4) read 1.96, 1.39, 1.59 as recorded and 1.30,
+    1.00, 1.15 with their data sheets, while the two-stage rig's wrong answers read 1.23-1.34
+    with the same lack of a chain (docs/crosscheck.md). Where the low-pass rings after the
+    release (:func:`release_ring`, as on those three) the exponent is not read and this note
+    does not arise; a low-pass that leaves no such ring the record cannot tell from a
+    stiffening law. The chain fit cannot settle it (forced on such maps it takes Hertz's and
+    the two-stage law's bend for a low-pass); the accelerometer's data sheet can. The alarm
+    stands; this says what would resolve it.
     """
     if "contact_law" not in fired and "reference_penetration" not in fired:
         return None
