@@ -259,8 +259,9 @@ def test_a_shared_chain_the_records_refute_is_no_sensors_and_they_are_read_as_re
     """The discovery's rule on the evidence (stand-in readings): the shared chain, undone on
     every row, leaves ten times the unexplained force of the rows' own readings and one of
     the three fitted rows kept its chain: every row is read as recorded (the exponent of the
-    rows as recorded, 1.7, not the shared chain's 1.05), no chain seeds sensor_dynamics, and
-    the summary says why. On main the shared chain was undone on the five others."""
+    rows as recorded, 1.7, not the shared chain's 1.05), the fitted rows' own chains still
+    seed sensor_dynamics (fitted, not undone), and the summary says why. On main the shared
+    chain was undone on the five others."""
     from types import SimpleNamespace
 
     from stiffnet.measurement import evidence
@@ -270,11 +271,14 @@ def test_a_shared_chain_the_records_refute_is_no_sensors_and_they_are_read_as_re
     per = evidence.contact_law_per_recording(SimpleNamespace(recording=lambda i: i), rows)
     assert not any(p.get("chain_shared") for p in per)
     assert all(p["chain_refuted"]["fitted_on"] == ["r0", "r4", "r7"] for p in per)
-    assert all(p["sensor"] is None and p["exponent"] == 1.7 for p in per)
+    assert all(p["exponent"] == 1.7 for p in per)
+    # the fitted records' chains stay as fitted, not undone: sensor_dynamics' start
+    assert [p["sensor"]["applied"] if p["sensor"] else None for p in per] == [
+        False, None, None, None, False, None, None, False]  # fmt: skip
     assert all(not any(k.startswith("_") for k in p) for p in per)  # samples stay inside
     ev = evidence.contact_evidence(per)
     assert ev["exponent"] == 1.7 and ev["supports"] == ["hertz_contact"]
-    assert ev["sensor"] is None
+    assert ev["sensor"]["lowpass_hz"] == 135.0 and ev["sensor"]["n"] == 3
     assert ev["chain_refuted"]["chain"]["lowpass_hz"] == 135.0
     unexplained = ev["chain_refuted"]["unexplained_shared"] / ev["chain_refuted"]["unexplained_own"]
     assert unexplained > 10

@@ -28,6 +28,16 @@ shared chain is not the campaign's, and such a recording has its own chain fitte
 evidence says so (``chain_fitted_on``, ``chain_shortfall``). A row with its own data sheet
 is read with it; where the fitted recordings share no chain stage, every recording is
 fitted.
+
+Whether the shared chain is a sensor's at all is the contact-law discovery's question, and
+its rule decides it here too
+(:func:`~stiffnet.discovery.chain_choice.shared_chain_verdict`): each recording is also read
+as recorded, and where the shared chain, undone on every recording, makes the contact force
+clearly less a function of the state than their own readings (a fitted recording's own
+chain, the others as recorded) and fewer than half of them kept a chain, it is refuted and
+every recording is read as recorded (``chain_refuted``; the fitted recordings' own chains
+still seed ``sensor_dynamics``, fitted and not undone). A stiffening contact reads as a
+low-pass whose corner follows it, and its inverse sharpens the pulse into a linear one.
 """
 
 from __future__ import annotations
@@ -175,6 +185,13 @@ def _refuted_chain(
     }
     for i in order:
         plain[i]["chain_refuted"] = note
+    # a fitted record still votes for its own chain as sensor_dynamics' start, fitted and not
+    # undone (as the discovery reports a rejected chain): on an independent-rig campaign behind
+    # a 260 Hz mount, its three fits read the mount's resonance with a 133 Hz low-pass the rig
+    # lacks; the pair is refuted, the resonance still seeds the fit
+    for i in fitted:
+        if found[i].get("sensor"):
+            plain[i]["sensor"] = {**found[i]["sensor"], "applied": False}
     return [_public(plain[i] if i in plain else found[i]) for i in range(len(rows))]
 
 
