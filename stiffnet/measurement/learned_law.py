@@ -9,7 +9,8 @@ the library's contact effects (``contact_damping``, ``hertz_contact``: the law
 holds its own dissipation), on top of the other selected effects or of none
 (they may have stood in for the law), whichever fits better, and the campaign
 is simulated with it. Reported: the law (equation, words, coefficients
-with intervals, the term path), the discrepancy before and after, the share of
+with intervals, the term path), the discrepancy before and after over the
+recordings the verdict counts (:func:`counted_recordings`) and over all, the share of
 it removed, whether the rest is at the noise floor, and the force-penetration
 map (data, library law, learned law) as compact data for the figure
 (:func:`learned_law_figure`).
