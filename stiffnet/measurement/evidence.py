@@ -175,7 +175,7 @@ def _refuted_chain(
     if shared_chain_verdict(*samples, keeping, answered) != "recorded":
         return None
     unexplained = shared_and_own_unexplained(*samples)
-    sheet = next(p.get("sensor") for p in shared if p.get("sensor"))
+    sheet = next((p["sensor"] for p in shared if p.get("sensor")), {})
     plain |= _read(campaign, rows, [(i, AS_RECORDED) for i in fitted], client)
     note = {
         "fitted_on": [rows[i].recording for i in fitted],
