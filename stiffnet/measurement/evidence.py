@@ -35,8 +35,8 @@ its rule decides it here too
 as recorded, and where the shared chain, undone on every recording, makes the contact force
 clearly less a function of the state than their own readings (a fitted recording's own
 chain, the others as recorded) and fewer than half of them kept a chain, it is refuted and
-every recording is read as recorded (``chain_refuted``; the fitted recordings' own chains
-still seed ``sensor_dynamics``, fitted and not undone). A stiffening contact reads as a
+every recording is read as recorded (``chain_refuted``; the chains still seed
+``sensor_dynamics`` as before, fitted and not undone). A stiffening contact reads as a
 low-pass whose corner follows it, and its inverse sharpens the pulse into a linear one.
 """
 
@@ -185,11 +185,12 @@ def _refuted_chain(
     }
     for i in order:
         plain[i]["chain_refuted"] = note
-    # a fitted record still votes for its own chain as sensor_dynamics' start, fitted and not
-    # undone (as the discovery reports a rejected chain): on an independent-rig campaign behind
-    # a 260 Hz mount, its three fits read the mount's resonance with a 133 Hz low-pass the rig
-    # lacks; the pair is refuted, the resonance still seeds the fit
-    for i in fitted:
+    # sensor_dynamics' start is still the chain identified, fitted and not undone (as the
+    # discovery reports a rejected chain), one vote per recording as before: a start, not a
+    # reading. On an independent-rig campaign behind a 260 Hz mount, the three fits read the
+    # mount's resonance with a 133 Hz low-pass the rig lacks; the pair is refuted as a reading,
+    # the resonance still seeds the fit
+    for i in order:
         if found[i].get("sensor"):
             plain[i]["sensor"] = {**found[i]["sensor"], "applied": False}
     return [_public(plain[i] if i in plain else found[i]) for i in range(len(rows))]
