@@ -15,7 +15,9 @@ smooth static function of penetration and velocity (a full cubic in ``x`` and
 ``v``, which holds the linear spring, Kelvin-Voigt, Hunt-Crossley and any mild
 curvature) predicts the force of held-out impacts better. A real low-pass left
 in the record delays the force against the state (loops no static function
-fits); a spurious one's inverse adds ringing and loops of its own.
+fits); a spurious one's inverse adds ringing and loops of its own. Whether a campaign's
+shared chain stands is one rule (:func:`shared_chain_verdict`) for the discovery and the
+restoring-force evidence (:mod:`stiffnet.measurement.evidence`).
 """
 
 from __future__ import annotations
