@@ -326,6 +326,21 @@ def test_a_shared_chain_replaces_the_records_own_readings_only_where_it_reads_be
     assert not keeps_shared_chain(own=ringing, shared=[None, *static[1:]])
 
 
+def test_the_shared_chains_verdict_is_one_rule_for_the_discovery_and_the_evidence():
+    """shared_chain_verdict: the shared chain stands where it reads clearly better; where it
+    reads clearly worse and a minority kept a chain, every record is read as recorded; where
+    half kept one, or neither reading is clearly better, the records keep their own."""
+    from stiffnet.discovery.chain_choice import shared_chain_verdict
+
+    static = synthetic_samples({"exponent": 1.6}, 0.02)
+    ringing = [_ringing(s, 0.05, seed=i) for i, s in enumerate(static)]
+    n = len(static)
+    assert shared_chain_verdict(own=ringing, shared=static, keeping=1, answered=n) == "shared"
+    assert shared_chain_verdict(own=static, shared=ringing, keeping=1, answered=n) == "recorded"
+    assert shared_chain_verdict(own=static, shared=ringing, keeping=n // 2, answered=n) == "own"
+    assert shared_chain_verdict(own=static, shared=static, keeping=1, answered=n) == "own"
+
+
 def _chain_reading(samples, outcome: str, chain: dict | None = None):
     """A reading with `samples` whose estimate did ``outcome`` with a fitted `chain`."""
     from types import SimpleNamespace

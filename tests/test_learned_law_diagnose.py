@@ -95,6 +95,42 @@ def test_the_laws_share_is_counted_over_the_recordings_floors():
     assert excess_shares(floor, baseline, before, before)["removed_excess_fraction"] == 0.0
 
 
+def test_the_laws_comparison_counts_the_repeatable_recordings_and_names_the_others():
+    """Analytic: three repeatable recordings the law takes to their floors, one non-repeatable
+    one (halves 10 apart) it raises from 20 to 100. The campaign's mean rises (5.8 to 25.1),
+    the repeatable recordings' falls 1.1 to 0.1: the law is proposed on those, and the line
+    says the mean over all four and the recording that raised it. On main the mean over all
+    decided (not proposed: -330 % removed)."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement.learned_law import _proposal_summary, counted_recordings, law_change
+
+    floor = Floors(np.array([0.1, 0.1, 0.1, 10.0]))
+    rows = [SimpleNamespace(recording=f"r{i}") for i in range(4)]
+    before, after = np.array([1.1, 1.1, 1.1, 20.0]), np.array([0.1, 0.1, 0.1, 100.0])
+    assert counted_recordings(floor).tolist() == [True, True, True, False]
+    change = law_change(floor, rows, before, after)
+    assert change["discrepancy_after"] == pytest.approx(25.075) and change["lower_on"] == 3
+    assert change["raised"] == [{"recording": "r3", "before": 20.0, "after": 100.0,
+                                 "counted": False}]  # fmt: skip
+    # every recording repeatable: all counted, and the line is the one it was
+    assert counted_recordings(Floors(np.full(4, 0.1))).all()
+    law = SimpleNamespace(equation="F_c = max(0, beta [delta])", words="a linear spring")
+    out = {"discrepancy_before": 1.1, "discrepancy_after": 0.1, "removed_fraction": 10 / 11,
+           "explained_fraction": 1.0, "at_floor": True, "counted": 3,
+           "all_recordings": change}  # fmt: skip
+    line = _proposal_summary(law, out, 0.1)
+    assert (
+        "the discrepancy of the 3 repeatable recordings goes from 1.1 to 0.1 (91% removed" in line
+    )
+    assert line.endswith(
+        "Over all 4 the mean goes from 5.83 to 25.1, lower on 3; raised: r3 20 to 100 "
+        "(non-repeatable)"
+    )
+    whole = _proposal_summary(law, {**out, "counted": 4}, 0.1)
+    assert "Over all" not in whole and "the discrepancy goes from 1.1 to 0.1" in whole
+
+
 def test_kelvin_voigt_campaign_gets_no_new_law(tmp_path):
     camp = batch_campaign(tmp_path / "kv", [ContactDamping(damping_ratio=0.25)])
     out = propose_learned_law(camp, camp.rows, None, [], np.zeros(8), 0.05)

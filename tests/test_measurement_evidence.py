@@ -106,6 +106,12 @@ def test_one_accelerometer_chain_fitted_on_three_recordings_is_undone_on_the_res
     assert ev["contact_damping_ratio"] == pytest.approx(0.25, abs=0.08)
 
 
+def _as_recorded(row) -> dict:
+    """A stand-in reading as recorded: no samples for the shared chain's rule to judge."""
+    return {"recording": row.recording, "ok": True, "contact_r2": 0.9, "exponent": 1.0,
+            "contact_damping_ratio": 0.2, "sensor": None}  # fmt: skip
+
+
 def _stand_in_readings(evidence, monkeypatch, shared_r2: dict, calls: list):
     """Stand-in readings: a fitted chain explains 0.97 of every recording's law; through the
     shared chain, row `i` explains ``shared_r2.get(i, 0.99)`` (None: refused)."""
@@ -113,6 +119,8 @@ def _stand_in_readings(evidence, monkeypatch, shared_r2: dict, calls: list):
 
     def reading(item):
         rec, row, sheet = item
+        if sheet == evidence.AS_RECORDED:  # the shared chain's rule reads the rest as recorded
+            return _as_recorded(row)
         calls.append((rec, sheet is not None))
         if sheet is None:  # the chain fitted on this recording
             return {"recording": row.recording, "ok": True, "contact_r2": 0.97, "exponent": 1.0,
@@ -194,6 +202,8 @@ def test_a_second_round_of_chain_fits_where_the_first_three_share_no_stage(monke
 
     def reading(item):
         rec, row, sheet = item
+        if sheet == evidence.AS_RECORDED:
+            return _as_recorded(row)
         if sheet is None:
             fitted.append(rec)
         chain = own.get(rec, resonance) if sheet is None else {**sheet, "source": "data sheet"}
@@ -206,3 +216,86 @@ def test_a_second_round_of_chain_fits_where_the_first_three_share_no_stage(monke
     assert fitted == [0, 4, 7, 1, 3, 6]
     assert [p["recording"] for p in per if p.get("chain_shared")] == ["r2", "r5"]
     assert per[2]["sensor"]["resonance_hz"] == 237.0 and not per[2]["sensor"]["lowpass_hz"]
+
+
+def _impacts(noise: float, seed: int):
+    """Force-state samples of 8 half-sine impacts, the force a power of the penetration plus
+    white noise of `noise` (what no static function of the state explains)."""
+    from stiffnet.discovery.samples import ContactSamples
+
+    t = np.tile(np.linspace(0.05, np.pi - 0.05, 40), 8)
+    x, v = np.sin(t), np.cos(t)
+    f = x**1.6 + noise * np.random.default_rng(seed).standard_normal(t.size)
+    return ContactSamples("r", x, v, f, np.repeat(np.arange(1, 9), 40), 0.0, 1.0)
+
+
+def _chain_rule_readings(evidence, monkeypatch, own_noise: float, shared_noise: float):
+    """Stand-in readings of 8 rows with their samples: a chain fitted on rows 0, 4 and 7,
+    kept by row 7 only; through the shared chain the force carries `shared_noise`, as read
+    alone (row 7 through its own chain, the others as recorded) `own_noise`."""
+    chain = {"lowpass_hz": 135.0, "lowpass_order": 2, "source": "fitted"}
+
+    def reading(item):
+        rec, row, sheet = item
+        out = {"recording": row.recording, "ok": True, "contact_r2": 0.99,
+               "contact_damping_ratio": 0.0, "exponent": 1.0, "sensor": None}  # fmt: skip
+        if sheet is None:  # its own chain fitted: applied on every one, kept by row 7
+            kept = rec == 7
+            out.update(sensor={**chain, "applied": True}, _kept=kept, exponent=1.1 if kept else 1.7,
+                       _samples=_impacts(own_noise, rec))  # fmt: skip
+        elif sheet == evidence.AS_RECORDED:
+            out.update(exponent=1.7, _samples=_impacts(own_noise, rec))
+        else:
+            out.update(sensor={**sheet, "source": "data sheet", "applied": True}, exponent=1.05,
+                       _samples=_impacts(shared_noise, 100 + rec))  # fmt: skip
+        return out
+
+    monkeypatch.setattr(evidence, "_contact_law_task", reading)
+
+
+def test_a_shared_chain_the_records_refute_is_no_sensors_and_they_are_read_as_recorded(
+    monkeypatch,
+):
+    """The discovery's rule on the evidence (stand-in readings): the shared chain, undone on
+    every row, leaves ten times the unexplained force of the rows' own readings and one of
+    the three fitted rows kept its chain: every row is read as recorded (the exponent of the
+    rows as recorded, 1.7, not the shared chain's 1.05), the chains still seed
+    sensor_dynamics as before (identified, not undone), and the summary says why. On main the shared
+    chain was undone on the five others."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    _chain_rule_readings(evidence, monkeypatch, own_noise=0.01, shared_noise=0.1)
+    rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(8)]
+    per = evidence.contact_law_per_recording(SimpleNamespace(recording=lambda i: i), rows)
+    assert not any(p.get("chain_shared") for p in per)
+    assert all(p["chain_refuted"]["fitted_on"] == ["r0", "r4", "r7"] for p in per)
+    assert all(p["exponent"] == 1.7 for p in per)
+    # the chains stay as identified, not undone: sensor_dynamics' start, one vote per row
+    assert all(p["sensor"]["applied"] is False for p in per)
+    assert [p["sensor"]["source"] for p in per].count("fitted") == 3
+    assert all(not any(k.startswith("_") for k in p) for p in per)  # samples stay inside
+    ev = evidence.contact_evidence(per)
+    assert ev["exponent"] == 1.7 and ev["supports"] == ["hertz_contact"]
+    assert ev["sensor"]["lowpass_hz"] == 135.0 and ev["sensor"]["n"] == 8
+    assert ev["chain_refuted"]["chain"]["lowpass_hz"] == 135.0
+    unexplained = ev["chain_refuted"]["unexplained_shared"] / ev["chain_refuted"]["unexplained_own"]
+    assert unexplained > 10
+    assert "read as recorded" in ev["summary"] and "135 Hz low-pass" in ev["summary"]
+
+
+def test_a_shared_chain_that_reads_the_records_better_stays(monkeypatch):
+    """The mirror case: through the shared chain the force is the clean function of the state
+    and as read alone it is not: the shared chain is undone on the five others, as before."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement import evidence
+
+    _chain_rule_readings(evidence, monkeypatch, own_noise=0.1, shared_noise=0.01)
+    rows = [SimpleNamespace(recording=f"r{i}", sensor_sheet=lambda: None) for i in range(8)]
+    per = evidence.contact_law_per_recording(SimpleNamespace(recording=lambda i: i), rows)
+    assert [p["recording"] for p in per if p.get("chain_shared")] == ["r1", "r2", "r3", "r5", "r6"]
+    assert not any(p.get("chain_refuted") for p in per)
+    assert all(not any(k.startswith("_") for k in p) for p in per)
+    assert "undone as shared on the other 5" in evidence.contact_evidence(per)["summary"]

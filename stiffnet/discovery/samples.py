@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from stiffnet.discovery.chain_choice import keeps_chain, keeps_shared_chain, refutes_shared_chain
+from stiffnet.discovery.chain_choice import keeps_chain, shared_chain_verdict
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.chain import shared_chain, shared_chain_sheet
@@ -148,14 +148,14 @@ def record_contact_samples(
     if isinstance(fit_chain, dict):
         r = restoring_force_estimate(accel, fs_hz, sensor=fit_chain, sensor_fitted=True,
                                      chain_fit_below_r2=-np.inf, **options)  # fmt: skip
-        return _samples_of(r, fs_hz, gain, recording), r
+        return result_samples(r, fs_hz, gain, recording), r
     when = CHAIN_FIT_WHEN_NEEDED if fit_chain else -np.inf
     r = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=when, **options)
-    s = _samples_of(r, fs_hz, gain, recording)
+    s = result_samples(r, fs_hz, gain, recording)
     chain = r.sensor
     if s is not None and chain is not None and chain.applied and chain.source == "fitted":
         plain = restoring_force_estimate(accel, fs_hz, chain_fit_below_r2=-np.inf, **options)
-        s_plain = _samples_of(plain, fs_hz, gain, recording)
+        s_plain = result_samples(plain, fs_hz, gain, recording)
         if not keeps_chain(s_plain, s):
             # the record as recorded; its estimate reports the chain as fitted, not applied
             return s_plain, replace(plain, sensor=replace(chain, applied=False))
@@ -250,14 +250,14 @@ def shared_chain_readings(
     that at least half of the kept chains show, at their median) is undone on every
     recording as a data sheet fitted to the campaign; its readings replace the own ones
     where they answer on as many recordings and the force is more of a function of the state
-    (:func:`~.chain_choice.keeps_shared_chain`). Where it makes the force clearly *less* a
-    function of the state (:func:`~.chain_choice.refutes_shared_chain`) and fewer than half
-    of the records kept it, the chain is no sensor's and they are read as recorded too: behind
-    a 250 Hz low-pass, a power-law contact (exponent 1.6) read 23 of 24 records as recorded and one
-    (beta 62) through a spurious 172 Hz resonance and 3.3 Hz high-pass (read as beta 5, onset
-    -0.94 mm); that one record turned the pooled law into a linear spring (94.5 % of the
-    force), where all 24 as recorded read a power law (exponent 1.71). The shared chain,
-    undone on all, left 12 times the own readings' median unexplained force.
+    (:func:`~.chain_choice.shared_chain_verdict`, the rule the restoring-force evidence
+    applies too). Where it makes the force clearly *less* a function of the state and fewer
+    than half of the records kept it, the chain is no sensor's and they are read as recorded
+    too: behind a 250 Hz low-pass, a power-law contact (exponent 1.6) read 23 of 24 records as
+    recorded and one (beta 62) through a spurious 172 Hz resonance and 3.3 Hz high-pass (read
+    as beta 5, onset -0.94 mm); that one record turned the pooled law into a linear spring
+    (94.5 % of the force), where all 24 as recorded read a power law (exponent 1.71). The
+    shared chain, undone on all, left 12 times the own readings' median unexplained force.
 
     Parameters
     ----------
@@ -286,13 +286,11 @@ def shared_chain_readings(
     def samples(readings: dict) -> list[ContactSamples | None]:
         return [None if isinstance(readings[i], Exception) else readings[i][0] for i in own]
 
-    if keeps_shared_chain(samples(own), samples(shared)):
-        return shared
     answered = sum(not isinstance(v, Exception) for v in own.values())
-    # where most records keep a chain, their own readings are the campaign's account of its
-    # sensor (on the rig's beam campaign, m5, 5 of 8 kept theirs and the face learned on them
-    # removed 74 % of the discrepancy, on the 8 read as recorded 35 %)
-    if 2 * len(keeping) >= answered or not refutes_shared_chain(samples(own), samples(shared)):
+    verdict = shared_chain_verdict(samples(own), samples(shared), len(keeping), answered)
+    if verdict == "shared":
+        return shared
+    if verdict == "own":
         return own
     # a minority's chain and no sensor's: they are read as recorded, as the others
     out = dict(own)
@@ -309,9 +307,11 @@ def _spread(indices: list[int], k: int) -> list[int]:
     return sorted({indices[round(j * (len(indices) - 1) / max(k - 1, 1))] for j in range(k)})
 
 
-def _samples_of(
-    r: RestoringForceResult, fs_hz: float, gain: float, recording: str
+def result_samples(
+    r: RestoringForceResult, fs_hz: float, gain: float, recording: str = ""
 ) -> ContactSamples | None:
+    """:func:`contact_samples` of one record's estimate, with the margin of
+    :data:`MARGIN` forcing periods around each contact."""
     margin = max(2, int(MARGIN * fs_hz / r.forcing_frequency_hz))
     return contact_samples(r, gain, recording, margin)
 

@@ -28,6 +28,16 @@ shared chain is not the campaign's, and such a recording has its own chain fitte
 evidence says so (``chain_fitted_on``, ``chain_shortfall``). A row with its own data sheet
 is read with it; where the fitted recordings share no chain stage, every recording is
 fitted.
+
+Whether the shared chain is a sensor's at all is the contact-law discovery's question, and
+its rule decides it here too
+(:func:`~stiffnet.discovery.chain_choice.shared_chain_verdict`): each recording is also read
+as recorded, and where the shared chain, undone on every recording, makes the contact force
+clearly less a function of the state than their own readings (a fitted recording's own
+chain, the others as recorded) and fewer than half of them kept a chain, it is refuted and
+every recording is read as recorded (``chain_refuted``; the chains still seed
+``sensor_dynamics`` as before, fitted and not undone). A stiffening contact reads as a
+low-pass whose corner follows it, and its inverse sharpens the pulse into a linear one.
 """
 
 from __future__ import annotations
@@ -36,11 +46,14 @@ from typing import Any
 
 import numpy as np
 
-from stiffnet.campaign import Campaign, ManifestRow
+from stiffnet.campaign import Campaign, ManifestRow, sensor_gain
+from stiffnet.discovery.chain_choice import shared_and_own_unexplained, shared_chain_verdict
+from stiffnet.discovery.samples import chain_outcome, result_samples
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.chain import (
     CHAIN_CONFIRMED_SHORTFALL,
+    SENSOR_KEYS,
     shared_chain,
     shared_chain_sheet,
     shared_chain_shortfall,
@@ -62,6 +75,8 @@ CHAIN_RECORDINGS = 3
 #: (:data:`CHAIN_CONFIRMED_SHORTFALL`): a chain undone as a data sheet is never rejected,
 #: where a fitted one is when the record as recorded reads better.
 SHARED_CHAIN_MIN_R2 = 0.9
+#: The third item of :func:`_contact_law_task` that reads a record as recorded (no chain).
+AS_RECORDED = "as recorded"
 
 
 def restitution(zeta: float) -> float:
@@ -112,6 +127,11 @@ def contact_law_per_recording(
     checks = [(i, sheet) for i in fitted] if rest else []
     read = _read(campaign, rows, jobs + checks, client, keyed=False)
     found |= {i: r for (i, _), r in zip(jobs, read[: len(jobs)], strict=True)}
+    if rest:
+        through = {i: r for (i, _), r in zip(checks, read[len(jobs) :], strict=True)}
+        refuted = _refuted_chain(campaign, rows, found, through, fitted, rest, client)
+        if refuted is not None:
+            return refuted
     shortfall = shared_chain_shortfall([found[i] for i, _ in checks], read[len(jobs) :])
     # where the shared chain is not the campaign's, a recording it reads poorly gets its own
     poor = [i for i in rest if (found[i].get("contact_r2") or 0.0) < SHARED_CHAIN_MIN_R2]
@@ -123,7 +143,62 @@ def contact_law_per_recording(
         found[i]["chain_shared"] = True
         found[i]["chain_fitted_on"] = [rows[j].recording for j in sorted(set(fit) - set(rest))]
         found[i]["chain_shortfall"] = shortfall
-    return [found[i] for i in range(len(rows))]
+    return [_public(found[i]) for i in range(len(rows))]
+
+
+def _refuted_chain(
+    campaign: Campaign,
+    rows: list[ManifestRow],
+    found: dict[int, dict[str, Any]],
+    through: dict[int, dict[str, Any]],
+    fitted: list[int],
+    rest: list[int],
+    client: Any,
+) -> list[dict[str, Any]] | None:
+    """Every recording read as recorded where the discovery's rule refutes the shared chain
+    (:func:`~stiffnet.discovery.chain_choice.shared_chain_verdict`), else None.
+
+    The rule compares each record's own reading (a fitted record's chain as its fit kept it,
+    the others as recorded: their chain was never asked for) with its reading through the
+    shared chain (``through`` on the fitted records, ``found`` on the rest). Behind a 250 Hz
+    low-pass, a power-law contact (exponent 1.6) fitted 135, 131 and 209 Hz low-passes on its
+    three records and the shared 135 Hz, undone on all, read the contact as linear
+    (exponent 1.09, where the discovery, which refutes it, read 1.71).
+    """
+    plain = _read(campaign, rows, [(i, AS_RECORDED) for i in rest], client)
+    order = fitted + rest
+    own = [found[i] if i in fitted else plain[i] for i in order]
+    shared = [through[i] if i in fitted else found[i] for i in order]
+    keeping = sum(bool(found[i].get("_kept")) for i in fitted)
+    answered = sum("_samples" in p for p in own)
+    samples = [[p.get("_samples") for p in own], [p.get("_samples") for p in shared]]
+    if shared_chain_verdict(*samples, keeping, answered) != "recorded":
+        return None
+    unexplained = shared_and_own_unexplained(*samples)
+    sheet = next((p["sensor"] for p in shared if p.get("sensor")), {})
+    plain |= _read(campaign, rows, [(i, AS_RECORDED) for i in fitted], client)
+    note = {
+        "fitted_on": [rows[i].recording for i in fitted],
+        "chain": {k: sheet.get(k) for k in SENSOR_KEYS},
+        "unexplained_own": unexplained[0] if unexplained else None,
+        "unexplained_shared": unexplained[1] if unexplained else None,
+    }
+    for i in order:
+        plain[i]["chain_refuted"] = note
+    # sensor_dynamics' start is still the chain identified, fitted and not undone (as the
+    # discovery reports a rejected chain), one vote per recording as before: a start, not a
+    # reading. On an independent-rig campaign behind a 260 Hz mount, the three fits read the
+    # mount's resonance with a 133 Hz low-pass the rig lacks; the pair is refuted as a reading,
+    # the resonance still seeds the fit
+    for i in order:
+        if found[i].get("sensor"):
+            plain[i]["sensor"] = {**found[i]["sensor"], "applied": False}
+    return [_public(plain[i] if i in plain else found[i]) for i in range(len(rows))]
+
+
+def _public(reading: dict[str, Any]) -> dict[str, Any]:
+    """A recording's evidence without what only the chain's rule reads (its samples)."""
+    return {k: v for k, v in reading.items() if not k.startswith("_")}
 
 
 def _spread(indices: list[int], n: int) -> list[int]:
@@ -154,26 +229,39 @@ def _read(
     return list(report.results)
 
 
-def _contact_law_task(item: tuple[Any, ManifestRow, dict[str, float] | None]) -> dict[str, Any]:
+def _contact_law_task(
+    item: tuple[Any, ManifestRow, dict[str, float] | str | None],
+) -> dict[str, Any]:
     """One recording's restoring-force estimate as evidence (a picklable task); the third
-    item is the data sheet undone (None: the chain is fitted): the row's own, or else the
-    campaign's shared chain, fitted to its recordings (``sensor_fitted``)."""
+    item is the data sheet undone (None: the chain is fitted; :data:`AS_RECORDED`: none is):
+    the row's own, or else the campaign's shared chain, fitted to its recordings
+    (``sensor_fitted``). The private ``_samples`` (its force-state samples) and ``_kept``
+    (a fitted chain kept) are what the chain's rule reads (:func:`_refuted_chain`)."""
     rec, row, sheet = item
     fn = row.natural_frequency_hz
     ff = fn * row.frequency_ratio if fn and row.frequency_ratio else None
+    recorded = isinstance(sheet, str)
+    options = (
+        {"chain_fit_below_r2": -np.inf}
+        if recorded
+        else {"sensor": sheet, "sensor_fitted": sheet is not None and sheet != row.sensor_sheet()}
+    )
     try:
         r = restoring_force_estimate(
             rec.accel, rec.fs_hz, natural_frequency_hz=fn, forcing_frequency_hz=ff,
-            max_periods=PERIODS, sensor=sheet,
-            sensor_fitted=sheet is not None and sheet != row.sensor_sheet(),
+            max_periods=PERIODS, **options,
         )  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return {"recording": row.recording, "ok": False, "reason": str(exc)}
+    # the rule's held-out R2 is scale-free: a row without f_n is read at unit gain
+    gain = sensor_gain(fn) if fn else 1.0
     return {
         "recording": row.recording, "ok": r.ok, "beta": r.beta,
         "contact_damping_ratio": r.contact_damping_ratio, "exponent": r.exponent,
         "contact_r2": r.contact_r2 if r.ok else None, "reason": r.reason,
         "sensor": r.sensor.to_dict() if r.sensor is not None else None,
+        "_samples": result_samples(r, rec.fs_hz, gain, row.recording),
+        "_kept": chain_outcome(r) == "kept",
     }  # fmt: skip
 
 
@@ -198,8 +286,12 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
     # whose own chain was fitted votes for its own
     res["sensor"] = shared_chain([p.get("sensor") for p in per_recording])
     shared = [p for p in per_recording if p.get("chain_shared")]
+    refuted = next((p["chain_refuted"] for p in per_recording if p.get("chain_refuted")), None)
     chain_words = ""
-    if shared:
+    if refuted:
+        res["chain_refuted"] = refuted
+        chain_words = f" (read as recorded: {_refuted_words(refuted)})"
+    elif shared:
         res["chain_fitted_on"] = shared[0]["chain_fitted_on"]
         chain_words = (
             f" (the sensor chain fitted on {len(res['chain_fitted_on'])} of them, "
@@ -239,6 +331,22 @@ def contact_evidence(per_recording: list[dict[str, Any]]) -> dict[str, Any]:
         f"restoring-force evidence on {len(ok)} of {n} recordings{chain_words}: " + "; ".join(words)
     )
     return res
+
+
+def _refuted_words(note: dict[str, Any]) -> str:
+    """Why a shared chain was refuted, in words (:func:`_refuted_chain`'s note)."""
+    chain = note["chain"]
+    names = {"resonance_hz": "resonance", "lowpass_hz": "low-pass", "highpass_hz": "high-pass"}
+    stages = [f"{chain[k]:.0f} Hz {w}" for k, w in names.items() if chain.get(k)]
+    medians = ""
+    if note.get("unexplained_shared") is not None:
+        medians = (f", {note['unexplained_shared']:.2g} of the contact force unexplained against "
+                   f"{note['unexplained_own']:.2g} as read alone")  # fmt: skip
+    return (
+        f"the sensor chain fitted on {len(note['fitted_on'])} of them and shared "
+        f"({', '.join(stages) or 'no stage'}), undone on every recording, made the force less a "
+        f"function of the state{medians}: no sensor's chain"
+    )
 
 
 def restoring_force_evidence(
