@@ -18,7 +18,11 @@ order at ``f_l``): the free-flight law's residual around each impact
 velocity step a mis-fitted free-flight damping leaves, the linear ones by variable
 projection), for each chain structure (none, the
 resonance, the low-pass of order 1-4, both), and keeps the structure of least
-BIC. Intervals come from the fit's Jacobian.
+BIC. Where the linear contact alone leaves more than the noise, the contact that
+stiffens with penetration is fitted too, alone and with each chain structure
+(:func:`contact_pulse`'s exponent): a stiffening restraint's pulse starts slowly,
+as a low-pass's does, and a chain stage must beat that as well. Intervals come
+from the fit's Jacobian.
 
 :func:`deconvolve` divides the record by the identified chain's response within
 the band the data support (a Wiener gain from the record's own noise floor,
@@ -874,7 +878,9 @@ def fit_chain(
     resonance (from the post-impact ring, or a grid over contact and resonance); the
     second-order low-pass (from a grid over contact and corner: a low-pass near the contact's
     own frequency reads as a slower contact to the chain-free fit); both where the resonance
-    paid; the other orders where a low-pass paid. :func:`_chosen_chain` picks.
+    paid; each of these again with the stiffening contact (where the linear one alone left
+    more than the noise, :meth:`_ChainSearch.stiffening`); the other orders where a low-pass
+    paid. :func:`_chosen_chain` picks.
 
     Parameters
     ----------
