@@ -687,7 +687,44 @@ def _recordings_and_settings(
     if campaign is not None:
         return campaign
     paths = [str(p) for p in find_recordings(recordings)]
-    return paths, [(*reading, None)] * len(paths), None, [fn_source(reading[1])] * len(paths)
+    settings, sources = listed_settings(paths, reading)
+    return paths, settings, None, sources
+
+
+def listed_settings(
+    paths: list[str], reading: tuple
+) -> tuple[list[tuple[Any, ...]], list[str | None]]:
+    """How to read recordings found by a glob or a folder that is not a campaign, and where
+    each f_n comes from: a recording listed by the manifest of the campaign it sits in is
+    read with its row, as the campaign folder would read it (that manifest read once, its
+    sidecar agreement checked); the others alike, with the options (``reading``).
+
+    Raises
+    ------
+    StiffnetError
+        A campaign manifest above a recording does not read (its problems, naming it).
+    """
+    from stiffnet.campaign.manifest import campaign_manifest_above, read_manifest
+
+    rows_of: dict[Path, dict[Path, Any]] = {}
+    settings, sources = [], []
+    for path in paths:
+        manifest = campaign_manifest_above(path)
+        row = None
+        if manifest is not None:
+            if manifest not in rows_of:
+                rows_of[manifest] = {
+                    (manifest.parent / r.recording).resolve(): r for r in read_manifest(manifest)
+                }
+            row = rows_of[manifest].get(Path(path).resolve())
+        if row is None:
+            settings.append((*reading, None))
+            sources.append(fn_source(reading[1]))
+            continue
+        settings.append(row_settings(row, *reading))
+        given = row.natural_frequency_hz is not None
+        sources.append(fn_source(reading[1], row.where(manifest) if given else None))
+    return settings, sources
 
 
 def _plan_parts(

@@ -147,16 +147,20 @@ def fn_unknown() -> str:
 
 
 def record_natural_frequency(
-    recording: str | Path | None, natural_frequency_hz: float | None
+    recording: str | Path | None,
+    natural_frequency_hz: float | None,
+    **listed: Any,
 ) -> tuple[float, str]:
-    """f_n of a recording and where it came from: the option, else its sidecar, else refuse.
+    """f_n of a recording and where it came from: the option, else its sidecar, else its
+    campaign's row (``listed``: :func:`natural_frequency_of`'s ``campaign_row`` and
+    ``find_row``), else refuse.
 
     Raises
     ------
     StiffnetError
         Neither is there (:func:`fn_unknown`), or the value is out of range.
     """
-    value, source = natural_frequency_of(recording, natural_frequency_hz)
+    value, source = natural_frequency_of(recording, natural_frequency_hz, **listed)
     if value is not None:
         return value, source
     where = f"{recording}: " if recording is not None else ""

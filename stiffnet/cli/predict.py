@@ -46,21 +46,25 @@ def predict(
     row (f_n, rate, columns, time unit, channel, data sheet) where the options leave them
     empty, as ``predict-batch`` reads it; ``--fn`` still wins."""
     from serving.batch_prediction import row_settings
-    from serving.predictor import Predictor, predict_recording
+    from serving.predictor import Predictor, predict_recording, record_natural_frequency
     from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
-    listed = campaign_row_of(recording) if fn is None else None
-    if listed is not None:  # its campaign's row, as predict-batch reads it
+    listed = campaign_row_of(recording)  # read once: the f_n below reuses it
+    if listed is not None:  # its campaign's row, as predict-batch reads it (--fn or not)
         given = (fs, None, columns, time_unit, channel, sheet)
         fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
             mine if mine is not None else theirs
             for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
         )
     require_rate(recording, fs)  # before loading the model
+    fn_source = None
+    if recording.is_file():  # else the reader names the missing file, not an unknown f_n
+        fn, fn_source = record_natural_frequency(recording, fn, campaign_row=listed,
+                                                 find_row=False)  # fmt: skip
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -71,9 +75,8 @@ def predict(
         time_unit=time_unit,
         channel=channel,
         sensor=sheet,
+        natural_frequency_source=fn_source,
     )
-    if fn is not None:
-        result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):
         out.print(renderable)
     write_json(json_path, result)
