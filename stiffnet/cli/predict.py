@@ -708,7 +708,12 @@ def log_tables(result: dict[str, Any]) -> list[Any]:
             f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
             f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
             la["class"] + (" (edge)" if la["near_edge"] else ""),
-            beta,
+            beta
+            + (
+                f" (drifts {_num(d['from_beta'])} -> {_num(d['to_beta'])})"
+                if (d := la.get("drift"))
+                else ""
+            ),  # fmt: skip
             f"[red]{la['alarm_fraction']:.0%}[/]" if la["alarm"] else f"{la['alarm_fraction']:.0%}",
             rf,
         )
