@@ -45,6 +45,17 @@ def test_a_sidecar_disagreeing_with_the_manifest_is_refused(tmp_path):
     assert res.exit_code == 2 and "disagrees with the recording's sidecar" in res.output
 
 
+def test_a_sidecar_with_a_unit_on_its_f_n_is_told_to_write_the_number_alone(tmp_path):
+    """'"natural_frequency_hz": "9.48 Hz"' was refused as 'must be a number' only."""
+    camp = _campaign(tmp_path, "recording,fs_hz", "rec/run.csv,1000", None)
+    (camp / "rec" / "run.csv.json").write_text(json.dumps({"natural_frequency_hz": "9.48 Hz"}))
+    said = r"natural_frequency_hz must be a number, got '9\.48 Hz' \(the number alone: the name"
+    with pytest.raises(StiffnetError, match=said):
+        load_campaign(camp)
+    res = runner.invoke(app, ["predict", str(camp / "rec" / "run.csv")])
+    assert res.exit_code == 2 and "the number alone" in res.output
+
+
 def test_a_sidecar_agreeing_within_its_rounding_is_read(tmp_path):
     # 0.05 % apart (the tolerance of a file's own rate): a value rounded in one file
     camp = _campaign(

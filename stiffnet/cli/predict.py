@@ -46,7 +46,7 @@ def predict(
     row (f_n, rate, columns, time unit, channel, data sheet) where the options leave them
     empty, as ``predict-batch`` reads it; ``--fn`` still wins."""
     from serving.batch_prediction import row_settings
-    from serving.predictor import Predictor, predict_recording, record_natural_frequency
+    from serving.predictor import Predictor, predict_recording
     from stiffnet.campaign.manifest import campaign_row_of
     from stiffnet.cli.console import out, write_json
     from stiffnet.recordings import require_rate
@@ -61,10 +61,6 @@ def predict(
             for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
         )
     require_rate(recording, fs)  # before loading the model
-    fn_source = None
-    if recording.is_file():  # else the reader names the missing file, not an unknown f_n
-        fn, fn_source = record_natural_frequency(recording, fn, campaign_row=listed,
-                                                 find_row=False)  # fmt: skip
     predictor = Predictor.load(model, threads=threads)
     result = predict_recording(
         recording,
@@ -75,7 +71,9 @@ def predict(
         time_unit=time_unit,
         channel=channel,
         sensor=sheet,
-        natural_frequency_source=fn_source,
+        natural_frequency_source=None if fn is None else "option --fn",
+        campaign_row=listed,
+        find_row=False,  # read above: the manifest is parsed once
     )
     for renderable in result_tables(result, str(recording)):
         out.print(renderable)
