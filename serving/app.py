@@ -439,6 +439,20 @@ def _check_samples(n: int, max_samples: int, how: str = "") -> None:
         )
 
 
+def _body_problems(exc: ValidationError, shown: int = 4) -> str:
+    """A JSON body's problems in one line, the missing fields first: a body naming its
+    samples ``accel`` was told only 'accel: Extra inputs are not permitted (+2 more)',
+    not that ``samples`` and ``fs_hz`` were missing."""
+    errs = exc.errors(include_url=False) or [{"loc": (), "msg": str(exc)}]
+    errs = sorted(errs, key=lambda e: e.get("type") != "missing")  # stable: the rest in order
+    said = []
+    for e in errs[:shown]:
+        where = ".".join(str(x) for x in e.get("loc", ())) or "body"
+        said.append(f"{where}: {e.get('msg')}")
+    more = f" (+{len(errs) - shown} more)" if len(errs) > shown else ""
+    return "; ".join(said) + more
+
+
 def _predict_json(
     predictor: Predictor, body: bytes, max_samples: int = 2_000_000, what: str = "predict"
 ) -> dict:
@@ -449,11 +463,7 @@ def _predict_json(
     try:
         req = PredictRequest.model_validate_json(body)
     except ValidationError as exc:
-        errs = exc.errors(include_url=False)
-        first = errs[0] if errs else {"loc": (), "msg": str(exc)}
-        where = ".".join(str(x) for x in first.get("loc", ())) or "body"
-        more = f" (+{len(errs) - 1} more)" if len(errs) > 1 else ""
-        raise StiffnetError(f"invalid JSON body: {where}: {first.get('msg')}{more}") from None
+        raise StiffnetError(f"invalid JSON body: {_body_problems(exc)}") from None
     _check_samples(len(req.samples), max_samples)
     accel = np.asarray(req.samples, dtype=np.float64)
     if what == "log":

@@ -468,7 +468,7 @@ def predict_batch(
         n_parts = len(records) + len(jobs)
         done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
         first = _parts_table(parts_dir, records, range(n_parts))
-        dampings = None if manifest is None else _rig_dampings(manifest)
+        dampings = None if manifest is None else _rig_dampings(manifest, paths)
         chain = None if manifest is None else _campaign_chain(first, paths, settings, predictor,
                                                               dampings)  # fmt: skip
         if chain is not None and chain["pooled"]:
@@ -537,11 +537,16 @@ def _add(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
             "backend": b["backend"]}  # fmt: skip
 
 
-def _rig_dampings(manifest: Path) -> list[float | None]:
-    """Each manifest row's ``damping_ratio`` (the rig's, None where not given)."""
+def _rig_dampings(manifest: Path, paths: list[str]) -> list[float | None]:
+    """Each recording's ``damping_ratio`` from its manifest row (the rig's; None where not
+    given), in the order of ``paths`` (a glob may name some of the campaign's files)."""
     from stiffnet.campaign.manifest import read_manifest
 
-    return [row.damping_ratio for row in read_manifest(manifest)]
+    by_path = {
+        (manifest.parent / row.recording).resolve(): row.damping_ratio
+        for row in read_manifest(manifest)
+    }
+    return [by_path.get(Path(p).resolve()) for p in paths]
 
 
 def _campaign_chain(
@@ -687,7 +692,47 @@ def _recordings_and_settings(
     if campaign is not None:
         return campaign
     paths = [str(p) for p in find_recordings(recordings)]
-    return paths, [(*reading, None)] * len(paths), None, [fn_source(reading[1])] * len(paths)
+    return paths, *listed_settings(paths, reading)
+
+
+def listed_settings(
+    paths: list[str], reading: tuple
+) -> tuple[list[tuple[Any, ...]], Path | None, list[str | None]]:
+    """How to read recordings found by a glob or a folder that is not a campaign, the one
+    manifest listing them all (None: none does) and where each f_n comes from: a recording
+    listed by the manifest of the campaign it sits in is read with its row, as the campaign
+    folder would read it (that manifest read once, its sidecar agreement checked); the
+    others alike, with the options (``reading``). Files of one campaign are then judged as
+    that campaign (its sensor chain pooled, its contact law counted over them).
+
+    Raises
+    ------
+    StiffnetError
+        A campaign manifest above a recording does not read (its problems, naming it).
+    """
+    from stiffnet.campaign.manifest import campaign_manifest_above, read_manifest
+
+    rows_of: dict[Path, dict[Path, Any]] = {}
+    settings, sources, n_listed = [], [], 0
+    for path in paths:
+        manifest = campaign_manifest_above(path)
+        row = None
+        if manifest is not None:
+            if manifest not in rows_of:
+                rows_of[manifest] = {
+                    (manifest.parent / r.recording).resolve(): r for r in read_manifest(manifest)
+                }
+            row = rows_of[manifest].get(Path(path).resolve())
+        if row is None:
+            settings.append((*reading, None))
+            sources.append(fn_source(reading[1]))
+            continue
+        n_listed += 1
+        settings.append(row_settings(row, *reading))
+        given = row.natural_frequency_hz is not None
+        sources.append(fn_source(reading[1], row.where(manifest) if given else None))
+    one = next(iter(rows_of)) if len(rows_of) == 1 and n_listed == len(paths) else None
+    return settings, one, sources
 
 
 def _plan_parts(

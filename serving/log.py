@@ -573,7 +573,16 @@ class StiffnessLogger:
             "alarm_fraction": raw["alarm_fraction"],
             "alarm": raw["alarm_fraction"] > log_settings().layer_alarm_share,
             "restoring_force": _layer_restoring_force(inside, cls),
+            "drift": _layer_drift(raw) if beta is not None else None,
         }
+        if layer["drift"] is not None:
+            d = layer["drift"]
+            self.warnings.append(
+                f"layer {layer['index']} ({raw['start_s']:.1f}-{raw['end_s']:.1f} s): beta drifts "
+                f"from {d['from_beta']:.3g} to {d['to_beta']:.3g} along it ({d['from_s']:.1f}-"
+                f"{d['to_s']:.1f} s): a gradual transition, not a layer of one beta; its beta "
+                f"{beta:.3g} is the stretch's mean and its change times bound the ramp"
+            )
         if layer["alarm"] and layer["restoring_force"]["beta"] is not None:
             # a flagged layer is a flagged recording: its interval behind the alarm, as predict's
             wide, said = widened_interval(interval, layer["restoring_force"], self.facts)
@@ -582,6 +591,15 @@ class StiffnessLogger:
                 self.widened_layers.append(layer["index"])
         self.layers.append(layer)
         return layer
+
+
+def _layer_drift(raw: dict[str, Any]) -> dict[str, float] | None:
+    """A layer's drifting stretch (:func:`stiffnet.layers.layer_drift`) in seconds and beta."""
+    drift = raw.get("log_beta_drift")
+    if drift is None:
+        return None
+    t0, t1, lo, hi = drift
+    return {"from_s": t0, "to_s": t1, "from_beta": math.exp(lo), "to_beta": math.exp(hi)}
 
 
 def spread_by(interval: list[float] | None, spread: tuple[float, float] | None) -> list | None:

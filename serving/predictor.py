@@ -147,16 +147,20 @@ def fn_unknown() -> str:
 
 
 def record_natural_frequency(
-    recording: str | Path | None, natural_frequency_hz: float | None
+    recording: str | Path | None,
+    natural_frequency_hz: float | None,
+    **listed: Any,
 ) -> tuple[float, str]:
-    """f_n of a recording and where it came from: the option, else its sidecar, else refuse.
+    """f_n of a recording and where it came from: the option, else its sidecar, else its
+    campaign's row (``listed``: :func:`natural_frequency_of`'s ``campaign_row`` and
+    ``find_row``), else refuse.
 
     Raises
     ------
     StiffnetError
         Neither is there (:func:`fn_unknown`), or the value is out of range.
     """
-    value, source = natural_frequency_of(recording, natural_frequency_hz)
+    value, source = natural_frequency_of(recording, natural_frequency_hz, **listed)
     if value is not None:
         return value, source
     where = f"{recording}: " if recording is not None else ""
@@ -773,6 +777,8 @@ def predict_recording(
     sensor: dict | None = None,
     sensor_fitted: bool = False,
     natural_frequency_source: str | None = None,
+    campaign_row: tuple[Path, Any] | None = None,
+    find_row: bool = True,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -805,6 +811,9 @@ def predict_recording(
     natural_frequency_source : str, optional
         Where `natural_frequency_hz` came from (a manifest row, an option), as the result's
         ``natural_frequency_source`` says it; default ``"argument"``.
+    campaign_row, find_row
+        The recording's campaign row already read (``predict``), and whether to look for
+        one (:func:`stiffnet.recordings.sidecar.natural_frequency_of`).
 
     Returns
     -------
@@ -817,8 +826,10 @@ def predict_recording(
     rec = read_recording(path, fs_hz=fs_hz, channel=channel, columns=columns,
                          time_unit=time_unit)  # fmt: skip
     fn_source = natural_frequency_source or "argument"
-    if natural_frequency_hz is None:
-        natural_frequency_hz, fn_source = record_natural_frequency(path, None)
+    if natural_frequency_hz is None:  # after reading: a bad file is named before a missing f_n
+        natural_frequency_hz, fn_source = record_natural_frequency(
+            path, None, campaign_row=campaign_row, find_row=find_row
+        )
     return pred.predict(
         rec.accel,
         rec.fs_hz,

@@ -169,6 +169,11 @@ class Layer(BaseModel):
     beta_interval: list[float] | None
     n_points: int = Field(description="Windows (points of the log, hop 0.5 s) in the layer.")
     alarm_fraction: float = Field(description="Share of the layer's windows with the alarm.")
+    drift: dict[str, float] | None = Field(
+        default=None,
+        description="Where log beta trends along the layer (a gradual transition, not one "
+        "beta): from_s, to_s, from_beta, to_beta of the fitted line; null where it does not.",
+    )
 
 
 class AlarmResult(BaseModel):

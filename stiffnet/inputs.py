@@ -76,10 +76,16 @@ def quote_content(text: str, cells: int = 1) -> str | None:
 # ------------------------------------------------------------------------------ numbers
 
 
+#: A number written with a unit after it ("9.48 Hz", "1 kHz", "2.8mm").
+_NUMBER_WITH_UNIT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[A-Za-z/%°]+\s*$")
+
+
 def real_number(value: Any, what: str) -> float:
     """``value`` as a finite float; bools, strings and huge integers are refused."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy scalars are Real
-        raise StiffnetError(f"{what} must be a number, got {_show(value)}")
+        unit = isinstance(value, str) and _NUMBER_WITH_UNIT.match(value)
+        hint = " (the number alone: the name carries the unit)" if unit else ""
+        raise StiffnetError(f"{what} must be a number, got {_show(value)}{hint}")
     try:
         v = float(value)
     except (OverflowError, ValueError, TypeError):

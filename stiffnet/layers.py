@@ -42,6 +42,12 @@ PENALTY_PER_WINDOW = 8.0
 EDGE_MARGIN = 0.10
 #: Profile-likelihood threshold of the change-time interval (chi-square, 1 dof, 95 %).
 CHANGE_TIME_CHI2 = 3.84
+#: A layer's beta drifts when its pooled points' log beta trends by at least this much
+#: across it (a factor 1.22: twice the edge margin) ...
+DRIFT_MIN_LOG = 0.2
+#: ... with a slope this many standard errors from zero, the error inflated by the
+#: points per window (overlapping windows are correlated over one window).
+DRIFT_MIN_T = 4.0
 
 
 def noise_scale(x: np.ndarray, lag: int) -> float:
@@ -191,6 +197,44 @@ def change_interval(x: np.ndarray, k: int, lo: int, hi: int, inflation: float) -
     while b < n - 2 and ok[b + 1]:
         b += 1
     return lo + a + 1, lo + b + 1
+
+
+def trend(t: np.ndarray, y: np.ndarray, window_points: int) -> float | None:
+    """The change of ``y`` across ``t`` along a least-squares line where it trends
+    (:data:`DRIFT_MIN_LOG`, :data:`DRIFT_MIN_T`), else None."""
+    n = t.size
+    if n < max(5, window_points + 2) or t[-1] <= t[0]:
+        return None
+    tc, yc = t - t.mean(), y - y.mean()
+    sxx = float(tc @ tc)
+    slope = float(tc @ yc) / sxx
+    residual = float(np.sum((yc - slope * tc) ** 2)) / (n - 2)
+    se = math.sqrt(residual / sxx * max(1, window_points))
+    change = slope * float(t[-1] - t[0])
+    if abs(change) < DRIFT_MIN_LOG or (se > 0 and abs(slope) < DRIFT_MIN_T * se):
+        return None
+    return change
+
+
+def layer_drift(
+    t: np.ndarray, log_beta: np.ndarray, window_points: int
+) -> tuple[float, float, float, float] | None:
+    """Where a layer's log beta drifts: ``(first t, last t, fitted log beta at each)`` of the
+    stretch that trends (:func:`trend`), else None: a gradual transition, which one mean
+    beta does not describe. The whole layer is tried, then its first and its last two
+    windows of points (a layer's shortest), where the segmenter cut a ramp in two and each
+    half ends in a plateau."""
+    t, y = np.asarray(t, dtype=np.float64), np.asarray(log_beta, dtype=np.float64)
+    edge = 2 * max(1, window_points)
+    for sel in (slice(None), slice(None, edge), slice(-edge, None)):
+        ts, ys = t[sel], y[sel]
+        change = trend(ts, ys, window_points)
+        if change is not None:
+            mid = float(ys.mean())  # the line passes the mean at the mean time
+            at = float(change / (ts[-1] - ts[0]))
+            return (float(ts[0]), float(ts[-1]), mid + at * float(ts[0] - ts.mean()),
+                    mid + at * float(ts[-1] - ts.mean()))  # fmt: skip
+    return None
 
 
 def class_of(beta: float, classes: Sequence[Sequence[Any]]) -> str:
@@ -382,6 +426,13 @@ class LayerSegmenter:
                     sums.s2 += float(p["log_beta"]) ** 2
                     sums.own += math.exp(2.0 * float(p.get("log_scale", 0.0)))
         mean, scale = sums.pooled()
+        kept = [
+            p
+            for p in self.points[:k]
+            if p["contact"] and self._poolable(p, end_t if end_sd > 0 else None)
+        ]
+        times = np.array([p["t"] for p in kept])
+        drift = layer_drift(times, np.array([p["log_beta"] for p in kept]), self.window_points)
         layer = {
             "start_s": float(self.start_t if self.start_t is not None else 0.0),
             "start_sd_s": float(self.start_sd),
@@ -393,6 +444,7 @@ class LayerSegmenter:
             "alarm_fraction": sums.alarms / sums.n if sums.n else 0.0,
             "log_beta": mean,
             "log_beta_scale": scale,
+            "log_beta_drift": drift,
             "proba": None if sums.proba is None else (sums.proba / max(1, sums.n)).tolist(),
         }
         del self.points[:k]

@@ -78,6 +78,10 @@ class RigRun:
     stage_ratio: float = 1.0
     power_exponent: float = 1.0
     power_d0_mm: float = 0.5
+    #: A restraint compressed by ``preload_mm`` before the mass arrives (linear and
+    #: two-stage laws): the force jumps to ``beta ω_n² preload`` at touch, ``k (δ + p)``
+    #: after, and the knee sits at ``knee_mm`` of penetration.
+    preload_mm: float = 0.0
     #: Sensor chain: mounted resonance (Hz, damping), high-pass and anti-alias corners (Hz).
     sensor: dict | None = field(default=None)
     #: White noise std as a fraction of the base-acceleration amplitude.
@@ -172,7 +176,7 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     e = run.gap_mm * 1e-3
     d = x - e
     k = run.beta * run.omega_n**2
-    f = k * d
+    f = k * (d + run.preload_mm * 1e-3)
     if run.contact == "kelvin_voigt":
         f = f + 2 * run.contact_zeta * np.sqrt(run.beta) * run.omega_n * v
     elif run.contact == "hunt_crossley":
@@ -302,6 +306,10 @@ def _simulate_beam(run: RigRun, transient_s: float) -> tuple[np.ndarray, np.ndar
 
     mus, wbs, cbs = mu.tolist(), (wb**2).tolist(), cb.tolist()
     nm = len(mus)
+    harmonics = [(k_ * om, h, ph) for k_, h, ph in run.harmonics]
+
+    def forcing(t: float) -> float:
+        return big_a * (math.sin(om * t) + sum(h * math.sin(w * t + ph) for w, h, ph in harmonics))
 
     def penetration(y) -> float:
         return y[0] - e - sum(y[2 + 2 * i] for i in range(nm))
@@ -309,7 +317,7 @@ def _simulate_beam(run: RigRun, transient_s: float) -> tuple[np.ndarray, np.ndar
     def rhs(contact: bool):
         def f(t, y):  # plain floats: the rhs runs ~10^6 times a record
             fc = max(k * penetration(y), 0.0) if contact else 0.0
-            out = [y[1], big_a * math.sin(om * t) - 2 * zeta * wn * y[1] - wn * wn * y[0] - fc]
+            out = [y[1], forcing(t) - 2 * zeta * wn * y[1] - wn * wn * y[0] - fc]
             for i in range(nm):
                 yi, wi = y[2 + 2 * i], y[3 + 2 * i]
                 out += [wi, fc / mus[i] - cbs[i] * wi - wbs[i] * yi]

@@ -234,6 +234,17 @@ def test_manifest_header_only(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz\n", "lists no recordings")
 
 
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_a_manifest_separated_otherwise_is_said_so(tmp_path, sep):
+    """A spreadsheet's export with ';' (decimal commas) was 'unknown column 1 (name not
+    shown)' beside the list of every allowed column."""
+    manifest_error(
+        tmp_path,
+        sep.join(["recording", "fs_hz", "beta"]) + "\n" + sep.join(["a.csv", "1000", "12,5"]),
+        "the header's columns are separated by .*, not commas \\(recording, fs_hz, beta, ...\\)",
+    )
+
+
 def test_manifest_unknown_column(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz,stiffness\na.csv,1,2\n", "unknown column 'stiffness'")
 

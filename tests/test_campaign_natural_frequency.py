@@ -45,6 +45,17 @@ def test_a_sidecar_disagreeing_with_the_manifest_is_refused(tmp_path):
     assert res.exit_code == 2 and "disagrees with the recording's sidecar" in res.output
 
 
+def test_a_sidecar_with_a_unit_on_its_f_n_is_told_to_write_the_number_alone(tmp_path):
+    """'"natural_frequency_hz": "9.48 Hz"' was refused as 'must be a number' only."""
+    camp = _campaign(tmp_path, "recording,fs_hz", "rec/run.csv,1000", None)
+    (camp / "rec" / "run.csv.json").write_text(json.dumps({"natural_frequency_hz": "9.48 Hz"}))
+    said = r"natural_frequency_hz must be a number, got '9\.48 Hz' \(the number alone: the name"
+    with pytest.raises(StiffnetError, match=said):
+        load_campaign(camp)
+    res = runner.invoke(app, ["predict", str(camp / "rec" / "run.csv")])
+    assert res.exit_code == 2 and "the number alone" in res.output
+
+
 def test_a_sidecar_agreeing_within_its_rounding_is_read(tmp_path):
     # 0.05 % apart (the tolerance of a file's own rate): a value rounded in one file
     camp = _campaign(
@@ -115,3 +126,38 @@ def test_reading_a_campaigns_row_does_not_load_the_simulator():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False", "True"], out.stderr
+
+
+def test_predict_with_fn_still_reads_the_rows_layout_and_the_manifest_once(tmp_path, monkeypatch):
+    """``--fn`` replaces the row's f_n only: its columns and time unit still read the file
+    (it was refused for a wrong header); the manifest is parsed once (it was twice)."""
+    import numpy as np
+
+    import stiffnet.campaign.manifest as manifest_module
+    from stiffnet.recordings import read_recording
+
+    a = read_recording(EXAMPLE)
+    folder = tmp_path / "camp"
+    folder.mkdir()
+    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
+    lines = (f"{float(t)!r},{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
+    (folder / "run.csv").write_text("time_ms,acc_ms2\n" + "".join(lines))
+    (folder / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz,columns,time_unit\n"
+        f"run.csv,{a.fs_hz:g},9.48,time_ms;acc_ms2,ms\n"
+    )
+    calls = []
+    real = manifest_module.read_manifest
+    monkeypatch.setattr(
+        manifest_module, "read_manifest", lambda *a, **k: calls.append(1) or real(*a, **k)
+    )
+    out = tmp_path / "r.json"
+    res = runner.invoke(app, ["predict", str(folder / "run.csv"), "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    assert len(calls) == 1 and json.loads(out.read_text())["natural_frequency_hz"] == 9.48
+    res = runner.invoke(
+        app, ["predict", str(folder / "run.csv"), "--fn", "9.5", "--json", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    r = json.loads(out.read_text())
+    assert r["natural_frequency_hz"] == 9.5 and r["natural_frequency_source"] == "option --fn"

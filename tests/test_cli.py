@@ -21,6 +21,20 @@ def test_help_lists_commands():
         assert cmd in res.output
 
 
+def test_command_help_paragraphs_fill_an_80_column_terminal():
+    """A docstring's second paragraph kept its own line breaks, so at 80 columns 'read with
+    its' / 'row (f_n, ...' / 'leave them' / 'empty' came out cut mid-phrase, with ``marks``."""
+    env = {**os.environ, "COLUMNS": "80", "PYTHONPATH": os.pathsep.join(sys.path)}
+    for command in ("predict", "predict-batch"):
+        text = subprocess.run([sys.executable, "-m", "stiffnet", command, "--help"], env=env,
+                              capture_output=True, text=True, check=True).stdout  # fmt: skip
+        description = text.split("╭")[0].splitlines()[2:]  # after the usage line
+        lines = [line.strip() for line in description]
+        for line, following in zip(lines, lines[1:], strict=False):
+            assert not (line and following and len(line) < 50), (command, line, following)
+        assert "``" not in text and "natural_frequency_hz of the" in text  # --fn's default
+
+
 def test_simulate_writes_dataset_and_json(tmp_path):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(

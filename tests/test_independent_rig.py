@@ -238,3 +238,16 @@ def test_diagnose_lab_manifest_with_errors_in_ms2(tmp):
     assert d["missing_effects"] == ["contact_damping"], d["summary"]
     assert d["verdict"] == "explained"
     assert d["fitted_params"]["contact_damping"]["damping_ratio"] == pytest.approx(0.25, rel=0.1)
+
+
+def test_a_preloaded_restraint_pushes_from_its_first_touch():
+    """``preload_mm``: the restraint's force jumps to ``beta w_n^2 p`` at touch."""
+    from independent_rig import _contact_force
+
+    run = RigRun("p.csv", beta=20.0, gap_mm=1.0, preload_mm=0.05)
+    x = np.array([0.9e-3, 1.0e-3 + 1e-9, 1.1e-3])
+    f = _contact_force(run, x, np.zeros(3))
+    k = run.beta * run.omega_n**2
+    assert f[0] == 0.0
+    assert f[1] == pytest.approx(k * 0.05e-3, rel=1e-3)
+    assert f[2] == pytest.approx(k * 0.15e-3, rel=1e-6)

@@ -68,12 +68,28 @@ def test_layers_found_with_times_and_betas(predictor, records, name):
         assert a_["end_s"] == b_["start_s"]
     changed = [w for w in log["warnings"] if w.startswith("beta changes along this record")]
     assert bool(changed) == (len(betas) > 1)
+    assert all(la["drift"] is None for la in log["layers"])  # steps, not ramps
     assert not [w for w in log["warnings"] if w.startswith("the alarm fired on most windows")]
     # a point's interval widened by the alarm is said, and rare on a right layer (the constant
     # record: one point of 117, the restoring force's interval 28.2-42.7 across the edge at 35)
     for w in log["warnings"]:
         if w.startswith("the alarm widened"):
             assert int(re.search(r"of (\d+) point", w).group(1)) <= 0.02 * log["n_points"]
+
+
+def test_a_gradual_transition_is_said_to_drift_not_taken_for_a_layer(predictor):
+    """beta 15 -> 55 over 8 s (sixteen 0.5 s steps): the log called the ramp a layer of
+    its mean beta with nothing said; the layer that holds the ramp now says it drifts."""
+    ramp = list(np.linspace(15.0, 55.0, 18)[1:-1])
+    a, _ = layered_record([15.0, *ramp, 55.0], [20.0, *[0.5] * len(ramp), 20.0], seed=7)
+    log = stiffness_log(predictor, a, FS, FN_HZ)
+    drifting = [la for la in log["layers"] if la["drift"] is not None]
+    assert drifting, [(la["start_s"], la["end_s"], la["beta"]) for la in log["layers"]]
+    for la in drifting:
+        d = la["drift"]
+        assert 15.0 <= d["from_beta"] < d["to_beta"] <= 60.0
+        assert 19.0 <= d["from_s"] < d["to_s"] <= 29.5  # inside the ramp, give or take a window
+    assert any("a gradual transition, not a layer of one beta" in w for w in log["warnings"])
 
 
 def test_points_carry_interval_alarm_and_restoring_force(predictor, records):

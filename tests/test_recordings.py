@@ -79,7 +79,12 @@ def test_csv_given_fs_must_agree_with_t(tmp_path):
 
 
 def test_csv_missing_header(tmp_path):
-    assert_error("missing header", write_text(tmp_path / "e.csv", ""))
+    assert_error("missing header", write_text(tmp_path / "e.csv", "\n0,1\n"))
+
+
+def test_csv_empty_file_is_said_empty(tmp_path):
+    """A 0-byte file (a failed copy) was said to miss its header."""
+    assert_error(r"the file is empty \(0 bytes", write_text(tmp_path / "e.csv", ""))
 
 
 def test_csv_wrong_header(tmp_path):
@@ -414,6 +419,34 @@ def test_wrong_header_says_how_to_map_it(tmp_path):
         HINT_CONTEXT.reset(token)
     numeric = write_text(tmp_path / "n.csv", "0,1\n0.001,2\n")
     assert_error("no header: name its columns: --columns 0,1", numeric)
+
+
+@pytest.mark.parametrize(
+    ("where", "said"),
+    [("cli", "give its campaign folder to predict-batch"), ("http", "post each of its recordings")],
+)
+def test_a_manifest_read_as_a_recording_is_said_to_be_one(tmp_path, where, said):
+    """A campaign's manifest given as a recording (posted, or named to predict) was read for
+    its columns: 'wrong header (8 cell(s), not shown)' then listed them, with the hint
+    '--columns recording,fs_hz' (even over HTTP); a wide header of names is not 'not shown'."""
+    from stiffnet.inputs import HINT_CONTEXT
+
+    manifest = write_text(
+        tmp_path / "manifest.csv",
+        "recording,fs_hz,natural_frequency_hz,forcing_frequency_hz,base_acceleration_g,gap_mm,"
+        "damping_ratio,beta\nrec/a.csv,1000,9.48,9.95,0.75,2.8,0.02,13\n",
+    )
+    wide = write_text(tmp_path / "w.csv", "time,acc_x,acc_y,acc_z,force,temp\n0,1,2,3,4,5\n")
+    token = HINT_CONTEXT.set(where)
+    try:
+        manifest_said = r"a campaign manifest \(columns recording, fs_hz, .*\), not a recording"
+        assert_error(f"{manifest_said}: {said}", manifest)
+        with pytest.raises(StiffnetError) as info:
+            read_recording(manifest)
+        assert "--" not in str(info.value) or where == "cli"
+        assert_error("wrong header of 6 named columns, expected 't,accel'", wide)
+    finally:
+        HINT_CONTEXT.reset(token)
 
 
 def test_layout_errors_are_one_line(tmp_path):

@@ -282,3 +282,37 @@ def test_campaign_manifest_sensor_sheet_reaches_the_predictor(tmp_path):
     bare = table.loc[str(field / "bare.csv")]
     assert bare["sensor_source"] != "data sheet"
     assert bare["restoring_force_beta"] != pytest.approx(row["restoring_force_beta"], rel=1e-3)
+
+
+def test_a_glob_of_a_campaigns_files_reads_each_through_its_row(recordings, tmp_path):
+    """A glob (not the folder) over a campaign's recordings reads each with its manifest
+    row (columns, time unit, f_n) and that manifest's sidecar check, and judges them as the
+    campaign, as the folder would: it read them alike with the options, a sidecar
+    disagreeing with its row won, and the campaign's contact-law alarm was left out (on a
+    restraint-mass campaign, 6 of 24 wrong and silent by a glob, none by the folder)."""
+    import json
+
+    import numpy as np
+
+    from stiffnet.recordings import read_recording
+
+    a = read_recording(recordings / "r1.csv")
+    camp = tmp_path / "lab"
+    camp.mkdir()
+    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
+    lines = (f"{float(t)!r},{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
+    (camp / "run.csv").write_text("time_ms,acc_ms2\n" + "".join(lines))
+    (camp / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz,columns,time_unit\nrun.csv,800,9.48,time_ms;acc_ms2,ms\n"
+    )
+    ref = predict_recording(recordings / "r1.csv", natural_frequency_hz=FN, model_path=MODEL)
+    summary = predict_batch(f"{camp}/*.csv", tmp_path / "g.parquet", model_path=MODEL)
+    assert summary["failed"] == [], summary["failed"]
+    # judged as that campaign (its chain pooled, its contact law counted), as the folder is
+    assert Path(summary["manifest"]).resolve() == (camp / "manifest.csv").resolve()
+    (row,) = pq.read_table(tmp_path / "g.parquet").to_pylist()
+    assert row["beta"] == pytest.approx(ref["beta"], rel=1e-6)
+    assert row["natural_frequency_source"].startswith(f"manifest:{camp / 'manifest.csv'}: line 2")
+    (camp / "run.csv.json").write_text(json.dumps({"natural_frequency_hz": 12.0}))
+    with pytest.raises(StiffnetError, match="disagrees with the recording's sidecar"):
+        predict_batch(f"{camp}/*.csv", tmp_path / "h.parquet", model_path=MODEL)

@@ -129,6 +129,15 @@ def test_errors_are_json_4xx(client, samples):
     )
 
 
+def test_a_json_body_says_every_field_it_lacks(client, samples):
+    """A body naming its samples ``accel`` was told 'accel: Extra inputs are not permitted
+    (+2 more)': not that samples and fs_hz are missing."""
+    res = client.post("/predict", json={"accel": samples, "natural_frequency_hz": 9.48})
+    _is_error(res, 422, "invalid JSON body: samples: Field required; fs_hz: Field required; "
+                        "accel: Extra inputs are not permitted")  # fmt: skip
+    assert "more)" not in res.json()["error"]
+
+
 def test_body_limit_on_header_and_on_stream(client):
     big = b"x" * (3 * 1024 * 1024)
     _is_error(

@@ -444,6 +444,8 @@ def _check_header(
             unit_hint = _unit_in_header(col, None if written is None else written[i])
             if unit_hint:
                 raise StiffnetError(f"{p}: column {i + 1} {unit_hint}")
+            if len(columns) == 1:
+                _refuse_other_separator(p, col)
             hint = " (the file must be comma-separated)" if len(columns) == 1 else ""
             shown = quote_content(col) or f"{i + 1} (name not shown)"  # never echo a secret
             raise StiffnetError(
@@ -456,6 +458,20 @@ def _check_header(
     if missing:
         raise StiffnetError(f"{p}: missing required column {', '.join(missing)}")
     return columns
+
+
+def _refuse_other_separator(p: Path, header: str) -> None:
+    """A header of manifest columns joined by ``;`` or a tab (a spreadsheet's export where
+    the decimal mark is a comma): said so, with how to save it, not 'unknown column 1
+    (name not shown)' beside the list of every allowed column."""
+    for sep, name in ((";", "';'"), ("\t", "tabs")):
+        names = [c.strip() for c in header.split(sep)]
+        if len(names) > 1 and all(c in COLUMNS for c in names):
+            raise StiffnetError(
+                f"{p}: the header's columns are separated by {name}, not commas "
+                f"({', '.join(names[:3])}, ...); save the manifest comma-separated, with '.' "
+                "as the decimal point"
+            )
 
 
 #: pydantic constraint errors, as ``(context key, operator)``.

@@ -7,6 +7,7 @@ nothing imports this module.
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 from pathlib import Path
@@ -70,6 +71,28 @@ class OneLineErrors(TyperGroup):
             report_error("aborted")
             sys.exit(1)
         sys.exit(rv if isinstance(rv, int) else 0)
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        command = super().get_command(ctx, cmd_name)
+        if command is not None and command.help:
+            command.help = reflowed_help(command.help)
+        return command
+
+
+def reflowed_help(text: str) -> str:
+    """A command's docstring with each paragraph on one line and ``code`` marks shown bare.
+
+    Typer keeps the line breaks of every paragraph past the first, so at 80 columns a
+    docstring's own wrapping and the terminal's cut a sentence into short lines; rich
+    markup shows double backticks as they are. A paragraph starting with click's ``\\b``
+    (keep as written) and what follows ``\\f`` (hidden) are left alone.
+    """
+    paragraphs = inspect.cleandoc(text).split("\n\n")
+    for i, paragraph in enumerate(paragraphs):
+        if paragraph.startswith(("\b", "\f")):
+            break
+        paragraphs[i] = " ".join(paragraph.split()).replace("``", "")
+    return "\n\n".join(paragraphs)
 
 
 app = typer.Typer(

@@ -60,7 +60,8 @@ NaturalFrequencyOption = Annotated[
     typer.Option(
         "--fn",
         help="Natural frequency of the rig in Hz (default: the recording's sidecar "
-        "<recording>.json; without either the command refuses).",
+        "<recording>.json, else the natural_frequency_hz of the campaign manifest listing it; "
+        "without any the command refuses).",
     ),
 ]
 SensorOption = Annotated[

@@ -53,8 +53,8 @@ def predict(
     from stiffnet.restoring_force.chain import parse_sensor_option
 
     sheet = parse_sensor_option(sensor) if sensor is not None else None
-    listed = campaign_row_of(recording) if fn is None else None
-    if listed is not None:  # its campaign's row, as predict-batch reads it
+    listed = campaign_row_of(recording)  # read once: the f_n below reuses it
+    if listed is not None:  # its campaign's row, as predict-batch reads it (--fn or not)
         given = (fs, None, columns, time_unit, channel, sheet)
         fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
             mine if mine is not None else theirs
@@ -71,9 +71,10 @@ def predict(
         time_unit=time_unit,
         channel=channel,
         sensor=sheet,
+        natural_frequency_source=None if fn is None else "option --fn",
+        campaign_row=listed,
+        find_row=False,  # read above: the manifest is parsed once
     )
-    if fn is not None:
-        result["natural_frequency_source"] = "option --fn"
     for renderable in result_tables(result, str(recording)):
         out.print(renderable)
     write_json(json_path, result)
@@ -705,7 +706,12 @@ def log_tables(result: dict[str, Any]) -> list[Any]:
             f"{la['start_s']:.1f}" + (f" ±{la['start_sd_s']:.1f}" if la["start_sd_s"] else ""),
             f"{la['end_s']:.1f}" + (f" ±{la['end_sd_s']:.1f}" if la["end_sd_s"] else ""),
             la["class"] + (" (edge)" if la["near_edge"] else ""),
-            beta,
+            beta
+            + (
+                f" (drifts {_num(d['from_beta'])} -> {_num(d['to_beta'])})"
+                if (d := la.get("drift"))
+                else ""
+            ),  # fmt: skip
             f"[red]{la['alarm_fraction']:.0%}[/]" if la["alarm"] else f"{la['alarm_fraction']:.0%}",
             rf,
         )

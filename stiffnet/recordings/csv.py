@@ -221,6 +221,24 @@ def _is_number(cell: str) -> bool:
 _COLUMN_NAME = re.compile(r"^[\w ()\[\]/.\-]{1,32}$")
 
 
+def _refuse_a_manifest(name: str, names: list[str]) -> None:
+    """A campaign's manifest given as a recording: said so, with what reads it (its header
+    would otherwise be taken for a recording's columns, ``--columns recording,fs_hz``)."""
+    from stiffnet.campaign.manifest import REQUIRED_COLUMNS
+
+    if not set(REQUIRED_COLUMNS) <= {n.lower() for n in names}:
+        return
+    how = where_given(
+        "give its campaign folder to predict-batch, evaluate or diagnose",
+        "list its recordings, not the manifest",
+        "post each of its recordings, with its row's values as fields",
+    )
+    raise StiffnetError(
+        f"{name}: a campaign manifest (columns {', '.join(names[:4])}"
+        f"{', ...' if len(names) > 4 else ''}), not a recording: {how}"
+    )
+
+
 def _header_hint(header: list[str]) -> str:
     """How to read a file whose header is not ``t,accel``."""
     if len(header) == 1:
@@ -256,6 +274,8 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
             first = fh.readline()
     except UnicodeDecodeError:
         raise StiffnetError(f"{name}: not a UTF-8 text file (expected a CSV 't,accel')") from None
+    if not first:  # a logger's failed copy or transfer, not a file without its header
+        raise StiffnetError(f"{name}: the file is empty (0 bytes; expected 't,accel' on line 1)")
     if not first.strip():
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
     raw = next(csv.reader([first]))
@@ -263,9 +283,12 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
         names = [c.strip() for c in raw]
+        named = all(map(_COLUMN_NAME.match, names))
+        if named:
+            _refuse_a_manifest(name, names)
         shown = quote_content(first.strip(), cells=4) or f"({len(raw)} cell(s), not shown)"
-        if len(raw) <= 4 and all(map(_COLUMN_NAME.match, names)):  # names: shown, as the hint
-            shown = repr(",".join(names))
+        if named:  # names: shown, as the hint shows them (past four, the hint lists them)
+            shown = repr(",".join(names)) if len(raw) <= 4 else f"of {len(raw)} named columns"
         raise StiffnetError(
             f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
         )

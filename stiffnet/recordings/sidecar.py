@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 from stiffnet.inputs import natural_frequency, read_json
 
@@ -63,9 +64,15 @@ def natural_frequency_of(
     recording: str | os.PathLike[str] | None,
     given_hz: float | None,
     option: str = "--fn",
+    *,
+    campaign_row: tuple[Path, Any] | None = None,
+    find_row: bool = True,
 ) -> tuple[float | None, str]:
     """A recording's f_n and where it came from: the option, else its sidecar, else the row
     of the campaign manifest listing it (:func:`stiffnet.campaign.manifest.campaign_row_of`).
+
+    ``campaign_row``: that ``(manifest, row)`` when the caller has already read it (None: it
+    lists none); ``find_row=False`` then keeps the manifest from being parsed again.
 
     Returns
     -------
@@ -81,9 +88,11 @@ def natural_frequency_of(
         value, sidecar = read_sidecar(recording)
         if value is not None:
             return value, f"sidecar:{sidecar}"
-        from stiffnet.campaign.manifest import campaign_row_of  # the campaign reads recordings
+        listed = campaign_row
+        if listed is None and find_row:
+            from stiffnet.campaign.manifest import campaign_row_of  # the campaign reads files
 
-        listed = campaign_row_of(recording)
+            listed = campaign_row_of(recording)
         if listed is not None and listed[1].natural_frequency_hz is not None:
             manifest, row = listed
             return row.natural_frequency_hz, "manifest:" + row.where(manifest)
