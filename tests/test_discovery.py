@@ -230,6 +230,37 @@ def test_the_campaigns_chain_is_fitted_on_three_recordings_that_call_for_one(kep
     assert all(fit for _, fit in calls) and len(calls) == 10
 
 
+@pytest.mark.parametrize(("mounts", "all_fitted"), [((236.9, 240.2), True),
+                                                    ((200.0, 240.0), False),
+                                                    ((240.2, None), False)])  # fmt: skip
+def test_rejected_fits_that_agree_on_a_mount_fit_every_recording(mounts, all_fitted):
+    """Ten recordings, the first round's three fits (0, 4, 9) all rejected on their own
+    records. Two of them with one mount (236.9 and 240.2 Hz, the third a low-pass alone):
+    the campaign's sensor has a mount, and every recording gets its chain fitted. Two
+    resonances 20 % apart, or one alone among three: read as recorded, as before."""
+    from types import SimpleNamespace
+
+    chains = {0: {"resonance_hz": mounts[0], "resonance_damping": 0.04, "lowpass_hz": 176.0},
+              4: {"lowpass_hz": 258.0, "lowpass_order": 1},
+              9: {"resonance_hz": mounts[1], "resonance_damping": 0.04} if mounts[1] else
+                 {"lowpass_hz": 190.0, "lowpass_order": 1}}  # fmt: skip
+    fitted = []
+
+    def read(i, fit_chain):
+        if isinstance(fit_chain, dict):
+            return None, SimpleNamespace(sensor=None)
+        if fit_chain:
+            fitted.append(i)
+            chain = chains.get(i, {"resonance_hz": 239.0})
+            sensor = SimpleNamespace(source="fitted", applied=False, has_dynamics=True,
+                                     to_dict=lambda c=chain: c)  # fmt: skip
+            return None, SimpleNamespace(sensor=sensor)
+        return _fake_reading("none")
+
+    campaign_readings(read, 10)
+    assert sorted(fitted) == (list(range(10)) if all_fitted else [0, 4, 9])
+
+
 @pytest.mark.parametrize("effects", [[], [ContactDamping(damping_ratio=0.2)]])
 def test_library_laws_find_nothing_new(effects):
     law = discover_contact_law(campaign_samples(effects, 0.03), n_boot=0)

@@ -22,7 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from stiffnet.discovery.chain_choice import keeps_chain, shared_chain_verdict
+from stiffnet.discovery.chain_choice import (
+    keeps_chain,
+    rejected_chains_share_mount,
+    shared_chain_verdict,
+)
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.chain import shared_chain, shared_chain_sheet
@@ -183,7 +187,9 @@ def campaign_readings(
     is one question: the chain is fitted (where the record calls for one) on recordings
     spread over the campaign, in rounds, until ``chain_recordings`` of them have had one
     fitted. Where none of them keeps its chain (its inverse does not make the force a
-    better function of the state, :func:`~.chain_choice.keeps_chain`), the others are read
+    better function of the state, :func:`~.chain_choice.keeps_chain`) and their rejected
+    fits do not agree on a mount's resonance
+    (:func:`~.chain_choice.rejected_chains_share_mount`), the others are read
     as recorded, which is what their own fits would almost always give (a law the library
     lacks, Hunt-Crossley, calls for a chain on every record and each fit is rejected) at
     a few seconds of CPU less per recording. Where one keeps it, every recording gets its
@@ -218,15 +224,20 @@ def campaign_readings(
     def outcomes() -> list[str]:
         return [chain_outcome(v[1]) for v in out.values() if not isinstance(v, Exception)]
 
+    def sensor_seen() -> bool:
+        readings = [v[1] for v in out.values() if not isinstance(v, Exception)]
+        rejected = [r.sensor.to_dict() for r in readings if chain_outcome(r) == "rejected"]
+        return "kept" in outcomes() or rejected_chains_share_mount(rejected)
+
     left = list(range(n))
-    while chain_recordings and left and "kept" not in outcomes():
+    while chain_recordings and left and not sensor_seen():
         fitted = sum(o == "rejected" for o in outcomes())
         if fitted >= chain_recordings:
             break
         for i in _spread(left, chain_recordings - fitted):
             take(i, True)
         left = [i for i in left if i not in out]
-    as_recorded = bool(chain_recordings) and "kept" not in outcomes()
+    as_recorded = bool(chain_recordings) and not sensor_seen()
     for i in left:
         take(i, not as_recorded)
     return shared_chain_readings(read, out)
