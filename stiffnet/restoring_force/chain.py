@@ -18,11 +18,7 @@ order at ``f_l``): the free-flight law's residual around each impact
 velocity step a mis-fitted free-flight damping leaves, the linear ones by variable
 projection), for each chain structure (none, the
 resonance, the low-pass of order 1-4, both), and keeps the structure of least
-BIC. Where the linear contact alone leaves more than the noise, the contact that
-stiffens with penetration is fitted too, alone and with each chain structure
-(:func:`contact_pulse`'s exponent): a stiffening restraint's pulse starts slowly,
-as a low-pass's does, and a chain stage must beat that as well. Intervals come
-from the fit's Jacobian.
+BIC. Intervals come from the fit's Jacobian.
 
 :func:`deconvolve` divides the record by the identified chain's response within
 the band the data support (a Wiener gain from the record's own noise floor,
@@ -68,14 +64,6 @@ PLAIN_CONTACT_FRACTION = 0.8
 #: independent rig: 1.0-2.6 behind low-passes of 70-120 Hz, a 417 Hz resonance or no chain;
 #: 11 and 20 behind a 187 Hz resonance (zeta 0.076) whose 62 Hz contact maps as 152-269 Hz.
 PLAIN_RING_HALF_PERIODS = 5.0
-#: The stiffest contact shape the fit tries (:func:`contact_pulse`'s exponent, from 1: a linear
-#: restraint). A restraint that stiffens with penetration (a hinge, a power law, Hunt-Crossley)
-#: starts its pulse slowly, as a low-pass does; with a linear contact alone the chain-free fit
-#: read that soft start as a low-pass the sensor lacks (5 of 6 records of a two-stage law with
-#: no chain), and behind a true low-pass the corner took the soft start too and tracked beta.
-MAX_CONTACT_EXPONENT = 3.0
-#: The exponents of the stiffening chain-free fit's grid of starts.
-STIFFENING_STARTS = (1.5, 2.2)
 #: Points of the coarse grid that starts each stage.
 GRID = 12
 #: A mount's resonance is lightly damped (0.01-0.1 on sensors): a better damped pair is a
@@ -549,9 +537,9 @@ def impact_windows(force: np.ndarray, core: np.ndarray, pre: int, post: int) -> 
 
 def _unpack(theta, structure, fs_hz):
     """(chain, contact Hz, contact zeta) from the log parameters of a structure."""
-    res, order = structure[:2]
+    res, order = structure
     contact_hz, zeta = np.exp(theta[0]), np.exp(theta[1])
-    k = 3 + _stiff(structure)
+    k = 3
     fr = zr = fl = None
     if res:  # the resonance relative to the contact: a mount rings faster than the contact
         fr, zr = contact_hz * np.exp(theta[k]), np.exp(theta[k + 1])
@@ -564,27 +552,11 @@ def _unpack(theta, structure, fs_hz):
 
 
 def _n_shape(structure) -> int:
-    return 3 + _stiff(structure) + 2 * bool(structure[0]) + bool(structure[1])
-
-
-def _stiff(structure) -> bool:
-    """Whether a structure's contact carries an exponent (``(resonance, order, stiff)``; a
-    pair is a linear contact's)."""
-    return len(structure) > 2 and bool(structure[2])
-
-
-def _exponent(theta, structure) -> float:
-    """The contact shape's exponent of a structure's parameters (1: linear)."""
-    return float(np.exp(theta[3])) if _stiff(structure) else 1.0
+    return 3 + 2 * bool(structure[0]) + bool(structure[1])
 
 
 def contact_pulse(
-    t: np.ndarray,
-    contact_hz: float,
-    zeta: float,
-    offset: float = 0.0,
-    free_hz: float = 0.0,
-    exponent: float = 1.0,
+    t: np.ndarray, contact_hz: float, zeta: float, offset: float = 0.0, free_hz: float = 0.0
 ) -> np.ndarray:
     """The Kelvin-Voigt contact force of unit impact velocity at times `t` (s): zero before
     the onset and after the force first returns to zero (the restraint never pulls).
@@ -593,18 +565,7 @@ def contact_pulse(
     ``d(0) = 0``, ``d'(0) = 1`` about an equilibrium ``offset / W`` (the free spring's pull
     at the gap and the forcing, in units of the impact velocity over ``W``); the force is
     ``K d + 2 s d'`` with ``K = W^2 - k`` (``k`` from `free_hz`).
-
-    A stiffening restraint (`exponent` ``n > 1``) has the elastic part ``K D (d / D)^n``,
-    ``D = 1 / W`` the elastic contact's peak penetration: a slow rise from the onset and a
-    slow fall to the release (the classical ``sin^(3/2)`` approximation of a Hertz contact's
-    pulse for ``n = 1.5``), with ``W`` slowed so that an elastic pulse keeps the linear one's
-    width at half its peak (:func:`_stiffening_slowdown`): `contact_hz` stays the pulse's
-    time scale, which the fit's bounds on it assume. The penetration stays the linear one's,
-    so the pulse is a shape, not a solution of the stiffening law: it lets the chain fit tell
-    a contact's soft start from a low-pass's (:data:`MAX_CONTACT_EXPONENT`).
     """
-    if exponent != 1.0:
-        contact_hz = contact_hz * _stiffening_slowdown(exponent)
     w = 2 * np.pi * contact_hz
     s = zeta * w
     wd = w * np.sqrt(max(1.0 - zeta**2, 1e-6))
@@ -614,8 +575,6 @@ def contact_pulse(
     rho = offset / w
     d = rho * (1.0 - decay * (cos + s / wd * sin)) + decay * sin / wd
     v = rho * decay * sin * w**2 / wd + decay * (cos - s / wd * sin)
-    if exponent != 1.0:  # the linear pulse keeps its own arithmetic
-        d = np.maximum(d, 0.0) ** exponent * w ** (exponent - 1.0)
     f = (w**2 - (2 * np.pi * free_hz) ** 2) * d + 2 * s * v
     after = np.cumsum((f <= 0) & (tt > 0)) > 0
     return np.where((t >= 0) & ~after, f, 0.0)
@@ -627,19 +586,13 @@ def _residuals(theta, win: _Windows, fs_hz: float, structure) -> np.ndarray:
     return _projected(_pulse_table(theta, win, fs_hz, structure), theta[-win.n :], win)
 
 
-def _stiffening_slowdown(exponent: float) -> float:
-    """The frequency factor that gives ``sin^n`` the half-peak width of ``sin``: ``(pi - 2
-    arcsin 2^(-1/n)) / (2 pi / 3)``."""
-    return float((np.pi - 2.0 * np.arcsin(2.0 ** (-1.0 / exponent))) / (2.0 * np.pi / 3.0))
-
-
 def _pulse_table(theta, win: _Windows, fs_hz: float, structure) -> np.ndarray:
     """The pulse through the chain at :data:`OVERSAMPLE` times the record's rate: the shape's
     part of :func:`_residuals` (the onsets only shift where it is read)."""
     chain, contact_hz, zeta = _unpack(theta, structure, fs_hz)
     fine = fs_hz * OVERSAMPLE
     t = np.arange((win.length + 2) * OVERSAMPLE) / fine
-    table = contact_pulse(t, contact_hz, zeta, theta[2], win.free_hz, _exponent(theta, structure))
+    table = contact_pulse(t, contact_hz, zeta, theta[2], win.free_hz)
     sos = chain_sos(chain, fine)
     if sos is not None:
         table = signal.sosfilt(sos, table)
@@ -701,7 +654,7 @@ def _slowest_contact(
     142 Hz mount, zeta 0.1, at 2 % noise read R139 + L141/1 over a 34 Hz contact, beta 49.9
     for 41.6, when freed too)."""
     slowest = fs_hz / (2 * MAX_HALF_PERIODS * max(float(np.median(win.core)), 1.0))
-    if not (win.ring_read and tuple(structure[:2]) == (True, 0)):
+    if not (win.ring_read and structure == (True, 0)):
         slowest = max(slowest, PLAIN_CONTACT_FRACTION * win.plain_contact_hz)
     return max(1.05 * fn_hz, min(slowest, 0.2 * fs_hz))
 
@@ -710,9 +663,6 @@ def _bounds(win: _Windows, fs_hz: float, fn_hz: float, structure):
     nyq = 0.49 * fs_hz
     lo = [np.log(_slowest_contact(win, fs_hz, fn_hz, tuple(structure))), np.log(1e-3), -0.9]
     hi = [np.log(nyq), np.log(0.95), 0.5]
-    if _stiff(structure):
-        lo += [0.0]
-        hi += [np.log(MAX_CONTACT_EXPONENT)]
     if structure[0]:
         lo += [np.log(MIN_RESONANCE_RATIO), np.log(MIN_RESONANCE_DAMPING)]
         hi += [np.log(nyq / fn_hz), np.log(MAX_RESONANCE_DAMPING)]
@@ -838,8 +788,6 @@ def _grid_best(win: _Windows, fs_hz: float, structure, thetas: list[np.ndarray],
 def _theta(structure, contact, res, corner, timing: np.ndarray) -> np.ndarray:
     """Parameters of a structure: logs of the shape's frequencies and damping, then timing."""
     th = [np.log(contact[0]), np.log(contact[1]), contact[2]]
-    if _stiff(structure):  # a linear contact's start: the first of the stiffening grid
-        th += [np.log(contact[3] if len(contact) > 3 else STIFFENING_STARTS[0])]
     if structure[0]:
         th += [np.log(max(res[0] / contact[0], MIN_RESONANCE_RATIO * 1.01)), np.log(res[1])]
     if structure[1]:
@@ -852,12 +800,7 @@ def _shape_of(fit: _StructureFit, fs_hz: float):
     chain, contact_hz, zeta = _unpack(fit.theta, fit.structure, fs_hz)
     res = (chain.resonance_hz, chain.resonance_damping) if chain.resonance_hz else None
     timing = fit.theta[_n_shape(fit.structure) :]
-    return (
-        (contact_hz, zeta, fit.theta[2], _exponent(fit.theta, fit.structure)),
-        res,
-        chain.lowpass_hz,
-        timing,
-    )
+    return (contact_hz, zeta, fit.theta[2]), res, chain.lowpass_hz, timing
 
 
 def fit_chain(
@@ -878,9 +821,7 @@ def fit_chain(
     resonance (from the post-impact ring, or a grid over contact and resonance); the
     second-order low-pass (from a grid over contact and corner: a low-pass near the contact's
     own frequency reads as a slower contact to the chain-free fit); both where the resonance
-    paid; each of these again with the stiffening contact (where the linear one alone left
-    more than the noise, :meth:`_ChainSearch.stiffening`); the other orders where a low-pass
-    paid. :func:`_chosen_chain` picks.
+    paid; the other orders where a low-pass paid. :func:`_chosen_chain` picks.
 
     Parameters
     ----------
@@ -919,22 +860,13 @@ def fit_chain(
     win.r = win.r / unit
     noise_sigma = None if noise_sigma is None else noise_sigma / unit
     search = _ChainSearch(win, fs_hz, natural_frequency_hz)
-
-    def explained(fit: _StructureFit) -> bool:
-        return bool(noise_sigma) and fit.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2
-
     none = search.no_chain(contact_hz)
-    # only the linear contact ends the search: a stiffening one also mimics a low-pass a few
-    # contact frequencies up (a 145 Hz 3rd-order one behind a linear 35 Hz contact was left
-    # within the noise), which then has to lose to it by the structure rule instead
-    if not explained(none):
-        stiff = search.stiffening()
+    if not (noise_sigma and none.sse <= NOISE_FLOOR * win.r.size * noise_sigma**2):
         res = search.resonance(ring_hz)
         lp = search.lowpass()
         if res.bic < none.bic - MIN_BIC_GAIN:
             search.both(res, lp)
-        search.stiffened()
-        search.other_orders(min(none, stiff, key=lambda f: f.bic))
+        search.other_orders(none)
     best = _best_fit(search.fits)
     chain = _chosen_chain(best, fs_hz, highpass_hz)
     if not profile:
@@ -1014,36 +946,6 @@ class _ChainSearch:
         self.contact, _, _, self.tm = _shape_of(fit, self.fs)
         return fit
 
-    def stiffening(self) -> _StructureFit:
-        """The stiffening contact alone (:data:`MAX_CONTACT_EXPONENT`), from the linear one's
-        contact and from the best of a grid over contact frequency and exponent: from the
-        linear contact alone the exponent's gradient is flat where the offset already bends
-        the pulse's start."""
-        st = (False, 0, True)
-        grid = [_theta(st, (c, 0.1, 0.0, n), None, None, self.timing)
-                for c in self.grid for n in STIFFENING_STARTS]  # fmt: skip
-        best = grid[int(np.argmin([self._sse(st, th) for th in grid]))]
-        c, z, off, _ = self.contact
-        return self.run(st, [_theta(st, (c, z, off, STIFFENING_STARTS[0]), None, None, self.tm),
-                             best])  # fmt: skip
-
-    def stiffened(self) -> None:
-        """Each chain structure fitted so far again with the stiffening contact, from its own
-        fit at an exponent of the grid and from the stiffening contact alone's with that
-        structure's chain: a chain stage then has to beat the contact's soft start too, not
-        only the linear contact's."""
-        alone = self.fits.get((False, 0, True))
-        for fit in [f for f in self.fits.values() if not _stiff(f.structure) and
-                    (f.structure[0] or f.structure[1])]:  # fmt: skip
-            st = (*fit.structure[:2], True)
-            contact, res, corner, timing = _shape_of(fit, self.fs)
-            starts = [_theta(st, (*contact[:3], STIFFENING_STARTS[0]), res, corner, timing)]
-            if alone is not None:
-                c_s, _, _, t_s = _shape_of(alone, self.fs)
-                if not res or res[0] >= 1.05 * MIN_RESONANCE_RATIO * c_s[0]:
-                    starts.append(_theta(st, c_s, res, corner, t_s))
-            self.run(st, starts)
-
     def resonance(self, ring_hz: float | None) -> _StructureFit:
         """The mount's resonance: a ring that dominates the pulse misleads the chain-free
         contact, so the start is a grid over both (and the post-impact ring)."""
@@ -1105,7 +1007,7 @@ class _ChainSearch:
         allowed = best.sse * (1.0 + stats.chi2.ppf(COVERAGE, 1) / max(m - 3.0, 1.0))
         out = []
         for order in PROFILE_ORDERS:
-            st = (best.structure[0], order, *best.structure[2:])
+            st = (best.structure[0], order)
             lowest = None
             # from the fastest corner down, to the first that fits worse: without a fitted
             # low-pass a faster corner changes the pulse less, so the corners that fit form a
@@ -1133,7 +1035,7 @@ class _ChainSearch:
                 continue
             c_b, r_b, corner, t_b = _shape_of(second, self.fs)
             for order in (o for o in ORDERS if o != 2):
-                st = (second.structure[0], order, *second.structure[2:])
+                st = (second.structure[0], order)
                 self.run(st, [_theta(st, c_b, r_b, min(f * corner, self.cap), t_b)
                               for f in (0.85, 1.2)])  # fmt: skip
 
@@ -1156,14 +1058,13 @@ def _chosen_chain(best: _StructureFit, fs_hz: float, highpass_hz: float) -> Sens
     chain, contact_hz, zeta = _unpack(best.theta, best.structure, fs_hz)
     z = float(stats.norm.ppf(0.5 + COVERAGE / 2))
     names = ["contact_hz", "contact_damping", "offset"]
-    names += ["contact_exponent"] if _stiff(best.structure) else []
     if best.structure[0]:
         names += ["resonance_hz", "resonance_damping"]
     if best.structure[1]:
         names += ["lowpass_hz"]
     intervals = {}
     for i, name in enumerate(names):
-        if name in ("offset", "contact_exponent") or best.cov is None:
+        if name == "offset" or best.cov is None:
             continue
         if name == "resonance_hz":  # log f_r = log(contact) + log(ratio): both variances
             var = best.cov[0, 0] + best.cov[i, i] + 2 * best.cov[0, i]
