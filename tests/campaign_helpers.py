@@ -51,3 +51,23 @@ def without_beta(campaign: Path, out: Path) -> Path:
         w.writeheader()
         w.writerows(rows)
     return out
+
+
+def ms_campaign(recording: Path, folder: Path) -> Path:
+    """A one-recording campaign in `folder` whose file is `recording` rewritten as a lab's
+    export (``time_ms,acc_ms2``: milliseconds, m/s^2), its manifest row saying so; returns
+    the folder."""
+    import numpy as np
+
+    from stiffnet.recordings import read_recording
+
+    a = read_recording(recording)
+    folder.mkdir(parents=True, exist_ok=True)
+    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
+    lines = (f"{float(t)!r},{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
+    (folder / "run.csv").write_text("time_ms,acc_ms2\n" + "".join(lines))
+    (folder / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz,columns,time_unit\n"
+        f"run.csv,{a.fs_hz:g},9.48,time_ms;acc_ms2,ms\n"
+    )
+    return folder

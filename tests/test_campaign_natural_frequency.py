@@ -131,21 +131,11 @@ def test_reading_a_campaigns_row_does_not_load_the_simulator():
 def test_predict_with_fn_still_reads_the_rows_layout_and_the_manifest_once(tmp_path, monkeypatch):
     """``--fn`` replaces the row's f_n only: its columns and time unit still read the file
     (it was refused for a wrong header); the manifest is parsed once (it was twice)."""
-    import numpy as np
+    from campaign_helpers import ms_campaign
 
     import stiffnet.campaign.manifest as manifest_module
-    from stiffnet.recordings import read_recording
 
-    a = read_recording(EXAMPLE)
-    folder = tmp_path / "camp"
-    folder.mkdir()
-    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
-    lines = (f"{float(t)!r},{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
-    (folder / "run.csv").write_text("time_ms,acc_ms2\n" + "".join(lines))
-    (folder / "manifest.csv").write_text(
-        "recording,fs_hz,natural_frequency_hz,columns,time_unit\n"
-        f"run.csv,{a.fs_hz:g},9.48,time_ms;acc_ms2,ms\n"
-    )
+    folder = ms_campaign(EXAMPLE, tmp_path / "camp")
     calls = []
     real = manifest_module.read_manifest
     monkeypatch.setattr(

@@ -292,19 +292,9 @@ def test_a_glob_of_a_campaigns_files_reads_each_through_its_row(recordings, tmp_
     restraint-mass campaign, 6 of 24 wrong and silent by a glob, none by the folder)."""
     import json
 
-    import numpy as np
+    from campaign_helpers import ms_campaign
 
-    from stiffnet.recordings import read_recording
-
-    a = read_recording(recordings / "r1.csv")
-    camp = tmp_path / "lab"
-    camp.mkdir()
-    t_ms = 1000 * np.arange(a.accel.size) / a.fs_hz
-    lines = (f"{float(t)!r},{float(v)!r}\n" for t, v in zip(t_ms, a.accel, strict=True))
-    (camp / "run.csv").write_text("time_ms,acc_ms2\n" + "".join(lines))
-    (camp / "manifest.csv").write_text(
-        "recording,fs_hz,natural_frequency_hz,columns,time_unit\nrun.csv,800,9.48,time_ms;acc_ms2,ms\n"
-    )
+    camp = ms_campaign(recordings / "r1.csv", tmp_path / "lab")
     ref = predict_recording(recordings / "r1.csv", natural_frequency_hz=FN, model_path=MODEL)
     summary = predict_batch(f"{camp}/*.csv", tmp_path / "g.parquet", model_path=MODEL)
     assert summary["failed"] == [], summary["failed"]
