@@ -492,7 +492,10 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
                   "explained": ll.get("explained_fraction"), "after": ll.get("discrepancy_after"),
                   "face": {k: v for k, v in params.items() if k.startswith("face_")},
                   "term": face.get("term"), "face_seconds": face.get("seconds"),
-                  "phases": phases}))
+                  "phases": phases, "params": res["fitted_params"]}))
+if a.get("dump"):  # the whole result, to compare answers afterwards
+    with open(a["dump"], "w") as fh:
+        json.dump(res, fh, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
 """
 )
 
@@ -504,7 +507,7 @@ def campaign_runs(args: argparse.Namespace) -> None:
 
     spec = {"campaign": str(Path(args.campaign).resolve()), "effects": args.only,
             "inclination": not args.no_inclination, "workers": args.workers or None,
-            "phases": PHASES if args.phases else None}  # fmt: skip
+            "phases": PHASES if args.phases else None, "dump": None}  # fmt: skip
     codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
     for name, code in codes.items():  # a cold kernel cache is no part of a diagnosis
         warm = warm_kernels(code, spec["campaign"])
@@ -519,6 +522,8 @@ def campaign_runs(args: argparse.Namespace) -> None:
         for name, code in codes.items():
             env = {**os.environ, "PYTHONPATH": str(Path(code).resolve())}
             load0 = os.getloadavg()[0]
+            if args.dump:
+                spec["dump"] = str(Path(args.dump) / f"{name}_{k + 1}.json")
             out = subprocess.run([sys.executable, "-c", CAMPAIGN, json.dumps(spec)], env=env,
                                  capture_output=True, text=True, check=True, cwd=code)  # fmt: skip
             r = json.loads(out.stdout.strip().splitlines()[-1])
@@ -536,8 +541,8 @@ def campaign_runs(args: argparse.Namespace) -> None:
         _phase_table(runs)
     if "before" in best:
         b, n = best["before"], best["now"]
-        same = all(b[k] == n[k] for k in ("verdict", "selected", "proposed", "explained",
-                                          "after", "face"))  # fmt: skip
+        same = all(b[k] == n[k] for k in ("verdict", "selected", "params", "proposed",
+                                          "explained", "after", "face"))  # fmt: skip
         print(
             f"\nCPU before / now (the best of each): {b['cpu']:.1f} / {n['cpu']:.1f} = "
             f"x{b['cpu'] / n['cpu']:.2f}; the same verdict, law and face to the bit: {same}"
@@ -684,6 +689,8 @@ def main() -> None:
                     "--baseline: before and now alternately)")  # fmt: skip
     ap.add_argument("--phases", action="store_true", help="--campaign: also each run's CPU "
                     "seconds per phase of the diagnosis (in-process: --workers 0)")  # fmt: skip
+    ap.add_argument("--dump", help="--campaign: write each run's whole result to this folder "
+                    "(<code>_<round>.json), to compare the answers")  # fmt: skip
     ap.add_argument("--only", action="append", help="--campaign: a candidate effect "
                     "(repeatable; default: every shipped effect)")  # fmt: skip
     ap.add_argument(

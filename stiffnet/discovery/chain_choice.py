@@ -101,6 +101,12 @@ def keeps_chain(plain: ContactSamples | None, undone: ContactSamples | None) -> 
     return 1.0 - r2_undone <= MAX_UNEXPLAINED_RATIO * (1.0 - r2_plain)
 
 
+def unexplained_force(samples: ContactSamples | None) -> float | None:
+    """A reading's held-out unexplained force, ``1 -`` :func:`state_function_r2` (None: no
+    reading; ``inf`` where too few impacts to tell)."""
+    return None if samples is None else 1.0 - state_function_r2(samples)
+
+
 def shared_and_own_unexplained(
     own: Sequence[ContactSamples | None], shared: Sequence[ContactSamples | None]
 ) -> tuple[float, float] | None:
@@ -172,6 +178,77 @@ def rejected_chains_share_mount(chains: Sequence[dict | None]) -> bool:
     if len(hz) < 2 or 2 * len(hz) < len(seen):
         return False
     return max(hz) <= MOUNT_AGREEMENT * min(hz)
+
+
+def settled_shared_chain_verdict(
+    own: Sequence[float | None],
+    shared: Sequence[float | None],
+    unread: Sequence[bool],
+    keeping: int,
+    answered: int,
+) -> str | None:
+    """The verdict :func:`shared_chain_verdict` will give once every record is read through the
+    shared chain, where the records still unread cannot change it; else None.
+
+    A shared chain the records refute, or that reads no better than their own readings, is
+    thrown away: its readings of the records not yet read could only move the medians. Each
+    unread record may yet read anything, from a perfect fit (no unexplained force) to none at
+    all (leaving the comparison, its own reading with it), so the verdict is settled where it
+    holds at the extremes: the shared median at its lowest (every unread record at zero)
+    against the own median at its highest (the unread records with the largest own losses
+    counted), and the reverse. ``"shared"`` is never settled early: it keeps every reading.
+
+    Parameters
+    ----------
+    own, shared : sequence of float or None
+        Each record's held-out unexplained force (:func:`unexplained_force`) as read alone and
+        through the shared chain (None: no reading; ``shared`` is ignored where ``unread``).
+    unread : sequence of bool
+        The records not yet read through the shared chain.
+    keeping, answered : int
+        As :func:`shared_chain_verdict`'s.
+
+    Returns
+    -------
+    str or None
+        ``"recorded"`` or ``"own"`` where every outcome of the unread records gives it.
+    """
+
+    def finite(value: float | None) -> bool:
+        return value is not None and bool(np.isfinite(value))
+
+    pending = np.sort([o for o, u in zip(own, unread, strict=True) if u and finite(o)])
+    pairs = [(o, s) for o, s, u in zip(own, shared, unread, strict=True)
+             if not u and finite(o) and finite(s)]  # fmt: skip
+    if not pairs and not pending.size:  # no medians, whatever the unread records read
+        return "own"
+    known_o = np.array([o for o, _ in pairs])
+    known_s = np.array([s for _, s in pairs])
+
+    def median(values: np.ndarray, extra: np.ndarray) -> float:
+        both = np.concatenate([values, extra])
+        return float(np.median(both)) if both.size else np.nan
+
+    # the own median over the records compared: any number of unread records may join, those
+    # with the largest (smallest) own losses at its highest (lowest)
+    joined = range(pending.size + 1)
+    own_high = np.nanmax([median(known_o, pending[pending.size - j :]) for j in joined])
+    own_low = np.nanmin([median(known_o, pending[:j]) for j in joined])
+    shared_low = median(known_s, np.zeros(pending.size))
+    shared_high = median(known_s, np.full(pending.size, np.inf))
+    shared_answers = sum(s is not None for s, u in zip(shared, unread, strict=True) if not u)
+    own_answers = sum(o is not None for o in own)
+    shared_possible = (shared_answers + sum(unread) >= own_answers
+                       and shared_low <= MAX_UNEXPLAINED_RATIO * own_high)  # fmt: skip
+    if shared_possible:
+        return None
+    if 2 * keeping >= answered:
+        return "own"
+    if known_s.size and shared_low * MAX_UNEXPLAINED_RATIO >= own_high:
+        return "recorded"
+    if not shared_high * MAX_UNEXPLAINED_RATIO >= own_low:
+        return "own"
+    return None
 
 
 def shared_chain_verdict(
