@@ -806,3 +806,76 @@ def test_a_chain_the_campaigns_records_refute_is_read_as_recorded(shared_level, 
     else:
         assert all(out[i][0] is spurious[i] for i in keeps)
         assert not any(i in keeps and fit is False for i, fit in calls)
+
+
+def test_a_refuted_shared_chain_is_read_only_until_its_verdict_is_settled():
+    """Twelve recordings of a power-law contact, one keeping a ringing chain of its own. The
+    shared chain rings on every record it is undone on: once the records still unread could
+    not move the medians enough to change that (each read as perfectly as can be, or not at
+    all), it is refuted without reading them, with the answer of reading them all: every
+    record as recorded."""
+    static = synthetic_samples({"exponent": 1.6}, 0.02) * 3
+    spurious = _ringing(static[11], 0.08, seed=11)
+    calls = []
+
+    def read(i, fit_chain):
+        calls.append((i, fit_chain))
+        if isinstance(fit_chain, dict):
+            return _ringing(static[i], 0.05, seed=10 + i), SimpleNamespace(sensor=None)
+        if i == 11 and fit_chain:
+            return _chain_reading(spurious, "kept", {"resonance_hz": 172.0,
+                                                     "resonance_damping": 0.008})  # fmt: skip
+        return static[i], SimpleNamespace(sensor=None)
+
+    out = campaign_readings(read, 12)
+    through = [i for i, fit in calls if isinstance(fit, dict)]
+    # half must be read before the shared median has a bound above zero (main read all 12)
+    assert 6 <= len(through) <= 8
+    assert through[:5] == [0, 11, 6, 3, 8]  # spread over the campaign: ends, middle, quarters
+    assert all(out[i][0] is static[i] for i in range(12)) and (11, False) in calls
+
+
+def test_the_settled_verdict_is_the_one_every_reading_of_the_rest_would_give():
+    """settled_shared_chain_verdict against every way the unread records could still read
+    (perfectly, not at all, beyond every loss seen, or like those read): where it settles,
+    reading them gives its verdict; read in full, it is shared_chain_verdict's (None for
+    "shared")."""
+    from stiffnet.discovery.chain_choice import (
+        settled_shared_chain_verdict,
+        shared_chain_verdict,
+        unexplained_force,
+    )
+
+    static = synthetic_samples({"exponent": 1.6}, 0.02) * 2
+    ringing = [_ringing(s, 0.05, seed=i) for i, s in enumerate(static)]
+    n = len(static)
+    for own, shared, keeping in ((ringing, static, 1), (static, ringing, 1),
+                                 (static, ringing, n // 2), (static, static, 1)):  # fmt: skip
+        full = shared_chain_verdict(own, shared, keeping, n)
+        lost = [[unexplained_force(s) for s in side] for side in (own, shared)]
+        settled = settled_shared_chain_verdict(*lost, [False] * n, keeping, n)
+        assert settled == (None if full == "shared" else full)
+
+    def verdict(own, shared, keeping):
+        got = settled_shared_chain_verdict(own, shared, [False] * len(own), keeping, len(own))
+        return got or "shared"
+
+    rng = np.random.default_rng(3)
+    settled_seen = set()
+    for _ in range(400):
+        n = int(rng.integers(4, 13))
+        own = [None if rng.random() < 0.1 else float(rng.lognormal(-7, 0.5)) for _ in range(n)]
+        scale = float(rng.choice([0.5, 1.0, 3.0, 20.0]))
+        shared = [None if rng.random() < 0.1 else (o or 1e-3) * scale * rng.lognormal(0, 0.3)
+                  for o in own]  # fmt: skip
+        unread = list(rng.random(n) < rng.uniform(0.1, 0.6))
+        keeping = int(rng.integers(0, n // 2 + 2))
+        got = settled_shared_chain_verdict(own, shared, unread, keeping, n)
+        if got is None:
+            continue
+        settled_seen.add(got)
+        for fill in (0.0, None, np.inf, 1.0, 1e-9, "alike"):
+            rest = [s if not u else (shared[k] if fill == "alike" else fill)
+                    for k, (s, u) in enumerate(zip(shared, unread))]  # fmt: skip
+            assert verdict(own, rest, keeping) == got
+    assert settled_seen == {"own", "recorded"}

@@ -325,7 +325,7 @@ def _shared_verdict(
     def samples(got: Any) -> ContactSamples | None:
         return None if isinstance(got, Exception) else got[0]
 
-    order = list(own)
+    order = sorted(own)
     own_lost = [unexplained_force(samples(own[i])) for i in order]
     shared_lost: list[float | None] = [None] * len(order)
     unread = [True] * len(order)
@@ -342,7 +342,7 @@ def _shared_verdict(
             return settled
     readings = [[samples(own[i]) for i in order], [samples(shared[i]) for i in order]]
     verdict = shared_chain_verdict(*readings, keeping, answered)
-    return {i: shared[i] for i in order} if verdict == "shared" else verdict
+    return {i: shared[i] for i in own} if verdict == "shared" else verdict
 
 
 def _spread_order(indices: list[int]) -> list[int]:
