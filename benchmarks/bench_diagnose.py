@@ -67,10 +67,12 @@ other checkout's, alternately for ``--rounds`` rounds (before first); the table 
 run's CPU seconds (the process and its children), wall seconds, the load, the verdict, the
 learned law's proposal (the share of the base model's excess it explains, its discrepancy, its
 face's values) and the seconds of the face by simulation, then the CPU ratio of the best runs
-(the answers must not change). ``--phases``: also a table of each run's CPU seconds per phase
-(:data:`PHASES`: the restoring-force evidence, the library's fits, the discovery, the face by
-simulation and its parts), timed by wrappers in the run's process (``--workers 0`` to see
-them all).
+(the answers must not change: the verdict, the selected effects and their fitted values, the
+learned law's proposal and face). ``--dump DIR`` also writes each run's whole result
+(``DIR/<code>_<round>.json``) to compare beyond them. ``--phases``: also a table of each
+run's CPU seconds per phase (:data:`PHASES`: the restoring-force evidence, the library's fits,
+the discovery, the face by simulation and its parts), timed by wrappers in the run's process
+(``--workers 0`` to see them all).
 
 Every code compared is first run once on two rows untimed (:func:`warm_kernels`): numba
 compiles the engines' kernels into a checkout's cache on its first run, and a copy of the

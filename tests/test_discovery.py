@@ -876,6 +876,6 @@ def test_the_settled_verdict_is_the_one_every_reading_of_the_rest_would_give():
         settled_seen.add(got)
         for fill in (0.0, None, np.inf, 1.0, 1e-9, "alike"):
             rest = [s if not u else (shared[k] if fill == "alike" else fill)
-                    for k, (s, u) in enumerate(zip(shared, unread))]  # fmt: skip
+                    for k, (s, u) in enumerate(zip(shared, unread, strict=True))]  # fmt: skip
             assert verdict(own, rest, keeping) == got
     assert settled_seen == {"own", "recorded"}
