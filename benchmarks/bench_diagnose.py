@@ -511,6 +511,8 @@ def campaign_runs(args: argparse.Namespace) -> None:
             "inclination": not args.no_inclination, "workers": args.workers or None,
             "phases": PHASES if args.phases else None, "dump": None}  # fmt: skip
     codes = ({"before": args.baseline} if args.baseline else {}) | {"now": str(ROOT)}
+    if args.dump:
+        Path(args.dump).mkdir(parents=True, exist_ok=True)
     for name, code in codes.items():  # a cold kernel cache is no part of a diagnosis
         warm = warm_kernels(code, spec["campaign"])
         print(f"{name}: kernels compiled or loaded in {warm:.1f} s CPU before the timed runs",

@@ -271,6 +271,8 @@ def shared_chain_readings(
     as beta 5, onset -0.94 mm); that one record turned the pooled law into a linear spring
     (94.5 % of the force), where all 24 as recorded read a power law (exponent 1.71). The
     shared chain, undone on all, left 12 times the own readings' median unexplained force.
+    The records are read through the shared chain only until that verdict is settled
+    (:func:`_shared_verdict`): a refuted chain's readings are thrown away.
 
     Parameters
     ----------
