@@ -151,3 +151,28 @@ def test_predict_with_fn_still_reads_the_rows_layout_and_the_manifest_once(tmp_p
     assert res.exit_code == 0, res.output
     r = json.loads(out.read_text())
     assert r["natural_frequency_hz"] == 9.5 and r["natural_frequency_source"] == "option --fn"
+
+
+def test_predict_channel_replaces_the_rows_columns(tmp_path):
+    """``--channel`` on a recording whose campaign row names ``columns``: the option says
+    which column to read (it was "give either 'columns' or 'channel'", as if the user had
+    given both)."""
+    import numpy as np
+
+    from stiffnet.recordings import read_recording
+
+    a = read_recording(EXAMPLE)
+    folder = tmp_path / "camp"
+    folder.mkdir()
+    t = np.arange(a.accel.size) / a.fs_hz
+    rows = (f"{float(x)!r},0.0,{float(v)!r}\n" for x, v in zip(t, a.accel, strict=True))
+    (folder / "run.csv").write_text("t,force,accel\n" + "".join(rows))
+    (folder / "manifest.csv").write_text(
+        f"recording,fs_hz,natural_frequency_hz,columns\nrun.csv,{a.fs_hz:g},9.48,t;force\n"
+    )
+    out = tmp_path / "r.json"
+    res = runner.invoke(
+        app, ["predict", str(folder / "run.csv"), "--channel", "accel", "--json", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert json.loads(out.read_text())["class"] == "hard"  # the example's beta 45

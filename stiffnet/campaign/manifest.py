@@ -31,8 +31,8 @@ from pydantic import (
     model_validator,
 )
 
-from stiffnet.errors import StiffnetError
-from stiffnet.inputs import quote_content
+from stiffnet.errors import RateMismatch, StiffnetError
+from stiffnet.inputs import quote_content, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -278,6 +278,9 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
+            # a spreadsheet's export keeps the empty columns right of the table: named by
+            # nobody, holding nothing, they are not columns (a value under one still is)
+            header = without_unnamed_tail(header)
             columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num,
                                     header)  # fmt: skip
             rows: list[ManifestRow] = []
@@ -288,6 +291,8 @@ def read_manifest_with_columns(
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
                     continue
+                if len(cells) > len(columns) and not any(c.strip() for c in cells[len(columns) :]):
+                    cells = cells[: len(columns)]
                 try:
                     rows.append(_read_row(p, line, columns, cells, seen, folders))
                 except StiffnetError as exc:
@@ -603,13 +608,16 @@ class Campaign:
     def recording(self, key: int | str) -> Recording:
         """Read one recording with the row's ``fs_hz`` (and ``channel``)."""
         row = self.row(key)
-        return read_recording(
-            self.path(key),
-            fs_hz=row.fs_hz,
-            channel=row.channel,
-            columns=None if row.columns is None else row.columns.replace(";", ","),
-            time_unit=row.time_unit,
-        )
+        try:
+            return read_recording(
+                self.path(key),
+                fs_hz=row.fs_hz,
+                channel=row.channel,
+                columns=None if row.columns is None else row.columns.replace(";", ","),
+                time_unit=row.time_unit,
+            )
+        except RateMismatch as exc:  # the row gave the rate: say which line to mend
+            raise RateMismatch(f"{row.where(self.manifest_path)}, column fs_hz: {exc}") from None
 
     def recordings(self) -> Iterator[tuple[ManifestRow, Recording]]:
         """``(row, recording)`` pairs in manifest order, one file at a time."""
@@ -661,9 +669,26 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
     for row in rows:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
-            problems.append(f"{row.where(manifest)}: recording file not found: {path}")
+            problems.append(
+                f"{row.where(manifest)}: recording file not found: {path}{_case_hint(path)}"
+            )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+def _case_hint(path: Path) -> str:
+    """Where a missing recording has a twin differing only in letter case (a manifest typed
+    on Windows or macOS, whose file systems ignore case): the name to write."""
+    try:
+        twins = [q.name for q in path.parent.iterdir() if q.name.lower() == path.name.lower()]
+    except OSError:  # the folder is missing too: nothing to compare
+        return ""
+    if len(twins) != 1:
+        return ""
+    return (
+        f" (the folder holds {twins[0]!r}, which differs only in letter case: names are "
+        "case-sensitive here)"
+    )
 
 
 def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRow] | None:
