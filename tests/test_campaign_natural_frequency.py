@@ -176,3 +176,21 @@ def test_predict_channel_replaces_the_rows_columns(tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert json.loads(out.read_text())["class"] == "hard"  # the example's beta 45
+
+
+def test_predict_batch_says_a_rows_f_n_came_from_its_sidecar(tmp_path):
+    """A manifest without natural_frequency_hz whose recordings' sidecars give it: the
+    folder and a glob say ``sidecar:<path>`` (they said ``manifest: line 2``, a column the
+    manifest does not have); a row giving it still says its line."""
+    from serving.batch_prediction import campaign_inputs, listed_settings
+
+    camp = _campaign(tmp_path, "recording,fs_hz", "rec/run.csv,1000", 12.0)
+    sidecar = f"sidecar:{camp / 'rec' / 'run.csv.json'}"
+    _, settings, _, sources = campaign_inputs(camp)
+    assert settings[0][1] == 12.0 and sources == [sidecar]
+    _, _, sources = listed_settings([str(camp / "rec" / "run.csv")], (None,) * 5)
+    assert sources == [sidecar]
+    row = _campaign(
+        tmp_path / "b", "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,12", None
+    )
+    assert campaign_inputs(row)[3][0].startswith(f"manifest:{row / 'manifest.csv'}: line 2")

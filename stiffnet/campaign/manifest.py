@@ -130,6 +130,8 @@ class ManifestRow(BaseModel):
 
     #: Manifest line the row was read from (for messages); None when built in code.
     _line: int | None = PrivateAttr(None)
+    #: The row's f_n is its recording's sidecar's (the row left the column empty).
+    _fn_from_sidecar: bool = PrivateAttr(False)
 
     @field_validator("recording")
     @classmethod
@@ -214,6 +216,18 @@ class ManifestRow(BaseModel):
             if tol is not None and getattr(self, f"{col}_tol") is None:
                 object.__setattr__(self, f"{col}_tol", float(tol))
         return self
+
+    def natural_frequency_source(self, manifest: str | os.PathLike[str]) -> str | None:
+        """Where the row's f_n comes from, as ``natural_frequency_source`` says it:
+        ``sidecar:<path>`` when the row took its recording's sidecar's, ``manifest:<where>``
+        when the row gives it, None when neither does."""
+        if self._fn_from_sidecar:
+            from stiffnet.recordings.sidecar import sidecar_path
+
+            return f"sidecar:{sidecar_path(Path(manifest).parent / self.recording)}"
+        if self.natural_frequency_hz is None:
+            return None
+        return "manifest:" + self.where(manifest)
 
     def where(self, manifest: str | os.PathLike[str] = MANIFEST_NAME) -> str:
         """``manifest: line N (recording)`` for messages about this row."""
@@ -384,6 +398,7 @@ def _read_row(
     if sidecar_fn is not None and row.natural_frequency_hz is None:
         # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
         row = _validate_row({**data, "natural_frequency_hz": sidecar_fn}, f"{p}: line {line}")
+        row._fn_from_sidecar = True
     row._line = line
     if row.recording in seen:
         raise StiffnetError(

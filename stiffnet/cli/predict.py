@@ -61,8 +61,7 @@ def predict(
             # --columns and --channel each say which column to read: the row's say no more
             theirs[2] = theirs[4] = None
         fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
-            mine if mine is not None else row
-            for mine, row in zip(given, theirs, strict=True)
+            mine if mine is not None else row for mine, row in zip(given, theirs, strict=True)
         )
     require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)
