@@ -144,17 +144,15 @@ def campaign_inputs(
         paths.append(str(manifest.parent / row.recording))
         settings.append(row_settings(row, fs_hz, natural_frequency_hz, columns, time_unit,
                                      channel))  # fmt: skip
-        given = row.natural_frequency_hz is not None
-        sources.append(fn_source(natural_frequency_hz, row.where(manifest) if given else None))
+        sources.append(row.natural_frequency_source(manifest) or fn_source(natural_frequency_hz))
     return paths, settings, manifest, sources
 
 
-def fn_source(option_hz: float | None, row_where: str | None = None) -> str | None:
-    """Where a recording's f_n comes from, as ``natural_frequency_source`` says it: the
-    manifest row (``row_where``, :meth:`ManifestRow.where`) before the option; None where
-    neither gives it (the recording's sidecar or its campaign's row then, as ``predict``)."""
-    if row_where is not None:
-        return "manifest:" + row_where
+def fn_source(option_hz: float | None) -> str | None:
+    """Where the f_n of a recording whose row gives none comes from, as
+    ``natural_frequency_source`` says it: the option; None without it (the recording's
+    sidecar or its campaign's row then, as ``predict``). A row's own is
+    :meth:`ManifestRow.natural_frequency_source`."""
     return None if option_hz is None else "option --fn"
 
 
@@ -729,8 +727,7 @@ def listed_settings(
             continue
         n_listed += 1
         settings.append(row_settings(row, *reading))
-        given = row.natural_frequency_hz is not None
-        sources.append(fn_source(reading[1], row.where(manifest) if given else None))
+        sources.append(row.natural_frequency_source(manifest) or fn_source(reading[1]))
     one = next(iter(rows_of)) if len(rows_of) == 1 and n_listed == len(paths) else None
     return settings, one, sources
 

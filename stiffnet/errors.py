@@ -21,6 +21,11 @@ class SignalError(StiffnetError):
     """A signal cannot be analysed (NaN/inf, constant, too short, no impacts...)."""
 
 
+class RateMismatch(StiffnetError):
+    """A recording's own rate (its time column, header or channel property) disagrees with
+    the one given: the caller that gave it (a manifest row) adds where it came from."""
+
+
 class EnvironmentFailure(StiffnetError):
     """The environment failed, not the input (disk full, a server unreachable): exit 1."""
 

@@ -80,6 +80,27 @@ def quote_content(text: str, cells: int = 1) -> str | None:
 _NUMBER_WITH_UNIT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[A-Za-z/%°]+\s*$")
 
 
+def without_unnamed_tail(header: list[str]) -> list[str]:
+    """A CSV header without the unnamed cells that end it (``t,accel,,`` as a spreadsheet
+    saves a sheet whose empty columns were once touched): nobody named them, so they are
+    not columns (an unnamed cell before a named one still is).
+
+    Parameters
+    ----------
+    header : list of str
+        The header's cells as read.
+
+    Returns
+    -------
+    list of str
+        The cells up to the last named one (at least one cell).
+    """
+    n = len(header)
+    while n > 1 and not header[n - 1].strip():
+        n -= 1
+    return header[:n]
+
+
 def real_number(value: Any, what: str) -> float:
     """``value`` as a finite float; bools, strings and huge integers are refused."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy scalars are Real

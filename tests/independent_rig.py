@@ -69,8 +69,9 @@ class RigRun:
     fs_hz: float = 1000.0
     duration_s: float = 4.0
     #: None, "kelvin_voigt" (uses contact_zeta), "hunt_crossley" (uses hc_lambda_s_per_m),
-    #: "two_stage" (stiffness x stage_ratio beyond knee_mm) or "power_law" (F = k d^n with
-    #: the secant stiffness beta at power_d0_mm).
+    #: "two_stage" (stiffness x stage_ratio beyond knee_mm), "power_law" (F = k d^n with
+    #: the secant stiffness beta at power_d0_mm) or "preloaded_power_law" (the power law
+    #: of a restraint already compressed by preload_mm: F = k d0 ((d + p) / d0)^n).
     contact: str | None = None
     contact_zeta: float = 0.0
     hc_lambda_s_per_m: float = 0.0
@@ -86,6 +87,9 @@ class RigRun:
     sensor: dict | None = field(default=None)
     #: White noise std as a fraction of the base-acceleration amplitude.
     noise: float = 0.02
+    #: The shaker's frequency drifting linearly, Hz per second from the integration's start:
+    #: the base acceleration is ``-A sin(Ω t + π drift t²)`` (harmonics follow the phase).
+    forcing_drift_hz_per_s: float = 0.0
     #: Shaker distortion: ``(order, level, phase)`` terms added to the base acceleration,
     #: ``-A [sin Ωt + Σ level sin(order Ωt + phase)]``.
     harmonics: tuple = ()
@@ -186,6 +190,10 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
     elif run.contact == "power_law":
         d0 = run.power_d0_mm * 1e-3
         f = k * d0 * (np.maximum(d, 0.0) / d0) ** run.power_exponent
+    elif run.contact == "preloaded_power_law":
+        d0 = run.power_d0_mm * 1e-3
+        p = run.preload_mm * 1e-3
+        f = k * d0 * ((np.maximum(d, 0.0) + p) / d0) ** run.power_exponent
     return np.where(d > 0, np.maximum(f, 0.0), 0.0)
 
 
@@ -227,9 +235,12 @@ def simulate(
                 beta = b
         return beta
 
+    drift = run.forcing_drift_hz_per_s
+
     def forcing(t: float) -> float:
+        phase = om * t + math.pi * drift * t * t
         return big_a * (
-            math.sin(om * t) + sum(h * math.sin(k * om * t + ph) for k, h, ph in run.harmonics)
+            math.sin(phase) + sum(h * math.sin(k * phase + ph) for k, h, ph in run.harmonics)
         )
 
     def rhs(contact: bool, r: RigRun):

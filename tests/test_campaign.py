@@ -403,6 +403,35 @@ def test_load_campaign_fs_mismatch_is_reported_on_read(tmp_path):
         camp.recording(0)
 
 
+def test_fs_mismatch_names_the_manifest_line_that_gave_the_rate(tmp_path):
+    write_recording_csv(tmp_path / "r0.csv", np.zeros(10), 1000)
+    write_recording_csv(tmp_path / "r1.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nr0.csv,1000\nr1.csv,1200\n")
+    camp = load_campaign(tmp_path)
+    said = r"manifest.csv: line 3 \(r1.csv\), column fs_hz: .*r1.csv: column t gives fs = 1000 Hz"
+    with pytest.raises(StiffnetError, match=said):
+        camp.recording(1)
+
+
+def test_manifest_ignores_the_unnamed_empty_columns_a_spreadsheet_leaves(tmp_path):
+    write_recording_csv(tmp_path / "r1.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz,beta,,\r\nr1.csv,1000,12,,\r\n")
+    camp = load_campaign(tmp_path)
+    assert camp.rows[0].beta == 12 and camp.rows[0].fs_hz == 1000
+    # a value under an unnamed column is still a problem, and so is an unnamed column between
+    manifest_error(tmp_path, "recording,fs_hz,,\nr1.csv,1000,7,\n", "line 2 has 4 cells")
+    manifest_error(
+        tmp_path, "recording,,fs_hz\nr1.csv,,1000\n", "column 2 of the header has no name"
+    )
+
+
+def test_missing_recording_names_its_twin_in_another_case(tmp_path):
+    write_recording_csv(tmp_path / "rec" / "Run01.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nrec/run01.csv,1000\n")
+    with pytest.raises(StiffnetError, match=r"not found: .* \(the folder holds 'Run01.csv', which"):
+        load_campaign(tmp_path)
+
+
 def test_load_campaign_missing_recording(tmp_path):
     write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nmissing.csv,1000\n")
     with pytest.raises(StiffnetError, match=r"line 2 \(missing.csv\): recording file not found"):

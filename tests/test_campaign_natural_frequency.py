@@ -151,3 +151,46 @@ def test_predict_with_fn_still_reads_the_rows_layout_and_the_manifest_once(tmp_p
     assert res.exit_code == 0, res.output
     r = json.loads(out.read_text())
     assert r["natural_frequency_hz"] == 9.5 and r["natural_frequency_source"] == "option --fn"
+
+
+def test_predict_channel_replaces_the_rows_columns(tmp_path):
+    """``--channel`` on a recording whose campaign row names ``columns``: the option says
+    which column to read (it was "give either 'columns' or 'channel'", as if the user had
+    given both)."""
+    import numpy as np
+
+    from stiffnet.recordings import read_recording
+
+    a = read_recording(EXAMPLE)
+    folder = tmp_path / "camp"
+    folder.mkdir()
+    t = np.arange(a.accel.size) / a.fs_hz
+    rows = (f"{float(x)!r},0.0,{float(v)!r}\n" for x, v in zip(t, a.accel, strict=True))
+    (folder / "run.csv").write_text("t,force,accel\n" + "".join(rows))
+    (folder / "manifest.csv").write_text(
+        f"recording,fs_hz,natural_frequency_hz,columns\nrun.csv,{a.fs_hz:g},9.48,t;force\n"
+    )
+    out = tmp_path / "r.json"
+    res = runner.invoke(
+        app, ["predict", str(folder / "run.csv"), "--channel", "accel", "--json", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert json.loads(out.read_text())["class"] == "hard"  # the example's beta 45
+
+
+def test_predict_batch_says_a_rows_f_n_came_from_its_sidecar(tmp_path):
+    """A manifest without natural_frequency_hz whose recordings' sidecars give it: the
+    folder and a glob say ``sidecar:<path>`` (they said ``manifest: line 2``, a column the
+    manifest does not have); a row giving it still says its line."""
+    from serving.batch_prediction import campaign_inputs, listed_settings
+
+    camp = _campaign(tmp_path, "recording,fs_hz", "rec/run.csv,1000", 12.0)
+    sidecar = f"sidecar:{camp / 'rec' / 'run.csv.json'}"
+    _, settings, _, sources = campaign_inputs(camp)
+    assert settings[0][1] == 12.0 and sources == [sidecar]
+    _, _, sources = listed_settings([str(camp / "rec" / "run.csv")], (None,) * 5)
+    assert sources == [sidecar]
+    row = _campaign(
+        tmp_path / "b", "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,12", None
+    )
+    assert campaign_inputs(row)[3][0].startswith(f"manifest:{row / 'manifest.csv'}: line 2")

@@ -22,11 +22,13 @@ MANIFEST = ROOT / "examples" / "campaign_manifest.csv"
 
 
 def test_csv_cell_over_the_field_limit_is_one_line(tmp_path):
-    for name, text in {"cell.csv": "t,accel\n0," + "1" * 200_000 + "\n1,2\n",
-                       "head.csv": "t" + "x" * 200_000 + ",accel\n0,1\n"}.items():  # fmt: skip
+    for name, text, said in [
+        ("cell.csv", "t,accel\n0," + "1" * 200_000 + "\n1,2\n", "malformed CSV"),
+        ("head.csv", "t" + "x" * 200_000 + ",accel\n0,1\n", "line 1 is longer than 65536"),
+    ]:
         p = tmp_path / name
         p.write_text(text)
-        one_line_error(["predict", p, "--model", MODEL], "malformed CSV")
+        one_line_error(["predict", p, "--model", MODEL], said)
 
 
 def test_csv_cell_over_the_field_limit_is_422_over_http():

@@ -251,3 +251,31 @@ def test_a_preloaded_restraint_pushes_from_its_first_touch():
     assert f[0] == 0.0
     assert f[1] == pytest.approx(k * 0.05e-3, rel=1e-3)
     assert f[2] == pytest.approx(k * 0.15e-3, rel=1e-6)
+
+
+def test_rig_preloaded_power_law_and_drifting_forcing():
+    """The rig's preloaded power law jumps to ``k d0 (p / d0)^n`` at touch and is the power
+    law of the compressed restraint beyond; a drifting shaker moves the response's peak."""
+    from dataclasses import replace
+
+    from independent_rig import _contact_force, simulate
+
+    run = RigRun("x.csv", 20.0, contact="preloaded_power_law", power_exponent=1.3,
+                 power_d0_mm=0.4, preload_mm=0.04, gap_mm=2.0)  # fmt: skip
+    k, d0, p = 20.0 * run.omega_n**2, 0.4e-3, 0.04e-3
+    x = np.array([1.999e-3, 2.0e-3 + 1e-12, 2.1e-3])
+    f = _contact_force(run, x, np.zeros(3))
+    assert f[0] == 0.0
+    assert f[1] == pytest.approx(k * d0 * (p / d0) ** 1.3, rel=1e-6)
+    assert f[2] == pytest.approx(k * d0 * ((0.1e-3 + p) / d0) ** 1.3, rel=1e-9)
+    # far from any impact (a gap of 1 m): the mass follows the shaker, whose frequency drifts
+    free = RigRun("f.csv", 20.0, gap_mm=1000.0, duration_s=20.0, fs_hz=200.0, noise=0.0)
+    _, a0 = simulate(free, transient_s=5.0)
+    _, a1 = simulate(replace(free, forcing_drift_hz_per_s=0.05), transient_s=5.0)
+
+    def peak_hz(a: np.ndarray) -> float:
+        spec = np.abs(np.fft.rfft(a[-2000:] * np.hanning(2000)))
+        return float(np.argmax(spec) * 200.0 / 2000)
+
+    assert peak_hz(a0) == pytest.approx(9.95, abs=0.15)
+    assert peak_hz(a1) > peak_hz(a0) + 0.6  # 9.95 + 0.05 x (5 + 15 ... 25 s) Hz

@@ -105,6 +105,31 @@ def test_csv_semicolon_separated(tmp_path):
     assert_error("comma-separated", path)
 
 
+def test_csv_tab_separated_is_said_so(tmp_path):
+    path = write_text(tmp_path / "s.csv", "t\taccel\n0\t1\n0.001\t2\n")
+    assert_error(r"its columns are separated by tabs, not commas: t, accel", path)
+
+
+def test_csv_a_file_of_zeros_is_refused_without_reading_it_whole(tmp_path):
+    path = tmp_path / "z.csv"
+    with open(path, "wb") as fh:  # sparse: a logger's file allocated and never written
+        fh.truncate(64 * 2**20)
+    assert_error("line 1 holds NUL bytes", path)
+    path.write_text("a" * 100_000 + "\n1,2\n")
+    assert_error("line 1 is longer than 65536 characters", path)
+
+
+def test_csv_trailing_unnamed_empty_columns_read_as_t_accel(tmp_path):
+    x = signal()
+    write_recording_csv(tmp_path / "plain.csv", x, 1000)
+    lines = (tmp_path / "plain.csv").read_text().splitlines()
+    path = write_text(tmp_path / "sheet.csv", "\r\n".join(line + ",," for line in lines) + "\r\n")
+    rec = read_recording(path)
+    assert rec.fs_hz == pytest.approx(1000) and np.array_equal(
+        rec.accel, read_recording(tmp_path / "plain.csv").accel
+    )
+
+
 def test_csv_non_numeric_cell_names_the_line(tmp_path):
     path = write_text(tmp_path / "x.csv", "t,accel\n0,1\n0.001,abc\n0.002,3\n")
     assert_error(r"line 3, column accel: 'abc' is not a number", path)
@@ -183,6 +208,27 @@ def test_csv_channel_names_the_acceleration_column(tmp_path):
     assert_error("either 'columns' or 'channel'", path, channel="accel", columns="t,accel")
     # without a choice: refused, naming its columns
     assert_error(r"its 3 columns: t, force, accel \(--channel NAME", path)
+
+
+def test_csv_hint_names_the_acceleration_column_never_the_first_two_of_several(tmp_path):
+    """A logger's sample counter and a force channel before the accelerometer: the hint
+    read them as time and acceleration (``--columns sample,force_N``)."""
+    path = tmp_path / "r.csv"
+    path.write_text("sample,force_N,accel_g\n0,1.5,0.1\n1,1.6,0.2\n")
+    assert_error(r"no time column \('sample' counts samples: it is not a time\): name its "
+                 r"columns: --columns accel_g and give the rate \(--fs HZ\)", path)  # fmt: skip
+    path.write_text("time_s,force,acc_z\n0,1,2\n0.001,1,2\n")
+    assert_error(r"name its columns: --columns time_s,acc_z; its 3 columns", path)
+    path.write_text("t,accel,accel_y\n0,1,2\n0.001,1,2\n")  # the default name among axes
+    assert_error(r"name its columns: --columns t,accel; its 3 columns", path)
+    path.write_text("t,ax,ay\n0,1,2\n0.001,1,2\n")  # two axes: the user picks
+    assert_error(r"name its columns: --columns TIME,ACCEL; its 3 columns", path)
+    # a channel named without a time column 't': how to read it with no time column
+    path.write_text("sample,force_N,accel_g\n0,1.5,0.1\n1,1.6,0.2\n")
+    said = r"no time column 't' in the header \(sample,force_N,accel_g\); .* without a time"
+    assert_error(said + " column --columns accel_g and give the rate", path, channel="accel_g")
+    rec = read_recording(path, columns="accel_g", fs_hz=2000.0)
+    assert rec.fs_hz == 2000.0 and rec.accel.tolist() == [0.1, 0.2]
 
 
 # --------------------------------------------------------------------------- NPY

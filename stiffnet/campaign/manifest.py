@@ -31,8 +31,8 @@ from pydantic import (
     model_validator,
 )
 
-from stiffnet.errors import StiffnetError
-from stiffnet.inputs import quote_content
+from stiffnet.errors import RateMismatch, StiffnetError
+from stiffnet.inputs import quote_content, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -130,6 +130,8 @@ class ManifestRow(BaseModel):
 
     #: Manifest line the row was read from (for messages); None when built in code.
     _line: int | None = PrivateAttr(None)
+    #: The row's f_n is its recording's sidecar's (the row left the column empty).
+    _fn_from_sidecar: bool = PrivateAttr(False)
 
     @field_validator("recording")
     @classmethod
@@ -215,6 +217,18 @@ class ManifestRow(BaseModel):
                 object.__setattr__(self, f"{col}_tol", float(tol))
         return self
 
+    def natural_frequency_source(self, manifest: str | os.PathLike[str]) -> str | None:
+        """Where the row's f_n comes from, as ``natural_frequency_source`` says it:
+        ``sidecar:<path>`` when the row took its recording's sidecar's, ``manifest:<where>``
+        when the row gives it, None when neither does."""
+        if self._fn_from_sidecar:
+            from stiffnet.recordings.sidecar import sidecar_path
+
+            return f"sidecar:{sidecar_path(Path(manifest).parent / self.recording)}"
+        if self.natural_frequency_hz is None:
+            return None
+        return "manifest:" + self.where(manifest)
+
     def where(self, manifest: str | os.PathLike[str] = MANIFEST_NAME) -> str:
         """``manifest: line N (recording)`` for messages about this row."""
         line = f"line {self._line} " if self._line is not None else ""
@@ -278,6 +292,9 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
+            # a spreadsheet's export keeps the empty columns right of the table: named by
+            # nobody, holding nothing, they are not columns (a value under one still is)
+            header = without_unnamed_tail(header)
             columns = _check_header(p, [c.strip().lower() for c in header], reader.line_num,
                                     header)  # fmt: skip
             rows: list[ManifestRow] = []
@@ -288,6 +305,8 @@ def read_manifest_with_columns(
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
                     continue
+                if len(cells) > len(columns) and not any(c.strip() for c in cells[len(columns) :]):
+                    cells = cells[: len(columns)]
                 try:
                     rows.append(_read_row(p, line, columns, cells, seen, folders))
                 except StiffnetError as exc:
@@ -379,6 +398,7 @@ def _read_row(
     if sidecar_fn is not None and row.natural_frequency_hz is None:
         # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
         row = _validate_row({**data, "natural_frequency_hz": sidecar_fn}, f"{p}: line {line}")
+        row._fn_from_sidecar = True
     row._line = line
     if row.recording in seen:
         raise StiffnetError(
@@ -603,13 +623,16 @@ class Campaign:
     def recording(self, key: int | str) -> Recording:
         """Read one recording with the row's ``fs_hz`` (and ``channel``)."""
         row = self.row(key)
-        return read_recording(
-            self.path(key),
-            fs_hz=row.fs_hz,
-            channel=row.channel,
-            columns=None if row.columns is None else row.columns.replace(";", ","),
-            time_unit=row.time_unit,
-        )
+        try:
+            return read_recording(
+                self.path(key),
+                fs_hz=row.fs_hz,
+                channel=row.channel,
+                columns=None if row.columns is None else row.columns.replace(";", ","),
+                time_unit=row.time_unit,
+            )
+        except RateMismatch as exc:  # the row gave the rate: say which line to mend
+            raise RateMismatch(f"{row.where(self.manifest_path)}, column fs_hz: {exc}") from None
 
     def recordings(self) -> Iterator[tuple[ManifestRow, Recording]]:
         """``(row, recording)`` pairs in manifest order, one file at a time."""
@@ -661,9 +684,26 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
     for row in rows:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
-            problems.append(f"{row.where(manifest)}: recording file not found: {path}")
+            problems.append(
+                f"{row.where(manifest)}: recording file not found: {path}{_case_hint(path)}"
+            )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+def _case_hint(path: Path) -> str:
+    """Where a missing recording has a twin differing only in letter case (a manifest typed
+    on Windows or macOS, whose file systems ignore case): the name to write."""
+    try:
+        twins = [q.name for q in path.parent.iterdir() if q.name.lower() == path.name.lower()]
+    except OSError:  # the folder is missing too: nothing to compare
+        return ""
+    if len(twins) != 1:
+        return ""
+    return (
+        f" (the folder holds {twins[0]!r}, which differs only in letter case: names are "
+        "case-sensitive here)"
+    )
 
 
 def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRow] | None:

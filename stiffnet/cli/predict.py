@@ -56,9 +56,12 @@ def predict(
     listed = campaign_row_of(recording)  # read once: the f_n below reuses it
     if listed is not None:  # its campaign's row, as predict-batch reads it (--fn or not)
         given = (fs, None, columns, time_unit, channel, sheet)
+        theirs = list(row_settings(listed[1]))
+        if columns is not None or channel is not None:
+            # --columns and --channel each say which column to read: the row's say no more
+            theirs[2] = theirs[4] = None
         fs, _, columns, time_unit, channel, sheet = (  # f_n: the sidecar's, else the row's
-            mine if mine is not None else theirs
-            for mine, theirs in zip(given, row_settings(listed[1]), strict=True)
+            mine if mine is not None else row for mine, row in zip(given, theirs, strict=True)
         )
     require_rate(recording, fs)  # before loading the model
     predictor = Predictor.load(model, threads=threads)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from stiffnet.errors import StiffnetError
+from stiffnet.errors import RateMismatch, StiffnetError
 from stiffnet.inputs import where_given
 
 if TYPE_CHECKING:
@@ -71,7 +71,7 @@ def check_agreement(file_fs: float, given_fs: float | None, message: str) -> flo
     `message` is the error's text when they disagree (it names where each came from).
     """
     if given_fs is not None and not rates_agree(file_fs, given_fs):
-        raise StiffnetError(message)
+        raise RateMismatch(message)
     return file_fs
 
 

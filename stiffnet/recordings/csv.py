@@ -27,8 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from stiffnet.errors import StiffnetError
-from stiffnet.inputs import columns_hint, quote_content, where_given
+from stiffnet.errors import RateMismatch, StiffnetError
+from stiffnet.inputs import columns_hint, quote_content, where_given, without_unnamed_tail
 from stiffnet.recordings.base import (
     Recording,
     RecordingReader,
@@ -53,6 +53,9 @@ TIME_JITTER_TOLERANCE = 0.2
 #: CSV files larger than this are parsed on several threads (smaller ones start faster
 #: on one: part of ``stiffnet predict``'s cold start).
 THREADED_CSV_BYTES = 8 * 2**20
+#: Longest first line read as a header: a header names a few columns, and a file without
+#: line ends must not be read whole to find where its first line ends.
+HEADER_MAX_CHARS = 2**16
 
 
 class CsvReader(RecordingReader):
@@ -242,18 +245,71 @@ def _refuse_a_manifest(name: str, names: list[str]) -> None:
 def _header_hint(header: list[str]) -> str:
     """How to read a file whose header is not ``t,accel``."""
     if len(header) == 1:
+        for sep, what in ((";", "';'"), ("\t", "tabs")):
+            names = [c.strip() for c in header[0].split(sep)]
+            if len(names) > 1 and all(map(_COLUMN_NAME.match, names)):
+                shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+                return (
+                    f" (its columns are separated by {what}, not commas: {shown}; save it "
+                    "comma-separated, with '.' as the decimal point)"
+                )
         return " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
         return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
-    time, accel = header[0].strip(), header[1].strip()
-    unit = None
-    low = time.lower()
-    for u in ("ms", "us"):
-        if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
-            unit = u
+    names = [c.strip() for c in header]
+    if len(names) > 2 and all(map(_COLUMN_NAME.match, names)):
+        # never propose the first two of several columns: a force or index column there
+        # would be read as the acceleration or the time
+        return _several_columns_hint(names)
+    time, accel = names[0], names[1]
+    unit = _time_unit_of(time)
     # column names are quoted only when they look like names (a secret's line does not)
     example = f"{time},{accel}" if all(map(_COLUMN_NAME.match, (time, accel))) else "TIME,ACCEL"
     return f"; {columns_hint(example, unit)}" + _channels_hint(header)
+
+
+#: Header names of a logger's sample counter: an index, not a time.
+_INDEX_NAMES = frozenset({"sample", "samples", "sample_index", "index", "idx", "n", "i", "row"})
+
+
+def _time_like(name: str) -> bool:
+    low = name.lower()
+    return low in ("t", "time") or low.startswith(("t_", "t ", "t[", "t(", "time"))
+
+
+def _accel_like(name: str) -> bool:
+    low = name.lower()
+    return low.startswith("acc") or low in ("a", "ax", "ay", "az") or low.startswith("a_")
+
+
+def _time_unit_of(name: str) -> str | None:
+    """The time unit a column's name carries (``time_ms``, ``t [us]``), if not seconds."""
+    low = name.lower()
+    for u in ("ms", "us"):
+        if low.endswith((f"_{u}", f"({u})", f"[{u}]", f" {u}")):
+            return u
+    return None
+
+
+def _several_columns_hint(names: list[str]) -> str:
+    """How to read a file of several named columns: the time and acceleration columns
+    chosen by their names (none by position), the rate asked for where no column is a time
+    (a sample counter is not one), the columns listed."""
+    time = next((c for c in names if _time_like(c)), None)
+    accels = [c for c in names if _accel_like(c)]
+    if CSV_COLUMNS[1] in accels:  # the default name among several axes
+        accels = [CSV_COLUMNS[1]]
+    listed = _channels_hint(names)
+    if len(accels) != 1:  # none, or several axes: the user picks
+        return f"; {columns_hint('TIME,ACCEL')}" + listed
+    if time is not None:
+        return f"; {columns_hint(f'{time},{accels[0]}', _time_unit_of(time))}" + listed
+    index = next((c for c in names if c.lower() in _INDEX_NAMES), None)
+    counter = f" ({index!r} counts samples: it is not a time)" if index else ""
+    rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+    return (
+        f"; no time column{counter}: {columns_hint(accels[0])} and give the rate ({rate})" + listed
+    )
 
 
 def _channels_hint(header: list[str]) -> str:
@@ -271,14 +327,26 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     name = str(p)
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:  # -sig: Excel's BOM
-            first = fh.readline()
+            # bounded: a file without line ends (zeros, a binary dump) would be read whole
+            first = fh.readline(HEADER_MAX_CHARS + 1)
     except UnicodeDecodeError:
         raise StiffnetError(f"{name}: not a UTF-8 text file (expected a CSV 't,accel')") from None
     if not first:  # a logger's failed copy or transfer, not a file without its header
         raise StiffnetError(f"{name}: the file is empty (0 bytes; expected 't,accel' on line 1)")
+    if "\x00" in first:  # a preallocated file never written, or a binary one
+        raise StiffnetError(
+            f"{name}: line 1 holds NUL bytes, not text (a binary file, or one allocated and "
+            "never written); expected a CSV 't,accel'"
+        )
+    if len(first) > HEADER_MAX_CHARS:
+        raise StiffnetError(
+            f"{name}: line 1 is longer than {HEADER_MAX_CHARS} characters, not a header "
+            "(expected 't,accel' on line 1)"
+        )
     if not first.strip():
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
-    raw = next(csv.reader([first]))
+    cells = next(csv.reader([first]))
+    raw = without_unnamed_tail(cells)
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
@@ -295,9 +363,18 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     has_header = not (
         all(isinstance(k, int) for k in layout.wanted) and all(_is_number(c) for c in raw)
     )
+    if has_header and layout.time == CSV_COLUMNS[0] and CSV_COLUMNS[0] not in header:
+        # the channel named the acceleration; the time column is the default 't'
+        rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+        raise StiffnetError(
+            f"{name}: no time column 't' in the header ({','.join(c.strip() for c in raw)}); "
+            f"{columns_hint(f'TIME,{layout.accel}')}, or without a time column "
+            f"{columns_hint(str(layout.accel)).removeprefix('name its columns').lstrip(': ')} "
+            f"and give the rate ({rate})"
+        )
     index = [_column_index(k, header if has_header else None, len(raw), name)
              for k in layout.wanted]  # fmt: skip
-    names = [f"c{i}" for i in range(len(raw))]
+    names = [f"c{i}" for i in range(len(cells))]  # the unnamed tail too: every row has it
     wanted = [names[i] for i in index]
     import pyarrow as pa
     import pyarrow.csv as pacsv
@@ -338,7 +415,7 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         for factor, (word, unit) in _UNIT_FACTORS.items():
             if rates_agree(fs * factor, fs_hz):
                 hint = f" (is the time in {word}? give time unit {unit})"
-        raise StiffnetError(
+        raise RateMismatch(
             f"{name}: column {tname} gives fs = {fs:.6g} Hz but fs_hz = {fs_hz:.6g} Hz "
             f"was given{hint}"
         )

@@ -95,5 +95,5 @@ def natural_frequency_of(
             listed = campaign_row_of(recording)
         if listed is not None and listed[1].natural_frequency_hz is not None:
             manifest, row = listed
-            return row.natural_frequency_hz, "manifest:" + row.where(manifest)
+            return row.natural_frequency_hz, row.natural_frequency_source(manifest)
     return None, "unknown"
