@@ -322,16 +322,22 @@ class StiffnessLogger:
             sensor_fitted=self.check_sheet_fitted,
         )  # fmt: skip
         if not self.check_chain_known:
-            self._hold_chain(check.get("sensor"), t)
+            self._hold_chain(check.get("sensor"), t, read=check.get("beta") is not None)
         return check
 
-    def _hold_chain(self, sensor: dict[str, Any] | None, t: float) -> None:
+    def _hold_chain(self, sensor: dict[str, Any] | None, t: float, read: bool = True) -> None:
         """Rule: the chain a check fitted (``source: "fitted"``; none is fitted where the
         contact law explains enough as recorded) is the record's from then on: its resonance
         and low-pass as a data sheet with the high-pass corner it read, or, where it applied
-        none, no stage and that corner. A stage found after the start, which the model does
-        not divide out, is said in the warnings."""
+        none, no stage and that corner. A fit the check rejected where it could not read the
+        record at all (`read` false: a start-up's transient, no steady impacts yet) says
+        nothing of the sensor, and a later check decides: held, it left a mounted drilling
+        record as recorded throughout (a 240 Hz mount's layer of beta 60 read 92.5, every
+        check refused). A stage found after the start, which the model does not divide out,
+        is said in the warnings."""
         if not sensor or sensor.get("source") != "fitted":
+            return
+        if not read and sensor.get("applied") is False:
             return
         self.check_chain_known = True
         stages = identified(sensor)

@@ -453,6 +453,31 @@ def test_a_chain_found_after_the_records_start_is_held_and_said(predictor):
     assert not log.warnings
 
 
+def test_a_fit_rejected_by_a_check_that_read_nothing_leaves_the_chain_to_a_later_check(
+    predictor, monkeypatch
+):
+    """A drilling record's start-up (no steady impacts yet) fits a chain it rejects and reads
+    no beta: that says nothing of the sensor, so the next check's fit is the record's. Held,
+    it had left a record behind a 240 Hz mount as recorded throughout (a beta-60 layer read
+    92.5 by the model, every check refused)."""
+    import serving.log as log_module
+
+    start = {"beta": None, "sensor": {"source": "fitted", "applied": False, "lowpass_hz": 64.5,
+             "lowpass_order": 3, "resonance_hz": None, "highpass_hz": 0.0}}  # fmt: skip
+    steady = {"beta": 60.0, "sensor": {"source": "fitted", "applied": True, "lowpass_hz": 416.0,
+              "lowpass_order": 3, "resonance_hz": 240.4, "resonance_damping": 0.05,
+              "highpass_hz": 0.0}}  # fmt: skip
+    checks = iter([start, steady])
+    monkeypatch.setattr(log_module, "restoring_force_check", lambda *a, **k: next(checks))
+    log = StiffnessLogger(predictor, FS, FN_HZ)
+    seg = np.zeros(log.n_win)
+    log._check(seg, 0.0)
+    assert not log.check_chain_known and log.check_sheet is None
+    log._check(seg, 9.3)
+    assert log.check_chain_known and log.check_sheet["resonance_hz"] == pytest.approx(240.4)
+    assert log.found_late is not None and log.found_late[1] == 9.3
+
+
 def test_the_whole_records_chain_scan_shows_its_own_progress(predictor):
     """The scan for a chain runs every check before the log's first point: a progress line
     of its own counts them (the log's bar would otherwise wait at zero, silent)."""
