@@ -73,6 +73,24 @@ def test_the_sidecar_fills_a_row_without_f_n_before_its_units_convert(tmp_path):
     assert assumed_natural_frequency(load_campaign(camp)) is None
 
 
+def test_diagnoses_units_say_the_f_n_came_from_the_sidecars(tmp_path):
+    """A diagnosis's scale names where f_n was read: a campaign whose f_n is only in its
+    recordings' sidecars said "from the manifest", a column the manifest lacks."""
+    from stiffnet.measurement.report_units import Scale
+
+    header = "recording,fs_hz,forcing_frequency_hz,base_acceleration_g,gap_mm,beta"
+    camp = _campaign(tmp_path, header, "rec/run.csv,1000,14.9,1.7,2.8,45", 14.2)
+    rows = read_manifest(camp / "manifest.csv")
+    said = Scale.of(rows).said()
+    assert "f_n = 14.2 Hz from the recordings' sidecars: times" in said
+    given = _campaign(
+        tmp_path / "b", "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,9.48", None
+    )
+    assert (
+        "f_n = 9.48 Hz from the manifest:" in Scale.of(read_manifest(given / "manifest.csv")).said()
+    )
+
+
 def test_rows_without_f_n_are_said(tmp_path):
     camp = _campaign(tmp_path, "recording,fs_hz,beta", "rec/run.csv,1000,45", None)
     said = assumed_natural_frequency(load_campaign(camp))

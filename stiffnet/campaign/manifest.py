@@ -217,11 +217,16 @@ class ManifestRow(BaseModel):
                 object.__setattr__(self, f"{col}_tol", float(tol))
         return self
 
+    @property
+    def natural_frequency_from_sidecar(self) -> bool:
+        """Whether the row's f_n is its recording's sidecar's (the manifest gave none)."""
+        return self._fn_from_sidecar
+
     def natural_frequency_source(self, manifest: str | os.PathLike[str]) -> str | None:
         """Where the row's f_n comes from, as ``natural_frequency_source`` says it:
         ``sidecar:<path>`` when the row took its recording's sidecar's, ``manifest:<where>``
         when the row gives it, None when neither does."""
-        if self._fn_from_sidecar:
+        if self.natural_frequency_from_sidecar:
             from stiffnet.recordings.sidecar import sidecar_path
 
             return f"sidecar:{sidecar_path(Path(manifest).parent / self.recording)}"

@@ -74,6 +74,7 @@ class Scale:
     length_mm: bool = False
     frequency_note: str = "the manifest gives no natural_frequency_hz"
     length_note: str = "no manifest column is in mm or g"
+    frequency_from: str = "the manifest"
 
     @classmethod
     def of(cls, rows: Sequence[Any]) -> Scale:
@@ -93,7 +94,7 @@ class Scale:
         l_note = "" if mm else cls.length_note
         if any(has) and not mm:
             l_note = "only some rows give a length in mm or g"
-        return cls(f_n, mm, f_note, l_note)
+        return cls(f_n, mm, f_note, l_note, _frequency_from(rows))
 
     def model_time_s(self) -> float | None:
         """One model time unit in seconds, ``1 / (2 pi f_n)`` (None without ``f_n``)."""
@@ -102,7 +103,7 @@ class Scale:
 
     def said(self) -> str:
         """The scale in words (the line under the terminal table, the report's note)."""
-        freq = (f"f_n = {self.natural_frequency_hz:g} Hz from the manifest: times in s, "
+        freq = (f"f_n = {self.natural_frequency_hz:g} Hz from {self.frequency_from}: times in s, "
                 "frequencies in Hz" if self.natural_frequency_hz is not None else
                 f"model units for times and frequencies ({self.frequency_note}; the simulator "
                 "assumed the paper's 9.48 Hz)")  # fmt: skip
@@ -116,6 +117,15 @@ class Scale:
             "length_unit": "mm" if self.length_mm else "model length",
             "said": self.said(),
         }
+
+
+def _frequency_from(rows: Sequence[Any]) -> str:
+    """Where the rows' f_n was read: the manifest's column, the recordings' sidecars (the
+    manifest gave none), or both."""
+    sidecar = [bool(getattr(r, "natural_frequency_from_sidecar", False)) for r in rows]
+    if sidecar and all(sidecar):
+        return "the recordings' sidecars"
+    return "the manifest and the recordings' sidecars" if any(sidecar) else "the manifest"
 
 
 @dataclass(frozen=True)
