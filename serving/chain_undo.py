@@ -103,6 +103,19 @@ def chain_to_undo(
     return chain if chain.has_dynamics or chain.highpass_hz > 0 else None
 
 
+def trained_undo_chain(card: dict | None) -> str | None:
+    """The undo mode a model's card asks for (its training config's ``undo_chain``), None
+    where it names none.
+
+    A model trained behind a campaign's own fitted chain (the loop's, its priors centred on
+    that chain) has learned to read through it: the record with the chain divided out lies
+    outside its world (the loop's GBM on a two-stage campaign behind a 240 Hz mount read
+    β >= 60 35 % low with the chain undone, within 10 % as recorded; docs/measurement_loop.md).
+    """
+    mode = ((card or {}).get("config") or {}).get("undo_chain")
+    return str(mode) if mode else None
+
+
 def sensor_prior_highpass_top(priors: dict | None) -> float:
     """The highest high-pass corner (Hz) of the model's sensor prior (the card's
     ``data.priors``; infinity where the card gives none: every corner counts as inside)."""

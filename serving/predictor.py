@@ -13,7 +13,9 @@ Imports numpy, scipy, onnxruntime, pydantic and stiffnet's numpy-only modules
    The restoring-force cross-check (step 4) runs next: where it identified the sensor
    chain, or was given its data sheet, the model reads the record with that chain's
    resonance and low-pass divided out (:mod:`serving.chain_undo`, ``undo_chain``;
-   ``chain_undone`` in the result), and so do the interval and the alarm.
+   ``chain_undone`` in the result), and so do the interval and the alarm. A model whose
+   card names its own mode (the loop's, trained behind the campaign's fitted chain:
+   ``outside_priors``) is read that way.
 2. **Windows** of ``window_periods`` natural periods (16) at the recording's
    rate, non-overlapping (:func:`stiffnet.features.windows.window_length`, the
    dataset's rule), windows constant on their own dropped with a warning.
@@ -55,7 +57,7 @@ from serving.chain_spread import (
     plausible_chains,
     spread_interval,
 )
-from serving.chain_undo import UNDO_MODES, chain_as_read, model_record
+from serving.chain_undo import UNDO_MODES, chain_as_read, model_record, trained_undo_chain
 from serving.checks import MIN_SAMPLES_PER_PERIOD, checked_recording
 from serving.log import (
     DEFAULT_HOP_S,
@@ -205,11 +207,12 @@ class Predictor:
         alarm: AlarmReference | None = None,
         segment_windows: int = SEGMENT_WINDOWS,
         geometric_windows: int = GEOMETRIC_WINDOWS,
-        undo_chain: str = UNDO_CHAIN,
+        undo_chain: str | None = None,
         chain_spread: ChainSpreadConfig | None = None,
     ) -> None:
         from stiffnet.geometry.calibration import load_calibration
 
+        undo_chain = undo_chain or trained_undo_chain(model.card) or UNDO_CHAIN
         if undo_chain not in UNDO_MODES:
             raise StiffnetError(f"undo_chain must be one of {', '.join(UNDO_MODES)}")
         self.undo_chain = undo_chain
@@ -256,7 +259,7 @@ class Predictor:
         *,
         threads: int = 1,
         ood_reference: str | Path | None = None,
-        undo_chain: str = UNDO_CHAIN,
+        undo_chain: str | None = None,
         chain_spread: ChainSpreadConfig | None = None,
     ) -> Predictor:
         """Verify and load a model (default ``models/cnn.onnx``) and its OOD reference.
@@ -273,7 +276,8 @@ class Predictor:
             the repository's ``models/`` (no alarm without one).
         undo_chain : str, optional
             Which identified sensor chain the model reads undone, one of
-            :data:`serving.chain_undo.UNDO_MODES` (default :data:`UNDO_CHAIN`).
+            :data:`serving.chain_undo.UNDO_MODES` (default: the model card's, else
+            :data:`UNDO_CHAIN`; :func:`trained_undo_chain`).
         chain_spread : ChainSpreadConfig, optional
             Which other chains a fitted chain stands for in the interval
             (:mod:`serving.chain_spread`; default ``configs/chain_spread.yaml``).

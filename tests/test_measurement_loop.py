@@ -128,6 +128,24 @@ def test_two_iterations_with_resume(looped):
         assert cpu["dataset"] + cpu["train"] + cpu["evaluation"] <= cpu["total"] + 0.03, cpu
 
 
+def test_a_model_trained_behind_the_fitted_chain_reads_through_it(looped):
+    # from +sensor_dynamics on, the world holds the campaign's fitted chain: those models
+    # read the record with the stages inside their priors left in; iteration 0's world has
+    # no fitted chain and keeps the predictor's default (every identified stage undone)
+    from serving.predictor import UNDO_CHAIN, Predictor
+
+    state = looped["state"]
+    modes = [
+        Predictor.load(state / f"iter-{k:03d}" / "model" / "gbm.onnx").undo_chain for k in range(3)
+    ]
+    assert modes == [UNDO_CHAIN, loop_mod.FITTED_CHAIN_UNDO, loop_mod.FITTED_CHAIN_UNDO]
+    assert loop_mod.FITTED_CHAIN_UNDO == "outside_priors" != UNDO_CHAIN
+    # the user's own setting wins
+    state_user = {"train_overrides": {"undo_chain": "off"}}
+    fitted = [{"name": "sensor_dynamics"}]
+    assert loop_mod.iteration_train_overrides(state_user, fitted) == {"undo_chain": "off"}
+
+
 def test_config_yaml_per_iteration_is_a_valid_simulator_config(looped):
     state = looped["state"]
     cfgs = [
@@ -253,6 +271,24 @@ def test_bad_loop_options_are_one_line(two_effects, tmp, args, needle):
     assert res.exit_code == 2, res.output
     assert needle in res.output and "Traceback" not in res.output
     assert not state.exists()
+
+
+def test_keep_data_reaches_the_loop(two_effects, tmp, monkeypatch):
+    from stiffnet.cli import app
+
+    seen = {}
+
+    def stop(*_args, **kwargs):
+        seen.update(kwargs)
+        raise StiffnetError("stopped before any work")
+
+    monkeypatch.setattr(loop_mod, "run_loop", stop)
+    args = ["loop", str(two_effects), "--state", str(tmp / "kept"), "--no-tracking"]
+    res = CliRunner().invoke(app, [*args, "--keep-data"])
+    assert res.exit_code == 2 and "stopped before any work" in res.output, res.output
+    assert seen["keep_data"] is True
+    CliRunner().invoke(app, args)
+    assert seen["keep_data"] is False
 
 
 def test_field_campaign_without_beta(two_effects, tmp):

@@ -210,3 +210,24 @@ def test_the_default_undoes_the_chain_and_a_bad_mode_is_one_line():
     assert UNDO_CHAIN == "chain"
     with pytest.raises(StiffnetError, match="^undo_chain must be one of off, chain,"):
         Predictor.load(undo_chain="everything")
+
+
+def test_a_model_whose_card_names_its_undo_mode_is_read_that_way():
+    # a model trained behind the campaign's own fitted chain (the loop's card says
+    # undo_chain: outside_priors) reads a chain inside its priors as recorded; a card
+    # naming nothing keeps the predictor's default, and the caller's mode wins over both
+    import dataclasses
+
+    from serving.model import load_model
+    from serving.predictor import Predictor
+
+    model = load_model()
+    card = {**model.card, "config": {**model.card["config"], "undo_chain": "outside_priors"}}
+    own = dataclasses.replace(model, card=card)
+    sheet = {"resonance_hz": 20 * FN, "resonance_damping": 0.05}  # the model saw 15 f_n and up
+    a = rig_record(40.0, sheet)
+    as_card = Predictor(own, None).predict(a, FS, natural_frequency_hz=FN, sensor=sheet)
+    default = Predictor(model, None).predict(a, FS, natural_frequency_hz=FN, sensor=sheet)
+    assert as_card["chain_undone"] is None
+    assert default["chain_undone"]["resonance_hz"] == pytest.approx(20 * FN)
+    assert Predictor(own, None, undo_chain="chain").undo_chain == "chain"

@@ -37,6 +37,11 @@ def test_default_yaml_restates_defaults():
         validate_config(TrainConfig, {"test_fraction": 1.5})
     with pytest.raises(ConfigError, match="learning_rate"):
         validate_config(TrainConfig, {"gbm": {"learning_rate": 0}})
+    with pytest.raises(ConfigError, match="undo_chain must be one of off, chain"):
+        validate_config(TrainConfig, {"undo_chain": "everything"})
+    assert validate_config(TrainConfig, {"undo_chain": "outside_priors"}).undo_chain == (
+        "outside_priors"
+    )
 
 
 def test_trajectory_split_has_no_leakage():

@@ -62,6 +62,13 @@ class TrainConfig(BaseModel):
         description="noise levels: exactly the first, then (prev, edge] bins, then > last",
     )
     n_jobs: int = Field(1, ge=-1, le=256, description="feature-extraction processes (-1: all)")
+    undo_chain: str | None = Field(
+        None,
+        description="which identified sensor chain the predictor divides out of a record "
+        "before this model reads it (one of serving.chain_undo.UNDO_MODES; written to the "
+        "card); none: the predictor's default. A model trained behind a campaign's own fitted "
+        "chain (the loop's) reads it as recorded: 'outside_priors'",
+    )
     tracking: bool = Field(True, description="log the run to MLflow")
     tracking_uri: str = Field("sqlite:///mlflow.db", min_length=1)
     experiment: str | None = Field(
@@ -115,6 +122,11 @@ class TrainConfig(BaseModel):
             raise ValueError("noise_bins must be increasing")
         if self.n_jobs == 0:
             raise ValueError("n_jobs must be -1 or >= 1")
+        if self.undo_chain is not None:
+            from serving.chain_undo import UNDO_MODES
+
+            if self.undo_chain not in UNDO_MODES:
+                raise ValueError(f"undo_chain must be one of {', '.join(UNDO_MODES)}")
         if self.experiment is None:
             self.experiment = f"stiffnet-{self.model}"
         if self.registered_model is None:

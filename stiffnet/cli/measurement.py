@@ -581,6 +581,7 @@ def loop(
             seed=seed,
             candidates=list(effect) if effect else None,
             world=_loop_world(operating_points, sweep or envelope),
+            keep_data=keep_data,
         )
     out.print(loop_table(res, campaign))
     if res["stopped"]:
