@@ -337,3 +337,17 @@ def exponent_matters(linear: ContactLaw, free: ContactLaw, level: float = 1e-3) 
         return False
     f_stat = (linear.sse - free.sse) / max(free.sse / dof, 1e-300)
     return bool(f_stat > stats.f.ppf(1.0 - level, 1, dof))
+
+
+def equivalent_linear_band(exponent: float) -> tuple[float, float]:
+    """Rule: the linear springs a power law ``F = K d_r (d / d_r)^p`` stands for at its
+    reference penetration ``d_r``, as factors of its secant stiffness ``K`` there.
+
+    A stiffening contact has no one stiffness, and the record does not say which linear
+    spring its beta should be (a manifest's may be a secant at another penetration, a tangent,
+    an energy match): at the impacts' own penetration the spring that stores the same energy
+    is ``2 / (p + 1) K`` and the one of the same slope ``p K``; the secant (the same force)
+    lies between. The linear law (``p = 1``) gives ``(1, 1)``.
+    """
+    p = max(float(exponent), 1.0)
+    return 2.0 / (p + 1.0), p

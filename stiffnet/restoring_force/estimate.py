@@ -59,6 +59,7 @@ from stiffnet.restoring_force.chain import (
 )
 from stiffnet.restoring_force.contact_law import (
     ContactLaw,
+    equivalent_linear_band,
     exponent_matters,
     fit_contact_law,
     linear_contact_start,
@@ -1325,6 +1326,16 @@ def _estimate_at(
                               f"flight scatters {1 - lines.fit.sigma / fit.sigma:.0%} less; "
                               f"the record's own state reads {beta:.3g})")  # fmt: skip
                 beta, lo, hi = beta_l, min(lo, lo_l), max(hi, hi_l)
+    law_note = ""
+    if interval and stage_ratio is None and hc is None and poles is None and m.law.exponent > 1:
+        # a stiffening law's beta is a convention (the secant at the impacts' median peak
+        # penetration): the interval spans the linear springs the law stands for there
+        low, high = equivalent_linear_band(m.law.exponent)
+        lo, hi = min(lo, beta * low), max(hi, beta * high)
+        law_note = (f"; a power law (exponent {m.law.exponent:.2f}): beta is its secant "
+                    f"stiffness at the impacts' median peak penetration, the interval spans "
+                    f"the linear springs of its energy (x{low:.2f}) to its slope (x{high:.2f}) "
+                    "there")  # fmt: skip
     if stage_ratio is None and hc is None:
         why = _map_below_classes(beta, beta_min, carried)
         soft = soft_reading(why) if why else None
@@ -1356,7 +1367,7 @@ def _estimate_at(
         contact_damping_ratio=damping_ratio,
         exponent=m.exponent,
         fitted_natural_frequency_hz=fitted_fn,
-        reason=_reason(law, n_imp, spc, poles, staged, hc) + lines_note,
+        reason=_reason(law, n_imp, spc, poles, staged, hc) + lines_note + law_note,
         staged=staged,
         beyond_knee_interval=beyond,
         hunt_crossley=hc,
