@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from stiffnet.restoring_force import restoring_force_estimate
-from stiffnet.restoring_force.chain import SensorChain, identifiability
+from stiffnet.restoring_force.band import fitted_lowpass_refusal
+from stiffnet.restoring_force.chain import SensorChain
 from stiffnet.restoring_force.contact_law import equivalent_linear_band
 from tests.independent_rig import G, RigRun, record
 
@@ -72,28 +72,27 @@ def test_a_linear_contacts_interval_gets_no_band():
     assert 0.85 * r.beta < lo <= r.beta <= hi < 1.15 * r.beta
 
 
-def test_a_fitted_contact_whose_interval_reaches_the_lowpass_is_refused():
-    """A fitted chain's contact and low-pass come from the same pulses: a contact of 52 Hz
-    whose interval reaches 116 Hz behind a fitted 81 Hz low-pass is not shown to pass it."""
-    chain = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0,
-                        intervals={"contact_hz": [23.0, 116.0]})  # fmt: skip
-    why = identifiability(chain)
-    assert why.startswith("the low-pass at 81 Hz is below the contact's frequency 116 Hz")
-    assert why.endswith("beta is not identifiable from this sensor")
-    tight = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0,
-                        intervals={"contact_hz": [49.0, 56.0]})  # fmt: skip
-    assert identifiability(tight) == ""
-    # a data sheet's low-pass is judged by the band rule, not by a fitted interval
-    sheet = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0, source="data sheet",
-                        intervals={"contact_hz": [23.0, 116.0]})  # fmt: skip
-    assert identifiability(sheet) == ""
+def test_a_fitted_lowpass_below_the_top_of_betas_interval_is_refused():
+    """A fitted chain's contact and low-pass come from the same pulses: where the betas the
+    reading leaves open reach a contact above the fitted low-pass, the band is not shown to
+    pass it. A data sheet's low-pass is judged by the band rule instead."""
+    chain = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0)
+    why = fitted_lowpass_refusal(chain, FN, 85.9)  # f_n sqrt(86.9) = 88 Hz
+    assert why.startswith("the low-pass at 81 Hz is below the contact's frequency at the top")
+    assert "(88 Hz)" in why and why.endswith("beta is not identifiable from this sensor")
+    assert fitted_lowpass_refusal(chain, FN, 48.2) == ""  # up to 66 Hz: passed
+    sheet = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0, source="data sheet")
+    assert fitted_lowpass_refusal(sheet, FN, 85.9) == ""
+    rejected = SensorChain(lowpass_hz=81.0, lowpass_order=4, contact_hz=52.0, applied=False)
+    assert fitted_lowpass_refusal(rejected, FN, 85.9) == ""
 
 
 def test_a_third_order_lowpass_just_above_the_contact_is_refused_not_read_in_the_wrong_class():
     """bench_crosscheck's sensor_chains #6 (seed 20261123 + 5): beta 46.8 (contact 65.5 Hz)
     behind a 71 Hz 3rd-order low-pass and a 266 Hz mount. With the stiffening contact the
     chain fit took an 81 Hz low-pass behind a 52 Hz contact of damping 0.87 (interval
-    23-116 Hz) and read 33.4 [13.4, 85.9], medium for hard, unflagged; now refused."""
+    23-116 Hz) and read 33.4 [13.4, 85.9], medium for hard, unflagged; now refused: the
+    top of that interval is an 88 Hz contact."""
     from bench_crosscheck import RIG_SETS, SETS, simulate_set
 
     rows, fs, beta, _, _ = simulate_set("sensor_chains", 8, 20261123 + [*SETS, *RIG_SETS].index(
@@ -105,4 +104,3 @@ def test_a_third_order_lowpass_just_above_the_contact_is_refused_not_read_in_the
     else:
         assert "beta is not identifiable from this sensor" in r.reason or "contacts last" in (
             r.reason)  # fmt: skip
-    assert np.isfinite(beta[6])

@@ -292,3 +292,26 @@ def lowpass_refusal(chain: SensorChain, natural_hz: float, beta_low: float) -> s
         f"the low-pass at {fl:.0f} Hz is below the contact's frequency {fc:.0f} Hz (at least "
         f"{lowest:.0f} Hz): beta is not identifiable from this sensor"
     )
+
+
+def fitted_lowpass_refusal(chain: SensorChain | None, natural_hz: float, beta_high: float) -> str:
+    """Rule: the one-line refusal where a fitted, applied chain's low-pass sits below the
+    contact at the top of the reading's interval, else ''.
+
+    A fitted chain's contact and low-pass are read from the same pulses, and the fit can
+    trade the contact's speed for its damping (a 71 Hz 3rd-order low-pass in front of a
+    66 Hz elastic contact fitted as an 81 Hz low-pass behind a 52 Hz contact of damping
+    0.87). Where the betas the reading leaves open reach a contact above that low-pass
+    (``f_n sqrt(1 + beta_high)``), the band is not shown to pass the contact, the reverse of
+    a data sheet's (:func:`lowpass_refusal`, which knows its corner and refuses only where
+    even the interval's low end lies beyond it).
+    """
+    if chain is None or chain.source != "fitted" or not chain.applied or not chain.lowpass_hz:
+        return ""
+    top = natural_hz * np.sqrt(1.0 + max(beta_high, 0.0))
+    if not np.isfinite(top) or chain.lowpass_hz >= MIN_LOWPASS_RATIO * top:
+        return ""
+    return (
+        f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency at the "
+        f"top of beta's interval ({top:.0f} Hz): beta is not identifiable from this sensor"
+    )

@@ -483,27 +483,14 @@ def deconvolve(y: np.ndarray, fs_hz: float, chain: SensorChain, noise_sigma: flo
 
 
 def identifiability(chain: SensorChain) -> str:
-    """Rule: the one-line refusal where the low-pass does not pass the contact, else ''.
-
-    A fitted chain's contact and low-pass are read from the same pulses: where the contact
-    frequency's interval reaches the low-pass, the fit has not told the two apart (it can
-    trade the contact's speed for damping: a 71 Hz 3rd-order low-pass in front of a 66 Hz
-    elastic contact fitted as an 81 Hz low-pass behind a 52 Hz contact of damping 0.87,
-    interval 23-116 Hz), so the band is not shown to pass the contact either."""
-    fl, fc = chain.lowpass_hz, chain.contact_hz
-    if not fl or not fc:
-        return ""
-    reach = fc
-    if chain.source == "fitted":
-        reach = max(fc, float((chain.intervals or {}).get("contact_hz", (fc, fc))[1]))
-    if fl >= MIN_LOWPASS_RATIO * reach:
-        return ""
-    at = f"{fc:.0f} Hz" if fl < MIN_LOWPASS_RATIO * fc else (
-        f"{reach:.0f} Hz at the top of its interval (fitted {fc:.0f} Hz)")  # fmt: skip
-    return (
-        f"the low-pass at {fl:.0f} Hz is below the contact's frequency {at}: "
-        "beta is not identifiable from this sensor"
-    )
+    """Rule: the one-line refusal where the low-pass does not pass the contact, else ''."""
+    if chain.lowpass_hz and chain.contact_hz:
+        if chain.lowpass_hz < MIN_LOWPASS_RATIO * chain.contact_hz:
+            return (
+                f"the low-pass at {chain.lowpass_hz:.0f} Hz is below the contact's frequency "
+                f"{chain.contact_hz:.0f} Hz: beta is not identifiable from this sensor"
+            )
+    return ""
 
 
 # --- the joint fit ----------------------------------------------------------------------

@@ -41,6 +41,7 @@ from stiffnet.geometry.calibration import DEFAULT_CLASSES, NO_CONTACT, beta_clas
 from stiffnet.restoring_force.band import (
     band_passes_contacts,
     chain_free_reading,
+    fitted_lowpass_refusal,
     kept_band,
     lowpass_refusal,
     smoothed_away_refusal,
@@ -1326,16 +1327,6 @@ def _estimate_at(
                               f"flight scatters {1 - lines.fit.sigma / fit.sigma:.0%} less; "
                               f"the record's own state reads {beta:.3g})")  # fmt: skip
                 beta, lo, hi = beta_l, min(lo, lo_l), max(hi, hi_l)
-    law_note = ""
-    if interval and stage_ratio is None and hc is None and poles is None and m.law.exponent > 1:
-        # a stiffening law's beta is a convention (the secant at the impacts' median peak
-        # penetration): the interval spans the linear springs the law stands for there
-        low, high = equivalent_linear_band(m.law.exponent)
-        lo, hi = min(lo, beta * low), max(hi, beta * high)
-        law_note = (f"; a power law (exponent {m.law.exponent:.2f}): beta is its secant "
-                    f"stiffness at the impacts' median peak penetration, the interval spans "
-                    f"the linear springs of its energy (x{low:.2f}) to its slope (x{high:.2f}) "
-                    "there")  # fmt: skip
     if stage_ratio is None and hc is None:
         why = _map_below_classes(beta, beta_min, carried)
         soft = soft_reading(why) if why else None
@@ -1350,6 +1341,20 @@ def _estimate_at(
         hi = max([hi, *(b * hi / beta for b in at)])
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
+    # where the reading's betas reach a contact above the low-pass the fit chose for it
+    beyond = fitted_lowpass_refusal(info["sensor"], info["natural_frequency_hz"], hi)
+    if interval and beyond:
+        return _refuse(beyond, **{**info, "restoring_force_class": None})
+    law_note = ""
+    if interval and stage_ratio is None and hc is None and poles is None and m.law.exponent > 1:
+        # a stiffening law's beta is a convention (the secant at the impacts' median peak
+        # penetration): the interval spans the linear springs the law stands for there
+        low, high = equivalent_linear_band(m.law.exponent)
+        lo, hi = min(lo, beta * low), max(hi, beta * high)
+        law_note = (f"; a power law (exponent {m.law.exponent:.2f}): beta is its secant "
+                    f"stiffness at the impacts' median peak penetration, the interval spans "
+                    f"the linear springs of its energy (x{low:.2f}) to its slope (x{high:.2f}) "
+                    "there")  # fmt: skip
     fitted_fn = None if k_given is not None else ff * float(np.sqrt(fit.stiffness))
     cls = str(beta_class(np.array([beta]), classes)[0])
     law, n_imp, spc = m.law, m.n_impacts, m.spc
