@@ -9,6 +9,7 @@ together. The fast tests use samples written from a known law.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -139,6 +140,23 @@ def test_power_law_beta_is_referred_to_the_manifests_penetration():
 def test_too_few_recordings_is_one_clear_error():
     with pytest.raises(StiffnetError, match="needs the impacts of 2 recordings"):
         discover_contact_law(synthetic_samples({}, 0.03)[:1])
+
+
+def test_impacts_too_deep_for_a_record_in_g_are_one_clear_refusal():
+    """A campaign whose accelerometer writes m/s^2 read as g: every length 9.81 times too
+    deep. Impacts about 2 mm deep (a soft contact in series with a beam's tip) then read a
+    reference penetration beyond what the learned law accepts (10), and the discovery says
+    so in one line instead of handing diagnose a law its effect refuses."""
+    scale = 9.80665 * 2.0 / 0.3  # the samples' median peak is 0.3: 2 mm, then m/s^2
+    deep = [
+        replace(s, displacement=s.displacement * scale, velocity=s.velocity * scale,
+                force=s.force * scale, onset=s.onset * scale)
+        for s in synthetic_samples({}, 0.03)
+    ]  # fmt: skip
+    with pytest.raises(StiffnetError, match=r"penetration reads 19 .*not in g"):
+        discover_contact_law(deep, n_boot=0)
+    # in g the same impacts are read
+    assert discover_contact_law(synthetic_samples({}, 0.03), n_boot=0).terms == ()
 
 
 def _power_coefficient(law):

@@ -9,6 +9,7 @@ law back in model units (1 mm, time 1/omega_n) through the restoring-force maps.
 from __future__ import annotations
 
 import math
+import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -123,3 +124,30 @@ def test_cantilever_tip_modes_are_euler_bernoulli():
     compliance = np.cumsum([1 / (m * f**2) for m, f in modes])
     assert compliance[0] == pytest.approx(static * 0.971, rel=1e-3)
     assert compliance[2] == pytest.approx(static, rel=2e-3)
+
+
+def test_samples_of_a_campaign_in_m_s2_are_read_in_its_unit(tmp_path):
+    """A record's unit is arbitrary (docs/campaign.md) but the samples' lengths scale with it:
+    the same two-stage recordings written in m/s^2 were read 9.81 times deeper as if in g (a
+    knee of 0.3 mm at 2.9). The table's motion against the manifest's forcing measures the
+    unit, and the samples are read in it (a note says so)."""
+    points = POINTS[2:5]
+    folder = write_campaign(tmp_path / "g", _runs(points, 3.0, contact="two_stage",
+                                                  knee_mm=0.3, stage_ratio=3.0))  # fmt: skip
+    ms2 = tmp_path / "ms2"
+    shutil.copytree(folder, ms2)
+    for f in (ms2 / "rec").glob("*.csv"):
+        t, a = np.loadtxt(f, delimiter=",", skiprows=1, unpack=True)
+        np.savetxt(f, np.c_[t, a * 9.80665], delimiter=",", header="t,accel", comments="")
+    read = {}
+    for name, path in (("g", folder), ("ms2", ms2)):
+        camp = load_campaign(path)
+        notes: list[str] = []
+        samples, _ = campaign_contact_samples(camp, camp.rows, notes=notes)
+        read[name] = (samples, notes)
+    (g, g_notes), (si, si_notes) = read["g"], read["ms2"]
+    assert len(g) == len(si) == len(points) and not g_notes
+    assert len(si_notes) == 1 and "unit is 9.8" in si_notes[0]
+    for a, b in zip(g, si, strict=True):
+        assert np.ptp(b.displacement) == pytest.approx(np.ptp(a.displacement), rel=0.03)
+        assert b.force.max() == pytest.approx(a.force.max(), rel=0.03)

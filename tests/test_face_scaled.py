@@ -20,6 +20,7 @@ from stiffnet.discovery.samples import campaign_readings
 from stiffnet.discovery.select import (
     MIN_HELD_OUT_GAIN,
     faces_go_together,
+    scaled_face_beats_shared,
     scaled_face_short_of_gain,
 )
 from stiffnet.discovery.terms import Fit, stack
@@ -164,3 +165,17 @@ def test_a_scaled_face_short_of_the_gain_is_refused_before_its_held_out_test():
     assert not scaled_face_short_of_gain(current, fit({"hinge", "face_scaled"}, short - 2.0))
     assert not scaled_face_short_of_gain(current, fit({"hinge", "face"}, short))
     assert not scaled_face_short_of_gain(current, fit({"hinge", "power"}, short))
+
+
+def test_the_scaled_face_replaces_the_shared_one_only_by_a_terms_held_out_gain():
+    """Two accounts of one restraint: the recordings' own faces (a parameter more) are taken
+    over the rig's shared face only where they lower its held-out error per recording by
+    what a term must on the median recording; a better fit by a hair (the information
+    criterion's choice on correlated samples) keeps the shared face."""
+    shared = np.array([10.0, 20.0, 30.0, 40.0, 50.0])
+    assert not scaled_face_beats_shared(shared, shared * 0.95)
+    assert not scaled_face_beats_shared(shared, shared * (1 - MIN_HELD_OUT_GAIN) * 1.01)
+    assert scaled_face_beats_shared(shared, shared * (1 - MIN_HELD_OUT_GAIN) * 0.99)
+    # the median recording decides: two recordings much better, three a hair, is not enough
+    mixed = shared * np.array([0.2, 0.3, 0.97, 0.97, 0.97])
+    assert not scaled_face_beats_shared(shared, mixed)

@@ -48,6 +48,10 @@ MARGIN = 0.03
 #: recorded (:func:`campaign_readings`). Three, as the evidence's shared chain
 #: (:data:`stiffnet.measurement.evidence.CHAIN_RECORDINGS`).
 CHAIN_RECORDINGS = 3
+#: How far (a factor either way) the recordings' unit may read from g before the samples are
+#: rescaled to the unit the table's motion measures (:func:`unit_over_g`): the rig's
+#: campaigns in g read 0.997-1.026, in m/s^2 9.80-10.6.
+UNIT_FROM_G_FACTOR = 1.2
 
 
 @dataclass(frozen=True)
@@ -377,12 +381,15 @@ def campaign_contact_samples(
     rows: Sequence[Any],
     periods: float = PERIODS,
     chain_recordings: int | None = CHAIN_RECORDINGS,
+    notes: list[str] | None = None,
 ) -> tuple[list[ContactSamples], list[dict[str, Any]]]:
     """Samples of every recording of a campaign whose map has a contact law, and why not others.
 
     ``rows`` are the campaign's rows with the natural frequency and forcing ratio
-    resolved (diagnose's); recordings are in g for a model length of 1 mm
-    (:func:`stiffnet.campaign.sensor_gain`). The sensor chain is fitted as
+    resolved (diagnose's); recordings are read in g for a model length of 1 mm
+    (:func:`stiffnet.campaign.sensor_gain`), unless the table's motion measures their unit
+    more than :data:`UNIT_FROM_G_FACTOR` from g (:func:`unit_over_g`; the samples are then
+    in that unit, and ``notes`` says so). The sensor chain is fitted as
     :func:`campaign_readings` says (``chain_recordings``).
     """
     from stiffnet.campaign import sensor_gain
@@ -397,7 +404,7 @@ def campaign_contact_samples(
         )
 
     readings = campaign_readings(read, len(rows), chain_recordings)
-    out, skipped = [], []
+    out, skipped, units = [], [], []
     for i, row in enumerate(rows):
         got = readings[i]
         if isinstance(got, Exception):
@@ -406,4 +413,46 @@ def campaign_contact_samples(
             skipped.append({"recording": row.recording, "reason": got[1].reason})
         else:
             out.append(got[0])
+            units.append(unit_over_g(got[1], getattr(row, "amplitude", None)))
+    read_units = [u for u in units if u is not None]
+    unit = float(np.median(read_units)) if read_units else 1.0
+    if notes is not None and not read_units:
+        notes.append("the recordings' acceleration taken to be in g (no forcing amplitude "
+                     "to measure their unit against)")  # fmt: skip
+    if not 1 / UNIT_FROM_G_FACTOR <= unit <= UNIT_FROM_G_FACTOR:
+        out = [rescaled(s, unit) for s in out]
+        if notes is not None:
+            notes.append(f"the recordings' acceleration unit is {unit:.3g} g (the table's motion "
+                         f"against the manifest's forcing, median of {len(read_units)}; 9.81: "
+                         "m/s^2): the samples' lengths read in it, not in g")  # fmt: skip
     return out, skipped
+
+
+def unit_over_g(result: RestoringForceResult, amplitude: float | None) -> float | None:
+    """The record's acceleration unit in g, measured: the table's displacement amplitude at
+    the forcing frequency on the map, in model lengths through :func:`sensor_gain`'s g,
+    over the manifest's forcing amplitude ``a`` (model lengths). None without a law, the
+    map's table or ``a``.
+
+    The map's lengths scale with the record's unit (module notes): a campaign in g reads
+    1 (0.997-1.026 on the independent rig's g campaigns, 4 of them), one in m/s^2 9.81
+    (9.80-10.6 on its beam-tip campaign); read as g, that one's penetrations were 9.81 times
+    deeper, out of the learned law's range.
+    """
+    pot = result.penetration_over_table
+    if result.law is None or not pot or not amplitude or not np.isfinite(result.free_stiffness):
+        return None
+    from stiffnet.campaign import sensor_gain
+
+    table_map = float(result.law.reference_penetration) / float(pot)
+    gain = sensor_gain(result.natural_frequency_hz)
+    ratio = table_map * float(result.free_stiffness) / (gain * float(amplitude))
+    return ratio if np.isfinite(ratio) and ratio > 0 else None
+
+
+def rescaled(samples: ContactSamples, unit: float) -> ContactSamples:
+    """``samples`` read in g re-read in a unit of ``unit`` g: every length, velocity and
+    force over ``unit`` (beta, a ratio of slopes, unchanged)."""
+    return replace(samples, displacement=samples.displacement / unit,
+                   velocity=samples.velocity / unit, force=samples.force / unit,
+                   onset=samples.onset / unit)  # fmt: skip

@@ -121,14 +121,16 @@ def propose_learned_law(
         :func:`excess_shares`; the counted recordings), ``all_recordings``
         (:func:`law_change`), ``at_floor``, ``noise_floor``, ``map``, ``skipped``.
     """
-    samples, skipped = campaign_contact_samples(campaign, rows)
+    notes: list[str] = []  # the recordings' unit where it is not g
+    samples, skipped = campaign_contact_samples(campaign, rows, notes=notes)
     law = _discovered(samples, seed)
     if isinstance(law, str):
-        return {"proposed": False, "summary": law, "skipped": skipped}
+        return {"proposed": False, "summary": law, "skipped": skipped, "notes": notes}
     # a power law's beta is a secant at d_r: referred to the manifest's where it gives beta
     given = {g.recording: g.beta for g in campaign.rows}
     law = law.referred_to([given.get(name) for name in law.recordings])
-    out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "map": law_map(samples, law)}
+    out: dict[str, Any] = {"law": law.to_dict(), "skipped": skipped, "notes": notes,
+                           "map": law_map(samples, law)}  # fmt: skip
     if not law.new and not face_in_question(law):
         out.update(proposed=False, summary=(
             f"the learned contact law has nothing the library lacks ({law.words})"))  # fmt: skip
