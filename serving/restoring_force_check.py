@@ -129,6 +129,9 @@ def restoring_force_check(
         "class": d["restoring_force_class"],
         "beta": d["beta"],
         "beta_interval": d["beta_interval"],
+        # a stiffening law's own reading, before the linear springs it stands for: what the
+        # model's interval is judged against (the wider one would hide a disagreement)
+        "reading_interval": d["reading_interval"],
         "beta_interval_coverage": d["coverage"] if r.ok else None,
         "contact_damping_ratio": d["contact_damping_ratio"],
         "exponent": d["exponent"],

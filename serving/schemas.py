@@ -44,6 +44,11 @@ class RestoringForceCheck(BaseModel):
     )
     beta: float | None = Field(description="Contact over free-flight stiffness of the fitted map.")
     beta_interval: list[float] | None = Field(description="Bootstrap interval over impacts.")
+    reading_interval: list[float] | None = Field(
+        default=None,
+        description="A stiffening law's own bootstrap interval, before beta_interval spans the "
+        "linear springs it stands for; what the model's interval is judged against.",
+    )
     beta_interval_coverage: float | None = None
     contact_damping_ratio: float | None = Field(
         default=None, description="Kelvin-Voigt damping ratio of the contact."

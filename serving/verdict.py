@@ -106,15 +106,16 @@ def rule_checks(
                             FACE_CLASS_THRESHOLD)  # fmt: skip
     if restoring_force is None:
         return alarm
-    gap = restoring_force_gap(
-        interval, restoring_force["beta_interval"], restoring_force.get("contact_r2")
-    )
+    judged = restoring_force
+    if restoring_force.get("reading_interval"):
+        judged = {**restoring_force, "beta_interval": restoring_force["reading_interval"]}
+    gap = restoring_force_gap(interval, judged["beta_interval"], judged.get("contact_r2"))
     alarm = with_restoring_force_check(alarm, gap)
-    alarm = with_restoring_force_checks(alarm, class_name, restoring_force, names, edges)
-    alarm = with_class_contested_check(alarm, class_name, interval, restoring_force, names, edges)
-    alarm = with_unverified_class_check(alarm, class_name, interval, restoring_force, names, edges)
+    alarm = with_restoring_force_checks(alarm, class_name, judged, names, edges)
+    alarm = with_class_contested_check(alarm, class_name, interval, judged, names, edges)
+    alarm = with_unverified_class_check(alarm, class_name, interval, judged, names, edges)
     alarm = with_outvoted_class_check(alarm, class_name, interval, geometric_class,
-                                      restoring_force, names, edges)  # fmt: skip
+                                      judged, names, edges)  # fmt: skip
     priors = model.get("priors")
     alarm = with_reference_penetration_check(alarm, class_name, restoring_force, priors, names,
                                              edges)  # fmt: skip

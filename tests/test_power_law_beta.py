@@ -12,12 +12,12 @@ from __future__ import annotations
 import math
 
 import pytest
+from independent_rig import G, RigRun, record
 
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.band import fitted_lowpass_refusal
 from stiffnet.restoring_force.chain import SensorChain
 from stiffnet.restoring_force.contact_law import equivalent_linear_band
-from tests.independent_rig import G, RigRun, record
 
 FN = 9.48
 SHEET = {"lowpass_hz": 250.0, "lowpass_order": 2, "highpass_hz": 0.0}
@@ -61,13 +61,16 @@ def test_a_power_laws_beta_is_its_secant_at_the_impacts_own_penetration(beta):
     assert lo <= r.beta * low * (1 + 1e-9) and hi >= r.beta * high * (1 - 1e-9)
     assert "a power law" in r.reason
     assert lo < 0.8 * r.beta
+    # the law's own reading, what the model's interval is judged against, holds the secant
+    rlo, rhi = r.reading_interval
+    assert lo <= rlo <= r.beta <= rhi <= hi and rhi / rlo < hi / lo
 
 
 def test_a_linear_contacts_interval_gets_no_band():
     run = RigRun(recording="r.csv", beta=30.0, fs_hz=1000.0, duration_s=3.0)
     r = restoring_force_estimate(record(run, seed=11)[1], run.fs_hz, natural_frequency_hz=FN,
                                  max_periods=24.0, highpass_hz=0.0)  # fmt: skip
-    assert r.ok and "a power law" not in r.reason
+    assert r.ok and "a power law" not in r.reason and r.reading_interval is None
     lo, hi = r.beta_interval
     assert 0.85 * r.beta < lo <= r.beta <= hi < 1.15 * r.beta
 
@@ -104,3 +107,23 @@ def test_a_third_order_lowpass_just_above_the_contact_is_refused_not_read_in_the
     else:
         assert "beta is not identifiable from this sensor" in r.reason or "contacts last" in (
             r.reason)  # fmt: skip
+
+
+def test_the_models_interval_is_judged_against_the_laws_own_reading():
+    """The band of linear springs makes the restoring-force interval honest about beta's
+    convention, but judged against it the model's interval hid its disagreements: on the
+    independent rig's power law behind 250 Hz (fresh b) the alarms fell 23 -> 14 and three
+    wrong classes went silent. The model's interval is judged against the law's own reading
+    (``reading_interval``); the band stays the reported interval."""
+    from serving.verdict import rule_checks
+
+    names, edges = ["no_contact", "soft", "medium", "hard", "very_hard"], [5, 15, 35, 60, 100]
+    model = {"class_names": names, "class_edges": edges, "priors": None}
+    quiet = {"flag": False, "fired": [], "scores": {}, "thresholds": {}}
+    band = {"class": "medium", "beta": 20.0, "beta_interval": [12.5, 45.0], "contact_r2": 0.99,
+            "exponent": 1.6}  # fmt: skip
+    calm = rule_checks(quiet, "hard", [40.0, 70.0], band, model, 1000.0, 9.48)
+    assert "restoring_force" not in calm["fired"]  # the band reaches the model's interval
+    read = {**band, "reading_interval": [18.5, 21.5]}
+    alarm = rule_checks(quiet, "hard", [40.0, 70.0], read, model, 1000.0, 9.48)
+    assert alarm["flag"] and "restoring_force" in alarm["fired"]

@@ -291,6 +291,7 @@ class RestoringForceResult:
     beyond_knee_interval: tuple[float, float] | None = None
     hunt_crossley: HuntCrossleyLaw | None = None
     penetration_over_table: float | None = None
+    reading_interval: tuple[float, float] | None = None
     impact_onsets: ImpactOnsetLaw | None = None
     free_damping_fitted: float = float("nan")
 
@@ -304,6 +305,7 @@ class RestoringForceResult:
             "ok": self.ok,
             "beta": num(self.beta),
             "beta_interval": list(self.beta_interval) if self.beta_interval else None,
+            "reading_interval": list(self.reading_interval) if self.reading_interval else None,
             "coverage": self.coverage,
             "restoring_force_class": self.restoring_force_class,
             "contact_damping_ratio": num(self.contact_damping_ratio),
@@ -1342,14 +1344,15 @@ def _estimate_at(
     if rivals:  # a fitted chain's uncertainty: every reading it leaves open is in the interval
         lo, hi = min(lo, *rivals), max(hi, *rivals)
     # where the reading's betas reach a contact above the low-pass the fit chose for it
-    beyond = fitted_lowpass_refusal(info["sensor"], info["natural_frequency_hz"], hi)
-    if interval and beyond:
-        return _refuse(beyond, **{**info, "restoring_force_class": None})
-    law_note = ""
+    lowpass_refused = fitted_lowpass_refusal(info["sensor"], info["natural_frequency_hz"], hi)
+    if interval and lowpass_refused:
+        return _refuse(lowpass_refused, **{**info, "restoring_force_class": None})
+    law_note, reading = "", None
     if interval and stage_ratio is None and hc is None and poles is None and m.law.exponent > 1:
         # a stiffening law's beta is a convention (the secant at the impacts' median peak
         # penetration): the interval spans the linear springs the law stands for there
         low, high = equivalent_linear_band(m.law.exponent)
+        reading = (lo, hi)
         lo, hi = min(lo, beta * low), max(hi, beta * high)
         law_note = (f"; a power law (exponent {m.law.exponent:.2f}): beta is its secant "
                     f"stiffness at the impacts' median peak penetration, the interval spans "
@@ -1368,6 +1371,7 @@ def _estimate_at(
         ok=True,
         beta=float(beta),
         beta_interval=(lo, hi),
+        reading_interval=reading,
         restoring_force_class=cls,
         contact_damping_ratio=damping_ratio,
         exponent=m.exponent,
