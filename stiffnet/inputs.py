@@ -80,6 +80,25 @@ def quote_content(text: str, cells: int = 1) -> str | None:
 _NUMBER_WITH_UNIT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[A-Za-z/%°]+\s*$")
 
 
+def unit_hint(value: Any) -> str:
+    """What to write instead of a number given with its unit (``"9.48 Hz"``, ``"2.8mm"``):
+    a hint to append to the refusal, empty for any other value.
+
+    Parameters
+    ----------
+    value : Any
+        The value refused as not a number.
+
+    Returns
+    -------
+    str
+        ``" (the number alone: the name carries the unit)"`` or ``""``.
+    """
+    if isinstance(value, str) and _NUMBER_WITH_UNIT.match(value):
+        return " (the number alone: the name carries the unit)"
+    return ""
+
+
 def without_unnamed_tail(header: list[str]) -> list[str]:
     """A CSV header without the unnamed cells that end it (``t,accel,,`` as a spreadsheet
     saves a sheet whose empty columns were once touched): nobody named them, so they are
@@ -104,9 +123,7 @@ def without_unnamed_tail(header: list[str]) -> list[str]:
 def real_number(value: Any, what: str) -> float:
     """``value`` as a finite float; bools, strings and huge integers are refused."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy scalars are Real
-        unit = isinstance(value, str) and _NUMBER_WITH_UNIT.match(value)
-        hint = " (the number alone: the name carries the unit)" if unit else ""
-        raise StiffnetError(f"{what} must be a number, got {_show(value)}{hint}")
+        raise StiffnetError(f"{what} must be a number, got {_show(value)}{unit_hint(value)}")
     try:
         v = float(value)
     except (OverflowError, ValueError, TypeError):

@@ -272,6 +272,14 @@ def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, 
     manifest_error(tmp_path, f"recording,beta,{header}\na.csv,3,2\n", match)
 
 
+@pytest.mark.parametrize(("cell", "hinted"), [("1000 Hz", True), ("2.8mm", True), ("x", False)])
+def test_manifest_cell_with_its_unit_says_to_write_the_number_alone(tmp_path, cell, hinted):
+    """A lab sheet's cells written with their unit ('1000 Hz' in fs_hz) were 'not a number'
+    with nothing said of why; a sidecar's '9.48 Hz' already got the hint."""
+    msg = manifest_error(tmp_path, f"recording,fs_hz\na.csv,{cell}\n", "column fs_hz: not a number")
+    assert msg.endswith("(the number alone: the name carries the unit)") == hinted, msg
+
+
 def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
     msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
     assert "(name not shown)" in msg and "k=" not in msg

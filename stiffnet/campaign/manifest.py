@@ -32,7 +32,7 @@ from pydantic import (
 )
 
 from stiffnet.errors import RateMismatch, StiffnetError
-from stiffnet.inputs import quote_content, without_unnamed_tail
+from stiffnet.inputs import quote_content, unit_hint, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -526,6 +526,8 @@ def _validate_row(data: dict[str, Any], where: str) -> ManifestRow:
             raise StiffnetError(f"{where}: {msg}") from None
         got = quote_content(str(err["input"])) if isinstance(err["input"], str) else None
         got = f" (got {got})" if got else ""
+        if kind == "float_parsing":  # '1000 Hz' in fs_hz: say what to write
+            got += unit_hint(err["input"])
         raise StiffnetError(f"{where}, column {col}: {msg}{got}") from None
 
 
