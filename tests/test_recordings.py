@@ -167,7 +167,22 @@ def test_csv_t_not_increasing(tmp_path):
 def test_csv_t_not_uniform(tmp_path):
     t = np.delete(np.arange(100) / FS, 50)  # one dropped sample
     text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
-    assert_error("not uniformly sampled", write_text(tmp_path / "x.csv", text))
+    assert_error("has a gap.*about 1 sample", write_text(tmp_path / "x.csv", text))
+    jittered = np.arange(100) / FS + np.tile([0.0, 0.3 / FS], 50)  # a third of a period
+    text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in jittered)
+    assert_error("not uniformly sampled", write_text(tmp_path / "y.csv", text))
+
+
+def test_csv_gap_in_time_says_how_many_samples_are_missing(tmp_path):
+    """0.5 s of rows missing from a 1 kHz record: it said 'line 22001 is 2.7e+02 sample
+    periods off the uniform grid' (the mean step stretched by the gap), not 500 missing."""
+    t = np.delete(np.arange(4000) / FS, np.arange(2000, 2500))
+    text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
+    assert_error(
+        r"column t has a gap: t jumps from 1\.999 to 2\.5 \(line 2002\), 0\.501 s where the "
+        r"other steps are 0\.001 s: about 500 sample\(s\) missing",
+        write_text(tmp_path / "x.csv", text),
+    )
 
 
 def test_csv_large_file_reads(tmp_path):

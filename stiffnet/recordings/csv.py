@@ -468,11 +468,23 @@ def _rate_from_times(t: np.ndarray, name: str, col: str = "column t", first_line
     step = (t[-1] - t[0]) / (t.size - 1)
     dev = np.abs(t - (t[0] + np.arange(t.size) * step))
     if dev.max() > TIME_JITTER_TOLERANCE * step:
+        # a gap stretches the mean step, so the grid's offsets do not count what is missing:
+        # the typical step does
+        typical = float(np.median(dt))
+        j = int(np.argmax(dt))
+        if dt[j] > (2 - TIME_JITTER_TOLERANCE) * typical:
+            missing = round(dt[j] / typical) - 1
+            raise StiffnetError(
+                f"{name}: {col} has a gap: t jumps from {float(t[j])!r} to {float(t[j + 1])!r} "
+                f"(line {j + first_line + 1}), {dt[j]:.4g} s where the other steps are "
+                f"{typical:.4g} s: about {missing} sample(s) missing (a logger's dropout); "
+                "the recording must be sampled without gaps"
+            )
         i = int(np.argmax(dev))
         raise StiffnetError(
             f"{name}: {col} is not uniformly sampled (line {i + first_line} is "
-            f"{dev[i] / step:.2g} sample periods off the uniform grid: dropped or repeated "
-            "samples?)"
+            f"{dev[i] / step:.2g} sample periods off the uniform grid: repeated samples or a "
+            "jittering clock?)"
         )
     return float(1.0 / step)
 
