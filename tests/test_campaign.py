@@ -280,6 +280,25 @@ def test_manifest_cell_with_its_unit_says_to_write_the_number_alone(tmp_path, ce
     assert msg.endswith("(the number alone: the name carries the unit)") == hinted, msg
 
 
+def test_manifest_with_absolute_windows_paths_names_the_tail_to_write(tmp_path):
+    """A manifest written on the lab's Windows machine (``C:\\Users\\...\\rec\\r1.csv``) was
+    refused on every row with no word of what to write; the tail that names a file of the
+    folder is now said. A path whose tail names nothing here gets no suggestion."""
+    write(tmp_path / "rec" / "r1.csv", "t,accel\n0,1\n")
+    text = (
+        "recording,fs_hz\n"
+        "C:\\Users\\lab\\camp\\rec\\r1.csv,1000\n"
+        "C:\\Users\\lab\\camp\\rec\\gone.csv,1000\n"
+    )
+    msg = manifest_error(tmp_path, text, r"^2 problems: ")
+    assert (
+        "line 2, column recording: must be a path relative to the campaign folder (an absolute "
+        "path: write its tail 'rec/r1.csv', a file of this folder); also line 3, column "
+        "recording: must be a path relative to the campaign folder" in msg
+    ), msg
+    assert msg.endswith("must be a path relative to the campaign folder"), msg
+
+
 def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
     msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
     assert "(name not shown)" in msg and "k=" not in msg

@@ -383,6 +383,25 @@ def _unit_in_header(col: str, written: str | None = None) -> str | None:
     return f"{shown!r}: a unit beside a column's name is not read (the name carries it); {hint}"
 
 
+def _tail_in_folder(value: str, folder: Path) -> str | None:
+    """The longest tail of an absolute path that names a file inside ``folder``, else None:
+    what a manifest written on another machine (a Windows path from its drive letter on)
+    means, said to the user rather than guessed."""
+    parts = [x for x in value.replace("\\", "/").split("/") if x]
+    if not parts or not (value.startswith(("/", "\\")) or (len(value) > 1 and value[1] == ":")):
+        return None
+    root = folder.resolve()
+    for i in range(1, len(parts)):
+        tail = "/".join(parts[i:])
+        try:
+            found = (root / tail).resolve()
+        except OSError:  # a name the file system cannot hold
+            continue
+        if found.is_relative_to(root) and found.is_file():
+            return tail
+    return None
+
+
 def _read_row(
     p: Path,
     line: int,
@@ -398,7 +417,14 @@ def _read_row(
             f"({','.join(columns)})"
         )
     data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
-    row = _validate_row(data, f"{p}: line {line}")
+    try:
+        row = _validate_row(data, f"{p}: line {line}")
+    except StiffnetError as exc:
+        tail = _tail_in_folder(data.get("recording", ""), p.parent)
+        if tail is None or "must be a path relative" not in str(exc):
+            raise
+        raise StiffnetError(f"{exc} (an absolute path: write its tail {tail!r}, a file of "
+                            "this folder)") from None  # fmt: skip
     sidecar_fn = _sidecar_natural_frequency(p, line, row)
     if sidecar_fn is not None and row.natural_frequency_hz is None:
         # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
