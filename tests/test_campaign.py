@@ -299,6 +299,23 @@ def test_manifest_with_absolute_windows_paths_names_the_tail_to_write(tmp_path):
     assert msg.endswith("must be a path relative to the campaign folder"), msg
 
 
+def test_a_folder_whose_manifest_sits_in_a_subfolder_is_told_where_it_must_sit(tmp_path):
+    """``meta/manifest.csv`` naming ``../rec/r1.csv``: the folder was 'not a campaign folder
+    (no manifest.csv)', and the manifest itself refused every '..' path."""
+    write(tmp_path / "rec" / "r1.csv", "t,accel\n0,1\n")
+    write(tmp_path / "meta" / MANIFEST_NAME, "recording,fs_hz\n../rec/r1.csv,1000\n")
+    with pytest.raises(StiffnetError) as info:
+        load_campaign(tmp_path)
+    assert str(info.value) == (
+        f"{tmp_path}: not a campaign folder (no manifest.csv) (meta/manifest.csv is one, but a "
+        "campaign is the folder its manifest sits in, its recordings' paths starting there "
+        "without '..': move it here and write its paths from here)"
+    )
+    (tmp_path / "meta" / MANIFEST_NAME).unlink()
+    with pytest.raises(StiffnetError, match=r"not a campaign folder \(no manifest.csv\)$"):
+        load_campaign(tmp_path)
+
+
 def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
     msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
     assert "(name not shown)" in msg and "k=" not in msg

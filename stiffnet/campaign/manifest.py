@@ -9,6 +9,7 @@ the paper's eqs (11)-(12) when the row is validated (``docs/campaign.md``, "Unit
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import os
 import posixpath
@@ -708,7 +709,9 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
     elif p.is_dir():
         manifest = p / MANIFEST_NAME
         if not manifest.is_file():
-            raise StiffnetError(f"{p}: not a campaign folder (no {MANIFEST_NAME})")
+            raise StiffnetError(
+                f"{p}: not a campaign folder (no {MANIFEST_NAME}){_manifest_below_hint(p)}"
+            )
     else:
         raise StiffnetError(f"{p}: campaign folder not found")
     rows = read_manifest(manifest)
@@ -722,6 +725,31 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
             )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+#: Entries of a folder looked at for a manifest one level down (a folder of recordings
+#: alone can hold many: the hint must not cost a scan of them all).
+_MANIFEST_BELOW_ENTRIES = 1000
+
+
+def _manifest_below_hint(folder: Path) -> str:
+    """Where a folder without a manifest has one in a subfolder (``meta/manifest.csv`` whose
+    paths climb out with ``../``): where a campaign's manifest must sit."""
+    try:
+        below = [
+            e.name
+            for e in itertools.islice(folder.iterdir(), _MANIFEST_BELOW_ENTRIES)
+            if not e.name.startswith(".") and (e / MANIFEST_NAME).is_file()
+        ]
+    except OSError:
+        return ""
+    if not below:
+        return ""
+    return (
+        f" ({below[0]}/{MANIFEST_NAME} is one, but a campaign is the folder its manifest sits "
+        "in, its recordings' paths starting there without '..': move it here and write its "
+        "paths from here)"
+    )
 
 
 def _case_hint(path: Path) -> str:
