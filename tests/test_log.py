@@ -165,6 +165,12 @@ def test_stream_decoding(tmp_path):
     p.write_bytes(b"1\n2\nx\n")
     with pytest.raises(Exception, match="line 3 is not a sample"):
         list(sample_chunks(p, idle_timeout_s=0.1))
+    # a European spreadsheet's export: split at its decimal commas, '0,001;2,5' read 5 (the
+    # fraction's digits) as the sample, a log of garbage with exit 0
+    for text, word in ((b"t;accel\n0,000;1,5\n0,001;2,5\n", "';'"), (b"0\t1.5\n", "tabs")):
+        p.write_bytes(text)
+        with pytest.raises(Exception, match=f"line 1: its cells are separated by {word}"):
+            list(sample_chunks(p, idle_timeout_s=0.1))
     f = tmp_path / "s.f32"
     np.arange(5, dtype="<f4").tofile(f)
     got = np.concatenate(list(sample_chunks(f, "f32", idle_timeout_s=0.1)))
