@@ -316,6 +316,23 @@ def test_a_folder_whose_manifest_sits_in_a_subfolder_is_told_where_it_must_sit(t
         load_campaign(tmp_path)
 
 
+@pytest.mark.parametrize(
+    ("encoding", "said"),
+    [
+        ("utf-16", ": it is UTF-16 text, as Windows saves 'Unicode' text; save it as UTF-8"),
+        ("latin-1", ": line 2 holds a byte that is not UTF-8 (Latin-1 or Windows-1252 text, "),
+    ],
+)
+def test_manifest_not_utf8_says_which_encoding_or_line(tmp_path, encoding, said):
+    """A manifest saved by a spreadsheet as UTF-16 or Latin-1 (a file name with an accent)
+    was 'manifest is not a UTF-8 text file' alone."""
+    path = tmp_path / MANIFEST_NAME
+    path.write_text("recording,fs_hz\nmesuré.csv,1000\n", encoding=encoding)
+    with pytest.raises(StiffnetError) as info:
+        read_manifest(path)
+    assert str(info.value).startswith(f"{path}: manifest is not a UTF-8 text file{said}")
+
+
 def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
     msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
     assert "(name not shown)" in msg and "k=" not in msg

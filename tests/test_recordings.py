@@ -185,6 +185,22 @@ def test_csv_gap_in_time_says_how_many_samples_are_missing(tmp_path):
     )
 
 
+def test_csv_not_utf8_says_which_encoding_or_line(tmp_path):
+    """A recording saved as UTF-16 (Windows' 'Unicode' text) or with a Latin-1 degree sign
+    was 'not a UTF-8 text file' alone: it now says which, or on which line."""
+    text = "t,accel\n0,1\n0.001,2\n"
+    utf16 = tmp_path / "u.csv"
+    utf16.write_text(text, encoding="utf-16")
+    assert_error(
+        r"not a UTF-8 text file \(expected a CSV 't,accel'\): it is UTF-16 text, as Windows "
+        r"saves 'Unicode' text; save it as UTF-8$",
+        utf16,
+    )
+    latin1 = tmp_path / "l.csv"
+    latin1.write_bytes(text.encode() + "0.002,3 # 20 °C\n".encode("latin-1"))
+    assert_error(r"line 4 holds a byte that is not UTF-8 \(Latin-1 or Windows-1252", latin1)
+
+
 def test_csv_large_file_reads(tmp_path):
     x = signal(200_000)
     path = write_recording_csv(tmp_path / "big.csv", x, 20_000.0)

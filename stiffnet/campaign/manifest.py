@@ -33,7 +33,7 @@ from pydantic import (
 )
 
 from stiffnet.errors import RateMismatch, StiffnetError
-from stiffnet.inputs import quote_content, unit_hint, without_unnamed_tail
+from stiffnet.inputs import not_utf8_words, quote_content, unit_hint, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -319,7 +319,7 @@ def read_manifest_with_columns(
                     problems.append(str(exc))
             raise_problems(p, problems)
     except UnicodeDecodeError:
-        raise StiffnetError(f"{p}: manifest is not a UTF-8 text file") from None
+        raise StiffnetError(f"{p}: manifest is not a UTF-8 text file{not_utf8_words(p)}") from None
     except csv.Error as exc:
         raise StiffnetError(f"{p}: malformed CSV ({exc})") from None
     if not rows:
