@@ -122,7 +122,7 @@ from serving.schemas import (
 )
 from stiffnet import __version__
 from stiffnet.errors import StiffnetError
-from stiffnet.inputs import HINT_CONTEXT, one_line
+from stiffnet.inputs import HINT_CONTEXT, one_line, unit_hint
 
 #: One-line log of the server's events (uvicorn configures this logger).
 log = logging.getLogger("uvicorn.error")
@@ -508,7 +508,9 @@ def _number_field(value: Any, name: str) -> float | None:
     try:
         return float(value)
     except ValueError:
-        raise StiffnetError(f"form field {name}: {value[:40]!r} is not a number") from None
+        raise StiffnetError(
+            f"form field {name}: {value[:40]!r} is not a number{unit_hint(value)}"
+        ) from None
 
 
 def _text_field(value: Any, name: str) -> str | None:

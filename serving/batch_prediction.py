@@ -64,7 +64,7 @@ from serving.campaign_chain import (
 from serving.predictor import Predictor, predict_recording, record_natural_frequency
 from stiffnet.distributed.cluster import check_target, dask_client
 from stiffnet.distributed.tasks import run_tasks
-from stiffnet.errors import StiffnetError
+from stiffnet.errors import RateMismatch, StiffnetError
 from stiffnet.inputs import walk_files
 from stiffnet.io_utils import (
     claim_parts_folder,
@@ -116,14 +116,14 @@ def campaign_inputs(
     columns: str | None = None,
     time_unit: str | None = None,
     channel: str | None = None,
-) -> tuple[list[str], list[tuple[Any, ...]], Path, list[str | None]] | None:
+) -> tuple[list[str], list[tuple[Any, ...]], Path, list[str | None], list[str | None]] | None:
     """A campaign folder's recordings and per-recording read settings, from its manifest.
 
     None when ``spec`` is not a campaign (no ``manifest.csv`` in the folder, and not a
     manifest file). The manifest's columns win; the options fill the empty ones. A row's
     settings end with its ``sensor`` data sheet (None: none in the manifest). Recording
     files that do not exist stay in the list (their rows get the error). Last, where each
-    row's f_n comes from (:func:`fn_source`).
+    row's f_n comes from (:func:`fn_source`), and where its rate does (:func:`fs_source`).
     """
     from stiffnet.campaign import MANIFEST_NAME
     from stiffnet.campaign.manifest import read_manifest
@@ -136,7 +136,7 @@ def campaign_inputs(
     else:
         return None
     root = manifest.parent.resolve()
-    paths, settings, sources = [], [], []
+    paths, settings, sources, rate_sources = [], [], [], []
     for row in read_manifest(manifest):
         path = (root / row.recording).resolve()
         if not path.is_relative_to(root):
@@ -145,7 +145,16 @@ def campaign_inputs(
         settings.append(row_settings(row, fs_hz, natural_frequency_hz, columns, time_unit,
                                      channel))  # fmt: skip
         sources.append(row.natural_frequency_source(manifest) or fn_source(natural_frequency_hz))
-    return paths, settings, manifest, sources
+        rate_sources.append(fs_source(row, manifest))
+    return paths, settings, manifest, sources, rate_sources
+
+
+def fs_source(row: Any, manifest: Path | None) -> str | None:
+    """Where a recording's given rate comes from, to head a rate mismatch's message: the
+    manifest line and column that give it (the place to mend), None for no row."""
+    if row is None or row.fs_hz is None:
+        return None
+    return f"{row.where(manifest)}, column fs_hz"
 
 
 def fn_source(option_hz: float | None) -> str | None:
@@ -302,6 +311,8 @@ class PartJob:
     campaign_chain: tuple[bool, ...] | None = None
     #: per recording: where its f_n comes from (:func:`fn_source`; None: resolved on reading)
     fn_sources: tuple[str | None, ...] | None = None
+    #: per recording: the manifest line and column its rate comes from (:func:`fs_source`)
+    fs_sources: tuple[str | None, ...] | None = None
     #: testing hook, called with the part index as the task starts (fault injection)
     before: Callable[[int], None] | None = None
 
@@ -327,8 +338,16 @@ def predict_part(job: PartJob) -> dict[str, Any]:
     settings = job.settings or (shared,) * len(job.paths)
     pooled = job.campaign_chain or (False,) * len(job.paths)
     fn_sources = job.fn_sources or (None,) * len(job.paths)
-    for path, file, (fs, fn, columns, time_unit, channel, sensor), from_campaign, fn_from in zip(
-        job.paths, job.files, settings, pooled, fn_sources, strict=True
+    fs_sources = job.fs_sources or (None,) * len(job.paths)
+    for path, file, (
+        fs,
+        fn,
+        columns,
+        time_unit,
+        channel,
+        sensor,
+    ), from_campaign, fn_from, fs_from in zip(
+        job.paths, job.files, settings, pooled, fn_sources, fs_sources, strict=True
     ):
         try:
             result = predict_recording(file, fs_hz=fs, predictor=predictor,
@@ -338,6 +357,9 @@ def predict_part(job: PartJob) -> dict[str, Any]:
                                        natural_frequency_source=fn_from)  # fmt: skip
             result = labelled(result, from_campaign)
             rows.append(result_row(path, result, None, channel))
+        except RateMismatch as exc:  # the row gave the rate: say which line to mend
+            where = f"{fs_from}: " if fs_from else ""
+            rows.append(result_row(path, None, f"{where}{exc}", channel))
         except StiffnetError as exc:
             rows.append(result_row(path, None, str(exc), channel))
         except Exception as exc:  # noqa: BLE001 - one odd file must not stop a batch
@@ -452,7 +474,9 @@ def predict_batch(
     check_target(scheduler, workers)
     out = _checked_output(out, overwrite, part_size)
     reading = (fs_hz, natural_frequency_hz, columns, time_unit, channel)
-    paths, settings, manifest, fn_sources = _recordings_and_settings(recordings, reading)
+    paths, settings, manifest, fn_sources, fs_sources = _recordings_and_settings(
+        recordings, reading
+    )
     predictor = Predictor.load(model_path)  # fails early, here, on a bad model
     parts_dir = out.parent / f"{out.name}.parts"
     run = _fingerprint(tuple(paths), predictor.sha256, fs_hz, natural_frequency_hz,
@@ -462,7 +486,8 @@ def predict_batch(
     # connect (or start the local cluster) before writing anything
     with dask_client(scheduler, workers) as client:
         jobs, records = _plan_parts(paths, settings, part_size, predictor, parts_dir, reading,
-                                    resume, before_part, fn_sources=fn_sources)  # fmt: skip
+                                    resume, before_part, fn_sources=fn_sources,
+                                    fs_sources=fs_sources)  # fmt: skip
         n_parts = len(records) + len(jobs)
         done = _run_parts(jobs, records, client, retries, progress, n_parts, 0)
         first = _parts_table(parts_dir, records, range(n_parts))
@@ -474,7 +499,8 @@ def predict_batch(
             again, flags = _campaign_settings(first, settings, chain["sensor"])
             jobs2, records2 = _plan_parts(paths, again, part_size, predictor, parts_dir,
                                           reading, resume, before_part, first_index=n_parts,
-                                          campaign_chain=flags, fn_sources=fn_sources)  # fmt: skip
+                                          campaign_chain=flags, fn_sources=fn_sources,
+                                          fs_sources=fs_sources)  # fmt: skip
             records |= records2
             done = _add(done, _run_parts(jobs2, records, client, retries, progress,
                                          2 * n_parts, n_parts))  # fmt: skip
@@ -681,11 +707,12 @@ def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
 
 def _recordings_and_settings(
     recordings: str | Path, reading: tuple
-) -> tuple[list[str], list[tuple], Path | None, list[str | None]]:
+) -> tuple[list[str], list[tuple], Path | None, list[str | None], list[str | None]]:
     """The recordings to predict, how to read each ``(fs, f_n, columns, time unit,
-    channel, sensor data sheet)``, the manifest they came from and where each f_n comes
-    from: a campaign's manifest rows where there is one (:func:`campaign_inputs`), else
-    every recording found, each read alike (its data sheet from its sidecar, if any)."""
+    channel, sensor data sheet)``, the manifest they came from and where each f_n and each
+    given rate comes from: a campaign's manifest rows where there is one
+    (:func:`campaign_inputs`), else every recording found, each read alike (its data sheet
+    from its sidecar, if any)."""
     campaign = campaign_inputs(recordings, *reading)
     if campaign is not None:
         return campaign
@@ -695,9 +722,10 @@ def _recordings_and_settings(
 
 def listed_settings(
     paths: list[str], reading: tuple
-) -> tuple[list[tuple[Any, ...]], Path | None, list[str | None]]:
+) -> tuple[list[tuple[Any, ...]], Path | None, list[str | None], list[str | None]]:
     """How to read recordings found by a glob or a folder that is not a campaign, the one
-    manifest listing them all (None: none does) and where each f_n comes from: a recording
+    manifest listing them all (None: none does), where each f_n comes from and where each
+    rate given by a row does (:func:`fs_source`): a recording
     listed by the manifest of the campaign it sits in is read with its row, as the campaign
     folder would read it (that manifest read once, its sidecar agreement checked); the
     others alike, with the options (``reading``). Files of one campaign are then judged as
@@ -711,7 +739,7 @@ def listed_settings(
     from stiffnet.campaign.manifest import campaign_manifest_above, read_manifest
 
     rows_of: dict[Path, dict[Path, Any]] = {}
-    settings, sources, n_listed = [], [], 0
+    settings, sources, rate_sources, n_listed = [], [], [], 0
     for path in paths:
         manifest = campaign_manifest_above(path)
         row = None
@@ -724,12 +752,14 @@ def listed_settings(
         if row is None:
             settings.append((*reading, None))
             sources.append(fn_source(reading[1]))
+            rate_sources.append(None)
             continue
         n_listed += 1
         settings.append(row_settings(row, *reading))
         sources.append(row.natural_frequency_source(manifest) or fn_source(reading[1]))
+        rate_sources.append(fs_source(row, manifest))
     one = next(iter(rows_of)) if len(rows_of) == 1 and n_listed == len(paths) else None
-    return settings, one, sources
+    return settings, one, sources, rate_sources
 
 
 def _plan_parts(
@@ -744,6 +774,7 @@ def _plan_parts(
     first_index: int = 0,
     campaign_chain: tuple[bool, ...] | None = None,
     fn_sources: list[str | None] | None = None,
+    fs_sources: list[str | None] | None = None,
 ) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
     """The parts still to run (jobs) and the records of those an interrupted run with the
     same inputs finished (kept when `resume`), by part index (from `first_index`: a second
@@ -756,6 +787,7 @@ def _plan_parts(
         chunk_settings = tuple(settings[lo : lo + part_size])
         flags = None if campaign_chain is None else tuple(campaign_chain[lo : lo + part_size])
         fn_from = None if fn_sources is None else tuple(fn_sources[lo : lo + part_size])
+        fs_from = None if fs_sources is None else tuple(fs_sources[lo : lo + part_size])
         fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
                           (columns, time_unit), chunk_settings)  # fmt: skip
         record = _finished_part(parts_dir, index, fp) if resume else None
@@ -767,7 +799,8 @@ def _plan_parts(
                             predictor.sha256, tuple(predictor.class_names), fs_hz,
                             natural_frequency_hz, fp, columns, time_unit,
                             settings=chunk_settings, campaign_chain=flags,
-                            fn_sources=fn_from, before=before_part))  # fmt: skip
+                            fn_sources=fn_from, fs_sources=fs_from,
+                            before=before_part))  # fmt: skip
     return jobs, records
 
 

@@ -41,6 +41,49 @@ def clipping_warning(a: np.ndarray) -> str | None:
     return f"signal looks clipped ({', '.join(parts)}): impacts may be flattened"
 
 
+#: A sensor holding one value this many natural periods or longer has dropped out (a loose
+#: cable, a logger's gap filled with zeros): the mass of a driven rig never rests that long,
+#: and the noise alone moves the last digit from one sample to the next.
+DROPOUT_PERIODS = 1.0
+
+
+def dropout_samples(fs: float, fn: float) -> int:
+    """The shortest run of one repeated value that is a dropout, in samples (at least 4)."""
+    return max(4, int(math.ceil(DROPOUT_PERIODS * fs / fn)))
+
+
+def held_runs(a: np.ndarray, min_samples: int) -> list[tuple[int, int]]:
+    """``(start, stop)`` sample indices of each run of one repeated value in ``a`` at least
+    ``min_samples`` long, in order."""
+    a = np.asarray(a).reshape(-1)
+    if a.size < min_samples:
+        return []
+    bounds = np.concatenate(([0], np.flatnonzero(a[1:] != a[:-1]) + 1, [a.size]))
+    long = np.flatnonzero(np.diff(bounds) >= min_samples)
+    return [(int(bounds[i]), int(bounds[i + 1])) for i in long]
+
+
+def dropout_words(runs: list[tuple[int, int]], fs: float, value: float) -> str:
+    """``runs`` (sample indices) of a held value described in one clause, times in s."""
+    total = sum(stop - start for start, stop in runs)
+    shown = ", ".join(f"{start / fs:.2f}-{stop / fs:.2f} s" for start, stop in runs[:3])
+    more = f" and {len(runs) - 3} more" if len(runs) > 3 else ""
+    return (
+        f"the signal holds one value ({value:.6g}) for {total / fs:.3g} s in {len(runs)} run(s) "
+        f"of a natural period or longer ({shown}{more}): a dropout (a loose cable, a logger's "
+        "gap filled in), not the rig's motion"
+    )
+
+
+def dropout_warning(a: np.ndarray, fs: float, fn: float) -> str | None:
+    """A warning if the record holds one value for a natural period or longer (a dropout),
+    which the windows covering it read as if it were the rig's motion."""
+    runs = held_runs(a, dropout_samples(fs, fn))
+    if not runs:
+        return None
+    return f"{dropout_words(runs, fs, float(a[runs[0][0]]))}: the estimate reads it as signal"
+
+
 def finite_samples(accel: Any, what: str) -> np.ndarray:
     """The samples as a finite 1-D float64 array of at least 2 samples."""
     try:
@@ -110,6 +153,8 @@ def checked_recording(
     """
     a = finite_samples(accel, what)
     warnings = rate_warnings(fs, fn, what)
+    # before the scaling below: the values as recorded
+    clip, dropout = clipping_warning(a), dropout_warning(a, fs, fn)
     peak = float(np.max(np.abs(a)))
     if peak > 0:
         a = np.ldexp(a, -int(np.frexp(peak)[1]))
@@ -122,7 +167,8 @@ def checked_recording(
             f"{window_periods:g} natural periods needs {need / fs:.3g} s "
             f"({round(need) if need < 1e15 else f'{need:.3g}'} samples at {fs:.6g} Hz)"
         )
-    clip = clipping_warning(a)
     if clip:
         warnings.append(clip)
+    if dropout:
+        warnings.append(dropout)
     return a, warnings

@@ -45,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from serving.campaign_chain import identified
 from serving.chain_spread import plausible_chains
 from serving.chain_undo import chain_to_undo, undone_stages, undone_windows, window_margin
+from serving.checks import dropout_samples, dropout_words, held_runs
 from serving.restoring_force_check import (
     RESTORING_FORCE_PERIODS,
     check_sensor_sheet,
@@ -188,6 +189,10 @@ class StiffnessLogger:
         self.classes = _classes(edges)
         self.facts = model_facts(predictor)
         self.n_widened = 0  # points whose interval the alarm widened (said once, in warnings)
+        # runs of a held value (a dropout): start sample -> stop, their value, flagged points
+        self.dropout_n = dropout_samples(self.fs, self.fn)
+        self.dropouts: dict[int, int] = {}
+        self.dropout_value = 0.0
         self.widened_layers: list[int] = []  # flagged layers whose interval was widened
         # the accelerometer's chain: identified on the record's start, then divided out of
         # every window the model reads (as predict divides it out of a recording)
@@ -463,11 +468,28 @@ class StiffnessLogger:
                     : -log_settings().max_restoring_force_checks
                 ]  # an endless layer: bounded
             self._verdict(point, ph)
+            self._flag_dropout(point, end)
             events.append(("point", _public(point)))
             for layer in self.segmenter.push(point):
                 events.append(("layer", self._layer(layer)))
         self.next_window += len(starts)
         return events
+
+    def _flag_dropout(self, point: dict[str, Any], end: int) -> None:
+        """Flag the point whose window (ending at sample `end`) holds a dropout, a value held
+        for a natural period or longer (:func:`serving.checks.held_runs`): the model read it as
+        the rig's motion. Each run is kept once, by its samples, for the warning."""
+        lo = end - self.n_win
+        seg = self.buf[lo - self.buf_start : end - self.buf_start]
+        runs = held_runs(seg, self.dropout_n)
+        if not runs:
+            return
+        point["alarm"] = [*point["alarm"], "dropout"]
+        if not self.dropouts:
+            self.dropout_value = float(seg[runs[0][0]])
+        for start, stop in runs:
+            start, stop = lo + start, lo + stop
+            self.dropouts[start] = max(stop, self.dropouts.get(start, stop))
 
     def _point(self, j: int, out: dict[str, np.ndarray], k: int, emb: float | None) -> dict:
         proba = out["probabilities"][k]
@@ -613,6 +635,18 @@ def spread_by(interval: list[float] | None, spread: tuple[float, float] | None) 
     if interval is None or spread is None:
         return interval
     return [interval[0] * math.exp(spread[0]), interval[1] * math.exp(spread[1])]
+
+
+def merged_runs(runs: dict[int, int]) -> list[tuple[int, int]]:
+    """The ``start -> stop`` runs as seen by overlapping windows (a run cut by a window's
+    edge is seen shorter there), merged into disjoint ``(start, stop)`` runs in order."""
+    merged: list[tuple[int, int]] = []
+    for start, stop in sorted(runs.items()):
+        if merged and start <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(stop, merged[-1][1]))
+        else:
+            merged.append((start, stop))
+    return merged
 
 
 def hop_samples(hop_s: float, fs_hz: float) -> int:
@@ -809,6 +843,12 @@ def log_result(
             "beta intervals also span the readings through "
             + ", ".join(log.other_chains)
             + f" (a data sheet, {sensor_given()}, reads it once)"
+        )
+    if log.dropouts:
+        flagged = sum("dropout" in p["alarm_fired"] for p in points)
+        warnings.append(
+            f"{dropout_words(merged_runs(log.dropouts), log.fs, log.dropout_value)}: the "
+            f"{flagged} point(s) whose windows cover it are flagged (dropout)"
         )
     if len(layers) > 1:
         warnings.append(f"beta changes along this record: {len(layers)} layers")

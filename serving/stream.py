@@ -7,7 +7,7 @@ Two encodings of a DAQ stream:
     the acceleration is the last (``t,accel``) or the 0-based column ``column``;
     a first line that is not numeric is a header and is skipped, blank lines are
     ignored, any other line that is not a number stops the stream with its line
-    number.
+    number, and so does a line separated by ``;`` or tabs (decimal commas).
 ``f32``
     raw little-endian float32 samples, back to back.
 
@@ -135,6 +135,11 @@ def _decode(
             yield values
 
 
+#: Separators a spreadsheet or a European locale writes instead of commas (and then a
+#: decimal comma): a line holding one is refused, never split at its decimal commas.
+_OTHER_SEPARATORS = ((b";", "';'"), (b"\t", "tabs"))
+
+
 def _parse_lines(
     text: bytes, column: int | None, name: str, line_no: int
 ) -> tuple[np.ndarray, int]:
@@ -144,6 +149,12 @@ def _parse_lines(
         line = raw.strip()
         if not line:
             continue
+        for sep, word in _OTHER_SEPARATORS:
+            if sep in line:  # '0,001;1,25' split at its commas reads 25 as the sample
+                raise StiffnetError(
+                    f"{name}: line {line_no}: its cells are separated by {word}, not commas; "
+                    "send comma-separated numbers with '.' as the decimal point"
+                )
         cells = line.split(b",")
         try:
             cell = cells[-1 if column is None else column]

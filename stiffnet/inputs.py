@@ -80,6 +80,64 @@ def quote_content(text: str, cells: int = 1) -> str | None:
 _NUMBER_WITH_UNIT = re.compile(r"^\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[A-Za-z/%°]+\s*$")
 
 
+def unit_hint(value: Any) -> str:
+    """What to write instead of a number given with its unit (``"9.48 Hz"``, ``"2.8mm"``):
+    a hint to append to the refusal, empty for any other value.
+
+    Parameters
+    ----------
+    value : Any
+        The value refused as not a number.
+
+    Returns
+    -------
+    str
+        ``" (the number alone: the name carries the unit)"`` or ``""``.
+    """
+    if isinstance(value, str) and _NUMBER_WITH_UNIT.match(value):
+        return " (the number alone: the name carries the unit)"
+    return ""
+
+
+#: Bytes read to find where a text file stops being UTF-8 (the message's line number).
+_ENCODING_PROBE_BYTES = 1 << 20
+
+
+def not_utf8_words(path: str | os.PathLike[str]) -> str:
+    """Why a file that does not decode as UTF-8 does not, to append to the refusal: a UTF-16
+    byte-order mark (Windows' "Unicode" text), else the first line holding a byte that is
+    not UTF-8 (a Latin-1 or Windows-1252 accent, a binary file), within its first MiB.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file refused.
+
+    Returns
+    -------
+    str
+        ``": ..."`` saying what was found and to save the file as UTF-8, or ``""``.
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(_ENCODING_PROBE_BYTES)
+    except OSError:
+        return ""
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return ": it is UTF-16 text, as Windows saves 'Unicode' text; save it as UTF-8"
+    for number, line in enumerate(head.split(b"\n"), start=1):
+        try:
+            line.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            if exc.reason == "unexpected end of data":  # the probe cut a character
+                break
+            return (
+                f": line {number} holds a byte that is not UTF-8 (Latin-1 or Windows-1252 "
+                "text, or a binary file); save it as UTF-8"
+            )
+    return ""
+
+
 def without_unnamed_tail(header: list[str]) -> list[str]:
     """A CSV header without the unnamed cells that end it (``t,accel,,`` as a spreadsheet
     saves a sheet whose empty columns were once touched): nobody named them, so they are
@@ -104,9 +162,7 @@ def without_unnamed_tail(header: list[str]) -> list[str]:
 def real_number(value: Any, what: str) -> float:
     """``value`` as a finite float; bools, strings and huge integers are refused."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy scalars are Real
-        unit = isinstance(value, str) and _NUMBER_WITH_UNIT.match(value)
-        hint = " (the number alone: the name carries the unit)" if unit else ""
-        raise StiffnetError(f"{what} must be a number, got {_show(value)}{hint}")
+        raise StiffnetError(f"{what} must be a number, got {_show(value)}{unit_hint(value)}")
     try:
         v = float(value)
     except (OverflowError, ValueError, TypeError):

@@ -111,6 +111,10 @@ class RigRun:
     #: the campaign shares.
     beam_material: bool = False
     beam_contact_ratio: float = 20.0
+    #: ``contact="cubic_hunt_crossley"``: a face that stiffens as it is compressed, a
+    #: Duffing-like ``k δ (1 + (δ / cubic_mm)²)``, whose dissipation grows with the
+    #: penetration as Hunt-Crossley's: the force times ``(1 + hc_lambda_s_per_m δ')``.
+    cubic_mm: float = 0.3
 
     @property
     def contact_beta(self) -> float:
@@ -185,6 +189,8 @@ def _contact_force(run: RigRun, x: np.ndarray, v: np.ndarray) -> np.ndarray:
         f = f + 2 * run.contact_zeta * np.sqrt(run.beta) * run.omega_n * v
     elif run.contact == "hunt_crossley":
         f = f * (1 + run.hc_lambda_s_per_m * v)
+    elif run.contact == "cubic_hunt_crossley":
+        f = f * (1 + (d / (run.cubic_mm * 1e-3)) ** 2) * (1 + run.hc_lambda_s_per_m * v)
     elif run.contact == "two_stage":
         f = f + (run.stage_ratio - 1) * k * np.maximum(d - run.knee_mm * 1e-3, 0.0)
     elif run.contact == "power_law":
@@ -261,6 +267,8 @@ def simulate(
             if r.contact == "kelvin_voigt":
                 return r.beta * wn**2 * d + 2 * r.contact_zeta * math.sqrt(r.beta) * wn * y[1]
             if r.contact == "hunt_crossley":
+                return d * (1 + r.hc_lambda_s_per_m * y[1])
+            if r.contact == "cubic_hunt_crossley":  # the cubic factor is positive
                 return d * (1 + r.hc_lambda_s_per_m * y[1])
             return d
 

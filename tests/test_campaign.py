@@ -272,6 +272,67 @@ def test_manifest_unit_beside_a_column_name_names_the_column_to_write(tmp_path, 
     manifest_error(tmp_path, f"recording,beta,{header}\na.csv,3,2\n", match)
 
 
+@pytest.mark.parametrize(("cell", "hinted"), [("1000 Hz", True), ("2.8mm", True), ("x", False)])
+def test_manifest_cell_with_its_unit_says_to_write_the_number_alone(tmp_path, cell, hinted):
+    """A lab sheet's cells written with their unit ('1000 Hz' in fs_hz) were 'not a number'
+    with nothing said of why; a sidecar's '9.48 Hz' already got the hint."""
+    msg = manifest_error(tmp_path, f"recording,fs_hz\na.csv,{cell}\n", "column fs_hz: not a number")
+    assert msg.endswith("(the number alone: the name carries the unit)") == hinted, msg
+
+
+def test_manifest_with_absolute_windows_paths_names_the_tail_to_write(tmp_path):
+    """A manifest written on the lab's Windows machine (``C:\\Users\\...\\rec\\r1.csv``) was
+    refused on every row with no word of what to write; the tail that names a file of the
+    folder is now said. A path whose tail names nothing here gets no suggestion."""
+    write(tmp_path / "rec" / "r1.csv", "t,accel\n0,1\n")
+    text = (
+        "recording,fs_hz\n"
+        "C:\\Users\\lab\\camp\\rec\\r1.csv,1000\n"
+        "C:\\Users\\lab\\camp\\rec\\gone.csv,1000\n"
+    )
+    msg = manifest_error(tmp_path, text, r"^2 problems: ")
+    assert (
+        "line 2, column recording: must be a path relative to the campaign folder (an absolute "
+        "path: write its tail 'rec/r1.csv', a file of this folder); also line 3, column "
+        "recording: must be a path relative to the campaign folder" in msg
+    ), msg
+    assert msg.endswith("must be a path relative to the campaign folder"), msg
+
+
+def test_a_folder_whose_manifest_sits_in_a_subfolder_is_told_where_it_must_sit(tmp_path):
+    """``meta/manifest.csv`` naming ``../rec/r1.csv``: the folder was 'not a campaign folder
+    (no manifest.csv)', and the manifest itself refused every '..' path."""
+    write(tmp_path / "rec" / "r1.csv", "t,accel\n0,1\n")
+    write(tmp_path / "meta" / MANIFEST_NAME, "recording,fs_hz\n../rec/r1.csv,1000\n")
+    with pytest.raises(StiffnetError) as info:
+        load_campaign(tmp_path)
+    assert str(info.value) == (
+        f"{tmp_path}: not a campaign folder (no manifest.csv) (meta/manifest.csv is one, but a "
+        "campaign is the folder its manifest sits in, its recordings' paths starting there "
+        "without '..': move it here and write its paths from here)"
+    )
+    (tmp_path / "meta" / MANIFEST_NAME).unlink()
+    with pytest.raises(StiffnetError, match=r"not a campaign folder \(no manifest.csv\)$"):
+        load_campaign(tmp_path)
+
+
+@pytest.mark.parametrize(
+    ("encoding", "said"),
+    [
+        ("utf-16", ": it is UTF-16 text, as Windows saves 'Unicode' text; save it as UTF-8"),
+        ("latin-1", ": line 2 holds a byte that is not UTF-8 (Latin-1 or Windows-1252 text, "),
+    ],
+)
+def test_manifest_not_utf8_says_which_encoding_or_line(tmp_path, encoding, said):
+    """A manifest saved by a spreadsheet as UTF-16 or Latin-1 (a file name with an accent)
+    was 'manifest is not a UTF-8 text file' alone."""
+    path = tmp_path / MANIFEST_NAME
+    path.write_text("recording,fs_hz\nmesuré.csv,1000\n", encoding=encoding)
+    with pytest.raises(StiffnetError) as info:
+        read_manifest(path)
+    assert str(info.value).startswith(f"{path}: manifest is not a UTF-8 text file{said}")
+
+
 def test_manifest_header_cell_with_odd_symbols_beside_a_name_is_not_quoted(tmp_path):
     msg = manifest_error(tmp_path, "recording,fs_hz,beta [k=\x01!]\na.csv,3,2\n", "unknown")
     assert "(name not shown)" in msg and "k=" not in msg

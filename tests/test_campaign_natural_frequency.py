@@ -204,9 +204,9 @@ def test_predict_batch_says_a_rows_f_n_came_from_its_sidecar(tmp_path):
 
     camp = _campaign(tmp_path, "recording,fs_hz", "rec/run.csv,1000", 12.0)
     sidecar = f"sidecar:{camp / 'rec' / 'run.csv.json'}"
-    _, settings, _, sources = campaign_inputs(camp)
+    _, settings, _, sources, _ = campaign_inputs(camp)
     assert settings[0][1] == 12.0 and sources == [sidecar]
-    _, _, sources = listed_settings([str(camp / "rec" / "run.csv")], (None,) * 5)
+    _, _, sources, _ = listed_settings([str(camp / "rec" / "run.csv")], (None,) * 5)
     assert sources == [sidecar]
     row = _campaign(
         tmp_path / "b", "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,12", None

@@ -85,3 +85,18 @@ def test_each_place_gets_its_own_words(where, fn_text, sensor_text):
         assert fn_text in fn_unknown() and sensor_given() == sensor_text
     finally:
         HINT_CONTEXT.reset(token)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"), [("fs_hz", "1000 Hz"), ("natural_frequency_hz", "9.48Hz")]
+)
+def test_a_form_number_written_with_its_unit_says_to_send_the_number_alone(client, field, value):
+    """'1000 Hz' in the form field fs_hz was "is not a number" with nothing said of why, where
+    a sidecar's and a manifest's '9.48 Hz' say to write the number alone."""
+    fields = {"natural_frequency_hz": "9.48", field: value}
+    files = {"file": ("run.csv", EXAMPLE.read_bytes(), "text/csv")}
+    message = _refusal(client.post("/predict", files=files, data=fields))
+    assert message == (
+        f"form field {field}: {value!r} is not a number (the number alone: the name carries "
+        "the unit)"
+    )

@@ -165,6 +165,12 @@ def test_stream_decoding(tmp_path):
     p.write_bytes(b"1\n2\nx\n")
     with pytest.raises(Exception, match="line 3 is not a sample"):
         list(sample_chunks(p, idle_timeout_s=0.1))
+    # a European spreadsheet's export: split at its decimal commas, '0,001;2,5' read 5 (the
+    # fraction's digits) as the sample, a log of garbage with exit 0
+    for text, word in ((b"t;accel\n0,000;1,5\n0,001;2,5\n", "';'"), (b"0\t1.5\n", "tabs")):
+        p.write_bytes(text)
+        with pytest.raises(Exception, match=f"line 1: its cells are separated by {word}"):
+            list(sample_chunks(p, idle_timeout_s=0.1))
     f = tmp_path / "s.f32"
     np.arange(5, dtype="<f4").tofile(f)
     got = np.concatenate(list(sample_chunks(f, "f32", idle_timeout_s=0.1)))
@@ -546,3 +552,27 @@ def test_the_layers_check_counts_what_the_layers_report():
     ]
     res = with_layers_alarm(quiet, layered)
     assert res["fired"] == [LAYERS_CHECK] and res["scores"][LAYERS_CHECK] == 1.0
+
+
+def test_a_dropout_is_said_and_flags_the_points_that_read_it(predictor, records):
+    """Half a second of zeros in a record (a loose cable; a logger filling its gap) was read
+    as the rig's motion with nothing said, by the log and by predict (an independent rig's
+    40-s drilling record: four points over 21.3-22.8 s, beta 50.1-52.7 for 55, no alarm)."""
+    a, _, _ = records["constant"]
+    held = a.copy()
+    held[int(22.0 * FS) : int(22.5 * FS)] = 0.0
+    log = stiffness_log(predictor, held, FS, FN_HZ)
+    flagged = [p["t_s"] for p in log["points"] if "dropout" in p["alarm_fired"]]
+    # the points whose 1.69 s windows overlap 22.0-22.5 s, and only those
+    half = 0.5 * log["window_s"]
+    assert flagged and all(22.0 - half < t < 22.5 + half for t in flagged), flagged
+    assert all(p["alarm"] for p in log["points"] if p["t_s"] in flagged)
+    said = [w for w in log["warnings"] if "a dropout" in w]
+    assert len(said) == 1 and "(0) for 0.5 s in 1 run(s)" in said[0] and "22.00-22.50 s" in said[0]
+    assert f"the {len(flagged)} point(s)" in said[0]
+    # the record without it says nothing of the kind
+    clean = stiffness_log(predictor, a, FS, FN_HZ)
+    assert not any("dropout" in p["alarm_fired"] for p in clean["points"])
+    assert not any("dropout" in w for w in clean["warnings"])
+    result = predictor.predict(held, FS, natural_frequency_hz=FN_HZ)
+    assert any("a dropout" in w and "22.00-22.50 s" in w for w in result["warnings"])

@@ -167,7 +167,38 @@ def test_csv_t_not_increasing(tmp_path):
 def test_csv_t_not_uniform(tmp_path):
     t = np.delete(np.arange(100) / FS, 50)  # one dropped sample
     text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
-    assert_error("not uniformly sampled", write_text(tmp_path / "x.csv", text))
+    assert_error("has a gap.*about 1 sample", write_text(tmp_path / "x.csv", text))
+    jittered = np.arange(100) / FS + np.tile([0.0, 0.3 / FS], 50)  # a third of a period
+    text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in jittered)
+    assert_error("not uniformly sampled", write_text(tmp_path / "y.csv", text))
+
+
+def test_csv_gap_in_time_says_how_many_samples_are_missing(tmp_path):
+    """0.5 s of rows missing from a 1 kHz record: it said 'line 22001 is 2.7e+02 sample
+    periods off the uniform grid' (the mean step stretched by the gap), not 500 missing."""
+    t = np.delete(np.arange(4000) / FS, np.arange(2000, 2500))
+    text = "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
+    assert_error(
+        r"column t has a gap: t jumps from 1\.999 to 2\.5 \(line 2002\), 0\.501 s where the "
+        r"other steps are 0\.001 s: about 500 sample\(s\) missing",
+        write_text(tmp_path / "x.csv", text),
+    )
+
+
+def test_csv_not_utf8_says_which_encoding_or_line(tmp_path):
+    """A recording saved as UTF-16 (Windows' 'Unicode' text) or with a Latin-1 degree sign
+    was 'not a UTF-8 text file' alone: it now says which, or on which line."""
+    text = "t,accel\n0,1\n0.001,2\n"
+    utf16 = tmp_path / "u.csv"
+    utf16.write_text(text, encoding="utf-16")
+    assert_error(
+        r"not a UTF-8 text file \(expected a CSV 't,accel'\): it is UTF-16 text, as Windows "
+        r"saves 'Unicode' text; save it as UTF-8$",
+        utf16,
+    )
+    latin1 = tmp_path / "l.csv"
+    latin1.write_bytes(text.encode() + "0.002,3 # 20 °C\n".encode("latin-1"))
+    assert_error(r"line 4 holds a byte that is not UTF-8 \(Latin-1 or Windows-1252", latin1)
 
 
 def test_csv_large_file_reads(tmp_path):

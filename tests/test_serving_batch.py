@@ -306,3 +306,26 @@ def test_a_glob_of_a_campaigns_files_reads_each_through_its_row(recordings, tmp_
     (camp / "run.csv.json").write_text(json.dumps({"natural_frequency_hz": 12.0}))
     with pytest.raises(StiffnetError, match="disagrees with the recording's sidecar"):
         predict_batch(f"{camp}/*.csv", tmp_path / "h.parquet", model_path=MODEL)
+
+
+def test_a_rows_rate_contradicting_its_file_names_the_manifest_line(recordings, tmp_path):
+    """A row's ``fs_hz`` that contradicts its file's time column fails that recording with
+    the manifest's line and column first, as ``evaluate`` says it, by the folder and by a glob
+    over its files: it named only the file, leaving the user to find the row."""
+    import shutil
+
+    camp = tmp_path / "lab"
+    camp.mkdir()
+    shutil.copy(recordings / "r0.csv", camp / "good.csv")  # 800 Hz
+    shutil.copy(recordings / "r1.csv", camp / "bad.csv")  # 800 Hz, its row says 1200
+    (camp / "manifest.csv").write_text(
+        "recording,fs_hz,natural_frequency_hz\ngood.csv,800,9.48\nbad.csv,1200,9.48\n"
+    )
+    for spec, out in ((camp, "f.parquet"), (f"{camp}/*.csv", "g.parquet")):
+        summary = predict_batch(spec, tmp_path / out, model_path=MODEL)
+        (failed,) = summary["failed"]
+        assert Path(failed["path"]).name == "bad.csv"
+        assert failed["error"].startswith(
+            f"{camp / 'manifest.csv'}: line 3 (bad.csv), column fs_hz: "
+        )
+        assert "gives fs = 800 Hz but fs_hz = 1200 Hz" in failed["error"]

@@ -9,6 +9,7 @@ the paper's eqs (11)-(12) when the row is validated (``docs/campaign.md``, "Unit
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import os
 import posixpath
@@ -32,7 +33,7 @@ from pydantic import (
 )
 
 from stiffnet.errors import RateMismatch, StiffnetError
-from stiffnet.inputs import quote_content, without_unnamed_tail
+from stiffnet.inputs import not_utf8_words, quote_content, unit_hint, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
@@ -318,7 +319,7 @@ def read_manifest_with_columns(
                     problems.append(str(exc))
             raise_problems(p, problems)
     except UnicodeDecodeError:
-        raise StiffnetError(f"{p}: manifest is not a UTF-8 text file") from None
+        raise StiffnetError(f"{p}: manifest is not a UTF-8 text file{not_utf8_words(p)}") from None
     except csv.Error as exc:
         raise StiffnetError(f"{p}: malformed CSV ({exc})") from None
     if not rows:
@@ -383,6 +384,25 @@ def _unit_in_header(col: str, written: str | None = None) -> str | None:
     return f"{shown!r}: a unit beside a column's name is not read (the name carries it); {hint}"
 
 
+def _tail_in_folder(value: str, folder: Path) -> str | None:
+    """The longest tail of an absolute path that names a file inside ``folder``, else None:
+    what a manifest written on another machine (a Windows path from its drive letter on)
+    means, said to the user rather than guessed."""
+    parts = [x for x in value.replace("\\", "/").split("/") if x]
+    if not parts or not (value.startswith(("/", "\\")) or (len(value) > 1 and value[1] == ":")):
+        return None
+    root = folder.resolve()
+    for i in range(1, len(parts)):
+        tail = "/".join(parts[i:])
+        try:
+            found = (root / tail).resolve()
+        except OSError:  # a name the file system cannot hold
+            continue
+        if found.is_relative_to(root) and found.is_file():
+            return tail
+    return None
+
+
 def _read_row(
     p: Path,
     line: int,
@@ -398,7 +418,14 @@ def _read_row(
             f"({','.join(columns)})"
         )
     data = {c: v.strip() for c, v in zip(columns, cells, strict=True) if v.strip()}
-    row = _validate_row(data, f"{p}: line {line}")
+    try:
+        row = _validate_row(data, f"{p}: line {line}")
+    except StiffnetError as exc:
+        tail = _tail_in_folder(data.get("recording", ""), p.parent)
+        if tail is None or "must be a path relative" not in str(exc):
+            raise
+        raise StiffnetError(f"{exc} (an absolute path: write its tail {tail!r}, a file of "
+                            "this folder)") from None  # fmt: skip
     sidecar_fn = _sidecar_natural_frequency(p, line, row)
     if sidecar_fn is not None and row.natural_frequency_hz is None:
         # the physical columns (forcing in Hz, acceleration in g) convert with the rig's f_n
@@ -526,6 +553,8 @@ def _validate_row(data: dict[str, Any], where: str) -> ManifestRow:
             raise StiffnetError(f"{where}: {msg}") from None
         got = quote_content(str(err["input"])) if isinstance(err["input"], str) else None
         got = f" (got {got})" if got else ""
+        if kind == "float_parsing":  # '1000 Hz' in fs_hz: say what to write
+            got += unit_hint(err["input"])
         raise StiffnetError(f"{where}, column {col}: {msg}{got}") from None
 
 
@@ -680,7 +709,9 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
     elif p.is_dir():
         manifest = p / MANIFEST_NAME
         if not manifest.is_file():
-            raise StiffnetError(f"{p}: not a campaign folder (no {MANIFEST_NAME})")
+            raise StiffnetError(
+                f"{p}: not a campaign folder (no {MANIFEST_NAME}){_manifest_below_hint(p)}"
+            )
     else:
         raise StiffnetError(f"{p}: campaign folder not found")
     rows = read_manifest(manifest)
@@ -694,6 +725,31 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
             )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+#: Entries of a folder looked at for a manifest one level down (a folder of recordings
+#: alone can hold many: the hint must not cost a scan of them all).
+_MANIFEST_BELOW_ENTRIES = 1000
+
+
+def _manifest_below_hint(folder: Path) -> str:
+    """Where a folder without a manifest has one in a subfolder (``meta/manifest.csv`` whose
+    paths climb out with ``../``): where a campaign's manifest must sit."""
+    try:
+        below = [
+            e.name
+            for e in itertools.islice(folder.iterdir(), _MANIFEST_BELOW_ENTRIES)
+            if not e.name.startswith(".") and (e / MANIFEST_NAME).is_file()
+        ]
+    except OSError:
+        return ""
+    if not below:
+        return ""
+    return (
+        f" ({below[0]}/{MANIFEST_NAME} is one, but a campaign is the folder its manifest sits "
+        "in, its recordings' paths starting there without '..': move it here and write its "
+        "paths from here)"
+    )
 
 
 def _case_hint(path: Path) -> str:

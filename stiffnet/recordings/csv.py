@@ -28,7 +28,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from stiffnet.errors import RateMismatch, StiffnetError
-from stiffnet.inputs import columns_hint, quote_content, where_given, without_unnamed_tail
+from stiffnet.inputs import (
+    columns_hint,
+    not_utf8_words,
+    quote_content,
+    where_given,
+    without_unnamed_tail,
+)
 from stiffnet.recordings.base import (
     Recording,
     RecordingReader,
@@ -73,7 +79,9 @@ class CsvReader(RecordingReader):
             with open(path, encoding="utf-8-sig", newline="") as fh:
                 raw = next(csv.reader([fh.readline()]), [])
         except UnicodeDecodeError:
-            raise StiffnetError(f"{path}: not a UTF-8 text file (expected a CSV)") from None
+            raise StiffnetError(
+                f"{path}: not a UTF-8 text file (expected a CSV){not_utf8_words(path)}"
+            ) from None
         if raw and all(_is_number(c) for c in raw):
             return [str(i) for i in range(len(raw))]
         return [c.strip() for c in raw]
@@ -330,7 +338,9 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
             # bounded: a file without line ends (zeros, a binary dump) would be read whole
             first = fh.readline(HEADER_MAX_CHARS + 1)
     except UnicodeDecodeError:
-        raise StiffnetError(f"{name}: not a UTF-8 text file (expected a CSV 't,accel')") from None
+        raise StiffnetError(
+            f"{name}: not a UTF-8 text file (expected a CSV 't,accel'){not_utf8_words(p)}"
+        ) from None
     if not first:  # a logger's failed copy or transfer, not a file without its header
         raise StiffnetError(f"{name}: the file is empty (0 bytes; expected 't,accel' on line 1)")
     if "\x00" in first:  # a preallocated file never written, or a binary one
@@ -468,11 +478,23 @@ def _rate_from_times(t: np.ndarray, name: str, col: str = "column t", first_line
     step = (t[-1] - t[0]) / (t.size - 1)
     dev = np.abs(t - (t[0] + np.arange(t.size) * step))
     if dev.max() > TIME_JITTER_TOLERANCE * step:
+        # a gap stretches the mean step, so the grid's offsets do not count what is missing:
+        # the typical step does
+        typical = float(np.median(dt))
+        j = int(np.argmax(dt))
+        if dt[j] > (2 - TIME_JITTER_TOLERANCE) * typical:
+            missing = round(dt[j] / typical) - 1
+            raise StiffnetError(
+                f"{name}: {col} has a gap: t jumps from {float(t[j])!r} to {float(t[j + 1])!r} "
+                f"(line {j + first_line + 1}), {dt[j]:.4g} s where the other steps are "
+                f"{typical:.4g} s: about {missing} sample(s) missing (a logger's dropout); "
+                "the recording must be sampled without gaps"
+            )
         i = int(np.argmax(dev))
         raise StiffnetError(
             f"{name}: {col} is not uniformly sampled (line {i + first_line} is "
-            f"{dev[i] / step:.2g} sample periods off the uniform grid: dropped or repeated "
-            "samples?)"
+            f"{dev[i] / step:.2g} sample periods off the uniform grid: repeated samples or a "
+            "jittering clock?)"
         )
     return float(1.0 / step)
 
@@ -503,5 +525,5 @@ def _locate_csv_problem(p: Path, raw: list[str], index: list[int], has_header: b
                     if not math.isfinite(value):
                         return f"line {line}, column {col}: {cell.strip()} is not a finite number"
     except UnicodeDecodeError:
-        return "not a UTF-8 text file"
+        return f"not a UTF-8 text file{not_utf8_words(p)}"
     return "malformed CSV content"
