@@ -72,7 +72,10 @@ learned law's proposal and face). ``--dump DIR`` also writes each run's whole re
 (``DIR/<code>_<round>.json``) to compare beyond them. ``--phases``: also a table of each
 run's CPU seconds per phase (:data:`PHASES`: the restoring-force evidence, the library's fits,
 the discovery, the face by simulation and its parts), timed by wrappers in the run's process
-(``--workers 0`` to see them all).
+(``--workers 0`` to see them all), and a second table of what they spend it on: the
+restoring-force readings by caller (the evidence, the discovery's maps) and kind (a chain
+fitted, read through a data sheet or shared chain, read as recorded), and the simulations
+(``simulate_rows``: calls and rows) by the innermost phase that asked for them.
 
 Every code compared is first run once on two rows untimed (:func:`warm_kernels`): numba
 compiles the engines' kernels into a checkout's cache on its first run, and a copy of the
@@ -483,6 +486,60 @@ if a.get("phases"):
         m = importlib.import_module(mod)
         if hasattr(m, name):
             timed_phase(label, m, name)
+
+    # what each phase spends its seconds on: the restoring-force readings (by caller and
+    # kind) and the simulations (calls, rows), each counted where it is called
+    opened, work = [], {}
+
+    def count(key, t0, n=1):
+        c, k, r = work.get(key, (0.0, 0, 0))
+        work[key] = (c + time.process_time() - t0, k + 1, r + n)
+
+    def read_counted(caller, fn):
+        def run(accel, fs_hz, **kw):
+            kind = ("through a sheet" if kw.get("sensor") is not None else "as recorded"
+                    if kw.get("chain_fit_below_r2", np.inf) == -np.inf else "chain fitted")
+            t0 = time.process_time()
+            try:
+                return fn(accel, fs_hz, **kw)
+            finally:
+                count(f"readings: {caller}, {kind}", t0)
+        return run
+
+    def simulated(fn):
+        def run(rows, *args, **kw):
+            t0 = time.process_time()
+            try:
+                return fn(rows, *args, **kw)
+            finally:
+                count(f"simulations: {opened[-1] if opened else 'outside the phases'}", t0,
+                      len(rows))
+        return run
+
+    def opening(label, module, name):
+        fn = getattr(module, name)
+
+        def run(*args, **kw):
+            opened.append(label.strip())
+            try:
+                return fn(*args, **kw)
+            finally:
+                opened.pop()
+
+        setattr(module, name, run)
+
+    import numpy as np
+    import stiffnet.discovery.samples as samples_mod
+    import stiffnet.measurement.evidence as evidence_mod
+    import stiffnet.measurement.target as target_mod
+
+    for caller, m in (("evidence", evidence_mod), ("discovery", samples_mod)):
+        m.restoring_force_estimate = read_counted(caller, m.restoring_force_estimate)
+    target_mod.simulate_rows = simulated(target_mod.simulate_rows)
+    for label, (mod, name) in a["phases"].items():
+        m = importlib.import_module(mod)
+        if hasattr(m, name) and not label.startswith("  "):
+            opening(label, m, name)
 res = diagnose_campaign(camp, effects=a["effects"], workers=a["workers"],
                         inclination=a["inclination"])
 ll = res.get("learned_law") or {}
@@ -494,7 +551,8 @@ print(json.dumps({"wall": time.perf_counter() - t, "cpu": cpu() - c,
                   "explained": ll.get("explained_fraction"), "after": ll.get("discrepancy_after"),
                   "face": {k: v for k, v in params.items() if k.startswith("face_")},
                   "term": face.get("term"), "face_seconds": face.get("seconds"),
-                  "phases": phases, "params": res["fitted_params"]}))
+                  "phases": phases, "work": work if a.get("phases") else {},
+                  "params": res["fitted_params"]}))
 if a.get("dump"):  # the whole result, to compare answers afterwards
     with open(a["dump"], "w") as fh:
         json.dump(res, fh, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
@@ -562,6 +620,20 @@ def _phase_table(runs: list[tuple[str, dict]]) -> None:
         print(f"| {label} | " + " | ".join("-" if c is None else f"{c[0]:.1f} ({c[1]})"
                                            for c in cells) + " |")  # fmt: skip
     print("| the whole run | " + " | ".join(f"{r['cpu']:.1f}" for _, r in runs) + " |")
+    keys = sorted({k for _, r in runs for k in r.get("work", {})})
+    if keys:  # CPU s (calls; rows simulated)
+        print(
+            "\n| readings and simulations: CPU s (calls; rows) | "
+            + " | ".join(name for name, _ in runs)
+            + " |\n|---|"
+            + "---|" * len(runs)
+        )
+        for key in keys:
+            cells = [r.get("work", {}).get(key) for _, r in runs]
+            print(f"| {key} | " + " | ".join(
+                "-" if c is None else f"{c[0]:.1f} ({c[1]}" + ("" if key.startswith("readings")
+                                                             else f"; {c[2]}") + ")"
+                for c in cells) + " |")  # fmt: skip
 
 
 STATISTICS = """

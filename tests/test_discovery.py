@@ -897,3 +897,31 @@ def test_the_settled_verdict_is_the_one_every_reading_of_the_rest_would_give():
                     for k, (s, u) in enumerate(zip(shared, unread, strict=True))]  # fmt: skip
             assert verdict(own, rest, keeping) == got
     assert settled_seen == {"own", "recorded"}
+
+
+def test_a_record_read_as_recorded_gives_the_same_samples_with_or_without_betas_interval():
+    """The restoring-force evidence reads a record as recorded with beta's interval (its
+    refutation rule), the discovery without it: with no chain fitted, the interval is read
+    beside the map and moves none of its samples (measured on 48 rig records, bit for bit),
+    which is what sharing one such reading between them would rest on."""
+    from stiffnet.discovery.samples import result_samples
+    from stiffnet.restoring_force import restoring_force_estimate
+
+    beta, w, a, e, fsr = (np.array(c, float) for c in zip(*ROWS[:3], strict=True))
+    batch = OscillatorBatch(beta=beta, gap=e, amplitude=a, omega=w, damping=np.full(3, 0.02))
+    res = Simulator([ContactDamping(damping_ratio=0.2)]).simulate(
+        batch, fsr, int(26 * fsr.max() / w.min()), noise=0.01, rng=0
+    )
+    fn = 9.48
+    for i in range(3):
+        accel = res.accel[i, : int(26 * fsr[i] / w[i])]
+        read = [restoring_force_estimate(accel, fsr[i] * fn, natural_frequency_hz=fn,
+                                         forcing_frequency_hz=w[i] * fn, max_periods=24.0,
+                                         chain_fit_below_r2=-np.inf, interval=interval)
+                for interval in (True, False)]  # fmt: skip
+        assert np.all(np.isfinite(read[0].beta_interval)) and np.isnan(read[1].beta_interval[0])
+        with_interval, without = (result_samples(r, fsr[i] * fn, 1.0) for r in read)
+        assert with_interval is not None and without is not None
+        for key in ("displacement", "velocity", "force", "impact", "index"):
+            np.testing.assert_array_equal(getattr(with_interval, key), getattr(without, key))
+        assert (with_interval.onset, with_interval.beta) == (without.onset, without.beta)
