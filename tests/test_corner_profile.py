@@ -58,3 +58,69 @@ def test_damped_contact_behind_a_mount_is_covered_at_several_noise_seeds(beta, s
     assert lo <= beta <= hi, (c["beta"], lo, hi)
     # honest, not unbounded: within a factor 1.4 end to end
     assert hi / lo < 1.4
+
+
+@pytest.fixture(scope="module")
+def hunt_crossley_behind_a_chain():
+    """The independent rig: a Hunt-Crossley contact (beta 8) behind a 4th-order 600 Hz
+    low-pass and a 2 Hz high-pass, 3 s at 2 kHz: its check fits a chain (the contact's
+    dissipation reads as a low-pass with an interval) and profiles the high-pass corner."""
+    from independent_rig import RigRun, record
+
+    run = RigRun("rec/hc.csv", 8.0, 9.48, 9.95, 0.757, 2.8, 0.02, 2000.0, 3.0,
+                 contact="hunt_crossley", hc_lambda_s_per_m=6.0,
+                 sensor={"lowpass_hz": 600.0, "lowpass_order": 4, "highpass_hz": 2.0})  # fmt: skip
+    return record(run, seed=0)[1]
+
+
+def _counted_maps(monkeypatch):
+    """Every contact map the estimate fits (its corner), and per corner profile the corners
+    that profile mapped."""
+    from stiffnet.restoring_force import estimate
+
+    calls, profiles = [], []
+    fit_map, profiled_corner = estimate._fit_map, estimate._profiled_corner
+
+    def counted(*args, **kw):
+        calls.append(args[6])
+        return fit_map(*args, **kw)
+
+    def profile(*args, **kw):
+        first = len(calls)
+        out = profiled_corner(*args, **kw)
+        profiles.append(calls[first:])
+        return out
+
+    monkeypatch.setattr(estimate, "_fit_map", counted)
+    monkeypatch.setattr(estimate, "_profiled_corner", profile)
+    return calls, profiles
+
+
+def test_the_corner_search_maps_each_corner_once_and_holds_it_at_the_low_pass_ends(
+    hunt_crossley_behind_a_chain, monkeypatch
+):
+    """The corner's profile maps every corner it visits once (its search's last point is
+    the corner it returns), and the maps with the fitted low-pass at the ends of its interval
+    are read at the corner of the map through the chain, not profiled again: on main this
+    record took 105 contact-map fits (the search's corner mapped twice in each of 3 profiles,
+    and 2 profiles more for the ends), now 63."""
+    from serving.restoring_force_check import restoring_force_check
+    from stiffnet.restoring_force import estimate
+
+    calls, profiles = _counted_maps(monkeypatch)
+    ends, inverse_map = [], estimate._inverse_map
+
+    def recorded(chain, y, fs_hz, m, args, highpass_hz, corner, exponent, inverse=True):
+        out = inverse_map(chain, y, fs_hz, m, args, highpass_hz, corner, exponent, inverse)
+        ends.append((chain.lowpass_hz, highpass_hz, out.corner))
+        return out
+
+    monkeypatch.setattr(estimate, "_inverse_map", recorded)
+    c = restoring_force_check(hunt_crossley_behind_a_chain, 2000.0, 9.48)
+    assert profiles and all(len(set(p)) == len(p) for p in profiles)
+    sensor = c["sensor"]
+    low, high = sensor["intervals"]["lowpass_hz"]
+    read = next(corner for f, hp, corner in ends if f == sensor["lowpass_hz"] and hp == "auto")
+    at_ends = [(hp, corner) for f, hp, corner in ends if f in (low, high)]
+    assert len(at_ends) == 2 and all(hp != "auto" and corner == read for hp, corner in at_ends)
+    assert len(calls) <= 70

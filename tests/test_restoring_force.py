@@ -381,3 +381,22 @@ def test_the_estimate_does_not_depend_on_the_records_unit():
         assert other.beta == pytest.approx(first.beta, rel=1e-5)
         assert other.sensor.lowpass_hz == pytest.approx(first.sensor.lowpass_hz, rel=1e-6)
         assert other.n_impacts == first.n_impacts
+
+
+def test_a_trial_step_to_a_huge_stiffness_warns_nobody():
+    """A contact-law fit from a poor start tries log K in the hundreds: the residual is finite,
+    its square is not, and the solver refuses the step. The fit still reads the law (K 50)
+    and numpy's overflow warning does not reach the user (on main it did: fresh rig records
+    printed scipy's "overflow encountered in dot" on stderr)."""
+    import warnings
+
+    from stiffnet.restoring_force import fit_contact_law
+
+    t = np.linspace(0.0, 20.0, 4000)
+    x, v = np.sin(2 * np.pi * t), 2 * np.pi * np.cos(2 * np.pi * t)
+    noise = 0.5 * np.random.default_rng(0).standard_normal(t.size)
+    f = contact_force(x, v, 50.0, 0.7, 3.0) + noise
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        law = fit_contact_law(f, x, v, x > 0.5, (1.0, 0.99, 10.0), 0.3, 1.0)
+    assert law.stiffness == pytest.approx(50.0, rel=0.05)

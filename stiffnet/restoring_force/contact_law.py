@@ -304,10 +304,14 @@ def fit_contact_law(
     res = None
     for gain in (1.0,) if band is None else BAND_START_GAINS:
         theta0 = [np.log(gain * kc0), e0, max(cc0, 0.0)] + ([1.0] if exponent is None else [])
-        sol = optimize.least_squares(
-            residuals, np.clip(theta0, lo, hi), jac=residuals.jacobian, bounds=(lo, hi),
-            x_scale="jac", max_nfev=max_nfev,
-        )  # fmt: skip
+        # a trial step to a huge stiffness (log K in the hundreds) leaves a residual that is
+        # finite but whose square is not: the solver's cost is then inf and the step refused,
+        # as a non-finite residual's is, so numpy's overflow warning would only reach the user
+        with np.errstate(over="ignore"):
+            sol = optimize.least_squares(
+                residuals, np.clip(theta0, lo, hi), jac=residuals.jacobian, bounds=(lo, hi),
+                x_scale="jac", max_nfev=max_nfev,
+            )  # fmt: skip
         if res is None or sol.cost < res.cost:
             res = sol
     th = res.x

@@ -554,22 +554,23 @@ def _profiled_corner(m: _Map, corner: float, args: tuple, exponent: float | None
     """
     if m.law is None or m.labels is None:
         return m, corner
-    maps = {
-        c: _fit_map(*args, float(c), exponent, inverse=m.inverse, band=m.band)
-        for c in HIGHPASS_GRID
-    }
+    seen: dict[float, _Map] = {}
+
+    def at(c: float) -> _Map:  # a map is a function of its corner: the search's last point
+        if c not in seen:  # is the corner it returns, mapped once
+            seen[c] = _fit_map(*args, c, exponent, inverse=m.inverse, band=m.band)
+        return seen[c]
+
+    maps = {c: at(float(c)) for c in HIGHPASS_GRID}
     best = max(maps, key=lambda c: _contact_r2(maps[c]))
     i = int(np.flatnonzero(HIGHPASS_GRID == best)[0])
     lo, hi = HIGHPASS_GRID[max(i - 1, 0)], HIGHPASS_GRID[min(i + 1, HIGHPASS_GRID.size - 1)]
     sol = optimize.minimize_scalar(
-        lambda u: -max(
-            _contact_r2(_fit_map(*args, float(np.exp(u)), exponent, inverse=m.inverse,
-                                 band=m.band)), -1.0
-        ),
+        lambda u: -max(_contact_r2(at(float(np.exp(u)))), -1.0),
         bounds=(np.log(lo), np.log(hi)), method="bounded", options={"xatol": 0.02, "maxiter": 12},
     )  # fmt: skip
     c_best = float(np.exp(sol.x))
-    profiled = _fit_map(*args, c_best, exponent, inverse=m.inverse, band=m.band)
+    profiled = at(c_best)
     if _contact_r2(maps[best]) > _contact_r2(profiled):
         c_best, profiled = float(best), maps[best]
     # every corner's reading and misfit: the interval spans those the record cannot exclude
@@ -798,7 +799,7 @@ def _undo_chain(
         kept = _readings([m2]) if below and not refusal and rivals else []
         if rivals and not refusal:  # the corners' intervals, where the sheet gives them
             ends = _highpass_end_maps(chain, y, fs_hz, ff, m, args, highpass_hz, exponent)
-            ends += _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+            ends += _corner_maps(chain, y, fs_hz, m, args, m2, exponent)
             kept += _readings([m2, *ends]) if ends else []
         return m2, chain, chain.resonance_hz, refusal, kept
     # the chain that makes the contact force a function of the state: a fitted chain whose
@@ -817,7 +818,7 @@ def _undo_chain(
     readings = (
         [c[0] for c in candidates]
         + [m2]
-        + _corner_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
+        + _corner_maps(chain, y, fs_hz, m, args, m2, exponent)
         + _unexcluded_maps(chain, y, fs_hz, m, args, highpass_hz, exponent)
         if rivals
         else []
@@ -878,16 +879,19 @@ def _band_refusal(chain: SensorChain, m2: _Map, natural_hz: float, use, dtau) ->
     return lowpass_refusal(chain, natural_hz, float(lo))
 
 
-def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> list:
+def _corner_maps(chain: SensorChain, y, fs_hz, m: _Map, args, read: _Map, exponent) -> list:
     """The maps with the low-pass at the ends of its interval (its uncertainty: a fitted
     chain's, or a campaign's profiled corner given as a data sheet's ``lowpass_low_hz`` /
-    ``lowpass_high_hz``)."""
+    ``lowpass_high_hz``), the high-pass held at the corner of the map `read` through the
+    chain: profiled again at each end, the corner is tuned until the contact law fits and
+    takes part of the low-pass's effect back (as in :func:`_unexcluded_maps`); held, an end
+    is one map rather than a profile's twenty (:func:`_profiled_corner`)."""
     ends = chain.intervals.get("lowpass_hz") if chain.lowpass_hz else None
     if not ends or not all(np.isfinite(ends)):
         return []
     return [
         _inverse_map(dataclasses.replace(chain, lowpass_hz=float(f)), y, fs_hz, m, args,
-                     highpass_hz, m.corner, exponent)
+                     read.corner, read.corner, exponent)
         for f in sorted({float(f) for f in ends}) if 0 < f < 0.5 * fs_hz and f != chain.lowpass_hz
     ]  # fmt: skip
 
