@@ -8,7 +8,8 @@ as a candidate: the ``learned_contact`` effect at the discovered values replaces
 the library's contact effects (``contact_damping``, ``hertz_contact``: the law
 holds its own dissipation), on top of the other selected effects or of none
 (they may have stood in for the law), whichever fits better, and the campaign
-is simulated with it. Reported: the law (equation, words, coefficients
+is simulated with it; a preload the maps cannot resolve is then swept by simulation
+(:mod:`.preload_by_simulation`). Reported: the law (equation, words, coefficients
 with intervals, the term path), the discrepancy before and after over the
 recordings the verdict counts (:func:`counted_recordings`) and over all, the share of
 it removed, whether the rest is at the noise floor, and the force-penetration
@@ -34,6 +35,7 @@ from stiffnet.measurement.discrepancy import campaign_discrepancy
 from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unknowns, refine_face
 from stiffnet.measurement.fitting import objective_value
 from stiffnet.measurement.noise_floor import Floors
+from stiffnet.measurement.preload_by_simulation import preload_applies, preload_by_simulation
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
 
 #: Residual groups where a contact law shows.
@@ -152,6 +154,13 @@ def propose_learned_law(
         kept, refit = models[face["model"]], face["refit"]
     else:
         after, kept, params, refit = _law_scored(target, rows_law, models, law, settings)
+        if preload_applies(params):  # a preload the maps cannot resolve, by simulation
+            pre = preload_by_simulation(target, rows_law, kept, params, after, floor, settings)
+            out["preload_by_simulation"] = {k: v for k, v in pre.items() if k != "params"}
+            if pre["significant"]:
+                law, params = law.with_preload(pre["preload"]), pre["params"]
+                after = np.asarray(pre["per_recording"], float)
+                out.update(law=law.to_dict(), map=law_map(samples, law))
     before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
     counted = np.flatnonzero(counted_recordings(floor))
     d0, d1 = campaign_discrepancy(before[counted]), campaign_discrepancy(after[counted])
@@ -264,6 +273,12 @@ def _proposal_summary(law: Any, out: dict[str, Any], floor_median: float) -> str
             f". Over all {whole['n']} the mean goes from {whole['discrepancy_before']:.3g} to "
             f"{whole['discrepancy_after']:.3g}, lower on {whole['lower_on']}"
             + (f"; raised: {raised}" if raised else "")
+        )
+    pre = out.get("preload_by_simulation") or {}
+    if pre.get("significant"):  # the maps do not resolve a preload; the orbits do
+        summary += (
+            f". The preload ({pre['preload']:.3g} model lengths) was found by simulating the "
+            "campaign: the maps do not resolve it"
         )
     if out.get("unknowns"):  # a face the maps refused, kept by the simulation
         summary += (
