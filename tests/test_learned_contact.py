@@ -204,9 +204,12 @@ def test_shortcuts_of_a_law_without_power_preload_or_dissipation_are_the_same_nu
              "preload": np.array([0.0, 0.0, 0.0, 0.1, 0.0])}  # fmt: skip
     power = np.where(mixed["exponent"] == 1.0, d, 0.5 * (d / 0.5) ** mixed["exponent"])
     np.testing.assert_array_equal(leading_term(delta, mixed["exponent"], 0.5), power)
-    np.testing.assert_array_equal(
-        elastic_shape(delta, mixed), power + stage + np.where(d > 0, mixed["preload"], 0.0)
-    )
+    # a preload is the restraint's compression before touch: the leading term carries on
+    # from it, d_r ((d + d_0) / d_r)^p (d + d_0 where p = 1), in contact
+    step = np.where(d > 0, mixed["preload"], 0.0)
+    pre = np.where(d > 0, 0.5 * ((d + mixed["preload"]) / 0.5) ** mixed["exponent"], 0.0)
+    expected = np.where(mixed["exponent"] == 1.0, power + stage + step, pre + stage)
+    np.testing.assert_array_equal(elastic_shape(delta, mixed), expected)
 
 
 #: A face that scales with beta: support 1.25 beta, so the contact is 5 beta in front of it

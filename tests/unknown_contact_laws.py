@@ -154,3 +154,23 @@ class BeamTipContact(DynamicsEffect):
             y, v = s[:, 2 * i], s[:, 2 * i + 1]
             out += [v, contact_force / m - 2.0 * p["zeta"] * w * v - w * w * y]
         return np.stack(out, 1)
+
+
+class PreloadedPowerLawContact(DynamicsEffect):
+    """A power-law restraint already compressed by ``pre`` before the mass arrives:
+    ``F = k_p (delta + pre)**n`` with ``k_p = beta / d0**(n - 1)``, so the force jumps to
+    ``k_p pre**n`` at first touch (a bolted pad, a spring set against its stop).
+
+    ``n = 1`` is a linear spring with a force step ``beta pre`` at touch.
+    """
+
+    name = "unknown_preloaded_power_law"
+
+    class Params(EffectParams):
+        exponent: ParamValue = param(1.5, 1.0, 3.0, "exponent n")
+        d0: ParamValue = param(0.5, 1e-3, 10.0, "penetration of secant stiffness beta", "model")
+        pre: ParamValue = param(0.1, 0.0, 1.0, "compression before first touch", "model")
+
+    def elastic_contact(self, delta: np.ndarray, p: ParamArrays, batch: Any) -> np.ndarray:
+        k = np.asarray(batch.beta, float) * p["d0"] ** (1.0 - p["exponent"])
+        return k * (np.maximum(delta, 0.0) + p["pre"]) ** p["exponent"]

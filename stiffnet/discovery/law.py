@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from stiffnet.discovery.terms import TERMS
+
 #: A fitted exponent this close to 1 or to Hertz's 3/2 is the library's law.
 EXPONENT_TOLERANCE = 0.12
 #: Below this explained fraction the law does not describe the contact (a restraint with
@@ -21,7 +23,7 @@ WORDS = {
     "hinge": "a second stage that stiffens beyond a knee",
     "damping": "viscous (Kelvin-Voigt) dissipation",
     "hunt_crossley": "dissipation growing with the penetration (Hunt-Crossley)",
-    "preload": "a preload (a force step at first touch)",
+    "preload": "a preload (the restraint compressed before first touch: a force step there)",
     "face": "a restraint face with its own mass on a support spring (it recoils and rings)",
     "face2": "a second mode of the face (a beam's tip: two modes in parallel, recoils summed)",
     "face_scaled": "a restraint face that is each recording's own (the beam is the material: "
@@ -118,8 +120,9 @@ class DiscoveredLaw:
             return beta * p["hunt_crossley"] * p["reference_penetration"] ** (1 - p["exponent"])
         if term == "damping":
             return 2 * p["damping_ratio"] * np.sqrt(beta)
-        if term == "preload":
-            return beta * p["preload"]
+        if term == "preload":  # the force step at first touch
+            return beta * p["reference_penetration"] * (
+                p["preload"] / p["reference_penetration"]) ** p["exponent"]  # fmt: skip
         if term == "face":
             return p["face_stiffness"]
         if term == "face2":
@@ -138,10 +141,10 @@ class DiscoveredLaw:
         the manifest's penetration, ``d_r' = d_r s^(1/(p-1))`` with ``s`` the geometric
         mean of manifest over law betas, so the learned law, the datasets generated with
         it (the models' labels) and the campaign's truth are one quantity. The force is
-        unchanged: betas, the second stage's ``(r - 1)``, the preload and ``zeta^2`` are
-        rescaled by ``1/s``, ``alpha`` and the exponent stay. A law whose leading term is
-        linear (beta is its slope at first contact, no convention) comes back unchanged,
-        as does one without any given beta.
+        unchanged: betas, the second stage's ``(r - 1)`` and ``zeta^2`` are rescaled by
+        ``1/s``; ``alpha``, the exponent and the preload (a compression, a length) stay. A
+        law whose leading term is linear (beta is its slope at first contact, no
+        convention) comes back unchanged, as does one without any given beta.
 
         Parameters
         ----------
@@ -158,7 +161,7 @@ class DiscoveredLaw:
         if not 1e-3 <= dr <= 10.0:  # outside learned_contact's range: keep the campaign's
             return self
         s = (dr / p["reference_penetration"]) ** (p["exponent"] - 1.0)  # d_r as rounded
-        scale = {"knee_ratio": lambda v: 1.0 + (v - 1.0) / s, "preload": lambda v: v / s,
+        scale = {"knee_ratio": lambda v: 1.0 + (v - 1.0) / s,
                  "damping_ratio": lambda v: v / np.sqrt(s)}  # fmt: skip
         params = {k: float(scale[k](v)) if k in scale else v for k, v in p.items()}
         params["reference_penetration"] = dr
@@ -177,6 +180,16 @@ class DiscoveredLaw:
             reference="the manifest's beta",
         )
 
+    def with_preload(self, preload: float) -> DiscoveredLaw:
+        """The same law with the restraint compressed by ``preload`` before first touch (a
+        preload the campaign's simulation found where the maps do not resolve it,
+        :mod:`stiffnet.measurement.preload_by_simulation`): a term outside the library."""
+        terms = tuple(t for t in TERMS if t in self.terms or t == "preload")
+        terms += tuple(t for t in self.terms if t not in TERMS)
+        new = tuple(t for t in terms if t in self.new_terms or t == "preload")
+        return replace(self, terms=terms, new_terms=new,
+                       params={**self.params, "preload": float(preload)})  # fmt: skip
+
     @property
     def equation(self) -> str:
         """The law per unit beta, as an equation with its numbers."""
@@ -185,10 +198,11 @@ class DiscoveredLaw:
         dr = p["reference_penetration"]
         lead = "delta" if expo == 1.0 else f"{dr:.3g} (delta/{dr:.3g})^{expo:.3g}"
         parts = [lead]
+        if "preload" in self.terms:  # the restraint's compression before first touch
+            pre = f"delta + {p['preload']:.3g}"
+            parts = [pre if expo == 1.0 else f"{dr:.3g} (({pre})/{dr:.3g})^{expo:.3g}"]
         if "hinge" in self.terms:
             parts.append(f"{p['knee_ratio'] - 1:.3g} max(delta - {p['knee']:.3g}, 0)")
-        if "preload" in self.terms:
-            parts.append(f"{p['preload']:.3g}")
         if "hunt_crossley" in self.terms:
             parts.append(f"{p['hunt_crossley']:.3g} [{lead}] v")
         eq = "F_c = max(0, beta [" + " + ".join(parts) + "]"

@@ -15,7 +15,8 @@ term                      force per unit beta                    shared paramete
 ``damping``               ``2 zeta_c v / sqrt(beta)``            ``damping_ratio``
                           (Kelvin-Voigt)
 ``hunt_crossley``         ``alpha d_r (delta / d_r)**p v``       ``hunt_crossley``
-``preload``               ``f_0`` (a step at first touch)        ``preload``
+``preload``               ``delta + delta_0`` in the leading     ``preload``
+                          term (compressed before touch)
 ``face``                  the law acts on ``delta - y``, ``y``   ``face_mass``,
                           the recoil of a face with its own      ``face_stiffness``,
                           mass (:mod:`.face`)                    ``face_damping``

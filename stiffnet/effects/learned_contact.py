@@ -5,11 +5,17 @@ its coefficient, in the model's units (docs/simulator.md) and *per unit beta*::
 
     F_c = max(0, beta * shape(delta, v)),   delta = x - e > 0,   else 0
 
-    shape = d_r (delta / d_r)**p                      elastic leading term (p = 1: linear)
+    shape = d_r ((delta + delta_0) / d_r)**p          elastic leading term (p = 1: linear)
           + (r - 1) * max(delta - delta_k, 0)         second stage beyond the knee delta_k
-          + f_0                                       preload (a force step at first touch)
           + alpha * d_r (delta / d_r)**p * v          Hunt-Crossley dissipation
     plus  2 zeta_c sqrt(beta) v                       Kelvin-Voigt dissipation
+
+``delta_0`` (``preload``) is the restraint's compression before first touch: the force
+jumps to ``beta d_r (delta_0 / d_r)**p`` at touch (``beta delta_0`` for a linear law) and
+the leading term carries on from there, as a spring set against its stop does. For
+``p = 1`` it is a force step ``beta delta_0`` added to the shape; for a power law the step
+alone would bend the law's curve away from a preloaded spring's (``(delta + delta_0)**p``,
+not ``delta**p + delta_0**p``).
 
 A restraint with its own dynamics (``face_mass`` ``mu > 0``): the law acts on the
 penetration of a face that recoils, ``delta = x - e - y``, ``v -> v - y'``, the
@@ -198,7 +204,15 @@ def elastic_shape(delta: np.ndarray, p: dict[str, Any]) -> np.ndarray:
     # without a preload on any row its term is zeros: skipped (see leading_term)
     if preload.shape in ((), d.shape) and not np.any(preload):
         return lead + stage
-    return lead + stage + np.where(d > 0, preload, 0.0)
+    # a linear law's preload is a step added last, in the compiled right-hand side's order
+    # (stiffnet.simulator.rk4_kernel: the same numbers)
+    linear = lead + stage + np.where(d > 0, preload, 0.0)
+    if linear_leading_term(p):
+        return linear
+    # a power law carries on from the restraint's compression before touch
+    expo = np.asarray(p["exponent"], float)
+    compressed = leading_term(d + preload, expo, p["reference_penetration"])
+    return np.where(expo == 1.0, linear, np.where(d > 0, compressed, 0.0) + stage)
 
 
 def learned_contact_force(
@@ -274,7 +288,7 @@ class LearnedContact(DynamicsEffect):
             1.0, 0.05, 50.0, "stiffness added beyond the knee, as (ratio - 1) beta"
         )
         preload: ParamValue = param(
-            0.0, -1.0, 1.0, "force step at first touch over beta", "model length"
+            0.0, -1.0, 1.0, "delta_0: compression before first touch", "model length"
         )
         hunt_crossley: ParamValue = param(
             0.0, 0.0, 20.0, "alpha: Hunt-Crossley dissipation beta alpha d_r (d/d_r)^p v",
@@ -378,8 +392,10 @@ class LearnedContact(DynamicsEffect):
         to twice ``d_r`` and twice the knee, with both dampings at that penetration."""
         beta, kappa_f, mu = scaled_face(batch.beta, p)  # the contact's own stiffness
         reach = 2.0 * np.maximum(p["reference_penetration"], p["knee"])
+        # a preloaded restraint is that much further along its curve
+        compressed = reach + np.maximum(np.asarray(p["preload"], float), 0.0)
         slope = np.maximum(p["exponent"], 1.0) * np.maximum(
-            (reach / p["reference_penetration"]) ** (p["exponent"] - 1.0), 1.0
+            (compressed / p["reference_penetration"]) ** (p["exponent"] - 1.0), 1.0
         ) + np.maximum(p["knee_ratio"] - 1.0, 0.0)
         lead = leading_term(reach, p["exponent"], p["reference_penetration"])
         c = 2.0 * p["damping_ratio"] * np.sqrt(beta) + beta * p["hunt_crossley"] * lead

@@ -395,7 +395,7 @@ def refine_face(
     best, per, fitted, box = min(first, key=lambda f: objective_value(f[1], tgt.weights))
     order = SCALED_SWEEP_ORDER if "face_beta_scale" in box else SWEEP_ORDER
     for key in order[1:]:  # the others across the chosen start's box, at the best so far
-        best, per, fitted = _sweep(tgt, settings, box, key, best, per)
+        best, per, fitted = sweep_parameter(tgt, settings, box, key, best, per)
     o0, o1 = objective_value(at_discovered, tgt.weights), objective_value(per, tgt.weights)
     return {
         "params": best,
@@ -414,9 +414,9 @@ def refine_face(
 def _first_sweep(
     item: tuple[Any, Any, dict[str, Any], dict[str, float], np.ndarray],
 ) -> tuple[dict[str, float], np.ndarray, list[str]]:
-    """:func:`_sweep` of the first parameter of :data:`SWEEP_ORDER` from one start."""
+    """:func:`sweep_parameter` of the first parameter of :data:`SWEEP_ORDER` from one start."""
     tgt, settings, box, start, per0 = item
-    return _sweep(tgt, settings, box, SWEEP_ORDER[0], start, per0)
+    return sweep_parameter(tgt, settings, box, SWEEP_ORDER[0], start, per0)
 
 
 def sweep_grid(param: Any, key: str, best: dict[str, float]) -> list[dict[str, float]]:
@@ -429,12 +429,12 @@ def sweep_grid(param: Any, key: str, best: dict[str, float]) -> list[dict[str, f
     return [{**best, key: v} for v in values if not math.isclose(v, at, rel_tol=1e-9)]
 
 
-def _sweep(
+def sweep_parameter(
     tgt: Any, settings: Any, box: dict[str, Any], key: str, best: dict[str, float], per: np.ndarray
 ) -> tuple[dict[str, float], np.ndarray, list[str]]:
-    """One face parameter swept across its box (the others at ``best``): the best point and
-    its per-recording discrepancy (``best`` kept unless a point, scored alone as ``per`` was,
-    lowers the fits' objective), the fitted names.
+    """One of the law's parameters swept across its box (the others at ``best``): the best
+    point and its per-recording discrepancy (``best`` kept unless a point, scored alone as
+    ``per`` was, lowers the fits' objective), the fitted names.
 
     The grid (:func:`sweep_grid`) and the start are simulated as one batch at the full
     settings on :data:`SWEEP_RECORDINGS` recordings spread over the campaign (all of them on
