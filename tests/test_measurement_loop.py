@@ -192,6 +192,71 @@ def test_a_learned_laws_prior_is_no_wider_than_its_discovered_interval():
     assert "intervals" not in loop_mod.with_law_intervals(given, diag)[0][0]
 
 
+def _two_stage_diagnosis(**evidence) -> dict:
+    """A diagnosis as ``diagnose --json`` writes it for a two-stage contact behind a 240 Hz
+    mount (the independent rig's held-out campaign): the simulation fit bent the mount to
+    181 Hz through the library's linear contact, the evidence read 238 Hz on the maps."""
+    fit = {"lowpass_order": 1.0, "resonance_hz": 180.8, "resonance_damping": 0.0655,
+           "highpass_hz": 0.668, "lowpass_hz": 247.6}  # fmt: skip
+    law = {"exponent": 1.0, "knee_ratio": 1.988, "reference_penetration": 0.54, "knee": 0.2974}
+    chain = {"n": 24, "resonance_hz": 238.1, "resonance_damping": 0.040, "lowpass_hz": 258.1,
+             "lowpass_order": 1.0, "highpass_hz": 0.244}  # fmt: skip
+    return {
+        "missing_effects": ["sensor_dynamics"],
+        "fitted_params": {"sensor_dynamics": fit},
+        "ranking": [{"effect": "sensor_dynamics", "params": fit,
+                     "fitted": ["resonance_hz", "resonance_damping", "highpass_hz", "lowpass_hz"]}],
+        "learned_law": {"proposed": True, "effect": {"name": "learned_contact", "params": law},
+                        "replaces": [], "law": {"terms": ["hinge"], "intervals": {}}},
+        "restoring_force": {"sensor": chain, "chain_fitted_on": ["a.csv", "b.csv", "c.csv"],
+                            **evidence},
+    }  # fmt: skip
+
+
+def _next_from(diagnosis: dict) -> dict:
+    state = {"iterations": [{"effects": [], "model": ""}], "seed": 0}
+    added, _ = loop_mod._next_effects(None, state, _ideal(), (diagnosis, []), None, False)
+    return {a["name"]: a for a in added}
+
+
+def test_a_chain_fitted_through_a_replaced_contact_is_the_evidences():
+    added = _next_from(_two_stage_diagnosis())
+    sensor = added["sensor_dynamics"]
+    # the world's chain is the one the maps read, not the fit made through a linear contact
+    assert sensor["params"]["resonance_hz"] == pytest.approx(238.1)
+    assert sensor["params"]["resonance_damping"] == pytest.approx(0.040)
+    assert sensor["params"]["lowpass_hz"] == pytest.approx(258.1)
+    assert sensor["simulation_fit"]["resonance_hz"] == pytest.approx(180.8)
+    assert sensor["origin"] == "restoring-force chain"
+    # the prior is centred on it: the rig's 240 Hz inside, the fit's 181 Hz outside
+    cfg = loop_mod._prior_config(_ideal(), [{**a, "fitted": a["fitted"]} for a in added.values()],
+                                 0.1)  # fmt: skip
+    res = next(e for e in cfg.effects if e.name == "sensor_dynamics").params["resonance_hz"]
+    assert res[0] < 240.0 < res[1] and res[0] > 181.0
+    assert added["learned_contact"]["params"]["knee_ratio"] == pytest.approx(1.988)
+
+
+@pytest.mark.parametrize(
+    "change",
+    ["refuted", "no_law", "no_resonance", "unconfirmed"],
+)
+def test_the_simulation_fit_stays_where_the_evidence_cannot_replace_it(change):
+    diag = _two_stage_diagnosis()
+    rf = diag["restoring_force"]
+    if change == "refuted":  # the recordings read better as recorded: no sensor's chain
+        rf["chain_refuted"] = {"fitted_on": ["a.csv"]}
+        rf.pop("chain_fitted_on")
+    elif change == "no_law":  # the fit's contact is the model's: nothing conditions it
+        diag["learned_law"]["proposed"] = False
+    elif change == "no_resonance":  # a low-pass alone is not the stage a contact bends
+        rf["sensor"] = {**rf["sensor"], "resonance_hz": None}
+    else:  # every recording kept its own chain: none shared
+        rf.pop("chain_fitted_on")
+    sensor = _next_from(diag)["sensor_dynamics"]
+    assert sensor["params"]["resonance_hz"] == pytest.approx(180.8)
+    assert "simulation_fit" not in sensor
+
+
 def test_mlflow_runs_nested_and_models_registered(looped):
     import mlflow
 

@@ -851,11 +851,11 @@ def _next_effects(
     last = state["iterations"][-1]
     current = [e["name"] for e in last["effects"]]
     if diagnosis is not None and not add_effects:
-        return with_law_intervals(*_from_diagnosis(diagnosis))
-    return with_law_intervals(*_effects_to_add(
+        return with_evidence_chain(*with_law_intervals(*_from_diagnosis(diagnosis)))
+    return with_evidence_chain(*with_law_intervals(*_effects_to_add(
         campaign, start_cfg, current, add_effects, last["model"], state["seed"], candidates,
         inclination,
-    ))  # fmt: skip
+    )))  # fmt: skip
 
 
 def with_law_intervals(
@@ -875,6 +875,54 @@ def with_law_intervals(
             a["intervals"] = {
                 k: [float(x) for x in measured[k]] for k in a["fitted"] if k in measured
             }
+    return added, diag
+
+
+def with_evidence_chain(
+    added: list[dict[str, Any]], diag: dict[str, Any] | None
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """A diagnosed sensor chain taken from the restoring-force evidence where the simulation
+    fit read it through a contact law the iteration replaces.
+
+    ``diagnose`` fits ``sensor_dynamics`` by simulation with the library's contact in the
+    model; when the contact-law discovery then replaces that contact (a two-stage or power
+    law), the chain's values are conditional on a contact now known wrong: the fit bends
+    the mount to mimic the missing stiffening. The restoring-force evidence reads the chain
+    on each recording's own force-state map, whatever the law, and where its recordings
+    confirm one shared chain (``chain_fitted_on``; not ``chain_refuted``) with a mounted
+    resonance, that chain (:func:`~stiffnet.restoring_force.chain.shared_chain_sheet`,
+    a stage it lacks disabled) replaces the simulation fit's values, the prior then
+    centred on it. The simulation fit is kept on the entry (``simulation_fit``).
+
+    Measured (docs/measurement_loop.md, "The loop's world takes the chain the evidence
+    reads"): on the independent rig's two-stage campaign behind a 240 Hz mount the fit read
+    180.8 Hz / zeta 0.065 (low-pass 248 Hz) where the evidence reads 238.1 / 0.040; a GBM
+    trained around the fit read the campaign 0.67-0.75 in class, one trained around the
+    evidence's chain 0.875-0.958, as one trained around the rig's true chain (0.875).
+    A chain the user gives (``source`` ``given``) is never replaced.
+    """
+    from stiffnet.restoring_force.chain import shared_chain_sheet
+
+    evidence = (diag or {}).get("restoring_force") or {}
+    sheet = shared_chain_sheet(evidence.get("sensor"))
+    law_replaces = any(
+        a["name"] == LearnedContact.name and a.get("source") == "diagnosis" and a.get("replaces")
+        for a in added
+    )
+    if (
+        not law_replaces
+        or not sheet
+        or not sheet.get("resonance_hz")
+        or not evidence.get("chain_fitted_on")
+        or evidence.get("chain_refuted")
+    ):
+        return added, diag
+    for a in added:
+        if effect_class(a["name"]).name != "sensor_dynamics" or a.get("source") != "diagnosis":
+            continue
+        a["simulation_fit"] = dict(a["params"])
+        a["params"] = {**a["params"], **sheet}
+        a["origin"] = "restoring-force chain"
     return added, diag
 
 
