@@ -11,7 +11,9 @@ per iteration) so that a rerun continues from the last finished iteration:
   refitted jointly with the new ones; or takes the effects the user names), adds
   *every* selected effect (and updates the earlier ones) with its joint fitted values
   as a prior centred on the fit (``[p (1 - s), p (1 + s)]``, ``s`` = ``spread``,
-  clipped to the effect's declared ranges), writes ``iter-k/config.yaml`` (a
+  clipped to the effect's declared ranges; a sensor chain the diagnosis fitted through a
+  contact its learned law replaces is centred on the restoring-force evidence's chain
+  instead, :func:`with_evidence_chain`), writes ``iter-k/config.yaml`` (a
   :class:`~stiffnet.config.sim.SimulationConfig`, loadable by ``stiffnet simulate
   --config``), generates a dataset from it, retrains the family (CNN by default,
   GBM the fast option; every iteration from scratch with the same size, seed and
