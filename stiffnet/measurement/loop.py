@@ -924,8 +924,9 @@ def with_evidence_chain(
     stage) the fit read 180.8 Hz / zeta 0.065 with a 248 Hz low-pass and a 0.67 Hz
     high-pass, the evidence 238.1 / 0.040 with a 258 Hz low-pass and a 0.24 Hz high-pass;
     discrepancy at the learned law 104.2 (fit), 46.7 (evidence), 1.6 (less the high-pass),
-    1.1 (less both), 1.07 (the rig's own chain). A chain the user gives (``source``
-    ``given``) is never replaced.
+    1.1 (less both), 1.07 (the rig's own chain); at the loop's seed 104.5, 53.0, 5.9, 9.0,
+    and the loop's reading went from 0.750 / beta MAPE 0.183 to 0.917 / 0.140. A chain the
+    user gives (``source`` ``given``) is never replaced.
     """
     from stiffnet.restoring_force.chain import shared_chain_sheet
 
