@@ -192,6 +192,95 @@ def test_a_learned_laws_prior_is_no_wider_than_its_discovered_interval():
     assert "intervals" not in loop_mod.with_law_intervals(given, diag)[0][0]
 
 
+def _two_stage_diagnosis(**evidence) -> dict:
+    """A diagnosis as ``diagnose --json`` writes it for a two-stage contact behind a 240 Hz
+    mount (the independent rig's held-out campaign): the simulation fit bent the mount to
+    181 Hz through the library's linear contact, the evidence read 238 Hz on the maps."""
+    fit = {"lowpass_order": 1.0, "resonance_hz": 180.8, "resonance_damping": 0.0655,
+           "highpass_hz": 0.668, "lowpass_hz": 247.6}  # fmt: skip
+    law = {"exponent": 1.0, "knee_ratio": 1.988, "reference_penetration": 0.54, "knee": 0.2974}
+    chain = {"n": 24, "resonance_hz": 238.1, "resonance_damping": 0.040, "lowpass_hz": 258.1,
+             "lowpass_order": 1.0, "highpass_hz": 0.244}  # fmt: skip
+    return {
+        "missing_effects": ["sensor_dynamics"],
+        "fitted_params": {"sensor_dynamics": fit},
+        "ranking": [{"effect": "sensor_dynamics", "params": fit,
+                     "fitted": ["resonance_hz", "resonance_damping", "highpass_hz", "lowpass_hz"]}],
+        "learned_law": {"proposed": True, "effect": {"name": "learned_contact", "params": law},
+                        "replaces": [], "law": {"terms": ["hinge"], "intervals": {}}},
+        "restoring_force": {"sensor": chain, "chain_fitted_on": ["a.csv", "b.csv", "c.csv"],
+                            **evidence},
+    }  # fmt: skip
+
+
+def _rig_discrepancy(campaign, start_cfg, effects, seed):
+    """The campaign's discrepancy as the rig's (a 240 Hz mount and nothing else) answers it:
+    the further the world's resonance from 240 Hz and the more stages it adds, the larger."""
+    sensor = next(e["params"] for e in effects if e["name"] == "sensor_dynamics")
+    extra = sum(1.0 for k in ("lowpass_hz", "highpass_hz") if sensor.get(k))
+    return abs(sensor["resonance_hz"] - 240.0) + 10.0 * extra
+
+
+def _next_from(diagnosis: dict, monkeypatch) -> dict:
+    monkeypatch.setattr(loop_mod, "chain_discrepancy", _rig_discrepancy)
+    state = {"iterations": [{"effects": [], "model": ""}], "seed": 0}
+    added, _ = loop_mod._next_effects(None, state, _ideal(), (diagnosis, []), None, False)
+    return {a["name"]: a for a in added}
+
+
+def test_a_chain_fitted_through_a_replaced_contact_is_the_evidences(monkeypatch):
+    added = _next_from(_two_stage_diagnosis(), monkeypatch)
+    sensor = added["sensor_dynamics"]
+    # the world's chain is the one the maps read, not the fit made through a linear contact,
+    # less the stages the campaign's discrepancy does not want
+    assert sensor["params"]["resonance_hz"] == pytest.approx(238.1)
+    assert sensor["params"]["resonance_damping"] == pytest.approx(0.040)
+    assert sensor["params"]["lowpass_hz"] == 0.0 and sensor["params"]["highpass_hz"] == 0.0
+    assert sensor["simulation_fit"]["resonance_hz"] == pytest.approx(180.8)
+    assert sensor["origin"] == "restoring-force chain"
+    choice = {c["chain"]: c["discrepancy"] for c in sensor["chain_choice"]}
+    assert choice["simulation fit"] == pytest.approx(59.2 + 20.0)
+    assert choice["evidence"] == pytest.approx(1.9 + 20.0)
+    assert min(choice, key=choice.get) == "evidence less highpass_hz and lowpass_hz"
+    # the prior is centred on it: the rig's 240 Hz inside, the fit's 181 Hz outside
+    cfg = loop_mod._prior_config(_ideal(), list(added.values()), 0.1)
+    res = next(e for e in cfg.effects if e.name == "sensor_dynamics").params["resonance_hz"]
+    assert res[0] < 240.0 < res[1] and res[0] > 181.0
+    assert added["learned_contact"]["params"]["knee_ratio"] == pytest.approx(1.988)
+
+
+@pytest.mark.parametrize(
+    "change",
+    ["refuted", "no_law", "no_resonance", "unconfirmed"],
+)
+def test_the_simulation_fit_stays_where_the_evidence_cannot_replace_it(change, monkeypatch):
+    diag = _two_stage_diagnosis()
+    rf = diag["restoring_force"]
+    if change == "refuted":  # the recordings read better as recorded: no sensor's chain
+        rf["chain_refuted"] = {"fitted_on": ["a.csv"]}
+        rf.pop("chain_fitted_on")
+    elif change == "no_law":  # the fit's contact is the model's: nothing conditions it
+        diag["learned_law"]["proposed"] = False
+    elif change == "no_resonance":  # a low-pass alone is not the stage a contact bends
+        rf["sensor"] = {**rf["sensor"], "resonance_hz": None}
+    else:  # every recording kept its own chain: none shared
+        rf.pop("chain_fitted_on")
+    sensor = _next_from(diag, monkeypatch)["sensor_dynamics"]
+    assert sensor["params"]["resonance_hz"] == pytest.approx(180.8)
+    assert "simulation_fit" not in sensor
+
+
+def test_the_simulation_fit_stays_where_the_campaign_prefers_it(monkeypatch):
+    """Where the simulation fit's chain reproduces the campaign best, it is kept."""
+    diag = _two_stage_diagnosis()
+    diag["fitted_params"]["sensor_dynamics"]["resonance_hz"] = 240.0
+    diag["fitted_params"]["sensor_dynamics"]["lowpass_hz"] = 0.0
+    diag["fitted_params"]["sensor_dynamics"]["highpass_hz"] = 0.0
+    sensor = _next_from(diag, monkeypatch)["sensor_dynamics"]
+    assert sensor["params"]["resonance_hz"] == 240.0 and sensor["origin"] == "simulation fit"
+    assert sensor["simulation_fit"]["resonance_hz"] == 240.0
+
+
 def test_mlflow_runs_nested_and_models_registered(looped):
     import mlflow
 
@@ -488,3 +577,16 @@ def test_auto_world_reads_the_starting_configs_own_law():
     cfg = cfg.model_copy(update={"effects": [*cfg.effects, EffectSpec(name="hertz_contact")]})
     every = config_effects(loop_mod.config_with_effects(cfg, []))
     assert loop_mod.dataset_world("auto", every)[0] == "operating_points"
+
+
+def test_chain_discrepancy_prefers_the_campaigns_own_chain(two_effects):
+    """The campaign's discrepancy, the judge of the chain candidates, is least at the chain the
+    recordings were made through (237 Hz), not at a mount bent to 181 Hz."""
+    damped = {"name": "contact_damping", "params": {"damping_ratio": 0.25}}
+    own = [damped, {"name": "sensor_dynamics", "params": SENSOR_PARAMS}]
+    bent = [damped, {"name": "sensor_dynamics",
+                     "params": {**SENSOR_PARAMS, "resonance_hz": 181.0}}]  # fmt: skip
+    campaign = load_campaign(two_effects)
+    d_own = loop_mod.chain_discrepancy(campaign, _ideal(), own, 0)
+    d_bent = loop_mod.chain_discrepancy(campaign, _ideal(), bent, 0)
+    assert d_own < 0.5 * d_bent

@@ -11,7 +11,9 @@ per iteration) so that a rerun continues from the last finished iteration:
   refitted jointly with the new ones; or takes the effects the user names), adds
   *every* selected effect (and updates the earlier ones) with its joint fitted values
   as a prior centred on the fit (``[p (1 - s), p (1 + s)]``, ``s`` = ``spread``,
-  clipped to the effect's declared ranges), writes ``iter-k/config.yaml`` (a
+  clipped to the effect's declared ranges; a sensor chain the diagnosis fitted through a
+  contact its learned law replaces is centred on the restoring-force evidence's chain
+  instead, :func:`with_evidence_chain`), writes ``iter-k/config.yaml`` (a
   :class:`~stiffnet.config.sim.SimulationConfig`, loadable by ``stiffnet simulate
   --config``), generates a dataset from it, retrains the family (CNN by default,
   GBM the fast option; every iteration from scratch with the same size, seed and
@@ -45,7 +47,7 @@ from __future__ import annotations
 
 import shutil
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -850,12 +852,29 @@ def _next_effects(
     diagnosis, add_effects = given
     last = state["iterations"][-1]
     current = [e["name"] for e in last["effects"]]
+
+    def discrepancy(effects: list[dict[str, Any]]) -> float:
+        return chain_discrepancy(campaign, start_cfg, effects, state["seed"])
+
     if diagnosis is not None and not add_effects:
-        return with_law_intervals(*_from_diagnosis(diagnosis))
-    return with_law_intervals(*_effects_to_add(
+        return with_evidence_chain(*with_law_intervals(*_from_diagnosis(diagnosis)), discrepancy)
+    return with_evidence_chain(*with_law_intervals(*_effects_to_add(
         campaign, start_cfg, current, add_effects, last["model"], state["seed"], candidates,
         inclination,
-    ))  # fmt: skip
+    )), discrepancy)  # fmt: skip
+
+
+def chain_discrepancy(
+    campaign: Campaign, start_cfg: SimulationConfig, effects: list[dict[str, Any]], seed: int
+) -> float:
+    """The campaign's discrepancy with ``effects`` at their values (one simulation of every
+    row, :func:`~stiffnet.measurement.compare.compare_campaign`)."""
+    cfg = config_with_effects(start_cfg, [(e["name"], e["params"]) for e in effects])
+    return float(
+        compare_campaign(campaign, config_effects(cfg), config_settings(cfg), seed).result[
+            "discrepancy"
+        ]
+    )
 
 
 def with_law_intervals(
@@ -876,6 +895,92 @@ def with_law_intervals(
                 k: [float(x) for x in measured[k]] for k in a["fitted"] if k in measured
             }
     return added, diag
+
+
+def with_evidence_chain(
+    added: list[dict[str, Any]],
+    diag: dict[str, Any] | None,
+    discrepancy: Callable[[list[dict[str, Any]]], float],
+) -> tuple[list[dict[str, Any]], dict[str, Any] | None]:
+    """A diagnosed sensor chain taken from the restoring-force evidence where the simulation
+    fit read it through a contact law the iteration replaces, its stages chosen by the
+    campaign's discrepancy.
+
+    ``diagnose`` fits ``sensor_dynamics`` by simulation with the library's contact in the
+    model; when the contact-law discovery then replaces that contact (a two-stage or power
+    law), the chain's values are conditional on a contact now known wrong: the fit bends
+    the mount to mimic the missing stiffening. The restoring-force evidence reads the chain
+    on each recording's own force-state map, whatever the law. Where its recordings confirm
+    one shared chain (``chain_fitted_on``; not ``chain_refuted``) with a mounted resonance,
+    the candidates of :func:`evidence_chain_candidates` (the simulation fit, the evidence's
+    chain, and that chain without its high-pass, its low-pass or both) are each simulated
+    with the iteration's other effects at their values (``discrepancy(added)``, the loop's
+    :func:`chain_discrepancy`), and the least discrepancy's is the world's chain, the prior
+    then centred on it. The entry keeps the simulation fit (``simulation_fit``), every
+    candidate's discrepancy (``chain_choice``) and where the chain came from (``origin``).
+
+    Measured (docs/measurement_loop.md, "The loop's world takes the chain the evidence
+    reads"): on the independent rig's two-stage campaign behind a 240 Hz mount (no other
+    stage) the fit read 180.8 Hz / zeta 0.065 with a 248 Hz low-pass and a 0.67 Hz
+    high-pass, the evidence 238.1 / 0.040 with a 258 Hz low-pass and a 0.24 Hz high-pass;
+    discrepancy at the learned law 104.2 (fit), 46.7 (evidence), 1.6 (less the high-pass),
+    1.1 (less both), 1.07 (the rig's own chain); at the loop's seed 104.5, 53.0, 5.9, 9.0,
+    and the loop's reading went from 0.750 / beta MAPE 0.183 to 0.917 / 0.140. A chain the
+    user gives (``source`` ``given``) is never replaced.
+    """
+    from stiffnet.restoring_force.chain import shared_chain_sheet
+
+    evidence = (diag or {}).get("restoring_force") or {}
+    sheet = shared_chain_sheet(evidence.get("sensor"))
+    law_replaces = any(
+        a["name"] == LearnedContact.name and a.get("source") == "diagnosis" and a.get("replaces")
+        for a in added
+    )
+    if (
+        not law_replaces
+        or not sheet
+        or not sheet.get("resonance_hz")
+        or not evidence.get("chain_fitted_on")
+        or evidence.get("chain_refuted")
+    ):
+        return added, diag
+    for a in added:
+        if effect_class(a["name"]).name != "sensor_dynamics" or a.get("source") != "diagnosis":
+            continue
+        fit = dict(a["params"])
+        scored = []
+        for name, params in evidence_chain_candidates(fit, sheet):
+            a["params"] = params
+            scored.append((discrepancy(added), name, params))
+        best = min(scored, key=lambda t: t[0])
+        a["params"] = best[2]
+        a["simulation_fit"] = fit
+        a["chain_choice"] = [{"chain": n, "discrepancy": round(d, 4)} for d, n, _ in scored]
+        a["origin"] = "simulation fit" if best[1] == SIMULATION_FIT else "restoring-force chain"
+    return added, diag
+
+
+#: The candidate chain that is the diagnosis's own simulation fit.
+SIMULATION_FIT = "simulation fit"
+#: Stages of the evidence's chain that its recordings read least consistently (a high-pass
+#: corner profiled by the contact law, a low-pass a stiffening contact can stand for): each
+#: candidate world without them too, so the campaign's discrepancy decides whether it holds.
+OPTIONAL_STAGES = (("highpass_hz",), ("lowpass_hz",), ("highpass_hz", "lowpass_hz"))
+
+
+def evidence_chain_candidates(
+    fit: dict[str, float], sheet: dict[str, float]
+) -> list[tuple[str, dict[str, float]]]:
+    """The chains :func:`with_evidence_chain` scores: the simulation fit, the evidence's
+    chain (its stages over the fit's), and the evidence's without each optional stage it has
+    (:data:`OPTIONAL_STAGES`, disabled at 0)."""
+    evidence = {**fit, **sheet}
+    out = [(SIMULATION_FIT, fit), ("evidence", evidence)]
+    for stages in OPTIONAL_STAGES:
+        if all(evidence.get(k) for k in stages):
+            out.append((f"evidence less {' and '.join(stages)}",
+                        {**evidence, **dict.fromkeys(stages, 0.0)}))  # fmt: skip
+    return out
 
 
 def _stop_when_nothing_new(
