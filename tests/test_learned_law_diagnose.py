@@ -199,6 +199,27 @@ def test_loop_adds_a_law_with_its_own_face_in_place_of_the_library_restraint():
     assert "restraint_mass" in replaced_by(out)
 
 
+def test_loop_centres_a_diagnosed_chain_on_its_refit_with_the_learned_law():
+    law = {"name": "learned_contact", "params": {"exponent": 1.0, "knee": 0.3, "knee_ratio": 2.0}}
+    fit = {"resonance_hz": 180.8, "resonance_damping": 0.065, "lowpass_hz": 248.0,
+           "highpass_hz": 0.67, "lowpass_order": 1.0}  # fmt: skip
+    refit = {"resonance_hz": 240.1, "resonance_damping": 0.038, "lowpass_hz": 900.0,
+             "highpass_hz": 0.0, "lowpass_order": 1.0}  # fmt: skip
+    chain = {"name": "sensor_dynamics", "params": fit, "fitted": list(fit), "source": "diagnosis"}
+
+    def diag(improves: bool) -> dict:
+        return {"learned_law": {"proposed": True, "law": {"terms": ["hinge"]}, "replaces": [],
+                                "effect": law, "chain_refit": {"improves": improves,
+                                                               "params": refit}}}  # fmt: skip
+
+    out = with_learned_law([dict(chain)], diag(True))
+    assert out[0]["params"] == refit and out[0]["linear_contact_fit"] == fit
+    assert out[0]["origin"] == "refitted with the learned law"
+    assert with_learned_law([dict(chain)], diag(False))[0]["params"] == fit  # not lowered: kept
+    other = {"name": "gap_drift", "params": {"amplitude": 0.1}, "fitted": [], "source": "diagnosis"}
+    assert with_learned_law([other], diag(True))[0] == other
+
+
 def loop_start() -> SimulationConfig:
     """The ideal world at a bounded cost: the numerical engine runs every learned law."""
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")

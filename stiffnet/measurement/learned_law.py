@@ -539,10 +539,24 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
     fitted += ["face2_stiffness"] if "face2" in learned["law"]["terms"] else []
     # a law with its own face replaces a library restraint with a mass (two faces would add)
     gone = {*REPLACED, *learned.get("replaces", []), *(["restraint_mass"] if face else [])}
-    keep = [a for a in added if a["name"] not in gone]
+    keep = [with_refitted_chain(a, learned) for a in added if a["name"] not in gone]
     return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
                     "source": "diagnosis", "origin": "contact-law discovery",
                     "replaces": sorted(gone)}]  # fmt: skip
+
+
+def with_refitted_chain(entry: dict[str, Any], learned: dict[str, Any]) -> dict[str, Any]:
+    """A diagnosed sensor chain's loop entry centred on the chain refitted with the learned
+    law in place (:func:`chain_refit_with_law`), where that refit lowered the fits'
+    objective: the selection's own values were read through the library's contact, which
+    the law replaces in the loop's world. The selection's values stay as
+    ``linear_contact_fit``."""
+    refit = learned.get("chain_refit") or {}
+    if entry["name"] != SensorDynamics.name or not refit.get("improves"):
+        return entry
+    params = {**entry["params"], **{k: float(v) for k, v in refit["params"].items()}}
+    return {**entry, "params": params, "linear_contact_fit": entry["params"],
+            "origin": "refitted with the learned law"}  # fmt: skip
 
 
 def replaced_by(added: list[dict[str, Any]]) -> set[str]:

@@ -918,6 +918,8 @@ def with_evidence_chain(
     :func:`chain_discrepancy`), and the least discrepancy's is the world's chain, the prior
     then centred on it. The entry keeps the simulation fit (``simulation_fit``), every
     candidate's discrepancy (``chain_choice``) and where the chain came from (``origin``).
+    Where the diagnosis refitted its chain with the learned law in place
+    (:func:`~stiffnet.measurement.learned_law.with_refitted_chain`), that refit is the fit.
 
     Measured (docs/measurement_loop.md, "The loop's world takes the chain the evidence
     reads"): on the independent rig's two-stage campaign behind a 240 Hz mount (no other
@@ -956,7 +958,9 @@ def with_evidence_chain(
         a["params"] = best[2]
         a["simulation_fit"] = fit
         a["chain_choice"] = [{"chain": n, "discrepancy": round(d, 4)} for d, n, _ in scored]
-        a["origin"] = "simulation fit" if best[1] == SIMULATION_FIT else "restoring-force chain"
+        # the fit may be the diagnosis's refit with the learned law (its own origin kept)
+        a["origin"] = (a.get("origin", SIMULATION_FIT) if best[1] == SIMULATION_FIT
+                       else "restoring-force chain")  # fmt: skip
     return added, diag
 
 
