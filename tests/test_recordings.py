@@ -185,6 +185,44 @@ def test_csv_gap_in_time_says_how_many_samples_are_missing(tmp_path):
     )
 
 
+def test_csv_a_loggers_comment_preamble_is_skipped(tmp_path):
+    """Lines of ``#`` comments before the header (operator, rig, settings) were read as the
+    header: 'wrong header (2 cell(s), not shown)'. They are skipped; line numbers in the
+    messages still count them."""
+    x = signal()
+    clean = read_recording(write_recording_csv(tmp_path / "clean.csv", x, FS))
+    body = (tmp_path / "clean.csv").read_text()
+    preamble = "# rig 3, run 1\n# operator: A. N. Other, gain 10 mV/g\n"
+    rec = read_recording(write_text(tmp_path / "pre.csv", preamble + body))
+    assert rec.fs_hz == clean.fs_hz and np.array_equal(rec.accel, clean.accel)
+    lines = (preamble + body).splitlines()
+    lines[10] = "0.0085,abc"  # file line 11
+    assert_error(r"line 11, column accel: 'abc' is not a number",
+                 write_text(tmp_path / "bad.csv", "\n".join(lines) + "\n"))  # fmt: skip
+    t = np.delete(np.arange(100) / FS, 50)
+    text = preamble + "t,accel\n" + "".join(f"{float(v)!r},1\n" for v in t)
+    assert_error(r"\(line 54\)", write_text(tmp_path / "gap.csv", text))  # data from line 4
+    assert_error(r"2 comment line\(s\) \('#'\) and no data after them",
+                 write_text(tmp_path / "only.csv", preamble))  # fmt: skip
+    named = write_text(tmp_path / "named.csv", preamble + "time,acc\n0,1\n0.001,2\n")
+    assert_error(r"wrong header 'time,acc', expected 't,accel' on line 3", named)
+
+
+def test_csv_written_by_numpy_savetxt_reads_its_commented_header(tmp_path):
+    """``np.savetxt(path, data, delimiter=",", header="t,accel")`` writes ``# t,accel``:
+    that comment is the header; a commented header naming other columns is one where
+    ``columns`` names them, and none otherwise."""
+    x = signal()
+    data = np.column_stack([np.arange(x.size) / FS, x])
+    np.savetxt(tmp_path / "np.csv", data, delimiter=",", header="t,accel")
+    rec = read_recording(tmp_path / "np.csv")
+    assert rec.fs_hz == pytest.approx(FS) and np.allclose(rec.accel, x, rtol=1e-15, atol=0)
+    np.savetxt(tmp_path / "named.csv", data, delimiter=",", header="Time,Acc")
+    rec = read_recording(tmp_path / "named.csv", columns="Time,Acc")
+    assert np.allclose(rec.accel, x, rtol=1e-15, atol=0)
+    assert_error(r"wrong header .* on line 2; no header", tmp_path / "named.csv")
+
+
 def test_csv_not_utf8_says_which_encoding_or_line(tmp_path):
     """A recording saved as UTF-16 (Windows' 'Unicode' text) or with a Latin-1 degree sign
     was 'not a UTF-8 text file' alone: it now says which, or on which line."""

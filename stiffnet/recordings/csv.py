@@ -13,6 +13,11 @@ on 1e6 rows it reads about 3x faster than ``np.loadtxt`` and 10x faster than
 ``np.genfromtxt``, and it writes floats in their shortest round-trip form, so a
 written recording reads back bit for bit. The slow, line-by-line scan is only run
 when the fast parser fails, to tell the user which line is wrong.
+
+Loggers often write a preamble of ``#`` comment lines (operator, rig, settings) before the
+header; they are skipped (:func:`_preamble`). numpy's ``savetxt(header="t,accel")`` writes
+the header itself as a comment, ``# t,accel``: the last comment line is the header when it
+names the columns and the line after it holds numbers.
 """
 
 from __future__ import annotations
@@ -62,6 +67,8 @@ THREADED_CSV_BYTES = 8 * 2**20
 #: Longest first line read as a header: a header names a few columns, and a file without
 #: line ends must not be read whole to find where its first line ends.
 HEADER_MAX_CHARS = 2**16
+#: Most comment lines skipped before the header: a file of comments alone is not read whole.
+PREAMBLE_MAX_LINES = 1000
 
 
 class CsvReader(RecordingReader):
@@ -77,7 +84,8 @@ class CsvReader(RecordingReader):
         """The header's column names (indices for a file without a header)."""
         try:
             with open(path, encoding="utf-8-sig", newline="") as fh:
-                raw = next(csv.reader([fh.readline()]), [])
+                _, first, _ = _preamble(fh)
+                raw = next(csv.reader([first]), [])
         except UnicodeDecodeError:
             raise StiffnetError(
                 f"{path}: not a UTF-8 text file (expected a CSV){not_utf8_words(path)}"
@@ -219,6 +227,33 @@ def _column_key(cell: str | int) -> str | int:
     return int(text) if text.isdigit() else text.lower()
 
 
+def _preamble(fh: Any) -> tuple[int, str, str | None]:
+    """Read past the ``#`` comment lines before the header.
+
+    Returns how many were skipped, the first other line (empty at the end of the file) and
+    the last comment without its ``#`` (None without comments), which may be the header
+    numpy's ``savetxt`` writes. Each line is read bounded by :data:`HEADER_MAX_CHARS`: a
+    file without line ends (zeros, a binary dump) would otherwise be read whole.
+    """
+    skipped, last = 0, None
+    line = fh.readline(HEADER_MAX_CHARS + 1)
+    while line.lstrip().startswith("#") and skipped < PREAMBLE_MAX_LINES:
+        skipped, last = skipped + 1, line.lstrip()[1:].strip()
+        line = fh.readline(HEADER_MAX_CHARS + 1)
+    return skipped, line, last
+
+
+def _header_names(cells: list[str]) -> tuple[str, ...]:
+    """A header's column names as compared with :data:`CSV_COLUMNS`."""
+    return tuple(c.strip().lower() for c in without_unnamed_tail(cells))
+
+
+def _all_numbers(line: str) -> bool:
+    """Whether a line's cells are all numbers (a data line, not a header)."""
+    cells = next(csv.reader([line]), [])
+    return bool(cells) and all(_is_number(c) for c in cells)
+
+
 def _is_number(cell: str) -> bool:
     try:
         float(cell)
@@ -335,26 +370,35 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
     name = str(p)
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:  # -sig: Excel's BOM
-            # bounded: a file without line ends (zeros, a binary dump) would be read whole
-            first = fh.readline(HEADER_MAX_CHARS + 1)
+            skipped, first, commented_header = _preamble(fh)
     except UnicodeDecodeError:
         raise StiffnetError(
             f"{name}: not a UTF-8 text file (expected a CSV 't,accel'){not_utf8_words(p)}"
         ) from None
+    if not first and skipped:
+        raise StiffnetError(f"{name}: {skipped} comment line(s) ('#') and no data after them")
     if not first:  # a logger's failed copy or transfer, not a file without its header
         raise StiffnetError(f"{name}: the file is empty (0 bytes; expected 't,accel' on line 1)")
+    if commented_header is not None and _all_numbers(first):
+        names = _header_names(next(csv.reader([commented_header])))
+        named = [k for k in layout.wanted if isinstance(k, str)]
+        if (names == CSV_COLUMNS and not layout.custom) or (
+            layout.custom and named and all(k.lower() in names for k in named)
+        ):
+            # numpy's savetxt: the header is the preamble's last line, the data follow
+            first, skipped = commented_header, skipped - 1
     if "\x00" in first:  # a preallocated file never written, or a binary one
         raise StiffnetError(
-            f"{name}: line 1 holds NUL bytes, not text (a binary file, or one allocated and "
-            "never written); expected a CSV 't,accel'"
+            f"{name}: line {skipped + 1} holds NUL bytes, not text (a binary file, or one "
+            "allocated and never written); expected a CSV 't,accel'"
         )
     if len(first) > HEADER_MAX_CHARS:
         raise StiffnetError(
-            f"{name}: line 1 is longer than {HEADER_MAX_CHARS} characters, not a header "
-            "(expected 't,accel' on line 1)"
+            f"{name}: line {skipped + 1} is longer than {HEADER_MAX_CHARS} characters, not a "
+            f"header (expected 't,accel' on line {skipped + 1})"
         )
     if not first.strip():
-        raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
+        raise StiffnetError(f"{name}: missing header (expected 't,accel' on line {skipped + 1})")
     cells = next(csv.reader([first]))
     raw = without_unnamed_tail(cells)
     header = [c.strip().lower() for c in raw]
@@ -368,7 +412,8 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         if named:  # names: shown, as the hint shows them (past four, the hint lists them)
             shown = repr(",".join(names)) if len(raw) <= 4 else f"of {len(raw)} named columns"
         raise StiffnetError(
-            f"{name}: wrong header {shown}, expected 't,accel' on line 1{_header_hint(raw)}"
+            f"{name}: wrong header {shown}, expected 't,accel' on line {skipped + 1}"
+            f"{_header_hint(raw)}"
         )
     has_header = not (
         all(isinstance(k, int) for k in layout.wanted) and all(_is_number(c) for c in raw)
@@ -393,7 +438,7 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         table = pacsv.read_csv(
             p,
             read_options=pacsv.ReadOptions(
-                skip_rows=int(has_header),
+                skip_rows=skipped + int(has_header),
                 column_names=names,
                 # starting the thread pool costs ~40 ms: worth it only for large files
                 use_threads=p.stat().st_size > THREADED_CSV_BYTES,
@@ -407,19 +452,20 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         )
     except (pa.ArrowInvalid, UnicodeDecodeError):
         # the fast parser does not say where: find the line ourselves
-        raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header)}") from None
+        problem = _locate_csv_problem(p, raw, index, has_header, skipped)
+        raise StiffnetError(f"{name}: {problem}") from None
     accel = _float_column(table, wanted[-1])
     t = _float_column(table, wanted[0]) * layout.seconds_per_unit if len(wanted) == 2 else None
     if accel.size < 2:
         return accel, fs_hz or 1.0, name  # read_recording reports it
     if not (np.all(np.isfinite(accel)) and (t is None or np.all(np.isfinite(t)))):
-        raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header)}")
+        raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header, skipped)}")
     if t is None:
         if fs_hz is None:
             raise StiffnetError(f"{name}: sampling rate missing (no time column; give fs_hz)")
         return accel, fs_hz, name
     tname = raw[index[0]].strip() if has_header else f"{index[0]}"
-    fs = _rate_from_times(t, name, f"column {tname}", first_line=1 + int(has_header))
+    fs = _rate_from_times(t, name, f"column {tname}", first_line=1 + skipped + int(has_header))
     if fs_hz is not None and not rates_agree(fs, fs_hz):
         hint = ""
         for factor, (word, unit) in _UNIT_FACTORS.items():
@@ -499,18 +545,23 @@ def _rate_from_times(t: np.ndarray, name: str, col: str = "column t", first_line
     return float(1.0 / step)
 
 
-def _locate_csv_problem(p: Path, raw: list[str], index: list[int], has_header: bool) -> str:
-    """Describe the first malformed data line (slow path, run only on error)."""
+def _locate_csv_problem(
+    p: Path, raw: list[str], index: list[int], has_header: bool, skipped: int = 0
+) -> str:
+    """Describe the first malformed data line (slow path, run only on error; ``skipped``
+    comment lines before the header)."""
     n = len(raw)
     labels = [raw[i].strip() if has_header else f"#{i}" for i in index]
     layout = ",".join(c.strip() for c in raw) if has_header else f"{n} columns"
     try:
         with open(p, encoding="utf-8-sig", newline="") as fh:
+            for _ in range(skipped):
+                fh.readline()
             reader = csv.reader(fh)
             if has_header:
                 next(reader, None)  # header, checked already
             for row in reader:
-                line = reader.line_num
+                line = reader.line_num + skipped
                 if not row or all(not c.strip() for c in row):
                     continue
                 if len(row) != n:
