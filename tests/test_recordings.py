@@ -258,6 +258,20 @@ def test_unknown_extension(tmp_path):
     assert_error(r"unknown recording extension '\.txt'", write_text(tmp_path / "r.txt", "1\n"))
 
 
+def test_a_compressed_recording_is_said_compressed(tmp_path):
+    """``run.csv.gz`` was only 'unknown recording extension .gz': it says what it is."""
+    import gzip
+
+    gz = tmp_path / "run.csv.gz"
+    gz.write_bytes(gzip.compress(b"t,accel\n0,1\n0.001,2\n"))
+    assert_error(r"'\.gz' \(use one of .*\); it is a compressed \.csv file: decompress it first$",
+                 gz)  # fmt: skip
+    plain = write_text(tmp_path / "notes.gz", "x")
+    with pytest.raises(StiffnetError) as info:
+        read_recording(plain)
+    assert "a compressed" not in str(info.value)
+
+
 @pytest.mark.parametrize("fs", [0, -5.0, float("nan")])
 def test_fs_must_be_positive(tmp_path, fs):
     path = tmp_path / "r.npy"

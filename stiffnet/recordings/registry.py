@@ -27,6 +27,8 @@ _READERS: dict[str, RecordingReader] = {}
 _DISCOVERED = False
 #: Formats listed first in help texts and messages; the others follow by name.
 _FIRST = ("csv",)
+#: Suffixes of a compressed file (``run.csv.gz``), named as such in the refusal.
+COMPRESSED_SUFFIXES = (".gz", ".bz2", ".xz", ".zip", ".zst", ".7z")
 
 
 def discover_readers(package: str = "stiffnet.recordings") -> list[RecordingReader]:
@@ -106,9 +108,16 @@ def reader_for(path: str | os.PathLike[str]) -> RecordingReader:
     p = Path(path)
     reader = _ensure().get(p.suffix.lower())
     if reader is None:
+        inner = Path(p.stem).suffix.lower()
+        # a compressed recording (run.csv.gz): the reader exists, the file needs unpacking
+        packed = (
+            f"; it is a compressed {inner} file: decompress it first"
+            if p.suffix.lower() in COMPRESSED_SUFFIXES and inner in _ensure()
+            else ""
+        )
         raise StiffnetError(
             f"{p}: unknown recording extension {p.suffix or '(none)'!r} "
-            f"(use one of {', '.join(supported_extensions())})"
+            f"(use one of {', '.join(supported_extensions())}){packed}"
         )
     return reader
 
