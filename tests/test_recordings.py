@@ -223,6 +223,25 @@ def test_csv_written_by_numpy_savetxt_reads_its_commented_header(tmp_path):
     assert_error(r"wrong header .* on line 2; no header", tmp_path / "named.csv")
 
 
+def test_csv_clock_times_are_quoted_and_said_not_seconds(tmp_path):
+    """A logger's ISO time stamps in column t read 'the cell is not a number' (a stamp is not
+    quoted as a word): the stamp is quoted, said a clock time, and the way out given; the
+    acceleration alone with the rate reads the file."""
+    stamps = [f"2026-12-02T10:00:00.{i:03d}" for i in range(200)]
+    x = signal()
+    text = "t,accel\n" + "".join(f"{s},{float(v)!r}\n" for s, v in zip(stamps, x, strict=True))
+    path = write_text(tmp_path / "iso.csv", text)
+    assert_error(
+        r"line 2, column t: '2026-12-02T10:00:00\.000' is a clock time, not a time in seconds; "
+        r"name its columns: --columns accel and give the rate",
+        path,
+    )
+    rec = read_recording(path, columns="accel", fs_hz=FS)
+    assert np.array_equal(rec.accel, x)
+    word = write_text(tmp_path / "w.csv", "t,accel\n0,1\nabc,2\n")
+    assert_error(r"line 3, column t: 'abc' is not a number$", word)
+
+
 def test_csv_not_utf8_says_which_encoding_or_line(tmp_path):
     """A recording saved as UTF-16 (Windows' 'Unicode' text) or with a Latin-1 degree sign
     was 'not a UTF-8 text file' alone: it now says which, or on which line."""

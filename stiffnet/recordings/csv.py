@@ -545,6 +545,24 @@ def _rate_from_times(t: np.ndarray, name: str, col: str = "column t", first_line
     return float(1.0 / step)
 
 
+#: A date and/or time of day as loggers stamp their rows (``2026-12-02T10:00:00.001``,
+#: ``2026-12-02 10:00:00``, ``10:00:00.001``): safe to quote, and a time that is not seconds.
+_TIMESTAMP = re.compile(
+    r"^(\d{4}-\d{2}-\d{2}([T ]\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?)?|\d{1,2}:\d{2}:\d{2}([.,]\d+)?)"
+    r"(Z|[+-]\d{2}:?\d{2})?$"
+)
+
+
+def _timestamp_problem(line: int, col: str, cell: str, accel: str) -> str:
+    """A time column of clock stamps: what it is, and how to read the file (the
+    acceleration column ``accel`` alone with the rate)."""
+    rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+    return (
+        f"line {line}, column {col}: {cell!r} is a clock time, not a time in seconds; "
+        f"{columns_hint(accel)} and give the rate ({rate}), or write the time in seconds"
+    )
+
+
 def _locate_csv_problem(
     p: Path, raw: list[str], index: list[int], has_header: bool, skipped: int = 0
 ) -> str:
@@ -571,6 +589,9 @@ def _locate_csv_problem(
                     try:
                         value = float(cell)
                     except ValueError:
+                        if len(index) == 2 and i == index[0] and _TIMESTAMP.match(cell.strip()):
+                            accel = raw[index[1]].strip() if has_header else str(index[1])
+                            return _timestamp_problem(line, col, cell.strip(), accel)
                         shown = quote_content(cell.strip()) or "the cell"
                         return f"line {line}, column {col}: {shown} is not a number"
                     if not math.isfinite(value):
