@@ -115,6 +115,18 @@ def test_predict_reads_the_row_of_the_campaign_its_recording_sits_in(tmp_path):
     assert campaign_row_of(tmp_path / "alone.csv") is None
 
 
+def test_a_broken_manifest_above_a_recording_says_why_predict_reads_it(tmp_path):
+    """``predict rec/run.csv --fn 9.48`` in a folder whose manifest has a broken row was
+    refused by the manifest's own message alone, which never said why a manifest was read
+    for one recording given its f_n: it says so, and how to read the file alone."""
+    camp = _campaign(tmp_path, "recording,fs_hz,natural_frequency_hz", "rec/run.csv,1000,abc", None)
+    res = runner.invoke(app, ["predict", str(camp / "rec" / "run.csv"), "--fn", "9.48"])
+    assert res.exit_code == 2, res.output
+    line = " ".join(res.output.split())
+    assert "column natural_frequency_hz: not a number (got 'abc') (the manifest of the " in line
+    assert "campaign run.csv sits in, read for its row: fix it, or copy the recording out" in line
+
+
 @pytest.mark.parametrize("output", ["manifest.csv", "rec/run.csv.json"])
 def test_an_output_never_lands_on_what_predict_reads_beside_its_recording(tmp_path, output):
     """``predict rec --json manifest.csv`` replaced the campaign's manifest (and a sidecar

@@ -784,7 +784,14 @@ def campaign_row_of(recording: str | os.PathLike[str]) -> tuple[Path, ManifestRo
     if manifest is None:
         return None
     path = Path(recording).resolve()
-    for row in read_manifest(manifest):
+    try:
+        rows = read_manifest(manifest)
+    except StiffnetError as exc:  # the user asked for a recording: say why a manifest is read
+        raise StiffnetError(
+            f"{exc} (the manifest of the campaign {Path(recording).name} sits in, read for its "
+            "row: fix it, or copy the recording out of the folder to read it alone)"
+        ) from None
+    for row in rows:
         if (manifest.parent / row.recording).resolve() == path:
             return manifest, row
     return None
