@@ -39,8 +39,11 @@ the loop's default family), ``--rig-weights none,small_gaps`` draws the dataset 
 per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), and
 ``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Part 4c
 (``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 alone on that
-campaign, resumed from STATE's iteration 0 with the diagnosis D, the CPU seconds of its
-phases (``--rig-repeats`` runs). Part 4d (``--rig-orbits ROWS``): the orbits (impacts per
+campaign (or ``--rig-campaign``), resumed from STATE's iteration 0 with the diagnosis D, at
+each dataset size (``--rig-sizes``) and seed (``--rig-dataset-seeds``): the model alone, the
+reported reading and the CPU seconds of every phase (world simulation, features, GBM fit,
+calibration, the predictor's evaluation, β by simulation, candidate chains, ...;
+``--rig-repeats`` runs). Part 4d (``--rig-orbits ROWS``): the orbits (impacts per
 forcing period) the loop's training windows reach at those campaign rows against the
 recording's, by β band. Prints Markdown with the machine's load.
 
@@ -52,7 +55,7 @@ recording's, by β band. Prints Markdown with the machine's load.
     ... benchmarks/bench_loop_iteration.py --rig hunt_crossley,ideal,beam --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-iteration /tmp/rig/two_stage-loop \
-        --rig-diagnosis d.json --rig-dir /tmp/rig
+        --rig-diagnosis d.json --rig-dir /tmp/rig [--rig-campaign C --rig-sizes 400,1600]
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
         --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-orbits 3,6 --rig-seeds 0,1 --rig-dir /tmp/rig
