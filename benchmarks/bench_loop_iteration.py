@@ -39,8 +39,11 @@ the loop's default family), ``--rig-weights none,small_gaps`` draws the dataset 
 per-point rule (:func:`stiffnet.measurement.operating_points.point_weights`), and
 ``--rig-per-shard`` simulates it one batch per shard (the loop shares batches). Part 4c
 (``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 alone on that
-campaign, resumed from STATE's iteration 0 with the diagnosis D, the CPU seconds of its
-phases (``--rig-repeats`` runs). Part 4d (``--rig-orbits ROWS``): the orbits (impacts per
+campaign (or ``--rig-campaign``), resumed from STATE's iteration 0 with the diagnosis D, at
+each dataset size (``--rig-sizes``) and seed (``--rig-dataset-seeds``): the model alone, the
+reported reading and the CPU seconds of every phase (world simulation, features, GBM fit,
+calibration, the predictor's evaluation, β by simulation, candidate chains, ...;
+``--rig-repeats`` runs). Part 4d (``--rig-orbits ROWS``): the orbits (impacts per
 forcing period) the loop's training windows reach at those campaign rows against the
 recording's, by β band. Prints Markdown with the machine's load.
 
@@ -52,7 +55,7 @@ recording's, by β band. Prints Markdown with the machine's load.
     ... benchmarks/bench_loop_iteration.py --rig hunt_crossley,ideal,beam --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0,0.5 --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-iteration /tmp/rig/two_stage-loop \
-        --rig-diagnosis d.json --rig-dir /tmp/rig
+        --rig-diagnosis d.json --rig-dir /tmp/rig [--rig-campaign C --rig-sizes 400,1600]
     ... benchmarks/bench_loop_iteration.py --rig-seeds 0,1 --rig-shares 0 --rig-per-shard \
         --rig-families gbm,cnn --rig-weights none,small_gaps --rig-dir /tmp/rig
     ... benchmarks/bench_loop_iteration.py --rig-orbits 3,6 --rig-seeds 0,1 --rig-dir /tmp/rig
@@ -652,12 +655,101 @@ def rig_seeds(
                   f"{os.getloadavg()[0]:.1f} |", flush=True)  # fmt: skip
 
 
-def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1) -> None:
+#: The phases of a loop iteration the profile (``--rig-iteration``) times, innermost first
+#: wins: (module, attribute, phase). Each attribute is looked up in its module at call time.
+PHASES = (
+    ("stiffnet.measurement.loop", "chain_discrepancy", "candidate chains"),
+    ("stiffnet.measurement.operating_points", "operating_point_dataset", "dataset: writing"),
+    ("stiffnet.dataset.generate", "simulate_shards", "dataset: world simulation"),
+    ("stiffnet.dataset.generate", "run_shard_job", "dataset: world simulation"),
+    ("stiffnet.dataset.generate", "generate_dataset", "dataset: world simulation"),
+    ("training.train", "load_training_data", "training: load"),
+    ("training.families.gbm.train", "gbm_inputs", "training: features"),
+    ("training.families.gbm.train", "fit_gbm_family", "training: GBM fit"),
+    ("training.finish", "calibrate", "training: calibration"),
+    ("training.finish", "evaluate_test", "training: own test (+ geometric)"),
+    ("training.finish", "export_model", "training: export"),
+    ("stiffnet.measurement.loop", "compare_campaign", "evaluation: campaign simulation"),
+    ("stiffnet.measurement.evaluate", "campaign_predictions", "evaluation: predictor"),
+    ("stiffnet.measurement.evaluate", "with_simulation", "evaluation: beta by simulation"),
+)
+
+#: Phases that keep what they call (the candidate chains' campaign simulations are theirs).
+ABSORBING = ("candidate chains",)
+
+
+class PhaseClock:
+    """CPU seconds (this process and its finished children) by phase, exclusive: a phase
+    called inside another is charged to itself only (a stack of open phases)."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self._stack: list[str] = []
+        self._last = 0.0
+        self._undo: list = []
+
+    @staticmethod
+    def now() -> float:
+        import resource
+
+        own = resource.getrusage(resource.RUSAGE_SELF)
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+    def _charge(self) -> None:
+        t = self.now()
+        top = self._stack[-1] if self._stack else "other"
+        self.seconds[top] = self.seconds.get(top, 0.0) + t - self._last
+        self._last = t
+
+    def wrap(self, fn, phase: str):
+        def timed(*args, **kwargs):
+            if self._stack and self._stack[-1] in ABSORBING:
+                return fn(*args, **kwargs)
+            self._charge()
+            self._stack.append(phase)
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self._charge()
+                self._stack.pop()
+
+        return timed
+
+    def __enter__(self) -> PhaseClock:
+        import importlib
+
+        for mod_name, attr, phase in PHASES:
+            mod = importlib.import_module(mod_name)
+            real = getattr(mod, attr)
+            setattr(mod, attr, self.wrap(real, phase))
+            self._undo.append((mod, attr, real))
+        self._last = self.now()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._charge()
+        for mod, attr, real in reversed(self._undo):
+            setattr(mod, attr, real)
+
+
+def rig_iteration(
+    state: Path,
+    diagnosis: Path,
+    campaign: Path,
+    repeats: int = 1,
+    sizes: tuple[int | None, ...] = (None,),
+    seeds: tuple[int | None, ...] = (None,),
+) -> None:
     """Part 4c (``--rig-iteration STATE --rig-diagnosis D``): the plain loop's iteration 1 on
-    the rig's two-stage campaign (``CAMPAIGN``: ``--rig-dir``'s ``two_stage``), resumed from
+    ``campaign`` (``--rig-campaign``, default ``--rig-dir``'s ``two_stage``), resumed from
     a copy of STATE (a loop state folder of that campaign) cut to its iteration 0, with the
-    given diagnosis, in this process without tracking: the CPU seconds of its phases (the
-    iteration's ``cpu_seconds``) and its metrics, ``repeats`` times."""
+    given diagnosis, in this process without tracking, at each dataset size
+    (``--rig-sizes``, ``loop --n-trajectories``; ``default``: the loop's own) and dataset
+    seed (``--rig-dataset-seeds``: the starting config's seed; default the state's):
+    the model alone (accuracy / β MAPE), what the loop reports, and the CPU seconds of
+    every phase (:class:`PhaseClock`; the candidate chains the diagnosis's chain is chosen
+    among are part of the iteration, before its own clock starts), ``repeats`` times."""
     import json
     import shutil
 
@@ -666,29 +758,40 @@ def rig_iteration(state: Path, diagnosis: Path, campaign: Path, repeats: int = 1
 
     camp = load_campaign(campaign)
     diag = json.loads(diagnosis.read_text())
-    print("| run | dataset CPU s | training | evaluation + discrepancy | total | accuracy | β MAPE "
-          "| reading (simulation where it reproduces): accuracy / β MAPE | discrepancy | wall s "
-          "| load |")  # fmt: skip
-    print("|---" * 11 + "|")
-    for k in range(repeats):
+    names = list(dict.fromkeys(p for _, _, p in PHASES)) + ["other"]
+    print("| trajectories | dataset seed | run | model alone: accuracy / β MAPE | reported "
+          "reading: accuracy / β MAPE | own test accuracy | discrepancy | " + " | ".join(names)
+          + " | CPU s, total | wall s | load |")  # fmt: skip
+    print("|---" * (10 + len(names)) + "|")
+    for n, seed, k in itertools.product(sizes, seeds, range(repeats)):
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "loop"
             st = json.loads((state / "state.json").read_text())
             st.update(iterations=st["iterations"][:1], campaign=str(campaign.resolve()),
                       tracking_uri=None)  # fmt: skip
+            if n is not None:
+                st["n_trajectories"] = n
+            if seed is not None:
+                st["start_config"]["seed"] = seed
             shutil.copytree(state / "iter-000", folder / "iter-000")
             shutil.copy(state / "stiffnet-run.json", folder / "stiffnet-run.json")
             (folder / "state.json").write_text(json.dumps(st))
             cfg = SimulationConfig.model_validate(st["start_config"])
+            load0 = os.getloadavg()[0]
             t0 = time.perf_counter()
-            res = run_loop(camp, cfg, folder, iterations=1, diagnosis=diag, tracking_uri=None)
+            with PhaseClock() as clock:
+                res = run_loop(camp, cfg, folder, iterations=1, diagnosis=diag,
+                               tracking_uri=None)  # fmt: skip
             it, wall = res["iterations"][-1], time.perf_counter() - t0
-        c, m = it["cpu_seconds"], it["metrics"]
+        m = it["metrics"]
+        cells = " | ".join(f"{clock.seconds.get(p, 0.0):.1f}" for p in names)
         print(
-            f"| {k} | {c['dataset']:.1f} | {c['train']:.1f} | {c['evaluation']:.1f} | "
-            f"{c['total']:.1f} | {m['accuracy']:.3f} | {m['beta_mape']:.4f} | "
+            f"| {it['n_trajectories']} | {cfg.seed} | {k} | {m['accuracy']:.3f} / "
+            f"{m['beta_mape']:.3f} | "
             f"{_pair(m.get('reading_accuracy'), m.get('reading_beta_mape'))} | "
-            f"{m['discrepancy']:.4f} | {wall:.0f} | {os.getloadavg()[0]:.1f} |",
+            f"{it['train_metrics'].get('train/accuracy', float('nan')):.3f} | "
+            f"{m['discrepancy']:.3g} | {cells} | {sum(clock.seconds.values()):.1f} | "
+            f"{wall:.0f} | {load0:.1f} -> {os.getloadavg()[0]:.1f} |",
             flush=True,
         )
 
@@ -816,6 +919,20 @@ def main() -> None:
     )
     ap.add_argument("--rig-diagnosis", type=Path, default=None, help="part 4c: diagnose --json")
     ap.add_argument("--rig-repeats", type=int, default=1, help="part 4c: runs")
+    ap.add_argument(
+        "--rig-campaign",
+        type=Path,
+        default=None,
+        help="part 4c: the campaign (default --rig-dir's two_stage)",
+    )
+    ap.add_argument(
+        "--rig-sizes", default="default", help="part 4c: dataset sizes, e.g. default,1600"
+    )
+    ap.add_argument(
+        "--rig-dataset-seeds",
+        default="",
+        help="part 4c: dataset seeds, e.g. 0,1 (default the state's)",
+    )
     ap.add_argument("--rig-seeds", default="", help="part 4b: dataset seeds, e.g. 0,1")
     ap.add_argument("--rig-shares", default="0.0,0.5", help="part 4b: near-edge shares")
     ap.add_argument("--rig-per-shard", action="store_true", help="part 4b: no shared batches")
@@ -844,10 +961,17 @@ def main() -> None:
                        args.rig_trajectories or 400, args.rig_dir)  # fmt: skip
         return
     if args.rig_iteration:
-        if args.rig_diagnosis is None or args.rig_dir is None:
-            ap.error("--rig-iteration needs --rig-diagnosis and --rig-dir (its two_stage)")
-        rig_iteration(args.rig_iteration, args.rig_diagnosis, args.rig_dir / "two_stage",
-                      args.rig_repeats)  # fmt: skip
+        if args.rig_diagnosis is None or (args.rig_dir is None and args.rig_campaign is None):
+            ap.error("--rig-iteration needs --rig-diagnosis and --rig-campaign or --rig-dir")
+        sizes = tuple(None if x == "default" else int(x) for x in args.rig_sizes.split(","))
+        seeds = (
+            tuple(int(x) for x in args.rig_dataset_seeds.split(","))
+            if args.rig_dataset_seeds
+            else (None,)
+        )
+        rig_iteration(args.rig_iteration, args.rig_diagnosis,
+                      args.rig_campaign or args.rig_dir / "two_stage", args.rig_repeats,
+                      sizes, seeds)  # fmt: skip
         return
     if args.rig_seeds:
         centre = tuple(float(x) for x in args.rig_law.split(",")) if args.rig_law else None

@@ -228,3 +228,20 @@ def test_the_worlds_defaults_come_from_its_shipped_settings():
         op.OperatingPointSettings(weights="large_gaps")
     with pytest.raises(ValidationError):
         op.OperatingPointSettings(jiter=0.02)
+
+
+def test_the_loops_dataset_size_at_the_points_is_the_shipped_setting():
+    """A loop iteration at the operating points draws configs/operating_points.yaml's
+    ``trajectories`` unless the user gives a number (400 left the model alone limited by its
+    data), and a size the loop could not split is refused where the settings are read."""
+    from pydantic import ValidationError
+
+    from stiffnet.measurement import loop
+    from stiffnet.measurement import operating_points as op
+
+    shipped = load_config(op.OperatingPointSettings, default_config("operating_points.yaml"))
+    assert loop.OPERATING_POINT_TRAJECTORIES == op.TRAJECTORIES == shipped.trajectories
+    assert shipped.trajectories >= 1600
+    with pytest.raises(ValidationError):
+        op.OperatingPointSettings(trajectories=loop.MIN_TRAJECTORIES - 1)
+    assert op.OperatingPointSettings(trajectories=loop.MIN_TRAJECTORIES).trajectories == 50

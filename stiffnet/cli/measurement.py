@@ -487,8 +487,8 @@ def loop(
     n_trajectories: Annotated[
         int | None,
         typer.Option(
-            help="Trajectories per generated dataset (default 1000 over the sweep, 400 at the "
-            "operating points)."
+            help="Trajectories per generated dataset (default 1000 over the sweep; at the "
+            "operating points, configs/operating_points.yaml's trajectories)."
         ),
     ] = None,
     spread: Annotated[

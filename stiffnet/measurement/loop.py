@@ -61,6 +61,7 @@ from stiffnet.errors import StiffnetError
 from stiffnet.io_utils import RUN_MARKER, output_lock, sha256_file, write_json_atomic
 from stiffnet.measurement.compare import compare_campaign, config_effects, config_settings
 from stiffnet.measurement.learned_law import replaced_by, with_learned_law
+from stiffnet.measurement.operating_points import TRAJECTORIES
 from stiffnet.progress import task as progress_task
 
 #: ``kind`` in the marker (``stiffnet-run.json``) of a loop's state folder.
@@ -72,13 +73,11 @@ DEFAULT_SPREAD = 0.25
 #: Trajectories per generated dataset over the sweep (1000: one CNN iteration within 15
 #: minutes on two cores, see docs/measurement_loop.md).
 DEFAULT_TRAJECTORIES = 1000
-#: Trajectories per dataset at the operating points, unless the user gives a number: one
-#: batch per manifest row through the numerical engine costs 1.3-1.8 s of CPU per
-#: trajectory with a learned law (the independent rig's 24 points, 400 trajectories at load
-#: 11: 700-740 s, an estimated 500-530 with the record at the transient's substep), and 400
-#: is what the loop was measured with (0.833 on that rig, 1.0 on the example campaign;
-#: docs/measurement_loop.md).
-OPERATING_POINT_TRAJECTORIES = 400
+#: Trajectories per dataset at the operating points, unless the user gives a number
+#: (``configs/operating_points.yaml``'s ``trajectories``): the retrained model alone reaches
+#: the campaign's accuracy with it, where 400 left it limited by its data
+#: (docs/measurement_loop.md, "The loop's model alone: its dataset's size").
+OPERATING_POINT_TRAJECTORIES = TRAJECTORIES
 #: Fewest trajectories per generated dataset: every class in training and in test.
 MIN_TRAJECTORIES = 50
 #: How a model trained behind the campaign's own fitted sensor chain reads a record

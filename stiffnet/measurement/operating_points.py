@@ -121,6 +121,10 @@ class OperatingPointSettings(BaseModel):
         Least share of a shard's windows on the recording's orbit for the hold to drop the
         others: below it the world rarely reaches that orbit at the point, and the shard is
         kept whole.
+    trajectories : int
+        Trajectories of a loop iteration's dataset at the operating points, unless the user
+        gives a number (``loop --n-trajectories``); at least the loop's fewest
+        (:data:`stiffnet.measurement.loop.MIN_TRAJECTORIES`).
     """
 
     model_config = ConfigDict(extra="forbid")
@@ -134,6 +138,7 @@ class OperatingPointSettings(BaseModel):
     shared_batches: bool = True
     hold_orbits: bool = False
     min_on_orbit: float = Field(0.25, gt=0.0, le=1.0)
+    trajectories: int = Field(1600, ge=50, le=10_000_000)
 
 
 @lru_cache(maxsize=1)
@@ -164,6 +169,8 @@ SHARED_BATCHES = _SETTINGS.shared_batches
 HOLD_ORBITS = _SETTINGS.hold_orbits
 #: Least share of a shard's windows on the recording's orbit for the hold to drop the others.
 MIN_ON_ORBIT = _SETTINGS.min_on_orbit
+#: Trajectories of a loop iteration's dataset at the operating points (see the module's notes).
+TRAJECTORIES = _SETTINGS.trajectories
 
 
 def split_evenly(n: int, k: int) -> list[int]:
