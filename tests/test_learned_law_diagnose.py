@@ -23,6 +23,7 @@ from stiffnet.effects.learned_contact import LearnedContact
 from stiffnet.geometry.calibration import beta_class
 from stiffnet.measurement.diagnose import diagnose_campaign
 from stiffnet.measurement.learned_law import (
+    evidence_chain_starts,
     excess_shares,
     learned_law_figure,
     propose_learned_law,
@@ -443,3 +444,86 @@ def test_the_selected_chain_is_refitted_with_the_learned_law(tmp_path):
     assert out["params"]["resonance_hz"] == pytest.approx(240.0, rel=0.1)
     assert [e.name for e in out["model"]] == ["sensor_dynamics"]
     assert chain_refit_with_law(target, rows, [], law, at_law, settings) is None
+
+
+def test_without_a_selected_chain_the_evidences_chain_and_its_variants_are_the_starts():
+    """The evidence's shared chain (a resonance with a low-pass and a high-pass) gives four
+    starts: as read, without its low-pass, without its high-pass, without both; a chain with
+    no resonance, or none, gives none (a low-pass alone is what a contact the library lacks
+    reads as)."""
+    shared = {"n": 3, "resonance_hz": 259.0, "resonance_damping": 0.054, "lowpass_hz": 46.0,
+              "lowpass_order": 1.0, "highpass_hz": 2.0}  # fmt: skip
+    starts = evidence_chain_starts(shared)
+    off = 1.0e5  # no low-pass: a corner no rate resolves (0 would be a searched corner's bottom)
+    assert [(s["resonance_hz"], s["lowpass_hz"], s["highpass_hz"]) for s in starts] == [
+        (259.0, 46.0, 2.0), (259.0, off, 2.0), (259.0, 46.0, 0.0), (259.0, off, 0.0)]  # fmt: skip
+    assert all(s["resonance_damping"] == 0.054 and s["lowpass_order"] == 1.0 for s in starts)
+    no_hp = evidence_chain_starts({**shared, "highpass_hz": None})
+    assert [(s["lowpass_hz"], s["highpass_hz"]) for s in no_hp] == [(46.0, 0.0), (off, 0.0)]
+    assert evidence_chain_starts({**shared, "resonance_hz": None}) == []
+    assert evidence_chain_starts(None) == []
+
+
+def test_loop_adds_the_chain_the_proposal_fitted_from_the_evidence():
+    """A chain fitted with the learned law from the evidence's, where the selection kept
+    none, enters the loop beside the law (its fitted values); not where it was refused, nor
+    beside a selected chain (that one is centred on its refit instead)."""
+    law = {"name": "learned_contact", "params": {"exponent": 1.0, "hunt_crossley": 0.49}}
+    chain = {"resonance_hz": 257.0, "resonance_damping": 0.054, "lowpass_hz": 0.0,
+             "highpass_hz": 0.3, "lowpass_order": 1.0}  # fmt: skip
+
+    def diag(improves: bool, source: str = "evidence") -> dict:
+        return {"learned_law": {"proposed": True, "law": {"terms": ["hunt_crossley"]},
+                                "replaces": [], "effect": law,
+                                "chain_refit": {"improves": improves, "params": chain,
+                                                "fitted": ["resonance_hz"],
+                                                "source": source}}}  # fmt: skip
+
+    out = with_learned_law([], diag(True))
+    assert [a["name"] for a in out] == ["sensor_dynamics", "learned_contact"]
+    assert out[0]["params"] == chain and out[0]["fitted"] == ["resonance_hz"]
+    assert [a["name"] for a in with_learned_law([], diag(False))] == ["learned_contact"]
+    selected = {"name": "sensor_dynamics", "params": dict(chain, resonance_hz=180.0),
+                "fitted": list(chain), "source": "diagnosis"}  # fmt: skip
+    out = with_learned_law([selected], diag(True, "selection"))
+    assert [a["name"] for a in out] == ["sensor_dynamics", "learned_contact"]
+    assert out[0]["params"]["resonance_hz"] == 257.0
+
+
+@pytest.mark.slow
+def test_without_a_selected_chain_one_is_fitted_with_the_law_from_the_evidences(tmp_path):
+    """A Hunt-Crossley contact behind a 260 Hz mount, diagnosed with no chain selected and an
+    evidence chain of the mount's resonance read with a spurious 46 Hz low-pass (as on the
+    independent rig's campaign): the chain fitted with the law from the evidence's lands
+    within 10 % of the mount, lowers the objective and passes the effect's test."""
+    from dataclasses import replace
+
+    from stiffnet.effects.sensor_dynamics import SensorDynamics
+    from stiffnet.measurement.learned_law import chain_refit_with_law
+    from stiffnet.measurement.noise_floor import noise_floor, recording_floors
+    from stiffnet.measurement.target import (
+        FIT_SETTINGS_NUMERICAL,
+        CampaignTarget,
+        measured_statistics,
+    )
+
+    mount = {"resonance_hz": 260.0, "resonance_damping": 0.05, "highpass_hz": 0.0,
+             "lowpass_hz": 0.0}  # fmt: skip
+    law = {"hunt_crossley": 0.5, "reference_penetration": 0.5}
+    camp = batch_campaign(tmp_path / "hc", [LearnedContact(**law), SensorDynamics(**mount)],
+                          duration_s=2.0)  # fmt: skip
+    rows = list(camp.rows)
+    measured, lengths, signals = measured_statistics(camp, rows, False)
+    target = CampaignTarget(rows, measured, lengths, [], 0, False)
+    settings = FIT_SETTINGS_NUMERICAL
+    floor = recording_floors(noise_floor(signals, rows, settings.periods, False), signals, rows,
+                             settings.periods)  # fmt: skip
+    at_law = target.per_recording([LearnedContact(**law)], settings)
+    assert chain_refit_with_law(target, rows, [], law, at_law, settings, floor) is None
+    target = replace(target, sensor={"resonance_hz": 259.0, "resonance_damping": 0.054,
+                                     "lowpass_hz": 46.0, "lowpass_order": 1.0,
+                                     "highpass_hz": None})  # fmt: skip
+    out = chain_refit_with_law(target, rows, [], law, at_law, settings, floor)
+    assert out["source"] == "evidence" and out["improves"], out["significance"]
+    assert out["params"]["resonance_hz"] == pytest.approx(260.0, rel=0.1)
+    assert [e.name for e in out["model"]] == ["sensor_dynamics"]

@@ -38,7 +38,9 @@ from stiffnet.measurement.face_by_simulation import face_by_simulation, face_unk
 from stiffnet.measurement.fitting import fit_effect, objective_value
 from stiffnet.measurement.noise_floor import Floors
 from stiffnet.measurement.preload_by_simulation import preload_applies, preload_by_simulation
+from stiffnet.measurement.significance import significance
 from stiffnet.measurement.target import FIT_SETTINGS_NUMERICAL
+from stiffnet.restoring_force.chain import shared_chain_sheet
 
 #: Residual groups where a contact law shows.
 CONTACT_GROUPS = ("contact", "free_flight")
@@ -47,6 +49,9 @@ REPLACED = ("contact_damping", "hertz_contact", "learned_contact")
 #: Recordings (low, middle and high beta) and points per recording kept for the map figure.
 MAP_RECORDINGS = 3
 MAP_POINTS = 300
+#: A chain start's low-pass corner standing for none (``sensor_dynamics``' largest corner:
+#: above 0.45 fs the stage is skipped, and a searched corner is clipped to its top).
+NO_LOWPASS_HZ = 1.0e5
 #: The restraint's two accounts, as a refusal names them.
 FACE_WORDS = {"face": "the rig's shared face", "face_scaled": "a face that scales with beta"}
 
@@ -157,7 +162,7 @@ def propose_learned_law(
     else:
         after, kept, params, refit = _law_scored(target, rows_law, models, law, settings)
         model = kept
-        chain = chain_refit_with_law(target, rows_law, kept, params, after, settings)
+        chain = chain_refit_with_law(target, rows_law, kept, params, after, settings, floor)
         if chain is not None:
             out["chain_refit"] = {k: v for k, v in chain.items() if k != "model"}
             if chain["improves"]:
@@ -285,8 +290,13 @@ def _proposal_summary(law: Any, out: dict[str, Any], floor_median: float) -> str
     chain = out.get("chain_refit") or {}
     if chain.get("improves"):  # the selection's chain was fitted with the library's contact
         c = chain["params"]
+        how = (
+            "fitted with the law from the restoring-force evidence's (none was selected)"
+            if chain.get("source") == "evidence"
+            else "refitted with the law"
+        )
         summary += (
-            f". The sensor chain refitted with the law: resonance {c['resonance_hz']:.4g} Hz "
+            f". The sensor chain {how}: resonance {c['resonance_hz']:.4g} Hz "
             f"(damping {c['resonance_damping']:.2g}), low-pass {c['lowpass_hz']:.4g} Hz, "
             f"high-pass {c['highpass_hz']:.3g} Hz"
         )
@@ -352,9 +362,12 @@ def chain_refit_with_law(
     params: dict[str, float],
     at_law: np.ndarray,
     settings: Any,
+    floor: Floors | None = None,
 ) -> dict[str, Any] | None:
     """The selected sensor chain refitted with the learned law in place of the library's
-    contact (None where the model has no ``sensor_dynamics``).
+    contact; where none was selected, a chain fitted with the law from the restoring-force
+    evidence's (:func:`evidence_chain_starts`); None where the model has no
+    ``sensor_dynamics`` and the evidence no resonance.
 
     The chain was fitted by simulation with the library's linear contact, and a contact that
     stiffens shapes each spike as a chain would: on the held-out two-stage campaign behind a
@@ -365,28 +378,49 @@ def chain_refit_with_law(
     fit diagnose's selection runs, :func:`~stiffnet.measurement.fitting.fit_effect`, the
     law's motion shared by every evaluation) and is kept where it lowers the fits' objective.
 
+    Where the selection kept no chain, the law is scored without one, and a restraint's face
+    or nothing at all stands for the mount's ringing the records carry. The chain the
+    restoring-force evidence identified is the start then (and its variants without its
+    low-pass or high-pass: the evidence's chain fit reads a contact the library lacks as a
+    low-pass, and such a pair is refuted as a whole), and the chain is kept as a diagnosed
+    effect is, where it passes :func:`~stiffnet.measurement.significance.significance`
+    against the law alone (``floor``; without one, where it lowers the objective).
+
     Returns
     -------
     dict or None
         ``improves``, ``params`` (the chain's), ``before`` and ``after`` (its parameters and the
         objective), ``per_recording``, ``model`` (the model with the refitted chain),
-        ``evaluations``, ``seconds``.
+        ``fitted``, ``evaluations``, ``seconds``, ``source`` (``"selection"`` or
+        ``"evidence"``) and, from the evidence, ``significance``.
     """
     chain = [e for e in model if e.name == SensorDynamics.name]
-    if not chain:
+    starts = [chain[0].params.model_dump()] if chain else evidence_chain_starts(target.sensor)
+    if not starts:
         return None
     others = [e for e in model if e.name != SensorDynamics.name]
     learned = LearnedContact(**params)
     tgt = replace(target, rows=list(rows_law), base_effects=[])
-    start = chain[0].params.model_dump()
-    fit = fit_effect(tgt, SensorDynamics.name, [*others, learned], settings, seeds=[start])
+    start = starts[0]
+    fit = fit_effect(tgt, SensorDynamics.name, [*others, learned], settings, seeds=starts)
     per = np.asarray(fit["per_recording"], float)
     o0, o1 = objective_value(np.asarray(at_law, float), target.weights), objective_value(
         per, target.weights)  # fmt: skip
     refitted = SensorDynamics(**fit["params"])
+    improves, extra = bool(o1 < o0), {"source": "selection"}
+    if not chain:  # a new effect: it must pay for its parameters, as a diagnosed one does
+        extra = {"source": "evidence"}
+        if floor is not None:
+            names = [r.recording for r in rows_law]
+            sig = significance(np.asarray(at_law, float), per, len(fit["fitted"]), floor, names)
+            extra["significance"] = {k: sig[k] for k in ("excess_reduction", "bic_delta",
+                                                         "reasons")}  # fmt: skip
+            improves = improves and bool(sig["significant"])
     return {
-        "improves": bool(o1 < o0),
+        **extra,
+        "improves": improves,
         "params": {k: float(v) for k, v in fit["params"].items()},
+        "fitted": list(fit["fitted"]),
         "before": {"params": {k: float(v) for k, v in start.items()}, "objective": o0},
         "after": {"objective": o1},
         "per_recording": per.tolist(),
@@ -394,6 +428,34 @@ def chain_refit_with_law(
         "evaluations": fit["evaluations"],
         "seconds": fit["seconds"],
     }
+
+
+def evidence_chain_starts(sensor: dict[str, Any] | None) -> list[dict[str, float]]:
+    """The starts of a chain fitted with the learned law where the selection kept none: the
+    restoring-force evidence's shared chain (:func:`~stiffnet.restoring_force.chain.shared_chain`,
+    refuted or not: a refuted chain still seeds ``sensor_dynamics``) as a data sheet, then
+    without its low-pass, without its high-pass, and without both; none without a resonance
+    (a low-pass alone is what a stiffening or dissipative contact reads as).
+
+    Behind a 260 Hz mount, a Hunt-Crossley contact's three chain fits shared the mount's
+    259 Hz with a 46 Hz low-pass the rig lacks: the pair was refuted as a whole, the
+    resonance is the mount's.
+    """
+    sheet = shared_chain_sheet(sensor)
+    if sheet is None or not sheet["resonance_hz"]:
+        return []
+    # no low-pass: the corner at the top of its search (a stage at 0.45 fs or above is
+    # skipped), for a corner of 0 would be read as the bottom of a searched corner
+    off = NO_LOWPASS_HZ
+    variants = [sheet, {**sheet, "lowpass_hz": off}, {**sheet, "highpass_hz": 0.0},
+                {**sheet, "lowpass_hz": off, "highpass_hz": 0.0}]  # fmt: skip
+    out: list[dict[str, float]] = []
+    for v in variants:
+        v = {**v, "lowpass_order": float(v["lowpass_order"] or 2.0)}
+        v["lowpass_hz"] = v["lowpass_hz"] or off
+        if v not in out:
+            out.append(v)
+    return out
 
 
 def excess_shares(
@@ -540,6 +602,7 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
     # a law with its own face replaces a library restraint with a mass (two faces would add)
     gone = {*REPLACED, *learned.get("replaces", []), *(["restraint_mass"] if face else [])}
     keep = [with_refitted_chain(a, learned) for a in added if a["name"] not in gone]
+    keep += evidence_chain_entry(keep, learned)
     return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
                     "source": "diagnosis", "origin": "contact-law discovery",
                     "replaces": sorted(gone)}]  # fmt: skip
@@ -557,6 +620,23 @@ def with_refitted_chain(entry: dict[str, Any], learned: dict[str, Any]) -> dict[
     params = {**entry["params"], **{k: float(v) for k, v in refit["params"].items()}}
     return {**entry, "params": params, "linear_contact_fit": entry["params"],
             "origin": "refitted with the learned law"}  # fmt: skip
+
+
+def evidence_chain_entry(
+    added: list[dict[str, Any]], learned: dict[str, Any]
+) -> list[dict[str, Any]]:
+    """The loop's entry of a chain the proposal fitted with the learned law from the
+    restoring-force evidence's where the selection kept none (:func:`chain_refit_with_law`,
+    ``source`` ``"evidence"``, kept by its test): one entry, or none."""
+    refit = learned.get("chain_refit") or {}
+    if (refit.get("source") != "evidence" or not refit.get("improves")
+            or any(a["name"] == SensorDynamics.name for a in added)):  # fmt: skip
+        return []
+    params = {k: float(v) for k, v in refit["params"].items()}
+    fitted = list(refit.get("fitted") or params)
+    return [{"name": SensorDynamics.name, "params": params, "fitted": fitted,
+             "source": "diagnosis", "origin": "fitted with the learned law from the "
+             "restoring-force evidence's chain"}]  # fmt: skip
 
 
 def replaced_by(added: list[dict[str, Any]]) -> set[str]:
