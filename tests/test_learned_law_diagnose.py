@@ -235,6 +235,13 @@ def test_loop_adds_the_lowpass_the_maps_were_read_through_where_no_chain_was_dia
     diagnosed = {"name": "sensor_dynamics", "params": {"resonance_hz": 300.0}, "fitted": [],
                  "source": "diagnosis"}  # fmt: skip
     assert with_learned_law([diagnosed], diag)[0] is diagnosed
+    # the proposal refitted that chain with the law and the fits' objective fell: the refit
+    refit = {"resonance_hz": 450.0, "resonance_damping": 0.16, "highpass_hz": 0.74,
+             "lowpass_hz": 234.1, "lowpass_order": 2.0}  # fmt: skip
+    diag["learned_law"]["chain_refit"] = {"improves": True, "params": refit}
+    out = with_learned_law([], diag)
+    assert out[0]["params"] == refit and out[0]["maps_lowpass"]["lowpass_hz"] == 244.1
+    assert set(out[0]["fitted"]) == set(refit)
 
 
 def test_the_law_is_scored_from_each_recordings_own_start():

@@ -601,11 +601,17 @@ def with_learned_law(added: list[dict[str, Any]], diagnosis: dict[str, Any] | No
     keep = [with_refitted_chain(a, learned) for a in added if a["name"] not in gone]
     lowpass = learned.get("maps_lowpass")
     if lowpass and all(a["name"] != SensorDynamics.name for a in keep):
-        # the law was read and scored through the sensor's low-pass: the loop's world has it
+        # the law was read and scored through the sensor's low-pass: the loop's world has it,
+        # as the proposal's chain refit left it where that lowered the fits' objective
         chain = maps_chain(lowpass).params.model_dump()
-        keep.append({"name": SensorDynamics.name, "params": chain, "fitted": ["lowpass_hz"],
-                     "source": "diagnosis",
-                     "origin": "the low-pass the maps were read through"})  # fmt: skip
+        refit = learned.get("chain_refit") or {}
+        origin = "the low-pass the maps were read through"
+        if refit.get("improves"):
+            chain = {**chain, **{k: float(v) for k, v in refit["params"].items()}}
+            origin += ", refitted with the learned law"
+        keep.append({"name": SensorDynamics.name, "params": chain, "fitted": sorted(
+            {"lowpass_hz", *(refit["params"] if refit.get("improves") else [])}),
+            "source": "diagnosis", "origin": origin, "maps_lowpass": dict(lowpass)})  # fmt: skip
     return [*keep, {"name": LearnedContact.name, "params": params, "fitted": fitted,
                     "source": "diagnosis", "origin": "contact-law discovery",
                     "replaces": sorted(gone)}]  # fmt: skip
