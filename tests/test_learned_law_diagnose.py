@@ -221,6 +221,54 @@ def test_loop_centres_a_diagnosed_chain_on_its_refit_with_the_learned_law():
     assert with_learned_law([other], diag(True))[0] == other
 
 
+def test_loop_adds_the_lowpass_the_maps_were_read_through_where_no_chain_was_diagnosed():
+    """The law was read and scored through the sensor's low-pass (the maps' profiled corner):
+    the loop's world has it where the diagnosis added no chain; a diagnosed chain stays."""
+    law = {"name": "learned_contact", "params": {"exponent": 1.62, "reference_penetration": 0.41}}
+    diag = {"learned_law": {"proposed": True, "law": {"terms": ["power"]}, "replaces": [],
+                            "effect": law, "maps_lowpass": {"lowpass_hz": 244.1,
+                                                            "lowpass_order": 2.0}}}  # fmt: skip
+    out = with_learned_law([], diag)
+    assert [a["name"] for a in out] == ["sensor_dynamics", "learned_contact"]
+    chain = out[0]["params"]
+    assert (chain["lowpass_hz"], chain["lowpass_order"], chain["highpass_hz"]) == (244.1, 2.0, 0)
+    assert chain["resonance_hz"] == 50000.0 and out[0]["fitted"] == ["lowpass_hz"]
+    diagnosed = {"name": "sensor_dynamics", "params": {"resonance_hz": 300.0}, "fitted": [],
+                 "source": "diagnosis"}  # fmt: skip
+    assert with_learned_law([diagnosed], diag)[0] is diagnosed
+    # the proposal refitted that chain with the law and the fits' objective fell: the refit
+    refit = {"resonance_hz": 450.0, "resonance_damping": 0.16, "highpass_hz": 0.74,
+             "lowpass_hz": 234.1, "lowpass_order": 2.0}  # fmt: skip
+    diag["learned_law"]["chain_refit"] = {"improves": True, "params": refit}
+    out = with_learned_law([], diag)
+    assert out[0]["params"] == refit and out[0]["maps_lowpass"]["lowpass_hz"] == 244.1
+    assert set(out[0]["fitted"]) == set(refit)
+
+
+def test_the_law_is_scored_from_each_recordings_own_start():
+    """The target's starts were profiled for the library's law; the learned law's orbits start
+    where they match best (the held start where it ties), and the score is read there."""
+    from types import SimpleNamespace
+
+    from stiffnet.measurement.learned_law import starts_for_law
+
+    # per start k: recording 0 best at 3, recording 1 flat (ties: its held start 5 stays),
+    # recording 2 best at 0
+    table = np.array([[5.0 - (k == 3) * 4.5, 2.0, 1.0 + (k > 0) * 3.0] for k in range(8)])
+    calls = []
+
+    def per_recording(effects, settings, rows=None, starts=None):
+        calls.append((rows, starts))
+        return table[starts[0]].copy()
+
+    target = SimpleNamespace(starts=[1, 5, 2], per_recording=per_recording)
+    rows = ["a", "b", "c"]
+    starts, per = starts_for_law(target, rows, ["law"], "settings")
+    assert starts == [3, 5, 0]
+    np.testing.assert_allclose(per, [0.5, 2.0, 1.0])
+    assert len(calls) == 8 and all(r == rows for r, _ in calls)
+
+
 def loop_start() -> SimulationConfig:
     """The ideal world at a bounded cost: the numerical engine runs every learned law."""
     d = load_config(SimulationConfig, default_config("sim/ideal.yaml")).model_dump(mode="json")

@@ -29,6 +29,7 @@ from stiffnet.discovery.chain_choice import (
     shared_chain_verdict,
     unexplained_force,
 )
+from stiffnet.discovery.lowpass_profile import profiled_lowpass
 from stiffnet.errors import StiffnetError
 from stiffnet.restoring_force import restoring_force_estimate
 from stiffnet.restoring_force.chain import shared_chain, shared_chain_sheet
@@ -382,6 +383,7 @@ def campaign_contact_samples(
     periods: float = PERIODS,
     chain_recordings: int | None = CHAIN_RECORDINGS,
     notes: list[str] | None = None,
+    lowpass: dict[str, Any] | None = None,
 ) -> tuple[list[ContactSamples], list[dict[str, Any]]]:
     """Samples of every recording of a campaign whose map has a contact law, and why not others.
 
@@ -390,7 +392,10 @@ def campaign_contact_samples(
     (:func:`stiffnet.campaign.sensor_gain`), unless the table's motion measures their unit
     more than :data:`UNIT_FROM_G_FACTOR` from g (:func:`unit_over_g`; the samples are then
     in that unit, and ``notes`` says so). The sensor chain is fitted as
-    :func:`campaign_readings` says (``chain_recordings``).
+    :func:`campaign_readings` says (``chain_recordings``); where no reading kept one and a
+    rejected fit showed a low-pass, its corner is profiled by the law the maps read through it
+    (:func:`~.lowpass_profile.profiled_lowpass`), and ``lowpass`` (when given) is filled with
+    the low-pass kept (its corner, order and profile; left empty where none is).
     """
     from stiffnet.campaign import sensor_gain
 
@@ -404,6 +409,9 @@ def campaign_contact_samples(
         )
 
     readings = campaign_readings(read, len(rows), chain_recordings)
+    readings, profiled = profiled_lowpass(read, readings, [r.fs_hz for r in rows])
+    if profiled is not None and lowpass is not None:
+        lowpass.update(profiled)
     out, skipped, units = [], [], []
     for i, row in enumerate(rows):
         got = readings[i]
