@@ -162,3 +162,24 @@ def test_a_hunt_crossley_readings_interval_spans_the_corners_in_its_own_law(hc_b
     assert lo <= 25.0 <= hi and abs(hc["beta"] / 25.0 - 1) < 0.1, hc
     assert library["beta"] > 1.2 * hc["beta"]
     assert hi < library["beta"], (hc["beta_interval"], library["beta"])
+
+
+def test_the_dissipation_readings_take_the_free_flights_corner(monkeypatch):
+    """A sheet that leaves the corner to the record is read with the free flight's corner
+    where the law's dissipation is free: the contact-law profile of the corner tunes it until
+    the library's law fits (0 Hz on the rig's Hunt-Crossley records for 2 Hz) and was 91 %
+    of the dissipation test's CPU. The library's readings keep their profile."""
+    from types import SimpleNamespace
+
+    import stiffnet.restoring_force as rf
+    from serving.campaign_chain import read_through
+
+    seen = []
+    monkeypatch.setattr(rf, "restoring_force_estimate", lambda a, fs, **kw: seen.append(kw))
+    pred = SimpleNamespace(window_periods=16.0, stage_ratio=None)
+    accel = np.sin(2 * np.pi * 9.95 * np.arange(8000) / 2000.0)
+    sheet = {"highpass_hz": HIGHPASS_FITTED}
+    read_through(accel, 2000.0, 9.48, pred, sheet, penetration_dissipation=True)
+    read_through(accel, 2000.0, 9.48, pred, sheet)
+    assert seen[0]["penetration_dissipation"] and seen[0]["profile_highpass_below_r2"] == -np.inf
+    assert not seen[1]["penetration_dissipation"] and seen[1]["profile_highpass_below_r2"] is None
