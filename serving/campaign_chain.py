@@ -92,6 +92,7 @@ import numpy as np
 from stiffnet.restoring_force.chain import (
     CHAIN_CONFIRMED_SHORTFALL,
     HIGHPASS_FITTED,
+    LOWPASS_ENDS,
     shared_chain,
     shared_chain_sheet,
     shared_chain_shortfall,
@@ -406,12 +407,16 @@ def campaign_highpass(
     pooled = (sheet or {}).get("highpass_hz")
     sheets = list(sheets) if sheets is not None else [None] * len(fn_hz)
     todo = [i for i, own in enumerate(sheets) if own is None]
-    if not isinstance(pooled, int | float) or not pooled > 0 or not todo:
+    # behind the contacts' own dissipation the recordings' corners were profiled by the
+    # Kelvin-Voigt law, which reads a Hunt-Crossley pulse best at no corner: no pooled corner
+    # is no evidence there, and the grid alone is profiled
+    unpooled = pooled == HIGHPASS_FITTED and bool(chain.get("contact_dissipation"))
+    if not unpooled and (not isinstance(pooled, int | float) or not pooled > 0) or not todo:
         return chain
     scale = np.nanmedian([fn_hz[i] if fn_hz[i] is not None else np.nan for i in todo])
     if not np.isfinite(scale):
         return chain
-    grid = np.unique(np.r_[HIGHPASS_GRID * float(scale), pooled])
+    grid = np.unique(np.r_[HIGHPASS_GRID * float(scale), [] if unpooled else [pooled]])
     todo = profiled_subset(todo, grid.size + HIGHPASS_REFINE_ITER)
     memo: dict[float, np.ndarray] = {}
 
@@ -442,12 +447,14 @@ def campaign_highpass(
     out = {**chain, "sensor": {**sheet, "highpass_hz": corner, "highpass_low_hz": low,
                                "highpass_high_hz": high}}  # fmt: skip
     out["stages"] = {**chain.get("stages", {}), "highpass_hz": {
-        "value": corner, "interval": [low, high], "pooled_median": float(pooled),
+        "value": corner, "interval": [low, high],
+        "pooled_median": None if unpooled else float(pooled),
         "profiled_on": int(read.sum()), "median_log_misfit": median_misfit(corner),
         "source": "contact_r2_profile"}}  # fmt: skip
+    fits = ("each recording's own" if unpooled
+            else f"the median of the recordings' own fits {float(pooled):.2f} Hz")  # fmt: skip
     out["reason"] = (f"{chain['reason']}; the high-pass corner profiled over the campaign's "
-                     f"contact laws: {corner:.2f} Hz [{low:.2f}, {high:.2f}] (the median of the "
-                     f"recordings' own fits {float(pooled):.2f} Hz)")  # fmt: skip
+                     f"contact laws: {corner:.2f} Hz [{low:.2f}, {high:.2f}] ({fits})")  # fmt: skip
     return out
 
 
@@ -750,6 +757,103 @@ def campaign_lowpass_minority(
     return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit, shown)
 
 
+def campaign_dissipation(
+    chain: dict[str, Any],
+    sensors: Sequence[dict | None],
+    contact_r2: Callable[..., float | None],
+    dissipation_share: Callable[[int, dict[str, Any]], float | None],
+    sheets: Sequence[dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with the identified low-pass weighed against the contacts' own dissipation:
+    where a dissipation growing with penetration (Hunt-Crossley's) reads the campaign's
+    contact laws better with no low-pass than through the identified one, the low-pass is
+    the contacts' dissipation, and the pool holds none.
+
+    Why. A recording's chain fit models the contact pulse as a Kelvin-Voigt contact's, whose
+    force jumps to ``c_c v0`` at first touch; a Hunt-Crossley contact's rises from zero, and
+    the fit reads that rounding as a low-pass. Behind a 4th-order 600 Hz low-pass and a 2 Hz
+    high-pass at 2 kHz (contacts at 28-73 Hz) the independent rig's Hunt-Crossley recordings
+    fitted low-passes of 94-324 Hz, orders 1-3, and the campaign profiled corners near 110 Hz
+    that hide the contacts (the soft-contact fit then read beta 4.2 for 9). Read with the
+    ``delta v`` term free and no low-pass, the same recordings' laws explain 0.994-0.9997 of
+    the contact force; through the identified low-pass 0.72-0.99 or refused; and through a
+    true low-pass the test keeps it (a power law behind 250 Hz order 2 reads better through
+    it, and a power law fits no ``delta v`` term: its readings are compared as they are).
+
+    The rule. Every recording without its own data sheet (`sheets`; a spread subset,
+    :func:`profiled_subset`) is read with the dissipation free (`contact_r2`,
+    `dissipation_share`: :func:`dissipation_readers`) through the identified chain without a
+    low-pass and with the identified one (the median corner and order of the recordings
+    whose chain shows one). The low-pass is the contacts' dissipation where, over the
+    recordings with a say, the median of ``log((1 - R²_none) / (1 - R²_low-pass))`` is not
+    positive (the rule of :func:`campaign_highpass`, no law counted as R² 0), the median
+    R²_none reaches :data:`~stiffnet.restoring_force.estimate.CHAIN_FIT_WHEN_NEEDED` (the
+    contact law then needs no chain) and the median share of the dissipation growing with
+    penetration reaches the ``contact_law`` check's
+    :attr:`~stiffnet.uncertainty.unseen_law.UnseenLawThresholds.penetration_dissipation_min_share`
+    (the dissipation the low-pass stood for is there). The decision is then pooled without a
+    low-pass (``contact_dissipation``: the campaign is read with the dissipation free), the
+    weighing reported under ``stages["lowpass_hz"]["dissipation"]``; where it is not, under
+    ``dissipation_weighed``, the stages left as they were. The low-pass is read only where
+    the readings without it pass the R² and share tests (a power law fits no ``delta v``
+    term: its campaign spends one reading a recording on the test).
+
+    Returned as it is: a chain that shows no identified low-pass, one with a resonance (a
+    mount's ringing is no contact's dissipation, and its profile reads through it), and one
+    with no recording to read.
+    """
+    from stiffnet.restoring_force.estimate import CHAIN_FIT_WHEN_NEEDED
+    from stiffnet.uncertainty.unseen_law import unseen_law_thresholds
+
+    sheets = list(sheets) if sheets is not None else [None] * len(sensors)
+    base = chain.get("sensor") if chain.get("pooled") else chain.get("unpooled_sheet")
+    todo = [i for i, own in enumerate(sheets) if own is None]
+    fits = [s for i, s in enumerate(sensors) if i in todo and identified(s) and s.get("lowpass_hz")]
+    if not base or not fits or not todo or base.get("resonance_hz"):
+        return chain
+    corner = float(np.median([float(s["lowpass_hz"]) for s in fits]))
+    order = float(max(1, round(float(np.median([s.get("lowpass_order") or 2 for s in fits])))))
+    none = {k: v for k, v in base.items() if k not in LOWPASS_ENDS}
+    none.update(lowpass_hz=0.0, lowpass_order=0.0)
+    low = {**none, "lowpass_hz": corner, "lowpass_order": order}
+    todo = profiled_subset(todo, 2)
+    r2_none = np.array([contact_r2(i, none) or 0.0 for i in todo])
+    shares = [dissipation_share(i, none) for i in todo]
+    read = r2_none > 0.0  # a recording with no law has no say
+    share = np.nan_to_num(np.array([np.nan if v is None else v for v in shares], float), nan=0.0)
+    median_share = float(np.median(share[read])) if read.any() else 0.0
+    median_r2 = float(np.median(r2_none[read])) if read.any() else 0.0
+    weighed = {"lowpass_hz": corner, "lowpass_order": order, "read_on": int(read.sum()),
+               "median_r2_none": median_r2, "median_dissipation_share": median_share}  # fmt: skip
+    min_share = unseen_law_thresholds().penetration_dissipation_min_share
+    is_dissipation = median_r2 >= CHAIN_FIT_WHEN_NEEDED and median_share >= min_share
+    if is_dissipation:  # only then is the low-pass read: a law without the term is kept cheaply
+        r2_low = np.array([contact_r2(i, low) or 0.0 for i in todo])
+        eps = np.finfo(float).eps
+        m_none, m_low = np.maximum(1.0 - r2_none, eps), np.maximum(1.0 - r2_low, eps)
+        say = np.minimum(m_none, m_low) < 1.0
+        log_ratio = float(np.median(np.log(m_none / m_low)[say]))
+        weighed.update(median_r2_lowpass=float(np.median(r2_low[say])),
+                       median_log_misfit_ratio=log_ratio)  # fmt: skip
+        is_dissipation = log_ratio <= 0.0
+    if not is_dissipation:  # reported beside the stages, which the profiles after it read
+        return {**chain, "dissipation_weighed": weighed}
+    stage = {**chain.get("stages", {}).get("lowpass_hz", {}), "dissipation": weighed,
+             "value": None}  # fmt: skip
+    out = {k: v for k, v in chain.items() if k != "unpooled_sheet"}
+    out.update(pooled=True, sensor=none, contact_dissipation=True,
+               stages={**chain.get("stages", {}), "lowpass_hz": stage})  # fmt: skip
+    said = (f"the identified low-pass ({corner:.0f} Hz order {order:.0f}, median of "
+            f"{len(fits)} fits) is the contacts' dissipation: read with a dissipation growing "
+            f"with penetration and no low-pass the contact laws explain {median_r2:.4f} "
+            f"(median), through it {weighed['median_r2_lowpass']:.4f}; pooled without a "
+            f"low-pass, beta read with the Hunt-Crossley law")  # fmt: skip
+    out["reason"] = (f"{chain['reason']}; {said}" if chain.get("pooled") else
+                     f"one sensor chain over the {chain['n_identified']} recordings that "
+                     f"identified one ({chain['reason']}); {said}")  # fmt: skip
+    return out
+
+
 def profiled_campaign_chain(
     chain: dict[str, Any],
     sensors: Sequence[dict | None],
@@ -758,6 +862,7 @@ def profiled_campaign_chain(
     fn_hz: Callable[[], Sequence[float | None]],
     rig_damping: Sequence[float | None],
     sheets: Sequence[dict | None] | None = None,
+    dissipation: tuple[Callable[..., float | None], ...] | None = None,
 ) -> dict[str, Any]:
     """The campaign's pooled decision (:func:`identify_regardless`) with its stages profiled
     over the campaign's contact laws, in their order: the low-pass the fits disagree on
@@ -770,8 +875,21 @@ def profiled_campaign_chain(
     law's R² (:func:`contact_r2_through`); `free_damping` recording index and sheet to the
     free flight's damping (:func:`free_damping_through`); `fn_hz` gives each recording's
     natural frequency, asked for only where the chain is pooled (every stage after the
-    low-pass profiles a pool)."""
-    chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
+    low-pass profiles a pool).
+
+    `dissipation`: the `contact_r2`, `free_damping` and `dissipation_share` of readings with
+    the contact's dissipation growing with penetration fitted free
+    (:func:`dissipation_readers`). Where given, the identified low-pass is first weighed
+    against that dissipation (:func:`campaign_dissipation`); where the dissipation reads the
+    contacts better the low-pass is not profiled and the profiles after it read the
+    campaign's contact laws with the dissipation free, as the second reading then does
+    (``contact_dissipation`` in the decision)."""
+    if dissipation is not None:
+        chain = campaign_dissipation(chain, sensors, dissipation[0], dissipation[2], sheets)
+    if chain.get("contact_dissipation"):
+        contact_r2, free_damping = dissipation[0], dissipation[1]
+    else:
+        chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     if not chain["pooled"]:
         return chain
     fns = fn_hz()
@@ -1079,10 +1197,21 @@ def contact_r2_through(
 
 
 def contact_r2_of(r: Any, refused_as_unexplained: bool = False) -> float | None:
-    """:func:`contact_r2_through` of a reading `r` (:func:`read_through`'s)."""
+    """:func:`contact_r2_through` of a reading `r` (:func:`read_through`'s): the R² of the
+    law that read beta (the Hunt-Crossley law's where the reading fitted one)."""
     if r is None or r.law is None or not np.isfinite(r.contact_r2):
         return None
-    return 0.0 if refused_as_unexplained and not r.ok else float(r.contact_r2)
+    if refused_as_unexplained and not r.ok:
+        return 0.0
+    hc = getattr(r, "hunt_crossley", None)
+    return float(hc.r2) if hc is not None and np.isfinite(hc.r2) else float(r.contact_r2)
+
+
+def dissipation_share_of(r: Any) -> float | None:
+    """The share of a reading's contact dissipation that grows with penetration (its
+    Hunt-Crossley law's ``dissipation_share``); None where the reading fitted no such law."""
+    hc = None if r is None else getattr(r, "hunt_crossley", None)
+    return float(hc.dissipation_share) if hc is not None else None
 
 
 def free_damping_through(
@@ -1106,10 +1235,21 @@ def free_damping_of(r: Any) -> float | None:
 
 
 def read_through(
-    accel: Any, fs_hz: float, fn_hz: float, predictor: Any, sheet: dict[str, Any]
+    accel: Any,
+    fs_hz: float,
+    fn_hz: float,
+    predictor: Any,
+    sheet: dict[str, Any],
+    penetration_dissipation: bool = False,
 ) -> Any:
     """`predictor`'s restoring-force reading of a recording through `sheet`, a sheet fitted
-    to recordings (``sensor_fitted``), without the interval; None where it fails."""
+    to recordings (``sensor_fitted``), without the interval; None where it fails.
+    `penetration_dissipation`: the contact law read with a free ``delta v`` dissipation
+    (:func:`campaign_dissipation`'s readings); a corner the sheet leaves to the record
+    (``"auto"``) is then the free flight's, not profiled by the library's contact law: that
+    profile tunes the corner until the Kelvin-Voigt law fits (0 Hz on the rig's Hunt-Crossley
+    records for 2 Hz), bends the law it is weighed against, and was 91 % of
+    :func:`campaign_dissipation`'s CPU (48 readings, 172 s)."""
     from serving.checks import checked_recording
     from serving.restoring_force_check import RESTORING_FORCE_PERIODS
     from stiffnet.errors import StiffnetError
@@ -1120,7 +1260,8 @@ def read_through(
         return restoring_force_estimate(
             a, fs_hz, natural_frequency_hz=fn_hz, sensor=sheet, sensor_fitted=True,
             max_periods=RESTORING_FORCE_PERIODS, interval=False,
-            stage_ratio=predictor.stage_ratio,
+            stage_ratio=predictor.stage_ratio, penetration_dissipation=penetration_dissipation,
+            profile_highpass_below_r2=-np.inf if penetration_dissipation else None,
         )  # fmt: skip
     except (StiffnetError, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
@@ -1151,7 +1292,24 @@ def profile_readers(
     """The `contact_r2` and `free_damping` of :func:`profiled_campaign_chain` from `read`
     (recording index and data sheet to a reading, :func:`read_through`), both over one
     :func:`read_once` of it: what a campaign's pooling passes its profiles."""
-    once = read_once(read)
+    contact_r2, free_damping, _ = _readers(read_once(read))
+    return contact_r2, free_damping
+
+
+def dissipation_readers(
+    read: Callable[[int, dict[str, Any]], Any],
+) -> tuple[Callable[..., float | None], Callable[[int, dict[str, Any]], float | None],
+           Callable[[int, dict[str, Any]], float | None]]:  # fmt: skip
+    """:func:`profile_readers` of `read` (recording index and data sheet to a reading with the
+    contact's dissipation growing with penetration fitted free: :func:`read_through` with
+    ``penetration_dissipation``), with the readings' :func:`dissipation_share_of` beside them,
+    over one :func:`read_once`: the readers :func:`campaign_dissipation` and the profiles
+    after it take."""
+    return _readers(read_once(read))
+
+
+def _readers(once: Callable[[int, dict[str, Any]], Any]) -> tuple:
+    """The contact R², free damping and dissipation share of the readings `once` gives."""
 
     def contact_r2(
         i: int, sheet: dict[str, Any], refused_as_unexplained: bool = False
@@ -1161,7 +1319,10 @@ def profile_readers(
     def free_damping(i: int, sheet: dict[str, Any]) -> float | None:
         return free_damping_of(once(i, sheet))
 
-    return contact_r2, free_damping
+    def dissipation_share(i: int, sheet: dict[str, Any]) -> float | None:
+        return dissipation_share_of(once(i, sheet))
+
+    return contact_r2, free_damping, dissipation_share
 
 
 def confirmed(

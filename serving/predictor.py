@@ -356,6 +356,7 @@ class Predictor:
         natural_frequency_source: str | None = None,
         sensor: dict | None = None,
         sensor_fitted: bool = False,
+        penetration_dissipation: bool | None = None,
     ) -> dict[str, Any]:
         """Predict one recording: check -> windows -> model -> aggregate -> result.
 
@@ -382,6 +383,13 @@ class Predictor:
             the other chains the fit allows, as for a chain fitted on this record
             (:mod:`serving.chain_spread`), and the restoring-force check weights its inverse
             as a fitted chain's.
+        penetration_dissipation : bool, optional
+            Read the restoring-force check's beta with a free ``delta v`` dissipation (the
+            Hunt-Crossley law's elastic slope at first contact): a campaign whose identified
+            low-pass was its contacts' dissipation
+            (:func:`serving.campaign_chain.campaign_dissipation`). None (default): as the
+            model's learned law asks
+            (:func:`~serving.restoring_force_check.trained_penetration_dissipation`).
 
         Returns
         -------
@@ -398,9 +406,11 @@ class Predictor:
         a, fs, fn, fn_source, sensor, warnings = self._checked_input(
             accel, fs_hz, natural_frequency_hz, natural_frequency_source, sensor, what
         )
+        dissipation = (self.penetration_dissipation if penetration_dissipation is None
+                       else bool(penetration_dissipation))  # fmt: skip
         restoring_force = restoring_force_check(
             a, fs, fn, sensor, self.stage_ratio,
-            penetration_dissipation=self.penetration_dissipation,
+            penetration_dissipation=dissipation,
             sensor_fitted=sensor_fitted and sensor is not None,
         )  # fmt: skip
         read, undone = model_record(a, fs, fn, restoring_force, model_facts(self)["priors"],

@@ -22,6 +22,7 @@ deepest penetration is under 5 % of the amplitude of the motion, else
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -162,6 +163,7 @@ def campaign_predictions(
         campaign_sheets,
         chain_fitted_regardless,
         confirmed,
+        dissipation_readers,
         identify_regardless,
         labelled,
         profile_readers,
@@ -192,21 +194,33 @@ def campaign_predictions(
         [row.recording for row in rows], sheets, identify,
     )  # fmt: skip
 
-    def through(i: int, sheet: dict) -> Any:  # recording i read through the sheet
+    def through(i: int, sheet: dict, dissipation: bool = False) -> Any:  # read through sheet
         rec = recording(i)
-        return read_through(rec.accel, rec.fs_hz, fns[i], pred, sheet)
+        return read_through(rec.accel, rec.fs_hz, fns[i], pred, sheet, dissipation)
 
     contact_r2, free_damping = profile_readers(through)  # in this campaign's scope only
+    # the same readings with the contact's dissipation growing with penetration fitted free
+    dissipation = dissipation_readers(functools.partial(through, dissipation=True))
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
     chain = profiled_campaign_chain(chain, sensors, contact_r2, free_damping, lambda: fns,
-                                    dampings, sheets)  # fmt: skip
+                                    dampings, sheets, dissipation)  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
+    # a campaign whose low-pass was its contacts' dissipation is read with it free
+    hc = True if chain.get("contact_dissipation") else None
     again = [
         None
         if sheets[i] is not None
-        else predicted(campaign, i, row, model_path, sensor=sheet, sensor_fitted=True)
+        else predicted(
+            campaign,
+            i,
+            row,
+            model_path,
+            sensor=sheet,
+            sensor_fitted=True,
+            penetration_dissipation=hc,
+        )  # fmt: skip
         for i, (row, sheet) in enumerate(zip(rows, campaign_sheets(chain, sheets), strict=True))
     ]  # the user's own sheet wins
     read = [i for i, r in enumerate(again) if r is not None]

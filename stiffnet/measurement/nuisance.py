@@ -109,10 +109,12 @@ def predicted(
     model_path: str | None,
     sensor: dict[str, float] | None = None,
     sensor_fitted: bool = False,
+    penetration_dissipation: bool | None = None,
 ) -> dict[str, Any]:
     """The predictor's result for recording ``i`` (once per model for a loaded campaign;
     ``sensor``: a data sheet in place of the row's own, e.g. the campaign's pooled chain,
-    then ``sensor_fitted``: :meth:`serving.predictor.Predictor.predict`'s).
+    then ``sensor_fitted``; ``penetration_dissipation``: the restoring-force law's
+    dissipation, None the model's: :meth:`serving.predictor.Predictor.predict`'s).
 
     Raises what :meth:`serving.predictor.Predictor.predict` raises."""
     from serving.predictor import Predictor
@@ -126,11 +128,14 @@ def predicted(
             rec.accel, rec.fs_hz, natural_frequency_hz=natural_frequency(row),
             source=row.recording, sensor=sheet,
             sensor_fitted=sensor_fitted and sensor is not None,
+            penetration_dissipation=penetration_dissipation,
         )  # fmt: skip
 
     key = ("predicted", model_path, i, natural_frequency(row))
     if sensor is not None:
         key += (tuple(sorted(sensor.items())), sensor_fitted)
+    if penetration_dissipation is not None:
+        key += (("penetration_dissipation", penetration_dissipation),)
     return memo(campaign, key, run)
 
 

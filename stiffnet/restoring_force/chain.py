@@ -1174,6 +1174,16 @@ def shared_chain_shortfall(own: list[dict | None], shared: list[dict | None]) ->
     law (missing, no impact, a refusal before the law) explains nothing (R² 0)."""
     if not own:
         return None
-    lost = [((o or {}).get("contact_r2") or 0.0) - ((s or {}).get("contact_r2") or 0.0)
-            for o, s in zip(own, shared, strict=True)]  # fmt: skip
+    lost = [_law_r2(o) - _law_r2(s) for o, s in zip(own, shared, strict=True)]
     return float(np.median(lost))
+
+
+def _law_r2(reading: dict | None) -> float:
+    """The R² of the contact law that read a result's beta: its Hunt-Crossley law's where it
+    fitted one (a campaign read with its contacts' dissipation: the library's law it was
+    fitted beside misses the dissipation), else ``contact_r2``; 0 without a law."""
+    hc = (reading or {}).get("hunt_crossley") or {}
+    r2 = hc.get("r2") if isinstance(hc, dict) else None
+    if r2 is not None and np.isfinite(r2):
+        return float(r2)
+    return float((reading or {}).get("contact_r2") or 0.0)

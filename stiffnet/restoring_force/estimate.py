@@ -742,6 +742,7 @@ def _undo_chain(
     chain_fit_below_r2: float = np.inf,
     rivals: bool = True,
     profile: bool = True,
+    hunt_crossley: bool = False,
 ) -> tuple[_Map, SensorChain | None, float | None, str, list[float]]:
     """The map of the record with its sensor chain undone, the chain, the resonance divided
     out (Hz), a refusal where the chain's band does not carry the contact, and the beta the
@@ -754,7 +755,10 @@ def _undo_chain(
     impacts to fit, the post-impact ringing alone is divided out where it dominates (the
     older rule of :mod:`.sensor`). Without `rivals` the other readings are not mapped (none
     returned); without `profile` a fitted chain's unexcluded low-passes are not profiled.
+    `hunt_crossley`: beta is read with a free ``delta v`` dissipation, and so are the other
+    readings (:func:`_readings`).
     """
+    beta_of_maps = functools.partial(_readings, hunt_crossley=hunt_crossley)
     use, k_given = args[3], args[5]
     natural = period / np.sqrt(m.fit.stiffness) if m.fit.stiffness > 0 else period
     ring = ringing_mode(m.fit.force, m.fit.contact, int(RINGING_WINDOW * natural))
@@ -779,7 +783,7 @@ def _undo_chain(
             if rivals
             else []
         )
-        return best[0], chain, best[1], "", _readings([best[0], *unseen]) if unseen else []
+        return best[0], chain, best[1], "", beta_of_maps([best[0], *unseen]) if unseen else []
     m2 = _inverse_map(chain, y, fs_hz, m, args, highpass_hz, m.corner, exponent)
     if chain.contact_hz is None and m2.law is not None and k_given is not None:
         contact_hz = ff * float(np.sqrt(m2.law.stiffness + m2.fit.stiffness))
@@ -796,11 +800,11 @@ def _undo_chain(
     if chain.source != "fitted":
         # read below the low-pass: the interval spans this map's reading too (the free
         # damping profiled afterwards can move beta away from it)
-        kept = _readings([m2]) if below and not refusal and rivals else []
+        kept = beta_of_maps([m2]) if below and not refusal and rivals else []
         if rivals and not refusal:  # the corners' intervals, where the sheet gives them
             ends = _highpass_end_maps(chain, y, fs_hz, ff, m, args, highpass_hz, exponent)
             ends += _corner_maps(chain, y, fs_hz, m, args, m2, exponent)
-            kept += _readings([m2, *ends]) if ends else []
+            kept += beta_of_maps([m2, *ends]) if ends else []
         return m2, chain, chain.resonance_hz, refusal, kept
     # the chain that makes the contact force a function of the state: a fitted chain whose
     # inverse leaves the contact law worse than the record as recorded (or with only its
@@ -829,8 +833,8 @@ def _undo_chain(
         # interval spans the chain-undone reading instead, so a low-pass that was real
         # still leaves an interval that covers.
         chain = dataclasses.replace(chain, applied=False)
-        return other[0], chain, other[1], "", _readings(readings)
-    return m2, chain, chain.resonance_hz, refusal, _readings(readings)
+        return other[0], chain, other[1], "", beta_of_maps(readings)
+    return m2, chain, chain.resonance_hz, refusal, beta_of_maps(readings)
 
 
 def _forcing_lines_scale_map(m: _Map, args: tuple, damping: float | None) -> _Map | None:
@@ -926,11 +930,24 @@ def _unexcluded_maps(chain, y, fs_hz, m: _Map, args, highpass_hz, exponent) -> l
     ]  # fmt: skip
 
 
-def _readings(maps: list[_Map]) -> list[float]:
-    """Beta of each readable map (no refusal, a contact law explaining half the force)."""
-    return [float(x.law.stiffness / x.fit.stiffness) for x in maps
-            if x.law is not None and not x.refusal and x.law.r2 >= MIN_CONTACT_R2
-            and x.fit.stiffness > 0]  # fmt: skip
+def _readings(maps: list[_Map], hunt_crossley: bool = False) -> list[float]:
+    """Beta of each readable map (no refusal, a contact law explaining half the force), in
+    the sense of the reading they stand beside: with `hunt_crossley`, the elastic slope at
+    first contact of the law with a free ``delta v`` dissipation (:mod:`.hunt_crossley_law`)
+    wherever the map's law is linear, as :func:`_hunt_crossley_beta` reads it. The library's
+    Kelvin-Voigt slope of a Hunt-Crossley contact reads 5-65 % high, so an interval spanning
+    it beside a Hunt-Crossley reading spans the other law, not the chain's uncertainty."""
+    out = []
+    for x in maps:
+        if x.law is None or x.refusal or x.law.r2 < MIN_CONTACT_R2 or not x.fit.stiffness > 0:
+            continue
+        stiffness = x.law.stiffness
+        if hunt_crossley and x.law.exponent == 1.0:
+            f = x.fit
+            stiffness = fit_hunt_crossley_law(f.force, f.displacement, f.velocity, x.labels > 0,
+                                              x.law).stiffness  # fmt: skip
+        out.append(float(stiffness / x.fit.stiffness))
+    return out
 
 
 def _inverse_map(
@@ -1249,6 +1266,7 @@ def _estimate_at(
     m, chain, resonance, refusal, rivals = _undo_chain(
         m, y, fs_hz, ff, period, args, highpass_hz, exponent, sensor, beta_max,
         chain_fit_below_r2, rivals=interval, profile=interval or chain_profile,
+        hunt_crossley=penetration_dissipation and stage_ratio is None,
     )  # fmt: skip
     corner, corner_profile = m.corner, m.corner_profile
     own_damping = float(m.info.get("free_damping_ratio", np.nan))
