@@ -234,6 +234,26 @@ def test_manifest_header_only(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz\n", "lists no recordings")
 
 
+def test_a_comment_above_the_manifest_header_is_said_so(tmp_path):
+    """A lab's export notes on line 1 were 'unknown column 1 (name not shown)' beside the
+    list of every allowed column."""
+    manifest_error(
+        tmp_path,
+        "# exported by LabVIEW 2021, operator: K. Meier\nrecording,fs_hz\na.csv,1000\n",
+        r"line 1 is a comment \(it starts with '#'\), not the header: a manifest's first line",
+    )
+
+
+def test_a_comment_line_among_the_rows_is_said_so(tmp_path):
+    """A note between the rows was 'line 3 has 1 cells, expected 2'."""
+    msg = manifest_error(
+        tmp_path,
+        "recording,fs_hz\na.csv,1000\n# b repeated: bolt loose\nb.csv,1000\n",
+        r"line 3 is a comment \(it starts with '#'\): a manifest has no comment lines",
+    )
+    assert "cells" not in msg
+
+
 @pytest.mark.parametrize("sep", [";", "\t"])
 def test_a_manifest_separated_otherwise_is_said_so(tmp_path, sep):
     """A spreadsheet's export with ';' (decimal commas) was 'unknown column 1 (name not

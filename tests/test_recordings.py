@@ -110,6 +110,33 @@ def test_csv_tab_separated_is_said_so(tmp_path):
     assert_error(r"its columns are separated by tabs, not commas: t, accel", path)
 
 
+@pytest.mark.parametrize("sep, what", [(";", "';'"), ("\t", "tabs")])
+@pytest.mark.parametrize("columns", ["time_ms,acc_g", "time_ms;acc_g"])
+def test_columns_named_in_a_file_separated_otherwise_are_said_so(tmp_path, sep, what, columns):
+    """A spreadsheet's export with decimal commas read with the columns it names was 'no
+    column 'time_ms' in the header (time_ms;acc_g)', or with the manifest's ';' form
+    'line 2 has 3 cells, expected 1': the columns are there, joined by another separator."""
+    text = sep.join(["time_ms", "acc_g"]) + "\n" + sep.join(["0,0", "1,5"]) + "\n"
+    path = write_text(tmp_path / "s.csv", text)
+    assert_error(
+        f"line 1: its columns are separated by {what}, not commas: time_ms, acc_g; save it",
+        path,
+        columns=columns,
+        time_unit="ms" if "," in columns else None,  # one name: no time column
+    )
+
+
+@pytest.mark.parametrize("columns", [None, "time_ms,acc_g"])
+def test_a_comment_above_the_header_is_said_so(tmp_path, columns):
+    """A logger's note above the table was read as the header: 'no column 'time_ms' in
+    the header (# labview export,kanal 1)', or 'wrong header' without the cause."""
+    path = write_text(
+        tmp_path / "c.csv", "# LabVIEW export, Kanal 1\ntime_ms,acc_g\n0,1\n1,2\n2,3\n"
+    )
+    assert_error(r"line 1 is a comment \(it starts with '#'\), not the header", path,
+                 columns=columns)  # fmt: skip
+
+
 def test_csv_a_file_of_zeros_is_refused_without_reading_it_whole(tmp_path):
     path = tmp_path / "z.csv"
     with open(path, "wb") as fh:  # sparse: a logger's file allocated and never written

@@ -298,6 +298,13 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
+            if header[0].lstrip().startswith("#"):
+                # a lab's export notes above the table: not 'unknown column 1 (name not shown)'
+                raise StiffnetError(
+                    f"{p}: line {reader.line_num} is a comment (it starts with '#'), not the "
+                    "header: a manifest's first line is its header (recording,fs_hz,...); "
+                    "delete the comment lines"
+                )
             # a spreadsheet's export keeps the empty columns right of the table: named by
             # nobody, holding nothing, they are not columns (a value under one still is)
             header = without_unnamed_tail(header)
@@ -310,6 +317,10 @@ def read_manifest_with_columns(
             for cells in reader:
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
+                    continue
+                if cells[0].lstrip().startswith("#"):
+                    problems.append(f"{p}: line {line} is a comment (it starts with '#'): a "
+                                    "manifest has no comment lines; delete it")  # fmt: skip
                     continue
                 if len(cells) > len(columns) and not any(c.strip() for c in cells[len(columns) :]):
                     cells = cells[: len(columns)]

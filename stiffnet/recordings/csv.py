@@ -250,18 +250,25 @@ def _refuse_a_manifest(name: str, names: list[str]) -> None:
     )
 
 
+def _other_separator(cell: str) -> str:
+    """Where a one-cell header is names joined by ``;`` or tabs (a spreadsheet's export with
+    decimal commas): which separator, the names and how to save it; else empty."""
+    for sep, what in ((";", "';'"), ("\t", "tabs")):
+        names = [c.strip() for c in cell.split(sep)]
+        if len(names) > 1 and all(map(_COLUMN_NAME.match, names)):
+            shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+            return (
+                f"its columns are separated by {what}, not commas: {shown}; save it "
+                "comma-separated, with '.' as the decimal point"
+            )
+    return ""
+
+
 def _header_hint(header: list[str]) -> str:
     """How to read a file whose header is not ``t,accel``."""
     if len(header) == 1:
-        for sep, what in ((";", "';'"), ("\t", "tabs")):
-            names = [c.strip() for c in header[0].split(sep)]
-            if len(names) > 1 and all(map(_COLUMN_NAME.match, names)):
-                shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
-                return (
-                    f" (its columns are separated by {what}, not commas: {shown}; save it "
-                    "comma-separated, with '.' as the decimal point)"
-                )
-        return " (the file must be comma-separated)"
+        other = _other_separator(header[0])
+        return f" ({other})" if other else " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
         return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
     names = [c.strip() for c in header]
@@ -355,8 +362,19 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         )
     if not first.strip():
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line 1)")
+    if first.lstrip().startswith("#"):
+        # a logger's notes above the table: read as the header, they named no column asked
+        # for, and the file's own header became a row of numbers that are not numbers
+        raise StiffnetError(
+            f"{name}: line 1 is a comment (it starts with '#'), not the header: the header "
+            "('t,accel', or the columns named) must be the file's first line; delete the "
+            "comment lines"
+        )
     cells = next(csv.reader([first]))
     raw = without_unnamed_tail(cells)
+    if layout.custom and len(raw) == 1 and (other := _other_separator(raw[0])):
+        # the columns named are there, joined into one cell: said so, not 'no column'
+        raise StiffnetError(f"{name}: line 1: {other}")
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
