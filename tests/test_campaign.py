@@ -300,6 +300,16 @@ def test_manifest_cell_with_its_unit_says_to_write_the_number_alone(tmp_path, ce
     assert msg.endswith("(the number alone: the name carries the unit)") == hinted, msg
 
 
+def test_manifest_cell_with_a_decimal_comma_says_to_write_a_point(tmp_path):
+    """A lab sheet's '9,48' (a German locale's decimal comma, quoted so the comma-separated
+    file keeps it one cell) was 'not a number' with nothing said of why."""
+    msg = manifest_error(
+        tmp_path, 'recording,fs_hz\na.csv,"1000,0"\n', "column fs_hz: not a number"
+    )
+    assert msg.endswith("(a comma in a number: write the decimal point '.' and no thousands "
+                        "separator)"), msg  # fmt: skip
+
+
 def test_manifest_with_absolute_windows_paths_names_the_tail_to_write(tmp_path):
     """A manifest written on the lab's Windows machine (``C:\\Users\\...\\rec\\r1.csv``) was
     refused on every row with no word of what to write; the tail that names a file of the
