@@ -513,9 +513,19 @@ def predict_batch(
     if manifest is not None:
         table, law = _campaign_law(table)
     table = _joined_parts(parts_dir, table, predictor, out)
+    unlisted = []
+    if manifest is not None and Path(recordings).resolve() in (
+        manifest.parent.resolve(),
+        manifest.resolve(),
+    ):  # the campaign folder itself (a glob picks some of its files on purpose)
+        from stiffnet.campaign.manifest import unlisted_recordings
+
+        listed = [Path(q).relative_to(manifest.parent).as_posix() for q in paths]
+        unlisted = unlisted_recordings(manifest, listed)
     return {
         "out": str(out),
         "manifest": None if manifest is None else str(manifest),
+        "unlisted": unlisted,
         **_table_summary(table, predictor),
         "sensor": chain,
         "campaign_law": law,

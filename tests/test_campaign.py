@@ -572,3 +572,21 @@ def test_simulated_manifest_drops_read_options(tmp_path):
     out = simulate_campaign(write(tmp_path / "plan.csv", text), tmp_path / "out")
     assert "time_unit" not in (out / MANIFEST_NAME).read_text()  # written in seconds
     assert load_campaign(out).recording(0).fs_hz == pytest.approx(500)
+
+
+def test_unlisted_recordings_are_the_folders_recording_files_without_a_row(tmp_path):
+    """Only files of a recording format count: not the manifest, a sidecar, notes, hidden
+    files or folders; listed ones by any spelling of their path."""
+    from stiffnet.campaign.manifest import unlisted_recordings, unlisted_words
+
+    for name in ("a.csv", "sub/b.tdms", "sub/c.npy", "a.csv.json", "notes.txt", ".hidden.csv",
+                 ".git/x.csv", "d.WAV"):  # fmt: skip
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x")
+    manifest = write(tmp_path / MANIFEST_NAME, "recording,fs_hz\na.csv,1000\n")
+    found = unlisted_recordings(manifest, ["a.csv", "sub/./c.npy"])
+    assert found == ["d.WAV", "sub/b.tdms"]
+    assert unlisted_words(found).startswith(
+        "2 recording file(s) in the campaign folder are not in its manifest (d.WAV, sub/b.tdms)"
+    )
+    assert unlisted_words([]) is None

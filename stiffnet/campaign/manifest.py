@@ -738,6 +738,59 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
     return Campaign(root, manifest, rows)
 
 
+def unlisted_recordings(manifest: str | os.PathLike[str], listed: Sequence[str]) -> list[str]:
+    """Recording files in a campaign's folder that its manifest does not list.
+
+    A folder a lab filled holds what it recorded; a row left out of the manifest (a missing
+    line in the export) made the file's recording vanish from every result in silence.
+
+    Parameters
+    ----------
+    manifest : str or os.PathLike
+        The campaign's ``manifest.csv``; its folder is searched (bounded, links not
+        followed, hidden files and folders skipped).
+    listed : sequence of str
+        The recordings the manifest lists, relative to its folder.
+
+    Returns
+    -------
+    list of str
+        The unlisted files of a registered recording format, relative to the folder, sorted;
+        empty where the folder is too large to search
+        (:data:`stiffnet.inputs.MAX_WALK_ENTRIES`).
+    """
+    from stiffnet.inputs import walk_files
+    from stiffnet.recordings import supported_extensions
+
+    m = Path(manifest)
+    folder = m.parent
+    known = {(folder / r).resolve() for r in listed} | {m.resolve()}
+    try:
+        files = walk_files(str(folder), what="campaign folder")
+    except StiffnetError:  # too large to search: nothing said rather than a refusal
+        return []
+    kinds = supported_extensions()
+    found = []
+    for f in files:
+        rel = f.relative_to(folder)
+        if any(part.startswith(".") for part in rel.parts) or f.suffix.lower() not in kinds:
+            continue
+        if f.resolve() not in known:
+            found.append(rel.as_posix())
+    return sorted(found)
+
+
+def unlisted_words(unlisted: Sequence[str]) -> str | None:
+    """The warning for recording files the manifest does not list (None: none)."""
+    if not unlisted:
+        return None
+    shown = ", ".join(unlisted[:3]) + (", ..." if len(unlisted) > 3 else "")
+    return (
+        f"{len(unlisted)} recording file(s) in the campaign folder are not in its manifest "
+        f"({shown}): not read; a row for each reads it"
+    )
+
+
 #: Entries of a folder looked at for a manifest one level down (a folder of recordings
 #: alone can hold many: the hint must not cost a scan of them all).
 _MANIFEST_BELOW_ENTRIES = 1000
