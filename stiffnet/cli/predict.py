@@ -661,7 +661,7 @@ def _followed_log(
     layers: list = []
     stream_format, stream_column, idle_timeout = stream
     chunks = sample_chunks(recording, stream_format, column=stream_column,
-                           idle_timeout_s=idle_timeout)  # fmt: skip
+                           idle_timeout_s=idle_timeout, fs_hz=rate)  # fmt: skip
     for chunk in chunks:
         for kind, item in logger.feed(chunk):
             _emit(kind, item, points, layers)
