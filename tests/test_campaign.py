@@ -523,6 +523,16 @@ def test_missing_recording_names_its_twin_in_another_case(tmp_path):
         load_campaign(tmp_path)
 
 
+def test_missing_recording_names_its_folders_twin_in_another_case(tmp_path):
+    """A manifest typed on Windows ('REC/R00_B12.CSV' for rec/r00_b12.csv) was 'recording
+    file not found' with nothing said: the hint looked for the file in a folder missing too."""
+    write_recording_csv(tmp_path / "rec" / "r00.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nREC/R00.CSV,1000\n")
+    with pytest.raises(StiffnetError, match=r"not found: .* \(the folder holds 'rec' \(where "
+                       r"'REC' was written\), which differs only in letter case"):  # fmt: skip
+        load_campaign(tmp_path)
+
+
 def test_load_campaign_missing_recording(tmp_path):
     write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nmissing.csv,1000\n")
     with pytest.raises(StiffnetError, match=r"line 2 \(missing.csv\): recording file not found"):

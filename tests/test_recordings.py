@@ -579,3 +579,12 @@ def test_a_rate_off_by_a_unit_factor_says_so(tmp_path):
     assert "--time-unit ms" in unit_mistake_hint(5.0, 474.0, 5000.0 * 4)
     assert "--time-unit us" in unit_mistake_hint(0.005, 474.0, 20000.0)
     assert unit_mistake_hint(300.0, 474.0, 20000.0) == ""  # just too low: no unit story
+
+
+def test_a_missing_recording_names_its_twin_in_another_case(tmp_path):
+    """predict on 'Run01.CSV' beside 'run01.csv' was 'recording file not found' alone."""
+    write_recording_csv(tmp_path / "data" / "run01.csv", np.zeros(10), 1000)
+    assert_error(r"not found \(the folder holds 'run01.csv', which differs only in letter case",
+                 tmp_path / "data" / "Run01.csv")  # fmt: skip
+    assert_error(r"\(the folder holds 'data' \(where 'Data' was written\)",
+                 tmp_path / "Data" / "run01.csv")  # fmt: skip

@@ -35,6 +35,7 @@ from pydantic import (
 from stiffnet.errors import RateMismatch, StiffnetError
 from stiffnet.inputs import not_utf8_words, quote_content, unit_hint, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
+from stiffnet.recordings.read import case_twin_hint
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 MANIFEST_NAME = "manifest.csv"
@@ -732,7 +733,7 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
             problems.append(
-                f"{row.where(manifest)}: recording file not found: {path}{_case_hint(path)}"
+                f"{row.where(manifest)}: recording file not found: {path}{case_twin_hint(path)}"
             )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
@@ -813,21 +814,6 @@ def _manifest_below_hint(folder: Path) -> str:
         f" ({below[0]}/{MANIFEST_NAME} is one, but a campaign is the folder its manifest sits "
         "in, its recordings' paths starting there without '..': move it here and write its "
         "paths from here)"
-    )
-
-
-def _case_hint(path: Path) -> str:
-    """Where a missing recording has a twin differing only in letter case (a manifest typed
-    on Windows or macOS, whose file systems ignore case): the name to write."""
-    try:
-        twins = [q.name for q in path.parent.iterdir() if q.name.lower() == path.name.lower()]
-    except OSError:  # the folder is missing too: nothing to compare
-        return ""
-    if len(twins) != 1:
-        return ""
-    return (
-        f" (the folder holds {twins[0]!r}, which differs only in letter case: names are "
-        "case-sensitive here)"
     )
 
 
