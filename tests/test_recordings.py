@@ -588,3 +588,22 @@ def test_a_missing_recording_names_its_twin_in_another_case(tmp_path):
                  tmp_path / "data" / "Run01.csv")  # fmt: skip
     assert_error(r"\(the folder holds 'data' \(where 'Data' was written\)",
                  tmp_path / "Data" / "run01.csv")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("where", "said"),
+    [("cli", "--fs HZ"), ("manifest", "the manifest's column fs_hz"), ("http", "the field fs_hz")],
+)
+def test_a_missing_rate_names_what_to_give_where_the_user_is(tmp_path, where, said):
+    """A TDMS without wf_increment, or a CSV without a time column, said 'give fs_hz' on the
+    command line too, where the option is --fs."""
+    from stiffnet.inputs import HINT_CONTEXT
+
+    write_tdms(tmp_path / "r.tdms", increment=None)
+    write_text(tmp_path / "a.csv", "acc\n1\n2\n3\n")
+    token = HINT_CONTEXT.set(where)
+    try:
+        assert_error(f"no wf_increment; give {said}\\)$", tmp_path / "r.tdms", channel="mass")
+        assert_error(f"no time column; give {said}\\)$", tmp_path / "a.csv", columns="acc")
+    finally:
+        HINT_CONTEXT.reset(token)

@@ -434,7 +434,8 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header)}")
     if t is None:
         if fs_hz is None:
-            raise StiffnetError(f"{name}: sampling rate missing (no time column; give fs_hz)")
+            rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+            raise StiffnetError(f"{name}: sampling rate missing (no time column; give {rate})")
         return accel, fs_hz, name
     tname = raw[index[0]].strip() if has_header else f"{index[0]}"
     fs = _rate_from_times(t, name, f"column {tname}", first_line=1 + int(has_header))
