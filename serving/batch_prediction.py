@@ -708,6 +708,10 @@ def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
     if part_size < 1:
         raise StiffnetError(f"part size must be at least 1, got {part_size}")
     out = Path(out)
+    if not out.is_dir() and out.suffix.lower() != ".parquet":
+        # the table is Parquet whatever the name: 'results.csv' held Parquet bytes that a
+        # spreadsheet or pandas.read_csv then reads as garbage
+        raise StiffnetError(f"{out}: give a .parquet file name (the result table is Parquet)")
     if out.exists() and not overwrite:
         raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
     if out.is_dir():
