@@ -513,9 +513,19 @@ def predict_batch(
     if manifest is not None:
         table, law = _campaign_law(table)
     table = _joined_parts(parts_dir, table, predictor, out)
+    unlisted = []
+    if manifest is not None and Path(recordings).resolve() in (
+        manifest.parent.resolve(),
+        manifest.resolve(),
+    ):  # the campaign folder itself (a glob picks some of its files on purpose)
+        from stiffnet.campaign.manifest import unlisted_recordings
+
+        listed = [Path(q).relative_to(manifest.parent).as_posix() for q in paths]
+        unlisted = unlisted_recordings(manifest, listed)
     return {
         "out": str(out),
         "manifest": None if manifest is None else str(manifest),
+        "unlisted": unlisted,
         **_table_summary(table, predictor),
         "sensor": chain,
         "campaign_law": law,
@@ -698,6 +708,10 @@ def _checked_output(out: str | Path, overwrite: bool, part_size: int) -> Path:
     if part_size < 1:
         raise StiffnetError(f"part size must be at least 1, got {part_size}")
     out = Path(out)
+    if not out.is_dir() and out.suffix.lower() != ".parquet":
+        # the table is Parquet whatever the name: 'results.csv' held Parquet bytes that a
+        # spreadsheet or pandas.read_csv then reads as garbage
+        raise StiffnetError(f"{out}: give a .parquet file name (the result table is Parquet)")
     if out.exists() and not overwrite:
         raise StiffnetError(f"{out} exists (use --overwrite to replace it)")
     if out.is_dir():

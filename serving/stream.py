@@ -5,9 +5,12 @@ Two encodings of a DAQ stream:
 ``csv``
     one sample per line, as text: a number, or comma-separated numbers of which
     the acceleration is the last (``t,accel``) or the 0-based column ``column``;
-    a first line that is not numeric is a header and is skipped, blank lines are
-    ignored, any other line that is not a number stops the stream with its line
-    number, and so does a line separated by ``;`` or tabs (decimal commas).
+    a first line that is not numeric is a header and is skipped (where it names a time
+    column first, ``t`` or ``time`` in s, ``t_ms`` or ``time_ms`` in ms, and the rate is
+    given, the rate of that column's first :data:`CLOCK_SAMPLES` times must agree with it:
+    a stream read at another rate reads another beta), blank lines are ignored, any
+    other line that is not a number stops the stream with its line number, and so does
+    a line separated by ``;`` or tabs (decimal commas).
 ``f32``
     raw little-endian float32 samples, back to back.
 
@@ -47,6 +50,7 @@ def sample_chunks(
     column: int | None = None,
     idle_timeout_s: float | None = None,
     stdin: BinaryIO | None = None,
+    fs_hz: float | None = None,
 ) -> Iterator[np.ndarray]:
     """Chunks of samples from a growing file or ``"-"`` (stdin), as they arrive.
 
@@ -62,23 +66,26 @@ def sample_chunks(
         A file ends after this many seconds without new bytes (None: follow forever).
     stdin : binary file, optional
         Stands in for ``sys.stdin.buffer`` (tests).
+    fs_hz : float, optional
+        The rate the samples are read at, checked against a CSV header's time column.
 
     Raises
     ------
     StiffnetError
-        Unknown format, missing file, a line that is not a sample.
+        Unknown format, missing file, a line that is not a sample, a time column whose
+        rate is not `fs_hz`.
     """
     if fmt not in FORMATS:
         raise StiffnetError(f"unknown stream format {fmt!r} (use {' or '.join(FORMATS)})")
     if str(source) == "-":
         fh = stdin if stdin is not None else sys.stdin.buffer
-        yield from _decode(_read_pipe(fh), fmt, column, "stdin")
+        yield from _decode(_read_pipe(fh), fmt, column, "stdin", fs_hz)
         return
     p = Path(source)
     if not p.is_file():
         raise StiffnetError(f"{p}: stream file not found")
     with open(p, "rb") as fh:
-        yield from _decode(_read_growing(fh, idle_timeout_s), fmt, column, str(p))
+        yield from _decode(_read_growing(fh, idle_timeout_s), fmt, column, str(p), fs_hz)
 
 
 def _read_pipe(fh: BinaryIO) -> Iterator[bytes]:
@@ -104,7 +111,7 @@ def _read_growing(fh: BinaryIO, idle_timeout_s: float | None) -> Iterator[bytes]
 
 
 def _decode(
-    blocks: Iterator[bytes], fmt: str, column: int | None, name: str
+    blocks: Iterator[bytes], fmt: str, column: int | None, name: str, fs_hz: float | None = None
 ) -> Iterator[np.ndarray]:
     if fmt == "f32":
         rest = b""
@@ -119,6 +126,7 @@ def _decode(
         return
     rest = b""
     line_no = 0
+    clock = _Clock(fs_hz)
     for data in blocks:
         data = rest + data
         cut = data.rfind(b"\n")
@@ -126,11 +134,11 @@ def _decode(
             rest = data
             continue
         rest = data[cut + 1 :]
-        values, line_no = _parse_lines(data[: cut + 1], column, name, line_no)
+        values, line_no = _parse_lines(data[: cut + 1], column, name, line_no, clock)
         if values.size:
             yield values
     if rest.strip():
-        values, _ = _parse_lines(rest, column, name, line_no)
+        values, _ = _parse_lines(rest, column, name, line_no, clock)
         if values.size:
             yield values
 
@@ -140,8 +148,53 @@ def _decode(
 _OTHER_SEPARATORS = ((b";", "';'"), (b"\t", "tabs"))
 
 
+#: Times of a stream's time column whose rate is checked against the one given.
+CLOCK_SAMPLES = 64
+#: A header's time column names, with the seconds per unit of each.
+_TIME_COLUMNS = {b"t": 1.0, b"time": 1.0, b"t_s": 1.0, b"time_s": 1.0,
+                 b"t_ms": 1e-3, b"time_ms": 1e-3, b"t_us": 1e-6, b"time_us": 1e-6}  # fmt: skip
+
+
+class _Clock:
+    """A CSV stream's time column (named by its header) checked against the given rate:
+    ``--fs`` is the only rate a stream has, and one that contradicts the samples' own
+    times read every window at the wrong time scale."""
+
+    def __init__(self, fs_hz: float | None) -> None:
+        self.fs_hz = fs_hz
+        self.name = b""
+        self.seconds = 0.0  # per unit of the time column; 0: no column to check
+        self.times: list[float] = []
+
+    def header(self, cells: list[bytes], column: int | None) -> None:
+        first = cells[0].strip().lower()
+        if self.fs_hz and len(cells) > 1 and column != 0 and first in _TIME_COLUMNS:
+            self.name, self.seconds = cells[0].strip(), _TIME_COLUMNS[first]
+
+    def tick(self, cells: list[bytes], name: str, line_no: int) -> None:
+        if not self.seconds:
+            return
+        try:
+            self.times.append(float(cells[0]) * self.seconds)
+        except ValueError:
+            self.seconds = 0.0  # not a time after all: nothing to check
+            return
+        if len(self.times) < CLOCK_SAMPLES:
+            return
+        from stiffnet.recordings.base import rates_agree
+
+        step = float(np.median(np.diff(self.times)))
+        self.seconds = 0.0  # checked once
+        if step > 0 and not rates_agree(1.0 / step, self.fs_hz):
+            raise StiffnetError(
+                f"{name}: its time column {self.name.decode(errors='replace')!r} gives "
+                f"{1.0 / step:.6g} Hz (up to line {line_no}) but --fs {self.fs_hz:g} was given; "
+                "give the stream's own rate"
+            )
+
+
 def _parse_lines(
-    text: bytes, column: int | None, name: str, line_no: int
+    text: bytes, column: int | None, name: str, line_no: int, clock: _Clock | None = None
 ) -> tuple[np.ndarray, int]:
     out = []
     for raw in io.BytesIO(text):
@@ -166,8 +219,12 @@ def _parse_lines(
             v = float(cell)
         except ValueError:
             if line_no == 1:
+                if clock is not None:
+                    clock.header(cells, column)
                 continue  # a header
             raise StiffnetError(f"{name}: line {line_no} is not a sample") from None
+        if clock is not None:
+            clock.tick(cells, name, line_no)
         out.append(v)
     return np.asarray(out, dtype=np.float64), line_no
 

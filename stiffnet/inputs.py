@@ -92,11 +92,19 @@ def unit_hint(value: Any) -> str:
     Returns
     -------
     str
-        ``" (the number alone: the name carries the unit)"`` or ``""``.
+        ``" (the number alone: the name carries the unit)"``, for a number written with a
+        comma (``"9,48"``, a decimal comma or a thousands separator) what to write, or ``""``.
     """
     if isinstance(value, str) and _NUMBER_WITH_UNIT.match(value):
         return " (the number alone: the name carries the unit)"
+    if isinstance(value, str) and _NUMBER_WITH_COMMA.match(value):
+        # which the comma was is the writer's to say: a decimal comma or thousands
+        return " (a comma in a number: write the decimal point '.' and no thousands separator)"
     return ""
+
+
+#: A number written with a comma, as a lab's locale writes it ("9,48", "5000,0", "1,000").
+_NUMBER_WITH_COMMA = re.compile(r"^\s*[-+]?\d+(,\d+)+\s*$")
 
 
 #: Bytes read to find where a text file stops being UTF-8 (the message's line number).

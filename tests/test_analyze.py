@@ -129,3 +129,15 @@ def test_npy_needs_fs(tmp_path):
     np.save(path, np.sin(np.arange(5000) / 10.0))
     res = run_cli("analyze", str(path))
     assert res.returncode == 2 and "fs" in res.stderr.lower()
+
+
+def test_a_restoring_force_beta_not_read_says_why_in_the_table(tmp_path):
+    """The table showed 'restoring_force_beta None' with the reason in the JSON only (a
+    restraint with its own mass: 'the contact law explains 2% of the contact force')."""
+    t = np.arange(5000) / 1000
+    x = np.sin(2 * np.pi * 9.95 * t) + 0.01 * np.random.default_rng(0).standard_normal(t.size)
+    path = write_recording_csv(tmp_path / "free.csv", x, 1000.0)
+    res = CliRunner().invoke(app, ["--wide", "analyze", str(path), "--fn", "9.48"])
+    assert res.exit_code == 0, res.output
+    line = next(ln for ln in res.output.splitlines() if "restoring_force_reason" in ln)
+    assert "no contact: 0 excursion(s)" in line

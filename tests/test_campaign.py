@@ -234,6 +234,26 @@ def test_manifest_header_only(tmp_path):
     manifest_error(tmp_path, "recording,fs_hz\n", "lists no recordings")
 
 
+def test_a_comment_above_the_manifest_header_is_said_so(tmp_path):
+    """A lab's export notes on line 1 were 'unknown column 1 (name not shown)' beside the
+    list of every allowed column."""
+    manifest_error(
+        tmp_path,
+        "# exported by LabVIEW 2021, operator: K. Meier\nrecording,fs_hz\na.csv,1000\n",
+        r"line 1 is a comment \(it starts with '#'\), not the header: a manifest's first line",
+    )
+
+
+def test_a_comment_line_among_the_rows_is_said_so(tmp_path):
+    """A note between the rows was 'line 3 has 1 cells, expected 2'."""
+    msg = manifest_error(
+        tmp_path,
+        "recording,fs_hz\na.csv,1000\n# b repeated: bolt loose\nb.csv,1000\n",
+        r"line 3 is a comment \(it starts with '#'\): a manifest has no comment lines",
+    )
+    assert "cells" not in msg
+
+
 @pytest.mark.parametrize("sep", [";", "\t"])
 def test_a_manifest_separated_otherwise_is_said_so(tmp_path, sep):
     """A spreadsheet's export with ';' (decimal commas) was 'unknown column 1 (name not
@@ -278,6 +298,16 @@ def test_manifest_cell_with_its_unit_says_to_write_the_number_alone(tmp_path, ce
     with nothing said of why; a sidecar's '9.48 Hz' already got the hint."""
     msg = manifest_error(tmp_path, f"recording,fs_hz\na.csv,{cell}\n", "column fs_hz: not a number")
     assert msg.endswith("(the number alone: the name carries the unit)") == hinted, msg
+
+
+def test_manifest_cell_with_a_decimal_comma_says_to_write_a_point(tmp_path):
+    """A lab sheet's '9,48' (a German locale's decimal comma, quoted so the comma-separated
+    file keeps it one cell) was 'not a number' with nothing said of why."""
+    msg = manifest_error(
+        tmp_path, 'recording,fs_hz\na.csv,"1000,0"\n', "column fs_hz: not a number"
+    )
+    assert msg.endswith("(a comma in a number: write the decimal point '.' and no thousands "
+                        "separator)"), msg  # fmt: skip
 
 
 def test_manifest_with_absolute_windows_paths_names_the_tail_to_write(tmp_path):
@@ -493,6 +523,16 @@ def test_missing_recording_names_its_twin_in_another_case(tmp_path):
         load_campaign(tmp_path)
 
 
+def test_missing_recording_names_its_folders_twin_in_another_case(tmp_path):
+    """A manifest typed on Windows ('REC/R00_B12.CSV' for rec/r00_b12.csv) was 'recording
+    file not found' with nothing said: the hint looked for the file in a folder missing too."""
+    write_recording_csv(tmp_path / "rec" / "r00.csv", np.zeros(10), 1000)
+    write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nREC/R00.CSV,1000\n")
+    with pytest.raises(StiffnetError, match=r"not found: .* \(the folder holds 'rec' \(where "
+                       r"'REC' was written\), which differs only in letter case"):  # fmt: skip
+        load_campaign(tmp_path)
+
+
 def test_load_campaign_missing_recording(tmp_path):
     write(tmp_path / MANIFEST_NAME, "recording,fs_hz\nmissing.csv,1000\n")
     with pytest.raises(StiffnetError, match=r"line 2 \(missing.csv\): recording file not found"):
@@ -542,3 +582,21 @@ def test_simulated_manifest_drops_read_options(tmp_path):
     out = simulate_campaign(write(tmp_path / "plan.csv", text), tmp_path / "out")
     assert "time_unit" not in (out / MANIFEST_NAME).read_text()  # written in seconds
     assert load_campaign(out).recording(0).fs_hz == pytest.approx(500)
+
+
+def test_unlisted_recordings_are_the_folders_recording_files_without_a_row(tmp_path):
+    """Only files of a recording format count: not the manifest, a sidecar, notes, hidden
+    files or folders; listed ones by any spelling of their path."""
+    from stiffnet.campaign.manifest import unlisted_recordings, unlisted_words
+
+    for name in ("a.csv", "sub/b.tdms", "sub/c.npy", "a.csv.json", "notes.txt", ".hidden.csv",
+                 ".git/x.csv", "d.WAV"):  # fmt: skip
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x")
+    manifest = write(tmp_path / MANIFEST_NAME, "recording,fs_hz\na.csv,1000\n")
+    found = unlisted_recordings(manifest, ["a.csv", "sub/./c.npy"])
+    assert found == ["d.WAV", "sub/b.tdms"]
+    assert unlisted_words(found).startswith(
+        "2 recording file(s) in the campaign folder are not in its manifest (d.WAV, sub/b.tdms)"
+    )
+    assert unlisted_words([]) is None

@@ -149,6 +149,14 @@ def test_predict_batch_never_deletes_a_users_parts_folder(tmp_path, recordings):
     assert _snapshot(users) == before and not out.exists()
 
 
+def test_predict_batch_out_named_other_than_parquet_is_refused(tmp_path, recordings):
+    """--out results.csv wrote Parquet bytes under a .csv name, exit 0."""
+    out = tmp_path / "results.csv"
+    said = "results.csv: give a .parquet file name (the result table is Parquet)"
+    one_line_error(["predict-batch", recordings, "--out", out, "--model", MODEL], said)
+    assert not out.exists()
+
+
 def test_predict_batch_writers_are_refused_not_mixed(tmp_path, recordings):
     from stiffnet.io_utils import output_lock
 

@@ -100,3 +100,15 @@ def test_a_form_number_written_with_its_unit_says_to_send_the_number_alone(clien
         f"form field {field}: {value!r} is not a number (the number alone: the name carries "
         "the unit)"
     )
+
+
+def test_a_form_number_with_a_decimal_comma_says_to_write_a_point(client):
+    """'9,48' in the form field natural_frequency_hz (a German locale's decimal comma) was
+    "is not a number" with nothing said of why."""
+    fields = {"natural_frequency_hz": "9,48"}
+    files = {"file": ("run.csv", EXAMPLE.read_bytes(), "text/csv")}
+    message = _refusal(client.post("/predict", files=files, data=fields))
+    assert message == (
+        "form field natural_frequency_hz: '9,48' is not a number (a comma in a number: write "
+        "the decimal point '.' and no thousands separator)"
+    )

@@ -17,6 +17,7 @@ from drill_records import FN_HZ, layered_record
 from serving.log import StiffnessLogger, stiffness_log
 from serving.predictor import Predictor
 from serving.stream import sample_chunks
+from stiffnet.errors import StiffnetError
 from stiffnet.geometry.calibration import DEFAULT_CLASSES
 from stiffnet.layers import change_points, class_with_hysteresis, noise_scale
 from stiffnet.recordings import write_recording_csv
@@ -175,6 +176,22 @@ def test_stream_decoding(tmp_path):
     np.arange(5, dtype="<f4").tofile(f)
     got = np.concatenate(list(sample_chunks(f, "f32", idle_timeout_s=0.1)))
     assert got.tolist() == [0, 1, 2, 3, 4]
+
+
+@pytest.mark.parametrize(("header", "step"), [(b"t,accel", 1e-3), (b"time_ms,acc_g", 1.0)])
+def test_a_streams_time_column_contradicting_the_rate_is_refused(tmp_path, header, step):
+    """A growing file 't,accel' at 1 kHz followed with --fs 2000 was read at 2 kHz in
+    silence (its time column skipped): a 15 -> 20.6 beta, the alarm on every window."""
+    p = tmp_path / "s.csv"
+    lines = [f"{i * step:.6g},{np.sin(i / 7):.4f}".encode() for i in range(200)]
+    p.write_bytes(header + b"\n" + b"\n".join(lines) + b"\n")
+    with pytest.raises(StiffnetError, match=r"its time column '(t|time_ms)' gives 1000 Hz "
+                       r"\(up to line 65\) but --fs 2000 was given"):  # fmt: skip
+        list(sample_chunks(p, idle_timeout_s=0.1, fs_hz=2000.0))
+    got = np.concatenate(list(sample_chunks(p, idle_timeout_s=0.1, fs_hz=1000.0)))
+    assert got.size == 200  # the right rate: every sample
+    # the time column read as the samples (column 0) or no rate given: nothing to check
+    assert np.concatenate(list(sample_chunks(p, idle_timeout_s=0.1, column=0))).size == 200
 
 
 def _cli(*args, stdin=None, **kw):

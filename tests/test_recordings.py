@@ -110,6 +110,34 @@ def test_csv_tab_separated_is_said_so(tmp_path):
     assert_error(r"its columns are separated by tabs, not commas: t, accel", path)
 
 
+@pytest.mark.parametrize("sep, what", [(";", "';'"), ("\t", "tabs")])
+@pytest.mark.parametrize("columns", ["time_ms,acc_g", "time_ms;acc_g"])
+def test_columns_named_in_a_file_separated_otherwise_are_said_so(tmp_path, sep, what, columns):
+    """A spreadsheet's export with decimal commas read with the columns it names was 'no
+    column 'time_ms' in the header (time_ms;acc_g)', or with the manifest's ';' form
+    'line 2 has 3 cells, expected 1': the columns are there, joined by another separator."""
+    text = sep.join(["time_ms", "acc_g"]) + "\n" + sep.join(["0,0", "1,5"]) + "\n"
+    path = write_text(tmp_path / "s.csv", text)
+    assert_error(
+        f"line 1: its columns are separated by {what}, not commas: time_ms, acc_g; save it",
+        path,
+        columns=columns,
+        time_unit="ms" if "," in columns else None,  # one name: no time column
+    )
+
+
+def test_a_comment_above_the_header_is_read_past(tmp_path):
+    """A logger's note above the table was read as the header: 'no column 'time_ms' in
+    the header (# labview export,kanal 1)'. It is skipped: the columns named read, and the
+    header not 't,accel' is said to be on line 2."""
+    path = write_text(
+        tmp_path / "c.csv", "# LabVIEW export, Kanal 1\ntime_ms,acc_g\n0,1\n1,2\n2,3\n"
+    )
+    rec = read_recording(path, columns="time_ms,acc_g", time_unit="ms")
+    assert rec.fs_hz == pytest.approx(1000.0) and list(rec.accel) == [1.0, 2.0, 3.0]
+    assert_error(r"wrong header 'time_ms,acc_g', expected 't,accel' on line 2", path)
+
+
 def test_csv_a_file_of_zeros_is_refused_without_reading_it_whole(tmp_path):
     path = tmp_path / "z.csv"
     with open(path, "wb") as fh:  # sparse: a logger's file allocated and never written
@@ -623,3 +651,31 @@ def test_a_rate_off_by_a_unit_factor_says_so(tmp_path):
     assert "--time-unit ms" in unit_mistake_hint(5.0, 474.0, 5000.0 * 4)
     assert "--time-unit us" in unit_mistake_hint(0.005, 474.0, 20000.0)
     assert unit_mistake_hint(300.0, 474.0, 20000.0) == ""  # just too low: no unit story
+
+
+def test_a_missing_recording_names_its_twin_in_another_case(tmp_path):
+    """predict on 'Run01.CSV' beside 'run01.csv' was 'recording file not found' alone."""
+    write_recording_csv(tmp_path / "data" / "run01.csv", np.zeros(10), 1000)
+    assert_error(r"not found \(the folder holds 'run01.csv', which differs only in letter case",
+                 tmp_path / "data" / "Run01.csv")  # fmt: skip
+    assert_error(r"\(the folder holds 'data' \(where 'Data' was written\)",
+                 tmp_path / "Data" / "run01.csv")  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("where", "said"),
+    [("cli", "--fs HZ"), ("manifest", "the manifest's column fs_hz"), ("http", "the field fs_hz")],
+)
+def test_a_missing_rate_names_what_to_give_where_the_user_is(tmp_path, where, said):
+    """A TDMS without wf_increment, or a CSV without a time column, said 'give fs_hz' on the
+    command line too, where the option is --fs."""
+    from stiffnet.inputs import HINT_CONTEXT
+
+    write_tdms(tmp_path / "r.tdms", increment=None)
+    write_text(tmp_path / "a.csv", "acc\n1\n2\n3\n")
+    token = HINT_CONTEXT.set(where)
+    try:
+        assert_error(f"no wf_increment; give {said}\\)$", tmp_path / "r.tdms", channel="mass")
+        assert_error(f"no time column; give {said}\\)$", tmp_path / "a.csv", columns="acc")
+    finally:
+        HINT_CONTEXT.reset(token)

@@ -329,3 +329,27 @@ def test_a_rows_rate_contradicting_its_file_names_the_manifest_line(recordings, 
             f"{camp / 'manifest.csv'}: line 3 (bad.csv), column fs_hz: "
         )
         assert "gives fs = 800 Hz but fs_hz = 1200 Hz" in failed["error"]
+
+
+def test_a_campaign_folders_unlisted_recording_is_said(recordings, tmp_path):
+    """A row missing from the manifest made its recording vanish from the table in silence
+    (3 files, 2 rows: '2 recordings', nothing said); a glob of some files says nothing."""
+    from typer.testing import CliRunner
+
+    from stiffnet.cli import app
+
+    camp = tmp_path / "camp"
+    camp.mkdir()
+    for name in ("r0.csv", "r1.csv", "sub/r3.csv"):
+        (camp / Path(name).name).write_bytes((recordings / name).read_bytes())
+    (camp / "manifest.csv").write_text("recording,fs_hz,natural_frequency_hz\n"
+                                       "r0.csv,800,9.48\nr1.csv,800,9.48\n")  # fmt: skip
+    summary = predict_batch(camp, tmp_path / "a.parquet", model_path=MODEL)
+    assert summary["unlisted"] == ["r3.csv"] and summary["recordings"] == 2
+    res = CliRunner().invoke(app, ["--wide", "predict-batch", str(camp), "--out",
+                                   str(tmp_path / "b.parquet"), "--model", str(MODEL)])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert ("warning: 1 recording file(s) in the campaign folder are not in its manifest "
+            "(r3.csv): not read") in res.output  # fmt: skip
+    glob = predict_batch(f"{camp}/r*.csv", tmp_path / "c.parquet", model_path=MODEL)
+    assert glob["unlisted"] == []

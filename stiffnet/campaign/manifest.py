@@ -35,6 +35,7 @@ from pydantic import (
 from stiffnet.errors import RateMismatch, StiffnetError
 from stiffnet.inputs import not_utf8_words, quote_content, unit_hint, without_unnamed_tail
 from stiffnet.recordings import Recording, read_recording
+from stiffnet.recordings.read import case_twin_hint
 from stiffnet.simulator.batch import PAPER_NATURAL_FREQUENCY_HZ
 
 MANIFEST_NAME = "manifest.csv"
@@ -298,6 +299,13 @@ def read_manifest_with_columns(
             header = next((r for r in reader if any(c.strip() for c in r)), None)
             if header is None:
                 raise StiffnetError(f"{p}: manifest is empty (expected a header line)")
+            if header[0].lstrip().startswith("#"):
+                # a lab's export notes above the table: not 'unknown column 1 (name not shown)'
+                raise StiffnetError(
+                    f"{p}: line {reader.line_num} is a comment (it starts with '#'), not the "
+                    "header: a manifest's first line is its header (recording,fs_hz,...); "
+                    "delete the comment lines"
+                )
             # a spreadsheet's export keeps the empty columns right of the table: named by
             # nobody, holding nothing, they are not columns (a value under one still is)
             header = without_unnamed_tail(header)
@@ -310,6 +318,10 @@ def read_manifest_with_columns(
             for cells in reader:
                 line = reader.line_num
                 if not any(c.strip() for c in cells):
+                    continue
+                if cells[0].lstrip().startswith("#"):
+                    problems.append(f"{p}: line {line} is a comment (it starts with '#'): a "
+                                    "manifest has no comment lines; delete it")  # fmt: skip
                     continue
                 if len(cells) > len(columns) and not any(c.strip() for c in cells[len(columns) :]):
                     cells = cells[: len(columns)]
@@ -721,10 +733,63 @@ def load_campaign(folder: str | os.PathLike[str]) -> Campaign:
         path = _inside(root, row.recording, row.where(manifest))
         if not path.is_file():
             problems.append(
-                f"{row.where(manifest)}: recording file not found: {path}{_case_hint(path)}"
+                f"{row.where(manifest)}: recording file not found: {path}{case_twin_hint(path)}"
             )
     raise_problems(manifest, problems)
     return Campaign(root, manifest, rows)
+
+
+def unlisted_recordings(manifest: str | os.PathLike[str], listed: Sequence[str]) -> list[str]:
+    """Recording files in a campaign's folder that its manifest does not list.
+
+    A folder a lab filled holds what it recorded; a row left out of the manifest (a missing
+    line in the export) made the file's recording vanish from every result in silence.
+
+    Parameters
+    ----------
+    manifest : str or os.PathLike
+        The campaign's ``manifest.csv``; its folder is searched (bounded, links not
+        followed, hidden files and folders skipped).
+    listed : sequence of str
+        The recordings the manifest lists, relative to its folder.
+
+    Returns
+    -------
+    list of str
+        The unlisted files of a registered recording format, relative to the folder, sorted;
+        empty where the folder is too large to search
+        (:data:`stiffnet.inputs.MAX_WALK_ENTRIES`).
+    """
+    from stiffnet.inputs import walk_files
+    from stiffnet.recordings import supported_extensions
+
+    m = Path(manifest)
+    folder = m.parent
+    known = {(folder / r).resolve() for r in listed} | {m.resolve()}
+    try:
+        files = walk_files(str(folder), what="campaign folder")
+    except StiffnetError:  # too large to search: nothing said rather than a refusal
+        return []
+    kinds = supported_extensions()
+    found = []
+    for f in files:
+        rel = f.relative_to(folder)
+        if any(part.startswith(".") for part in rel.parts) or f.suffix.lower() not in kinds:
+            continue
+        if f.resolve() not in known:
+            found.append(rel.as_posix())
+    return sorted(found)
+
+
+def unlisted_words(unlisted: Sequence[str]) -> str | None:
+    """The warning for recording files the manifest does not list (None: none)."""
+    if not unlisted:
+        return None
+    shown = ", ".join(unlisted[:3]) + (", ..." if len(unlisted) > 3 else "")
+    return (
+        f"{len(unlisted)} recording file(s) in the campaign folder are not in its manifest "
+        f"({shown}): not read; a row for each reads it"
+    )
 
 
 #: Entries of a folder looked at for a manifest one level down (a folder of recordings
@@ -749,21 +814,6 @@ def _manifest_below_hint(folder: Path) -> str:
         f" ({below[0]}/{MANIFEST_NAME} is one, but a campaign is the folder its manifest sits "
         "in, its recordings' paths starting there without '..': move it here and write its "
         "paths from here)"
-    )
-
-
-def _case_hint(path: Path) -> str:
-    """Where a missing recording has a twin differing only in letter case (a manifest typed
-    on Windows or macOS, whose file systems ignore case): the name to write."""
-    try:
-        twins = [q.name for q in path.parent.iterdir() if q.name.lower() == path.name.lower()]
-    except OSError:  # the folder is missing too: nothing to compare
-        return ""
-    if len(twins) != 1:
-        return ""
-    return (
-        f" (the folder holds {twins[0]!r}, which differs only in letter case: names are "
-        "case-sensitive here)"
     )
 
 

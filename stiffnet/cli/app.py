@@ -444,6 +444,9 @@ def analyze(
         if isinstance(value, dict | list):  # details (restoring force, spans): the JSON only
             continue
         table.add_row(key, f"{value:.4g}" if isinstance(value, float) else str(value))
+    rf = result.get("restoring_force") or {}
+    if rf.get("beta") is None and rf.get("reason"):  # a None beta with why, not in silence
+        table.add_row("restoring_force_reason", str(rf["reason"]))
     out.print(table)
     if plots is not None:
         from stiffnet.plots import analysis_plots

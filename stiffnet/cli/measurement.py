@@ -173,6 +173,7 @@ def evaluate(
 ) -> None:
     """Learned model, geometric and restoring-force cross-checks and beta by simulation
     against the known betas."""
+    from stiffnet.campaign.manifest import unlisted_recordings, unlisted_words
     from stiffnet.measurement.compare import config_effects, config_settings
     from stiffnet.measurement.evaluate import evaluate_campaign
     from stiffnet.measurement.simulation_reading import summary_lines
@@ -180,13 +181,17 @@ def evaluate(
     out, _, write_json = _io()
     camp, cfg = _load(campaign, config)
     assumed = assumed_natural_frequency(camp)
+    unlisted = unlisted_words(
+        unlisted_recordings(camp.manifest_path, [r.recording for r in camp.rows])
+    )
     with _progress(), progress_task("predicting recordings"):
         res = evaluate_campaign(camp, str(model) if model else None, config_effects(cfg),
                                 settings=config_settings(cfg))  # fmt: skip
     out.print(_metrics_table(f"{res['model']['name']} on {campaign}", res["metrics"]))
-    if assumed:  # under the metrics it qualifies, and in the JSON beside them
-        out.print(f"[yellow]warning:[/] {assumed}")
-        res["warnings"] = [*res.get("warnings", []), assumed]
+    for said in (assumed, unlisted):  # under the metrics they qualify, and in the JSON
+        if said:
+            out.print(f"[yellow]warning:[/] {said}")
+            res["warnings"] = [*res.get("warnings", []), said]
     unscored = [r["recording"] for r in res["recordings"] if r["beta"] is None]
     if unscored:  # the table's n counts the others only: say which rows it leaves out
         out.print(

@@ -413,6 +413,7 @@ def predict_batch_cmd(
 
     from serving.batch_prediction import predict_batch
     from stiffnet import progress
+    from stiffnet.campaign.manifest import unlisted_words
     from stiffnet.cli.console import out, show_progress, write_json
 
     with show_progress(), progress.task("predicting parts") as bar:
@@ -451,6 +452,8 @@ def predict_batch_cmd(
         out.print(f"sensor chain: {summary['sensor']['reason']}")
     if summary.get("campaign_law"):  # a campaign: its one rig's contact law, judged on all
         out.print(f"contact law: {summary['campaign_law']['message']}")
+    if said := unlisted_words(summary.get("unlisted") or []):
+        out.print(f"[yellow]warning:[/] {said}")
     write_json(json_path, summary)
     if summary["failed"]:
         from stiffnet.cli.console import console
@@ -658,7 +661,7 @@ def _followed_log(
     layers: list = []
     stream_format, stream_column, idle_timeout = stream
     chunks = sample_chunks(recording, stream_format, column=stream_column,
-                           idle_timeout_s=idle_timeout)  # fmt: skip
+                           idle_timeout_s=idle_timeout, fs_hz=rate)  # fmt: skip
     for chunk in chunks:
         for kind, item in logger.feed(chunk):
             _emit(kind, item, points, layers)

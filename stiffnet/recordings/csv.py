@@ -285,18 +285,25 @@ def _refuse_a_manifest(name: str, names: list[str]) -> None:
     )
 
 
+def _other_separator(cell: str) -> str:
+    """Where a one-cell header is names joined by ``;`` or tabs (a spreadsheet's export with
+    decimal commas): which separator, the names and how to save it; else empty."""
+    for sep, what in ((";", "';'"), ("\t", "tabs")):
+        names = [c.strip() for c in cell.split(sep)]
+        if len(names) > 1 and all(map(_COLUMN_NAME.match, names)):
+            shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+            return (
+                f"its columns are separated by {what}, not commas: {shown}; save it "
+                "comma-separated, with '.' as the decimal point"
+            )
+    return ""
+
+
 def _header_hint(header: list[str]) -> str:
     """How to read a file whose header is not ``t,accel``."""
     if len(header) == 1:
-        for sep, what in ((";", "';'"), ("\t", "tabs")):
-            names = [c.strip() for c in header[0].split(sep)]
-            if len(names) > 1 and all(map(_COLUMN_NAME.match, names)):
-                shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
-                return (
-                    f" (its columns are separated by {what}, not commas: {shown}; save it "
-                    "comma-separated, with '.' as the decimal point)"
-                )
-        return " (the file must be comma-separated)"
+        other = _other_separator(header[0])
+        return f" ({other})" if other else " (the file must be comma-separated)"
     if all(_is_number(c) for c in header if c.strip()):
         return f"; no header: {columns_hint('0,1')} (indices; give the sampling rate if needed)"
     names = [c.strip() for c in header]
@@ -401,6 +408,9 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         raise StiffnetError(f"{name}: missing header (expected 't,accel' on line {skipped + 1})")
     cells = next(csv.reader([first]))
     raw = without_unnamed_tail(cells)
+    if layout.custom and len(raw) == 1 and (other := _other_separator(raw[0])):
+        # the columns named are there, joined into one cell: said so, not 'no column'
+        raise StiffnetError(f"{name}: line {skipped + 1}: {other}")
     header = [c.strip().lower() for c in raw]
     if not layout.custom and tuple(header) != CSV_COLUMNS:
         # never echo what is not a column list (a link to a secret shows only its shape)
@@ -462,7 +472,8 @@ def _read_csv(p: Path, fs_hz: float | None, layout: _CsvLayout) -> tuple[np.ndar
         raise StiffnetError(f"{name}: {_locate_csv_problem(p, raw, index, has_header, skipped)}")
     if t is None:
         if fs_hz is None:
-            raise StiffnetError(f"{name}: sampling rate missing (no time column; give fs_hz)")
+            rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+            raise StiffnetError(f"{name}: sampling rate missing (no time column; give {rate})")
         return accel, fs_hz, name
     tname = raw[index[0]].strip() if has_header else f"{index[0]}"
     fs = _rate_from_times(t, name, f"column {tname}", first_line=1 + skipped + int(has_header))

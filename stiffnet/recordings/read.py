@@ -67,7 +67,7 @@ def read_recording(
         fs_hz = check_rate(fs_hz, str(p))
     reader = reader_for(p)
     if not p.is_file():
-        raise StiffnetError(f"{p}: recording file not found")
+        raise StiffnetError(f"{p}: recording file not found{case_twin_hint(p)}")
     if channel is not None and str(channel).strip() == "":
         channel = None
     options = {"columns": columns, "time_unit": time_unit}
@@ -90,3 +90,35 @@ def read_recording(
             f"{source}: {int(bad.sum())} NaN/inf samples (first at sample {int(np.argmax(bad))})"
         )
     return Recording(accel, samples.fs_hz, source)
+
+
+def case_twin_hint(path: str | os.PathLike[str]) -> str:
+    """Where a missing file, or the first missing folder above it, has a twin differing only
+    in letter case (a path typed on Windows or macOS, whose file systems ignore case): the
+    name to write, to append to the refusal; else empty.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file not found.
+
+    Returns
+    -------
+    str
+        ``" (the folder holds 'rec', ...)"`` or ``""``.
+    """
+    p = Path(path)
+    missing, parent = p, p.parent
+    while not parent.exists() and parent != parent.parent:  # the topmost missing name
+        missing, parent = parent, parent.parent
+    try:
+        twins = [q.name for q in parent.iterdir() if q.name.lower() == missing.name.lower()]
+    except OSError:  # unreadable: nothing to compare
+        return ""
+    if len(twins) != 1:
+        return ""
+    whose = "" if missing == p else f" (where {missing.name!r} was written)"
+    return (
+        f" (the folder holds {twins[0]!r}{whose}, which differs only in letter case: names "
+        "are case-sensitive here)"
+    )

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from stiffnet.errors import StiffnetError
+from stiffnet.inputs import where_given
 from stiffnet.recordings.base import (
     RecordingReader,
     Samples,
@@ -63,7 +64,8 @@ class TdmsReader(RecordingReader):
                 f"{fs_hz or 0:.6g} Hz",
             )
         if fs is None:
-            raise StiffnetError(f"{source}: sampling rate missing (no wf_increment; give fs_hz)")
+            rate = where_given("--fs HZ", "the manifest's column fs_hz", "the field fs_hz")
+            raise StiffnetError(f"{source}: sampling rate missing (no wf_increment; give {rate})")
         return Samples(np.asarray(data, dtype=np.float64), fs, source)
 
 
