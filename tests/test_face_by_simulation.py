@@ -71,6 +71,8 @@ class FaceMassCampaign:
     weights: list[float] | None
     base_effects: list[Any] = field(default_factory=list)
     inclination: bool = False
+    #: Each recording's initial state (None: the first), as the campaign's target holds them.
+    starts: list[int] | None = None
     evaluations: int = 0
     #: (rows, settings) of each batch of points (:meth:`per_recording_points`).
     batches: list[tuple[int, Any]] = field(default_factory=list)
@@ -270,9 +272,9 @@ def test_a_discovered_law_joins_the_model_the_weighted_objective_prefers():
     law = SimpleNamespace(effect_params={"exponent": 1.0, "reference_penetration": 0.76})
     trials = [target.per_recording(m, FIT_SETTINGS_NUMERICAL) for m in models]
     assert campaign_discrepancy(trials[1]) < campaign_discrepancy(trials[0])
-    after, kept, params, refit = _law_scored(target, target.rows, models, law,
-                                             FIT_SETTINGS_NUMERICAL)  # fmt: skip
-    assert kept is models[0] and refit is None
+    after, kept, params, refit, scored = _law_scored(target, target.rows, models, law,
+                                                     FIT_SETTINGS_NUMERICAL)  # fmt: skip
+    assert kept is models[0] and refit is None and scored.starts == [0] * len(target.rows)
     assert objective_value(after, target.weights) == pytest.approx(
         objective_value(trials[0], target.weights)
     )
