@@ -548,25 +548,14 @@ RIG_LAWS: dict[str, dict] = {
         "beam_damping": 0.02,
     },
 }
-#: Beta ranges the three recordings of each operating point are drawn from, in turn.
-RIG_BETAS = [(8.0, 15.0), (15.0, 35.0), (35.0, 60.0), (60.0, 90.0)]
 RIG_CANDIDATES = ["contact_damping", "forcing_harmonics", "gap_drift", "sensor_dynamics"]
 
 
 def rig_runs(law: str, seed: int = 11) -> list:
     """The 24 recordings of part 4: three betas (integers, classes in turn) per point."""
-    from test_independent_rig import POINTS, _runs
+    from test_independent_rig import rig_campaign_runs
 
-    rng = np.random.default_rng(seed)
-    points = []
-    for j, (_, ratio, disp, gap, fs) in enumerate(POINTS):
-        for k in range(3):
-            lo, hi = RIG_BETAS[(3 * j + k) % len(RIG_BETAS)]
-            points.append((int(round(rng.uniform(lo, hi))), ratio, disp, gap, fs))
-    runs = _runs(points, 3.0, **RIG_LAWS[law])
-    for i, r in enumerate(runs):
-        r.recording = f"rec/p{i // 3}_{i % 3}_b{r.beta:03d}.csv"
-    return runs
+    return rig_campaign_runs(3.0, seed, **RIG_LAWS[law])
 
 
 def simulate_once(module) -> None:

@@ -15,7 +15,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from independent_rig import CANTILEVER_LAMBDA_L, cantilever_tip_modes, write_campaign
-from test_independent_rig import DIAG_EFFECTS, DIAG_POINTS, F_N, POINTS, _runs
+from test_independent_rig import (
+    DIAG_EFFECTS,
+    DIAG_POINTS,
+    F_N,
+    POINTS,
+    _runs,
+    rig_campaign_runs,
+)
 
 from stiffnet.campaign import load_campaign
 from stiffnet.discovery import campaign_contact_samples, discover_contact_law
@@ -59,26 +66,6 @@ def test_power_law_rig(tmp_path):
     truth = np.array([float(n.split("beta")[1][:3]) for n in law.recordings]) / 0.5
     k_p = np.array([law.coefficient("power", b) for b in law.betas])
     assert np.median(k_p / truth) == pytest.approx(1.0, rel=0.15)
-
-
-#: Beta ranges the held-out rig campaigns draw three betas per operating point from, in turn
-#: (``benchmarks/bench_loop_iteration.rig_runs``).
-RIG_BETAS = [(8.0, 15.0), (15.0, 35.0), (35.0, 60.0), (60.0, 90.0)]
-
-
-def rig_campaign_runs(duration_s: float, seed: int = 11, **kw) -> list:
-    """The held-out rig campaigns' 24 recordings: three betas per operating point of
-    :data:`POINTS` (``bench_loop_iteration.rig_runs``), each named by its point and beta."""
-    rng = np.random.default_rng(seed)
-    points = []
-    for j, (_, ratio, disp, gap, fs) in enumerate(POINTS):
-        for k in range(3):
-            lo, hi = RIG_BETAS[(3 * j + k) % len(RIG_BETAS)]
-            points.append((int(round(rng.uniform(lo, hi))), ratio, disp, gap, fs))
-    runs = _runs(points, duration_s, **kw)
-    for i, r in enumerate(runs):
-        r.recording = f"rec/p{i // 3}_{i % 3}_b{r.beta:03d}.csv"
-    return runs
 
 
 @pytest.mark.slow

@@ -48,6 +48,25 @@ def _runs(
     return runs
 
 
+#: Beta ranges the three recordings of each operating point are drawn from, in turn.
+RIG_BETAS = [(8.0, 15.0), (15.0, 35.0), (35.0, 60.0), (60.0, 90.0)]
+
+
+def rig_campaign_runs(duration_s: float, seed: int = 11, **kw) -> list[RigRun]:
+    """The held-out rig campaigns' 24 recordings: three betas (integers, the classes in turn)
+    per operating point of :data:`POINTS`, each named by its point and beta."""
+    rng = np.random.default_rng(seed)
+    points = []
+    for j, (_, ratio, disp, gap, fs) in enumerate(POINTS):
+        for k in range(3):
+            lo, hi = RIG_BETAS[(3 * j + k) % len(RIG_BETAS)]
+            points.append((int(round(rng.uniform(lo, hi))), ratio, disp, gap, fs))
+    runs = _runs(points, duration_s, **kw)
+    for i, r in enumerate(runs):
+        r.recording = f"rec/p{i // 3}_{i % 3}_b{r.beta:03d}.csv"
+    return runs
+
+
 @pytest.fixture(scope="module")
 def tmp(tmp_path_factory):
     return tmp_path_factory.mktemp("independent")
