@@ -19,6 +19,7 @@ import pytest
 from stiffnet.measurement.statistics import (
     WAVEFORM_RATE,
     bridged_free_flight,
+    orbit_median,
     refined_peaks,
     ringing_curves,
     signal_statistics,
@@ -168,3 +169,42 @@ def test_soft_contact_with_a_ringing_mount_matches_the_rig_at_the_truth(tmp_path
     nd = normalised_differences(*stats)
     assert recording_discrepancy(nd) < 0.5, nd
     assert abs(nd["spike_width"]) < 1 and abs(nd["harmonic_2"]) < 1, nd
+
+
+def test_the_median_of_a_repeat_weighs_each_impact_of_the_orbit_once():
+    """Two spike groups a factor 8 apart (a period-2 orbit): the plain median is the small
+    group's with one more small spike and the midpoint with as many of each; over the
+    repeat each impact's median counts once, whatever the count."""
+    small, big = np.full(18, 1.0), np.full(18, 8.0)
+    alternating = np.ravel(np.column_stack([small, big]))
+    for k in (34, 35, 36):
+        assert orbit_median(alternating[:k], (2, 2)) == pytest.approx(4.5)
+        assert orbit_median(alternating[:k], (1, 1)) == np.median(alternating[:k])
+    assert orbit_median(alternating[:35], None) == 1.0
+
+
+def test_a_period_two_orbit_reads_the_same_spike_height_on_any_record_length():
+    """A power-law contact (1.6, secant beta 34 at 0.4 gap units) behind a 250 Hz low-pass,
+    forced at 0.95 f_n (the held-out rig's period-2 recording): its spikes alternate
+    between two heights a factor 8 apart. Read as a plain median, 14 spikes (16 natural
+    periods, the fits' simulations) gave the midpoint and 15 the small group's, 1.5 in
+    ln(height), 15 tolerances: the rig's own law scored 31 against its recording."""
+    from campaign_helpers import LAB_ROW
+
+    from stiffnet.campaign.simulate import FIT_SETTINGS_NUMERICAL, simulate_rows
+    from stiffnet.effects.registry import effect_class
+    from stiffnet.geometry.orbit import impact_pattern
+
+    row = LAB_ROW.model_copy(update=dict(fs_hz=1000.0, frequency_ratio=0.9504, amplitude=1.0,
+                                         gap=0.5, beta=34.0))  # fmt: skip
+    law = effect_class("learned_contact")(exponent=1.6, reference_penetration=0.4)
+    chain = effect_class("sensor_dynamics")(resonance_hz=5e4, highpass_hz=0.0,
+                                            lowpass_hz=250.0, lowpass_order=2.0)  # fmt: skip
+    heights = []
+    for periods in (16.0, 17.0, 18.0, 19.0):
+        settings = FIT_SETTINGS_NUMERICAL.model_copy(update={"periods": periods})
+        (a,) = simulate_rows([row], [law, chain], [4000], settings=settings)
+        st = signal_statistics(a, row.fs_hz, FN, row.frequency_ratio, False)
+        assert impact_pattern(st.impacts, row.fs_hz / (FN * row.frequency_ratio)) == (2, 2)
+        heights.append(st.spike_height)
+    assert np.ptp(np.log(heights)) < 0.1, heights
