@@ -448,9 +448,18 @@ def _body_problems(exc: ValidationError, shown: int = 4) -> str:
     said = []
     for e in errs[:shown]:
         where = ".".join(str(x) for x in e.get("loc", ())) or "body"
-        said.append(f"{where}: {e.get('msg')}")
+        said.append(f"{where}: {e.get('msg')}{_number_words(e)}")
     more = f" (+{len(errs) - shown} more)" if len(errs) > shown else ""
     return "; ".join(said) + more
+
+
+def _number_words(error: dict) -> str:
+    """The value a number field was refused for, and what to write where a lab's habit
+    shows (``"1000,0"``: a decimal comma; ``"1 kHz"``: a unit); empty for other errors."""
+    value = error.get("input")
+    if error.get("type") not in ("float_parsing", "float_type") or not isinstance(value, str):
+        return ""
+    return f", got {value[:40]!r}{unit_hint(value)}"
 
 
 def _predict_json(

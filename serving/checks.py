@@ -107,15 +107,21 @@ def rate_warnings(fs: float, fn: float, what: str) -> list[str]:
     """Refuse a rate below the training data's; a warning for one above it."""
     ratio = fs / fn
     if ratio < MIN_SAMPLES_PER_PERIOD:  # first: its message names a unit mistake
+        from stiffnet.inputs import where_given
         from stiffnet.recordings import unit_mistake_hint
 
         hint = unit_mistake_hint(
             fs, MIN_SAMPLES_PER_PERIOD * fn, 4 * MAX_TRAINED_SAMPLES_PER_PERIOD * fn
         )
+        # the rate is only low against f_n: a mistyped f_n (2500 for 25) reads the same, and
+        # a time unit already given makes the unit story wrong, so both are named
+        fn_given = where_given("--fn", "the manifest's column natural_frequency_hz",
+                               "the field natural_frequency_hz")  # fmt: skip
         raise StiffnetError(
             f"{what}: sampling rate {fs:.6g} Hz is below the minimum "
             f"{MIN_SAMPLES_PER_PERIOD * fn:.6g} Hz ({MIN_SAMPLES_PER_PERIOD:g} x the natural "
-            f"frequency {fn:.6g} Hz){hint}"
+            f"frequency {fn:.6g} Hz){hint}; if the natural frequency is not {fn:.6g} Hz, give "
+            f"it ({fn_given}: this rate reads one up to {fs / MIN_SAMPLES_PER_PERIOD:.3g} Hz)"
         )
     rate_ratio(fs, fn, what)  # the physical upper bound
     if ratio > MAX_TRAINED_SAMPLES_PER_PERIOD:

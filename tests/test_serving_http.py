@@ -129,6 +129,15 @@ def test_errors_are_json_4xx(client, samples):
     )
 
 
+def test_a_json_number_written_as_a_lab_writes_it_says_what_to_write(client, samples):
+    """A decimal comma or a unit in a JSON number names the value and what to write."""
+    r = client.post("/predict", json={"samples": samples, "fs_hz": "1000,0"})
+    _is_error(r, 422, "fs_hz: Input should be a valid number, got '1000,0' (a comma in a number")
+    r = client.post("/predict", json={"samples": samples, "fs_hz": 1000,
+                                      "natural_frequency_hz": "9.48 Hz"})  # fmt: skip
+    _is_error(r, 422, "got '9.48 Hz' (the number alone: the name carries the unit)")
+
+
 def test_a_json_body_says_every_field_it_lacks(client, samples):
     """A body naming its samples ``accel`` was told 'accel: Extra inputs are not permitted
     (+2 more)': not that samples and fs_hz are missing."""

@@ -377,6 +377,11 @@ def test_bad_signals(cnn, example):
     with pytest.raises(StiffnetError, match="below the minimum 474 Hz") as info:
         cnn.predict(example.accel[::3], fs / 3, natural_frequency_hz=FN)
     assert "time unit" not in str(info.value)  # 333 Hz: simply too low
+    fn_words = "if the natural frequency is not 9.48 Hz, give it (--fn: this rate reads one up to"
+    assert f"{fn_words} 6.67 Hz)" in str(info.value)
+    # a mistyped f_n (2500 Hz for the rig's 25) is named beside the unit story
+    with pytest.raises(StiffnetError, match=r"natural frequency is not 2500 Hz.*up to 20 Hz"):
+        cnn.predict(example.accel, fs, natural_frequency_hz=2500.0)
     # times in milliseconds read as seconds: 1 Hz, and the message names the fix
     with pytest.raises(StiffnetError, match=r"in milliseconds.*--time-unit ms.*1000 Hz"):
         cnn.predict(example.accel, fs / 1000, natural_frequency_hz=FN)
