@@ -1419,9 +1419,10 @@ def _estimate_at(
     onsets = None
     if impact_onsets:
         core = _in_contact(fit, use)
-        onsets = fit_impact_onset_law(
-            fit.force, fit.displacement, fit.velocity, m.labels, core, law
-        )
+        maps = (fit.force, fit.displacement, fit.velocity, m.labels, core)
+        # the map's own law (not a model's two-stage one): kept where the record is read again
+        onsets = kept("impact onsets", (*maps, *dataclasses.astuple(law)),
+                      lambda: fit_impact_onset_law(*maps, law))  # fmt: skip
     return RestoringForceResult(
         ok=True,
         beta=float(beta),

@@ -1,10 +1,11 @@
 """The restoring-force method's costly fits kept for reuse while a caller asks for it.
 
-Two fits make most of the restoring-force check's CPU on a campaign behind a sensor chain:
-the chain identified from a record's impacts (:func:`~.chain.fit_chain`, 1-8 s a record) and
-the high-pass corner profiled by the contact law (:func:`~.estimate._auto_map`, ~20 maps).
-Neither depends on the model that reads the campaign (its weights, its learned law's
-stage ratio): both are functions of the record's samples and the method's settings only.
+Three fits make most of the restoring-force check's CPU on a campaign behind a sensor chain:
+the chain identified from a record's impacts (:func:`~.chain.fit_chain`, 1-8 s a record),
+the high-pass corner profiled by the contact law (:func:`~.estimate._auto_map`, ~20 maps)
+and the law with an onset per impact (:func:`~.impact_onsets.fit_impact_onset_law`). None
+depends on the model that reads the campaign (its weights, its learned law's stage ratio):
+each is a function of the record's samples and the method's settings only.
 A measurement loop evaluates the same recordings with every new model, so it asks for them
 to be kept (:func:`fits_kept`): each fit then runs once per distinct input, in this process
 and, with a file, across the loop's runs (a resumed loop is a new process).
@@ -92,7 +93,7 @@ _KEPT: ContextVar[KeptFits | None] = ContextVar("kept_restoring_force_fits", def
 
 @contextlib.contextmanager
 def fits_kept(path: str | Path | None = None) -> Iterator[KeptFits]:
-    """Keep the restoring-force method's chain and corner fits within the block (in `path`
+    """Keep the restoring-force method's chain, corner and onset fits within the block (in `path`
     too where given: read now, written by :meth:`KeptFits.save` and at the block's end)."""
     kept = KeptFits(path)
     token = _KEPT.set(kept)
