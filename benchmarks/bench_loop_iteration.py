@@ -738,12 +738,14 @@ def rig_iteration(
     seed (``--rig-dataset-seeds``: the starting config's seed; default the state's):
     the model alone (accuracy / β MAPE), what the loop reports, and the CPU seconds of
     every phase (:class:`PhaseClock`; the candidate chains the diagnosis's chain is chosen
-    among are part of the iteration, before its own clock starts), ``repeats`` times."""
+    among are part of the iteration, before its own clock starts), ``repeats`` times. A STATE
+    of iteration 0 alone hands on the restoring-force fits it kept
+    (:data:`~stiffnet.measurement.loop.KEPT_FITS_FILE`), as the loop resumed from it does."""
     import json
     import shutil
 
     from stiffnet.campaign import load_campaign
-    from stiffnet.measurement.loop import run_loop
+    from stiffnet.measurement.loop import KEPT_FITS_FILE, run_loop
 
     camp = load_campaign(campaign)
     diag = json.loads(diagnosis.read_text())
@@ -756,6 +758,7 @@ def rig_iteration(
         with tempfile.TemporaryDirectory() as tmp:
             folder = Path(tmp) / "loop"
             st = json.loads((state / "state.json").read_text())
+            st_all = st["iterations"]
             st.update(iterations=st["iterations"][:1], campaign=str(campaign.resolve()),
                       tracking_uri=None)  # fmt: skip
             if n is not None:
@@ -764,6 +767,10 @@ def rig_iteration(
                 st["start_config"]["seed"] = seed
             shutil.copytree(state / "iter-000", folder / "iter-000")
             shutil.copy(state / "stiffnet-run.json", folder / "stiffnet-run.json")
+            if (state / KEPT_FITS_FILE).is_file() and len(st_all) == 1:
+                # the restoring-force fits iteration 0 kept, as a resumed loop reads them (a
+                # state with later iterations would hand iteration 1 its own fits)
+                shutil.copy(state / KEPT_FITS_FILE, folder / KEPT_FITS_FILE)
             (folder / "state.json").write_text(json.dumps(st))
             cfg = SimulationConfig.model_validate(st["start_config"])
             load0 = os.getloadavg()[0]

@@ -9,6 +9,7 @@ runs; the slow one lets the diagnosis find both effects and trains the default f
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -65,8 +66,18 @@ def looped(two_effects, tmp):
 
     camp = load_campaign(two_effects)
     kw = dict(family="gbm", n_trajectories=TINY, tracking_uri=uri)
+    fits = []  # each run's kept restoring-force fits
+    keep = loop_mod.fits_kept
+
+    @contextlib.contextmanager
+    def kept_fits(path):
+        with keep(path) as kept:
+            fits.append(kept)
+            yield kept
+
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(loop_mod, "_chart", counting_chart)
+        mp.setattr(loop_mod, "fits_kept", kept_fits)
         first = loop_mod.run_loop(
             camp,
             _ideal(),
@@ -83,7 +94,18 @@ def looped(two_effects, tmp):
             add_effects=[("contact_damping", {"damping_ratio": 0.25})],
             tracking_uri=uri,  # family and dataset size: the state's
         )
-    return {"first": first, "second": second, "uri": uri, "state": state, "charts": charts}
+    return {"first": first, "second": second, "uri": uri, "state": state, "charts": charts,
+            "fits": fits}  # fmt: skip
+
+
+def test_the_resumed_loop_reads_the_fits_the_first_run_kept(looped):
+    # the recordings behind the 237 Hz mount are read by every iteration's model: their chain
+    # and corner fits run in the first run (iterations 0 and 1), and the resumed run (a new
+    # process in use) reads them back from the state folder instead of fitting them again
+    first, second = looped["fits"]
+    assert (looped["state"] / loop_mod.KEPT_FITS_FILE).is_file()
+    assert first.fitted > 0 and first.reused > 0  # iteration 1 reused iteration 0's
+    assert second.reused > 0 and second.fitted < first.fitted
 
 
 def test_two_iterations_with_resume(looped):

@@ -38,6 +38,12 @@ recordings in class (β MAPE 0.21) where one trained at its points read 0.875-1.
 ``"sweep"`` (``loop --sweep``) and ``"operating_points"`` (``loop --operating-points``)
 fix the world for every iteration. Each iteration records the world it used and why.
 
+Every iteration evaluates the same recordings with a new model, and the restoring-force
+check's sensor-chain and high-pass corner fits do not depend on the model: they are kept
+in the state folder (``restoring_force_fits.pkl``,
+:func:`~stiffnet.restoring_force.kept_fits.fits_kept`, keyed by each fit's inputs and the
+method's code) and fitted once per loop, not once per iteration; the readings are the same.
+
 The error of an iteration: the discrepancy and the agreement of the learned model
 with the restoring-force cross-check always; with β in the manifest, also the
 accuracy and the β MAPE.
@@ -63,11 +69,14 @@ from stiffnet.measurement.compare import compare_campaign, config_effects, confi
 from stiffnet.measurement.learned_law import replaced_by, with_learned_law
 from stiffnet.measurement.operating_points import TRAJECTORIES
 from stiffnet.progress import task as progress_task
+from stiffnet.restoring_force.kept_fits import fits_kept
 
 #: ``kind`` in the marker (``stiffnet-run.json``) of a loop's state folder.
 LOOP_KIND = "stiffnet-loop"
 #: The state file in the state folder.
 STATE_FILE = "state.json"
+#: The restoring-force fits the iterations share (:mod:`stiffnet.restoring_force.kept_fits`).
+KEPT_FITS_FILE = "restoring_force_fits.pkl"
 STATE_VERSION = 1
 DEFAULT_SPREAD = 0.25
 #: Trajectories per generated dataset over the sweep (1000: one CNN iteration within 15
@@ -765,7 +774,10 @@ def run_loop(
         start_cfg = SimulationConfig.model_validate(state["start_config"])
         todo = iterations + (0 if state["iterations"] else 1)
         write_json_atomic(folder / RUN_MARKER, {"kind": LOOP_KIND, "status": "running"})
-        with progress_task("loop iterations", todo) as bar:
+        with (
+            progress_task("loop iterations", todo) as bar,
+            fits_kept(folder / KEPT_FITS_FILE) as fits,
+        ):
             for _ in range(todo):
                 k = len(state["iterations"])
                 added: list[dict[str, Any]] = []
@@ -785,6 +797,7 @@ def run_loop(
                     k, campaign, state, folder, start_cfg, added, diag_result, keep_data, bar
                 )
                 _record_iteration(folder, state, it, diag_s, tracking_uri)
+                fits.save()  # an interrupted loop resumes with them
                 bar.advance()
         chart = _chart(folder, state) if state["iterations"] else None
         _save_state(folder, state)

@@ -44,6 +44,7 @@ import numpy as np
 from scipy import ndimage, optimize, signal, sparse, stats
 
 from stiffnet.restoring_force.contact_law import force_unit
+from stiffnet.restoring_force.kept_fits import kept
 
 #: Fine-grid oversampling of the pulse model (the chain as the analog one it discretises).
 OVERSAMPLE = 16
@@ -851,6 +852,26 @@ def fit_chain(
         The structure of least BIC, its parameters and intervals (a stage kept only where it
         lowers the BIC by :data:`MIN_BIC_GAIN`); None with fewer than 3 usable impacts.
     """
+    # a function of its inputs alone: kept where a caller evaluates the same records again
+    # (:func:`~.kept_fits.fits_kept`, a measurement loop's iterations)
+    inputs = (force, core, fs_hz, natural_frequency_hz, samples_per_contact, ring_hz,
+              highpass_hz, contact_hz, noise_sigma, profile)  # fmt: skip
+    return kept("chain", inputs, lambda: _fitted_chain(*inputs))
+
+
+def _fitted_chain(
+    force: np.ndarray,
+    core: np.ndarray,
+    fs_hz: float,
+    natural_frequency_hz: float,
+    samples_per_contact: float,
+    ring_hz: float | None,
+    highpass_hz: float,
+    contact_hz: float | None,
+    noise_sigma: float | None,
+    profile: bool,
+) -> SensorChain | None:
+    """:func:`fit_chain`, fitted."""
     win = _chain_windows(force, core, fs_hz, natural_frequency_hz, samples_per_contact,
                          ring_hz, contact_hz)  # fmt: skip
     if win is None:

@@ -80,6 +80,7 @@ from stiffnet.restoring_force.hunt_crossley_law import (
     hunt_crossley_shape,
 )
 from stiffnet.restoring_force.impact_onsets import ImpactOnsetLaw, fit_impact_onset_law
+from stiffnet.restoring_force.kept_fits import kept
 from stiffnet.restoring_force.reconstruct import (
     ALIAS_MIN_DAMPING,
     check_record,
@@ -525,7 +526,39 @@ def _auto_map(
     20 maps) only where the contact law explains less than `profile_below_r2`: the
     rule of a chain identified only where needed (:data:`CHAIN_FIT_WHEN_NEEDED`).
     `inverse`: `y` is a chain's inverse, `band` what it keeps (:class:`_Map`).
+
+    The corner and its profile are a function of the inputs alone: kept where a caller reads
+    the same records again (:func:`~.kept_fits.fits_kept`), the map then fitted once at the
+    kept corner (the map :func:`_fit_map` gives at a corner is the map returned here).
     """
+    args = (y, dtau, tau, use, period, k_given, exponent, profile_below_r2, inverse, band)
+    fitted: list[_Map] = []
+
+    def fit() -> tuple[float, list[tuple[float, float]] | None]:
+        m, corner = _corner_map(*args)
+        fitted.append(m)
+        return corner, m.corner_profile
+
+    corner, profile = kept("highpass corner", args, fit)
+    if fitted:  # fitted now, not kept from before
+        return fitted[0], corner
+    m = _fit_map(y, dtau, tau, use, period, k_given, corner, exponent, inverse=inverse, band=band)
+    return (m if profile is None else dataclasses.replace(m, corner_profile=profile)), corner
+
+
+def _corner_map(
+    y: np.ndarray,
+    dtau: float,
+    tau: np.ndarray,
+    use: np.ndarray,
+    period: float,
+    k_given: float | None,
+    exponent: float | None,
+    profile_below_r2: float,
+    inverse: bool,
+    band: np.ndarray | None,
+) -> tuple[_Map, float]:
+    """:func:`_auto_map`, fitted (the plain map first, then the corner's)."""
     args = (y, dtau, tau, use, period, k_given)
     m = _fit_map(*args, 0.0, exponent, inverse=inverse, band=band)
     corner = highpass_rule(
@@ -1386,9 +1419,10 @@ def _estimate_at(
     onsets = None
     if impact_onsets:
         core = _in_contact(fit, use)
-        onsets = fit_impact_onset_law(
-            fit.force, fit.displacement, fit.velocity, m.labels, core, law
-        )
+        maps = (fit.force, fit.displacement, fit.velocity, m.labels, core)
+        # the map's own law (not a model's two-stage one): kept where the record is read again
+        onsets = kept("impact onsets", (*maps, *dataclasses.astuple(law)),
+                      lambda: fit_impact_onset_law(*maps, law))  # fmt: skip
     return RestoringForceResult(
         ok=True,
         beta=float(beta),
