@@ -40,6 +40,11 @@ campaign below. For example, the lab chains of a second seed through the model a
     python benchmarks/bench_crosscheck.py --methods learned --sets sensor_chains "ideal 2%" \
         --seed 20262123 --no-campaign --per-recording /tmp/s2.json
 
+``--chain-campaigns NAME ...`` also reads 24-recording campaigns of the independent rig behind
+one sensor chain each (:data:`CHAIN_CAMPAIGNS`: a mount behind a low low-pass, a mount with a
+3rd-order low-pass and a high-pass, a 2nd-order low-pass near the stiffest contacts) as
+``evaluate`` reads a campaign, its chain pooled over the recordings (:func:`chain_campaign`).
+
 With the model it also measures, on an ideal 24-recording campaign written by
 ``simulate_campaign`` (:func:`campaign_agreement`), on how many recordings the
 learned model's class agrees with each cross-check's (target: >= 22 of 24
@@ -407,6 +412,58 @@ def campaign_agreement(seed: int = 0) -> dict[str, Any]:
     }
 
 
+#: Campaigns behind one sensor chain (``--chain-campaigns``): the held-out rig's 24 recordings
+#: (tests/test_independent_rig.rig_campaign_runs, 4 s, fs 1-2 kHz) behind the chain given,
+#: read as ``evaluate`` reads a campaign (the chains pooled over its recordings).
+CHAIN_CAMPAIGNS = {
+    "mount_low_lowpass": {"resonance_hz": 280.0, "resonance_damping": 0.03,
+                          "lowpass_hz": 120.0, "lowpass_order": 4},
+    "mount_lowpass3_highpass": {"resonance_hz": 250.0, "resonance_damping": 0.04,
+                                "lowpass_hz": 150.0, "lowpass_order": 3, "highpass_hz": 1.0},
+    "lowpass2_near_contact": {"lowpass_hz": 90.0, "lowpass_order": 2, "highpass_hz": 0.5},
+}  # fmt: skip
+
+
+def chain_campaign(name: str, seed: int = 0) -> dict[str, Any]:
+    """The learned model and the restoring force on campaign `name` of
+    :data:`CHAIN_CAMPAIGNS`, read through the campaign's pooled chain
+    (:func:`stiffnet.measurement.evaluate.campaign_predictions`): accuracy, beta MAPE and
+    interval coverage of each (a refusal counts as wrong), the restoring force's refusals,
+    the learned model's wrong answers and the silent ones (no alarm), the pooled chain."""
+    import tempfile
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from independent_rig import write_campaign
+    from test_independent_rig import rig_campaign_runs
+
+    from stiffnet.campaign import load_campaign
+    from stiffnet.measurement.evaluate import campaign_predictions
+
+    with tempfile.TemporaryDirectory() as d:
+        runs = rig_campaign_runs(4.0, sensor=CHAIN_CAMPAIGNS[name])
+        camp = load_campaign(write_campaign(Path(d) / name, runs, seed=seed))
+        results, chain = campaign_predictions(camp, None)
+    beta = np.array([r.beta for r in runs], dtype=float)
+    truth = [class_of(b) for b in beta]
+    out: dict[str, Any] = {"n": len(runs), "sensor": chain.get("sensor")}
+    for key, cls, interval in (("learned", "class", "beta_interval"),
+                               ("restoring_force", "restoring_force_class",
+                                "restoring_force_beta_interval")):  # fmt: skip
+        got = [r.get("beta" if key == "learned" else "restoring_force_beta") for r in results]
+        err = [abs(g / b - 1) for g, b in zip(got, beta, strict=True) if g is not None]
+        cover = [lo <= b <= hi for r, b in zip(results, beta, strict=True)
+                 if r.get(interval) for lo, hi in [r[interval]]]  # fmt: skip
+        out[key] = {"accuracy": float(np.mean([r.get(cls) == t for r, t in
+                                               zip(results, truth, strict=True)])),
+                    "mape": float(np.mean(err)) if err else None,
+                    "coverage": float(np.mean(cover)) if cover else None,
+                    "refusals": sum(g is None for g in got)}  # fmt: skip
+    wrong = [r for r, t in zip(results, truth, strict=True) if r.get("class") != t]
+    out["learned"]["wrong"] = len(wrong)
+    out["learned"]["silent"] = sum(not (r.get("alarm") or {}).get("flag") for r in wrong)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=24, help="recordings per set")
@@ -420,6 +477,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="skip the ideal 24-recording campaign's agreement")  # fmt: skip
     ap.add_argument("--per-recording", type=Path,
                     help="also write each recording's truth and answers here (JSON)")  # fmt: skip
+    ap.add_argument("--chain-campaigns", nargs="*", choices=list(CHAIN_CAMPAIGNS),
+                    help="also read these 24-recording campaigns behind one sensor chain "
+                    "(5-6 CPU min each)")  # fmt: skip
     args = ap.parse_args(argv)
     from stiffnet.io_utils import write_json_atomic
 
@@ -461,6 +521,13 @@ def main(argv: list[str] | None = None) -> int:
         )
         for r in agree["disagreements"]:
             print(f"  disagree: {r}")
+    for name in args.chain_campaigns or []:
+        got = out.setdefault("chain_campaigns", {})[name] = chain_campaign(name)
+        lm, rf = got["learned"], got["restoring_force"]
+        print(f"\n{name} campaign: learned {lm['accuracy']:.3f} / MAPE {lm['mape']:.3f} / "
+              f"coverage {lm['coverage']:.3f}, {lm['wrong']} wrong ({lm['silent']} silent); "
+              f"restoring force {rf['accuracy']:.3f} / MAPE {rf['mape']:.3f}, "
+              f"{rf['refusals']} refusals; chain {got['sensor']}")  # fmt: skip
     print(f"\nwall time: {time.perf_counter() - t0:.0f} s")
     if args.json:
         write_json_atomic(args.json, out)

@@ -24,9 +24,10 @@ restoring-force check identified on its recordings (``sensor`` in the table) are
 (:mod:`serving.campaign_chain`) and, where they agree, every recording without its own
 data sheet is predicted again in a second round of parts with the pooled chain as its
 sheet, kept where it reads their contact laws about as well as the first round did (a
-recording whose own law it reads much worse keeps its first row)
-(``sensor_source`` ``campaign``; the summary's ``sensor`` says what was pooled, on
-how many recordings, or why nothing was). A record whose
+recording whose own law it reads much worse keeps its first row; where the pool found the
+contacts' own dissipation, read with it free: the campaign is pooled and read as
+``evaluate`` reads it) (``sensor_source`` ``campaign``; the summary's ``sensor`` says what
+was pooled, on how many recordings, or why nothing was). A record whose
 beta changes along it (several layers, :func:`serving.log.record_layers`) has them
 in ``layers`` (JSON) and the alarm fired. A campaign has one rig: where its recordings
 read a contact law the training data lack more often than the training world's laws do
@@ -54,6 +55,7 @@ import pyarrow.parquet as pq
 from serving.campaign_chain import (
     chain_fitted_regardless,
     confirmed,
+    dissipation_readers,
     identify_regardless,
     labelled,
     profile_readers,
@@ -309,6 +311,9 @@ class PartJob:
     settings: tuple[tuple[Any, ...], ...] | None = None
     #: per recording: read through the campaign's pooled chain (its sheet in `settings`)
     campaign_chain: tuple[bool, ...] | None = None
+    #: the recordings read through the pooled chain are read with a free ``delta v``
+    #: dissipation (the chain's ``contact_dissipation``; None: as the model's law asks)
+    penetration_dissipation: bool | None = None
     #: per recording: where its f_n comes from (:func:`fn_source`; None: resolved on reading)
     fn_sources: tuple[str | None, ...] | None = None
     #: per recording: the manifest line and column its rate comes from (:func:`fs_source`)
@@ -354,7 +359,9 @@ def predict_part(job: PartJob) -> dict[str, Any]:
                                        natural_frequency_hz=fn, columns=columns,
                                        time_unit=time_unit, channel=channel,
                                        sensor=sensor, sensor_fitted=from_campaign,
-                                       natural_frequency_source=fn_from)  # fmt: skip
+                                       natural_frequency_source=fn_from,
+                                       penetration_dissipation=job.penetration_dissipation
+                                       if from_campaign else None)  # fmt: skip
             result = labelled(result, from_campaign)
             rows.append(result_row(path, result, None, channel))
         except RateMismatch as exc:  # the row gave the rate: say which line to mend
@@ -496,11 +503,14 @@ def predict_batch(
                                                               dampings)  # fmt: skip
         if chain is not None and chain["pooled"]:
             # the second round: every recording without its own sheet through the pooled chain
+            # (with its contacts' dissipation free where the pool found it, as evaluate reads)
             again, flags = _campaign_settings(first, settings, chain["sensor"])
+            hc = True if chain.get("contact_dissipation") else None
             jobs2, records2 = _plan_parts(paths, again, part_size, predictor, parts_dir,
                                           reading, resume, before_part, first_index=n_parts,
                                           campaign_chain=flags, fn_sources=fn_sources,
-                                          fs_sources=fs_sources)  # fmt: skip
+                                          fs_sources=fs_sources,
+                                          penetration_dissipation=hc)  # fmt: skip
             records |= records2
             done = _add(done, _run_parts(jobs2, records, client, retries, progress,
                                          2 * n_parts, n_parts))  # fmt: skip
@@ -625,17 +635,21 @@ def _campaign_chain(
     sheets = [sheet for *_, sheet in settings]
     chain, sensors = identify_regardless(sensors, paths, sheets, identify)
 
-    def through(i: int, sheet: dict) -> Any:  # recording i read through the sheet
+    def through(i: int, sheet: dict, dissipation: bool = False) -> Any:  # read through sheet
         rec = recording(i)
-        return None if rec is None else read_through(*rec, predictor, sheet)
+        return None if rec is None else read_through(*rec, predictor, sheet, dissipation)
 
     contact_r2, free_damping = profile_readers(through)  # in this campaign's scope only
+    # the same readings with the contact's dissipation growing with penetration fitted free:
+    # the campaign is pooled as evaluate pools it
+    dissipation = dissipation_readers(functools.partial(through, dissipation=True))
 
     def fns() -> list[float | None]:
         return [None if recording(i) is None else recording(i)[2] for i in range(len(paths))]
 
     return profiled_campaign_chain(chain, sensors, contact_r2, free_damping, fns,
-                                   dampings or [None] * len(paths), sheets)  # fmt: skip
+                                   dampings or [None] * len(paths), sheets, dissipation,
+                                   identify)  # fmt: skip
 
 
 def _confirmed(
@@ -789,10 +803,12 @@ def _plan_parts(
     campaign_chain: tuple[bool, ...] | None = None,
     fn_sources: list[str | None] | None = None,
     fs_sources: list[str | None] | None = None,
+    penetration_dissipation: bool | None = None,
 ) -> tuple[list[PartJob], dict[int, dict[str, Any]]]:
     """The parts still to run (jobs) and the records of those an interrupted run with the
     same inputs finished (kept when `resume`), by part index (from `first_index`: a second
-    round's parts follow the first's)."""
+    round's parts follow the first's; `penetration_dissipation`: :attr:`PartJob`'s, in the
+    parts' fingerprint where set)."""
     fs_hz, natural_frequency_hz, columns, time_unit, _ = reading
     model_file = str(Path(predictor.model.path).resolve())
     jobs, records = [], {}
@@ -802,8 +818,9 @@ def _plan_parts(
         flags = None if campaign_chain is None else tuple(campaign_chain[lo : lo + part_size])
         fn_from = None if fn_sources is None else tuple(fn_sources[lo : lo + part_size])
         fs_from = None if fs_sources is None else tuple(fs_sources[lo : lo + part_size])
-        fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz,
-                          (columns, time_unit), chunk_settings)  # fmt: skip
+        layout = (columns, time_unit, *(["dissipation"] if penetration_dissipation else []))
+        fp = _fingerprint(chunk, predictor.sha256, fs_hz, natural_frequency_hz, layout,
+                          chunk_settings)  # fmt: skip
         record = _finished_part(parts_dir, index, fp) if resume else None
         if record is not None:
             records[index] = record
@@ -814,6 +831,7 @@ def _plan_parts(
                             natural_frequency_hz, fp, columns, time_unit,
                             settings=chunk_settings, campaign_chain=flags,
                             fn_sources=fn_from, fs_sources=fs_from,
+                            penetration_dissipation=penetration_dissipation,
                             before=before_part))  # fmt: skip
     return jobs, records
 

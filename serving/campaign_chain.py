@@ -144,6 +144,13 @@ RESONANCE_DAMPING_FACTORS = (0.5, 0.7, 1.0, 1.4, 2.0)
 #: neighbours, in frequency then in damping: a grid, not a scalar search, because the
 #: candidates are ranked first by the recordings they read, then by their misfit.
 RESONANCE_REFINE_POINTS = 7
+#: :func:`campaign_resonance_minority` reads the campaign through at most this many of the
+#: resonances the chain fits showed behind a low-pass (their largest groups): each costs a
+#: reading of every recording, and a spurious fit (a ring read as a slow resonance beside a
+#: faster low-pass) stands alone.
+MAX_RESONANCE_CANDIDATES = 3
+#: The stages a candidate chain of :func:`campaign_resonance_minority` carries whole.
+STAGE_KEYS = ("resonance_hz", "resonance_damping", "lowpass_hz", "lowpass_order")
 #: :func:`campaign_highpass_damped` reads the free flight at a trial corner at most this many
 #: times: the first step from the contact laws' corner, a second where that step moved the
 #: corner by more than :data:`FREE_FLIGHT_STEP_TOL` (the free damping's slope in the corner
@@ -410,7 +417,12 @@ def campaign_highpass(
     # behind the contacts' own dissipation the recordings' corners were profiled by the
     # Kelvin-Voigt law, which reads a Hunt-Crossley pulse best at no corner: no pooled corner
     # is no evidence there, and the grid alone is profiled
-    unpooled = pooled == HIGHPASS_FITTED and bool(chain.get("contact_dissipation"))
+    # so were they behind a chain the campaign completed with a stage their fits lacked (a
+    # mount behind the low-pass, :func:`campaign_resonance_minority`): each recording's own
+    # corner, fitted behind it, read the rig's none as 3.1 Hz and beta 28 for 75
+    unpooled = pooled == HIGHPASS_FITTED and bool(
+        chain.get("contact_dissipation") or chain.get("completed_stage")
+    )
     if not unpooled and (not isinstance(pooled, int | float) or not pooled > 0) or not todo:
         return chain
     scale = np.nanmedian([fn_hz[i] if fn_hz[i] is not None else np.nan for i in todo])
@@ -757,6 +769,103 @@ def campaign_lowpass_minority(
     return _with_lowpass(chain, base, corners, order, corner, interval, read, misfit, shown)
 
 
+def campaign_resonance_minority(
+    chain: dict[str, Any],
+    sensors: Sequence[dict | None],
+    contact_r2: Callable[..., float | None],
+    sheets: Sequence[dict | None] | None = None,
+    identify: Callable[[int], dict | None] | None = None,
+) -> dict[str, Any]:
+    """`chain` with a mounted resonance behind its pooled low-pass, where a fit showed one and
+    the campaign's contact laws read better through it.
+
+    Behind a low-pass a few contact frequencies up, a mount's ring reaches the record only on
+    the stiffest contacts, whose pulses have a spectrum there: on the rig's campaign behind a
+    280 Hz mount and a 120 Hz 4th-order low-pass, 3 of 24 chain fits showed the resonance
+    (281-287 Hz, zeta 0.028-0.034, with their low-pass at 120.7-121.8 Hz), the others a
+    low-pass alone at 111-134 Hz, and the gate fitted none of the three. The pool counts a
+    stage only where half the chains show it, so the campaign was read through a 126.7 Hz
+    low-pass alone: its laws explained 0.83-0.99 of the contact force and beta read 5.4 for
+    27, 24.4 for 84; through the truth 0.98-1.0 and every class but one on an edge right.
+    A resonance fitted jointly with a low-pass moves its corner (126.7 -> 120.7 Hz here, and
+    the resonance undone with the pooled corner read 16.6 for 55), so a candidate is a fit's
+    whole chain: its resonance and its low-pass.
+
+    The rule. Where the pool holds a low-pass and no resonance, the recordings the gate spared
+    are fitted regardless of it (`identify`, at most :data:`MAX_FITTED_REGARDLESS`, spread
+    over the campaign); the chains that show a resonance and a low-pass are grouped by
+    resonance (within :data:`FIT_SCATTER`), each group's median chain a candidate (the
+    :data:`MAX_RESONANCE_CANDIDATES` largest groups). The pool as it stands and each candidate
+    are read on every recording without its own data sheet (`contact_r2` with refusals as
+    force unexplained), ranked by the median log-misfit of :func:`campaign_highpass`, and a
+    candidate replaces the pooled low-pass only where it reads the laws better than the pool.
+    ``stages["resonance_hz"]`` reports the fits that showed one and the misfits either way;
+    ``completed_stage`` marks a kept one (the recordings' own high-pass corners were fitted
+    behind chains without it: :func:`campaign_highpass` then profiles the campaign's corner).
+    """
+    sheets = list(sheets) if sheets is not None else [None] * len(sensors)
+    base = chain.get("sensor") if chain.get("pooled") else None
+    todo = [i for i, own in enumerate(sheets) if own is None]
+    if not base or not base.get("lowpass_hz") or base.get("resonance_hz") or not todo:
+        return chain
+    sensors = list(sensors)
+    spared = [i for i in todo if (sensors[i] or {}).get("source") != "fitted"]
+    for i in spread_subset(spared, MAX_FITTED_REGARDLESS) if identify is not None else []:
+        sensors[i] = identify(i)
+    fits = [s for i, s in enumerate(sensors) if i in todo and identified(s)
+            and s.get("resonance_hz") and s.get("lowpass_hz")]  # fmt: skip
+    if not fits:
+        return chain
+    plain = {k: v for k, v in base.items() if k not in LOWPASS_ENDS}
+    candidates = [{**plain, **{k: float(s[k]) for k in STAGE_KEYS}}
+                  for s in _resonance_groups(fits)]  # fmt: skip
+    subset = profiled_subset(todo, len(candidates) + 1)
+    table = np.array([[contact_r2(i, sheet, True) or 0.0 for i in subset]
+                      for sheet in [base, *candidates]])  # fmt: skip
+    misfit = np.maximum(1.0 - table, np.finfo(float).eps)
+    say = misfit.min(axis=0) < 1.0
+    if not say.any():
+        return chain
+    medians = np.median(np.log(misfit / misfit.min(axis=0))[:, say], axis=1)
+    best = int(np.argmin(medians))
+    shown = sorted(float(s["resonance_hz"]) for s in fits)
+    stage = {"fitted": shown, "candidates": [c["resonance_hz"] for c in candidates],
+             "median_log_misfit": [float(m) for m in medians], "profiled_on": int(say.sum()),
+             "kept": bool(best)}  # fmt: skip
+    out = {**chain, "stages": {**chain.get("stages", {}), "resonance_hz": stage}}
+    words = f"a resonance behind the low-pass shown by {len(fits)} chain fit(s) ({shown[0]:.0f}"
+    words += f"-{shown[-1]:.0f} Hz)" if len(shown) > 1 else " Hz)"
+    if not best:
+        out["reason"] = (f"{chain['reason']}; {words} not kept: the campaign's contact laws read"
+                         f" as well without it (median log-misfit {medians[0]:.2f}; "
+                         f"{medians[1:].min():.2f} through it)")  # fmt: skip
+        return out
+    sheet = candidates[best - 1]
+    stage.update(value=sheet["resonance_hz"], damping=sheet["resonance_damping"])
+    out.update(sensor=sheet, completed_stage="resonance_hz")
+    out["reason"] = (f"{chain['reason']}; {words} kept: {sheet['resonance_hz']:.1f} Hz zeta "
+                     f"{sheet['resonance_damping']:.3f} with its low-pass "
+                     f"{sheet['lowpass_hz']:.1f} Hz order {sheet['lowpass_order']:.0f} "
+                     f"(median log-misfit of the campaign's contact laws {medians[best]:.2f}; "
+                     f"{medians[0]:.2f} through the pool)")  # fmt: skip
+    return out
+
+
+def _resonance_groups(fits: Sequence[dict]) -> list[dict]:
+    """Rule: `fits` grouped by resonance (a step over :data:`FIT_SCATTER` between neighbours
+    starts a group), each group's median member by resonance, the largest
+    :data:`MAX_RESONANCE_CANDIDATES` groups (the lower resonance first on a tie)."""
+    ranked = sorted(fits, key=lambda s: float(s["resonance_hz"]))
+    groups: list[list[dict]] = [[ranked[0]]]
+    for s in ranked[1:]:
+        ratio = float(s["resonance_hz"]) / float(groups[-1][-1]["resonance_hz"])
+        if np.log(ratio) > np.log1p(FIT_SCATTER):
+            groups.append([])
+        groups[-1].append(s)
+    groups.sort(key=len, reverse=True)
+    return [g[(len(g) - 1) // 2] for g in groups[:MAX_RESONANCE_CANDIDATES]]
+
+
 def campaign_dissipation(
     chain: dict[str, Any],
     sensors: Sequence[dict | None],
@@ -863,13 +972,17 @@ def profiled_campaign_chain(
     rig_damping: Sequence[float | None],
     sheets: Sequence[dict | None] | None = None,
     dissipation: tuple[Callable[..., float | None], ...] | None = None,
+    identify: Callable[[int], dict | None] | None = None,
 ) -> dict[str, Any]:
     """The campaign's pooled decision (:func:`identify_regardless`) with its stages profiled
     over the campaign's contact laws, in their order: the low-pass the fits disagree on
-    (:func:`campaign_lowpass`), the high-pass corner (:func:`campaign_highpass`), a resonance
-    near the contacts that refuses a recording (:func:`campaign_resonance`), a low-pass fewer
-    than half the chains show (:func:`campaign_lowpass_minority`), last the corner from the
-    free flight where the rows give the rig's damping (:func:`campaign_highpass_damped`).
+    (:func:`campaign_lowpass`), a resonance behind the pooled low-pass that a minority of the
+    fits show (:func:`campaign_resonance_minority`, `identify` fitting the chain regardless of
+    the gate on the recordings it spared; None fits none), the high-pass corner
+    (:func:`campaign_highpass`), a resonance near the contacts that refuses a recording
+    (:func:`campaign_resonance`), a low-pass fewer than half the chains show
+    (:func:`campaign_lowpass_minority`), last the corner from the free flight where the rows
+    give the rig's damping (:func:`campaign_highpass_damped`).
 
     `contact_r2` is recording index, data sheet and ``refused_as_unexplained`` to the contact
     law's R² (:func:`contact_r2_through`); `free_damping` recording index and sheet to the
@@ -892,6 +1005,8 @@ def profiled_campaign_chain(
         chain = campaign_lowpass(chain, sensors, contact_r2, sheets)
     if not chain["pooled"]:
         return chain
+    if not chain.get("contact_dissipation"):
+        chain = campaign_resonance_minority(chain, sensors, contact_r2, sheets, identify)
     fns = fn_hz()
     chain = campaign_highpass(chain, contact_r2, fns, sheets)
     chain = campaign_resonance(chain, lambda i, sheet: contact_r2(i, sheet, True), fns, sheets)

@@ -793,6 +793,7 @@ def predict_recording(
     natural_frequency_source: str | None = None,
     campaign_row: tuple[Path, Any] | None = None,
     find_row: bool = True,
+    penetration_dissipation: bool | None = None,
 ) -> dict[str, Any]:
     """Read a recording file and predict it.
 
@@ -828,6 +829,10 @@ def predict_recording(
     campaign_row, find_row
         The recording's campaign row already read (``predict``), and whether to look for
         one (:func:`stiffnet.recordings.sidecar.natural_frequency_of`).
+    penetration_dissipation : bool, optional
+        Read the restoring-force check's beta with a free ``delta v`` dissipation (a
+        campaign whose pooled low-pass was its contacts' dissipation,
+        :meth:`Predictor.predict`); None: as the model's learned law asks.
 
     Returns
     -------
@@ -852,4 +857,5 @@ def predict_recording(
         natural_frequency_source=fn_source,
         sensor=sensor if sensor is not None else sidecar_sensor(path),
         sensor_fitted=sensor_fitted and sensor is not None,
+        penetration_dissipation=penetration_dissipation,
     )

@@ -204,7 +204,7 @@ def campaign_predictions(
 
     dampings = [row.damping_ratio for row in rows]  # the rig's, where the manifest gives it
     chain = profiled_campaign_chain(chain, sensors, contact_r2, free_damping, lambda: fns,
-                                    dampings, sheets, dissipation)  # fmt: skip
+                                    dampings, sheets, dissipation, identify)  # fmt: skip
     if not chain["pooled"]:
         return [labelled(r, False) for r in first], chain
     # a campaign whose low-pass was its contacts' dissipation is read with it free
