@@ -77,8 +77,10 @@ from stiffnet.io_utils import (
 )
 from stiffnet.uncertainty.campaign_law import (
     CAMPAIGN_LAW,
+    CONTACT_UNEXPLAINED,
     campaign_law_decision,
     contact_law_fired,
+    contact_unexplained,
     law_checks_fired,
 )
 
@@ -211,6 +213,7 @@ def result_schema(class_names: list[str]) -> pa.Schema:
             ("ood_flag", pa.bool_()),
             ("alarm_fired", pa.string()),
             ("contact_law_judged", pa.bool_()),
+            ("contact_unexplained", pa.bool_()),
             ("n_windows", pa.int64()),
             ("fs_hz", pa.float64()),
             ("natural_frequency_hz", pa.float64()),
@@ -263,6 +266,9 @@ def result_row(
             "contact_law_judged": contact_law_fired(
                 result.get("alarm"), restoring_force=result.get("restoring_force")
             )[0],
+            # the cross-check refused: no law it fits explains the contact force (counted
+            # by the campaign's law, as the alarm's law checks are)
+            "contact_unexplained": contact_unexplained(result.get("restoring_force")),
             "n_windows": result.get("n_windows"),
             "fs_hz": result.get("fs_hz"),
             "natural_frequency_hz": result.get("natural_frequency_hz"),
@@ -672,9 +678,17 @@ def _campaign_law(table: pa.Table) -> tuple[pa.Table, dict[str, Any]]:
     fired = table.column("alarm_fired").to_pylist()
     # a row whose law was not read (its contact_law reading through a chain its map could
     # not undo, contact_law_judged) has no say in which checks fired either
+    # a table resumed from parts written before the column holds no such reading
+    unexplained = (
+        table.column("contact_unexplained").to_pylist()
+        if "contact_unexplained" in table.column_names
+        else [False] * table.num_rows
+    )
     seen = [
-        law_checks_fired((f or "").split(",")) if j else []
-        for f, j in zip(fired, judged, strict=True)
+        [*law_checks_fired((f or "").split(",")), *([CONTACT_UNEXPLAINED] if u else [])]
+        if j
+        else []
+        for f, j, u in zip(fired, judged, unexplained, strict=True)
     ]
     decision = campaign_law_decision(judged, [bool(s) for s in seen], seen=seen)
     if not decision["flag"]:

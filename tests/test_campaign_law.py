@@ -15,6 +15,7 @@ from stiffnet.uncertainty.campaign_law import (
     campaign_law_thresholds,
     chain_left_on_map,
     contact_law_fired,
+    contact_unexplained,
     law_checks_fired,
     with_campaign_law,
 )
@@ -110,7 +111,7 @@ def test_contacts_outlasting_their_law_count_as_a_law_read_outside_the_world():
     assert (decision["n_judged"], decision["n_fired"]) == (24, 12)
     assert decision["flag"] and decision["p_value"] == pytest.approx(stats.binom.sf(11, 24, 0.1))
     assert decision["by_check"] == {"contact_law": 3, "restraint_dynamics": 0,
-                                    "contact_duration": 9}  # fmt: skip
+                                    "contact_duration": 9, "contact_unexplained": 0}  # fmt: skip
     assert "twice the half period" in decision["message"] and "on 9" in decision["message"]
     assert all(r["ood_flag"] and r["alarm"]["fired"][-1] == CAMPAIGN_LAW for r in flagged)
     assert contact_law_fired(results[0]["alarm"], t) == (True, True)
@@ -161,7 +162,8 @@ def test_a_law_read_through_a_chain_the_map_could_not_undo_is_no_reading():
         True,
     )
     _, mixed = campaign_law_alarms([both] + [_through([], None, None)] * 3)
-    assert mixed["by_check"] == {"contact_law": 0, "restraint_dynamics": 0, "contact_duration": 1}
+    assert mixed["by_check"] == {"contact_law": 0, "restraint_dynamics": 0,
+                                 "contact_duration": 1, "contact_unexplained": 0}  # fmt: skip
     alone = results[0]
     assert contact_law_fired(alone["alarm"], restoring_force=alone["restoring_force"]) == (
         False,
@@ -204,7 +206,8 @@ def test_the_shipped_level_flags_what_the_in_world_campaigns_never_reach():
 
 def test_the_counted_checks_are_known_ones():
     assert campaign_law_thresholds().law_checks == ["contact_law", "restraint_dynamics",
-                                                    "contact_duration"]  # fmt: skip
+                                                    "contact_duration",
+                                                    "contact_unexplained"]  # fmt: skip
     with pytest.raises(ValidationError, match="unknown checks"):
         CampaignLawThresholds(law_checks=["contact_law", "embedding"])
     narrow = CampaignLawThresholds(law_checks=["contact_law"])
@@ -292,3 +295,60 @@ def test_evaluate_flags_a_campaign_whose_rig_has_a_power_law(tmp_path):
     assert summary["campaign_law"] == law
     rows = pq.read_table(tmp_path / "out.parquet").to_pylist()
     assert all(r["ood_flag"] and CAMPAIGN_LAW in r["alarm_fired"] for r in rows)
+
+
+def _refused_unexplained(r2: float = 0.08) -> dict:
+    """A result whose restoring-force map was refused: its contact law explains `r2`."""
+    reason = f"the contact law explains {r2:.0%} of the contact force (< 50 %): no meaningful fit"
+    return {"class": "medium", "ood_flag": False,
+            "alarm": {"flag": False, "fired": [], "scores": {"embedding": 1.0},
+                      "thresholds": {"embedding": 3.0}},
+            "restoring_force": {"beta": None, "class": None, "beta_interval": None,
+                                "contact_r2": r2, "reason": reason}}  # fmt: skip
+
+
+def test_a_contact_no_law_explains_is_a_reading_not_an_agreement():
+    """A map refused because its contact law explains too little counts as read and fired
+    (contact_unexplained); a closely read map, a refusal for the sensor's band or one
+    without a fit do not."""
+    assert contact_unexplained(_refused_unexplained()["restoring_force"])
+    assert contact_law_fired(None, restoring_force=_refused_unexplained()["restoring_force"]) \
+        == (True, True)  # fmt: skip
+    read = {"beta": 40.0, "contact_r2": 0.3, "reason": "ok"}
+    sensor = {"beta": None, "contact_r2": 0.2,
+              "reason": "beta is not identifiable from this sensor: its low-pass ..."}  # fmt: skip
+    duration = {"beta": None, "contact_r2": 0.99, "reason": "the contacts last 2.3x ..."}
+    for rf in (read, sensor, duration, {"beta": None, "reason": "no contact"}, None):
+        assert not contact_unexplained(rf)
+
+
+def test_a_campaign_whose_contacts_no_law_explains_is_flagged_and_says_so():
+    """A restraint with its own mass behind a high-pass: the cross-check refused every map
+    (the law explains 3-12 %) and no alarm check fired. The campaign is flagged on all of
+    them, and the message says nothing physical verifies the model there; a campaign with
+    one such refusal is not."""
+    quiet = dict(_refused_unexplained(), restoring_force={"beta": 40.0, "contact_r2": 0.99})
+    results, decision = campaign_law_alarms([_refused_unexplained()] * 24)
+    assert decision["flag"] and (decision["n_judged"], decision["n_fired"]) == (24, 24)
+    assert decision["by_check"]["contact_unexplained"] == 24
+    assert "no physical reading verifies" in decision["message"]
+    assert all(CAMPAIGN_LAW in r["alarm"]["fired"] and r["ood_flag"] for r in results)
+    _, decision = campaign_law_alarms([_refused_unexplained()] + [quiet] * 23)
+    assert not decision["flag"]
+
+
+def test_predict_batch_counts_contacts_no_law_explains():
+    """predict-batch's row records contact_unexplained; the campaign counts it as fired."""
+    from serving.batch_prediction import _campaign_law
+
+    table = pa.table({
+        "path": [f"r{i}" for i in range(24)],
+        "ood_flag": [False] * 24,
+        "alarm_fired": pa.array([None] * 24, pa.string()),
+        "contact_law_judged": [True] * 10 + [False] * 14,
+        "contact_unexplained": [True] * 10 + [False] * 14,
+        "error": [None] * 24,
+    })  # fmt: skip
+    out, decision = _campaign_law(table)
+    assert decision["flag"] and decision["by_check"]["contact_unexplained"] == 10
+    assert all(CAMPAIGN_LAW in f for f in out.column("alarm_fired").to_pylist())

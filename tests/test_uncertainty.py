@@ -560,3 +560,55 @@ def test_a_hertz_reading_through_a_ringing_low_pass_is_no_reference_penetration(
     assert reference_penetration_span(rf, HERTZ_WORLD, counted) is not None
     quiet = {**rf, "law_shape": {"toe_least_side": -0.5}}  # an unseen law's side: read
     assert reference_penetration_span(quiet, HERTZ_WORLD) is not None
+
+
+def _power_result(cls, interval, rf_interval, exponent, scale):
+    """A result on the rig's power law (n 1.6, beta the secant at 0.4 mm): the model's class
+    and interval, the cross-check's band, exponent and median peak depth over the table."""
+    rf = {"beta": float(np.sqrt(rf_interval[0] * rf_interval[1])), "beta_interval": rf_interval,
+          "exponent": exponent, "contact_r2": 0.998, "penetration_over_table": scale}  # fmt: skip
+    return {"class": cls, "beta_interval": interval, "ood_flag": False,
+            "alarm": {"flag": False, "fired": [], "scores": {}, "thresholds": {}},
+            "restoring_force": rf}  # fmt: skip
+
+
+def test_a_stiffening_contact_is_judged_over_the_depths_its_campaign_reaches():
+    """The rig's power law behind a 250 Hz low-pass (s43, shipped CNN): beta 50 read 92.3
+    very_hard [74.7, 113.9], the cross-check 103 (exponent 1.52, band [81.9, 157]) at a depth
+    of 0.593 x a = 1.90, 1.13 model lengths: wrong and silent, the training world's references
+    leaving 0.29 of their span outside very_hard. The campaign's impacts reach 0.094 (beta 34,
+    a = 1.00) to 1.26 model lengths (beta 25, a = 1.90): over those references the record
+    allows 22.3-167, and the answer's interval spanning them lies 0.49 outside its class: the
+    check fires and 50 is inside. A right very_hard answer (beta 84, read 92.3 [63.3, 119],
+    the cross-check 126 at 0.34 x 1.90) is widened (its span leaves the class) but not
+    flagged (0.16 outside)."""
+    from stiffnet.uncertainty.reference_penetration import (
+        CAMPAIGN_REFERENCE,
+        campaign_reference_decision,
+    )
+
+    model = {"class_names": NAMES, "class_edges": EDGES}
+    results = [
+        _power_result("very_hard", [74.7, 113.9], [81.9, 157.3], 1.523, 0.5931),
+        _power_result("hard", [7.8, 364.9], [11.35, 23.35], 1.589, 0.0937),
+        _power_result("hard", [10.6, 345.4], [42.06, 81.57], 1.532, 0.6635),
+        _power_result("very_hard", [63.3, 118.7], [104.2, 179.4], 1.422, 0.34),
+    ]
+    amplitudes = [1.899, 1.001, 1.899, 1.899]
+    out, decision = campaign_reference_decision(results, amplitudes, model)
+    assert decision["references"] == pytest.approx([0.0938, 1.260], rel=1e-2)
+    silent, right = out[0], out[3]
+    assert CAMPAIGN_REFERENCE in silent["alarm"]["fired"] and silent["ood_flag"]
+    assert decision["shares"][0] == pytest.approx(0.49, abs=0.02)
+    assert silent["beta_interval"][0] < 50.0 < silent["beta_interval"][1]
+    assert "reference penetrations this campaign's impacts reach" in silent["warnings"][-1]
+    assert not right["alarm"]["flag"] and decision["shares"][3] < 0.35
+    assert right["beta_interval"][0] < 60.0 and results[3]["beta_interval"] == [63.3, 118.7]
+    # no forcing amplitudes, a linear law, or one depth read: no references, nothing judged
+    for amps, res in (([None] * 4, results),
+                      (amplitudes, [{**r, "restoring_force": {**r["restoring_force"],
+                                                               "exponent": 1.02}}
+                                    for r in results]),
+                      (amplitudes[:1], results[:1])):  # fmt: skip
+        same, d = campaign_reference_decision(res, amps, model)
+        assert d["references"] is None and same == res

@@ -49,6 +49,7 @@ from stiffnet.measurement.nuisance import predicted
 from stiffnet.measurement.simulated_beta import SimulatedBetaConfig
 from stiffnet.measurement.simulation_reading import with_simulation
 from stiffnet.uncertainty.campaign_law import campaign_law_alarms
+from stiffnet.uncertainty.reference_penetration import campaign_reference_decision
 
 N_WORST = 5
 
@@ -102,6 +103,7 @@ def evaluate_campaign(
         (:mod:`stiffnet.measurement.simulation_reading`).
     """
     from serving.predictor import Predictor
+    from serving.verdict import model_facts
 
     if require_beta and all(r.beta is None for r in campaign.rows):
         raise StiffnetError(
@@ -116,6 +118,10 @@ def evaluate_campaign(
         contact = simulated_contact(campaign.rows, dynamics)
     results, chain = campaign_predictions(campaign, model_path)
     results, law = campaign_law_alarms(results)
+    # one rig, one convention for a stiffening law's beta: judged over the campaign's depths
+    results, reference = campaign_reference_decision(
+        results, [row.amplitude for row in campaign.rows], model_facts(predictor)
+    )
     rows = [_evaluated_row(row, res, None if contact is None else contact[i])
             for i, (row, res) in enumerate(zip(campaign.rows, results, strict=True))]  # fmt: skip
     worst = sorted(rows, key=lambda r: -r["error"])[:N_WORST]
@@ -124,6 +130,7 @@ def evaluate_campaign(
         "model": {"name": predictor.name, "sha256": predictor.sha256, "kind": predictor.kind},
         "sensor": chain,
         "campaign_law": law,
+        "campaign_reference": reference,
         "recordings": rows,
         "metrics": {
             "learned": {**method_metrics(rows, "class", "beta_estimate"), **alarm_metrics(rows)},

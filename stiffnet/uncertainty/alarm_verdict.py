@@ -66,6 +66,10 @@ ALARM_WORDS = {
     "contact): its beta is the secant stiffness at a reference penetration the record does not "
     "carry, and over the reference penetrations the training world allows most of the betas "
     "lie in other classes (the class is not determined by the record; the interval spans them)",
+    "campaign_reference": "the contact stiffens (a power law): its beta is the secant at a "
+    "reference penetration the lab chose and the record does not carry, and over the "
+    "penetrations this campaign's impacts reach most of the betas lie in other classes (the "
+    "class depends on that choice; give the reference penetration; the interval spans them)",
     "sensor_fit": "the impacts fit a sensor low-pass far below the chains the model was trained "
     "on (the restoring-force map did not undo it, yet it reshapes what the model reads)",
     "chain_refusal": "the restoring-force cross-check refused because the sensor's low-pass "
@@ -84,9 +88,10 @@ ALARM_WORDS = {
     "the restraint rings during the contact (a beam's tip, a stop on a flexible mount), which "
     "the training data lack, and the model reads the contact in series with the restraint's "
     "compliance (a softer class than the contact's)",
-    "campaign_law": "the campaign's recordings read a contact law the training data lack more "
-    "often than any law of the training world does: the rig is outside the model's world, "
-    "this recording included",
+    "campaign_law": "the campaign's recordings read a contact law the training data lack (or a "
+    "contact force no law the restoring-force cross-check fits explains) more often than any "
+    "law of the training world does: the rig is outside the model's world, this recording "
+    "included",
 }
 
 #: The class_beta check fires when the beta interval misses the class's range: its score is

@@ -44,6 +44,18 @@ them; without them 5 of 13, p 6.5e-3); no firing map of an unseen-law set is suc
 (the rig's two-stage law behind a mount fires through its undone chain). Behind the
 priors' chains the rules still fire above the in-world rate (docs/crosscheck.md).
 
+A map the cross-check refused because no law it fits explains the contact force (below
+:data:`~stiffnet.restoring_force.estimate.MIN_CONTACT_R2`, :func:`contact_unexplained`)
+counts as read and fired too (``contact_unexplained``): a refusal is no agreement, and where
+the contact force follows no law the cross-check can fit, nothing physical checks the
+model's answer. A restraint with its own mass behind a high-pass (a heavy face at 6-15 f_n)
+is refused so on most recordings ("the contact law explains 3-12 %"): the model read beta
+23-28 for 35-88 there, 8 of 24 wrong, with no alarm, because a count over the maps the
+contact-law check judged had no map to count. None of the rig's ideal, mounted or
+damped-contact campaigns has such a refusal (0 of 72 recordings). A refusal for the
+sensor's band (:data:`~stiffnet.uncertainty.alarm_verdict.SENSOR_REFUSAL_WORDS`) is the
+``chain_refusal`` check's and does not count.
+
 Numpy/scipy only: the predictor's campaign commands (``evaluate``, ``predict-batch``)
 import it.
 """
@@ -57,7 +69,8 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from scipy import stats
 
-from stiffnet.uncertainty.alarm_verdict import alarm_message
+from stiffnet.restoring_force.estimate import MIN_CONTACT_R2
+from stiffnet.uncertainty.alarm_verdict import SENSOR_REFUSAL_WORDS, alarm_message
 
 #: The check's name in an alarm's ``fired`` list.
 CAMPAIGN_LAW = "campaign_law"
@@ -67,12 +80,19 @@ CAMPAIGN_LAW = "campaign_law"
 #: judges, and contacts that last over twice the half period of the law they fit
 #: (``contact_duration``, :func:`stiffnet.uncertainty.alarm_verdict.contact_duration_excess`),
 #: which reads a map the cross-check refused for it.
-LAW_CHECKS = ("contact_law", "restraint_dynamics", "contact_duration")
+#: ``contact_unexplained``: the cross-check refused the map because no law it fits explains
+#: the contact force (:func:`contact_unexplained`); no alarm check of its own, the campaign
+#: reads it from the recording's cross-check.
+LAW_CHECKS = ("contact_law", "restraint_dynamics", "contact_duration", "contact_unexplained")
+#: The counted reading that is not an alarm check.
+CONTACT_UNEXPLAINED = "contact_unexplained"
 #: What each check of :data:`LAW_CHECKS` saw, for the campaign's message.
 LAW_CHECK_WORDS = {
     "contact_law": "a contact law the training world lacks",
     "restraint_dynamics": "a restraint that rings within its contacts",
     "contact_duration": "contacts outlasting twice the half period of the law they fit",
+    "contact_unexplained": "a contact force no law the restoring-force cross-check fits "
+    "explains (it refused: the model's answer is checked by nothing physical)",
 }
 THRESHOLDS_CONFIG = "alarm/campaign_law.yaml"
 
@@ -120,6 +140,20 @@ def chain_left_on_map(restoring_force: dict[str, Any] | None) -> bool:
     return rf.get("resonance_hz") is not None and not (rf.get("sensor") or {}).get("applied")
 
 
+def contact_unexplained(restoring_force: dict[str, Any] | None) -> bool:
+    """Rule: the restoring-force cross-check refused the map because the contact law it fits
+    explains less than :data:`~stiffnet.restoring_force.estimate.MIN_CONTACT_R2` of the
+    contact force (no beta, ``contact_r2`` below the floor), not for the sensor's band
+    (:data:`~stiffnet.uncertainty.alarm_verdict.SENSOR_REFUSAL_WORDS`, the
+    ``chain_refusal`` check's). Such a refusal says the contact follows no law the
+    cross-check knows: it leaves the model's answer unverified, not confirmed."""
+    rf = restoring_force or {}
+    r2 = rf.get("contact_r2")
+    if rf.get("beta") is not None or r2 is None or not r2 < MIN_CONTACT_R2:
+        return False
+    return SENSOR_REFUSAL_WORDS not in str(rf.get("reason") or "")
+
+
 def contact_law_fired(
     alarm: dict[str, Any] | None,
     thresholds: CampaignLawThresholds | None = None,
@@ -128,7 +162,8 @@ def contact_law_fired(
     """Whether a recording's law was read and whether a check of the counted
     :attr:`CampaignLawThresholds.law_checks` fired: read where the ``contact_law`` check
     judged its map, or where a counted check fired on a map it could not judge (the
-    cross-check refused contacts that outlast their law). The ``contact_law`` check's own
+    cross-check refused contacts that outlast their law, or a contact force no law it fits
+    explains: :func:`contact_unexplained`). The ``contact_law`` check's own
     reading does not count on a map read through a chain it could not undo
     (:func:`chain_left_on_map` of the recording's `restoring_force`), unless
     :attr:`CampaignLawThresholds.count_chain_left_on_map`."""
@@ -145,6 +180,8 @@ def _law_read(
     own = "contact_law" in (alarm.get("scores") or {})
     if own and not t.count_chain_left_on_map and chain_left_on_map(restoring_force):
         own, fired = False, [name for name in fired if name != "contact_law"]
+    if CONTACT_UNEXPLAINED in t.law_checks and contact_unexplained(restoring_force):
+        fired = [*fired, CONTACT_UNEXPLAINED]
     return own or bool(fired), fired
 
 
@@ -197,6 +234,11 @@ def campaign_law_decision(
             f"p = {p:.1e}): the campaign's rig is outside the model's world, every recording "
             "included"
         )
+        if by_check.get(CONTACT_UNEXPLAINED):
+            message += (
+                "; where the cross-check refused, no physical reading verifies the model's "
+                "beta or class: they are its guess on a contact it was not trained for"
+            )
     else:
         message = count
     return {"flag": flag, "n_judged": n, "n_fired": m, "p_value": p,

@@ -34,8 +34,19 @@ so it says nothing of a reference penetration and the check does not apply (the 
 lies outside the model's class (:attr:`ReferencePenetrationSettings.outside_share_min`, the
 majority ``class_contested`` and ``face_identifiability`` use, not a fitted level) the class is not
 determined by the record: the check fires and the flagged answer's interval spans the span
-(:func:`serving.verdict.widened_interval`). pydantic and the standard library only: the
-predictor imports it.
+(:func:`serving.verdict.widened_interval`).
+
+A campaign (:func:`campaign_reference_decision`, in ``evaluate``, where the manifest gives the
+forcing amplitudes) has one rig and one convention, chosen by a lab among the depths its
+impacts reach, not the training world's: each read power law's betas over the references from
+the campaign's shallowest to its deepest median peak penetration widen the answer's interval
+where they leave its class, and that interval is judged as ``class_unverified`` judges an
+answer no reading confirms (``campaign_reference``). On the rig's power law (n 1.6, beta the
+secant at 0.4 mm) behind a 250 Hz low-pass the training world's references left three answers
+wrong and silent (beta 44-50 read 75-92 very_hard, 0.27-0.33 of their span outside it): the
+campaign's impacts reach 0.094-1.26 model lengths, the rig's 0.4 mm lies at 0.28, and over
+that range 0.43-0.56 of each interval lies outside very_hard. pydantic and the standard
+library only: the predictor imports it.
 """
 
 from __future__ import annotations
@@ -173,3 +184,142 @@ def with_reference_penetration_check(
     share = reference_penetration_share(class_name, restoring_force, priors, class_names, edges)
     threshold = reference_penetration_settings().outside_share_min
     return with_rule_check(alarm, REFERENCE_PENETRATION, share, threshold)
+
+
+#: The campaign check's name in an alarm's ``fired`` list.
+CAMPAIGN_REFERENCE = "campaign_reference"
+
+
+def read_penetration(
+    restoring_force: dict[str, Any] | None,
+    amplitude: float | None,
+    thresholds: UnseenLawThresholds | None = None,
+) -> float | None:
+    """The impacts' median peak penetration in model lengths (the check's
+    ``penetration_over_table`` times the forcing amplitude `amplitude`, model lengths) where the
+    cross-check reads a clearly nonlinear power law (the rule of
+    :func:`reference_penetration_span`); None elsewhere or without the amplitude."""
+    rf = restoring_force or {}
+    scale = rf.get("penetration_over_table")
+    if not amplitude or not amplitude > 0 or not scale or not scale > 0 or not rf.get("beta"):
+        return None
+    t = thresholds or unseen_law_thresholds()
+    reading = exponent_reading(rf, t)
+    p_min = nonlinear_exponent_min(t.training_exponent_bands)
+    if p_min is None or reading is None or reading[0] < p_min:
+        return None
+    return float(scale) * float(amplitude)
+
+
+def campaign_reference_span(
+    restoring_force: dict[str, Any] | None,
+    penetration: float | None,
+    references: tuple[float, float],
+    thresholds: UnseenLawThresholds | None = None,
+) -> list[float] | None:
+    """The betas one recording allows over a campaign's reference penetrations
+    `references` (model lengths): the cross-check's interval times
+    ``(delta_ref / delta_rec)^(p - 1)`` at both ends, `penetration` its own ``delta_rec``
+    (:func:`read_penetration`); None where that is None."""
+    rf = restoring_force or {}
+    interval = rf.get("beta_interval")
+    reading = exponent_reading(rf, thresholds or unseen_law_thresholds())
+    if penetration is None or not interval or reading is None:
+        return None
+    lo, hi = (float(v) for v in interval)
+    if not 0 < lo <= hi:
+        return None
+    p = reading[0]
+    return [lo * (references[0] / penetration) ** (p - 1.0),
+            hi * (references[1] / penetration) ** (p - 1.0)]  # fmt: skip
+
+
+def campaign_reference_decision(
+    results: list[dict[str, Any]],
+    amplitudes: list[float | None],
+    model: dict[str, Any],
+) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """Rule: a campaign's stiffening contact, judged over the penetrations its own impacts reach.
+
+    A campaign has one rig and one convention for a stiffening law's beta: the secant at a
+    reference penetration the lab chose, which no record carries. A lab picks it among the
+    penetrations its impacts reach, so over the campaign's read power laws the references run
+    from the shallowest to the deepest median peak penetration (:func:`read_penetration`, in
+    model lengths from the manifest's forcing amplitudes). Each such recording's betas over
+    that range (:func:`campaign_reference_span`) are part of its answer's uncertainty: where
+    they leave the model's class, the interval is widened to span them (said in a warning).
+    The cross-check's close reading confirms no class there (its beta is the secant at the
+    record's own depth, one convention among them), so the widened interval is judged as
+    the ``class_unverified`` check judges an answer no reading confirms: where more than
+    :attr:`~stiffnet.uncertainty.unverified_class.UnverifiedClassSettings.outside_share_min`
+    of it (in log beta) lies outside the class, ``campaign_reference`` fires.
+
+    Parameters
+    ----------
+    results : list of dict
+        The predictor's results (``class``, ``beta_interval``, ``alarm``, ``restoring_force``).
+    amplitudes : list of float or None
+        Per result, the forcing amplitude in model lengths (the manifest's), None unknown.
+    model : dict
+        :func:`serving.verdict.model_facts`: ``class_names``, ``class_edges``.
+
+    Returns
+    -------
+    results : list of dict
+        Copies where the interval was widened (and ``alarm``, ``ood_flag`` set where the check
+        fired), else the results themselves.
+    decision : dict
+        ``references`` (model lengths, None with fewer than two read), ``n_read``,
+        ``n_widened``, ``n_fired`` and ``shares`` (per result: the widened interval's share
+        outside the class, None where not judged).
+    """
+    from stiffnet.uncertainty.unverified_class import unverified_class_settings
+
+    t = unseen_law_thresholds()
+    depths = [read_penetration(r.get("restoring_force"), a, t)
+              for r, a in zip(results, amplitudes, strict=True)]  # fmt: skip
+    read = [d for d in depths if d is not None]
+    decision: dict[str, Any] = {"references": None, "n_read": len(read), "n_widened": 0,
+                                "n_fired": 0, "shares": [None] * len(results)}  # fmt: skip
+    if len(read) < 2 or not max(read) > min(read):
+        return results, decision
+    refs = (min(read), max(read))
+    decision["references"] = list(refs)
+    names, low, high = class_ranges(model["class_names"], model.get("class_edges"))
+    threshold = unverified_class_settings().outside_share_min
+    out = []
+    for i, (r, depth) in enumerate(zip(results, depths, strict=True)):
+        span = campaign_reference_span(r.get("restoring_force"), depth, refs, t)
+        interval = r.get("beta_interval")
+        if span is None or not interval or r.get("class") not in names:
+            out.append(r)
+            continue
+        k = names.index(r["class"])
+        wide = [min(float(interval[0]), span[0]), max(float(interval[1]), span[1])]
+        if not 0 < wide[0] < wide[1] or share_outside(*span, low[k], high[k]) == 0.0:
+            out.append(r)
+            continue
+        share = share_outside(*wide, low[k], high[k])
+        decision["shares"][i] = share
+        alarm = with_rule_check(r.get("alarm"), CAMPAIGN_REFERENCE, share, threshold)
+        fired = CAMPAIGN_REFERENCE in (alarm or {}).get("fired", [])
+        decision["n_widened"] += 1
+        decision["n_fired"] += fired
+        out.append(_widened(r, alarm if fired else r.get("alarm"), wide, refs))
+    return out, decision
+
+
+def _widened(
+    result: dict[str, Any], alarm: dict[str, Any] | None, wide: list[float], refs: tuple
+) -> dict[str, Any]:
+    """`result` with its interval `wide` (a warning says why) and `alarm`."""
+    lo, hi = result["beta_interval"]
+    said = (
+        f"the beta interval [{lo:.3g}, {hi:.3g}] is widened to [{wide[0]:.3g}, {wide[1]:.3g}] "
+        "to span the betas the contact law allows at the reference penetrations this "
+        f"campaign's impacts reach ({refs[0]:.3g}-{refs[1]:.3g} model lengths): beta of a "
+        "stiffening contact is a secant at a penetration the record does not carry"
+    )
+    flagged = bool((alarm or {}).get("flag"))
+    return {**result, "alarm": alarm, "ood_flag": bool(result.get("ood_flag")) or flagged,
+            "beta_interval": wide, "warnings": [*(result.get("warnings") or []), said]}  # fmt: skip
