@@ -590,3 +590,45 @@ def test_chain_discrepancy_prefers_the_campaigns_own_chain(two_effects):
     d_own = loop_mod.chain_discrepancy(campaign, _ideal(), own, 0)
     d_bent = loop_mod.chain_discrepancy(campaign, _ideal(), bent, 0)
     assert d_own < 0.5 * d_bent
+
+
+def _chain_entry(lowpass_hz: float, source: str = "diagnosis") -> dict:
+    """A diagnosed sensor chain's loop entry: a 240 Hz mount and a first-order low-pass."""
+    params = {"resonance_hz": 240.0, "resonance_damping": 0.04, "highpass_hz": 0.0,
+              "lowpass_hz": lowpass_hz, "lowpass_order": 1.0}  # fmt: skip
+    return {"name": "sensor_dynamics", "params": params, "source": source,
+            "fitted": ["resonance_hz", "resonance_damping", "lowpass_hz"]}  # fmt: skip
+
+
+def test_a_lowpass_fitted_at_the_top_of_its_search_is_none():
+    """The two-stage rig's chain refit ended at 439 Hz, its search's top 450 Hz (0.45 of the
+    campaign's lowest rate, 1 kHz): the loop's world gets no low-pass, the fit kept aside."""
+    law = {"name": "learned_contact", "params": {"knee": 0.3}, "fitted": ["knee"],
+           "source": "diagnosis"}  # fmt: skip
+    out = loop_mod.without_lowpass_at_top([_chain_entry(439.25), law], 1000.0)
+    assert out[0]["params"]["lowpass_hz"] == 0.0 and out[0]["lowpass_at_top"] == 439.25
+    assert "lowpass_hz" not in out[0]["fitted"] and out[0]["params"]["resonance_hz"] == 240.0
+    assert out[1] == law
+    # no prior around the fit's corner: the world's records are not low-passed
+    cfg = loop_mod._prior_config(_ideal(), out, 0.25)
+    assert next(e for e in cfg.effects if e.name == "sensor_dynamics").params["lowpass_hz"] == 0
+
+
+@pytest.mark.parametrize(
+    ("lowpass_hz", "fs_min", "source"),
+    [(234.0, 1000.0, "diagnosis"),  # power_lp's real 250 Hz low-pass
+     (439.25, 2000.0, "diagnosis"),  # far below a 2 kHz campaign's top (900 Hz)
+     (439.25, 1000.0, "given"),  # the user's chain
+     (0.0, 1000.0, "diagnosis")],  # none to begin with
+)  # fmt: skip
+def test_a_lowpass_inside_its_search_or_given_stays(lowpass_hz, fs_min, source):
+    entry = _chain_entry(lowpass_hz, source)
+    assert loop_mod.without_lowpass_at_top([entry], fs_min) == [entry]
+
+
+def test_the_loops_chain_settings_are_the_shipped_config():
+    shipped = load_config(loop_mod.LoopChainSettings, default_config("loop_chain.yaml"))
+    assert shipped == loop_mod.loop_chain_settings()
+    assert 0.5 < shipped.lowpass_top_fraction < 1.0
+    with pytest.raises(ValueError):
+        loop_mod.LoopChainSettings(lowpass_top_fraction=1.5)
