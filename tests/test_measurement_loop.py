@@ -632,3 +632,48 @@ def test_the_loops_chain_settings_are_the_shipped_config():
     assert 0.5 < shipped.lowpass_top_fraction < 1.0
     with pytest.raises(ValueError):
         loop_mod.LoopChainSettings(lowpass_top_fraction=1.5)
+
+
+def _evidence_per_recording() -> list[dict]:
+    """The restoring-force evidence's recordings on the two-stage rig (240 Hz ζ 0.04 mount):
+    two read the mount with intervals, one a low-pass alone, one nothing."""
+    return [
+        {"sensor": {"intervals": {"resonance_hz": [239.00, 239.68],
+                                  "resonance_damping": [0.0199, 0.0306],
+                                  "lowpass_hz": [179.2, 201.4]}}},
+        {"sensor": {"intervals": {"lowpass_hz": [168.3, 195.7]}}},
+        {"sensor": {"intervals": {"resonance_hz": [238.96, 239.33],
+                                  "resonance_damping": [0.0392, 0.0411]}}},
+        {"sensor": None},
+    ]  # fmt: skip
+
+
+def test_a_chains_prior_is_no_wider_than_the_evidence_reads_its_mount(monkeypatch):
+    diag = _two_stage_diagnosis(per_recording=_evidence_per_recording())
+    monkeypatch.setattr(loop_mod, "chain_discrepancy", _rig_discrepancy)
+    state = {"iterations": [{"effects": [], "model": ""}], "seed": 0}
+    added, _ = loop_mod._next_effects(None, state, _ideal(), (diag, []), None, False)
+    sensor = next(a for a in added if a["name"] == "sensor_dynamics")
+    # the union of the recordings' intervals, the mount only (not the low-pass they bend)
+    assert sensor["intervals"] == {"resonance_hz": [238.96, 239.68],
+                                   "resonance_damping": [0.0199, 0.0411]}  # fmt: skip
+    cfg = loop_mod._prior_config(_ideal(), loop_mod.carried_effects([], added), 0.25)
+    chain = next(e for e in cfg.effects if e.name == "sensor_dynamics").params
+    # the world's chain is the evidence's (238.1 Hz, zeta 0.040, with_evidence_chain); +-25 %
+    # would be 179-298 Hz: the prior keeps that chain and the recordings' span
+    assert chain["resonance_hz"] == pytest.approx([238.1, 239.68])
+    assert chain["resonance_damping"] == pytest.approx([0.040 * 0.75, 0.0411])
+
+
+def test_a_chains_prior_stays_blanket_without_the_evidences_intervals():
+    entry = _chain_entry(0.0)
+    diag = {
+        "restoring_force": {"per_recording": [{"sensor": {"intervals": {"lowpass_hz": [1, 2]}}}]}
+    }
+    added, _ = loop_mod.with_chain_intervals([dict(entry)], diag)
+    assert "intervals" not in added[0]
+    given = _chain_entry(0.0, source="given")
+    added, _ = loop_mod.with_chain_intervals(
+        [given], {"restoring_force": {"per_recording": _evidence_per_recording()}}
+    )
+    assert "intervals" not in added[0]
