@@ -924,8 +924,9 @@ def with_chain_intervals(
     Measured (docs/measurement_loop.md, "A low-pass at the top of its search"): on the
     independent rig's two-stage campaign behind a 240 Hz ζ 0.04 mount the evidence read
     238.96-239.68 Hz and ζ 0.020-0.041 on its fitted recordings, the fit 240.4 Hz / 0.039;
-    the loop's GBM alone 0.875 / β MAPE 0.059 with the ±25 % prior (180-300 Hz), 0.917 /
-    0.063 with the evidence's (the misses: both β 15, on the class edge)."""
+    the loop's GBM alone (no low-pass, :func:`without_lowpass_at_top`) 0.875 / β MAPE 0.059
+    with the ±25 % prior (180-300 Hz), 0.917 / 0.060 with the evidence's (the misses: both
+    β 15, on the class edge)."""
     per = ((diag or {}).get("restoring_force") or {}).get("per_recording") or []
     read = [((r.get("sensor") or {}).get("intervals") or {}) for r in per]
     measured = {}
