@@ -612,3 +612,90 @@ def test_chain_discrepancy_prefers_the_campaigns_own_chain(two_effects):
     d_own = loop_mod.chain_discrepancy(campaign, _ideal(), own, 0)
     d_bent = loop_mod.chain_discrepancy(campaign, _ideal(), bent, 0)
     assert d_own < 0.5 * d_bent
+
+
+def _chain_entry(lowpass_hz: float, source: str = "diagnosis") -> dict:
+    """A diagnosed sensor chain's loop entry: a 240 Hz mount and a first-order low-pass."""
+    params = {"resonance_hz": 240.0, "resonance_damping": 0.04, "highpass_hz": 0.0,
+              "lowpass_hz": lowpass_hz, "lowpass_order": 1.0}  # fmt: skip
+    return {"name": "sensor_dynamics", "params": params, "source": source,
+            "fitted": ["resonance_hz", "resonance_damping", "lowpass_hz"]}  # fmt: skip
+
+
+def test_a_lowpass_fitted_at_the_top_of_its_search_is_none():
+    """The two-stage rig's chain refit ended at 439 Hz, its search's top 450 Hz (0.45 of the
+    campaign's lowest rate, 1 kHz): the loop's world gets no low-pass, the fit kept aside."""
+    law = {"name": "learned_contact", "params": {"knee": 0.3}, "fitted": ["knee"],
+           "source": "diagnosis"}  # fmt: skip
+    out = loop_mod.without_lowpass_at_top([_chain_entry(439.25), law], 1000.0)
+    assert out[0]["params"]["lowpass_hz"] == 0.0 and out[0]["lowpass_at_top"] == 439.25
+    assert "lowpass_hz" not in out[0]["fitted"] and out[0]["params"]["resonance_hz"] == 240.0
+    assert out[1] == law
+    # no prior around the fit's corner: the world's records are not low-passed
+    cfg = loop_mod._prior_config(_ideal(), out, 0.25)
+    assert next(e for e in cfg.effects if e.name == "sensor_dynamics").params["lowpass_hz"] == 0
+
+
+@pytest.mark.parametrize(
+    ("lowpass_hz", "fs_min", "source"),
+    [(234.0, 1000.0, "diagnosis"),  # power_lp's real 250 Hz low-pass
+     (439.25, 2000.0, "diagnosis"),  # far below a 2 kHz campaign's top (900 Hz)
+     (439.25, 1000.0, "given"),  # the user's chain
+     (0.0, 1000.0, "diagnosis")],  # none to begin with
+)  # fmt: skip
+def test_a_lowpass_inside_its_search_or_given_stays(lowpass_hz, fs_min, source):
+    entry = _chain_entry(lowpass_hz, source)
+    assert loop_mod.without_lowpass_at_top([entry], fs_min) == [entry]
+
+
+def test_the_loops_chain_settings_are_the_shipped_config():
+    shipped = load_config(loop_mod.LoopChainSettings, default_config("loop_chain.yaml"))
+    assert shipped == loop_mod.loop_chain_settings()
+    assert 0.5 < shipped.lowpass_top_fraction < 1.0
+    with pytest.raises(ValueError):
+        loop_mod.LoopChainSettings(lowpass_top_fraction=1.5)
+
+
+def _evidence_per_recording() -> list[dict]:
+    """The restoring-force evidence's recordings on the two-stage rig (240 Hz ζ 0.04 mount):
+    two read the mount with intervals, one a low-pass alone, one nothing."""
+    return [
+        {"sensor": {"intervals": {"resonance_hz": [239.00, 239.68],
+                                  "resonance_damping": [0.0199, 0.0306],
+                                  "lowpass_hz": [179.2, 201.4]}}},
+        {"sensor": {"intervals": {"lowpass_hz": [168.3, 195.7]}}},
+        {"sensor": {"intervals": {"resonance_hz": [238.96, 239.33],
+                                  "resonance_damping": [0.0392, 0.0411]}}},
+        {"sensor": None},
+    ]  # fmt: skip
+
+
+def test_a_chains_prior_is_no_wider_than_the_evidence_reads_its_mount(monkeypatch):
+    diag = _two_stage_diagnosis(per_recording=_evidence_per_recording())
+    monkeypatch.setattr(loop_mod, "chain_discrepancy", _rig_discrepancy)
+    state = {"iterations": [{"effects": [], "model": ""}], "seed": 0}
+    added, _ = loop_mod._next_effects(None, state, _ideal(), (diag, []), None, False)
+    sensor = next(a for a in added if a["name"] == "sensor_dynamics")
+    # the union of the recordings' intervals, the mount only (not the low-pass they bend)
+    assert sensor["intervals"] == {"resonance_hz": [238.96, 239.68],
+                                   "resonance_damping": [0.0199, 0.0411]}  # fmt: skip
+    cfg = loop_mod._prior_config(_ideal(), loop_mod.carried_effects([], added), 0.25)
+    chain = next(e for e in cfg.effects if e.name == "sensor_dynamics").params
+    # the world's chain is the evidence's (238.1 Hz, zeta 0.040, with_evidence_chain); +-25 %
+    # would be 179-298 Hz: the prior keeps that chain and the recordings' span
+    assert chain["resonance_hz"] == pytest.approx([238.1, 239.68])
+    assert chain["resonance_damping"] == pytest.approx([0.040 * 0.75, 0.0411])
+
+
+def test_a_chains_prior_stays_blanket_without_the_evidences_intervals():
+    entry = _chain_entry(0.0)
+    diag = {
+        "restoring_force": {"per_recording": [{"sensor": {"intervals": {"lowpass_hz": [1, 2]}}}]}
+    }
+    added, _ = loop_mod.with_chain_intervals([dict(entry)], diag)
+    assert "intervals" not in added[0]
+    given = _chain_entry(0.0, source="given")
+    added, _ = loop_mod.with_chain_intervals(
+        [given], {"restoring_force": {"per_recording": _evidence_per_recording()}}
+    )
+    assert "intervals" not in added[0]
