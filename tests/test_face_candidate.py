@@ -48,6 +48,15 @@ def test_a_face_is_in_question_only_where_the_maps_see_dynamics_and_refuse_it():
     assert not face_in_question(_law(0.71, refused, new=("hinge",)))
 
 
+def test_a_light_stiff_tip_the_maps_read_as_a_softer_spring_is_in_question():
+    """The rig's tip of 0.3 m at 15 f_n behind a 2 Hz high-pass: the linear spring explains
+    90.1 % of the force, its refused scaled face 90.7 %: the simulation decides."""
+    refused = {"term": "face_scaled", "entered": False, "explained_fraction": 0.9065}
+    assert face_in_question(_law(0.9010, refused))
+    assert face_in_question(_law(0.94, {**refused, "term": "face", "explained_fraction": 0.945}))
+    assert not face_in_question(_law(0.9010, {**refused, "term": "hinge"}))
+
+
 def test_the_grid_spans_masses_and_frequencies_above_the_fastest_contact():
     """Each point rings at its multiple of sqrt(1 + max beta) (4 significant digits)."""
     grid = face_grid([4.0, 5.0, 8.0])
