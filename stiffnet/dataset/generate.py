@@ -311,9 +311,12 @@ def lead_samples(sim: Simulator, plan: TrajectoryPlan) -> np.ndarray:
     transient is not in the windows; none at the logger's rate.
 
     The chain's filters start in the steady state for a constant input equal to the first
-    sample: a charge amplifier's high-pass then takes that sample (up to a spike's height) for
-    a DC level and subtracts it, decaying over ``1 / w_h`` (0.5 s at 0.3 Hz), where the
-    hardware had been running for long and the diagnosis's simulations drop a lead-in."""
+    sample: a charge amplifier's high-pass then takes that sample for a DC level and subtracts
+    it, decaying over ``1 / w_h`` (0.5 s at 0.3 Hz), where the hardware had been running and
+    the diagnosis's simulations drop a lead-in. Measured on the independent rig's
+    Hunt-Crossley campaign (a 0.23-0.38 Hz high-pass in the world, 3 s lead-in): the loop's
+    GBM read the campaign the same with it or without (0.833 / beta MAPE 0.074 and 0.075),
+    at 168 CPU s for the dataset instead of 119; without a high-pass the lead-in is 0.1 s."""
     if sim.settings.oversampled == 1:
         return np.zeros(len(plan), dtype=np.int64)
     from stiffnet.campaign.simulate import LONGEST_COMPARISON_LEAD_IN_S, lead_in_seconds
