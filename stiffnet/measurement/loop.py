@@ -798,7 +798,7 @@ def run_loop(
                     )
                     # a chain's low-pass fitted where its search ends is none
                     added = without_lowpass_at_top(added, min(r.fs_hz for r in campaign.rows))
-                    # and a high-pass no recording's force-state map reads is none
+                    # and, where configs/loop_chain.yaml says so, a high-pass no map reads
                     added = without_unread_highpass(added, diag_result)
                     diagnosis, add_effects = None, None  # the first new iteration only
                     if _stop_when_nothing_new(state, k, added, diag_result):
@@ -1046,8 +1046,8 @@ class LoopChainSettings(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     lowpass_top_fraction: float = Field(0.9, gt=0.0, le=1.0)
-    analog_world: bool = True
-    highpass_from_evidence: bool = True
+    analog_world: bool = False
+    highpass_from_evidence: bool = False
 
 
 def loop_chain_settings() -> LoopChainSettings:
