@@ -277,3 +277,55 @@ def test_shared_batches_refuse_a_measurement_chain_that_draws_by_the_signal(monk
     monkeypatch.setattr(Simulator, "measure", drawing_by_value)
     with pytest.raises(StiffnetError, match="drew by the signal's values"):
         _shared_and_alone([])
+
+
+def _analog_world(oversampled: int) -> SimulationConfig:
+    """A quiet world logged at 113.8 Hz (f_n 9.48 Hz, 12 x f_n) behind a lightly damped 60 Hz
+    mount: at the logger's rate the stage lies above 0.45 fs and is skipped."""
+    chain = {"resonance_hz": 60.0, "resonance_damping": 0.02, "highpass_hz": 0.0,
+             "lowpass_hz": 0.0}  # fmt: skip
+    effects = [{"name": "sensor_dynamics", "probability": 1.0, "params": chain}]
+    return small_config(
+        n_trajectories=4, shard_size=4,
+        sweep={"fs_ratio": [12.0, 12.0], "noise": [0.0, 0.0], "gap": [0.3, 0.5]},
+        windows={"duration_periods": 16, "per_trajectory": 2},
+        effects=effects,
+        solver={"settle_tolerance": 0.1, "batch_size": 4, "oversampled": oversampled},
+    )  # fmt: skip
+
+
+def test_an_oversampled_world_samples_its_analog_chain_output():
+    # the hardware filters the continuous motion and the logger samples its output, the chain
+    # running long before the record: the world's records approach that (the chain run 32
+    # times faster than the logger, as long before) when it is oversampled, not when the
+    # chain runs on the logger's samples
+    from stiffnet.dataset.generate import build_simulator, lead_samples, shard_rng
+    from stiffnet.dataset.sampling import sample_plan
+
+    def accel(cfg):
+        return np.stack(simulate_shard(cfg, 0, 4).column("accel").to_pylist())
+
+    cfg = _analog_world(1)
+    rng = shard_rng(cfg.seed, 0)
+    plan = sample_plan(cfg, 4, rng)
+    sim = build_simulator(cfg)
+    draws = sim.draw_inputs(plan.batch, rng)
+    w = int(plan.window_samples[0])
+    lead = int(lead_samples(build_simulator(_analog_world(8)), plan)[0])
+    assert lead > 0
+    fine = sim.motion_of(plan.batch, plan.fs_ratio * 32, (lead + 2 * w) * 32, draws).accel
+    analog = sim.measure(fine, plan.batch, plan.fs_ratio * 32, np.zeros(4), draws, rng)
+    analog = analog[:, lead * 32 :: 32].reshape(8, w)  # two windows a trajectory, in order
+    scale = np.sqrt(np.mean(analog**2))
+    logger, oversampled = (np.sqrt(np.mean((accel(_analog_world(k)) - analog) ** 2)) / scale
+                           for k in (1, 8))  # fmt: skip
+    assert oversampled < 0.1 * logger
+    assert oversampled < 0.05
+    # in shared batches (operating points together) each shard is still the shard alone
+    from stiffnet.dataset.generate import simulate_shards
+
+    world = _analog_world(8)
+    other = world.model_copy(update={"sweep": world.sweep.model_copy(update={"gap": [1.0, 1.2]})})
+    shared = simulate_shards([world, other], [0, 1])
+    for shard, (c, t) in enumerate(zip((world, other), shared, strict=True)):
+        assert t.equals(simulate_shard(c, shard, c.n_trajectories))

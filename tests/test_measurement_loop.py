@@ -648,6 +648,62 @@ def test_a_lowpass_inside_its_search_or_given_stays(lowpass_hz, fs_min, source):
     assert loop_mod.without_lowpass_at_top([entry], fs_min) == [entry]
 
 
+def test_a_world_behind_an_analog_chain_is_simulated_as_the_diagnosis_fitted_it():
+    """The diagnosis fits a chain on the motion filtered at 8x the logger's rate, then sampled
+    (campaign.simulate.oversampling): switched on, the loop's world with that chain is
+    oversampled alike; a world with no chain, or the setting off, stays at the logger's rate."""
+    chained = loop_mod._prior_config(_ideal(), [_chain_entry(0.0)], 0.25)
+    assert loop_mod.with_analog_chain(chained, on=True).solver.oversampled == 8
+    assert loop_mod.with_analog_chain(chained, on=False) == chained
+    assert loop_mod.with_analog_chain(_ideal(), on=True) == _ideal()
+    # off as shipped: it cost the rig's two-stage campaign two recordings at both seeds
+    assert not loop_mod.loop_chain_settings().analog_world
+    assert loop_mod.with_analog_chain(chained) == chained
+
+
+def _hp_chain_entry(source: str = "diagnosis") -> dict:
+    """The Hunt-Crossley rig's chain refitted with the learned law (260 Hz mount, no
+    high-pass on the rig): 257.2 Hz, zeta 0.054, a 0.306 Hz high-pass."""
+    params = {"resonance_hz": 257.2, "resonance_damping": 0.054, "highpass_hz": 0.306,
+              "lowpass_hz": 0.0, "lowpass_order": 1.0}  # fmt: skip
+    return {"name": "sensor_dynamics", "params": params, "source": source,
+            "fitted": ["resonance_hz", "resonance_damping", "highpass_hz"]}  # fmt: skip
+
+
+def _pooled(highpass_hz: float | None) -> dict:
+    """A diagnosis whose restoring-force evidence pooled the mount and, or not, a high-pass."""
+    return {"restoring_force": {"sensor": {"n": 24, "resonance_hz": 258.8,
+                                           "resonance_damping": 0.054,
+                                           "highpass_hz": highpass_hz}}}  # fmt: skip
+
+
+def test_a_highpass_no_recordings_map_reads_is_none():
+    """The fit's 0.306 Hz high-pass, read on none of the 24 maps: switched on, the world has
+    none (it made the loop's GBM read beta 7 % low), the fit kept aside; the mount and the law
+    stay."""
+    law = {"name": "learned_contact", "params": {"hunt_crossley": 0.49},
+           "fitted": ["hunt_crossley"], "source": "diagnosis"}  # fmt: skip
+    out = loop_mod.without_unread_highpass([_hp_chain_entry(), law], _pooled(None), on=True)
+    assert out[0]["params"]["highpass_hz"] == 0.0 and out[0]["highpass_unread"] == 0.306
+    assert "highpass_hz" not in out[0]["fitted"] and out[0]["params"]["resonance_hz"] == 257.2
+    assert out[1] == law
+    cfg = loop_mod._prior_config(_ideal(), out, 0.25)
+    assert next(e for e in cfg.effects if e.name == "sensor_dynamics").params["highpass_hz"] == 0
+
+
+@pytest.mark.parametrize(
+    ("entry", "diag", "on"),
+    [(_hp_chain_entry(), _pooled(0.31), True),  # the maps read it: it stays
+     (_hp_chain_entry(), {"restoring_force": {"sensor": None}}, True),  # no evidence
+     (_hp_chain_entry(), None, True),
+     (_hp_chain_entry("given"), _pooled(None), True),  # the user's chain
+     (_hp_chain_entry(), _pooled(None), False),  # the setting off
+     (_hp_chain_entry(), _pooled(None), None)],  # off as shipped (it cost power_lp 2 of 24)
+)  # fmt: skip
+def test_a_highpass_the_evidence_reads_or_given_stays(entry, diag, on):
+    assert loop_mod.without_unread_highpass([entry], diag, on) == [entry]
+
+
 def test_the_loops_chain_settings_are_the_shipped_config():
     shipped = load_config(loop_mod.LoopChainSettings, default_config("loop_chain.yaml"))
     assert shipped == loop_mod.loop_chain_settings()
