@@ -203,6 +203,9 @@ FAST_CHAIN_CONTACT_MIN_R2 = 0.995
 #: the free flight's force scatter) at or below which a map read with no chain undone shows a
 #: low-pass ringing after the release (:func:`release_ring`; see the YAML).
 RELEASE_RING_MAX_SIDE = -6.0
+#: An undone low-pass's corner over the chain fit's contact frequency below which the map's
+#: within-impact curvature is not read as the law's (:func:`lowpass_near_contact`; see the YAML).
+CURVATURE_MIN_LOWPASS_OVER_CONTACT = 1.5
 #: The shipped thresholds (``configs/alarm/unseen_law.yaml``), relative to the package.
 THRESHOLDS_CONFIG = "alarm/unseen_law.yaml"
 
@@ -243,6 +246,7 @@ class UnseenLawThresholds(BaseModel):
     fast_chain_contact_min_ratio: float = FAST_CHAIN_CONTACT_MIN_RATIO
     fast_chain_contact_min_r2: float = FAST_CHAIN_CONTACT_MIN_R2
     release_ring_max_side: float = RELEASE_RING_MAX_SIDE
+    curvature_min_lowpass_over_contact: float = CURVATURE_MIN_LOWPASS_OVER_CONTACT
     #: Whether the exponent counts on a map read through a sensor chain the cross-check left
     #: on it (:func:`chain_left_on_exponent`); false: it is no reading of the law.
     exponent_through_left_chain: bool = False
@@ -479,6 +483,33 @@ def release_ring(restoring_force: dict[str, Any] | None, t: UnseenLawThresholds)
     )
 
 
+def lowpass_near_contact(
+    restoring_force: dict[str, Any] | None, t: UnseenLawThresholds
+) -> str | None:
+    """Rule: a map read through an undone low-pass whose corner lies within
+    ``curvature_min_lowpass_over_contact`` times the contact pulse's frequency (the chain
+    fit's ``sensor.contact_hz``), where the within-impact curvature is the inverse's, not the
+    law's (None: read it).
+
+    Undoing a low-pass near the contact's band amplifies what the fitted corner, the
+    sampling and the noise leave of the pulse's top, and that bends a linear law's loading
+    branch as stiffening does: a linear contact behind a 90 Hz 2nd-order low-pass at 1 kHz
+    reads curvature gains of 0.28-0.37 through the chain pooled over the campaign and through
+    its true corner alike, on contacts at 0.67-1.03 times the corner (see the YAML).
+    """
+    sensor = (restoring_force or {}).get("sensor") or {}
+    corner, contact = sensor.get("lowpass_hz"), sensor.get("contact_hz")
+    if not sensor.get("applied") or not corner or not contact:
+        return None
+    if not float(corner) < t.curvature_min_lowpass_over_contact * float(contact):
+        return None
+    return (
+        f"the sensor chain's {float(corner):.0f} Hz low-pass was undone within "
+        f"{t.curvature_min_lowpass_over_contact:g} times the contact's {float(contact):.0f} Hz: "
+        "its inverse bends the map within each impact as a stiffening law does"
+    )
+
+
 def impact_onset_gain(r2: float, linear_r2: float) -> float:
     """Share of the linear law's misfit (the same onsets free) the exponent removes."""
     return 1.0 - (1.0 - r2) / max(1.0 - linear_r2, 1e-12)
@@ -501,7 +532,9 @@ def stiffening_reasons(restoring_force: dict[str, Any], t: UnseenLawThresholds) 
     shape = restoring_force.get("law_shape")
     r2 = restoring_force.get("contact_r2")
     stages = stage_reasons(shape, t) or power_law_stage_reasons(shape, reading, t)
-    if t.exponent_through_left_chain or not release_ring(restoring_force, t):
+    if t.exponent_through_left_chain or not (
+        release_ring(restoring_force, t) or lowpass_near_contact(restoring_force, t)
+    ):
         reasons += curvature_reasons(shape, t)  # a ringing low-pass bends it as it does p
     reasons += stages
     return (
